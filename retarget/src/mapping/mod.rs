@@ -1,0 +1,16 @@
+//! Bone mapping: which source bone(s) drive each target bone.
+//!
+//! ```text
+//!   (source Skeleton, target Skeleton, options, overrides)
+//!        │  automatic mapping (analysis + weighted metrics)    [issue: automatic mapping]
+//!        ▼
+//!   MappingTable: per target bone → source bone(s) with weights and per-bone options
+//! ```
+//!
+//! [`MappingTable`] is plain data: it is what mapping files and the on-disk cache store and what
+//! clients display and edit. Turning a table into something that retargets poses every frame
+//! (rest alignment precomputed) is the retargeting stage's job.
+
+mod table;
+
+pub use table::{BoneOptions, MappingTable, SourceRef, TargetEntry};
