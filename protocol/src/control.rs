@@ -1,0 +1,443 @@
+//! JSON control messages exchanged over the WebSocket as text frames.
+//!
+//! Every message is an object with a `"type"` tag in `snake_case`. Server → client messages are
+//! [`ServerMessage`]; client → server requests are [`ClientMessage`]. Use
+//! [`parse_client_message`] on incoming text: it tells apart "not JSON", "unknown type" and
+//! "known type with bad fields", so the server can answer with a precise [`ErrorCode`] instead of
+//! dropping the connection.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Whether a subject is a raw source or a target retargeted from a source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SubjectKind {
+    /// Poses as produced by an input (file replay, VMC, …) on its own skeleton.
+    Source,
+    /// Poses retargeted onto a character skeleton from another subject.
+    Target,
+}
+
+/// One streamed subject (a skeleton with a pose stream), as listed in `hello`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubjectInfo {
+    /// Subject id, used in `subscribe` and in binary frame headers.
+    pub id: u32,
+    /// Human-readable name.
+    pub name: String,
+    /// Source or target.
+    pub kind: SubjectKind,
+    /// For targets: the subject they are retargeted from. `null` for sources.
+    pub source: Option<u32>,
+    /// Bones per frame (binary frames of this subject carry exactly this many rotations).
+    pub num_bones: u32,
+    /// Skeleton fingerprint, 16 lowercase hex digits; changes whenever the skeleton does.
+    pub fingerprint: String,
+}
+
+/// One bone of a `skeleton` message, in the skeleton's depth-first order (`parent < index`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BoneInfo {
+    /// Unique bone name.
+    pub name: String,
+    /// Index of the parent bone in the same list; `null` for a root.
+    pub parent: Option<u32>,
+    /// Rest local translation `[x, y, z]`, metres, internal space.
+    pub rest_translation: [f32; 3],
+    /// Rest local rotation `[x, y, z, w]`, internal space.
+    pub rest_rotation: [f32; 4],
+}
+
+/// One target bone of a `mapping` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MappingEntry {
+    /// Target bone name.
+    pub target: String,
+    /// Source bone it follows, or `null` when unmapped.
+    pub source: Option<String>,
+    /// Match confidence, 0..1.
+    pub score: f32,
+    /// Display colour (RGB 0..1) from a gradient along the skeleton, shared by both sides.
+    pub color_gradient: [f32; 3],
+    /// Display colour (RGB 0..1), random but stable per pair, easier to tell apart.
+    pub color_random: [f32; 3],
+}
+
+/// Machine-readable reason in an `error` message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorCode {
+    /// The text is not valid JSON.
+    BadJson,
+    /// Valid JSON but not an object with a string `type`.
+    MissingType,
+    /// The `type` is not a known client message.
+    UnknownType,
+    /// Known `type`, but fields are missing or have the wrong type.
+    InvalidFields,
+    /// The client sent a binary WebSocket message; clients only send JSON text.
+    BinaryNotAccepted,
+    /// The message is larger than the server accepts.
+    MessageTooLarge,
+    /// A subject id that does not exist.
+    UnknownSubject,
+    /// The request is valid but not supported for this subject.
+    Unsupported,
+    /// Something went wrong on the server.
+    Internal,
+}
+
+impl ErrorCode {
+    /// The `snake_case` wire name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ErrorCode::BadJson => "bad_json",
+            ErrorCode::MissingType => "missing_type",
+            ErrorCode::UnknownType => "unknown_type",
+            ErrorCode::InvalidFields => "invalid_fields",
+            ErrorCode::BinaryNotAccepted => "binary_not_accepted",
+            ErrorCode::MessageTooLarge => "message_too_large",
+            ErrorCode::UnknownSubject => "unknown_subject",
+            ErrorCode::Unsupported => "unsupported",
+            ErrorCode::Internal => "internal",
+        }
+    }
+}
+
+/// Messages the server sends as WebSocket text.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ServerMessage {
+    /// First message on every connection.
+    Hello {
+        /// [`crate::PROTOCOL_VERSION`].
+        protocol_version: u16,
+        /// The server's crate version.
+        server_version: String,
+        /// Output tick rate: frames per second per subject.
+        tick_hz: f64,
+        /// The subjects being streamed.
+        subjects: Vec<SubjectInfo>,
+    },
+    /// A subject's skeleton; sent before that subject's first binary frame and whenever it
+    /// changes (the fingerprint tells).
+    Skeleton {
+        /// Subject id.
+        subject: u32,
+        /// Subject name.
+        name: String,
+        /// Skeleton fingerprint (16 hex digits).
+        fingerprint: String,
+        /// Bones in depth-first order; frame rotation `i` belongs to bone `i`.
+        bones: Vec<BoneInfo>,
+    },
+    /// The bone mapping of a target subject.
+    Mapping {
+        /// Target subject id.
+        subject: u32,
+        /// Source subject it is retargeted from.
+        source_subject: u32,
+        /// One entry per target bone.
+        entries: Vec<MappingEntry>,
+    },
+    /// The client fell behind and frames were dropped for it; it stays connected.
+    Lagged {
+        /// Frames dropped since the last `lagged` message.
+        missed: u64,
+    },
+    /// Answer to `ping`.
+    Pong {
+        /// The nonce from the ping.
+        nonce: u64,
+        /// Server wall clock, nanoseconds since the Unix epoch.
+        server_nanos: u64,
+    },
+    /// A request could not be handled. The connection stays open.
+    Error {
+        /// Machine-readable reason.
+        code: ErrorCode,
+        /// Human-readable details.
+        message: String,
+    },
+    /// The subject list changed; same payload as `hello.subjects`.
+    SubjectsChanged {
+        /// The current subjects.
+        subjects: Vec<SubjectInfo>,
+    },
+    /// A request was accepted (currently only `set_mapping`).
+    Ack {
+        /// The `type` of the request acknowledged.
+        request: String,
+        /// The subject it concerned.
+        subject: u32,
+    },
+}
+
+/// Messages a client sends as WebSocket text.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ClientMessage {
+    /// Choose which subjects' frames to receive. `null` means all (the default).
+    Subscribe {
+        /// Subject ids, or `null` for all.
+        subjects: Option<Vec<u32>>,
+    },
+    /// Round-trip probe; answered by `pong` with the same nonce.
+    Ping {
+        /// Any number; echoed back.
+        nonce: u64,
+    },
+    /// Override parts of a target's bone mapping: target bone → source bone (`null` = unmap).
+    SetMapping {
+        /// Target subject id.
+        subject: u32,
+        /// Overrides by target bone name.
+        overrides: BTreeMap<String, Option<String>>,
+    },
+}
+
+/// The `type` tags [`ClientMessage`] understands.
+pub const CLIENT_MESSAGE_TYPES: [&str; 3] = ["subscribe", "ping", "set_mapping"];
+
+/// Why an incoming client text message was rejected.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("{}: {message}", code.as_str())]
+pub struct ParseError {
+    /// Classification for the `error` reply.
+    pub code: ErrorCode,
+    /// Details (serde's message, with line/column where it has them).
+    pub message: String,
+}
+
+/// Parses a client text message, classifying failures (see [`ErrorCode`]).
+pub fn parse_client_message(text: &str) -> Result<ClientMessage, ParseError> {
+    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| ParseError {
+        code: ErrorCode::BadJson,
+        message: format!("not valid JSON: {e}"),
+    })?;
+    let Some(kind) = value.get("type").and_then(|t| t.as_str()) else {
+        return Err(ParseError {
+            code: ErrorCode::MissingType,
+            message: "expected a JSON object with a string field \"type\"".into(),
+        });
+    };
+    if !CLIENT_MESSAGE_TYPES.contains(&kind) {
+        return Err(ParseError {
+            code: ErrorCode::UnknownType,
+            message: format!(
+                "unknown message type {kind:?}; expected one of {}",
+                CLIENT_MESSAGE_TYPES.join(", ")
+            ),
+        });
+    }
+    let kind = kind.to_string();
+    serde_json::from_value(value).map_err(|e| ParseError {
+        code: ErrorCode::InvalidFields,
+        message: format!("bad fields in {kind:?} message: {e}"),
+    })
+}
+
+impl ServerMessage {
+    /// Serialises to JSON text. Serialising these plain structs cannot fail; should it ever,
+    /// an `error` message is returned rather than panicking.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_else(|e| {
+            format!(r#"{{"type":"error","code":"internal","message":"serialisation failed: {e}"}}"#)
+        })
+    }
+
+    /// Shorthand for an `error` message.
+    pub fn error(code: ErrorCode, message: impl Into<String>) -> ServerMessage {
+        ServerMessage::Error {
+            code,
+            message: message.into(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn subjects() -> Vec<SubjectInfo> {
+        vec![
+            SubjectInfo {
+                id: 0,
+                name: "walk".into(),
+                kind: SubjectKind::Source,
+                source: None,
+                num_bones: 31,
+                fingerprint: "0123456789abcdef".into(),
+            },
+            SubjectInfo {
+                id: 1,
+                name: "robot".into(),
+                kind: SubjectKind::Target,
+                source: Some(0),
+                num_bones: 12,
+                fingerprint: "fedcba9876543210".into(),
+            },
+        ]
+    }
+
+    fn all_server_messages() -> Vec<ServerMessage> {
+        vec![
+            ServerMessage::Hello {
+                protocol_version: 1,
+                server_version: "0.1.0".into(),
+                tick_hz: 60.0,
+                subjects: subjects(),
+            },
+            ServerMessage::Skeleton {
+                subject: 0,
+                name: "walk".into(),
+                fingerprint: "0123456789abcdef".into(),
+                bones: vec![
+                    BoneInfo {
+                        name: "Hips".into(),
+                        parent: None,
+                        rest_translation: [0.0, 1.0, 0.0],
+                        rest_rotation: [0.0, 0.0, 0.0, 1.0],
+                    },
+                    BoneInfo {
+                        name: "Spine".into(),
+                        parent: Some(0),
+                        rest_translation: [0.0, 0.1, 0.0],
+                        rest_rotation: [0.0, 0.0, 0.5f32.sqrt(), 0.5f32.sqrt()],
+                    },
+                ],
+            },
+            ServerMessage::Mapping {
+                subject: 1,
+                source_subject: 0,
+                entries: vec![
+                    MappingEntry {
+                        target: "body".into(),
+                        source: Some("Hips".into()),
+                        score: 0.9,
+                        color_gradient: [1.0, 0.0, 0.0],
+                        color_random: [0.2, 0.4, 0.6],
+                    },
+                    MappingEntry {
+                        target: "antenna".into(),
+                        source: None,
+                        score: 0.0,
+                        color_gradient: [0.5, 0.5, 0.5],
+                        color_random: [0.5, 0.5, 0.5],
+                    },
+                ],
+            },
+            ServerMessage::Lagged { missed: 42 },
+            ServerMessage::Pong {
+                nonce: u64::MAX,
+                server_nanos: 1_700_000_000_000_000_000,
+            },
+            ServerMessage::error(ErrorCode::UnknownType, "nope"),
+            ServerMessage::SubjectsChanged {
+                subjects: subjects(),
+            },
+            ServerMessage::Ack {
+                request: "set_mapping".into(),
+                subject: 1,
+            },
+        ]
+    }
+
+    #[test]
+    fn server_messages_round_trip() {
+        for m in all_server_messages() {
+            let json = m.to_json();
+            let back: ServerMessage = serde_json::from_str(&json).unwrap();
+            assert_eq!(back, m, "{json}");
+        }
+    }
+
+    #[test]
+    fn server_messages_have_documented_shape() {
+        let hello = serde_json::to_value(&all_server_messages()[0]).unwrap();
+        assert_eq!(hello["type"], "hello");
+        assert_eq!(hello["protocol_version"], 1);
+        assert_eq!(hello["subjects"][0]["kind"], "source");
+        assert!(hello["subjects"][0]["source"].is_null());
+        assert_eq!(hello["subjects"][1]["kind"], "target");
+        assert_eq!(hello["subjects"][1]["source"], 0);
+        let skel = serde_json::to_value(&all_server_messages()[1]).unwrap();
+        assert!(skel["bones"][0]["parent"].is_null());
+        assert_eq!(
+            skel["bones"][1]["rest_translation"][1].as_f64(),
+            Some(0.1f32 as f64)
+        );
+        let err = serde_json::to_value(&all_server_messages()[5]).unwrap();
+        assert_eq!(err["type"], "error");
+        assert_eq!(err["code"], "unknown_type");
+        let changed = serde_json::to_value(&all_server_messages()[6]).unwrap();
+        assert_eq!(changed["type"], "subjects_changed");
+    }
+
+    #[test]
+    fn client_messages_round_trip() {
+        let mut overrides = BTreeMap::new();
+        overrides.insert("arm".to_string(), Some("LeftArm".to_string()));
+        overrides.insert("tail".to_string(), None);
+        for m in [
+            ClientMessage::Subscribe { subjects: None },
+            ClientMessage::Subscribe {
+                subjects: Some(vec![0, 3]),
+            },
+            ClientMessage::Ping { nonce: 7 },
+            ClientMessage::SetMapping {
+                subject: 1,
+                overrides,
+            },
+        ] {
+            let json = serde_json::to_string(&m).unwrap();
+            assert_eq!(parse_client_message(&json).unwrap(), m, "{json}");
+        }
+    }
+
+    #[test]
+    fn parses_documented_examples() {
+        assert_eq!(
+            parse_client_message(r#"{"type":"subscribe","subjects":null}"#).unwrap(),
+            ClientMessage::Subscribe { subjects: None }
+        );
+        assert_eq!(
+            parse_client_message(r#"{"type":"subscribe","subjects":[2]}"#).unwrap(),
+            ClientMessage::Subscribe {
+                subjects: Some(vec![2])
+            }
+        );
+        assert_eq!(
+            parse_client_message(r#"{"type":"ping","nonce":5,"extra":true}"#).unwrap(),
+            ClientMessage::Ping { nonce: 5 }
+        );
+    }
+
+    #[test]
+    fn classifies_bad_input() {
+        let code = |s: &str| parse_client_message(s).unwrap_err().code;
+        assert_eq!(code("{not json"), ErrorCode::BadJson);
+        assert_eq!(code(""), ErrorCode::BadJson);
+        assert_eq!(code("[1,2]"), ErrorCode::MissingType);
+        assert_eq!(code(r#"{"type":3}"#), ErrorCode::MissingType);
+        assert_eq!(code(r#"{"type":"dance"}"#), ErrorCode::UnknownType);
+        assert_eq!(code(r#"{"type":"ping"}"#), ErrorCode::InvalidFields);
+        assert_eq!(
+            code(r#"{"type":"ping","nonce":"x"}"#),
+            ErrorCode::InvalidFields
+        );
+        assert_eq!(
+            code(r#"{"type":"ping","nonce":-1}"#),
+            ErrorCode::InvalidFields
+        );
+        assert_eq!(
+            code(r#"{"type":"subscribe","subjects":"all"}"#),
+            ErrorCode::InvalidFields
+        );
+        let e = parse_client_message(r#"{"type":"ping"}"#).unwrap_err();
+        assert!(e.message.contains("nonce"), "{}", e.message);
+    }
+}

@@ -1,0 +1,182 @@
+//! Coordinate conversions between the internal space and external tools' spaces.
+//!
+//! * Internal: right-handed, +Y up, metres (same as glTF).
+//! * Unity / VMC: left-handed, +Y up, metres. The two differ by a mirror of the Z axis, so
+//!   positions map by negating z. A rotation `R` becomes `M R M` (M = diag(1, 1, -1)): the
+//!   mirrored axis with the opposite angle, which in quaternion form is `(x, y, -z, -w)`
+//!   (equivalently `(-x, -y, z, w)`: `q` and `-q` are the same rotation).
+//! * Blender: right-handed, +Z up, metres. The two differ by a proper rotation of +90° about X
+//!   (internal +Y → Blender +Z, internal +Z → Blender -Y), the same mapping Blender's glTF
+//!   importer uses, so a character facing internal +Z faces Blender's front (-Y). Positions map
+//!   `(x, y, z) → (x, -z, y)` and a quaternion's vector part maps the same way, `w` unchanged.
+//!   Blender's `mathutils.Quaternion` takes `(w, x, y, z)`: see [`blender_wxyz`].
+//!
+//! Each conversion has one function per direction, proven by round-trip tests and by tests
+//! against independently computed rotations.
+
+use glam::{Quat, Vec3};
+
+/// Internal position → Unity position.
+#[inline]
+pub fn unity_from_internal_position(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, p.y, -p.z)
+}
+
+/// Unity position → internal position.
+#[inline]
+pub fn internal_from_unity_position(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, p.y, -p.z)
+}
+
+/// Internal rotation → Unity rotation (`(x, y, -z, -w)`).
+#[inline]
+pub fn unity_from_internal_rotation(q: Quat) -> Quat {
+    Quat::from_xyzw(q.x, q.y, -q.z, -q.w)
+}
+
+/// Unity rotation → internal rotation (the mirror is its own inverse).
+#[inline]
+pub fn internal_from_unity_rotation(q: Quat) -> Quat {
+    Quat::from_xyzw(q.x, q.y, -q.z, -q.w)
+}
+
+/// Internal position → Blender position.
+#[inline]
+pub fn blender_from_internal_position(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, -p.z, p.y)
+}
+
+/// Blender position → internal position.
+#[inline]
+pub fn internal_from_blender_position(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, p.z, -p.y)
+}
+
+/// Internal rotation → Blender rotation (a glam quaternion in Blender's axes).
+#[inline]
+pub fn blender_from_internal_rotation(q: Quat) -> Quat {
+    Quat::from_xyzw(q.x, -q.z, q.y, q.w)
+}
+
+/// Blender rotation → internal rotation.
+#[inline]
+pub fn internal_from_blender_rotation(q: Quat) -> Quat {
+    Quat::from_xyzw(q.x, q.z, -q.y, q.w)
+}
+
+/// A quaternion in `mathutils.Quaternion` component order `(w, x, y, z)`.
+#[inline]
+pub fn blender_wxyz(q: Quat) -> [f32; 4] {
+    [q.w, q.x, q.y, q.z]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::FRAC_PI_2;
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    fn sample_rotations() -> Vec<Quat> {
+        vec![
+            Quat::IDENTITY,
+            Quat::from_rotation_x(FRAC_PI_2),
+            Quat::from_rotation_y(0.7),
+            Quat::from_rotation_z(-1.3),
+            Quat::from_axis_angle(Vec3::new(1.0, 2.0, -0.5).normalize_or_zero(), 2.2),
+        ]
+    }
+
+    fn sample_points() -> Vec<Vec3> {
+        vec![Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -1.2, 2.5)]
+    }
+
+    #[test]
+    fn unity_round_trip() {
+        for q in sample_rotations() {
+            assert_eq!(
+                internal_from_unity_rotation(unity_from_internal_rotation(q)),
+                q
+            );
+        }
+        for p in sample_points() {
+            assert_eq!(
+                internal_from_unity_position(unity_from_internal_position(p)),
+                p
+            );
+        }
+    }
+
+    #[test]
+    fn blender_round_trip() {
+        for q in sample_rotations() {
+            let back = internal_from_blender_rotation(blender_from_internal_rotation(q));
+            assert!((back - q).length() < 1e-7);
+        }
+        for p in sample_points() {
+            assert_eq!(
+                internal_from_blender_position(blender_from_internal_position(p)),
+                p
+            );
+        }
+    }
+
+    /// Rotating in our space then mirroring must equal mirroring then rotating in Unity space.
+    /// Unity's rotation is applied with the same quaternion formula (`q v q*`): what differs
+    /// between the engines is only the handedness of the axes the numbers refer to.
+    #[test]
+    fn unity_rotation_commutes_with_mirror() {
+        for q in sample_rotations() {
+            let qu = unity_from_internal_rotation(q);
+            for p in sample_points() {
+                let ours_then_mirror = unity_from_internal_position(q * p);
+                let mirror_then_unity = qu * unity_from_internal_position(p);
+                assert!(close(ours_then_mirror, mirror_then_unity), "{q:?} {p:?}");
+            }
+        }
+    }
+
+    /// A known case worked by hand: +90° about +X in our right-handed space takes +Y to +Z.
+    /// In Unity that motion takes +Y to -Z (the mirrored +Z), which in Unity's left-handed
+    /// convention is a rotation of -90° about +X: quaternion (-sin 45°, 0, 0, cos 45°).
+    #[test]
+    fn known_rotation_maps_to_expected_unity_rotation() {
+        let ours = Quat::from_rotation_x(FRAC_PI_2);
+        assert!(close(ours * Vec3::Y, Vec3::Z));
+        let unity = unity_from_internal_rotation(ours);
+        let s = std::f32::consts::FRAC_1_SQRT_2;
+        let expected = Quat::from_xyzw(-s, 0.0, 0.0, s);
+        // q and -q are the same rotation.
+        assert!(unity.dot(expected).abs() > 1.0 - 1e-6, "{unity:?}");
+        assert!(close(unity * Vec3::Y, Vec3::new(0.0, 0.0, -1.0)));
+        // Yaw about the up axis: +90° about +Y in ours takes +Z to +X; in Unity the mirrored
+        // +Z is -Z, and it must go to +X as well: that is -90° about +Y there.
+        let yaw = unity_from_internal_rotation(Quat::from_rotation_y(FRAC_PI_2));
+        assert!(close(yaw * Vec3::new(0.0, 0.0, -1.0), Vec3::X));
+    }
+
+    #[test]
+    fn blender_axes_are_as_documented() {
+        assert_eq!(blender_from_internal_position(Vec3::Y), Vec3::Z);
+        assert_eq!(blender_from_internal_position(Vec3::Z), -Vec3::Y);
+        assert_eq!(blender_from_internal_position(Vec3::X), Vec3::X);
+        // Rotating then converting equals converting then rotating (a proper rotation of axes).
+        for q in sample_rotations() {
+            let qb = blender_from_internal_rotation(q);
+            for p in sample_points() {
+                let a = blender_from_internal_position(q * p);
+                let b = qb * blender_from_internal_position(p);
+                assert!(close(a, b), "{q:?} {p:?}");
+            }
+        }
+        // +90° about internal +Y (up) is +90° about Blender +Z (up).
+        let up = blender_from_internal_rotation(Quat::from_rotation_y(FRAC_PI_2));
+        assert!(up.dot(Quat::from_rotation_z(FRAC_PI_2)).abs() > 1.0 - 1e-6);
+        assert_eq!(
+            blender_wxyz(Quat::from_xyzw(1.0, 2.0, 3.0, 4.0)),
+            [4.0, 1.0, 2.0, 3.0]
+        );
+    }
+}
