@@ -1,0 +1,556 @@
+//! BVH reader: a small hand-written parser that reports the line of every error.
+//!
+//! Grammar accepted (whitespace-insensitive, CRLF or LF, tabs or spaces):
+//!
+//! ```text
+//! HIERARCHY
+//! ROOT <name> { OFFSET x y z  CHANNELS n <channel>×n  (JOINT … | End Site { OFFSET x y z })* }
+//! (more ROOTs allowed)
+//! MOTION
+//! Frames: <n>
+//! Frame Time: <seconds>
+//! <one line of values per frame, in hierarchy channel order>
+//! ```
+//!
+//! Channels may appear in any count and order per joint; rotation channels compose in the listed
+//! order (BVH's intrinsic convention), position channels replace the matching offset component.
+//! The rest pose is the OFFSET layout with identity rotations — which for some files is not a
+//! posture at all (every bone along one axis), so nothing here assumes rest = T-pose.
+
+use std::collections::HashSet;
+use std::sync::Arc;
+
+use glam::{Quat, Vec3};
+use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
+
+use super::Channel;
+use crate::error::SourceError;
+
+/// Options for reading BVH.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BvhReadOptions {
+    /// Metres per file unit. `None` guesses from the skeleton's size (see [`guess_scale`]).
+    pub scale: Option<f32>,
+}
+
+/// A decoded BVH file.
+#[derive(Debug, Clone)]
+pub struct BvhRead {
+    /// Skeleton (joints plus `<parent>_end` leaves for End Sites) and frames, in metres.
+    pub clip: Clip,
+    /// Metres per file unit that was applied.
+    pub scale: f32,
+    /// True when `scale` was guessed rather than given.
+    pub scale_guessed: bool,
+    /// Number of ROOT/JOINT entries (End Sites excluded).
+    pub num_joints: usize,
+    /// Number of End Sites (each became a leaf bone).
+    pub num_end_sites: usize,
+    /// Channels of each bone, indexed by the skeleton's bone ids (empty for End Sites).
+    pub channels: Vec<Vec<Channel>>,
+}
+
+#[derive(Debug)]
+struct RawJoint {
+    name: String,
+    parent: Option<usize>,
+    offset: Vec3,
+    channels: Vec<Channel>,
+    is_end_site: bool,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Tok<'a> {
+    text: &'a str,
+    line: usize,
+}
+
+struct Tokens<'a> {
+    toks: Vec<Tok<'a>>,
+    pos: usize,
+    last_line: usize,
+}
+
+impl<'a> Tokens<'a> {
+    fn peek(&self) -> Option<Tok<'a>> {
+        self.toks.get(self.pos).copied()
+    }
+
+    fn next(&mut self, expected: &str) -> Result<Tok<'a>, SourceError> {
+        let t = self.peek().ok_or_else(|| SourceError::UnexpectedEof {
+            line: self.last_line,
+            expected: expected.to_string(),
+        })?;
+        self.pos += 1;
+        Ok(t)
+    }
+
+    fn expect(&mut self, word: &str) -> Result<Tok<'a>, SourceError> {
+        let t = self.next(&format!("{word:?}"))?;
+        if t.text.eq_ignore_ascii_case(word) {
+            Ok(t)
+        } else {
+            Err(SourceError::Syntax {
+                line: t.line,
+                expected: format!("{word:?}"),
+                found: t.text.to_string(),
+            })
+        }
+    }
+
+    /// Remaining tokens on `line`, consumed.
+    fn rest_of_line(&mut self, line: usize) -> Vec<Tok<'a>> {
+        let mut out = Vec::new();
+        while let Some(t) = self.peek() {
+            if t.line != line {
+                break;
+            }
+            out.push(t);
+            self.pos += 1;
+        }
+        out
+    }
+
+    fn number(&mut self, what: &str) -> Result<f32, SourceError> {
+        let t = self.next(what)?;
+        parse_number(t.text, t.line)
+    }
+}
+
+fn parse_number(text: &str, line: usize) -> Result<f32, SourceError> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v as f32),
+        _ => Err(SourceError::BadNumber {
+            line,
+            token: text.to_string(),
+        }),
+    }
+}
+
+/// Parses a BVH file from bytes. `name` becomes the clip name.
+pub fn read_bvh(bytes: &[u8], name: &str, opts: &BvhReadOptions) -> Result<BvhRead, SourceError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| SourceError::NotUtf8 {
+        offset: e.valid_up_to(),
+    })?;
+    // `lines()` strips "\n" and "\r\n"; numbering is 1-based.
+    let lines: Vec<&str> = text.lines().collect();
+    let motion_at = lines
+        .iter()
+        .position(|l| l.split_whitespace().next() == Some("MOTION"));
+    let hierarchy_end = motion_at.unwrap_or(lines.len());
+    let mut toks = Vec::new();
+    for (i, l) in lines[..hierarchy_end].iter().enumerate() {
+        toks.extend(l.split_whitespace().map(|text| Tok { text, line: i + 1 }));
+    }
+    let mut tokens = Tokens {
+        toks,
+        pos: 0,
+        last_line: hierarchy_end.max(1),
+    };
+    tokens.expect("HIERARCHY")?;
+    let mut joints: Vec<RawJoint> = Vec::new();
+    while let Some(t) = tokens.peek() {
+        if t.text.eq_ignore_ascii_case("ROOT") {
+            tokens.pos += 1;
+            parse_joint(&mut tokens, &mut joints, None, t.line)?;
+        } else {
+            return Err(SourceError::Syntax {
+                line: t.line,
+                expected: "ROOT or MOTION".into(),
+                found: t.text.into(),
+            });
+        }
+    }
+    if joints.is_empty() {
+        return Err(SourceError::Syntax {
+            line: tokens.last_line,
+            expected: "at least one ROOT".into(),
+            found: "MOTION".into(),
+        });
+    }
+    let Some(motion_at) = motion_at else {
+        return Err(SourceError::MissingMotion { line: lines.len() });
+    };
+    let (frame_time, frames) = parse_motion(&lines, motion_at, &joints)?;
+    build(name, joints, frame_time, &frames, opts)
+}
+
+fn parse_joint(
+    tokens: &mut Tokens<'_>,
+    joints: &mut Vec<RawJoint>,
+    parent: Option<usize>,
+    keyword_line: usize,
+) -> Result<(), SourceError> {
+    // The name is the rest of the keyword's line (names may contain spaces); a trailing "{" on
+    // the same line opens the block.
+    let mut name_toks = tokens.rest_of_line(keyword_line);
+    let mut brace_open = false;
+    if name_toks.last().map(|t| t.text) == Some("{") {
+        name_toks.pop();
+        brace_open = true;
+    }
+    if name_toks.is_empty() {
+        return Err(SourceError::Syntax {
+            line: keyword_line,
+            expected: "a joint name".into(),
+            found: "end of line".into(),
+        });
+    }
+    let name = name_toks
+        .iter()
+        .map(|t| t.text)
+        .collect::<Vec<_>>()
+        .join(" ");
+    if !brace_open {
+        tokens.expect("{")?;
+    }
+    let index = joints.len();
+    joints.push(RawJoint {
+        name,
+        parent,
+        offset: Vec3::ZERO,
+        channels: Vec::new(),
+        is_end_site: false,
+    });
+    let mut has_offset = false;
+    loop {
+        let t = tokens.next("OFFSET, CHANNELS, JOINT, End Site or \"}\"")?;
+        match t.text {
+            "}" => break,
+            w if w.eq_ignore_ascii_case("OFFSET") => {
+                joints[index].offset = read_offset(tokens)?;
+                has_offset = true;
+            }
+            w if w.eq_ignore_ascii_case("CHANNELS") => {
+                joints[index].channels = read_channels(tokens, t.line)?;
+            }
+            w if w.eq_ignore_ascii_case("JOINT") => {
+                parse_joint(tokens, joints, Some(index), t.line)?;
+            }
+            w if w.eq_ignore_ascii_case("End") => {
+                tokens.expect("Site")?;
+                tokens.expect("{")?;
+                tokens.expect("OFFSET")?;
+                let offset = read_offset(tokens)?;
+                tokens.expect("}")?;
+                let end_name = format!("{}_end", joints[index].name);
+                joints.push(RawJoint {
+                    name: end_name,
+                    parent: Some(index),
+                    offset,
+                    channels: Vec::new(),
+                    is_end_site: true,
+                });
+            }
+            other => {
+                return Err(SourceError::Syntax {
+                    line: t.line,
+                    expected: "OFFSET, CHANNELS, JOINT, End Site or \"}\"".into(),
+                    found: other.into(),
+                })
+            }
+        }
+    }
+    if !has_offset {
+        return Err(SourceError::Syntax {
+            line: tokens.last_line,
+            expected: format!("an OFFSET for joint {:?}", joints[index].name),
+            found: "none".into(),
+        });
+    }
+    Ok(())
+}
+
+fn read_offset(tokens: &mut Tokens<'_>) -> Result<Vec3, SourceError> {
+    Ok(Vec3::new(
+        tokens.number("offset x")?,
+        tokens.number("offset y")?,
+        tokens.number("offset z")?,
+    ))
+}
+
+fn read_channels(tokens: &mut Tokens<'_>, line: usize) -> Result<Vec<Channel>, SourceError> {
+    let count_tok = tokens.next("a channel count")?;
+    let declared: usize = count_tok.text.parse().map_err(|_| SourceError::BadNumber {
+        line: count_tok.line,
+        token: count_tok.text.into(),
+    })?;
+    // Channel names sit on the CHANNELS line; counting them there catches a wrong count before
+    // it silently eats the next keyword.
+    let names = tokens.rest_of_line(line);
+    if names.len() != declared {
+        return Err(SourceError::ChannelCount {
+            line,
+            declared,
+            found: names.len(),
+        });
+    }
+    names
+        .iter()
+        .map(|t| {
+            Channel::from_name(t.text).ok_or_else(|| SourceError::UnknownChannel {
+                line: t.line,
+                name: t.text.into(),
+            })
+        })
+        .collect()
+}
+
+/// Returns the frame time and the raw channel values of every frame.
+fn parse_motion(
+    lines: &[&str],
+    motion_at: usize,
+    joints: &[RawJoint],
+) -> Result<(f64, Vec<Vec<f32>>), SourceError> {
+    let num_channels: usize = joints.iter().map(|j| j.channels.len()).sum();
+    let mut i = motion_at + 1;
+    // Skip blank lines between header entries.
+    let next_nonblank = |i: &mut usize, expected: &str| -> Result<usize, SourceError> {
+        while *i < lines.len() && lines[*i].trim().is_empty() {
+            *i += 1;
+        }
+        if *i >= lines.len() {
+            return Err(SourceError::UnexpectedEof {
+                line: lines.len(),
+                expected: expected.into(),
+            });
+        }
+        *i += 1;
+        Ok(*i - 1)
+    };
+    let at = next_nonblank(&mut i, "\"Frames: <count>\"")?;
+    let frames_line = lines[at].trim();
+    let declared = match frames_line.strip_prefix("Frames:") {
+        Some(v) => v
+            .trim()
+            .parse::<usize>()
+            .map_err(|_| SourceError::BadNumber {
+                line: at + 1,
+                token: v.trim().into(),
+            })?,
+        None => {
+            return Err(SourceError::Syntax {
+                line: at + 1,
+                expected: "\"Frames: <count>\"".into(),
+                found: frames_line.into(),
+            })
+        }
+    };
+    let at = next_nonblank(&mut i, "\"Frame Time: <seconds>\"")?;
+    let time_line = lines[at].trim();
+    let frame_time = match time_line.strip_prefix("Frame Time:") {
+        Some(v) => match v.trim().parse::<f64>() {
+            Ok(t) if t.is_finite() && t > 0.0 => t,
+            _ => {
+                return Err(SourceError::BadNumber {
+                    line: at + 1,
+                    token: v.trim().into(),
+                })
+            }
+        },
+        None => {
+            return Err(SourceError::Syntax {
+                line: at + 1,
+                expected: "\"Frame Time: <seconds>\"".into(),
+                found: time_line.into(),
+            })
+        }
+    };
+    // Cap the up-front reservation: the declared count is untrusted.
+    let mut frames = Vec::with_capacity(declared.min(lines.len()));
+    for (k, l) in lines.iter().enumerate().skip(i) {
+        if l.trim().is_empty() {
+            continue;
+        }
+        let mut values = Vec::with_capacity(num_channels);
+        for tok in l.split_whitespace() {
+            values.push(parse_number(tok, k + 1)?);
+        }
+        if values.len() != num_channels {
+            return Err(SourceError::FrameValues {
+                line: k + 1,
+                expected: num_channels,
+                found: values.len(),
+            });
+        }
+        frames.push(values);
+    }
+    if frames.len() != declared {
+        return Err(SourceError::FrameCountMismatch {
+            declared,
+            found: frames.len(),
+        });
+    }
+    Ok((frame_time, frames))
+}
+
+/// Local rotation and translation of one joint from its channel values (file units).
+fn joint_local(j: &RawJoint, values: &[f32], scale: f32) -> (Quat, Vec3) {
+    let mut rotation = Quat::IDENTITY;
+    let mut t = j.offset;
+    for (c, &v) in j.channels.iter().zip(values) {
+        match c {
+            Channel::Xposition => t.x = v,
+            Channel::Yposition => t.y = v,
+            Channel::Zposition => t.z = v,
+            Channel::Xrotation => rotation *= Quat::from_rotation_x(v.to_radians()),
+            Channel::Yrotation => rotation *= Quat::from_rotation_y(v.to_radians()),
+            Channel::Zrotation => rotation *= Quat::from_rotation_z(v.to_radians()),
+        }
+    }
+    (rotation.normalize(), t * scale)
+}
+
+/// Candidate units, metres per unit: metres, CMU's "inches / 0.45", inches, centimetres,
+/// millimetres.
+const UNIT_CANDIDATES: [f32; 5] = [1.0, 0.056444, 0.0254, 0.01, 0.001];
+
+/// Guesses metres per file unit from a figure's size in file units: picks the candidate unit
+/// that brings it closest (in ratio) to a 1.7 m human. A heuristic: non-human figures may need
+/// an explicit scale.
+pub fn guess_scale(size_in_file_units: f32) -> f32 {
+    if !(size_in_file_units.is_finite() && size_in_file_units > 0.0) {
+        return 1.0;
+    }
+    let mut best = 1.0;
+    let mut best_err = f32::INFINITY;
+    for s in UNIT_CANDIDATES {
+        let err = (size_in_file_units * s / 1.7).ln().abs();
+        if err < best_err {
+            best_err = err;
+            best = s;
+        }
+    }
+    best
+}
+
+/// Largest bounding-box extent of the joint positions, and whether the box is degenerate
+/// (all joints near one line: a rest layout that is not a posture).
+pub fn extent_of(points: &[Vec3]) -> (f32, bool) {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for p in points {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    if points.is_empty() {
+        return (0.0, true);
+    }
+    let mut e = [hi.x - lo.x, hi.y - lo.y, hi.z - lo.z];
+    e.sort_by(|a, b| b.total_cmp(a));
+    (e[0], e[1] < 0.05 * e[0])
+}
+
+fn positions(joints: &[RawJoint], frame: Option<&[f32]>) -> Vec<Vec3> {
+    let mut world: Vec<(Quat, Vec3)> = Vec::with_capacity(joints.len());
+    let mut k = 0;
+    for j in joints {
+        let (r, t) = match frame {
+            Some(values) => {
+                let n = j.channels.len();
+                let out = joint_local(j, &values[k..k + n], 1.0);
+                k += n;
+                out
+            }
+            None => (Quat::IDENTITY, j.offset),
+        };
+        let w = match j.parent {
+            Some(p) => {
+                let (pr, pt) = world[p];
+                (pr * r, pt + pr * t)
+            }
+            None => (r, t),
+        };
+        world.push(w);
+    }
+    world.into_iter().map(|(_, t)| t).collect()
+}
+
+fn build(
+    name: &str,
+    mut joints: Vec<RawJoint>,
+    frame_time: f64,
+    frames: &[Vec<f32>],
+    opts: &BvhReadOptions,
+) -> Result<BvhRead, SourceError> {
+    // End Site names may collide with real joints; make them unique deterministically.
+    let mut used: HashSet<String> = joints
+        .iter()
+        .filter(|j| !j.is_end_site)
+        .map(|j| j.name.clone())
+        .collect();
+    for j in joints.iter_mut().filter(|j| j.is_end_site) {
+        let base = j.name.clone();
+        let mut candidate = base.clone();
+        let mut n = 2;
+        while used.contains(&candidate) {
+            candidate = format!("{base}{n}");
+            n += 1;
+        }
+        used.insert(candidate.clone());
+        j.name = candidate;
+    }
+    let (scale, scale_guessed) = match opts.scale {
+        Some(s) if s.is_finite() && s > 0.0 => (s, false),
+        Some(s) => {
+            return Err(SourceError::InvalidOption {
+                reason: format!("BVH scale must be positive and finite, got {s}"),
+            })
+        }
+        None => {
+            let (mut size, degenerate) = extent_of(&positions(&joints, None));
+            if degenerate {
+                if let Some(first) = frames.first() {
+                    size = extent_of(&positions(&joints, Some(first))).0;
+                }
+            }
+            (guess_scale(size), true)
+        }
+    };
+    let mut raw = RawSkeleton::default();
+    for j in &joints {
+        raw.add(
+            j.name.clone(),
+            j.parent,
+            Transform::from_translation(j.offset * scale),
+        );
+    }
+    let skeleton = Arc::new(Skeleton::build(&raw)?);
+    // Map file order to skeleton order (identical for well-formed files, but don't rely on it).
+    let mut to_bone = Vec::with_capacity(joints.len());
+    for j in &joints {
+        let id = skeleton
+            .bone(&j.name)
+            .ok_or_else(|| SourceError::InvalidOption {
+                reason: format!("bone {:?} vanished while building the skeleton", j.name),
+            })?;
+        to_bone.push(id.index());
+    }
+    let mut poses = Vec::with_capacity(frames.len());
+    for values in frames {
+        let mut pose = Pose::from_rest(&skeleton);
+        let mut k = 0;
+        for (ji, j) in joints.iter().enumerate() {
+            let n = j.channels.len();
+            let (r, t) = joint_local(j, &values[k..k + n], scale);
+            k += n;
+            pose.rotations[to_bone[ji]] = r;
+            pose.translations[to_bone[ji]] = t;
+        }
+        poses.push(pose);
+    }
+    let mut channels = vec![Vec::new(); joints.len()];
+    for (ji, j) in joints.iter().enumerate() {
+        channels[to_bone[ji]] = j.channels.clone();
+    }
+    let num_end_sites = joints.iter().filter(|j| j.is_end_site).count();
+    let clip = Clip::new(name, skeleton, poses, frame_time)?;
+    Ok(BvhRead {
+        clip,
+        scale,
+        scale_guessed,
+        num_joints: joints.len() - num_end_sites,
+        num_end_sites,
+        channels,
+    })
+}

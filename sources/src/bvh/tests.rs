@@ -1,0 +1,241 @@
+#![allow(clippy::unwrap_used)]
+use glam::{Quat, Vec3};
+use rigcast_retarget::approx::vec_close;
+
+use super::*;
+use crate::error::SourceError;
+
+/// Two joints in centimetres; the child has only two rotation channels and a position channel,
+/// CRLF line ends and tabs.
+const SMALL: &str = "HIERARCHY\r\nROOT Hips\r\n{\r\n\tOFFSET 0 90 0\r\n\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\r\n\tJOINT Upper Arm\r\n\t{\r\n\t\tOFFSET 10 0 0\r\n\t\tCHANNELS 3 Yrotation Xposition Xrotation\r\n\t\tEnd Site\r\n\t\t{\r\n\t\t\tOFFSET 0 20 0\r\n\t\t}\r\n\t}\r\n}\r\nMOTION\r\nFrames: 2\r\nFrame Time: 0.5\r\n1 2 3 90 0 0 0 10 0\r\n0 100 0 0 0 0 90 15 45\r\n";
+
+fn read(text: &str) -> Result<BvhRead, SourceError> {
+    read_bvh(text.as_bytes(), "t", &BvhReadOptions { scale: Some(0.01) })
+}
+
+#[test]
+fn reads_small_file_with_known_values() {
+    let r = read(SMALL).unwrap();
+    let s = &r.clip.skeleton;
+    assert_eq!(s.names(), &["Hips", "Upper Arm", "Upper Arm_end"]);
+    assert_eq!((r.num_joints, r.num_end_sites), (2, 1));
+    assert!(vec_close(
+        s.rest()[0].translation,
+        Vec3::new(0.0, 0.9, 0.0),
+        1e-7
+    ));
+    assert!(vec_close(
+        s.rest()[2].translation,
+        Vec3::new(0.0, 0.2, 0.0),
+        1e-7
+    ));
+    assert_eq!(r.clip.num_frames(), 2);
+    assert!((r.clip.frame_time_secs - 0.5).abs() < 1e-12);
+    let f0 = &r.clip.poses[0];
+    assert!(vec_close(
+        f0.translations[0],
+        Vec3::new(0.01, 0.02, 0.03),
+        1e-7
+    ));
+    assert!(quat_close(
+        f0.rotations[0],
+        Quat::from_rotation_z(90f32.to_radians()),
+        1e-6
+    ));
+    // Position channel on a non-root joint replaces only its own component.
+    assert!(vec_close(
+        f0.translations[1],
+        Vec3::new(0.10, 0.0, 0.0),
+        1e-7
+    ));
+    let f1 = &r.clip.poses[1];
+    assert!(vec_close(
+        f1.translations[1],
+        Vec3::new(0.15, 0.0, 0.0),
+        1e-7
+    ));
+    let expect =
+        Quat::from_rotation_y(90f32.to_radians()) * Quat::from_rotation_x(45f32.to_radians());
+    assert!(quat_close(f1.rotations[1], expect, 1e-6));
+    assert!(quat_close(f1.rotations[2], Quat::IDENTITY, 0.0));
+}
+
+#[test]
+fn round_trip_is_exact_within_tolerance() {
+    let a = read(SMALL).unwrap();
+    let text = write_bvh(&a.clip, &BvhWriteOptions::default()).unwrap();
+    let b = read(&text).unwrap();
+    assert_clips_equal(&a.clip, &b.clip);
+    // The non-root position channel survived as a position channel.
+    assert_eq!(b.channels[1].len(), 6);
+    assert!(text.contains("End Site"));
+}
+
+pub(crate) fn assert_clips_equal(a: &rigcast_retarget::Clip, b: &rigcast_retarget::Clip) {
+    assert_eq!(a.skeleton.names(), b.skeleton.names());
+    assert_eq!(a.skeleton.parents(), b.skeleton.parents());
+    for (x, y) in a.skeleton.rest().iter().zip(b.skeleton.rest()) {
+        assert!(vec_close(x.translation, y.translation, 1e-6), "{x:?} {y:?}");
+    }
+    assert_eq!(a.num_frames(), b.num_frames());
+    assert!((a.frame_time_secs - b.frame_time_secs).abs() < 1e-9);
+    for (pa, pb) in a.poses.iter().zip(&b.poses) {
+        for i in 0..pa.num_bones() {
+            assert!(
+                quat_close(pa.rotations[i], pb.rotations[i], 1e-5),
+                "bone {i}"
+            );
+            assert!(
+                vec_close(pa.translations[i], pb.translations[i], 1e-6),
+                "bone {i}"
+            );
+        }
+    }
+}
+
+#[test]
+fn guesses_units_from_height() {
+    assert_eq!(guess_scale(1.8), 1.0);
+    assert_eq!(guess_scale(175.0), 0.01);
+    assert_eq!(guess_scale(1750.0), 0.001);
+    assert_eq!(guess_scale(31.0), 0.056444);
+    let r = read_bvh(SMALL.as_bytes(), "t", &BvhReadOptions::default()).unwrap();
+    // Rest layout spans 20 (arm) units vertically and 10 horizontally: not degenerate;
+    // 20 units is closest to a human in CMU units.
+    assert!(r.scale_guessed);
+    assert_eq!(r.scale, 0.056444);
+}
+
+fn expect_err(text: &[u8]) -> SourceError {
+    match read_bvh(text, "bad", &BvhReadOptions { scale: Some(1.0) }) {
+        Ok(_) => panic!("accepted malformed input"),
+        Err(e) => {
+            // Messages must be printable and non-empty.
+            assert!(!e.to_string().is_empty());
+            e
+        }
+    }
+}
+
+#[test]
+fn malformed_inputs_give_clear_errors() {
+    // Truncated inside the hierarchy.
+    let cut = &SMALL[..SMALL.find("End Site").unwrap()];
+    assert!(matches!(
+        expect_err(cut.as_bytes()),
+        SourceError::MissingMotion { .. } | SourceError::UnexpectedEof { .. }
+    ));
+    // Garbled number in OFFSET, reported on line 4.
+    let e = expect_err(SMALL.replace("OFFSET 0 90 0", "OFFSET 0 9x0 0").as_bytes());
+    assert!(matches!(e, SourceError::BadNumber { line: 4, .. }), "{e}");
+    // Wrong channel count.
+    let e = expect_err(
+        SMALL
+            .replace("CHANNELS 3 Yrot", "CHANNELS 4 Yrot")
+            .as_bytes(),
+    );
+    assert!(
+        matches!(
+            e,
+            SourceError::ChannelCount {
+                line: 9,
+                declared: 4,
+                found: 3
+            }
+        ),
+        "{e}"
+    );
+    // Unknown channel name.
+    let e = expect_err(
+        SMALL
+            .replace("Xposition Xrotation", "Wposition Xrotation")
+            .as_bytes(),
+    );
+    assert!(
+        matches!(e, SourceError::UnknownChannel { line: 9, .. }),
+        "{e}"
+    );
+    // Missing MOTION.
+    let e = expect_err(&SMALL.as_bytes()[..SMALL.find("MOTION").unwrap()]);
+    assert!(matches!(e, SourceError::MissingMotion { .. }), "{e}");
+    // Frames count mismatch.
+    let e = expect_err(SMALL.replace("Frames: 2", "Frames: 3").as_bytes());
+    assert!(
+        matches!(
+            e,
+            SourceError::FrameCountMismatch {
+                declared: 3,
+                found: 2
+            }
+        ),
+        "{e}"
+    );
+    // A frame line with too few values.
+    let e = expect_err(
+        SMALL
+            .replace("0 100 0 0 0 0 90 15 45", "0 100 0 0 0 0 90 15")
+            .as_bytes(),
+    );
+    assert!(
+        matches!(
+            e,
+            SourceError::FrameValues {
+                line: 20,
+                expected: 9,
+                found: 8
+            }
+        ),
+        "{e}"
+    );
+    // Garbled number in the motion data.
+    let e = expect_err(SMALL.replace("0 100 0 0", "0 1,0 0 0").as_bytes());
+    assert!(matches!(e, SourceError::BadNumber { line: 20, .. }), "{e}");
+    // NaN is not a number we accept.
+    let e = expect_err(SMALL.replace("0 100 0 0", "0 NaN 0 0").as_bytes());
+    assert!(matches!(e, SourceError::BadNumber { .. }), "{e}");
+    // Non-UTF-8 bytes.
+    let mut bytes = SMALL.as_bytes().to_vec();
+    bytes[20] = 0xff;
+    assert!(matches!(
+        expect_err(&bytes),
+        SourceError::NotUtf8 { offset: 20 }
+    ));
+    // Not a BVH at all / empty.
+    assert!(matches!(expect_err(b""), SourceError::UnexpectedEof { .. }));
+    assert!(matches!(
+        expect_err(b"{\"json\": 1}"),
+        SourceError::Syntax { line: 1, .. }
+    ));
+    // Zero frame time.
+    let e = expect_err(SMALL.replace("Frame Time: 0.5", "Frame Time: 0").as_bytes());
+    assert!(matches!(e, SourceError::BadNumber { line: 18, .. }), "{e}");
+    // Duplicate joint names are a skeleton error, not a panic.
+    let dup = SMALL.replace("JOINT Upper Arm", "JOINT Hips");
+    assert!(matches!(
+        expect_err(dup.as_bytes()),
+        SourceError::Skeleton(_)
+    ));
+    // Unbalanced braces.
+    let e = expect_err(
+        SMALL
+            .replace("\t}\r\n}\r\nMOTION", "\t}\r\nMOTION")
+            .as_bytes(),
+    );
+    assert!(matches!(e, SourceError::UnexpectedEof { .. }), "{e}");
+}
+
+#[test]
+fn every_prefix_fails_cleanly_or_parses() {
+    // Truncation at any byte must never panic.
+    for cut in 0..SMALL.len() {
+        let _ = read_bvh(&SMALL.as_bytes()[..cut], "t", &BvhReadOptions::default());
+    }
+}
+
+/// Rotation angle between two quaternions, accurate for tiny angles (acos of the dot is not);
+/// q and -q give the same |xyz|, so no sign handling is needed.
+fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
+    let d = a.conjugate() * b;
+    let angle = 2.0 * d.xyz().length().min(1.0).asin();
+    angle <= tol_rad
+}

@@ -1,0 +1,156 @@
+//! BVH writer.
+//!
+//! Every joint gets three rotation channels in one order (ZXY by default); roots get position
+//! channels, and so does any other bone whose translation moves in some frame (kept exactly).
+//! Leaves named `<parent>_end` that never move are written as End Sites. BVH has no rest
+//! rotations, so a skeleton with rotated rest bones (e.g. from glTF) keeps its poses exactly but
+//! its rest rotations are dropped. Numbers are written in Rust's shortest round-trip form for
+//! `f32`, so read→write→read only loses the Euler conversion's rounding.
+
+use std::fmt::Write as _;
+
+use glam::{Quat, Vec3};
+use rigcast_retarget::{BoneId, Clip, RotationOrder};
+
+use crate::error::SourceError;
+
+/// Options for writing BVH.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BvhWriteOptions {
+    /// File units per metre (100 = centimetres, the most common BVH unit).
+    pub units_per_metre: f32,
+    /// Rotation channel order for every joint.
+    pub order: RotationOrder,
+}
+
+impl Default for BvhWriteOptions {
+    fn default() -> Self {
+        BvhWriteOptions {
+            units_per_metre: 100.0,
+            order: RotationOrder::Zxy,
+        }
+    }
+}
+
+const MOVE_TOLERANCE_M: f32 = 1e-7;
+
+/// Writes `clip` as BVH text.
+pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceError> {
+    if !(opts.units_per_metre.is_finite() && opts.units_per_metre > 0.0) {
+        return Err(SourceError::InvalidOption {
+            reason: format!(
+                "units_per_metre must be positive, got {}",
+                opts.units_per_metre
+            ),
+        });
+    }
+    let s = &clip.skeleton;
+    let n = s.num_bones();
+    let rest = s.rest();
+    let moves: Vec<bool> = (0..n)
+        .map(|i| {
+            clip.poses.iter().any(|p| {
+                (p.translations[i] - rest[i].translation)
+                    .abs()
+                    .max_element()
+                    > MOVE_TOLERANCE_M
+            })
+        })
+        .collect();
+    let end_site: Vec<bool> = s
+        .bone_ids()
+        .map(|b| {
+            let i = b.index();
+            let Some(p) = s.parent(b) else { return false };
+            s.children(b).is_empty()
+                && s.name(b).starts_with(&format!("{}_end", s.name(p)))
+                && !moves[i]
+                && rest[i].rotation.abs_diff_eq(Quat::IDENTITY, 1e-6)
+                && clip
+                    .poses
+                    .iter()
+                    .all(|pose| pose.rotations[i].abs_diff_eq(Quat::IDENTITY, 1e-6))
+        })
+        .collect();
+    let has_position: Vec<bool> = s
+        .bone_ids()
+        .map(|b| s.parent(b).is_none() || moves[b.index()])
+        .collect();
+
+    let u = opts.units_per_metre;
+    let mut out = String::with_capacity(64 * n + clip.num_frames() * n * 40);
+    out.push_str("HIERARCHY\n");
+    for root in s.roots() {
+        write_joint(&mut out, clip, root, 0, &end_site, &has_position, opts);
+    }
+    let _ = writeln!(out, "MOTION\nFrames: {}", clip.num_frames());
+    let _ = writeln!(out, "Frame Time: {}", clip.frame_time_secs);
+    let mut line = String::new();
+    for pose in &clip.poses {
+        line.clear();
+        for b in s.bone_ids() {
+            let i = b.index();
+            if end_site[i] {
+                continue;
+            }
+            if has_position[i] {
+                let t = pose.translations[i] * u;
+                let _ = write!(line, "{} {} {} ", t.x, t.y, t.z);
+            }
+            let a = opts.order.from_quat(pose.rotations[i]);
+            for v in a {
+                let _ = write!(line, "{} ", v.to_degrees());
+            }
+        }
+        out.push_str(line.trim_end());
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+fn write_joint(
+    out: &mut String,
+    clip: &Clip,
+    bone: BoneId,
+    depth: usize,
+    end_site: &[bool],
+    has_position: &[bool],
+    opts: &BvhWriteOptions,
+) {
+    let s = &clip.skeleton;
+    let i = bone.index();
+    let pad = "\t".repeat(depth);
+    let offset: Vec3 = s.rest()[i].translation * opts.units_per_metre;
+    if end_site[i] {
+        let _ = writeln!(out, "{pad}End Site\n{pad}{{");
+        let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", offset.x, offset.y, offset.z);
+        let _ = writeln!(out, "{pad}}}");
+        return;
+    }
+    let keyword = if s.parent(bone).is_none() {
+        "ROOT"
+    } else {
+        "JOINT"
+    };
+    let _ = writeln!(out, "{pad}{keyword} {}\n{pad}{{", s.name(bone));
+    let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", offset.x, offset.y, offset.z);
+    let rot: Vec<String> = opts
+        .order
+        .axes()
+        .chars()
+        .map(|c| format!("{c}rotation"))
+        .collect();
+    if has_position[i] {
+        let _ = writeln!(
+            out,
+            "{pad}\tCHANNELS 6 Xposition Yposition Zposition {}",
+            rot.join(" ")
+        );
+    } else {
+        let _ = writeln!(out, "{pad}\tCHANNELS 3 {}", rot.join(" "));
+    }
+    for &c in s.children(bone) {
+        write_joint(out, clip, c, depth + 1, end_site, has_position, opts);
+    }
+    let _ = writeln!(out, "{pad}}}");
+}

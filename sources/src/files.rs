@@ -1,0 +1,90 @@
+//! File-level entry points: pick the format from the extension, read or write whole files.
+
+use std::path::Path;
+
+use rigcast_retarget::Clip;
+
+use crate::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
+use crate::error::SourceError;
+
+/// Options for [`load_clip_with`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoadOptions {
+    /// BVH: metres per file unit (`None` guesses from the skeleton size).
+    pub bvh_scale: Option<f32>,
+    /// glTF: which animation to load, by name or decimal index (`None` = the first).
+    pub animation: Option<String>,
+    /// glTF: sampling rate in frames per second (`None` = the keyframe rate, or 30).
+    pub sample_fps: Option<f64>,
+}
+
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+fn read_file(path: &Path) -> Result<Vec<u8>, SourceError> {
+    std::fs::read(path).map_err(|source| SourceError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("clip")
+        .to_string()
+}
+
+/// Loads a clip with default options; see [`load_clip_with`].
+pub fn load_clip(path: &Path) -> Result<Clip, SourceError> {
+    load_clip_with(path, &LoadOptions::default())
+}
+
+/// Loads a clip from `.bvh`, `.gltf`, `.glb`, `.vrm` or `.rcr`, choosing the format by
+/// extension. Errors name the file.
+pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceError> {
+    let ext = extension(path);
+    let result = match ext.as_str() {
+        "bvh" => {
+            let bytes = read_file(path)?;
+            read_bvh(
+                &bytes,
+                &stem(path),
+                &BvhReadOptions {
+                    scale: opts.bvh_scale,
+                },
+            )
+            .map(|r| r.clip)
+        }
+        _ => Err(SourceError::UnsupportedExtension {
+            extension: ext,
+            expected: ".bvh, .gltf, .glb, .vrm, .rcr",
+        }),
+    };
+    result.map_err(|e| e.in_file(path))
+}
+
+/// Saves a clip as `.bvh`, `.glb` or `.rcr`, choosing the format by extension.
+pub fn save_clip(path: &Path, clip: &Clip) -> Result<(), SourceError> {
+    let ext = extension(path);
+    let bytes: Vec<u8> = match ext.as_str() {
+        "bvh" => write_bvh(clip, &BvhWriteOptions::default())
+            .map_err(|e| e.in_file(path))?
+            .into_bytes(),
+        _ => {
+            return Err(SourceError::UnsupportedExtension {
+                extension: ext,
+                expected: ".bvh, .glb, .rcr",
+            }
+            .in_file(path))
+        }
+    };
+    std::fs::write(path, bytes).map_err(|source| SourceError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}

@@ -1,0 +1,181 @@
+//! The shared API of live pose sources (VMC/OSC, serial IMU suits, webcams).
+//!
+//! ```text
+//!   device ──bytes──▶ RawTap (optional: raw input into a recording)
+//!      │
+//!      └──▶ decoder ──▶ LiveSource::next_frame(timeout, &mut Pose) ──▶ server engine
+//!                            │
+//!                            └─ LiveSource::status(): Connecting → Live ⇄ Lost
+//! ```
+//!
+//! A live source is driven by the server from its own thread: it blocks in
+//! [`LiveSource::next_frame`] for at most the given timeout, fills a caller-owned [`Pose`] and
+//! returns a [`FrameMeta`]. It never panics on bad input: bad packets are counted in
+//! [`SourceStatus::dropped`] and skipped. Silence beyond a source's timeout turns its state to
+//! [`SourceState::Lost`]; the next good input brings it back to [`SourceState::Live`].
+
+mod health;
+pub mod humanoid;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use rigcast_retarget::{Pose, Skeleton};
+use serde::{Deserialize, Serialize};
+
+pub use crate::error::SourceError;
+pub use health::HealthTracker;
+
+/// Connection state of a live source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceState {
+    /// Not yet received any usable input (port not open, no sender yet).
+    Connecting,
+    /// Input arrived within the source's timeout.
+    Live,
+    /// Input stopped (silence beyond the timeout, or the device went away).
+    Lost,
+}
+
+/// Health of a live source, as reported in `/v1/status` and the protocol.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceStatus {
+    /// Connection state.
+    pub state: SourceState,
+    /// Frames produced per second, measured over the last half second or so.
+    pub input_fps: f32,
+    /// Time from input arrival (or capture, when the device stamps it) to the frame being
+    /// returned, milliseconds, smoothed.
+    pub latency_ms: f32,
+    /// Frames produced since the source was created.
+    pub frames: u64,
+    /// Packets, lines or messages that were malformed, reordered or unusable and were dropped.
+    pub dropped: u64,
+    /// Human-readable detail (last error, port name, calibration state).
+    pub detail: String,
+}
+
+/// Provenance of one frame written by [`LiveSource::next_frame`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameMeta {
+    /// Per-source sequence number, increasing by one per produced frame.
+    pub seq: u64,
+    /// When the input was captured (or received), nanoseconds since the Unix epoch.
+    pub capture_nanos: u64,
+    /// True when [`LiveSource::skeleton`] changed since the previous frame (the first frame
+    /// always sets it); the caller should re-read the skeleton and rebuild its mapping.
+    pub skeleton_changed: bool,
+}
+
+/// A live pose source.
+///
+/// Driven from its own thread by the server; never panics on bad input.
+pub trait LiveSource: Send {
+    /// Name for status reports (e.g. `vmc:39539`).
+    fn name(&self) -> &str;
+    /// None until known (a VMC sender's skeleton is learnt from its packets).
+    fn skeleton(&self) -> Option<Arc<Skeleton>>;
+    /// Blocks at most `timeout`; Ok(None) when nothing new arrived. Fills `out` (sized to
+    /// skeleton(); a wrongly sized `out` is resized, which allocates only then).
+    fn next_frame(
+        &mut self,
+        timeout: Duration,
+        out: &mut Pose,
+    ) -> Result<Option<FrameMeta>, SourceError>;
+    /// Current health.
+    fn status(&self) -> SourceStatus;
+    /// Installs a hook that receives every raw input unit (OSC datagram, serial read chunk,
+    /// landmark record) before decoding, so it can be recorded. Sources without raw input
+    /// ignore it.
+    fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
+        let _ = tap;
+    }
+}
+
+/// What kind of raw input a [`RawTap`] receives; recorded alongside the bytes so a replay
+/// knows which decoder to feed them to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RawKind {
+    /// One OSC (VMC) UDP datagram.
+    OscDatagram,
+    /// One chunk of bytes read from a serial port (chunk boundaries are arbitrary).
+    SerialBytes,
+    /// One landmark record from a vision source.
+    Landmarks,
+}
+
+impl RawKind {
+    /// Stable numeric code for file formats.
+    pub fn code(self) -> u8 {
+        match self {
+            RawKind::OscDatagram => 1,
+            RawKind::SerialBytes => 2,
+            RawKind::Landmarks => 3,
+        }
+    }
+
+    /// Inverse of [`RawKind::code`].
+    pub fn from_code(code: u8) -> Option<RawKind> {
+        match code {
+            1 => Some(RawKind::OscDatagram),
+            2 => Some(RawKind::SerialBytes),
+            3 => Some(RawKind::Landmarks),
+            _ => None,
+        }
+    }
+}
+
+/// Receives every raw input of a live source (e.g. to write it into a recording). Called on the
+/// source's thread, so it must be quick; it must not block on IO for long.
+pub trait RawTap: Send {
+    /// One raw input unit, received at `capture_nanos` (Unix epoch nanoseconds).
+    fn raw(&mut self, kind: RawKind, capture_nanos: u64, bytes: &[u8]);
+}
+
+/// A tap that keeps everything in memory (tests, short captures).
+#[derive(Debug, Default, Clone)]
+pub struct MemoryTap {
+    /// Shared list of captured packets.
+    pub packets: Arc<std::sync::Mutex<Vec<RawPacket>>>,
+}
+
+impl RawTap for MemoryTap {
+    fn raw(&mut self, kind: RawKind, capture_nanos: u64, bytes: &[u8]) {
+        if let Ok(mut list) = self.packets.lock() {
+            list.push(RawPacket {
+                kind,
+                capture_nanos,
+                bytes: bytes.to_vec(),
+            });
+        }
+    }
+}
+
+/// One recorded raw input unit, as replayed into a source.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RawPacket {
+    /// Which decoder it belongs to.
+    pub kind: RawKind,
+    /// When it was received, Unix epoch nanoseconds.
+    pub capture_nanos: u64,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// Current wall-clock time, nanoseconds since the Unix epoch (0 if the clock is before 1970).
+pub fn unix_nanos_now() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0)
+}
+
+/// Resizes `out` to `skeleton` if needed (allocates only when the size changes).
+pub(crate) fn fit_pose(out: &mut Pose, skeleton: &Skeleton) {
+    if out.num_bones() != skeleton.num_bones() || out.translations.len() != skeleton.num_bones()
+    {
+        *out = skeleton.rest_pose();
+    }
+}

@@ -1,0 +1,292 @@
+//! Video files and image sequences decoded by an `ffmpeg` child process piping raw RGB.
+//!
+//! Why a child process: ffmpeg (Debian package, installed by `scripts/setup-vision.sh`) decodes
+//! every common codec (H.264, VP9, MJPEG, …) and image format, and a pipe keeps its crashes
+//! and licences out of our process. `ffprobe` tells the size and rate first; frames are then
+//! read as exactly `width × height × 3` bytes each. Timestamps are `index / fps` (constant
+//! frame rate, which is what `-f rawvideo` delivers after ffmpeg's own rate handling).
+
+use std::io::{ErrorKind, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdout, Command, Stdio};
+
+use super::error::VisionError;
+use super::frame::{FrameSource, RgbFrame};
+
+/// Frame rate assumed for image sequences unless told otherwise.
+pub const DEFAULT_SEQUENCE_FPS: f64 = 30.0;
+
+/// A video file or image sequence decoded through `ffmpeg`.
+pub struct FfmpegSource {
+    input: String,
+    child: Child,
+    stdout: ChildStdout,
+    width: u32,
+    height: u32,
+    fps: f64,
+    next_index: u64,
+}
+
+impl std::fmt::Debug for FfmpegSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FfmpegSource")
+            .field("input", &self.input)
+            .field("width", &self.width)
+            .field("height", &self.height)
+            .field("fps", &self.fps)
+            .finish()
+    }
+}
+
+/// What `ffprobe` reports about the first video stream.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VideoInfo {
+    /// Displayed width (after rotation metadata).
+    pub width: u32,
+    /// Displayed height.
+    pub height: u32,
+    /// Frames per second (0 when unknown).
+    pub fps: f64,
+}
+
+fn decoder_error(program: &'static str, input: &str, message: impl Into<String>) -> VisionError {
+    VisionError::Decoder {
+        program,
+        input: input.to_string(),
+        message: message.into(),
+    }
+}
+
+fn parse_rate(s: &str) -> Option<f64> {
+    let (n, d) = s.split_once('/').unwrap_or((s, "1"));
+    let n: f64 = n.trim().parse().ok()?;
+    let d: f64 = d.trim().parse().ok()?;
+    (d > 0.0 && n > 0.0).then_some(n / d)
+}
+
+/// Runs `ffprobe` on `input` (with `pre_args` such as `-f image2`).
+pub fn probe(input: &str, pre_args: &[&str]) -> Result<VideoInfo, VisionError> {
+    let output = Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0", "-print_format", "json"])
+        .args(["-show_streams"])
+        .args(pre_args)
+        .arg(input)
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| {
+            decoder_error(
+                "ffprobe",
+                input,
+                format!("cannot run ffprobe ({e}); install ffmpeg (`rigcast setup vision`)"),
+            )
+        })?;
+    if !output.status.success() {
+        return Err(decoder_error(
+            "ffprobe",
+            input,
+            String::from_utf8_lossy(&output.stderr).trim().to_string(),
+        ));
+    }
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout)
+        .map_err(|e| decoder_error("ffprobe", input, format!("unreadable output: {e}")))?;
+    let stream = json
+        .get("streams")
+        .and_then(|s| s.get(0))
+        .ok_or_else(|| decoder_error("ffprobe", input, "no video stream"))?;
+    let dim = |k: &str| stream.get(k).and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+    let (mut width, mut height) = (dim("width"), dim("height"));
+    if width == 0 || height == 0 {
+        return Err(decoder_error("ffprobe", input, "video stream without a size"));
+    }
+    // ffmpeg applies rotation metadata when decoding, so a quarter turn swaps the sides.
+    let rotation = stream
+        .get("side_data_list")
+        .and_then(|l| l.as_array())
+        .and_then(|l| l.iter().find_map(|d| d.get("rotation")?.as_f64()))
+        .or_else(|| {
+            stream
+                .get("tags")
+                .and_then(|t| t.get("rotate"))
+                .and_then(|r| r.as_str())
+                .and_then(|r| r.parse().ok())
+        })
+        .unwrap_or(0.0);
+    if ((rotation.abs() / 90.0).round() as i64) % 2 == 1 {
+        std::mem::swap(&mut width, &mut height);
+    }
+    let rate = |k: &str| stream.get(k).and_then(|v| v.as_str()).and_then(parse_rate);
+    let fps = rate("avg_frame_rate")
+        .or_else(|| rate("r_frame_rate"))
+        .unwrap_or(0.0);
+    Ok(VideoInfo { width, height, fps })
+}
+
+impl FfmpegSource {
+    /// Opens a video file (any codec ffmpeg decodes).
+    pub fn open_video(path: &Path) -> Result<FfmpegSource, VisionError> {
+        if !path.exists() {
+            return Err(VisionError::NoInput { path: path.to_path_buf() });
+        }
+        let input = path.to_string_lossy().into_owned();
+        let info = probe(&input, &[])?;
+        let fps = if info.fps > 0.0 { info.fps } else { DEFAULT_SEQUENCE_FPS };
+        Self::spawn(input, &[], info, fps)
+    }
+
+    /// Opens an image sequence: either a directory (every `.png`/`.jpg`/`.jpeg` in name order)
+    /// or a printf pattern such as `frames/img_%04d.png`.
+    pub fn open_sequence(pattern: &Path, fps: f64) -> Result<FfmpegSource, VisionError> {
+        let fps = if fps > 0.0 { fps } else { DEFAULT_SEQUENCE_FPS };
+        let rate = format!("{fps}");
+        if pattern.is_dir() {
+            let ext = sequence_extension(pattern)?;
+            let glob = pattern.join(format!("*.{ext}"));
+            let input = glob.to_string_lossy().into_owned();
+            let pre = ["-f", "image2", "-pattern_type", "glob", "-framerate", rate.as_str()];
+            let info = probe(&input, &pre)?;
+            return Self::spawn(input, &pre, info, fps);
+        }
+        let input = pattern.to_string_lossy().into_owned();
+        let pre = ["-f", "image2", "-framerate", rate.as_str()];
+        let info = probe(&input, &pre)?;
+        Self::spawn(input, &pre, info, fps)
+    }
+
+    /// Opens whatever `path` is: a directory or a `%` pattern is an image sequence, anything
+    /// else a video file.
+    pub fn open(path: &Path) -> Result<FfmpegSource, VisionError> {
+        if path.is_dir() || path.to_string_lossy().contains('%') {
+            Self::open_sequence(path, DEFAULT_SEQUENCE_FPS)
+        } else {
+            Self::open_video(path)
+        }
+    }
+
+    fn spawn(
+        input: String,
+        pre_args: &[&str],
+        info: VideoInfo,
+        fps: f64,
+    ) -> Result<FfmpegSource, VisionError> {
+        let mut child = Command::new("ffmpeg")
+            .args(["-nostdin", "-v", "error"])
+            .args(pre_args)
+            .arg("-i")
+            .arg(&input)
+            .args(["-map", "0:v:0", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| {
+                decoder_error(
+                    "ffmpeg",
+                    &input,
+                    format!("cannot run ffmpeg ({e}); install it (`rigcast setup vision`)"),
+                )
+            })?;
+        let stdout = child
+            .stdout
+            .take()
+            .ok_or_else(|| decoder_error("ffmpeg", &input, "no stdout pipe"))?;
+        Ok(FfmpegSource {
+            input,
+            child,
+            stdout,
+            width: info.width,
+            height: info.height,
+            fps,
+            next_index: 0,
+        })
+    }
+
+    fn stderr_text(&mut self) -> String {
+        let mut text = String::new();
+        if let Some(mut e) = self.child.stderr.take() {
+            let _ = e.read_to_string(&mut text);
+        }
+        text.trim().to_string()
+    }
+}
+
+fn sequence_extension(dir: &Path) -> Result<&'static str, VisionError> {
+    let entries = std::fs::read_dir(dir).map_err(|e| VisionError::Decoder {
+        program: "ffmpeg",
+        input: dir.display().to_string(),
+        message: e.to_string(),
+    })?;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().to_ascii_lowercase();
+        for ext in ["png", "jpg", "jpeg", "bmp"] {
+            if name.ends_with(&format!(".{ext}")) {
+                return Ok(ext);
+            }
+        }
+    }
+    Err(VisionError::Decoder {
+        program: "ffmpeg",
+        input: dir.display().to_string(),
+        message: "directory holds no .png/.jpg/.jpeg/.bmp images".into(),
+    })
+}
+
+impl FrameSource for FfmpegSource {
+    fn describe(&self) -> &str {
+        &self.input
+    }
+    fn fps(&self) -> Option<f64> {
+        Some(self.fps)
+    }
+    fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    fn next_frame(&mut self, out: &mut RgbFrame) -> Result<bool, VisionError> {
+        out.resize(self.width, self.height);
+        let mut filled = 0;
+        while filled < out.data.len() {
+            match self.stdout.read(&mut out.data[filled..]) {
+                Ok(0) => break,
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(decoder_error("ffmpeg", &self.input, e.to_string())),
+            }
+        }
+        if filled == 0 {
+            let status = self.child.wait().ok();
+            if status.is_some_and(|s| !s.success()) {
+                let msg = self.stderr_text();
+                return Err(decoder_error("ffmpeg", &self.input, msg));
+            }
+            return Ok(false);
+        }
+        if filled < out.data.len() {
+            let msg = self.stderr_text();
+            return Err(decoder_error(
+                "ffmpeg",
+                &self.input,
+                format!(
+                    "frame {} truncated: got {filled} of {} bytes {msg}",
+                    self.next_index,
+                    out.data.len()
+                ),
+            ));
+        }
+        out.index = self.next_index;
+        out.time_secs = self.next_index as f64 / self.fps;
+        self.next_index += 1;
+        Ok(true)
+    }
+}
+
+impl Drop for FfmpegSource {
+    fn drop(&mut self) {
+        // A reader that stops early must not leave ffmpeg blocked on a full pipe.
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The path as given, for error messages.
+pub fn display_path(p: &Path) -> PathBuf {
+    p.to_path_buf()
+}

@@ -1,0 +1,108 @@
+//! Tests against the shared real data set (skipped with a message when it is absent).
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+
+use rigcast_retarget::approx::vec_close;
+use rigcast_retarget::{world_transforms, Clip};
+use rigcast_sources::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
+
+fn data(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data")
+        .join(rel);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("SKIP: {} not found", p.display());
+        None
+    }
+}
+
+fn height_m(clip: &Clip, frame: usize) -> f32 {
+    let w = world_transforms(&clip.skeleton, &clip.poses[frame]);
+    let ys = w.iter().map(|t| t.translation.y);
+    let max = ys.clone().fold(f32::MIN, f32::max);
+    let min = ys.fold(f32::MAX, f32::min);
+    max - min
+}
+
+fn assert_clips_equal(a: &Clip, b: &Clip) {
+    assert_eq!(a.skeleton.names(), b.skeleton.names());
+    assert_eq!(a.skeleton.parents(), b.skeleton.parents());
+    for (x, y) in a.skeleton.rest().iter().zip(b.skeleton.rest()) {
+        assert!(vec_close(x.translation, y.translation, 1e-6));
+    }
+    assert_eq!(a.num_frames(), b.num_frames());
+    assert!((a.frame_time_secs - b.frame_time_secs).abs() < 1e-9);
+    for (f, (pa, pb)) in a.poses.iter().zip(&b.poses).enumerate() {
+        for i in 0..pa.num_bones() {
+            assert!(
+                quat_close(pa.rotations[i], pb.rotations[i], 1e-5),
+                "frame {f} bone {i}: {:?} vs {:?}",
+                pa.rotations[i],
+                pb.rotations[i]
+            );
+            assert!(
+                vec_close(pa.translations[i], pb.translations[i], 1e-6),
+                "frame {f} bone {i}"
+            );
+        }
+    }
+}
+
+fn bvh_round_trip(rel: &str, joints: usize, frames: usize, fps: f64) -> Option<Clip> {
+    let path = data(rel)?;
+    let bytes = std::fs::read(&path).unwrap();
+    let r = read_bvh(&bytes, "x", &BvhReadOptions::default()).unwrap();
+    assert_eq!(r.num_joints, joints, "{rel}");
+    assert_eq!(r.clip.num_frames(), frames, "{rel}");
+    assert!((r.clip.fps() - fps).abs() < 0.01, "{rel}: {}", r.clip.fps());
+    let h = height_m(&r.clip, 0);
+    assert!(
+        (1.3..2.1).contains(&h),
+        "{rel}: height {h} m with scale {}",
+        r.scale
+    );
+    let text = write_bvh(&r.clip, &BvhWriteOptions::default()).unwrap();
+    let back = read_bvh(text.as_bytes(), "x", &BvhReadOptions { scale: Some(0.01) }).unwrap();
+    assert_clips_equal(&r.clip, &back.clip);
+    // Without a given scale the written centimetres are recognised as such.
+    let guessed = read_bvh(text.as_bytes(), "x", &BvhReadOptions::default()).unwrap();
+    assert_eq!(guessed.scale, 0.01);
+    Some(r.clip)
+}
+
+#[test]
+fn cmu_walk_reads_and_round_trips() {
+    let Some(clip) = bvh_round_trip("bvh/cmu_131_01_walk.bvh", 31, 994, 120.0) else {
+        return;
+    };
+    assert!(clip.skeleton.bone("LeftElbow").is_some());
+    assert!(clip.skeleton.bone("LeftToe_end").is_some());
+}
+
+#[test]
+fn cmu_31_joint_reads_and_round_trips() {
+    bvh_round_trip("bvh/cmu_31joint_example.bvh", 31, 278, 120.0);
+}
+
+#[test]
+fn cmu_run_in_centimetres() {
+    let Some(path) = data("bvh/cmu_run.bvh") else {
+        return;
+    };
+    let bytes = std::fs::read(&path).unwrap();
+    let r = read_bvh(&bytes, "x", &BvhReadOptions::default()).unwrap();
+    assert_eq!(r.scale, 0.01);
+    assert_eq!(r.num_joints, 19);
+    bvh_round_trip("bvh/cmu_run.bvh", 19, r.clip.num_frames(), r.clip.fps());
+}
+
+/// Rotation angle between two quaternions, accurate for tiny angles (acos of the dot is not);
+/// q and -q give the same |xyz|, so no sign handling is needed.
+fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
+    let d = a.conjugate() * b;
+    let angle = 2.0 * d.xyz().length().min(1.0).asin();
+    angle <= tol_rad
+}
