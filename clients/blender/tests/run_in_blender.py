@@ -1,0 +1,237 @@
+"""End-to-end check of the add-on inside real Blender, driven by tests/tests/blender_client.rs.
+
+    blender -b --factory-startup --python-exit-code 1 \
+        --python clients/blender/tests/run_in_blender.py -- \
+        --zip dist/rigcast_livelink.zip --address 127.0.0.1:8717 --out obs.json [--seconds 2]
+
+Installs the add-on from the zip, enables it, connects, creates an armature per subject with
+the add-on's operator, applies the stream for --seconds while recording, then writes what it
+observed (per applied frame: seq, capture time, bone head positions; the recorded Action's
+curves) to --out. The Rust side judges the numbers against forward kinematics.
+
+Background Blender runs no event loop, so timers never fire there; this script calls the
+same per-tick function the add-on's timer calls, at 60 Hz.
+"""
+
+import json
+import os
+import sys
+import time
+import traceback
+
+import bpy
+from mathutils import Vector
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+    args = {"seconds": "2.0", "warmup": "0.5"}
+    key = None
+    for token in argv:
+        if token.startswith("--"):
+            key = token[2:]
+            args[key] = "1"
+        elif key:
+            args[key] = token
+            key = None
+    return args
+
+
+def find_addon_module():
+    for name, module in list(sys.modules.items()):
+        if name.endswith("rigcast_livelink.livelink"):
+            return module
+    raise RuntimeError("add-on module rigcast_livelink.livelink not loaded")
+
+
+def install_addon(zip_path):
+    bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
+    result = bpy.ops.preferences.addon_enable(module="rigcast_livelink")
+    if "FINISHED" not in result:
+        raise RuntimeError("addon_enable returned %s" % result)
+    if not hasattr(bpy.types.Scene, "rigcast"):
+        raise RuntimeError("add-on enabled but Scene.rigcast is not registered")
+    if not hasattr(bpy.types, "RIGCAST_PT_panel"):
+        raise RuntimeError("add-on enabled but its panel is not registered")
+
+
+def main():
+    args = parse_args()
+    out = {"ok": False, "blender_version": bpy.app.version_string}
+    try:
+        run(args, out)
+        out["ok"] = True
+    except Exception:
+        out["error"] = traceback.format_exc()
+        print(out["error"], file=sys.stderr)
+    with open(args["out"], "w") as handle:
+        json.dump(out, handle)
+    if not out["ok"]:
+        sys.exit(1)
+
+
+def run(args, out):
+    install_addon(os.path.abspath(args["zip"]))
+    livelink = find_addon_module()
+    runtime = livelink.runtime
+    scene = bpy.context.scene
+    out["scene_fps_before"] = [scene.render.fps, scene.render.fps_base]
+    settings = scene.rigcast
+    out["default_address"] = settings.address
+    settings.address = args["address"]
+    result = bpy.ops.rigcast.connect()
+    if "FINISHED" not in result:
+        raise RuntimeError("rigcast.connect returned %s" % result)
+
+    observations = []
+    pending = []
+
+    def observer(subject_id, frame, obj):
+        pending.append((subject_id, frame, obj))
+
+    runtime.observers.append(observer)
+
+    def pump(seconds, until=None, collect=False):
+        tick_secs = 1.0 / 60.0
+        start = time.monotonic()
+        next_tick = start
+        while time.monotonic() - start < seconds:
+            runtime.tick(scene)
+            if pending:
+                if collect:
+                    # Pose matrices are evaluated by the depsgraph; update before reading.
+                    bpy.context.view_layer.update()
+                    for subject_id, frame, obj in pending:
+                        observations.append(observe(subject_id, frame, obj))
+                del pending[:]
+            if until is not None and until():
+                return True
+            next_tick += tick_secs
+            delay = next_tick - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        return until is None
+
+    def have_skeletons():
+        return runtime.hello is not None and all(
+            s["id"] in runtime.skeletons for s in runtime.hello.get("subjects", [])
+        )
+
+    if not pump(10.0, have_skeletons):
+        raise RuntimeError(
+            "no hello/skeletons within 10 s; state=%r error=%r"
+            % (runtime.status_text(), runtime.session and runtime.session.error)
+        )
+    out["hello"] = runtime.hello
+    subject_ids = [item.subject_id for item in settings.subjects]
+    out["subject_ids"] = subject_ids
+    for subject_id in subject_ids:
+        result = bpy.ops.rigcast.create_armature(subject_id=subject_id)
+        if "FINISHED" not in result:
+            raise RuntimeError("create_armature(%d) returned %s" % (subject_id, result))
+    out["armatures"] = {str(item.subject_id): item.armature.name for item in settings.subjects}
+    out["rest_points"] = {}
+    for item in settings.subjects:
+        points = {}
+        matrix_world = item.armature.matrix_world
+        for bone in item.armature.data.bones:
+            m = matrix_world @ bone.matrix_local
+            z_point = m @ Vector((0.0, 0.0, bone.length))
+            points[bone.name] = [list(m.to_translation()), list(matrix_world @ bone.tail_local), list(z_point)]
+        out["rest_points"][str(item.subject_id)] = points
+
+    # Mapping colours and an override round trip, when the server retargets something.
+    out["mapping_subjects"] = sorted(runtime.mappings)
+    if runtime.mappings:
+        settings.color_mode = "GRADIENT"
+        out["colored_bones"] = count_colored_bones(settings)
+
+    pump(float(args["warmup"]))
+    bpy.ops.rigcast.record()
+    record_start = time.monotonic()
+    pump(float(args["seconds"]), collect=True)
+    bpy.ops.rigcast.record()
+    out["record_secs"] = time.monotonic() - record_start
+
+    session = runtime.session
+    out["session"] = {
+        "received": session.num_frames_received,
+        "skipped": session.num_frames_skipped,
+        "missed": session.num_frames_missed,
+        "bad": session.num_bad_frames,
+        "connects": session.num_connects,
+    }
+    out["observations"] = observations
+    out["scene_fps_after"] = [scene.render.fps, scene.render.fps_base]
+    out["actions"] = describe_actions(settings)
+    bpy.ops.rigcast.disconnect()
+    out["status_after_disconnect"] = runtime.status_text()
+
+
+def observe(subject_id, frame, obj):
+    # Three points per bone (head, tail, head + bone Z axis) pin its full orientation, twist
+    # included; the Rust side predicts them from the rest points and forward kinematics.
+    matrix_world = obj.matrix_world
+    heads = {}
+    for pose_bone in obj.pose.bones:
+        m = matrix_world @ pose_bone.matrix
+        z_point = m @ Vector((0.0, 0.0, pose_bone.length))
+        heads[pose_bone.name] = [list(m.to_translation()), list(matrix_world @ pose_bone.tail), list(z_point)]
+    return {
+        "subject": subject_id,
+        "seq": frame.seq,
+        "capture_nanos": frame.capture_nanos,
+        "received_nanos": frame.received_nanos,
+        "applied_nanos": time.time_ns(),
+        "heads": heads,
+    }
+
+
+def count_colored_bones(settings):
+    counts = {}
+    for item in settings.subjects:
+        obj = item.armature
+        if obj is None:
+            continue
+        if hasattr(obj.pose, "bone_groups"):
+            n = sum(1 for pb in obj.pose.bones if pb.bone_group is not None)
+        else:
+            n = sum(1 for b in obj.data.bones if b.color.palette == "CUSTOM")
+        counts[str(item.subject_id)] = n
+    return counts
+
+
+def describe_actions(settings):
+    actions = {}
+    for item in settings.subjects:
+        obj = item.armature
+        if obj is None or obj.animation_data is None or obj.animation_data.action is None:
+            continue
+        action = obj.animation_data.action
+        curves = []
+        for fcurve in iter_fcurves(action):
+            curves.append(
+                {
+                    "data_path": fcurve.data_path,
+                    "index": fcurve.array_index,
+                    "group": fcurve.group.name if fcurve.group else None,
+                    "frames": [k.co[0] for k in fcurve.keyframe_points],
+                    "values": [k.co[1] for k in fcurve.keyframe_points],
+                }
+            )
+        actions[str(item.subject_id)] = {"name": action.name, "fcurves": curves}
+    return actions
+
+
+def iter_fcurves(action):
+    # Blender 4.4+ keeps curves in layered channelbags; older versions in action.fcurves.
+    if getattr(action, "layers", None):
+        for layer in action.layers:
+            for strip in layer.strips:
+                for bag in getattr(strip, "channelbags", []):
+                    yield from bag.fcurves
+        return
+    yield from action.fcurves
+
+
+main()
