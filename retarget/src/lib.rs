@@ -25,6 +25,7 @@ pub mod error;
 pub mod fk;
 pub mod mapping;
 pub mod pose;
+pub mod retarget;
 pub mod rotation;
 pub mod skeleton;
 
@@ -32,6 +33,7 @@ pub use clip::Clip;
 pub use error::RetargetError;
 pub use fk::{forward_kinematics, world_transforms, WorldTransform};
 pub use pose::{Frame, Pose};
+pub use retarget::{Mapping, RetargetOptions, RootMotion};
 pub use rotation::RotationOrder;
 pub use skeleton::{BoneId, RawBone, RawSkeleton, Skeleton, Transform};
 

@@ -1,0 +1,66 @@
+//! Options for building a [`super::Mapping`].
+
+use crate::pose::Pose;
+
+/// What the target's root (the shallowest mapped target bone, normally the hips) does with the
+/// source's translation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RootMotion {
+    /// Hips translation scaled by the hip-height ratio, both horizontally and vertically
+    /// (heights measured from each side's ground), so strides fit the target's legs and feet
+    /// neither float nor sink.
+    #[default]
+    Scaled,
+    /// Like `Scaled` vertically, but the hips stay over the target's reference position
+    /// horizontally (the character walks on the spot).
+    InPlace,
+    /// The root keeps its reference translation (only rotations are transferred).
+    Fixed,
+}
+
+/// Options for [`super::Mapping::build`]. `Default` suits a live source at 60 Hz.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RetargetOptions {
+    /// Per source input, a representative pose to use instead of that skeleton's rest pose as
+    /// the reference posture for alignment (for rigs whose zero pose is not a posture, e.g. all
+    /// bones folded together, or a capture whose rest is meaningless). `None` or a missing entry
+    /// uses the rest pose.
+    pub source_reference: Vec<Option<Pose>>,
+    /// Reference posture of the target, instead of its rest pose.
+    pub target_reference: Option<Pose>,
+    /// Align rest postures (T-pose vs A-pose vs any posture). Turning it off gives the plain
+    /// rest-normalised transfer, which assumes both rests show the same posture.
+    pub align_rest: bool,
+    /// Correct each mapped bone's direction towards the source segment between the joints its
+    /// own segment ends map to, so chains of different lengths still point the same way.
+    pub match_directions: bool,
+    /// Root translation handling.
+    pub root_motion: RootMotion,
+    /// Overrides the automatically measured hip-height ratio (target / source).
+    pub root_scale: Option<f32>,
+    /// Height of the ground in the source's world (metres, +Y up).
+    pub source_ground_y: f32,
+    /// Height of the ground in the target's world.
+    pub target_ground_y: f32,
+    /// Seconds between [`super::Mapping::apply`] calls; converts per-bone delays into frames.
+    pub frame_time_secs: f32,
+    /// Longest per-bone delay honoured, seconds (bounds the history buffer).
+    pub max_delay_secs: f32,
+}
+
+impl Default for RetargetOptions {
+    fn default() -> Self {
+        RetargetOptions {
+            source_reference: Vec::new(),
+            target_reference: None,
+            align_rest: true,
+            match_directions: true,
+            root_motion: RootMotion::Scaled,
+            root_scale: None,
+            source_ground_y: 0.0,
+            target_ground_y: 0.0,
+            frame_time_secs: 1.0 / 60.0,
+            max_delay_secs: 5.0,
+        }
+    }
+}

@@ -1,0 +1,104 @@
+//! Acceptance (issue 4): steady-state `Mapping::apply` allocates nothing — checked with a
+//! counting global allocator, on a mapping that uses every per-frame feature (direction fixes,
+//! many-to-one blending, delays with a history ring, reverse, weights, root motion, two inputs).
+
+mod retarget_fixtures;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use retarget_fixtures::{motion, table_by_canonical, Axes, Humanoid};
+use rigcast_retarget::mapping::SourceRef;
+use rigcast_retarget::{Mapping, RetargetOptions};
+
+struct Counting;
+
+thread_local! {
+    // Counted per thread so the test harness's other threads do not disturb the count.
+    static COUNT: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        System.alloc(layout)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    COUNT.with(|c| c.get())
+}
+
+#[test]
+fn steady_state_apply_allocates_nothing() {
+    let source_spec = Humanoid::default();
+    let other_spec = Humanoid {
+        prefix: "b:",
+        ..Humanoid::default()
+    };
+    let target_spec = Humanoid {
+        arm_down_deg: 45.0,
+        axes: Axes::AlongBone { roll_rad: 0.3 },
+        leg: 1.2,
+        ..Humanoid::default()
+    };
+    let source = source_spec.build();
+    let second = other_spec.build();
+    let target = target_spec.build();
+    let mut table = table_by_canonical(&source, "", &target, "");
+    // Blend the head from both inputs, delay the hands, reverse and half-weight the forearms.
+    for t in target.bone_ids() {
+        let name = target.name(t).to_string();
+        let Some(e) = table.entries[t.index()].as_mut() else {
+            continue;
+        };
+        match name.as_str() {
+            "head" => e.sources.push(SourceRef {
+                input: 1,
+                bone: second.bone("b:head").expect("head"),
+                weight: 0.5,
+            }),
+            "l_hand" | "r_hand" => e.options.delay_secs = 0.1,
+            "l_forearm" => e.options.reverse = true,
+            "r_forearm" => e.options.weight = 0.5,
+            _ => {}
+        }
+    }
+    let mut mapping = Mapping::build(
+        &[&source, &second],
+        &target,
+        &table,
+        &RetargetOptions::default(),
+    )
+    .expect("build");
+    let a = motion(&source, 50, 0.0, 1.0);
+    let b = motion(&second, 50, 0.0, 1.0);
+    let mut out = mapping.new_target_pose();
+    // Warm-up frame (fills the history ring).
+    mapping.apply(&[&a[0], &b[0]], &mut out).expect("apply");
+    let before = allocations();
+    for f in 1..50 {
+        mapping.apply(&[&a[f], &b[f]], &mut out).expect("apply");
+    }
+    let during = allocations() - before;
+    assert_eq!(during, 0, "apply allocated {during} times in 49 frames");
+    // The counter works: building allocates.
+    let before = allocations();
+    let _again = Mapping::build(
+        &[&source, &second],
+        &target,
+        &table,
+        &RetargetOptions::default(),
+    );
+    assert!(allocations() > before);
+}
