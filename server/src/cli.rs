@@ -1,0 +1,49 @@
+//! The command line: one [`Command`] variant per subcommand, each implemented in its own
+//! module under [`crate::cmd`]. To add a subcommand: add a module in `cmd/`, a variant here with
+//! its `Args` struct, and one arm in [`Command::run`].
+
+use clap::{Parser, Subcommand};
+
+use crate::cmd;
+
+/// rigcast — realtime puppetry server.
+#[derive(Debug, Parser)]
+#[command(name = "rigcast", version, about)]
+pub struct Cli {
+    /// What to do; without a subcommand rigcast serves the bundled demo.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Stream poses over WebSocket (and VMC) — the default.
+    Serve(cmd::serve::ServeArgs),
+    /// Describe an animation file: bone tree, height, frame rate, duration.
+    Info(cmd::info::InfoArgs),
+    /// Convert between animation formats (chosen by extension).
+    Convert(cmd::convert::ConvertArgs),
+    /// Record what a server streams into a .rcr recording.
+    Record(cmd::record::RecordArgs),
+}
+
+impl Command {
+    /// Runs the subcommand.
+    pub async fn run(self) -> anyhow::Result<()> {
+        match self {
+            Command::Serve(a) => cmd::serve::run(a).await,
+            Command::Info(a) => cmd::info::run(a),
+            Command::Convert(a) => cmd::convert::run(a),
+            Command::Record(a) => cmd::record::run(a).await,
+        }
+    }
+}
+
+impl Cli {
+    /// The subcommand, defaulting to `serve` with no options.
+    pub fn command_or_default(self) -> Command {
+        self.command
+            .unwrap_or_else(|| Command::Serve(cmd::serve::ServeArgs::default()))
+    }
+}

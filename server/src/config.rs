@@ -1,0 +1,333 @@
+//! Server configuration: the `rigcast.toml` file format and the resolved [`ServerConfig`].
+//!
+//! ```toml
+//! listen = "127.0.0.1:8717"
+//! rate_hz = 60
+//! vmc_out = ["127.0.0.1:39539"]
+//!
+//! [[sources]]
+//! kind = "replay"
+//! path = "recordings/demo.rcr"
+//! speed = 1.0
+//! loop = true
+//! start_offset_secs = 0.0
+//! name = "demo"
+//! ```
+//!
+//! Command-line flags override file values; see `cmd::serve`.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+use rigcast_retarget::Clip;
+use serde::Deserialize;
+use thiserror::Error;
+
+/// Default listen address: loopback only (nothing is exposed to the network unless asked) on
+/// port 8717 (unassigned by IANA, mnemonic: "RiGcast" is not a number, so we simply picked one
+/// next to the common 8xxx development ports without colliding with 8080/8000/8888).
+pub const DEFAULT_LISTEN: &str = "127.0.0.1:8717";
+/// Default output rate.
+pub const DEFAULT_RATE_HZ: f64 = 60.0;
+/// Accepted output rates.
+pub const RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 1.0..=240.0;
+
+/// Errors in the configuration file or flags.
+#[derive(Debug, Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read config {path}: {source}")]
+    Read {
+        /// the file
+        path: PathBuf,
+        /// the IO error
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML for this schema.
+    #[error("invalid config {path}: {source}")]
+    Parse {
+        /// the file
+        path: PathBuf,
+        /// the TOML error (with line and column)
+        source: toml::de::Error,
+    },
+    /// A value is out of range or malformed.
+    #[error("invalid {field}: {message}")]
+    Invalid {
+        /// which setting
+        field: &'static str,
+        /// what is wrong
+        message: String,
+    },
+}
+
+/// `rigcast.toml` as written by users. Every field is optional.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileConfig {
+    /// Listen address, e.g. `"127.0.0.1:8717"`.
+    pub listen: Option<String>,
+    /// Output tick rate in Hz (1..=240).
+    pub rate_hz: Option<f64>,
+    /// Pose sources.
+    #[serde(default)]
+    pub sources: Vec<FileSource>,
+    /// VMC receivers, `"host:port"`.
+    #[serde(default)]
+    pub vmc_out: Vec<String>,
+}
+
+/// One `[[sources]]` entry.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum FileSource {
+    /// Replays an animation file (BVH, glTF/GLB/VRM, .rcr recording).
+    Replay {
+        /// The file (relative paths are relative to the config file).
+        path: PathBuf,
+        /// Playback speed factor.
+        #[serde(default = "one")]
+        speed: f64,
+        /// Loop at the end (default true).
+        #[serde(default = "yes", rename = "loop")]
+        looping: bool,
+        /// Start this many seconds into the clip.
+        #[serde(default)]
+        start_offset_secs: f64,
+        /// Subject name (default: the file stem).
+        name: Option<String>,
+    },
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+
+impl FileConfig {
+    /// Reads and parses a config file; relative source paths are resolved against its folder.
+    pub fn load(path: &Path) -> Result<FileConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut cfg: FileConfig = toml::from_str(&text).map_err(|source| ConfigError::Parse {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        for s in &mut cfg.sources {
+            let FileSource::Replay { path, .. } = s;
+            if path.is_relative() {
+                *path = base.join(&*path);
+            }
+        }
+        Ok(cfg)
+    }
+}
+
+/// Playback settings of a replayed clip.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplaySettings {
+    /// Speed factor (> 0).
+    pub speed: f64,
+    /// Loop at the end.
+    pub looping: bool,
+    /// Seconds into the clip to start at.
+    pub start_offset_secs: f64,
+}
+
+impl Default for ReplaySettings {
+    fn default() -> Self {
+        ReplaySettings {
+            speed: 1.0,
+            looping: true,
+            start_offset_secs: 0.0,
+        }
+    }
+}
+
+/// Where a subject's poses come from.
+#[derive(Debug, Clone)]
+pub enum SourceSpec {
+    /// Replay a file.
+    ReplayFile {
+        /// The file.
+        path: PathBuf,
+        /// Subject name (default: file stem).
+        name: Option<String>,
+        /// Playback.
+        settings: ReplaySettings,
+    },
+    /// Replay a clip already in memory (tests, generated content).
+    ReplayClip {
+        /// The clip.
+        clip: Clip,
+        /// Subject name (default: the clip name).
+        name: Option<String>,
+        /// Playback.
+        settings: ReplaySettings,
+    },
+    /// The bundled demo recording, looping.
+    EmbeddedDemo,
+}
+
+/// Fully resolved server settings.
+#[derive(Debug, Clone)]
+pub struct ServerConfig {
+    /// Address for HTTP + WebSocket; port 0 picks a free port.
+    pub listen: SocketAddr,
+    /// Output tick rate, Hz.
+    pub rate_hz: f64,
+    /// Subjects to stream (empty = the embedded demo).
+    pub sources: Vec<SourceSpec>,
+    /// VMC receivers (`host:port`, resolved at start).
+    pub vmc_out: Vec<String>,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        ServerConfig {
+            listen: SocketAddr::from(([127, 0, 0, 1], 8717)),
+            rate_hz: DEFAULT_RATE_HZ,
+            sources: Vec::new(),
+            vmc_out: Vec::new(),
+        }
+    }
+}
+
+impl ServerConfig {
+    /// Checks ranges (rate, replay speeds).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !RATE_RANGE_HZ.contains(&self.rate_hz) {
+            return Err(ConfigError::Invalid {
+                field: "rate_hz",
+                message: format!("{} is outside 1..=240", self.rate_hz),
+            });
+        }
+        for s in &self.sources {
+            let settings = match s {
+                SourceSpec::ReplayFile { settings, .. }
+                | SourceSpec::ReplayClip { settings, .. } => settings,
+                SourceSpec::EmbeddedDemo => continue,
+            };
+            if !(settings.speed.is_finite() && settings.speed > 0.0) {
+                return Err(ConfigError::Invalid {
+                    field: "speed",
+                    message: format!("{} must be a positive number", settings.speed),
+                });
+            }
+            if !(settings.start_offset_secs.is_finite() && settings.start_offset_secs >= 0.0) {
+                return Err(ConfigError::Invalid {
+                    field: "start_offset_secs",
+                    message: format!("{} must be ≥ 0", settings.start_offset_secs),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies a parsed file on top of the defaults.
+    pub fn from_file(file: FileConfig) -> Result<ServerConfig, ConfigError> {
+        let mut cfg = ServerConfig::default();
+        if let Some(listen) = file.listen {
+            cfg.listen = parse_listen(&listen)?;
+        }
+        if let Some(rate) = file.rate_hz {
+            cfg.rate_hz = rate;
+        }
+        cfg.vmc_out = file.vmc_out;
+        cfg.sources = file
+            .sources
+            .into_iter()
+            .map(|s| match s {
+                FileSource::Replay {
+                    path,
+                    speed,
+                    looping,
+                    start_offset_secs,
+                    name,
+                } => SourceSpec::ReplayFile {
+                    path,
+                    name,
+                    settings: ReplaySettings {
+                        speed,
+                        looping,
+                        start_offset_secs,
+                    },
+                },
+            })
+            .collect();
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
+
+/// Parses a listen address (`ip:port`).
+pub fn parse_listen(s: &str) -> Result<SocketAddr, ConfigError> {
+    s.parse().map_err(|e| ConfigError::Invalid {
+        field: "listen",
+        message: format!("{s:?} is not an ip:port address ({e})"),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_documented_example() {
+        let text = r#"
+            listen = "0.0.0.0:9000"
+            rate_hz = 120
+            vmc_out = ["127.0.0.1:39539"]
+            [[sources]]
+            kind = "replay"
+            path = "/x/walk.bvh"
+            speed = 0.5
+            loop = false
+            name = "walker"
+        "#;
+        let file: FileConfig = toml::from_str(text).unwrap();
+        let cfg = ServerConfig::from_file(file).unwrap();
+        assert_eq!(cfg.listen.port(), 9000);
+        assert_eq!(cfg.rate_hz, 120.0);
+        assert_eq!(cfg.vmc_out, vec!["127.0.0.1:39539".to_string()]);
+        match &cfg.sources[0] {
+            SourceSpec::ReplayFile {
+                path,
+                name,
+                settings,
+            } => {
+                assert_eq!(path, Path::new("/x/walk.bvh"));
+                assert_eq!(name.as_deref(), Some("walker"));
+                assert_eq!(settings.speed, 0.5);
+                assert!(!settings.looping);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn rejects_bad_values() {
+        assert!(
+            toml::from_str::<FileConfig>("rate = 3").is_err(),
+            "unknown key"
+        );
+        let file: FileConfig = toml::from_str("rate_hz = 500").unwrap();
+        assert!(matches!(
+            ServerConfig::from_file(file),
+            Err(ConfigError::Invalid {
+                field: "rate_hz",
+                ..
+            })
+        ));
+        let file: FileConfig = toml::from_str(r#"listen = "nope""#).unwrap();
+        assert!(ServerConfig::from_file(file).is_err());
+        let file: FileConfig =
+            toml::from_str("[[sources]]\nkind = \"replay\"\npath = \"a\"\nspeed = 0").unwrap();
+        assert!(ServerConfig::from_file(file).is_err());
+    }
+}

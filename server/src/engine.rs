@@ -1,0 +1,276 @@
+//! The engine: source tasks feeding `watch` slots, and the fixed-rate tick that encodes each
+//! subject's latest pose once and fans it out.
+//!
+//! ```text
+//!  source task ─send_modify─▶ watch<Frame> ─┐ (latest frame wins; the pose buffer is reused)
+//!  source task ─send_modify─▶ watch<Frame> ─┤
+//!                                           ▼
+//!                 tick (interval, MissedTickBehavior::Skip, never awaits a client)
+//!                   ├─ encode frame into scratch Vec → one shared Bytes per subject
+//!                   ├─ broadcast::send(OutFrame)  ──▶ client tasks (lag ⇒ told, stays)
+//!                   └─ VMC: encode bundles (reused buffers) → try_send_to each receiver
+//! ```
+//!
+//! Per tick the only allocation is the shared `Bytes` per subject (it must outlive the tick
+//! because clients send it later); everything else reuses buffers.
+
+use std::net::SocketAddr;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use rigcast_protocol::control::{BoneInfo, SubjectInfo, SubjectKind};
+use rigcast_protocol::frame::{encode_frame, FrameHeader};
+use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::{Frame, Pose, Skeleton};
+use tokio::sync::{broadcast, mpsc, watch};
+use tokio::time::MissedTickBehavior;
+use tokio_tungstenite::tungstenite::Bytes;
+
+use crate::replay::ClipPlayer;
+use crate::stats::{Stats, SubjectStats};
+
+/// Wall clock as Unix epoch nanoseconds.
+pub fn unix_nanos() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0)
+}
+
+/// One encoded binary frame on its way to clients.
+#[derive(Debug, Clone)]
+pub struct OutFrame {
+    /// Subject id.
+    pub subject: u32,
+    /// The encoded frame, shared by every client.
+    pub bytes: Bytes,
+}
+
+/// A streamed subject: its skeleton, the pre-serialised `skeleton` message and its pose slot.
+#[derive(Debug)]
+pub struct Subject {
+    /// Public description (as in `hello`).
+    pub info: SubjectInfo,
+    /// Skeleton of the poses.
+    pub skeleton: Arc<Skeleton>,
+    /// The `skeleton` message, serialised once.
+    pub skeleton_json: String,
+    /// Latest frame from the source.
+    pub latest: watch::Receiver<Frame>,
+    /// Input counters.
+    pub stats: SubjectStats,
+}
+
+impl Subject {
+    /// Builds a subject and the sender its source writes to.
+    pub fn new(id: u32, name: String, skeleton: Arc<Skeleton>) -> (Subject, watch::Sender<Frame>) {
+        let info = SubjectInfo {
+            id,
+            name: name.clone(),
+            kind: SubjectKind::Source,
+            source: None,
+            num_bones: skeleton.num_bones() as u32,
+            fingerprint: skeleton.fingerprint_hex(),
+        };
+        let bones = skeleton
+            .bone_ids()
+            .map(|b| {
+                let rest = skeleton.rest()[b.index()];
+                BoneInfo {
+                    name: skeleton.name(b).to_string(),
+                    parent: skeleton.parent(b).map(|p| p.0 as u32),
+                    rest_translation: rest.translation.to_array(),
+                    rest_rotation: rest.rotation.to_array(),
+                }
+            })
+            .collect();
+        let skeleton_json = ServerMessage::Skeleton {
+            subject: id,
+            name,
+            fingerprint: info.fingerprint.clone(),
+            bones,
+        }
+        .to_json();
+        let (tx, rx) = watch::channel(Frame {
+            seq: 0,
+            capture_nanos: 0,
+            source_id: id,
+            pose: Pose::from_rest(&skeleton),
+        });
+        (
+            Subject {
+                info,
+                skeleton,
+                skeleton_json,
+                latest: rx,
+                stats: SubjectStats::default(),
+            },
+            tx,
+        )
+    }
+}
+
+/// Requests from clients to the engine.
+#[derive(Debug)]
+pub enum EngineCommand {
+    /// `set_mapping` from a client (applied once mappings exist; logged for now).
+    SetMapping {
+        /// target subject
+        subject: u32,
+        /// target bone → source bone
+        overrides: std::collections::BTreeMap<String, Option<String>>,
+    },
+}
+
+/// Runs one replay source until shutdown or (non-looping) end of clip.
+pub async fn run_replay_source(
+    player: ClipPlayer,
+    tx: watch::Sender<Frame>,
+    subject: Arc<Subject>,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    // A floor on the period keeps a very fast speed setting from spinning the runtime.
+    let period = player.frame_period_secs().max(1e-3);
+    let mut interval = tokio::time::interval(Duration::from_secs_f64(period));
+    interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let start = Instant::now();
+    let mut last_k = None;
+    loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = shutdown.changed() => break,
+        }
+        // Snap to the frame grid: frame k is due at k × period after start.
+        let k = (start.elapsed().as_secs_f64() / period).floor() as u64;
+        if last_k == Some(k) {
+            continue;
+        }
+        last_k = Some(k);
+        let now = unix_nanos();
+        let mut finished = false;
+        tx.send_modify(|f| match player.frame_into(k, &mut f.pose) {
+            Some(_) => {
+                f.seq += 1;
+                f.capture_nanos = now;
+            }
+            None => finished = true,
+        });
+        if finished {
+            break;
+        }
+        subject.stats.input.tick();
+        subject
+            .stats
+            .last_capture_nanos
+            .store(now, Ordering::Relaxed);
+    }
+}
+
+/// A VMC receiver and the subject it receives.
+#[derive(Debug, Clone)]
+pub struct VmcTarget {
+    /// Receiver address.
+    pub addr: SocketAddr,
+    /// Index of the subject streamed to it.
+    pub subject_index: usize,
+}
+
+/// Everything the tick needs.
+pub struct TickContext {
+    /// Subjects in id order.
+    pub subjects: Arc<Vec<Arc<Subject>>>,
+    /// Fan-out to clients.
+    pub frames: broadcast::Sender<OutFrame>,
+    /// Counters.
+    pub stats: Arc<Stats>,
+    /// Output rate.
+    pub rate_hz: f64,
+    /// VMC output socket and receivers (socket is `None` when there are none).
+    pub vmc: Option<(std::net::UdpSocket, Vec<VmcTarget>)>,
+}
+
+/// The fixed-rate tick. Never awaits anything but its interval and the shutdown signal.
+pub async fn run_tick(ctx: TickContext, mut shutdown: watch::Receiver<bool>) {
+    let mut interval = tokio::time::interval(Duration::from_secs_f64(1.0 / ctx.rate_hz));
+    interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let mut scratch: Vec<u8> = Vec::new();
+    let mut vmc_encoder = VmcEncoder::new();
+    let start = Instant::now();
+    loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = shutdown.changed() => break,
+        }
+        let tick_start = Instant::now();
+        let send_nanos = unix_nanos();
+        for (index, subject) in ctx.subjects.iter().enumerate() {
+            let frame = subject.latest.borrow();
+            if frame.capture_nanos == 0 {
+                continue; // the source has not produced anything yet
+            }
+            let header = FrameHeader {
+                flags: 0,
+                subject: subject.info.id,
+                seq: frame.seq,
+                capture_nanos: frame.capture_nanos,
+                send_nanos,
+                missed_frames: 0,
+            };
+            encode_frame(
+                &mut scratch,
+                &header,
+                frame.pose.root_translation(),
+                &frame.pose.rotations,
+            );
+            if let Some((socket, targets)) = &ctx.vmc {
+                if targets.iter().any(|t| t.subject_index == index) {
+                    let names = subject.skeleton.names();
+                    let bones = names
+                        .iter()
+                        .zip(&frame.pose.translations)
+                        .zip(&frame.pose.rotations)
+                        .map(|((name, &translation), &rotation)| VmcBone {
+                            name,
+                            translation,
+                            rotation,
+                        });
+                    let time = start.elapsed().as_secs_f32();
+                    for bundle in vmc_encoder.encode(time, bones) {
+                        for t in targets.iter().filter(|t| t.subject_index == index) {
+                            // Non-blocking: a full socket buffer drops the datagram (counted)
+                            // instead of stalling the tick.
+                            if socket.send_to(bundle, t.addr).is_err() {
+                                ctx.stats.vmc_send_errors.fetch_add(1, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                }
+            }
+            drop(frame);
+            // The one allocation per subject per tick: the shared, immutable frame.
+            let bytes = Bytes::copy_from_slice(&scratch);
+            // Err only means "no client connected right now".
+            let _ = ctx.frames.send(OutFrame {
+                subject: subject.info.id,
+                bytes,
+            });
+        }
+        ctx.stats.record_tick(tick_start.elapsed());
+    }
+}
+
+/// Drains client requests. Mappings do not exist yet, so overrides are only logged.
+pub async fn run_commands(mut rx: mpsc::Receiver<EngineCommand>) {
+    while let Some(cmd) = rx.recv().await {
+        match cmd {
+            EngineCommand::SetMapping { subject, overrides } => {
+                eprintln!(
+                    "rigcast: set_mapping for subject {subject}: {} override(s) (mapping engine not yet available)",
+                    overrides.len()
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,337 @@
+//! The single HTTP listener: WebSocket upgrade on `GET /v1/stream`, JSON status on
+//! `GET /v1/status`, and static files (the web viewer) for everything else.
+//!
+//! The request head is parsed by hand (method, path, a few headers): the server only needs
+//! GET requests, and this keeps an HTTP framework out of the dependency tree. The upgrade uses
+//! tungstenite's `derive_accept_key` and hands the socket, plus any bytes read past the head,
+//! to `WebSocketStream::from_partially_read`.
+
+use std::borrow::Cow;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::Serialize;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio_tungstenite::tungstenite::handshake::derive_accept_key;
+use tokio_tungstenite::tungstenite::protocol::{Role, WebSocketConfig};
+use tokio_tungstenite::WebSocketStream;
+
+use crate::clients::{serve_client, MAX_TRANSPORT_MESSAGE_BYTES};
+use crate::state::ServerState;
+use crate::stats::TickPercentiles;
+
+/// Largest request head accepted.
+const MAX_HEAD_BYTES: usize = 16 * 1024;
+/// A client must finish sending its request head within this time.
+const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Accepts connections until shutdown.
+pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
+    let mut shutdown = state.shutdown.clone();
+    loop {
+        tokio::select! {
+            _ = shutdown.changed() => break,
+            accepted = listener.accept() => {
+                match accepted {
+                    Ok((stream, peer)) => {
+                        let _ = stream.set_nodelay(true);
+                        tokio::spawn(handle_connection(stream, peer.to_string(), state.clone()));
+                    }
+                    Err(e) => {
+                        // Typically EMFILE; back off briefly rather than spin.
+                        eprintln!("rigcast: accept failed: {e}");
+                        tokio::time::sleep(Duration::from_millis(50)).await;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A parsed request head.
+#[derive(Debug, Default, PartialEq)]
+struct Request {
+    method: String,
+    path: String,
+    upgrade_websocket: bool,
+    websocket_key: Option<String>,
+}
+
+fn parse_head(head: &str) -> Option<Request> {
+    let mut lines = head.split("\r\n");
+    let mut first = lines.next()?.split(' ');
+    let method = first.next()?.to_string();
+    let target = first.next()?;
+    let path = target.split('?').next().unwrap_or(target).to_string();
+    let mut req = Request {
+        method,
+        path,
+        ..Request::default()
+    };
+    for line in lines {
+        let Some((name, value)) = line.split_once(':') else {
+            continue;
+        };
+        let value = value.trim();
+        match name.trim().to_ascii_lowercase().as_str() {
+            "upgrade" => req.upgrade_websocket = value.eq_ignore_ascii_case("websocket"),
+            "sec-websocket-key" => req.websocket_key = Some(value.to_string()),
+            _ => {}
+        }
+    }
+    Some(req)
+}
+
+async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<ServerState>) {
+    let mut buf = Vec::with_capacity(1024);
+    let head_end = match tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)).await
+    {
+        Ok(Some(end)) => end,
+        _ => return,
+    };
+    let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
+    let leftover = buf[head_end..].to_vec();
+    let Some(req) = parse_head(&head) else {
+        let _ = respond(&mut stream, 400, "text/plain", b"bad request\n").await;
+        return;
+    };
+    if req.method != "GET" {
+        let _ = respond(&mut stream, 405, "text/plain", b"only GET is supported\n").await;
+        return;
+    }
+    match req.path.as_str() {
+        "/v1/stream" => {
+            let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
+                let _ = respond(
+                    &mut stream,
+                    426,
+                    "text/plain",
+                    b"this endpoint needs a WebSocket upgrade\n",
+                )
+                .await;
+                return;
+            };
+            let accept = derive_accept_key(key.as_bytes());
+            let response = format!(
+                "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
+            );
+            if stream.write_all(response.as_bytes()).await.is_err() {
+                return;
+            }
+            let config = WebSocketConfig::default()
+                .max_message_size(Some(MAX_TRANSPORT_MESSAGE_BYTES))
+                .max_frame_size(Some(MAX_TRANSPORT_MESSAGE_BYTES));
+            let ws =
+                WebSocketStream::from_partially_read(stream, leftover, Role::Server, Some(config))
+                    .await;
+            serve_client(ws, state, peer).await;
+        }
+        "/v1/status" => {
+            let body = serde_json::to_vec_pretty(&status(&state)).unwrap_or_default();
+            let _ = respond(&mut stream, 200, "application/json", &body).await;
+        }
+        path => match static_asset(path) {
+            Some((mime, body)) => {
+                let _ = respond(&mut stream, 200, mime, &body).await;
+            }
+            None => {
+                let _ = respond(&mut stream, 404, "text/plain", b"not found\n").await;
+            }
+        },
+    }
+}
+
+/// Reads until the blank line ending the head; returns its end offset (after `\r\n\r\n`).
+async fn read_head(stream: &mut TcpStream, buf: &mut Vec<u8>) -> Option<usize> {
+    let mut chunk = [0u8; 2048];
+    loop {
+        if let Some(pos) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
+            return Some(pos + 4);
+        }
+        if buf.len() > MAX_HEAD_BYTES {
+            return None;
+        }
+        let n = stream.read(&mut chunk).await.ok()?;
+        if n == 0 {
+            return None;
+        }
+        buf.extend_from_slice(&chunk[..n]);
+    }
+}
+
+async fn respond(
+    stream: &mut TcpStream,
+    status: u16,
+    mime: &str,
+    body: &[u8],
+) -> std::io::Result<()> {
+    let reason = match status {
+        200 => "OK",
+        400 => "Bad Request",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        426 => "Upgrade Required",
+        _ => "Error",
+    };
+    let head = format!(
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {mime}\r\nContent-Length: {}\r\nCache-Control: no-cache\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    stream.write_all(head.as_bytes()).await?;
+    stream.write_all(body).await?;
+    stream.shutdown().await
+}
+
+/// The web viewer's files. Hook for the viewer build: return the file for `path` (`"/"` means
+/// the index page) with its MIME type. Until the viewer exists this serves a placeholder page.
+pub fn static_asset(path: &str) -> Option<(&'static str, Cow<'static, [u8]>)> {
+    match path {
+        "/" | "/index.html" => Some((
+            "text/html; charset=utf-8",
+            Cow::Borrowed(PLACEHOLDER_PAGE.as_bytes()),
+        )),
+        _ => None,
+    }
+}
+
+const PLACEHOLDER_PAGE: &str = r#"<!doctype html>
+<html><head><meta charset="utf-8"><title>rigcast</title></head>
+<body>
+<h1>rigcast</h1>
+<p>The viewer is not built yet. Stream: <code>ws://HOST/v1/stream</code>,
+status: <a href="/v1/status">/v1/status</a>.</p>
+</body></html>
+"#;
+
+/// `GET /v1/status` body.
+#[derive(Debug, Serialize)]
+pub struct Status {
+    /// Server crate version.
+    pub server_version: &'static str,
+    /// Configured output rate.
+    pub tick_hz: f64,
+    /// Measured output rate (ticks per second).
+    pub output_rate_hz: f64,
+    /// Per-subject input.
+    pub subjects: Vec<SubjectStatus>,
+    /// Connected clients.
+    pub clients: ClientsStatus,
+    /// Frames dropped for lagging clients, total since start.
+    pub dropped_frames_total: u64,
+    /// VMC datagrams that failed to send.
+    pub vmc_send_errors: u64,
+    /// Tick duration percentiles (µs) over the last ~1024 ticks.
+    pub tick_micros: TickPercentiles,
+}
+
+/// One subject in the status.
+#[derive(Debug, Serialize)]
+pub struct SubjectStatus {
+    /// id
+    pub id: u32,
+    /// name
+    pub name: String,
+    /// bones
+    pub num_bones: u32,
+    /// Frames per second arriving from the source.
+    pub input_fps: f64,
+    /// Frames produced since start.
+    pub input_frames: u64,
+    /// Capture time of the latest frame, Unix ns (0 = none yet).
+    pub last_capture_nanos: u64,
+}
+
+/// Clients in the status.
+#[derive(Debug, Serialize)]
+pub struct ClientsStatus {
+    /// Connected clients.
+    pub count: usize,
+    /// Each client.
+    pub list: Vec<ClientStatus>,
+}
+
+/// One client in the status.
+#[derive(Debug, Serialize)]
+pub struct ClientStatus {
+    /// connection id
+    pub id: u64,
+    /// peer address
+    pub peer: String,
+    /// frames sent
+    pub frames_sent: u64,
+    /// frames dropped because it lagged
+    pub missed_frames: u64,
+}
+
+/// Snapshot of the counters.
+pub fn status(state: &ServerState) -> Status {
+    let subjects = state
+        .subjects
+        .iter()
+        .map(|s| SubjectStatus {
+            id: s.info.id,
+            name: s.info.name.clone(),
+            num_bones: s.info.num_bones,
+            input_fps: s.stats.input.rate_hz(),
+            input_frames: s.stats.input.total(),
+            last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
+        })
+        .collect();
+    let list: Vec<ClientStatus> = state
+        .stats
+        .clients
+        .lock()
+        .map(|c| {
+            c.iter()
+                .map(|(id, c)| ClientStatus {
+                    id: *id,
+                    peer: c.peer.clone(),
+                    frames_sent: c.frames_sent.load(Ordering::Relaxed),
+                    missed_frames: c.missed_frames.load(Ordering::Relaxed),
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    Status {
+        server_version: env!("CARGO_PKG_VERSION"),
+        tick_hz: state.rate_hz,
+        output_rate_hz: state.stats.output.rate_hz(),
+        subjects,
+        clients: ClientsStatus {
+            count: list.len(),
+            list,
+        },
+        dropped_frames_total: state.stats.dropped_frames.load(Ordering::Relaxed),
+        vmc_send_errors: state.stats.vmc_send_errors.load(Ordering::Relaxed),
+        tick_micros: state.stats.tick_percentiles(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_upgrade_request() {
+        let head = "GET /v1/stream?x=1 HTTP/1.1\r\nHost: a\r\nUpgrade: WebSocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
+        let r = parse_head(head).unwrap();
+        assert_eq!(r.method, "GET");
+        assert_eq!(r.path, "/v1/stream");
+        assert!(r.upgrade_websocket);
+        assert_eq!(r.websocket_key.as_deref(), Some("dGhlIHNhbXBsZSBub25jZQ=="));
+        // RFC 6455 §1.3 worked example.
+        assert_eq!(
+            derive_accept_key(b"dGhlIHNhbXBsZSBub25jZQ=="),
+            "s3pPLMBiTxaQ9kYGzzhZRbK+xOo="
+        );
+        assert!(parse_head("").is_none());
+    }
+
+    #[test]
+    fn static_hook_serves_placeholder() {
+        assert!(static_asset("/").is_some());
+        assert!(static_asset("/nope.js").is_none());
+    }
+}

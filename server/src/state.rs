@@ -1,0 +1,52 @@
+//! State shared by the listener, the client tasks and the status handler.
+
+use std::sync::atomic::AtomicU64;
+use std::sync::Arc;
+
+use rigcast_protocol::control::SubjectInfo;
+use rigcast_protocol::{ServerMessage, PROTOCOL_VERSION};
+use tokio::sync::{broadcast, mpsc, watch};
+
+use crate::engine::{EngineCommand, OutFrame, Subject};
+use crate::stats::Stats;
+
+/// Shared server state (immutable apart from atomics and the stats' locks).
+pub struct ServerState {
+    /// Subjects in id order (id = index).
+    pub subjects: Arc<Vec<Arc<Subject>>>,
+    /// Frame fan-out; client tasks call `subscribe`.
+    pub frames: broadcast::Sender<OutFrame>,
+    /// Counters.
+    pub stats: Arc<Stats>,
+    /// Output rate.
+    pub rate_hz: f64,
+    /// Client id allocator.
+    pub next_client_id: AtomicU64,
+    /// Becomes `true` on shutdown.
+    pub shutdown: watch::Receiver<bool>,
+    /// Requests to the engine.
+    pub commands: mpsc::Sender<EngineCommand>,
+}
+
+impl ServerState {
+    /// A subject by id.
+    pub fn subject(&self, id: u32) -> Option<&Arc<Subject>> {
+        self.subjects.get(id as usize).filter(|s| s.info.id == id)
+    }
+
+    /// The subjects as listed in `hello`.
+    pub fn subject_infos(&self) -> Vec<SubjectInfo> {
+        self.subjects.iter().map(|s| s.info.clone()).collect()
+    }
+
+    /// The `hello` message.
+    pub fn hello_json(&self) -> String {
+        ServerMessage::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            server_version: env!("CARGO_PKG_VERSION").to_string(),
+            tick_hz: self.rate_hz,
+            subjects: self.subject_infos(),
+        }
+        .to_json()
+    }
+}

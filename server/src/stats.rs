@@ -1,0 +1,186 @@
+//! Counters behind `GET /v1/status`. Written by the hot paths with atomics (and one
+//! uncontended mutex for the tick-duration window), read by the status handler.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+
+/// Ticks kept for the duration percentiles (about 17 s at 60 Hz).
+const TICK_WINDOW: usize = 1024;
+
+/// Measures an event rate over the time since the previous read.
+#[derive(Debug)]
+pub struct RateMeter {
+    count: AtomicU64,
+    window: Mutex<(Instant, u64, f64)>,
+}
+
+impl Default for RateMeter {
+    fn default() -> Self {
+        RateMeter {
+            count: AtomicU64::new(0),
+            window: Mutex::new((Instant::now(), 0, 0.0)),
+        }
+    }
+}
+
+impl RateMeter {
+    /// Counts one event.
+    #[inline]
+    pub fn tick(&self) {
+        self.count.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Total events.
+    pub fn total(&self) -> u64 {
+        self.count.load(Ordering::Relaxed)
+    }
+
+    /// Events per second since the previous call (windows shorter than 0.5 s reuse the
+    /// previous figure so frequent polling does not produce noise).
+    pub fn rate_hz(&self) -> f64 {
+        let Ok(mut w) = self.window.lock() else {
+            return 0.0;
+        };
+        let now = Instant::now();
+        let dt = now.duration_since(w.0).as_secs_f64();
+        let count = self.total();
+        if dt >= 0.5 {
+            w.2 = (count - w.1) as f64 / dt;
+            *w = (now, count, w.2);
+        }
+        w.2
+    }
+}
+
+/// Per-subject input counters.
+#[derive(Debug, Default)]
+pub struct SubjectStats {
+    /// Frames produced by the source.
+    pub input: RateMeter,
+    /// Capture time of the latest frame, Unix ns.
+    pub last_capture_nanos: AtomicU64,
+}
+
+/// Per-client counters.
+#[derive(Debug, Default)]
+pub struct ClientStats {
+    /// Frames sent.
+    pub frames_sent: AtomicU64,
+    /// Frames dropped because the client lagged.
+    pub missed_frames: AtomicU64,
+    /// Peer address, for display.
+    pub peer: String,
+}
+
+/// Server-wide counters.
+#[derive(Debug)]
+pub struct Stats {
+    /// Ticks run.
+    pub output: RateMeter,
+    /// Frames dropped across all clients.
+    pub dropped_frames: AtomicU64,
+    /// VMC datagrams that could not be sent.
+    pub vmc_send_errors: AtomicU64,
+    /// Connected clients by id.
+    pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
+    tick_micros: Mutex<TickWindow>,
+}
+
+#[derive(Debug)]
+struct TickWindow {
+    values: [u32; TICK_WINDOW],
+    len: usize,
+    next: usize,
+}
+
+impl Default for Stats {
+    fn default() -> Self {
+        Stats {
+            output: RateMeter::default(),
+            dropped_frames: AtomicU64::new(0),
+            vmc_send_errors: AtomicU64::new(0),
+            clients: Mutex::new(BTreeMap::new()),
+            tick_micros: Mutex::new(TickWindow {
+                values: [0; TICK_WINDOW],
+                len: 0,
+                next: 0,
+            }),
+        }
+    }
+}
+
+/// Tick duration percentiles in microseconds.
+#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq)]
+pub struct TickPercentiles {
+    /// median
+    pub p50: u32,
+    /// 90th percentile
+    pub p90: u32,
+    /// 99th percentile
+    pub p99: u32,
+    /// maximum
+    pub max: u32,
+    /// ticks in the window
+    pub samples: usize,
+}
+
+impl Stats {
+    /// Records one tick's duration (no allocation).
+    pub fn record_tick(&self, d: Duration) {
+        self.output.tick();
+        if let Ok(mut w) = self.tick_micros.lock() {
+            let micros = d.as_micros().min(u32::MAX as u128) as u32;
+            let i = w.next;
+            w.values[i] = micros;
+            w.next = (i + 1) % TICK_WINDOW;
+            w.len = (w.len + 1).min(TICK_WINDOW);
+        }
+    }
+
+    /// Percentiles over the recent window.
+    pub fn tick_percentiles(&self) -> TickPercentiles {
+        let mut values = match self.tick_micros.lock() {
+            Ok(w) => w.values[..w.len].to_vec(),
+            Err(_) => return TickPercentiles::default(),
+        };
+        if values.is_empty() {
+            return TickPercentiles::default();
+        }
+        values.sort_unstable();
+        let at = |p: f64| values[((values.len() - 1) as f64 * p).round() as usize];
+        TickPercentiles {
+            p50: at(0.5),
+            p90: at(0.9),
+            p99: at(0.99),
+            max: at(1.0),
+            samples: values.len(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_of_known_values() {
+        let s = Stats::default();
+        for us in 1..=100u64 {
+            s.record_tick(Duration::from_micros(us));
+        }
+        let p = s.tick_percentiles();
+        assert_eq!(
+            (p.p50, p.p90, p.p99, p.max, p.samples),
+            (51, 90, 99, 100, 100)
+        );
+        // The window forgets old ticks.
+        for _ in 0..TICK_WINDOW {
+            s.record_tick(Duration::from_micros(7));
+        }
+        assert_eq!(s.tick_percentiles().max, 7);
+    }
+}
