@@ -2,7 +2,7 @@
 
     blender -b --factory-startup --python-exit-code 1 \
         --python clients/blender/tests/run_in_blender.py -- \
-        --zip dist/rigcast_livelink.zip --address 127.0.0.1:8717 --out obs.json [--seconds 2]
+        (--zip dist/rigcast_livelink.zip | --build-zip OUT.zip) --address 127.0.0.1:8717 --out obs.json [--seconds 2]
 
 Installs the add-on from the zip, enables it, connects, creates an armature per subject with
 the add-on's operator, applies the stream for --seconds while recording, then writes what it
@@ -71,6 +71,13 @@ def main():
 
 
 def run(args, out):
+    if "build-zip" in args:
+        # Build with the documented builder, under Blender's own Python (no system python needed).
+        sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+        import build_zip
+
+        build_zip.build(args["build-zip"])
+        args["zip"] = args["build-zip"]
     install_addon(os.path.abspath(args["zip"]))
     livelink = find_addon_module()
     runtime = livelink.runtime

@@ -1,0 +1,393 @@
+// rigcast viewer: every subject's skeleton side by side (sources and their retargeted
+// targets), a subject list, a live rate/latency graph and the mapping table with colours.
+// Plain ES modules; three.js is vendored under vendor/three (no CDN at run time).
+import * as THREE from './vendor/three/three.module.js';
+import { Stream } from './stream.js';
+import { Graph } from './graph.js';
+
+const KIND_COLORS = { source: 0x4fc3f7, target: 0xff8a65 };
+const $ = (id) => document.getElementById(id);
+
+const state = {
+  hello: null,
+  subjects: new Map(), // id -> info from hello
+  skeletons: new Map(), // id -> skeleton message
+  mappings: new Map(), // target id -> mapping message
+  views: new Map(), // id -> SubjectView
+  latest: new Map(), // id -> newest frame not yet drawn
+  stats: new Map(), // id -> { arrivals: [], latencyMs }
+  framesReceived: 0,
+  framesDrawn: 0,
+  missed: 0,
+  mappingSubject: null,
+  colorMode: 'gradient',
+};
+window.rigcast = state; // for tests and the curious (devtools)
+
+// -- three.js scene ------------------------------------------------------------------------
+const canvas = $('scene');
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio || 1);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x15171c);
+const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
+const grid = new THREE.GridHelper(20, 40, 0x3a4050, 0x262a35);
+scene.add(grid);
+const labelLayer = $('labels');
+
+function nowNanos() {
+  return (performance.timeOrigin + performance.now()) * 1e6;
+}
+
+class SubjectView {
+  constructor(info, skeleton) {
+    this.info = info;
+    this.bones = skeleton.bones;
+    const n = this.bones.length;
+    this.parents = this.bones.map((b) => (b.parent === null || b.parent === undefined ? -1 : b.parent));
+    this.restT = this.bones.map((b) => new THREE.Vector3(...b.rest_translation));
+    this.restR = this.bones.map((b) => new THREE.Quaternion(...b.rest_rotation));
+    this.worldR = this.bones.map(() => new THREE.Quaternion());
+    this.worldP = this.bones.map(() => new THREE.Vector3());
+    this.localR = new THREE.Quaternion();
+    this.tmp = new THREE.Vector3();
+    this.group = new THREE.Group();
+    this.edges = [];
+    for (let i = 0; i < n; i++) if (this.parents[i] >= 0) this.edges.push([this.parents[i], i]);
+    const linePositions = new Float32Array(this.edges.length * 6);
+    this.lineColors = new Float32Array(this.edges.length * 6);
+    this.lineGeometry = new THREE.BufferGeometry();
+    this.lineGeometry.setAttribute('position', new THREE.BufferAttribute(linePositions, 3));
+    this.lineGeometry.setAttribute('color', new THREE.BufferAttribute(this.lineColors, 3));
+    this.group.add(new THREE.LineSegments(this.lineGeometry, new THREE.LineBasicMaterial({ vertexColors: true })));
+    this.rest();
+    this.height = this.computeHeight();
+    const radius = Math.max(this.height * 0.012, 0.004);
+    this.joints = new THREE.InstancedMesh(new THREE.SphereGeometry(radius, 10, 8), new THREE.MeshBasicMaterial(), n);
+    this.group.add(this.joints);
+    this.matrix = new THREE.Matrix4();
+    this.setColors(null);
+    // Labels: the subject's name, and the bone names at the tips of chains (hands, feet, head).
+    this.subjectLabel = makeLabel(`${info.name} (${info.kind})`, 'subject');
+    const childCount = new Array(n).fill(0);
+    this.parents.forEach((p) => { if (p >= 0) childCount[p]++; });
+    this.boneLabels = [];
+    for (let i = 0; i < n; i++) {
+      if (childCount[i] === 0 || this.parents[i] < 0) this.boneLabels.push([i, makeLabel(this.bones[i].name, 'bone')]);
+    }
+    this.update();
+  }
+
+  rest() {
+    this.fk(null);
+  }
+
+  computeHeight() {
+    let min = Infinity, max = -Infinity;
+    for (const p of this.worldP) { min = Math.min(min, p.y); max = Math.max(max, p.y); }
+    return Math.max(max - min, 0.1);
+  }
+
+  bounds() {
+    const box = new THREE.Box3();
+    for (const p of this.worldP) box.expandByPoint(p);
+    return box;
+  }
+
+  fk(frame) {
+    const n = this.bones.length;
+    for (let i = 0; i < n; i++) {
+      const r = this.localR;
+      if (frame) r.set(frame.rotations[4 * i], frame.rotations[4 * i + 1], frame.rotations[4 * i + 2], frame.rotations[4 * i + 3]);
+      else r.copy(this.restR[i]);
+      const p = this.parents[i];
+      const t = i === 0 && frame ? this.tmp.set(...frame.root) : this.tmp.copy(this.restT[i]);
+      if (p < 0) {
+        this.worldR[i].copy(r);
+        this.worldP[i].copy(t);
+      } else {
+        this.worldR[i].multiplyQuaternions(this.worldR[p], r);
+        this.worldP[i].copy(t.applyQuaternion(this.worldR[p])).add(this.worldP[p]);
+      }
+    }
+  }
+
+  update() {
+    const positions = this.lineGeometry.attributes.position.array;
+    this.edges.forEach(([a, b], e) => {
+      positions.set([this.worldP[a].x, this.worldP[a].y, this.worldP[a].z, this.worldP[b].x, this.worldP[b].y, this.worldP[b].z], e * 6);
+    });
+    this.lineGeometry.attributes.position.needsUpdate = true;
+    this.lineGeometry.computeBoundingSphere();
+    for (let i = 0; i < this.bones.length; i++) {
+      this.matrix.makeTranslation(this.worldP[i].x, this.worldP[i].y, this.worldP[i].z);
+      this.joints.setMatrixAt(i, this.matrix);
+    }
+    this.joints.instanceMatrix.needsUpdate = true;
+    this.joints.computeBoundingSphere();
+  }
+
+  /** colors: Map bone name -> [r, g, b] (0..1), or null for the subject's kind colour. */
+  setColors(colors) {
+    const base = new THREE.Color(KIND_COLORS[this.info.kind] ?? 0xcccccc);
+    const color = new THREE.Color();
+    const boneColor = (i) => {
+      const c = colors?.get(this.bones[i].name);
+      return c ? color.setRGB(c[0], c[1], c[2]) : color.copy(base);
+    };
+    this.edges.forEach(([, b], e) => {
+      boneColor(b);
+      this.lineColors.set([color.r, color.g, color.b, color.r, color.g, color.b], e * 6);
+    });
+    this.lineGeometry.attributes.color.needsUpdate = true;
+    for (let i = 0; i < this.bones.length; i++) this.joints.setColorAt(i, boneColor(i));
+    if (this.joints.instanceColor) this.joints.instanceColor.needsUpdate = true;
+  }
+
+  placeLabels(width, height) {
+    const v = new THREE.Vector3();
+    const place = (label, point, lift) => {
+      v.copy(point).add(this.group.position);
+      v.y += lift;
+      v.project(camera);
+      const visible = v.z < 1 && Math.abs(v.x) <= 1.1 && Math.abs(v.y) <= 1.1;
+      label.style.display = visible ? 'block' : 'none';
+      label.style.left = `${((v.x + 1) / 2) * width}px`;
+      label.style.top = `${((1 - v.y) / 2) * height}px`;
+    };
+    let top = this.worldP[0];
+    for (const p of this.worldP) if (p.y > top.y) top = p;
+    place(this.subjectLabel, new THREE.Vector3(this.worldP[0].x, top.y, this.worldP[0].z), this.height * 0.18);
+    for (const [i, label] of this.boneLabels) place(label, this.worldP[i], this.height * 0.02);
+  }
+
+  dispose() {
+    this.subjectLabel.remove();
+    for (const [, label] of this.boneLabels) label.remove();
+    scene.remove(this.group);
+  }
+}
+
+function makeLabel(text, kind) {
+  const div = document.createElement('div');
+  div.className = `label ${kind}`;
+  div.textContent = text;
+  labelLayer.appendChild(div);
+  return div;
+}
+
+// Sources first, each followed by its retargeted targets, side by side along +X.
+function layout() {
+  const order = [];
+  const ids = [...state.views.keys()].sort((a, b) => a - b);
+  for (const id of ids) {
+    const view = state.views.get(id);
+    if (view.info.kind !== 'target' || !state.views.has(view.info.source)) {
+      order.push(view);
+      for (const other of ids) {
+        const o = state.views.get(other);
+        if (o.info.kind === 'target' && o.info.source === id) order.push(o);
+      }
+    }
+  }
+  let x = 0;
+  const all = new THREE.Box3();
+  for (const view of order) {
+    const box = view.bounds();
+    const width = Math.max(box.max.x - box.min.x, view.height * 0.6);
+    const gap = view.height * 0.35;
+    view.group.position.set(x + width / 2 - (box.min.x + box.max.x) / 2, 0, -(box.min.z + box.max.z) / 2);
+    if (!view.group.parent) scene.add(view.group);
+    x += width + gap;
+    all.union(box.clone().translate(view.group.position));
+  }
+  if (order.length === 0) return;
+  const center = all.getCenter(new THREE.Vector3());
+  const size = all.getSize(new THREE.Vector3());
+  const fit = Math.max(size.y * 1.35, (size.x * 1.15) / Math.max(camera.aspect, 0.1));
+  const distance = fit / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2)));
+  camera.position.set(center.x, center.y + size.y * 0.25, center.z + distance);
+  camera.lookAt(center.x, center.y, center.z);
+  grid.position.set(center.x, all.min.y, center.z);
+  grid.scale.setScalar(Math.max(size.x, size.y) / 10);
+}
+
+function resize() {
+  const { clientWidth: w, clientHeight: h } = canvas.parentElement;
+  renderer.setSize(w, h, false);
+  camera.aspect = w / Math.max(h, 1);
+  camera.updateProjectionMatrix();
+  layout();
+}
+window.addEventListener('resize', resize);
+
+// -- stream handling -----------------------------------------------------------------------
+function rebuildView(id) {
+  const info = state.subjects.get(id);
+  const skeleton = state.skeletons.get(id);
+  state.views.get(id)?.dispose();
+  state.views.delete(id);
+  if (!info || !skeleton) return;
+  state.views.set(id, new SubjectView(info, skeleton));
+  resize();
+  applyMappingColors();
+  renderSubjects();
+}
+
+function setSubjects(list) {
+  state.subjects = new Map(list.map((s) => [s.id, s]));
+  for (const id of [...state.views.keys()]) if (!state.subjects.has(id)) { state.views.get(id).dispose(); state.views.delete(id); }
+  if (state.mappingSubject === null || !state.subjects.has(state.mappingSubject)) {
+    state.mappingSubject = list.find((s) => s.kind === 'target')?.id ?? null;
+  }
+  renderSubjects();
+}
+
+function onMessage(message) {
+  switch (message.type) {
+    case 'hello':
+      state.hello = message;
+      $('server-version').textContent = `server ${message.server_version ?? '?'} · protocol ${message.protocol_version} · tick ${message.tick_hz} Hz`;
+      setSubjects(message.subjects ?? []);
+      break;
+    case 'subjects_changed':
+      setSubjects(message.subjects ?? []);
+      break;
+    case 'skeleton':
+      state.skeletons.set(message.subject, message);
+      rebuildView(message.subject);
+      break;
+    case 'mapping':
+      state.mappings.set(message.subject, message);
+      renderMapping();
+      applyMappingColors();
+      break;
+    case 'lagged':
+      state.missed += message.missed ?? 0;
+      break;
+    default:
+      break;
+  }
+}
+
+function onFrame(frame) {
+  state.framesReceived++;
+  state.missed += frame.missedFrames;
+  state.latest.set(frame.subject, frame);
+  let stats = state.stats.get(frame.subject);
+  if (!stats) { stats = { arrivals: [], latencyMs: 0 }; state.stats.set(frame.subject, stats); }
+  const now = performance.now();
+  stats.arrivals.push(now);
+  stats.latencyMs = (nowNanos() - Number(frame.captureNanos)) / 1e6;
+}
+
+const stream = new Stream(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/v1/stream`, {
+  onOpen: () => { $('connection').textContent = 'connected'; $('connection').className = 'ok'; },
+  onClose: () => { $('connection').textContent = 'disconnected — reconnecting'; $('connection').className = 'bad'; },
+  onMessage,
+  onFrame,
+});
+state.stream = stream;
+
+// -- side panel ----------------------------------------------------------------------------
+function renderSubjects() {
+  const list = $('subjects');
+  list.replaceChildren();
+  for (const info of state.subjects.values()) {
+    const li = document.createElement('li');
+    li.style.borderColor = `#${(KIND_COLORS[info.kind] ?? 0xcccccc).toString(16).padStart(6, '0')}`;
+    const source = info.kind === 'target' ? ` ← ${state.subjects.get(info.source)?.name ?? info.source}` : '';
+    const stats = state.stats.get(info.id);
+    const rate = stats ? `${rateOf(stats).toFixed(0)} fps · ${stats.latencyMs.toFixed(1)} ms` : 'no frames yet';
+    li.innerHTML = `<b></b>${source} <small>${info.kind}, ${info.num_bones} bones, ${rate}</small>`;
+    li.querySelector('b').textContent = `${info.id} ${info.name}`;
+    li.onclick = () => { if (info.kind === 'target') { state.mappingSubject = info.id; renderMapping(); applyMappingColors(); } };
+    list.appendChild(li);
+  }
+}
+
+function mappingColor(entry) {
+  return state.colorMode === 'random' ? entry.color_random : entry.color_gradient;
+}
+
+function renderMapping() {
+  const mapping = state.mappings.get(state.mappingSubject);
+  const body = $('mapping').querySelector('tbody');
+  body.replaceChildren();
+  if (!mapping) { $('mapping-title').textContent = 'no retargeted subject'; return; }
+  const target = state.subjects.get(mapping.subject)?.name ?? mapping.subject;
+  const source = state.subjects.get(mapping.source_subject)?.name ?? mapping.source_subject;
+  $('mapping-title').textContent = `${target} ← ${source}`;
+  for (const entry of mapping.entries ?? []) {
+    const tr = document.createElement('tr');
+    if (!entry.source) tr.className = 'unmapped';
+    const c = mappingColor(entry) ?? [0.5, 0.5, 0.5];
+    tr.innerHTML = '<td class="swatch"><span></span></td><td></td><td></td><td></td>';
+    tr.children[0].firstChild.style.background = `rgb(${c.map((v) => Math.round(v * 255)).join(',')})`;
+    tr.children[1].textContent = entry.target;
+    tr.children[2].textContent = entry.source ?? '—';
+    tr.children[3].textContent = typeof entry.score === 'number' ? entry.score.toFixed(2) : '';
+    body.appendChild(tr);
+  }
+}
+
+function applyMappingColors() {
+  for (const view of state.views.values()) view.setColors(null);
+  for (const mapping of state.mappings.values()) {
+    const targetColors = new Map();
+    const sourceColors = new Map();
+    for (const entry of mapping.entries ?? []) {
+      const c = mappingColor(entry);
+      if (!c) continue;
+      targetColors.set(entry.target, c);
+      if (entry.source) sourceColors.set(entry.source, c);
+    }
+    state.views.get(mapping.subject)?.setColors(targetColors);
+    if (mapping.subject === state.mappingSubject) state.views.get(mapping.source_subject)?.setColors(sourceColors);
+  }
+}
+
+$('color-mode').onchange = (event) => {
+  state.colorMode = event.target.value;
+  renderMapping();
+  applyMappingColors();
+};
+
+function rateOf(stats) {
+  const now = performance.now();
+  while (stats.arrivals.length && now - stats.arrivals[0] > 1000) stats.arrivals.shift();
+  return stats.arrivals.length;
+}
+
+const graph = new Graph($('graph'));
+setInterval(() => {
+  const t = performance.now() / 1000;
+  let rate = 0, latency = 0, n = 0;
+  for (const stats of state.stats.values()) { rate = Math.max(rate, rateOf(stats)); latency += stats.latencyMs; n++; }
+  if (n) graph.push(t, rate, latency / n);
+  graph.draw(t);
+  renderSubjects();
+}, 250);
+
+// -- draw loop: newest frame per subject, once per display frame ---------------------------
+function draw() {
+  for (const [id, frame] of state.latest) {
+    const view = state.views.get(id);
+    if (view && frame.numBones === view.bones.length) {
+      view.fk(frame);
+      view.update();
+      state.framesDrawn++;
+    }
+  }
+  state.latest.clear();
+  const { clientWidth: w, clientHeight: h } = canvas.parentElement;
+  renderer.render(scene, camera);
+  for (const view of state.views.values()) view.placeLabels(w, h);
+  const counter = $('frame-count');
+  counter.textContent = String(state.framesReceived);
+  counter.dataset.frames = String(state.framesReceived);
+  document.title = `rigcast viewer — ${state.framesReceived} frames`;
+  requestAnimationFrame(draw);
+}
+resize();
+requestAnimationFrame(draw);

@@ -1,0 +1,360 @@
+//! Real Blender runs the live-link add-on against the real server.
+//!
+//! The server replays the embedded demo in-process on 127.0.0.1:0. Headless Blender
+//! (`clients/blender/tests/run_in_blender.py`) builds the add-on zip with the documented
+//! builder, installs and enables it, connects, creates an armature per subject, applies the
+//! stream for ~2 s while recording, and writes what it saw to JSON. Meanwhile this test keeps
+//! its own WebSocket client on the same server, so for every sequence number Blender applied
+//! we hold the exact frame the server sent and judge Blender's bone positions against forward
+//! kinematics of that frame, converted to Blender axes ((x, y, z) → (x, -z, y)).
+//!
+//! Needs `blender` (scripts/install-apps.sh installs it). Missing Blender fails the test with
+//! a clear message, unless RIGCAST_SKIP_APPS=1, which skips it with a printed reason.
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use futures_util::StreamExt;
+use glam::{Quat, Vec3};
+use rigcast_protocol::frame::{decode_frame, DecodedFrame};
+use rigcast_server::ServerConfig;
+use serde_json::Value;
+use tokio_tungstenite::tungstenite::Message;
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
+}
+
+/// The program's path, or None when absent and RIGCAST_SKIP_APPS=1 (panics otherwise).
+fn find_app(name: &str) -> Option<PathBuf> {
+    let found = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|dir| dir.join(name))
+            .find(|p| p.is_file())
+    });
+    if found.is_none() {
+        if std::env::var("RIGCAST_SKIP_APPS").as_deref() == Ok("1") {
+            eprintln!("SKIP: `{name}` not found on PATH and RIGCAST_SKIP_APPS=1");
+            return None;
+        }
+        panic!(
+            "`{name}` not found on PATH: run scripts/install-apps.sh (or set RIGCAST_SKIP_APPS=1 to skip)"
+        );
+    }
+    found
+}
+
+fn blender_from_ours(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, -p.z, p.y)
+}
+
+fn ours_from_blender(p: Vec3) -> Vec3 {
+    Vec3::new(p.x, p.z, -p.y)
+}
+
+fn vec3(v: &Value) -> Vec3 {
+    let a = v.as_array().expect("array");
+    Vec3::new(
+        a[0].as_f64().expect("x") as f32,
+        a[1].as_f64().expect("y") as f32,
+        a[2].as_f64().expect("z") as f32,
+    )
+}
+
+fn quat(v: &Value) -> Quat {
+    let a = v.as_array().expect("array");
+    Quat::from_xyzw(
+        a[0].as_f64().expect("x") as f32,
+        a[1].as_f64().expect("y") as f32,
+        a[2].as_f64().expect("z") as f32,
+        a[3].as_f64().expect("w") as f32,
+    )
+}
+
+/// A skeleton as the client sees it on the wire.
+struct WireSkeleton {
+    names: Vec<String>,
+    parents: Vec<Option<usize>>,
+    rest_translations: Vec<Vec3>,
+    rest_rotations: Vec<Quat>,
+}
+
+impl WireSkeleton {
+    fn from_message(message: &Value) -> WireSkeleton {
+        let bones = message["bones"].as_array().expect("bones");
+        WireSkeleton {
+            names: bones
+                .iter()
+                .map(|b| b["name"].as_str().expect("name").to_string())
+                .collect(),
+            parents: bones
+                .iter()
+                .map(|b| b["parent"].as_u64().map(|p| p as usize))
+                .collect(),
+            rest_translations: bones.iter().map(|b| vec3(&b["rest_translation"])).collect(),
+            rest_rotations: bones.iter().map(|b| quat(&b["rest_rotation"])).collect(),
+        }
+    }
+
+    /// World (rotation, position) per bone; `frame` None means the rest pose.
+    fn fk(&self, frame: Option<&DecodedFrame>) -> Vec<(Quat, Vec3)> {
+        let mut out: Vec<(Quat, Vec3)> = Vec::with_capacity(self.names.len());
+        for i in 0..self.names.len() {
+            let (rotation, translation) = match frame {
+                Some(f) if i == 0 => (f.rotations[i], f.root),
+                Some(f) => (f.rotations[i], self.rest_translations[i]),
+                None => (self.rest_rotations[i], self.rest_translations[i]),
+            };
+            out.push(match self.parents[i] {
+                None => (rotation, translation),
+                Some(p) => {
+                    let (pr, pp) = out[p];
+                    (pr * rotation, pp + pr * translation)
+                }
+            });
+        }
+        out
+    }
+}
+
+#[derive(Default)]
+struct Observed {
+    hello: Option<Value>,
+    skeletons: HashMap<u64, Value>,
+    frames: HashMap<(u32, u64), DecodedFrame>,
+}
+
+/// Our own client on the same stream: records every frame by (subject, seq).
+async fn watch_stream(addr: SocketAddr, observed: Arc<Mutex<Observed>>) {
+    let url = format!("ws://{addr}/v1/stream");
+    let (mut ws, _) = tokio_tungstenite::connect_async(url)
+        .await
+        .expect("test client connects");
+    while let Some(message) = ws.next().await {
+        match message {
+            Ok(Message::Binary(bytes)) => {
+                let frame = decode_frame(&bytes).expect("server frames decode");
+                let key = (frame.header.subject, frame.header.seq);
+                observed.lock().unwrap().frames.insert(key, frame);
+            }
+            Ok(Message::Text(text)) => {
+                let value: Value = serde_json::from_str(text.as_str()).expect("server JSON parses");
+                let mut o = observed.lock().unwrap();
+                match value["type"].as_str() {
+                    Some("hello") => o.hello = Some(value),
+                    Some("skeleton") => {
+                        let id = value["subject"].as_u64().expect("subject id");
+                        o.skeletons.insert(id, value);
+                    }
+                    _ => {}
+                }
+            }
+            Ok(_) => {}
+            Err(_) => break,
+        }
+    }
+}
+
+fn run_blender(blender: &Path, addr: SocketAddr, work: &Path) -> Value {
+    let root = repo_root();
+    let out_json = work.join("observations.json");
+    let zip = work.join("rigcast_livelink.zip");
+    let mut child = Command::new(blender)
+        .args(["-b", "--factory-startup", "--python-exit-code", "1", "--python"])
+        .arg(root.join("clients/blender/tests/run_in_blender.py"))
+        .arg("--")
+        .arg("--build-zip")
+        .arg(&zip)
+        .args(["--address", &addr.to_string(), "--seconds", "2.0", "--out"])
+        .arg(&out_json)
+        // Install the add-on into a throwaway user scripts dir, not the user's own.
+        .env("BLENDER_USER_SCRIPTS", work.join("user_scripts"))
+        .env("BLENDER_USER_CONFIG", work.join("user_config"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("blender starts");
+    let deadline = Instant::now() + Duration::from_secs(180);
+    loop {
+        if child.try_wait().expect("wait on blender").is_some() {
+            break;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("blender did not finish within 180 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let output = child.wait_with_output().expect("blender output");
+    let log = format!(
+        "--- blender stdout ---\n{}\n--- blender stderr ---\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let text = std::fs::read_to_string(&out_json)
+        .unwrap_or_else(|e| panic!("no observations at {}: {e}\n{log}", out_json.display()));
+    let value: Value = serde_json::from_str(&text).expect("observations are JSON");
+    assert!(
+        value["ok"].as_bool() == Some(true) && output.status.success(),
+        "in-Blender script failed (exit {:?}): {}\n{log}",
+        output.status.code(),
+        value["error"]
+    );
+    value
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn blender_addon_applies_and_records_the_live_stream() {
+    let Some(blender) = find_app("blender") else {
+        return;
+    };
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.expect("server starts");
+    let addr = server.local_addr();
+    let observed = Arc::new(Mutex::new(Observed::default()));
+    let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
+
+    let work = std::env::temp_dir().join(format!("rigcast-blender-{}", std::process::id()));
+    std::fs::create_dir_all(&work).unwrap();
+    let work_for_blender = work.clone();
+    let result = tokio::task::spawn_blocking(move || run_blender(&blender, addr, &work_for_blender))
+        .await
+        .expect("blender task");
+    watcher.abort();
+    server.shutdown().await;
+    let observed = observed.lock().unwrap();
+
+    // The add-on's default address is the server's default listen address.
+    assert_eq!(result["default_address"], "127.0.0.1:8717");
+    // Recording never touches the scene's frame rate.
+    assert_eq!(result["scene_fps_before"], result["scene_fps_after"]);
+    let scene_fps = result["scene_fps_before"][0].as_f64().unwrap() / result["scene_fps_before"][1].as_f64().unwrap();
+
+    let hello = observed.hello.as_ref().expect("test client got hello");
+    let subjects = hello["subjects"].as_array().expect("subjects");
+    assert!(!subjects.is_empty());
+    assert_eq!(result["session"]["bad"], 0, "the add-on rejected frames");
+
+    let observations = result["observations"].as_array().expect("observations");
+    for subject in subjects {
+        let id = subject["id"].as_u64().unwrap();
+        let skeleton = WireSkeleton::from_message(&observed.skeletons[&id]);
+        let rest = skeleton.fk(None);
+        let rest_points = &result["rest_points"][id.to_string()];
+
+        // 1. Pose: every applied frame matches forward kinematics of the frame the server sent.
+        let mine: Vec<&Value> = observations
+            .iter()
+            .filter(|o| o["subject"].as_u64() == Some(id))
+            .collect();
+        assert!(mine.len() > 30, "subject {id}: only {} frames applied", mine.len());
+        let mut worst_m = 0.0f32;
+        let mut checked = 0;
+        for obs in &mine {
+            let seq = obs["seq"].as_u64().unwrap();
+            let Some(frame) = observed.frames.get(&(id as u32, seq)) else {
+                continue; // our own client may have joined a moment later
+            };
+            let world = skeleton.fk(Some(frame));
+            for (i, name) in skeleton.names.iter().enumerate() {
+                let got = &obs["heads"][name];
+                let (rest_rotation, rest_position) = rest[i];
+                let (rotation, position) = world[i];
+                // Head, tail and head+Z of each bone: rigid in the joint's frame.
+                for k in 0..3 {
+                    let rest_point = ours_from_blender(vec3(&rest_points[name][k]));
+                    let local = rest_rotation.inverse() * (rest_point - rest_position);
+                    let expected = blender_from_ours(position + rotation * local);
+                    let error = (vec3(&got[k]) - expected).length();
+                    worst_m = worst_m.max(error);
+                }
+            }
+            checked += 1;
+        }
+        assert!(checked > 30, "subject {id}: only {checked} applied frames matched a server frame");
+        assert!(
+            worst_m < 1e-3,
+            "subject {id}: Blender pose differs from FK of the server frame by {worst_m} m"
+        );
+
+        // 2. Rate: distinct frames applied per second over the recorded run.
+        let applied: Vec<f64> = mine.iter().map(|o| o["applied_nanos"].as_f64().unwrap() * 1e-9).collect();
+        let span = applied.last().unwrap() - applied.first().unwrap();
+        let rate = (applied.len() - 1) as f64 / span;
+        assert!(rate >= 30.0, "subject {id}: applied {rate:.1} frames/s, want ≥ 30");
+        let seqs: Vec<u64> = mine.iter().map(|o| o["seq"].as_u64().unwrap()).collect();
+        assert!(seqs.windows(2).all(|w| w[1] > w[0]), "subject {id}: seq went backwards");
+
+        // 3. Latency from capture time stays bounded: no backlog growing over the run.
+        let latency_ms: Vec<(f64, f64)> = mine
+            .iter()
+            .map(|o| {
+                let applied = o["applied_nanos"].as_f64().unwrap();
+                let capture = o["capture_nanos"].as_f64().unwrap();
+                ((applied - applied_first(&mine)) * 1e-9, (applied - capture) * 1e-6)
+            })
+            .collect();
+        let mean = |from: f64, to: f64| {
+            let v: Vec<f64> = latency_ms.iter().filter(|(t, _)| *t >= from && *t < to).map(|(_, l)| *l).collect();
+            v.iter().sum::<f64>() / v.len().max(1) as f64
+        };
+        let first_second = mean(0.0, 1.0);
+        let last_second = mean(span - 1.0, span + 1.0);
+        let max_latency = latency_ms.iter().map(|(_, l)| *l).fold(0.0, f64::max);
+        println!(
+            "subject {id}: {} frames applied at {rate:.1}/s, latency first s {first_second:.1} ms, last s {last_second:.1} ms, max {max_latency:.1} ms, worst pose error {worst_m:e} m",
+            mine.len()
+        );
+        assert!(max_latency < 250.0, "subject {id}: latency reached {max_latency:.1} ms");
+        assert!(
+            last_second < first_second + 20.0,
+            "subject {id}: latency grew from {first_second:.1} ms to {last_second:.1} ms (backlog)"
+        );
+
+        // 4. The recorded Action: quaternion curves grouped by bone at the scene frame rate.
+        let action = &result["actions"][id.to_string()];
+        let fcurves = action["fcurves"].as_array().expect("recorded fcurves");
+        let record_secs = result["record_secs"].as_f64().unwrap();
+        for name in &skeleton.names {
+            let path = format!("pose.bones[\"{name}\"].rotation_quaternion");
+            let curves: Vec<&Value> = fcurves.iter().filter(|c| c["data_path"] == path.as_str()).collect();
+            assert_eq!(curves.len(), 4, "{name}: want w, x, y, z curves");
+            for curve in &curves {
+                assert_eq!(curve["group"], name.as_str(), "{name}: curve not grouped by bone");
+                let frames: Vec<f64> = curve["frames"].as_array().unwrap().iter().map(|f| f.as_f64().unwrap()).collect();
+                assert!(frames.iter().all(|f| f.fract() == 0.0), "{name}: keys off whole frames");
+                assert!(frames.windows(2).all(|w| w[1] - w[0] >= 1.0 && w[1] - w[0] <= 2.0), "{name}: key spacing {frames:?}");
+                let expected = record_secs * scene_fps;
+                assert!(
+                    (frames.len() as f64 - expected).abs() <= 0.15 * expected + 2.0,
+                    "{name}: {} keys over {record_secs:.2} s at {scene_fps} fps",
+                    frames.len()
+                );
+            }
+            // Keys are unit quaternions.
+            let values: Vec<Vec<f64>> = curves
+                .iter()
+                .map(|c| c["values"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect())
+                .collect();
+            for k in 0..values[0].len() {
+                let norm = (0..4).map(|c| values[c][k] * values[c][k]).sum::<f64>().sqrt();
+                assert!((norm - 1.0).abs() < 1e-3, "{name}: key {k} has |q| = {norm}");
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&work);
+}
+
+fn applied_first(observations: &[&Value]) -> f64 {
+    observations[0]["applied_nanos"].as_f64().unwrap()
+}
