@@ -68,16 +68,18 @@ struct BonePlan {
 }
 
 /// How the target's root bone is placed.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 struct RootPlan {
     bone: BoneId,
     input: u16,
     source_bone: BoneId,
     scale: f32,
     motion: RootMotion,
-    source_ground_y: f32,
-    target_ground_y: f32,
+    source_floor_y: f32,
+    target_floor_y: f32,
     reference_position: Vec3,
+    /// Source bones (of `input`) at the feet: what [`Mapping::measure_source_floor`] looks at.
+    contact_bones: Vec<BoneId>,
 }
 
 /// A built retargeting job: (source skeleton(s), target skeleton, mapping table, options) with
@@ -300,36 +302,25 @@ impl Mapping {
             bones.push(plan);
         }
 
-        let root = match (root_pair, opts.root_motion) {
-            (Some((rt, rs)), motion) => {
-                let input = rs.input as usize;
-                let scale = match opts.root_scale {
-                    Some(s) => s,
-                    None => root_scale(
-                        sources[input],
-                        &src_w[input],
-                        src_eps[input],
-                        target,
-                        &tgt_w,
-                        tgt_eps,
-                        table,
-                        rt,
-                        rs,
-                    ),
-                };
-                Some(RootPlan {
-                    bone: rt,
-                    input: rs.input,
-                    source_bone: rs.bone,
-                    scale,
-                    motion,
-                    source_ground_y: opts.source_ground_y,
-                    target_ground_y: opts.target_ground_y,
-                    reference_position: tgt_w[rt.index()].translation,
-                })
-            }
-            (None, _) => None,
-        };
+        let root = root_pair.map(|(rt, rs)| {
+            let input = rs.input as usize;
+            RootPlan::new(
+                Side {
+                    skel: sources[input],
+                    worlds: &src_w[input],
+                    eps: src_eps[input],
+                },
+                Side {
+                    skel: target,
+                    worlds: &tgt_w,
+                    eps: tgt_eps,
+                },
+                table,
+                rt,
+                rs,
+                opts,
+            )
+        });
 
         let history = sources
             .iter()
@@ -442,12 +433,39 @@ impl Mapping {
 
     /// The target bone that receives root motion (the shallowest mapped one, normally the hips).
     pub fn root_bone(&self) -> Option<BoneId> {
-        self.root.map(|r| r.bone)
+        self.root.as_ref().map(|r| r.bone)
     }
 
     /// Target / source hip-height ratio applied to root translation.
     pub fn root_scale(&self) -> Option<f32> {
-        self.root.map(|r| r.scale)
+        self.root.as_ref().map(|r| r.scale)
+    }
+
+    /// The source's floor over a clip of the root input: the lowest height its foot joints
+    /// reach (where they stand when planted). `None` without root motion or frames. Offline
+    /// helper (allocates); pass the result to [`Mapping::set_source_floor_y`].
+    pub fn measure_source_floor(&self, poses: &[Pose]) -> Option<f32> {
+        let root = self.root.as_ref()?;
+        let skel = self.sources.get(root.input as usize)?;
+        let mut worlds = vec![WorldTransform::IDENTITY; skel.num_bones()];
+        let mut lowest = f32::INFINITY;
+        for p in poses {
+            if p.check(skel).is_err() {
+                continue;
+            }
+            crate::fk::forward_kinematics(skel, p, &mut worlds);
+            for b in &root.contact_bones {
+                lowest = lowest.min(worlds[b.index()].translation.y);
+            }
+        }
+        lowest.is_finite().then_some(lowest)
+    }
+
+    /// Sets the source floor height (see [`RetargetOptions::source_floor_y`]).
+    pub fn set_source_floor_y(&mut self, y: f32) {
+        if let Some(r) = self.root.as_mut() {
+            r.source_floor_y = y;
+        }
     }
 
     /// Number of target bones driven by at least one source bone.
@@ -500,11 +518,11 @@ impl Mapping {
             };
             let mut translation = rest[t].translation;
             let mut position = parent.translation + parent.rotation * translation;
-            if let Some(root) = self.root.filter(|r| r.bone.index() == t) {
+            if let Some(root) = self.root.as_ref().filter(|r| r.bone.index() == t) {
                 let src =
                     self.history[root.input as usize].get(0)[root.source_bone.index()].translation;
                 let s = root.scale;
-                let y = root.target_ground_y + s * (src.y - root.source_ground_y);
+                let y = root.target_floor_y + s * (src.y - root.source_floor_y);
                 position = match root.motion {
                     RootMotion::Scaled => Vec3::new(s * src.x, y, s * src.z),
                     RootMotion::InPlace => {
@@ -547,42 +565,88 @@ fn apply_options(opts: &BoneOptions, rest_local: Quat, aligned_local: Quat, loca
     q
 }
 
-/// Target / source hip height, measured down the leg to the lowest mapped joint of each
-/// reference posture; falls back to the ratio of overall sizes.
-#[allow(clippy::too_many_arguments)]
-fn root_scale(
-    source: &Skeleton,
-    src_w: &[WorldTransform],
-    src_eps: f32,
-    target: &Skeleton,
-    tgt_w: &[WorldTransform],
-    tgt_eps: f32,
-    table: &MappingTable,
-    rt: BoneId,
-    rs: SourceRef,
-) -> f32 {
-    let low = target
-        .bone_ids()
-        .filter(|&t| t != rt && align::is_descendant(target, rt, t))
-        .filter_map(|t| {
-            let s = primary(table, t)?;
-            (s.input == rs.input
-                && s.bone != rs.bone
-                && align::is_descendant(source, rs.bone, s.bone))
-            .then_some((t, s.bone))
-        })
-        .min_by(|a, b| {
-            tgt_w[a.0.index()]
-                .translation
-                .y
-                .total_cmp(&tgt_w[b.0.index()].translation.y)
-        });
-    if let Some((tl, sl)) = low {
-        let ht = align::leg_height(target, tgt_w, rt, tl, tgt_eps);
-        let hs = align::leg_height(source, src_w, rs.bone, sl, src_eps);
-        if ht > tgt_eps && hs > src_eps {
-            return ht / hs;
+/// One skeleton in its reference posture, for build-time measurements.
+#[derive(Clone, Copy)]
+struct Side<'a> {
+    skel: &'a Skeleton,
+    worlds: &'a [WorldTransform],
+    eps: f32,
+}
+
+/// The floor a reference posture stands on: its lowest foot joint when that is near y = 0
+/// (a character authored standing on the ground), else 0 (a rest floating at the origin, like
+/// CMU's with the hips at y = 0).
+fn floor_from_reference(lowest_y: f32, leg_height: f32) -> f32 {
+    if lowest_y.abs() <= 0.25 * leg_height {
+        lowest_y
+    } else {
+        0.0
+    }
+}
+
+impl RootPlan {
+    /// Hip-height ratio from each reference posture, measured down the leg to the lowest
+    /// mapped joint (falls back to the ratio of overall sizes), and both floors.
+    fn new(
+        src: Side<'_>,
+        tgt: Side<'_>,
+        table: &MappingTable,
+        rt: BoneId,
+        rs: SourceRef,
+        opts: &RetargetOptions,
+    ) -> RootPlan {
+        // Pairs below the root on both sides: the legs (and whatever else hangs from the hips).
+        let below: Vec<(BoneId, BoneId)> = tgt
+            .skel
+            .bone_ids()
+            .filter(|&t| t != rt && align::is_descendant(tgt.skel, rt, t))
+            .filter_map(|t| {
+                let s = primary(table, t)?;
+                (s.input == rs.input
+                    && s.bone != rs.bone
+                    && align::is_descendant(src.skel, rs.bone, s.bone))
+                .then_some((t, s.bone))
+            })
+            .collect();
+        let y_t = |b: BoneId| tgt.worlds[b.index()].translation.y;
+        let y_s = |b: BoneId| src.worlds[b.index()].translation.y;
+        let low = below
+            .iter()
+            .copied()
+            .min_by(|a, b| y_t(a.0).total_cmp(&y_t(b.0)));
+        let mut scale = align::extent(tgt.worlds) / align::extent(src.worlds);
+        let mut contact_bones = Vec::new();
+        let (mut floor_t, mut floor_s) = (0.0, 0.0);
+        if let Some((tl, sl)) = low {
+            let ht = align::leg_height(tgt.skel, tgt.worlds, rt, tl, tgt.eps);
+            let hs = align::leg_height(src.skel, src.worlds, rs.bone, sl, src.eps);
+            if ht > tgt.eps && hs > src.eps {
+                scale = ht / hs;
+            }
+            // Feet: mapped joints near the lowest one (toes, ankles, both sides).
+            let near = y_t(tl) + 0.15 * ht;
+            contact_bones = below
+                .iter()
+                .filter(|(t, _)| y_t(*t) <= near)
+                .map(|&(_, s)| s)
+                .collect();
+            let lowest_s = contact_bones
+                .iter()
+                .map(|&b| y_s(b))
+                .fold(f32::INFINITY, f32::min);
+            floor_t = floor_from_reference(y_t(tl), ht);
+            floor_s = floor_from_reference(lowest_s, hs);
+        }
+        RootPlan {
+            bone: rt,
+            input: rs.input,
+            source_bone: rs.bone,
+            scale: opts.root_scale.unwrap_or(scale),
+            motion: opts.root_motion,
+            source_floor_y: opts.source_floor_y.unwrap_or(floor_s),
+            target_floor_y: opts.target_floor_y.unwrap_or(floor_t),
+            reference_position: tgt.worlds[rt.index()].translation,
+            contact_bones,
         }
     }
-    align::extent(tgt_w) / align::extent(src_w)
 }

@@ -7,7 +7,7 @@ use crate::pose::Pose;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RootMotion {
     /// Hips translation scaled by the hip-height ratio, both horizontally and vertically
-    /// (heights measured from each side's ground), so strides fit the target's legs and feet
+    /// (heights measured from each side's floor: where its lowest foot joint sits when planted), so strides fit the target's legs and feet
     /// neither float nor sink.
     #[default]
     Scaled,
@@ -38,10 +38,12 @@ pub struct RetargetOptions {
     pub root_motion: RootMotion,
     /// Overrides the automatically measured hip-height ratio (target / source).
     pub root_scale: Option<f32>,
-    /// Height of the ground in the source's world (metres, +Y up).
-    pub source_ground_y: f32,
-    /// Height of the ground in the target's world.
-    pub target_ground_y: f32,
+    /// Height of the source's lowest foot joint when the foot is planted (its "floor"), in the
+    /// source's world. `None`: taken from the reference posture when it stands near y = 0,
+    /// else 0. Offline, measure it over the clip with [`super::Mapping::measure_source_floor`].
+    pub source_floor_y: Option<f32>,
+    /// The same for the target; `None`: from its reference posture (near y = 0), else 0.
+    pub target_floor_y: Option<f32>,
     /// Seconds between [`super::Mapping::apply`] calls; converts per-bone delays into frames.
     pub frame_time_secs: f32,
     /// Longest per-bone delay honoured, seconds (bounds the history buffer).
@@ -57,8 +59,8 @@ impl Default for RetargetOptions {
             match_directions: true,
             root_motion: RootMotion::Scaled,
             root_scale: None,
-            source_ground_y: 0.0,
-            target_ground_y: 0.0,
+            source_floor_y: None,
+            target_floor_y: None,
             frame_time_secs: 1.0 / 60.0,
             max_delay_secs: 5.0,
         }

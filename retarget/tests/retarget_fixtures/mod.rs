@@ -253,6 +253,8 @@ pub fn motion(skel: &Skeleton, num_frames: usize, facing_yaw_rad: f32, units: f3
     (0..num_frames)
         .map(|f| {
             let t = f as f32 / 30.0;
+            // Frame 0 is the rest posture standing still; motion fades in over half a second.
+            let ramp = (t / 0.5).min(1.0);
             let mut p = rest.clone();
             for b in skel.bone_ids() {
                 let k = b.0 as f32;
@@ -263,16 +265,20 @@ pub fn motion(skel: &Skeleton, num_frames: usize, facing_yaw_rad: f32, units: f3
                 )
                 .normalize_or_zero();
                 let amp = if skel.parent(b).is_none() { 0.3 } else { 0.6 };
-                let wiggle = Quat::from_axis_angle(axis, amp * (2.0 * t + k * 0.9).sin());
+                let phase = (2.0 * t + k * 0.9).sin() - (k * 0.9).sin();
+                let wiggle = Quat::from_axis_angle(axis, ramp * amp * phase);
                 p.rotations[b.index()] = rest.rotations[b.index()] * wiggle;
             }
-            p.translations[0] = rest.translations[0]
-                + forward * (1.2 * t * units)
-                + Vec3::Y * (0.03 * units * (4.0 * t).sin());
+            p.translations[0] = rest.translations[0] + forward * (1.2 * t * units);
             p.translations[0].y = root_y + 0.03 * units * (4.0 * t).sin();
             p
         })
         .collect()
+}
+
+/// Standing hip height the generator builds in: hips above the toe joint, legs straight down.
+pub fn hip_height(spec: &Humanoid) -> f32 {
+    (0.05 + 0.87 * spec.leg + 0.06) * spec.units
 }
 
 /// World joint positions of every bone.
