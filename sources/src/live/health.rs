@@ -167,7 +167,11 @@ mod tests {
         }
         h.poll(t0 + Duration::from_millis(500));
         // 30 frames in 0.5 s.
-        assert!((h.status().input_fps - 60.0).abs() < 1.0, "{}", h.status().input_fps);
+        assert!(
+            (h.status().input_fps - 60.0).abs() < 1.0,
+            "{}",
+            h.status().input_fps
+        );
         assert_eq!(h.frames(), 30);
     }
 }

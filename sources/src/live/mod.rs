@@ -24,6 +24,7 @@ use rigcast_retarget::{Pose, Skeleton};
 use serde::{Deserialize, Serialize};
 
 pub use crate::error::SourceError;
+pub use crate::recording::{RawKind, RawPacket};
 pub use health::HealthTracker;
 
 /// Connection state of a live source.
@@ -93,45 +94,56 @@ pub trait LiveSource: Send {
     }
 }
 
-/// What kind of raw input a [`RawTap`] receives; recorded alongside the bytes so a replay
-/// knows which decoder to feed them to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum RawKind {
-    /// One OSC (VMC) UDP datagram.
-    OscDatagram,
-    /// One chunk of bytes read from a serial port (chunk boundaries are arbitrary).
-    SerialBytes,
-    /// One landmark record from a vision source.
-    Landmarks,
-}
-
-impl RawKind {
-    /// Stable numeric code for file formats.
-    pub fn code(self) -> u8 {
-        match self {
-            RawKind::OscDatagram => 1,
-            RawKind::SerialBytes => 2,
-            RawKind::Landmarks => 3,
-        }
-    }
-
-    /// Inverse of [`RawKind::code`].
-    pub fn from_code(code: u8) -> Option<RawKind> {
-        match code {
-            1 => Some(RawKind::OscDatagram),
-            2 => Some(RawKind::SerialBytes),
-            3 => Some(RawKind::Landmarks),
-            _ => None,
-        }
-    }
-}
-
 /// Receives every raw input of a live source (e.g. to write it into a recording). Called on the
 /// source's thread, so it must be quick; it must not block on IO for long.
 pub trait RawTap: Send {
     /// One raw input unit, received at `capture_nanos` (Unix epoch nanoseconds).
     fn raw(&mut self, kind: RawKind, capture_nanos: u64, bytes: &[u8]);
+}
+
+/// A tap that writes every raw input into a recording as raw-packet records, tagged with
+/// `source_id`. Several sources can share one writer. Write errors are counted, not raised
+/// (the source thread must keep running); check [`RecordingTap::errors`].
+pub struct RecordingTap<W: std::io::Write + Send> {
+    /// The shared writer.
+    pub writer: Arc<std::sync::Mutex<crate::recording::RecordingWriter<W>>>,
+    /// Source id written with each packet.
+    pub source_id: u32,
+    errors: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl<W: std::io::Write + Send> RecordingTap<W> {
+    /// A tap writing into `writer` as `source_id`.
+    pub fn new(
+        writer: Arc<std::sync::Mutex<crate::recording::RecordingWriter<W>>>,
+        source_id: u32,
+    ) -> Self {
+        RecordingTap {
+            writer,
+            source_id,
+            errors: Arc::default(),
+        }
+    }
+
+    /// Shared count of failed writes.
+    pub fn errors(&self) -> Arc<std::sync::atomic::AtomicU64> {
+        self.errors.clone()
+    }
+}
+
+impl<W: std::io::Write + Send> RawTap for RecordingTap<W> {
+    fn raw(&mut self, kind: RawKind, capture_nanos: u64, bytes: &[u8]) {
+        let ok = match self.writer.lock() {
+            Ok(mut w) => w
+                .write_raw(self.source_id, kind, capture_nanos, bytes)
+                .is_ok(),
+            Err(_) => false,
+        };
+        if !ok {
+            self.errors
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
 }
 
 /// A tap that keeps everything in memory (tests, short captures).
@@ -145,23 +157,13 @@ impl RawTap for MemoryTap {
     fn raw(&mut self, kind: RawKind, capture_nanos: u64, bytes: &[u8]) {
         if let Ok(mut list) = self.packets.lock() {
             list.push(RawPacket {
+                source_id: 0,
                 kind,
                 capture_nanos,
                 bytes: bytes.to_vec(),
             });
         }
     }
-}
-
-/// One recorded raw input unit, as replayed into a source.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RawPacket {
-    /// Which decoder it belongs to.
-    pub kind: RawKind,
-    /// When it was received, Unix epoch nanoseconds.
-    pub capture_nanos: u64,
-    /// The bytes.
-    pub bytes: Vec<u8>,
 }
 
 /// Current wall-clock time, nanoseconds since the Unix epoch (0 if the clock is before 1970).
@@ -174,8 +176,7 @@ pub fn unix_nanos_now() -> u64 {
 
 /// Resizes `out` to `skeleton` if needed (allocates only when the size changes).
 pub(crate) fn fit_pose(out: &mut Pose, skeleton: &Skeleton) {
-    if out.num_bones() != skeleton.num_bones() || out.translations.len() != skeleton.num_bones()
-    {
+    if out.num_bones() != skeleton.num_bones() || out.translations.len() != skeleton.num_bones() {
         *out = skeleton.rest_pose();
     }
 }

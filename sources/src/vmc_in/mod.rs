@@ -1,0 +1,325 @@
+//! VMC/OSC input: a [`LiveSource`] that listens for VMC (or mapped OSC) datagrams on UDP, or
+//! replays recorded datagrams through the same decoder.
+//!
+//! ```text
+//!   UDP :39539 ─┐                      ┌─ RawTap (recording)
+//!               ├─ datagram ──────────┤
+//!   recording ──┘                      └─ VmcDecoder ──▶ Pose on the learnt humanoid skeleton
+//! ```
+//!
+//! The sender's skeleton is learnt from the `HumanBodyBones` it sends (see [`decoder`]), so
+//! [`LiveSource::skeleton`] is `None` until the first complete frame. Silence longer than
+//! [`VmcConfig::lost_after_secs`] marks the source `Lost`; the next good datagram makes it
+//! `Live` again.
+
+pub mod decoder;
+pub mod mapping;
+
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rigcast_retarget::{Pose, Skeleton};
+use serde::{Deserialize, Serialize};
+
+pub use decoder::{FeedResult, VmcDecoder, VmcStats};
+pub use mapping::{ArgField, CoordSpace, OscMapping, OscRule};
+
+use crate::error::SourceError;
+use crate::live::{
+    fit_pose, unix_nanos_now, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket, RawTap,
+    SourceState, SourceStatus,
+};
+
+/// Default VMC Marionette port.
+pub const DEFAULT_VMC_PORT: u16 = 39539;
+
+/// Largest UDP payload.
+const MAX_DATAGRAM: usize = 65_536;
+
+/// Configuration of a [`VmcSource`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VmcConfig {
+    /// Address to bind (default 0.0.0.0).
+    #[serde(default = "default_bind")]
+    pub bind: IpAddr,
+    /// UDP port (default 39539; 0 picks a free port, see [`VmcSource::local_addr`]).
+    #[serde(default = "default_port")]
+    pub port: u16,
+    /// Silence longer than this marks the source lost (default 0.5 s).
+    #[serde(default = "default_lost_after")]
+    pub lost_after_secs: f32,
+    /// Address mapping (default: VMC).
+    #[serde(default = "OscMapping::vmc")]
+    pub mapping: OscMapping,
+}
+
+fn default_bind() -> IpAddr {
+    IpAddr::V4(Ipv4Addr::UNSPECIFIED)
+}
+fn default_port() -> u16 {
+    DEFAULT_VMC_PORT
+}
+fn default_lost_after() -> f32 {
+    0.5
+}
+
+impl Default for VmcConfig {
+    fn default() -> Self {
+        VmcConfig {
+            bind: default_bind(),
+            port: DEFAULT_VMC_PORT,
+            lost_after_secs: default_lost_after(),
+            mapping: OscMapping::vmc(),
+        }
+    }
+}
+
+impl VmcConfig {
+    /// VMC on `port` with defaults otherwise (what `--source vmc:PORT` means).
+    pub fn port(port: u16) -> Self {
+        VmcConfig {
+            port,
+            ..VmcConfig::default()
+        }
+    }
+
+    fn lost_after(&self) -> Result<Duration, SourceError> {
+        Duration::try_from_secs_f32(self.lost_after_secs)
+            .ok()
+            .filter(|d| !d.is_zero())
+            .ok_or_else(|| SourceError::InvalidOption {
+                reason: format!(
+                    "lost_after_secs must be a positive number of seconds, got {}",
+                    self.lost_after_secs
+                ),
+            })
+    }
+}
+
+enum Input {
+    Udp {
+        socket: UdpSocket,
+        local: SocketAddr,
+    },
+    Replay {
+        packets: Vec<RawPacket>,
+        next: usize,
+        realtime: bool,
+        /// Wall-clock instant of the first packet and its recorded time.
+        origin: Option<(Instant, u64)>,
+    },
+}
+
+/// VMC/OSC live source.
+pub struct VmcSource {
+    name: String,
+    input: Input,
+    decoder: VmcDecoder,
+    health: HealthTracker,
+    tap: Option<Box<dyn RawTap>>,
+    buf: Vec<u8>,
+    seq: u64,
+}
+
+impl VmcSource {
+    /// Binds the UDP socket and starts in the `Connecting` state.
+    pub fn bind(config: VmcConfig) -> Result<VmcSource, SourceError> {
+        let lost_after = config.lost_after()?;
+        let socket = UdpSocket::bind(SocketAddr::new(config.bind, config.port))?;
+        let local = socket.local_addr()?;
+        Ok(VmcSource {
+            name: format!("vmc:{}", local.port()),
+            input: Input::Udp { socket, local },
+            decoder: VmcDecoder::new(config.mapping)?,
+            health: HealthTracker::new(lost_after),
+            tap: None,
+            buf: vec![0; MAX_DATAGRAM],
+            seq: 0,
+        })
+    }
+
+    /// Replays recorded datagrams (packets of other kinds are skipped) through the same
+    /// decoder. With `realtime`, packets are released at their recorded spacing; otherwise as
+    /// fast as `next_frame` is called. After the last packet the source falls silent (and so
+    /// turns `Lost` after the timeout).
+    pub fn replay(
+        packets: Vec<RawPacket>,
+        config: VmcConfig,
+        realtime: bool,
+    ) -> Result<VmcSource, SourceError> {
+        let lost_after = config.lost_after()?;
+        let packets = packets
+            .into_iter()
+            .filter(|p| p.kind == RawKind::Osc)
+            .collect();
+        Ok(VmcSource {
+            name: "vmc:replay".into(),
+            input: Input::Replay {
+                packets,
+                next: 0,
+                realtime,
+                origin: None,
+            },
+            decoder: VmcDecoder::new(config.mapping)?,
+            health: HealthTracker::new(lost_after),
+            tap: None,
+            buf: Vec::new(),
+            seq: 0,
+        })
+    }
+
+    /// The bound address (UDP input only).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        match &self.input {
+            Input::Udp { local, .. } => Some(*local),
+            Input::Replay { .. } => None,
+        }
+    }
+
+    /// True when a replay has delivered every packet (always false for UDP).
+    pub fn replay_finished(&self) -> bool {
+        match &self.input {
+            Input::Udp { .. } => false,
+            Input::Replay { packets, next, .. } => *next >= packets.len(),
+        }
+    }
+
+    /// Decoder counters (malformed / reordered / dropped / ignored …).
+    pub fn stats(&self) -> VmcStats {
+        self.decoder.stats()
+    }
+
+    /// Latest blend shape values.
+    pub fn blend_values(&self) -> &[(String, f32)] {
+        self.decoder.blend_values()
+    }
+
+    /// Receives one datagram into `self.buf` (or the replay slot); returns its length, or
+    /// None when `deadline` passed first.
+    fn receive(&mut self, deadline: Instant) -> Option<Recv> {
+        match &mut self.input {
+            Input::Udp { socket, .. } => {
+                let wait = deadline
+                    .saturating_duration_since(Instant::now())
+                    .max(Duration::from_millis(1));
+                if socket.set_read_timeout(Some(wait)).is_err() {
+                    return None;
+                }
+                match socket.recv_from(&mut self.buf) {
+                    Ok((n, _)) => Some(Recv::Buf(n)),
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                        ) =>
+                    {
+                        None
+                    }
+                    // Other errors (e.g. ICMP-induced) are transient for an unconnected UDP
+                    // socket: report and keep listening.
+                    Err(e) => {
+                        self.health.set_detail(&format!("receive error: {e}"));
+                        None
+                    }
+                }
+            }
+            Input::Replay {
+                packets,
+                next,
+                realtime,
+                origin,
+            } => {
+                let packet = packets.get(*next)?;
+                if *realtime {
+                    let (start, first) =
+                        *origin.get_or_insert((Instant::now(), packet.capture_nanos));
+                    let due =
+                        start + Duration::from_nanos(packet.capture_nanos.saturating_sub(first));
+                    if due > deadline {
+                        std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
+                        return None;
+                    }
+                    std::thread::sleep(due.saturating_duration_since(Instant::now()));
+                }
+                *next += 1;
+                Some(Recv::Replay(*next - 1))
+            }
+        }
+    }
+}
+
+enum Recv {
+    Buf(usize),
+    Replay(usize),
+}
+
+impl LiveSource for VmcSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn skeleton(&self) -> Option<Arc<Skeleton>> {
+        self.decoder.skeleton().cloned()
+    }
+
+    fn next_frame(
+        &mut self,
+        timeout: Duration,
+        out: &mut Pose,
+    ) -> Result<Option<FrameMeta>, SourceError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let Some(recv) = self.receive(deadline) else {
+                let was_live = self.health.state() == SourceState::Live;
+                self.health.poll(Instant::now());
+                if was_live && self.health.state() == SourceState::Lost {
+                    // The sender may come back restarted, with its clock at zero.
+                    self.decoder.reset_sequence();
+                    self.health.set_detail("no datagrams: lost");
+                }
+                return Ok(None);
+            };
+            let received = Instant::now();
+            let capture_nanos = unix_nanos_now();
+            let bytes: &[u8] = match (&recv, &self.input) {
+                (Recv::Buf(n), _) => &self.buf[..*n],
+                (Recv::Replay(i), Input::Replay { packets, .. }) => &packets[*i].bytes,
+                (Recv::Replay(_), Input::Udp { .. }) => &[],
+            };
+            if let Some(tap) = self.tap.as_mut() {
+                tap.raw(RawKind::Osc, capture_nanos, bytes);
+            }
+            let result = self.decoder.feed(bytes);
+            self.health.on_dropped(result.dropped);
+            if result.good_input {
+                self.health.on_input(received);
+            }
+            if result.frame_ready {
+                if let Some(skeleton) = self.decoder.skeleton() {
+                    fit_pose(out, skeleton);
+                    out.copy_from(self.decoder.pose());
+                    self.seq += 1;
+                    self.health.on_frame(Instant::now(), received.elapsed());
+                    return Ok(Some(FrameMeta {
+                        seq: self.seq,
+                        capture_nanos,
+                        skeleton_changed: result.skeleton_changed,
+                    }));
+                }
+            }
+            if Instant::now() >= deadline {
+                self.health.poll(Instant::now());
+                return Ok(None);
+            }
+        }
+    }
+
+    fn status(&self) -> SourceStatus {
+        self.health.status()
+    }
+
+    fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
+        self.tap = tap;
+    }
+}
