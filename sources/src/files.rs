@@ -6,6 +6,7 @@ use rigcast_retarget::Clip;
 
 use crate::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
 use crate::error::SourceError;
+use crate::recording::{clip_from_recording, read_recording, write_clip_recording};
 
 /// Options for [`load_clip_with`].
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -60,6 +61,10 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
             )
             .map(|r| r.clip)
         }
+        "rcr" => {
+            let bytes = read_file(path)?;
+            read_recording(&bytes[..]).and_then(|rec| clip_from_recording(&rec, &stem(path)))
+        }
         _ => Err(SourceError::UnsupportedExtension {
             extension: ext,
             expected: ".bvh, .gltf, .glb, .vrm, .rcr",
@@ -75,6 +80,7 @@ pub fn save_clip(path: &Path, clip: &Clip) -> Result<(), SourceError> {
         "bvh" => write_bvh(clip, &BvhWriteOptions::default())
             .map_err(|e| e.in_file(path))?
             .into_bytes(),
+        "rcr" => write_clip_recording(Vec::new(), clip).map_err(|e| e.in_file(path))?,
         _ => {
             return Err(SourceError::UnsupportedExtension {
                 extension: ext,

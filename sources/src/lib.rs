@@ -17,8 +17,13 @@
 #![warn(missing_docs)]
 
 pub mod bvh;
+pub mod demo;
 pub mod error;
+pub mod recording;
+pub mod replay;
 mod files;
 
+pub use demo::embedded_demo;
 pub use error::SourceError;
 pub use files::{load_clip, load_clip_with, save_clip, LoadOptions};
+pub use replay::{Replay, ReplayOptions};
