@@ -91,7 +91,10 @@ impl VisionAssets {
     pub fn require(&self, path: PathBuf, what: &'static str) -> Result<PathBuf, VisionError> {
         let ready = self.root.join("READY");
         if !ready.is_file() {
-            return Err(VisionError::NotSetUp { path: ready, what: "setup marker" });
+            return Err(VisionError::NotSetUp {
+                path: ready,
+                what: "setup marker",
+            });
         }
         if !path.is_file() {
             return Err(VisionError::NotSetUp { path, what });

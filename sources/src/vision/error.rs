@@ -65,6 +65,9 @@ pub enum VisionError {
     /// No camera, or the camera could not be opened / read.
     #[error("webcam: {0}")]
     Webcam(String),
+    /// The built-in BlazePose skeleton failed to build (a programming error, reported anyway).
+    #[error("BlazePose skeleton: {0}")]
+    Skeleton(String),
     /// A frame had an impossible size.
     #[error("frame {width}x{height}: {message}")]
     BadFrame {

@@ -7,7 +7,7 @@
 //! frame rate, which is what `-f rawvideo` delivers after ffmpeg's own rate handling).
 
 use std::io::{ErrorKind, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, ChildStdout, Command, Stdio};
 
 use super::error::VisionError;
@@ -67,7 +67,14 @@ fn parse_rate(s: &str) -> Option<f64> {
 /// Runs `ffprobe` on `input` (with `pre_args` such as `-f image2`).
 pub fn probe(input: &str, pre_args: &[&str]) -> Result<VideoInfo, VisionError> {
     let output = Command::new("ffprobe")
-        .args(["-v", "error", "-select_streams", "v:0", "-print_format", "json"])
+        .args([
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-print_format",
+            "json",
+        ])
         .args(["-show_streams"])
         .args(pre_args)
         .arg(input)
@@ -96,7 +103,11 @@ pub fn probe(input: &str, pre_args: &[&str]) -> Result<VideoInfo, VisionError> {
     let dim = |k: &str| stream.get(k).and_then(|v| v.as_u64()).unwrap_or(0) as u32;
     let (mut width, mut height) = (dim("width"), dim("height"));
     if width == 0 || height == 0 {
-        return Err(decoder_error("ffprobe", input, "video stream without a size"));
+        return Err(decoder_error(
+            "ffprobe",
+            input,
+            "video stream without a size",
+        ));
     }
     // ffmpeg applies rotation metadata when decoding, so a quarter turn swaps the sides.
     let rotation = stream
@@ -125,11 +136,17 @@ impl FfmpegSource {
     /// Opens a video file (any codec ffmpeg decodes).
     pub fn open_video(path: &Path) -> Result<FfmpegSource, VisionError> {
         if !path.exists() {
-            return Err(VisionError::NoInput { path: path.to_path_buf() });
+            return Err(VisionError::NoInput {
+                path: path.to_path_buf(),
+            });
         }
         let input = path.to_string_lossy().into_owned();
         let info = probe(&input, &[])?;
-        let fps = if info.fps > 0.0 { info.fps } else { DEFAULT_SEQUENCE_FPS };
+        let fps = if info.fps > 0.0 {
+            info.fps
+        } else {
+            DEFAULT_SEQUENCE_FPS
+        };
         Self::spawn(input, &[], info, fps)
     }
 
@@ -142,7 +159,14 @@ impl FfmpegSource {
             let ext = sequence_extension(pattern)?;
             let glob = pattern.join(format!("*.{ext}"));
             let input = glob.to_string_lossy().into_owned();
-            let pre = ["-f", "image2", "-pattern_type", "glob", "-framerate", rate.as_str()];
+            let pre = [
+                "-f",
+                "image2",
+                "-pattern_type",
+                "glob",
+                "-framerate",
+                rate.as_str(),
+            ];
             let info = probe(&input, &pre)?;
             return Self::spawn(input, &pre, info, fps);
         }
@@ -284,9 +308,4 @@ impl Drop for FfmpegSource {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
-}
-
-/// The path as given, for error messages.
-pub fn display_path(p: &Path) -> PathBuf {
-    p.to_path_buf()
 }

@@ -70,7 +70,11 @@ pub struct MemorySource {
 impl MemorySource {
     /// Frames at `fps`; every frame must have the size of the first.
     pub fn new(frames: Vec<RgbFrame>, fps: f64) -> MemorySource {
-        MemorySource { frames, next: 0, fps }
+        MemorySource {
+            frames,
+            next: 0,
+            fps,
+        }
     }
 
     /// Starts again from the first frame.

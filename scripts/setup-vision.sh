@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# Prepares everything the webcam/video pose pipeline needs, under one cache directory:
+#
+#   $RIGCAST_HOME/vision/            (RIGCAST_HOME defaults to ~/.cache/rigcast)
+#     lib/libonnxruntime.so          ONNX Runtime 1.31.1, taken from the PyPI wheel
+#     models/pose_landmark_{lite,full,heavy}.onnx   BlazePose landmark models (npm @mediapipe/pose,
+#                                    converted from TFLite with tf2onnx in a private venv)
+#     pose2sim/cam01..cam04.mp4      real footage for the acceptance tests (PyPI wheel pose2sim)
+#     READY                          written last; the Rust side checks it
+#
+# It also installs the Debian package ffmpeg (video decoding runs through an ffmpeg child process).
+# Idempotent: every step is skipped when its output already exists, so the test command runs it
+# every time. `rigcast setup vision` runs this script. Set RIGCAST_SKIP_VISION=1 to skip entirely.
+set -euo pipefail
+
+if [[ "${RIGCAST_SKIP_VISION:-0}" == "1" ]]; then
+    echo "setup-vision: RIGCAST_SKIP_VISION=1, skipping"
+    exit 0
+fi
+
+ORT_VERSION="1.31.1"
+MEDIAPIPE_POSE_VERSION="0.5.1675469404"
+POSE2SIM_VERSION="0.10.49"
+TF2ONNX_VERSION="1.17.0"
+TENSORFLOW_VERSION="2.21.0"
+
+ROOT="${RIGCAST_HOME:-$HOME/.cache/rigcast}/vision"
+mkdir -p "$ROOT/lib" "$ROOT/models" "$ROOT/pose2sim" "$ROOT/downloads"
+log() { echo "setup-vision: $*" >&2; }
+
+# --- ffmpeg -------------------------------------------------------------------------------------
+if ! command -v ffmpeg >/dev/null 2>&1; then
+    SUDO=""
+    [[ "$(id -u)" != "0" ]] && SUDO="sudo"
+    log "installing ffmpeg (apt)"
+    export DEBIAN_FRONTEND=noninteractive
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq --no-install-recommends ffmpeg >/dev/null
+fi
+
+PY="${PYTHON:-python3}"
+
+# --- ONNX Runtime shared library ----------------------------------------------------------------
+if [[ ! -f "$ROOT/lib/libonnxruntime.so" ]]; then
+    log "fetching onnxruntime==$ORT_VERSION wheel"
+    rm -rf "$ROOT/downloads/ort"
+    "$PY" -m pip download -q --no-deps --only-binary=:all: "onnxruntime==$ORT_VERSION" \
+        -d "$ROOT/downloads/ort"
+    wheel=$(ls "$ROOT/downloads/ort"/onnxruntime-*.whl)
+    "$PY" - "$wheel" "$ROOT/lib" <<'EOF'
+import sys, zipfile, os
+wheel, out = sys.argv[1], sys.argv[2]
+with zipfile.ZipFile(wheel) as z:
+    names = [n for n in z.namelist() if "/capi/libonnxruntime.so" in n]
+    if not names:
+        sys.exit("no libonnxruntime.so in " + wheel)
+    name = max(names, key=len)  # the versioned file, not a symlink stub
+    tmp = os.path.join(out, "libonnxruntime.so.tmp")
+    with z.open(name) as src, open(tmp, "wb") as dst:
+        dst.write(src.read())
+    os.replace(tmp, os.path.join(out, "libonnxruntime.so"))
+EOF
+    rm -rf "$ROOT/downloads/ort"
+fi
+
+# --- BlazePose landmark models ------------------------------------------------------------------
+need_models=()
+for m in lite full heavy; do
+    [[ -f "$ROOT/models/pose_landmark_$m.onnx" ]] || need_models+=("$m")
+done
+if [[ ${#need_models[@]} -gt 0 ]]; then
+    if [[ ! -f "$ROOT/downloads/mediapipe/package/pose_landmark_lite.tflite" ]]; then
+        log "fetching npm @mediapipe/pose@$MEDIAPIPE_POSE_VERSION"
+        rm -rf "$ROOT/downloads/mediapipe"
+        mkdir -p "$ROOT/downloads/mediapipe"
+        (cd "$ROOT/downloads/mediapipe" && npm pack --silent "@mediapipe/pose@$MEDIAPIPE_POSE_VERSION" >/dev/null 2>&1 \
+            && tar xzf mediapipe-pose-*.tgz)
+    fi
+    VENV="$ROOT/venv"
+    if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c "import tf2onnx, tensorflow" >/dev/null 2>&1; then
+        log "creating converter venv (tensorflow-cpu $TENSORFLOW_VERSION, tf2onnx $TF2ONNX_VERSION)"
+        "$PY" -m venv "$VENV"
+        "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
+        "$VENV/bin/python" -m pip install -q "tensorflow-cpu==$TENSORFLOW_VERSION" "tf2onnx==$TF2ONNX_VERSION"
+    fi
+    for m in "${need_models[@]}"; do
+        log "converting pose_landmark_$m.tflite -> onnx"
+        out="$ROOT/models/pose_landmark_$m.onnx"
+        TF_CPP_MIN_LOG_LEVEL=3 "$VENV/bin/python" -m tf2onnx.convert \
+            --tflite "$ROOT/downloads/mediapipe/package/pose_landmark_$m.tflite" \
+            --output "$out.tmp" --opset 17 >"$ROOT/downloads/convert_$m.log" 2>&1 \
+            || { cat "$ROOT/downloads/convert_$m.log" >&2; exit 1; }
+        mv "$out.tmp" "$out"
+    done
+fi
+
+# --- Real footage: pose2sim demo videos ---------------------------------------------------------
+if [[ ! -f "$ROOT/pose2sim/cam04.mp4" ]]; then
+    log "fetching pose2sim==$POSE2SIM_VERSION wheel (demo videos)"
+    rm -rf "$ROOT/downloads/pose2sim"
+    "$PY" -m pip download -q --no-deps "pose2sim==$POSE2SIM_VERSION" -d "$ROOT/downloads/pose2sim"
+    wheel=$(ls "$ROOT/downloads/pose2sim"/*.whl)
+    "$PY" - "$wheel" "$ROOT/pose2sim" <<'EOF'
+import sys, zipfile, os
+wheel, out = sys.argv[1], sys.argv[2]
+with zipfile.ZipFile(wheel) as z:
+    for i in range(1, 5):
+        name = f"Pose2Sim/Demo_SinglePerson/videos/cam0{i}.mp4"
+        tmp = os.path.join(out, f"cam0{i}.mp4.tmp")
+        with z.open(name) as src, open(tmp, "wb") as dst:
+            dst.write(src.read())
+        os.replace(tmp, os.path.join(out, f"cam0{i}.mp4"))
+EOF
+    rm -rf "$ROOT/downloads/pose2sim"
+fi
+
+date -u +%Y-%m-%dT%H:%M:%SZ >"$ROOT/READY"
+log "ready in $ROOT"

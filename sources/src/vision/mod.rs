@@ -1,0 +1,68 @@
+//! Webcam and video pose estimation: BlazePose landmarks through ONNX Runtime, turned into
+//! rotations of a BlazePose source skeleton.
+//!
+//! ```text
+//!  FrameSource (ffmpeg video / image sequence, webcam, memory)
+//!      │ RgbFrame (RGB8 + timestamp)
+//!      ▼
+//!  PoseTracker ── ROI from last frame's aux landmarks 33/34 ──▶ LandmarkModel (ort)
+//!      │          (no person: search candidate crops, keep the highest presence)
+//!      ▼ Landmarks (33 image + world points, visibility, presence)
+//!  One Euro smoothing per coordinate
+//!      ▼
+//!  PoseSolver ── two-direction aim per bone, twist from hip line / palm / foot plane,
+//!      │         confidence per bone: hold, then ease to rest
+//!      ▼
+//!  Pose on the BlazePose skeleton ──▶ VisionSource (LiveSource) / `rigcast pose`
+//! ```
+//!
+//! The runtime library and models are installed by `scripts/setup-vision.sh` (`rigcast setup
+//! vision`) under [`VisionAssets`]; nothing is downloaded at run time.
+
+pub mod assets;
+pub mod body;
+pub mod error;
+pub mod ffmpeg;
+pub mod frame;
+pub mod landmarks;
+pub mod model;
+pub mod one_euro;
+pub mod pipeline;
+pub mod roi;
+pub mod solve;
+pub mod source;
+pub mod tracker;
+#[cfg(feature = "webcam")]
+pub mod webcam;
+
+pub use assets::{ModelKind, VisionAssets};
+pub use body::blazepose_skeleton;
+pub use error::VisionError;
+pub use ffmpeg::FfmpegSource;
+pub use frame::{FrameSource, MemorySource, RgbFrame};
+pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
+pub use model::{InputRange, LandmarkModel};
+pub use pipeline::{PipelineConfig, PosePipeline};
+pub use solve::{PoseSolver, SolverConfig};
+pub use source::VisionSource;
+pub use tracker::{PoseTracker, TrackerConfig};
+#[cfg(feature = "webcam")]
+pub use webcam::Webcam;
+
+/// Opens the default webcam. Without the `webcam` cargo feature this is always an error that
+/// says how to enable it.
+pub fn open_webcam(index: u32) -> Result<Box<dyn FrameSource>, VisionError> {
+    #[cfg(feature = "webcam")]
+    {
+        Ok(Box::new(Webcam::open(index)?))
+    }
+    #[cfg(not(feature = "webcam"))]
+    {
+        let _ = index;
+        Err(VisionError::Webcam(
+            "this build has no webcam support; rebuild with `--features webcam` \
+             (needs libclang-dev)"
+                .into(),
+        ))
+    }
+}

@@ -1,0 +1,347 @@
+//! The BlazePose landmark model run through ONNX Runtime (`ort`, library loaded at run time).
+//!
+//! Per call: warp the ROI of the frame into the model's 256×256 RGB input (bilinear, black
+//! outside the frame), run the model, and map its outputs back: landmarks from crop pixels to
+//! frame pixels, world landmarks rotated by the ROI's in-plane rotation (as MediaPipe's
+//! world-landmark projection does), visibility and presence through a sigmoid. Buffers are
+//! allocated once in [`LandmarkModel::load`].
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use glam::{Vec2, Vec3, Vec4};
+use ort::environment::Environment;
+use ort::session::builder::GraphOptimizationLevel;
+use ort::session::{OutputSelector, RunOptions, Session};
+use ort::value::Tensor;
+
+use super::error::VisionError;
+use super::frame::RgbFrame;
+use super::landmarks::{sigmoid, Landmarks, NUM_MODEL_LANDMARKS};
+use super::roi::Roi;
+
+/// Side of the model's square input, pixels.
+pub const INPUT_SIZE: usize = 256;
+
+const OUT_LANDMARKS: &str = "Identity";
+const OUT_PRESENCE: &str = "Identity_1";
+const OUT_WORLD: &str = "Identity_4";
+
+/// How pixel values are scaled into the model's input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InputRange {
+    /// `v / 255` — measured to give the higher presence on real footage (see the tests).
+    #[default]
+    ZeroOne,
+    /// `v / 127.5 − 1`.
+    MinusOneOne,
+}
+
+static RUNTIME: OnceLock<Result<Environment, String>> = OnceLock::new();
+
+/// Loads ONNX Runtime from `library` once per process and returns its environment. A missing
+/// or incompatible library is an error, never a panic. Later calls reuse the first library.
+pub fn runtime(library: &Path) -> Result<Environment, VisionError> {
+    if !library.is_file() {
+        return Err(VisionError::NotSetUp {
+            path: library.to_path_buf(),
+            what: "ONNX Runtime shared library",
+        });
+    }
+    let result = RUNTIME.get_or_init(|| {
+        ort::init_from(library)
+            .map_err(|e| e.to_string())?
+            .with_name("rigcast")
+            .with_telemetry(false)
+            .build()
+            .map_err(|e| e.to_string())
+    });
+    result.clone().map_err(|message| VisionError::Runtime {
+        path: library.to_path_buf(),
+        message,
+    })
+}
+
+/// A loaded landmark model plus its input/output buffers.
+pub struct LandmarkModel {
+    path: PathBuf,
+    session: Session,
+    run_options: RunOptions<ort::session::HasSelectedOutputs>,
+    input: Tensor<f32>,
+    range: InputRange,
+    raw_landmarks: [f32; NUM_MODEL_LANDMARKS * 5],
+    raw_world: [f32; NUM_MODEL_LANDMARKS * 3],
+}
+
+impl std::fmt::Debug for LandmarkModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LandmarkModel")
+            .field("path", &self.path)
+            .field("range", &self.range)
+            .finish()
+    }
+}
+
+fn model_err(path: &Path, e: impl std::fmt::Display) -> VisionError {
+    VisionError::Model {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+impl LandmarkModel {
+    /// Loads `model` with the runtime in `library`, running inference on `threads` threads.
+    pub fn load(
+        library: &Path,
+        model: &Path,
+        threads: usize,
+    ) -> Result<LandmarkModel, VisionError> {
+        let env = runtime(library)?;
+        if !model.is_file() {
+            return Err(VisionError::NotSetUp {
+                path: model.to_path_buf(),
+                what: "landmark model",
+            });
+        }
+        let session = Session::builder(&env)
+            .map_err(|e| model_err(model, e))?
+            .with_optimization_level(GraphOptimizationLevel::Level3)
+            .map_err(|e| model_err(model, e))?
+            .with_intra_threads(threads.max(1))
+            .map_err(|e| model_err(model, e))?
+            .commit_from_file(model)
+            .map_err(|e| model_err(model, e))?;
+        // Segmentation and heatmap outputs are not needed; not fetching them saves copies.
+        let run_options = RunOptions::new()
+            .map_err(|e| model_err(model, e))?
+            .with_outputs(
+                OutputSelector::no_default()
+                    .with(OUT_LANDMARKS)
+                    .with(OUT_PRESENCE)
+                    .with(OUT_WORLD),
+            );
+        let input = Tensor::from_array((
+            [1usize, INPUT_SIZE, INPUT_SIZE, 3],
+            vec![0.0f32; INPUT_SIZE * INPUT_SIZE * 3],
+        ))
+        .map_err(|e| model_err(model, e))?;
+        Ok(LandmarkModel {
+            path: model.to_path_buf(),
+            session,
+            run_options,
+            input,
+            range: InputRange::default(),
+            raw_landmarks: [0.0; NUM_MODEL_LANDMARKS * 5],
+            raw_world: [0.0; NUM_MODEL_LANDMARKS * 3],
+        })
+    }
+
+    /// Changes the input scaling (for the empirical range check).
+    pub fn set_input_range(&mut self, range: InputRange) {
+        self.range = range;
+    }
+
+    /// The model file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Runs the model on `roi` of `frame` and writes the result into `out`.
+    pub fn infer(
+        &mut self,
+        frame: &RgbFrame,
+        roi: &Roi,
+        out: &mut Landmarks,
+    ) -> Result<(), VisionError> {
+        let (scale, offset) = match self.range {
+            InputRange::ZeroOne => (1.0 / 255.0, 0.0),
+            InputRange::MinusOneOne => (1.0 / 127.5, -1.0),
+        };
+        {
+            let (_, data) = self.input.extract_tensor_mut();
+            warp_crop(frame, roi, scale, offset, data);
+        }
+        let outputs = self
+            .session
+            .run_with_options(ort::inputs![&self.input], &self.run_options)
+            .map_err(|e| model_err(&self.path, e))?;
+        let get = |name: &'static str| -> Result<&[f32], VisionError> {
+            let v = outputs.get(name).ok_or(VisionError::OutputShape {
+                name,
+                expected: 1,
+                actual: 0,
+            })?;
+            let (_, data) = v
+                .try_extract_tensor::<f32>()
+                .map_err(|e| model_err(&self.path, e))?;
+            Ok(data)
+        };
+        let lm = get(OUT_LANDMARKS)?;
+        let world = get(OUT_WORLD)?;
+        let presence = get(OUT_PRESENCE)?;
+        check_len(OUT_LANDMARKS, lm.len(), self.raw_landmarks.len())?;
+        check_len(OUT_WORLD, world.len(), self.raw_world.len())?;
+        check_len(OUT_PRESENCE, presence.len(), 1)?;
+        self.raw_landmarks.copy_from_slice(lm);
+        self.raw_world.copy_from_slice(world);
+        let presence = presence[0];
+        drop(outputs);
+        decode(&self.raw_landmarks, &self.raw_world, presence, roi, out);
+        Ok(())
+    }
+}
+
+fn check_len(name: &'static str, actual: usize, expected: usize) -> Result<(), VisionError> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(VisionError::OutputShape {
+            name,
+            expected,
+            actual,
+        })
+    }
+}
+
+/// Maps raw model outputs to frame pixels / metres.
+fn decode(raw: &[f32], raw_world: &[f32], presence: f32, roi: &Roi, out: &mut Landmarks) {
+    let inv = 1.0 / INPUT_SIZE as f32;
+    for i in 0..NUM_MODEL_LANDMARKS {
+        let r = &raw[i * 5..i * 5 + 5];
+        let n = Vec2::new(r[0] * inv - 0.5, r[1] * inv - 0.5);
+        let p = roi.to_frame(n);
+        // z shares x's crop-pixel scale.
+        let z = r[2] * inv * roi.size;
+        out.image[i] = Vec4::new(p.x, p.y, z, sigmoid(r[3]));
+        let w = &raw_world[i * 3..i * 3 + 3];
+        let xy = roi.rotate(Vec2::new(w[0], w[1]));
+        out.world[i] = Vec3::new(xy.x, xy.y, w[2]);
+    }
+    // The converted model ends in a sigmoid already when the value lies in [0, 1]; a logit
+    // otherwise.
+    out.presence = if (0.0..=1.0).contains(&presence) {
+        presence
+    } else {
+        sigmoid(presence)
+    };
+}
+
+/// Bilinear warp of `roi` into an `INPUT_SIZE²` RGB float buffer (`v · scale + offset`), black
+/// outside the frame.
+pub fn warp_crop(frame: &RgbFrame, roi: &Roi, scale: f32, offset: f32, out: &mut [f32]) {
+    debug_assert_eq!(out.len(), INPUT_SIZE * INPUT_SIZE * 3);
+    let n = INPUT_SIZE as f32;
+    let (s, c) = roi.rotation.sin_cos();
+    let step = roi.size / n;
+    // Frame position of crop pixel (u, v) centre: origin + u·du + v·dv.
+    let du = Vec2::new(c, s) * step;
+    let dv = Vec2::new(-s, c) * step;
+    let origin = roi.to_frame(Vec2::new(0.5 / n - 0.5, 0.5 / n - 0.5)) - Vec2::splat(0.5);
+    let (w, h) = (frame.width as i32, frame.height as i32);
+    let stride = frame.width as usize * 3;
+    let data = &frame.data;
+    for v in 0..INPUT_SIZE {
+        let row = origin + dv * v as f32;
+        let out_row = &mut out[v * INPUT_SIZE * 3..(v + 1) * INPUT_SIZE * 3];
+        for u in 0..INPUT_SIZE {
+            let p = row + du * u as f32;
+            let x0 = p.x.floor();
+            let y0 = p.y.floor();
+            let fx = p.x - x0;
+            let fy = p.y - y0;
+            let (x0, y0) = (x0 as i32, y0 as i32);
+            let o = &mut out_row[u * 3..u * 3 + 3];
+            if x0 >= 0 && y0 >= 0 && x0 + 1 < w && y0 + 1 < h {
+                // Fast path: all four neighbours inside.
+                let i00 = y0 as usize * stride + x0 as usize * 3;
+                let i10 = i00 + 3;
+                let i01 = i00 + stride;
+                let i11 = i01 + 3;
+                for ch in 0..3 {
+                    let top = data[i00 + ch] as f32 * (1.0 - fx) + data[i10 + ch] as f32 * fx;
+                    let bot = data[i01 + ch] as f32 * (1.0 - fx) + data[i11 + ch] as f32 * fx;
+                    o[ch] = (top * (1.0 - fy) + bot * fy) * scale + offset;
+                }
+            } else {
+                let p00 = frame.pixel(x0, y0);
+                let p10 = frame.pixel(x0 + 1, y0);
+                let p01 = frame.pixel(x0, y0 + 1);
+                let p11 = frame.pixel(x0 + 1, y0 + 1);
+                for ch in 0..3 {
+                    let top = p00[ch] as f32 * (1.0 - fx) + p10[ch] as f32 * fx;
+                    let bot = p01[ch] as f32 * (1.0 - fx) + p11[ch] as f32 * fx;
+                    o[ch] = (top * (1.0 - fy) + bot * fy) * scale + offset;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient_frame(w: u32, h: u32) -> RgbFrame {
+        let mut f = RgbFrame::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let i = ((y * w + x) * 3) as usize;
+                f.data[i] = (x % 256) as u8;
+                f.data[i + 1] = (y % 256) as u8;
+                f.data[i + 2] = 7;
+            }
+        }
+        f
+    }
+
+    #[test]
+    fn identity_crop_reproduces_pixels() {
+        // A 256-pixel ROI over a 256×256 frame maps crop pixel (u, v) to frame pixel (u, v).
+        let f = gradient_frame(256, 256);
+        let roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
+        let mut out = vec![0.0; INPUT_SIZE * INPUT_SIZE * 3];
+        warp_crop(&f, &roi, 1.0, 0.0, &mut out);
+        for (u, v) in [(0usize, 0usize), (10, 200), (255, 255), (128, 3)] {
+            let i = (v * INPUT_SIZE + u) * 3;
+            assert!((out[i] - u as f32).abs() < 1e-3, "u {u} got {}", out[i]);
+            assert!((out[i + 1] - v as f32).abs() < 1e-3);
+            assert!((out[i + 2] - 7.0).abs() < 1e-3);
+        }
+    }
+
+    #[test]
+    fn outside_the_frame_is_black_and_scaling_applies() {
+        let f = gradient_frame(64, 64);
+        let roi = Roi::square(Vec2::new(32.0, 32.0), 1024.0);
+        let mut out = vec![9.0; INPUT_SIZE * INPUT_SIZE * 3];
+        warp_crop(&f, &roi, 1.0 / 127.5, -1.0, &mut out);
+        assert!((out[0] + 1.0).abs() < 1e-6, "corner is black → −1");
+    }
+
+    #[test]
+    fn quarter_turn_crop_reads_along_the_rotated_axis() {
+        let f = gradient_frame(256, 256);
+        let mut roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
+        roi.rotation = std::f32::consts::FRAC_PI_2;
+        let mut out = vec![0.0; INPUT_SIZE * INPUT_SIZE * 3];
+        warp_crop(&f, &roi, 1.0, 0.0, &mut out);
+        // Moving right in the crop (u) moves down in the frame (y): the green channel grows.
+        let g = |u: usize, v: usize| out[(v * INPUT_SIZE + u) * 3 + 1];
+        assert!(g(200, 128) > g(50, 128) + 100.0);
+    }
+
+    #[test]
+    fn decode_maps_crop_centre_to_roi_centre() {
+        let mut raw = [0.0f32; NUM_MODEL_LANDMARKS * 5];
+        raw[0] = 128.0;
+        raw[1] = 128.0;
+        raw[3] = 10.0;
+        let world = [0.0f32; NUM_MODEL_LANDMARKS * 3];
+        let roi = Roi::square(Vec2::new(500.0, 300.0), 400.0);
+        let mut out = Landmarks::default();
+        decode(&raw, &world, 0.9, &roi, &mut out);
+        assert!((out.image[0].x - 500.0).abs() < 1e-3 && (out.image[0].y - 300.0).abs() < 1e-3);
+        assert!(out.image[0].w > 0.99);
+        assert!((out.presence - 0.9).abs() < 1e-6);
+    }
+}

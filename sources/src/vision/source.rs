@@ -1,0 +1,228 @@
+//! [`VisionSource`]: a [`FrameSource`] plus the [`PosePipeline`], served as a
+//! [`LiveSource`](crate::live::LiveSource) on the BlazePose skeleton.
+//!
+//! Frames of a file can be paced to their timestamps (real-time playback, as a webcam would
+//! deliver them) or served as fast as they decode. The raw tap receives one landmark record per
+//! frame with a person (see [`encode_landmarks`]), so a session can be recorded and replayed.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rigcast_retarget::{Pose, Skeleton};
+
+use super::error::VisionError;
+use super::frame::{FrameSource, RgbFrame};
+use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
+use super::pipeline::PosePipeline;
+use crate::live::{
+    unix_nanos_now, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
+    SourceStatus,
+};
+
+/// Bytes of one landmark record: presence, then 39 × (x, y, z, visibility) image values and
+/// 39 × (x, y, z) world values, all little-endian f32.
+pub const LANDMARK_RECORD_BYTES: usize = 4 * (1 + NUM_MODEL_LANDMARKS * 7);
+
+/// Encodes landmarks as a raw record (little-endian f32s) into `out` (cleared first).
+pub fn encode_landmarks(lm: &Landmarks, out: &mut Vec<u8>) {
+    out.clear();
+    out.extend_from_slice(&lm.presence.to_le_bytes());
+    for v in &lm.image {
+        for c in v.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for v in &lm.world {
+        for c in v.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+}
+
+/// Decodes a record written by [`encode_landmarks`]; `None` when the length is wrong.
+pub fn decode_landmarks(bytes: &[u8]) -> Option<Landmarks> {
+    if bytes.len() != LANDMARK_RECORD_BYTES {
+        return None;
+    }
+    let mut vals = bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]));
+    let mut lm = Landmarks {
+        presence: vals.next()?,
+        ..Landmarks::default()
+    };
+    for v in lm.image.iter_mut() {
+        *v = glam::Vec4::new(vals.next()?, vals.next()?, vals.next()?, vals.next()?);
+    }
+    for v in lm.world.iter_mut() {
+        *v = glam::Vec3::new(vals.next()?, vals.next()?, vals.next()?);
+    }
+    Some(lm)
+}
+
+fn source_error(e: VisionError) -> SourceError {
+    SourceError::Stream(std::io::Error::other(e))
+}
+
+/// Webcam or video → BlazePose → poses, as a live source.
+pub struct VisionSource {
+    name: String,
+    frames: Box<dyn FrameSource>,
+    pipeline: PosePipeline,
+    frame: RgbFrame,
+    pending: bool,
+    ended: bool,
+    realtime: bool,
+    started: Option<Instant>,
+    health: HealthTracker,
+    seq: u64,
+    sent_skeleton: bool,
+    tap: Option<Box<dyn RawTap>>,
+    record: Vec<u8>,
+}
+
+impl std::fmt::Debug for VisionSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VisionSource")
+            .field("name", &self.name)
+            .finish()
+    }
+}
+
+impl VisionSource {
+    /// Serves `frames` through `pipeline`. With `realtime`, frames are released at their
+    /// timestamps (wall clock from the first frame); otherwise as fast as they are processed.
+    pub fn new(
+        name: impl Into<String>,
+        frames: Box<dyn FrameSource>,
+        pipeline: PosePipeline,
+        realtime: bool,
+    ) -> VisionSource {
+        let (w, h) = frames.size();
+        VisionSource {
+            name: name.into(),
+            frames,
+            pipeline,
+            frame: RgbFrame::new(w, h),
+            pending: false,
+            ended: false,
+            realtime,
+            started: None,
+            health: HealthTracker::new(Duration::from_secs(1)),
+            seq: 0,
+            sent_skeleton: false,
+            tap: None,
+            record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
+        }
+    }
+
+    /// The pipeline (confidence, stats).
+    pub fn pipeline(&self) -> &PosePipeline {
+        &self.pipeline
+    }
+}
+
+impl LiveSource for VisionSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn skeleton(&self) -> Option<Arc<Skeleton>> {
+        Some(self.pipeline.skeleton().clone())
+    }
+
+    fn next_frame(
+        &mut self,
+        timeout: Duration,
+        out: &mut Pose,
+    ) -> Result<Option<FrameMeta>, SourceError> {
+        let call_start = Instant::now();
+        if self.ended {
+            self.health.poll(call_start);
+            std::thread::sleep(timeout);
+            return Ok(None);
+        }
+        if !self.pending {
+            match self.frames.next_frame(&mut self.frame) {
+                Ok(true) => self.pending = true,
+                Ok(false) => {
+                    self.ended = true;
+                    self.health.on_device_lost("end of input");
+                    return Ok(None);
+                }
+                Err(e) => {
+                    self.health.on_device_lost(e.to_string());
+                    return Err(source_error(e));
+                }
+            }
+        }
+        let arrived = Instant::now();
+        if self.realtime {
+            let start = *self
+                .started
+                .get_or_insert_with(|| arrived - Duration::from_secs_f64(self.frame.time_secs));
+            let due = start + Duration::from_secs_f64(self.frame.time_secs.max(0.0));
+            if due > call_start + timeout {
+                std::thread::sleep(
+                    (call_start + timeout).saturating_duration_since(Instant::now()),
+                );
+                return Ok(None);
+            }
+            std::thread::sleep(due.saturating_duration_since(Instant::now()));
+        }
+        self.pending = false;
+        let capture_nanos = unix_nanos_now();
+        let landmarks = self
+            .pipeline
+            .process(&self.frame, out)
+            .map_err(source_error)?;
+        let now = Instant::now();
+        self.health.on_input(now);
+        let Some(lm) = landmarks else {
+            self.health.set_detail("no person in view");
+            return Ok(None);
+        };
+        if let Some(tap) = self.tap.as_mut() {
+            encode_landmarks(lm, &mut self.record);
+            tap.raw(RawKind::Landmarks, capture_nanos, &self.record);
+        }
+        self.health
+            .on_frame(now, now.saturating_duration_since(arrived));
+        self.seq += 1;
+        let skeleton_changed = !self.sent_skeleton;
+        self.sent_skeleton = true;
+        Ok(Some(FrameMeta {
+            seq: self.seq,
+            capture_nanos,
+            skeleton_changed,
+        }))
+    }
+
+    fn status(&self) -> SourceStatus {
+        self.health.status()
+    }
+
+    fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
+        self.tap = tap;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn landmark_records_round_trip() {
+        let mut lm = Landmarks {
+            presence: 0.75,
+            ..Landmarks::default()
+        };
+        lm.image[3] = glam::Vec4::new(1.0, 2.0, 3.0, 0.5);
+        lm.world[38] = glam::Vec3::new(-0.1, 0.2, 0.3);
+        let mut bytes = Vec::new();
+        encode_landmarks(&lm, &mut bytes);
+        assert_eq!(bytes.len(), LANDMARK_RECORD_BYTES);
+        assert_eq!(decode_landmarks(&bytes), Some(lm));
+        assert_eq!(decode_landmarks(&bytes[1..]), None);
+    }
+}
