@@ -24,6 +24,7 @@
 mod align;
 mod history;
 mod options;
+pub mod workloads;
 
 use glam::{Quat, Vec3};
 
