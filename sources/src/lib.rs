@@ -21,6 +21,9 @@ pub mod demo;
 pub mod error;
 pub mod recording;
 pub mod replay;
+pub mod live;
+pub mod serial;
+pub mod vmc_in;
 mod files;
 
 pub use demo::embedded_demo;
