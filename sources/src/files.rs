@@ -6,6 +6,7 @@ use rigcast_retarget::Clip;
 
 use crate::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
 use crate::error::SourceError;
+use crate::gltf::{read_gltf, write_glb, GltfReadOptions};
 use crate::recording::{clip_from_recording, read_recording, write_clip_recording};
 
 /// Options for [`load_clip_with`].
@@ -19,21 +20,21 @@ pub struct LoadOptions {
     pub sample_fps: Option<f64>,
 }
 
-fn extension(path: &Path) -> String {
+pub(crate) fn extension(path: &Path) -> String {
     path.extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase()
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>, SourceError> {
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SourceError> {
     std::fs::read(path).map_err(|source| SourceError::Io {
         path: path.to_path_buf(),
         source,
     })
 }
 
-fn stem(path: &Path) -> String {
+pub(crate) fn stem(path: &Path) -> String {
     path.file_stem()
         .and_then(|s| s.to_str())
         .unwrap_or("clip")
@@ -61,6 +62,19 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
             )
             .map(|r| r.clip)
         }
+        "gltf" | "glb" | "vrm" => {
+            let bytes = read_file(path)?;
+            read_gltf(
+                &bytes,
+                path.parent(),
+                &stem(path),
+                &GltfReadOptions {
+                    animation: opts.animation.clone(),
+                    sample_fps: opts.sample_fps,
+                },
+            )
+            .map(|r| r.clip)
+        }
         "rcr" => {
             let bytes = read_file(path)?;
             read_recording(&bytes[..]).and_then(|rec| clip_from_recording(&rec, &stem(path)))
@@ -80,6 +94,7 @@ pub fn save_clip(path: &Path, clip: &Clip) -> Result<(), SourceError> {
         "bvh" => write_bvh(clip, &BvhWriteOptions::default())
             .map_err(|e| e.in_file(path))?
             .into_bytes(),
+        "glb" => write_glb(clip).map_err(|e| e.in_file(path))?,
         "rcr" => write_clip_recording(Vec::new(), clip).map_err(|e| e.in_file(path))?,
         _ => {
             return Err(SourceError::UnsupportedExtension {

@@ -19,6 +19,8 @@
 pub mod bvh;
 pub mod demo;
 pub mod error;
+pub mod gltf;
+pub mod info;
 pub mod recording;
 pub mod replay;
 pub mod live;
@@ -28,5 +30,6 @@ mod files;
 
 pub use demo::embedded_demo;
 pub use error::SourceError;
+pub use info::{describe, FileInfo};
 pub use files::{load_clip, load_clip_with, save_clip, LoadOptions};
 pub use replay::{Replay, ReplayOptions};

@@ -106,3 +106,91 @@ fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
     let angle = 2.0 * d.xyz().length().min(1.0).asin();
     angle <= tol_rad
 }
+
+#[test]
+fn fox_glb_skin_and_animations() {
+    use rigcast_sources::gltf::{read_gltf, GltfReadOptions};
+    let Some(path) = data("gltf/Fox.glb") else {
+        return;
+    };
+    let bytes = std::fs::read(&path).unwrap();
+    let r = read_gltf(&bytes, path.parent(), "fox", &GltfReadOptions::default()).unwrap();
+    assert_eq!(r.num_joints, 24);
+    assert_eq!(r.clip.skeleton.num_bones(), 24);
+    let names: Vec<&str> = r.animations.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["Survey", "Walk", "Run"]);
+    assert!(r.animations.iter().all(|a| a.duration_secs > 0.5));
+    assert!(r.clip.skeleton.bone("b_Hip_01").is_some());
+    // Parents come first (depth-first order).
+    for (i, p) in r.clip.skeleton.parents().iter().enumerate() {
+        assert!(p.is_none_or(|p| p.index() < i));
+    }
+    assert_eq!(r.clip.name, "Survey");
+    assert!(r.clip.num_frames() > 10);
+    // Select by name and by index, at a chosen rate.
+    let opts = GltfReadOptions {
+        animation: Some("Run".into()),
+        sample_fps: Some(24.0),
+    };
+    let run = read_gltf(&bytes, path.parent(), "fox", &opts).unwrap();
+    assert_eq!(run.clip.name, "Run");
+    let expect = (r.animations[2].duration_secs * 24.0 + 1e-3).floor() as usize + 1;
+    assert_eq!(run.clip.num_frames(), expect);
+    let opts = GltfReadOptions {
+        animation: Some("1".into()),
+        sample_fps: None,
+    };
+    assert_eq!(
+        read_gltf(&bytes, path.parent(), "fox", &opts)
+            .unwrap()
+            .clip
+            .name,
+        "Walk"
+    );
+    // The animation moves the legs: some frame differs from another.
+    let p = &run.clip.poses;
+    assert!(p[0] != p[p.len() / 2]);
+    let info = rigcast_sources::describe(&path).unwrap();
+    assert_eq!(info.animations.len(), 3);
+    assert!(info.height_m > 0.1, "{}", info.height_m);
+    println!("{info}");
+}
+
+#[test]
+fn simple_skin_unnamed_joints() {
+    let Some(path) = data("gltf/SimpleSkin.gltf") else {
+        return;
+    };
+    let clip = rigcast_sources::load_clip(&path).unwrap();
+    assert_eq!(clip.skeleton.names(), &["joint_1", "joint_2"]);
+    assert!(vec_close(
+        clip.skeleton.rest()[0].translation,
+        glam::Vec3::new(0.0, 1.0, 0.0),
+        1e-6
+    ));
+    assert!(clip.num_frames() > 1);
+    // The second joint's rotation is animated (it bends and returns).
+    let max_angle = clip
+        .poses
+        .iter()
+        .map(|p| p.rotations[1].to_axis_angle().1.abs())
+        .fold(0.0f32, f32::max);
+    assert!(max_angle > 0.1, "{max_angle}");
+    println!("{}", rigcast_sources::describe(&path).unwrap());
+}
+
+#[test]
+fn describe_bvh_reports_scale_and_height() {
+    let Some(path) = data("bvh/cmu_131_01_walk.bvh") else {
+        return;
+    };
+    let info = rigcast_sources::describe(&path).unwrap();
+    assert_eq!(info.format, "BVH");
+    assert_eq!(info.num_frames, 994);
+    assert!((info.fps.unwrap() - 120.0).abs() < 0.01);
+    assert!((1.3..2.1).contains(&info.height_m), "{}", info.height_m);
+    let (scale, guessed) = info.bvh_scale.unwrap();
+    assert!(guessed && (scale - 0.056444).abs() < 1e-6);
+    let text = info.to_string();
+    assert!(text.contains("LeftElbow") && text.contains("994"));
+}

@@ -11,6 +11,7 @@
 mod parse;
 mod write;
 
+pub(crate) use parse::extent_of;
 pub use parse::{guess_scale, read_bvh, BvhRead, BvhReadOptions};
 pub use write::{write_bvh, BvhWriteOptions};
 

@@ -1,0 +1,23 @@
+//! glTF 2.0 / GLB / VRM reading and GLB writing.
+//!
+//! ```text
+//!  .gltf/.glb/.vrm ──read_gltf──▶ GltfRead { clip, animations, vrm_roles }
+//!        first skin's joints (or VRM humanoid nodes) → Skeleton (depth-first)
+//!        node TRS → rest; channels sampled at a fixed rate → poses
+//!  Clip ──write_glb──▶ .glb (nodes + skin + one LINEAR animation)
+//! ```
+
+mod read;
+mod sample;
+mod vrm;
+mod write;
+
+pub use read::{
+    read_gltf, AnimationInfo, GltfRead, GltfReadOptions, SkeletonOrigin, DEFAULT_SAMPLE_FPS,
+};
+pub use sample::{Interpolation, Track};
+pub use vrm::VrmVersion;
+pub use write::write_glb;
+
+#[cfg(test)]
+mod tests;

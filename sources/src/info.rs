@@ -1,0 +1,210 @@
+//! `describe`: what `rigcast info <file>` prints about an animation file.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use rigcast_retarget::{world_transforms, Clip, Skeleton};
+
+use crate::bvh::{extent_of, read_bvh, BvhReadOptions};
+use crate::error::SourceError;
+use crate::files::{extension, read_file, stem};
+use crate::gltf::{read_gltf, AnimationInfo, GltfReadOptions};
+use crate::recording::{clip_from_recording, read_recording};
+
+/// A summary of one file's skeleton and animation.
+#[derive(Debug, Clone)]
+pub struct FileInfo {
+    /// The file.
+    pub path: PathBuf,
+    /// Format name ("BVH", "glTF", "GLB", "VRM", "rigcast recording").
+    pub format: &'static str,
+    /// The skeleton.
+    pub skeleton: Arc<Skeleton>,
+    /// Number of bones (BVH End Sites included, as `<parent>_end` leaves).
+    pub num_bones: usize,
+    /// Vertical extent of the figure, metres.
+    pub height_m: f32,
+    /// True when the rest pose is degenerate (bones along one line) and the height was measured
+    /// on the first animation frame instead.
+    pub height_from_first_frame: bool,
+    /// Frame rate of the loaded animation (None without frames).
+    pub fps: Option<f64>,
+    /// Frames of the loaded animation.
+    pub num_frames: usize,
+    /// Duration of the loaded animation, seconds (frames × frame time).
+    pub duration_secs: f64,
+    /// All animations in the file (one entry for BVH and recordings).
+    pub animations: Vec<AnimationInfo>,
+    /// BVH only: metres per file unit applied, and whether it was guessed.
+    pub bvh_scale: Option<(f32, bool)>,
+    /// VRM only: humanoid role → bone name.
+    pub vrm_roles: Option<BTreeMap<String, String>>,
+    /// Recordings only: (subjects, frames, raw packets, ended cleanly).
+    pub recording: Option<(usize, usize, usize, bool)>,
+}
+
+impl FileInfo {
+    /// The bone hierarchy as an indented list, one bone per line.
+    pub fn bone_tree(&self) -> String {
+        let mut out = String::new();
+        for b in self.skeleton.bone_ids() {
+            let depth = self.skeleton.depth(b);
+            out.push_str(&"  ".repeat(depth));
+            out.push_str(self.skeleton.name(b));
+            out.push('\n');
+        }
+        out
+    }
+}
+
+impl fmt::Display for FileInfo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "file:      {}", self.path.display())?;
+        writeln!(f, "format:    {}", self.format)?;
+        writeln!(f, "bones:     {}", self.num_bones)?;
+        let note = if self.height_from_first_frame {
+            " (first frame; rest pose is degenerate)"
+        } else {
+            ""
+        };
+        writeln!(f, "height:    {:.3} m{note}", self.height_m)?;
+        if let Some((scale, guessed)) = self.bvh_scale {
+            let how = if guessed { "guessed" } else { "given" };
+            writeln!(f, "scale:     {scale} m per unit ({how})")?;
+        }
+        match self.fps {
+            Some(fps) => writeln!(
+                f,
+                "frames:    {} at {:.3} fps, {:.3} s",
+                self.num_frames, fps, self.duration_secs
+            )?,
+            None => writeln!(f, "frames:    none")?,
+        }
+        if let Some((subjects, frames, raw, clean)) = self.recording {
+            writeln!(
+                f,
+                "recording: {subjects} subjects, {frames} frames, {raw} raw packets{}",
+                if clean { "" } else { ", truncated" }
+            )?;
+        }
+        if !self.animations.is_empty() {
+            writeln!(f, "animations:")?;
+            for a in &self.animations {
+                writeln!(f, "  {} ({:.3} s)", a.name, a.duration_secs)?;
+            }
+        }
+        if let Some(roles) = &self.vrm_roles {
+            writeln!(f, "VRM humanoid bones: {}", roles.len())?;
+        }
+        writeln!(f, "hierarchy:")?;
+        for line in self.bone_tree().lines() {
+            writeln!(f, "  {line}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Vertical extent at rest, or on the first frame when the rest layout is degenerate.
+fn height_of(clip: &Clip) -> (f32, bool) {
+    let rest = world_transforms(&clip.skeleton, &clip.skeleton.rest_pose());
+    let points: Vec<_> = rest.iter().map(|w| w.translation).collect();
+    let (_, degenerate) = extent_of(&points);
+    let (pose_points, from_frame) = match clip.poses.first() {
+        Some(p) if degenerate => (
+            world_transforms(&clip.skeleton, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect::<Vec<_>>(),
+            true,
+        ),
+        _ => (points, false),
+    };
+    let lo = pose_points
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::INFINITY, f32::min);
+    let hi = pose_points
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::NEG_INFINITY, f32::max);
+    ((hi - lo).max(0.0), from_frame)
+}
+
+/// Reads `path` and summarises it (see [`FileInfo`]).
+pub fn describe(path: &Path) -> Result<FileInfo, SourceError> {
+    describe_inner(path).map_err(|e| e.in_file(path))
+}
+
+fn describe_inner(path: &Path) -> Result<FileInfo, SourceError> {
+    let ext = extension(path);
+    let bytes = read_file(path)?;
+    let mut bvh_scale = None;
+    let mut vrm_roles = None;
+    let mut recording = None;
+    let (format, clip, animations) = match ext.as_str() {
+        "bvh" => {
+            let r = read_bvh(&bytes, &stem(path), &BvhReadOptions::default())?;
+            bvh_scale = Some((r.scale, r.scale_guessed));
+            let a = vec![AnimationInfo {
+                name: r.clip.name.clone(),
+                duration_secs: r.clip.duration_secs(),
+            }];
+            ("BVH", r.clip, a)
+        }
+        "gltf" | "glb" | "vrm" => {
+            let r = read_gltf(
+                &bytes,
+                path.parent(),
+                &stem(path),
+                &GltfReadOptions::default(),
+            )?;
+            vrm_roles = r.vrm_roles;
+            let format = match ext.as_str() {
+                "gltf" => "glTF",
+                "glb" => "GLB",
+                _ => "VRM",
+            };
+            (format, r.clip, r.animations)
+        }
+        "rcr" => {
+            let rec = read_recording(&bytes[..])?;
+            recording = Some((
+                rec.skeletons.len(),
+                rec.frames.len(),
+                rec.raw.len(),
+                rec.ended_cleanly,
+            ));
+            let clip = clip_from_recording(&rec, &stem(path))?;
+            let a = vec![AnimationInfo {
+                name: clip.name.clone(),
+                duration_secs: clip.duration_secs(),
+            }];
+            ("rigcast recording", clip, a)
+        }
+        _ => {
+            return Err(SourceError::UnsupportedExtension {
+                extension: ext,
+                expected: ".bvh, .gltf, .glb, .vrm, .rcr",
+            })
+        }
+    };
+    let (height_m, height_from_first_frame) = height_of(&clip);
+    let has_frames = clip.num_frames() > 0;
+    Ok(FileInfo {
+        path: path.to_path_buf(),
+        format,
+        num_bones: clip.skeleton.num_bones(),
+        skeleton: clip.skeleton.clone(),
+        height_m,
+        height_from_first_frame,
+        fps: has_frames.then(|| clip.fps()),
+        num_frames: clip.num_frames(),
+        duration_secs: clip.duration_secs(),
+        animations,
+        bvh_scale,
+        vrm_roles,
+        recording,
+    })
+}
