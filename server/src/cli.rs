@@ -26,6 +26,10 @@ pub enum Command {
     Convert(cmd::convert::ConvertArgs),
     /// Record what a server streams into a .rcr recording.
     Record(cmd::record::RecordArgs),
+    /// Put an animation onto another character (offline), written as BVH or GLB.
+    Retarget(cmd::retarget::RetargetArgs),
+    /// Measure the realtime path (retarget, FK, mapping build, frame encode) on this machine.
+    Bench(cmd::bench::BenchArgs),
 }
 
 impl Command {
@@ -36,6 +40,8 @@ impl Command {
             Command::Info(a) => cmd::info::run(a),
             Command::Convert(a) => cmd::convert::run(a),
             Command::Record(a) => cmd::record::run(a).await,
+            Command::Retarget(a) => cmd::retarget::run(&a),
+            Command::Bench(a) => cmd::bench::run(&a),
         }
     }
 }

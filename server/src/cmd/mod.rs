@@ -1,6 +1,8 @@
 //! Subcommand implementations, one module each (wired up in [`crate::cli::Command`]).
 
+pub mod bench;
 pub mod convert;
 pub mod info;
 pub mod record;
+pub mod retarget;
 pub mod serve;

@@ -1,0 +1,169 @@
+//! `rigcast retarget ANIM --target SKELETON -o OUT`: put an animation onto another character,
+//! offline. The output has the target's hierarchy, names and rest offsets and the source's frame
+//! count and frame time (unless `--fps` resamples); any animation in the target file is ignored.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{anyhow, bail, Context};
+use clap::Args;
+use rigcast_retarget::mapping::MappingTable;
+use rigcast_retarget::{Clip, Mapping, RetargetOptions, RootMotion, Skeleton};
+
+/// Options of `rigcast retarget`.
+#[derive(Debug, Clone, Args)]
+pub struct RetargetArgs {
+    /// The animation to retarget (.bvh, .gltf/.glb, .vrm or a .rcr recording).
+    pub anim: PathBuf,
+    /// The character to put it on (.bvh, .gltf/.glb, .vrm, .rcr); its own animation is ignored.
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Output file (.bvh or .glb), written with the target's skeleton.
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// Mapping overrides (TOML) applied on top of the automatic mapping.
+    #[arg(long)]
+    pub mapping: Option<PathBuf>,
+    /// Resample to this many frames per second (default: keep the source's frame time).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Keep the hips over the spot horizontally (walk in place).
+    #[arg(long)]
+    pub in_place: bool,
+}
+
+/// Formats `rigcast_sources::save_clip` writes.
+const OUTPUT_EXTENSIONS: [&str; 3] = ["bvh", "glb", "rcr"];
+
+/// Clips longer than this report progress on stderr.
+const PROGRESS_MIN_FRAMES: usize = 2000;
+
+/// Runs the command.
+pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
+    // Refuse an unwritable output format before doing any work.
+    let ext = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if !OUTPUT_EXTENSIONS.contains(&ext.as_str()) {
+        bail!(
+            "{}: cannot write .{ext} files; the output must end in .bvh, .glb or .rcr",
+            args.output.display()
+        );
+    }
+    // Source errors already name the file and the cause; no extra context, so nothing repeats.
+    let mut clip = rigcast_sources::load_clip(&args.anim)
+        .map_err(|e| anyhow!("cannot read the animation: {e}"))?;
+    if clip.num_frames() == 0 {
+        bail!(
+            "{} has no animation frames to retarget",
+            args.anim.display()
+        );
+    }
+    let target = rigcast_sources::load_clip(&args.target)
+        .map_err(|e| anyhow!("cannot read the target character: {e}"))?
+        .skeleton;
+    if let Some(fps) = args.fps {
+        if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
+            bail!("--fps {fps}: expected a frame rate between 0 and 10000");
+        }
+        clip = clip
+            .resampled(1.0 / fps)
+            .with_context(|| format!("cannot resample to {fps} fps"))?;
+    }
+    let table = mapping_table(&clip.skeleton, &target, args.mapping.as_deref())?;
+    if table.num_mapped() == 0 {
+        bail!(
+            "no bone of {} could be mapped to a bone of {}",
+            args.target.display(),
+            args.anim.display()
+        );
+    }
+    let opts = RetargetOptions {
+        frame_time_secs: clip.frame_time_secs as f32,
+        root_motion: if args.in_place {
+            RootMotion::InPlace
+        } else {
+            RootMotion::Scaled
+        },
+        ..RetargetOptions::default()
+    };
+    let out = retarget_clip(&clip, &target, &table, &opts, true)?;
+    rigcast_sources::save_clip(&args.output, &out).map_err(|e| anyhow!("cannot write: {e}"))?;
+    println!(
+        "wrote {} ({} bones, {} of them driven; {} frames at {:.3} fps)",
+        args.output.display(),
+        target.num_bones(),
+        table.num_mapped(),
+        out.num_frames(),
+        out.fps()
+    );
+    Ok(())
+}
+
+/// The mapping from the clip's skeleton to the target.
+// TODO(mapping): use the automatic mapper and its TOML override format once they land; until
+// then bones are matched by exact name and `--mapping` is refused.
+pub fn mapping_table(
+    source: &Skeleton,
+    target: &Skeleton,
+    overrides: Option<&Path>,
+) -> anyhow::Result<MappingTable> {
+    if let Some(path) = overrides {
+        bail!(
+            "{}: mapping override files are not supported yet (the automatic mapper and its \
+             override format have not landed); bones are matched by name",
+            path.display()
+        );
+    }
+    Ok(MappingTable::by_exact_name(source, target))
+}
+
+/// Retargets a whole clip onto `target` (floor measured over the clip), printing a percentage
+/// on stderr for long clips when `progress` is set.
+pub fn retarget_clip(
+    clip: &Clip,
+    target: &Skeleton,
+    table: &MappingTable,
+    opts: &RetargetOptions,
+    progress: bool,
+) -> anyhow::Result<Clip> {
+    let mut mapping = Mapping::build(&[&clip.skeleton], target, table, opts)
+        .context("cannot build the retargeting mapping")?;
+    if opts.source_floor_y.is_none() {
+        if let Some(floor) = mapping.measure_source_floor(&clip.poses) {
+            mapping.set_source_floor_y(floor);
+        }
+    }
+    let n = clip.num_frames();
+    let report = progress && n >= PROGRESS_MIN_FRAMES;
+    let mut poses = Vec::with_capacity(n);
+    let mut out = mapping.new_target_pose();
+    let mut last_percent = usize::MAX;
+    for (i, p) in clip.poses.iter().enumerate() {
+        mapping
+            .apply_one(p, &mut out)
+            .with_context(|| format!("frame {i} does not fit the source skeleton"))?;
+        poses.push(out.clone());
+        if report {
+            let percent = (i + 1) * 100 / n;
+            if percent != last_percent && percent % 5 == 0 {
+                eprint!("\rretargeting: {percent:3}% ({}/{n} frames)", i + 1);
+                let _ = std::io::stderr().flush();
+                last_percent = percent;
+            }
+        }
+    }
+    if report {
+        eprintln!();
+    }
+    Ok(Clip::new(
+        clip.name.clone(),
+        Arc::new(target.clone()),
+        poses,
+        clip.frame_time_secs,
+    )?)
+}
