@@ -208,3 +208,36 @@ fn describe_inner(path: &Path) -> Result<FileInfo, SourceError> {
         recording,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use glam::{Quat, Vec3};
+    use rigcast_retarget::{RawSkeleton, Transform};
+
+    /// A rest layout with every bone along +X (not a posture): the height must come from the
+    /// first frame, where the root is turned so the chain stands up.
+    #[test]
+    fn degenerate_rest_uses_first_frame_height() {
+        let mut raw = RawSkeleton::default();
+        let mut parent = raw.add("root", None, Transform::IDENTITY);
+        for k in 0..4 {
+            parent = raw.add(
+                format!("b{k}"),
+                Some(parent),
+                Transform::from_translation(Vec3::X * 0.4),
+            );
+        }
+        let s = Arc::new(Skeleton::build(&raw).unwrap());
+        let mut pose = s.rest_pose();
+        pose.rotations[0] = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+        let clip = Clip::new("c", s.clone(), vec![pose], 0.1).unwrap();
+        let (h, from_frame) = height_of(&clip);
+        assert!(from_frame);
+        assert!((h - 1.6).abs() < 1e-5, "{h}");
+        // Without frames there is nothing better than the (flat) rest.
+        let empty = Clip::new("c", s, vec![], 0.1).unwrap();
+        assert_eq!(height_of(&empty), (0.0, false));
+    }
+}

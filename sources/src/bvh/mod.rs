@@ -7,6 +7,10 @@
 //!
 //! End Sites become leaf bones named `<parent>_end` so their offsets survive; the writer turns
 //! such leaves back into End Sites.
+//!
+//! Why a hand-written parser rather than `bvh_anim`: that crate is unmaintained, panics on some
+//! malformed input and mangles leaves without End Sites; the grammar is small enough that our
+//! own parser can report every error with its line and never panic.
 
 mod parse;
 mod write;

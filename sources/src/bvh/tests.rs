@@ -239,3 +239,23 @@ fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
     let angle = 2.0 * d.xyz().length().min(1.0).asin();
     angle <= tol_rad
 }
+
+#[test]
+fn degenerate_rest_guesses_scale_from_first_frame() {
+    // Rest: four 45-unit bones in a line along X (180 units: "centimetres" if trusted). Frame
+    // 0 zigzags them into a 90×90 figure, which reads as inches.
+    let text = "HIERARCHY\nROOT a\n{\nOFFSET 0 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n\
+JOINT b\n{\nOFFSET 45 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n\
+JOINT c\n{\nOFFSET 45 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n\
+JOINT d\n{\nOFFSET 45 0 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n\
+End Site\n{\nOFFSET 45 0 0\n}\n}\n}\n}\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n\
+0 0 0 90 0 0 -90 0 0 90 0 0\n";
+    let r = read_bvh(text.as_bytes(), "z", &BvhReadOptions::default()).unwrap();
+    assert_eq!(r.scale, 0.0254);
+    // The rest data itself is kept exactly (no re-posing).
+    assert!(vec_close(
+        r.clip.skeleton.rest()[1].translation,
+        Vec3::new(45.0 * 0.0254, 0.0, 0.0),
+        1e-6
+    ));
+}
