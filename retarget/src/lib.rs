@@ -20,7 +20,9 @@
 //! happen at the edges, in one function each.
 #![warn(missing_docs)]
 
+pub mod analysis;
 pub mod clip;
+pub mod corpus;
 pub mod error;
 pub mod fk;
 pub mod mapping;

@@ -11,6 +11,8 @@
 //! clients display and edit. Turning a table into something that retargets poses every frame
 //! (rest alignment precomputed) is the retargeting stage's job.
 
+mod auto;
 mod table;
 
+pub use auto::{auto_map, auto_map_many, map_analyzed, MapOptions, Weights};
 pub use table::{BoneOptions, MappingTable, SourceRef, TargetEntry};

@@ -1,0 +1,135 @@
+//! Splitting one limb chain into clavicle | upper | lower | extremity | digits.
+//!
+//! Straight rest poses (T-pose arms) give no elbow angle, so the split is chosen by bone
+//! lengths: the upper and lower segments are the two dominant consecutive groups and their
+//! ratio is close to the anatomical one; a group may hold several bones (Rigify's `.001`
+//! segments, in-chain twist bones) at a small cost; the extremity is short compared with the
+//! lower segment. This is what puts the wrist on the wrist when an arm has 6 bones and the
+//! other 4 (seed 000's failure): the fingertip cannot be a forearm-sized segment.
+
+/// Where a chain splits. Indices into the chain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ChainSplit {
+    /// First bone of the upper segment (bones before it are clavicle / pelvis helpers).
+    pub upper: usize,
+    /// First bone of the lower segment.
+    pub lower: usize,
+    /// The extremity (hand / foot) bone.
+    pub extremity: usize,
+    /// Fit cost (0 is perfect); confidence is derived from it.
+    pub cost: f32,
+}
+
+/// `lengths[i]` is the length of chain bone `i`; `fixed_extremity` is set when a branch point
+/// (fingers, toes) already tells where the hand / foot is; `ratio` is the expected
+/// upper / lower length ratio.
+pub(crate) fn fit_chain(
+    lengths: &[f32],
+    dirs: &[glam::Vec3],
+    fixed_extremity: Option<usize>,
+    ratio: f32,
+) -> Option<ChainSplit> {
+    let m = lengths.len();
+    if m < 2 {
+        return None;
+    }
+    let mut best: Option<ChainSplit> = None;
+    let max_pre = 2.min(m.saturating_sub(2));
+    for a in 0..=max_pre {
+        for b in (a + 1)..m {
+            let e_range: Vec<usize> = match fixed_extremity {
+                Some(e) => vec![e],
+                // The extremity may be missing when the chain ends at the lower segment.
+                None => ((b + 1)..=m).collect(),
+            };
+            for e in e_range {
+                if e <= b || e > m {
+                    continue;
+                }
+                let upper: f32 = lengths[a..b].iter().sum();
+                let lower: f32 = lengths[b..e].iter().sum();
+                if upper <= 1e-6 || lower <= 1e-6 {
+                    continue;
+                }
+                let mut cost = 4.0 * ((upper / lower).ln() - ratio.ln()).powi(2);
+                // Extra bones in a group (segments / twist bones) are allowed but not free.
+                cost += 0.12 * ((b - a - 1) + (e - b - 1)) as f32;
+                // Segments of one anatomical bone are collinear; a bent joint splits groups.
+                let bent = |i: usize| {
+                    let (d0, d1) = (dirs.get(i - 1), dirs.get(i));
+                    match (d0, d1) {
+                        (Some(x), Some(y)) if *x != glam::Vec3::ZERO && *y != glam::Vec3::ZERO => {
+                            x.dot(*y) < 0.94
+                        }
+                        _ => false,
+                    }
+                };
+                cost += (a + 1..b).chain(b + 1..e).filter(|&i| bent(i)).count() as f32;
+                if a > 0 {
+                    let pre: f32 = lengths[..a].iter().sum();
+                    // A clavicle is shorter than the upper segment; legs rarely have one.
+                    let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
+                    cost += k * (pre / upper - limit).max(0.0);
+                    cost += 0.02 * a as f32;
+                }
+                if e < m {
+                    let ext = lengths[e];
+                    cost += 2.0 * (ext / lower - 0.6).max(0.0);
+                    let rest: f32 = lengths[e..].iter().sum();
+                    cost += 2.0 * (rest / (upper + lower) - 0.7).max(0.0);
+                } else {
+                    cost += 0.3;
+                }
+                let cand = ChainSplit {
+                    upper: a,
+                    lower: b,
+                    extremity: e,
+                    cost: cost.max(0.0),
+                };
+                let better = match best {
+                    None => true,
+                    Some(bst) => cand.cost < bst.cost - 1e-6,
+                };
+                if better {
+                    best = Some(cand);
+                }
+            }
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit_chain_t(l: &[f32], fixed: Option<usize>, ratio: f32) -> Option<ChainSplit> {
+        fit_chain(l, &[], fixed, ratio)
+    }
+
+    #[test]
+    fn mixamo_arm() {
+        let s = fit_chain_t(&[0.12, 0.28, 0.25, 0.0], Some(3), 1.12).expect("fit");
+        assert_eq!((s.upper, s.lower, s.extremity), (1, 2, 3));
+    }
+
+    #[test]
+    fn six_bone_arm_puts_the_wrist_on_the_wrist() {
+        let s = fit_chain_t(&[0.15, 0.3, 0.25, 0.09, 0.05, 0.0], None, 1.12).expect("fit");
+        assert_eq!((s.upper, s.lower, s.extremity), (1, 2, 3));
+        let s = fit_chain_t(&[0.15, 0.3, 0.25, 0.0], None, 1.12).expect("fit");
+        assert_eq!((s.upper, s.lower, s.extremity), (1, 2, 3));
+    }
+
+    #[test]
+    fn segmented_rigify_leg() {
+        let s = fit_chain_t(&[0.225, 0.225, 0.21, 0.21, 0.14, 0.05, 0.0], None, 1.05).expect("fit");
+        assert_eq!((s.upper, s.lower, s.extremity), (0, 2, 4));
+    }
+
+    #[test]
+    fn cmu_leg_with_hip_joint() {
+        let s = fit_chain_t(&[0.13, 0.43, 0.44, 0.12, 0.0], None, 1.05).expect("fit");
+        assert_eq!((s.upper, s.lower, s.extremity), (1, 2, 3));
+    }
+}

@@ -1,0 +1,235 @@
+//! Skeleton analysis: what every bone *is*, from structure, geometry and (weakly) names.
+//!
+//! ```text
+//!   Skeleton (+ optional representative Pose when the rest pose is degenerate)
+//!     │ geometry::joint_positions     world joint positions, body size
+//!     │ topology                      main child, reach, order-free subtree hashes, twins
+//!     │ frame                         lateral axis from mirror twins, up (checked against the
+//!     │                               legs, never assumed), forward from feet / head cues
+//!     │ centerline                    central tree → its longest path, oriented tail → head
+//!     │ sections                      limb pairs on the path: legs (rearmost ground pair),
+//!     │                               arms, wings, head appendages; spine / neck / tail
+//!     ▼ limbs::fit_chain              clavicle? | upper | lower | hand/foot | digits
+//!   Analysis { up, forward, left, positions, sections, roles[bone] }
+//! ```
+//!
+//! Nothing here assumes a facing direction: the character's forward is where its feet (toes)
+//! point and where its head leans; side markers in names break the tie only when geometry gives
+//! no cue.
+
+pub mod humanoid;
+mod limbs;
+pub mod names;
+mod roles;
+mod topology;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::pose::Pose;
+use crate::skeleton::{BoneId, Skeleton};
+
+pub use humanoid::{humanoid_roles, HumanBone};
+pub use roles::{Role, SectionKind};
+
+/// Which side of the body a bone is on, from the character's own point of view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Side {
+    /// On the centerline (spine, neck, head, tail, jaw).
+    Center,
+    /// The character's left.
+    Left,
+    /// The character's right.
+    Right,
+}
+
+impl Side {
+    /// The other side (center stays center).
+    pub fn flipped(self) -> Side {
+        match self {
+            Side::Left => Side::Right,
+            Side::Right => Side::Left,
+            Side::Center => Side::Center,
+        }
+    }
+}
+
+/// A skeleton plus an optional representative pose, the input of [`analyze`] and the mapper.
+#[derive(Debug, Clone, Copy)]
+pub struct SkeletonView<'a> {
+    /// The skeleton.
+    pub skeleton: &'a Skeleton,
+    /// A representative frame of its animation, used for geometry only when the rest pose is
+    /// degenerate (every bone along one axis, as some BVH exports have).
+    pub pose: Option<&'a Pose>,
+}
+
+impl<'a> SkeletonView<'a> {
+    /// A view of the rest pose only.
+    pub fn rest(skeleton: &'a Skeleton) -> Self {
+        SkeletonView {
+            skeleton,
+            pose: None,
+        }
+    }
+}
+
+/// A group of bones playing one part (an arm, a tail, the spine…).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Section {
+    /// What kind of section.
+    pub kind: SectionKind,
+    /// Its side.
+    pub side: Side,
+    /// Which pair of limbs of this kind (0 = the upper / front-most pair).
+    pub limb: u8,
+    /// Bones in hierarchical order, from the body outwards.
+    pub bones: Vec<BoneId>,
+    /// Sum of bone lengths, metres.
+    pub length: f32,
+    /// The section this one hangs from.
+    pub parent: Option<usize>,
+    /// The limb reaches the ground (legs, and the front legs of quadrupeds).
+    pub ground: bool,
+}
+
+/// The role of one bone.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoneRole {
+    /// What the bone is.
+    pub role: Role,
+    /// Its side.
+    pub side: Side,
+    /// Section it belongs to (index into [`Analysis::sections`]).
+    pub section: Option<u16>,
+    /// Limb pair index of its section (0 = upper / front-most pair).
+    pub limb: u8,
+    /// Position along its section, 0 at the body end, 1 at the far end (by length).
+    pub position: f32,
+    /// 0..=1, how sure the analysis is.
+    pub confidence: f32,
+}
+
+impl BoneRole {
+    fn unknown() -> Self {
+        BoneRole {
+            role: Role::Unknown,
+            side: Side::Center,
+            section: None,
+            limb: 0,
+            position: 0.0,
+            confidence: 0.0,
+        }
+    }
+
+    /// Readable label, e.g. `left_upper_arm`, `hips`, `tail_3`, `right_wing_hand`,
+    /// `left_arm2_hand` (second pair of arms). Corpus ground truth uses the same labels.
+    pub fn label(&self, kind: Option<SectionKind>) -> String {
+        let side = match self.side {
+            Side::Left => "left_",
+            Side::Right => "right_",
+            Side::Center => "",
+        };
+        let wing = matches!(kind, Some(SectionKind::Wing));
+        let pair = if self.limb > 0 && self.role.is_limb() {
+            format!("limb{}_", self.limb + 1)
+        } else {
+            String::new()
+        };
+        let wing = if wing && self.role.is_limb() {
+            "wing_"
+        } else {
+            ""
+        };
+        format!("{side}{wing}{pair}{}", self.role.name())
+    }
+}
+
+/// Everything [`analyze`] found out about a skeleton.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Analysis {
+    /// Up axis (unit), in the skeleton's space.
+    pub up: Vec3,
+    /// Forward axis (unit): where the character faces.
+    pub forward: Vec3,
+    /// The character's left (unit), `up × forward`.
+    pub left: Vec3,
+    /// World joint positions the analysis used (rest, or the representative pose).
+    pub positions: Vec<Vec3>,
+    /// True when the rest pose was degenerate and the representative pose was used.
+    pub used_pose: bool,
+    /// Largest extent of the skeleton, metres (the scale for tolerances).
+    pub size: f32,
+    /// Length of each bone (distance to its main child; 0 for leaves).
+    pub lengths: Vec<f32>,
+    /// Sections.
+    pub sections: Vec<Section>,
+    /// Role of every bone, indexed by [`BoneId`].
+    pub roles: Vec<BoneRole>,
+    /// Normalised names, indexed by [`BoneId`].
+    #[serde(skip)]
+    pub names: Vec<names::NameInfo>,
+    /// The skeleton has two legs and two arms (plus any tail / fingers).
+    pub humanoid: bool,
+    /// Child continuing each bone's chain (towards its farthest descendant).
+    pub main_child: Vec<Option<BoneId>>,
+}
+
+impl Analysis {
+    /// Role label of one bone (see [`BoneRole::label`]).
+    pub fn label(&self, bone: BoneId) -> String {
+        let r = &self.roles[bone.index()];
+        // Hands and digits of a wing are labelled as part of the wing.
+        let mut sec = r.section.map(|s| s as usize);
+        let mut kind = sec.map(|s| self.sections[s].kind);
+        while let Some(s) = sec {
+            if self.sections[s].kind == SectionKind::Wing {
+                kind = Some(SectionKind::Wing);
+                break;
+            }
+            sec = self.sections[s].parent;
+        }
+        r.label(kind)
+    }
+
+    /// First bone with the given role and side.
+    pub fn find(&self, role: Role, side: Side) -> Option<BoneId> {
+        self.roles
+            .iter()
+            .position(|r| r.role == role && r.side == side && r.limb == 0)
+            .map(|i| BoneId(i as u16))
+    }
+
+    /// Section kind of a bone, if it belongs to one.
+    pub fn section_kind(&self, bone: BoneId) -> Option<SectionKind> {
+        self.roles[bone.index()]
+            .section
+            .map(|s| self.sections[s as usize].kind)
+    }
+
+    /// Direction of a bone (towards its main child) expressed in the body frame
+    /// (x = left, y = up, z = forward); zero for leaves.
+    pub fn body_direction(&self, skeleton: &Skeleton, bone: BoneId) -> Vec3 {
+        let _ = skeleton;
+        // Zero-length helpers take the direction of the first real segment below them.
+        let p = self.positions[bone.index()];
+        let mut c = bone;
+        let mut d = Vec3::ZERO;
+        while let Some(next) = self.main_child[c.index()] {
+            c = next;
+            d = self.positions[c.index()] - p;
+            if d.length() > 1e-4 * self.size {
+                break;
+            }
+        }
+        let d = d.normalize_or_zero();
+        Vec3::new(d.dot(self.left), d.dot(self.up), d.dot(self.forward))
+    }
+}
+
+/// Analyses a skeleton. Never fails: an unusual skeleton just gets more `Unknown` roles and
+/// lower confidences.
+pub fn analyze(view: &SkeletonView<'_>) -> Analysis {
+    roles::analyze_impl(view)
+}

@@ -1,0 +1,290 @@
+//! Name evidence: bone names normalised into canonical tokens.
+//!
+//! Names are one signal among several (they are absent or meaningless on many rigs), so this
+//! module only *normalises*: it strips rig prefixes (`mixamorig:`, `DEF-`, `ORG-`, `MCH-`,
+//! `CC_Base_`, `Bip01`…), splits CamelCase / snake_case / dotted names, pulls out every common
+//! left/right marker (`Left`, `_l`, `.L`, `lThigh`…) and folds synonyms (thigh / upleg / upperleg
+//! → `thigh`). The mapper compares the resulting token sets; the analysis uses the side marker
+//! only to resolve the one ambiguity geometry cannot (which way the character faces when its
+//! feet and head give no cue).
+
+use super::Side;
+
+/// A normalised bone name.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct NameInfo {
+    /// Side marker found in the name, if any.
+    pub side: Option<Side>,
+    /// Canonical tokens (lower case, synonyms folded), side markers and prefixes removed.
+    pub tokens: Vec<String>,
+    /// The name carries a helper marker (`ORG-`, `MCH-`, `twist`, `ik`, `end`, `nub`…).
+    pub helper: bool,
+    /// Trailing numbers in the name (e.g. `Spine2` → 2, `DEF-spine.003` → 3).
+    pub number: Option<u32>,
+}
+
+/// Prefixes stripped before tokenising (compared case-insensitively).
+const PREFIXES: &[&str] = &[
+    "mixamorig:",
+    "mixamorig_",
+    "mixamorig",
+    "def-",
+    "org-",
+    "mch-",
+    "cc_base_",
+    "bip01_",
+    "bip01 ",
+    "bip001_",
+    "bip001 ",
+    "j_bip_",
+    "j_",
+    "b_",
+];
+
+/// Synonym folding: (token seen in names, canonical token).
+const SYNONYMS: &[(&str, &str)] = &[
+    ("upleg", "thigh"),
+    ("upperleg", "thigh"),
+    ("hip", "thigh"),
+    ("hips", "pelvis"),
+    ("pelvis", "pelvis"),
+    ("root", "root"),
+    ("shin", "shin"),
+    ("calf", "shin"),
+    ("knee", "shin"),
+    ("lowerleg", "shin"),
+    ("leg", "shin"),
+    ("ankle", "foot"),
+    ("foot", "foot"),
+    ("toe", "toe"),
+    ("toes", "toe"),
+    ("toebase", "toe"),
+    ("ball", "toe"),
+    ("collar", "clavicle"),
+    ("clavicle", "clavicle"),
+    ("shoulder", "clavicle"),
+    ("upperarm", "upperarm"),
+    ("uparm", "upperarm"),
+    ("arm", "upperarm"),
+    ("shldr", "upperarm"),
+    ("humerus", "upperarm"),
+    ("forearm", "forearm"),
+    ("lowerarm", "forearm"),
+    ("elbow", "forearm"),
+    ("wrist", "hand"),
+    ("hand", "hand"),
+    ("palm", "hand"),
+    ("abdomen", "spine"),
+    ("lowerback", "spine"),
+    ("back", "spine"),
+    ("spine", "spine"),
+    ("chest", "chest"),
+    ("upperchest", "chest"),
+    ("torso", "spine"),
+    ("neck", "neck"),
+    ("lowerneck", "neck"),
+    ("head", "head"),
+    ("skull", "head"),
+    ("jaw", "jaw"),
+    ("eye", "eye"),
+    ("tail", "tail"),
+    ("wing", "wing"),
+    ("thumb", "thumb"),
+    ("index", "index"),
+    ("middle", "middle"),
+    ("mid", "middle"),
+    ("ring", "ring"),
+    ("pinky", "little"),
+    ("little", "little"),
+    ("fingers", "finger"),
+    ("finger", "finger"),
+];
+
+/// Tokens that mark helper bones (twist, IK, mechanism, end sites).
+const HELPER_TOKENS: &[&str] = &[
+    "twist", "roll", "ik", "mch", "org", "end", "nub", "tip", "site", "helper", "target", "pole",
+];
+
+/// Splits a raw name into lower-case words: CamelCase, snake_case, dots, dashes, colons,
+/// spaces and letter/digit boundaries all separate words.
+pub fn split_words(name: &str) -> Vec<String> {
+    let mut words = Vec::new();
+    let mut cur = String::new();
+    let chars: Vec<char> = name.chars().collect();
+    for (i, &c) in chars.iter().enumerate() {
+        if !c.is_alphanumeric() {
+            if !cur.is_empty() {
+                words.push(std::mem::take(&mut cur));
+            }
+            continue;
+        }
+        if let Some(&prev) = cur.chars().last().as_ref() {
+            let lower_to_upper = prev.is_lowercase() && c.is_uppercase();
+            // "HTMLParser"-style runs: split before the last capital of a run.
+            let acronym_end = prev.is_uppercase()
+                && c.is_uppercase()
+                && chars.get(i + 1).is_some_and(|n| n.is_lowercase());
+            let digit_edge = prev.is_ascii_digit() != c.is_ascii_digit();
+            if lower_to_upper || acronym_end || digit_edge {
+                words.push(std::mem::take(&mut cur));
+            }
+        }
+        cur.push(c);
+    }
+    if !cur.is_empty() {
+        words.push(cur);
+    }
+    words.into_iter().map(|w| w.to_lowercase()).collect()
+}
+
+/// Normalises one bone name.
+pub fn normalize(name: &str) -> NameInfo {
+    let mut rest = name.trim();
+    let mut helper = false;
+    let lower = rest.to_lowercase();
+    for p in PREFIXES {
+        if lower.starts_with(p) {
+            if *p == "org-" || *p == "mch-" {
+                helper = true;
+            }
+            rest = &rest[p.len()..];
+            break;
+        }
+    }
+    // Daz/Poser style `lThigh` / `rShldr`: one lower-case l/r followed by a capital.
+    let mut side = None;
+    let mut chars = rest.chars();
+    if let (Some(c0), Some(c1)) = (chars.next(), chars.next()) {
+        if (c0 == 'l' || c0 == 'r') && c1.is_uppercase() {
+            side = Some(if c0 == 'l' { Side::Left } else { Side::Right });
+            rest = &rest[1..];
+        }
+    }
+    // Suffix markers that a word split would lose (`.L`, `_l`, ` L`).
+    let lower = rest.to_lowercase();
+    for (suf, s) in [
+        (".l", Side::Left),
+        ("_l", Side::Left),
+        (" l", Side::Left),
+        ("-l", Side::Left),
+        (".r", Side::Right),
+        ("_r", Side::Right),
+        (" r", Side::Right),
+        ("-r", Side::Right),
+    ] {
+        if lower.ends_with(suf) {
+            side = side.or(Some(s));
+            rest = &rest[..rest.len() - 2];
+            break;
+        }
+        // `_l_` / `.L.001` / `_L_01` in the middle (UE twist bones, Rigify segments).
+        let mid = format!("{suf}.");
+        let mid2 = format!("{suf}_");
+        if lower.contains(&mid) || lower.contains(&mid2) {
+            side = side.or(Some(s));
+        }
+    }
+    let words = split_words(rest);
+    let mut tokens = Vec::new();
+    let mut number = None;
+    let mut i = 0;
+    while i < words.len() {
+        let w = words[i].as_str();
+        if let Ok(n) = w.parse::<u32>() {
+            number = Some(n);
+            i += 1;
+            continue;
+        }
+        match w {
+            "left" | "l" | "lft" => {
+                side = side.or(Some(Side::Left));
+                i += 1;
+                continue;
+            }
+            "right" | "r" | "rt" | "rgt" => {
+                side = side.or(Some(Side::Right));
+                i += 1;
+                continue;
+            }
+            _ => {}
+        }
+        // Join two-word compounds ("up leg", "fore arm", "upper arm", "toe base").
+        if let Some(next) = words.get(i + 1) {
+            let joined = format!("{w}{next}");
+            if let Some(&(_, canon)) = SYNONYMS.iter().find(|(k, _)| *k == joined) {
+                tokens.push(canon.to_string());
+                i += 2;
+                continue;
+            }
+        }
+        if HELPER_TOKENS.contains(&w) {
+            helper = true;
+        }
+        let canon = SYNONYMS
+            .iter()
+            .find(|(k, _)| *k == w)
+            .map(|&(_, c)| c.to_string())
+            .unwrap_or_else(|| w.to_string());
+        tokens.push(canon);
+        i += 1;
+    }
+    NameInfo {
+        side,
+        tokens,
+        helper,
+        number,
+    }
+}
+
+/// Similarity of two normalised names in 0..=1 (Jaccard over tokens; side ignored).
+pub fn similarity(a: &NameInfo, b: &NameInfo) -> f32 {
+    if a.tokens.is_empty() || b.tokens.is_empty() {
+        return 0.0;
+    }
+    let common = a.tokens.iter().filter(|t| b.tokens.contains(t)).count();
+    let union = a.tokens.len() + b.tokens.len() - common;
+    let mut s = common as f32 / union.max(1) as f32;
+    if s > 0.0 && a.number == b.number {
+        s = (s + 0.1).min(1.0);
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sides_and_prefixes() {
+        let n = normalize("mixamorig:LeftUpLeg");
+        assert_eq!(n.side, Some(Side::Left));
+        assert_eq!(n.tokens, vec!["thigh"]);
+        let n = normalize("DEF-upper_arm.L.001");
+        assert_eq!(n.side, Some(Side::Left));
+        assert_eq!(n.tokens, vec!["upperarm"]);
+        assert_eq!(n.number, Some(1));
+        let n = normalize("upperarm_twist_01_r");
+        assert_eq!(n.side, Some(Side::Right));
+        assert!(n.helper);
+        let n = normalize("lThigh");
+        assert_eq!(n.side, Some(Side::Left));
+        assert_eq!(n.tokens, vec!["thigh"]);
+        let n = normalize("RightForeArm");
+        assert_eq!(n.side, Some(Side::Right));
+        assert_eq!(n.tokens, vec!["forearm"]);
+        assert_eq!(normalize("calf_l").tokens, vec!["shin"]);
+        assert_eq!(normalize("Spine").side, None);
+        assert_eq!(normalize("j12").tokens, vec!["j"]);
+    }
+
+    #[test]
+    fn splitting() {
+        assert_eq!(
+            split_words("LeftHandIndex1"),
+            vec!["left", "hand", "index", "1"]
+        );
+        assert_eq!(split_words("spine_01"), vec!["spine", "01"]);
+        assert!(similarity(&normalize("LeftUpLeg"), &normalize("thigh_l")) > 0.9);
+        assert_eq!(similarity(&normalize("j3"), &normalize("thigh_l")), 0.0);
+    }
+}

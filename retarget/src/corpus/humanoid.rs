@@ -1,0 +1,492 @@
+//! Humanoid fixtures in the naming conventions of REFERENCE.md §2.
+//!
+//! One parametric body (metres, T-pose, facing +Z, the character's left at +X) is emitted with
+//! each convention's names and structural quirks: Mixamo end joints, UE twist bones and ground
+//! root, Rigify DEF segments with ORG/MCH helpers, CMU zero-length helper joints, SMPL's
+//! "left_shoulder = upper arm", MediaPipe landmarks, VRoid names.
+
+use glam::{vec3, Vec3};
+
+use super::builder::Builder;
+
+/// Naming convention / structure of a generated humanoid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// mixamorig:Hips …, with fingers and end joints.
+    Mixamo,
+    /// UE mannequin: root, pelvis, spine_01…, twist bones, clavicle_l.
+    Unreal,
+    /// Rigify DEF- chain with .001 segments and ORG-/MCH- helpers.
+    Rigify,
+    /// CMU (cgspeed names) with zero-length LHipJoint / LowerBack / Neck / LeftShoulder.
+    CmuCgspeed,
+    /// CMU 3dsMax-friendly names: LeftCollar / LeftShoulder(=upper arm) / LeftElbow …
+    CmuMax,
+    /// SMPL 24 joints.
+    Smpl,
+    /// Skeleton derived from MediaPipe's 33 pose landmarks.
+    MediaPipe,
+    /// VRM (VRoid `J_Bip_*` names) with eyes.
+    Vrm,
+    /// Unity-style `_L/_R` names, bones along local X.
+    UnityX,
+}
+
+fn side_name(style: Style, key: &str, left: bool) -> String {
+    let (l, lw, lower) = if left {
+        ("L", "Left", "left")
+    } else {
+        ("R", "Right", "right")
+    };
+    let s = l.to_lowercase();
+    match style {
+        Style::Mixamo => format!("mixamorig:{lw}{key}"),
+        Style::Unreal => format!("{key}_{s}"),
+        Style::Rigify => format!("DEF-{key}.{l}"),
+        Style::CmuCgspeed | Style::CmuMax => format!("{lw}{key}"),
+        Style::Smpl | Style::MediaPipe => format!("{lower}_{key}"),
+        Style::Vrm => format!("J_Bip_{l}_{key}"),
+        Style::UnityX => format!("{key}_{l}"),
+    }
+}
+
+struct Body {
+    b: Builder,
+}
+
+impl Body {
+    fn add(&mut self, name: &str, parent: Option<usize>, pos: Vec3, label: &str) -> usize {
+        self.b.add(name, parent, pos, label)
+    }
+}
+
+fn mirror(p: Vec3, left: bool) -> Vec3 {
+    if left {
+        p
+    } else {
+        vec3(-p.x, p.y, p.z)
+    }
+}
+
+fn lab(left: bool, role: &str) -> String {
+    format!("{}_{role}", if left { "left" } else { "right" })
+}
+
+/// Builds a T-pose humanoid in one style. `fingers`: add five three-joint fingers (+ tips for
+/// Mixamo) where the style has them.
+pub fn humanoid(style: Style, fingers: bool) -> Builder {
+    let mut body = Body {
+        b: Builder::default(),
+    };
+    let hips_pos = vec3(0.0, 0.95, 0.0);
+    let ground_root = if style == Style::Unreal {
+        Some(body.add("root", None, Vec3::ZERO, "helper"))
+    } else {
+        None
+    };
+    let hips_name = match style {
+        Style::Mixamo => "mixamorig:Hips",
+        Style::Unreal => "pelvis",
+        Style::Rigify => "DEF-spine",
+        Style::CmuCgspeed | Style::CmuMax => "Hips",
+        Style::Smpl => "pelvis",
+        Style::MediaPipe => "hip_center",
+        Style::Vrm => "J_Bip_C_Hips",
+        Style::UnityX => "Hips",
+    };
+    let hips = body.add(hips_name, ground_root, hips_pos, "hips");
+    if style == Style::Rigify {
+        body.add("ORG-spine", Some(hips), hips_pos, "helper");
+    }
+    // Spine: (name, height, label); zero-length helpers repeat the previous height.
+    let spine: Vec<(&str, f32, &str)> = match style {
+        Style::Mixamo => vec![
+            ("mixamorig:Spine", 1.05, "spine"),
+            ("mixamorig:Spine1", 1.17, "spine_mid"),
+            ("mixamorig:Spine2", 1.30, "chest"),
+        ],
+        Style::Unreal => vec![
+            ("spine_01", 1.05, "spine"),
+            ("spine_02", 1.17, "spine_mid"),
+            ("spine_03", 1.30, "chest"),
+        ],
+        Style::Rigify => vec![
+            ("DEF-spine.001", 1.05, "spine"),
+            ("DEF-spine.002", 1.17, "spine_mid"),
+            ("DEF-spine.003", 1.30, "chest"),
+        ],
+        Style::CmuCgspeed => vec![
+            ("LowerBack", 0.95, "spine"),
+            ("Spine", 1.09, "spine_mid"),
+            ("Spine1", 1.23, "chest"),
+        ],
+        Style::CmuMax => vec![
+            ("lowerback", 0.95, "spine"),
+            ("Chest", 1.09, "spine_mid"),
+            ("Chest2", 1.23, "chest"),
+        ],
+        Style::Smpl => vec![
+            ("spine1", 1.06, "spine"),
+            ("spine2", 1.18, "spine_mid"),
+            ("spine3", 1.30, "chest"),
+        ],
+        Style::MediaPipe => vec![
+            ("spine_mid", 1.12, "spine"),
+            ("shoulder_center", 1.40, "chest"),
+        ],
+        Style::Vrm => vec![
+            ("J_Bip_C_Spine", 1.05, "spine"),
+            ("J_Bip_C_Chest", 1.17, "spine_mid"),
+            ("J_Bip_C_UpperChest", 1.30, "chest"),
+        ],
+        Style::UnityX => vec![("Spine", 1.07, "spine"), ("Chest", 1.28, "chest")],
+    };
+    let mut parent = hips;
+    for (name, y, label) in &spine {
+        parent = body.add(name, Some(parent), vec3(0.0, *y, 0.0), label);
+    }
+    let chest = parent;
+    let chest_y = body.b.world_pos[chest].y;
+    // Neck and head.
+    let neck_chain: Vec<(&str, Vec3, &str)> = match style {
+        Style::Mixamo => vec![
+            ("mixamorig:Neck", vec3(0.0, 1.46, 0.01), "neck"),
+            ("mixamorig:Head", vec3(0.0, 1.57, 0.02), "head"),
+            ("mixamorig:HeadTop_End", vec3(0.0, 1.76, 0.02), "head_end"),
+        ],
+        Style::Unreal => vec![
+            ("neck_01", vec3(0.0, 1.46, 0.01), "neck"),
+            ("head", vec3(0.0, 1.57, 0.02), "head"),
+        ],
+        Style::Rigify => vec![
+            ("DEF-spine.004", vec3(0.0, 1.46, 0.01), "neck"),
+            ("DEF-spine.005", vec3(0.0, 1.51, 0.015), "neck_2"),
+            ("DEF-spine.006", vec3(0.0, 1.57, 0.02), "head"),
+            ("DEF-spine.006_end", vec3(0.0, 1.76, 0.02), "head_end"),
+        ],
+        Style::CmuCgspeed => vec![
+            ("Neck", vec3(0.0, chest_y, 0.0), "neck"),
+            ("Neck1", vec3(0.0, 1.46, 0.01), "neck_2"),
+            ("Head", vec3(0.0, 1.57, 0.02), "head"),
+        ],
+        Style::CmuMax => vec![
+            ("lowerneck", vec3(0.0, chest_y, 0.0), "neck"),
+            ("Neck", vec3(0.0, 1.46, 0.01), "neck_2"),
+            ("Head", vec3(0.0, 1.57, 0.02), "head"),
+        ],
+        Style::Smpl => vec![
+            ("neck", vec3(0.0, 1.46, 0.01), "neck"),
+            ("head", vec3(0.0, 1.56, 0.03), "head"),
+        ],
+        Style::MediaPipe => vec![("head", vec3(0.0, 1.60, 0.0), "head")],
+        Style::Vrm => vec![
+            ("J_Bip_C_Neck", vec3(0.0, 1.46, 0.01), "neck"),
+            ("J_Bip_C_Head", vec3(0.0, 1.57, 0.02), "head"),
+        ],
+        Style::UnityX => vec![
+            ("Neck", vec3(0.0, 1.46, 0.01), "neck"),
+            ("Head", vec3(0.0, 1.57, 0.02), "head"),
+        ],
+    };
+    let mut p = chest;
+    let mut head = chest;
+    for (name, pos, label) in &neck_chain {
+        p = body.add(name, Some(p), *pos, label);
+        if *label == "head" {
+            head = p;
+        }
+    }
+    match style {
+        Style::MediaPipe => {
+            body.add("nose", Some(head), vec3(0.0, 1.62, 0.11), "head_end");
+            for left in [true, false] {
+                body.add(
+                    &side_name(style, "eye", left),
+                    Some(head),
+                    mirror(vec3(0.03, 1.64, 0.09), left),
+                    &lab(left, "eye"),
+                );
+                body.add(
+                    &side_name(style, "ear", left),
+                    Some(head),
+                    mirror(vec3(0.075, 1.62, 0.0), left),
+                    &lab(left, "appendage"),
+                );
+            }
+        }
+        Style::Vrm => {
+            for left in [true, false] {
+                let n = if left {
+                    "J_Adj_L_FaceEye"
+                } else {
+                    "J_Adj_R_FaceEye"
+                };
+                body.add(
+                    n,
+                    Some(head),
+                    mirror(vec3(0.03, 1.64, 0.09), left),
+                    &lab(left, "eye"),
+                );
+            }
+        }
+        _ => {}
+    }
+    for left in [true, false] {
+        arm(&mut body, style, chest, left, fingers);
+        leg(&mut body, style, hips, left);
+    }
+    if style == Style::UnityX {
+        body.b.bones_along_x();
+    }
+    body.b
+}
+
+fn arm(body: &mut Body, style: Style, chest: usize, left: bool, fingers: bool) {
+    let y = 1.43;
+    let cy = body.b.world_pos[chest].y;
+    let m = |v: Vec3| mirror(v, left);
+    let sn = |k: &str| side_name(style, k, left);
+    let shoulder = m(vec3(0.18, y, -0.01));
+    let elbow = m(vec3(0.46, y, -0.01));
+    let wrist = m(vec3(0.72, y, -0.01));
+    let (clav_name, up_name, lo_name, hand_name) = match style {
+        Style::Mixamo => (sn("Shoulder"), sn("Arm"), sn("ForeArm"), sn("Hand")),
+        Style::Unreal => (sn("clavicle"), sn("upperarm"), sn("lowerarm"), sn("hand")),
+        Style::Rigify => (sn("shoulder"), sn("upper_arm"), sn("forearm"), sn("hand")),
+        Style::CmuCgspeed => (sn("Shoulder"), sn("Arm"), sn("ForeArm"), sn("Hand")),
+        Style::CmuMax => (sn("Collar"), sn("Shoulder"), sn("Elbow"), sn("Wrist")),
+        Style::Smpl => (sn("collar"), sn("shoulder"), sn("elbow"), sn("wrist")),
+        Style::MediaPipe => (String::new(), sn("shoulder"), sn("elbow"), sn("wrist")),
+        Style::Vrm => (sn("Shoulder"), sn("UpperArm"), sn("LowerArm"), sn("Hand")),
+        Style::UnityX => (sn("Shoulder"), sn("UpperArm"), sn("LowerArm"), sn("Hand")),
+    };
+    let mut parent = chest;
+    if style != Style::MediaPipe {
+        // CMU clavicles start at the spine joint itself (zero offset).
+        let cpos = match style {
+            Style::CmuCgspeed | Style::CmuMax => vec3(0.0, cy, 0.0),
+            _ => m(vec3(0.03, 1.41, 0.0)),
+        };
+        parent = body.add(&clav_name, Some(parent), cpos, &lab(left, "clavicle"));
+        if style == Style::Rigify {
+            body.add(
+                &format!("MCH-shoulder_parent.{}", if left { "L" } else { "R" }),
+                Some(parent),
+                cpos,
+                &lab(left, "helper"),
+            );
+        }
+    }
+    let up = body.add(&up_name, Some(parent), shoulder, &lab(left, "upper_arm"));
+    let mut lo_parent = up;
+    if style == Style::Rigify {
+        lo_parent = body.add(
+            &format!("{up_name}.001"),
+            Some(up),
+            (shoulder + elbow) * 0.5,
+            &lab(left, "twist"),
+        );
+    }
+    if style == Style::Unreal {
+        body.add(
+            &sn("upperarm_twist_01"),
+            Some(up),
+            shoulder.lerp(elbow, 0.5),
+            &lab(left, "twist"),
+        );
+    }
+    let lo = body.add(&lo_name, Some(lo_parent), elbow, &lab(left, "lower_arm"));
+    let mut hand_parent = lo;
+    if style == Style::Rigify {
+        hand_parent = body.add(
+            &format!("{lo_name}.001"),
+            Some(lo),
+            (elbow + wrist) * 0.5,
+            &lab(left, "twist"),
+        );
+    }
+    if style == Style::Unreal {
+        body.add(
+            &sn("lowerarm_twist_01"),
+            Some(lo),
+            elbow.lerp(wrist, 0.6),
+            &lab(left, "twist"),
+        );
+    }
+    let hand = body.add(&hand_name, Some(hand_parent), wrist, &lab(left, "hand"));
+    match style {
+        Style::CmuCgspeed => {
+            let fb = body.add(&sn("FingerBase"), Some(hand), wrist, &lab(left, "helper"));
+            body.add(
+                &sn("HandIndex1"),
+                Some(fb),
+                m(vec3(0.80, y, -0.01)),
+                &lab(left, "index_1"),
+            );
+            let t = if left { "LThumb" } else { "RThumb" };
+            body.add(t, Some(hand), wrist, &lab(left, "helper"));
+        }
+        Style::CmuMax => {
+            let hn = if left { "lhand" } else { "rhand" };
+            let fb = body.add(hn, Some(hand), wrist, &lab(left, "helper"));
+            let f = if left { "LFingers" } else { "RFingers" };
+            body.add(f, Some(fb), m(vec3(0.80, y, -0.01)), &lab(left, "index_1"));
+            let t = if left { "LThumb" } else { "RThumb" };
+            body.add(t, Some(hand), wrist, &lab(left, "helper"));
+        }
+        Style::Smpl => {
+            body.add(
+                &sn("hand"),
+                Some(hand),
+                m(vec3(0.81, y, -0.01)),
+                &lab(left, "index_1"),
+            );
+        }
+        Style::MediaPipe => {
+            body.add(
+                &sn("thumb"),
+                Some(hand),
+                m(vec3(0.76, y - 0.01, 0.05)),
+                &lab(left, "thumb_1"),
+            );
+            body.add(
+                &sn("index"),
+                Some(hand),
+                m(vec3(0.81, y, 0.02)),
+                &lab(left, "index_1"),
+            );
+            body.add(
+                &sn("pinky"),
+                Some(hand),
+                m(vec3(0.80, y, -0.04)),
+                &lab(left, "little_1"),
+            );
+        }
+        _ if fingers => add_fingers(body, style, hand, left, wrist),
+        _ => {}
+    }
+}
+
+fn add_fingers(body: &mut Body, style: Style, hand: usize, left: bool, wrist: Vec3) {
+    let m = |v: Vec3| mirror(v, left);
+    let digits = ["Thumb", "Index", "Middle", "Ring", "Pinky"];
+    let label_digits = ["thumb", "index", "middle", "ring", "little"];
+    let lr = if left { "L" } else { "R" };
+    for (d, name) in digits.iter().enumerate() {
+        let (base, dir) = if d == 0 {
+            (vec3(0.025, -0.01, 0.035), vec3(0.7, -0.1, 0.7))
+        } else {
+            (
+                vec3(0.09, 0.0, 0.03 - 0.02 * (d as f32 - 1.0)),
+                vec3(1.0, 0.0, 0.0),
+            )
+        };
+        let dir = dir.normalize_or_zero();
+        let seg = [0.04, 0.028, 0.022, 0.02];
+        let mut parent = hand;
+        let mut pos = wrist + m(base);
+        let joints = if style == Style::Mixamo { 4 } else { 3 };
+        for (j, step) in seg.iter().enumerate().take(joints) {
+            let label = if j < 3 {
+                lab(left, &format!("{}_{}", label_digits[d], j + 1))
+            } else {
+                lab(left, "helper")
+            };
+            let n = j + 1;
+            let name = match style {
+                Style::Mixamo => side_name(style, &format!("Hand{name}{n}"), left),
+                Style::Unreal => side_name(style, &format!("{}_0{n}", name.to_lowercase()), left),
+                Style::Rigify => format!("DEF-f_{}.0{n}.{lr}", name.to_lowercase()),
+                Style::Vrm => side_name(style, &format!("{name}{n}"), left),
+                _ => side_name(style, &format!("{name}{n}"), left),
+            };
+            parent = body.add(&name, Some(parent), pos, &label);
+            pos += m(dir * *step);
+        }
+    }
+}
+
+fn leg(body: &mut Body, style: Style, hips: usize, left: bool) {
+    let m = |v: Vec3| mirror(v, left);
+    let sn = |k: &str| side_name(style, k, left);
+    let hip = m(vec3(0.09, 0.91, 0.0));
+    let knee = m(vec3(0.09, 0.50, 0.01));
+    let ankle = m(vec3(0.09, 0.08, -0.01));
+    let ball = m(vec3(0.09, 0.01, 0.12));
+    let tip = m(vec3(0.09, 0.01, 0.19));
+    let (up, lo, foot, toe) = match style {
+        Style::Mixamo => (sn("UpLeg"), sn("Leg"), sn("Foot"), sn("ToeBase")),
+        Style::Unreal => (sn("thigh"), sn("calf"), sn("foot"), sn("ball")),
+        Style::Rigify => (sn("thigh"), sn("shin"), sn("foot"), sn("toe")),
+        Style::CmuCgspeed => (sn("UpLeg"), sn("Leg"), sn("Foot"), sn("ToeBase")),
+        Style::CmuMax => (sn("Hip"), sn("Knee"), sn("Ankle"), sn("Toe")),
+        Style::Smpl => (sn("hip"), sn("knee"), sn("ankle"), sn("foot")),
+        Style::MediaPipe => (sn("hip"), sn("knee"), sn("ankle"), sn("foot_index")),
+        Style::Vrm => (sn("UpperLeg"), sn("LowerLeg"), sn("Foot"), sn("ToeBase")),
+        Style::UnityX => (sn("UpperLeg"), sn("LowerLeg"), sn("Foot"), sn("Toes")),
+    };
+    let mut parent = hips;
+    if matches!(style, Style::CmuCgspeed | Style::CmuMax) {
+        let n = if left { "LHipJoint" } else { "RHipJoint" };
+        parent = body.add(
+            n,
+            Some(hips),
+            body.b.world_pos[hips],
+            &lab(left, "pelvis_side"),
+        );
+    }
+    let u = body.add(&up, Some(parent), hip, &lab(left, "upper_leg"));
+    let mut lp = u;
+    if style == Style::Rigify {
+        lp = body.add(
+            &format!("{up}.001"),
+            Some(u),
+            (hip + knee) * 0.5,
+            &lab(left, "twist"),
+        );
+    }
+    if style == Style::Unreal {
+        body.add(
+            &sn("thigh_twist_01"),
+            Some(u),
+            hip.lerp(knee, 0.5),
+            &lab(left, "twist"),
+        );
+    }
+    let l = body.add(&lo, Some(lp), knee, &lab(left, "lower_leg"));
+    let mut fp = l;
+    if style == Style::Rigify {
+        fp = body.add(
+            &format!("{lo}.001"),
+            Some(l),
+            (knee + ankle) * 0.5,
+            &lab(left, "twist"),
+        );
+    }
+    if style == Style::Unreal {
+        body.add(
+            &sn("calf_twist_01"),
+            Some(l),
+            knee.lerp(ankle, 0.5),
+            &lab(left, "twist"),
+        );
+    }
+    let f = body.add(&foot, Some(fp), ankle, &lab(left, "foot"));
+    if style == Style::MediaPipe {
+        body.add(
+            &sn("heel"),
+            Some(f),
+            m(vec3(0.09, 0.02, -0.06)),
+            &lab(left, "helper"),
+        );
+    }
+    let t = body.add(&toe, Some(f), ball, &lab(left, "toes"));
+    if matches!(style, Style::Mixamo | Style::Rigify) {
+        let end = if style == Style::Mixamo {
+            sn("Toe_End")
+        } else {
+            format!("{toe}_end")
+        };
+        body.add(&end, Some(t), tip, &lab(left, "toe_end"));
+    }
+}

@@ -1,0 +1,64 @@
+//! The analysis recovers the corpus' ground-truth roles.
+
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::corpus::{self, Kind};
+
+const CORE: &[&str] = &[
+    "hips",
+    "spine",
+    "chest",
+    "neck",
+    "head",
+    "clavicle",
+    "upper_arm",
+    "lower_arm",
+    "hand",
+    "upper_leg",
+    "lower_leg",
+    "foot",
+    "toes",
+];
+
+fn is_core(label: &str) -> bool {
+    let l = label
+        .strip_prefix("left_")
+        .or_else(|| label.strip_prefix("right_"))
+        .unwrap_or(label);
+    CORE.contains(&l)
+}
+
+#[test]
+fn core_roles_match_ground_truth() {
+    let mut failures = Vec::new();
+    for e in corpus::all() {
+        let a = analyze(&SkeletonView::rest(&e.skeleton));
+        let mut wrong = Vec::new();
+        let mut total = 0;
+        for b in e.skeleton.bone_ids() {
+            let truth = &e.labels[b.index()];
+            if !is_core(truth) {
+                continue;
+            }
+            total += 1;
+            let got = a.label(b);
+            if &got != truth {
+                wrong.push(format!("{}: {} != {}", e.skeleton.name(b), got, truth));
+            }
+        }
+        println!(
+            "{:24} {:2}/{:2} core roles  up={:?} fwd={:?}",
+            e.name,
+            total - wrong.len(),
+            total,
+            a.up,
+            a.forward
+        );
+        for w in &wrong {
+            println!("    {w}");
+        }
+        if !wrong.is_empty() && e.kind != Kind::Creature {
+            failures.push(e.name.clone());
+        }
+    }
+    assert!(failures.is_empty(), "core roles wrong in {failures:?}");
+}
