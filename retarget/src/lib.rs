@@ -35,7 +35,7 @@ pub use clip::Clip;
 pub use error::RetargetError;
 pub use fk::{forward_kinematics, world_transforms, WorldTransform};
 pub use pose::{Frame, Pose};
-pub use retarget::{Mapping, RetargetOptions, RootMotion};
+pub use retarget::{FootContact, Mapping, RetargetOptions, RootMotion};
 pub use rotation::RotationOrder;
 pub use skeleton::{BoneId, RawBone, RawSkeleton, Skeleton, Transform};
 

@@ -36,7 +36,7 @@ use crate::pose::Pose;
 use crate::skeleton::{BoneId, Skeleton};
 use history::History;
 
-pub use options::{RetargetOptions, RootMotion};
+pub use options::{FootContact, RetargetOptions, RootMotion};
 
 /// Marks a link without a direction fix.
 const NO_END: u16 = u16::MAX;
@@ -77,10 +77,17 @@ struct RootPlan {
     scale: f32,
     motion: RootMotion,
     source_floor_y: f32,
-    target_floor_y: f32,
+    /// `None`: the target's rest does not show where its floor is; it then keeps the source's
+    /// floor clearance, scaled.
+    target_floor_y: Option<f32>,
     reference_position: Vec3,
     /// Source bones (of `input`) at the feet: what [`Mapping::measure_source_floor`] looks at.
     contact_bones: Vec<BoneId>,
+    /// (target, source) foot joint pairs for [`Mapping::place_feet`].
+    contacts: Vec<(BoneId, BoneId)>,
+    foot_contact: FootContact,
+    /// The `FirstFrame` correction, once measured.
+    vertical_offset: Option<f32>,
 }
 
 /// A built retargeting job: (source skeleton(s), target skeleton, mapping table, options) with
@@ -385,6 +392,9 @@ impl Mapping {
         for h in &mut self.history {
             h.reset();
         }
+        if let Some(root) = self.root.as_mut() {
+            root.vertical_offset = None;
+        }
     }
 
     /// Retargets a whole clip from the single source input (offline use; allocates the result).
@@ -466,6 +476,7 @@ impl Mapping {
     pub fn set_source_floor_y(&mut self, y: f32) {
         if let Some(r) = self.root.as_mut() {
             r.source_floor_y = y;
+            r.vertical_offset = None;
         }
     }
 
@@ -523,7 +534,8 @@ impl Mapping {
                 let src =
                     self.history[root.input as usize].get(0)[root.source_bone.index()].translation;
                 let s = root.scale;
-                let y = root.target_floor_y + s * (src.y - root.source_floor_y);
+                let floor_t = root.target_floor_y.unwrap_or(s * root.source_floor_y);
+                let y = floor_t + s * (src.y - root.source_floor_y);
                 position = match root.motion {
                     RootMotion::Scaled => Vec3::new(s * src.x, y, s * src.z),
                     RootMotion::InPlace => {
@@ -544,6 +556,56 @@ impl Mapping {
                 local
             };
         }
+        self.place_feet(out);
+    }
+
+    /// Moves the root vertically so the lowest foot joint stands as high above the target's
+    /// floor as the source's stands above its floor (scaled): the legs' own geometry then sets
+    /// the hips height, so different proportions neither float nor sink.
+    fn place_feet(&mut self, out: &mut Pose) {
+        let Some(root) = self.root.as_ref() else {
+            return;
+        };
+        if root.foot_contact == FootContact::Off
+            || root.motion == RootMotion::Fixed
+            || root.contacts.is_empty()
+        {
+            return;
+        }
+        let dy = match (root.foot_contact, root.vertical_offset) {
+            (FootContact::FirstFrame, Some(dy)) => dy,
+            _ => {
+                let dy = self.foot_offset();
+                if let Some(root) = self.root.as_mut() {
+                    root.vertical_offset = Some(dy);
+                }
+                dy
+            }
+        };
+        let Some(root) = self.root.as_ref() else {
+            return;
+        };
+        let parent_rotation = match self.target.parent(root.bone) {
+            Some(p) => self.scratch[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.bone.index()] += parent_rotation.inverse() * Vec3::new(0.0, dy, 0.0);
+    }
+
+    /// The vertical move that puts the target's lowest foot joint at the scaled source height.
+    fn foot_offset(&self) -> f32 {
+        let Some(root) = self.root.as_ref() else {
+            return 0.0;
+        };
+        let src = self.history[root.input as usize].get(0);
+        let (mut lowest_s, mut lowest_t) = (f32::INFINITY, f32::INFINITY);
+        for &(t, s) in &root.contacts {
+            lowest_s = lowest_s.min(src[s.index()].translation.y);
+            lowest_t = lowest_t.min(self.scratch[t.index()].translation.y);
+        }
+        let scale = root.scale;
+        let floor_t = root.target_floor_y.unwrap_or(scale * root.source_floor_y);
+        floor_t + scale * (lowest_s - root.source_floor_y) - lowest_t
     }
 }
 
@@ -574,20 +636,16 @@ struct Side<'a> {
     eps: f32,
 }
 
-/// The floor a reference posture stands on: its lowest foot joint when that is near y = 0
-/// (a character authored standing on the ground), else 0 (a rest floating at the origin, like
-/// CMU's with the hips at y = 0).
-fn floor_from_reference(lowest_y: f32, leg_height: f32) -> f32 {
-    if lowest_y.abs() <= 0.25 * leg_height {
-        lowest_y
-    } else {
-        0.0
-    }
+/// The floor a reference posture stands on: its lowest foot joint when that is near y = 0 (a
+/// character authored standing on the ground); unknown for a rest floating at the origin (like
+/// CMU's, with the hips at y = 0).
+fn floor_from_reference(lowest_y: f32, leg_height: f32) -> Option<f32> {
+    (lowest_y.abs() <= 0.25 * leg_height).then_some(lowest_y)
 }
 
 impl RootPlan {
-    /// Hip-height ratio from each reference posture, measured down the leg to the lowest
-    /// mapped joint (falls back to the ratio of overall sizes), and both floors.
+    /// Hip-height ratio from each reference posture, measured down the legs to the lowest mapped
+    /// joints (averaged over both legs; falls back to the ratio of overall sizes), and floors.
     fn new(
         src: Side<'_>,
         tgt: Side<'_>,
@@ -616,27 +674,39 @@ impl RootPlan {
             .copied()
             .min_by(|a, b| y_t(a.0).total_cmp(&y_t(b.0)));
         let mut scale = align::extent(tgt.worlds) / align::extent(src.worlds);
-        let mut contact_bones = Vec::new();
-        let (mut floor_t, mut floor_s) = (0.0, 0.0);
-        if let Some((tl, sl)) = low {
-            let ht = align::leg_height(tgt.skel, tgt.worlds, rt, tl, tgt.eps);
-            let hs = align::leg_height(src.skel, src.worlds, rs.bone, sl, src.eps);
-            if ht > tgt.eps && hs > src.eps {
-                scale = ht / hs;
+        let mut contacts = Vec::new();
+        let (mut floor_t, mut floor_s) = (None, None);
+        if let Some((tl, _)) = low {
+            let first = align::leg_height(tgt.skel, tgt.worlds, rt, tl, tgt.eps);
+            // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
+            let (mut sum_t, mut sum_s) = (0.0, 0.0);
+            for &(t, s) in below
+                .iter()
+                .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
+            {
+                let ht = align::leg_height(tgt.skel, tgt.worlds, rt, t, tgt.eps);
+                let hs = align::leg_height(src.skel, src.worlds, rs.bone, s, src.eps);
+                if ht > tgt.eps && hs > src.eps {
+                    sum_t += ht;
+                    sum_s += hs;
+                }
+            }
+            if sum_t > 0.0 && sum_s > 0.0 {
+                scale = sum_t / sum_s;
             }
             // Feet: mapped joints near the lowest one (toes, ankles, both sides).
-            let near = y_t(tl) + 0.15 * ht;
-            contact_bones = below
+            let near = y_t(tl) + 0.15 * first;
+            contacts = below
                 .iter()
+                .copied()
                 .filter(|(t, _)| y_t(*t) <= near)
-                .map(|&(_, s)| s)
                 .collect();
-            let lowest_s = contact_bones
+            let lowest_s = contacts
                 .iter()
-                .map(|&b| y_s(b))
+                .map(|&(_, b)| y_s(b))
                 .fold(f32::INFINITY, f32::min);
-            floor_t = floor_from_reference(y_t(tl), ht);
-            floor_s = floor_from_reference(lowest_s, hs);
+            floor_t = floor_from_reference(y_t(tl), first);
+            floor_s = floor_from_reference(lowest_s, first / scale);
         }
         RootPlan {
             bone: rt,
@@ -644,10 +714,13 @@ impl RootPlan {
             source_bone: rs.bone,
             scale: opts.root_scale.unwrap_or(scale),
             motion: opts.root_motion,
-            source_floor_y: opts.source_floor_y.unwrap_or(floor_s),
-            target_floor_y: opts.target_floor_y.unwrap_or(floor_t),
+            source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
+            target_floor_y: opts.target_floor_y.or(floor_t),
             reference_position: tgt.worlds[rt.index()].translation,
-            contact_bones,
+            contact_bones: contacts.iter().map(|&(_, s)| s).collect(),
+            contacts,
+            foot_contact: opts.foot_contact,
+            vertical_offset: None,
         }
     }
 }

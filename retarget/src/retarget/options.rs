@@ -18,6 +18,21 @@ pub enum RootMotion {
     Fixed,
 }
 
+/// Vertical correction of the root so the lowest foot joint stands as high above the target's
+/// floor as the source's stands above its own (scaled).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FootContact {
+    /// No correction: the hips height is the source's, scaled, measured from each floor.
+    Off,
+    /// Measure the correction on the first frame after build or [`super::Mapping::reset`] and
+    /// keep it: hips displacement stays exactly the source's scaled, feet start on the floor.
+    #[default]
+    FirstFrame,
+    /// Correct every frame (feet heights follow the source's exactly, hips height follows the
+    /// target's own leg geometry).
+    EveryFrame,
+}
+
 /// Options for [`super::Mapping::build`]. `Default` suits a live source at 60 Hz.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RetargetOptions {
@@ -36,13 +51,17 @@ pub struct RetargetOptions {
     pub match_directions: bool,
     /// Root translation handling.
     pub root_motion: RootMotion,
+    /// How the hips height is corrected so the feet neither float nor sink with different leg
+    /// proportions.
+    pub foot_contact: FootContact,
     /// Overrides the automatically measured hip-height ratio (target / source).
     pub root_scale: Option<f32>,
     /// Height of the source's lowest foot joint when the foot is planted (its "floor"), in the
     /// source's world. `None`: taken from the reference posture when it stands near y = 0,
     /// else 0. Offline, measure it over the clip with [`super::Mapping::measure_source_floor`].
     pub source_floor_y: Option<f32>,
-    /// The same for the target; `None`: from its reference posture (near y = 0), else 0.
+    /// The same for the target; `None`: from its reference posture when it stands near y = 0,
+    /// else the source's floor scaled (the target keeps the source's clearance).
     pub target_floor_y: Option<f32>,
     /// Seconds between [`super::Mapping::apply`] calls; converts per-bone delays into frames.
     pub frame_time_secs: f32,
@@ -58,6 +77,7 @@ impl Default for RetargetOptions {
             align_rest: true,
             match_directions: true,
             root_motion: RootMotion::Scaled,
+            foot_contact: FootContact::FirstFrame,
             root_scale: None,
             source_floor_y: None,
             target_floor_y: None,
