@@ -30,6 +30,8 @@ pub enum Command {
     Retarget(cmd::retarget::RetargetArgs),
     /// Measure the realtime path (retarget, FK, mapping build, frame encode) on this machine.
     Bench(cmd::bench::BenchArgs),
+    /// Map the bones of SOURCE onto TARGET automatically (table, or --json).
+    Map(cmd::map::MapArgs),
 }
 
 impl Command {
@@ -42,6 +44,7 @@ impl Command {
             Command::Record(a) => cmd::record::run(a).await,
             Command::Retarget(a) => cmd::retarget::run(&a),
             Command::Bench(a) => cmd::bench::run(&a),
+            Command::Map(a) => cmd::map::run(&a),
         }
     }
 }

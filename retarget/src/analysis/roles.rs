@@ -286,6 +286,28 @@ impl Ctx<'_> {
         }
         self.names[b.index()].helper
     }
+    /// A twist bone: a leaf lying inside its parent's segment, or named so.
+    fn is_twist(&self, b: BoneId) -> bool {
+        let nm = &self.names[b.index()];
+        if nm.tokens.iter().any(|t| t == "twist" || t == "roll") {
+            return true;
+        }
+        let Some(p) = self.skel.parent(b) else {
+            return false;
+        };
+        let Some(m) = self.topo.main[p.index()] else {
+            return false;
+        };
+        if m == b || !self.is_leaf(b) {
+            return false;
+        }
+        let pp = self.pos[p.index()];
+        let seg = self.pos[m.index()] - pp;
+        let d = self.pos[b.index()] - pp;
+        let t = d.dot(seg) / seg.length_squared().max(1e-12);
+        (0.05..=0.95).contains(&t) && (d - seg * t).length() < 0.01 * self.size
+    }
+
     fn significant_children(&self, b: BoneId) -> Vec<BoneId> {
         self.skel
             .children(b)
@@ -701,7 +723,9 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
                 );
                 let at_head = head_sec.is_some()
                     && roles[l.parent.index()].role == Role::Head
-                    && topo.size[m.index()] <= 3;
+                    && topo.size[m.index()] <= 3
+                    && l.members.len() == 2
+                    && !names[m.index()].helper;
                 for &b in &bones {
                     set(&mut roles, b, Role::Appendage, 0.5);
                 }
@@ -734,7 +758,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
                 roles[i].section = pr.section;
                 roles[i].limb = pr.limb;
                 roles[i].position = pr.position;
-                roles[i].role = if ctx.is_shadow(b) && in_limb[i] {
+                roles[i].role = if ctx.is_twist(b) && in_limb[i] {
                     Role::Twist
                 } else {
                     Role::Helper
@@ -996,6 +1020,12 @@ fn limb_roles(
                 continue;
             }
             k += 1;
+            // End sites (`lFoot_end`) are ends, not toes / fingers.
+            if ctx.is_leaf(b) && ctx.names[b.index()].helper {
+                let role = if is_leg { Role::ToeEnd } else { Role::Helper };
+                set(roles, b, role, conf * 0.8);
+                continue;
+            }
             let role = if is_leg {
                 if k == 1 {
                     Role::Toes
@@ -1249,6 +1279,10 @@ fn head_index(
     let nm = &ctx.names[head[last].index()];
     if nm.helper {
         return last - 1;
+    }
+    // A bone named as the head is the head, however long the neck before it (the Fox).
+    if nm.tokens.iter().any(|t| t == "head") {
+        return last;
     }
     let seg = (ctx.pos[head[last].index()] - ctx.pos[head[last - 1].index()]).length();
     let limit = leg.map(|l| 0.14 * l).unwrap_or(0.07 * ctx.size);

@@ -12,7 +12,15 @@
 //! (rest alignment precomputed) is the retargeting stage's job.
 
 mod auto;
+pub mod cache;
+mod colors;
+pub mod file;
 mod table;
 
 pub use auto::{auto_map, auto_map_many, map_analyzed, MapOptions, Weights};
+pub use cache::{CacheKey, MappingCache};
+pub use colors::{mapping_colors, BoneColors, UNMAPPED};
+pub use file::{
+    apply_overrides, parse_mapping_file, to_mapping_file, MappingFile, MappingFileError,
+};
 pub use table::{BoneOptions, MappingTable, SourceRef, TargetEntry};

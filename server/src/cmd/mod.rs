@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod convert;
 pub mod info;
+pub mod map;
 pub mod record;
 pub mod retarget;
 pub mod serve;

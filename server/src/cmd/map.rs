@@ -1,0 +1,291 @@
+//! `rigcast map SOURCE TARGET`: automatic bone mapping between two files.
+//!
+//! Reads both files with `rigcast_sources::load_clip` (BVH, glTF/GLB, VRM, recordings), runs
+//! the analysis and mapper of `rigcast_retarget`, merges `--overrides`, and prints a table or,
+//! with `--json`, exactly one JSON object on stdout.
+//!
+//! Cache: the pure crate only computes keys and (de)serialises (`mapping::cache`); the disk IO
+//! lives here. Entries are `<cache dir>/<key>.json`, the key made of both skeleton fingerprints,
+//! the options hash and a format version, so a changed skeleton or option just misses. The
+//! cache holds the automatic result; overrides are merged after it, every run.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use clap::Args;
+use rigcast_retarget::analysis::{analyze, humanoid_roles, Analysis, SkeletonView};
+use rigcast_retarget::mapping::{
+    apply_overrides, cache, file, map_analyzed, mapping_colors, parse_mapping_file,
+    to_mapping_file, CacheKey, MapOptions, MappingTable,
+};
+use rigcast_retarget::{Clip, Skeleton};
+use serde_json::{json, Map, Value};
+
+/// Options of `rigcast map`.
+#[derive(Debug, Clone, Args)]
+pub struct MapArgs {
+    /// File whose motion drives (BVH, glTF/GLB, VRM, .rcr).
+    pub source: PathBuf,
+    /// File of the character to drive.
+    pub target: PathBuf,
+    /// Print exactly one JSON object on stdout instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Partial mapping file (TOML, see retarget/MAPPING.md) merged over the automatic result.
+    #[arg(long, value_name = "FILE")]
+    pub overrides: Option<PathBuf>,
+    /// Write the final mapping as a complete TOML mapping file.
+    #[arg(long, value_name = "FILE")]
+    pub save: Option<PathBuf>,
+    /// Minimum score for a match (default 70: same-type sections map, similar ones do not).
+    #[arg(long, value_name = "X")]
+    pub threshold: Option<f32>,
+    /// Flip the sides of every second limb pair of multi-legged targets (diagonal gaits).
+    #[arg(long)]
+    pub mirror: bool,
+    /// Cache directory (default: $RIGCAST_CACHE_DIR, else $XDG_CACHE_HOME/rigcast/mappings,
+    /// else ~/.cache/rigcast/mappings).
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// Neither read nor write the cache.
+    #[arg(long)]
+    pub no_cache: bool,
+}
+
+fn load(path: &Path, what: &str) -> anyhow::Result<Clip> {
+    rigcast_sources::load_clip(path)
+        .with_context(|| format!("cannot read {what} file {}", path.display()))
+}
+
+fn cache_dir(args: &MapArgs) -> Option<PathBuf> {
+    if args.no_cache {
+        return None;
+    }
+    if let Some(d) = &args.cache_dir {
+        return Some(d.clone());
+    }
+    if let Some(d) = std::env::var_os("RIGCAST_CACHE_DIR") {
+        return Some(PathBuf::from(d));
+    }
+    if let Some(d) = std::env::var_os("XDG_CACHE_HOME") {
+        return Some(PathBuf::from(d).join("rigcast").join("mappings"));
+    }
+    std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/rigcast/mappings"))
+}
+
+/// Representative frame for skeletons whose rest pose is degenerate: the middle frame.
+fn view(clip: &Clip) -> SkeletonView<'_> {
+    SkeletonView {
+        skeleton: &clip.skeleton,
+        pose: clip.poses.get(clip.poses.len() / 2),
+    }
+}
+
+fn vrm_truth(path: &Path) -> Option<Vec<(String, String)>> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    if ext != "vrm" {
+        return None;
+    }
+    let info = rigcast_sources::describe(path).ok()?;
+    info.vrm_roles
+        .map(|m| m.into_iter().collect::<Vec<(String, String)>>())
+}
+
+fn roles_json(skel: &Skeleton, a: &Analysis) -> Value {
+    let mut m = Map::new();
+    for b in skel.bone_ids() {
+        m.insert(skel.name(b).to_string(), Value::String(a.label(b)));
+    }
+    Value::Object(m)
+}
+
+fn humanoid_json(skel: &Skeleton, a: &Analysis, truth: Option<&[(String, String)]>) -> Value {
+    let mut m = Map::new();
+    for (h, b) in humanoid_roles(skel, a, truth) {
+        m.insert(
+            h.unity_name().to_string(),
+            Value::String(skel.name(b).to_string()),
+        );
+    }
+    Value::Object(m)
+}
+
+/// Runs the command.
+pub fn run(args: &MapArgs) -> anyhow::Result<()> {
+    let t_load = Instant::now();
+    let src = load(&args.source, "source")?;
+    let tgt = load(&args.target, "target")?;
+    let overrides = match &args.overrides {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read overrides file {}", p.display()))?;
+            Some(
+                parse_mapping_file(&text)
+                    .with_context(|| format!("overrides file {}", p.display()))?,
+            )
+        }
+        None => None,
+    };
+    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+
+    let mut opts = MapOptions::default();
+    if let Some(t) = args.threshold {
+        if !t.is_finite() {
+            bail!("--threshold must be a finite number, got {t}");
+        }
+        opts.threshold = t;
+    }
+    opts.mirror = args.mirror;
+
+    let t_map = Instant::now();
+    let (ss, ts) = (&*src.skeleton, &*tgt.skeleton);
+    let sa = analyze(&view(&src));
+    let ta = analyze(&view(&tgt));
+    let key = CacheKey::new(&[ss], ts, &opts);
+    let dir = cache_dir(args);
+    let cache_path = dir
+        .as_ref()
+        .map(|d| d.join(format!("{}.json", key.file_stem())));
+    let cached: Option<MappingTable> = cache_path
+        .as_ref()
+        .and_then(|p| std::fs::read_to_string(p).ok())
+        .and_then(|text| cache::decode(&text, &key))
+        .filter(|t| t.validate(&[ss], ts).is_ok());
+    let from_cache = cached.is_some();
+    let mut table = match cached {
+        Some(t) => t,
+        None => {
+            let t = map_analyzed(&[(ss, &sa)], (ts, &ta), &opts);
+            if let (Some(d), Some(p)) = (&dir, &cache_path) {
+                // A cache that cannot be written is not an error: the mapping is still right.
+                let written = std::fs::create_dir_all(d)
+                    .and_then(|_| std::fs::write(p, cache::encode(&key, &t)));
+                if let Err(e) = written {
+                    eprintln!("note: mapping cache not written to {}: {e}", p.display());
+                }
+            }
+            t
+        }
+    };
+    if let (Some(o), Some(p)) = (&overrides, &args.overrides) {
+        apply_overrides(&mut table, o, &[ss], ts)
+            .with_context(|| format!("overrides file {}", p.display()))?;
+    }
+    let elapsed_ms = t_map.elapsed().as_secs_f64() * 1e3;
+
+    if let Some(p) = &args.save {
+        let text = file::mapping_file_to_string(&to_mapping_file(&table, &[ss], ts));
+        std::fs::write(p, text).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+
+    let colors = mapping_colors(ts, &ta, &table);
+    if args.json {
+        let mut mapping = Map::new();
+        let mut scores = Map::new();
+        let mut evidence = Map::new();
+        let mut color_map = Map::new();
+        for t in ts.bone_ids() {
+            let name = ts.name(t).to_string();
+            let e = table.get(t);
+            let src_name = e
+                .and_then(|e| e.primary())
+                .filter(|p| p.bone.index() < ss.num_bones())
+                .map(|p| Value::String(ss.name(p.bone).to_string()))
+                .unwrap_or(Value::Null);
+            mapping.insert(name.clone(), src_name);
+            if let Some(e) = e {
+                scores.insert(name.clone(), json!(e.score));
+                evidence.insert(name.clone(), json!(e.evidence));
+            }
+            if let Some(c) = colors[t.index()] {
+                color_map.insert(name, json!({"gradient": c.gradient, "random": c.random}));
+            }
+        }
+        let truth_s = vrm_truth(&args.source);
+        let truth_t = vrm_truth(&args.target);
+        let out = json!({
+            "source": args.source.display().to_string(),
+            "target": args.target.display().to_string(),
+            "mapping": mapping,
+            "roles": {"source": roles_json(ss, &sa), "target": roles_json(ts, &ta)},
+            "humanoid": {
+                "source": humanoid_json(ss, &sa, truth_s.as_deref()),
+                "target": humanoid_json(ts, &ta, truth_t.as_deref()),
+            },
+            "colors": color_map,
+            "scores": scores,
+            "evidence": evidence,
+            "max_score": opts.max_score(),
+            "threshold": opts.threshold,
+            "cached": from_cache,
+            "load_ms": load_ms,
+            "elapsed_ms": elapsed_ms,
+        });
+        println!("{out}");
+    } else {
+        print!("{}", render_table(ss, &sa, ts, &ta, &table));
+        println!(
+            "{} of {} target bones mapped in {:.2} ms{} (files read in {:.1} ms)",
+            table.num_mapped(),
+            ts.num_bones(),
+            elapsed_ms,
+            if from_cache { ", from cache" } else { "" },
+            load_ms
+        );
+    }
+    Ok(())
+}
+
+/// The readable table: target bone, its role, source bone, its role, score, evidence.
+pub fn render_table(
+    ss: &Skeleton,
+    sa: &Analysis,
+    ts: &Skeleton,
+    ta: &Analysis,
+    table: &MappingTable,
+) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let w = ts
+        .names()
+        .iter()
+        .map(|n| n.len())
+        .max()
+        .unwrap_or(6)
+        .clamp(6, 40);
+    let ws = ss
+        .names()
+        .iter()
+        .map(|n| n.len())
+        .max()
+        .unwrap_or(6)
+        .clamp(6, 40);
+    let _ = writeln!(
+        out,
+        "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  evidence",
+        "target", "target role", "source", "source role", "score"
+    );
+    for t in ts.bone_ids() {
+        let (sname, srole, score, ev) = match table.get(t).and_then(|e| Some((e, e.primary()?))) {
+            Some((e, p)) if p.bone.index() < ss.num_bones() => (
+                ss.name(p.bone).to_string(),
+                sa.label(p.bone),
+                format!("{:.1}", e.score),
+                e.evidence.join(" "),
+            ),
+            _ => ("-".into(), String::new(), String::new(), String::new()),
+        };
+        let _ = writeln!(
+            out,
+            "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  {}",
+            ts.name(t),
+            ta.label(t),
+            sname,
+            srole,
+            score,
+            ev
+        );
+    }
+    out
+}
