@@ -38,6 +38,9 @@ use history::History;
 
 pub use options::{FootContact, RetargetOptions, RootMotion};
 
+/// Legs told apart by the foot-contact calibration (more share the last slot).
+const MAX_LEGS: usize = 8;
+
 /// Marks a link without a direction fix.
 const NO_END: u16 = u16::MAX;
 
@@ -84,7 +87,8 @@ struct RootPlan {
     /// Source bones (of `input`) at the feet: what [`Mapping::measure_source_floor`] looks at.
     contact_bones: Vec<BoneId>,
     /// (target, source) foot joint pairs for [`Mapping::place_feet`].
-    contacts: Vec<(BoneId, BoneId)>,
+    /// With the index of the leg (root child subtree) each belongs to, below `MAX_LEGS`.
+    contacts: Vec<(BoneId, BoneId, u8)>,
     foot_contact: FootContact,
     /// The `FirstFrame` correction, once measured.
     vertical_offset: Option<f32>,
@@ -598,14 +602,31 @@ impl Mapping {
             return 0.0;
         };
         let src = self.history[root.input as usize].get(0);
-        let (mut lowest_s, mut lowest_t) = (f32::INFINITY, f32::INFINITY);
-        for &(t, s) in &root.contacts {
-            lowest_s = lowest_s.min(src[s.index()].translation.y);
-            lowest_t = lowest_t.min(self.scratch[t.index()].translation.y);
-        }
         let scale = root.scale;
         let floor_t = root.target_floor_y.unwrap_or(scale * root.source_floor_y);
-        floor_t + scale * (lowest_s - root.source_floor_y) - lowest_t
+        let mut lowest_s = [f32::INFINITY; MAX_LEGS];
+        let mut lowest_t = [f32::INFINITY; MAX_LEGS];
+        for &(t, s, leg) in &root.contacts {
+            let leg = leg as usize;
+            lowest_s[leg] = lowest_s[leg].min(src[s.index()].translation.y);
+            lowest_t[leg] = lowest_t[leg].min(self.scratch[t.index()].translation.y);
+        }
+        let error =
+            |leg: usize| floor_t + scale * (lowest_s[leg] - root.source_floor_y) - lowest_t[leg];
+        let legs = (0..MAX_LEGS).filter(|&l| lowest_t[l].is_finite());
+        if root.foot_contact == FootContact::EveryFrame {
+            // The lowest foot carries the weight: it decides.
+            let low = legs.min_by(|&a, &b| lowest_t[a].total_cmp(&lowest_t[b]));
+            low.map(error).unwrap_or(0.0)
+        } else {
+            // One calibration for all frames: split the proportion mismatch between the feet.
+            let (sum, n) = legs.fold((0.0, 0), |(sum, n), l| (sum + error(l), n + 1));
+            if n > 0 {
+                sum / n as f32
+            } else {
+                0.0
+            }
+        }
     }
 }
 
@@ -696,14 +717,27 @@ impl RootPlan {
             }
             // Feet: mapped joints near the lowest one (toes, ankles, both sides).
             let near = y_t(tl) + 0.15 * first;
+            let mut legs: Vec<BoneId> = Vec::new();
             contacts = below
                 .iter()
                 .copied()
                 .filter(|(t, _)| y_t(*t) <= near)
+                .map(|(t, s)| {
+                    // The leg: the root's child this joint hangs from.
+                    let mut top = t;
+                    while let Some(p) = tgt.skel.parent(top).filter(|&p| p != rt) {
+                        top = p;
+                    }
+                    let leg = legs.iter().position(|&l| l == top).unwrap_or_else(|| {
+                        legs.push(top);
+                        legs.len() - 1
+                    });
+                    (t, s, leg.min(MAX_LEGS - 1) as u8)
+                })
                 .collect();
             let lowest_s = contacts
                 .iter()
-                .map(|&(_, b)| y_s(b))
+                .map(|&(_, b, _)| y_s(b))
                 .fold(f32::INFINITY, f32::min);
             floor_t = floor_from_reference(y_t(tl), first);
             floor_s = floor_from_reference(lowest_s, first / scale);
@@ -717,7 +751,7 @@ impl RootPlan {
             source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
             target_floor_y: opts.target_floor_y.or(floor_t),
             reference_position: tgt.worlds[rt.index()].translation,
-            contact_bones: contacts.iter().map(|&(_, s)| s).collect(),
+            contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
             contacts,
             foot_contact: opts.foot_contact,
             vertical_offset: None,
