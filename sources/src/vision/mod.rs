@@ -8,7 +8,7 @@
 //!  PoseTracker ── ROI from last frame's aux landmarks 33/34 ──▶ LandmarkModel (ort)
 //!      │          (no person: search candidate crops, keep the highest presence)
 //!      ▼ Landmarks (33 image + world points, visibility, presence)
-//!  One Euro smoothing per coordinate
+//!  One Euro smoothing per coordinate, constant limb lengths (world)
 //!      ▼
 //!  PoseSolver ── two-direction aim per bone, twist from hip line / palm / foot plane,
 //!      │         confidence per bone: hold, then ease to rest
@@ -25,6 +25,7 @@ pub mod error;
 pub mod ffmpeg;
 pub mod frame;
 pub mod landmarks;
+pub mod lengths;
 pub mod model;
 pub mod one_euro;
 pub mod pipeline;

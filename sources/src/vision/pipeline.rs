@@ -1,4 +1,5 @@
-//! The whole per-frame path: frame → tracker (landmarks) → One Euro smoothing → solver (pose).
+//! The whole per-frame path: frame → tracker (landmarks) → One Euro smoothing → constant limb
+//! lengths → solver (pose).
 
 use std::sync::Arc;
 
@@ -9,6 +10,7 @@ use super::body::blazepose_skeleton;
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
+use super::lengths::LimbLengths;
 use super::model::{InputRange, LandmarkModel};
 use super::one_euro::{OneEuro, OneEuroParams};
 use super::solve::{PoseSolver, SolverConfig};
@@ -31,6 +33,8 @@ pub struct PipelineConfig {
     pub solver: SolverConfig,
     /// One Euro smoothing of landmarks (off = raw model output).
     pub smoothing: bool,
+    /// Hold limb lengths constant in the world landmarks.
+    pub constant_lengths: bool,
 }
 
 impl Default for PipelineConfig {
@@ -45,6 +49,7 @@ impl Default for PipelineConfig {
             tracker: TrackerConfig::default(),
             solver: SolverConfig::default(),
             smoothing: true,
+            constant_lengths: true,
         }
     }
 }
@@ -59,6 +64,7 @@ pub struct PosePipeline {
     image_filters: [[OneEuro; 3]; NUM_MODEL_LANDMARKS],
     world_filters: [[OneEuro; 3]; NUM_MODEL_LANDMARKS],
     smoothing: bool,
+    lengths: Option<LimbLengths>,
     tracking: bool,
 }
 
@@ -79,6 +85,7 @@ impl PosePipeline {
             image_filters: [[OneEuro::new(OneEuroParams::PIXELS); 3]; NUM_MODEL_LANDMARKS],
             world_filters: [[OneEuro::new(OneEuroParams::METRES); 3]; NUM_MODEL_LANDMARKS],
             smoothing: config.smoothing,
+            lengths: config.constant_lengths.then(LimbLengths::new),
             tracking: false,
         })
     }
@@ -136,6 +143,9 @@ impl PosePipeline {
                 w.z = f[2].filter(w.z, t);
             }
         }
+        if let Some(lengths) = self.lengths.as_mut() {
+            lengths.apply(&mut self.smoothed);
+        }
         if pose.num_bones() != self.solver.skeleton().num_bones() {
             *pose = self.solver.skeleton().rest_pose();
         }
@@ -149,6 +159,9 @@ impl PosePipeline {
     }
 
     fn reset_filters(&mut self) {
+        if let Some(lengths) = self.lengths.as_mut() {
+            lengths.reset();
+        }
         for f in self
             .image_filters
             .iter_mut()

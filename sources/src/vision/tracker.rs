@@ -8,7 +8,7 @@
 //! landmarks then centres and scales the crop. While presence stays above the threshold each
 //! frame just reuses the previous ROI; when it drops, the next frame searches again.
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 use super::error::VisionError;
 use super::frame::RgbFrame;
@@ -23,6 +23,9 @@ pub struct TrackerConfig {
     pub presence_threshold: f32,
     /// Refinement passes after a search hit (each one model run).
     pub refine_passes: usize,
+    /// Undo the model's facing/away reading flips (left/right label swaps) by matching the
+    /// torso against recent frames.
+    pub swap_guard: bool,
 }
 
 impl Default for TrackerConfig {
@@ -30,6 +33,7 @@ impl Default for TrackerConfig {
         TrackerConfig {
             presence_threshold: 0.5,
             refine_passes: 2,
+            swap_guard: true,
         }
     }
 }
@@ -54,15 +58,15 @@ const LR_PAIRS: [(usize, usize); 16] = [
     (31, 32),
 ];
 
-/// Pairs whose positions decide whether labels swapped (the large joints).
-const GUARD_PAIRS: [(usize, usize); 6] = [
+/// Pairs whose positions decide whether the reading flipped: the torso corners, which move
+/// least and are seen best (arms legitimately move a lot between frames).
+const GUARD_PAIRS: [(usize, usize); 2] = [
     (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
-    (idx::LEFT_ELBOW, idx::RIGHT_ELBOW),
     (idx::LEFT_HIP, idx::RIGHT_HIP),
-    (idx::LEFT_KNEE, idx::RIGHT_KNEE),
-    (idx::LEFT_ANKLE, idx::RIGHT_ANKLE),
-    (idx::LEFT_WRIST, idx::RIGHT_WRIST),
 ];
+
+/// How fast the flip guard's reference follows accepted frames (fraction per frame).
+const REFERENCE_RATE: f32 = 0.3;
 
 /// Counters for diagnostics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -83,7 +87,7 @@ pub struct PoseTracker {
     roi: Option<Roi>,
     candidates: Vec<Roi>,
     scratch: Landmarks,
-    previous: Option<Landmarks>,
+    reference: Option<[Vec3; 2]>,
     stats: TrackerStats,
 }
 
@@ -96,7 +100,7 @@ impl PoseTracker {
             roi: None,
             candidates: Vec::with_capacity(16),
             scratch: Landmarks::default(),
-            previous: None,
+            reference: None,
             stats: TrackerStats::default(),
         }
     }
@@ -119,7 +123,7 @@ impl PoseTracker {
     /// Forgets the tracked person; the next frame searches.
     pub fn reset(&mut self) {
         self.roi = None;
-        self.previous = None;
+        self.reference = None;
     }
 
     /// Processes one frame. Returns true and fills `out` when a person was found.
@@ -132,21 +136,21 @@ impl PoseTracker {
             found = out.presence >= threshold;
         }
         if !found {
-            self.previous = None;
+            self.reference = None;
             found = self.search(frame, out)?;
         }
         if !found {
             self.roi = None;
             return Ok(false);
         }
-        if let Some(prev) = &self.previous {
-            if labels_swapped(prev, out) {
-                swap_sides(out);
+        if let Some(reference) = self.reference.as_ref().filter(|_| self.config.swap_guard) {
+            if labels_swapped(reference, out) {
+                flip_interpretation(out);
                 self.stats.swaps_fixed += 1;
             }
         }
         self.roi = next_roi(out);
-        self.previous = Some(*out);
+        update_reference(&mut self.reference, out);
         Ok(true)
     }
 
@@ -186,22 +190,60 @@ fn next_roi(lm: &Landmarks) -> Option<Roi> {
     Roi::from_alignment(Vec2::new(c.x, c.y), Vec2::new(s.x, s.y))
 }
 
-/// True when the current frame's left/right labels fit the previous frame much better swapped
-/// (the model occasionally flips sides for one frame on ambiguous views).
-fn labels_swapped(prev: &Landmarks, cur: &Landmarks) -> bool {
-    let p = |lm: &Landmarks, i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
-    let mut same = 0.0;
-    let mut swapped = 0.0;
-    for &(l, r) in &GUARD_PAIRS {
-        same += p(cur, l).distance(p(prev, l)) + p(cur, r).distance(p(prev, r));
-        swapped += p(cur, l).distance(p(prev, r)) + p(cur, r).distance(p(prev, l));
-    }
-    swapped < 0.5 * same
+/// Torso lines (left minus right, world) of hips and shoulders: what the flip guard compares.
+fn torso_lines(lm: &Landmarks) -> [Vec3; 2] {
+    GUARD_PAIRS.map(|(l, r)| lm.world[l] - lm.world[r])
 }
 
-fn swap_sides(lm: &mut Landmarks) {
+/// The torso lines after [`flip_interpretation`]: left and right exchange (negating the line)
+/// and depth is mirrored, so x and y change sign and z stays.
+fn flipped_lines(lines: [Vec3; 2]) -> [Vec3; 2] {
+    lines.map(|v| Vec3::new(-v.x, -v.y, v.z))
+}
+
+/// True when the current frame fits the reference better with its reading flipped.
+///
+/// Why: on ambiguous views (a blurred face, a side view) the model sometimes switches between
+/// "facing the camera" and "facing away" — the two readings of the same image, one the other
+/// mirrored in depth with left and right exchanged — often for single frames, sometimes
+/// through a degenerate in-between frame. Comparing against a reference that follows the
+/// accepted frames with some inertia (rather than against the last frame alone) keeps one
+/// degenerate frame from deciding the labels of all that follow.
+fn labels_swapped(reference: &[Vec3; 2], cur: &Landmarks) -> bool {
+    let same = torso_lines(cur);
+    let flipped = flipped_lines(same);
+    let cost = |lines: &[Vec3; 2]| -> f32 {
+        lines
+            .iter()
+            .zip(reference)
+            .map(|(a, b)| a.distance(*b))
+            .sum()
+    };
+    cost(&flipped) < cost(&same)
+}
+
+/// Moves the reference torso lines towards the accepted frame's.
+fn update_reference(reference: &mut Option<[Vec3; 2]>, lm: &Landmarks) {
+    let lines = torso_lines(lm);
+    *reference = Some(match *reference {
+        Some(r) => [
+            r[0].lerp(lines[0], REFERENCE_RATE),
+            r[1].lerp(lines[1], REFERENCE_RATE),
+        ],
+        None => lines,
+    });
+}
+
+/// The other reading of the same image: depth mirrored, left and right labels exchanged.
+/// (Two mirrors make a proper rotation, so the result is a valid body.)
+fn flip_interpretation(lm: &mut Landmarks) {
+    for p in lm.world.iter_mut() {
+        p.z = -p.z;
+    }
+    for p in lm.image.iter_mut() {
+        p.z = -p.z;
+    }
     for &(l, r) in &LR_PAIRS {
-        debug_assert!(l < NUM_LANDMARKS && r < NUM_LANDMARKS);
         lm.image.swap(l, r);
         lm.world.swap(l, r);
     }
@@ -210,7 +252,7 @@ fn swap_sides(lm: &mut Landmarks) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{Vec3, Vec4};
+    use glam::Vec4;
 
     fn person(offset_x: f32) -> Landmarks {
         let mut lm = Landmarks::default();
@@ -218,20 +260,33 @@ mod tests {
             let y = l as f32 * 10.0;
             lm.image[l] = Vec4::new(offset_x + 50.0, y, 0.0, 1.0);
             lm.image[r] = Vec4::new(offset_x - 50.0, y, 0.0, 1.0);
-            lm.world[l] = Vec3::new(0.1, 0.0, 0.0);
-            lm.world[r] = Vec3::new(-0.1, 0.0, 0.0);
+            lm.world[l] = Vec3::new(0.1 + offset_x * 1e-3, y * 1e-3, 0.0);
+            lm.world[r] = Vec3::new(-0.1 + offset_x * 1e-3, y * 1e-3, 0.0);
         }
         lm
     }
 
     #[test]
-    fn a_one_frame_flip_is_detected_and_undone() {
-        let prev = person(0.0);
+    fn a_depth_flip_is_detected_and_undone() {
+        let mut reference = None;
+        update_reference(&mut reference, &person(0.0));
+        let reference = reference.unwrap();
         let mut cur = person(3.0);
-        assert!(!labels_swapped(&prev, &cur));
-        swap_sides(&mut cur);
-        assert!(labels_swapped(&prev, &cur));
-        swap_sides(&mut cur);
+        assert!(!labels_swapped(&reference, &cur));
+        flip_interpretation(&mut cur);
+        assert!(labels_swapped(&reference, &cur));
+        flip_interpretation(&mut cur);
         assert_eq!(cur, person(3.0));
+    }
+
+    #[test]
+    fn a_flip_keeps_limb_lengths_and_mirrors_depth() {
+        let mut lm = person(0.0);
+        lm.world[idx::LEFT_ELBOW].z = 0.2;
+        let before = lm.world[idx::LEFT_SHOULDER].distance(lm.world[idx::LEFT_ELBOW]);
+        flip_interpretation(&mut lm);
+        let after = lm.world[idx::RIGHT_SHOULDER].distance(lm.world[idx::RIGHT_ELBOW]);
+        assert!((before - after).abs() < 1e-6);
+        assert_eq!(lm.world[idx::RIGHT_ELBOW].z, -0.2);
     }
 }
