@@ -262,8 +262,16 @@ pub async fn run_tick(ctx: TickContext, mut shutdown: watch::Receiver<bool>) {
 }
 
 /// Drains client requests. Mappings do not exist yet, so overrides are only logged.
-pub async fn run_commands(mut rx: mpsc::Receiver<EngineCommand>) {
-    while let Some(cmd) = rx.recv().await {
+pub async fn run_commands(
+    mut rx: mpsc::Receiver<EngineCommand>,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    loop {
+        let cmd = tokio::select! {
+            cmd = rx.recv() => cmd,
+            _ = shutdown.changed() => None,
+        };
+        let Some(cmd) = cmd else { break };
         match cmd {
             EngineCommand::SetMapping { subject, overrides } => {
                 eprintln!(

@@ -114,6 +114,9 @@ async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<Serve
                 return;
             };
             let accept = derive_accept_key(key.as_bytes());
+            let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
+                return;
+            };
             let response = format!(
                 "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
             );
@@ -141,6 +144,22 @@ async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<Serve
             }
         },
     }
+}
+
+/// Kernel send buffer per WebSocket client. Small on purpose: frames are realtime, and a large
+/// buffer (Linux autotunes up to megabytes) would hold seconds of stale frames for a slow
+/// client before the broadcast channel notices it lagging. 64 KiB is ~1 s of a 65-bone stream
+/// at 60 Hz.
+pub const CLIENT_SEND_BUFFER_BYTES: u32 = 64 * 1024;
+
+/// Sets SO_SNDBUF. tokio exposes the option only on `TcpSocket`, so the option is set through a
+/// duplicate descriptor of the same socket (the option belongs to the socket, not the fd).
+fn limit_send_buffer(stream: TcpStream, bytes: u32) -> std::io::Result<TcpStream> {
+    let std_stream = stream.into_std()?;
+    let dup = tokio::net::TcpSocket::from_std_stream(std_stream.try_clone()?);
+    dup.set_send_buffer_size(bytes)?;
+    drop(dup);
+    TcpStream::from_std(std_stream)
 }
 
 /// Reads until the blank line ending the head; returns its end offset (after `\r\n\r\n`).

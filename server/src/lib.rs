@@ -172,7 +172,10 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         },
         shutdown_rx.clone(),
     )));
-    tasks.push(tokio::spawn(engine::run_commands(commands_rx)));
+    tasks.push(tokio::spawn(engine::run_commands(
+        commands_rx,
+        shutdown_rx.clone(),
+    )));
     tasks.push(tokio::spawn(http::run_listener(listener, state.clone())));
 
     Ok(ServerHandle {
@@ -219,7 +222,15 @@ async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, ClipPlayer)> {
     })
 }
 
-/// The bundled demo clip (falls back to the procedural clip until the recording is bundled).
+/// The bundled demo recording; if it cannot be decoded (a build without it), the procedural
+/// demo clip, so `rigcast` with no arguments always shows something.
 pub fn demo_clip() -> anyhow::Result<rigcast_retarget::Clip> {
-    Ok(demo::procedural_clip(120, 30.0)?)
+    match rigcast_sources::embedded_demo() {
+        Ok(clip) if clip.num_frames() > 0 => Ok(clip),
+        Ok(_) => Ok(demo::procedural_clip(120, 30.0)?),
+        Err(e) => {
+            eprintln!("rigcast: bundled demo unavailable ({e}); using the procedural demo");
+            Ok(demo::procedural_clip(120, 30.0)?)
+        }
+    }
 }

@@ -1,1 +1,232 @@
-//! End-to-end test helpers shared by the tests in `tests/tests/`.
+//! End-to-end test helpers shared by the tests in `tests/tests/`: a WebSocket client that
+//! speaks the rigcast protocol, fixtures built in code, and the path to shared test data.
+#![allow(clippy::unwrap_used)]
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use futures_util::{SinkExt, StreamExt};
+use glam::{Quat, Vec3};
+use rigcast_protocol::frame::{decode_frame, DecodedFrame};
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
+
+/// A connected WebSocket client.
+pub type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+/// What arrived on the stream.
+#[derive(Debug)]
+pub enum Incoming {
+    /// A JSON control message.
+    Json(ServerMessage),
+    /// A binary frame, with the local receive time (Unix ns).
+    Frame(DecodedFrame, u64),
+}
+
+/// Unix epoch nanoseconds.
+pub fn unix_nanos() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64
+}
+
+/// Connects to `ws://addr/v1/stream`.
+pub async fn connect(url: &str) -> Ws {
+    let (ws, _) = tokio_tungstenite::connect_async(url).await.unwrap();
+    ws
+}
+
+/// Reads the next protocol message (skipping WebSocket control frames), with a timeout.
+pub async fn next(ws: &mut Ws, timeout: Duration) -> Option<Incoming> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let left = deadline.checked_duration_since(Instant::now())?;
+        let msg = tokio::time::timeout(left, ws.next()).await.ok()??.unwrap();
+        match msg {
+            Message::Text(t) => {
+                let m: ServerMessage = serde_json::from_str(t.as_str())
+                    .unwrap_or_else(|e| panic!("undecodable server JSON {t}: {e}"));
+                return Some(Incoming::Json(m));
+            }
+            Message::Binary(b) => {
+                let now = unix_nanos();
+                return Some(Incoming::Frame(decode_frame(&b).unwrap(), now));
+            }
+            Message::Close(_) => return None,
+            _ => {}
+        }
+    }
+}
+
+/// Sends a text message.
+pub async fn send_text(ws: &mut Ws, text: &str) {
+    ws.send(Message::text(text.to_string())).await.unwrap();
+}
+
+/// Waits for the next JSON message, skipping frames.
+pub async fn next_json(ws: &mut Ws, timeout: Duration) -> Option<ServerMessage> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let left = deadline.checked_duration_since(Instant::now())?;
+        match next(ws, left).await? {
+            Incoming::Json(m) => return Some(m),
+            Incoming::Frame(..) => {}
+        }
+    }
+}
+
+/// Reads `hello` and one `skeleton` per subject.
+pub async fn handshake(ws: &mut Ws) -> (ServerMessage, Vec<ServerMessage>) {
+    let hello = next_json(ws, Duration::from_secs(5)).await.expect("hello");
+    let ServerMessage::Hello { subjects, .. } = &hello else {
+        panic!("expected hello, got {hello:?}");
+    };
+    let mut skeletons = Vec::new();
+    for _ in 0..subjects.len() {
+        let s = next_json(ws, Duration::from_secs(5))
+            .await
+            .expect("skeleton");
+        assert!(matches!(s, ServerMessage::Skeleton { .. }), "{s:?}");
+        skeletons.push(s);
+    }
+    (hello, skeletons)
+}
+
+/// Collects frames for `duration`; returns them with their receive times.
+pub async fn collect_frames(ws: &mut Ws, duration: Duration) -> Vec<(DecodedFrame, u64)> {
+    let deadline = Instant::now() + duration;
+    let mut out = Vec::new();
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        match next(ws, left).await {
+            Some(Incoming::Frame(f, t)) => out.push((f, t)),
+            Some(Incoming::Json(_)) => {}
+            None => break,
+        }
+    }
+    out
+}
+
+/// Path of a file in the shared test data, or `None` (with a printed reason) when absent.
+pub fn shared_data(relative: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data")
+        .join(relative);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("SKIP: test data {} not found", p.display());
+        None
+    }
+}
+
+/// A 6-bone creature with a tail, animated with distinct rotations on every bone: 48 frames at
+/// 30 fps. Built in code so tests do not depend on any file.
+pub fn fixture_clip() -> Clip {
+    let mut raw = RawSkeleton::default();
+    let t = |x: f32, y: f32, z: f32| Transform::from_translation(Vec3::new(x, y, z));
+    let root = raw.add("root", None, t(0.0, 1.0, 0.0));
+    let body = raw.add("body", Some(root), t(0.0, 0.2, 0.1));
+    let head = raw.add("head", Some(body), t(0.0, 0.3, 0.2));
+    raw.add("jaw", Some(head), t(0.0, -0.05, 0.1));
+    let tail = raw.add("tail1", Some(root), t(0.0, 0.0, -0.3));
+    raw.add("tail2", Some(tail), t(0.0, 0.0, -0.3));
+    let skeleton = Arc::new(Skeleton::build(&raw).unwrap());
+    let n = 48;
+    let poses = (0..n)
+        .map(|i| {
+            let a = i as f32 / n as f32 * std::f32::consts::TAU;
+            let mut p = Pose::from_rest(&skeleton);
+            for (b, q) in p.rotations.iter_mut().enumerate() {
+                let k = b as f32 + 1.0;
+                *q = Quat::from_euler(
+                    glam::EulerRot::YXZ,
+                    0.5 * (a + k).sin(),
+                    0.3 * (2.0 * a - k).cos(),
+                    0.2 * (a * k).sin(),
+                );
+            }
+            p.translations[0] = Vec3::new(0.2 * a.sin(), 1.0, 0.1 * a.cos());
+            p
+        })
+        .collect();
+    Clip::new("fixture", skeleton, poses, 1.0 / 30.0).unwrap()
+}
+
+/// Largest angle (radians) between the frame's rotations and those of the clip frame that
+/// matches best; returns (clip frame index, angle).
+pub fn best_matching_frame(clip: &Clip, rotations: &[Quat]) -> (usize, f32) {
+    let mut best = (usize::MAX, f32::MAX);
+    for (i, pose) in clip.poses.iter().enumerate() {
+        let worst = pose
+            .rotations
+            .iter()
+            .zip(rotations)
+            .map(|(&a, &b)| rotation_angle(a, b))
+            .fold(0.0f32, f32::max);
+        if worst < best.1 {
+            best = (i, worst);
+        }
+    }
+    best
+}
+
+/// Frames per second from receive times (first to last).
+pub fn measured_rate(frames: &[(DecodedFrame, u64)]) -> f64 {
+    if frames.len() < 2 {
+        return 0.0;
+    }
+    let span = (frames[frames.len() - 1].1 - frames[0].1) as f64 * 1e-9;
+    (frames.len() - 1) as f64 / span
+}
+
+/// Angle in radians between two rotations (q ≡ -q), accurate for tiny differences: computed
+/// from the chord length in f64 rather than `acos` of a dot product, which in f32 cannot
+/// resolve angles below ~1e-3.
+pub fn rotation_angle(a: Quat, b: Quat) -> f32 {
+    let a = glam::Vec4::from(a).as_dvec4();
+    let b = glam::Vec4::from(b).as_dvec4();
+    let chord = (a - b).length().min((a + b).length());
+    (4.0 * (chord / 2.0).min(1.0).asin()) as f32
+}
+
+/// Starts an in-process server on 127.0.0.1:0.
+pub async fn start_server(
+    sources: Vec<rigcast_server::SourceSpec>,
+    rate_hz: f64,
+    vmc_out: Vec<String>,
+) -> rigcast_server::ServerHandle {
+    let config = rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        rate_hz,
+        sources,
+        vmc_out,
+    };
+    rigcast_server::start(config).await.unwrap()
+}
+
+/// A replay of an in-memory clip, looping from the start at normal speed.
+pub fn clip_source(clip: Clip) -> rigcast_server::SourceSpec {
+    rigcast_server::SourceSpec::ReplayClip {
+        clip,
+        name: None,
+        settings: rigcast_server::ReplaySettings::default(),
+    }
+}
+
+/// A unique temporary path (no tempfile crate: pid + name + counter).
+pub fn temp_path(name: &str) -> PathBuf {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static N: AtomicU32 = AtomicU32::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "rigcast-tests-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}

@@ -1,0 +1,173 @@
+//! A client that stops reading does not slow the tick or other clients; when it reads again
+//! it is told how many frames it missed, and it is still connected.
+#![allow(clippy::unwrap_used)]
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use futures_util::SinkExt;
+use glam::{Quat, Vec3};
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
+use rigcast_tests::*;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpSocket;
+use tokio_tungstenite::tungstenite::protocol::Role;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::WebSocketStream;
+
+const RATE_HZ: f64 = 120.0;
+
+/// A 200-bone chain: ~3.2 kB per frame, so a stalled socket fills its buffers within a second.
+fn big_clip() -> Clip {
+    let mut raw = RawSkeleton::default();
+    let mut parent = None;
+    for i in 0..200 {
+        parent = Some(raw.add(
+            format!("b{i}"),
+            parent,
+            Transform::from_translation(Vec3::Y * 0.01),
+        ));
+    }
+    let skeleton = Arc::new(Skeleton::build(&raw).unwrap());
+    let poses = (0..60)
+        .map(|f| {
+            let mut p = Pose::from_rest(&skeleton);
+            for (i, q) in p.rotations.iter_mut().enumerate() {
+                *q = Quat::from_rotation_z(0.001 * (f * i) as f32);
+            }
+            p
+        })
+        .collect();
+    Clip::new("big", skeleton, poses, 1.0 / 120.0).unwrap()
+}
+
+struct Measure {
+    rate_hz: f64,
+    p50_latency_ms: f64,
+    p90_latency_ms: f64,
+}
+
+async fn measure(ws: &mut Ws, secs: f64) -> Measure {
+    // Drain anything queued first, so the window measures steady state.
+    collect_frames(ws, Duration::from_millis(100)).await;
+    let frames = collect_frames(ws, Duration::from_secs_f64(secs)).await;
+    let mut lat: Vec<f64> = frames
+        .iter()
+        .map(|(f, t)| (*t as f64 - f.header.send_nanos as f64) * 1e-6)
+        .collect();
+    lat.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    Measure {
+        rate_hz: measured_rate(&frames),
+        p50_latency_ms: lat[lat.len() / 2],
+        p90_latency_ms: lat[lat.len() * 9 / 10],
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stalled_client_does_not_slow_others_and_is_told_what_it_missed() {
+    let server = start_server(vec![clip_source(big_clip())], RATE_HZ, vec![]).await;
+    let mut good = connect(&server.stream_url()).await;
+    handshake(&mut good).await;
+    let baseline = measure(&mut good, 1.5).await;
+
+    // The stalled client: a tiny receive buffer, a hand-made upgrade, then no reading.
+    let socket = TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let mut raw = socket.connect(server.local_addr()).await.unwrap();
+    raw.write_all(
+        b"GET /v1/stream HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+          Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+    )
+    .await
+    .unwrap();
+    // Read the response head byte by byte so no WebSocket bytes are consumed.
+    let mut head = Vec::new();
+    while !head.ends_with(b"\r\n\r\n") {
+        head.push(raw.read_u8().await.unwrap());
+    }
+    assert!(head.starts_with(b"HTTP/1.1 101"));
+
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let stalled = measure(&mut good, 2.0).await;
+    eprintln!(
+        "baseline: {:.1} Hz, latency p50 {:.2} ms p90 {:.2} ms; with a stalled client: {:.1} Hz, p50 {:.2} ms p90 {:.2} ms",
+        baseline.rate_hz,
+        baseline.p50_latency_ms,
+        baseline.p90_latency_ms,
+        stalled.rate_hz,
+        stalled.p50_latency_ms,
+        stalled.p90_latency_ms
+    );
+    for m in [&baseline, &stalled] {
+        assert!(
+            (m.rate_hz - RATE_HZ).abs() < RATE_HZ * 0.15,
+            "rate {}",
+            m.rate_hz
+        );
+    }
+    assert!((stalled.rate_hz - baseline.rate_hz).abs() < baseline.rate_hz * 0.15);
+    // Generous: the stalled client may not add more than a few ms of median latency.
+    assert!(
+        stalled.p50_latency_ms < baseline.p50_latency_ms.max(1.0) * 2.0 + 5.0,
+        "median latency {} ms vs {} ms",
+        stalled.p50_latency_ms,
+        baseline.p50_latency_ms
+    );
+
+    // Resume reading: the stalled client must learn how many frames it missed.
+    let mut late = WebSocketStream::from_raw_socket(raw, Role::Client, None).await;
+    let mut told = 0u64;
+    let mut header_missed = 0u32;
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(10);
+    use futures_util::StreamExt;
+    while header_missed == 0 {
+        let msg = tokio::time::timeout_at(deadline, late.next())
+            .await
+            .expect("no lag report within 10 s")
+            .unwrap()
+            .unwrap();
+        match msg {
+            Message::Text(t) => {
+                if let ServerMessage::Lagged { missed } = serde_json::from_str(t.as_str()).unwrap()
+                {
+                    told += missed;
+                }
+            }
+            Message::Binary(b) => {
+                let f = rigcast_protocol::frame::decode_frame(&b).unwrap();
+                if told > 0 {
+                    header_missed = f.header.missed_frames;
+                    assert!(
+                        header_missed > 0,
+                        "frame after a lag must carry missed_frames"
+                    );
+                }
+            }
+            _ => {}
+        }
+    }
+    assert!(told > 0);
+    assert_eq!(u64::from(header_missed), told.min(u32::MAX as u64));
+    eprintln!("stalled client was told it missed {told} frames");
+
+    // Still connected: ping → pong.
+    late.send(Message::text(r#"{"type":"ping","nonce":9}"#))
+        .await
+        .unwrap();
+    let mut ponged = false;
+    while !ponged {
+        let msg = tokio::time::timeout_at(deadline, late.next())
+            .await
+            .expect("no pong")
+            .unwrap()
+            .unwrap();
+        if let Message::Text(t) = msg {
+            ponged = matches!(
+                serde_json::from_str(t.as_str()).unwrap(),
+                ServerMessage::Pong { nonce: 9, .. }
+            );
+        }
+    }
+    server.shutdown().await;
+}

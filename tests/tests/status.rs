@@ -1,0 +1,66 @@
+//! `GET /v1/status` returns the documented fields with live values.
+#![allow(clippy::unwrap_used)]
+
+use std::time::Duration;
+
+use rigcast_tests::*;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+async fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, String) {
+    let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: x\r\n\r\n").as_bytes())
+        .await
+        .unwrap();
+    let mut out = Vec::new();
+    s.read_to_end(&mut out).await.unwrap();
+    let text = String::from_utf8(out).unwrap();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap();
+    (head.to_string(), body.to_string())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn status_reports_documented_fields() {
+    let server = start_server(vec![clip_source(fixture_clip())], 50.0, vec![]).await;
+    let mut ws = connect(&server.stream_url()).await;
+    handshake(&mut ws).await;
+    collect_frames(&mut ws, Duration::from_millis(1200)).await;
+
+    let (head, body) = http_get(server.local_addr(), "/v1/status").await;
+    assert!(head.starts_with("HTTP/1.1 200"), "{head}");
+    assert!(head.contains("application/json"));
+    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(v["tick_hz"], 50.0);
+    let out = v["output_rate_hz"].as_f64().unwrap();
+    assert!((out - 50.0).abs() < 50.0 * 0.25, "output rate {out}");
+    let s = &v["subjects"][0];
+    assert_eq!(s["id"], 0);
+    assert_eq!(s["name"], "fixture");
+    assert_eq!(s["num_bones"], 6);
+    let fps = s["input_fps"].as_f64().unwrap();
+    assert!((fps - 30.0).abs() < 30.0 * 0.25, "input fps {fps}");
+    let last = s["last_capture_nanos"].as_u64().unwrap();
+    assert!(unix_nanos() - last < 2_000_000_000);
+    assert!(s["input_frames"].as_u64().unwrap() > 10);
+    assert_eq!(v["clients"]["count"], 1);
+    let c = &v["clients"]["list"][0];
+    assert!(c["frames_sent"].as_u64().unwrap() > 10);
+    assert_eq!(c["missed_frames"], 0);
+    assert_eq!(v["dropped_frames_total"], 0);
+    let t = &v["tick_micros"];
+    for k in ["p50", "p90", "p99", "max"] {
+        assert!(t[k].is_u64(), "{k}");
+    }
+    assert!(t["p50"].as_u64() <= t["p99"].as_u64());
+    assert!(t["p99"].as_u64() <= t["max"].as_u64());
+    assert!(t["samples"].as_u64().unwrap() > 10);
+
+    // The viewer page and a 404.
+    let (head, body) = http_get(server.local_addr(), "/").await;
+    assert!(head.starts_with("HTTP/1.1 200") && body.contains("rigcast"));
+    let (head, _) = http_get(server.local_addr(), "/no/such/file").await;
+    assert!(head.starts_with("HTTP/1.1 404"), "{head}");
+    // The stream endpoint without an upgrade.
+    let (head, _) = http_get(server.local_addr(), "/v1/stream").await;
+    assert!(head.starts_with("HTTP/1.1 426"), "{head}");
+    server.shutdown().await;
+}
