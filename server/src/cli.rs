@@ -8,11 +8,19 @@ use crate::cmd;
 
 /// rigcast — realtime puppetry server.
 #[derive(Debug, Parser)]
-#[command(name = "rigcast", version, about)]
+#[command(
+    name = "rigcast",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
 pub struct Cli {
-    /// What to do; without a subcommand rigcast serves the bundled demo.
+    /// What to do; without a subcommand rigcast serves (the bundled demo unless `--source`).
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// `serve` options, accepted without the subcommand (`rigcast --listen 127.0.0.1:0`).
+    #[command(flatten)]
+    pub serve: cmd::serve::ServeArgs,
 }
 
 /// Subcommands.
@@ -50,9 +58,11 @@ impl Command {
 }
 
 impl Cli {
-    /// The subcommand, defaulting to `serve` with no options.
+    /// The subcommand, defaulting to `serve` with the top-level options.
     pub fn command_or_default(self) -> Command {
-        self.command
-            .unwrap_or_else(|| Command::Serve(cmd::serve::ServeArgs::default()))
+        match self.command {
+            Some(c) => c,
+            None => Command::Serve(self.serve),
+        }
     }
 }

@@ -1,0 +1,158 @@
+//! Runs the real `rigcast` binary: with no subcommand it serves the bundled demo; a WebSocket
+//! client gets hello, skeleton and frames at the configured rate; Ctrl-C stops it cleanly.
+#![allow(clippy::unwrap_used)]
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use futures_util::StreamExt;
+use rigcast_protocol::frame::decode_frame;
+use rigcast_protocol::ServerMessage;
+use tokio_tungstenite::tungstenite::Message;
+
+struct Server {
+    child: Child,
+    url: String,
+    stdout: BufReader<std::process::ChildStdout>,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts the binary and reads the printed stream URL.
+fn spawn(args: &[&str]) -> Server {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut stdout = BufReader::new(child.stdout.take().unwrap());
+    let mut url = None;
+    let mut line = String::new();
+    while url.is_none() {
+        line.clear();
+        assert!(
+            stdout.read_line(&mut line).unwrap() > 0,
+            "binary exited early"
+        );
+        if let Some(rest) = line.trim().strip_prefix("stream: ") {
+            url = Some(rest.to_string());
+        }
+    }
+    Server {
+        child,
+        url: url.unwrap(),
+        stdout,
+    }
+}
+
+async fn check_demo_stream(url: &str, rate_hz: f64) {
+    let (mut ws, _) = tokio_tungstenite::connect_async(url).await.unwrap();
+    let mut text = Vec::new();
+    let mut frame_times = Vec::new();
+    let mut num_bones = None;
+    let start = Instant::now();
+    let mut window_start = None;
+    while start.elapsed() < Duration::from_secs(5) {
+        let msg = tokio::time::timeout(Duration::from_secs(2), ws.next())
+            .await
+            .unwrap()
+            .unwrap()
+            .unwrap();
+        match msg {
+            Message::Text(t) => {
+                text.push(serde_json::from_str::<ServerMessage>(t.as_str()).unwrap())
+            }
+            Message::Binary(b) => {
+                let f = decode_frame(&b).unwrap();
+                assert_eq!(Some(f.rotations.len() as u32), num_bones);
+                // Skip the first 200 ms (connection warm-up), then measure for 1 s.
+                let now = Instant::now();
+                let ws0 = *window_start.get_or_insert(now + Duration::from_millis(200));
+                if now >= ws0 {
+                    frame_times.push(now);
+                    if now - ws0 >= Duration::from_secs(1) {
+                        break;
+                    }
+                }
+            }
+            _ => {}
+        }
+        if num_bones.is_none() {
+            if let Some(ServerMessage::Hello {
+                subjects,
+                tick_hz,
+                protocol_version,
+                ..
+            }) = text.first()
+            {
+                assert_eq!(*protocol_version, 1);
+                assert_eq!(*tick_hz, rate_hz);
+                assert_eq!(subjects.len(), 1);
+                num_bones = Some(subjects[0].num_bones);
+            }
+        }
+    }
+    assert!(matches!(text.first(), Some(ServerMessage::Hello { .. })));
+    assert!(
+        matches!(text.get(1), Some(ServerMessage::Skeleton { .. })),
+        "{text:?}"
+    );
+    let span = (*frame_times.last().unwrap() - frame_times[0]).as_secs_f64();
+    let rate = (frame_times.len() - 1) as f64 / span;
+    eprintln!("measured {rate:.1} Hz (configured {rate_hz})");
+    assert!((rate - rate_hz).abs() <= rate_hz * 0.15, "rate {rate}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn binary_serves_demo_at_default_rate_and_stops_on_ctrl_c() {
+    let mut server = spawn(&["--listen", "127.0.0.1:0"]);
+    check_demo_stream(&server.url, 60.0).await;
+    // Ctrl-C = SIGINT.
+    let status = Command::new("kill")
+        .args(["-INT", &server.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        if let Some(code) = server.child.try_wait().unwrap() {
+            assert!(code.success(), "exit status {code}");
+            break;
+        }
+        assert!(Instant::now() < deadline, "no clean exit after SIGINT");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut server.stdout, &mut rest).unwrap();
+    assert!(rest.contains("shutting down"), "{rest}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn binary_serve_subcommand_honours_rate() {
+    let server = spawn(&["serve", "--listen", "127.0.0.1:0", "--rate", "30"]);
+    check_demo_stream(&server.url, 30.0).await;
+}
+
+#[test]
+fn binary_rejects_bad_flags_with_clear_errors() {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(["--rate", "1000", "--listen", "127.0.0.1:0"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("rate_hz"), "{err}");
+    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(["info", "/no/such/file.bvh"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/file.bvh"));
+}
