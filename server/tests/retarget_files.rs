@@ -542,6 +542,57 @@ fn retarget_command_writes_the_target_skeleton() {
     let expected =
         ((clip.num_frames() - 1) as f64 * clip.frame_time_secs * 30.0 + 1e-9).floor() as usize + 1;
     assert_eq!(out.num_frames(), expected);
+    // A mapping file overrides the automatic mapping: an unmapped bone is held at rest.
+    let mapping_path = dir.join("overrides.toml");
+    std::fs::write(
+        &mapping_path,
+        "version = 1\n[bones.\"LeftWrist\"]\nunmapped = true\n",
+    )
+    .expect("write overrides");
+    let held_path = dir.join("held.bvh");
+    run(&RetargetArgs {
+        anim: anim.clone(),
+        target: target_path.clone(),
+        output: held_path.clone(),
+        mapping: Some(mapping_path),
+        fps: None,
+        in_place: true,
+    })
+    .expect("retarget with overrides");
+    let held = rigcast_sources::load_clip(&held_path).expect("output loads");
+    assert_eq!(held.num_frames(), clip.num_frames());
+    let wrist = held.skeleton.bone("LeftWrist").expect("wrist").index();
+    let rest = held.skeleton.rest()[wrist].rotation;
+    for p in &held.poses {
+        assert!(rigcast_retarget::approx::quat_close(
+            p.rotations[wrist],
+            rest,
+            1e-3
+        ));
+    }
+    // In place: the hips stay over one spot.
+    let hips = held.skeleton.bone("Hips").expect("hips").index();
+    let first = held.poses[0].translations[hips];
+    for p in &held.poses {
+        let d = p.translations[hips] - first;
+        assert!(Vec3::new(d.x, 0.0, d.z).length() < 1e-3, "hips moved {d}");
+    }
+    let bad_mapping = dir.join("bad.toml");
+    std::fs::write(
+        &bad_mapping,
+        "version = 1\n[bones.\"NoSuchBone\"]\nsource = \"Hips\"\n",
+    )
+    .expect("write");
+    let err = run(&RetargetArgs {
+        anim: anim.clone(),
+        target: target_path.clone(),
+        output: dir.join("y.bvh"),
+        mapping: Some(bad_mapping),
+        fps: None,
+        in_place: false,
+    })
+    .expect_err("unknown bone in the mapping file");
+    assert!(format!("{err:#}").contains("NoSuchBone"), "{err:#}");
     // Bad input is a clear error, not a panic.
     let err = run(&RetargetArgs {
         anim: dir.join("missing.bvh"),
@@ -554,4 +605,93 @@ fn retarget_command_writes_the_target_skeleton() {
     .expect_err("missing file");
     assert!(format!("{err:#}").contains("missing.bvh"), "{err:#}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The whole offline path on real files with different conventions, mapped by the automatic
+/// mapper: every limb segment of the target follows the source segment between the joints its
+/// ends are mapped to.
+#[test]
+fn cmu_walk_onto_other_files_with_the_automatic_mapper() {
+    let Some(clip) = walk() else { return };
+    let targets: [(&str, [(&str, &str); 10]); 2] = [
+        (
+            "cmu_31joint_example.bvh",
+            [
+                ("LeftArm", "LeftForeArm"),
+                ("LeftForeArm", "LeftHand"),
+                ("LeftUpLeg", "LeftLeg"),
+                ("LeftLeg", "LeftFoot"),
+                ("LeftFoot", "LeftToeBase"),
+                ("RightArm", "RightForeArm"),
+                ("RightForeArm", "RightHand"),
+                ("RightUpLeg", "RightLeg"),
+                ("RightLeg", "RightFoot"),
+                ("RightFoot", "RightToeBase"),
+            ],
+        ),
+        (
+            "cmu_run.bvh",
+            [
+                ("lShldr", "lForeArm"),
+                ("lForeArm", "lHand"),
+                ("lThigh", "lShin"),
+                ("lShin", "lFoot"),
+                ("lFoot", "lFoot_end"),
+                ("rShldr", "rForeArm"),
+                ("rForeArm", "rHand"),
+                ("rThigh", "rShin"),
+                ("rShin", "rFoot"),
+                ("rFoot", "rFoot_end"),
+            ],
+        ),
+    ];
+    for (file, segments) in targets {
+        let Some(path) = data(file) else { continue };
+        let target_clip = rigcast_sources::load_clip(&path).expect("target loads");
+        let plan =
+            rigcast_server::cmd::retarget::plan_mapping(&clip, &target_clip, None).expect("plan");
+        let target = &*target_clip.skeleton;
+        let opts = RetargetOptions {
+            source_reference: vec![plan.source_reference.clone()],
+            target_reference: plan.target_reference.clone(),
+            ..RetargetOptions::default()
+        };
+        let out = retarget_clip(&clip, target, &plan.table, &opts, false).expect("retarget");
+        let src = &clip.skeleton;
+        let mapped = |n: &str| {
+            let t = target
+                .bone(n)
+                .unwrap_or_else(|| panic!("{file} has no {n}"));
+            plan.table
+                .get(t)
+                .and_then(|e| e.primary())
+                .map(|s| s.bone)
+                .unwrap_or_else(|| panic!("{file}: {n} is not mapped"))
+        };
+        for (a, b) in segments {
+            let (sa, sb) = (mapped(a), mapped(b));
+            let (ta, tb) = (target.bone(a).expect("a"), target.bone(b).expect("b"));
+            let (mut sum, mut max) = (0.0f32, 0.0f32);
+            for (sp, tp) in clip.poses.iter().zip(&out.poses) {
+                let ps = positions(src, sp);
+                let pt = positions(target, tp);
+                let e = angle_deg(
+                    ps[sb.index()] - ps[sa.index()],
+                    pt[tb.index()] - pt[ta.index()],
+                );
+                sum += e;
+                max = max.max(e);
+            }
+            let mean = sum / clip.num_frames() as f32;
+            println!(
+                "{file}: {a}→{b} (from {}→{}): mean {mean:.3}° max {max:.3}°",
+                src.name(sa),
+                src.name(sb)
+            );
+            assert!(
+                mean <= 2.0 && max <= 5.0,
+                "{file}: {a}→{b}: mean {mean}° max {max}°"
+            );
+        }
+    }
 }

@@ -8,8 +8,11 @@ use std::sync::Arc;
 
 use anyhow::{anyhow, bail, Context};
 use clap::Args;
-use rigcast_retarget::mapping::MappingTable;
-use rigcast_retarget::{Clip, Mapping, RetargetOptions, RootMotion, Skeleton};
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::mapping::{
+    apply_overrides, map_analyzed, parse_mapping_file, MapOptions, MappingTable,
+};
+use rigcast_retarget::{Clip, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 
 /// Options of `rigcast retarget`.
 #[derive(Debug, Clone, Args)]
@@ -63,9 +66,9 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
             args.anim.display()
         );
     }
-    let target = rigcast_sources::load_clip(&args.target)
-        .map_err(|e| anyhow!("cannot read the target character: {e}"))?
-        .skeleton;
+    let target_clip = rigcast_sources::load_clip(&args.target)
+        .map_err(|e| anyhow!("cannot read the target character: {e}"))?;
+    let target = target_clip.skeleton.clone();
     if let Some(fps) = args.fps {
         if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
             bail!("--fps {fps}: expected a frame rate between 0 and 10000");
@@ -74,7 +77,8 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
             .resampled(1.0 / fps)
             .with_context(|| format!("cannot resample to {fps} fps"))?;
     }
-    let table = mapping_table(&clip.skeleton, &target, args.mapping.as_deref())?;
+    let plan = plan_mapping(&clip, &target_clip, args.mapping.as_deref())?;
+    let table = plan.table;
     if table.num_mapped() == 0 {
         bail!(
             "no bone of {} could be mapped to a bone of {}",
@@ -89,6 +93,8 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         } else {
             RootMotion::Scaled
         },
+        source_reference: vec![plan.source_reference],
+        target_reference: plan.target_reference,
         ..RetargetOptions::default()
     };
     let out = retarget_clip(&clip, &target, &table, &opts, true)?;
@@ -104,22 +110,57 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The mapping from the clip's skeleton to the target.
-// TODO(mapping): use the automatic mapper and its TOML override format once they land; until
-// then bones are matched by exact name and `--mapping` is refused.
-pub fn mapping_table(
-    source: &Skeleton,
-    target: &Skeleton,
+/// What [`plan_mapping`] decides.
+#[derive(Debug, Clone)]
+pub struct MappingPlan {
+    /// Target bone → source bone(s).
+    pub table: MappingTable,
+    /// A representative source pose when the source's rest pose is degenerate (no posture).
+    pub source_reference: Option<Pose>,
+    /// The same for the target (from its own animation, used for alignment only).
+    pub target_reference: Option<Pose>,
+}
+
+/// Maps the clip's skeleton onto the target with the automatic mapper, then applies the
+/// overrides file (TOML, `retarget/MAPPING.md`) if given. Rests without a posture (all joints
+/// on a line) are analysed, and aligned, on a representative frame instead.
+pub fn plan_mapping(
+    source: &Clip,
+    target: &Clip,
     overrides: Option<&Path>,
-) -> anyhow::Result<MappingTable> {
-    if let Some(path) = overrides {
-        bail!(
-            "{}: mapping override files are not supported yet (the automatic mapper and its \
-             override format have not landed); bones are matched by name",
-            path.display()
-        );
+) -> anyhow::Result<MappingPlan> {
+    let overrides = match overrides {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read the mapping file {}", p.display()))?;
+            Some(
+                parse_mapping_file(&text)
+                    .with_context(|| format!("mapping file {}", p.display()))?,
+            )
+        }
+        None => None,
+    };
+    let representative = |c: &Clip| c.poses.get(c.poses.len() / 2).cloned();
+    let src_pose = representative(source);
+    let tgt_pose = representative(target);
+    let (ss, ts) = (&*source.skeleton, &*target.skeleton);
+    let sa = analyze(&SkeletonView {
+        skeleton: ss,
+        pose: src_pose.as_ref(),
+    });
+    let ta = analyze(&SkeletonView {
+        skeleton: ts,
+        pose: tgt_pose.as_ref(),
+    });
+    let mut table = map_analyzed(&[(ss, &sa)], (ts, &ta), &MapOptions::default());
+    if let Some(file) = &overrides {
+        apply_overrides(&mut table, file, &[ss], ts).context("mapping file")?;
     }
-    Ok(MappingTable::by_exact_name(source, target))
+    Ok(MappingPlan {
+        table,
+        source_reference: src_pose.filter(|_| sa.used_pose),
+        target_reference: tgt_pose.filter(|_| ta.used_pose),
+    })
 }
 
 /// Retargets a whole clip onto `target` (floor measured over the clip), printing a percentage
