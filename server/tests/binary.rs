@@ -156,3 +156,45 @@ fn binary_rejects_bad_flags_with_clear_errors() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/file.bvh"));
 }
+
+#[test]
+fn info_and_convert_commands() {
+    let dir = std::env::temp_dir().join(format!("rigcast-bin-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let clip = rigcast_server::demo::procedural_clip(10, 30.0).unwrap();
+    let bvh = dir.join("demo.bvh");
+    rigcast_sources::save_clip(&bvh, &clip).unwrap();
+
+    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(["info", bvh.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("LeftUpperArm"), "{text}");
+    assert!(text.contains("BVH"), "{text}");
+
+    let rcr = dir.join("demo.rcr");
+    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(["convert", bvh.to_str().unwrap(), rcr.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let back = rigcast_sources::load_clip(&rcr).unwrap();
+    assert_eq!(back.num_frames(), 10);
+
+    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(["convert", "/no/such.bvh", rcr.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such.bvh"));
+}
