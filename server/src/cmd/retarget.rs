@@ -183,7 +183,8 @@ pub fn retarget_clip(
     let report = progress && n >= PROGRESS_MIN_FRAMES;
     let mut poses = Vec::with_capacity(n);
     let mut out = mapping.new_target_pose();
-    let mut last_percent = usize::MAX;
+    // Next percentage to print: every 5%, so the line updates a handful of times per second.
+    let mut next_percent = 5;
     for (i, p) in clip.poses.iter().enumerate() {
         mapping
             .apply_one(p, &mut out)
@@ -191,10 +192,10 @@ pub fn retarget_clip(
         poses.push(out.clone());
         if report {
             let percent = (i + 1) * 100 / n;
-            if percent != last_percent && percent % 5 == 0 {
+            if percent >= next_percent {
                 eprint!("\rretargeting: {percent:3}% ({}/{n} frames)", i + 1);
                 let _ = std::io::stderr().flush();
-                last_percent = percent;
+                next_percent = percent + 5;
             }
         }
     }
