@@ -195,14 +195,40 @@ pub struct TickContext {
 pub async fn run_tick(ctx: TickContext, mut shutdown: watch::Receiver<bool>) {
     let mut interval = tokio::time::interval(Duration::from_secs_f64(1.0 / ctx.rate_hz));
     interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let mut scratch: Vec<u8> = Vec::new();
-    let mut vmc_encoder = VmcEncoder::new();
-    let start = Instant::now();
+    let mut ticker = Ticker::new(ctx);
     loop {
         tokio::select! {
             _ = interval.tick() => {}
             _ = shutdown.changed() => break,
         }
+        ticker.tick();
+    }
+}
+
+/// The body of one tick, with its reused buffers. Separate from [`run_tick`] so it can be run
+/// synchronously (allocation test, benchmarks).
+pub struct Ticker {
+    ctx: TickContext,
+    scratch: Vec<u8>,
+    vmc_encoder: VmcEncoder,
+    start: Instant,
+}
+
+impl Ticker {
+    /// A ticker over `ctx`.
+    pub fn new(ctx: TickContext) -> Ticker {
+        Ticker {
+            ctx,
+            scratch: Vec::new(),
+            vmc_encoder: VmcEncoder::new(),
+            start: Instant::now(),
+        }
+    }
+
+    /// Encodes and publishes the latest frame of every subject (and VMC). Allocates exactly one
+    /// shared buffer per subject that has produced a frame; nothing else once warmed up.
+    pub fn tick(&mut self) {
+        let ctx = &self.ctx;
         let tick_start = Instant::now();
         let send_nanos = unix_nanos();
         for (index, subject) in ctx.subjects.iter().enumerate() {
@@ -219,7 +245,7 @@ pub async fn run_tick(ctx: TickContext, mut shutdown: watch::Receiver<bool>) {
                 missed_frames: 0,
             };
             encode_frame(
-                &mut scratch,
+                &mut self.scratch,
                 &header,
                 frame.pose.root_translation(),
                 &frame.pose.rotations,
@@ -236,8 +262,8 @@ pub async fn run_tick(ctx: TickContext, mut shutdown: watch::Receiver<bool>) {
                             translation,
                             rotation,
                         });
-                    let time = start.elapsed().as_secs_f32();
-                    for bundle in vmc_encoder.encode(time, bones) {
+                    let time = self.start.elapsed().as_secs_f32();
+                    for bundle in self.vmc_encoder.encode(time, bones) {
                         for t in targets.iter().filter(|t| t.subject_index == index) {
                             // Non-blocking: a full socket buffer drops the datagram (counted)
                             // instead of stalling the tick.
@@ -249,8 +275,9 @@ pub async fn run_tick(ctx: TickContext, mut shutdown: watch::Receiver<bool>) {
                 }
             }
             drop(frame);
-            // The one allocation per subject per tick: the shared, immutable frame.
-            let bytes = Bytes::copy_from_slice(&scratch);
+            // The one allocation per subject per tick: the shared, immutable frame, which must
+            // outlive the tick because client tasks send it later.
+            let bytes = Bytes::copy_from_slice(&self.scratch);
             // Err only means "no client connected right now".
             let _ = ctx.frames.send(OutFrame {
                 subject: subject.info.id,

@@ -1,0 +1,83 @@
+//! The tick allocates exactly one shared buffer per subject per tick in steady state (frame
+//! encoding, VMC encoding and sending, broadcast and stats reuse their memory). Proven with a
+//! counting global allocator, so this file holds only this test.
+#![allow(clippy::unwrap_used)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
+use rigcast_server::stats::Stats;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn tick_allocates_one_buffer_per_subject() {
+    let clip = rigcast_server::demo::procedural_clip(30, 30.0).unwrap();
+    let mut subjects = Vec::new();
+    let mut senders = Vec::new();
+    for id in 0..3u32 {
+        let (s, tx) = Subject::new(id, format!("s{id}"), clip.skeleton.clone());
+        tx.send_modify(|f| {
+            f.pose.copy_from(&clip.poses[id as usize]);
+            f.seq = 1;
+            f.capture_nanos = 1;
+        });
+        subjects.push(Arc::new(s));
+        senders.push(tx);
+    }
+    let (frames, mut rx) = tokio::sync::broadcast::channel(1024);
+    let receiver = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket.set_nonblocking(true).unwrap();
+    let mut ticker = Ticker::new(TickContext {
+        subjects: Arc::new(subjects),
+        frames,
+        stats: Arc::new(Stats::default()),
+        rate_hz: 60.0,
+        vmc: Some((
+            socket,
+            vec![VmcTarget {
+                addr: receiver.local_addr().unwrap(),
+                subject_index: 0,
+            }],
+        )),
+    });
+    // Warm up: buffers grow to size.
+    for _ in 0..3 {
+        ticker.tick();
+    }
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    const TICKS: usize = 100;
+    for _ in 0..TICKS {
+        ticker.tick();
+    }
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    assert_eq!(
+        allocations,
+        TICKS * 3,
+        "one shared frame per subject per tick"
+    );
+    // The frames went out.
+    assert!(rx.try_recv().is_ok());
+}
