@@ -12,7 +12,7 @@ use glam::{Vec2, Vec3};
 
 use super::error::VisionError;
 use super::frame::RgbFrame;
-use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
+use super::landmarks::{idx, Landmarks};
 use super::model::LandmarkModel;
 use super::roi::Roi;
 
