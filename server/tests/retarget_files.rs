@@ -13,9 +13,10 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 use retarget_fixtures::{angle_deg, hip_height, positions, Axes, Humanoid};
+use rigcast_retarget::corpus;
 use rigcast_retarget::mapping::{BoneOptions, MappingTable, SourceRef, TargetEntry};
 use rigcast_retarget::{Clip, Pose, RawSkeleton, RetargetOptions, Skeleton, Transform};
-use rigcast_server::cmd::retarget::{retarget_clip, run, RetargetArgs};
+use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip, run, RetargetArgs};
 
 fn data(name: &str) -> Option<PathBuf> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -125,8 +126,8 @@ struct Case<'a> {
     /// (segment, target from, target to), parallel to `CMU_SEGMENTS`.
     segments: Vec<(String, String)>,
     hips: String,
-    /// Per side (left, right), the foot joints matching `CMU_FEET`.
-    feet: [[String; 2]; 2],
+    /// Per side (left, right), foot joints as (target joint, CMU joint) pairs.
+    feet: [Vec<(String, &'static str)>; 2],
     /// Standing hip height above the toe joints, known from how the target was built.
     hip_height: f32,
 }
@@ -233,10 +234,8 @@ fn check(clip: &Clip, case: Case) {
     let mut src_floor = f32::INFINITY;
     for p in &clip.poses {
         let ps = positions(src, p);
-        for side in &CMU_FEET {
-            for n in side {
-                src_floor = src_floor.min(ps[src.bone(n).expect("toe").index()].y);
-            }
+        for (_, n) in case.feet.iter().flatten() {
+            src_floor = src_floor.min(ps[src.bone(n).expect("toe").index()].y);
         }
     }
     let rest = positions(&case.target, &case.target.rest_pose());
@@ -246,28 +245,28 @@ fn check(clip: &Clip, case: Case) {
         .feet
         .iter()
         .flatten()
-        .map(|n| rest[case.target.bone(n).expect("toe").index()].y)
+        .map(|(n, _)| rest[case.target.bone(n).expect("toe").index()].y)
         .fold(f32::INFINITY, f32::min);
     let floor_t = if rest_floor.abs() < 0.2 {
         rest_floor
     } else {
         ratio * src_floor
     };
-    for (t_side, s_side) in case.feet.iter().zip(&CMU_FEET) {
-        let low_t = t_side
+    for side in &case.feet {
+        let low_t = side
             .iter()
-            .map(|n| first[case.target.bone(n).expect("toe").index()].y)
+            .map(|(n, _)| first[case.target.bone(n).expect("toe").index()].y)
             .fold(f32::INFINITY, f32::min);
-        let low_s = s_side
+        let low_s = side
             .iter()
-            .map(|n| src_first[src.bone(n).expect("toe").index()].y)
+            .map(|(_, n)| src_first[src.bone(n).expect("toe").index()].y)
             .fold(f32::INFINITY, f32::min);
         let expected = floor_t + ratio * (low_s - src_floor);
         let err = (low_t - expected).abs();
         println!(
             "{}: {} at frame 0: {:.2} cm above its floor, expected {:.2} cm (error {:.2} cm)",
             case.name,
-            t_side[0],
+            side[0].0,
             (low_t - floor_t) * 100.0,
             (expected - floor_t) * 100.0,
             err * 100.0
@@ -276,13 +275,18 @@ fn check(clip: &Clip, case: Case) {
             err < 0.01,
             "{}: {} is {err} m off at frame 0",
             case.name,
-            t_side[0]
+            side[0].0
         );
     }
 }
 
 /// Per side, the CMU foot joints whose lowest touches the floor.
 const CMU_FEET: [[&str; 2]; 2] = [["LeftToe", "LeftToe_end"], ["RightToe", "RightToe_end"]];
+
+/// Foot pairs for a target with the same foot joints as CMU under other names.
+fn feet_like_cmu(names: impl Fn(&str) -> String) -> [Vec<(String, &'static str)>; 2] {
+    CMU_FEET.map(|side| side.iter().map(|&n| (names(n), n)).collect())
+}
 
 /// Straight-leg hip height of a CMU skeleton from its offsets, both legs averaged.
 fn cmu_hip_height(src: &Skeleton) -> f32 {
@@ -374,7 +378,7 @@ fn cmu_walk_onto_an_a_pose_variant_of_itself() {
                 .map(|(_, a, b)| (a.to_string(), b.to_string()))
                 .collect(),
             hips: "Hips".into(),
-            feet: CMU_FEET.map(|side| side.map(String::from)),
+            feet: feet_like_cmu(|n: &str| n.to_string()),
             hip_height: standing,
             target,
             table,
@@ -404,8 +408,7 @@ fn humanoid_case<'a>(name: &'a str, clip: &Clip, spec: Humanoid) -> Case<'a> {
             .map(|(_, a, b)| (canon(a), canon(b)))
             .collect(),
         hips: format!("{}hips", spec.prefix),
-        feet: ["l", "r"]
-            .map(|side| ["toe", "toe_end"].map(|j| format!("{}{side}_{j}", spec.prefix))),
+        feet: feet_like_cmu(canon),
         hip_height: hip_height(&spec),
         target,
         table,
@@ -413,7 +416,7 @@ fn humanoid_case<'a>(name: &'a str, clip: &Clip, spec: Humanoid) -> Case<'a> {
 }
 
 #[test]
-fn cmu_walk_onto_mixamo_ue_and_rigify_like_humanoids() {
+fn cmu_walk_onto_generated_humanoids_of_other_proportions_and_units() {
     let Some(clip) = walk() else { return };
     let mixamo = Humanoid {
         prefix: "mixamorig:",
@@ -605,6 +608,73 @@ fn retarget_command_writes_the_target_skeleton() {
     .expect_err("missing file");
     assert!(format!("{err:#}").contains("missing.bvh"), "{err:#}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The acceptance targets proper: the corpus's Mixamo-, UE- and Rigify-like humanoids (with
+/// fingers, twist and helper bones) in T-pose and A-pose, mapped by the automatic mapper.
+#[test]
+fn cmu_walk_onto_corpus_mixamo_ue_rigify_t_and_a_poses() {
+    let Some(clip) = walk() else { return };
+    for name in [
+        "mixamo",
+        "mixamo_apose",
+        "unreal",
+        "unreal_apose",
+        "rigify",
+        "rigify_apose",
+    ] {
+        let entry = corpus::get(name).unwrap_or_else(|| panic!("corpus has {name}"));
+        let target = entry.skeleton.clone();
+        let by_label = |label: &str| -> Option<String> {
+            target
+                .bone_ids()
+                .find(|b| entry.labels[b.index()] == label)
+                .map(|b| target.name(b).to_string())
+        };
+        let need = |label: &str| by_label(label).unwrap_or_else(|| panic!("{name}: no {label}"));
+        let target_clip =
+            Clip::new(name, Arc::new(target.clone()), vec![], 1.0 / 30.0).expect("clip");
+        let plan = plan_mapping(&clip, &target_clip, None).expect("automatic mapping");
+        let mut segments = Vec::new();
+        for side in ["left", "right"] {
+            for (a, b) in [
+                ("upper_arm", "lower_arm"),
+                ("lower_arm", "hand"),
+                ("upper_leg", "lower_leg"),
+                ("lower_leg", "foot"),
+                ("foot", "toes"),
+            ] {
+                segments.push((need(&format!("{side}_{a}")), need(&format!("{side}_{b}"))));
+            }
+        }
+        // CMU_SEGMENTS lists left then right in the same order.
+        let rest = positions(&target, &target.rest_pose());
+        let y = |n: &str| rest[target.bone(n).expect("bone").index()].y;
+        let (lt, rt) = (need("left_toes"), need("right_toes"));
+        let hip_height = y(&need("hips")) - (y(&lt) + y(&rt)) / 2.0;
+        let side_feet = |side: &str, cmu: [&'static str; 2]| {
+            let mut v = vec![(need(&format!("{side}_toes")), cmu[0])];
+            if let Some(end) = by_label(&format!("{side}_toe_end")) {
+                v.push((end, cmu[1]));
+            }
+            v
+        };
+        check(
+            &clip,
+            Case {
+                name,
+                segments,
+                hips: need("hips"),
+                feet: [
+                    side_feet("left", CMU_FEET[0]),
+                    side_feet("right", CMU_FEET[1]),
+                ],
+                hip_height,
+                target,
+                table: plan.table,
+            },
+        );
+    }
 }
 
 /// The whole offline path on real files with different conventions, mapped by the automatic
