@@ -427,16 +427,15 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let mut cue = 0.0f32;
     for l in limbs.iter().filter(|l| l.ground && l.members.len() == 2) {
         for &(m, _) in &l.members {
-            let mut sum = Vec3::ZERO;
-            let mut k = 0.0;
-            for b in ctx.subtree(m) {
-                if ctx.h(b) < ground + 0.12 * hext {
-                    sum += pos[b.index()];
-                    k += 1.0;
+            // Segments ending near the ground: the foot (ankle → toes) points forward. The
+            // whole leg may lean either way in a rest pose, so only these segments count.
+            for b in ctx.subtree(m).skip(1) {
+                if ctx.h(b) >= ground + 0.12 * hext {
+                    continue;
                 }
-            }
-            if k > 0.0 {
-                cue += (sum / k - pos[m.index()]).dot(fwd0);
+                if let Some(p) = skel.parent(b) {
+                    cue += (pos[b.index()] - pos[p.index()]).dot(fwd0);
+                }
             }
         }
     }
@@ -660,6 +659,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
                 &limbs,
                 &kinds,
                 leg_len(&ctx, &limbs, &kinds),
+                uses_end_joints(&ctx, &limbs, &kinds, ground, hext),
             );
             for (j, &b) in head.iter().enumerate() {
                 let role = if j < head_idx {
@@ -703,6 +703,8 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         let limb_index = counters[slot];
         counters[slot] = counters[slot].saturating_add(1);
         match kind {
+            // Arms that reach the ground are a quadruped's front legs.
+            LimbKind::Arm if l.ground => humanoid_arms += 10,
             LimbKind::Arm => humanoid_arms += 1,
             LimbKind::Leg => humanoid_legs += 1,
             _ => {}
@@ -783,7 +785,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         sections,
         roles,
         names,
-        humanoid: humanoid_legs == 2 && humanoid_arms == 2,
+        humanoid: humanoid_legs == 1 && humanoid_arms == 1,
         main_child,
     }
 }
@@ -833,15 +835,6 @@ fn limb_roles(
         LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
         _ => (SectionKind::Arm, SectionKind::Hand),
     };
-    if std::env::var("RIGCAST_DEBUG_FIT").is_ok() {
-        eprintln!(
-            "fit {:?} lengths {:?} fixed {:?} -> {:?}",
-            ctx.skel.name(m),
-            lengths,
-            fixed,
-            fit_chain(&lengths, &dirs, fixed, ratio)
-        );
-    }
     let Some(split) = fit_chain(&lengths, &dirs, fixed, ratio) else {
         let si = add_section(
             sections,
@@ -1177,7 +1170,7 @@ fn make_limb(
         parent,
         members,
         reach: reach / k,
-        ground: low < ground + 0.1 * hext,
+        ground: low < ground + 0.2 * hext,
         height: height / k,
     }
 }
@@ -1248,6 +1241,36 @@ fn leg_len(ctx: &Ctx<'_>, limbs: &[Limb], kinds: &[LimbKind]) -> Option<f32> {
         .filter(|r| *r > 1e-4 * ctx.size)
 }
 
+/// Whether the legs end in end joints: a leaf lying level with its parent on the ground (a
+/// toe tip after the toe base), as opposed to a toe joint below the ankle. `None` without legs.
+fn uses_end_joints(
+    ctx: &Ctx<'_>,
+    limbs: &[Limb],
+    kinds: &[LimbKind],
+    ground: f32,
+    hext: f32,
+) -> Option<bool> {
+    let mut seen = None;
+    for (l, k) in limbs.iter().zip(kinds) {
+        if *k != LimbKind::Leg {
+            continue;
+        }
+        for &(m, _) in &l.members {
+            let chain = ctx.topo.chain(m);
+            if chain.len() < 3 {
+                continue;
+            }
+            let leaf = chain[chain.len() - 1];
+            let parent = chain[chain.len() - 2];
+            let level = (ctx.h(leaf) - ctx.h(parent)).abs() < 0.02 * hext;
+            let low = ctx.h(parent) < ground + 0.05 * hext;
+            let ends = level && low;
+            seen = Some(seen.unwrap_or(false) || ends);
+        }
+    }
+    seen
+}
+
 /// Which bone of the head section is the head: where eyes or a jaw attach, else the last bone
 /// unless it is an end joint (by name, or by being too long for a neck-to-head segment).
 fn head_index(
@@ -1257,6 +1280,7 @@ fn head_index(
     limbs: &[Limb],
     kinds: &[LimbKind],
     leg: Option<f32>,
+    end_joints: Option<bool>,
 ) -> usize {
     for (j, &b) in head.iter().enumerate() {
         let has_pair = limbs
@@ -1283,6 +1307,11 @@ fn head_index(
     // A bone named as the head is the head, however long the neck before it (the Fox).
     if nm.tokens.iter().any(|t| t == "head") {
         return last;
+    }
+    // Exporters that write end joints (BVH End Sites, Mixamo `_End`) write them everywhere:
+    // if the toes have one, so has the head.
+    if let Some(ends) = end_joints {
+        return if ends { last - 1 } else { last };
     }
     let seg = (ctx.pos[head[last].index()] - ctx.pos[head[last - 1].index()]).length();
     let limit = leg.map(|l| 0.14 * l).unwrap_or(0.07 * ctx.size);

@@ -306,7 +306,13 @@ pub fn dragon() -> Builder {
     }
     let head_pos = b.world_pos[p] + vec3(0.0, 0.15, 0.15);
     let head = b.add("head", Some(p), head_pos, "head");
-    b.add("jaw", Some(head), head_pos + vec3(0.0, -0.1, 0.1), "jaw");
+    let jaw = b.add("jaw", Some(head), head_pos + vec3(0.0, -0.1, 0.1), "jaw");
+    b.add(
+        "jaw_end",
+        Some(jaw),
+        head_pos + vec3(0.0, -0.15, 0.55),
+        "helper",
+    );
     b.add(
         "head_end",
         Some(head),
@@ -349,7 +355,7 @@ pub fn dragon() -> Builder {
             ),
         ];
         let foot = chain(&mut b, pelvis, &hind);
-        claws(&mut b, foot, left, "hind", 4);
+        claws(&mut b, foot, left, "hind", 3);
         let front = vec![
             (
                 format!("shoulder.{s}"),
