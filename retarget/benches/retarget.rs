@@ -1,7 +1,7 @@
 //! Retargeting benchmarks on the fixed workloads of `rigcast_retarget::retarget::workloads`
-//! (the same ones `rigcast bench` runs): per-frame apply for a 65-bone humanoid ← 31-bone
-//! CMU-style source and a 187-bone creature ← humanoid, FK of the 65-bone humanoid, and
-//! mapping build.
+//! (the same ones `rigcast bench` runs): per-frame apply for the corpus's 65-bone humanoid ←
+//! 31-bone CMU skeleton and 187-bone creature ← humanoid, FK of the 65-bone humanoid, and
+//! `Mapping::build` (the automatic mapping itself is benchmarked in `benches/mapping.rs`).
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use rigcast_retarget::retarget::workloads::{creature_from_humanoid, humanoid_from_cmu, Workload};
 use rigcast_retarget::{forward_kinematics, Mapping, RetargetOptions, WorldTransform};
@@ -27,8 +27,8 @@ fn per_frame(c: &mut Criterion, name: &str, w: &Workload) {
 }
 
 fn bench(c: &mut Criterion) {
-    let humanoid = humanoid_from_cmu();
-    let creature = creature_from_humanoid();
+    let humanoid = humanoid_from_cmu().expect("corpus builds");
+    let creature = creature_from_humanoid().expect("corpus builds");
     per_frame(c, "retarget_humanoid65_from_cmu31", &humanoid);
     per_frame(c, "retarget_creature187_from_humanoid65", &creature);
 

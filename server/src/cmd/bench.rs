@@ -1,12 +1,13 @@
 //! `rigcast bench [--json]`: measures the realtime path on this machine in a few seconds.
 //!
 //! Fixed workloads (`rigcast_retarget::retarget::workloads`, the same as the criterion
-//! benches in `retarget/benches/retarget.rs`):
+//! benches in `retarget/benches/retarget.rs`; skeletons from `rigcast_retarget::corpus`, mapped
+//! by the automatic mapper before timing starts):
 //!
 //! | name | what one iteration does |
 //! |---|---|
-//! | `retarget_humanoid65_from_cmu31` | `Mapping::apply`: 65-bone A-pose humanoid ← 31-bone CMU-style pose |
-//! | `retarget_creature187_from_humanoid65` | `Mapping::apply`: 187-bone creature ← 65-bone humanoid (tail with delays) |
+//! | `retarget_humanoid65_from_cmu31` | `Mapping::apply`: 65-bone Mixamo-style humanoid ← 31-bone CMU pose |
+//! | `retarget_creature187_from_humanoid65` | `Mapping::apply`: 187-bone creature ← 65-bone humanoid pose |
 //! | `fk_humanoid65` | forward kinematics of the 65-bone humanoid |
 //! | `mapping_build_humanoid65_from_cmu31` | `Mapping::build` for the first workload |
 //! | `frame_encode_humanoid65` | binary pose frame encode of 65 bones (into a reused buffer) |
@@ -16,6 +17,7 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+use anyhow::anyhow;
 use clap::Args;
 use rigcast_protocol::frame::{encode_frame, FrameHeader};
 use rigcast_retarget::retarget::workloads::{creature_from_humanoid, humanoid_from_cmu, Workload};
@@ -101,8 +103,10 @@ fn apply_bench(name: &'static str, w: &Workload, budget: Duration) -> anyhow::Re
 /// Runs every workload (about 3 seconds in total).
 pub fn measure_all() -> anyhow::Result<Vec<Measurement>> {
     let budget = Duration::from_millis(600);
-    let humanoid = humanoid_from_cmu();
-    let creature = creature_from_humanoid();
+    let humanoid =
+        humanoid_from_cmu().ok_or_else(|| anyhow!("the benchmark corpus did not build"))?;
+    let creature =
+        creature_from_humanoid().ok_or_else(|| anyhow!("the benchmark corpus did not build"))?;
     let mut results = vec![
         apply_bench("retarget_humanoid65_from_cmu31", &humanoid, budget)?,
         apply_bench("retarget_creature187_from_humanoid65", &creature, budget)?,
