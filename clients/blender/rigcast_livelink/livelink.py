@@ -252,6 +252,11 @@ class Runtime:
             obj = item.armature
             if frame is None or obj is None or obj.type != "ARMATURE" or not item.live:
                 continue
+            stats = self.stats[item.subject_id]
+            if frame.seq == stats.last_seq:
+                # The server re-sends the newest frame when its tick outpaces the source; the
+                # pose is unchanged, so neither apply nor record it again.
+                continue
             binding = self.binding_for(item.subject_id, obj)
             if binding is None:
                 continue
@@ -264,7 +269,6 @@ class Runtime:
                 )
                 continue
             binding.apply(frame)
-            stats = self.stats[item.subject_id]
             stats.apply_times.append(now)
             stats.num_applied += 1
             stats.last_seq = frame.seq
