@@ -40,6 +40,10 @@ pub enum Command {
     Bench(cmd::bench::BenchArgs),
     /// Map the bones of SOURCE onto TARGET automatically (table, or --json).
     Map(cmd::map::MapArgs),
+    /// Extract BlazePose landmarks (--json) and/or BVH motion (-o) from a video offline.
+    Pose(cmd::pose::PoseArgs),
+    /// Install optional components (`rigcast setup vision`).
+    Setup(cmd::setup::SetupArgs),
 }
 
 impl Command {
@@ -53,6 +57,8 @@ impl Command {
             Command::Retarget(a) => cmd::retarget::run(&a),
             Command::Bench(a) => cmd::bench::run(&a),
             Command::Map(a) => cmd::map::run(&a),
+            Command::Pose(a) => cmd::pose::run(&a),
+            Command::Setup(a) => cmd::setup::run(&a),
         }
     }
 }

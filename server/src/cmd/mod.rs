@@ -4,6 +4,8 @@ pub mod bench;
 pub mod convert;
 pub mod info;
 pub mod map;
+pub mod pose;
 pub mod record;
 pub mod retarget;
 pub mod serve;
+pub mod setup;

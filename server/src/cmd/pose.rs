@@ -1,0 +1,203 @@
+//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy]`: offline pose
+//! extraction from a video file or image sequence, with progress on standard error.
+//!
+//! `--json` prints exactly one JSON object on standard output:
+//! `{"fps", "frames": [{"time_secs", "image", "world"}]}` — `image` is 33 × `[x, y, z,
+//! visibility]` in pixels of the input (z in the same pixel scale, smaller = nearer), `world`
+//! is 33 × `[x, y, z]` metres, hip-centred, in BlazePose's axes (x right in the image, y down,
+//! z away from the camera); both `null` for frames without a person. `-o` writes the motion
+//! as BVH on the BlazePose source skeleton (frames without a person hold the last pose).
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::Args;
+use rigcast_retarget::{Clip, Pose};
+use rigcast_sources::vision::{
+    FfmpegSource, FrameSource, Landmarks, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
+    NUM_LANDMARKS,
+};
+
+/// Options of `rigcast pose`.
+#[derive(Debug, Args)]
+pub struct PoseArgs {
+    /// Video file (H.264, VP9, MJPEG, … anything ffmpeg decodes), a directory of images, or a
+    /// printf pattern such as `frames/%04d.png`.
+    pub video: PathBuf,
+    /// Print the landmarks as one JSON object on standard output.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the motion as BVH on the BlazePose source skeleton.
+    #[arg(short = 'o', long = "output", value_name = "OUT.bvh")]
+    pub output: Option<PathBuf>,
+    /// Landmark model.
+    #[arg(long, default_value = "lite", value_parser = parse_model)]
+    pub model: ModelKind,
+    /// Frame rate of an image sequence (videos carry their own).
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f64,
+}
+
+fn parse_model(s: &str) -> Result<ModelKind, String> {
+    s.parse()
+}
+
+/// Runs the extraction.
+pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
+    if !args.json && args.output.is_none() {
+        anyhow::bail!("nothing to do: pass --json and/or -o OUT.bvh");
+    }
+    let mut source = if args.video.is_dir() || args.video.to_string_lossy().contains('%') {
+        FfmpegSource::open_sequence(&args.video, args.fps)?
+    } else {
+        FfmpegSource::open_video(&args.video)?
+    };
+    let fps = source.fps().unwrap_or(args.fps);
+    let config = PipelineConfig {
+        model: args.model,
+        ..PipelineConfig::default()
+    };
+    let mut pipeline = PosePipeline::new(&config)?;
+    let skeleton = Arc::clone(pipeline.skeleton());
+    let mut pose = skeleton.rest_pose();
+    let mut poses: Vec<Pose> = Vec::new();
+
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    if args.json {
+        write!(out, "{{\"fps\":{},\"frames\":[", json_number(fps))?;
+    }
+    let mut frame = RgbFrame::default();
+    let started = Instant::now();
+    let (mut num_frames, mut num_found) = (0u64, 0u64);
+    let mut line = String::new();
+    while source.next_frame(&mut frame)? {
+        let landmarks = pipeline.process(&frame, &mut pose)?;
+        if landmarks.is_some() {
+            num_found += 1;
+        }
+        if args.json {
+            line.clear();
+            frame_json(frame.time_secs, landmarks, &mut line);
+            if num_frames > 0 {
+                out.write_all(b",")?;
+            }
+            out.write_all(line.as_bytes())?;
+        }
+        if args.output.is_some() {
+            poses.push(pose.clone());
+        }
+        num_frames += 1;
+        if num_frames % 30 == 0 {
+            eprintln!(
+                "pose: frame {num_frames} ({:.1} s of video), person in {num_found}, {:.1} fps",
+                frame.time_secs,
+                num_frames as f64 / started.elapsed().as_secs_f64()
+            );
+        }
+    }
+    if args.json {
+        out.write_all(b"]}\n")?;
+    }
+    out.flush()?;
+    eprintln!(
+        "pose: {num_frames} frames, person in {num_found}, {:.1} s ({:.1} fps), {:?}",
+        started.elapsed().as_secs_f64(),
+        num_frames as f64 / started.elapsed().as_secs_f64().max(1e-9),
+        pipeline.stats()
+    );
+    if let Some(path) = &args.output {
+        if poses.is_empty() {
+            anyhow::bail!(
+                "{}: no frames decoded, nothing to write",
+                args.video.display()
+            );
+        }
+        let name = args
+            .video
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "pose".into());
+        let clip = Clip::new(name, skeleton, poses, 1.0 / fps)?;
+        rigcast_sources::save_clip(path, &clip)
+            .with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("pose: wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// JSON has no NaN/infinity; a non-finite value becomes 0 (never produced by the model in
+/// practice, but the output must stay parseable).
+fn json_number(v: f64) -> String {
+    if v.is_finite() {
+        format!("{}", (v * 1e5).round() / 1e5)
+    } else {
+        "0".into()
+    }
+}
+
+fn frame_json(time_secs: f64, landmarks: Option<&Landmarks>, out: &mut String) {
+    use std::fmt::Write as _;
+    let _ = write!(out, "{{\"time_secs\":{}", json_number(time_secs));
+    match landmarks {
+        None => out.push_str(",\"image\":null,\"world\":null}"),
+        Some(lm) => {
+            out.push_str(",\"image\":[");
+            for (i, p) in lm.image.iter().take(NUM_LANDMARKS).enumerate() {
+                if i > 0 {
+                    out.push(',');
+                }
+                let _ = write!(
+                    out,
+                    "[{},{},{},{}]",
+                    json_number(p.x as f64),
+                    json_number(p.y as f64),
+                    json_number(p.z as f64),
+                    json_number(p.w as f64)
+                );
+            }
+            out.push_str("],\"world\":[");
+            for (i, p) in lm.world.iter().take(NUM_LANDMARKS).enumerate() {
+                if i > 0 {
+                    out.push(',');
+                }
+                let _ = write!(
+                    out,
+                    "[{},{},{}]",
+                    json_number(p.x as f64),
+                    json_number(p.y as f64),
+                    json_number(p.z as f64)
+                );
+            }
+            out.push_str("]}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_json_is_valid_with_and_without_a_person() {
+        let mut s = String::new();
+        frame_json(0.5, None, &mut s);
+        let v: serde_json::Value = serde_json::from_str(&s).unwrap();
+        assert!(v["image"].is_null() && v["world"].is_null());
+        assert_eq!(v["time_secs"], 0.5);
+
+        let mut lm = Landmarks::default();
+        lm.image[32] = glam::Vec4::new(10.0, 20.0, -3.0, 0.9);
+        lm.world[0] = glam::Vec3::new(f32::NAN, 0.1, 0.2);
+        s.clear();
+        frame_json(1.0, Some(&lm), &mut s);
+        let v: serde_json::Value = serde_json::from_str(&s).unwrap();
+        assert_eq!(v["image"].as_array().unwrap().len(), 33);
+        assert_eq!(v["world"].as_array().unwrap().len(), 33);
+        assert_eq!(v["image"][32][1], 20.0);
+        assert_eq!(v["world"][0][0], 0);
+    }
+}
