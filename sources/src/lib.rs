@@ -26,6 +26,8 @@ pub mod replay;
 pub mod live;
 pub mod serial;
 pub mod vmc_in;
+#[cfg(feature = "vision")]
+pub mod vision;
 mod files;
 
 pub use demo::embedded_demo;
