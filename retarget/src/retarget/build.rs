@@ -1,0 +1,350 @@
+//! `Mapping::build`: everything per-frame code needs, computed once from the skeletons'
+//! reference postures and the mapping table.
+
+use glam::{Quat, Vec3};
+
+use super::root::{RootPlan, Side};
+use super::{align, BonePlan, History, Link, Mapping, RetargetOptions, NO_END};
+use crate::error::RetargetError;
+use crate::fk::{world_transforms, WorldTransform};
+use crate::mapping::{BoneOptions, MappingTable, SourceRef};
+use crate::pose::Pose;
+use crate::skeleton::{BoneId, Skeleton};
+
+fn reference_pose(skel: &Skeleton, given: Option<&Pose>) -> Result<Pose, RetargetError> {
+    match given {
+        Some(p) => {
+            p.check(skel)?;
+            Ok(p.clone())
+        }
+        None => Ok(skel.rest_pose()),
+    }
+}
+
+/// The first source with a positive weight.
+pub(super) fn primary(table: &MappingTable, t: BoneId) -> Option<SourceRef> {
+    table
+        .get(t)
+        .and_then(|e| e.sources.iter().find(|s| s.weight > 0.0).copied())
+}
+
+/// Checks what `build` cannot work without.
+fn validate(
+    sources: &[&Skeleton],
+    target: &Skeleton,
+    table: &MappingTable,
+    opts: &RetargetOptions,
+) -> Result<(), RetargetError> {
+    if sources.is_empty() {
+        return Err(RetargetError::InvalidMapping {
+            reason: "at least one source skeleton is needed".into(),
+        });
+    }
+    if sources.len() > u16::MAX as usize {
+        return Err(RetargetError::InvalidMapping {
+            reason: format!("{} source inputs; at most 65535", sources.len()),
+        });
+    }
+    table.validate(sources, target)?;
+    if !(opts.frame_time_secs.is_finite() && opts.frame_time_secs > 0.0) {
+        return Err(RetargetError::BadFrameTime {
+            frame_time_secs: opts.frame_time_secs as f64,
+        });
+    }
+    if let Some(s) = opts.root_scale {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(RetargetError::InvalidMapping {
+                reason: format!("root scale {s} is not a positive finite number"),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Both sides in their reference postures, and what `build` derives from them.
+struct Setup<'a> {
+    sources: &'a [&'a Skeleton],
+    target: &'a Skeleton,
+    table: &'a MappingTable,
+    opts: &'a RetargetOptions,
+    src_ref: Vec<Pose>,
+    src_w: Vec<Vec<WorldTransform>>,
+    src_eps: Vec<f32>,
+    tgt_w: Vec<WorldTransform>,
+    tgt_eps: f32,
+    /// Turns the target's facing onto the source's.
+    yaw: Quat,
+    max_delay_frames: u32,
+}
+
+/// A target bone's segment in its reference posture.
+struct TargetSegment {
+    /// The nearest mapped descendant continuing the chain (the direction fix aims at it).
+    mapped_end: Option<BoneId>,
+    /// Unit direction of the segment (to `mapped_end`, else to the most chain-like child).
+    direction: Vec3,
+    /// The next mapped segment's end, and that segment's direction (the bend plane).
+    next_end: Option<BoneId>,
+    bend: Vec3,
+}
+
+impl<'a> Setup<'a> {
+    fn new(
+        sources: &'a [&'a Skeleton],
+        target: &'a Skeleton,
+        table: &'a MappingTable,
+        opts: &'a RetargetOptions,
+    ) -> Result<Setup<'a>, RetargetError> {
+        let mut src_ref = Vec::with_capacity(sources.len());
+        for (i, s) in sources.iter().enumerate() {
+            let given = opts.source_reference.get(i).and_then(Option::as_ref);
+            src_ref.push(reference_pose(s, given)?);
+        }
+        let tgt_ref = reference_pose(target, opts.target_reference.as_ref())?;
+        let src_w: Vec<Vec<WorldTransform>> = sources
+            .iter()
+            .zip(&src_ref)
+            .map(|(s, p)| world_transforms(s, p))
+            .collect();
+        let tgt_w = world_transforms(target, &tgt_ref);
+        let mut setup = Setup {
+            sources,
+            target,
+            table,
+            opts,
+            src_eps: src_w.iter().map(|w| 1e-4 * align::extent(w)).collect(),
+            tgt_eps: 1e-4 * align::extent(&tgt_w),
+            src_ref,
+            src_w,
+            tgt_w,
+            yaw: Quat::IDENTITY,
+            max_delay_frames: (opts.max_delay_secs.max(0.0) / opts.frame_time_secs).round() as u32,
+        };
+        if opts.align_rest {
+            if let Some(root) = setup.root_pair() {
+                setup.yaw = setup.relative_yaw(root);
+            }
+        }
+        Ok(setup)
+    }
+
+    fn is_mapped(&self, t: BoneId) -> bool {
+        primary(self.table, t).is_some()
+    }
+
+    /// The shallowest mapped target bone (normally the hips) and its primary source.
+    fn root_pair(&self) -> Option<(BoneId, SourceRef)> {
+        self.target
+            .bone_ids()
+            .filter(|&t| self.is_mapped(t))
+            .min_by_key(|&t| (self.target.depth(t), t.0))
+            .and_then(|t| primary(self.table, t).map(|s| (t, s)))
+    }
+
+    /// Relative facing of the two characters, from all mapped pairs on the root's input.
+    fn relative_yaw(&self, (rt, rs): (BoneId, SourceRef)) -> Quat {
+        let w = &self.src_w[rs.input as usize];
+        let tw = &self.tgt_w;
+        let pairs: Vec<(Vec3, Vec3)> = self
+            .target
+            .bone_ids()
+            .filter_map(|t| {
+                let s = primary(self.table, t)?;
+                (s.input == rs.input).then(|| {
+                    (
+                        tw[t.index()].translation - tw[rt.index()].translation,
+                        w[s.bone.index()].translation - w[rs.bone.index()].translation,
+                    )
+                })
+            })
+            .collect();
+        align::relative_yaw(&pairs)
+    }
+
+    fn target_segment(&self, t: BoneId) -> TargetSegment {
+        let (skel, w, eps) = (self.target, &self.tgt_w, self.tgt_eps);
+        let mapped = |b: BoneId| self.is_mapped(b);
+        let mapped_end = align::chain_end(skel, w, t, eps, &mapped);
+        let any_end = mapped_end.or_else(|| align::chain_end(skel, w, t, eps, &|_| true));
+        let direction = match any_end {
+            Some(e) => align::direction(w, t, e),
+            None => align::leaf_direction(skel, w, t, eps),
+        };
+        let next_end = mapped_end.and_then(|e| align::chain_end(skel, w, e, eps, &mapped));
+        let bend = match (mapped_end, next_end) {
+            (Some(e), Some(e2)) => align::direction(w, e, e2),
+            _ => Vec3::ZERO,
+        };
+        TargetSegment {
+            mapped_end,
+            direction,
+            next_end,
+            bend,
+        }
+    }
+
+    /// The link from source bone `sref` to target bone `t`: the source joints matching the
+    /// target segment's ends, the rest alignment and the resulting offset.
+    fn link(
+        &self,
+        t: BoneId,
+        seg: &TargetSegment,
+        sref: &SourceRef,
+        total: f32,
+        options: &BoneOptions,
+    ) -> Link {
+        let input = sref.input as usize;
+        let (skel, w, eps) = (self.sources[input], &self.src_w[input], self.src_eps[input]);
+        let s = sref.bone;
+        // The source joint a mapped target joint corresponds to, if it lies below `from`.
+        let corresponding = |tb: Option<BoneId>, from: BoneId| {
+            let e = primary(self.table, tb?)?;
+            (e.input == sref.input && e.bone != from && align::is_descendant(skel, from, e.bone))
+                .then_some(e.bone)
+                .and_then(|e| align::distinct_end(skel, w, from, e, eps))
+        };
+        let s_end = corresponding(seg.mapped_end, s);
+        let s_any_end = s_end.or_else(|| align::chain_end(skel, w, s, eps, &|_| true));
+        let p_s = match s_any_end {
+            Some(e) => align::direction(w, s, e),
+            None => align::leaf_direction(skel, w, s, eps),
+        };
+        let bend_s = s_end
+            .and_then(|e| corresponding(seg.next_end, e).map(|e2| align::direction(w, e, e2)))
+            .unwrap_or(Vec3::ZERO);
+        let a = if self.opts.align_rest {
+            let p_t = self.yaw * seg.direction;
+            let bend_t = self.yaw * seg.bend;
+            // Twist from the bend plane when both limbs are bent at rest, else from a world axis
+            // (forward, side or up) that means the same on both once their facing agrees.
+            let swing_twist = if align::is_bent(p_t, bend_t) && align::is_bent(p_s, bend_s) {
+                align::align(p_t, bend_t, p_s, bend_s)
+            } else {
+                let axis = align::twist_axis(p_t, p_s);
+                align::align(p_t, axis, p_s, axis)
+            };
+            swing_twist * self.yaw
+        } else {
+            Quat::IDENTITY
+        };
+        let ws0 = w[s.index()].rotation;
+        let wt0 = self.tgt_w[t.index()].rotation;
+        let delay_frames = ((options.delay_secs.max(0.0) / self.opts.frame_time_secs).round()
+            as u32)
+            .min(self.max_delay_frames);
+        Link {
+            input: sref.input,
+            bone: s.0,
+            end: match (self.opts.match_directions, s_end) {
+                (true, Some(e)) => e.0,
+                _ => NO_END,
+            },
+            weight: sref.weight / total,
+            offset: (ws0.inverse() * a * wt0).normalize(),
+            delay_frames,
+        }
+    }
+
+    /// Per target bone: its plan and links (appended to `links`).
+    fn plan_bone(&self, t: BoneId, links: &mut Vec<Link>) -> BonePlan {
+        let rest_local = self.target.rest()[t.index()].rotation;
+        let mut plan = BonePlan {
+            first_link: links.len() as u32,
+            num_links: 0,
+            dir_local: Vec3::ZERO,
+            options: BoneOptions::default(),
+            rest_local,
+            aligned_local: rest_local,
+        };
+        let Some(entry) = self.table.get(t) else {
+            return plan;
+        };
+        let total: f32 = entry.sources.iter().map(|s| s.weight).sum();
+        if total <= 0.0 {
+            return plan;
+        }
+        plan.options = entry.options;
+        let seg = self.target_segment(t);
+        if self.opts.match_directions && seg.mapped_end.is_some() {
+            let wt0 = self.tgt_w[t.index()].rotation;
+            plan.dir_local = (wt0.inverse() * seg.direction).normalize_or_zero();
+        }
+        for sref in entry.sources.iter().filter(|s| s.weight > 0.0) {
+            links.push(self.link(t, &seg, sref, total, &entry.options));
+        }
+        plan.num_links = links.len() as u32 - plan.first_link;
+        plan
+    }
+}
+
+impl Mapping {
+    /// Precomputes a retargeting job. `sources[i]` is the skeleton of input `i` (the `input` of
+    /// a [`SourceRef`]); `table` has one entry per target bone. Fails when the table or a
+    /// reference pose does not fit the skeletons.
+    pub fn build(
+        sources: &[&Skeleton],
+        target: &Skeleton,
+        table: &MappingTable,
+        opts: &RetargetOptions,
+    ) -> Result<Mapping, RetargetError> {
+        validate(sources, target, table, opts)?;
+        let setup = Setup::new(sources, target, table, opts)?;
+        let mut links = Vec::new();
+        let bones: Vec<BonePlan> = target
+            .bone_ids()
+            .map(|t| setup.plan_bone(t, &mut links))
+            .collect();
+        let root = setup.root_pair().map(|(rt, rs)| {
+            let input = rs.input as usize;
+            RootPlan::new(
+                Side {
+                    skel: sources[input],
+                    worlds: &setup.src_w[input],
+                    eps: setup.src_eps[input],
+                },
+                Side {
+                    skel: target,
+                    worlds: &setup.tgt_w,
+                    eps: setup.tgt_eps,
+                },
+                table,
+                rt,
+                rs,
+                opts,
+            )
+        });
+        // History deep enough for the longest delay on each input.
+        let history = sources
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let longest = links
+                    .iter()
+                    .filter(|l| l.input as usize == i)
+                    .map(|l| l.delay_frames as usize)
+                    .max()
+                    .unwrap_or(0);
+                History::new(s.num_bones(), longest + 1)
+            })
+            .collect();
+
+        let mut mapping = Mapping {
+            sources: sources.iter().map(|s| (*s).clone()).collect(),
+            target: target.clone(),
+            bones,
+            links,
+            root,
+            history,
+            scratch: vec![WorldTransform::IDENTITY; target.num_bones()],
+        };
+        // The aligned rest: what the target shows while every source holds its reference.
+        let refs: Vec<&Pose> = setup.src_ref.iter().collect();
+        let mut aligned = target.rest_pose();
+        mapping.solve(&refs, &mut aligned, false);
+        for (plan, q) in mapping.bones.iter_mut().zip(&aligned.rotations) {
+            plan.aligned_local = *q;
+        }
+        mapping.reset();
+        Ok(mapping)
+    }
+}

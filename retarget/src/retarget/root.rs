@@ -1,0 +1,215 @@
+//! Root motion: where the target's root (hips) goes, and the foot-contact calibration that keeps
+//! feet on the floor across leg proportions.
+
+use glam::{Quat, Vec3};
+
+use super::build::primary;
+use super::{align, FootContact, Mapping, RetargetOptions, RootMotion};
+use crate::fk::WorldTransform;
+use crate::mapping::{MappingTable, SourceRef};
+use crate::pose::Pose;
+use crate::skeleton::{BoneId, Skeleton};
+
+/// Legs told apart by the foot-contact calibration (more share the last slot).
+const MAX_LEGS: usize = 8;
+
+/// How the target's root bone is placed.
+#[derive(Debug, Clone)]
+pub(super) struct RootPlan {
+    pub(super) bone: BoneId,
+    pub(super) input: u16,
+    pub(super) source_bone: BoneId,
+    pub(super) scale: f32,
+    pub(super) motion: RootMotion,
+    pub(super) source_floor_y: f32,
+    /// `None`: the target's rest does not show where its floor is; it then keeps the source's
+    /// floor clearance, scaled.
+    pub(super) target_floor_y: Option<f32>,
+    pub(super) reference_position: Vec3,
+    /// Source bones (of `input`) at the feet: what [`Mapping::measure_source_floor`] looks at.
+    pub(super) contact_bones: Vec<BoneId>,
+    /// (target, source) foot joint pairs for [`Mapping::place_feet`].
+    /// With the index of the leg (root child subtree) each belongs to, below `MAX_LEGS`.
+    pub(super) contacts: Vec<(BoneId, BoneId, u8)>,
+    pub(super) foot_contact: FootContact,
+    /// The `FirstFrame` correction, once measured.
+    pub(super) vertical_offset: Option<f32>,
+}
+
+/// One skeleton in its reference posture, for build-time measurements.
+#[derive(Clone, Copy)]
+pub(super) struct Side<'a> {
+    pub(super) skel: &'a Skeleton,
+    pub(super) worlds: &'a [WorldTransform],
+    pub(super) eps: f32,
+}
+
+/// The floor a reference posture stands on: its lowest foot joint when that is near y = 0 (a
+/// character authored standing on the ground); unknown for a rest floating at the origin (like
+/// CMU's, with the hips at y = 0).
+fn floor_from_reference(lowest_y: f32, leg_height: f32) -> Option<f32> {
+    (lowest_y.abs() <= 0.25 * leg_height).then_some(lowest_y)
+}
+
+impl RootPlan {
+    /// Hip-height ratio from each reference posture, measured down the legs to the lowest mapped
+    /// joints (averaged over both legs; falls back to the ratio of overall sizes), and floors.
+    pub(super) fn new(
+        src: Side<'_>,
+        tgt: Side<'_>,
+        table: &MappingTable,
+        rt: BoneId,
+        rs: SourceRef,
+        opts: &RetargetOptions,
+    ) -> RootPlan {
+        // Pairs below the root on both sides: the legs (and whatever else hangs from the hips).
+        let below: Vec<(BoneId, BoneId)> = tgt
+            .skel
+            .bone_ids()
+            .filter(|&t| t != rt && align::is_descendant(tgt.skel, rt, t))
+            .filter_map(|t| {
+                let s = primary(table, t)?;
+                (s.input == rs.input
+                    && s.bone != rs.bone
+                    && align::is_descendant(src.skel, rs.bone, s.bone))
+                .then_some((t, s.bone))
+            })
+            .collect();
+        let y_t = |b: BoneId| tgt.worlds[b.index()].translation.y;
+        let y_s = |b: BoneId| src.worlds[b.index()].translation.y;
+        let low = below
+            .iter()
+            .copied()
+            .min_by(|a, b| y_t(a.0).total_cmp(&y_t(b.0)));
+        let mut scale = align::extent(tgt.worlds) / align::extent(src.worlds);
+        let mut contacts = Vec::new();
+        let (mut floor_t, mut floor_s) = (None, None);
+        if let Some((tl, _)) = low {
+            let first = align::leg_height(tgt.skel, tgt.worlds, rt, tl, tgt.eps);
+            // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
+            let (mut sum_t, mut sum_s) = (0.0, 0.0);
+            for &(t, s) in below
+                .iter()
+                .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
+            {
+                let ht = align::leg_height(tgt.skel, tgt.worlds, rt, t, tgt.eps);
+                let hs = align::leg_height(src.skel, src.worlds, rs.bone, s, src.eps);
+                if ht > tgt.eps && hs > src.eps {
+                    sum_t += ht;
+                    sum_s += hs;
+                }
+            }
+            if sum_t > 0.0 && sum_s > 0.0 {
+                scale = sum_t / sum_s;
+            }
+            // Feet: mapped joints near the lowest one (toes, ankles, both sides).
+            let near = y_t(tl) + 0.15 * first;
+            let mut legs: Vec<BoneId> = Vec::new();
+            contacts = below
+                .iter()
+                .copied()
+                .filter(|(t, _)| y_t(*t) <= near)
+                .map(|(t, s)| {
+                    // The leg: the root's child this joint hangs from.
+                    let mut top = t;
+                    while let Some(p) = tgt.skel.parent(top).filter(|&p| p != rt) {
+                        top = p;
+                    }
+                    let leg = legs.iter().position(|&l| l == top).unwrap_or_else(|| {
+                        legs.push(top);
+                        legs.len() - 1
+                    });
+                    (t, s, leg.min(MAX_LEGS - 1) as u8)
+                })
+                .collect();
+            let lowest_s = contacts
+                .iter()
+                .map(|&(_, b, _)| y_s(b))
+                .fold(f32::INFINITY, f32::min);
+            floor_t = floor_from_reference(y_t(tl), first);
+            floor_s = floor_from_reference(lowest_s, first / scale);
+        }
+        RootPlan {
+            bone: rt,
+            input: rs.input,
+            source_bone: rs.bone,
+            scale: opts.root_scale.unwrap_or(scale),
+            motion: opts.root_motion,
+            source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
+            target_floor_y: opts.target_floor_y.or(floor_t),
+            reference_position: tgt.worlds[rt.index()].translation,
+            contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
+            contacts,
+            foot_contact: opts.foot_contact,
+            vertical_offset: None,
+        }
+    }
+}
+
+impl Mapping {
+    /// Moves the root vertically so the lowest foot joint stands as high above the target's
+    /// floor as the source's stands above its floor (scaled): the legs' own geometry then sets
+    /// the hips height, so different proportions neither float nor sink.
+    pub(super) fn place_feet(&mut self, out: &mut Pose) {
+        let Some(root) = self.root.as_ref() else {
+            return;
+        };
+        if root.foot_contact == FootContact::Off
+            || root.motion == RootMotion::Fixed
+            || root.contacts.is_empty()
+        {
+            return;
+        }
+        let dy = match (root.foot_contact, root.vertical_offset) {
+            (FootContact::FirstFrame, Some(dy)) => dy,
+            _ => {
+                let dy = self.foot_offset();
+                if let Some(root) = self.root.as_mut() {
+                    root.vertical_offset = Some(dy);
+                }
+                dy
+            }
+        };
+        let Some(root) = self.root.as_ref() else {
+            return;
+        };
+        let parent_rotation = match self.target.parent(root.bone) {
+            Some(p) => self.scratch[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.bone.index()] += parent_rotation.inverse() * Vec3::new(0.0, dy, 0.0);
+    }
+
+    /// The vertical move that puts the target's lowest foot joint at the scaled source height.
+    fn foot_offset(&self) -> f32 {
+        let Some(root) = self.root.as_ref() else {
+            return 0.0;
+        };
+        let src = self.history[root.input as usize].get(0);
+        let scale = root.scale;
+        let floor_t = root.target_floor_y.unwrap_or(scale * root.source_floor_y);
+        let mut lowest_s = [f32::INFINITY; MAX_LEGS];
+        let mut lowest_t = [f32::INFINITY; MAX_LEGS];
+        for &(t, s, leg) in &root.contacts {
+            let leg = leg as usize;
+            lowest_s[leg] = lowest_s[leg].min(src[s.index()].translation.y);
+            lowest_t[leg] = lowest_t[leg].min(self.scratch[t.index()].translation.y);
+        }
+        let error =
+            |leg: usize| floor_t + scale * (lowest_s[leg] - root.source_floor_y) - lowest_t[leg];
+        let legs = (0..MAX_LEGS).filter(|&l| lowest_t[l].is_finite());
+        if root.foot_contact == FootContact::EveryFrame {
+            // The lowest foot carries the weight: it decides.
+            let low = legs.min_by(|&a, &b| lowest_t[a].total_cmp(&lowest_t[b]));
+            low.map(error).unwrap_or(0.0)
+        } else {
+            // One calibration for all frames: split the proportion mismatch between the feet.
+            let (sum, n) = legs.fold((0.0, 0), |(sum, n), l| (sum + error(l), n + 1));
+            if n > 0 {
+                sum / n as f32
+            } else {
+                0.0
+            }
+        }
+    }
+}
