@@ -28,7 +28,7 @@ use tokio::sync::{broadcast, mpsc, watch};
 use tokio::time::MissedTickBehavior;
 use tokio_tungstenite::tungstenite::Bytes;
 
-use crate::replay::ClipPlayer;
+use rigcast_sources::Replay;
 use crate::stats::{Stats, SubjectStats};
 
 /// Wall clock as Unix epoch nanoseconds.
@@ -125,14 +125,18 @@ pub enum EngineCommand {
 }
 
 /// Runs one replay source until shutdown or (non-looping) end of clip.
+///
+/// Samples only on the clip's frame grid (frame k at k × frame_time / speed), so streamed
+/// poses are exactly the file's frames; a late wake-up skips to the current frame.
 pub async fn run_replay_source(
-    player: ClipPlayer,
+    player: Replay,
+    speed: f64,
     tx: watch::Sender<Frame>,
     subject: Arc<Subject>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     // A floor on the period keeps a very fast speed setting from spinning the runtime.
-    let period = player.frame_period_secs().max(1e-3);
+    let period = (player.frame_time_secs() / speed).max(1e-3);
     let mut interval = tokio::time::interval(Duration::from_secs_f64(period));
     interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let start = Instant::now();
@@ -150,7 +154,8 @@ pub async fn run_replay_source(
         last_k = Some(k);
         let now = unix_nanos();
         let mut finished = false;
-        tx.send_modify(|f| match player.frame_into(k, &mut f.pose) {
+        let elapsed_secs = k as f64 * period;
+        tx.send_modify(|f| match player.sample(elapsed_secs, &mut f.pose) {
             Some(_) => {
                 f.seq += 1;
                 f.capture_nanos = now;

@@ -3,7 +3,7 @@
 //! Runs the engine and its outputs inside a tokio runtime:
 //!
 //! ```text
-//!  SourceSpec ─load─▶ ClipPlayer ─source task─▶ watch<Frame> (latest wins, one per subject)
+//!  SourceSpec ─load─▶ Replay ─source task─▶ watch<Frame> (latest wins, one per subject)
 //!                                                   │
 //!                 tick: tokio interval @ rate_hz, MissedTickBehavior::Skip
 //!                   │ encode each subject once → Bytes (shared)      VMC bundles → UDP
@@ -28,7 +28,6 @@ pub mod config;
 pub mod demo;
 pub mod engine;
 pub mod http;
-pub mod replay;
 pub mod state;
 pub mod stats;
 
@@ -44,7 +43,7 @@ use tokio::task::JoinHandle;
 pub use config::{ReplaySettings, ServerConfig, SourceSpec};
 
 use engine::{Subject, TickContext, VmcTarget};
-use replay::ClipPlayer;
+use rigcast_sources::{Replay, ReplayOptions};
 use state::ServerState;
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
@@ -102,8 +101,8 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let mut subjects = Vec::new();
     let mut senders = Vec::new();
-    for (i, (name, player)) in players.iter().enumerate() {
-        let (subject, tx) = Subject::new(i as u32, name.clone(), player.clip().skeleton.clone());
+    for (i, (name, player, _)) in players.iter().enumerate() {
+        let (subject, tx) = Subject::new(i as u32, name.clone(), player.skeleton().clone());
         subjects.push(Arc::new(subject));
         senders.push(tx);
     }
@@ -151,12 +150,13 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     });
 
     let mut tasks = Vec::new();
-    for ((_, player), (tx, subject)) in players
+    for ((_, player, speed), (tx, subject)) in players
         .into_iter()
         .zip(senders.into_iter().zip(subjects.iter().cloned()))
     {
         tasks.push(tokio::spawn(engine::run_replay_source(
             player,
+            speed,
             tx,
             subject,
             shutdown_rx.clone(),
@@ -186,7 +186,8 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     })
 }
 
-async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, ClipPlayer)> {
+/// Loads a source: its subject name, the replay, and its speed (the replay task paces itself).
+async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, Replay, f64)> {
     Ok(match spec {
         SourceSpec::ReplayFile {
             path,
@@ -202,7 +203,7 @@ async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, ClipPlayer)> {
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_else(|| clip.name.clone())
             });
-            (name, ClipPlayer::new(clip, settings))
+            (name, replay(clip, settings)?, settings.speed)
         }
         SourceSpec::ReplayClip {
             clip,
@@ -210,16 +211,28 @@ async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, ClipPlayer)> {
             settings,
         } => (
             name.unwrap_or_else(|| clip.name.clone()),
-            ClipPlayer::new(clip, settings),
+            replay(clip, settings)?,
+            settings.speed,
         ),
         SourceSpec::EmbeddedDemo => {
             let clip = demo_clip()?;
-            (
-                "demo".to_string(),
-                ClipPlayer::new(clip, ReplaySettings::default()),
-            )
+            let settings = ReplaySettings::default();
+            ("demo".to_string(), replay(clip, settings)?, settings.speed)
         }
     })
+}
+
+fn replay(clip: rigcast_retarget::Clip, settings: ReplaySettings) -> anyhow::Result<Replay> {
+    let name = clip.name.clone();
+    Replay::new(
+        clip,
+        ReplayOptions {
+            speed: settings.speed,
+            looping: settings.looping,
+            start_offset_secs: settings.start_offset_secs,
+        },
+    )
+    .with_context(|| format!("cannot replay {name:?}"))
 }
 
 /// The bundled demo recording; if it cannot be decoded (a build without it), the procedural
