@@ -1,4 +1,5 @@
 //! The analysis recovers the corpus' ground-truth roles.
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::corpus::{self, Kind};

@@ -1,5 +1,6 @@
 //! Issue 3 acceptance over the generated corpus: every humanoid pair, anonymous targets,
 //! quadruped targets, seed 000's six-bone arm.
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::corpus::{self, CorpusEntry, Kind, Variant};

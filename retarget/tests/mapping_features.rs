@@ -1,5 +1,6 @@
 //! Mapper features: axes never assumed, degenerate rests, mirror, many-to-one, per-bone
 //! options, mapping files, cache keys, colours, humanoid roles.
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 use glam::{Quat, Vec3};
 use rigcast_retarget::analysis::{analyze, humanoid_roles, HumanBone, SkeletonView};

@@ -1,6 +1,7 @@
 //! `rigcast map` on the real files in ../shared/data (skipped with a message when absent):
 //! CMU BVHs in both naming styles and the Khronos Fox (a quadruped whose front legs are named
 //! UpperArm/ForeArm/Hand).
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
