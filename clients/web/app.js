@@ -21,6 +21,7 @@ const state = {
   missed: 0,
   mappingSubject: null,
   colorMode: 'gradient',
+  inPlace: true, // drop horizontal root travel so walking subjects stay in view
 };
 window.rigcast = state; // for tests and the curious (devtools)
 
@@ -102,6 +103,7 @@ class SubjectView {
       else r.copy(this.restR[i]);
       const p = this.parents[i];
       const t = i === 0 && frame ? this.tmp.set(...frame.root) : this.tmp.copy(this.restT[i]);
+      if (i === 0 && frame && state.inPlace) { t.x = this.restT[0].x; t.z = this.restT[0].z; }
       if (p < 0) {
         this.worldR[i].copy(r);
         this.worldP[i].copy(t);
@@ -144,20 +146,26 @@ class SubjectView {
     if (this.joints.instanceColor) this.joints.instanceColor.needsUpdate = true;
   }
 
-  placeLabels(width, height) {
+  placeLabels(width, height, placed) {
     const v = new THREE.Vector3();
     const place = (label, point, lift) => {
       v.copy(point).add(this.group.position);
       v.y += lift;
       v.project(camera);
-      const visible = v.z < 1 && Math.abs(v.x) <= 1.1 && Math.abs(v.y) <= 1.1;
+      const x = ((v.x + 1) / 2) * width;
+      const y = ((1 - v.y) / 2) * height;
+      // Skip a label that would overprint one already placed this frame (readability).
+      const crowded = placed.some(([px, py]) => Math.abs(px - x) < 60 && Math.abs(py - y) < 12);
+      const visible = v.z < 1 && Math.abs(v.x) <= 1.1 && Math.abs(v.y) <= 1.1 && !crowded;
       label.style.display = visible ? 'block' : 'none';
-      label.style.left = `${((v.x + 1) / 2) * width}px`;
-      label.style.top = `${((1 - v.y) / 2) * height}px`;
+      if (!visible) return;
+      placed.push([x, y]);
+      label.style.left = `${x}px`;
+      label.style.top = `${y}px`;
     };
     let top = this.worldP[0];
     for (const p of this.worldP) if (p.y > top.y) top = p;
-    place(this.subjectLabel, new THREE.Vector3(this.worldP[0].x, top.y, this.worldP[0].z), this.height * 0.18);
+    place(this.subjectLabel, new THREE.Vector3(this.worldP[0].x, top.y, this.worldP[0].z), this.height * 0.1);
     for (const [i, label] of this.boneLabels) place(label, this.worldP[i], this.height * 0.02);
   }
 
@@ -204,7 +212,7 @@ function layout() {
   if (order.length === 0) return;
   const center = all.getCenter(new THREE.Vector3());
   const size = all.getSize(new THREE.Vector3());
-  const fit = Math.max(size.y * 1.35, (size.x * 1.15) / Math.max(camera.aspect, 0.1));
+  const fit = Math.max(size.y * 1.7, (size.x * 1.15) / Math.max(camera.aspect, 0.1));
   const distance = fit / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2)));
   camera.position.set(center.x, center.y + size.y * 0.25, center.z + distance);
   camera.lookAt(center.x, center.y, center.z);
@@ -347,6 +355,8 @@ function applyMappingColors() {
   }
 }
 
+$('in-place').onchange = (event) => { state.inPlace = event.target.checked; };
+
 $('color-mode').onchange = (event) => {
   state.colorMode = event.target.value;
   renderMapping();
@@ -377,12 +387,20 @@ function draw() {
       view.fk(frame);
       view.update();
       state.framesDrawn++;
+      // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
+      // views out again on each subject's first live pose.
+      if (!view.placedLive) {
+        view.placedLive = true;
+        view.height = view.computeHeight();
+        layout();
+      }
     }
   }
   state.latest.clear();
   const { clientWidth: w, clientHeight: h } = canvas.parentElement;
   renderer.render(scene, camera);
-  for (const view of state.views.values()) view.placeLabels(w, h);
+  const placed = [];
+  for (const view of state.views.values()) view.placeLabels(w, h, placed);
   const counter = $('frame-count');
   counter.textContent = String(state.framesReceived);
   counter.dataset.frames = String(state.framesReceived);

@@ -203,26 +203,44 @@ async fn respond(
     stream.shutdown().await
 }
 
-/// The web viewer's files. Hook for the viewer build: return the file for `path` (`"/"` means
-/// the index page) with its MIME type. Until the viewer exists this serves a placeholder page.
+/// The web viewer's files (`clients/web/`), embedded at build time so `rigcast serve` needs
+/// neither the source tree nor a CDN. `"/"` is the index page. Query strings are ignored.
 pub fn static_asset(path: &str) -> Option<(&'static str, Cow<'static, [u8]>)> {
-    match path {
-        "/" | "/index.html" => Some((
-            "text/html; charset=utf-8",
-            Cow::Borrowed(PLACEHOLDER_PAGE.as_bytes()),
-        )),
-        _ => None,
-    }
+    let path = path.split(['?', '#']).next().unwrap_or(path);
+    let path = if path == "/" { "/index.html" } else { path };
+    VIEWER_FILES
+        .iter()
+        .find(|(p, _, _)| *p == path)
+        .map(|(_, mime, bytes)| (*mime, Cow::Borrowed(*bytes)))
 }
 
-const PLACEHOLDER_PAGE: &str = r#"<!doctype html>
-<html><head><meta charset="utf-8"><title>rigcast</title></head>
-<body>
-<h1>rigcast</h1>
-<p>The viewer is not built yet. Stream: <code>ws://HOST/v1/stream</code>,
-status: <a href="/v1/status">/v1/status</a>.</p>
-</body></html>
-"#;
+macro_rules! viewer_file {
+    ($path:literal, $mime:literal) => {
+        (
+            $path,
+            $mime,
+            include_bytes!(concat!("../../clients/web", $path)) as &[u8],
+        )
+    };
+}
+
+/// Every file the viewer loads; keep in step with `clients/web/` (the viewer test loads them all).
+const VIEWER_FILES: &[(&str, &str, &[u8])] = &[
+    viewer_file!("/index.html", "text/html; charset=utf-8"),
+    viewer_file!("/style.css", "text/css; charset=utf-8"),
+    viewer_file!("/app.js", "text/javascript; charset=utf-8"),
+    viewer_file!("/stream.js", "text/javascript; charset=utf-8"),
+    viewer_file!("/graph.js", "text/javascript; charset=utf-8"),
+    viewer_file!(
+        "/vendor/three/three.module.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!(
+        "/vendor/three/three.core.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!("/vendor/three/LICENSE", "text/plain; charset=utf-8"),
+];
 
 /// `GET /v1/status` body.
 #[derive(Debug, Serialize)]
