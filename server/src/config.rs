@@ -311,6 +311,33 @@ mod tests {
     }
 
     #[test]
+    fn load_resolves_relative_paths_against_the_file() {
+        let dir = std::env::temp_dir().join(format!("rigcast-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("rigcast.toml");
+        std::fs::write(
+            &path,
+            "[[sources]]\nkind = \"replay\"\npath = \"clips/a.bvh\"\n",
+        )
+        .unwrap();
+        let cfg = ServerConfig::from_file(FileConfig::load(&path).unwrap()).unwrap();
+        match &cfg.sources[0] {
+            SourceSpec::ReplayFile { path, settings, .. } => {
+                assert_eq!(path, &dir.join("clips/a.bvh"));
+                assert_eq!(*settings, ReplaySettings::default());
+            }
+            other => panic!("{other:?}"),
+        }
+        std::fs::write(&path, "rate_hz = \"fast\"\n").unwrap();
+        let err = FileConfig::load(&path).unwrap_err().to_string();
+        assert!(
+            err.contains("rigcast.toml") && err.contains("line 1"),
+            "{err}"
+        );
+        assert!(FileConfig::load(&dir.join("missing.toml")).is_err());
+    }
+
+    #[test]
     fn rejects_bad_values() {
         assert!(
             toml::from_str::<FileConfig>("rate = 3").is_err(),

@@ -28,8 +28,8 @@ use tokio::sync::{broadcast, mpsc, watch};
 use tokio::time::MissedTickBehavior;
 use tokio_tungstenite::tungstenite::Bytes;
 
-use rigcast_sources::Replay;
 use crate::stats::{Stats, SubjectStats};
+use rigcast_sources::Replay;
 
 /// Wall clock as Unix epoch nanoseconds.
 pub fn unix_nanos() -> u64 {
