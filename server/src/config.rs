@@ -338,6 +338,18 @@ mod tests {
     }
 
     #[test]
+    fn example_file_parses() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("rigcast.example.toml");
+        let cfg = ServerConfig::from_file(FileConfig::load(&path).unwrap()).unwrap();
+        assert_eq!(cfg.listen, parse_listen(DEFAULT_LISTEN).unwrap());
+        assert_eq!(cfg.rate_hz, DEFAULT_RATE_HZ);
+        assert_eq!(cfg.vmc_out.len(), 1);
+        assert!(
+            matches!(&cfg.sources[0], SourceSpec::ReplayFile { path, .. } if path.ends_with("recordings/demo.rcr"))
+        );
+    }
+
+    #[test]
     fn rejects_bad_values() {
         assert!(
             toml::from_str::<FileConfig>("rate = 3").is_err(),
