@@ -256,6 +256,46 @@ async fn blender_addon_applies_and_records_the_live_stream() {
     assert!(!subjects.is_empty());
     assert_eq!(result["session"]["bad"], 0, "the add-on rejected frames");
 
+    // Mapping list, colours and the override operator on real Blender data: from the server's
+    // own mapping when it streams a retargeted subject, else from the script's self-check.
+    if result["mapping_subjects"]
+        .as_array()
+        .is_some_and(|m| !m.is_empty())
+    {
+        let colored = result["colored_bones"].as_object().expect("colored bones");
+        assert!(
+            colored.values().any(|n| n.as_u64() > Some(0)),
+            "no bone coloured by the mapping"
+        );
+    } else {
+        let check = &result["mapping_selfcheck"];
+        assert_eq!(
+            check["rows"], check["expected_rows"],
+            "mapping list rows: {check}"
+        );
+        assert_eq!(check["source_bones"], check["expected_rows"], "{check}");
+        assert!(check["unmapped_rows"].as_u64() > Some(0), "{check}");
+        assert_eq!(check["colored_gradient"], check["expected_rows"], "{check}");
+        for (got, want) in [
+            ("probe_color", "probe_expected"),
+            ("probe_color_random", "probe_expected_random"),
+        ] {
+            let distance = (vec3(&check[got]) - vec3(&check[want])).length();
+            // Blender stores bone colours with 8 bits per channel.
+            assert!(distance < 0.01, "{got} {} != {}", check[got], check[want]);
+        }
+        assert_eq!(
+            check["override_sent"], true,
+            "set_mapping not sent: {check}"
+        );
+        assert!(
+            check["picked_source"]
+                .as_str()
+                .is_some_and(|s| !s.is_empty()),
+            "{check}"
+        );
+    }
+
     let observations = result["observations"].as_array().expect("observations");
     for subject in subjects {
         let id = subject["id"].as_u64().unwrap();
@@ -427,4 +467,31 @@ async fn blender_addon_applies_and_records_the_live_stream() {
 
 fn applied_first(observations: &[&Value]) -> f64 {
     observations[0]["applied_nanos"].as_f64().unwrap()
+}
+
+/// The add-on's transport unit tests (WebSocket framing, reconnect, newest-frame-wins, wire
+/// decoding, VMC, conversions), run under Blender's own Python.
+#[test]
+fn blender_addon_unit_tests_pass() {
+    let Some(blender) = find_app("blender") else {
+        return;
+    };
+    let output = Command::new(blender)
+        .args([
+            "-b",
+            "--factory-startup",
+            "--python-exit-code",
+            "1",
+            "--python",
+        ])
+        .arg(repo_root().join("clients/blender/tests/run_unit_tests.py"))
+        .output()
+        .expect("blender runs");
+    let log = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(output.status.success(), "add-on unit tests failed:\n{log}");
+    assert!(log.contains(" passed, 0 failed"), "no test summary:\n{log}");
 }

@@ -152,6 +152,8 @@ def run(args, out):
     if runtime.mappings:
         settings.color_mode = "GRADIENT"
         out["colored_bones"] = count_colored_bones(settings)
+    else:
+        out["mapping_selfcheck"] = mapping_selfcheck(runtime, settings)
 
     pump(float(args["warmup"]))
     bpy.ops.rigcast.record()
@@ -192,6 +194,53 @@ def observe(subject_id, frame, obj):
         "applied_nanos": time.time_ns(),
         "heads": heads,
     }
+
+
+def mapping_selfcheck(runtime, settings):
+    """Drives the mapping UI with a mapping message of subject 0 onto itself.
+
+    Used while the server streams no retargeted subject: exercises the list, the colouring
+    (bone groups in 3.x, bone colours in 4.x) and the override operator on real Blender data.
+    """
+    subject = settings.subjects[0].subject_id
+    bones = runtime.skeletons[subject]["bones"]
+    n = len(bones)
+    entries = [
+        {
+            "target": b["name"],
+            "source": b["name"] if i % 5 else None,
+            "score": 0.5 + 0.5 * i / n,
+            "color_gradient": [i / n, 1.0 - i / n, 0.5],
+            "color_random": [((i * 37) % 11) / 10.0, ((i * 17) % 7) / 6.0, 0.2],
+        }
+        for i, b in enumerate(bones)
+    ]
+    settings.mapping_subject = subject
+    runtime.handle_message(settings, {"type": "mapping", "subject": subject, "source_subject": subject, "entries": entries})
+    result = {"rows": len(settings.mapping_items), "source_bones": len(settings.source_bones), "expected_rows": n}
+    result["unmapped_rows"] = sum(1 for item in settings.mapping_items if not item.source)
+    settings.color_mode = "GRADIENT"
+    result["colored_gradient"] = count_colored_bones(settings).get(str(subject), 0)
+    obj = settings.subjects[0].armature
+    probe = bones[n - 1]["name"]
+    result["probe_color"] = list(bone_color(obj, probe))
+    result["probe_expected"] = entries[n - 1]["color_gradient"]
+    settings.color_mode = "RANDOM"
+    result["probe_color_random"] = list(bone_color(obj, probe))
+    result["probe_expected_random"] = entries[n - 1]["color_random"]
+    settings.mapping_index = 1  # pick a row ...
+    result["picked_source"] = settings.override_source
+    settings.override_source = bones[0]["name"]  # ... pick a bone, send it
+    result["override_sent"] = "FINISHED" in bpy.ops.rigcast.set_override()
+    settings.color_mode = "NONE"
+    return result
+
+
+def bone_color(obj, name):
+    if hasattr(obj.pose, "bone_groups"):
+        group = obj.pose.bones[name].bone_group
+        return group.colors.normal if group else (0, 0, 0)
+    return obj.data.bones[name].color.custom.normal
 
 
 def count_colored_bones(settings):
