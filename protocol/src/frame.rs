@@ -189,14 +189,18 @@ pub fn decode_frame_into(
     );
     rotations.clear();
     rotations.reserve(num_bones as usize);
-    for i in 0..num_bones as usize {
-        let o = FRAME_HEADER_BYTES + BYTES_PER_BONE * i;
-        rotations.push(Quat::from_xyzw(
-            finite_at(bytes, o)?,
-            finite_at(bytes, o + 4)?,
-            finite_at(bytes, o + 8)?,
-            finite_at(bytes, o + 12)?,
-        ));
+    let body = &bytes[FRAME_HEADER_BYTES..];
+    for (i, chunk) in body.chunks_exact(BYTES_PER_BONE).enumerate() {
+        let f = |k: usize| f32::from_le_bytes([chunk[k], chunk[k + 1], chunk[k + 2], chunk[k + 3]]);
+        let q = Quat::from_xyzw(f(0), f(4), f(8), f(12));
+        if !q.is_finite() {
+            // Slow path only on bad input: find the offending float for the error.
+            let base = FRAME_HEADER_BYTES + BYTES_PER_BONE * i;
+            for k in 0..4 {
+                finite_at(bytes, base + 4 * k)?;
+            }
+        }
+        rotations.push(q);
     }
     Ok((header, root))
 }
