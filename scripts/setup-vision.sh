@@ -92,6 +92,8 @@ if [[ ${#need_models[@]} -gt 0 ]]; then
             || { cat "$ROOT/downloads/convert_$m.log" >&2; exit 1; }
         mv "$out.tmp" "$out"
     done
+    # The converter venv (~1.6 GB) and the npm package are only needed to make the models.
+    rm -rf "$VENV" "$ROOT/downloads/mediapipe"
 fi
 
 # --- Real footage: pose2sim demo videos ---------------------------------------------------------
