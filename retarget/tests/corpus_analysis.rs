@@ -2,7 +2,7 @@
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::corpus::{self, Kind};
+use rigcast_retarget::corpus;
 
 const CORE: &[&str] = &[
     "hips",
@@ -31,7 +31,11 @@ fn is_core(label: &str) -> bool {
 #[test]
 fn core_roles_match_ground_truth() {
     let mut failures = Vec::new();
-    for e in corpus::all() {
+    let extra = [
+        corpus::creature_187().unwrap(),
+        corpus::humanoid_65().unwrap(),
+    ];
+    for e in corpus::all().into_iter().chain(extra) {
         let a = analyze(&SkeletonView::rest(&e.skeleton));
         let mut wrong = Vec::new();
         let mut total = 0;
@@ -57,7 +61,7 @@ fn core_roles_match_ground_truth() {
         for w in &wrong {
             println!("    {w}");
         }
-        if !wrong.is_empty() && e.kind != Kind::Creature {
+        if !wrong.is_empty() {
             failures.push(e.name.clone());
         }
     }

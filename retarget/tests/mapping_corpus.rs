@@ -142,7 +142,12 @@ fn meaningless_target_names_still_map() {
 fn quadruped_targets_take_legs_from_legs_and_front_legs_from_arms() {
     let all = corpus::all();
     let opts = MapOptions::default();
-    for tgt in all.iter().filter(|e| e.kind == Kind::Quadruped) {
+    let dragon = corpus::creature_187().unwrap();
+    for tgt in all
+        .iter()
+        .filter(|e| e.kind == Kind::Quadruped)
+        .chain(std::iter::once(&dragon))
+    {
         for src in all.iter().filter(|e| e.kind == Kind::Humanoid) {
             let table = auto_map(
                 &SkeletonView::rest(&src.skeleton),

@@ -286,6 +286,16 @@ impl Ctx<'_> {
         }
         self.names[b.index()].helper
     }
+    /// The bone sits exactly on its parent's joint.
+    fn is_coincident(&self, b: BoneId) -> bool {
+        match self.skel.parent(b) {
+            Some(p) => {
+                (self.pos[b.index()] - self.pos[p.index()]).length() < 1e-3 * self.size.max(1e-3)
+            }
+            None => false,
+        }
+    }
+
     /// A twist bone: a leaf lying inside its parent's segment, or named so.
     fn is_twist(&self, b: BoneId) -> bool {
         let nm = &self.names[b.index()];
@@ -381,7 +391,12 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         let mut plus = Vec::new();
         let mut minus = Vec::new();
         for &c in skel.children(p) {
-            if ctx.is_shadow(c) && !ctx.is_leaf(p) && skel.children(p).len() > 1 {
+            // Coincident / on-segment leaves (Rigify ORG- copies) never extend the centerline;
+            // named end joints that stick out (`head_end`) do.
+            if ctx.is_shadow(c) && !ctx.names[c.index()].helper && skel.children(p).len() > 1 {
+                continue;
+            }
+            if ctx.is_shadow(c) && ctx.names[c.index()].helper && ctx.is_coincident(c) {
                 continue;
             }
             let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
@@ -835,7 +850,13 @@ fn limb_roles(
         LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
         _ => (SectionKind::Arm, SectionKind::Hand),
     };
-    let Some(split) = fit_chain(&lengths, &dirs, fixed, ratio) else {
+    // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
+    // the foot anywhere up to the branch.
+    let fitted = match fixed {
+        Some(f) if is_leg => fit_chain(&lengths[..=f], &dirs[..=f], None, ratio),
+        _ => fit_chain(&lengths, &dirs, fixed, ratio),
+    };
+    let Some(split) = fitted else {
         let si = add_section(
             sections,
             roles,
@@ -909,18 +930,27 @@ fn limb_roles(
     }
     let hand = chain[e];
     let ext_role = if is_leg { Role::Foot } else { Role::Hand };
-    if fixed == Some(e) {
+    if let Some(f) = fixed.filter(|&f| f >= e) {
         let hi = add_section(
             sections,
             roles,
             ext_kind,
             side,
             limb_index,
-            vec![hand],
+            chain[e..=f].to_vec(),
             Some(li),
             ground,
         );
         set(roles, hand, ext_role, conf);
+        for (k, &b) in chain[e + 1..=f].iter().enumerate() {
+            set(
+                roles,
+                b,
+                if k == 0 { Role::Toes } else { Role::Helper },
+                conf,
+            );
+        }
+        let hand = chain[f];
         // Digits: significant children; a zero-length "palm" helper is looked through.
         let mut digits = Vec::new();
         for c in ctx.significant_children(hand) {

@@ -310,7 +310,7 @@ pub fn dragon() -> Builder {
     b.add(
         "jaw_end",
         Some(jaw),
-        head_pos + vec3(0.0, -0.15, 0.55),
+        head_pos + vec3(0.0, -0.15, 0.35),
         "helper",
     );
     b.add(
@@ -405,7 +405,7 @@ fn claws(b: &mut Builder, parent: usize, left: bool, prefix: &str, joints: usize
             .map(|j| {
                 (
                     format!("{prefix}_claw{}_{}.{s}", c + 1, j + 1),
-                    m(base + dir * (0.08 + 0.08 * j as f32), left),
+                    base + m(dir, left) * (0.08 + 0.08 * j as f32),
                     lab(left, "claw"),
                 )
             })

@@ -87,15 +87,22 @@ fn base_builders() -> Vec<(&'static str, Kind, Builder)> {
     ]
 }
 
-/// Rotates every upper-arm subtree 45° down about the forward axis (arms of humanoids; the
-/// front legs of the horse are left alone).
-fn a_pose(b: &Builder) -> Builder {
+/// Rotates every upper-arm subtree 45° down about the forward axis (arms of humanoids); a
+/// quadruped's front legs swing 15° forward instead.
+fn a_pose(b: &Builder, kind: Kind) -> Builder {
     let mut out = b.clone();
+    let kind_is_quadruped = kind == Kind::Quadruped;
     for i in 0..out.labels.len() {
         let l = out.labels[i].clone();
         let left = l == "left_upper_arm" || l == "left_limb2_upper_arm";
         let right = l == "right_upper_arm" || l == "right_limb2_upper_arm";
-        if left || right {
+        let quad_front = kind_is_quadruped && out.labels[i].ends_with("_clavicle");
+        if quad_front {
+            // A quadruped's "A-pose": front legs swung 15° forward at the shoulder blade.
+            out.rotate_subtree(i, Quat::from_axis_angle(Vec3::X, (-15f32).to_radians()));
+            continue;
+        }
+        if (left || right) && !kind_is_quadruped {
             // Left arm (+X) goes down: rotate about +Z by -45°; mirror for the right.
             let angle = if left { -45f32 } else { 45f32 };
             out.rotate_subtree(i, Quat::from_axis_angle(Vec3::Z, angle.to_radians()));
@@ -115,19 +122,17 @@ fn entry(name: String, kind: Kind, variant: Variant, b: &Builder) -> Option<Corp
     })
 }
 
-/// Every corpus skeleton: 13 kinds × (T-pose, A-pose, anonymous).
+/// Every corpus skeleton: 13 kinds × (T-pose, A-pose, anonymous) = 39 entries.
 pub fn all() -> Vec<CorpusEntry> {
     let mut out = Vec::new();
     for (i, (name, kind, b)) in base_builders().into_iter().enumerate() {
         out.extend(entry(name.to_string(), kind, Variant::TPose, &b));
-        if kind != Kind::Quadruped {
-            out.extend(entry(
-                format!("{name}_apose"),
-                kind,
-                Variant::APose,
-                &a_pose(&b),
-            ));
-        }
+        out.extend(entry(
+            format!("{name}_apose"),
+            kind,
+            Variant::APose,
+            &a_pose(&b, kind),
+        ));
         out.extend(entry(
             format!("{name}_anon"),
             kind,
