@@ -13,6 +13,10 @@
 //!   Analysis { up, forward, left, positions, sections, roles[bone] }
 //! ```
 //!
+//! Files: `topology` (order-free structure), `roles` (frame, centerline, limbs, sections),
+//! `limbs` (chain splitting), `names` (name normalisation), `vocabulary` (roles and kinds),
+//! `humanoid` (Unity / VRM role map).
+//!
 //! Nothing here assumes a facing direction: the character's forward is where its feet (toes)
 //! point and where its head leans; side markers in names break the tie only when geometry gives
 //! no cue.
@@ -22,6 +26,7 @@ mod limbs;
 pub mod names;
 mod roles;
 mod topology;
+mod vocabulary;
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -30,7 +35,7 @@ use crate::pose::Pose;
 use crate::skeleton::{BoneId, Skeleton};
 
 pub use humanoid::{humanoid_roles, HumanBone};
-pub use roles::{Role, SectionKind};
+pub use vocabulary::{Role, SectionKind};
 
 /// Which side of the body a bone is on, from the character's own point of view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
