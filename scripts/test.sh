@@ -1,8 +1,21 @@
 #!/usr/bin/env bash
-# Runs every test. Installs what it needs first.
+# The one test command (README; CI's .ci/run calls it). On a fresh Debian 12 machine it first
+# installs what the real-program tests need, then runs every test of the workspace:
+#   1. scripts/install-apps.sh  — Blender and Chromium from Debian (client end-to-end tests)
+#   2. scripts/setup-vision.sh  — ffmpeg, ONNX Runtime (PyPI wheel), BlazePose ONNX models
+#                                 (npm @mediapipe/pose, converted), real footage (PyPI pose2sim)
+#   3. cargo test --workspace   — unit, integration, end-to-end tests
+# Both setup steps are idempotent and skip work already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# Vision assets (ffmpeg, ONNX Runtime, BlazePose models, pose2sim footage); idempotent, and
-# RIGCAST_SKIP_VISION=1 skips it (the vision tests then skip too).
+
+step() { printf '\n=== %s ===\n' "$*"; }
+
+step "installing Blender and Chromium (if missing)"
+./scripts/install-apps.sh
+
+step "preparing the vision models and runtime (if missing)"
 ./scripts/setup-vision.sh
-cargo test --workspace
+
+step "cargo test --workspace"
+cargo test --workspace --no-fail-fast
