@@ -24,7 +24,7 @@ fn random_skeleton(seed: u64, n: usize) -> Skeleton {
         } else {
             Some((xorshift(&mut s) % i as u64) as usize)
         };
-        let zero = xorshift(&mut s) % 5 == 0;
+        let zero = xorshift(&mut s).is_multiple_of(5);
         let mut f = || (xorshift(&mut s) % 2000) as f32 / 1000.0 - 1.0;
         // Some bones coincide with their parent (zero-length helpers).
         let t = if zero {
