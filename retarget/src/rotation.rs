@@ -174,7 +174,7 @@ mod tests {
             [3.0, 1.5, -3.0],
             [0.4, std::f32::consts::FRAC_PI_2, 0.0],
             [0.4, -std::f32::consts::FRAC_PI_2, 0.0],
-            [0.7, 1.5707, 0.2],
+            [0.7, std::f32::consts::FRAC_PI_2 - 1e-4, 0.2],
         ];
         for order in RotationOrder::ALL {
             assert_eq!(RotationOrder::from_axes(order.axes()), Some(order));
