@@ -21,7 +21,8 @@ use std::time::{Duration, Instant};
 use futures_util::StreamExt;
 use glam::{Quat, Vec3};
 use rigcast_protocol::frame::{decode_frame, DecodedFrame};
-use rigcast_server::ServerConfig;
+use rigcast_retarget::{Clip, Pose, Skeleton};
+use rigcast_server::{ReplaySettings, ServerConfig, SourceSpec};
 use serde_json::Value;
 use tokio_tungstenite::tungstenite::Message;
 
@@ -124,6 +125,47 @@ impl WireSkeleton {
     }
 }
 
+/// The same motion on a skeleton whose joint frames are rotated by a different arbitrary
+/// rotation per bone: world positions are unchanged, every rest and pose local rotation is not
+/// (q'_i = R_parent^-1 · q_i · R_i, t'_i = R_parent^-1 · t_i).
+fn twisted(clip: &Clip) -> Clip {
+    let n = clip.skeleton.num_bones();
+    let offsets: Vec<Quat> = (0..n)
+        .map(|i| {
+            let axis = Vec3::new(1.0, 2.0, 0.5 + i as f32).normalize_or_zero();
+            Quat::from_axis_angle(axis, 0.4 + 0.3 * i as f32)
+        })
+        .collect();
+    let parents: Vec<Option<usize>> = clip
+        .skeleton
+        .parents()
+        .iter()
+        .map(|p| p.map(|b| b.index()))
+        .collect();
+    let parent_offset = |i: usize| parents[i].map_or(Quat::IDENTITY, |p| offsets[p]);
+    let mut raw = clip.skeleton.to_raw();
+    for (i, bone) in raw.bones.iter_mut().enumerate() {
+        let rp = parent_offset(i).inverse();
+        bone.rest.rotation = rp * bone.rest.rotation * offsets[i];
+        bone.rest.translation = rp * bone.rest.translation;
+    }
+    let skeleton = Skeleton::build(&raw).expect("twisted skeleton builds");
+    let poses: Vec<Pose> = clip
+        .poses
+        .iter()
+        .map(|pose| {
+            let mut out = pose.clone();
+            for i in 0..n {
+                let rp = parent_offset(i).inverse();
+                out.rotations[i] = rp * pose.rotations[i] * offsets[i];
+                out.translations[i] = rp * pose.translations[i];
+            }
+            out
+        })
+        .collect();
+    Clip::new("twisted", Arc::new(skeleton), poses, clip.frame_time_secs).expect("twisted clip")
+}
+
 #[derive(Default)]
 struct Observed {
     hello: Option<Value>,
@@ -221,8 +263,19 @@ async fn blender_addon_applies_and_records_the_live_stream() {
     let Some(blender) = find_app("blender") else {
         return;
     };
+    // The demo has identity rest rotations; the twisted copy has none, so the add-on's
+    // rest-rotation and bone-axis handling is exercised too.
+    let demo = rigcast_sources::embedded_demo().expect("embedded demo");
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![
+            SourceSpec::EmbeddedDemo,
+            SourceSpec::ReplayClip {
+                clip: twisted(&demo),
+                name: Some("twisted".into()),
+                settings: ReplaySettings::default(),
+            },
+        ],
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.expect("server starts");
@@ -314,8 +367,9 @@ async fn blender_addon_applies_and_records_the_live_stream() {
             mine.len()
         );
         let mut worst_m = 0.0f32;
+        let mut worst_at = String::new();
         let mut checked = 0;
-        for obs in &mine {
+        for obs in mine.iter().filter(|o| o.get("heads").is_some()) {
             let seq = obs["seq"].as_u64().unwrap();
             let Some(frame) = observed.frames.get(&(id as u32, seq)) else {
                 continue; // our own client may have joined a moment later
@@ -331,18 +385,21 @@ async fn blender_addon_applies_and_records_the_live_stream() {
                     let local = rest_rotation.inverse() * (rest_point - rest_position);
                     let expected = blender_from_ours(position + rotation * local);
                     let error = (vec3(&got[k]) - expected).length();
-                    worst_m = worst_m.max(error);
+                    if error > worst_m {
+                        worst_m = error;
+                        worst_at = format!("seq {seq}, bone {name}, point {k}");
+                    }
                 }
             }
             checked += 1;
         }
         assert!(
-            checked > 30,
-            "subject {id}: only {checked} applied frames matched a server frame"
+            checked >= 15,
+            "subject {id}: only {checked} sampled poses matched a server frame"
         );
         assert!(
             worst_m < 1e-3,
-            "subject {id}: Blender pose differs from FK of the server frame by {worst_m} m"
+            "subject {id}: Blender pose differs from FK of the server frame by {worst_m} m at {worst_at}"
         );
 
         // 2. Rate: distinct frames applied per second over the recorded run.
@@ -425,16 +482,24 @@ async fn blender_addon_applies_and_records_the_live_stream() {
                     frames.iter().all(|f| f.fract() == 0.0),
                     "{name}: keys off whole frames"
                 );
+                // One key per scene frame at most; a stalled display tick on a loaded machine
+                // may skip a frame or two, never more.
                 assert!(
                     frames
                         .windows(2)
-                        .all(|w| w[1] - w[0] >= 1.0 && w[1] - w[0] <= 2.0),
+                        .all(|w| w[1] - w[0] >= 1.0 && w[1] - w[0] <= 4.0),
                     "{name}: key spacing {frames:?}"
                 );
+                // Keys span the recorded time at the scene's rate (capture time → frame).
+                let span = frames.last().unwrap() - frames.first().unwrap() + 1.0;
                 let expected = record_secs * scene_fps;
                 assert!(
-                    (frames.len() as f64 - expected).abs() <= 0.15 * expected + 2.0,
-                    "{name}: {} keys over {record_secs:.2} s at {scene_fps} fps",
+                    (span - expected).abs() <= 0.15 * expected + 2.0,
+                    "{name}: keys span {span} frames over {record_secs:.2} s at {scene_fps} fps"
+                );
+                assert!(
+                    frames.len() as f64 >= 0.8 * span,
+                    "{name}: only {} keys over {span} frames",
                     frames.len()
                 );
             }

@@ -134,8 +134,7 @@ class Runtime:
         self.stats = collections.defaultdict(SubjectStats)
         self.last_error = ""
         self.recording = False
-        self.record_origin = {}  # armature name -> (first capture nanos, start frame)
-        self.last_keyed = {}
+        self.takes = {}  # armature name -> Take while recording
         self.observers = []  # callables(subject_id, frame, obj); used by tests
         self.last_redraw = 0.0
         self.vmc_binding = None
@@ -293,35 +292,76 @@ class Runtime:
 
     def start_recording(self, scene):
         self.recording = True
-        self.record_origin = {}
-        self.last_keyed = {}
+        self.takes = {}
 
     def stop_recording(self):
+        """Finishes every take and assigns each Action to its armature."""
         self.recording = False
+        for take in self.takes.values():
+            take.finish()
+        self.takes = {}
 
     def record(self, scene, obj, binding, capture_nanos):
-        """Keys the applied pose at the scene frame its capture time falls on.
+        take = self.takes.get(obj.name)
+        if take is None:
+            take = Take(obj, scene, capture_nanos)
+            self.takes[obj.name] = take
+        take.add(binding, capture_nanos)
 
-        Capture time (not arrival time) sets the frame so network jitter does not warp the
-        take; the scene's own frame rate is used and never changed.
-        """
-        fps = scene.render.fps / scene.render.fps_base
-        origin = self.record_origin.get(obj.name)
-        if origin is None:
-            origin = (capture_nanos, scene.frame_current)
-            self.record_origin[obj.name] = origin
-            if obj.animation_data is None:
-                obj.animation_data_create()
-            obj.animation_data.action = bpy.data.actions.new("rigcast_%s" % obj.name)
-        frame_number = origin[1] + int(round((capture_nanos - origin[0]) * 1e-9 * fps))
-        if frame_number <= self.last_keyed.get(obj.name, frame_number - 1):
+
+class Take:
+    """One armature's recording into a new Action, assigned only when recording stops.
+
+    While recording, the Action is kept off the armature: an assigned Action would be evaluated
+    by the depsgraph at the scene's current frame and fight the live pose. Keys go straight to
+    F-curves (quaternion w, x, y, z grouped by bone) at the scene frame the capture time falls
+    on; network jitter therefore does not warp the take, and the scene's frame rate is used,
+    never changed.
+    """
+
+    def __init__(self, obj, scene, first_capture_nanos):
+        self.obj = obj
+        self.fps = scene.render.fps / scene.render.fps_base
+        self.origin_nanos = first_capture_nanos
+        self.origin_frame = scene.frame_current
+        self.last_frame = None
+        self.action = bpy.data.actions.new("rigcast_%s" % obj.name)
+        self.curves = {}
+
+    def _curve(self, bone_name, prop, index):
+        key = (bone_name, prop, index)
+        curve = self.curves.get(key)
+        if curve is None:
+            path = 'pose.bones["%s"].%s' % (bpy.utils.escape_identifier(bone_name), prop)
+            curve = self.action.fcurves.new(path, index=index, action_group=bone_name)
+            self.curves[key] = curve
+        return curve
+
+    def add(self, binding, capture_nanos):
+        frame = self.origin_frame + int(round((capture_nanos - self.origin_nanos) * 1e-9 * self.fps))
+        if self.last_frame is not None and frame <= self.last_frame:
             return
-        self.last_keyed[obj.name] = frame_number
+        self.last_frame = frame
         for entry in binding.bones:
             pose_bone = entry.pose_bone
-            pose_bone.keyframe_insert("rotation_quaternion", frame=frame_number, group=pose_bone.name)
+            q = pose_bone.rotation_quaternion
+            for index in range(4):
+                self._curve(pose_bone.name, "rotation_quaternion", index).keyframe_points.insert(
+                    frame, q[index], options={"FAST"}
+                )
             if entry.is_root:
-                pose_bone.keyframe_insert("location", frame=frame_number, group=pose_bone.name)
+                location = pose_bone.location
+                for index in range(3):
+                    self._curve(pose_bone.name, "location", index).keyframe_points.insert(
+                        frame, location[index], options={"FAST"}
+                    )
+
+    def finish(self):
+        for curve in self.curves.values():
+            curve.update()
+        if self.obj.animation_data is None:
+            self.obj.animation_data_create()
+        self.obj.animation_data.action = self.action
 
 
 class VmcBinding:
@@ -333,7 +373,7 @@ class VmcBinding:
 
     def __init__(self, obj):
         self.obj = obj
-        self.bones = {}
+        self.by_name = {}
         for data_bone in obj.data.bones:
             pose_bone = obj.pose.bones[data_bone.name]
             pose_bone.rotation_mode = "QUATERNION"
@@ -346,11 +386,12 @@ class VmcBinding:
             entry.root_rotation_inv = data_bone.matrix_local.to_quaternion().inverted()
             entry.root_head = data_bone.matrix_local.to_translation()
             entry.index = 0
-            self.bones[data_bone.name.lower()] = entry
+            self.by_name[data_bone.name.lower()] = entry
+        self.bones = list(self.by_name.values())
 
     def apply(self, pose):
         for name, (position, rotation) in pose.bones.items():
-            entry = self.bones.get(name.lower())
+            entry = self.by_name.get(name.lower())
             if entry is None:
                 continue
             q = Quaternion((rotation[3], rotation[0], rotation[1], rotation[2]))
@@ -359,9 +400,6 @@ class VmcBinding:
                 head = vec_ours_to_blender(position)
                 entry.pose_bone.location = entry.root_rotation_inv @ (head - entry.root_head)
 
-    @property
-    def bones_list(self):
-        return list(self.bones.values())
 
 
 # -- armature creation ---------------------------------------------------------------------
