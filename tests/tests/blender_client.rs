@@ -10,6 +10,7 @@
 //!
 //! Needs `blender` (scripts/install-apps.sh installs it). Missing Blender fails the test with
 //! a clear message, unless RIGCAST_SKIP_APPS=1, which skips it with a printed reason.
+#![allow(clippy::unwrap_used)]
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -155,9 +156,9 @@ fn twisted(clip: &Clip) -> Clip {
         .iter()
         .map(|pose| {
             let mut out = pose.clone();
-            for i in 0..n {
+            for (i, offset) in offsets.iter().enumerate() {
                 let rp = parent_offset(i).inverse();
-                out.rotations[i] = rp * pose.rotations[i] * offsets[i];
+                out.rotations[i] = rp * pose.rotations[i] * *offset;
                 out.translations[i] = rp * pose.translations[i];
             }
             out
@@ -516,10 +517,7 @@ async fn blender_addon_applies_and_records_the_live_stream() {
                 })
                 .collect();
             for k in 0..values[0].len() {
-                let norm = (0..4)
-                    .map(|c| values[c][k] * values[c][k])
-                    .sum::<f64>()
-                    .sqrt();
+                let norm = values.iter().map(|c| c[k] * c[k]).sum::<f64>().sqrt();
                 assert!(
                     (norm - 1.0).abs() < 1e-3,
                     "{name}: key {k} has |q| = {norm}"

@@ -8,6 +8,7 @@
 //!
 //! Needs `chromium` (scripts/install-apps.sh installs it). Missing Chromium fails the test
 //! with a clear message, unless RIGCAST_SKIP_APPS=1, which skips it with a printed reason.
+#![allow(clippy::unwrap_used)]
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
