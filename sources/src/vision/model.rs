@@ -62,6 +62,11 @@ pub fn runtime(library: &Path) -> Result<Environment, VisionError> {
     })
 }
 
+/// Intra-op spinning is off unless `RIGCAST_ORT_SPIN=1` (for measuring the difference).
+fn spin_enabled() -> bool {
+    std::env::var("RIGCAST_ORT_SPIN").as_deref() == Ok("1")
+}
+
 /// A loaded landmark model plus its input/output buffers.
 pub struct LandmarkModel {
     path: PathBuf,
@@ -108,6 +113,10 @@ impl LandmarkModel {
             .with_optimization_level(GraphOptimizationLevel::Level3)
             .map_err(|e| model_err(model, e))?
             .with_intra_threads(threads.max(1))
+            .map_err(|e| model_err(model, e))?
+            // Spinning workers burn a core waiting for work; on a 2-core machine shared with the
+            // decoder and the server that costs more than the wake-up latency it saves.
+            .with_intra_op_spinning(spin_enabled())
             .map_err(|e| model_err(model, e))?
             .commit_from_file(model)
             .map_err(|e| model_err(model, e))?;
