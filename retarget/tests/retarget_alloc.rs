@@ -1,6 +1,7 @@
 //! Acceptance (issue 4): steady-state `Mapping::apply` allocates nothing — checked with a
 //! counting global allocator, on a mapping that uses every per-frame feature (direction fixes,
-//! many-to-one blending, delays with a history ring, reverse, weights, root motion, two inputs).
+//! many-to-one blending, delays with a history ring, reverse, weights, root motion with foot
+//! contact, chain distribution, two inputs).
 
 mod retarget_fixtures;
 
@@ -9,7 +10,7 @@ use std::cell::Cell;
 
 use retarget_fixtures::{motion, table_by_canonical, Axes, Humanoid};
 use rigcast_retarget::mapping::SourceRef;
-use rigcast_retarget::{Mapping, RetargetOptions};
+use rigcast_retarget::{FootContact, Mapping, RetargetOptions};
 
 struct Counting;
 
@@ -50,6 +51,8 @@ fn steady_state_apply_allocates_nothing() {
         arm_down_deg: 45.0,
         axes: Axes::AlongBone { roll_rad: 0.3 },
         leg: 1.2,
+        // One more spine bone than the source: an unmapped interior bone for distribution.
+        spine_bones: 3,
         ..Humanoid::default()
     };
     let source = source_spec.build();

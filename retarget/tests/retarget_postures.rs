@@ -287,6 +287,80 @@ fn spine_chains_of_different_lengths() {
     }
 }
 
+/// A target spine of three bones driven by a one-bone source spine: with `distribute_chains`
+/// the two unmapped bones take a share of the bend, so no joint bends as sharply as the single
+/// bent joint of the rigid chain, and the trunk still points like the source's; without it the
+/// unmapped bones hold their rest.
+#[test]
+fn distributed_chain_shares_the_bend() {
+    let sp = Humanoid {
+        spine_bones: 1,
+        ..t_pose()
+    };
+    let tp = Humanoid {
+        spine_bones: 3,
+        ..a_pose_tall()
+    };
+    let source = sp.build();
+    let target = tp.build();
+    let table = table_by_canonical(&source, sp.prefix, &target, tp.prefix);
+    let frames = motion(&source, NUM_FRAMES, 0.0, 1.0);
+    let spine: Vec<usize> = ["spine", "chest", "upper_chest"]
+        .iter()
+        .map(|n| bone(&target, tp.prefix, n).index())
+        .collect();
+    let mut peak = [0.0f32; 2];
+    for (k, distribute) in [false, true].into_iter().enumerate() {
+        let opts = RetargetOptions {
+            distribute_chains: distribute,
+            ..RetargetOptions::default()
+        };
+        let mut mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
+        let aligned = mapping.aligned_rest_pose();
+        let mut out = mapping.new_target_pose();
+        let mut outs = Vec::new();
+        let mut interior = 0.0f32;
+        for p in &frames {
+            mapping.apply_one(p, &mut out).expect("apply");
+            let bends: Vec<f32> = spine
+                .iter()
+                .map(|&b| quat_angle(aligned.rotations[b], out.rotations[b]))
+                .collect();
+            peak[k] = bends.iter().fold(peak[k], |m, &b| m.max(b));
+            interior = interior.max(bends[1]).max(bends[2]);
+            outs.push(out.clone());
+        }
+        if distribute {
+            assert!(
+                interior > 0.02,
+                "interior bones did not bend ({interior} rad)"
+            );
+        } else {
+            assert!(interior < 2e-3, "interior bones moved ({interior} rad)");
+        }
+        let e = segment_errors(
+            &source,
+            &sp,
+            &frames,
+            &target,
+            &tp,
+            &outs,
+            &[("trunk", "spine", "neck")],
+        );
+        println!(
+            "distribute {distribute}: peak joint bend {:.3} rad, interior {interior:.3} rad, trunk mean {:.3}° max {:.3}°",
+            peak[k], e[0].1, e[0].2
+        );
+        assert!(e[0].1 <= 2.0 && e[0].2 <= 5.0, "{e:?}");
+    }
+    assert!(
+        peak[1] < 0.7 * peak[0],
+        "sharpest joint bend {} vs rigid {}",
+        peak[1],
+        peak[0]
+    );
+}
+
 #[test]
 fn in_place_keeps_hips_over_the_spot() {
     let sp = t_pose();

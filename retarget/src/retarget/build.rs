@@ -246,7 +246,7 @@ impl<'a> Setup<'a> {
     }
 
     /// Per target bone: its plan and links (appended to `links`).
-    fn plan_bone(&self, t: BoneId, links: &mut Vec<Link>) -> BonePlan {
+    fn plan_bone(&self, t: BoneId, links: &mut Vec<Link>, chains: &mut Vec<u16>) -> BonePlan {
         let rest_local = self.target.rest()[t.index()].rotation;
         let mut plan = BonePlan {
             first_link: links.len() as u32,
@@ -255,6 +255,11 @@ impl<'a> Setup<'a> {
             options: BoneOptions::default(),
             rest_local,
             aligned_local: rest_local,
+            chain_first: 0,
+            chain_len: 0,
+            chain_end: NO_END,
+            curl_root: NO_END,
+            curl_frame: Quat::IDENTITY,
         };
         let Some(entry) = self.table.get(t) else {
             return plan;
@@ -273,7 +278,35 @@ impl<'a> Setup<'a> {
             links.push(self.link(t, &seg, sref, total, &entry.options));
         }
         plan.num_links = links.len() as u32 - plan.first_link;
+        if let (true, Some(end)) = (self.opts.distribute_chains, seg.mapped_end) {
+            let interior = self.interior(t, end);
+            if !interior.is_empty() && plan.dir_local != Vec3::ZERO {
+                plan.chain_first = chains.len() as u32;
+                plan.chain_len = interior.len().min(u16::MAX as usize) as u16;
+                plan.chain_end = end.0;
+                chains.extend(interior.iter().take(plan.chain_len as usize).map(|b| b.0));
+            }
+        }
         plan
+    }
+
+    /// Bones strictly between `t` and its descendant `end`, from `t` down; empty when one of
+    /// them is mapped (then the chain is not `t`'s alone to bend).
+    fn interior(&self, t: BoneId, end: BoneId) -> Vec<BoneId> {
+        let mut path = Vec::new();
+        let mut b = self.target.parent(end);
+        while let Some(x) = b {
+            if x == t {
+                path.reverse();
+                return path;
+            }
+            if self.is_mapped(x) {
+                return Vec::new();
+            }
+            path.push(x);
+            b = self.target.parent(x);
+        }
+        Vec::new()
     }
 }
 
@@ -290,10 +323,22 @@ impl Mapping {
         validate(sources, target, table, opts)?;
         let setup = Setup::new(sources, target, table, opts)?;
         let mut links = Vec::new();
-        let bones: Vec<BonePlan> = target
+        let mut chain_bones = Vec::new();
+        let mut bones: Vec<BonePlan> = target
             .bone_ids()
-            .map(|t| setup.plan_bone(t, &mut links))
+            .map(|t| setup.plan_bone(t, &mut links, &mut chain_bones))
             .collect();
+        // Interior bones learn which chain they belong to and their frame within it.
+        for t in 0..bones.len() {
+            let (first, len) = (bones[t].chain_first as usize, bones[t].chain_len as usize);
+            let mut frame = Quat::IDENTITY;
+            for &c in &chain_bones[first..first + len] {
+                let c = c as usize;
+                frame = frame * bones[c].rest_local;
+                bones[c].curl_root = t as u16;
+                bones[c].curl_frame = frame;
+            }
+        }
         let root = setup.root_pair().map(|(rt, rs)| {
             let input = rs.input as usize;
             RootPlan::new(
@@ -336,6 +381,8 @@ impl Mapping {
             root,
             history,
             scratch: vec![WorldTransform::IDENTITY; target.num_bones()],
+            chain_bones,
+            curl: vec![Quat::IDENTITY; target.num_bones()],
         };
         // The aligned rest: what the target shows while every source holds its reference.
         let refs: Vec<&Pose> = setup.src_ref.iter().collect();

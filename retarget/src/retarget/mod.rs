@@ -20,7 +20,8 @@
 //! bone's world rotation relative to its reference, plus a direction fix from the positions of
 //! the segment's mapped end joints, makes A-pose vs T-pose, arbitrary bind poses, differing bone
 //! axes and chains of different lengths come out pointing the same way. Unmapped bones keep their
-//! rest local rotation, so a longer target chain bends rigidly with its mapped parent.
+//! rest local rotation, so a longer target chain bends rigidly with its mapped parent, unless
+//! `RetargetOptions::distribute_chains` spreads the bend over the unmapped bones inside it.
 
 mod align;
 mod build;
@@ -70,6 +71,15 @@ struct BonePlan {
     rest_local: Quat,
     /// Local rotation when every source shows its reference posture (the base for `reverse`).
     aligned_local: Quat,
+    /// Unmapped bones between this mapped bone and its mapped end (`Mapping::chain_bones`),
+    /// which share its bend, and that end.
+    chain_first: u32,
+    chain_len: u16,
+    chain_end: u16,
+    /// For such an unmapped interior bone: the mapped bone whose bend it shares (`NO_END` if
+    /// none), and its frame relative to that bone's at rest.
+    curl_root: u16,
+    curl_frame: Quat,
 }
 
 /// A built retargeting job: (source skeleton(s), target skeleton, mapping table, options) with
@@ -86,6 +96,10 @@ pub struct Mapping {
     root: Option<RootPlan>,
     history: Vec<History>,
     scratch: Vec<WorldTransform>,
+    /// Interior chains (see `BonePlan::chain_first`).
+    chain_bones: Vec<u16>,
+    /// Per chain root, this frame's share of its bend.
+    curl: Vec<Quat>,
 }
 
 impl Mapping {
@@ -224,7 +238,14 @@ impl Mapping {
             };
             let plan = &self.bones[t];
             let (local, world_rotation) = if plan.num_links == 0 {
-                (plan.rest_local, parent.rotation * plan.rest_local)
+                let local = if with_options && plan.curl_root != NO_END {
+                    // Interior of a longer target chain: take the chain root's share of the bend.
+                    let share = self.curl[plan.curl_root as usize];
+                    plan.rest_local * plan.curl_frame.inverse() * share * plan.curl_frame
+                } else {
+                    plan.rest_local
+                };
+                (local, parent.rotation * local)
             } else {
                 let first = plan.first_link as usize;
                 let mut blended = Quat::from_xyzw(0.0, 0.0, 0.0, 0.0);
@@ -251,7 +272,15 @@ impl Mapping {
                     blended += q * link.weight;
                 }
                 let world = blended.normalize();
-                ((parent.rotation.inverse() * world).normalize(), world)
+                let local = (parent.rotation.inverse() * world).normalize();
+                if with_options && plan.chain_len > 0 {
+                    let (local, world, share) =
+                        self.distribute(plan, parent.rotation, local, world);
+                    self.curl[t] = share;
+                    (local, world)
+                } else {
+                    (local, world)
+                }
             };
             let mut translation = rest[t].translation;
             let mut position = parent.translation + parent.rotation * translation;
@@ -282,6 +311,45 @@ impl Mapping {
             };
         }
         self.place_feet(out);
+    }
+}
+
+impl Mapping {
+    /// Spreads a mapped bone's bend (relative to its aligned rest) evenly over itself and the
+    /// unmapped bones between it and its mapped end, then swings it so the chain's chord still
+    /// points where the rigid solution pointed. Returns (local, world, per-bone share).
+    fn distribute(
+        &self,
+        plan: &BonePlan,
+        parent: Quat,
+        local: Quat,
+        world: Quat,
+    ) -> (Quat, Quat, Quat) {
+        let n = plan.chain_len as f32 + 1.0;
+        let mut bend = plan.aligned_local.inverse() * local;
+        if bend.w < 0.0 {
+            bend = -bend;
+        }
+        let share = Quat::IDENTITY.slerp(bend, 1.0 / n).normalize();
+        let curled = parent * plan.aligned_local * share;
+        // The chord to the mapped end, in the curled bone's frame.
+        let rest = self.target.rest();
+        let (mut frame, mut chord) = (Quat::IDENTITY, Vec3::ZERO);
+        let first = plan.chain_first as usize;
+        for &c in &self.chain_bones[first..first + plan.chain_len as usize] {
+            let cp = &self.bones[c as usize];
+            chord += frame * rest[c as usize].translation;
+            frame = frame * cp.rest_local * cp.curl_frame.inverse() * share * cp.curl_frame;
+        }
+        chord += frame * rest[plan.chain_end as usize].translation;
+        let wanted = world * plan.dir_local;
+        let world = match ((curled * chord).try_normalize(), wanted.try_normalize()) {
+            (Some(now), Some(wanted)) => {
+                (Quat::from_rotation_arc(now, wanted) * curled).normalize()
+            }
+            _ => curled,
+        };
+        ((parent.inverse() * world).normalize(), world, share)
     }
 }
 

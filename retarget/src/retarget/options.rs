@@ -49,6 +49,10 @@ pub struct RetargetOptions {
     /// Correct each mapped bone's direction towards the source segment between the joints its
     /// own segment ends map to, so chains of different lengths still point the same way.
     pub match_directions: bool,
+    /// Spread a mapped bone's bend over the unmapped bones between it and its mapped end (a
+    /// target spine of four bones driven by two) instead of bending the chain rigidly. Off by
+    /// default because it moves unmapped bones, which mapping files promise to hold at rest.
+    pub distribute_chains: bool,
     /// Root translation handling.
     pub root_motion: RootMotion,
     /// How the hips height is corrected so the feet neither float nor sink with different leg
@@ -76,6 +80,7 @@ impl Default for RetargetOptions {
             target_reference: None,
             align_rest: true,
             match_directions: true,
+            distribute_chains: false,
             root_motion: RootMotion::Scaled,
             foot_contact: FootContact::FirstFrame,
             root_scale: None,
