@@ -334,7 +334,7 @@ impl Mapping {
             let mut frame = Quat::IDENTITY;
             for &c in &chain_bones[first..first + len] {
                 let c = c as usize;
-                frame = frame * bones[c].rest_local;
+                frame *= bones[c].rest_local;
                 bones[c].curl_root = t as u16;
                 bones[c].curl_frame = frame;
             }
