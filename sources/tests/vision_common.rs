@@ -1,4 +1,5 @@
 //! Shared helpers for the vision tests (included with `#[path]`, not a test target itself).
+#![allow(clippy::unwrap_used)] // tests may unwrap
 #![allow(dead_code)]
 
 use std::path::Path;

@@ -1,6 +1,7 @@
 //! Frame input through ffmpeg: H.264 (the pose2sim footage), VP9, MJPEG and image sequences
 //! decode to the same pictures; bad input gives clear errors. The VP9/MJPEG/PNG inputs are
 //! made from the H.264 footage with ffmpeg itself, scaled down to keep the test quick.
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
 mod common;

@@ -1,5 +1,6 @@
 //! Acceptance on real footage: the pose2sim demo videos (one person, full body, H.264,
 //! 1080×1920, 60 fps), installed by `scripts/setup-vision.sh`.
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
 mod common;

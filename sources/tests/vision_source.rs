@@ -1,5 +1,6 @@
 //! `VisionSource` as a live source: a video served through the pipeline yields BlazePose
 //! poses with health, sequence numbers and raw landmark records.
+#![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
 mod common;

@@ -96,6 +96,7 @@ pub fn blazepose_skeleton() -> Result<Arc<Skeleton>, VisionError> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 

@@ -92,6 +92,7 @@ impl LimbLengths {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use glam::Vec4;

@@ -287,6 +287,7 @@ pub fn warp_crop(frame: &RgbFrame, roi: &Roi, scale: f32, offset: f32, out: &mut
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 

@@ -67,7 +67,7 @@ impl OneEuro {
             return x;
         };
         let dt = (time_secs - tprev) as f32;
-        if !(dt > 0.0) || !x.is_finite() {
+        if dt.is_nan() || dt <= 0.0 || !x.is_finite() {
             return prev;
         }
         let dx = (x - prev) / dt;
@@ -82,6 +82,7 @@ impl OneEuro {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 

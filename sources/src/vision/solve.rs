@@ -347,6 +347,7 @@ impl PoseSolver {
 
     /// Converts solved world rotations to local ones and moves the output towards them by
     /// confidence; low-confidence bones hold, then ease to rest.
+    #[allow(clippy::needless_range_loop)] // five parallel per-bone arrays share the index
     fn blend_into_output(&mut self, dt: f32) {
         let parents = self.skeleton.parents();
         let cfg = self.config;
@@ -398,6 +399,7 @@ fn stable_secondary(a: Vec3, b: Vec3, fallback: Vec3) -> Vec3 {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use crate::vision::body::blazepose_skeleton;

@@ -208,6 +208,7 @@ impl LiveSource for VisionSource {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 

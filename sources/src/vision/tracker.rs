@@ -250,6 +250,7 @@ fn flip_interpretation(lm: &mut Landmarks) {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
     use glam::Vec4;
