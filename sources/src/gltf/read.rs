@@ -563,6 +563,7 @@ fn sample_animation(
             _ => {}
         }
     }
+    let keyed_fps = first_times.as_deref().and_then(keyframe_fps);
     let fps = match opts.sample_fps {
         Some(f) if f.is_finite() && f > 0.0 && f <= 10_000.0 => f,
         Some(f) => {
@@ -570,12 +571,17 @@ fn sample_animation(
                 reason: format!("sample rate must be in (0, 10000] fps, got {f}"),
             })
         }
-        None => first_times
-            .as_deref()
-            .and_then(keyframe_fps)
-            .unwrap_or(DEFAULT_SAMPLE_FPS),
+        None => keyed_fps.unwrap_or(DEFAULT_SAMPLE_FPS),
     };
-    let num_frames = (end_secs as f64 * fps + 1e-3).floor() as usize + 1;
+    // Sampling at the keys' own (rounded) rate: one frame per key. Rounding matters because
+    // writers often store a truncated frame time (BVH's 0.008333 for 120 fps), which puts the
+    // last key a fraction of a frame short of `n / fps` and would drop it under `floor`.
+    let on_keys = opts.sample_fps.is_none() && keyed_fps.is_some();
+    let num_frames = if on_keys {
+        (end_secs as f64 * fps).round() as usize + 1
+    } else {
+        (end_secs as f64 * fps + 1e-3).floor() as usize + 1
+    };
     let mut poses = Vec::with_capacity(num_frames);
     for k in 0..num_frames {
         let t = (k as f64 / fps) as f32;

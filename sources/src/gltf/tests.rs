@@ -221,6 +221,20 @@ fn glb_round_trip_of_the_demo() {
 }
 
 #[test]
+fn glb_round_trip_keeps_every_frame_with_a_truncated_frame_time() {
+    // BVH files store 120 fps as 0.008333 s; the last key then lands a fraction of a frame
+    // before 993/120 s, and sampling at the detected 120 fps must still give all 994 frames.
+    let demo = crate::demo::generate();
+    let poses: Vec<_> = (0..994)
+        .map(|k| demo.poses[k % demo.num_frames()].clone())
+        .collect();
+    let clip = rigcast_retarget::Clip::new("long", demo.skeleton.clone(), poses, 0.008333).unwrap();
+    let back = read(&write_glb(&clip).unwrap(), None).unwrap();
+    assert_eq!(back.clip.num_frames(), 994);
+    assert!((back.clip.fps() - 120.0).abs() < 1e-6);
+}
+
+#[test]
 fn vrm_without_skin_uses_humanoid_bones() {
     for (ext, version) in [
         (
