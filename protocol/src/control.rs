@@ -66,6 +66,25 @@ pub struct MappingEntry {
     pub color_random: [f32; 3],
 }
 
+/// Health of one source subject in a `source_status` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceHealth {
+    /// Source subject id.
+    pub subject: u32,
+    /// Source kind: `replay`, `vmc`, `serial` or `video`.
+    pub kind: String,
+    /// `connecting`, `live`, `lost` or `finished` (a replay that reached its end).
+    pub state: String,
+    /// Frames per second arriving from the source.
+    pub input_fps: f32,
+    /// Input arrival (or capture) to pose available, milliseconds (0 for replays).
+    pub latency_ms: f32,
+    /// Frames produced since start.
+    pub frames: u64,
+    /// Inputs dropped as malformed, reordered or unusable.
+    pub dropped: u64,
+}
+
 /// Machine-readable reason in an `error` message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -166,6 +185,11 @@ pub enum ServerMessage {
     SubjectsChanged {
         /// The current subjects.
         subjects: Vec<SubjectInfo>,
+    },
+    /// Health of every source subject, about once per second.
+    SourceStatus {
+        /// One entry per source subject.
+        sources: Vec<SourceHealth>,
     },
     /// A request was accepted (currently only `set_mapping`).
     Ack {
@@ -331,6 +355,17 @@ mod tests {
                 ],
             },
             ServerMessage::Lagged { missed: 42 },
+            ServerMessage::SourceStatus {
+                sources: vec![SourceHealth {
+                    subject: 0,
+                    kind: "vmc".into(),
+                    state: "lost".into(),
+                    input_fps: 59.5,
+                    latency_ms: 1.5,
+                    frames: 1200,
+                    dropped: 3,
+                }],
+            },
             ServerMessage::Pong {
                 nonce: u64::MAX,
                 server_nanos: 1_700_000_000_000_000_000,

@@ -47,9 +47,10 @@ where
     if let Ok(mut clients) = state.stats.clients.lock() {
         clients.insert(client_id, stats.clone());
     }
-    // Subscribe before greeting so no frame published after `hello` is missed.
+    // Subscribe before greeting so no frame or event published after `hello` is missed.
     let mut frames = state.frames.subscribe();
-    let _ = run(ws, &state, &stats, &mut frames).await;
+    let mut events = state.events.subscribe();
+    let _ = run(ws, &state, &stats, &mut frames, &mut events).await;
     if let Ok(mut clients) = state.stats.clients.lock() {
         clients.remove(&client_id);
     }
@@ -60,6 +61,7 @@ async fn run<S>(
     state: &ServerState,
     stats: &ClientStats,
     frames: &mut tokio::sync::broadcast::Receiver<crate::engine::OutFrame>,
+    events: &mut tokio::sync::broadcast::Receiver<String>,
 ) -> Result<(), tokio_tungstenite::tungstenite::Error>
 where
     S: AsyncRead + AsyncWrite + Unpin,
@@ -67,8 +69,17 @@ where
     let (mut sink, mut stream) = ws.split();
     sink.send(Message::text(state.hello_json())).await?;
     for s in state.subjects.iter() {
-        sink.send(Message::text(s.skeleton_json.clone())).await?;
+        sink.send(Message::text(s.shape().skeleton_json.clone()))
+            .await?;
     }
+    for s in state.subjects.iter() {
+        let mapping = s.mapping_json.read().ok().and_then(|m| m.clone());
+        if let Some(m) = mapping {
+            sink.send(Message::text(m)).await?;
+        }
+    }
+    sink.send(Message::text(crate::source_status_json(&state.subjects)))
+        .await?;
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
     let mut pending_missed: u64 = 0;
@@ -79,6 +90,16 @@ where
             _ = shutdown.changed() => {
                 let _ = sink.send(Message::Close(None)).await;
                 return Ok(());
+            }
+            // Before frames, so a new skeleton arrives before frames that use it.
+            event = events.recv() => {
+                match event {
+                    Ok(text) => sink.send(Message::text(text)).await?,
+                    // Control messages are small and rare; a client this far behind will
+                    // also lag on frames and be told so there.
+                    Err(RecvError::Lagged(_)) => {}
+                    Err(RecvError::Closed) => return Ok(()),
+                }
             }
             incoming = stream.next() => {
                 let Some(incoming) = incoming else { return Ok(()) };
@@ -177,11 +198,14 @@ fn handle_text(
             None
         }
         ClientMessage::SetMapping { subject, overrides } => {
-            if state.subject(subject).is_none() {
+            let Some(target) = state.subject(subject) else {
                 return Some(ServerMessage::error(
                     ErrorCode::UnknownSubject,
                     format!("unknown subject id {subject}"),
                 ));
+            };
+            if let Err(message) = check_overrides(state, target, &overrides) {
+                return Some(ServerMessage::error(ErrorCode::Unsupported, message));
             }
             match state
                 .commands
@@ -202,4 +226,40 @@ fn handle_text(
             }
         }
     }
+}
+
+/// Checks `set_mapping` overrides against the target's and its sources' skeletons, so a typo
+/// is answered at once instead of failing later in the mapper.
+fn check_overrides(
+    state: &ServerState,
+    target: &crate::engine::Subject,
+    overrides: &std::collections::BTreeMap<String, Option<String>>,
+) -> Result<(), String> {
+    if !target.is_target() {
+        return Err(format!(
+            "subject {} is a source; set_mapping applies to target subjects",
+            target.id
+        ));
+    }
+    let tsk = target.skeleton();
+    let sources: Vec<_> = target
+        .inputs
+        .iter()
+        .filter_map(|id| state.subject(*id).map(|s| s.skeleton()))
+        .collect();
+    let refs: Vec<&rigcast_retarget::Skeleton> = sources.iter().map(|s| &**s).collect();
+    for (t, s) in overrides {
+        if tsk.bone(t).is_none() {
+            return Err(format!("target subject {} has no bone {t:?}", target.id));
+        }
+        if let Some(s) = s {
+            if crate::mapper::find_source_bone(&refs, s).is_none() {
+                return Err(format!(
+                    "no source of target subject {} has a bone {s:?}",
+                    target.id
+                ));
+            }
+        }
+    }
+    Ok(())
 }

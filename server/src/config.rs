@@ -72,9 +72,75 @@ pub struct FileConfig {
     /// Pose sources.
     #[serde(default)]
     pub sources: Vec<FileSource>,
-    /// VMC receivers, `"host:port"`.
+    /// VMC receivers: `"host:port"` or `{ address = "host:port", subject = "name" }`.
     #[serde(default)]
-    pub vmc_out: Vec<String>,
+    pub vmc_out: Vec<FileVmcOut>,
+    /// Bone names sent over VMC: `"humanoid"` (default) or `"skeleton"`.
+    pub vmc_bone_names: Option<VmcBoneNames>,
+    /// Retargeted characters.
+    #[serde(default)]
+    pub performers: Vec<FilePerformer>,
+    /// Default behaviour of targets whose source is lost: `"ease"` (default) or `"hold"`.
+    pub on_lost: Option<OnLost>,
+    /// Record every subject and the raw input of live sources into this `.rcr` file.
+    pub record: Option<PathBuf>,
+    /// Mapping cache: `true` (default folder), `false`, or a folder.
+    pub mapping_cache: Option<FileMappingCache>,
+}
+
+/// A `vmc_out` entry.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum FileVmcOut {
+    /// `"host:port"`: receives the default subject.
+    Address(String),
+    /// A receiver and the subject (by name) it receives.
+    Table {
+        /// `host:port`
+        address: String,
+        /// Subject name (default: the first target, else the first source).
+        subject: Option<String>,
+    },
+}
+
+/// `mapping_cache = true | false | "folder"`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum FileMappingCache {
+    /// On (default folder) or off.
+    Enabled(bool),
+    /// This folder.
+    Folder(PathBuf),
+}
+
+/// Sources of a performer: one name or a list (many-to-one).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum FileNames {
+    /// One source subject.
+    One(String),
+    /// Several source subjects blended onto one target.
+    Many(Vec<String>),
+}
+
+/// One `[[performers]]` entry: a character driven by source subject(s).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FilePerformer {
+    /// Source subject name(s) (default: the first source).
+    pub source: Option<FileNames>,
+    /// The character file (BVH, glTF/GLB, VRM, .rcr; its animation is ignored), or
+    /// `"builtin:mannequin"`.
+    pub target: PathBuf,
+    /// Subject name of the retargeted character (default: the file stem).
+    pub name: Option<String>,
+    /// Mapping overrides (TOML, see retarget/MAPPING.md).
+    pub mapping: Option<PathBuf>,
+    /// Keep the hips over the spot horizontally.
+    #[serde(default)]
+    pub in_place: bool,
+    /// What the character does while its source is lost.
+    pub on_lost: Option<OnLost>,
 }
 
 /// One `[[sources]]` entry.
@@ -97,6 +163,34 @@ pub enum FileSource {
         /// Subject name (default: the file stem).
         name: Option<String>,
     },
+    /// VMC/OSC input on a UDP port.
+    Vmc {
+        /// UDP port (default 39539).
+        #[serde(default = "vmc_port")]
+        port: u16,
+        /// Silence longer than this marks the source lost (seconds, default 0.5).
+        lost_after_secs: Option<f32>,
+        /// Subject name (default `vmc:PORT`).
+        name: Option<String>,
+    },
+    /// A serial IMU suit described by a TOML file (see `SerialImuConfig`).
+    Serial {
+        /// The suit's config file.
+        config: PathBuf,
+        /// Subject name (default: the config file stem).
+        name: Option<String>,
+    },
+    /// Pose estimation on a video file (needs `rigcast setup vision`).
+    Video {
+        /// The video.
+        path: PathBuf,
+        /// Subject name (default: the file stem).
+        name: Option<String>,
+    },
+}
+
+fn vmc_port() -> u16 {
+    rigcast_sources::vmc_in::DEFAULT_VMC_PORT
 }
 
 fn one() -> f64 {
@@ -118,11 +212,30 @@ impl FileConfig {
             source,
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
-        for s in &mut cfg.sources {
-            let FileSource::Replay { path, .. } = s;
-            if path.is_relative() {
-                *path = base.join(&*path);
+        let resolve = |p: &mut PathBuf| {
+            if p.is_relative() && !p.starts_with(BUILTIN_PREFIX) {
+                *p = base.join(&*p);
             }
+        };
+        for s in &mut cfg.sources {
+            match s {
+                FileSource::Replay { path, .. }
+                | FileSource::Serial { config: path, .. }
+                | FileSource::Video { path, .. } => resolve(path),
+                FileSource::Vmc { .. } => {}
+            }
+        }
+        for p in &mut cfg.performers {
+            resolve(&mut p.target);
+            if let Some(m) = p.mapping.as_mut() {
+                resolve(m);
+            }
+        }
+        if let Some(r) = cfg.record.as_mut() {
+            resolve(r);
+        }
+        if let Some(FileMappingCache::Folder(f)) = cfg.mapping_cache.as_mut() {
+            resolve(f);
         }
         Ok(cfg)
     }
@@ -172,6 +285,99 @@ pub enum SourceSpec {
     },
     /// The bundled demo recording, looping.
     EmbeddedDemo,
+    /// VMC/OSC input (`--source vmc:PORT`; port 0 picks a free one).
+    Vmc {
+        /// UDP port.
+        port: u16,
+        /// Silence before the source counts as lost (default 0.5 s).
+        lost_after_secs: Option<f32>,
+        /// Subject name (default `vmc:PORT`).
+        name: Option<String>,
+    },
+    /// Serial IMU suit (`--source serial:CONFIG.toml`).
+    Serial {
+        /// The suit's TOML config.
+        config: PathBuf,
+        /// Subject name (default: the config file stem).
+        name: Option<String>,
+    },
+    /// Pose estimation on a video file (`--source video:FILE`).
+    Video {
+        /// The video.
+        path: PathBuf,
+        /// Subject name (default: the file stem).
+        name: Option<String>,
+    },
+}
+
+/// Prefix of built-in characters in target paths (`builtin:mannequin`).
+pub const BUILTIN_PREFIX: &str = "builtin:";
+
+/// What a target character does while its source is lost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OnLost {
+    /// Ease to the mapping's aligned rest pose over about half a second.
+    #[default]
+    Ease,
+    /// Hold the last pose.
+    Hold,
+}
+
+/// Bone names in VMC output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VmcBoneNames {
+    /// Unity `HumanBodyBones` names for humanoid subjects (others pass through).
+    #[default]
+    Humanoid,
+    /// The subject's own bone names.
+    Skeleton,
+}
+
+/// The character a performer drives.
+#[derive(Debug, Clone)]
+pub enum TargetSpec {
+    /// A character file, or `builtin:NAME`.
+    File(PathBuf),
+    /// A skeleton already in memory (tests, generated content).
+    Skeleton {
+        /// The skeleton.
+        skeleton: std::sync::Arc<rigcast_retarget::Skeleton>,
+        /// Subject name.
+        name: String,
+    },
+}
+
+/// A performer: source subject(s) driving a target character through a mapping.
+#[derive(Debug, Clone)]
+pub struct PerformerSpec {
+    /// Source subject names (empty = the first source).
+    pub sources: Vec<String>,
+    /// The character.
+    pub target: TargetSpec,
+    /// Subject name (default: the file stem).
+    pub name: Option<String>,
+    /// Mapping overrides file.
+    pub mapping: Option<PathBuf>,
+    /// Walk on the spot.
+    pub in_place: bool,
+    /// Behaviour while the source is lost (default: the server's `on_lost`).
+    pub on_lost: Option<OnLost>,
+}
+
+impl PerformerSpec {
+    /// The character in `path` driven by the first source.
+    pub fn target_file(path: impl Into<PathBuf>) -> PerformerSpec {
+        PerformerSpec {
+            sources: Vec::new(),
+            target: TargetSpec::File(path.into()),
+            name: None,
+            mapping: None,
+            in_place: false,
+            on_lost: None,
+        }
+    }
 }
 
 /// Fully resolved server settings.
@@ -183,8 +389,30 @@ pub struct ServerConfig {
     pub rate_hz: f64,
     /// Subjects to stream (empty = the embedded demo).
     pub sources: Vec<SourceSpec>,
-    /// VMC receivers (`host:port`, resolved at start).
+    /// VMC receivers (`host:port`, resolved at start; `host:port@SUBJECT` picks the subject,
+    /// default the first target, else the first source).
     pub vmc_out: Vec<String>,
+    /// Retargeted characters. With no sources and no performers the server streams the
+    /// bundled demo and the built-in mannequin retargeted from it.
+    pub performers: Vec<PerformerSpec>,
+    /// Default behaviour of targets whose source is lost.
+    pub on_lost: OnLost,
+    /// Bone names sent over VMC.
+    pub vmc_bone_names: VmcBoneNames,
+    /// Record every subject (and raw live input) into this `.rcr` file.
+    pub record: Option<PathBuf>,
+    /// Folder of the on-disk mapping cache (`None`: memory only).
+    pub mapping_cache_dir: Option<PathBuf>,
+}
+
+/// The default on-disk mapping cache: `$XDG_CACHE_HOME/rigcast/mappings`, else
+/// `~/.cache/rigcast/mappings`.
+pub fn default_mapping_cache_dir() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("rigcast").join("mappings"))
 }
 
 impl Default for ServerConfig {
@@ -194,6 +422,11 @@ impl Default for ServerConfig {
             rate_hz: DEFAULT_RATE_HZ,
             sources: Vec::new(),
             vmc_out: Vec::new(),
+            performers: Vec::new(),
+            on_lost: OnLost::default(),
+            vmc_bone_names: VmcBoneNames::default(),
+            record: None,
+            mapping_cache_dir: None,
         }
     }
 }
@@ -211,7 +444,16 @@ impl ServerConfig {
             let settings = match s {
                 SourceSpec::ReplayFile { settings, .. }
                 | SourceSpec::ReplayClip { settings, .. } => settings,
-                SourceSpec::EmbeddedDemo => continue,
+                SourceSpec::Vmc {
+                    lost_after_secs: Some(l),
+                    ..
+                } if !(l.is_finite() && *l > 0.0) => {
+                    return Err(ConfigError::Invalid {
+                        field: "lost_after_secs",
+                        message: format!("{l} must be a positive number of seconds"),
+                    })
+                }
+                _ => continue,
             };
             if !(settings.speed.is_finite() && settings.speed > 0.0) {
                 return Err(ConfigError::Invalid {
@@ -238,7 +480,45 @@ impl ServerConfig {
         if let Some(rate) = file.rate_hz {
             cfg.rate_hz = rate;
         }
-        cfg.vmc_out = file.vmc_out;
+        cfg.vmc_out = file
+            .vmc_out
+            .into_iter()
+            .map(|v| match v {
+                FileVmcOut::Address(a) => a,
+                FileVmcOut::Table {
+                    address,
+                    subject: Some(s),
+                } => format!("{address}@{s}"),
+                FileVmcOut::Table {
+                    address,
+                    subject: None,
+                } => address,
+            })
+            .collect();
+        cfg.vmc_bone_names = file.vmc_bone_names.unwrap_or_default();
+        cfg.on_lost = file.on_lost.unwrap_or_default();
+        cfg.record = file.record;
+        cfg.mapping_cache_dir = match file.mapping_cache {
+            None | Some(FileMappingCache::Enabled(true)) => default_mapping_cache_dir(),
+            Some(FileMappingCache::Enabled(false)) => None,
+            Some(FileMappingCache::Folder(f)) => Some(f),
+        };
+        cfg.performers = file
+            .performers
+            .into_iter()
+            .map(|p| PerformerSpec {
+                sources: match p.source {
+                    None => Vec::new(),
+                    Some(FileNames::One(s)) => vec![s],
+                    Some(FileNames::Many(v)) => v,
+                },
+                target: TargetSpec::File(p.target),
+                name: p.name,
+                mapping: p.mapping,
+                in_place: p.in_place,
+                on_lost: p.on_lost,
+            })
+            .collect();
         cfg.sources = file
             .sources
             .into_iter()
@@ -258,6 +538,17 @@ impl ServerConfig {
                         start_offset_secs,
                     },
                 },
+                FileSource::Vmc {
+                    port,
+                    lost_after_secs,
+                    name,
+                } => SourceSpec::Vmc {
+                    port,
+                    lost_after_secs,
+                    name,
+                },
+                FileSource::Serial { config, name } => SourceSpec::Serial { config, name },
+                FileSource::Video { path, name } => SourceSpec::Video { path, name },
             })
             .collect();
         cfg.validate()?;

@@ -19,16 +19,16 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use rigcast_protocol::control::{BoneInfo, SubjectInfo, SubjectKind};
 use rigcast_protocol::frame::{encode_frame, FrameHeader};
 use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
-use rigcast_protocol::ServerMessage;
-use rigcast_retarget::{Frame, Pose, Skeleton};
-use tokio::sync::{broadcast, mpsc, watch};
+use rigcast_retarget::{forward_kinematics, Frame, WorldTransform};
+use tokio::sync::{broadcast, watch};
 use tokio::time::MissedTickBehavior;
 use tokio_tungstenite::tungstenite::Bytes;
 
-use crate::stats::{Stats, SubjectStats};
+use crate::performer::Performer;
+use crate::stats::Stats;
+use crate::subject::HealthState;
 use rigcast_sources::Replay;
 
 /// Wall clock as Unix epoch nanoseconds.
@@ -48,80 +48,25 @@ pub struct OutFrame {
     pub bytes: Bytes,
 }
 
-/// A streamed subject: its skeleton, the pre-serialised `skeleton` message and its pose slot.
-#[derive(Debug)]
-pub struct Subject {
-    /// Public description (as in `hello`).
-    pub info: SubjectInfo,
-    /// Skeleton of the poses.
-    pub skeleton: Arc<Skeleton>,
-    /// The `skeleton` message, serialised once.
-    pub skeleton_json: String,
-    /// Latest frame from the source.
-    pub latest: watch::Receiver<Frame>,
-    /// Input counters.
-    pub stats: SubjectStats,
-}
+pub use crate::subject::Subject;
 
-impl Subject {
-    /// Builds a subject and the sender its source writes to.
-    pub fn new(id: u32, name: String, skeleton: Arc<Skeleton>) -> (Subject, watch::Sender<Frame>) {
-        let info = SubjectInfo {
-            id,
-            name: name.clone(),
-            kind: SubjectKind::Source,
-            source: None,
-            num_bones: skeleton.num_bones() as u32,
-            fingerprint: skeleton.fingerprint_hex(),
-        };
-        let bones = skeleton
-            .bone_ids()
-            .map(|b| {
-                let rest = skeleton.rest()[b.index()];
-                BoneInfo {
-                    name: skeleton.name(b).to_string(),
-                    parent: skeleton.parent(b).map(|p| p.0 as u32),
-                    rest_translation: rest.translation.to_array(),
-                    rest_rotation: rest.rotation.to_array(),
-                }
-            })
-            .collect();
-        let skeleton_json = ServerMessage::Skeleton {
-            subject: id,
-            name,
-            fingerprint: info.fingerprint.clone(),
-            bones,
-        }
-        .to_json();
-        let (tx, rx) = watch::channel(Frame {
-            seq: 0,
-            capture_nanos: 0,
-            source_id: id,
-            pose: Pose::from_rest(&skeleton),
-        });
-        (
-            Subject {
-                info,
-                skeleton,
-                skeleton_json,
-                latest: rx,
-                stats: SubjectStats::default(),
-            },
-            tx,
-        )
-    }
-}
-
-/// Requests from clients to the engine.
+/// Requests to the mapper (from clients and live sources).
 #[derive(Debug)]
 pub enum EngineCommand {
-    /// `set_mapping` from a client (applied once mappings exist; logged for now).
+    /// `set_mapping` from a client: merge into that target's table and rebuild.
     SetMapping {
         /// target subject
         subject: u32,
         /// target bone → source bone
         overrides: std::collections::BTreeMap<String, Option<String>>,
     },
+    /// A source subject's skeleton changed: rebuild the mappings that use it.
+    SkeletonChanged {
+        /// the source subject
+        subject: u32,
+    },
+    /// Stop the mapper.
+    Shutdown,
 }
 
 /// Runs one replay source until shutdown or (non-looping) end of clip.
@@ -163,6 +108,7 @@ pub async fn run_replay_source(
             None => finished = true,
         });
         if finished {
+            subject.health.set_state(HealthState::Finished);
             break;
         }
         subject.stats.input.tick();
@@ -194,6 +140,8 @@ pub struct TickContext {
     pub rate_hz: f64,
     /// VMC output socket and receivers (socket is `None` when there are none).
     pub vmc: Option<(std::net::UdpSocket, Vec<VmcTarget>)>,
+    /// Retargeted characters, run before encoding so their subjects stream this tick's pose.
+    pub performers: Vec<Performer>,
 }
 
 /// The fixed-rate tick. Never awaits anything but its interval and the shutdown signal.
@@ -216,6 +164,7 @@ pub struct Ticker {
     ctx: TickContext,
     scratch: Vec<u8>,
     vmc_encoder: VmcEncoder,
+    worlds: Vec<WorldTransform>,
     start: Instant,
 }
 
@@ -226,15 +175,20 @@ impl Ticker {
             ctx,
             scratch: Vec::new(),
             vmc_encoder: VmcEncoder::new(),
+            worlds: Vec::new(),
             start: Instant::now(),
         }
     }
 
-    /// Encodes and publishes the latest frame of every subject (and VMC). Allocates exactly one
-    /// shared buffer per subject that has produced a frame; nothing else once warmed up.
+    /// Runs the performers, then encodes and publishes the latest frame of every subject (and
+    /// VMC). Allocates exactly one shared buffer per subject that has produced a frame;
+    /// nothing else once warmed up.
     pub fn tick(&mut self) {
-        let ctx = &self.ctx;
         let tick_start = Instant::now();
+        for p in &mut self.ctx.performers {
+            p.tick(tick_start);
+        }
+        let ctx = &self.ctx;
         let send_nanos = unix_nanos();
         for (index, subject) in ctx.subjects.iter().enumerate() {
             let frame = subject.latest.borrow();
@@ -243,7 +197,7 @@ impl Ticker {
             }
             let header = FrameHeader {
                 flags: 0,
-                subject: subject.info.id,
+                subject: subject.id,
                 seq: frame.seq,
                 capture_nanos: frame.capture_nanos,
                 send_nanos,
@@ -257,23 +211,56 @@ impl Ticker {
             );
             if let Some((socket, targets)) = &ctx.vmc {
                 if targets.iter().any(|t| t.subject_index == index) {
-                    let names = subject.skeleton.names();
-                    let bones = names
-                        .iter()
-                        .zip(&frame.pose.translations)
-                        .zip(&frame.pose.rotations)
-                        .map(|((name, &translation), &rotation)| VmcBone {
-                            name,
-                            translation,
-                            rotation,
+                    let shape = subject.shape();
+                    let plan = &shape.vmc;
+                    let pose = &frame.pose;
+                    if pose.num_bones() == shape.skeleton.num_bones() {
+                        if !plan.direct {
+                            // Growing once to the largest skeleton; then reused.
+                            if self.worlds.len() < pose.num_bones() {
+                                self.worlds
+                                    .resize(pose.num_bones(), WorldTransform::IDENTITY);
+                            }
+                            forward_kinematics(
+                                &shape.skeleton,
+                                pose,
+                                &mut self.worlds[..pose.num_bones()],
+                            );
+                        }
+                        let worlds = &self.worlds;
+                        let direct = plan.direct;
+                        let parents = shape.skeleton.parents();
+                        let bones = plan.bones.iter().map(|(name, b, anc)| {
+                            let (translation, rotation) = if direct
+                                || *anc == parents[*b].map(|p| p.index())
+                            {
+                                (pose.translations[*b], pose.rotations[*b])
+                            } else {
+                                // Local relative to the nearest sent ancestor.
+                                let w = worlds[*b];
+                                match anc {
+                                    Some(a) => {
+                                        let pw = worlds[*a];
+                                        let inv = pw.rotation.inverse();
+                                        (inv * (w.translation - pw.translation), inv * w.rotation)
+                                    }
+                                    None => (w.translation, w.rotation),
+                                }
+                            };
+                            VmcBone {
+                                name,
+                                translation,
+                                rotation,
+                            }
                         });
-                    let time = self.start.elapsed().as_secs_f32();
-                    for bundle in self.vmc_encoder.encode(time, bones) {
-                        for t in targets.iter().filter(|t| t.subject_index == index) {
-                            // Non-blocking: a full socket buffer drops the datagram (counted)
-                            // instead of stalling the tick.
-                            if socket.send_to(bundle, t.addr).is_err() {
-                                ctx.stats.vmc_send_errors.fetch_add(1, Ordering::Relaxed);
+                        let time = self.start.elapsed().as_secs_f32();
+                        for bundle in self.vmc_encoder.encode(time, bones) {
+                            for t in targets.iter().filter(|t| t.subject_index == index) {
+                                // Non-blocking: a full socket buffer drops the datagram (counted)
+                                // instead of stalling the tick.
+                                if socket.send_to(bundle, t.addr).is_err() {
+                                    ctx.stats.vmc_send_errors.fetch_add(1, Ordering::Relaxed);
+                                }
                             }
                         }
                     }
@@ -285,32 +272,10 @@ impl Ticker {
             let bytes = Bytes::copy_from_slice(&self.scratch);
             // Err only means "no client connected right now".
             let _ = ctx.frames.send(OutFrame {
-                subject: subject.info.id,
+                subject: subject.id,
                 bytes,
             });
         }
         ctx.stats.record_tick(tick_start.elapsed());
-    }
-}
-
-/// Drains client requests. Mappings do not exist yet, so overrides are only logged.
-pub async fn run_commands(
-    mut rx: mpsc::Receiver<EngineCommand>,
-    mut shutdown: watch::Receiver<bool>,
-) {
-    loop {
-        let cmd = tokio::select! {
-            cmd = rx.recv() => cmd,
-            _ = shutdown.changed() => None,
-        };
-        let Some(cmd) = cmd else { break };
-        match cmd {
-            EngineCommand::SetMapping { subject, overrides } => {
-                eprintln!(
-                    "rigcast: set_mapping for subject {subject}: {} override(s) (mapping engine not yet available)",
-                    overrides.len()
-                );
-            }
-        }
     }
 }

@@ -278,6 +278,14 @@ pub struct SubjectStatus {
     pub input_frames: u64,
     /// Capture time of the latest frame, Unix ns (0 = none yet).
     pub last_capture_nanos: u64,
+    /// `source` or `target`.
+    pub kind: &'static str,
+    /// Source subjects of a target.
+    pub inputs: Vec<u32>,
+    /// Health of a source (replays: `live` or `finished`).
+    pub source: Option<rigcast_protocol::control::SourceHealth>,
+    /// UDP address a VMC source listens on.
+    pub listen: Option<String>,
 }
 
 /// Clients in the status.
@@ -307,13 +315,20 @@ pub fn status(state: &ServerState) -> Status {
     let subjects = state
         .subjects
         .iter()
-        .map(|s| SubjectStatus {
-            id: s.info.id,
-            name: s.info.name.clone(),
-            num_bones: s.info.num_bones,
-            input_fps: s.stats.input.rate_hz(),
-            input_frames: s.stats.input.total(),
-            last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
+        .map(|s| {
+            let info = s.info();
+            SubjectStatus {
+                id: info.id,
+                name: info.name,
+                num_bones: info.num_bones,
+                input_fps: s.stats.input.rate_hz(),
+                input_frames: s.stats.input.total(),
+                last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
+                kind: if s.is_target() { "target" } else { "source" },
+                inputs: s.inputs.clone(),
+                source: s.source_health(),
+                listen: s.listen_addr.map(|a| a.to_string()),
+            }
         })
         .collect();
     let list: Vec<ClientStatus> = state

@@ -21,6 +21,7 @@
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
+pub mod character;
 pub mod cli;
 pub mod clients;
 pub mod cmd;
@@ -28,11 +29,17 @@ pub mod config;
 pub mod demo;
 pub mod engine;
 pub mod http;
+pub mod live;
+pub mod mapper;
+pub mod performer;
+pub mod recorder;
 pub mod state;
 pub mod stats;
+pub mod subject;
 
+use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -40,11 +47,23 @@ use tokio::net::TcpListener;
 use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
 
-pub use config::{ReplaySettings, ServerConfig, SourceSpec};
+pub use config::{
+    OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec, TargetSpec, VmcBoneNames,
+};
 
-use engine::{Subject, TickContext, VmcTarget};
+use engine::{EngineCommand, TickContext, VmcTarget};
+use live::LiveContext;
+use mapper::{Mapper, PerformerPlan, SourceExtra};
+use performer::Performer;
+use recorder::Recorder;
+use rigcast_retarget::mapping::parse_mapping_file;
+use rigcast_retarget::RootMotion;
+use rigcast_sources::live::LiveSource;
+use rigcast_sources::serial::{SerialImuConfig, SerialImuSource};
+use rigcast_sources::vmc_in::{VmcConfig, VmcSource};
 use rigcast_sources::{Replay, ReplayOptions};
 use state::ServerState;
+use subject::Subject;
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
 /// with one subject.
@@ -55,6 +74,10 @@ pub struct ServerHandle {
     local_addr: SocketAddr,
     shutdown: watch::Sender<bool>,
     tasks: Vec<JoinHandle<()>>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+    stop_threads: Arc<AtomicBool>,
+    commands: mpsc::Sender<EngineCommand>,
+    recorder: Option<(Arc<Recorder>, std::thread::JoinHandle<()>)>,
     state: Arc<ServerState>,
 }
 
@@ -74,54 +97,242 @@ impl ServerHandle {
         &self.state
     }
 
-    /// Stops every task and waits for the engine tasks to finish. Client tasks are told to
-    /// close their connections.
+    /// Stops every task and thread and waits for them; finishes the recording. Client tasks
+    /// are told to close their connections.
     pub async fn shutdown(self) {
         let _ = self.shutdown.send(true);
+        self.stop_threads.store(true, Ordering::Relaxed);
+        let _ = self.commands.send(EngineCommand::Shutdown).await;
         for t in self.tasks {
             let _ = t.await;
         }
+        let threads = self.threads;
+        let recorder = self.recorder;
+        let _ = tokio::task::spawn_blocking(move || {
+            for t in threads {
+                let _ = t.join();
+            }
+            if let Some((rec, thread)) = recorder {
+                let _ = thread.join();
+                // The live threads (and their taps) are gone, so this is the last handle.
+                if let Ok(rec) = Arc::try_unwrap(rec) {
+                    rec.finish();
+                } else {
+                    eprintln!("rigcast: recording still shared at shutdown; flushed only");
+                }
+            }
+        })
+        .await;
     }
 }
 
-/// Loads the sources, binds the listener and starts the engine. Returns once the server
-/// accepts connections.
+/// A loaded source, before it becomes a subject.
+enum Loaded {
+    Replay {
+        player: Replay,
+        speed: f64,
+        clip_poses: Arc<Vec<rigcast_retarget::Pose>>,
+    },
+    Live {
+        source: Box<dyn LiveSource>,
+        kind: &'static str,
+        listen: Option<SocketAddr>,
+    },
+}
+
+/// A loaded character.
+struct LoadedTarget {
+    name: String,
+    skeleton: Arc<rigcast_retarget::Skeleton>,
+    reference: Option<rigcast_retarget::Pose>,
+}
+
+/// Loads the sources and characters, binds the listener and starts the engine. Returns once
+/// the server accepts connections.
 pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     config.validate()?;
-    let specs = if config.sources.is_empty() {
+    let defaulted = config.sources.is_empty();
+    let specs = if defaulted {
         vec![SourceSpec::EmbeddedDemo]
     } else {
         config.sources.clone()
     };
-    let mut players = Vec::new();
+    let mut performer_specs = config.performers.clone();
+    if defaulted && performer_specs.is_empty() {
+        // The default demo: the bundled walk and the built-in character retargeted from it.
+        performer_specs.push(config::PerformerSpec::target_file(format!(
+            "{}mannequin",
+            config::BUILTIN_PREFIX
+        )));
+    }
+    let mut loaded = Vec::new();
+    let mut names = Vec::new();
     for spec in specs {
-        players.push(load_source(spec).await?);
+        let (name, l, skeleton) = load_source(spec).await?;
+        names.push(unique_name(&names, name));
+        loaded.push((l, skeleton));
+    }
+    let mut targets = Vec::new();
+    for p in &performer_specs {
+        let t = load_target(p).await?;
+        targets.push(t);
     }
 
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
+    let (events_tx, _) = broadcast::channel::<String>(EVENTS_CAPACITY);
     let mut subjects = Vec::new();
     let mut senders = Vec::new();
-    for (i, (name, player, _)) in players.iter().enumerate() {
-        let (subject, tx) = Subject::new(i as u32, name.clone(), player.skeleton().clone());
-        subjects.push(Arc::new(subject));
+    let mut extras = HashMap::new();
+    for (i, ((l, skeleton), name)) in loaded.iter().zip(&names).enumerate() {
+        let (kind, listen) = match l {
+            Loaded::Replay { clip_poses, .. } => {
+                extras.insert(
+                    i as u32,
+                    SourceExtra {
+                        reference: clip_poses.get(clip_poses.len() / 2).cloned(),
+                        poses: clip_poses.clone(),
+                    },
+                );
+                ("replay", None)
+            }
+            Loaded::Live { kind, listen, .. } => (*kind, *listen),
+        };
+        let (subject, tx) = Subject::with_kind(
+            i as u32,
+            name.clone(),
+            skeleton.clone(),
+            kind,
+            Vec::new(),
+            config.vmc_bone_names,
+        );
+        subjects.push(Arc::new(subject.with_listen_addr(listen)));
         senders.push(tx);
     }
+    let num_sources = subjects.len();
+    let mut plans = Vec::new();
+    let mut target_txs = Vec::new();
+    for (p, t) in performer_specs.iter().zip(targets) {
+        let inputs: Vec<u32> = if p.sources.is_empty() {
+            vec![0]
+        } else {
+            p.sources
+                .iter()
+                .map(|n| {
+                    names
+                        .iter()
+                        .position(|m| m == n)
+                        .map(|i| i as u32)
+                        .with_context(|| {
+                            format!(
+                                "performer {}: no source named {n:?} (sources: {names:?})",
+                                t.name
+                            )
+                        })
+                })
+                .collect::<anyhow::Result<_>>()?
+        };
+        if inputs.len() > performer::MAX_INPUTS {
+            anyhow::bail!(
+                "performer {}: at most {} sources per target",
+                t.name,
+                performer::MAX_INPUTS
+            );
+        }
+        let all_names: Vec<String> = subjects.iter().map(|s| s.info().name).collect();
+        let name = unique_name(&all_names, p.name.clone().unwrap_or(t.name));
+        let (subject, tx) = Subject::with_kind(
+            subjects.len() as u32,
+            name,
+            t.skeleton,
+            "target",
+            inputs,
+            config.vmc_bone_names,
+        );
+        let subject = Arc::new(subject);
+        let overrides_file = match &p.mapping {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read the mapping file {}", path.display()))?;
+                Some(
+                    parse_mapping_file(&text)
+                        .with_context(|| format!("mapping file {}", path.display()))?,
+                )
+            }
+            None => None,
+        };
+        plans.push(PerformerPlan {
+            target: subject.clone(),
+            target_reference: t.reference,
+            overrides_file,
+            session: Default::default(),
+            root_motion: if p.in_place {
+                RootMotion::InPlace
+            } else {
+                RootMotion::Scaled
+            },
+            mailbox: Default::default(),
+        });
+        target_txs.push((tx, p.on_lost.unwrap_or(config.on_lost)));
+        subjects.push(subject);
+    }
     let subjects = Arc::new(subjects);
+    let performers: Vec<Performer> = plans
+        .iter()
+        .zip(target_txs)
+        .map(|(plan, (tx, on_lost))| {
+            Performer::new(
+                plan.target.clone(),
+                tx,
+                plan.target
+                    .inputs
+                    .iter()
+                    .map(|id| subjects[*id as usize].clone())
+                    .collect(),
+                plan.mailbox.clone(),
+                on_lost,
+            )
+        })
+        .collect();
+    let mut mapper = Mapper::new(
+        subjects.clone(),
+        plans,
+        extras,
+        config.mapping_cache_dir.clone(),
+        config.rate_hz,
+        events_tx.clone(),
+    );
+    let mapper = tokio::task::spawn_blocking(move || {
+        mapper.build_all();
+        mapper
+    })
+    .await?;
 
     let vmc = if config.vmc_out.is_empty() {
         None
     } else {
+        let default_subject = subjects.iter().position(|s| s.is_target()).unwrap_or(0);
         let mut targets = Vec::new();
-        for addr in &config.vmc_out {
-            let resolved = tokio::net::lookup_host(addr.as_str())
+        for entry in &config.vmc_out {
+            let (addr, subject_index) = match entry.rsplit_once('@') {
+                Some((addr, name)) => (
+                    addr,
+                    subjects
+                        .iter()
+                        .position(|s| s.info().name == name)
+                        .with_context(|| {
+                            format!("VMC output {entry:?}: no subject named {name:?}")
+                        })?,
+                ),
+                None => (entry.as_str(), default_subject),
+            };
+            let resolved = tokio::net::lookup_host(addr)
                 .await
                 .with_context(|| format!("cannot resolve VMC receiver {addr:?}"))?
                 .next()
                 .with_context(|| format!("VMC receiver {addr:?} resolves to no address"))?;
-            // One avatar per VMC receiver: the first subject, until targets are configurable.
             targets.push(VmcTarget {
                 addr: resolved,
-                subject_index: 0,
+                subject_index,
             });
         }
         let socket = std::net::UdpSocket::bind(("0.0.0.0", 0)).context("binding VMC socket")?;
@@ -129,6 +340,11 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             .set_nonblocking(true)
             .context("making VMC socket non-blocking")?;
         Some((socket, targets))
+    };
+
+    let recorder = match &config.record {
+        Some(path) => Some(Arc::new(Recorder::create(path)?)),
+        None => None,
     };
 
     let listener = TcpListener::bind(config.listen)
@@ -142,38 +358,88 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     let state = Arc::new(ServerState {
         subjects: subjects.clone(),
         frames: frames_tx.clone(),
+        events: events_tx.clone(),
         stats: stats.clone(),
         rate_hz: config.rate_hz,
         next_client_id: AtomicU64::new(1),
         shutdown: shutdown_rx.clone(),
-        commands: commands_tx,
+        commands: commands_tx.clone(),
     });
 
+    let stop_threads = Arc::new(AtomicBool::new(false));
     let mut tasks = Vec::new();
-    for ((_, player, speed), (tx, subject)) in players
+    let mut threads = Vec::new();
+    for (((l, _), tx), subject) in loaded
         .into_iter()
-        .zip(senders.into_iter().zip(subjects.iter().cloned()))
+        .zip(senders)
+        .zip(subjects.iter().take(num_sources).cloned())
     {
-        tasks.push(tokio::spawn(engine::run_replay_source(
-            player,
-            speed,
-            tx,
-            subject,
-            shutdown_rx.clone(),
-        )));
+        match l {
+            Loaded::Replay { player, speed, .. } => {
+                tasks.push(tokio::spawn(engine::run_replay_source(
+                    player,
+                    speed,
+                    tx,
+                    subject,
+                    shutdown_rx.clone(),
+                )));
+            }
+            Loaded::Live { mut source, .. } => {
+                if let Some(rec) = &recorder {
+                    source.set_raw_tap(Some(Box::new(rec.tap(subject.id))));
+                }
+                let ctx = LiveContext {
+                    subject,
+                    tx,
+                    subjects: subjects.clone(),
+                    events: events_tx.clone(),
+                    commands: commands_tx.clone(),
+                    recorder: recorder.clone(),
+                    stop: stop_threads.clone(),
+                };
+                threads.push(
+                    std::thread::Builder::new()
+                        .name(format!("rigcast-live-{}", ctx.subject.id))
+                        .spawn(move || live::run_live(source, ctx))
+                        .context("cannot start a live source thread")?,
+                );
+            }
+        }
     }
+    threads.push(
+        std::thread::Builder::new()
+            .name("rigcast-mapper".into())
+            .spawn(move || mapper.run(commands_rx))
+            .context("cannot start the mapper thread")?,
+    );
+    let recorder = match recorder {
+        Some(rec) => {
+            let r = rec.clone();
+            let subs = subjects.clone();
+            let stop = stop_threads.clone();
+            let rate = config.rate_hz;
+            let t = std::thread::Builder::new()
+                .name("rigcast-recorder".into())
+                .spawn(move || r.run(&subs, rate, &stop))
+                .context("cannot start the recorder thread")?;
+            Some((rec, t))
+        }
+        None => None,
+    };
     tasks.push(tokio::spawn(engine::run_tick(
         TickContext {
-            subjects,
+            subjects: subjects.clone(),
             frames: frames_tx,
             stats,
             rate_hz: config.rate_hz,
             vmc,
+            performers,
         },
         shutdown_rx.clone(),
     )));
-    tasks.push(tokio::spawn(engine::run_commands(
-        commands_rx,
+    tasks.push(tokio::spawn(run_source_status(
+        subjects,
+        events_tx,
         shutdown_rx.clone(),
     )));
     tasks.push(tokio::spawn(http::run_listener(listener, state.clone())));
@@ -182,12 +448,109 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         local_addr,
         shutdown: shutdown_tx,
         tasks,
+        threads,
+        stop_threads,
+        commands: commands_tx,
+        recorder,
         state,
     })
 }
 
-/// Loads a source: its subject name, the replay, and its speed (the replay task paces itself).
-async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, Replay, f64)> {
+/// Control messages queued per client (mapping updates, skeleton changes, source status).
+const EVENTS_CAPACITY: usize = 256;
+
+/// Broadcasts `source_status` about once per second.
+async fn run_source_status(
+    subjects: Arc<Vec<Arc<Subject>>>,
+    events: broadcast::Sender<String>,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    let mut interval = tokio::time::interval(std::time::Duration::from_secs(1));
+    loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = shutdown.changed() => break,
+        }
+        if events.receiver_count() == 0 {
+            continue;
+        }
+        let _ = events.send(source_status_json(&subjects));
+    }
+}
+
+/// The `source_status` message for `subjects`.
+pub fn source_status_json(subjects: &[Arc<Subject>]) -> String {
+    rigcast_protocol::ServerMessage::SourceStatus {
+        sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
+    }
+    .to_json()
+}
+
+/// `name`, or `name-2`, `name-3`… when taken.
+fn unique_name(taken: &[String], name: String) -> String {
+    if !taken.contains(&name) {
+        return name;
+    }
+    (2..)
+        .map(|i| format!("{name}-{i}"))
+        .find(|n| !taken.contains(n))
+        .unwrap_or(name)
+}
+
+/// Loads a character: a file (its animation only serves as a reference posture) or a
+/// built-in.
+async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
+    match &p.target {
+        TargetSpec::Skeleton { skeleton, name } => Ok(LoadedTarget {
+            name: name.clone(),
+            skeleton: skeleton.clone(),
+            reference: None,
+        }),
+        TargetSpec::File(path) => {
+            let text = path.to_string_lossy();
+            if let Some(builtin) = text.strip_prefix(config::BUILTIN_PREFIX) {
+                let skeleton = character::builtin(builtin).with_context(|| {
+                    format!(
+                        "unknown built-in character {builtin:?}; expected one of {:?}",
+                        character::BUILTIN_NAMES
+                    )
+                })?;
+                return Ok(LoadedTarget {
+                    name: builtin.to_string(),
+                    skeleton: Arc::new(skeleton),
+                    reference: None,
+                });
+            }
+            let p2 = path.clone();
+            let clip = tokio::task::spawn_blocking(move || rigcast_sources::load_clip(&p2))
+                .await?
+                .with_context(|| format!("cannot load target character {}", path.display()))?;
+            let name = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| clip.name.clone());
+            Ok(LoadedTarget {
+                name,
+                reference: clip.poses.get(clip.poses.len() / 2).cloned(),
+                skeleton: clip.skeleton,
+            })
+        }
+    }
+}
+
+/// Loads a source: its subject name, what runs it, and its (initial) skeleton.
+async fn load_source(
+    spec: SourceSpec,
+) -> anyhow::Result<(String, Loaded, Arc<rigcast_retarget::Skeleton>)> {
+    let replay_of =
+        |clip: rigcast_retarget::Clip, settings: ReplaySettings| -> anyhow::Result<Loaded> {
+            let poses = Arc::new(clip.poses.clone());
+            Ok(Loaded::Replay {
+                player: replay(clip, settings)?,
+                speed: settings.speed,
+                clip_poses: poses,
+            })
+        };
     Ok(match spec {
         SourceSpec::ReplayFile {
             path,
@@ -203,23 +566,114 @@ async fn load_source(spec: SourceSpec) -> anyhow::Result<(String, Replay, f64)> 
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_else(|| clip.name.clone())
             });
-            (name, replay(clip, settings)?, settings.speed)
+            let sk = clip.skeleton.clone();
+            (name, replay_of(clip, settings)?, sk)
         }
         SourceSpec::ReplayClip {
             clip,
             name,
             settings,
-        } => (
-            name.unwrap_or_else(|| clip.name.clone()),
-            replay(clip, settings)?,
-            settings.speed,
-        ),
+        } => {
+            let sk = clip.skeleton.clone();
+            (
+                name.unwrap_or_else(|| clip.name.clone()),
+                replay_of(clip, settings)?,
+                sk,
+            )
+        }
         SourceSpec::EmbeddedDemo => {
             let clip = demo_clip()?;
-            let settings = ReplaySettings::default();
-            ("demo".to_string(), replay(clip, settings)?, settings.speed)
+            let sk = clip.skeleton.clone();
+            (
+                "demo".to_string(),
+                replay_of(clip, ReplaySettings::default())?,
+                sk,
+            )
+        }
+        SourceSpec::Vmc {
+            port,
+            lost_after_secs,
+            name,
+        } => {
+            let mut cfg = VmcConfig::port(port);
+            if let Some(l) = lost_after_secs {
+                cfg.lost_after_secs = l;
+            }
+            let source = VmcSource::bind(cfg)
+                .with_context(|| format!("cannot listen for VMC on UDP port {port}"))?;
+            let listen = source.local_addr();
+            let name =
+                name.unwrap_or_else(|| format!("vmc:{}", listen.map(|a| a.port()).unwrap_or(port)));
+            // Until the sender's own skeleton arrives, the standard humanoid stands in.
+            let sk = match source.skeleton() {
+                Some(s) => s,
+                None => rigcast_sources::live::humanoid::default_humanoid()
+                    .context("building the default humanoid")?,
+            };
+            (
+                name,
+                Loaded::Live {
+                    source: Box::new(source),
+                    kind: "vmc",
+                    listen,
+                },
+                sk,
+            )
+        }
+        SourceSpec::Serial { config, name } => {
+            let text = std::fs::read_to_string(&config)
+                .with_context(|| format!("cannot read serial config {}", config.display()))?;
+            let cfg = SerialImuConfig::from_toml(&text)
+                .with_context(|| format!("serial config {}", config.display()))?;
+            let humanoid = rigcast_sources::live::humanoid::default_humanoid()
+                .context("building the default humanoid")?;
+            let source = SerialImuSource::open(cfg, humanoid.clone())
+                .with_context(|| format!("cannot open the serial suit of {}", config.display()))?;
+            let sk = source.skeleton().unwrap_or(humanoid);
+            let name = name.unwrap_or_else(|| stem(&config));
+            (
+                name,
+                Loaded::Live {
+                    source: Box::new(source),
+                    kind: "serial",
+                    listen: None,
+                },
+                sk,
+            )
+        }
+        SourceSpec::Video { path, name } => {
+            let (source, sk) = open_video(&path)?;
+            (
+                name.unwrap_or_else(|| stem(&path)),
+                Loaded::Live {
+                    source,
+                    kind: "video",
+                    listen: None,
+                },
+                sk,
+            )
         }
     })
+}
+
+fn stem(p: &std::path::Path) -> String {
+    p.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| p.display().to_string())
+}
+
+/// Pose estimation on a video file, as a live source (frames released in real time).
+fn open_video(
+    path: &std::path::Path,
+) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
+    use rigcast_sources::vision::{FfmpegSource, PipelineConfig, PosePipeline, VisionSource};
+    let frames = FfmpegSource::open(path)
+        .with_context(|| format!("cannot open video {}", path.display()))?;
+    let pipeline = PosePipeline::new(&PipelineConfig::default())
+        .context("pose estimation is not set up (run `rigcast setup vision`)")?;
+    let sk = pipeline.skeleton().clone();
+    let source = VisionSource::new(stem(path), Box::new(frames), pipeline, true);
+    Ok((Box::new(source), sk))
 }
 
 fn replay(clip: rigcast_retarget::Clip, settings: ReplaySettings) -> anyhow::Result<Replay> {

@@ -16,6 +16,9 @@ pub struct ServerState {
     pub subjects: Arc<Vec<Arc<Subject>>>,
     /// Frame fan-out; client tasks call `subscribe`.
     pub frames: broadcast::Sender<OutFrame>,
+    /// Control messages for every client (`mapping`, `skeleton`, `subjects_changed`,
+    /// `source_status`), as JSON text.
+    pub events: broadcast::Sender<String>,
     /// Counters.
     pub stats: Arc<Stats>,
     /// Output rate.
@@ -31,12 +34,12 @@ pub struct ServerState {
 impl ServerState {
     /// A subject by id.
     pub fn subject(&self, id: u32) -> Option<&Arc<Subject>> {
-        self.subjects.get(id as usize).filter(|s| s.info.id == id)
+        self.subjects.get(id as usize).filter(|s| s.id == id)
     }
 
     /// The subjects as listed in `hello`.
     pub fn subject_infos(&self) -> Vec<SubjectInfo> {
-        self.subjects.iter().map(|s| s.info.clone()).collect()
+        self.subjects.iter().map(|s| s.info()).collect()
     }
 
     /// The `hello` message.

@@ -1,13 +1,19 @@
 //! The tick allocates exactly one shared buffer per subject per tick in steady state (frame
-//! encoding, VMC encoding and sending, broadcast and stats reuse their memory). Proven with a
-//! counting global allocator, so this file holds only this test.
+//! encoding, retargeting a target subject, VMC encoding and sending with humanoid names,
+//! broadcast and stats reuse their memory). Proven with a counting global allocator, so this
+//! file holds only this test.
 #![allow(clippy::unwrap_used)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
+use rigcast_retarget::analysis::SkeletonView;
+use rigcast_retarget::mapping::{auto_map, MapOptions};
+use rigcast_retarget::{Mapping, RetargetOptions};
+use rigcast_server::config::{OnLost, VmcBoneNames};
 use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
+use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
 
 struct Counting;
@@ -46,6 +52,44 @@ fn tick_allocates_one_buffer_per_subject() {
         subjects.push(Arc::new(s));
         senders.push(tx);
     }
+    // A target subject (the built-in mannequin) retargeted from subject 0.
+    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let table = auto_map(
+        &SkeletonView::rest(&clip.skeleton),
+        &SkeletonView::rest(&target),
+        &MapOptions::default(),
+    );
+    assert!(table.num_mapped() > 10);
+    let mapping = Mapping::build(
+        &[&clip.skeleton],
+        &target,
+        &table,
+        &RetargetOptions::default(),
+    )
+    .unwrap();
+    let (t, target_tx) = Subject::with_kind(
+        3,
+        "target".into(),
+        target.clone(),
+        "target",
+        vec![0],
+        VmcBoneNames::Humanoid,
+    );
+    let t = Arc::new(t);
+    assert!(!t.shape().vmc.bones.is_empty());
+    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
+        aligned_rest: mapping.aligned_rest_pose(),
+        mapping,
+    })));
+    let performer = Performer::new(
+        t.clone(),
+        target_tx,
+        vec![subjects[0].clone()],
+        mailbox,
+        OnLost::Ease,
+    );
+    let target_subject = t.clone();
+    subjects.push(t);
     let (frames, mut rx) = tokio::sync::broadcast::channel(1024);
     let receiver = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -57,27 +101,48 @@ fn tick_allocates_one_buffer_per_subject() {
         rate_hz: 60.0,
         vmc: Some((
             socket,
-            vec![VmcTarget {
-                addr: receiver.local_addr().unwrap(),
-                subject_index: 0,
-            }],
+            vec![
+                VmcTarget {
+                    addr: receiver.local_addr().unwrap(),
+                    subject_index: 0,
+                },
+                VmcTarget {
+                    addr: receiver.local_addr().unwrap(),
+                    subject_index: 3,
+                },
+            ],
         )),
+        performers: vec![performer],
     });
-    // Warm up: buffers grow to size.
-    for _ in 0..3 {
+    // The source moves every tick, so the target is retargeted every tick.
+    let advance = |k: usize| {
+        senders[0].send_modify(|f| {
+            f.pose.copy_from(&clip.poses[k % clip.poses.len()]);
+            f.seq += 1;
+        });
+    };
+    // Warm up: buffers grow to size, the performer takes its mapping.
+    for k in 0..3 {
+        advance(k);
         ticker.tick();
     }
+    let target_seq = target_subject.latest.borrow().seq;
     let before = ALLOCATIONS.load(Ordering::Relaxed);
     const TICKS: usize = 100;
-    for _ in 0..TICKS {
+    for k in 0..TICKS {
+        advance(k + 3);
         ticker.tick();
     }
     let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
     assert_eq!(
         allocations,
-        TICKS * 3,
+        TICKS * 4,
         "one shared frame per subject per tick"
     );
-    // The frames went out.
+    // The frames went out, and the target was retargeted on every tick.
     assert!(rx.try_recv().is_ok());
+    assert_eq!(
+        target_subject.latest.borrow().seq,
+        target_seq + TICKS as u64
+    );
 }

@@ -205,6 +205,7 @@ pub async fn start_server(
         rate_hz,
         sources,
         vmc_out,
+        ..rigcast_server::ServerConfig::default()
     };
     rigcast_server::start(config).await.unwrap()
 }

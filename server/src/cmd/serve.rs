@@ -5,7 +5,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
-use crate::config::{parse_listen, FileConfig, ReplaySettings, ServerConfig, SourceSpec};
+use crate::config::{
+    default_mapping_cache_dir, parse_listen, FileConfig, OnLost, PerformerSpec, ReplaySettings,
+    ServerConfig, SourceSpec,
+};
 
 /// Options of `rigcast serve`. Flags override `--config`.
 #[derive(Debug, Args, Default)]
@@ -25,14 +28,51 @@ pub struct ServeArgs {
     /// Output rate in Hz (1..=240, default 60).
     #[arg(long)]
     pub rate: Option<f64>,
+    /// A character to retarget onto (BVH, glTF/GLB, VRM, .rcr; its animation is ignored;
+    /// `builtin:mannequin`), driven by the first source (repeatable). Replaces the config's
+    /// performers.
+    #[arg(long = "target", value_name = "FILE")]
+    pub targets: Vec<PathBuf>,
+    /// Record every subject and the raw input of live sources into FILE.rcr.
+    #[arg(long, value_name = "FILE.rcr")]
+    pub record: Option<PathBuf>,
+    /// While a source is lost its targets ease to rest (`ease`, default) or hold (`hold`).
+    #[arg(long = "on-lost", value_name = "ease|hold")]
+    pub on_lost: Option<String>,
+    /// Don't read or write the on-disk mapping cache.
+    #[arg(long)]
+    pub no_mapping_cache: bool,
 }
 
 /// Merges the config file and flags.
 pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     let mut cfg = match &args.config {
         Some(path) => ServerConfig::from_file(FileConfig::load(path)?)?,
-        None => ServerConfig::default(),
+        None => ServerConfig {
+            mapping_cache_dir: default_mapping_cache_dir(),
+            ..ServerConfig::default()
+        },
     };
+    if args.no_mapping_cache {
+        cfg.mapping_cache_dir = None;
+    }
+    if !args.targets.is_empty() {
+        cfg.performers = args
+            .targets
+            .iter()
+            .map(|t| PerformerSpec::target_file(t.clone()))
+            .collect();
+    }
+    if let Some(r) = &args.record {
+        cfg.record = Some(r.clone());
+    }
+    if let Some(o) = &args.on_lost {
+        cfg.on_lost = match o.as_str() {
+            "ease" => OnLost::Ease,
+            "hold" => OnLost::Hold,
+            _ => anyhow::bail!("--on-lost {o:?}: expected ease or hold"),
+        };
+    }
     if let Some(listen) = &args.listen {
         cfg.listen = parse_listen(listen)?;
     }
@@ -53,7 +93,7 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     Ok(cfg)
 }
 
-/// Parses `replay:PATH` (and `demo`).
+/// Parses `replay:PATH`, `vmc:PORT`, `serial:CONFIG.toml`, `video:FILE` (and `demo`).
 pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
     if s == "demo" {
         return Ok(SourceSpec::EmbeddedDemo);
@@ -64,7 +104,24 @@ pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
             name: None,
             settings: ReplaySettings::default(),
         }),
-        _ => anyhow::bail!("unknown source {s:?}; expected replay:FILE or demo"),
+        Some(("vmc", port)) => Ok(SourceSpec::Vmc {
+            port: port.parse().map_err(|_| {
+                anyhow::anyhow!("--source {s:?}: expected vmc:PORT with a UDP port 0..=65535")
+            })?,
+            lost_after_secs: None,
+            name: None,
+        }),
+        Some(("serial", path)) if !path.is_empty() => Ok(SourceSpec::Serial {
+            config: PathBuf::from(path),
+            name: None,
+        }),
+        Some(("video", path)) if !path.is_empty() => Ok(SourceSpec::Video {
+            path: PathBuf::from(path),
+            name: None,
+        }),
+        _ => anyhow::bail!(
+            "unknown source {s:?}; expected replay:FILE, vmc:PORT, serial:CONFIG.toml, video:FILE or demo"
+        ),
     }
 }
 
@@ -78,10 +135,23 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     println!("  status: http://{addr}/v1/status");
     println!("  viewer: http://{addr}/");
     for s in handle.state().subjects.iter() {
+        let info = s.info();
+        let from = if s.is_target() {
+            format!(", retargeted from {:?}", s.inputs)
+        } else {
+            format!(", {}", s.source_kind)
+        };
+        let listen = s
+            .listen_addr
+            .map(|a| format!(", listening on udp {a}"))
+            .unwrap_or_default();
         println!(
-            "  subject {}: {} ({} bones)",
-            s.info.id, s.info.name, s.info.num_bones
+            "  subject {}: {} ({} bones{from}{listen})",
+            info.id, info.name, info.num_bones
         );
+    }
+    if let Some(r) = &cfg.record {
+        println!("  recording: {}", r.display());
     }
     for v in &cfg.vmc_out {
         println!("  vmc out: {v}");
@@ -113,6 +183,15 @@ mod tests {
             matches!(&cfg.sources[0], SourceSpec::ReplayFile { path, .. } if path == &PathBuf::from("a.bvh"))
         );
         assert!(parse_source("webcam").is_err());
+        assert!(matches!(
+            parse_source("vmc:39540").unwrap(),
+            SourceSpec::Vmc { port: 39540, .. }
+        ));
+        assert!(parse_source("vmc:x").is_err());
+        assert!(matches!(
+            parse_source("serial:suit.toml").unwrap(),
+            SourceSpec::Serial { .. }
+        ));
         let bad_rate = ServeArgs {
             rate: Some(0.5),
             ..ServeArgs::default()

@@ -1,0 +1,54 @@
+//! Built-in characters (`builtin:NAME` targets). The default demo retargets the bundled walk
+//! onto `mannequin`: a UE-mannequin-style humanoid (ground root, pelvis, spine_01…, clavicles,
+//! twist bones, fingers) in A-pose, taller and with shorter forearms than the recording's
+//! skeleton, so the demo shows retargeting across structure, rest posture and proportions.
+
+use glam::{Quat, Vec3};
+use rigcast_retarget::corpus::{humanoid, Style};
+use rigcast_retarget::Skeleton;
+
+/// Names accepted after `builtin:`.
+pub const BUILTIN_NAMES: [&str; 1] = ["mannequin"];
+
+/// A built-in character by name.
+pub fn builtin(name: &str) -> Option<Skeleton> {
+    match name {
+        "mannequin" => mannequin(),
+        _ => None,
+    }
+}
+
+/// The demo character (see the module docs).
+pub fn mannequin() -> Option<Skeleton> {
+    let mut b = humanoid(Style::Unreal, true);
+    // A-pose: each upper-arm subtree 45° down about the forward axis (left arm is at +X).
+    for (name, angle) in [("upperarm_l", -45f32), ("upperarm_r", 45f32)] {
+        let i = b.find(name)?;
+        b.rotate_subtree(i, Quat::from_axis_angle(Vec3::Z, angle.to_radians()));
+    }
+    let mut raw = b.raw();
+    // Different proportions: 12 % taller overall, forearms and hands 15 % shorter.
+    for bone in &mut raw.bones {
+        let mut s = 1.12;
+        if bone.name.starts_with("hand_") {
+            s *= 0.85;
+        }
+        bone.rest.translation *= s;
+    }
+    Skeleton::build(&raw).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mannequin_differs_from_the_demo_source() {
+        let m = mannequin().unwrap();
+        let demo = rigcast_sources::embedded_demo().unwrap();
+        assert_ne!(m.fingerprint(), demo.skeleton.fingerprint());
+        assert!(m.num_bones() > demo.skeleton.num_bones());
+        assert!(m.bone("pelvis").is_some() && m.bone("upperarm_l").is_some());
+        assert!(builtin("nope").is_none());
+    }
+}

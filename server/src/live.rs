@@ -1,0 +1,128 @@
+//! Live sources (VMC, serial IMU suits, video): one std thread each, blocking in
+//! `LiveSource::next_frame` and publishing into the subject's `watch` slot.
+//!
+//! ```text
+//!  thread: next_frame(50 ms, &mut pose) ─▶ skeleton changed? ─▶ subject shape, `subjects_changed`
+//!            │                                                  + `skeleton` to clients, re-map
+//!            └─▶ watch<Frame>.send_modify (copy, no allocation)
+//!          every ~100 ms: status() ─▶ subject health (state, fps, latency, frames, dropped)
+//! ```
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::{Frame, Pose};
+use rigcast_sources::live::{LiveSource, SourceState};
+use tokio::sync::{broadcast, mpsc, watch};
+
+use crate::engine::{unix_nanos, EngineCommand};
+use crate::recorder::Recorder;
+use crate::subject::{HealthState, Subject};
+
+/// How long one `next_frame` call may block (bounds shutdown latency).
+const POLL: Duration = Duration::from_millis(50);
+/// How often the health report is refreshed.
+const STATUS_EVERY: Duration = Duration::from_millis(100);
+
+/// What a live-source thread talks to.
+pub struct LiveContext {
+    /// The subject it feeds.
+    pub subject: Arc<Subject>,
+    /// Its slot.
+    pub tx: watch::Sender<Frame>,
+    /// All subjects (for `subjects_changed`).
+    pub subjects: Arc<Vec<Arc<Subject>>>,
+    /// Control messages to clients.
+    pub events: broadcast::Sender<String>,
+    /// Requests to the mapper.
+    pub commands: mpsc::Sender<EngineCommand>,
+    /// Recording of skeleton changes, if any.
+    pub recorder: Option<Arc<Recorder>>,
+    /// Set on shutdown.
+    pub stop: Arc<AtomicBool>,
+}
+
+fn state_of(s: SourceState) -> HealthState {
+    match s {
+        SourceState::Connecting => HealthState::Connecting,
+        SourceState::Live => HealthState::Live,
+        SourceState::Lost => HealthState::Lost,
+    }
+}
+
+/// Runs a live source until `stop` is set.
+pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
+    let mut pose: Pose = ctx.subject.skeleton().rest_pose();
+    let mut last_status = Instant::now() - STATUS_EVERY;
+    let mut last_error: Option<String> = None;
+    while !ctx.stop.load(Ordering::Relaxed) {
+        match source.next_frame(POLL, &mut pose) {
+            Ok(Some(meta)) => {
+                if meta.skeleton_changed {
+                    if let Some(skeleton) = source.skeleton() {
+                        if ctx.subject.set_skeleton(skeleton.clone()) {
+                            announce_skeleton(&ctx);
+                        }
+                    }
+                }
+                let capture = if meta.capture_nanos == 0 {
+                    unix_nanos()
+                } else {
+                    meta.capture_nanos
+                };
+                ctx.tx.send_modify(|f| {
+                    if f.pose.num_bones() == pose.num_bones() {
+                        f.pose.copy_from(&pose);
+                    } else {
+                        // Only after a skeleton change.
+                        f.pose = pose.clone();
+                    }
+                    f.seq = meta.seq.max(f.seq + 1);
+                    f.capture_nanos = capture;
+                });
+                ctx.subject.stats.input.tick();
+                ctx.subject
+                    .stats
+                    .last_capture_nanos
+                    .store(capture, Ordering::Relaxed);
+                last_error = None;
+            }
+            Ok(None) => {}
+            Err(e) => {
+                let text = e.to_string();
+                if last_error.as_deref() != Some(text.as_str()) {
+                    eprintln!("rigcast: source {}: {text}", ctx.subject.info().name);
+                    last_error = Some(text);
+                }
+                // Device errors repeat quickly; don't spin.
+                std::thread::sleep(POLL);
+            }
+        }
+        if last_status.elapsed() >= STATUS_EVERY {
+            last_status = Instant::now();
+            let status = source.status();
+            ctx.subject.health.set_state(state_of(status.state));
+            if let Ok(mut g) = ctx.subject.health.live.lock() {
+                *g = Some(status);
+            }
+        }
+    }
+}
+
+/// Tells clients, the recorder and the mapper about a new skeleton.
+fn announce_skeleton(ctx: &LiveContext) {
+    let shape = ctx.subject.shape();
+    let infos = ctx.subjects.iter().map(|s| s.info()).collect();
+    let _ = ctx
+        .events
+        .send(ServerMessage::SubjectsChanged { subjects: infos }.to_json());
+    let _ = ctx.events.send(shape.skeleton_json.clone());
+    if let Some(r) = &ctx.recorder {
+        r.skeleton(ctx.subject.id, &shape.info.name, &shape.skeleton);
+    }
+    let _ = ctx.commands.blocking_send(EngineCommand::SkeletonChanged {
+        subject: ctx.subject.id,
+    });
+}

@@ -1,0 +1,327 @@
+//! The mapper: builds each performer's [`Mapping`] off the tick path, on its own thread.
+//!
+//! ```text
+//!  start / set_mapping / source skeleton changed
+//!        │
+//!        ▼
+//!  table = memory cache ▸ disk cache (~/.cache/rigcast/mappings/KEY.json) ▸ auto_map_many
+//!        + overrides file (TOML) + the session's set_mapping overrides
+//!        ──▶ cache (memory + disk) ──▶ Mapping::build ──▶ mailbox (tick picks it up)
+//!                                                   └──▶ `mapping` message to clients
+//! ```
+//!
+//! Cache keys are both skeletons' fingerprints plus the mapper options' hash, so a
+//! reconnecting source (same skeleton) maps without re-running the automatic mapper.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::Context;
+use rigcast_protocol::control::MappingEntry;
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::analysis::{analyze, Analysis, SkeletonView};
+use rigcast_retarget::mapping::{
+    apply_overrides, cache, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingCache,
+    MappingFile, MappingTable, SourceRef, TargetEntry, UNMAPPED,
+};
+use rigcast_retarget::{Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
+use tokio::sync::{broadcast, mpsc};
+
+use crate::engine::EngineCommand;
+use crate::performer::{BuiltMapping, Mailbox};
+use crate::subject::Subject;
+
+/// What the mapper knows about one performer.
+pub struct PerformerPlan {
+    /// The target subject (its `inputs` are the source subjects).
+    pub target: Arc<Subject>,
+    /// A representative pose of the character (its file's animation), for alignment when its
+    /// rest pose has no posture.
+    pub target_reference: Option<Pose>,
+    /// Overrides from the performer's mapping file.
+    pub overrides_file: Option<MappingFile>,
+    /// Overrides received with `set_mapping` this session (target bone → source bone).
+    pub session: BTreeMap<String, Option<String>>,
+    /// Root motion.
+    pub root_motion: RootMotion,
+    /// Where built mappings go.
+    pub mailbox: Mailbox,
+}
+
+/// Extra knowledge about a replayed source: a representative pose and the clip's poses (for
+/// the floor height).
+#[derive(Debug, Clone, Default)]
+pub struct SourceExtra {
+    /// Middle frame of the clip.
+    pub reference: Option<Pose>,
+    /// The clip's poses.
+    pub poses: Arc<Vec<Pose>>,
+}
+
+/// Builds and rebuilds mappings.
+pub struct Mapper {
+    subjects: Arc<Vec<Arc<Subject>>>,
+    performers: Vec<PerformerPlan>,
+    extras: HashMap<u32, SourceExtra>,
+    memory: MappingCache,
+    disk: Option<PathBuf>,
+    frame_time_secs: f32,
+    events: broadcast::Sender<String>,
+    options: MapOptions,
+}
+
+impl Mapper {
+    /// A mapper over `subjects` (sources and targets) for `performers`.
+    pub fn new(
+        subjects: Arc<Vec<Arc<Subject>>>,
+        performers: Vec<PerformerPlan>,
+        extras: HashMap<u32, SourceExtra>,
+        disk: Option<PathBuf>,
+        rate_hz: f64,
+        events: broadcast::Sender<String>,
+    ) -> Mapper {
+        Mapper {
+            subjects,
+            performers,
+            extras,
+            memory: MappingCache::new(),
+            disk,
+            frame_time_secs: (1.0 / rate_hz) as f32,
+            events,
+            options: MapOptions::default(),
+        }
+    }
+
+    /// Builds every performer's mapping; failures are reported and leave that target at rest.
+    pub fn build_all(&mut self) {
+        for i in 0..self.performers.len() {
+            if let Err(e) = self.build(i) {
+                eprintln!(
+                    "rigcast: cannot map {}: {e:#}",
+                    self.performers[i].target.info().name
+                );
+            }
+        }
+    }
+
+    fn cache_path(&self, key: &CacheKey) -> Option<PathBuf> {
+        self.disk
+            .as_ref()
+            .map(|d| d.join(format!("{}.json", key.file_stem())))
+    }
+
+    /// Builds performer `i`'s mapping and hands it to the tick.
+    pub fn build(&mut self, i: usize) -> anyhow::Result<()> {
+        let p = &self.performers[i];
+        let target = p.target.skeleton();
+        let sources: Vec<Arc<Skeleton>> = p
+            .target
+            .inputs
+            .iter()
+            .map(|id| self.subjects[*id as usize].skeleton())
+            .collect();
+        let src_refs: Vec<&Skeleton> = sources.iter().map(|s| &**s).collect();
+        let references: Vec<Option<&Pose>> = p
+            .target
+            .inputs
+            .iter()
+            .map(|id| self.extras.get(id).and_then(|e| e.reference.as_ref()))
+            .collect();
+        let analyses: Vec<Analysis> = src_refs
+            .iter()
+            .zip(&references)
+            .map(|(s, r)| {
+                analyze(&SkeletonView {
+                    skeleton: s,
+                    pose: *r,
+                })
+            })
+            .collect();
+        let ta = analyze(&SkeletonView {
+            skeleton: &target,
+            pose: p.target_reference.as_ref(),
+        });
+        let key = CacheKey::new(&src_refs, &target, &self.options);
+        let cached = self.memory.get(&key).map(|t| (*t).clone()).or_else(|| {
+            let text = std::fs::read_to_string(self.cache_path(&key)?).ok()?;
+            cache::decode(&text, &key)
+        });
+        let mut table = match cached {
+            Some(t) if t.entries.len() == target.num_bones() => t,
+            _ => {
+                let pairs: Vec<(&Skeleton, &Analysis)> =
+                    src_refs.iter().copied().zip(&analyses).collect();
+                map_analyzed(&pairs, (&target, &ta), &self.options)
+            }
+        };
+        if let Some(file) = &p.overrides_file {
+            apply_overrides(&mut table, file, &src_refs, &target).context("mapping file")?;
+        }
+        apply_session(&mut table, &p.session, &src_refs, &target)?;
+        self.memory.insert(key.clone(), table.clone());
+        if let Some(path) = self.cache_path(&key) {
+            // A failed cache write only costs a re-map next time.
+            let _ = path
+                .parent()
+                .map(std::fs::create_dir_all)
+                .transpose()
+                .and_then(|_| std::fs::write(&path, cache::encode(&key, &table)));
+        }
+        let opts = RetargetOptions {
+            frame_time_secs: self.frame_time_secs,
+            root_motion: p.root_motion,
+            source_reference: references
+                .iter()
+                .zip(&analyses)
+                .map(|(r, a)| r.filter(|_| a.used_pose).cloned())
+                .collect(),
+            target_reference: p.target_reference.clone().filter(|_| ta.used_pose),
+            ..RetargetOptions::default()
+        };
+        let mut mapping = Mapping::build(&src_refs, &target, &table, &opts)
+            .context("cannot build the retargeting mapping")?;
+        if let Some(extra) = p.target.inputs.first().and_then(|id| self.extras.get(id)) {
+            if let Some(floor) = mapping.measure_source_floor(&extra.poses) {
+                mapping.set_source_floor_y(floor);
+            }
+        }
+        let aligned_rest = mapping.aligned_rest_pose();
+        let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options);
+        if let Ok(mut slot) = p.mailbox.lock() {
+            *slot = Some(BuiltMapping {
+                mapping,
+                aligned_rest,
+            });
+        }
+        if let Ok(mut m) = p.target.mapping_json.write() {
+            *m = Some(json.clone());
+        }
+        let _ = self.events.send(json);
+        Ok(())
+    }
+
+    /// Handles one command.
+    pub fn handle(&mut self, cmd: EngineCommand) {
+        match cmd {
+            EngineCommand::SetMapping { subject, overrides } => {
+                let Some(i) = self.performers.iter().position(|p| p.target.id == subject) else {
+                    return;
+                };
+                self.performers[i].session.extend(overrides);
+                if let Err(e) = self.build(i) {
+                    eprintln!("rigcast: set_mapping for subject {subject}: {e:#}");
+                }
+            }
+            EngineCommand::SkeletonChanged { subject } => {
+                for i in 0..self.performers.len() {
+                    if self.performers[i].target.inputs.contains(&subject) {
+                        // The old reference pose belongs to the old skeleton.
+                        self.extras.remove(&subject);
+                        if let Err(e) = self.build(i) {
+                            eprintln!("rigcast: re-mapping after a skeleton change: {e:#}");
+                        }
+                    }
+                }
+            }
+            EngineCommand::Shutdown => {}
+        }
+    }
+
+    /// Runs until `Shutdown` or every sender is gone (call on a dedicated thread).
+    pub fn run(mut self, mut rx: mpsc::Receiver<EngineCommand>) {
+        while let Some(cmd) = rx.blocking_recv() {
+            if matches!(cmd, EngineCommand::Shutdown) {
+                break;
+            }
+            self.handle(cmd);
+        }
+    }
+}
+
+/// Merges `set_mapping` overrides: target bone → source bone (searched in input order), or
+/// `None` to leave the bone unmapped. Unknown names are errors (clients are checked first).
+pub fn apply_session(
+    table: &mut MappingTable,
+    session: &BTreeMap<String, Option<String>>,
+    sources: &[&Skeleton],
+    target: &Skeleton,
+) -> anyhow::Result<()> {
+    for (tname, sname) in session {
+        let t = target
+            .bone(tname)
+            .with_context(|| format!("unknown target bone {tname:?}"))?;
+        let Some(sname) = sname else {
+            table.entries[t.index()] = None;
+            continue;
+        };
+        let (input, bone) = find_source_bone(sources, sname)
+            .with_context(|| format!("unknown source bone {sname:?}"))?;
+        let options = table.entries[t.index()]
+            .as_ref()
+            .map(|e| e.options)
+            .unwrap_or_default();
+        table.entries[t.index()] = Some(TargetEntry {
+            sources: vec![SourceRef {
+                input,
+                bone,
+                weight: 1.0,
+            }],
+            options,
+            score: 0.0,
+            evidence: vec!["set_mapping".into()],
+        });
+    }
+    Ok(())
+}
+
+/// The first source skeleton (in input order) with a bone of that name.
+pub fn find_source_bone(
+    sources: &[&Skeleton],
+    name: &str,
+) -> Option<(u16, rigcast_retarget::BoneId)> {
+    sources
+        .iter()
+        .enumerate()
+        .find_map(|(i, s)| s.bone(name).map(|b| (i as u16, b)))
+}
+
+/// The `mapping` message of a target.
+fn mapping_message(
+    subject: &Subject,
+    sources: &[Arc<Skeleton>],
+    target: &Skeleton,
+    analysis: &Analysis,
+    table: &MappingTable,
+    opts: &MapOptions,
+) -> String {
+    let colors = mapping_colors(target, analysis, table);
+    let max = opts.max_score().max(1e-6);
+    let entries = target
+        .bone_ids()
+        .map(|t| {
+            let entry = table.get(t);
+            let source = entry.and_then(|e| e.primary()).and_then(|r| {
+                sources
+                    .get(r.input as usize)
+                    .map(|s| s.name(r.bone).to_string())
+            });
+            let c = colors.get(t.index()).copied().flatten();
+            MappingEntry {
+                target: target.name(t).to_string(),
+                score: entry
+                    .map(|e| (e.score / max).clamp(0.0, 1.0))
+                    .unwrap_or(0.0),
+                source,
+                color_gradient: c.map(|c| c.gradient).unwrap_or(UNMAPPED),
+                color_random: c.map(|c| c.random).unwrap_or(UNMAPPED),
+            }
+        })
+        .collect();
+    ServerMessage::Mapping {
+        subject: subject.id,
+        source_subject: subject.inputs.first().copied().unwrap_or(0),
+        entries,
+    }
+    .to_json()
+}

@@ -1,0 +1,350 @@
+//! A streamed subject: a source (replay or live input) or a target (a character retargeted from
+//! source subjects). Its skeleton can change while the server runs (a VMC sender's skeleton is
+//! learnt from its packets), so the skeleton and everything derived from it live in one
+//! immutable [`SubjectShape`] that is swapped as a whole.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex, RwLock};
+
+use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::analysis::{analyze, humanoid_roles, SkeletonView};
+use rigcast_retarget::{Frame, Pose, Skeleton};
+use rigcast_sources::live::SourceStatus;
+use tokio::sync::watch;
+
+use crate::config::VmcBoneNames;
+use crate::stats::SubjectStats;
+
+/// Which bones go out over VMC and under which names.
+#[derive(Debug, Clone, Default)]
+pub struct VmcPlan {
+    /// (name sent, bone index, index of the nearest sent ancestor). When the ancestor is not
+    /// the bone's direct parent the local transform is recomputed from world transforms.
+    pub bones: Vec<(String, usize, Option<usize>)>,
+    /// True when every sent bone's ancestor is its direct parent (locals can be sent as is).
+    pub direct: bool,
+}
+
+impl VmcPlan {
+    /// Humanoid role names when `names` asks for them and the skeleton is humanoid; else every
+    /// bone under its own name.
+    pub fn new(skeleton: &Skeleton, names: VmcBoneNames) -> VmcPlan {
+        let roles = match names {
+            VmcBoneNames::Humanoid => {
+                let analysis = analyze(&SkeletonView::rest(skeleton));
+                humanoid_roles(skeleton, &analysis, None)
+            }
+            VmcBoneNames::Skeleton => Vec::new(),
+        };
+        if roles.is_empty() {
+            return VmcPlan {
+                bones: skeleton
+                    .bone_ids()
+                    .map(|b| {
+                        (
+                            skeleton.name(b).to_string(),
+                            b.index(),
+                            skeleton.parent(b).map(|p| p.index()),
+                        )
+                    })
+                    .collect(),
+                direct: true,
+            };
+        }
+        let mut role_of: Vec<Option<&'static str>> = vec![None; skeleton.num_bones()];
+        for (h, b) in &roles {
+            role_of[b.index()] = Some(h.unity_name());
+        }
+        let mut bones = Vec::new();
+        let mut direct = true;
+        for b in skeleton.bone_ids() {
+            let Some(name) = role_of[b.index()] else {
+                continue;
+            };
+            let mut anc = skeleton.parent(b);
+            while let Some(a) = anc {
+                if role_of[a.index()].is_some() {
+                    break;
+                }
+                anc = skeleton.parent(a);
+            }
+            if anc != skeleton.parent(b) {
+                direct = false;
+            }
+            bones.push((name.to_string(), b.index(), anc.map(|a| a.index())));
+        }
+        VmcPlan { bones, direct }
+    }
+}
+
+/// Everything derived from a subject's skeleton.
+#[derive(Debug)]
+pub struct SubjectShape {
+    /// Public description (as in `hello`).
+    pub info: SubjectInfo,
+    /// Skeleton of the poses.
+    pub skeleton: Arc<Skeleton>,
+    /// The `skeleton` message, serialised once.
+    pub skeleton_json: String,
+    /// VMC output names.
+    pub vmc: VmcPlan,
+}
+
+impl SubjectShape {
+    fn new(info: SubjectInfo, skeleton: Arc<Skeleton>, names: VmcBoneNames) -> SubjectShape {
+        let bones = skeleton
+            .bone_ids()
+            .map(|b| {
+                let rest = skeleton.rest()[b.index()];
+                BoneInfo {
+                    name: skeleton.name(b).to_string(),
+                    parent: skeleton.parent(b).map(|p| p.0 as u32),
+                    rest_translation: rest.translation.to_array(),
+                    rest_rotation: rest.rotation.to_array(),
+                }
+            })
+            .collect();
+        let skeleton_json = ServerMessage::Skeleton {
+            subject: info.id,
+            name: info.name.clone(),
+            fingerprint: info.fingerprint.clone(),
+            bones,
+        }
+        .to_json();
+        SubjectShape {
+            vmc: VmcPlan::new(&skeleton, names),
+            info,
+            skeleton,
+            skeleton_json,
+        }
+    }
+}
+
+/// Health states (stored in an atomic so the tick can read them for free).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum HealthState {
+    /// No input yet.
+    Connecting = 0,
+    /// Input arriving.
+    Live = 1,
+    /// Input stopped.
+    Lost = 2,
+    /// A replay reached its end (not looping).
+    Finished = 3,
+}
+
+impl HealthState {
+    /// Lower-case name used in JSON.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            HealthState::Connecting => "connecting",
+            HealthState::Live => "live",
+            HealthState::Lost => "lost",
+            HealthState::Finished => "finished",
+        }
+    }
+
+    fn from_u8(v: u8) -> HealthState {
+        match v {
+            0 => HealthState::Connecting,
+            2 => HealthState::Lost,
+            3 => HealthState::Finished,
+            _ => HealthState::Live,
+        }
+    }
+}
+
+/// A source subject's health: the state (atomic) and the live source's last status report.
+#[derive(Debug)]
+pub struct Health {
+    state: AtomicU8,
+    /// Last status of a live source (`None` for replays: their counters are in the stats).
+    pub live: Mutex<Option<SourceStatus>>,
+}
+
+impl Health {
+    fn new(state: HealthState) -> Health {
+        Health {
+            state: AtomicU8::new(state as u8),
+            live: Mutex::new(None),
+        }
+    }
+
+    /// Current state.
+    #[inline]
+    pub fn state(&self) -> HealthState {
+        HealthState::from_u8(self.state.load(Ordering::Relaxed))
+    }
+
+    /// Sets the state.
+    pub fn set_state(&self, s: HealthState) {
+        self.state.store(s as u8, Ordering::Relaxed);
+    }
+}
+
+/// A streamed subject: its shape, its pose slot and its counters.
+#[derive(Debug)]
+pub struct Subject {
+    /// Subject id (= index in the subject list).
+    pub id: u32,
+    /// `replay`, `vmc`, `serial`, `video` or `target`.
+    pub source_kind: &'static str,
+    shape: RwLock<Arc<SubjectShape>>,
+    /// Latest frame (from the source, or the tick for targets).
+    pub latest: watch::Receiver<Frame>,
+    /// Input counters.
+    pub stats: SubjectStats,
+    /// Source health (targets stay `Live`).
+    pub health: Health,
+    /// Source subjects of a target (input order of its mapping); empty for sources.
+    pub inputs: Vec<u32>,
+    /// The `mapping` message of a target, once built.
+    pub mapping_json: RwLock<Option<String>>,
+    /// The UDP address a VMC source listens on.
+    pub listen_addr: Option<SocketAddr>,
+    vmc_names: VmcBoneNames,
+}
+
+impl Subject {
+    /// Builds a source subject and the sender its source writes to.
+    pub fn new(id: u32, name: String, skeleton: Arc<Skeleton>) -> (Subject, watch::Sender<Frame>) {
+        Self::with_kind(
+            id,
+            name,
+            skeleton,
+            "replay",
+            Vec::new(),
+            VmcBoneNames::default(),
+        )
+    }
+
+    /// Builds a subject of any kind. `inputs` non-empty makes it a target retargeted from
+    /// those subjects.
+    pub fn with_kind(
+        id: u32,
+        name: String,
+        skeleton: Arc<Skeleton>,
+        source_kind: &'static str,
+        inputs: Vec<u32>,
+        vmc_names: VmcBoneNames,
+    ) -> (Subject, watch::Sender<Frame>) {
+        let info = SubjectInfo {
+            id,
+            name,
+            kind: if inputs.is_empty() {
+                SubjectKind::Source
+            } else {
+                SubjectKind::Target
+            },
+            source: inputs.first().copied(),
+            num_bones: skeleton.num_bones() as u32,
+            fingerprint: skeleton.fingerprint_hex(),
+        };
+        let (tx, rx) = watch::channel(Frame {
+            seq: 0,
+            capture_nanos: 0,
+            source_id: id,
+            pose: Pose::from_rest(&skeleton),
+        });
+        let initial = if source_kind == "replay" || !inputs.is_empty() {
+            HealthState::Live
+        } else {
+            HealthState::Connecting
+        };
+        (
+            Subject {
+                id,
+                source_kind,
+                shape: RwLock::new(Arc::new(SubjectShape::new(info, skeleton, vmc_names))),
+                latest: rx,
+                stats: SubjectStats::default(),
+                health: Health::new(initial),
+                inputs,
+                mapping_json: RwLock::new(None),
+                listen_addr: None,
+                vmc_names,
+            },
+            tx,
+        )
+    }
+
+    /// Sets the listen address reported for a live source.
+    pub fn with_listen_addr(mut self, addr: Option<SocketAddr>) -> Subject {
+        self.listen_addr = addr;
+        self
+    }
+
+    /// The current shape (cheap: an `Arc` clone).
+    #[inline]
+    pub fn shape(&self) -> Arc<SubjectShape> {
+        match self.shape.read() {
+            Ok(s) => s.clone(),
+            Err(poisoned) => poisoned.into_inner().clone(),
+        }
+    }
+
+    /// Public description.
+    pub fn info(&self) -> SubjectInfo {
+        self.shape().info.clone()
+    }
+
+    /// Current skeleton.
+    pub fn skeleton(&self) -> Arc<Skeleton> {
+        self.shape().skeleton.clone()
+    }
+
+    /// Replaces the skeleton (a live source learnt a new one). Returns false when it is the
+    /// same skeleton (nothing changed).
+    pub fn set_skeleton(&self, skeleton: Arc<Skeleton>) -> bool {
+        let old = self.shape();
+        if old.skeleton.fingerprint() == skeleton.fingerprint() {
+            return false;
+        }
+        let mut info = old.info.clone();
+        info.num_bones = skeleton.num_bones() as u32;
+        info.fingerprint = skeleton.fingerprint_hex();
+        let shape = Arc::new(SubjectShape::new(info, skeleton, self.vmc_names));
+        match self.shape.write() {
+            Ok(mut s) => *s = shape,
+            Err(poisoned) => *poisoned.into_inner() = shape,
+        }
+        true
+    }
+
+    /// Whether this is a retargeted character.
+    pub fn is_target(&self) -> bool {
+        !self.inputs.is_empty()
+    }
+
+    /// Health as sent in `source_status` (sources only).
+    pub fn source_health(&self) -> Option<SourceHealth> {
+        if self.is_target() {
+            return None;
+        }
+        let state = self.health.state().as_str().to_string();
+        let live = self.health.live.lock().ok().and_then(|g| g.clone());
+        Some(match live {
+            Some(s) => SourceHealth {
+                subject: self.id,
+                kind: self.source_kind.to_string(),
+                state,
+                input_fps: s.input_fps,
+                latency_ms: s.latency_ms,
+                frames: s.frames,
+                dropped: s.dropped,
+            },
+            None => SourceHealth {
+                subject: self.id,
+                kind: self.source_kind.to_string(),
+                state,
+                input_fps: self.stats.input.rate_hz() as f32,
+                latency_ms: 0.0,
+                frames: self.stats.input.total(),
+                dropped: 0,
+            },
+        })
+    }
+}
