@@ -355,17 +355,6 @@ mod tests {
                 ],
             },
             ServerMessage::Lagged { missed: 42 },
-            ServerMessage::SourceStatus {
-                sources: vec![SourceHealth {
-                    subject: 0,
-                    kind: "vmc".into(),
-                    state: "lost".into(),
-                    input_fps: 59.5,
-                    latency_ms: 1.5,
-                    frames: 1200,
-                    dropped: 3,
-                }],
-            },
             ServerMessage::Pong {
                 nonce: u64::MAX,
                 server_nanos: 1_700_000_000_000_000_000,
@@ -377,6 +366,17 @@ mod tests {
             ServerMessage::Ack {
                 request: "set_mapping".into(),
                 subject: 1,
+            },
+            ServerMessage::SourceStatus {
+                sources: vec![SourceHealth {
+                    subject: 0,
+                    kind: "vmc".into(),
+                    state: "lost".into(),
+                    input_fps: 59.5,
+                    latency_ms: 1.5,
+                    frames: 1200,
+                    dropped: 3,
+                }],
             },
         ]
     }

@@ -65,6 +65,8 @@ pub struct Performer {
     last_input_seqs: [u64; MAX_INPUTS],
     seq: u64,
     published: bool,
+    /// The eased-to pose has been published (nothing changes until the source returns).
+    settled: bool,
 }
 
 /// Smooth 0→1 ramp with zero slope at both ends (no jump when easing starts or ends).
@@ -98,6 +100,7 @@ impl Performer {
             last_input_seqs: [0; MAX_INPUTS],
             seq: 0,
             published: false,
+            settled: false,
         }
     }
 
@@ -146,6 +149,7 @@ impl Performer {
             (Phase::Live | Phase::Resuming(_), true) => {
                 self.from.copy_from(&self.display);
                 self.phase = Phase::Lost(now);
+                self.settled = false;
             }
             (Phase::Lost(_), false) => {
                 self.from.copy_from(&self.display);
@@ -161,11 +165,14 @@ impl Performer {
                         smoothstep(now.duration_since(t0).as_secs_f32() / EASE_OUT.as_secs_f32());
                     self.display
                         .interpolate_into(&self.from, &built.aligned_rest, k);
-                    moving = k < 1.0;
+                    // Publish up to and including the frame that reaches rest.
+                    moving = !self.settled;
+                    self.settled = k >= 1.0;
                 }
                 OnLost::Hold => {
                     self.display.copy_from(&self.from);
-                    moving = false;
+                    moving = !self.settled;
+                    self.settled = true;
                 }
             },
             Phase::Live | Phase::Resuming(_) => {

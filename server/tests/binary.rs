@@ -7,6 +7,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
+use rigcast_protocol::control::SubjectKind;
 use rigcast_protocol::frame::decode_frame;
 use rigcast_protocol::ServerMessage;
 use tokio_tungstenite::tungstenite::Message;
@@ -56,7 +57,8 @@ async fn check_demo_stream(url: &str, rate_hz: f64) {
     let (mut ws, _) = tokio_tungstenite::connect_async(url).await.unwrap();
     let mut text = Vec::new();
     let mut frame_times = Vec::new();
-    let mut num_bones = None;
+    // Bones per subject id, from `hello`.
+    let mut num_bones: Option<Vec<u32>> = None;
     let start = Instant::now();
     let mut window_start = None;
     while start.elapsed() < Duration::from_secs(5) {
@@ -71,7 +73,12 @@ async fn check_demo_stream(url: &str, rate_hz: f64) {
             }
             Message::Binary(b) => {
                 let f = decode_frame(&b).unwrap();
-                assert_eq!(Some(f.rotations.len() as u32), num_bones);
+                let bones = num_bones.as_ref().unwrap();
+                assert_eq!(f.rotations.len() as u32, bones[f.header.subject as usize]);
+                // The rate is per subject: measure the demo source's frames.
+                if f.header.subject != 0 {
+                    continue;
+                }
                 // Skip the first 200 ms (connection warm-up), then measure for 1 s.
                 let now = Instant::now();
                 let ws0 = *window_start.get_or_insert(now + Duration::from_millis(200));
@@ -94,8 +101,14 @@ async fn check_demo_stream(url: &str, rate_hz: f64) {
             {
                 assert_eq!(*protocol_version, 1);
                 assert_eq!(*tick_hz, rate_hz);
-                assert_eq!(subjects.len(), 1);
-                num_bones = Some(subjects[0].num_bones);
+                // The bundled walk and the built-in mannequin retargeted from it.
+                assert_eq!(subjects.len(), 2);
+                assert_eq!(subjects[0].kind, SubjectKind::Source);
+                assert_eq!(subjects[1].kind, SubjectKind::Target);
+                assert_eq!(subjects[1].source, Some(0));
+                assert_eq!(subjects[1].name, "mannequin");
+                assert_ne!(subjects[0].fingerprint, subjects[1].fingerprint);
+                num_bones = Some(subjects.iter().map(|s| s.num_bones).collect());
             }
         }
     }
@@ -104,6 +117,24 @@ async fn check_demo_stream(url: &str, rate_hz: f64) {
         matches!(text.get(1), Some(ServerMessage::Skeleton { .. })),
         "{text:?}"
     );
+    assert!(
+        matches!(
+            text.get(2),
+            Some(ServerMessage::Skeleton { subject: 1, .. })
+        ),
+        "{text:?}"
+    );
+    let mapping = text.iter().find_map(|m| match m {
+        ServerMessage::Mapping {
+            subject: 1,
+            source_subject: 0,
+            entries,
+        } => Some(entries),
+        _ => None,
+    });
+    let entries = mapping.expect("a mapping message for the mannequin");
+    let mapped = entries.iter().filter(|e| e.source.is_some()).count();
+    assert!(mapped >= 15, "only {mapped} mannequin bones mapped");
     let span = (*frame_times.last().unwrap() - frame_times[0]).as_secs_f64();
     let rate = (frame_times.len() - 1) as f64 / span;
     eprintln!("measured {rate:.1} Hz (configured {rate_hz})");

@@ -1,0 +1,350 @@
+//! A live VMC source in a real server: VMC packets go into the server's UDP port, the
+//! retargeted target subject arrives over WebSocket and matches `Mapping::apply` on the same
+//! input; when the sender stops the source turns `lost` and the target eases to rest without a
+//! jump; when it resumes the source is `live` again and the target follows.
+#![allow(clippy::unwrap_used)]
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::{Quat, Vec3};
+use rigcast_protocol::control::BoneInfo;
+use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::ServerMessage;
+use rigcast_retarget::analysis::SkeletonView;
+use rigcast_retarget::mapping::{auto_map, MapOptions};
+use rigcast_retarget::{Mapping, Pose, RawSkeleton, RetargetOptions, Skeleton, Transform};
+use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
+use rigcast_tests::*;
+
+const RATE: f64 = 60.0;
+
+fn skeleton_from(bones: &[BoneInfo]) -> Skeleton {
+    let mut raw = RawSkeleton::default();
+    for b in bones {
+        raw.add(
+            b.name.clone(),
+            b.parent.map(|p| p as usize),
+            Transform {
+                translation: Vec3::from_array(b.rest_translation),
+                rotation: Quat::from_array(b.rest_rotation),
+            },
+        );
+    }
+    Skeleton::build(&raw).unwrap()
+}
+
+fn max_angle(a: &[Quat], b: &[Quat]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(&x, &y)| rotation_angle(x, y))
+        .fold(0.0, f32::max)
+}
+
+/// Sends `pose` of `clip` as one VMC packet set.
+fn send_pose(
+    socket: &std::net::UdpSocket,
+    to: std::net::SocketAddr,
+    enc: &mut VmcEncoder,
+    names: &[String],
+    pose: &Pose,
+    t: f32,
+) {
+    let bones = names
+        .iter()
+        .zip(&pose.translations)
+        .zip(&pose.rotations)
+        .map(|((name, &translation), &rotation)| VmcBone {
+            name,
+            translation,
+            rotation,
+        });
+    for bundle in enc.encode(t, bones) {
+        socket.send_to(bundle, to).unwrap();
+    }
+}
+
+/// Waits for a JSON message matching `f`.
+async fn wait_json<T>(
+    ws: &mut Ws,
+    timeout: Duration,
+    mut f: impl FnMut(&ServerMessage) -> Option<T>,
+) -> Option<T> {
+    let deadline = Instant::now() + timeout;
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        match next(ws, left).await? {
+            Incoming::Json(m) => {
+                if let Some(t) = f(&m) {
+                    return Some(t);
+                }
+            }
+            Incoming::Frame(..) => {}
+        }
+    }
+    None
+}
+
+fn source_state(m: &ServerMessage) -> Option<String> {
+    match m {
+        ServerMessage::SourceStatus { sources } => sources
+            .iter()
+            .find(|s| s.subject == 0)
+            .map(|s| s.state.clone()),
+        _ => None,
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
+    // The sender: the procedural humanoid, whose bones carry HumanBodyBones names.
+    let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
+    let names: Vec<String> = clip.skeleton.names().to_vec();
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        rate_hz: RATE,
+        sources: vec![SourceSpec::Vmc {
+            port: 0,
+            lost_after_secs: Some(0.25),
+            name: Some("performer".into()),
+        }],
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let vmc_port = server.state().subjects[0].listen_addr.unwrap().port();
+    let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    let mut ws = connect(&server.stream_url()).await;
+    let (hello, _) = handshake(&mut ws).await;
+    let ServerMessage::Hello { subjects, .. } = hello else {
+        unreachable!()
+    };
+    assert_eq!(subjects.len(), 2);
+    assert_eq!(subjects[1].source, Some(0));
+    assert_eq!(
+        wait_json(&mut ws, Duration::from_secs(3), source_state)
+            .await
+            .as_deref(),
+        Some("connecting")
+    );
+
+    // A sender thread: a moving pose for half a second, then one held pose until told to stop.
+    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let sender = {
+        let stop = stop.clone();
+        let clip = clip.clone();
+        let names = names.clone();
+        std::thread::spawn(move || {
+            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            let mut enc = VmcEncoder::new();
+            let t0 = Instant::now();
+            let mut k = 0;
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                let moving = t0.elapsed() < Duration::from_millis(500);
+                let pose = if moving {
+                    &clip.poses[k % clip.poses.len()]
+                } else {
+                    &clip.poses[17]
+                };
+                send_pose(
+                    &socket,
+                    to,
+                    &mut enc,
+                    &names,
+                    pose,
+                    t0.elapsed().as_secs_f32(),
+                );
+                k += 1;
+                std::thread::sleep(Duration::from_secs_f64(1.0 / RATE));
+            }
+        })
+    };
+    let held = clip.poses[17].clone();
+
+    // The source's learnt skeleton arrives as a new `skeleton` message, then the re-map.
+    let mut source_skeleton = None;
+    let mut target_skeleton = None;
+    let mut mapping_entries = None;
+    let mut last_source = None;
+    let mut last_target = None;
+    let t0 = Instant::now();
+    // Read for 1.5 s: long past the moving part, so the latest frames show the held pose.
+    while t0.elapsed() < Duration::from_millis(1500) {
+        match next(&mut ws, Duration::from_secs(2)).await.unwrap() {
+            Incoming::Json(ServerMessage::Skeleton { subject, bones, .. }) => {
+                let sk = skeleton_from(&bones);
+                if subject == 0 {
+                    source_skeleton = Some(sk);
+                } else {
+                    target_skeleton = Some(sk);
+                }
+            }
+            Incoming::Json(ServerMessage::Mapping {
+                subject: 1,
+                entries,
+                ..
+            }) => mapping_entries = Some(entries),
+            Incoming::Frame(f, _) if f.header.subject == 0 => last_source = Some(f),
+            Incoming::Frame(f, _) if f.header.subject == 1 => last_target = Some(f),
+            _ => {}
+        }
+    }
+    let source_skeleton = Arc::new(source_skeleton.expect("the VMC sender's skeleton"));
+    let target_skeleton = target_skeleton.unwrap_or_else(|| {
+        // The handshake's skeleton message of the target was consumed by `handshake`.
+        rigcast_server::character::mannequin().unwrap()
+    });
+    let mapping_entries = mapping_entries.expect("a mapping message after the re-map");
+    let source_frame = last_source.unwrap();
+    let target_frame = last_target.unwrap();
+    assert_eq!(source_skeleton.num_bones(), clip.skeleton.num_bones());
+
+    // Expected: Mapping::apply on the same input.
+    let table = auto_map(
+        &SkeletonView::rest(&source_skeleton),
+        &SkeletonView::rest(&target_skeleton),
+        &MapOptions::default(),
+    );
+    for (e, t) in mapping_entries.iter().zip(target_skeleton.bone_ids()) {
+        let expected = table
+            .get(t)
+            .and_then(|e| e.primary())
+            .map(|r| source_skeleton.name(r.bone).to_string());
+        assert_eq!(e.source, expected, "mapping of {}", e.target);
+    }
+    let mut mapping = Mapping::build(
+        &[&source_skeleton],
+        &target_skeleton,
+        &table,
+        &RetargetOptions {
+            frame_time_secs: (1.0 / RATE) as f32,
+            ..RetargetOptions::default()
+        },
+    )
+    .unwrap();
+    let mut input = source_skeleton.rest_pose();
+    input.rotations.copy_from_slice(&source_frame.rotations);
+    input.set_root_translation(source_frame.root);
+    let mut expected = mapping.new_target_pose();
+    mapping.apply_one(&input, &mut expected).unwrap();
+    let err = max_angle(&expected.rotations, &target_frame.rotations);
+    eprintln!("retargeted target vs Mapping::apply: {:.2e} rad", err);
+    assert!(
+        err < 2e-3,
+        "target differs from Mapping::apply by {err} rad"
+    );
+    // And the source frame is the held pose.
+    assert!(max_angle(&source_frame.rotations, &held.rotations) < 2e-3);
+
+    // Stop sending: lost, and the target eases to the aligned rest.
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    sender.join().unwrap();
+    let rest = mapping.aligned_rest_pose();
+    let stopped = Instant::now();
+    let mut steps = Vec::new();
+    let mut to_rest = Vec::new();
+    let mut prev: Option<Vec<Quat>> = None;
+    let mut saw_lost = false;
+    while stopped.elapsed() < Duration::from_millis(1300) {
+        match next(&mut ws, Duration::from_secs(1)).await.unwrap() {
+            Incoming::Json(m) => {
+                if source_state(&m).as_deref() == Some("lost") {
+                    saw_lost = true;
+                }
+            }
+            Incoming::Frame(f, _) if f.header.subject == 1 => {
+                if let Some(p) = &prev {
+                    steps.push(max_angle(p, &f.rotations));
+                }
+                to_rest.push(max_angle(&f.rotations, &rest.rotations));
+                prev = Some(f.rotations);
+            }
+            _ => {}
+        }
+    }
+    assert!(saw_lost, "no source_status with state lost");
+    let status: serde_json::Value = {
+        let url = format!("http://{}/v1/status", server.local_addr());
+        let body = http_get(&url).await;
+        serde_json::from_str(&body).unwrap()
+    };
+    assert_eq!(status["subjects"][0]["source"]["state"], "lost");
+    assert_eq!(status["subjects"][1]["kind"], "target");
+    let biggest = steps.iter().copied().fold(0.0, f32::max);
+    eprintln!(
+        "ease-out: {} frames, biggest step {:.2}°, start {:.1}° from rest, end {:.3}°",
+        to_rest.len(),
+        biggest.to_degrees(),
+        to_rest.first().unwrap().to_degrees(),
+        to_rest.last().unwrap().to_degrees()
+    );
+    assert!(
+        to_rest.first().unwrap().to_degrees() > 10.0,
+        "the held pose is near rest"
+    );
+    assert!(
+        biggest.to_degrees() < 6.0,
+        "jump of {}°",
+        biggest.to_degrees()
+    );
+    for w in to_rest.windows(2) {
+        assert!(w[1] <= w[0] + 1e-3, "not monotonic: {} → {}", w[0], w[1]);
+    }
+    assert!(*to_rest.last().unwrap() < 2e-3, "did not reach rest");
+
+    // Resume: live again, smoothly back to the retargeted pose.
+    let resume = tokio::task::spawn_blocking(move || {
+        let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut enc = VmcEncoder::new();
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_millis(900) {
+            send_pose(&sender, to, &mut enc, &names, &clip.poses[17], 10.0);
+            std::thread::sleep(Duration::from_secs_f64(1.0 / RATE));
+        }
+    });
+    let mut prev: Option<Vec<Quat>> = None;
+    let mut biggest = 0.0f32;
+    let mut last = None;
+    let mut saw_live = false;
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_millis(800) {
+        match next(&mut ws, Duration::from_secs(1)).await.unwrap() {
+            Incoming::Json(m) => saw_live |= source_state(&m).as_deref() == Some("live"),
+            Incoming::Frame(f, _) if f.header.subject == 1 => {
+                if let Some(p) = &prev {
+                    biggest = biggest.max(max_angle(p, &f.rotations));
+                }
+                prev = Some(f.rotations.clone());
+                last = Some(f);
+            }
+            _ => {}
+        }
+    }
+    resume.await.unwrap();
+    assert!(saw_live, "no source_status with state live after resuming");
+    eprintln!("ease-in: biggest step {:.2}°", biggest.to_degrees());
+    assert!(
+        biggest.to_degrees() < 20.0,
+        "jump of {}° on resume",
+        biggest.to_degrees()
+    );
+    let err = max_angle(&expected.rotations, &last.unwrap().rotations);
+    assert!(err < 2e-3, "after resuming the target is {err} rad off");
+    server.shutdown().await;
+}
+
+/// Minimal HTTP GET (no client crate in the tests).
+async fn http_get(url: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let rest = url.strip_prefix("http://").unwrap();
+    let (host, path) = rest.split_once('/').unwrap();
+    let mut s = tokio::net::TcpStream::connect(host).await.unwrap();
+    s.write_all(
+        format!("GET /{path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").as_bytes(),
+    )
+    .await
+    .unwrap();
+    let mut buf = Vec::new();
+    s.read_to_end(&mut buf).await.unwrap();
+    let text = String::from_utf8(buf).unwrap();
+    text.split_once("\r\n\r\n").unwrap().1.to_string()
+}
