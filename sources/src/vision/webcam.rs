@@ -1,5 +1,10 @@
-//! Webcam capture through `nokhwa` (cargo feature `webcam`; needs Debian `libclang-dev` to
-//! build). With no camera, [`Webcam::open`] returns [`VisionError::Webcam`] naming the problem.
+//! Webcam capture through `nokhwa` 0.10 (`input-native`: V4L2 on Linux).
+//!
+//! Behind the cargo feature `webcam`, off by default: nokhwa's V4L2 bindings run bindgen at
+//! build time, which needs libclang (Debian: `apt-get install -y libclang-dev`). Build with
+//! `cargo build -p rigcast-sources --features webcam` (the server binary does not forward the
+//! feature yet). Without the feature, [`super::open_webcam`] returns an error saying so. With no camera, [`Webcam::open`] returns [`VisionError::Webcam`] naming the
+//! problem (tested in `tests/vision_webcam.rs`), never panics.
 
 use std::time::Instant;
 
@@ -30,7 +35,10 @@ impl Webcam {
         let cameras = nokhwa::query(nokhwa::utils::ApiBackend::Auto)
             .map_err(|e| VisionError::Webcam(format!("cannot list cameras: {e}")))?;
         if cameras.is_empty() {
-            return Err(VisionError::Webcam("no camera found".into()));
+            return Err(VisionError::Webcam(format!(
+                "no camera found (asked for camera {index}; is a /dev/video* device present \
+                 and readable?)"
+            )));
         }
         let format =
             RequestedFormat::new::<RgbFormat>(RequestedFormatType::AbsoluteHighestFrameRate);
