@@ -213,7 +213,7 @@ impl FileConfig {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         let resolve = |p: &mut PathBuf| {
-            if p.is_relative() && !p.starts_with(BUILTIN_PREFIX) {
+            if p.is_relative() && !p.to_string_lossy().starts_with(BUILTIN_PREFIX) {
                 *p = base.join(&*p);
             }
         };
@@ -638,6 +638,54 @@ mod tests {
         assert!(
             matches!(&cfg.sources[0], SourceSpec::ReplayFile { path, .. } if path.ends_with("recordings/demo.rcr"))
         );
+        assert_eq!(cfg.performers.len(), 1);
+        assert_eq!(cfg.performers[0].sources, vec!["demo".to_string()]);
+        assert!(
+            matches!(&cfg.performers[0].target, TargetSpec::File(p) if p == Path::new("builtin:mannequin"))
+        );
+        assert_eq!(cfg.on_lost, OnLost::Ease);
+        assert!(cfg.mapping_cache_dir.is_some() || std::env::var_os("HOME").is_none());
+    }
+
+    #[test]
+    fn parses_live_sources_performers_and_vmc_subjects() {
+        let text = r#"
+            on_lost = "hold"
+            record = "/tmp/x.rcr"
+            mapping_cache = false
+            vmc_bone_names = "skeleton"
+            vmc_out = ["127.0.0.1:1", { address = "127.0.0.1:2", subject = "hero" }]
+            [[sources]]
+            kind = "vmc"
+            port = 39540
+            name = "face"
+            [[sources]]
+            kind = "serial"
+            config = "/x/suit.toml"
+            [[performers]]
+            source = ["face", "suit"]
+            target = "/x/hero.glb"
+            in_place = true
+            on_lost = "ease"
+        "#;
+        let cfg = ServerConfig::from_file(toml::from_str(text).unwrap()).unwrap();
+        assert_eq!(cfg.on_lost, OnLost::Hold);
+        assert_eq!(cfg.vmc_bone_names, VmcBoneNames::Skeleton);
+        assert!(cfg.mapping_cache_dir.is_none());
+        assert_eq!(cfg.record, Some(PathBuf::from("/tmp/x.rcr")));
+        assert_eq!(cfg.vmc_out, vec!["127.0.0.1:1", "127.0.0.1:2@hero"]);
+        assert!(matches!(
+            cfg.sources[0],
+            SourceSpec::Vmc { port: 39540, .. }
+        ));
+        assert!(
+            matches!(&cfg.sources[1], SourceSpec::Serial { config, .. } if config == Path::new("/x/suit.toml"))
+        );
+        let p = &cfg.performers[0];
+        assert_eq!(p.sources, vec!["face".to_string(), "suit".to_string()]);
+        assert!(p.in_place);
+        assert_eq!(p.on_lost, Some(OnLost::Ease));
+        assert!(toml::from_str::<FileConfig>("on_lost = \"drop\"").is_err());
     }
 
     #[test]
