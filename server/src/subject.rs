@@ -348,3 +348,30 @@ impl Subject {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vmc_plan_sends_humanoid_roles_relative_to_sent_ancestors() {
+        let m = crate::character::mannequin().unwrap();
+        let plan = VmcPlan::new(&m, VmcBoneNames::Humanoid);
+        let find = |n: &str| plan.bones.iter().find(|(name, ..)| name == n).unwrap();
+        assert_eq!(
+            m.name(rigcast_retarget::BoneId(find("Hips").1 as u16)),
+            "pelvis"
+        );
+        let (_, arm, arm_parent) = find("LeftUpperArm");
+        assert_eq!(m.name(rigcast_retarget::BoneId(*arm as u16)), "upperarm_l");
+        // Its ancestor is the shoulder role (clavicle), not a twist/helper bone.
+        assert_eq!(Some(find("LeftShoulder").1), *arm_parent);
+        // The mannequin's ground root has no role, so Hips has no sent ancestor.
+        assert_eq!(find("Hips").2, None);
+        assert!(!plan.direct);
+        assert!(plan.bones.iter().all(|(n, ..)| n != "root"));
+        let raw = VmcPlan::new(&m, VmcBoneNames::Skeleton);
+        assert_eq!(raw.bones.len(), m.num_bones());
+        assert!(raw.direct);
+    }
+}

@@ -247,9 +247,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     while stopped.elapsed() < Duration::from_millis(1300) {
         match next(&mut ws, Duration::from_secs(1)).await.unwrap() {
             Incoming::Json(m) => {
-                if source_state(&m).as_deref() == Some("lost") {
-                    saw_lost = true;
-                }
+                saw_lost |= source_state(&m).as_deref() == Some("lost");
             }
             Incoming::Frame(f, _) if f.header.subject == 1 => {
                 if let Some(p) = &prev {

@@ -19,16 +19,20 @@ async fn check_file_streams_its_rotations(path: &Path) {
     let clip = rigcast_sources::load_clip(path).unwrap();
     let udp = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
     let vmc_addr = udp.local_addr().unwrap().to_string();
-    let server = start_server(
-        vec![SourceSpec::ReplayFile {
+    // Bone names as in the file (humanoid role names are the default; see live_vmc/engine tests).
+    let server = rigcast_server::start(rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![SourceSpec::ReplayFile {
             path: path.to_path_buf(),
             name: None,
             settings: ReplaySettings::default(),
         }],
-        60.0,
-        vec![vmc_addr],
-    )
-    .await;
+        vmc_out: vec![vmc_addr],
+        vmc_bone_names: rigcast_server::VmcBoneNames::Skeleton,
+        ..rigcast_server::ServerConfig::default()
+    })
+    .await
+    .unwrap();
 
     // WebSocket side.
     let mut ws = connect(&server.stream_url()).await;
