@@ -6,6 +6,8 @@
 //! configs beside them as `.toml`) are regenerated with
 //! `cargo test -p rigcast-sources --test live_serial -- --ignored write_serial_recordings`.
 
+#![allow(clippy::unwrap_used)]
+
 use std::os::unix::io::RawFd;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -155,7 +157,7 @@ fn csv_calibration_unplug_and_reconnect_through_pty() {
     let s = [
         Quat::from_rotation_y(0.4),
         Quat::from_rotation_z(-1.2),
-        Quat::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize(), 0.7),
+        Quat::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize_or_zero(), 0.7),
     ];
     let data = csv(&[(0, s[0]), (1, s[1]), (2, s[2])]);
     wait_for(

@@ -6,6 +6,8 @@
 //! `/VMC/Ext/T` first) plus the expected poses as frame records. Regenerate it with
 //! `cargo test -p rigcast-sources --test live_vmc -- --ignored write_vmc_recording`.
 
+#![allow(clippy::unwrap_used)]
+
 use std::net::UdpSocket;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -78,7 +80,7 @@ fn known_clip() -> (Arc<Skeleton>, Vec<Pose>) {
             let mut pose = skeleton.rest_pose();
             for b in 0..skeleton.num_bones() {
                 let k = b as f32;
-                let axis = Vec3::new((k * 0.7).sin(), 1.0, (k * 1.3).cos()).normalize();
+                let axis = Vec3::new((k * 0.7).sin(), 1.0, (k * 1.3).cos()).normalize_or_zero();
                 pose.rotations[b] = Quat::from_axis_angle(axis, 0.8 * (t * 2.0 + k).sin());
             }
             pose.translations[0] = Vec3::new(0.3 * t, 1.0 + 0.05 * (t * 3.0).sin(), -0.2 * t);
@@ -132,10 +134,10 @@ fn write_vmc_recording() {
     w.finish().unwrap();
 }
 
-fn spawn_collector(
-    mut source: VmcSource,
-    want: usize,
-) -> std::thread::JoinHandle<(VmcSource, Vec<(Arc<Skeleton>, Pose)>)> {
+/// What a collector thread hands back: the source and each received (skeleton, pose).
+type Collected = (VmcSource, Vec<(Arc<Skeleton>, Pose)>);
+
+fn spawn_collector(mut source: VmcSource, want: usize) -> std::thread::JoinHandle<Collected> {
     std::thread::spawn(move || {
         let mut out = Vec::new();
         let mut pose = Pose {

@@ -176,7 +176,7 @@ impl VmcDecoder {
         let packet = match check_structure(datagram, 0)
             .and_then(|()| rosc::decoder::decode_udp(datagram).map_err(|_| "not valid OSC"))
         {
-            Ok((rest, packet)) if rest.is_empty() => packet,
+            Ok(([], packet)) => packet,
             Ok(_) | Err(_) => {
                 self.stats.malformed_datagrams += 1;
                 result.dropped = 1;
@@ -426,11 +426,14 @@ impl VmcDecoder {
                 self.clear_dirty();
                 return;
             }
-            let defaults = default_offsets();
-            let mut offsets = defaults;
-            for h in 0..NUM_HUMAN_BONES {
-                if self.has_position[h] {
-                    offsets[h] = self.positions[h];
+            let mut offsets = default_offsets();
+            for ((offset, &has), &position) in offsets
+                .iter_mut()
+                .zip(&self.has_position)
+                .zip(&self.positions)
+            {
+                if has {
+                    *offset = position;
                 }
             }
             match build_humanoid(&self.seen, &offsets) {
@@ -485,7 +488,7 @@ fn check_structure(bytes: &[u8], depth: usize) -> Result<(), &'static str> {
     if bytes.is_empty() {
         return Err("empty packet");
     }
-    if bytes.len() % 4 != 0 {
+    if !bytes.len().is_multiple_of(4) {
         return Err("OSC packets are a multiple of 4 bytes");
     }
     if bytes[0] == b'/' {
