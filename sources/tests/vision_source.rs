@@ -63,9 +63,15 @@ fn video_served_as_live_source_moves_the_blazepose_skeleton() {
         .fold((f32::MAX, f32::MIN), |(lo, hi), &a| (lo.min(a), hi.max(a)));
     assert!(hi - lo > 0.1, "knee angle range {lo}..{hi}");
 
+    // One landmark record per processed frame: the raw landmarks for frames with a person,
+    // an empty "no person" record for the others; times follow the video's 1/fps steps.
     let packets = tap.packets.lock().unwrap();
-    assert_eq!(packets.len(), metas.len());
     assert!(packets.iter().all(|p| p.kind == RawKind::Landmarks));
+    let with_person = packets.iter().filter(|p| !p.bytes.is_empty()).count();
+    assert_eq!(with_person, metas.len());
+    assert_eq!(packets.len(), 100, "cam04 has 100 frames");
     let lm = decode_landmarks(&packets[0].bytes).unwrap();
     assert!(lm.presence > 0.5);
+    let step = (packets[1].capture_nanos - packets[0].capture_nanos) as f64 * 1e-9;
+    assert!((step - 1.0 / 60.0).abs() < 1e-6, "tap time step {step}");
 }

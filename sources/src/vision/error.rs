@@ -62,6 +62,14 @@ pub enum VisionError {
         /// the path
         path: PathBuf,
     },
+    /// A recorded landmark stream could not be read or holds no landmark records.
+    #[error("landmark recording {path}: {message}")]
+    Recording {
+        /// the file (or source name)
+        path: String,
+        /// why
+        message: String,
+    },
     /// No camera, or the camera could not be opened / read.
     #[error("webcam: {0}")]
     Webcam(String),

@@ -8,7 +8,8 @@
 //!  PoseTracker ── ROI from last frame's aux landmarks 33/34 ──▶ LandmarkModel (ort)
 //!      │          (no person: search candidate crops, keep the highest presence)
 //!      ▼ Landmarks (33 image + world points, visibility, presence)
-//!  One Euro smoothing per coordinate, constant limb lengths (world)
+//!      │   ◀── LandmarkReplaySource: recorded landmarks re-enter here (no model, no camera)
+//!  LandmarkStages: One Euro smoothing per coordinate, constant limb lengths (world)
 //!      ▼
 //!  PoseSolver ── two-direction aim per bone, twist from hip line / palm / foot plane,
 //!      │         confidence per bone: hold, then ease to rest
@@ -29,9 +30,11 @@ pub mod lengths;
 pub mod model;
 pub mod one_euro;
 pub mod pipeline;
+pub mod replay;
 pub mod roi;
 pub mod solve;
 pub mod source;
+pub mod stages;
 pub mod tracker;
 #[cfg(feature = "webcam")]
 pub mod webcam;
@@ -44,8 +47,10 @@ pub use frame::{FrameSource, MemorySource, RgbFrame};
 pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
 pub use model::{InputRange, LandmarkModel};
 pub use pipeline::{PipelineConfig, PosePipeline};
+pub use replay::LandmarkReplaySource;
 pub use solve::{PoseSolver, SolverConfig};
 pub use source::VisionSource;
+pub use stages::LandmarkStages;
 pub use tracker::{PoseTracker, TrackerConfig};
 #[cfg(feature = "webcam")]
 pub use webcam::Webcam;

@@ -1,19 +1,17 @@
-//! The whole per-frame path: frame → tracker (landmarks) → One Euro smoothing → constant limb
-//! lengths → solver (pose).
+//! The whole per-frame path: frame → tracker (landmarks) → [`LandmarkStages`] (One Euro
+//! smoothing → constant limb lengths → solver) → pose.
 
 use std::sync::Arc;
 
 use rigcast_retarget::{Pose, Skeleton};
 
 use super::assets::{ModelKind, VisionAssets};
-use super::body::blazepose_skeleton;
 use super::error::VisionError;
 use super::frame::RgbFrame;
-use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
-use super::lengths::LimbLengths;
+use super::landmarks::Landmarks;
 use super::model::{InputRange, LandmarkModel};
-use super::one_euro::{OneEuro, OneEuroParams};
-use super::solve::{PoseSolver, SolverConfig};
+use super::solve::SolverConfig;
+use super::stages::LandmarkStages;
 use super::tracker::{PoseTracker, TrackerConfig, TrackerStats};
 
 /// Everything needed to build a [`PosePipeline`].
@@ -37,6 +35,13 @@ pub struct PipelineConfig {
     pub constant_lengths: bool,
 }
 
+impl PipelineConfig {
+    /// The model-free stages (smoothing, constant lengths, solver) these settings describe.
+    pub fn stages(&self) -> Result<LandmarkStages, VisionError> {
+        LandmarkStages::new(self.solver, self.smoothing, self.constant_lengths)
+    }
+}
+
 impl Default for PipelineConfig {
     fn default() -> Self {
         PipelineConfig {
@@ -58,14 +63,8 @@ impl Default for PipelineConfig {
 #[derive(Debug)]
 pub struct PosePipeline {
     tracker: PoseTracker,
-    solver: PoseSolver,
+    stages: LandmarkStages,
     raw: Landmarks,
-    smoothed: Landmarks,
-    image_filters: [[OneEuro; 3]; NUM_MODEL_LANDMARKS],
-    world_filters: [[OneEuro; 3]; NUM_MODEL_LANDMARKS],
-    smoothing: bool,
-    lengths: Option<LimbLengths>,
-    tracking: bool,
 }
 
 impl PosePipeline {
@@ -76,23 +75,16 @@ impl PosePipeline {
         let model_path = assets.require(assets.landmark_model(config.model), "landmark model")?;
         let mut model = LandmarkModel::load(&library, &model_path, config.threads)?;
         model.set_input_range(config.input_range);
-        let skeleton = blazepose_skeleton()?;
         Ok(PosePipeline {
             tracker: PoseTracker::new(model, config.tracker),
-            solver: PoseSolver::new(skeleton, config.solver),
+            stages: config.stages()?,
             raw: Landmarks::default(),
-            smoothed: Landmarks::default(),
-            image_filters: [[OneEuro::new(OneEuroParams::PIXELS); 3]; NUM_MODEL_LANDMARKS],
-            world_filters: [[OneEuro::new(OneEuroParams::METRES); 3]; NUM_MODEL_LANDMARKS],
-            smoothing: config.smoothing,
-            lengths: config.constant_lengths.then(LimbLengths::new),
-            tracking: false,
         })
     }
 
     /// The BlazePose source skeleton poses are written for.
     pub fn skeleton(&self) -> &Arc<Skeleton> {
-        self.solver.skeleton()
+        self.stages.skeleton()
     }
 
     /// Tracker counters.
@@ -102,7 +94,7 @@ impl PosePipeline {
 
     /// Per-bone confidence of the last solved frame.
     pub fn confidence(&self) -> &[f32] {
-        self.solver.confidence()
+        self.stages.confidence()
     }
 
     /// The tracker (e.g. to switch the model's input range).
@@ -120,56 +112,15 @@ impl PosePipeline {
     ) -> Result<Option<&Landmarks>, VisionError> {
         let found = self.tracker.process(frame, &mut self.raw)?;
         if !found {
-            if self.tracking {
-                self.reset_filters();
-            }
-            self.tracking = false;
+            self.stages.lost();
             return Ok(None);
         }
-        self.tracking = true;
-        let t = frame.time_secs;
-        self.smoothed = self.raw;
-        if self.smoothing {
-            for i in 0..NUM_MODEL_LANDMARKS {
-                let img = &mut self.smoothed.image[i];
-                let f = &mut self.image_filters[i];
-                img.x = f[0].filter(img.x, t);
-                img.y = f[1].filter(img.y, t);
-                img.z = f[2].filter(img.z, t);
-                let w = &mut self.smoothed.world[i];
-                let f = &mut self.world_filters[i];
-                w.x = f[0].filter(w.x, t);
-                w.y = f[1].filter(w.y, t);
-                w.z = f[2].filter(w.z, t);
-            }
-        }
-        if let Some(lengths) = self.lengths.as_mut() {
-            lengths.apply(&mut self.smoothed);
-        }
-        if pose.num_bones() != self.solver.skeleton().num_bones() {
-            *pose = self.solver.skeleton().rest_pose();
-        }
-        self.solver.solve(&self.smoothed, t, pose);
-        Ok(Some(&self.smoothed))
+        Ok(Some(self.stages.process(&self.raw, frame.time_secs, pose)))
     }
 
-    /// Raw (unsmoothed) landmarks of the last frame with a person.
+    /// Raw (unsmoothed) landmarks of the last frame with a person: what the raw tap records
+    /// and [`super::LandmarkReplaySource`] feeds back through the same stages.
     pub fn raw_landmarks(&self) -> &Landmarks {
         &self.raw
-    }
-
-    fn reset_filters(&mut self) {
-        if let Some(lengths) = self.lengths.as_mut() {
-            lengths.reset();
-        }
-        for f in self
-            .image_filters
-            .iter_mut()
-            .chain(self.world_filters.iter_mut())
-        {
-            for c in f.iter_mut() {
-                c.reset();
-            }
-        }
     }
 }

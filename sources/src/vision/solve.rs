@@ -165,6 +165,8 @@ impl PoseSolver {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
         let mid = |a: usize, b: usize| (p(a) + p(b)) * 0.5;
+        let (lo, hi) = (self.config.confidence_low, self.config.confidence_high);
+        let seen = |v: f32| smoothstep(lo, hi, v);
 
         let hip_c = mid(idx::LEFT_HIP, idx::RIGHT_HIP);
         let sho_c = mid(idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER);
@@ -251,7 +253,13 @@ impl PoseSolver {
             let palm = p(ix) - p(pk);
             let hand = mid(ix, pk) - p(w);
             let fallback = |b: usize| prev[b] * z;
-            let bend = stable_secondary(upper, fore, fallback(ub));
+            // The twist references come from landmarks outside the bone (wrist, hand); where
+            // those are not seen, the bone keeps its previous twist instead of following them.
+            let bend = stable_secondary(
+                upper,
+                trusted(fore, fallback(ub), seen(vis(w))),
+                fallback(ub),
+            );
             set(
                 &mut solved,
                 &mut conf,
@@ -259,8 +267,12 @@ impl PoseSolver {
                 two_axis(self.rest_dir[ub], z, upper, bend),
                 vis(s).min(vis(e)),
             );
-            let twist = stable_secondary(fore, palm, fallback(lb));
             let hand_vis = vis(pk).min(vis(ix)).min(vis(w));
+            let twist = stable_secondary(
+                fore,
+                trusted(palm, fallback(lb), seen(hand_vis)),
+                fallback(lb),
+            );
             set(
                 &mut solved,
                 &mut conf,
@@ -310,7 +322,12 @@ impl PoseSolver {
             let foot = p(t) - p(a);
             let foot_vis = vis(he).min(vis(t));
             let fallback = |b: usize| prev[b] * z;
-            let fwd = stable_secondary(thigh, foot_fwd, fallback(tb));
+            let foot_seen = seen(foot_vis);
+            let fwd = stable_secondary(
+                thigh,
+                trusted(foot_fwd, fallback(tb), foot_seen),
+                fallback(tb),
+            );
             set(
                 &mut solved,
                 &mut conf,
@@ -318,7 +335,11 @@ impl PoseSolver {
                 two_axis(self.rest_dir[tb], z, thigh, fwd),
                 vis(h).min(vis(k)),
             );
-            let fwd = stable_secondary(shin, foot_fwd, fallback(sb));
+            let fwd = stable_secondary(
+                shin,
+                trusted(foot_fwd, fallback(sb), foot_seen),
+                fallback(sb),
+            );
             set(
                 &mut solved,
                 &mut conf,
@@ -384,6 +405,12 @@ impl PoseSolver {
             self.world[b] = parent_world * self.output.rotations[b];
         }
     }
+}
+
+/// Direction `b` when its landmarks are seen (`seen` = 1), the unit `fallback` when not
+/// (`seen` = 0), blended in between.
+fn trusted(b: Vec3, fallback: Vec3, seen: f32) -> Vec3 {
+    b.normalize_or_zero() * seen + fallback * (1.0 - seen)
 }
 
 /// The secondary direction `b`, or `fallback` when `b` is nearly parallel to `a` (blended

@@ -2,8 +2,13 @@
 //! [`LiveSource`](crate::live::LiveSource) on the BlazePose skeleton.
 //!
 //! Frames of a file can be paced to their timestamps (real-time playback, as a webcam would
-//! deliver them) or served as fast as they decode. The raw tap receives one landmark record per
-//! frame with a person (see [`encode_landmarks`]), so a session can be recorded and replayed.
+//! deliver them) or served as fast as they decode.
+//!
+//! The raw tap receives one [`RawKind::Landmarks`] record per processed frame: the model's raw
+//! landmarks (before smoothing, see [`encode_landmarks`]) when a person was found, an empty
+//! record when none was. Its time is the frame's timestamp anchored to the wall clock at the
+//! first frame, so the intervals are exactly the ones the smoothing saw. That is everything
+//! [`LandmarkReplaySource`](super::LandmarkReplaySource) needs to reproduce the session's poses.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -79,6 +84,8 @@ pub struct VisionSource {
     sent_skeleton: bool,
     tap: Option<Box<dyn RawTap>>,
     record: Vec<u8>,
+    /// Wall-clock nanoseconds of frame time 0 (set at the first frame), for tap timestamps.
+    tap_anchor_nanos: Option<u64>,
 }
 
 impl std::fmt::Debug for VisionSource {
@@ -113,6 +120,7 @@ impl VisionSource {
             sent_skeleton: false,
             tap: None,
             record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
+            tap_anchor_nanos: None,
         }
     }
 
@@ -172,19 +180,28 @@ impl LiveSource for VisionSource {
         }
         self.pending = false;
         let capture_nanos = unix_nanos_now();
-        let landmarks = self
+        let frame_nanos = (self.frame.time_secs.max(0.0) * 1e9).round() as u64;
+        let found = self
             .pipeline
             .process(&self.frame, out)
-            .map_err(source_error)?;
+            .map_err(source_error)?
+            .is_some();
+        if let Some(tap) = self.tap.as_mut() {
+            let anchor = *self
+                .tap_anchor_nanos
+                .get_or_insert_with(|| capture_nanos.saturating_sub(frame_nanos));
+            if found {
+                encode_landmarks(self.pipeline.raw_landmarks(), &mut self.record);
+            } else {
+                self.record.clear();
+            }
+            tap.raw(RawKind::Landmarks, anchor + frame_nanos, &self.record);
+        }
         let now = Instant::now();
         self.health.on_input(now);
-        let Some(lm) = landmarks else {
+        if !found {
             self.health.set_detail("no person in view");
             return Ok(None);
-        };
-        if let Some(tap) = self.tap.as_mut() {
-            encode_landmarks(lm, &mut self.record);
-            tap.raw(RawKind::Landmarks, capture_nanos, &self.record);
         }
         self.health
             .on_frame(now, now.saturating_duration_since(arrived));
