@@ -3,12 +3,15 @@
 //! Runs the engine and its outputs inside a tokio runtime:
 //!
 //! ```text
-//!  SourceSpec ─load─▶ Replay ─source task─▶ watch<Frame> (latest wins, one per subject)
+//!  SourceSpec ─load─▶ Replay task ─┐
+//!  live source thread (VMC, serial, video) ─┴─▶ watch<Frame> (latest wins, one per source)
 //!                                                   │
 //!                 tick: tokio interval @ rate_hz, MissedTickBehavior::Skip
+//!                   │ performers: Mapping::apply into preallocated target poses
+//!                   │   (mappings built by the mapper thread, never awaited by the tick)
 //!                   │ encode each subject once → Bytes (shared)      VMC bundles → UDP
 //!                   ▼                                                 (≤1500 B each)
-//!             broadcast<OutFrame>  (bounded; never awaited by the tick)
+//!             broadcast<OutFrame>  (bounded; never awaited by the tick) ──▶ recorder
 //!                   │
 //!        ┌──────────┼───────────┐
 //!   client task  client task  client task   (one per WebSocket; a lagging one gets
