@@ -1,5 +1,5 @@
-//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy]`: offline pose
-//! extraction from a video file or image sequence, with progress on standard error.
+//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy] [--max-frames N]`:
+//! offline pose extraction from a video file or image sequence, with progress on standard error.
 //!
 //! `--json` prints exactly one JSON object on standard output:
 //! `{"fps", "frames": [{"time_secs", "image", "world"}]}` — `image` is 33 × `[x, y, z,
@@ -39,6 +39,9 @@ pub struct PoseArgs {
     /// Frame rate of an image sequence (videos carry their own).
     #[arg(long, default_value_t = 30.0)]
     pub fps: f64,
+    /// Stop after this many frames (previews, tests).
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<u64>,
 }
 
 fn parse_model(s: &str) -> Result<ModelKind, String> {
@@ -74,7 +77,7 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let (mut num_frames, mut num_found) = (0u64, 0u64);
     let mut line = String::new();
-    while source.next_frame(&mut frame)? {
+    while args.max_frames.is_none_or(|max| num_frames < max) && source.next_frame(&mut frame)? {
         let landmarks = pipeline.process(&frame, &mut pose)?;
         if landmarks.is_some() {
             num_found += 1;
