@@ -13,6 +13,7 @@ const state = {
   subjects: new Map(), // id -> info from hello
   skeletons: new Map(), // id -> skeleton message
   mappings: new Map(), // target id -> mapping message
+  sourceStatus: new Map(), // source id -> newest source_status record
   views: new Map(), // id -> SubjectView
   latest: new Map(), // id -> newest frame not yet drawn
   stats: new Map(), // id -> { arrivals: [], latencyMs }
@@ -69,7 +70,8 @@ class SubjectView {
     this.matrix = new THREE.Matrix4();
     this.setColors(null);
     // Labels: the subject's name, and the bone names at the tips of chains (hands, feet, head).
-    this.subjectLabel = makeLabel(`${info.name} (${info.kind})`, 'subject');
+    const from = info.kind === 'target' ? ` ← ${state.subjects.get(info.source)?.name ?? info.source}` : '';
+    this.subjectLabel = makeLabel(`${info.name} (${info.kind}${from})`, `subject ${info.kind}`);
     const childCount = new Array(n).fill(0);
     this.parents.forEach((p) => { if (p >= 0) childCount[p]++; });
     this.boneLabels = [];
@@ -176,6 +178,25 @@ class SubjectView {
   }
 }
 
+/** Screen-space box [left, top, right, bottom] (CSS px) of each subject's joints, by id. */
+state.screenBounds = () => {
+  const { clientWidth: w, clientHeight: h } = canvas.parentElement;
+  const v = new THREE.Vector3();
+  const out = {};
+  for (const [id, view] of state.views) {
+    const box = [Infinity, Infinity, -Infinity, -Infinity];
+    for (const p of view.worldP) {
+      v.copy(p).add(view.group.position).project(camera);
+      const x = ((v.x + 1) / 2) * w;
+      const y = ((1 - v.y) / 2) * h;
+      box[0] = Math.min(box[0], x); box[1] = Math.min(box[1], y);
+      box[2] = Math.max(box[2], x); box[3] = Math.max(box[3], y);
+    }
+    out[id] = box;
+  }
+  return out;
+};
+
 function makeLabel(text, kind) {
   const div = document.createElement('div');
   div.className = `label ${kind}`;
@@ -270,6 +291,10 @@ function onMessage(message) {
       renderMapping();
       applyMappingColors();
       break;
+    case 'source_status':
+      for (const record of message.sources ?? []) state.sourceStatus.set(record.subject, record);
+      renderSubjects();
+      break;
     case 'lagged':
       state.missed += message.missed ?? 0;
       break;
@@ -283,7 +308,8 @@ function onFrame(frame) {
   state.missed += frame.missedFrames;
   state.latest.set(frame.subject, frame);
   let stats = state.stats.get(frame.subject);
-  if (!stats) { stats = { arrivals: [], latencyMs: 0 }; state.stats.set(frame.subject, stats); }
+  if (!stats) { stats = { arrivals: [], latencyMs: 0, count: 0 }; state.stats.set(frame.subject, stats); }
+  stats.count++;
   const now = performance.now();
   stats.arrivals.push(now);
   stats.latencyMs = (nowNanos() - Number(frame.captureNanos)) / 1e6;
@@ -307,8 +333,23 @@ function renderSubjects() {
     const source = info.kind === 'target' ? ` ← ${state.subjects.get(info.source)?.name ?? info.source}` : '';
     const stats = state.stats.get(info.id);
     const rate = stats ? `${rateOf(stats).toFixed(0)} fps · ${stats.latencyMs.toFixed(1)} ms` : 'no frames yet';
-    li.innerHTML = `<b></b>${source} <small>${info.kind}, ${info.num_bones} bones, ${rate}</small>`;
+    li.innerHTML = `<b></b>${source} <small>${info.kind}, ${info.num_bones} bones, ${rate}</small><div class="health"></div>`;
     li.querySelector('b').textContent = `${info.id} ${info.name}`;
+    li.dataset.subject = String(info.id);
+    // Health of the input: the source's own, or for a target the source driving it.
+    const health = state.sourceStatus.get(info.kind === 'target' ? info.source : info.id);
+    const healthDiv = li.querySelector('.health');
+    if (health) {
+      li.dataset.health = health.state;
+      const badge = document.createElement('span');
+      badge.className = `state ${health.state}`;
+      badge.textContent = health.state;
+      healthDiv.append(badge, info.kind === 'target'
+        ? ` source ${state.subjects.get(info.source)?.name ?? info.source}`
+        : ` ${health.kind} · in ${Number(health.input_fps ?? 0).toFixed(0)} fps · ${Number(health.latency_ms ?? 0).toFixed(1)} ms · dropped ${health.dropped ?? 0}`);
+    } else {
+      healthDiv.textContent = 'no source status yet';
+    }
     li.onclick = () => { if (info.kind === 'target') { state.mappingSubject = info.id; renderMapping(); applyMappingColors(); } };
     list.appendChild(li);
   }
@@ -329,6 +370,7 @@ function renderMapping() {
   for (const entry of mapping.entries ?? []) {
     const tr = document.createElement('tr');
     if (!entry.source) tr.className = 'unmapped';
+    tr.dataset.target = entry.target;
     const c = mappingColor(entry) ?? [0.5, 0.5, 0.5];
     tr.innerHTML = '<td class="swatch"><span></span></td><td></td><td></td><td></td>';
     tr.children[0].firstChild.style.background = `rgb(${c.map((v) => Math.round(v * 255)).join(',')})`;

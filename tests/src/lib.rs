@@ -231,3 +231,87 @@ pub fn temp_path(name: &str) -> PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
 }
+
+// -- real-program tests (Blender, Chromium, the `rigcast` binary) ---------------------------
+
+/// The repository root (the parent of `tests/`).
+pub fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
+}
+
+/// A program's path on PATH, or None when it is absent and RIGCAST_SKIP_APPS=1. Panics
+/// otherwise: a real-program test must not pass silently on a machine without the program.
+pub fn find_app(name: &str) -> Option<PathBuf> {
+    let found = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|dir| dir.join(name))
+            .find(|p| p.is_file())
+    });
+    if found.is_none() {
+        if std::env::var("RIGCAST_SKIP_APPS").as_deref() == Ok("1") {
+            eprintln!("SKIP: `{name}` not found on PATH and RIGCAST_SKIP_APPS=1");
+            return None;
+        }
+        panic!(
+            "`{name}` not found on PATH: run scripts/install-apps.sh (or set RIGCAST_SKIP_APPS=1 to skip)"
+        );
+    }
+    found
+}
+
+/// Starts an in-process server exactly as `rigcast serve` without arguments would (the bundled
+/// walk `demo` and the built-in `mannequin` retargeted from it), but on 127.0.0.1:0.
+pub async fn start_demo_server() -> rigcast_server::ServerHandle {
+    let config = rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        ..rigcast_server::ServerConfig::default()
+    };
+    rigcast_server::start(config).await.unwrap()
+}
+
+/// A TCP port that was free a moment ago on 127.0.0.1 (for programs that need a fixed
+/// `--listen` address; the tiny race with other processes is accepted in tests).
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// A child process killed (and reaped) on drop, so a failing assertion never leaks it.
+pub struct KillOnDrop(pub std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The `rigcast` binary of this build. `cargo test -p rigcast-tests` does not build other
+/// packages' binaries, so this runs `cargo build` for it (same profile and target dir; a
+/// no-op when it is up to date).
+pub fn rigcast_binary() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    // target/<profile>/deps/<test> -> target/<profile>/rigcast
+    let profile_dir = exe.parent().and_then(|d| d.parent()).unwrap().to_path_buf();
+    let bin = profile_dir.join(format!("rigcast{}", std::env::consts::EXE_SUFFIX));
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut cmd = std::process::Command::new(cargo);
+    cmd.args(["build", "-p", "rigcast-server", "--bin", "rigcast"])
+        .current_dir(repo_root());
+    if profile_dir.file_name().is_some_and(|n| n == "release") {
+        cmd.arg("--release");
+    }
+    if let Some(target_dir) = profile_dir.parent() {
+        cmd.env("CARGO_TARGET_DIR", target_dir);
+    }
+    let status = cmd.status().expect("cargo runs");
+    assert!(status.success(), "building the rigcast binary failed");
+    assert!(bin.is_file(), "no binary at {}", bin.display());
+    bin
+}

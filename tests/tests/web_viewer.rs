@@ -1,52 +1,33 @@
 //! Real headless Chromium loads the web viewer from the real server.
 //!
-//! The server (in-process, 127.0.0.1:0) replays the embedded demo, plus the CMU walk from
-//! ../shared/data when present, so two skeletons stand side by side. Chromium is driven over
-//! the DevTools protocol (a WebSocket, so the test needs no extra crate): open `/`, wait for
-//! frames, check that the page decoded them, that the skeletons move and that the WebGL canvas
-//! has drawn something, then save a screenshot to target/viewer.png.
+//! The server (in-process, 127.0.0.1:0) runs the default demo, as `rigcast serve` without
+//! arguments does: the bundled walk `demo` (source) and the built-in `mannequin` retargeted
+//! from it (target), with its `mapping` message and `source_status`. Chromium is driven over the
+//! DevTools protocol (a WebSocket, so the test needs no extra crate). Our own WebSocket client
+//! on the same server holds the real `mapping` message, and the test checks the page against
+//! it: frames arrive for both subjects, both skeletons move side by side without overlapping
+//! and are labelled, the mapping table shows the message's rows and colours (gradient and
+//! random), the target's bones and the mapped source bones are drawn in those colours, and the
+//! subject list shows the source's health. The screenshot is saved to target/viewer.png.
 //!
 //! Needs `chromium` (scripts/install-apps.sh installs it). Missing Chromium fails the test
 //! with a clear message, unless RIGCAST_SKIP_APPS=1, which skips it with a printed reason.
 #![allow(clippy::unwrap_used)]
 
+use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use futures_util::{SinkExt, StreamExt};
-use rigcast_server::{ReplaySettings, ServerConfig, SourceSpec};
+use rigcast_protocol::control::{MappingEntry, SubjectKind};
+use rigcast_protocol::ServerMessage;
+use rigcast_tests::{connect, find_app, handshake, next_json, repo_root, start_demo_server};
 use serde_json::{json, Value};
 use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
-
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("tests/ has a parent")
-        .to_path_buf()
-}
-
-/// The program's path, or None when absent and RIGCAST_SKIP_APPS=1 (panics otherwise).
-fn find_app(name: &str) -> Option<PathBuf> {
-    let found = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|dir| dir.join(name))
-            .find(|p| p.is_file())
-    });
-    if found.is_none() {
-        if std::env::var("RIGCAST_SKIP_APPS").as_deref() == Ok("1") {
-            eprintln!("SKIP: `{name}` not found on PATH and RIGCAST_SKIP_APPS=1");
-            return None;
-        }
-        panic!(
-            "`{name}` not found on PATH: run scripts/install-apps.sh (or set RIGCAST_SKIP_APPS=1 to skip)"
-        );
-    }
-    found
-}
 
 /// Kills Chromium even when an assertion fails half-way.
 struct Browser {
@@ -189,29 +170,185 @@ fn base64_decode(text: &str) -> Vec<u8> {
     out
 }
 
+impl DevTools {
+    /// Evaluates an expression that returns `JSON.stringify(...)` and parses it.
+    async fn eval_json(&mut self, expression: &str) -> Value {
+        let text = self.eval(expression).await;
+        serde_json::from_str(text.as_str().expect("a JSON string")).expect("page JSON")
+    }
+}
+
+/// Parses CSS `rgb(r, g, b)` into 0..255 channels.
+fn parse_rgb(css: &str) -> [f32; 3] {
+    let inner = css
+        .trim()
+        .strip_prefix("rgb(")
+        .and_then(|s| s.strip_suffix(')'))
+        .unwrap_or_else(|| panic!("not an rgb() colour: {css}"));
+    let v: Vec<f32> = inner
+        .split(',')
+        .map(|c| c.trim().parse().unwrap())
+        .collect();
+    [v[0], v[1], v[2]]
+}
+
+/// Whether a rendered 8-bit colour shows the mapping colour `c` (0..1): within one step per
+/// channel, as the page and this test may round an exact half differently.
+fn shows_color(css: &str, c: [f32; 3]) -> bool {
+    let got = parse_rgb(css);
+    (0..3).all(|i| (got[i] - c[i] * 255.0).abs() <= 1.0)
+}
+
+/// The server's own view, through an independent client: hello subjects and the first
+/// `mapping` message of the target subject.
+async fn server_mapping(
+    url: &str,
+) -> (
+    Vec<rigcast_protocol::control::SubjectInfo>,
+    u32,
+    u32,
+    Vec<MappingEntry>,
+) {
+    let mut ws = connect(url).await;
+    let (hello, _) = handshake(&mut ws).await;
+    let ServerMessage::Hello { subjects, .. } = hello else {
+        unreachable!("handshake checks hello")
+    };
+    loop {
+        match next_json(&mut ws, Duration::from_secs(10)).await {
+            Some(ServerMessage::Mapping {
+                subject,
+                source_subject,
+                entries,
+            }) => return (subjects, subject, source_subject, entries),
+            Some(_) => {}
+            None => panic!("no mapping message within 10 s"),
+        }
+    }
+}
+
+/// Checks that every mapping-table row shows the message's target, source and colour.
+async fn check_table(cdp: &mut DevTools, entries: &[MappingEntry], random: bool) {
+    let rows = cdp
+        .eval_json(
+            "JSON.stringify([...document.querySelectorAll('#mapping tbody tr')].map(tr => ({ \
+               target: tr.children[1].textContent, source: tr.children[2].textContent, \
+               color: getComputedStyle(tr.querySelector('.swatch span')).backgroundColor })))",
+        )
+        .await;
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), entries.len(), "one table row per mapping entry");
+    assert!(rows.len() >= 15, "only {} mapping rows", rows.len());
+    let mut distinct = std::collections::HashSet::new();
+    for (row, entry) in rows.iter().zip(entries) {
+        assert_eq!(row["target"], entry.target.as_str());
+        assert_eq!(row["source"], entry.source.as_deref().unwrap_or("—"));
+        let want = if random {
+            entry.color_random
+        } else {
+            entry.color_gradient
+        };
+        let shown = row["color"].as_str().unwrap();
+        assert!(
+            shows_color(shown, want),
+            "row {}: shows {shown}, mapping says {want:?}",
+            entry.target
+        );
+        distinct.insert(shown.to_string());
+    }
+    // A table painted one colour would match a constant message; the real one is not constant.
+    assert!(
+        distinct.len() >= 10,
+        "only {} distinct colours",
+        distinct.len()
+    );
+}
+
+/// Per bone of a subject: its drawn colour (the line into the bone, else its joint), by name.
+async fn drawn_colors(cdp: &mut DevTools, subject: u32) -> HashMap<String, [f32; 3]> {
+    let colors = cdp
+        .eval_json(&format!(
+            "(() => {{ const v = window.rigcast.views.get({subject}); const out = {{}}; \
+              v.edges.forEach(([, b], e) => {{ out[v.bones[b].name] = [...v.lineColors.slice(e * 6, e * 6 + 3)]; }}); \
+              return JSON.stringify(out); }})()"
+        ))
+        .await;
+    colors
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(k, v)| {
+            let a = v.as_array().unwrap();
+            let f = |i: usize| a[i].as_f64().unwrap() as f32;
+            (k.clone(), [f(0), f(1), f(2)])
+        })
+        .collect()
+}
+
+fn close(a: [f32; 3], b: [f32; 3]) -> bool {
+    a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-3)
+}
+
+/// The target's bones wear their entry's colour; each mapped source bone wears the colour of
+/// one of the entries mapped to it.
+async fn check_bone_colors(
+    cdp: &mut DevTools,
+    target: u32,
+    source: u32,
+    entries: &[MappingEntry],
+    random: bool,
+) {
+    let pick = |e: &MappingEntry| {
+        if random {
+            e.color_random
+        } else {
+            e.color_gradient
+        }
+    };
+    let drawn = drawn_colors(cdp, target).await;
+    let mut checked = 0;
+    for entry in entries {
+        if let Some(got) = drawn.get(&entry.target) {
+            assert!(
+                close(*got, pick(entry)),
+                "target bone {} drawn {got:?}, mapping says {:?}",
+                entry.target,
+                pick(entry)
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 15, "only {checked} target bones checked");
+    let drawn = drawn_colors(cdp, source).await;
+    let mut checked = 0;
+    for (name, got) in &drawn {
+        let candidates: Vec<[f32; 3]> = entries
+            .iter()
+            .filter(|e| e.source.as_deref() == Some(name.as_str()))
+            .map(pick)
+            .collect();
+        if !candidates.is_empty() {
+            assert!(
+                candidates.iter().any(|c| close(*c, *got)),
+                "source bone {name} drawn {got:?}, not one of its mapped colours {candidates:?}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 10, "only {checked} mapped source bones checked");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn viewer_shows_live_skeletons_in_chromium() {
+async fn viewer_shows_source_and_retargeted_target_in_chromium() {
     let Some(chromium) = find_app("chromium") else {
         return;
     };
-    let mut sources = vec![SourceSpec::EmbeddedDemo];
-    let walk = repo_root().join("../shared/data/bvh/cmu_131_01_walk.bvh");
-    if walk.is_file() {
-        sources.push(SourceSpec::ReplayFile {
-            path: walk,
-            name: Some("cmu_walk".into()),
-            settings: ReplaySettings::default(),
-        });
-    } else {
-        eprintln!("note: ../shared/data absent, showing the embedded demo only");
-    }
-    let num_subjects = sources.len();
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        sources,
-        ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.expect("server starts");
+    let server = start_demo_server().await;
+    let (subjects, target, source, entries) = server_mapping(&server.stream_url()).await;
+    assert_eq!(subjects.len(), 2, "the demo streams a source and a target");
+    assert_eq!(subjects[target as usize].kind, SubjectKind::Target);
+    assert_eq!(subjects[source as usize].kind, SubjectKind::Source);
+    assert_eq!(subjects[target as usize].source, Some(source));
     let page_url = format!("http://{}/", server.local_addr());
 
     let (browser, devtools_url) = launch_chromium(&chromium);
@@ -224,13 +361,13 @@ async fn viewer_shows_live_skeletons_in_chromium() {
         session: None,
         events: Vec::new(),
     };
-    let target = cdp
+    let page = cdp
         .call("Target.createTarget", json!({ "url": "about:blank" }))
         .await;
     let attached = cdp
         .call(
             "Target.attachToTarget",
-            json!({ "targetId": target["targetId"], "flatten": true }),
+            json!({ "targetId": page["targetId"], "flatten": true }),
         )
         .await;
     cdp.session = Some(attached["sessionId"].as_str().expect("session").to_string());
@@ -244,79 +381,177 @@ async fn viewer_shows_live_skeletons_in_chromium() {
     .await;
     cdp.call("Page.navigate", json!({ "url": page_url })).await;
 
-    // Frames arrive: the page shows its counter in the DOM and the title.
+    // Frames arrive for both subjects; the mapping message has been received.
     let start = Instant::now();
-    let mut frames = 0;
+    let mut counts = Value::Null;
     while start.elapsed() < Duration::from_secs(20) {
-        let value = cdp
-            .eval("Number(document.getElementById('frame-count')?.dataset.frames ?? 0)")
+        counts = cdp
+            .eval_json(
+                "JSON.stringify(window.rigcast ? { frames: Object.fromEntries([...window.rigcast.stats].map(([id, s]) => [id, s.count])), \
+                  mappings: window.rigcast.mappings.size, health: window.rigcast.sourceStatus.size } : {})",
+            )
             .await;
-        frames = value.as_u64().unwrap_or(0);
-        if frames >= 60 {
+        let per = |id: u32| counts["frames"][id.to_string()].as_u64().unwrap_or(0);
+        if per(source) >= 60
+            && per(target) >= 60
+            && counts["mappings"] == 1
+            && counts["health"] == 1
+        {
             break;
         }
         tokio::time::sleep(Duration::from_millis(200)).await;
     }
-    assert!(
-        frames >= 60,
-        "viewer counted only {frames} frames in 20 s; page events: {:?}",
-        cdp.events
+    for id in [source, target] {
+        let n = counts["frames"][id.to_string()].as_u64().unwrap_or(0);
+        assert!(
+            n >= 60,
+            "subject {id}: viewer counted {n} frames in 20 s ({counts}); page events: {:?}",
+            cdp.events
+        );
+    }
+    assert_eq!(
+        counts["mappings"], 1,
+        "mapping message not received: {counts}"
     );
+    assert_eq!(counts["health"], 1, "source_status not received: {counts}");
 
-    // Let the graph fill and the skeletons walk, then check that they move.
-    let pose_probe = "JSON.stringify([...window.rigcast.views.values()].map(v => v.worldP.map(p => [p.x, p.y, p.z])))";
-    let before: Vec<Vec<[f64; 3]>> =
-        serde_json::from_str(cdp.eval(pose_probe).await.as_str().unwrap()).unwrap();
+    // Both skeletons move.
+    let pose_probe = "JSON.stringify(Object.fromEntries([...window.rigcast.views].map(([id, v]) => [id, v.worldP.map(p => [p.x, p.y, p.z])])))";
+    let before = cdp.eval_json(pose_probe).await;
     tokio::time::sleep(Duration::from_millis(1500)).await;
-    let after: Vec<Vec<[f64; 3]>> =
-        serde_json::from_str(cdp.eval(pose_probe).await.as_str().unwrap()).unwrap();
-    assert_eq!(before.len(), num_subjects, "one 3D skeleton per subject");
-    for (i, (a, b)) in before.iter().zip(&after).enumerate() {
+    let after = cdp.eval_json(pose_probe).await;
+    for id in [source, target] {
+        let key = id.to_string();
+        let (a, b) = (
+            before[&key].as_array().unwrap(),
+            after[&key].as_array().unwrap(),
+        );
         let moved = a
             .iter()
             .zip(b)
             .map(|(p, q)| {
-                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+                (0..3)
+                    .map(|k| (p[k].as_f64().unwrap() - q[k].as_f64().unwrap()).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
             })
             .fold(0.0, f64::max);
-        assert!(moved > 0.01, "skeleton {i} did not move ({moved} m)");
+        assert!(moved > 0.01, "subject {id} did not move ({moved} m)");
     }
 
+    // Side by side: on screen, inside the view, not overlapping.
+    let bounds = cdp
+        .eval_json("JSON.stringify(window.rigcast.screenBounds())")
+        .await;
+    let view_size = cdp
+        .eval_json("JSON.stringify([document.getElementById('view').clientWidth, document.getElementById('view').clientHeight])")
+        .await;
+    let (w, h) = (
+        view_size[0].as_f64().unwrap(),
+        view_size[1].as_f64().unwrap(),
+    );
+    let rect = |id: u32| -> [f64; 4] {
+        let a = bounds[id.to_string()].as_array().unwrap();
+        [0, 1, 2, 3].map(|i| a[i].as_f64().unwrap())
+    };
+    let (rs, rt) = (rect(source), rect(target));
+    for (id, r) in [(source, rs), (target, rt)] {
+        assert!(
+            r[0] >= 0.0 && r[1] >= 0.0 && r[2] <= w && r[3] <= h,
+            "subject {id} leaves the {w}x{h} view: {r:?}"
+        );
+        assert!(
+            r[3] - r[1] > 0.3 * h,
+            "subject {id} is tiny on screen: {r:?}"
+        );
+    }
+    let apart = rs[2] < rt[0] || rt[2] < rs[0];
+    assert!(
+        apart,
+        "skeletons overlap on screen: source {rs:?}, target {rt:?}"
+    );
+
+    // The mapping table is the server's message, in gradient and in random colours, and the
+    // 3D bones wear the same colours.
+    let title = cdp
+        .eval("document.getElementById('mapping-title').textContent")
+        .await;
+    assert_eq!(
+        title.as_str(),
+        Some(
+            format!(
+                "{} ← {}",
+                subjects[target as usize].name, subjects[source as usize].name
+            )
+            .as_str()
+        )
+    );
+    check_table(&mut cdp, &entries, false).await;
+    check_bone_colors(&mut cdp, target, source, &entries, false).await;
+    let switch = |mode: &str| {
+        format!(
+            "(() => {{ const s = document.getElementById('color-mode'); s.value = '{mode}'; \
+              s.dispatchEvent(new Event('change')); return s.value; }})()"
+        )
+    };
+    assert_eq!(cdp.eval(&switch("random")).await, "random");
+    check_table(&mut cdp, &entries, true).await;
+    check_bone_colors(&mut cdp, target, source, &entries, true).await;
+    assert_eq!(cdp.eval(&switch("gradient")).await, "gradient");
+    check_table(&mut cdp, &entries, false).await;
+
     let summary = cdp
-        .eval(
+        .eval_json(
             "JSON.stringify({ frames: window.rigcast.framesReceived, drawn: window.rigcast.framesDrawn, \
               title: document.title, connection: document.getElementById('connection').textContent, \
-              subjects: document.querySelectorAll('#subjects li').length, \
-              labels: [...document.querySelectorAll('.label')].filter(l => l.style.display !== 'none').map(l => l.textContent), \
-              rates: [...window.rigcast.stats.values()].map(s => s.arrivals.length), \
+              subjects: [...document.querySelectorAll('#subjects li')].map(li => ({ id: li.dataset.subject, health: li.dataset.health, text: li.textContent })), \
+              subjectLabels: [...document.querySelectorAll('.label.subject')].filter(l => l.style.display !== 'none').map(l => l.textContent), \
+              boneLabels: [...document.querySelectorAll('.label.bone')].filter(l => l.style.display !== 'none').length, \
+              rates: Object.fromEntries([...window.rigcast.stats].map(([id, s]) => [id, s.arrivals.length])), \
+              latency: Object.fromEntries([...window.rigcast.stats].map(([id, s]) => [id, s.latencyMs])), \
               badFrames: window.rigcast.stream.badFrames })",
         )
         .await;
-    let summary: Value = serde_json::from_str(summary.as_str().unwrap()).unwrap();
     println!("viewer: {summary}");
     assert_eq!(summary["connection"], "connected");
-    assert_eq!(summary["subjects"].as_u64(), Some(num_subjects as u64));
     assert_eq!(summary["badFrames"], 0);
     assert!(summary["title"].as_str().unwrap().contains("frames"));
-    let labels: Vec<&str> = summary["labels"]
+    // Subject list: both subjects; the source's health from `source_status` (a replay is live).
+    let listed = summary["subjects"].as_array().unwrap();
+    assert_eq!(listed.len(), 2);
+    for li in listed {
+        assert_eq!(li["health"], "live", "subject list health: {li}");
+    }
+    let source_li = listed
+        .iter()
+        .find(|li| li["id"] == source.to_string().as_str())
+        .unwrap();
+    let text = source_li["text"].as_str().unwrap();
+    assert!(
+        text.contains("replay") && text.contains("dropped 0"),
+        "source health not shown: {text}"
+    );
+    // Readable labels: each subject's name over its skeleton, plus some bone names.
+    let labels: Vec<&str> = summary["subjectLabels"]
         .as_array()
         .unwrap()
         .iter()
         .filter_map(|l| l.as_str())
         .collect();
-    assert!(
-        labels.iter().any(|l| l.starts_with("demo")),
-        "subject label missing: {labels:?}"
-    );
-    assert!(
-        labels.len() > 3 * num_subjects,
-        "bone labels missing: {labels:?}"
-    );
-    for rate in summary["rates"].as_array().unwrap() {
+    for id in [source, target] {
+        let name = &subjects[id as usize].name;
         assert!(
-            rate.as_u64().unwrap() >= 20,
-            "page receives {rate} frames/s"
+            labels.iter().any(|l| l.starts_with(name.as_str())),
+            "no visible label for {name}: {labels:?}"
         );
+    }
+    assert!(
+        summary["boneLabels"].as_u64().unwrap() >= 6,
+        "bone labels missing: {summary}"
+    );
+    for id in [source, target] {
+        let rate = summary["rates"][id.to_string()].as_u64().unwrap_or(0);
+        assert!(rate >= 20, "subject {id}: page receives {rate} frames/s");
     }
 
     // The WebGL canvas really drew the skeletons: count pixels away from the background.
