@@ -19,19 +19,19 @@
 pub mod bvh;
 pub mod demo;
 pub mod error;
+mod files;
 pub mod gltf;
 pub mod info;
+pub mod live;
 pub mod recording;
 pub mod replay;
-pub mod live;
 pub mod serial;
-pub mod vmc_in;
 #[cfg(feature = "vision")]
 pub mod vision;
-mod files;
+pub mod vmc_in;
 
 pub use demo::embedded_demo;
 pub use error::SourceError;
-pub use info::{describe, FileInfo};
 pub use files::{load_clip, load_clip_with, save_clip, LoadOptions};
+pub use info::{describe, FileInfo};
 pub use replay::{Replay, ReplayOptions};
