@@ -1,12 +1,20 @@
 //! Real Blender runs the live-link add-on against the real server.
 //!
-//! The server replays the embedded demo in-process on 127.0.0.1:0. Headless Blender
-//! (`clients/blender/tests/run_in_blender.py`) builds the add-on zip with the documented
-//! builder, installs and enables it, connects, creates an armature per subject, applies the
-//! stream for ~2 s while recording, and writes what it saw to JSON. Meanwhile this test keeps
-//! its own WebSocket client on the same server, so for every sequence number Blender applied
-//! we hold the exact frame the server sent and judge Blender's bone positions against forward
-//! kinematics of that frame, converted to Blender axes ((x, y, z) → (x, -z, y)).
+//! Headless Blender (`clients/blender/tests/run_in_blender.py`) installs the add-on from a zip
+//! built with the documented builder, enables it with default preferences and connects. Meanwhile
+//! this test keeps its own WebSocket client on the same server, so it holds exactly what the
+//! server sent and judges Blender against it:
+//! - stream: the embedded demo, a twisted copy of it (every rest rotation non-identity) and the
+//!   built-in mannequin retargeted from the demo stream in-process on 127.0.0.1:0; Blender
+//!   creates an armature per subject, applies the stream for ~2 s while recording, and every
+//!   applied pose is compared with forward kinematics of the frame with the same sequence
+//!   number, converted to Blender axes ((x, y, z) → (x, -z, y)); rate, latency and the
+//!   recorded Action are checked too.
+//! - mapping: the default demo (`demo` + retargeted `mannequin`); the add-on's mapping list and
+//!   bone colours must equal the server's `mapping` message, and an override picked in the list
+//!   must come back from the server as a new `mapping` that the list then shows.
+//! - binary: the `rigcast` binary started with only `--listen`, the zip built by the documented
+//!   command, the add-on's default settings apart from the address.
 //!
 //! Needs `blender` (scripts/install-apps.sh installs it). Missing Blender fails the test with
 //! a clear message, unless RIGCAST_SKIP_APPS=1, which skips it with a printed reason.
@@ -23,35 +31,13 @@ use futures_util::StreamExt;
 use glam::{Quat, Vec3};
 use rigcast_protocol::frame::{decode_frame, DecodedFrame};
 use rigcast_retarget::{Clip, Pose, Skeleton};
+use rigcast_server::config::PerformerSpec;
 use rigcast_server::{ReplaySettings, ServerConfig, SourceSpec};
+use rigcast_tests::{
+    find_app, free_port, repo_root, rigcast_binary, start_demo_server, KillOnDrop,
+};
 use serde_json::Value;
 use tokio_tungstenite::tungstenite::Message;
-
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("tests/ has a parent")
-        .to_path_buf()
-}
-
-/// The program's path, or None when absent and RIGCAST_SKIP_APPS=1 (panics otherwise).
-fn find_app(name: &str) -> Option<PathBuf> {
-    let found = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|dir| dir.join(name))
-            .find(|p| p.is_file())
-    });
-    if found.is_none() {
-        if std::env::var("RIGCAST_SKIP_APPS").as_deref() == Ok("1") {
-            eprintln!("SKIP: `{name}` not found on PATH and RIGCAST_SKIP_APPS=1");
-            return None;
-        }
-        panic!(
-            "`{name}` not found on PATH: run scripts/install-apps.sh (or set RIGCAST_SKIP_APPS=1 to skip)"
-        );
-    }
-    found
-}
 
 fn blender_from_ours(p: Vec3) -> Vec3 {
     Vec3::new(p.x, -p.z, p.y)
@@ -171,6 +157,8 @@ fn twisted(clip: &Clip) -> Clip {
 struct Observed {
     hello: Option<Value>,
     skeletons: HashMap<u64, Value>,
+    /// Every `mapping` message, in arrival order.
+    mappings: Vec<Value>,
     frames: HashMap<(u32, u64), DecodedFrame>,
 }
 
@@ -196,6 +184,7 @@ async fn watch_stream(addr: SocketAddr, observed: Arc<Mutex<Observed>>) {
                         let id = value["subject"].as_u64().expect("subject id");
                         o.skeletons.insert(id, value);
                     }
+                    Some("mapping") => o.mappings.push(value),
                     _ => {}
                 }
             }
@@ -205,10 +194,33 @@ async fn watch_stream(addr: SocketAddr, observed: Arc<Mutex<Observed>>) {
     }
 }
 
-fn run_blender(blender: &Path, addr: SocketAddr, work: &Path) -> Value {
+static BLENDER: Mutex<()> = Mutex::new(());
+
+/// A fresh scratch directory (several tests of this file run at once).
+fn work_dir() -> PathBuf {
+    let dir = rigcast_tests::temp_path("blender");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// How the in-Blender script gets the add-on zip.
+enum Zip {
+    /// Build it inside Blender with clients/blender/build_zip.py's `build()`.
+    Build,
+    /// Install this zip (built beforehand by the documented command).
+    Use(PathBuf),
+}
+
+fn run_blender(blender: &Path, addr: SocketAddr, work: &Path, mode: &str, zip: Zip) -> Value {
     let root = repo_root();
     let out_json = work.join("observations.json");
-    let zip = work.join("rigcast_livelink.zip");
+    let zip_args: Vec<std::ffi::OsString> = match zip {
+        Zip::Build => vec![
+            "--build-zip".into(),
+            work.join("rigcast_livelink.zip").into(),
+        ],
+        Zip::Use(path) => vec!["--zip".into(), path.into()],
+    };
     let mut child = Command::new(blender)
         .args([
             "-b",
@@ -219,8 +231,8 @@ fn run_blender(blender: &Path, addr: SocketAddr, work: &Path) -> Value {
         ])
         .arg(root.join("clients/blender/tests/run_in_blender.py"))
         .arg("--")
-        .arg("--build-zip")
-        .arg(&zip)
+        .args(&zip_args)
+        .args(["--mode", mode])
         .args(["--address", &addr.to_string(), "--seconds", "2.0", "--out"])
         .arg(&out_json)
         // Install the add-on into a throwaway user scripts dir, not the user's own.
@@ -230,6 +242,9 @@ fn run_blender(blender: &Path, addr: SocketAddr, work: &Path) -> Value {
         .stderr(Stdio::piped())
         .spawn()
         .expect("blender starts");
+    // One Blender at a time: the rate assertions must not compete with another Blender for
+    // the machine's cores.
+    let _one_at_a_time = BLENDER.lock().unwrap_or_else(|e| e.into_inner());
     let deadline = Instant::now() + Duration::from_secs(180);
     loop {
         if child.try_wait().expect("wait on blender").is_some() {
@@ -265,7 +280,8 @@ async fn blender_addon_applies_and_records_the_live_stream() {
         return;
     };
     // The demo has identity rest rotations; the twisted copy has none, so the add-on's
-    // rest-rotation and bone-axis handling is exercised too.
+    // rest-rotation and bone-axis handling is exercised too; the mannequin is the demo's
+    // retargeted target (A-pose, different structure), as `rigcast serve` streams it.
     let demo = rigcast_sources::embedded_demo().expect("embedded demo");
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
@@ -277,6 +293,10 @@ async fn blender_addon_applies_and_records_the_live_stream() {
                 settings: ReplaySettings::default(),
             },
         ],
+        performers: vec![PerformerSpec {
+            sources: vec!["demo".into()],
+            ..PerformerSpec::target_file("builtin:mannequin")
+        }],
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.expect("server starts");
@@ -285,13 +305,13 @@ async fn blender_addon_applies_and_records_the_live_stream() {
     let observed = Arc::new(Mutex::new(Observed::default()));
     let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
 
-    let work = std::env::temp_dir().join(format!("rigcast-blender-{}", std::process::id()));
-    std::fs::create_dir_all(&work).unwrap();
+    let work = work_dir();
     let work_for_blender = work.clone();
-    let result =
-        tokio::task::spawn_blocking(move || run_blender(&blender, addr, &work_for_blender))
-            .await
-            .expect("blender task");
+    let result = tokio::task::spawn_blocking(move || {
+        run_blender(&blender, addr, &work_for_blender, "stream", Zip::Build)
+    })
+    .await
+    .expect("blender task");
     eprintln!("blender finished");
     watcher.abort();
     // Shutdown is not what this test judges; do not let a slow close hang it.
@@ -310,45 +330,24 @@ async fn blender_addon_applies_and_records_the_live_stream() {
     assert!(!subjects.is_empty());
     assert_eq!(result["session"]["bad"], 0, "the add-on rejected frames");
 
-    // Mapping list, colours and the override operator on real Blender data: from the server's
-    // own mapping when it streams a retargeted subject, else from the script's self-check.
-    if result["mapping_subjects"]
-        .as_array()
-        .is_some_and(|m| !m.is_empty())
-    {
-        let colored = result["colored_bones"].as_object().expect("colored bones");
-        assert!(
-            colored.values().any(|n| n.as_u64() > Some(0)),
-            "no bone coloured by the mapping"
-        );
-    } else {
-        let check = &result["mapping_selfcheck"];
-        assert_eq!(
-            check["rows"], check["expected_rows"],
-            "mapping list rows: {check}"
-        );
-        assert_eq!(check["source_bones"], check["expected_rows"], "{check}");
-        assert!(check["unmapped_rows"].as_u64() > Some(0), "{check}");
-        assert_eq!(check["colored_gradient"], check["expected_rows"], "{check}");
-        for (got, want) in [
-            ("probe_color", "probe_expected"),
-            ("probe_color_random", "probe_expected_random"),
-        ] {
-            let distance = (vec3(&check[got]) - vec3(&check[want])).length();
-            // Blender stores bone colours with 8 bits per channel.
-            assert!(distance < 0.01, "{got} {} != {}", check[got], check[want]);
-        }
-        assert_eq!(
-            check["override_sent"], true,
-            "set_mapping not sent: {check}"
-        );
-        assert!(
-            check["picked_source"]
-                .as_str()
-                .is_some_and(|s| !s.is_empty()),
-            "{check}"
-        );
-    }
+    // Bones coloured by the server's mapping while streaming (values: the mapping test).
+    assert!(
+        !observed.mappings.is_empty(),
+        "the server sent no mapping for the mannequin"
+    );
+    let colored = result["colored_bones"].as_object().expect("colored bones");
+    assert!(
+        colored.values().any(|n| n.as_u64() > Some(0)),
+        "no bone coloured by the mapping"
+    );
+    let kinds: Vec<&str> = subjects
+        .iter()
+        .map(|s| s["kind"].as_str().unwrap())
+        .collect();
+    assert!(
+        kinds.contains(&"target"),
+        "no retargeted subject: {kinds:?}"
+    );
 
     let observations = result["observations"].as_array().expect("observations");
     for subject in subjects {
@@ -539,6 +538,7 @@ fn blender_addon_unit_tests_pass() {
     let Some(blender) = find_app("blender") else {
         return;
     };
+    let _one_at_a_time = BLENDER.lock().unwrap_or_else(|e| e.into_inner());
     let output = Command::new(blender)
         .args([
             "-b",
@@ -557,4 +557,284 @@ fn blender_addon_unit_tests_pass() {
     );
     assert!(output.status.success(), "add-on unit tests failed:\n{log}");
     assert!(log.contains(" passed, 0 failed"), "no test summary:\n{log}");
+}
+
+/// Asserts that the add-on's mapping list (from the in-Blender script) equals a `mapping`
+/// message's entries: same rows in the same order, same bones, scores and colours.
+fn assert_list_equals_message(list: &Value, message: &Value, what: &str) {
+    let rows = list.as_array().expect("mapping list");
+    let entries = message["entries"].as_array().expect("entries");
+    assert_eq!(rows.len(), entries.len(), "{what}: row count");
+    for (row, entry) in rows.iter().zip(entries) {
+        assert_eq!(row["target"], entry["target"], "{what}: row order");
+        assert_eq!(
+            row["source"], entry["source"],
+            "{what}: source of {}",
+            entry["target"]
+        );
+        let score = row["score"].as_f64().unwrap();
+        assert!(
+            (score - entry["score"].as_f64().unwrap()).abs() < 1e-5,
+            "{what}: score of {}: {score} vs {}",
+            entry["target"],
+            entry["score"]
+        );
+        for key in ["color_gradient", "color_random"] {
+            let distance = (vec3(&row[key]) - vec3(&entry[key])).length();
+            assert!(
+                distance < 1e-5,
+                "{what}: {key} of {}: {} vs {}",
+                entry["target"],
+                row[key],
+                entry[key]
+            );
+        }
+    }
+}
+
+/// Checks the armatures' bone colours against a mapping message: every target bone with an
+/// entry wears its colour, every coloured source bone wears the colour of an entry mapped to it.
+fn assert_bone_colors(colors: &Value, message: &Value, key: &str) {
+    // Blender 3.x stores bone group colours with 8 bits per channel.
+    let near = |a: Vec3, b: Vec3| (a - b).length() < 0.01;
+    let entries = message["entries"].as_array().unwrap();
+    let target = colors["target"].as_object().expect("target colours");
+    let mut checked = 0;
+    for entry in entries {
+        let name = entry["target"].as_str().unwrap();
+        let got = target
+            .get(name)
+            .unwrap_or_else(|| panic!("{key}: target bone {name} not coloured"));
+        assert!(
+            near(vec3(got), vec3(&entry[key])),
+            "{key}: target bone {name} is {got}, mapping says {}",
+            entry[key]
+        );
+        checked += 1;
+    }
+    assert!(checked >= 15, "{key}: only {checked} target bones");
+    if let Some(source) = colors.get("source").and_then(Value::as_object) {
+        let mut mapped_sources = 0;
+        for (name, got) in source {
+            let candidates: Vec<Vec3> = entries
+                .iter()
+                .filter(|e| e["source"] == name.as_str())
+                .map(|e| vec3(&e[key]))
+                .collect();
+            assert!(
+                candidates.iter().any(|c| near(*c, vec3(got))),
+                "{key}: source bone {name} is {got}, not a colour of the entries it drives"
+            );
+            mapped_sources += 1;
+        }
+        assert!(
+            mapped_sources >= 10,
+            "{key}: only {mapped_sources} source bones coloured"
+        );
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn blender_addon_shows_and_overrides_the_server_mapping() {
+    let Some(blender) = find_app("blender") else {
+        return;
+    };
+    let server = start_demo_server().await;
+    let addr = server.local_addr();
+    let observed = Arc::new(Mutex::new(Observed::default()));
+    let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
+    let work = work_dir();
+    let work_for_blender = work.clone();
+    let result = tokio::task::spawn_blocking(move || {
+        run_blender(&blender, addr, &work_for_blender, "mapping", Zip::Build)
+    })
+    .await
+    .expect("blender task");
+    // Give the broadcast of the rebuilt mapping a moment to reach our client too.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while observed.lock().unwrap().mappings.len() < 2 && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    watcher.abort();
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let observed = observed.lock().unwrap();
+
+    let target = result["override"]["target"].as_str().unwrap().to_string();
+    let new_source = result["override"]["source"].as_str().unwrap().to_string();
+    let source_of = |m: &Value| -> Value {
+        m["entries"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["target"] == target.as_str())
+            .map(|e| e["source"].clone())
+            .unwrap_or(Value::Null)
+    };
+    let has_override = |m: &&Value| source_of(m) == new_source.as_str();
+    let before = observed
+        .mappings
+        .iter()
+        .filter(|m| !has_override(m))
+        .next_back()
+        .expect("the server's mapping before the override");
+    let after = observed
+        .mappings
+        .iter()
+        .find(has_override)
+        .unwrap_or_else(|| {
+            panic!(
+                "the server never broadcast a mapping with {target} ← {new_source}; got {} mapping messages; add-on error: {}",
+                observed.mappings.len(),
+                result["last_error"]
+            )
+        });
+
+    // The list is the server's mapping of the demo's target, fed from the source's bones.
+    let hello = observed.hello.as_ref().unwrap();
+    let mannequin = hello["subjects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["kind"] == "target")
+        .expect("a target subject");
+    assert_eq!(result["mapping_subject"], mannequin["id"]);
+    assert_eq!(before["subject"], mannequin["id"]);
+    assert_eq!(result["source_subject"], before["source_subject"]);
+    let rows = result["list_before"].as_array().unwrap().len();
+    assert!(rows >= 15, "only {rows} mapping rows");
+    assert_list_equals_message(&result["list_before"], before, "before the override");
+    let source_id = before["source_subject"].as_u64().unwrap();
+    let source_bones: Vec<&Value> = observed.skeletons[&source_id]["bones"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| &b["name"])
+        .collect();
+    let choices: Vec<&Value> = result["source_bone_choices"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .collect();
+    assert_eq!(
+        choices, source_bones,
+        "bone picker offers the source's bones"
+    );
+
+    // Bones wear the message's colours, in both modes.
+    assert_bone_colors(&result["colors_gradient"], before, "color_gradient");
+    assert_bone_colors(&result["colors_random"], before, "color_random");
+
+    // Picking a row shows its current source bone; the override comes back from the server.
+    assert_eq!(
+        result["picked_row"]["shown_source"],
+        source_of(before),
+        "picking a row shows its source bone"
+    );
+    assert_ne!(source_of(before), new_source.as_str());
+    assert_eq!(
+        result["override_shown"], true,
+        "the add-on's list never showed {target} ← {new_source}"
+    );
+    let entry = after["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["target"] == target.as_str())
+        .unwrap();
+    assert_eq!(entry["score"].as_f64(), Some(0.0), "overrides score 0");
+    assert_list_equals_message(&result["list_after"], after, "after the override");
+    assert_bone_colors(&result["colors_after"], after, "color_gradient");
+    println!(
+        "mapping: {rows} rows equal the server's; override {target} ← {new_source} (was {}) came back from the server and is shown",
+        source_of(before)
+    );
+    let _ = std::fs::remove_dir_all(&work);
+}
+
+/// What a user does: build the zip with the documented command, start `rigcast serve` (only
+/// the listen address given, the port being free), install and enable the add-on with default
+/// settings, type the address, connect.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn addon_zip_connects_to_the_rigcast_binary() {
+    let Some(blender) = find_app("blender") else {
+        return;
+    };
+    let Some(python) = find_app("python3") else {
+        return;
+    };
+    let work = work_dir();
+    let zip = work.join("rigcast_livelink.zip");
+    let built = Command::new(python)
+        .arg(repo_root().join("clients/blender/build_zip.py"))
+        .arg("--out")
+        .arg(&zip)
+        .output()
+        .expect("python3 runs");
+    assert!(
+        built.status.success() && zip.is_file(),
+        "build_zip.py failed: {}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+
+    let binary = tokio::task::spawn_blocking(rigcast_binary).await.unwrap();
+    let listen = format!("127.0.0.1:{}", free_port());
+    let mut child = Command::new(&binary)
+        .args(["serve", "--listen", &listen])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("rigcast starts");
+    let stdout = child.stdout.take().unwrap();
+    let server = KillOnDrop(child);
+    // Read until the stream address is printed, then keep draining so prints never block.
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+        {
+            if line.trim().starts_with("stream: ") {
+                let _ = tx.send(line);
+            }
+        }
+    });
+    let line = rx
+        .recv_timeout(Duration::from_secs(30))
+        .expect("rigcast printed its stream address");
+    assert!(line.contains(&listen), "{line}");
+    let addr: SocketAddr = listen.parse().unwrap();
+
+    let work_for_blender = work.clone();
+    let result = tokio::task::spawn_blocking(move || {
+        run_blender(&blender, addr, &work_for_blender, "connect", Zip::Use(zip))
+    })
+    .await
+    .expect("blender task");
+    drop(server);
+
+    // Default settings: the server's default address, WebSocket, the panel in the sidebar.
+    assert_eq!(
+        result["default_address"],
+        ServerConfig::default().listen.to_string().as_str()
+    );
+    assert_eq!(result["default_transport"], "WEBSOCKET");
+    assert_eq!(result["panel"]["space"], "VIEW_3D");
+    assert_eq!(result["panel"]["region"], "UI");
+    assert_eq!(result["panel"]["category"], "rigcast");
+    let connect = &result["connect"];
+    assert_eq!(connect["connected"], true, "{connect}");
+    assert_eq!(connect["status"], "connected", "{connect}");
+    assert_eq!(
+        connect["subjects"],
+        serde_json::json!(["demo", "mannequin"]),
+        "{connect}"
+    );
+    for (id, n) in connect["applied"].as_object().unwrap() {
+        assert!(n.as_u64() >= Some(10), "subject {id}: {n} frames applied");
+    }
+    assert!(connect["mapping_rows"].as_u64() >= Some(15), "{connect}");
+    assert_eq!(result["status_after_disconnect"], "not connected");
+    println!("binary: {connect}");
+    let _ = std::fs::remove_dir_all(&work);
 }

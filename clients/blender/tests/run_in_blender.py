@@ -2,12 +2,20 @@
 
     blender -b --factory-startup --python-exit-code 1 \
         --python clients/blender/tests/run_in_blender.py -- \
-        (--zip dist/rigcast_livelink.zip | --build-zip OUT.zip) --address 127.0.0.1:8717 --out obs.json [--seconds 2]
+        (--zip dist/rigcast_livelink.zip | --build-zip OUT.zip) --address 127.0.0.1:8717 --out obs.json \
+        [--mode stream|mapping|connect] [--seconds 2]
 
-Installs the add-on from the zip, enables it, connects, creates an armature per subject with
-the add-on's operator, applies the stream for --seconds while recording, then writes what it
-observed (per applied frame: seq, capture time, bone head positions; the recorded Action's
-curves) to --out. The Rust side judges the numbers against forward kinematics.
+Every mode installs the add-on from the zip with default preferences, enables it and connects.
+- stream (default): creates an armature per subject with the add-on's operator, applies the
+  stream for --seconds while recording, then writes what it observed (per applied frame: seq,
+  capture time, bone head positions; the recorded Action's curves). The Rust side judges the
+  numbers against forward kinematics.
+- mapping: creates armatures for the first target subject and its source, writes the add-on's
+  mapping list and bone colours (gradient, random), then picks a row and a bone in the list,
+  sends the override and writes the list again once the server's new mapping has arrived. The
+  Rust side compares both lists with the `mapping` messages its own client received.
+- connect: only checks that the panel is registered, records the default settings, and waits
+  for the hello, the skeletons and applied frames.
 
 Background Blender runs no event loop, so timers never fire there; this script calls the
 same per-tick function the add-on's timer calls, at 60 Hz.
@@ -25,7 +33,7 @@ from mathutils import Vector
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
-    args = {"seconds": "2.0", "warmup": "0.5"}
+    args = {"seconds": "2.0", "warmup": "0.5", "mode": "stream"}
     key = None
     for token in argv:
         if token.startswith("--"):
@@ -85,6 +93,10 @@ def run(args, out):
     out["scene_fps_before"] = [scene.render.fps, scene.render.fps_base]
     settings = scene.rigcast
     out["default_address"] = settings.address
+    out["default_transport"] = settings.transport
+    out["default_color_mode"] = settings.color_mode
+    panel = bpy.types.RIGCAST_PT_panel
+    out["panel"] = {"space": panel.bl_space_type, "region": panel.bl_region_type, "category": panel.bl_category}
     settings.address = args["address"]
     result = bpy.ops.rigcast.connect()
     if "FINISHED" not in result:
@@ -136,6 +148,12 @@ def run(args, out):
             % (runtime.status_text(), runtime.session and runtime.session.error)
         )
     out["hello"] = runtime.hello
+    if args["mode"] == "connect":
+        run_connect(out, runtime, settings, pump)
+        return
+    if args["mode"] == "mapping":
+        run_mapping(out, runtime, settings, pump)
+        return
     subject_ids = [item.subject_id for item in settings.subjects]
     out["subject_ids"] = subject_ids
     for subject_id in subject_ids:
@@ -153,13 +171,12 @@ def run(args, out):
             points[bone.name] = [list(m.to_translation()), list(matrix_world @ bone.tail_local), list(z_point)]
         out["rest_points"][str(item.subject_id)] = points
 
-    # Mapping colours and an override round trip, when the server retargets something.
+    # Bone colours by the mapping while streaming (the mapping test checks the values).
+    if not pump(5.0, lambda: bool(runtime.mappings)):
+        raise RuntimeError("no mapping message within 5 s")
     out["mapping_subjects"] = sorted(runtime.mappings)
-    if runtime.mappings:
-        settings.color_mode = "GRADIENT"
-        out["colored_bones"] = count_colored_bones(settings)
-    else:
-        out["mapping_selfcheck"] = mapping_selfcheck(runtime, settings)
+    settings.color_mode = "GRADIENT"
+    out["colored_bones"] = count_colored_bones(settings)
 
     pump(float(args["warmup"]))
     bpy.ops.rigcast.record()
@@ -205,44 +222,109 @@ def observe(subject_id, frame, obj, with_heads):
     return record
 
 
-def mapping_selfcheck(runtime, settings):
-    """Drives the mapping UI with a mapping message of subject 0 onto itself.
+def run_connect(out, runtime, settings, pump):
+    """Default settings reach the server: hello, skeletons, and frames for every subject."""
+    for item in settings.subjects:
+        bpy.ops.rigcast.create_armature(subject_id=item.subject_id)
 
-    Used while the server streams no retargeted subject: exercises the list, the colouring
-    (bone groups in 3.x, bone colours in 4.x) and the override operator on real Blender data.
-    """
-    subject = settings.subjects[0].subject_id
-    bones = runtime.skeletons[subject]["bones"]
-    n = len(bones)
-    entries = [
+    def applied_everywhere():
+        return all(runtime.stats[item.subject_id].num_applied >= 10 for item in settings.subjects)
+
+    if not pump(10.0, applied_everywhere):
+        raise RuntimeError("frames not applied to every subject within 10 s: %s" % runtime.status_text())
+    session = runtime.session
+    out["connect"] = {
+        "status": runtime.status_text(),
+        "connected": session.connected,
+        "received": session.num_frames_received,
+        "applied": {str(item.subject_id): runtime.stats[item.subject_id].num_applied for item in settings.subjects},
+        "subjects": [item.name for item in settings.subjects],
+        "mapping_rows": len(settings.mapping_items),
+    }
+    bpy.ops.rigcast.disconnect()
+    out["status_after_disconnect"] = runtime.status_text()
+
+
+def mapping_list(settings):
+    """The add-on's mapping list as the panel shows it."""
+    return [
         {
-            "target": b["name"],
-            "source": b["name"] if i % 5 else None,
-            "score": 0.5 + 0.5 * i / n,
-            "color_gradient": [i / n, 1.0 - i / n, 0.5],
-            "color_random": [((i * 37) % 11) / 10.0, ((i * 17) % 7) / 6.0, 0.2],
+            "target": item.target,
+            "source": item.source or None,
+            "score": item.score,
+            "color_gradient": list(item.color_gradient),
+            "color_random": list(item.color_random),
         }
-        for i, b in enumerate(bones)
+        for item in settings.mapping_items
     ]
-    settings.mapping_subject = subject
-    runtime.handle_message(settings, {"type": "mapping", "subject": subject, "source_subject": subject, "entries": entries})
-    result = {"rows": len(settings.mapping_items), "source_bones": len(settings.source_bones), "expected_rows": n}
-    result["unmapped_rows"] = sum(1 for item in settings.mapping_items if not item.source)
+
+
+def bone_colors(obj):
+    return {bone.name: list(bone_color(obj, bone.name)) for bone in obj.data.bones if bone_has_color(obj, bone.name)}
+
+
+def run_mapping(out, runtime, settings, pump):
+    """The real server mapping in the list, the colours on the bones, an override round trip."""
+    targets = [item for item in settings.subjects if item.kind == "target"]
+    if not targets:
+        raise RuntimeError("the server streams no target subject")
+    target = targets[0]
+    if not pump(10.0, lambda: target.subject_id in runtime.mappings):
+        raise RuntimeError("no mapping for subject %d within 10 s" % target.subject_id)
+    # The user's steps: pick the target in the subject list (selects its mapping), create the
+    # armatures from the subjects.
+    settings.subject_index = [item.subject_id for item in settings.subjects].index(target.subject_id)
+    source_id = target.source_id
+    for subject_id in (target.subject_id, source_id):
+        result = bpy.ops.rigcast.create_armature(subject_id=subject_id)
+        if "FINISHED" not in result:
+            raise RuntimeError("create_armature(%d) returned %s" % (subject_id, result))
+    out["mapping_subject"] = settings.mapping_subject
+    out["target_subject"] = target.subject_id
+    out["source_subject"] = source_id
+    out["list_before"] = mapping_list(settings)
+    out["source_bone_choices"] = [b.name for b in settings.source_bones]
+    by_id = {item.subject_id: item.armature for item in settings.subjects}
+    for mode in ("GRADIENT", "RANDOM"):
+        settings.color_mode = mode
+        out["colors_" + mode.lower()] = {
+            "target": bone_colors(by_id[target.subject_id]),
+            "source": bone_colors(by_id[source_id]),
+        }
+
+    # Pick a mapped row, pick another source bone for it, send.
+    items = list(settings.mapping_items)
+    mapped = [i for i, item in enumerate(items) if item.source]
+    row = mapped[len(mapped) // 2]
+    settings.mapping_index = row
+    out["picked_row"] = {"index": row, "target": items[row].target, "shown_source": settings.override_source}
+    others = [b.name for b in settings.source_bones if b.name != items[row].source]
+    new_source = others[len(others) // 3]
+    settings.override_source = new_source
+    out["override"] = {"target": items[row].target, "source": new_source}
+    result = bpy.ops.rigcast.set_override()
+    if "FINISHED" not in result:
+        raise RuntimeError("set_override returned %s" % result)
+    picked_target = items[row].target
+
+    def list_shows_override():
+        for item in settings.mapping_items:
+            if item.target == picked_target:
+                return item.source == new_source
+        return False
+
+    out["override_shown"] = pump(10.0, list_shows_override)
+    out["list_after"] = mapping_list(settings)
     settings.color_mode = "GRADIENT"
-    result["colored_gradient"] = count_colored_bones(settings).get(str(subject), 0)
-    obj = settings.subjects[0].armature
-    probe = bones[n - 1]["name"]
-    result["probe_color"] = list(bone_color(obj, probe))
-    result["probe_expected"] = entries[n - 1]["color_gradient"]
-    settings.color_mode = "RANDOM"
-    result["probe_color_random"] = list(bone_color(obj, probe))
-    result["probe_expected_random"] = entries[n - 1]["color_random"]
-    settings.mapping_index = 1  # pick a row ...
-    result["picked_source"] = settings.override_source
-    settings.override_source = bones[0]["name"]  # ... pick a bone, send it
-    result["override_sent"] = "FINISHED" in bpy.ops.rigcast.set_override()
-    settings.color_mode = "NONE"
-    return result
+    out["colors_after"] = {"target": bone_colors(by_id[target.subject_id])}
+    out["last_error"] = runtime.last_error
+    bpy.ops.rigcast.disconnect()
+
+
+def bone_has_color(obj, name):
+    if hasattr(obj.pose, "bone_groups"):
+        return obj.pose.bones[name].bone_group is not None
+    return obj.data.bones[name].color.palette == "CUSTOM"
 
 
 def bone_color(obj, name):
