@@ -83,6 +83,11 @@ pub struct SourceHealth {
     pub frames: u64,
     /// Inputs dropped as malformed, reordered or unusable.
     pub dropped: u64,
+    /// Human-readable detail: the last device error, or the calibration state of a serial
+    /// suit (`not calibrated`, `calibrating (T-pose) in 3.0 s`, `calibrated (T-pose)`,
+    /// `calibration failed: REASON`). Empty when there is nothing to say.
+    #[serde(default)]
+    pub detail: String,
 }
 
 /// Machine-readable reason in an `error` message.
@@ -105,6 +110,9 @@ pub enum ErrorCode {
     UnknownSubject,
     /// The request is valid but not supported for this subject.
     Unsupported,
+    /// `calibrate` named a subject that is not a calibratable live source (only serial IMU
+    /// suits are).
+    NotCalibratable,
     /// Something went wrong on the server.
     Internal,
 }
@@ -121,6 +129,7 @@ impl ErrorCode {
             ErrorCode::MessageTooLarge => "message_too_large",
             ErrorCode::UnknownSubject => "unknown_subject",
             ErrorCode::Unsupported => "unsupported",
+            ErrorCode::NotCalibratable => "not_calibratable",
             ErrorCode::Internal => "internal",
         }
     }
@@ -191,7 +200,7 @@ pub enum ServerMessage {
         /// One entry per source subject.
         sources: Vec<SourceHealth>,
     },
-    /// A request was accepted (currently only `set_mapping`).
+    /// A request was accepted (`set_mapping`, `calibrate`).
     Ack {
         /// The `type` of the request acknowledged.
         request: String,
@@ -221,10 +230,47 @@ pub enum ClientMessage {
         /// Overrides by target bone name.
         overrides: BTreeMap<String, Option<String>>,
     },
+    /// Calibrate a serial IMU source: after `delay_secs` the performer is taken to hold
+    /// `pose`, and each sensor's reading at that moment becomes its mounting offset. The
+    /// outcome shows in that source's `source_status` `detail`.
+    Calibrate {
+        /// Source subject id.
+        subject: u32,
+        /// The pose held (default `t`).
+        #[serde(default)]
+        pose: CalibrationPose,
+        /// Seconds to wait before capturing (0..=60, default 0).
+        #[serde(default)]
+        delay_secs: f32,
+    },
 }
 
+/// The pose a performer holds while calibrating.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CalibrationPose {
+    /// T-pose: the source skeleton's rest pose (arms out sideways).
+    #[default]
+    T,
+    /// N-pose: standing with the arms down along the body.
+    N,
+}
+
+impl CalibrationPose {
+    /// `"T-pose"` or `"N-pose"`, for messages.
+    pub fn label(self) -> &'static str {
+        match self {
+            CalibrationPose::T => "T-pose",
+            CalibrationPose::N => "N-pose",
+        }
+    }
+}
+
+/// Longest accepted `calibrate` delay, seconds.
+pub const MAX_CALIBRATION_DELAY_SECS: f32 = 60.0;
+
 /// The `type` tags [`ClientMessage`] understands.
-pub const CLIENT_MESSAGE_TYPES: [&str; 3] = ["subscribe", "ping", "set_mapping"];
+pub const CLIENT_MESSAGE_TYPES: [&str; 4] = ["subscribe", "ping", "set_mapping", "calibrate"];
 
 /// Why an incoming client text message was rejected.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -376,6 +422,7 @@ mod tests {
                     latency_ms: 1.5,
                     frames: 1200,
                     dropped: 3,
+                    detail: "calibrated (T-pose)".into(),
                 }],
             },
         ]
@@ -427,6 +474,11 @@ mod tests {
                 subject: 1,
                 overrides,
             },
+            ClientMessage::Calibrate {
+                subject: 2,
+                pose: CalibrationPose::N,
+                delay_secs: 3.0,
+            },
         ] {
             let json = serde_json::to_string(&m).unwrap();
             assert_eq!(parse_client_message(&json).unwrap(), m, "{json}");
@@ -449,6 +501,44 @@ mod tests {
             parse_client_message(r#"{"type":"ping","nonce":5,"extra":true}"#).unwrap(),
             ClientMessage::Ping { nonce: 5 }
         );
+    }
+
+    #[test]
+    fn parses_calibrate_examples() {
+        assert_eq!(
+            parse_client_message(r#"{"type":"calibrate","subject":0,"pose":"t","delay_secs":3.0}"#)
+                .unwrap(),
+            ClientMessage::Calibrate {
+                subject: 0,
+                pose: CalibrationPose::T,
+                delay_secs: 3.0
+            }
+        );
+        // pose and delay are optional.
+        assert_eq!(
+            parse_client_message(r#"{"type":"calibrate","subject":4}"#).unwrap(),
+            ClientMessage::Calibrate {
+                subject: 4,
+                pose: CalibrationPose::T,
+                delay_secs: 0.0
+            }
+        );
+        let code = |s: &str| parse_client_message(s).unwrap_err().code;
+        assert_eq!(
+            code(r#"{"type":"calibrate","subject":0,"pose":"a"}"#),
+            ErrorCode::InvalidFields
+        );
+        assert_eq!(code(r#"{"type":"calibrate"}"#), ErrorCode::InvalidFields);
+        // A status without `detail` (older servers) still parses.
+        let old = r#"{"type":"source_status","sources":[{"subject":0,"kind":"vmc","state":"live","input_fps":1.0,"latency_ms":0.0,"frames":1,"dropped":0}]}"#;
+        let m: ServerMessage = serde_json::from_str(old).unwrap();
+        assert!(
+            matches!(m, ServerMessage::SourceStatus { sources } if sources[0].detail.is_empty())
+        );
+        assert_eq!(ErrorCode::NotCalibratable.as_str(), "not_calibratable");
+        let e =
+            serde_json::to_value(ServerMessage::error(ErrorCode::NotCalibratable, "x")).unwrap();
+        assert_eq!(e["code"], "not_calibratable");
     }
 
     #[test]

@@ -11,8 +11,8 @@
 
 use std::sync::Arc;
 
-use glam::Vec3;
-use rigcast_retarget::{RawSkeleton, RetargetError, Skeleton, Transform};
+use glam::{Quat, Vec3};
+use rigcast_retarget::{world_transforms, Pose, RawSkeleton, RetargetError, Skeleton, Transform};
 
 /// One `HumanBodyBones` entry.
 #[derive(Debug, Clone, Copy)]
@@ -155,6 +155,61 @@ pub fn default_offsets() -> [Vec3; NUM_HUMAN_BONES] {
     out
 }
 
+/// Upper-arm bone names (lower case, letters and digits only) of common conventions: Unity
+/// `HumanBodyBones`, Mixamo/BVH (`LeftArm`), Unreal (`upperarm_l`). Matched as suffixes, so
+/// prefixed names (`mixamorig:LeftArm`) count too.
+const UPPER_ARM_SUFFIXES: [&str; 8] = [
+    "leftupperarm",
+    "rightupperarm",
+    "leftarm",
+    "rightarm",
+    "upperarml",
+    "upperarmr",
+    "lupperarm",
+    "rupperarm",
+];
+
+fn is_upper_arm(name: &str) -> bool {
+    let key: String = name
+        .chars()
+        .filter(char::is_ascii_alphanumeric)
+        .map(|c| c.to_ascii_lowercase())
+        .collect();
+    UPPER_ARM_SUFFIXES.iter().any(|s| key.ends_with(s))
+}
+
+/// The N-pose on `skeleton`: its rest pose (taken to be a T-pose) with each upper arm turned,
+/// about the shoulder, to hang straight down (-Y) along the body; everything below the upper
+/// arm follows unchanged. Upper arms are found by name (see [`UPPER_ARM_SUFFIXES`]); a
+/// skeleton without recognisable upper arms gets its rest pose back.
+///
+/// IMU suits calibrate against it when the performer finds a T-pose hard to hold.
+pub fn n_pose(skeleton: &Skeleton) -> Pose {
+    let mut pose = skeleton.rest_pose();
+    let world = world_transforms(skeleton, &pose);
+    for bone in skeleton.bone_ids() {
+        if !is_upper_arm(skeleton.name(bone)) {
+            continue;
+        }
+        // The arm's direction is towards its (first) child, the elbow.
+        let Some(&elbow) = skeleton.children(bone).first() else {
+            continue;
+        };
+        let w = world[bone.index()].rotation;
+        let dir = (w * skeleton.rest()[elbow.index()].translation).normalize_or_zero();
+        if dir == Vec3::ZERO {
+            continue;
+        }
+        // A world-space swing, re-expressed locally: parents keep their rest rotations.
+        let swing = Quat::from_rotation_arc(dir, Vec3::NEG_Y);
+        let parent = skeleton
+            .parent(bone)
+            .map_or(Quat::IDENTITY, |p| world[p.index()].rotation);
+        pose.rotations[bone.index()] = (parent.inverse() * swing * w).normalize();
+    }
+    pose
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,6 +231,74 @@ mod tests {
         }
         let s = default_humanoid().unwrap();
         assert_eq!(s.num_bones(), NUM_HUMAN_BONES);
+    }
+
+    #[test]
+    fn n_pose_hangs_the_upper_arms_down() {
+        let s = default_humanoid().unwrap();
+        let pose = n_pose(&s);
+        let world = world_transforms(&s, &pose);
+        let rest_world = world_transforms(&s, &s.rest_pose());
+        for (arm, elbow, hand) in [
+            ("LeftUpperArm", "LeftLowerArm", "LeftHand"),
+            ("RightUpperArm", "RightLowerArm", "RightHand"),
+        ] {
+            let (a, e, h) = (
+                s.bone(arm).unwrap().index(),
+                s.bone(elbow).unwrap().index(),
+                s.bone(hand).unwrap().index(),
+            );
+            // Rest: the arms point sideways (the table's T-pose), so the test is not vacuous.
+            let rest_dir = (rest_world[e].translation - rest_world[a].translation).normalize();
+            assert!(rest_dir.y.abs() < 1e-4, "{arm} not horizontal at rest");
+            for (from, to) in [(a, e), (e, h)] {
+                let dir = (world[to].translation - world[from].translation).normalize();
+                let deg = dir.angle_between(Vec3::NEG_Y).to_degrees();
+                assert!(deg < 5.0, "{arm}: {deg}° from straight down");
+            }
+            // The shoulder stays put.
+            assert!(world[a].translation.distance(rest_world[a].translation) < 1e-6);
+        }
+        // Only the upper arms turned.
+        let rest = s.rest_pose();
+        let changed: Vec<&str> = s
+            .bone_ids()
+            .filter(|b| pose.rotation(*b).angle_between(rest.rotation(*b)) > 1e-5)
+            .map(|b| s.name(b))
+            .collect();
+        assert_eq!(changed, vec!["LeftUpperArm", "RightUpperArm"]);
+        assert!(is_upper_arm("mixamorig:LeftArm") && is_upper_arm("upperarm_r"));
+        assert!(!is_upper_arm("LeftForeArm") && !is_upper_arm("LeftLowerArm"));
+    }
+
+    #[test]
+    fn n_pose_of_a_rotated_rest_still_points_down() {
+        // A skeleton whose rest rotations are not identity (e.g. a glTF rig): the shoulder is
+        // rotated 90° about Y and the arm offset compensates, so the arm still points -X.
+        let mut raw = RawSkeleton::default();
+        let hips = raw.add("Hips", None, Transform::from_translation(Vec3::Y));
+        let sh = raw.add(
+            "LeftShoulder",
+            Some(hips),
+            Transform {
+                translation: Vec3::new(-0.1, 0.4, 0.0),
+                rotation: Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+            },
+        );
+        let arm = raw.add(
+            "LeftUpperArm",
+            Some(sh),
+            Transform::from_translation(Vec3::new(0.0, 0.0, 0.1)),
+        );
+        raw.add(
+            "LeftLowerArm",
+            Some(arm),
+            Transform::from_translation(Vec3::new(0.0, 0.0, 0.3)),
+        );
+        let s = Skeleton::build(&raw).unwrap();
+        let w = world_transforms(&s, &n_pose(&s));
+        let dir = (w[3].translation - w[2].translation).normalize();
+        assert!(dir.angle_between(Vec3::NEG_Y).to_degrees() < 5.0, "{dir}");
     }
 
     #[test]

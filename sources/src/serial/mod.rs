@@ -20,7 +20,7 @@ pub mod solve;
 use std::io::Read;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use glam::Quat;
@@ -121,14 +121,60 @@ fn secs(name: &str, v: f32) -> Result<Duration, SourceError> {
         })
 }
 
-/// Asks a running [`SerialImuSource`] (on another thread) to calibrate at its next read.
+/// Asks a running [`SerialImuSource`] (on another thread) to calibrate at its next read, and
+/// reports how that went.
 #[derive(Debug, Clone, Default)]
-pub struct CalibrationHandle(Arc<AtomicBool>);
+pub struct CalibrationHandle(Arc<CalibrationShared>);
+
+#[derive(Debug, Default)]
+struct CalibrationShared {
+    requested: AtomicBool,
+    /// The held pose of the pending request (`None`: the rest pose).
+    pose: Mutex<Option<Pose>>,
+    /// Attempts finished so far and the last one's result.
+    outcome: Mutex<(u64, Option<Result<(), String>>)>,
+}
 
 impl CalibrationHandle {
     /// Requests a calibration against the rest pose; the result shows in the status detail.
     pub fn request(&self) {
-        self.0.store(true, Ordering::Release);
+        if let Ok(mut p) = self.0.pose.lock() {
+            *p = None;
+        }
+        self.0.requested.store(true, Ordering::Release);
+    }
+
+    /// Requests a calibration against `pose` (e.g. an N-pose on the source skeleton).
+    pub fn request_pose(&self, pose: Pose) {
+        if let Ok(mut p) = self.0.pose.lock() {
+            *p = Some(pose);
+        }
+        self.0.requested.store(true, Ordering::Release);
+    }
+
+    /// Number of calibration attempts the source has finished and the last one's result
+    /// (`Err` carries the reason). Compare the count before and after a request to wait for
+    /// its outcome.
+    pub fn outcome(&self) -> (u64, Option<Result<(), String>>) {
+        match self.0.outcome.lock() {
+            Ok(g) => g.clone(),
+            Err(p) => p.into_inner().clone(),
+        }
+    }
+
+    /// Takes a pending request: `Some(held pose)` (inner `None` = rest pose).
+    fn take(&self) -> Option<Option<Pose>> {
+        if !self.0.requested.swap(false, Ordering::AcqRel) {
+            return None;
+        }
+        Some(self.0.pose.lock().ok().and_then(|mut p| p.take()))
+    }
+
+    fn finish(&self, result: Result<(), String>) {
+        if let Ok(mut g) = self.0.outcome.lock() {
+            g.0 += 1;
+            g.1 = Some(result);
+        }
     }
 }
 
@@ -347,12 +393,17 @@ impl LiveSource for SerialImuSource {
     ) -> Result<Option<FrameMeta>, SourceError> {
         let deadline = Instant::now() + timeout;
         loop {
-            if self.calibration.0.swap(false, Ordering::AcqRel) {
-                let msg = match self.calibrate() {
+            if let Some(held) = self.calibration.take() {
+                let result = match &held {
+                    None => self.calibrate(),
+                    Some(pose) => self.calibrate_to(pose),
+                };
+                let msg = match &result {
                     Ok(()) => "calibrated".to_string(),
                     Err(e) => e.to_string(),
                 };
                 self.health.set_detail(&msg);
+                self.calibration.finish(result.map_err(|e| e.to_string()));
             }
             self.ensure_open(Instant::now());
             let Some(chunk) = self.read_chunk(deadline) else {
