@@ -139,8 +139,10 @@ class SubjectView {
       const c = colors?.get(this.bones[i].name);
       return c ? color.setRGB(c[0], c[1], c[2]) : color.copy(base);
     };
-    this.edges.forEach(([, b], e) => {
-      boneColor(b);
+    // A segment parent→child is the parent bone's extent (as Blender draws bones head→tail),
+    // so it wears the parent's colour: a helper root under the hips stays grey.
+    this.edges.forEach(([a], e) => {
+      boneColor(a);
       this.lineColors.set([color.r, color.g, color.b, color.r, color.g, color.b], e * 6);
     });
     this.lineGeometry.attributes.color.needsUpdate = true;
@@ -156,12 +158,14 @@ class SubjectView {
       v.project(camera);
       const x = ((v.x + 1) / 2) * width;
       const y = ((1 - v.y) / 2) * height;
-      // Skip a label that would overprint one already placed this frame (readability).
-      const crowded = placed.some(([px, py]) => Math.abs(px - x) < 60 && Math.abs(py - y) < 12);
+      // Skip a label that would overprint one already placed this frame (readability); labels
+      // are centred on x, so two overlap when their centres are closer than half their widths.
+      const labelWidth = label.textContent.length * 6.5 + 8;
+      const crowded = placed.some(([px, py, pw]) => Math.abs(px - x) < (pw + labelWidth) / 2 && Math.abs(py - y) < 13);
       const visible = v.z < 1 && Math.abs(v.x) <= 1.1 && Math.abs(v.y) <= 1.1 && !crowded;
       label.style.display = visible ? 'block' : 'none';
       if (!visible) return;
-      placed.push([x, y]);
+      placed.push([x, y, labelWidth]);
       label.style.left = `${x}px`;
       label.style.top = `${y}px`;
     };

@@ -674,8 +674,7 @@ async fn blender_addon_shows_and_overrides_the_server_mapping() {
     let before = observed
         .mappings
         .iter()
-        .filter(|m| !has_override(m))
-        .next_back()
+        .rfind(|m| !has_override(m))
         .expect("the server's mapping before the override");
     let after = observed
         .mappings

@@ -264,12 +264,13 @@ async fn check_table(cdp: &mut DevTools, entries: &[MappingEntry], random: bool)
     );
 }
 
-/// Per bone of a subject: its drawn colour (the line into the bone, else its joint), by name.
+/// Per bone of a subject: the colour its joint is drawn in, by name.
 async fn drawn_colors(cdp: &mut DevTools, subject: u32) -> HashMap<String, [f32; 3]> {
     let colors = cdp
         .eval_json(&format!(
             "(() => {{ const v = window.rigcast.views.get({subject}); const out = {{}}; \
-              v.edges.forEach(([, b], e) => {{ out[v.bones[b].name] = [...v.lineColors.slice(e * 6, e * 6 + 3)]; }}); \
+              const c = v.joints.instanceColor.array; \
+              v.bones.forEach((b, i) => {{ out[b.name] = [...c.slice(i * 3, i * 3 + 3)]; }}); \
               return JSON.stringify(out); }})()"
         ))
         .await;
@@ -436,7 +437,11 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
                     .sqrt()
             })
             .fold(0.0, f64::max);
-        assert!(moved > 0.01, "subject {id} did not move ({moved} m)");
+        assert!(
+            moved > 0.01,
+            "subject {id} did not move ({moved} m); page events: {:?}",
+            cdp.events
+        );
     }
 
     // Side by side: on screen, inside the view, not overlapping.
