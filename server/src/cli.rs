@@ -44,6 +44,8 @@ pub enum Command {
     Pose(cmd::pose::PoseArgs),
     /// Install optional components (`rigcast setup vision`).
     Setup(cmd::setup::SetupArgs),
+    /// Calibrate a running server's serial IMU suit: hold a T- or N-pose, capture offsets.
+    Calibrate(cmd::calibrate::CalibrateArgs),
 }
 
 impl Command {
@@ -59,6 +61,7 @@ impl Command {
             Command::Map(a) => cmd::map::run(&a),
             Command::Pose(a) => cmd::pose::run(&a),
             Command::Setup(a) => cmd::setup::run(&a),
+            Command::Calibrate(a) => cmd::calibrate::run(a).await,
         }
     }
 }

@@ -197,6 +197,25 @@ fn handle_text(
             *subscribed = Some(ids.into_iter().collect());
             None
         }
+        ClientMessage::Calibrate {
+            subject,
+            pose,
+            delay_secs,
+        } => Some(
+            match crate::calibration::start(
+                &state.subjects,
+                &state.events,
+                subject,
+                pose,
+                delay_secs,
+            ) {
+                Ok(()) => ServerMessage::Ack {
+                    request: "calibrate".into(),
+                    subject,
+                },
+                Err((code, message)) => ServerMessage::error(code, message),
+            },
+        ),
         ClientMessage::SetMapping { subject, overrides } => {
             let Some(target) = state.subject(subject) else {
                 return Some(ServerMessage::error(

@@ -187,6 +187,15 @@ pub enum FileSource {
         /// Subject name (default: the file stem).
         name: Option<String>,
     },
+    /// Pose estimation on a webcam (needs `rigcast setup vision` and a build with
+    /// `--features webcam`).
+    Webcam {
+        /// Camera index (default 0: the first camera).
+        #[serde(default)]
+        index: u32,
+        /// Subject name (default `webcam:INDEX`).
+        name: Option<String>,
+    },
 }
 
 fn vmc_port() -> u16 {
@@ -222,7 +231,7 @@ impl FileConfig {
                 FileSource::Replay { path, .. }
                 | FileSource::Serial { config: path, .. }
                 | FileSource::Video { path, .. } => resolve(path),
-                FileSource::Vmc { .. } => {}
+                FileSource::Vmc { .. } | FileSource::Webcam { .. } => {}
             }
         }
         for p in &mut cfg.performers {
@@ -306,6 +315,13 @@ pub enum SourceSpec {
         /// The video.
         path: PathBuf,
         /// Subject name (default: the file stem).
+        name: Option<String>,
+    },
+    /// Pose estimation on a webcam (`--source webcam:INDEX`; needs the `webcam` feature).
+    Webcam {
+        /// Camera index.
+        index: u32,
+        /// Subject name (default `webcam:INDEX`).
         name: Option<String>,
     },
 }
@@ -549,6 +565,7 @@ impl ServerConfig {
                 },
                 FileSource::Serial { config, name } => SourceSpec::Serial { config, name },
                 FileSource::Video { path, name } => SourceSpec::Video { path, name },
+                FileSource::Webcam { index, name } => SourceSpec::Webcam { index, name },
             })
             .collect();
         cfg.validate()?;
@@ -662,6 +679,9 @@ mod tests {
             [[sources]]
             kind = "serial"
             config = "/x/suit.toml"
+            [[sources]]
+            kind = "webcam"
+            index = 1
             [[performers]]
             source = ["face", "suit"]
             target = "/x/hero.glb"
@@ -681,6 +701,13 @@ mod tests {
         assert!(
             matches!(&cfg.sources[1], SourceSpec::Serial { config, .. } if config == Path::new("/x/suit.toml"))
         );
+        assert!(matches!(
+            cfg.sources[2],
+            SourceSpec::Webcam {
+                index: 1,
+                name: None
+            }
+        ));
         let p = &cfg.performers[0];
         assert_eq!(p.sources, vec!["face".to_string(), "suit".to_string()]);
         assert!(p.in_place);

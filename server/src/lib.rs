@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
+pub mod calibration;
 pub mod character;
 pub mod cli;
 pub mod clients;
@@ -62,7 +63,7 @@ use recorder::Recorder;
 use rigcast_retarget::mapping::parse_mapping_file;
 use rigcast_retarget::RootMotion;
 use rigcast_sources::live::LiveSource;
-use rigcast_sources::serial::{SerialImuConfig, SerialImuSource};
+use rigcast_sources::serial::{CalibrationHandle, SerialImuConfig, SerialImuSource};
 use rigcast_sources::vmc_in::{VmcConfig, VmcSource};
 use rigcast_sources::{Replay, ReplayOptions};
 use state::ServerState;
@@ -140,6 +141,8 @@ enum Loaded {
         source: Box<dyn LiveSource>,
         kind: &'static str,
         listen: Option<SocketAddr>,
+        /// Set for calibratable sources (serial IMU suits).
+        calibration: Option<CalibrationHandle>,
     },
 }
 
@@ -187,7 +190,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     let mut senders = Vec::new();
     let mut extras = HashMap::new();
     for (i, ((l, skeleton), name)) in loaded.iter().zip(&names).enumerate() {
-        let (kind, listen) = match l {
+        let (kind, listen, calibration) = match l {
             Loaded::Replay { clip_poses, .. } => {
                 extras.insert(
                     i as u32,
@@ -196,9 +199,14 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
                         poses: clip_poses.clone(),
                     },
                 );
-                ("replay", None)
+                ("replay", None, None)
             }
-            Loaded::Live { kind, listen, .. } => (*kind, *listen),
+            Loaded::Live {
+                kind,
+                listen,
+                calibration,
+                ..
+            } => (*kind, *listen, calibration.clone()),
         };
         let (subject, tx) = Subject::with_kind(
             i as u32,
@@ -208,7 +216,11 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             Vec::new(),
             config.vmc_bone_names,
         );
-        subjects.push(Arc::new(subject.with_listen_addr(listen)));
+        subjects.push(Arc::new(
+            subject
+                .with_listen_addr(listen)
+                .with_calibration(calibration),
+        ));
         senders.push(tx);
     }
     let num_sources = subjects.len();
@@ -619,6 +631,7 @@ async fn load_source(
                     source: Box::new(source),
                     kind: "vmc",
                     listen,
+                    calibration: None,
                 },
                 sk,
             )
@@ -634,12 +647,27 @@ async fn load_source(
                 .with_context(|| format!("cannot open the serial suit of {}", config.display()))?;
             let sk = source.skeleton().unwrap_or(humanoid);
             let name = name.unwrap_or_else(|| stem(&config));
+            let calibration = Some(source.calibration_handle());
             (
                 name,
                 Loaded::Live {
                     source: Box::new(source),
                     kind: "serial",
                     listen: None,
+                    calibration,
+                },
+                sk,
+            )
+        }
+        SourceSpec::Webcam { index, name } => {
+            let (source, sk) = open_webcam(index)?;
+            (
+                name.unwrap_or_else(|| format!("webcam:{index}")),
+                Loaded::Live {
+                    source,
+                    kind: "webcam",
+                    listen: None,
+                    calibration: None,
                 },
                 sk,
             )
@@ -652,6 +680,7 @@ async fn load_source(
                     source,
                     kind: "video",
                     listen: None,
+                    calibration: None,
                 },
                 sk,
             )
@@ -677,6 +706,34 @@ fn open_video(
     let sk = pipeline.skeleton().clone();
     let source = VisionSource::new(stem(path), Box::new(frames), pipeline, true);
     Ok((Box::new(source), sk))
+}
+
+/// What to tell a user of a build without webcam support.
+pub const NO_WEBCAM_HINT: &str = "this rigcast was built without webcam support; rebuild it with \
+     `cargo build --release -p rigcast-server --features webcam` (which needs libclang: \
+     `sudo apt-get install libclang-dev` on Debian/Ubuntu), or use `--source video:FILE`";
+
+/// Pose estimation on a webcam, as a live source.
+#[cfg(feature = "webcam")]
+fn open_webcam(
+    index: u32,
+) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
+    use rigcast_sources::vision::{open_webcam, PipelineConfig, PosePipeline, VisionSource};
+    let frames = open_webcam(index).with_context(|| format!("cannot open webcam {index}"))?;
+    let pipeline = PosePipeline::new(&PipelineConfig::default())
+        .context("pose estimation is not set up (run `rigcast setup vision`)")?;
+    let sk = pipeline.skeleton().clone();
+    // A camera delivers frames as they happen; no pacing needed (realtime = false).
+    let source = VisionSource::new(format!("webcam:{index}"), frames, pipeline, false);
+    Ok((Box::new(source), sk))
+}
+
+/// Without the `webcam` feature: a clear error saying how to get one.
+#[cfg(not(feature = "webcam"))]
+fn open_webcam(
+    index: u32,
+) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
+    anyhow::bail!("--source webcam:{index}: {NO_WEBCAM_HINT}")
 }
 
 fn replay(clip: rigcast_retarget::Clip, settings: ReplaySettings) -> anyhow::Result<Replay> {

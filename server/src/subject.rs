@@ -4,7 +4,7 @@
 //! immutable [`SubjectShape`] that is swapped as a whole.
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
 use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
@@ -12,6 +12,7 @@ use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze, humanoid_roles, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 use rigcast_sources::live::SourceStatus;
+use rigcast_sources::serial::CalibrationHandle;
 use tokio::sync::watch;
 
 use crate::config::VmcBoneNames;
@@ -205,7 +206,39 @@ pub struct Subject {
     pub mapping_json: RwLock<Option<String>>,
     /// The UDP address a VMC source listens on.
     pub listen_addr: Option<SocketAddr>,
+    /// Calibration of a serial IMU source (see [`crate::calibration`]).
+    pub calibration: Option<Calibration>,
     vmc_names: VmcBoneNames,
+}
+
+/// A calibratable source's handle and the server's account of its calibration.
+#[derive(Debug)]
+pub struct Calibration {
+    /// Reaches the source's thread.
+    pub handle: CalibrationHandle,
+    /// `calibrating …`, `calibrated (T-pose)`, `calibration failed: …`; empty before the
+    /// first request.
+    pub text: Mutex<String>,
+    /// Bumped per request, so a superseded request's outcome is not reported.
+    pub generation: AtomicU64,
+}
+
+impl Calibration {
+    /// The current text (empty before any request).
+    pub fn text(&self) -> String {
+        match self.text.lock() {
+            Ok(g) => g.clone(),
+            Err(p) => p.into_inner().clone(),
+        }
+    }
+
+    /// Replaces the text.
+    pub fn set_text(&self, text: String) {
+        match self.text.lock() {
+            Ok(mut g) => *g = text,
+            Err(p) => *p.into_inner() = text,
+        }
+    }
 }
 
 impl Subject {
@@ -265,6 +298,7 @@ impl Subject {
                 inputs,
                 mapping_json: RwLock::new(None),
                 listen_addr: None,
+                calibration: None,
                 vmc_names,
             },
             tx,
@@ -275,6 +309,38 @@ impl Subject {
     pub fn with_listen_addr(mut self, addr: Option<SocketAddr>) -> Subject {
         self.listen_addr = addr;
         self
+    }
+
+    /// Makes a live source calibratable through `handle`.
+    pub fn with_calibration(mut self, handle: Option<CalibrationHandle>) -> Subject {
+        self.calibration = handle.map(|handle| Calibration {
+            handle,
+            text: Mutex::new(String::new()),
+            generation: AtomicU64::new(0),
+        });
+        self
+    }
+
+    /// The `detail` of this source's health: the server's calibration account (which
+    /// supersedes the source's own `calibrated`/`not calibrated` note) and, while the device
+    /// is not live, the source's detail (why it is lost).
+    fn detail(&self, live_detail: String) -> String {
+        let cal = self
+            .calibration
+            .as_ref()
+            .map(|c| c.text())
+            .unwrap_or_default();
+        let about_calibration = live_detail.contains("calibrat");
+        if cal.is_empty() {
+            live_detail
+        } else if live_detail.is_empty()
+            || about_calibration
+            || self.health.state() == HealthState::Live
+        {
+            cal
+        } else {
+            format!("{live_detail}; {cal}")
+        }
     }
 
     /// The current shape (cheap: an `Arc` clone).
@@ -335,6 +401,7 @@ impl Subject {
                 latency_ms: s.latency_ms,
                 frames: s.frames,
                 dropped: s.dropped,
+                detail: self.detail(s.detail),
             },
             None => SourceHealth {
                 subject: self.id,
@@ -344,6 +411,7 @@ impl Subject {
                 latency_ms: 0.0,
                 frames: self.stats.input.total(),
                 dropped: 0,
+                detail: self.detail(String::new()),
             },
         })
     }

@@ -1,6 +1,7 @@
 //! Subcommand implementations, one module each (wired up in [`crate::cli::Command`]).
 
 pub mod bench;
+pub mod calibrate;
 pub mod convert;
 pub mod info;
 pub mod map;

@@ -93,7 +93,8 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     Ok(cfg)
 }
 
-/// Parses `replay:PATH`, `vmc:PORT`, `serial:CONFIG.toml`, `video:FILE` (and `demo`).
+/// Parses `replay:PATH`, `vmc:PORT`, `serial:CONFIG.toml`, `video:FILE`, `webcam:INDEX` (and
+/// `demo`).
 pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
     if s == "demo" {
         return Ok(SourceSpec::EmbeddedDemo);
@@ -119,8 +120,14 @@ pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
             path: PathBuf::from(path),
             name: None,
         }),
+        Some(("webcam", index)) => Ok(SourceSpec::Webcam {
+            index: index.parse().map_err(|_| {
+                anyhow::anyhow!("--source {s:?}: expected webcam:INDEX with a camera number, e.g. webcam:0")
+            })?,
+            name: None,
+        }),
         _ => anyhow::bail!(
-            "unknown source {s:?}; expected replay:FILE, vmc:PORT, serial:CONFIG.toml, video:FILE or demo"
+            "unknown source {s:?}; expected replay:FILE, vmc:PORT, serial:CONFIG.toml, video:FILE, webcam:INDEX or demo"
         ),
     }
 }
@@ -188,6 +195,11 @@ mod tests {
             SourceSpec::Vmc { port: 39540, .. }
         ));
         assert!(parse_source("vmc:x").is_err());
+        assert!(matches!(
+            parse_source("webcam:2").unwrap(),
+            SourceSpec::Webcam { index: 2, .. }
+        ));
+        assert!(parse_source("webcam:front").is_err());
         assert!(matches!(
             parse_source("serial:suit.toml").unwrap(),
             SourceSpec::Serial { .. }
