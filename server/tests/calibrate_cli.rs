@@ -381,7 +381,7 @@ async fn calibrate_command_removes_mounting_offsets() {
     // Check the N-pose is a real N-pose (upper arm hanging down), not a vacuous one.
     let arm = sk.bone("LeftUpperArm").unwrap().index();
     let elbow = sk.bone("LeftLowerArm").unwrap().index();
-    let arm_dir = (nw[elbow].translation - nw[arm].translation).normalize();
+    let arm_dir = (nw[elbow].translation - nw[arm].translation).normalize_or_zero();
     assert!(arm_dir.angle_between(Vec3::NEG_Y) < 5f32.to_radians());
 
     drop(performer);

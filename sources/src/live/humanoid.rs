@@ -249,10 +249,11 @@ mod tests {
                 s.bone(hand).unwrap().index(),
             );
             // Rest: the arms point sideways (the table's T-pose), so the test is not vacuous.
-            let rest_dir = (rest_world[e].translation - rest_world[a].translation).normalize();
+            let rest_dir =
+                (rest_world[e].translation - rest_world[a].translation).normalize_or_zero();
             assert!(rest_dir.y.abs() < 1e-4, "{arm} not horizontal at rest");
             for (from, to) in [(a, e), (e, h)] {
-                let dir = (world[to].translation - world[from].translation).normalize();
+                let dir = (world[to].translation - world[from].translation).normalize_or_zero();
                 let deg = dir.angle_between(Vec3::NEG_Y).to_degrees();
                 assert!(deg < 5.0, "{arm}: {deg}° from straight down");
             }
@@ -297,7 +298,7 @@ mod tests {
         );
         let s = Skeleton::build(&raw).unwrap();
         let w = world_transforms(&s, &n_pose(&s));
-        let dir = (w[3].translation - w[2].translation).normalize();
+        let dir = (w[3].translation - w[2].translation).normalize_or_zero();
         assert!(dir.angle_between(Vec3::NEG_Y).to_degrees() < 5.0, "{dir}");
     }
 
