@@ -213,6 +213,40 @@ async fn calibrate_command_removes_mounting_offsets() {
     let sk = default_humanoid().unwrap();
     let (mut ws, _) = tokio_tungstenite::connect_async(&url).await.unwrap();
 
+    // The request itself: refusals name the problem with a code.
+    for (request, code) in [
+        (r#"{"type":"calibrate","subject":99}"#, "unknown_subject"),
+        (
+            r#"{"type":"calibrate","subject":1,"pose":"t"}"#,
+            "not_calibratable",
+        ),
+        (
+            r#"{"type":"calibrate","subject":0,"delay_secs":61}"#,
+            "invalid_fields",
+        ),
+        (
+            r#"{"type":"calibrate","subject":0,"pose":"x"}"#,
+            "invalid_fields",
+        ),
+    ] {
+        use futures_util::SinkExt;
+        ws.send(Message::text(request)).await.unwrap();
+        let reply = loop {
+            let m = tokio::time::timeout(Duration::from_secs(5), ws.next())
+                .await
+                .unwrap()
+                .unwrap()
+                .unwrap();
+            if let Message::Text(t) = m {
+                let v: serde_json::Value = serde_json::from_str(t.as_str()).unwrap();
+                if v["type"] == "error" || v["type"] == "ack" {
+                    break v;
+                }
+            }
+        };
+        assert_eq!(reply["code"], code, "{request} → {reply}");
+    }
+
     // No sensor data yet: the source is not live, so there is nothing to capture.
     let out = calibrate(vec![
         "--url".into(),

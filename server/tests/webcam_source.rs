@@ -2,11 +2,10 @@
 //! real binary refuses with an error that says how to rebuild, instead of failing obscurely.
 #![allow(clippy::unwrap_used)]
 
-use std::process::Command;
-
 #[cfg(not(feature = "webcam"))]
 #[test]
 fn webcam_without_the_feature_says_how_to_rebuild() {
+    use std::process::Command;
     let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
         .args([
             "serve",
