@@ -422,6 +422,61 @@ mod tests {
     use super::*;
 
     #[test]
+    fn detail_shows_calibration_and_why_a_device_is_lost() {
+        let sk = Arc::new(crate::character::mannequin().unwrap());
+        let (s, _tx) = Subject::with_kind(
+            0,
+            "suit".into(),
+            sk,
+            "serial",
+            Vec::new(),
+            VmcBoneNames::default(),
+        );
+        let s = s.with_calibration(Some(CalibrationHandle::default()));
+        let report = |state: HealthState, detail: &str| {
+            s.health.set_state(state);
+            *s.health.live.lock().unwrap() = Some(SourceStatus {
+                state: rigcast_sources::live::SourceState::Live,
+                input_fps: 0.0,
+                latency_ms: 0.0,
+                frames: 0,
+                dropped: 0,
+                detail: detail.into(),
+            });
+            s.source_health().unwrap().detail
+        };
+        // Before any request the source's own note shows.
+        assert_eq!(
+            report(HealthState::Live, "not calibrated"),
+            "not calibrated"
+        );
+        s.calibration
+            .as_ref()
+            .unwrap()
+            .set_text("calibrated (N-pose)".into());
+        // The server's account supersedes the source's own calibration note…
+        assert_eq!(
+            report(HealthState::Live, "calibrated"),
+            "calibrated (N-pose)"
+        );
+        // …but a lost device still says why.
+        assert_eq!(
+            report(HealthState::Lost, "/dev/x: end of stream; reconnecting"),
+            "/dev/x: end of stream; reconnecting; calibrated (N-pose)"
+        );
+        // Sources without calibration pass their detail through.
+        let (v, _tx) = Subject::with_kind(
+            1,
+            "v".into(),
+            s.skeleton(),
+            "vmc",
+            Vec::new(),
+            VmcBoneNames::default(),
+        );
+        assert_eq!(v.source_health().unwrap().detail, "");
+    }
+
+    #[test]
     fn vmc_plan_sends_humanoid_roles_relative_to_sent_ancestors() {
         let m = crate::character::mannequin().unwrap();
         let plan = VmcPlan::new(&m, VmcBoneNames::Humanoid);
