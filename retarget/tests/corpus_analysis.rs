@@ -67,3 +67,25 @@ fn core_roles_match_ground_truth() {
     }
     assert!(failures.is_empty(), "core roles wrong in {failures:?}");
 }
+
+/// The skull-top leaf of a demo-like head chain (`neck` → `head` → `head_top`, no `_end` in
+/// the name, no end joints on the toes) is the head's end marker, not the head; with names and
+/// without (anonymous ids, shuffled children), in T- and A-pose.
+#[test]
+fn skull_top_leaf_is_head_end_not_head() {
+    let entries: Vec<_> = ["head_top", "head_top_apose", "head_top_anon"]
+        .iter()
+        .map(|n| corpus::get(n).unwrap_or_else(|| panic!("corpus entry {n}")))
+        .collect();
+    for e in entries {
+        let a = analyze(&SkeletonView::rest(&e.skeleton));
+        for want in ["neck", "head", "head_end"] {
+            let b = e
+                .skeleton
+                .bone_ids()
+                .find(|b| e.labels[b.index()] == want)
+                .unwrap();
+            assert_eq!(a.label(b), want, "{}: {}", e.name, e.skeleton.name(b));
+        }
+    }
+}

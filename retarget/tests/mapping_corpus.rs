@@ -231,3 +231,45 @@ fn six_bone_arm_maps_wrist_to_wrist() {
         }
     }
 }
+
+/// Issue 3 regression: a head chain ending in a skull-top leaf whose name does not say "end"
+/// (rigcast's demo layout), as source or target, named or anonymous, maps head → head and
+/// neck → neck with every humanoid, including UE-style targets whose head is a leaf.
+#[test]
+fn skull_top_leaf_never_drives_the_head() {
+    let all = corpus::all();
+    let opts = MapOptions::default();
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for src in all.iter().filter(|e| e.kind == Kind::Humanoid) {
+        for tgt in all.iter().filter(|e| e.kind == Kind::Humanoid) {
+            if !src.name.starts_with("head_top") && !tgt.name.starts_with("head_top") {
+                continue;
+            }
+            let table = auto_map(
+                &SkeletonView::rest(&src.skeleton),
+                &SkeletonView::rest(&tgt.skeleton),
+                &opts,
+            );
+            for role in ["neck", "head"] {
+                let Some(t) = tgt.labels.iter().position(|l| l == role) else {
+                    continue;
+                };
+                if !src.labels.iter().any(|l| l == role) {
+                    continue;
+                }
+                checked += 1;
+                let got = table.entries[t]
+                    .as_ref()
+                    .and_then(|e| e.primary())
+                    .map(|p| src.labels[p.bone.index()].as_str());
+                if got != Some(role) {
+                    failures.push(format!("{} -> {}: {role} <- {got:?}", src.name, tgt.name));
+                }
+            }
+        }
+    }
+    // 10 humanoids × 3 variants; the UE mannequin (head a leaf) is among the targets.
+    assert!(checked > 100, "only {checked} checks");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -274,3 +274,67 @@ fn real_files_with_meaningless_names_get_the_same_core_roles() {
         assert!(core >= 14, "{rel}: only {core} core bones recognised");
     }
 }
+
+fn demo_recording() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../recordings/demo.rcr")
+}
+
+/// Issue 3 regression: the demo's head chain ends in `head_top`, a skull-top marker whose
+/// name says "head" but not "end". Onto CMU (Neck → Neck1 → Head → End Site) the demo's head
+/// drives Head and its neck drives Neck, never the skull top.
+#[test]
+fn demo_head_top_onto_cmu_head_from_head() {
+    let Some(cmu) = data("bvh/cmu_31joint_example.bvh") else {
+        return;
+    };
+    let v = map_json(&demo_recording(), &cmu, &[]);
+    assert_eq!(mapped(&v, "Head"), Some("head"), "{}", v["mapping"]);
+    assert_eq!(mapped(&v, "Neck"), Some("neck"), "{}", v["mapping"]);
+    assert_eq!(v["roles"]["source"]["head_top"], "head_end");
+    assert_eq!(v["roles"]["source"]["head"], "head");
+}
+
+/// The demo (named and with meaningless names) onto the corpus UE mannequin, whose head is a
+/// leaf: head ← head and neck_01 ← neck, as `rigcast map` views the clip.
+#[test]
+fn demo_head_top_onto_ue_mannequin_head_from_head() {
+    use rigcast_retarget::analysis::SkeletonView;
+    use rigcast_retarget::corpus;
+    use rigcast_retarget::mapping::{auto_map, MapOptions};
+    let clip = rigcast_sources::load_clip(&demo_recording()).expect("load demo");
+    let anon = clip
+        .skeleton
+        .renamed(|b, _| format!("j{}", b.0))
+        .expect("rename");
+    let frame = clip.poses.get(clip.poses.len() / 2);
+    for src in [&*clip.skeleton, &anon] {
+        for name in ["unreal", "unreal_apose", "unreal_anon"] {
+            let ue = corpus::get(name).expect("corpus UE mannequin");
+            let table = auto_map(
+                &SkeletonView {
+                    skeleton: src,
+                    pose: frame,
+                },
+                &SkeletonView::rest(&ue.skeleton),
+                &MapOptions::default(),
+            );
+            for (label, want) in [("head", "head"), ("neck", "neck")] {
+                let t = ue
+                    .skeleton
+                    .bone_ids()
+                    .find(|b| ue.labels[b.index()] == label)
+                    .expect("labelled bone");
+                let got = table
+                    .get(t)
+                    .and_then(|e| e.primary())
+                    .map(|p| clip.skeleton.name(p.bone).to_string());
+                assert_eq!(
+                    got.as_deref(),
+                    Some(want),
+                    "{} -> {name}: {label}",
+                    src.name(rigcast_retarget::BoneId(0))
+                );
+            }
+        }
+    }
+}

@@ -1118,9 +1118,23 @@ fn head_index(
     if last == 0 || !ctx.is_leaf(head[last]) {
         return last;
     }
-    let nm = &ctx.names[head[last].index()];
-    if nm.helper {
+    let leaf = head[last];
+    // A zero-length leaf only marks its parent's end (BVH End Site written at the joint).
+    if (ctx.pos[leaf.index()] - ctx.pos[head[last - 1].index()]).length()
+        < 1e-3 * ctx.size.max(1e-3)
+    {
         return last - 1;
+    }
+    let nm = &ctx.names[leaf.index()];
+    // End markers: `_end`/`End`/`Nub` (helper tokens) and the skull top (`head_top`,
+    // `HeadTop_End`), even when the name also says "head".
+    if nm.helper || nm.tokens.iter().any(|t| t == "top") {
+        return last - 1;
+    }
+    // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
+    // the names (anonymised skeletons included).
+    if let Some(top) = leaf_is_skull_top(ctx, head, limbs, kinds) {
+        return if top { last - 1 } else { last };
     }
     // A bone named as the head is the head, however long the neck before it (the Fox).
     if nm.tokens.iter().any(|t| t == "head") {
@@ -1137,5 +1151,63 @@ fn head_index(
         last - 1
     } else {
         last
+    }
+}
+
+/// Whether the leaf ending an upright body's head chain is the top of the skull (an end
+/// marker) rather than the head joint itself. Measured in torso lengths (shoulder line minus
+/// hip height) above the shoulder line: the skull top sits ≈0.55–0.65 above, the skull base
+/// (where head joints sit) ≈0.25–0.4. A skull-top leaf also ends a head-long segment (≥ 0.2
+/// torso) from a joint that is itself above the shoulders. `None` when the body is not upright
+/// (no arms above legs: quadrupeds, creatures) or the leaf is in the ambiguous band, so other
+/// evidence decides.
+fn leaf_is_skull_top(
+    ctx: &Ctx<'_>,
+    head: &[BoneId],
+    limbs: &[Limb],
+    kinds: &[LimbKind],
+) -> Option<bool> {
+    let n = head.len();
+    if n < 2 {
+        return None;
+    }
+    // Shoulder line: the highest of each arm chain's first joints, because a clavicle may start
+    // low on the chest (CMU's zero-length `LeftShoulder`) while the upper arm sits on top.
+    let mut shoulder: Option<f32> = None;
+    let mut hip: Option<f32> = None;
+    for (l, k) in limbs.iter().zip(kinds) {
+        match k {
+            LimbKind::Arm => {
+                for &(m, _) in &l.members {
+                    let top = ctx
+                        .topo
+                        .chain(m)
+                        .iter()
+                        .take(3)
+                        .map(|b| ctx.h(*b))
+                        .fold(f32::MIN, f32::max);
+                    shoulder = Some(shoulder.map_or(top, |s| s.max(top)));
+                }
+            }
+            LimbKind::Leg => hip = Some(hip.map_or(l.height, |h| h.max(l.height))),
+            _ => {}
+        }
+    }
+    let (shoulder, hip) = (shoulder?, hip?);
+    let torso = shoulder - hip;
+    if torso < 0.1 * ctx.size {
+        return None;
+    }
+    let leaf = head[n - 1];
+    let below = head[n - 2];
+    let r_leaf = (ctx.h(leaf) - shoulder) / torso;
+    let r_below = (ctx.h(below) - shoulder) / torso;
+    let seg = (ctx.pos[leaf.index()] - ctx.pos[below.index()]).length() / torso;
+    if r_leaf >= 0.47 && r_below >= 0.1 && seg >= 0.2 {
+        Some(true)
+    } else if r_leaf <= 0.42 {
+        Some(false)
+    } else {
+        None
     }
 }

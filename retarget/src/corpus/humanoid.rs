@@ -30,6 +30,9 @@ pub enum Style {
     Vrm,
     /// Unity-style `_L/_R` names, bones along local X.
     UnityX,
+    /// rigcast's demo layout: `neck` → `head` → `head_top`, a leaf at the top of the skull
+    /// whose name does not say "end", and no toe end joints (so no exporter-wide end sites).
+    HeadTop,
 }
 
 fn side_name(style: Style, key: &str, left: bool) -> String {
@@ -47,6 +50,7 @@ fn side_name(style: Style, key: &str, left: bool) -> String {
         Style::Smpl | Style::MediaPipe => format!("{lower}_{key}"),
         Style::Vrm => format!("J_Bip_{l}_{key}"),
         Style::UnityX => format!("{key}_{l}"),
+        Style::HeadTop => format!("{key}_{s}"),
     }
 }
 
@@ -93,6 +97,7 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
         Style::MediaPipe => "hip_center",
         Style::Vrm => "J_Bip_C_Hips",
         Style::UnityX => "Hips",
+        Style::HeadTop => "pelvis",
     };
     let hips = body.add(hips_name, ground_root, hips_pos, "hips");
     if style == Style::Rigify {
@@ -140,6 +145,11 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
             ("J_Bip_C_UpperChest", 1.30, "chest"),
         ],
         Style::UnityX => vec![("Spine", 1.07, "spine"), ("Chest", 1.28, "chest")],
+        Style::HeadTop => vec![
+            ("spine_lower", 1.05, "spine"),
+            ("spine_upper", 1.17, "spine_mid"),
+            ("chest", 1.31, "chest"),
+        ],
     };
     let mut parent = hips;
     for (name, y, label) in &spine {
@@ -186,6 +196,11 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
         Style::UnityX => vec![
             ("Neck", vec3(0.0, 1.46, 0.01), "neck"),
             ("Head", vec3(0.0, 1.57, 0.02), "head"),
+        ],
+        Style::HeadTop => vec![
+            ("neck", vec3(0.0, 1.47, 0.0), "neck"),
+            ("head", vec3(0.0, 1.57, 0.0), "head"),
+            ("head_top", vec3(0.0, 1.75, 0.0), "head_end"),
         ],
     };
     let mut p = chest;
@@ -259,6 +274,7 @@ fn arm(body: &mut Body, style: Style, chest: usize, left: bool, fingers: bool) {
         Style::MediaPipe => (String::new(), sn("shoulder"), sn("elbow"), sn("wrist")),
         Style::Vrm => (sn("Shoulder"), sn("UpperArm"), sn("LowerArm"), sn("Hand")),
         Style::UnityX => (sn("Shoulder"), sn("UpperArm"), sn("LowerArm"), sn("Hand")),
+        Style::HeadTop => (sn("clavicle"), sn("arm_upper"), sn("arm_lower"), sn("hand")),
     };
     let mut parent = chest;
     if style != Style::MediaPipe {
@@ -424,6 +440,7 @@ fn leg(body: &mut Body, style: Style, hips: usize, left: bool) {
         Style::MediaPipe => (sn("hip"), sn("knee"), sn("ankle"), sn("foot_index")),
         Style::Vrm => (sn("UpperLeg"), sn("LowerLeg"), sn("Foot"), sn("ToeBase")),
         Style::UnityX => (sn("UpperLeg"), sn("LowerLeg"), sn("Foot"), sn("Toes")),
+        Style::HeadTop => (sn("leg_upper"), sn("leg_lower"), sn("foot"), sn("toes")),
     };
     let mut parent = hips;
     if matches!(style, Style::CmuCgspeed | Style::CmuMax) {

@@ -80,6 +80,7 @@ fn base_builders() -> Vec<(&'static str, Kind, Builder)> {
         ),
         ("vrm", Kind::Humanoid, humanoid(Style::Vrm, true)),
         ("unity_x", Kind::Humanoid, humanoid(Style::UnityX, false)),
+        ("head_top", Kind::Humanoid, humanoid(Style::HeadTop, false)),
         ("horse", Kind::Quadruped, creatures::horse()),
         ("winged", Kind::Winged, creatures::winged_biped()),
         ("four_armed", Kind::FourArmed, creatures::four_armed()),
@@ -122,7 +123,7 @@ fn entry(name: String, kind: Kind, variant: Variant, b: &Builder) -> Option<Corp
     })
 }
 
-/// Every corpus skeleton: 13 kinds × (T-pose, A-pose, anonymous) = 39 entries.
+/// Every corpus skeleton: 14 kinds × (T-pose, A-pose, anonymous) = 42 entries.
 pub fn all() -> Vec<CorpusEntry> {
     let mut out = Vec::new();
     for (i, (name, kind, b)) in base_builders().into_iter().enumerate() {

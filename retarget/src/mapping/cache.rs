@@ -15,7 +15,8 @@ use super::table::MappingTable;
 use crate::skeleton::Skeleton;
 
 /// Bumped whenever the mapper's behaviour changes, so old cache entries miss.
-pub const CACHE_FORMAT: u32 = 1;
+/// 2: a skull-top leaf (`head_top`) is the head's end marker, not the head (issue 3).
+pub const CACHE_FORMAT: u32 = 2;
 
 /// Identity of one mapping computation.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
