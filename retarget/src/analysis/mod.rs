@@ -15,7 +15,7 @@
 //!
 //! Files: `topology` (order-free structure), `roles` (frame, centerline, limbs, sections),
 //! `limbs` (chain splitting), `names` (name normalisation), `vocabulary` (roles and kinds),
-//! `humanoid` (Unity / VRM role map).
+//! `humanoid` (Unity / VRM role map), `truth` (a file's own humanoid map overriding roles).
 //!
 //! Nothing here assumes a facing direction: the character's forward is where its feet (toes)
 //! point and where its head leans; side markers in names break the tie only when geometry gives
@@ -26,6 +26,7 @@ mod limbs;
 pub mod names;
 mod roles;
 mod topology;
+pub mod truth;
 mod vocabulary;
 
 use glam::Vec3;
@@ -237,4 +238,15 @@ impl Analysis {
 /// lower confidences.
 pub fn analyze(view: &SkeletonView<'_>) -> Analysis {
     roles::analyze_impl(view)
+}
+
+/// [`analyze`], then the file's own humanoid map (VRM: human bone name → bone name) as ground
+/// truth over the inferred roles and sides (see [`truth::apply_truth`]). `None` or an empty
+/// map is plain [`analyze`].
+pub fn analyze_with_truth(view: &SkeletonView<'_>, truth: Option<&[(String, String)]>) -> Analysis {
+    let mut a = analyze(view);
+    if let Some(t) = truth {
+        truth::apply_truth(view.skeleton, &mut a, t);
+    }
+    a
 }
