@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::Args;
-use rigcast_retarget::analysis::{analyze, humanoid_roles, Analysis, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::mapping::{
     apply_overrides, cache, file, map_analyzed, mapping_colors, parse_mapping_file,
     to_mapping_file, CacheKey, MapOptions, MappingTable,
@@ -82,7 +82,8 @@ fn view(clip: &Clip) -> SkeletonView<'_> {
     }
 }
 
-fn vrm_truth(path: &Path) -> Option<Vec<(String, String)>> {
+/// A VRM file's humanoid map (human bone name → bone name): ground truth for its roles.
+pub fn vrm_truth(path: &Path) -> Option<Vec<(String, String)>> {
     let ext = path.extension()?.to_str()?.to_ascii_lowercase();
     if ext != "vrm" {
         return None;
@@ -140,10 +141,18 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
 
     let t_map = Instant::now();
     let (ss, ts) = (&*src.skeleton, &*tgt.skeleton);
-    let sa = analyze(&view(&src));
-    let ta = analyze(&view(&tgt));
+    let truth_s = vrm_truth(&args.source);
+    let truth_t = vrm_truth(&args.target);
+    let sa = analyze_with_truth(&view(&src), truth_s.as_deref());
+    let ta = analyze_with_truth(&view(&tgt), truth_t.as_deref());
     let key = CacheKey::new(&[ss], ts, &opts);
-    let dir = cache_dir(args);
+    // The cache key knows skeletons and options, not a file's humanoid map: VRM mappings are
+    // recomputed (milliseconds) rather than risk an entry made without the truth.
+    let dir = if truth_s.is_some() || truth_t.is_some() {
+        None
+    } else {
+        cache_dir(args)
+    };
     let cache_path = dir
         .as_ref()
         .map(|d| d.join(format!("{}.json", key.file_stem())));
@@ -202,8 +211,6 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
                 color_map.insert(name, json!({"gradient": c.gradient, "random": c.random}));
             }
         }
-        let truth_s = vrm_truth(&args.source);
-        let truth_t = vrm_truth(&args.target);
         let out = json!({
             "source": args.source.display().to_string(),
             "target": args.target.display().to_string(),

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use anyhow::{anyhow, bail, Context};
 use clap::Args;
-use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, SkeletonView};
 use rigcast_retarget::mapping::{
     apply_overrides, map_analyzed, parse_mapping_file, MapOptions, MappingTable,
 };
@@ -77,7 +77,15 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
             .resampled(1.0 / fps)
             .with_context(|| format!("cannot resample to {fps} fps"))?;
     }
-    let plan = plan_mapping(&clip, &target_clip, args.mapping.as_deref())?;
+    // A .vrm's humanoid extension is ground truth for its bones' roles.
+    let truth_s = super::map::vrm_truth(&args.anim);
+    let truth_t = super::map::vrm_truth(&args.target);
+    let plan = plan_mapping_with_truth(
+        &clip,
+        &target_clip,
+        args.mapping.as_deref(),
+        (truth_s.as_deref(), truth_t.as_deref()),
+    )?;
     let table = plan.table;
     if table.num_mapped() == 0 {
         bail!(
@@ -129,6 +137,17 @@ pub fn plan_mapping(
     target: &Clip,
     overrides: Option<&Path>,
 ) -> anyhow::Result<MappingPlan> {
+    plan_mapping_with_truth(source, target, overrides, (None, None))
+}
+
+/// [`plan_mapping`] with ground-truth humanoid maps (VRM: human bone name → bone name) for the
+/// source and the target, which override the inferred roles of the bones they name.
+pub fn plan_mapping_with_truth(
+    source: &Clip,
+    target: &Clip,
+    overrides: Option<&Path>,
+    truth: (Option<&[(String, String)]>, Option<&[(String, String)]>),
+) -> anyhow::Result<MappingPlan> {
     let overrides = match overrides {
         Some(p) => {
             let text = std::fs::read_to_string(p)
@@ -144,14 +163,20 @@ pub fn plan_mapping(
     let src_pose = representative(source);
     let tgt_pose = representative(target);
     let (ss, ts) = (&*source.skeleton, &*target.skeleton);
-    let sa = analyze(&SkeletonView {
-        skeleton: ss,
-        pose: src_pose.as_ref(),
-    });
-    let ta = analyze(&SkeletonView {
-        skeleton: ts,
-        pose: tgt_pose.as_ref(),
-    });
+    let sa = analyze_with_truth(
+        &SkeletonView {
+            skeleton: ss,
+            pose: src_pose.as_ref(),
+        },
+        truth.0,
+    );
+    let ta = analyze_with_truth(
+        &SkeletonView {
+            skeleton: ts,
+            pose: tgt_pose.as_ref(),
+        },
+        truth.1,
+    );
     let mut table = map_analyzed(&[(ss, &sa)], (ts, &ta), &MapOptions::default());
     if let Some(file) = &overrides {
         apply_overrides(&mut table, file, &[ss], ts).context("mapping file")?;
