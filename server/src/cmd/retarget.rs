@@ -140,13 +140,16 @@ pub fn plan_mapping(
     plan_mapping_with_truth(source, target, overrides, (None, None))
 }
 
+/// A ground-truth humanoid map (VRM human bone name → bone name), when the file has one.
+pub type HumanoidTruth<'a> = Option<&'a [(String, String)]>;
+
 /// [`plan_mapping`] with ground-truth humanoid maps (VRM: human bone name → bone name) for the
 /// source and the target, which override the inferred roles of the bones they name.
 pub fn plan_mapping_with_truth(
     source: &Clip,
     target: &Clip,
     overrides: Option<&Path>,
-    truth: (Option<&[(String, String)]>, Option<&[(String, String)]>),
+    truth: (HumanoidTruth<'_>, HumanoidTruth<'_>),
 ) -> anyhow::Result<MappingPlan> {
     let overrides = match overrides {
         Some(p) => {
