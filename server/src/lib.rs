@@ -136,6 +136,8 @@ enum Loaded {
         player: Replay,
         speed: f64,
         clip_poses: Arc<Vec<rigcast_retarget::Pose>>,
+        /// A VRM file's humanoid map (ground truth for its roles).
+        truth: Option<Vec<(String, String)>>,
     },
     Live {
         source: Box<dyn LiveSource>,
@@ -151,6 +153,8 @@ struct LoadedTarget {
     name: String,
     skeleton: Arc<rigcast_retarget::Skeleton>,
     reference: Option<rigcast_retarget::Pose>,
+    /// A VRM file's humanoid map (ground truth for its roles).
+    truth: Option<Vec<(String, String)>>,
 }
 
 /// Loads the sources and characters, binds the listener and starts the engine. Returns once
@@ -190,8 +194,14 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     let mut senders = Vec::new();
     let mut extras = HashMap::new();
     for (i, ((l, skeleton), name)) in loaded.iter().zip(&names).enumerate() {
+        let mut truth = None;
         let (kind, listen, calibration) = match l {
-            Loaded::Replay { clip_poses, .. } => {
+            Loaded::Replay {
+                clip_poses,
+                truth: t,
+                ..
+            } => {
+                truth = t.clone();
                 extras.insert(
                     i as u32,
                     SourceExtra {
@@ -219,7 +229,8 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         subjects.push(Arc::new(
             subject
                 .with_listen_addr(listen)
-                .with_calibration(calibration),
+                .with_calibration(calibration)
+                .with_truth(truth),
         ));
         senders.push(tx);
     }
@@ -263,7 +274,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             inputs,
             config.vmc_bone_names,
         );
-        let subject = Arc::new(subject);
+        let subject = Arc::new(subject.with_truth(t.truth));
         let overrides_file = match &p.mapping {
             Some(path) => {
                 let text = std::fs::read_to_string(path)
@@ -520,6 +531,7 @@ async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> 
             name: name.clone(),
             skeleton: skeleton.clone(),
             reference: None,
+            truth: None,
         }),
         TargetSpec::File(path) => {
             let text = path.to_string_lossy();
@@ -534,12 +546,15 @@ async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> 
                     name: builtin.to_string(),
                     skeleton: Arc::new(skeleton),
                     reference: None,
+                    truth: None,
                 });
             }
             let p2 = path.clone();
-            let clip = tokio::task::spawn_blocking(move || rigcast_sources::load_clip(&p2))
-                .await?
-                .with_context(|| format!("cannot load target character {}", path.display()))?;
+            let (clip, truth) = tokio::task::spawn_blocking(move || {
+                rigcast_sources::load_clip(&p2).map(|c| (c, cmd::map::vrm_truth(&p2)))
+            })
+            .await?
+            .with_context(|| format!("cannot load target character {}", path.display()))?;
             let name = path
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -548,6 +563,7 @@ async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> 
                 name,
                 reference: clip.poses.get(clip.poses.len() / 2).cloned(),
                 skeleton: clip.skeleton,
+                truth,
             })
         }
     }
@@ -557,15 +573,18 @@ async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> 
 async fn load_source(
     spec: SourceSpec,
 ) -> anyhow::Result<(String, Loaded, Arc<rigcast_retarget::Skeleton>)> {
-    let replay_of =
-        |clip: rigcast_retarget::Clip, settings: ReplaySettings| -> anyhow::Result<Loaded> {
-            let poses = Arc::new(clip.poses.clone());
-            Ok(Loaded::Replay {
-                player: replay(clip, settings)?,
-                speed: settings.speed,
-                clip_poses: poses,
-            })
-        };
+    let replay_of = |clip: rigcast_retarget::Clip,
+                     settings: ReplaySettings,
+                     truth: Option<Vec<(String, String)>>|
+     -> anyhow::Result<Loaded> {
+        let poses = Arc::new(clip.poses.clone());
+        Ok(Loaded::Replay {
+            player: replay(clip, settings)?,
+            speed: settings.speed,
+            clip_poses: poses,
+            truth,
+        })
+    };
     Ok(match spec {
         SourceSpec::ReplayFile {
             path,
@@ -573,16 +592,18 @@ async fn load_source(
             settings,
         } => {
             let p = path.clone();
-            let clip = tokio::task::spawn_blocking(move || rigcast_sources::load_clip(&p))
-                .await?
-                .with_context(|| format!("cannot load source {}", path.display()))?;
+            let (clip, truth) = tokio::task::spawn_blocking(move || {
+                rigcast_sources::load_clip(&p).map(|c| (c, cmd::map::vrm_truth(&p)))
+            })
+            .await?
+            .with_context(|| format!("cannot load source {}", path.display()))?;
             let name = name.unwrap_or_else(|| {
                 path.file_stem()
                     .map(|s| s.to_string_lossy().into_owned())
                     .unwrap_or_else(|| clip.name.clone())
             });
             let sk = clip.skeleton.clone();
-            (name, replay_of(clip, settings)?, sk)
+            (name, replay_of(clip, settings, truth)?, sk)
         }
         SourceSpec::ReplayClip {
             clip,
@@ -592,7 +613,7 @@ async fn load_source(
             let sk = clip.skeleton.clone();
             (
                 name.unwrap_or_else(|| clip.name.clone()),
-                replay_of(clip, settings)?,
+                replay_of(clip, settings, None)?,
                 sk,
             )
         }
@@ -601,7 +622,7 @@ async fn load_source(
             let sk = clip.skeleton.clone();
             (
                 "demo".to_string(),
-                replay_of(clip, ReplaySettings::default())?,
+                replay_of(clip, ReplaySettings::default(), None)?,
                 sk,
             )
         }

@@ -12,6 +12,8 @@
 //!
 //! Cache keys are both skeletons' fingerprints plus the mapper options' hash, so a
 //! reconnecting source (same skeleton) maps without re-running the automatic mapper.
+//! Subjects loaded from a VRM carry its humanoid map as ground truth for their roles
+//! ([`Subject::truth`]); the key does not cover it, so such mappings bypass both caches.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
@@ -20,7 +22,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::analysis::{analyze, Analysis, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::mapping::{
     apply_overrides, cache, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingCache,
     MappingFile, MappingTable, SourceRef, TargetEntry, UNMAPPED,
@@ -128,25 +130,46 @@ impl Mapper {
             .iter()
             .map(|id| self.extras.get(id).and_then(|e| e.reference.as_ref()))
             .collect();
+        let source_truths: Vec<Option<&[(String, String)]>> = p
+            .target
+            .inputs
+            .iter()
+            .map(|id| self.subjects[*id as usize].truth())
+            .collect();
         let analyses: Vec<Analysis> = src_refs
             .iter()
             .zip(&references)
-            .map(|(s, r)| {
-                analyze(&SkeletonView {
-                    skeleton: s,
-                    pose: *r,
-                })
+            .zip(&source_truths)
+            .map(|((s, r), t)| {
+                analyze_with_truth(
+                    &SkeletonView {
+                        skeleton: s,
+                        pose: *r,
+                    },
+                    *t,
+                )
             })
             .collect();
-        let ta = analyze(&SkeletonView {
-            skeleton: &target,
-            pose: p.target_reference.as_ref(),
-        });
+        let target_truth = p.target.truth();
+        let ta = analyze_with_truth(
+            &SkeletonView {
+                skeleton: &target,
+                pose: p.target_reference.as_ref(),
+            },
+            target_truth,
+        );
+        // The cache key knows the skeletons, not the truth: a truth-driven table must neither
+        // come from nor go into the cache.
+        let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
         let key = CacheKey::new(&src_refs, &target, &self.options);
-        let cached = self.memory.get(&key).map(|t| (*t).clone()).or_else(|| {
-            let text = std::fs::read_to_string(self.cache_path(&key)?).ok()?;
-            cache::decode(&text, &key)
-        });
+        let cached = if use_cache {
+            self.memory.get(&key).map(|t| (*t).clone()).or_else(|| {
+                let text = std::fs::read_to_string(self.cache_path(&key)?).ok()?;
+                cache::decode(&text, &key)
+            })
+        } else {
+            None
+        };
         let mut table = match cached {
             Some(t) if t.entries.len() == target.num_bones() => t,
             _ => {
@@ -159,8 +182,10 @@ impl Mapper {
             apply_overrides(&mut table, file, &src_refs, &target).context("mapping file")?;
         }
         apply_session(&mut table, &p.session, &src_refs, &target)?;
-        self.memory.insert(key.clone(), table.clone());
-        if let Some(path) = self.cache_path(&key) {
+        if use_cache {
+            self.memory.insert(key.clone(), table.clone());
+        }
+        if let Some(path) = self.cache_path(&key).filter(|_| use_cache) {
             // A failed cache write only costs a re-map next time.
             let _ = path
                 .parent()

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex, RwLock};
 
 use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::analysis::{analyze, humanoid_roles, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 use rigcast_sources::live::SourceStatus;
 use rigcast_sources::serial::CalibrationHandle;
@@ -32,10 +32,20 @@ impl VmcPlan {
     /// Humanoid role names when `names` asks for them and the skeleton is humanoid; else every
     /// bone under its own name.
     pub fn new(skeleton: &Skeleton, names: VmcBoneNames) -> VmcPlan {
+        Self::with_truth(skeleton, names, None)
+    }
+
+    /// [`VmcPlan::new`] with a file's own humanoid map (VRM: human bone name → bone name) as
+    /// ground truth for the roles, so a VRM's bones go out under the roles its author gave.
+    pub fn with_truth(
+        skeleton: &Skeleton,
+        names: VmcBoneNames,
+        truth: Option<&[(String, String)]>,
+    ) -> VmcPlan {
         let roles = match names {
             VmcBoneNames::Humanoid => {
-                let analysis = analyze(&SkeletonView::rest(skeleton));
-                humanoid_roles(skeleton, &analysis, None)
+                let analysis = analyze_with_truth(&SkeletonView::rest(skeleton), truth);
+                humanoid_roles(skeleton, &analysis, truth)
             }
             VmcBoneNames::Skeleton => Vec::new(),
         };
@@ -94,7 +104,12 @@ pub struct SubjectShape {
 }
 
 impl SubjectShape {
-    fn new(info: SubjectInfo, skeleton: Arc<Skeleton>, names: VmcBoneNames) -> SubjectShape {
+    fn new(
+        info: SubjectInfo,
+        skeleton: Arc<Skeleton>,
+        names: VmcBoneNames,
+        truth: Option<&[(String, String)]>,
+    ) -> SubjectShape {
         let bones = skeleton
             .bone_ids()
             .map(|b| {
@@ -115,7 +130,7 @@ impl SubjectShape {
         }
         .to_json();
         SubjectShape {
-            vmc: VmcPlan::new(&skeleton, names),
+            vmc: VmcPlan::with_truth(&skeleton, names, truth),
             info,
             skeleton,
             skeleton_json,
@@ -209,6 +224,9 @@ pub struct Subject {
     /// Calibration of a serial IMU source (see [`crate::calibration`]).
     pub calibration: Option<Calibration>,
     vmc_names: VmcBoneNames,
+    /// The file's own humanoid map (VRM: human bone name → bone name), ground truth for the
+    /// roles of its bones in mapping and VMC output.
+    truth: Option<Arc<[(String, String)]>>,
 }
 
 /// A calibratable source's handle and the server's account of its calibration.
@@ -291,7 +309,7 @@ impl Subject {
             Subject {
                 id,
                 source_kind,
-                shape: RwLock::new(Arc::new(SubjectShape::new(info, skeleton, vmc_names))),
+                shape: RwLock::new(Arc::new(SubjectShape::new(info, skeleton, vmc_names, None))),
                 latest: rx,
                 stats: SubjectStats::default(),
                 health: Health::new(initial),
@@ -300,6 +318,7 @@ impl Subject {
                 listen_addr: None,
                 calibration: None,
                 vmc_names,
+                truth: None,
             },
             tx,
         )
@@ -309,6 +328,26 @@ impl Subject {
     pub fn with_listen_addr(mut self, addr: Option<SocketAddr>) -> Subject {
         self.listen_addr = addr;
         self
+    }
+
+    /// Gives the subject its file's humanoid map (VRM) as ground truth for its bones' roles;
+    /// the VMC plan is rebuilt with it. `None` or empty leaves the roles inferred.
+    pub fn with_truth(mut self, truth: Option<Vec<(String, String)>>) -> Subject {
+        self.truth = truth.filter(|t| !t.is_empty()).map(Arc::from);
+        let old = self.shape();
+        let shape = SubjectShape::new(
+            old.info.clone(),
+            old.skeleton.clone(),
+            self.vmc_names,
+            self.truth.as_deref(),
+        );
+        self.shape = RwLock::new(Arc::new(shape));
+        self
+    }
+
+    /// The file's humanoid map given by [`Subject::with_truth`], if any.
+    pub fn truth(&self) -> Option<&[(String, String)]> {
+        self.truth.as_deref()
     }
 
     /// Makes a live source calibratable through `handle`.
@@ -372,7 +411,12 @@ impl Subject {
         let mut info = old.info.clone();
         info.num_bones = skeleton.num_bones() as u32;
         info.fingerprint = skeleton.fingerprint_hex();
-        let shape = Arc::new(SubjectShape::new(info, skeleton, self.vmc_names));
+        let shape = Arc::new(SubjectShape::new(
+            info,
+            skeleton,
+            self.vmc_names,
+            self.truth.as_deref(),
+        ));
         match self.shape.write() {
             Ok(mut s) => *s = shape,
             Err(poisoned) => *poisoned.into_inner() = shape,
@@ -493,6 +537,22 @@ mod tests {
         assert_eq!(find("Hips").2, None);
         assert!(!plan.direct);
         assert!(plan.bones.iter().all(|(n, ..)| n != "root"));
+        // A file's humanoid map overrides the inferred roles (here: sides swapped).
+        let truth: Vec<(String, String)> = [
+            ("leftUpperArm", "upperarm_r"),
+            ("rightUpperArm", "upperarm_l"),
+        ]
+        .iter()
+        .map(|(h, b)| (h.to_string(), b.to_string()))
+        .collect();
+        let swapped = VmcPlan::with_truth(&m, VmcBoneNames::Humanoid, Some(&truth));
+        let sent = |n: &str| {
+            let b = swapped.bones.iter().find(|(name, ..)| name == n).unwrap().1;
+            m.name(rigcast_retarget::BoneId(b as u16)).to_string()
+        };
+        assert_eq!(sent("LeftUpperArm"), "upperarm_r");
+        assert_eq!(sent("RightUpperArm"), "upperarm_l");
+        assert_eq!(sent("Hips"), "pelvis");
         let raw = VmcPlan::new(&m, VmcBoneNames::Skeleton);
         assert_eq!(raw.bones.len(), m.num_bones());
         assert!(raw.direct);
