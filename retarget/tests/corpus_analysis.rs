@@ -4,29 +4,8 @@
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::corpus;
 
-const CORE: &[&str] = &[
-    "hips",
-    "spine",
-    "chest",
-    "neck",
-    "head",
-    "clavicle",
-    "upper_arm",
-    "lower_arm",
-    "hand",
-    "upper_leg",
-    "lower_leg",
-    "foot",
-    "toes",
-];
-
-fn is_core(label: &str) -> bool {
-    let l = label
-        .strip_prefix("left_")
-        .or_else(|| label.strip_prefix("right_"))
-        .unwrap_or(label);
-    CORE.contains(&l)
-}
+mod common;
+use common::is_core;
 
 #[test]
 fn core_roles_match_ground_truth() {

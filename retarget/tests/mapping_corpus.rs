@@ -6,35 +6,8 @@ use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::corpus::{self, CorpusEntry, Kind, Variant};
 use rigcast_retarget::mapping::{auto_map, MapOptions, MappingTable};
 
-const CORE: &[&str] = &[
-    "hips",
-    "spine",
-    "chest",
-    "neck",
-    "head",
-    "clavicle",
-    "upper_arm",
-    "lower_arm",
-    "hand",
-    "upper_leg",
-    "lower_leg",
-    "foot",
-    "toes",
-];
-
-fn strip_side(label: &str) -> (&str, Option<&str>) {
-    if let Some(r) = label.strip_prefix("left_") {
-        (r, Some("left"))
-    } else if let Some(r) = label.strip_prefix("right_") {
-        (r, Some("right"))
-    } else {
-        (label, None)
-    }
-}
-
-fn is_core(label: &str) -> bool {
-    CORE.contains(&strip_side(label).0)
-}
+mod common;
+use common::{is_core, strip_side};
 
 /// (correct, total) over target core bones whose label exists in the source; plus the list
 /// of left/right swaps anywhere in the table.

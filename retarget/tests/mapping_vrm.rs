@@ -13,6 +13,9 @@ use rigcast_retarget::corpus;
 use rigcast_retarget::mapping::{map_analyzed, MapOptions, MappingTable};
 use rigcast_retarget::{BoneId, Skeleton};
 
+mod common;
+use common::is_core;
+
 /// Corpus label of a humanoid bone (the labels [`rigcast_retarget::analysis::BoneRole::label`]
 /// writes), with the VRoid fixture's three spine bones above the hips.
 fn label_of(h: HumanBone) -> String {
@@ -69,25 +72,6 @@ fn score_core(
     tgt: &Skeleton,
     tgt_labels: &[String],
 ) -> (usize, usize, Vec<String>) {
-    let core = [
-        "hips",
-        "spine",
-        "chest",
-        "neck",
-        "head",
-        "clavicle",
-        "upper_arm",
-        "lower_arm",
-        "hand",
-        "upper_leg",
-        "lower_leg",
-        "foot",
-        "toes",
-    ];
-    let is_core = |l: &str| {
-        let bare = l.trim_start_matches("left_").trim_start_matches("right_");
-        core.contains(&bare)
-    };
     let (mut ok, mut n, mut wrong) = (0, 0, Vec::new());
     for t in tgt.bone_ids() {
         let want = &tgt_labels[t.index()];
