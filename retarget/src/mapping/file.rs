@@ -60,6 +60,15 @@ pub enum MappingFileError {
         /// source input index
         input: u16,
     },
+    /// The table to merge into was made for a skeleton with a different number of bones
+    /// (e.g. a stale cache entry), so target bone names cannot index it.
+    #[error("mapping table has {entries} entries but the target skeleton has {bones} bones")]
+    TableSize {
+        /// entries in the table
+        entries: usize,
+        /// bones in the target skeleton
+        bones: usize,
+    },
     /// A weight / delay that is negative or not finite.
     #[error("mapping for target bone {target:?} has a bad value: {what}")]
     BadValue {
@@ -196,13 +205,20 @@ pub fn mapping_file_to_string(file: &MappingFile) -> String {
 
 /// Merges a (partial) file over `table`: bones named in the file get exactly what it says
 /// (sources replaced if given; options replaced if given; `unmapped` clears), others keep the
-/// automatic result. Fails without modifying `table` when a name is unknown.
+/// automatic result. Fails without modifying `table` when a name is unknown or the table does not
+/// fit the target skeleton.
 pub fn apply_overrides(
     table: &mut MappingTable,
     file: &MappingFile,
     sources: &[&Skeleton],
     target: &Skeleton,
 ) -> Result<(), MappingFileError> {
+    if table.entries.len() != target.num_bones() {
+        return Err(MappingFileError::TableSize {
+            entries: table.entries.len(),
+            bones: target.num_bones(),
+        });
+    }
     let mut out = table.clone();
     for (tname, fb) in &file.bones {
         let t = target
