@@ -285,7 +285,7 @@ pub fn decode_packet(bytes: &[u8]) -> Result<Vec<Result<VmcMessage, VmcError>>, 
     };
     // rosc silently stops at a truncated bundle element; check the framing first so a cut
     // datagram is reported rather than half-read.
-    check_framing(bytes).map_err(osc_error)?;
+    check_framing(bytes, 0, 0).map_err(osc_error)?;
     let (rest, packet) = rosc::decoder::decode_udp(bytes).map_err(|e| osc_error(e.to_string()))?;
     if !rest.is_empty() {
         return Err(osc_error(format!("{} trailing bytes", rest.len())));
@@ -295,21 +295,34 @@ pub fn decode_packet(bytes: &[u8]) -> Result<Vec<Result<VmcMessage, VmcError>>, 
     Ok(out)
 }
 
-/// Checks that a bundle's size-prefixed elements exactly fill it (recursively).
-fn check_framing(bytes: &[u8]) -> Result<(), String> {
+/// Bundles nest at most this deep. VMC senders do not nest at all; rosc decodes nesting by
+/// recursion, so one datagram of a few thousand nested bundles would overflow the stack.
+pub const MAX_BUNDLE_DEPTH: usize = 8;
+
+/// Checks that a bundle's size-prefixed elements exactly fill it and that bundles nest at most
+/// [`MAX_BUNDLE_DEPTH`] deep. `base` is `bytes`' offset in the datagram (for the messages).
+fn check_framing(bytes: &[u8], depth: usize, base: usize) -> Result<(), String> {
     if !bytes.starts_with(b"#bundle\0") {
         return Ok(()); // a plain message: rosc validates it fully
     }
+    if depth >= MAX_BUNDLE_DEPTH {
+        return Err(format!(
+            "bundle at offset {base} is nested deeper than {MAX_BUNDLE_DEPTH} levels"
+        ));
+    }
     if bytes.len() < BUNDLE_HEADER_BYTES {
         return Err(format!(
-            "bundle header needs {BUNDLE_HEADER_BYTES} bytes, got {}",
+            "bundle at offset {base} needs a {BUNDLE_HEADER_BYTES}-byte header, got {} bytes",
             bytes.len()
         ));
     }
     let mut offset = BUNDLE_HEADER_BYTES;
     while offset < bytes.len() {
         let Some(size_bytes) = bytes.get(offset..offset + 4) else {
-            return Err(format!("truncated element size at offset {offset}"));
+            return Err(format!(
+                "truncated element size at offset {}",
+                base + offset
+            ));
         };
         let size = i32::from_be_bytes([size_bytes[0], size_bytes[1], size_bytes[2], size_bytes[3]]);
         let start = offset + 4;
@@ -319,11 +332,12 @@ fn check_framing(bytes: &[u8]) -> Result<(), String> {
             .filter(|&e| e <= bytes.len() && size > 0 && size % 4 == 0)
             .ok_or_else(|| {
                 format!(
-                    "element at offset {offset} declares {size} bytes, {} remain",
+                    "element at offset {} declares {size} bytes, {} remain",
+                    base + offset,
                     bytes.len() - start
                 )
             })?;
-        check_framing(&bytes[start..end])?;
+        check_framing(&bytes[start..end], depth + 1, base + start)?;
         offset = end;
     }
     Ok(())

@@ -178,3 +178,26 @@ fn decode_packet_never_panics() {
     println!("accepted {ok}, refused {err}");
     assert!(ok > 0 && err > CASES / 2, "ok {ok}, err {err}");
 }
+
+/// The deepest nesting a UDP datagram can hold (each level costs a 16-byte bundle header and a
+/// 4-byte size): decoding it must not exhaust a worker thread's stack.
+#[test]
+fn deeply_nested_bundles_are_refused_not_a_stack_overflow() {
+    let mut packet = b"/VMC/Ext/T\0\0,f\0\0\x3f\x00\x00\x00".to_vec();
+    while packet.len() + 20 <= 65_507 {
+        let mut outer = b"#bundle\0\0\0\0\0\0\0\0\x01".to_vec();
+        outer.extend_from_slice(&(packet.len() as i32).to_be_bytes());
+        outer.extend_from_slice(&packet);
+        packet = outer;
+    }
+    let r = std::thread::Builder::new()
+        .stack_size(2 * 1024 * 1024) // the default of spawned and tokio worker threads
+        .spawn(move || decode_packet(&packet).map(|m| m.len()))
+        .unwrap()
+        .join()
+        .unwrap();
+    match r {
+        Err(e) => assert!(e.to_string().contains("nested deeper than 8"), "{e}"),
+        Ok(n) => panic!("a {n}-message datagram nested thousands deep was accepted"),
+    }
+}
