@@ -116,3 +116,38 @@ fn every_corpus_pair() {
         }
     }
 }
+
+/// A skeleton mapped onto itself has a known answer: every bone the mapper maps is driven by
+/// the very same bone, and the mapper leaves none of the bones out.
+#[test]
+fn every_corpus_skeleton_maps_onto_itself() {
+    let all = corpus::all();
+    let mut failures = Vec::new();
+    for e in &all {
+        let s = &e.skeleton;
+        let table = auto_map(
+            &SkeletonView::rest(s),
+            &SkeletonView::rest(s),
+            &MapOptions::default(),
+        );
+        let mut wrong = Vec::new();
+        let mut unmapped = 0;
+        for b in s.bone_ids() {
+            match table.get(b).and_then(|en| en.primary()) {
+                Some(p) if p.bone == b => {}
+                Some(p) => wrong.push(format!("{} <- {}", s.name(b), s.name(p.bone))),
+                None => unmapped += 1,
+            }
+        }
+        println!(
+            "{:24} {} bones, {} wrong, {unmapped} unmapped",
+            e.name,
+            s.num_bones(),
+            wrong.len()
+        );
+        if !wrong.is_empty() || unmapped > 0 {
+            failures.push(format!("{}: {unmapped} unmapped, wrong {wrong:?}", e.name));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
