@@ -30,10 +30,16 @@ impl WorldTransform {
 
 /// Computes world transforms of every bone of `pose` into `out` (length = number of bones).
 /// One forward pass, possible because bones are depth-first (`parent[i] < i`). Allocates nothing.
+/// A pose or buffer shorter than the skeleton is a caller bug (see [`Pose::check`]): debug
+/// builds assert; release builds fill only the bones all three have rather than panic mid-frame.
 pub fn forward_kinematics(skeleton: &Skeleton, pose: &Pose, out: &mut [WorldTransform]) {
-    let n = skeleton.num_bones();
-    debug_assert_eq!(pose.num_bones(), n);
-    debug_assert_eq!(out.len(), n);
+    debug_assert_eq!(pose.num_bones(), skeleton.num_bones());
+    debug_assert_eq!(out.len(), skeleton.num_bones());
+    let n = skeleton
+        .num_bones()
+        .min(pose.rotations.len())
+        .min(pose.translations.len())
+        .min(out.len());
     let parents = skeleton.parents();
     for i in 0..n {
         let local_r = pose.rotations[i];

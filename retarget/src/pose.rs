@@ -34,16 +34,19 @@ impl Pose {
         self.rotations.len()
     }
 
-    /// Translation of the first root bone (bone 0).
+    /// Translation of the first root bone (bone 0); zero for an empty pose (no skeleton has
+    /// one, but `Pose` is plain data anyone can build).
     #[inline]
     pub fn root_translation(&self) -> Vec3 {
-        self.translations[0]
+        self.translations.first().copied().unwrap_or(Vec3::ZERO)
     }
 
-    /// Sets the translation of bone 0.
+    /// Sets the translation of bone 0 (nothing for an empty pose).
     #[inline]
     pub fn set_root_translation(&mut self, t: Vec3) {
-        self.translations[0] = t;
+        if let Some(root) = self.translations.first_mut() {
+            *root = t;
+        }
     }
 
     /// Local rotation of one bone.
@@ -64,26 +67,34 @@ impl Pose {
         Ok(())
     }
 
-    /// Copies `other` into `self` without allocating (sizes must match).
+    /// Copies `other` into `self` without allocating. Sizes must match (a caller bug otherwise:
+    /// debug builds assert, release builds copy the bones both have rather than panic).
     #[inline]
     pub fn copy_from(&mut self, other: &Pose) {
-        self.rotations.copy_from_slice(&other.rotations);
-        self.translations.copy_from_slice(&other.translations);
+        debug_assert_eq!(other.num_bones(), self.num_bones());
+        for (d, s) in self.rotations.iter_mut().zip(&other.rotations) {
+            *d = *s;
+        }
+        for (d, s) in self.translations.iter_mut().zip(&other.translations) {
+            *d = *s;
+        }
     }
 
     /// Interpolates between `a` and `b` (`t` in 0..=1) into `self`: shortest-arc slerp for
-    /// rotations, lerp for translations. Allocates nothing.
+    /// rotations, lerp for translations. Allocates nothing. Sizes must match, as for
+    /// [`Pose::copy_from`].
     pub fn interpolate_into(&mut self, a: &Pose, b: &Pose, t: f32) {
         debug_assert_eq!(a.num_bones(), self.num_bones());
         debug_assert_eq!(b.num_bones(), self.num_bones());
-        for i in 0..self.rotations.len() {
-            let qa = a.rotations[i];
-            let mut qb = b.rotations[i];
-            if qa.dot(qb) < 0.0 {
-                qb = -qb;
-            }
-            self.rotations[i] = qa.slerp(qb, t).normalize();
-            self.translations[i] = a.translations[i].lerp(b.translations[i], t);
+        let rotations = a.rotations.iter().zip(&b.rotations);
+        for (out, (&qa, &qb)) in self.rotations.iter_mut().zip(rotations) {
+            // q and -q are the same rotation: slerp along the shorter arc.
+            let qb = if qa.dot(qb) < 0.0 { -qb } else { qb };
+            *out = qa.slerp(qb, t).normalize();
+        }
+        let translations = a.translations.iter().zip(&b.translations);
+        for (out, (&ta, &tb)) in self.translations.iter_mut().zip(translations) {
+            *out = ta.lerp(tb, t);
         }
     }
 }
@@ -99,4 +110,52 @@ pub struct Frame {
     pub source_id: u32,
     /// The pose, on the source's skeleton.
     pub pose: Pose,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::approx::{quat_close, vec_close};
+
+    fn pose(r: Quat, t: Vec3) -> Pose {
+        Pose {
+            rotations: vec![Quat::IDENTITY, r],
+            translations: vec![Vec3::ZERO, t],
+        }
+    }
+
+    #[test]
+    fn interpolation_takes_the_short_arc_and_lerps_translations() {
+        let a = pose(Quat::IDENTITY, Vec3::ZERO);
+        // 1.0 rad about Y, stored with the opposite sign: the midpoint is still 0.5 rad, not
+        // the long way round.
+        let b = pose(-Quat::from_rotation_y(1.0), Vec3::new(2.0, 0.0, -4.0));
+        let mut out = a.clone();
+        out.interpolate_into(&a, &b, 0.5);
+        assert!(quat_close(
+            out.rotations[1],
+            Quat::from_rotation_y(0.5),
+            1e-5
+        ));
+        assert!(vec_close(
+            out.translations[1],
+            Vec3::new(1.0, 0.0, -2.0),
+            1e-6
+        ));
+        out.copy_from(&b);
+        assert_eq!(out, b);
+    }
+
+    #[test]
+    fn root_translation_of_an_empty_pose_is_zero_not_a_panic() {
+        let mut p = Pose {
+            rotations: Vec::new(),
+            translations: Vec::new(),
+        };
+        p.set_root_translation(Vec3::X);
+        assert_eq!(p.root_translation(), Vec3::ZERO);
+        let mut q = pose(Quat::IDENTITY, Vec3::Y);
+        q.set_root_translation(Vec3::X);
+        assert_eq!(q.root_translation(), Vec3::X);
+    }
 }
