@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::{SourceState, SourceStatus};
+use super::{FrameMeta, SourceState, SourceStatus};
 
 /// Rate is recomputed over windows of at least this length, so a few jittery packets don't
 /// make the reported fps jump around.
@@ -63,6 +63,25 @@ impl HealthTracker {
             0.9 * self.latency_ms + 0.1 * ms
         };
         self.update_rate(now);
+    }
+
+    /// A frame was produced from input that arrived at `arrived`: counts it (latency is
+    /// `arrived` → now) and returns its [`FrameMeta`]. The sequence number is the count of frames
+    /// produced, so every source numbers 1, 2, 3, …; the first frame always reports a skeleton
+    /// change, `skeleton_changed` adds the source's own later changes.
+    pub fn produced(
+        &mut self,
+        arrived: Instant,
+        capture_nanos: u64,
+        skeleton_changed: bool,
+    ) -> FrameMeta {
+        let now = Instant::now();
+        self.on_frame(now, now.saturating_duration_since(arrived));
+        FrameMeta {
+            seq: self.frames,
+            capture_nanos,
+            skeleton_changed: skeleton_changed || self.frames == 1,
+        }
     }
 
     /// `n` input units were dropped (malformed, reordered, unusable).
@@ -173,5 +192,17 @@ mod tests {
             h.status().input_fps
         );
         assert_eq!(h.frames(), 30);
+    }
+
+    #[test]
+    fn produced_numbers_frames_and_flags_the_first_skeleton() {
+        let mut h = HealthTracker::new(Duration::from_millis(500));
+        let a = h.produced(Instant::now(), 7, false);
+        let b = h.produced(Instant::now(), 8, false);
+        let c = h.produced(Instant::now(), 9, true);
+        assert_eq!((a.seq, a.capture_nanos, a.skeleton_changed), (1, 7, true));
+        assert_eq!((b.seq, b.capture_nanos, b.skeleton_changed), (2, 8, false));
+        assert_eq!((c.seq, c.skeleton_changed), (3, true));
+        assert_eq!(h.frames(), 3);
     }
 }

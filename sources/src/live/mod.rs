@@ -18,7 +18,7 @@ mod health;
 pub mod humanoid;
 
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use rigcast_retarget::{Pose, Skeleton};
 use serde::{Deserialize, Serialize};
@@ -172,6 +172,15 @@ pub fn unix_nanos_now() -> u64 {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos() as u64)
         .unwrap_or(0)
+}
+
+/// Sleeps until `due`, but never past `deadline`: true when `due` was reached (the frame may
+/// be released), false when the caller's wait ran out first (return "nothing new"). Paces
+/// recorded input to its timestamps.
+pub(crate) fn wait_until(due: Instant, deadline: Instant) -> bool {
+    let reached = due <= deadline;
+    std::thread::sleep(due.min(deadline).saturating_duration_since(Instant::now()));
+    reached
 }
 
 /// Resizes `out` to `skeleton` if needed (allocates only when the size changes).

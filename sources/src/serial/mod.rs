@@ -191,7 +191,6 @@ pub struct SerialImuSource {
     health: HealthTracker,
     tap: Option<Box<dyn RawTap>>,
     buf: [u8; 1024],
-    seq: u64,
     calibration: CalibrationHandle,
 }
 
@@ -236,7 +235,6 @@ impl SerialImuSource {
             health: HealthTracker::new(lost_after),
             tap: None,
             buf: [0; 1024],
-            seq: 0,
             calibration: CalibrationHandle::default(),
         })
     }
@@ -436,16 +434,9 @@ impl LiveSource for SerialImuSource {
             self.health.on_dropped(dropped + unassigned);
             if samples > 0 {
                 self.health.on_input(received);
-                let first = self.seq == 0;
                 fit_pose(out, self.solver.skeleton());
                 self.solver.solve(out);
-                self.seq += 1;
-                self.health.on_frame(Instant::now(), received.elapsed());
-                return Ok(Some(FrameMeta {
-                    seq: self.seq,
-                    capture_nanos,
-                    skeleton_changed: first,
-                }));
+                return Ok(Some(self.health.produced(received, capture_nanos, false)));
             }
             if Instant::now() >= deadline {
                 self.health.poll(Instant::now());

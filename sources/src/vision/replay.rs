@@ -19,7 +19,7 @@ use super::pipeline::PipelineConfig;
 use super::source::{decode_landmarks, encode_landmarks, LANDMARK_RECORD_BYTES};
 use super::stages::LandmarkStages;
 use crate::live::{
-    unix_nanos_now, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
+    unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
     SourceStatus,
 };
 use crate::recording::{read_recording, RawPacket};
@@ -41,8 +41,6 @@ pub struct LandmarkReplaySource {
     realtime: bool,
     started: Option<Instant>,
     health: HealthTracker,
-    seq: u64,
-    sent_skeleton: bool,
     tap: Option<Box<dyn RawTap>>,
     record: Vec<u8>,
 }
@@ -126,8 +124,6 @@ impl LandmarkReplaySource {
             realtime,
             started: None,
             health,
-            seq: 0,
-            sent_skeleton: false,
             tap: None,
             record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
         })
@@ -200,13 +196,9 @@ impl LiveSource for LandmarkReplaySource {
                 .started
                 .get_or_insert_with(|| call_start - Duration::from_secs_f64(t));
             let due = start + Duration::from_secs_f64(t);
-            if due > call_start + timeout {
-                std::thread::sleep(
-                    (call_start + timeout).saturating_duration_since(Instant::now()),
-                );
+            if !wait_until(due, call_start + timeout) {
                 return Ok(None);
             }
-            std::thread::sleep(due.saturating_duration_since(Instant::now()));
         }
         self.next += 1;
         let arrived = Instant::now();
@@ -226,17 +218,7 @@ impl LiveSource for LandmarkReplaySource {
             return Ok(None);
         };
         self.stages.process(&lm, t, out);
-        let now = Instant::now();
-        self.health
-            .on_frame(now, now.saturating_duration_since(arrived));
-        self.seq += 1;
-        let skeleton_changed = !self.sent_skeleton;
-        self.sent_skeleton = true;
-        Ok(Some(FrameMeta {
-            seq: self.seq,
-            capture_nanos,
-            skeleton_changed,
-        }))
+        Ok(Some(self.health.produced(arrived, capture_nanos, false)))
     }
 
     fn status(&self) -> SourceStatus {

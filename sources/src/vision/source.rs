@@ -20,7 +20,7 @@ use super::frame::{FrameSource, RgbFrame};
 use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
 use super::pipeline::PosePipeline;
 use crate::live::{
-    unix_nanos_now, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
+    unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
     SourceStatus,
 };
 
@@ -80,8 +80,6 @@ pub struct VisionSource {
     realtime: bool,
     started: Option<Instant>,
     health: HealthTracker,
-    seq: u64,
-    sent_skeleton: bool,
     tap: Option<Box<dyn RawTap>>,
     record: Vec<u8>,
     /// Wall-clock nanoseconds of frame time 0 (set at the first frame), for tap timestamps.
@@ -116,8 +114,6 @@ impl VisionSource {
             realtime,
             started: None,
             health: HealthTracker::new(Duration::from_secs(1)),
-            seq: 0,
-            sent_skeleton: false,
             tap: None,
             record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
             tap_anchor_nanos: None,
@@ -170,13 +166,9 @@ impl LiveSource for VisionSource {
                 .started
                 .get_or_insert_with(|| arrived - Duration::from_secs_f64(self.frame.time_secs));
             let due = start + Duration::from_secs_f64(self.frame.time_secs.max(0.0));
-            if due > call_start + timeout {
-                std::thread::sleep(
-                    (call_start + timeout).saturating_duration_since(Instant::now()),
-                );
+            if !wait_until(due, call_start + timeout) {
                 return Ok(None);
             }
-            std::thread::sleep(due.saturating_duration_since(Instant::now()));
         }
         self.pending = false;
         let capture_nanos = unix_nanos_now();
@@ -197,22 +189,13 @@ impl LiveSource for VisionSource {
             }
             tap.raw(RawKind::Landmarks, anchor + frame_nanos, &self.record);
         }
-        let now = Instant::now();
-        self.health.on_input(now);
+        self.health.on_input(Instant::now());
         if !found {
             self.health.set_detail("no person in view");
             return Ok(None);
         }
-        self.health
-            .on_frame(now, now.saturating_duration_since(arrived));
-        self.seq += 1;
-        let skeleton_changed = !self.sent_skeleton;
-        self.sent_skeleton = true;
-        Ok(Some(FrameMeta {
-            seq: self.seq,
-            capture_nanos,
-            skeleton_changed,
-        }))
+        // The skeleton is fixed (BlazePose), so only the first frame announces it.
+        Ok(Some(self.health.produced(arrived, capture_nanos, false)))
     }
 
     fn status(&self) -> SourceStatus {

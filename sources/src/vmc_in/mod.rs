@@ -27,8 +27,8 @@ pub use mapping::{ArgField, CoordSpace, OscMapping, OscRule};
 
 use crate::error::SourceError;
 use crate::live::{
-    fit_pose, unix_nanos_now, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket, RawTap,
-    SourceState, SourceStatus,
+    fit_pose, unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket,
+    RawTap, SourceState, SourceStatus,
 };
 
 /// Default VMC Marionette port.
@@ -119,7 +119,6 @@ pub struct VmcSource {
     health: HealthTracker,
     tap: Option<Box<dyn RawTap>>,
     buf: Vec<u8>,
-    seq: u64,
 }
 
 impl VmcSource {
@@ -135,7 +134,6 @@ impl VmcSource {
             health: HealthTracker::new(lost_after),
             tap: None,
             buf: vec![0; MAX_DATAGRAM],
-            seq: 0,
         })
     }
 
@@ -165,7 +163,6 @@ impl VmcSource {
             health: HealthTracker::new(lost_after),
             tap: None,
             buf: Vec::new(),
-            seq: 0,
         })
     }
 
@@ -236,11 +233,9 @@ impl VmcSource {
                         *origin.get_or_insert((Instant::now(), packet.capture_nanos));
                     let due =
                         start + Duration::from_nanos(packet.capture_nanos.saturating_sub(first));
-                    if due > deadline {
-                        std::thread::sleep(deadline.saturating_duration_since(Instant::now()));
+                    if !wait_until(due, deadline) {
                         return None;
                     }
-                    std::thread::sleep(due.saturating_duration_since(Instant::now()));
                 }
                 *next += 1;
                 Some(Recv::Replay(*next - 1))
@@ -299,13 +294,11 @@ impl LiveSource for VmcSource {
                 if let Some(skeleton) = self.decoder.skeleton() {
                     fit_pose(out, skeleton);
                     out.copy_from(self.decoder.pose());
-                    self.seq += 1;
-                    self.health.on_frame(Instant::now(), received.elapsed());
-                    return Ok(Some(FrameMeta {
-                        seq: self.seq,
+                    return Ok(Some(self.health.produced(
+                        received,
                         capture_nanos,
-                        skeleton_changed: result.skeleton_changed,
-                    }));
+                        result.skeleton_changed,
+                    )));
                 }
             }
             if Instant::now() >= deadline {
