@@ -121,12 +121,40 @@ pub fn read_gltf(
     read_document(&document, &buffers, name, opts)
 }
 
+/// The `gltf` crate's validation skips animation channel targets, and its accessors
+/// (`Target::node`, `Target::property`) panic on a bad node index or an unknown path; check
+/// them here so such a file is an error.
+fn check_channel_targets(doc: &Document) -> Result<(), SourceError> {
+    let json = doc.as_json();
+    for (a, anim) in json.animations.iter().enumerate() {
+        for (c, channel) in anim.channels.iter().enumerate() {
+            let target = &channel.target;
+            let problem = if target.node.value() >= json.nodes.len() {
+                format!(
+                    "node {} does not exist ({} nodes)",
+                    target.node.value(),
+                    json.nodes.len()
+                )
+            } else if matches!(target.path, ::gltf::json::validation::Checked::Invalid) {
+                "path is not translation, rotation, scale or weights".to_string()
+            } else {
+                continue;
+            };
+            return Err(SourceError::Gltf {
+                message: format!("animations[{a}].channels[{c}].target: {problem}"),
+            });
+        }
+    }
+    Ok(())
+}
+
 fn read_document(
     doc: &Document,
     buffers: &[&[u8]],
     name: &str,
     opts: &GltfReadOptions,
 ) -> Result<GltfRead, SourceError> {
+    check_channel_targets(doc)?;
     let num_nodes = doc.nodes().len();
     let mut parent: Vec<Option<usize>> = vec![None; num_nodes];
     for n in doc.nodes() {
