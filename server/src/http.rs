@@ -86,10 +86,22 @@ fn parse_head(head: &str) -> Option<Request> {
 
 async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<ServerState>) {
     let mut buf = Vec::with_capacity(1024);
+    // Each connection is its own task, so a client that never finishes its head (slowloris)
+    // holds only this task, and only until the timeout.
     let head_end = match tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)).await
     {
-        Ok(Some(end)) => end,
-        _ => return,
+        Ok(HeadRead::Complete(end)) => end,
+        Ok(HeadRead::TooLarge) => {
+            let _ = respond(
+                &mut stream,
+                431,
+                "text/plain",
+                b"request head larger than 16 KiB\n",
+            )
+            .await;
+            return;
+        }
+        Ok(HeadRead::Closed) | Err(_) => return,
     };
     let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
     let leftover = buf[head_end..].to_vec();
@@ -162,21 +174,30 @@ fn limit_send_buffer(stream: TcpStream, bytes: u32) -> std::io::Result<TcpStream
     TcpStream::from_std(std_stream)
 }
 
-/// Reads until the blank line ending the head; returns its end offset (after `\r\n\r\n`).
-async fn read_head(stream: &mut TcpStream, buf: &mut Vec<u8>) -> Option<usize> {
+/// How reading a request head ended.
+enum HeadRead {
+    /// The head ends at this offset (after `\r\n\r\n`); later bytes are already in the buffer.
+    Complete(usize),
+    /// More than [`MAX_HEAD_BYTES`] without the blank line.
+    TooLarge,
+    /// The peer closed the connection or the read failed.
+    Closed,
+}
+
+/// Reads until the blank line ending the head.
+async fn read_head(stream: &mut TcpStream, buf: &mut Vec<u8>) -> HeadRead {
     let mut chunk = [0u8; 2048];
     loop {
         if let Some(pos) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
-            return Some(pos + 4);
+            return HeadRead::Complete(pos + 4);
         }
         if buf.len() > MAX_HEAD_BYTES {
-            return None;
+            return HeadRead::TooLarge;
         }
-        let n = stream.read(&mut chunk).await.ok()?;
-        if n == 0 {
-            return None;
+        match stream.read(&mut chunk).await {
+            Ok(0) | Err(_) => return HeadRead::Closed,
+            Ok(n) => buf.extend_from_slice(&chunk[..n]),
         }
-        buf.extend_from_slice(&chunk[..n]);
     }
 }
 
@@ -192,6 +213,7 @@ async fn respond(
         404 => "Not Found",
         405 => "Method Not Allowed",
         426 => "Upgrade Required",
+        431 => "Request Header Fields Too Large",
         _ => "Error",
     };
     let head = format!(
@@ -379,11 +401,21 @@ mod tests {
             "s3pPLMBiTxaQ9kYGzzhZRbK+xOo="
         );
         assert!(parse_head("").is_none());
+        // A request line without a target, and a bare blank line.
+        assert!(parse_head("GET\r\n\r\n").is_none());
+        assert!(parse_head("\r\n\r\n").is_none());
+        // Header lines without a colon are skipped, not fatal; HTTP/1.0 and no Host are fine.
+        let r = parse_head("GET /v1/status HTTP/1.0\r\ngarbage\r\n\r\n").unwrap();
+        assert_eq!((r.method.as_str(), r.path.as_str()), ("GET", "/v1/status"));
+        assert!(!r.upgrade_websocket && r.websocket_key.is_none());
     }
 
     #[test]
     fn static_hook_serves_placeholder() {
         assert!(static_asset("/").is_some());
         assert!(static_asset("/nope.js").is_none());
+        // Embedded files only: traversal finds nothing.
+        assert!(static_asset("/../../etc/passwd").is_none());
+        assert!(static_asset("/vendor/../index.html").is_none());
     }
 }

@@ -210,6 +210,45 @@ pub async fn start_server(
     rigcast_server::start(config).await.unwrap()
 }
 
+/// Sends `raw` bytes to the HTTP listener and reads until the server closes the connection
+/// (the server always answers with `Connection: close`). Returns the response, lossily as
+/// text, or `None` when the server reset the connection before anything arrived. Panics
+/// after `timeout`: a request the server never finishes is a hang.
+pub async fn http_raw(addr: std::net::SocketAddr, raw: &[u8], timeout: Duration) -> Option<String> {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let exchange = async {
+        let mut s = TcpStream::connect(addr).await.unwrap();
+        // A write error means the server already answered and closed (e.g. an oversized head).
+        let _ = s.write_all(raw).await;
+        let mut out = Vec::new();
+        let mut chunk = [0u8; 4096];
+        loop {
+            match s.read(&mut chunk).await {
+                Ok(0) => break,
+                Ok(n) => out.extend_from_slice(&chunk[..n]),
+                Err(_) if !out.is_empty() => break,
+                Err(_) => return None,
+            }
+        }
+        Some(String::from_utf8_lossy(&out).into_owned())
+    };
+    tokio::time::timeout(timeout, exchange)
+        .await
+        .unwrap_or_else(|_| panic!("no complete HTTP answer within {timeout:?}"))
+}
+
+/// `GET path` over HTTP/1.1: (head, body).
+pub async fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, String) {
+    let request = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+    let text = http_raw(addr, request.as_bytes(), Duration::from_secs(10))
+        .await
+        .unwrap_or_else(|| panic!("GET {path}: connection reset"));
+    let (head, body) = text
+        .split_once("\r\n\r\n")
+        .unwrap_or_else(|| panic!("GET {path}: no response head in {text:?}"));
+    (head.to_string(), body.to_string())
+}
+
 /// A replay of an in-memory clip, looping from the start at normal speed.
 pub fn clip_source(clip: Clip) -> rigcast_server::SourceSpec {
     rigcast_server::SourceSpec::ReplayClip {

@@ -261,8 +261,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     }
     assert!(saw_lost, "no source_status with state lost");
     let status: serde_json::Value = {
-        let url = format!("http://{}/v1/status", server.local_addr());
-        let body = http_get(&url).await;
+        let (_, body) = http_get(server.local_addr(), "/v1/status").await;
         serde_json::from_str(&body).unwrap()
     };
     assert_eq!(status["subjects"][0]["source"]["state"], "lost");
@@ -328,21 +327,4 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     let err = max_angle(&expected.rotations, &last.unwrap().rotations);
     assert!(err < 2e-3, "after resuming the target is {err} rad off");
     server.shutdown().await;
-}
-
-/// Minimal HTTP GET (no client crate in the tests).
-async fn http_get(url: &str) -> String {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let rest = url.strip_prefix("http://").unwrap();
-    let (host, path) = rest.split_once('/').unwrap();
-    let mut s = tokio::net::TcpStream::connect(host).await.unwrap();
-    s.write_all(
-        format!("GET /{path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").as_bytes(),
-    )
-    .await
-    .unwrap();
-    let mut buf = Vec::new();
-    s.read_to_end(&mut buf).await.unwrap();
-    let text = String::from_utf8(buf).unwrap();
-    text.split_once("\r\n\r\n").unwrap().1.to_string()
 }
