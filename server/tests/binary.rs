@@ -138,7 +138,12 @@ async fn check_demo_stream(url: &str, rate_hz: f64) {
     let span = (*frame_times.last().unwrap() - frame_times[0]).as_secs_f64();
     let rate = (frame_times.len() - 1) as f64 / span;
     eprintln!("measured {rate:.1} Hz (configured {rate_hz})");
-    assert!((rate - rate_hz).abs() <= rate_hz * 0.15, "rate {rate}");
+    // Never faster than configured (10% for timer jitter over 1 s); on a loaded shared machine
+    // the tick skips missed ticks, so slower is allowed down to 60% (a halved rate still fails).
+    assert!(
+        rate <= rate_hz * 1.1 && rate >= rate_hz * 0.6,
+        "rate {rate}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

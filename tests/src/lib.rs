@@ -175,6 +175,14 @@ pub fn best_matching_frame(clip: &Clip, rotations: &[Quat]) -> (usize, f32) {
     best
 }
 
+/// Whether a measured rate fits a configured one on a shared, loaded machine: never above it
+/// (a server cannot tick faster than asked; 10% covers timer jitter over a short window), and
+/// not below 60% of it (the tick skips missed ticks when starved of CPU, so a loaded 2-core
+/// machine legitimately runs slow, but a halved rate is still a failure).
+pub fn rate_plausible(measured_hz: f64, configured_hz: f64) -> bool {
+    measured_hz <= configured_hz * 1.1 && measured_hz >= configured_hz * 0.6
+}
+
 /// Frames per second from receive times (first to last).
 pub fn measured_rate(frames: &[(DecodedFrame, u64)]) -> f64 {
     if frames.len() < 2 {

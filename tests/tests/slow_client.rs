@@ -102,11 +102,7 @@ async fn stalled_client_does_not_slow_others_and_is_told_what_it_missed() {
     // Generous bounds (the machine is shared; speed targets live in benchmarks): a stalled
     // client that slowed the tick would show up as a large drop, not a few percent.
     for m in [&baseline, &stalled] {
-        assert!(
-            (m.rate_hz - RATE_HZ).abs() < RATE_HZ * 0.25,
-            "rate {}",
-            m.rate_hz
-        );
+        assert!(rate_plausible(m.rate_hz, RATE_HZ), "rate {}", m.rate_hz);
     }
     assert!(stalled.rate_hz > baseline.rate_hz * 0.8);
     // Generous: the stalled client may not add more than a few ms of median latency.

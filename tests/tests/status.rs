@@ -18,13 +18,13 @@ async fn status_reports_documented_fields() {
     let v: serde_json::Value = serde_json::from_str(&body).unwrap();
     assert_eq!(v["tick_hz"], 50.0);
     let out = v["output_rate_hz"].as_f64().unwrap();
-    assert!((out - 50.0).abs() < 50.0 * 0.25, "output rate {out}");
+    assert!(rate_plausible(out, 50.0), "output rate {out}");
     let s = &v["subjects"][0];
     assert_eq!(s["id"], 0);
     assert_eq!(s["name"], "fixture");
     assert_eq!(s["num_bones"], 6);
     let fps = s["input_fps"].as_f64().unwrap();
-    assert!((fps - 30.0).abs() < 30.0 * 0.25, "input fps {fps}");
+    assert!(rate_plausible(fps, 30.0), "input fps {fps}");
     let last = s["last_capture_nanos"].as_u64().unwrap();
     assert!(unix_nanos() - last < 2_000_000_000);
     assert!(s["input_frames"].as_u64().unwrap() > 10);
