@@ -3,22 +3,14 @@
 //! UpperArm/ForeArm/Hand).
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
 
-fn data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(rel);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("skipping: {} not found", p.display());
-        None
-    }
-}
+use common::shared_data as data;
 
 fn map_json(src: &Path, tgt: &Path, extra: &[&str]) -> Value {
     let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))

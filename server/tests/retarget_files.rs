@@ -5,6 +5,7 @@
 //! source's displacement scaled by the hip-height ratio within 1%; the feet stand on the
 //! target's floor at frame 0 within 1 cm. Also runs the `rigcast retarget` command end to end.
 
+mod common;
 #[path = "../../retarget/tests/retarget_fixtures/mod.rs"]
 mod retarget_fixtures;
 
@@ -18,16 +19,9 @@ use rigcast_retarget::mapping::{BoneOptions, MappingTable, SourceRef, TargetEntr
 use rigcast_retarget::{Clip, Pose, RawSkeleton, RetargetOptions, Skeleton, Transform};
 use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip, run, RetargetArgs};
 
+/// A file of the shared BVH data.
 fn data(name: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/bvh")
-        .join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("SKIP: {} is absent", p.display());
-        None
-    }
+    common::shared_data(&format!("bvh/{name}"))
 }
 
 fn walk() -> Option<Clip> {
