@@ -176,15 +176,72 @@ async fn binary_serve_subcommand_honours_rate() {
     check_demo_stream(&server.url, 30.0).await;
 }
 
+/// Runs the binary with `args`, expecting it to refuse them: it must exit (not start serving)
+/// within 20 s with a failure status. Returns stderr.
+fn refused(args: &[&str]) -> String {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("rigcast {args:?} did not exit: it accepted the arguments");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(!status.success(), "rigcast {args:?} succeeded: {err}");
+    err
+}
+
 #[test]
 fn binary_rejects_bad_flags_with_clear_errors() {
-    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(["--rate", "1000", "--listen", "127.0.0.1:0"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("rate_hz"), "{err}");
+    let dir = std::env::temp_dir().join(format!("rigcast-badflags-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad_toml = dir.join("bad.toml");
+    std::fs::write(
+        &bad_toml,
+        "rate_hz = 60\n[[sources]]\nkind = \"teleport\"\n",
+    )
+    .unwrap();
+    let bad_toml = bad_toml.to_str().unwrap();
+    // (arguments, what stderr must name)
+    let cases: &[(&[&str], &str)] = &[
+        (&["--rate", "1000"], "rate_hz"),
+        (&["--rate", "NaN"], "rate_hz"),
+        (&["--rate", "fast"], "--rate"),
+        (&["--listen", "nope"], "listen"),
+        (&["--listen", "127.0.0.1:99999"], "listen"),
+        (&["--source", "teleport:x"], "unknown source"),
+        (&["--source", "vmc:99999"], "vmc:PORT"),
+        (&["--source", "replay:"], "unknown source"),
+        (&["--on-lost", "drop"], "ease or hold"),
+        (
+            &["--config", "/no/such/rigcast.toml"],
+            "/no/such/rigcast.toml",
+        ),
+        (&["--config", bad_toml], "line 3"),
+        (&["--no-such-flag"], "--no-such-flag"),
+        (&["serve", "--rate", "0"], "rate_hz"),
+    ];
+    for (args, needle) in cases {
+        let mut all = args.to_vec();
+        // Bad input must be refused before binding; a wrong acceptance binds a free port only.
+        if !args.contains(&"--listen") {
+            all.extend(["--listen", "127.0.0.1:0"]);
+        }
+        let err = refused(&all);
+        assert!(err.contains(needle), "rigcast {all:?}: {err}");
+    }
     let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
         .args(["info", "/no/such/file.bvh"])
         .output()
