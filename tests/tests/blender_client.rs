@@ -211,6 +211,21 @@ enum Zip {
     Use(PathBuf),
 }
 
+/// [`run_blender`] on a blocking thread, so the test's runtime keeps serving the in-process
+/// server and the stream watcher meanwhile.
+async fn run_blender_off_runtime(
+    blender: PathBuf,
+    addr: SocketAddr,
+    work: &Path,
+    mode: &'static str,
+    zip: Zip,
+) -> Value {
+    let work = work.to_path_buf();
+    tokio::task::spawn_blocking(move || run_blender(&blender, addr, &work, mode, zip))
+        .await
+        .expect("blender task")
+}
+
 fn run_blender(blender: &Path, addr: SocketAddr, work: &Path, mode: &str, zip: Zip) -> Value {
     let root = repo_root();
     let out_json = work.join("observations.json");
@@ -306,12 +321,7 @@ async fn blender_addon_applies_and_records_the_live_stream() {
     let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
 
     let work = work_dir();
-    let work_for_blender = work.clone();
-    let result = tokio::task::spawn_blocking(move || {
-        run_blender(&blender, addr, &work_for_blender, "stream", Zip::Build)
-    })
-    .await
-    .expect("blender task");
+    let result = run_blender_off_runtime(blender, addr, &work, "stream", Zip::Build).await;
     eprintln!("blender finished");
     watcher.abort();
     // Shutdown is not what this test judges; do not let a slow close hang it.
@@ -644,12 +654,7 @@ async fn blender_addon_shows_and_overrides_the_server_mapping() {
     let observed = Arc::new(Mutex::new(Observed::default()));
     let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
     let work = work_dir();
-    let work_for_blender = work.clone();
-    let result = tokio::task::spawn_blocking(move || {
-        run_blender(&blender, addr, &work_for_blender, "mapping", Zip::Build)
-    })
-    .await
-    .expect("blender task");
+    let result = run_blender_off_runtime(blender, addr, &work, "mapping", Zip::Build).await;
     // Give the broadcast of the rebuilt mapping a moment to reach our client too.
     let deadline = Instant::now() + Duration::from_secs(5);
     while observed.lock().unwrap().mappings.len() < 2 && Instant::now() < deadline {
@@ -804,12 +809,7 @@ async fn addon_zip_connects_to_the_rigcast_binary() {
     assert!(line.contains(&listen), "{line}");
     let addr: SocketAddr = listen.parse().unwrap();
 
-    let work_for_blender = work.clone();
-    let result = tokio::task::spawn_blocking(move || {
-        run_blender(&blender, addr, &work_for_blender, "connect", Zip::Use(zip))
-    })
-    .await
-    .expect("blender task");
+    let result = run_blender_off_runtime(blender, addr, &work, "connect", Zip::Use(zip)).await;
     drop(server);
 
     // Default settings: the server's default address, WebSocket, the panel in the sidebar.
