@@ -61,33 +61,13 @@ async fn demo_target_set_mapping_cache_and_record() {
         r#"{"type":"set_mapping","subject":1,"overrides":{"no_such_bone":null}}"#,
     )
     .await;
-    let reply = wait_for(&mut ws, |m| matches!(m, ServerMessage::Error { .. })).await;
-    assert!(
-        matches!(
-            reply,
-            ServerMessage::Error {
-                code: ErrorCode::Unsupported,
-                ..
-            }
-        ),
-        "{reply:?}"
-    );
+    expect_unsupported(&mut ws).await;
     send_text(
         &mut ws,
         r#"{"type":"set_mapping","subject":0,"overrides":{}}"#,
     )
     .await;
-    let reply = wait_for(&mut ws, |m| matches!(m, ServerMessage::Error { .. })).await;
-    assert!(
-        matches!(
-            reply,
-            ServerMessage::Error {
-                code: ErrorCode::Unsupported,
-                ..
-            }
-        ),
-        "{reply:?}"
-    );
+    expect_unsupported(&mut ws).await;
 
     // Unmap the left thigh and drive the right thigh from the left source thigh.
     let text = format!(
@@ -126,6 +106,21 @@ async fn demo_target_set_mapping_cache_and_record() {
     // Both subjects' frames are in the recording. (How many depends on how fast this machine
     // got through the test; rates are measured elsewhere, so only require a steady stream.)
     assert!(frames[0] >= 10 && frames[1] >= 10, "{frames:?}");
+}
+
+/// The next error reply is `unsupported`.
+async fn expect_unsupported(ws: &mut Ws) {
+    let reply = wait_for(ws, |m| matches!(m, ServerMessage::Error { .. })).await;
+    assert!(
+        matches!(
+            reply,
+            ServerMessage::Error {
+                code: ErrorCode::Unsupported,
+                ..
+            }
+        ),
+        "{reply:?}"
+    );
 }
 
 async fn wait_for(ws: &mut Ws, f: impl Fn(&ServerMessage) -> bool) -> ServerMessage {
