@@ -4,7 +4,8 @@
 //! unmutated input must still decode (so the harness is known to reach the real parsers).
 //!
 //! The generator is a fixed-seed xorshift, so a failure reproduces; the failing case's index and
-//! bytes are printed.
+//! bytes are printed. `RIGCAST_FUZZ_CASES=50000 cargo test -p rigcast-sources --test
+//! fuzz_inputs` searches longer.
 
 #![allow(clippy::unwrap_used)]
 
@@ -18,8 +19,13 @@ use rigcast_sources::recording::{read_recording, write_clip_recording, Recording
 use rigcast_sources::serial::{teapot_packet, witmotion_frame, ImuFormat, ImuParser};
 use rigcast_sources::vmc_in::{OscMapping, VmcDecoder};
 
-/// Mutated cases per input kind.
-const CASES: usize = 2000;
+/// Mutated cases per input kind; `RIGCAST_FUZZ_CASES` raises it for a longer hunt.
+fn cases() -> usize {
+    std::env::var("RIGCAST_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(2000)
+}
 
 /// Tiny xorshift64*: deterministic, no dependency.
 struct Rng(u64);
@@ -106,12 +112,13 @@ fn mutate(rng: &mut Rng, base: &[u8]) -> Vec<u8> {
     v
 }
 
-/// Runs `decode` on `base` (must succeed per `ok`) and on [`CASES`] mutations (must not panic).
+/// Runs `decode` on `base` (must return true) and on [`cases`] mutations (must not panic).
 fn fuzz(what: &str, seed: u64, base: &[u8], mut decode: impl FnMut(&[u8]) -> bool) {
     assert!(decode(base), "{what}: the unmutated input must decode");
     let mut rng = Rng(seed);
     let mut rejected = 0;
-    for case in 0..CASES {
+    let cases = cases();
+    for case in 0..cases {
         let input = mutate(&mut rng, base);
         match catch_unwind(AssertUnwindSafe(|| decode(&input))) {
             Ok(true) => {}
@@ -125,7 +132,7 @@ fn fuzz(what: &str, seed: u64, base: &[u8], mut decode: impl FnMut(&[u8]) -> boo
     }
     // The mutations must actually hurt sometimes, or they are not reaching the parser.
     assert!(rejected > 0, "{what}: no mutation was rejected");
-    println!("{what}: {rejected}/{CASES} mutations rejected, none panicked");
+    println!("{what}: {rejected}/{cases} mutations rejected, none panicked");
 }
 
 #[test]
