@@ -347,3 +347,34 @@ fn representative_reference_pose_fixes_twist() {
         "the folded rest should mislead twist, got {bad}°"
     );
 }
+
+#[test]
+fn absurd_delays_are_capped_not_allocated() {
+    // An infinite maximum and a billion-second delay must not size a history ring from them;
+    // the delay is capped, so the bone keeps showing the first frame (which fills the history).
+    let s = arm();
+    let opts = RetargetOptions {
+        max_delay_secs: f32::INFINITY,
+        ..RetargetOptions::default()
+    };
+    let delayed = BoneOptions {
+        delay_secs: 1e9,
+        ..BoneOptions::default()
+    };
+    let mut m = Mapping::build(&[&s], &s, &arm_table(delayed), &opts).expect("build");
+    let mut out = s.rest_pose();
+    m.apply_one(&posed(&s, Quat::from_rotation_z(0.5)), &mut out)
+        .expect("apply");
+    let first = world_rotation(&s, &out, 1);
+    for f in 1..10 {
+        m.apply_one(
+            &posed(&s, Quat::from_rotation_z(0.5 + 0.1 * f as f32)),
+            &mut out,
+        )
+        .expect("apply");
+        assert!(
+            quat_close(world_rotation(&s, &out, 1), first, 2e-3),
+            "frame {f}"
+        );
+    }
+}

@@ -11,6 +11,9 @@ use crate::mapping::{BoneOptions, MappingTable, SourceRef};
 use crate::pose::Pose;
 use crate::skeleton::{BoneId, Skeleton};
 
+/// Hard cap on per-bone delay history, in frames (60 s at 240 Hz).
+pub const MAX_DELAY_FRAMES: u32 = 60 * 240;
+
 fn reference_pose(skel: &Skeleton, given: Option<&Pose>) -> Result<Pose, RetargetError> {
     match given {
         Some(p) => {
@@ -118,7 +121,10 @@ impl<'a> Setup<'a> {
             src_w,
             tgt_w,
             yaw: Quat::IDENTITY,
-            max_delay_frames: (opts.max_delay_secs.max(0.0) / opts.frame_time_secs).round() as u32,
+            // Capped so an absurd option (even infinity) cannot size a gigabyte history ring.
+            max_delay_frames: ((opts.max_delay_secs.max(0.0) / opts.frame_time_secs).round()
+                as u32)
+                .min(MAX_DELAY_FRAMES),
         };
         if opts.align_rest {
             if let Some(root) = setup.root_pair() {
