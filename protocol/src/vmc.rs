@@ -299,6 +299,13 @@ pub fn decode_packet(bytes: &[u8]) -> Result<Vec<Result<VmcMessage, VmcError>>, 
 /// recursion, so one datagram of a few thousand nested bundles would overflow the stack.
 pub const MAX_BUNDLE_DEPTH: usize = 8;
 
+/// Checks an OSC datagram's bundle framing before it reaches a recursive decoder: every bundle's
+/// size-prefixed elements exactly fill it and bundles nest at most [`MAX_BUNDLE_DEPTH`] deep.
+/// Plain messages pass (the decoder validates them). Shared by every OSC input in rigcast.
+pub fn check_osc_framing(datagram: &[u8]) -> Result<(), String> {
+    check_framing(datagram, 0, 0)
+}
+
 /// Checks that a bundle's size-prefixed elements exactly fill it and that bundles nest at most
 /// [`MAX_BUNDLE_DEPTH`] deep. `base` is `bytes`' offset in the datagram (for the messages).
 fn check_framing(bytes: &[u8], depth: usize, base: usize) -> Result<(), String> {

@@ -24,9 +24,7 @@ use super::mapping::{BoneTarget, CompiledRule, CoordSpace, OscMapping};
 use crate::error::SourceError;
 use crate::live::humanoid::{build_humanoid, default_offsets, NUM_HUMAN_BONES};
 
-/// Bundles nest at most this deep; deeper nesting is garbage (and could exhaust the stack of
-/// a recursive parser).
-const MAX_BUNDLE_DEPTH: usize = 4;
+use rigcast_protocol::vmc::MAX_BUNDLE_DEPTH;
 /// An offset change larger than this means the sender switched avatars: relearn.
 const OFFSET_CHANGE_METRES: f32 = 0.005;
 /// A sender time going back by more than this is a restart, not a reordered datagram.
@@ -173,11 +171,12 @@ impl VmcDecoder {
     pub fn feed(&mut self, datagram: &[u8]) -> FeedResult {
         self.stats.datagrams += 1;
         let mut result = FeedResult::default();
-        let packet = match check_structure(datagram, 0)
-            .and_then(|()| rosc::decoder::decode_udp(datagram).map_err(|_| "not valid OSC"))
+        let packet = match rigcast_protocol::vmc::check_osc_framing(datagram)
+            .ok()
+            .and_then(|()| rosc::decoder::decode_udp(datagram).ok())
         {
-            Ok(([], packet)) => packet,
-            Ok(_) | Err(_) => {
+            Some(([], packet)) => packet,
+            _ => {
                 self.stats.malformed_datagrams += 1;
                 result.dropped = 1;
                 return result;
@@ -481,40 +480,4 @@ impl VmcDecoder {
         self.num_dirty_in_skeleton = 0;
         self.root_dirty = false;
     }
-}
-
-/// Checks sizes and nesting that rosc does not check (or checks by recursing without limit).
-fn check_structure(bytes: &[u8], depth: usize) -> Result<(), &'static str> {
-    if bytes.is_empty() {
-        return Err("empty packet");
-    }
-    if !bytes.len().is_multiple_of(4) {
-        return Err("OSC packets are a multiple of 4 bytes");
-    }
-    if bytes[0] == b'/' {
-        return Ok(());
-    }
-    if !bytes.starts_with(b"#bundle\0") {
-        return Err("neither a message nor a bundle");
-    }
-    if depth >= MAX_BUNDLE_DEPTH {
-        return Err("bundles nested too deep");
-    }
-    if bytes.len() < 16 {
-        return Err("bundle without time tag");
-    }
-    let mut rest = &bytes[16..];
-    while !rest.is_empty() {
-        if rest.len() < 4 {
-            return Err("bundle element without size");
-        }
-        let size = u32::from_be_bytes([rest[0], rest[1], rest[2], rest[3]]) as usize;
-        rest = &rest[4..];
-        if size == 0 || size > rest.len() {
-            return Err("bundle element size out of range");
-        }
-        check_structure(&rest[..size], depth + 1)?;
-        rest = &rest[size..];
-    }
-    Ok(())
 }
