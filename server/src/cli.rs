@@ -11,7 +11,7 @@ use crate::cmd;
 #[command(
     name = "rigcast",
     version,
-    about,
+    about = "rigcast — realtime puppetry: performer motion in (files, VMC/OSC, serial IMU suits, video), retargeted onto any character skeleton, streamed out (WebSocket, VMC, recordings)",
     args_conflicts_with_subcommands = true
 )]
 pub struct Cli {

@@ -13,7 +13,7 @@ use crate::config::{
 /// Options of `rigcast serve`. Flags override `--config`.
 #[derive(Debug, Args, Default)]
 pub struct ServeArgs {
-    /// Config file (TOML); see `rigcast.toml` docs.
+    /// Config file (TOML); keys in the README's configuration reference and server/rigcast.example.toml.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// A source, e.g. `replay:walk.bvh` (repeatable). Replaces the config's sources.
