@@ -142,20 +142,14 @@ impl Mapper {
             .zip(&source_truths)
             .map(|((s, r), t)| {
                 analyze_with_truth(
-                    &SkeletonView {
-                        skeleton: s,
-                        pose: *r,
-                    },
+                    &SkeletonView::with_pose(s, *r),
                     *t,
                 )
             })
             .collect();
         let target_truth = p.target.truth();
         let ta = analyze_with_truth(
-            &SkeletonView {
-                skeleton: &target,
-                pose: p.target_reference.as_ref(),
-            },
+            &SkeletonView::with_pose(&target, p.target_reference.as_ref()),
             target_truth,
         );
         // The cache key knows the skeletons, not the truth: a truth-driven table must neither

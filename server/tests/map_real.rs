@@ -241,14 +241,8 @@ fn real_files_with_meaningless_names_get_the_same_core_roles() {
         let skel = &clip.skeleton;
         let anon = skel.renamed(|b, _| format!("j{}", b.0)).expect("rename");
         let frame = clip.poses.get(clip.poses.len() / 2);
-        let named = analyze(&SkeletonView {
-            skeleton: skel,
-            pose: frame,
-        });
-        let blind = analyze(&SkeletonView {
-            skeleton: &anon,
-            pose: frame,
-        });
+        let named = analyze(&SkeletonView::with_pose(skel, frame));
+        let blind = analyze(&SkeletonView::with_pose(&anon, frame));
         let mut core = 0;
         for b in skel.bone_ids() {
             let r = named.roles[b.index()];
@@ -303,10 +297,7 @@ fn demo_head_top_onto_ue_mannequin_head_from_head() {
         for name in ["unreal", "unreal_apose", "unreal_anon"] {
             let ue = corpus::get(name).expect("corpus UE mannequin");
             let table = auto_map(
-                &SkeletonView {
-                    skeleton: src,
-                    pose: frame,
-                },
+                &SkeletonView::with_pose(src, frame),
                 &SkeletonView::rest(&ue.skeleton),
                 &MapOptions::default(),
             );

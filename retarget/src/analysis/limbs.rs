@@ -47,11 +47,19 @@ pub(crate) fn fit_chain(
                     continue;
                 }
                 let upper: f32 = lengths[a..b].iter().sum();
-                let lower: f32 = lengths[b..e].iter().sum();
+                let mut lower: f32 = lengths[b..e].iter().sum();
+                let mut cost = 0.0;
+                // A chain ending in a lone leaf at the lower segment (glTF rigs without hands or
+                // feet): the leaf's length is unknown, not zero. Assume the expected ratio,
+                // at a price, so that the upper segment is still found.
+                if lower <= 1e-6 && e == m && b == m - 1 && upper > 1e-6 {
+                    lower = upper / ratio;
+                    cost += 0.4;
+                }
                 if upper <= 1e-6 || lower <= 1e-6 {
                     continue;
                 }
-                let mut cost = 4.0 * ((upper / lower).ln() - ratio.ln()).powi(2);
+                cost += 4.0 * ((upper / lower).ln() - ratio.ln()).powi(2);
                 // Extra bones in a group (segments / twist bones) are allowed but not free.
                 cost += 0.12 * ((b - a - 1) + (e - b - 1)) as f32;
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
@@ -74,7 +82,9 @@ pub(crate) fn fit_chain(
                 }
                 if e < m {
                     let ext = lengths[e];
-                    cost += 2.0 * (ext / lower - 0.6).max(0.0);
+                    // A hand measured to the fingertips is ≈0.75 of the forearm (Xsens writes
+                    // it so); only a longer "extremity" is a sign of a misplaced split.
+                    cost += 2.0 * (ext / lower - 0.85).max(0.0);
                     let rest: f32 = lengths[e..].iter().sum();
                     cost += 2.0 * (rest / (upper + lower) - 0.7).max(0.0);
                 } else {

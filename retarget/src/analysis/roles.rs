@@ -4,7 +4,7 @@ use glam::Vec3;
 
 use super::limbs::fit_chain;
 use super::names::{self, NameInfo};
-use super::topology::{is_degenerate, joint_positions, Topology};
+use super::topology::Topology;
 use super::vocabulary::{Role, SectionKind};
 use super::{Analysis, BoneRole, Section, Side, SkeletonView};
 use crate::skeleton::{BoneId, Skeleton};
@@ -29,6 +29,8 @@ enum LimbKind {
 
 struct Ctx<'a> {
     skel: &'a Skeleton,
+    /// Control bones beside the body (see `detached`).
+    detached: &'a [bool],
     pos: &'a [Vec3],
     topo: &'a Topology,
     names: &'a [NameInfo],
@@ -51,6 +53,9 @@ impl Ctx<'_> {
     /// A leaf that only shadows its parent: coincident with it, lying on the parent's own
     /// segment (twist bones), or named as a helper.
     fn is_shadow(&self, b: BoneId) -> bool {
+        if self.detached[b.index()] {
+            return true;
+        }
         if !self.is_leaf(b) {
             return false;
         }
@@ -116,19 +121,18 @@ impl Ctx<'_> {
     }
 }
 
+/// A forward vote at least this large decides the sides against the names.
+const GEOMETRY_CLEAR: f32 = 0.15;
+
 pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let skel = view.skeleton;
     let n = skel.num_bones();
-    let mut pos = joint_positions(skel, None);
-    let mut used_pose = false;
-    if is_degenerate(&pos) {
-        if let Some(p) = view.pose.filter(|p| p.check(skel).is_ok()) {
-            pos = joint_positions(skel, Some(p));
-            used_pose = true;
-        }
-    }
+    let posture = super::posture::choose(view);
+    let pos = posture.positions.clone();
+    let used_pose = posture.used_pose;
     let names: Vec<NameInfo> = skel.names().iter().map(|s| names::normalize(s)).collect();
     let topo = Topology::build(skel, &pos);
+    let body = super::detached::find(skel, &topo);
     let (lo, hi) = pos.iter().fold(
         (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
@@ -153,6 +157,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     }
     let ctx = Ctx {
         skel,
+        detached: &body.detached,
         pos: &pos,
         topo: &topo,
         names: &names,
@@ -168,9 +173,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let mut central = vec![false; n];
     let mut limbs: Vec<Limb> = Vec::new();
     let mut in_limb = vec![false; n];
-    for root in skel.roots() {
-        central[root.index()] = true;
-    }
+    central[body.root.index()] = true;
     for i in 0..n {
         let p = BoneId(i as u16);
         if !central[i] {
@@ -179,6 +182,9 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         let mut plus = Vec::new();
         let mut minus = Vec::new();
         for &c in skel.children(p) {
+            if body.detached[c.index()] {
+                continue;
+            }
             // Coincident / on-segment leaves (Rigify ORG- copies) never extend the centerline;
             // named end joints that stick out (`head_end`) do.
             if ctx.is_shadow(c) && !ctx.names[c.index()].helper && skel.children(p).len() > 1 {
@@ -225,31 +231,31 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         }
     }
 
-    // 3. Forward: toes point forward; a horizontal body's higher end is its head.
+    // 3. Forward from the body's own cues (feet, joint bends over the motion, thumbs, slope).
     let fwd0 = lat.cross(up).normalize_or_zero(); // = forward if +lat is the character's left
-    let mut cue = 0.0f32;
-    for l in limbs.iter().filter(|l| l.ground && l.members.len() == 2) {
-        for &(m, _) in &l.members {
-            // Segments ending near the ground: the foot (ankle → toes) points forward. The
-            // whole leg may lean either way in a rest pose, so only these segments count.
-            for b in ctx.subtree(m).skip(1) {
-                if ctx.h(b) >= ground + 0.12 * hext {
-                    continue;
-                }
-                if let Some(p) = skel.parent(b) {
-                    cue += (pos[b.index()] - pos[p.index()]).dot(fwd0);
-                }
-            }
-        }
-    }
     let path0 = centerline(&ctx, &central);
-    if let (Some(&a), Some(&b)) = (path0.first(), path0.last()) {
-        let d = pos[b.index()] - pos[a.index()];
-        let (dh, dv) = (d.dot(fwd0), d.dot(up));
-        if dh.abs() > dv.abs() {
-            cue += 0.02 * size * dh.signum() * dv.signum();
-        }
-    }
+    let pairs = |want_ground: bool| -> Vec<[BoneId; 2]> {
+        limbs
+            .iter()
+            .filter(|l| l.members.len() == 2 && l.ground == want_ground && l.reach > 0.12 * size)
+            .map(|l| [l.members[0].0, l.members[1].0])
+            .collect()
+    };
+    let finput = super::forward::ForwardInput {
+        skel,
+        topo: &topo,
+        pos: &pos,
+        samples: &posture.samples,
+        up,
+        fwd0,
+        size,
+        ground,
+        hext,
+        legs: pairs(true),
+        arms: pairs(false),
+    };
+    let vote = super::forward::vote(&finput, path0.first().copied().zip(path0.last().copied()));
+    let cue = vote.total();
     let mut sign = if cue < 0.0 { -1.0 } else { 1.0 };
     // Names break ties and overrule geometry when they agree strongly.
     let (mut agree, mut disagree) = (0usize, 0usize);
@@ -278,8 +284,16 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     } else {
         None
     };
-    if let Some(s) = name_sign {
-        sign = s;
+    // Geometry wins when it is clear; names only break a tie it cannot.
+    let mut warnings = Vec::new();
+    match name_sign {
+        Some(s) if cue.abs() < GEOMETRY_CLEAR => sign = s,
+        Some(s) if s != sign => warnings.push(format!(
+            "names mark the sides the other way round from the geometry (forward vote {cue:.2}: \
+             feet {:.2}, bends {:.2}, thumbs {:.2}); the geometry's sides are used",
+            vote.feet, vote.bends, vote.thumbs
+        )),
+        _ => {}
     }
     let forward = fwd0 * sign;
     let left = up.cross(forward).normalize_or_zero();
@@ -553,6 +567,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             );
         }
     }
+    attach_detached(&ctx, &body, &mut roles);
     // Everything not placed yet: helpers, with the side of where they hang.
     for i in 0..n {
         if roles[i].role == Role::Unknown {
@@ -583,6 +598,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         left,
         positions: pos,
         used_pose,
+        posture_frame: posture.frame,
         size,
         lengths: topo.length.clone(),
         sections,
@@ -590,6 +606,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         names,
         humanoid: humanoid_legs == 1 && humanoid_arms == 1,
         main_child,
+        warnings,
     }
 }
 
@@ -1209,5 +1226,36 @@ fn leaf_is_skull_top(
         Some(false)
     } else {
         None
+    }
+}
+
+/// Detached bones that continue a limb ending without its extremity (an IK foot under the
+/// root at the end of a shin) take the extremity's role; carriers and other controls stay
+/// helpers.
+fn attach_detached(ctx: &Ctx<'_>, body: &super::detached::BodyRoot, roles: &mut [BoneRole]) {
+    let open_ends: Vec<BoneId> = ctx
+        .skel
+        .bone_ids()
+        .filter(|&b| ctx.is_leaf(b) && matches!(roles[b.index()].role, Role::LowerLeg | Role::LowerArm))
+        .collect();
+    for b in ctx.skel.bone_ids() {
+        if !ctx.detached[b.index()] || ctx.skel.parent(b).is_some_and(|p| ctx.detached[p.index()]) {
+            continue;
+        }
+        let Some(l) = super::detached::continuation(ctx.skel, ctx.pos, b, &open_ends) else {
+            continue;
+        };
+        let lr = roles[l.index()];
+        let role = if lr.role == Role::LowerLeg { Role::Foot } else { Role::Hand };
+        roles[b.index()] = BoneRole {
+            role,
+            position: 1.0,
+            confidence: lr.confidence * 0.8,
+            ..lr
+        };
+    }
+    for &c in &body.carriers {
+        roles[c.index()].role = Role::Helper;
+        roles[c.index()].confidence = 0.5;
     }
 }

@@ -74,12 +74,10 @@ fn cache_dir(args: &MapArgs) -> Option<PathBuf> {
     std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/rigcast/mappings"))
 }
 
-/// Representative frame for skeletons whose rest pose is degenerate: the middle frame.
+/// The skeleton with its animation: the analysis takes its posture from the motion when the
+/// rest pose is not one.
 fn view(clip: &Clip) -> SkeletonView<'_> {
-    SkeletonView {
-        skeleton: &clip.skeleton,
-        pose: clip.poses.get(clip.poses.len() / 2),
-    }
+    SkeletonView::from_clip(&clip.skeleton, &clip.poses)
 }
 
 /// A VRM file's humanoid map (human bone name → bone name): ground truth for its roles.

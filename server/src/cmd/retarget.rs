@@ -162,22 +162,13 @@ pub fn plan_mapping_with_truth(
         }
         None => None,
     };
-    let representative = |c: &Clip| c.poses.get(c.poses.len() / 2).cloned();
-    let src_pose = representative(source);
-    let tgt_pose = representative(target);
     let (ss, ts) = (&*source.skeleton, &*target.skeleton);
     let sa = analyze_with_truth(
-        &SkeletonView {
-            skeleton: ss,
-            pose: src_pose.as_ref(),
-        },
+        &SkeletonView::from_clip(ss, &source.poses),
         truth.0,
     );
     let ta = analyze_with_truth(
-        &SkeletonView {
-            skeleton: ts,
-            pose: tgt_pose.as_ref(),
-        },
+        &SkeletonView::from_clip(ts, &target.poses),
         truth.1,
     );
     let mut table = map_analyzed(&[(ss, &sa)], (ts, &ta), &MapOptions::default());
@@ -186,8 +177,8 @@ pub fn plan_mapping_with_truth(
     }
     Ok(MappingPlan {
         table,
-        source_reference: src_pose.filter(|_| sa.used_pose),
-        target_reference: tgt_pose.filter(|_| ta.used_pose),
+        source_reference: sa.posture_pose(&source.poses),
+        target_reference: ta.posture_pose(&target.poses),
     })
 }
 
