@@ -94,3 +94,25 @@ pub(crate) fn continuation(
     }
     best.map(|(_, l)| l)
 }
+
+/// Per bone: the top-level detached bone that continues it, for the body's leaves.
+pub(crate) fn extensions(skel: &Skeleton, pos: &[Vec3], body: &BodyRoot) -> Vec<Option<BoneId>> {
+    let mut out = vec![None; skel.num_bones()];
+    let leaves: Vec<BoneId> = skel
+        .bone_ids()
+        .filter(|&b| !body.detached[b.index()] && skel.children(b).is_empty())
+        .collect();
+    for b in skel.bone_ids() {
+        let top = body.detached[b.index()]
+            && !skel.parent(b).is_some_and(|p| body.detached[p.index()]);
+        if !top {
+            continue;
+        }
+        if let Some(l) = continuation(skel, pos, b, &leaves) {
+            if out[l.index()].is_none() {
+                out[l.index()] = Some(b);
+            }
+        }
+    }
+    out
+}

@@ -52,7 +52,8 @@ pub(crate) fn fit_chain(
                 // A chain ending in a lone leaf at the lower segment (glTF rigs without hands or
                 // feet): the leaf's length is unknown, not zero. Assume the expected ratio,
                 // at a price, so that the upper segment is still found.
-                if lower <= 1e-6 && e == m && b == m - 1 && upper > 1e-6 {
+                let lone = if ratio < 1.1 { a == 0 } else { a <= 1 };
+                if lower <= 1e-6 && e == m && b == m - 1 && b == a + 1 && lone && upper > 1e-6 {
                     lower = upper / ratio;
                     cost += 0.4;
                 }

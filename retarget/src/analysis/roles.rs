@@ -29,6 +29,8 @@ enum LimbKind {
 
 struct Ctx<'a> {
     skel: &'a Skeleton,
+    /// Per leaf: the detached bone continuing it (an IK foot at the end of a shin).
+    extension: &'a [Option<BoneId>],
     /// Control bones beside the body (see `detached`).
     detached: &'a [bool],
     pos: &'a [Vec3],
@@ -133,6 +135,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let names: Vec<NameInfo> = skel.names().iter().map(|s| names::normalize(s)).collect();
     let topo = Topology::build(skel, &pos);
     let body = super::detached::find(skel, &topo);
+    let extension = super::detached::extensions(skel, &pos, &body);
     let (lo, hi) = pos.iter().fold(
         (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
@@ -157,6 +160,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     }
     let ctx = Ctx {
         skel,
+        extension: &extension,
         detached: &body.detached,
         pos: &pos,
         topo: &topo,
@@ -332,8 +336,16 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             }
         }
     }
+    // Arms are limbs of a size with the legs: eyes and ears on a long-faced rig are not.
+    let leg_reach = limbs
+        .iter()
+        .zip(&kinds)
+        .filter(|(_, k)| **k == LimbKind::Leg)
+        .map(|(l, _)| l.reach)
+        .fold(0.0f32, f32::max);
     let arm_cands: Vec<usize> = (0..limbs.len())
         .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
+        .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
         .collect();
     let min_reach = arm_cands
         .iter()
@@ -647,9 +659,13 @@ fn limb_roles(
         .enumerate()
         .skip(2)
         .find(|(_, &b)| ctx.significant_children(b).len() >= 2)
-        .map(|(i, _)| i);
+        .map(|(i, _)| i)
+        .map(|i| if palms_below(ctx, &chain, i) { i + 1 } else { i });
     let is_leg = kind == LimbKind::Leg;
     let ratio = if is_leg { 1.05 } else { 1.12 };
+    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+        eprintln!("limb {:?} {:?} chain {:?} len {:?} fixed {:?}", kind as u8, side, chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(), lengths, fixed);
+    }
     let (limb_kind, ext_kind) = match kind {
         LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
         LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
@@ -998,6 +1014,9 @@ fn make_limb(
         height += ctx.h(m);
         for b in ctx.subtree(m) {
             low = low.min(ctx.h(b));
+            if let Some(x) = ctx.extension[b.index()] {
+                low = low.min(ctx.h(x));
+            }
         }
     }
     let k = members.len().max(1) as f32;
@@ -1233,20 +1252,14 @@ fn leaf_is_skull_top(
 /// root at the end of a shin) take the extremity's role; carriers and other controls stay
 /// helpers.
 fn attach_detached(ctx: &Ctx<'_>, body: &super::detached::BodyRoot, roles: &mut [BoneRole]) {
-    let open_ends: Vec<BoneId> = ctx
-        .skel
-        .bone_ids()
-        .filter(|&b| ctx.is_leaf(b) && matches!(roles[b.index()].role, Role::LowerLeg | Role::LowerArm))
-        .collect();
-    for b in ctx.skel.bone_ids() {
-        if !ctx.detached[b.index()] || ctx.skel.parent(b).is_some_and(|p| ctx.detached[p.index()]) {
-            continue;
-        }
-        let Some(l) = super::detached::continuation(ctx.skel, ctx.pos, b, &open_ends) else {
-            continue;
-        };
+    for l in ctx.skel.bone_ids() {
+        let Some(b) = ctx.extension[l.index()] else { continue };
         let lr = roles[l.index()];
-        let role = if lr.role == Role::LowerLeg { Role::Foot } else { Role::Hand };
+        let role = match lr.role {
+            Role::LowerLeg => Role::Foot,
+            Role::LowerArm => Role::Hand,
+            _ => continue,
+        };
         roles[b.index()] = BoneRole {
             role,
             position: 1.0,
@@ -1258,4 +1271,25 @@ fn attach_detached(ctx: &Ctx<'_>, body: &super::detached::BodyRoot, roles: &mut 
         roles[c.index()].role = Role::Helper;
         roles[c.index()].confidence = 0.5;
     }
+}
+
+/// Whether the branch at `chain[i]` is a forearm carrying several palm bones that all start
+/// at one wrist point away from it (RobotExpressive-style `Palm1..3`): then the hand is the
+/// palm on the chain, not the branching bone.
+fn palms_below(ctx: &Ctx<'_>, chain: &[BoneId], i: usize) -> bool {
+    let b = chain[i];
+    let Some(&next) = chain.get(i + 1) else {
+        return false;
+    };
+    let kids = ctx.significant_children(b);
+    let at = ctx.pos[next.index()];
+    let reach = (at - ctx.pos[b.index()]).length();
+    let prev = (ctx.pos[b.index()] - ctx.pos[chain[i - 1].index()]).length();
+    let together = kids
+        .iter()
+        .filter(|k| (ctx.pos[k.index()] - at).length() < 0.05 * reach)
+        .count();
+    // A forearm-long reach: a hand's own finger helpers (MakeHuman's `__Index1`) also start
+    // at one point, but a hand's length from the wrist.
+    together >= 2 && reach > 0.9 * prev
 }
