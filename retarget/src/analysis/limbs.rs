@@ -60,7 +60,10 @@ pub(crate) fn fit_chain(
                 if upper <= 1e-6 || lower <= 1e-6 {
                     continue;
                 }
-                cost += 4.0 * ((upper / lower).ln() - ratio.ln()).powi(2);
+                // Saturating: robots and cartoons have wild proportions, and past a point
+                // the bends and the clavicle's size must still be able to decide.
+                let d2 = ((upper / lower).ln() - ratio.ln()).powi(2);
+                cost += 4.0 * d2 / (1.0 + 2.0 * d2);
                 // Extra bones in a group (segments / twist bones) are allowed but not free.
                 cost += 0.12 * ((b - a - 1) + (e - b - 1)) as f32;
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
@@ -75,7 +78,9 @@ pub(crate) fn fit_chain(
                 };
                 cost += (a + 1..b).chain(b + 1..e).filter(|&i| bent(i)).count() as f32;
                 if a > 0 {
-                    let pre: f32 = lengths[..a].iter().sum();
+                    // The clavicle is the last bone before the upper arm; helpers before it
+                    // (MakeHuman's `__Clavicle`) do not make it longer.
+                    let pre: f32 = lengths[a - 1];
                     // A clavicle is shorter than the upper segment; legs rarely have one.
                     let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
                     cost += k * (pre / upper - limit).max(0.0);

@@ -202,7 +202,10 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
                 .subtree(c)
                 .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
                 .fold(0.0, f32::max);
-            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size {
+            // A side limb's joints lie clearly to one side for its length; a neck that leans
+            // a centimetre off a 3 m robot's midline does not.
+            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
+            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size && off.abs() > 0.04 * extent {
                 if off > 0.0 {
                     plus.push(c);
                 } else {
@@ -440,8 +443,15 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         );
         spine_sec = Some(si);
         let conf = if leg_k.is_some() { 0.9 } else { 0.4 };
-        set(&mut roles, spine[0], Role::Hips, conf);
-        let body = &spine[1..];
+        // Legs on a branch of their own beside the spine (MakeHuman: `Root` carries the spine,
+        // a child `Hips` only the legs): the pelvis is their common parent.
+        let legs_beside = spine.len() > 2 && skel.parent(spine[0]) == Some(spine[1]);
+        let hips_at = usize::from(legs_beside);
+        if legs_beside {
+            set(&mut roles, spine[0], Role::Helper, conf);
+        }
+        set(&mut roles, spine[hips_at], Role::Hips, conf);
+        let body = &spine[hips_at + 1..];
         for (j, &b) in body.iter().enumerate() {
             let role = if j == 0 {
                 Role::Spine
