@@ -143,7 +143,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let size = (hi - lo).max_element().max(1e-3);
 
     // 1. Lateral axis from mirror twins (order-free shape hashes), up checked against legs.
-    let (lateral, shallow_pair) = lateral_from_twins(skel, &topo);
+    let (lateral, shallow_pair) = lateral_from_twins(skel, &topo, &pos, &body.detached);
     let mut up = Vec3::Y;
     if let Some((p, a, b)) = shallow_pair {
         let ends = |x: BoneId| pos[topo.chain(x).last().copied().unwrap_or(x).index()];
@@ -226,6 +226,13 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         }
         for c in plus.into_iter().chain(minus) {
             let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
+            // Without a mirror twin, only a chain far to one side is a limb; a head that
+            // sits a little off the midline continues the body.
+            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
+            if off.abs() < 0.15 * extent {
+                central[c.index()] = true;
+                continue;
+            }
             let s = if off > 0.0 { Side::Left } else { Side::Right };
             limbs.push(make_limb(&ctx, p, vec![(c, s)], ground, hext));
         }
@@ -322,6 +329,12 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         }
     }
     let k_of = |b: BoneId| path.iter().position(|&x| x == b);
+    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+        eprintln!("path {:?}", path.iter().map(|b| skel.name(*b)).collect::<Vec<_>>());
+        for l in &limbs {
+            eprintln!("limb at {} members {:?} reach {} ground {}", skel.name(l.parent), l.members.iter().map(|m| skel.name(m.0)).collect::<Vec<_>>(), l.reach, l.ground);
+        }
+    }
 
     // 5. Classify limbs.
     let mut kinds = vec![LimbKind::Appendage; limbs.len()];
@@ -446,8 +459,13 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         // Legs on a branch of their own beside the spine (MakeHuman: `Root` carries the spine,
         // a child `Hips` only the legs): the pelvis is their common parent.
         let legs_beside = spine.len() > 2 && skel.parent(spine[0]) == Some(spine[1]);
-        let hips_at = usize::from(legs_beside);
-        if legs_beside {
+        // A first "spine" segment that points down is still the pelvis (a hip bone hung below
+        // the leg joint, RobotExpressive's `Body` → `Hips`).
+        let drops = spine.len() > 3
+            && (pos[spine[1].index()] - pos[spine[0].index()]).dot(up)
+                < -0.01 * (pos[spine[2].index()] - pos[spine[1].index()]).length();
+        let hips_at = usize::from(legs_beside || drops);
+        if hips_at == 1 {
             set(&mut roles, spine[0], Role::Helper, conf);
         }
         set(&mut roles, spine[hips_at], Role::Hips, conf);
@@ -906,7 +924,10 @@ fn forward_hint(_roles: &[BoneRole], ctx: &Ctx<'_>) -> Vec3 {
 fn lateral_from_twins(
     skel: &Skeleton,
     topo: &Topology,
+    pos: &[Vec3],
+    detached: &[bool],
 ) -> (Vec3, Option<(BoneId, BoneId, BoneId)>) {
+    let size = topo.reach.iter().copied().fold(0.0f32, f32::max).max(1e-6);
     let mut pairs: Vec<(f32, Vec3, usize, BoneId, BoneId, BoneId)> = Vec::new();
     for p in skel.bone_ids() {
         let ch = skel.children(p);
@@ -923,7 +944,17 @@ fn lateral_from_twins(
                 if same != 2 {
                     continue;
                 }
-                let v = topo.centroid[a.index()] - topo.centroid[b.index()];
+                if detached[a.index()] || detached[b.index()] {
+                    continue;
+                }
+                // The twins' own joints are mirror images even when the rest pose is not
+                // (one arm raised): use them, unless they coincide (CMU's hip helpers).
+                let joints = pos[a.index()] - pos[b.index()];
+                let v = if joints.length() > 0.02 * size {
+                    joints
+                } else {
+                    topo.centroid[a.index()] - topo.centroid[b.index()]
+                };
                 let w = v.length() * topo.size[a.index()] as f32;
                 if w > 0.0 {
                     pairs.push((w, v, skel.depth(p), p, a, b));
@@ -1177,14 +1208,15 @@ fn head_index(
     if nm.helper || nm.tokens.iter().any(|t| t == "top") {
         return last - 1;
     }
+    // A bone named as the head is the head, however long the neck before it (the Fox) or
+    // however big the head (cartoon robots).
+    if nm.tokens.iter().any(|t| t == "head") {
+        return last;
+    }
     // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
     // the names (anonymised skeletons included).
     if let Some(top) = leaf_is_skull_top(ctx, head, limbs, kinds) {
         return if top { last - 1 } else { last };
-    }
-    // A bone named as the head is the head, however long the neck before it (the Fox).
-    if nm.tokens.iter().any(|t| t == "head") {
-        return last;
     }
     // Exporters that write end joints (BVH End Sites, Mixamo `_End`) write them everywhere:
     // if the toes have one, so has the head.
