@@ -65,7 +65,9 @@ pub(crate) fn fit_chain(
                 let d2 = ((upper / lower).ln() - ratio.ln()).powi(2);
                 cost += 4.0 * d2 / (1.0 + 2.0 * d2);
                 // Extra bones in a group (segments / twist bones) are allowed but not free.
-                cost += 0.12 * ((b - a - 1) + (e - b - 1)) as f32;
+                // Dearer than a long hand (Xsens measures the hand to the fingertips, ≈0.75
+                // of the forearm), so a hand is not folded into the forearm to shorten it.
+                cost += 0.2 * ((b - a - 1) + (e - b - 1)) as f32;
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
                 let bent = |i: usize| {
                     let (d0, d1) = (dirs.get(i - 1), dirs.get(i));
@@ -81,6 +83,10 @@ pub(crate) fn fit_chain(
                     // The clavicle is the last bone before the upper arm; helpers before it
                     // (MakeHuman's `__Clavicle`) do not make it longer.
                     let pre: f32 = lengths[a - 1];
+                    // ...but a long bone before it is a limb segment, not a helper.
+                    for &l in &lengths[..a - 1] {
+                        cost += 4.0 * (l / upper - 0.5).max(0.0);
+                    }
                     // A clavicle is shorter than the upper segment; legs rarely have one.
                     let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
                     cost += k * (pre / upper - limit).max(0.0);
@@ -88,9 +94,7 @@ pub(crate) fn fit_chain(
                 }
                 if e < m {
                     let ext = lengths[e];
-                    // A hand measured to the fingertips is ≈0.75 of the forearm (Xsens writes
-                    // it so); only a longer "extremity" is a sign of a misplaced split.
-                    cost += 2.0 * (ext / lower - 0.85).max(0.0);
+                    cost += 2.0 * (ext / lower - 0.6).max(0.0);
                     let rest: f32 = lengths[e..].iter().sum();
                     cost += 2.0 * (rest / (upper + lower) - 0.7).max(0.0);
                 } else {

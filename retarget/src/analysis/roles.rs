@@ -1333,5 +1333,5 @@ fn palms_below(ctx: &Ctx<'_>, chain: &[BoneId], i: usize) -> bool {
         .count();
     // A forearm-long reach: a hand's own finger helpers (MakeHuman's `__Index1`) also start
     // at one point, but a hand's length from the wrist.
-    together >= 2 && reach > 0.9 * prev
+    together >= 2 && reach > 1.5 * prev
 }
