@@ -356,3 +356,66 @@ fn dump_rig() {
         }
     }
 }
+
+/// The source roles that may drive a quadruped's role: hind legs from legs, front legs from
+/// the same side's arms (or legs).
+fn quad_sources(role: &str) -> Vec<String> {
+    let (base, side) = match role.rsplit_once('.') {
+        Some((b, s)) => (b, format!(".{s}")),
+        None => (role, String::new()),
+    };
+    let from: &[&str] = match base {
+        "frontShoulder" => &["shoulder"],
+        "frontUpper" => &["upperArm", "upperLeg"],
+        "frontLower" => &["lowerArm", "lowerLeg"],
+        "frontFoot" => &["hand", "foot"],
+        other => return vec![format!("{other}{side}")],
+    };
+    from.iter().map(|f| format!("{f}{side}")).collect()
+}
+
+#[test]
+fn human_to_quadruped_legs() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    let quads: Vec<&Rig> = rigs.iter().filter(|r| r.kind == "quadruped").collect();
+    let mut all = Score::default();
+    for tgt in &quads {
+        let mut sc = Score::default();
+        let mut fails = Vec::new();
+        for src in &hs {
+            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let (ss, ts) = (&src.clip.skeleton, &tgt.clip.skeleton);
+            for role in expand(QUAD_LEGS, &tgt.roles) {
+                let accept: Vec<&String> =
+                    quad_sources(&role).iter().filter_map(|r| src.roles.get(r)).flatten().collect();
+                if accept.is_empty() {
+                    continue;
+                }
+                let tb = ts.bone(&tgt.roles[&role][0]).unwrap();
+                let d = table.entries[tb.index()].as_ref().map(|e| ss.name(e.sources[0].bone));
+                sc.total += 1;
+                if d.is_some_and(|d| accept.iter().any(|a| *a == d)) {
+                    sc.right += 1;
+                    continue;
+                }
+                let other: Vec<&String> = other_side(&role)
+                    .map(|o| quad_sources(&o).iter().filter_map(|r| src.roles.get(r)).flatten().collect())
+                    .unwrap_or_default();
+                if d.is_some_and(|d| other.iter().any(|a| *a == d)) {
+                    sc.swaps += 1;
+                }
+                fails.push(format!("{} -> {}: {role} <- {}", short(&src.key), short(&tgt.key), d.unwrap_or("-")));
+            }
+        }
+        println!("{:<36} {:>6.1}% ({} swaps)", short(&tgt.key), sc.pct(), sc.swaps);
+        for f in fails.iter().take(12) {
+            println!("  {f}");
+        }
+        all.add(sc);
+    }
+    println!("ALL quadruped legs: {:.1}% ({} swaps)", all.pct(), all.swaps);
+    assert_eq!(all.swaps, 0, "left/right swaps");
+    assert!(all.pct() >= 100.0 - 1e-9, "quadruped leg roles: {:.1}%", all.pct());
+}

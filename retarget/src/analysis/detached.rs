@@ -37,7 +37,18 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
     let n = skel.num_bones();
     let mut detached = vec![false; n];
     let mut carriers = Vec::new();
-    let mut b = skel.roots().next().unwrap_or(BoneId(0));
+    // Several roots: the body is the largest tree; the others are controls (Quaternius'
+    // IK feet are roots of their own).
+    let mut b = skel
+        .roots()
+        .max_by_key(|r| (topo.size[r.index()], std::cmp::Reverse(r.index())))
+        .unwrap_or(BoneId(0));
+    for r in skel.roots().filter(|&r| r != b) {
+        let s = r.index();
+        for d in detached.iter_mut().skip(s).take(topo.size[s]) {
+            *d = true;
+        }
+    }
     loop {
         let ch = skel.children(b);
         let big: Vec<BoneId> = ch.iter().copied().filter(|c| topo.size[c.index()] > SMALL).collect();
@@ -66,7 +77,8 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
 }
 
 /// For a detached bone, the limb leaf it continues: the leaf `l` whose segment from its parent,
-/// prolonged, reaches the bone (angle under ~35°, distance 0.3–2.5 segment lengths).
+/// prolonged, reaches the bone (angle under 60°: a hock or wrist may bend; distance 0.3–2.5
+/// segment lengths).
 pub(crate) fn continuation(
     skel: &Skeleton,
     pos: &[Vec3],
@@ -84,7 +96,7 @@ pub(crate) fn continuation(
             continue;
         }
         let cos = seg.dot(to) / (ls * lt);
-        if cos < 0.82 {
+        if cos < 0.5 {
             continue;
         }
         let cost = 1.0 - cos;
