@@ -77,8 +77,8 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
 }
 
 /// For a detached bone, the limb leaf it continues: the leaf `l` whose segment from its parent,
-/// prolonged, reaches the bone (angle under 60°: a hock or wrist may bend; distance 0.3–2.5
-/// segment lengths).
+/// prolonged, reaches the bone: onwards from the leaf (under 90°: a hock or wrist may bend
+/// sharply), 0.3–3 segment lengths away; the nearest in direction wins.
 pub(crate) fn continuation(
     skel: &Skeleton,
     pos: &[Vec3],
@@ -92,11 +92,12 @@ pub(crate) fn continuation(
         let seg = pos[l.index()] - pos[p.index()];
         let to = pb - pos[l.index()];
         let (ls, lt) = (seg.length(), to.length());
-        if ls < 1e-6 || !(0.3 * ls..=2.5 * ls).contains(&lt) {
+        if ls < 1e-6 || !(0.3 * ls..=3.0 * ls).contains(&lt) {
             continue;
         }
+        // Onwards from the leaf, not back along the limb (a hock or wrist may bend sharply).
         let cos = seg.dot(to) / (ls * lt);
-        if cos < 0.5 {
+        if cos < 0.0 || (pb - pos[p.index()]).length() <= ls {
             continue;
         }
         let cost = 1.0 - cos;
