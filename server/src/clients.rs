@@ -82,6 +82,8 @@ where
         .await?;
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
+    // Frame version; version 1 until the client asks for another (`set_protocol`).
+    let mut version = rigcast_protocol::PROTOCOL_VERSION;
     let mut pending_missed: u64 = 0;
     let mut shutdown = state.shutdown.clone();
     loop {
@@ -105,7 +107,7 @@ where
                 let Some(incoming) = incoming else { return Ok(()) };
                 let reply = match incoming {
                     Ok(Message::Text(text)) => {
-                        handle_text(text.as_str(), state, &mut subscribed)
+                        handle_text(text.as_str(), state, &mut subscribed, &mut version)
                     }
                     Ok(Message::Binary(b)) => Some(ServerMessage::error(
                         ErrorCode::BinaryNotAccepted,
@@ -128,14 +130,18 @@ where
                                 continue;
                             }
                         }
+                        let bytes = frame.version(version);
+                        if bytes.is_empty() {
+                            continue; // no frame of this version this tick
+                        }
                         let bytes = if pending_missed > 0 {
                             // Personalise the shared frame: only after a lag, so rare.
-                            let mut own = frame.bytes.to_vec();
+                            let mut own = bytes.to_vec();
                             set_missed_frames(&mut own, pending_missed.min(u32::MAX as u64) as u32);
                             pending_missed = 0;
                             Bytes::from(own)
                         } else {
-                            frame.bytes
+                            bytes
                         };
                         sink.send(Message::Binary(bytes)).await?;
                         stats.frames_sent.fetch_add(1, Ordering::Relaxed);
@@ -157,6 +163,7 @@ fn handle_text(
     text: &str,
     state: &ServerState,
     subscribed: &mut Option<HashSet<u32>>,
+    version: &mut u16,
 ) -> Option<ServerMessage> {
     if text.len() > MAX_CLIENT_MESSAGE_BYTES {
         return Some(ServerMessage::error(
@@ -176,6 +183,20 @@ fn handle_text(
             nonce,
             server_nanos: unix_nanos(),
         }),
+        ClientMessage::SetProtocol { version: wanted } => {
+            Some(if rigcast_protocol::PROTOCOL_VERSIONS.contains(&wanted) {
+                *version = wanted;
+                ServerMessage::Protocol { version: wanted }
+            } else {
+                ServerMessage::error(
+                    ErrorCode::Unsupported,
+                    format!(
+                        "protocol version {wanted} is not supported; this server speaks {:?}",
+                        rigcast_protocol::PROTOCOL_VERSIONS
+                    ),
+                )
+            })
+        }
         ClientMessage::Subscribe { subjects: None } => {
             *subscribed = None;
             None

@@ -205,13 +205,9 @@ impl Mapper {
                 mapping.set_source_floor_y(floor);
             }
         }
-        let aligned_rest = mapping.aligned_rest_pose();
         let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options);
         if let Ok(mut slot) = p.mailbox.lock() {
-            *slot = Some(BuiltMapping {
-                mapping,
-                aligned_rest,
-            });
+            *slot = Some(BuiltMapping { mapping });
         }
         if let Ok(mut m) = p.target.mapping_json.write() {
             *m = Some(json.clone());

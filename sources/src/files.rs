@@ -73,7 +73,13 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
                     sample_fps: opts.sample_fps,
                 },
             )
-            .map(|r| r.clip)
+            .map(|r| {
+                // One line per skipped part; the file still loads.
+                for w in &r.warnings {
+                    eprintln!("warning: {}: {w}", path.display());
+                }
+                r.clip
+            })
         }
         "rcr" => {
             let bytes = read_file(path)?;

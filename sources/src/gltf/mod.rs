@@ -9,6 +9,7 @@
 
 mod read;
 mod sample;
+mod tolerate;
 mod vrm;
 mod write;
 
@@ -16,6 +17,7 @@ pub use read::{
     read_gltf, AnimationInfo, GltfRead, GltfReadOptions, SkeletonOrigin, DEFAULT_SAMPLE_FPS,
 };
 pub use sample::{Interpolation, Track};
+pub use tolerate::{MAX_ERROR_CHARS, MESH_ONLY_EXTENSIONS};
 pub use vrm::VrmVersion;
 pub use write::write_glb;
 

@@ -18,6 +18,7 @@ use glam::{Quat, Vec3, Vec4};
 use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
 
 use super::sample::{Interpolation, Track};
+use super::tolerate::{skip_undecodable_mesh_data, summarise_validation};
 use super::vrm::{vrm_human_bones, VrmVersion};
 use crate::error::SourceError;
 
@@ -66,12 +67,45 @@ pub struct GltfRead {
     pub origin: SkeletonOrigin,
     /// VRM humanoid role (e.g. `"leftUpperArm"`) → bone name, when the file is a VRM.
     pub vrm_roles: Option<BTreeMap<String, String>>,
+    /// What was skipped to read the file (mesh data in extensions the reader cannot decode).
+    pub warnings: Vec<String>,
 }
 
 fn gltf_err(e: ::gltf::Error) -> SourceError {
-    SourceError::Gltf {
-        message: e.to_string(),
-    }
+    let message = match e {
+        ::gltf::Error::Validation(errors) => summarise_validation(
+            &errors
+                .iter()
+                .map(|(path, error)| (path.to_string(), error.to_string()))
+                .collect::<Vec<_>>(),
+        ),
+        other => other.to_string(),
+    };
+    SourceError::Gltf { message }
+}
+
+/// The document and GLB binary chunk, with mesh-only extensions the reader cannot decode
+/// skipped (see [`super::tolerate`]); the warning says what was skipped.
+fn parse_tolerantly(
+    bytes: &[u8],
+) -> Result<(Document, Option<Vec<u8>>, Option<String>), SourceError> {
+    let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
+        let glb = ::gltf::binary::Glb::from_slice(bytes).map_err(gltf_err)?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (bytes.to_vec(), None)
+    };
+    let mut value: serde_json::Value =
+        serde_json::from_slice(&json_bytes).map_err(|e| SourceError::Gltf {
+            message: format!("invalid glTF JSON: {e}"),
+        })?;
+    let warning = skip_undecodable_mesh_data(&mut value);
+    let root: ::gltf::json::Root =
+        serde_json::from_value(value).map_err(|e| SourceError::Gltf {
+            message: format!("invalid glTF JSON: {e}"),
+        })?;
+    let document = Document::from_json(root).map_err(gltf_err)?;
+    Ok((document, blob, warning))
 }
 
 /// A node's local transform as (translation, rotation, uniform scale).
@@ -114,11 +148,12 @@ pub fn read_gltf(
     name: &str,
     opts: &GltfReadOptions,
 ) -> Result<GltfRead, SourceError> {
-    let g = ::gltf::Gltf::from_slice(bytes).map_err(gltf_err)?;
-    let ::gltf::Gltf { document, blob } = g;
+    let (document, blob, warning) = parse_tolerantly(bytes)?;
     let buffers = ::gltf::import_buffers(&document, base_dir, blob).map_err(gltf_err)?;
     let buffers: Vec<&[u8]> = buffers.iter().map(|b| &b.0[..]).collect();
-    read_document(&document, &buffers, name, opts)
+    let mut read = read_document(&document, &buffers, name, opts)?;
+    read.warnings.extend(warning);
+    Ok(read)
 }
 
 /// The `gltf` crate's validation skips animation channel targets, and its accessors
@@ -303,6 +338,7 @@ fn read_document(
         num_joints: joints.len(),
         origin,
         vrm_roles,
+        warnings: Vec::new(),
     })
 }
 
