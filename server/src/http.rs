@@ -42,7 +42,10 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
     loop {
         tokio::select! {
             _ = shutdown.changed() => break,
-            accepted = listener.accept() => {
+            accepted = async {
+                state.connections.wait_for_room(ROOM_WAIT).await;
+                listener.accept().await
+            } => {
                 match accepted {
                     Ok((stream, peer)) => {
                         let _ = stream.set_nodelay(true);
@@ -50,9 +53,7 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
                             Admission::Admitted { permit, evicted } => {
                                 tokio::spawn(handle_connection(stream, peer.to_string(), state.clone(), permit, evicted));
                             }
-                            Admission::Full => {
-                                tokio::spawn(refuse_full(stream, state.connections.max()));
-                            }
+                            Admission::Full => refuse_full(stream, state.connections.max()),
                         }
                     }
                     Err(e) => {
@@ -69,14 +70,16 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
 /// How long a refusal may take to write before the socket is simply closed.
 const REFUSAL_TIMEOUT: Duration = Duration::from_secs(1);
 
-/// Answers a connection the cap has no room for, then closes it.
-async fn refuse_full(mut stream: TcpStream, max: usize) {
+/// Longest the listener waits for evicted connections to close before accepting more.
+const ROOM_WAIT: Duration = Duration::from_millis(250);
+
+/// Answers a connection the cap has no room for and closes it at once. A new socket's send
+/// buffer is empty, so the non-blocking write takes the short answer whole; nothing waits,
+/// and the descriptor is released before the next accept.
+fn refuse_full(stream: TcpStream, max: usize) {
     let body = format!("server full: {max} connections open; retry later\n");
-    let _ = tokio::time::timeout(
-        REFUSAL_TIMEOUT,
-        respond(&mut stream, 503, "text/plain", body.as_bytes()),
-    )
-    .await;
+    let _ = stream.try_write(head(503, "text/plain", body.len()).as_bytes());
+    let _ = stream.try_write(body.as_bytes());
 }
 
 /// A parsed request head.
@@ -310,6 +313,15 @@ async fn respond(
     mime: &str,
     body: &[u8],
 ) -> std::io::Result<()> {
+    stream
+        .write_all(head(status, mime, body.len()).as_bytes())
+        .await?;
+    stream.write_all(body).await?;
+    stream.shutdown().await
+}
+
+/// A response head (every response closes the connection).
+fn head(status: u16, mime: &str, body_len: usize) -> String {
     let reason = match status {
         200 => "OK",
         400 => "Bad Request",
@@ -322,13 +334,14 @@ async fn respond(
         431 => "Request Header Fields Too Large",
         _ => "Error",
     };
-    let head = format!(
-        "HTTP/1.1 {status} {reason}\r\nContent-Type: {mime}\r\nContent-Length: {}\r\nCache-Control: no-cache\r\nConnection: close\r\n\r\n",
-        body.len()
-    );
-    stream.write_all(head.as_bytes()).await?;
-    stream.write_all(body).await?;
-    stream.shutdown().await
+    let retry = if status == 503 {
+        "Retry-After: 1\r\n"
+    } else {
+        ""
+    };
+    format!(
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {mime}\r\nContent-Length: {body_len}\r\nCache-Control: no-cache\r\n{retry}Connection: close\r\n\r\n"
+    )
 }
 
 /// The web viewer's files (`clients/web/`), embedded at build time so `rigcast serve` needs

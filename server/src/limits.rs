@@ -9,6 +9,10 @@
 //!              full, none pending    → 503, closed
 //! ```
 //!
+//! Evicted connections close a moment later, on their own tasks. Past [`EVICTION_SLACK`]
+//! such connections in flight the listener waits for them ([`ConnectionLimiter::wait_for_room`])
+//! rather than accept more: new connections queue in the kernel's backlog meanwhile.
+//!
 //! The cap stays [`FD_RESERVE`] below the open-file limit, so `accept` itself never fails
 //! with "too many open files" and every refused client gets an answer.
 
@@ -16,13 +20,13 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use tokio::sync::oneshot;
+use tokio::sync::{oneshot, Notify};
 
 /// File descriptors kept free for everything that is not a client: listeners, UDP sockets,
 /// serial ports, ffmpeg pipes, the recording, mapping cache files, the runtime's own.
 pub const FD_RESERVE: u64 = 64;
 /// Connections over the cap that may be in flight while evicted ones close.
-const EVICTION_SLACK: usize = 16;
+pub const EVICTION_SLACK: usize = 16;
 /// The cap when the open-file limit is unknown or unlimited.
 const FALLBACK_MAX_CONNECTIONS: usize = 1024;
 
@@ -98,6 +102,8 @@ pub struct ConnectionLimiter {
     next_id: AtomicU64,
     /// Connections whose request head has not arrived yet, oldest first.
     pending: Mutex<BTreeMap<u64, oneshot::Sender<()>>>,
+    /// Signalled whenever a connection closes.
+    released: Notify,
 }
 
 /// The outcome of [`ConnectionLimiter::admit`].
@@ -131,7 +137,23 @@ impl ConnectionLimiter {
             evicted: AtomicU64::new(0),
             next_id: AtomicU64::new(0),
             pending: Mutex::new(BTreeMap::new()),
+            released: Notify::new(),
         })
+    }
+
+    /// Waits (at most `limit`) until fewer than the cap plus [`EVICTION_SLACK`] connections
+    /// are open, so that evicted connections finish closing before more are accepted.
+    pub async fn wait_for_room(&self, limit: std::time::Duration) {
+        let deadline = tokio::time::Instant::now() + limit;
+        loop {
+            let released = self.released.notified();
+            if self.open() < self.max + EVICTION_SLACK {
+                return;
+            }
+            if tokio::time::timeout_at(deadline, released).await.is_err() {
+                return;
+            }
+        }
     }
 
     /// The cap.
@@ -204,6 +226,7 @@ impl Drop for ConnectionPermit {
     fn drop(&mut self) {
         self.promote();
         self.limiter.open.fetch_sub(1, Ordering::Relaxed);
+        self.limiter.released.notify_one();
     }
 }
 
