@@ -25,7 +25,7 @@ fn fresh_config_home(name: &str) -> std::path::PathBuf {
 async fn raw_upgrade(addr: SocketAddr) -> Option<TcpStream> {
     let mut s = TcpStream::connect(addr).await.ok()?;
     s.write_all(
-        b"GET /v1/stream HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+        b"GET /v1/stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
           Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
     )
     .await
@@ -38,7 +38,8 @@ async fn raw_upgrade(addr: SocketAddr) -> Option<TcpStream> {
 }
 
 /// One attacker: a masked frame header announcing 16 MB, then up to 15 MiB of its payload in
-/// 64 KiB writes, as fast as the server takes them. Returns the bytes the server accepted.
+/// 64 KiB writes, as fast as the server takes them. Returns the bytes the server accepted and
+/// the socket (`None`: the upgrade itself failed, which would make the measurement void).
 async fn half_sent_frame(addr: SocketAddr) -> (u64, Option<TcpStream>) {
     let Some(mut s) = raw_upgrade(addr).await else {
         return (0, None);
@@ -101,6 +102,7 @@ async fn memory_stays_bounded_under_half_sent_huge_frames_and_returns() {
             accepted += sent;
             held.extend(socket);
         }
+        assert_eq!(held.len(), 40, "every attacker was upgraded and sent its frame header");
         // Hold the connections open for a moment, still sampling.
         for _ in 0..25 {
             peak = peak.max(server.rss_kib());
