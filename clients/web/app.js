@@ -347,7 +347,12 @@ function onFrame(frame) {
   stats.latencyMs = (nowNanos() - Number(frame.captureNanos)) / 1e6;
 }
 
-const stream = new Stream(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/v1/stream`, {
+// A page opened with ?token=… (the link `rigcast serve` and `rigcast token show` print) hands
+// the control token on to the stream: needed to change the server, and to stream at all from
+// a server listening beyond loopback.
+const pageToken = new URLSearchParams(location.search).get('token');
+const streamQuery = pageToken ? `?token=${encodeURIComponent(pageToken)}` : '';
+const stream = new Stream(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/v1/stream${streamQuery}`, {
   onOpen: () => { $('connection').textContent = 'connected'; $('connection').className = 'ok'; },
   onClose: () => { $('connection').textContent = 'disconnected — reconnecting'; $('connection').className = 'bad'; },
   onMessage,

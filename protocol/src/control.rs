@@ -118,6 +118,9 @@ pub enum ErrorCode {
     /// `calibrate` named a subject that is not a calibratable live source (only serial IMU
     /// suits are).
     NotCalibratable,
+    /// The message changes the server (`set_mapping`, `calibrate`) and this connection was
+    /// opened without the control token.
+    Unauthorized,
     /// Something went wrong on the server.
     Internal,
 }
@@ -135,6 +138,7 @@ impl ErrorCode {
             ErrorCode::UnknownSubject => "unknown_subject",
             ErrorCode::Unsupported => "unsupported",
             ErrorCode::NotCalibratable => "not_calibratable",
+            ErrorCode::Unauthorized => "unauthorized",
             ErrorCode::Internal => "internal",
         }
     }

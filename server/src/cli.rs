@@ -46,6 +46,8 @@ pub enum Command {
     Setup(cmd::setup::SetupArgs),
     /// Calibrate a running server's serial IMU suit: hold a T- or N-pose, capture offsets.
     Calibrate(cmd::calibrate::CalibrateArgs),
+    /// Show or rotate the control token (needed to change mappings or calibrate).
+    Token(cmd::token::TokenArgs),
 }
 
 impl Command {
@@ -62,6 +64,7 @@ impl Command {
             Command::Pose(a) => cmd::pose::run(&a),
             Command::Setup(a) => cmd::setup::run(&a),
             Command::Calibrate(a) => cmd::calibrate::run(a).await,
+            Command::Token(a) => cmd::token::run(&a),
         }
     }
 }

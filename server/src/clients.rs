@@ -7,79 +7,181 @@
 //! gets a `lagged` message and the next binary frame carries `missed_frames = n`.
 //!
 //! Mistakes: bad JSON, unknown types, bad fields, binary messages and oversize messages are
-//! answered with an `error` message; the connection stays open.
+//! answered with an `error` message; the connection stays open. A frame over the transport
+//! limit closes it (1009), refused on its header before its payload is buffered.
+//!
+//! Stalls: a client whose socket accepts nothing for the stall timeout (it never reads) is
+//! dropped; one that reads, however slowly, stays.
+//!
+//! Control messages: frames may be dropped for a lagging client, control messages may not.
+//! When the client's control queue (`events`) overflows, the queue is discarded and the
+//! client gets a fresh snapshot of the state those messages describe — `subjects_changed`,
+//! every `skeleton`, every `mapping`, `source_status` — before its next frame.
+//!
+//! Access: messages that change the server (`set_mapping`, `calibrate`) need a connection
+//! opened with the control token ([`Access::Control`]); others are answered `unauthorized`.
 
 use std::collections::HashSet;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
+use std::time::Duration;
 
+use futures_util::stream::SplitSink;
 use futures_util::{SinkExt, StreamExt};
 use rigcast_protocol::control::{parse_client_message, ClientMessage, ErrorCode};
 use rigcast_protocol::frame::set_missed_frames;
 use rigcast_protocol::ServerMessage;
 use tokio::io::{AsyncRead, AsyncWrite};
-use tokio::sync::broadcast::error::RecvError;
-use tokio::sync::mpsc;
+use tokio::sync::broadcast::error::{RecvError, TryRecvError};
+use tokio::sync::{broadcast, mpsc};
+use tokio_tungstenite::tungstenite::protocol::frame::coding::CloseCode;
+use tokio_tungstenite::tungstenite::protocol::CloseFrame;
 use tokio_tungstenite::tungstenite::{Bytes, Message};
 use tokio_tungstenite::WebSocketStream;
 
+use crate::access::Access;
 use crate::engine::{unix_nanos, EngineCommand};
 use crate::state::ServerState;
 use crate::stats::ClientStats;
 
-/// Largest client message the server reads (control messages are tiny). Larger messages up to
-/// the transport limit are answered with `message_too_large`; beyond it the WebSocket layer
-/// closes the connection.
-pub const MAX_CLIENT_MESSAGE_BYTES: usize = 64 * 1024;
-/// Transport limit given to tungstenite.
-pub const MAX_TRANSPORT_MESSAGE_BYTES: usize = 16 * 1024 * 1024;
+/// Largest client message the server interprets (control messages are small JSON). Larger
+/// ones up to the transport limit are answered with `message_too_large`.
+pub const MAX_CLIENT_MESSAGE_BYTES: usize = 32 * 1024;
+/// Transport limit given to tungstenite, per frame and per message: beyond it the connection
+/// is closed with 1009. Small, so that the connection cap times this stays modest memory.
+pub const MAX_TRANSPORT_MESSAGE_BYTES: usize = 64 * 1024;
 
-/// Serves one upgraded connection until it closes or the server shuts down.
-pub async fn serve_client<S>(ws: WebSocketStream<S>, state: Arc<ServerState>, peer: String)
+/// Why a session ended early (a clean end is `Ok`).
+enum End {
+    /// The client's socket accepted nothing for the stall timeout.
+    Stalled,
+    /// The WebSocket layer failed (protocol error, reset): nothing more to tell the client.
+    Transport,
+}
+
+type Sink<S> = SplitSink<WebSocketStream<S>, Message>;
+
+/// Sends one message, giving up after `stall`: a client that reads nothing at all must not
+/// hold its task (and its buffers) forever.
+async fn send<S>(sink: &mut Sink<S>, msg: Message, stall: Duration) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
+    match tokio::time::timeout(stall, sink.send(msg)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(_)) => Err(End::Transport),
+        Err(_) => Err(End::Stalled),
+    }
+}
+
+/// Serves one upgraded connection until it closes or the server shuts down.
+pub async fn serve_client<S>(
+    ws: WebSocketStream<S>,
+    state: Arc<ServerState>,
+    peer: String,
+    access: Access,
+) where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
     let client_id = state.next_client_id.fetch_add(1, Ordering::Relaxed);
-    let stats = Arc::new(ClientStats {
-        peer,
-        ..ClientStats::default()
-    });
+    let stats = Arc::new(ClientStats::new(peer, access));
     if let Ok(mut clients) = state.stats.clients.lock() {
         clients.insert(client_id, stats.clone());
     }
     // Subscribe before greeting so no frame or event published after `hello` is missed.
     let mut frames = state.frames.subscribe();
     let mut events = state.events.subscribe();
-    let _ = run(ws, &state, &stats, &mut frames, &mut events).await;
+    if let Err(End::Stalled) = run(ws, &state, &stats, &mut frames, &mut events).await {
+        state.stats.stalled_disconnects.fetch_add(1, Ordering::Relaxed);
+    }
     if let Ok(mut clients) = state.stats.clients.lock() {
         clients.remove(&client_id);
     }
+}
+
+/// The state that control messages describe, as those messages: every subject's skeleton,
+/// every built mapping, the sources' health. Sent on connect and after a control-queue lag.
+fn state_messages(state: &ServerState) -> Vec<String> {
+    let mut out: Vec<String> = state
+        .subjects
+        .iter()
+        .map(|s| s.shape().skeleton_json.clone())
+        .collect();
+    out.extend(
+        state
+            .subjects
+            .iter()
+            .filter_map(|s| s.mapping_json.read().ok().and_then(|m| m.clone())),
+    );
+    out.push(crate::source_status_json(&state.subjects));
+    out
+}
+
+/// After the control queue overflowed: drops what is left of it (all older than what is
+/// about to be read from the state) and sends the current state instead.
+async fn resync<S>(
+    sink: &mut Sink<S>,
+    events: &mut broadcast::Receiver<String>,
+    state: &ServerState,
+    stats: &ClientStats,
+) -> Result<(), End>
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    // Bounded: the queue holds at most its capacity, newer messages are dropped for a lag
+    // that the next recv reports (and resyncs) again.
+    for _ in 0..crate::EVENTS_CAPACITY * 2 {
+        match events.try_recv() {
+            Ok(_) | Err(TryRecvError::Lagged(_)) => {}
+            Err(TryRecvError::Empty | TryRecvError::Closed) => break,
+        }
+    }
+    stats.control_resyncs.fetch_add(1, Ordering::Relaxed);
+    state.stats.control_resyncs.fetch_add(1, Ordering::Relaxed);
+    let subjects = ServerMessage::SubjectsChanged {
+        subjects: state.subject_infos(),
+    }
+    .to_json();
+    let stall = state.stalled_client_timeout;
+    send(sink, Message::text(subjects), stall).await?;
+    for text in state_messages(state) {
+        send(sink, Message::text(text), stall).await?;
+    }
+    Ok(())
+}
+
+/// Tells a client why its connection ends (best effort: its socket may be full).
+async fn close_with<S>(sink: &mut Sink<S>, code: CloseCode, reason: &'static str)
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    let frame = CloseFrame {
+        code,
+        reason: reason.into(),
+    };
+    let _ = tokio::time::timeout(
+        Duration::from_secs(1),
+        sink.send(Message::Close(Some(frame))),
+    )
+    .await;
 }
 
 async fn run<S>(
     ws: WebSocketStream<S>,
     state: &ServerState,
     stats: &ClientStats,
-    frames: &mut tokio::sync::broadcast::Receiver<crate::engine::OutFrame>,
-    events: &mut tokio::sync::broadcast::Receiver<String>,
-) -> Result<(), tokio_tungstenite::tungstenite::Error>
+    frames: &mut broadcast::Receiver<crate::engine::OutFrame>,
+    events: &mut broadcast::Receiver<String>,
+) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
+    let stall = state.stalled_client_timeout;
     let (mut sink, mut stream) = ws.split();
-    sink.send(Message::text(state.hello_json())).await?;
-    for s in state.subjects.iter() {
-        sink.send(Message::text(s.shape().skeleton_json.clone()))
-            .await?;
+    send(&mut sink, Message::text(state.hello_json()), stall).await?;
+    for text in state_messages(state) {
+        send(&mut sink, Message::text(text), stall).await?;
     }
-    for s in state.subjects.iter() {
-        let mapping = s.mapping_json.read().ok().and_then(|m| m.clone());
-        if let Some(m) = mapping {
-            sink.send(Message::text(m)).await?;
-        }
-    }
-    sink.send(Message::text(crate::source_status_json(&state.subjects)))
-        .await?;
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
     // Frame version; version 1 until the client asks for another (`set_protocol`).
@@ -90,16 +192,14 @@ where
         tokio::select! {
             biased;
             _ = shutdown.changed() => {
-                let _ = sink.send(Message::Close(None)).await;
+                close_with(&mut sink, CloseCode::Away, "server shutting down").await;
                 return Ok(());
             }
             // Before frames, so a new skeleton arrives before frames that use it.
             event = events.recv() => {
                 match event {
-                    Ok(text) => sink.send(Message::text(text)).await?,
-                    // Control messages are small and rare; a client this far behind will
-                    // also lag on frames and be told so there.
-                    Err(RecvError::Lagged(_)) => {}
+                    Ok(text) => send(&mut sink, Message::text(text), stall).await?,
+                    Err(RecvError::Lagged(_)) => resync(&mut sink, events, state, stats).await?,
                     Err(RecvError::Closed) => return Ok(()),
                 }
             }
@@ -107,7 +207,7 @@ where
                 let Some(incoming) = incoming else { return Ok(()) };
                 let reply = match incoming {
                     Ok(Message::Text(text)) => {
-                        handle_text(text.as_str(), state, &mut subscribed, &mut version)
+                        handle_text(text.as_str(), state, stats.access, &mut subscribed, &mut version)
                     }
                     Ok(Message::Binary(b)) => Some(ServerMessage::error(
                         ErrorCode::BinaryNotAccepted,
@@ -116,10 +216,14 @@ where
                     Ok(Message::Close(_)) => return Ok(()),
                     // Pings are answered by tungstenite itself.
                     Ok(_) => None,
-                    Err(e) => return Err(e),
+                    Err(tokio_tungstenite::tungstenite::Error::Capacity(_)) => {
+                        close_with(&mut sink, CloseCode::Size, "frame over 64 KiB").await;
+                        return Ok(());
+                    }
+                    Err(_) => return Err(End::Transport),
                 };
                 if let Some(reply) = reply {
-                    sink.send(Message::text(reply.to_json())).await?;
+                    send(&mut sink, Message::text(reply.to_json()), stall).await?;
                 }
             }
             received = frames.recv() => {
@@ -143,14 +247,14 @@ where
                         } else {
                             bytes
                         };
-                        sink.send(Message::Binary(bytes)).await?;
+                        send(&mut sink, Message::Binary(bytes), stall).await?;
                         stats.frames_sent.fetch_add(1, Ordering::Relaxed);
                     }
                     Err(RecvError::Lagged(n)) => {
                         pending_missed += n;
                         stats.missed_frames.fetch_add(n, Ordering::Relaxed);
                         state.stats.dropped_frames.fetch_add(n, Ordering::Relaxed);
-                        sink.send(Message::text(ServerMessage::Lagged { missed: n }.to_json())).await?;
+                        send(&mut sink, Message::text(ServerMessage::Lagged { missed: n }.to_json()), stall).await?;
                     }
                     Err(RecvError::Closed) => return Ok(()),
                 }
@@ -159,9 +263,28 @@ where
     }
 }
 
+/// What a message needs. Exhaustive on purpose: a new message type must choose.
+fn required_access(msg: &ClientMessage) -> Access {
+    match msg {
+        ClientMessage::Subscribe { .. } | ClientMessage::Ping { .. } => Access::ReadOnly,
+        ClientMessage::SetMapping { .. } | ClientMessage::Calibrate { .. } => Access::Control,
+    }
+}
+
+/// The `type` of a message, for error texts.
+fn type_name(msg: &ClientMessage) -> &'static str {
+    match msg {
+        ClientMessage::Subscribe { .. } => "subscribe",
+        ClientMessage::Ping { .. } => "ping",
+        ClientMessage::SetMapping { .. } => "set_mapping",
+        ClientMessage::Calibrate { .. } => "calibrate",
+    }
+}
+
 fn handle_text(
     text: &str,
     state: &ServerState,
+    access: Access,
     subscribed: &mut Option<HashSet<u32>>,
     version: &mut u16,
 ) -> Option<ServerMessage> {
@@ -178,6 +301,16 @@ fn handle_text(
         Ok(m) => m,
         Err(e) => return Some(ServerMessage::error(e.code, e.message)),
     };
+    if required_access(&msg) == Access::Control && access != Access::Control {
+        return Some(ServerMessage::error(
+            ErrorCode::Unauthorized,
+            format!(
+                "{} changes the server: connect with the control token \
+                 (Authorization: Bearer TOKEN or ?token=TOKEN; `rigcast token show` prints it)",
+                type_name(&msg)
+            ),
+        ));
+    }
     match msg {
         ClientMessage::Ping { nonce } => Some(ServerMessage::Pong {
             nonce,

@@ -16,12 +16,14 @@
 //!
 //! Command-line flags override file values; see `cmd::serve`.
 
-use std::net::SocketAddr;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 
 use rigcast_retarget::Clip;
 use serde::Deserialize;
 use thiserror::Error;
+
+pub use crate::token::TokenSetting;
 
 /// Default listen address: loopback only (nothing is exposed to the network unless asked) on
 /// port 8717 (unassigned by IANA, mnemonic: "RiGcast" is not a number, so we simply picked one
@@ -86,6 +88,21 @@ pub struct FileConfig {
     pub record: Option<PathBuf>,
     /// Mapping cache: `true` (default folder), `false`, or a folder.
     pub mapping_cache: Option<FileMappingCache>,
+    /// Most mapping tables kept in the cache, in memory and on disk each (default 128).
+    pub mapping_cache_max_entries: Option<usize>,
+    /// Web page origins (`scheme://host[:port]`) allowed besides the served viewer.
+    #[serde(default)]
+    pub allowed_origins: Vec<String>,
+    /// Host names (optionally `name:port`) accepted in the `Host` header besides localhost
+    /// and IP addresses.
+    #[serde(default)]
+    pub allowed_hosts: Vec<String>,
+    /// The control token's file (default `$XDG_CONFIG_HOME/rigcast/token`).
+    pub token_file: Option<PathBuf>,
+    /// Most simultaneous connections (default: the open-file limit minus 64).
+    pub max_connections: Option<usize>,
+    /// A client whose socket accepts nothing for this long is disconnected (default 10 s).
+    pub stalled_client_timeout_secs: Option<f64>,
 }
 
 /// A `vmc_out` entry.
@@ -168,6 +185,12 @@ pub enum FileSource {
         /// UDP port (default 39539).
         #[serde(default = "vmc_port")]
         port: u16,
+        /// Address to listen on (default 127.0.0.1: only this machine's senders).
+        #[serde(default = "loopback")]
+        bind: IpAddr,
+        /// Sender IP addresses accepted (empty: any that can reach `bind`).
+        #[serde(default)]
+        allowed_senders: Vec<IpAddr>,
         /// Silence longer than this marks the source lost (seconds, default 0.5).
         lost_after_secs: Option<f32>,
         /// Subject name (default `vmc:PORT`).
@@ -200,6 +223,10 @@ pub enum FileSource {
 
 fn vmc_port() -> u16 {
     rigcast_sources::vmc_in::DEFAULT_VMC_PORT
+}
+
+fn loopback() -> IpAddr {
+    IpAddr::V4(Ipv4Addr::LOCALHOST)
 }
 
 fn one() -> f64 {
@@ -245,6 +272,9 @@ impl FileConfig {
         }
         if let Some(FileMappingCache::Folder(f)) = cfg.mapping_cache.as_mut() {
             resolve(f);
+        }
+        if let Some(t) = cfg.token_file.as_mut() {
+            resolve(t);
         }
         Ok(cfg)
     }
@@ -294,10 +324,15 @@ pub enum SourceSpec {
     },
     /// The bundled demo recording, looping.
     EmbeddedDemo,
-    /// VMC/OSC input (`--source vmc:PORT`; port 0 picks a free one).
+    /// VMC/OSC input (`--source vmc:PORT` on loopback, `vmc:ADDR:PORT` elsewhere; port 0
+    /// picks a free one).
     Vmc {
         /// UDP port.
         port: u16,
+        /// Address to listen on ([`DEFAULT_VMC_BIND`] unless configured).
+        bind: IpAddr,
+        /// Sender IP addresses accepted (empty: any that can reach `bind`).
+        allowed_senders: Vec<IpAddr>,
         /// Silence before the source counts as lost (default 0.5 s).
         lost_after_secs: Option<f32>,
         /// Subject name (default `vmc:PORT`).
@@ -324,6 +359,55 @@ pub enum SourceSpec {
         /// Subject name (default `webcam:INDEX`).
         name: Option<String>,
     },
+}
+
+/// VMC input listens on loopback unless told otherwise: a performer's skeleton must not be
+/// replaceable by any host on the network.
+pub const DEFAULT_VMC_BIND: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
+
+/// Who may use the HTTP listener (see [`crate::access`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccessConfig {
+    /// Web page origins allowed besides the served viewer.
+    pub allowed_origins: Vec<String>,
+    /// `Host` names allowed besides localhost and IP addresses.
+    pub allowed_hosts: Vec<String>,
+    /// Where the control token comes from.
+    pub token: TokenSetting,
+}
+
+impl Default for AccessConfig {
+    fn default() -> Self {
+        AccessConfig {
+            allowed_origins: Vec::new(),
+            allowed_hosts: Vec::new(),
+            token: TokenSetting::Ephemeral,
+        }
+    }
+}
+
+/// Default for [`LimitsConfig::stalled_client_timeout_secs`].
+pub const DEFAULT_STALLED_CLIENT_TIMEOUT_SECS: f64 = 10.0;
+
+/// Resource bounds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LimitsConfig {
+    /// Most simultaneous connections (`None`: the open-file limit minus a reserve).
+    pub max_connections: Option<usize>,
+    /// A client whose socket takes nothing for this long is disconnected.
+    pub stalled_client_timeout_secs: f64,
+    /// Most mapping tables cached (memory and disk each).
+    pub mapping_cache_max_entries: usize,
+}
+
+impl Default for LimitsConfig {
+    fn default() -> Self {
+        LimitsConfig {
+            max_connections: None,
+            stalled_client_timeout_secs: DEFAULT_STALLED_CLIENT_TIMEOUT_SECS,
+            mapping_cache_max_entries: crate::mapping_store::DEFAULT_MAX_ENTRIES,
+        }
+    }
 }
 
 /// Prefix of built-in characters in target paths (`builtin:mannequin`).
@@ -421,6 +505,10 @@ pub struct ServerConfig {
     pub record: Option<PathBuf>,
     /// Folder of the on-disk mapping cache (`None`: memory only).
     pub mapping_cache_dir: Option<PathBuf>,
+    /// Origin/Host checks and the control token.
+    pub access: AccessConfig,
+    /// Connection, client and cache bounds.
+    pub limits: LimitsConfig,
 }
 
 /// The default on-disk mapping cache: `$XDG_CACHE_HOME/rigcast/mappings`, else
@@ -445,6 +533,8 @@ impl Default for ServerConfig {
             vmc_bone_names: VmcBoneNames::default(),
             record: None,
             mapping_cache_dir: None,
+            access: AccessConfig::default(),
+            limits: LimitsConfig::default(),
         }
     }
 }
@@ -452,6 +542,19 @@ impl Default for ServerConfig {
 impl ServerConfig {
     /// Checks ranges (rate, replay speeds).
     pub fn validate(&self) -> Result<(), ConfigError> {
+        let stall = self.limits.stalled_client_timeout_secs;
+        if !(stall.is_finite() && stall > 0.0) {
+            return Err(ConfigError::Invalid {
+                field: "stalled_client_timeout_secs",
+                message: format!("{stall} must be a positive number of seconds"),
+            });
+        }
+        if self.limits.max_connections == Some(0) || self.limits.mapping_cache_max_entries == 0 {
+            return Err(ConfigError::Invalid {
+                field: "max_connections / mapping_cache_max_entries",
+                message: "must be at least 1".into(),
+            });
+        }
         if !RATE_RANGE_HZ.contains(&self.rate_hz) {
             return Err(ConfigError::Invalid {
                 field: "rate_hz",
@@ -521,6 +624,24 @@ impl ServerConfig {
             Some(FileMappingCache::Enabled(false)) => None,
             Some(FileMappingCache::Folder(f)) => Some(f),
         };
+        cfg.access = AccessConfig {
+            allowed_origins: file.allowed_origins,
+            allowed_hosts: file.allowed_hosts,
+            token: file
+                .token_file
+                .or_else(crate::token::default_token_path)
+                .map(TokenSetting::File)
+                .unwrap_or(TokenSetting::Ephemeral),
+        };
+        cfg.limits = LimitsConfig {
+            max_connections: file.max_connections,
+            stalled_client_timeout_secs: file
+                .stalled_client_timeout_secs
+                .unwrap_or(DEFAULT_STALLED_CLIENT_TIMEOUT_SECS),
+            mapping_cache_max_entries: file
+                .mapping_cache_max_entries
+                .unwrap_or(crate::mapping_store::DEFAULT_MAX_ENTRIES),
+        };
         cfg.performers = file
             .performers
             .into_iter()
@@ -558,10 +679,14 @@ impl ServerConfig {
                 },
                 FileSource::Vmc {
                     port,
+                    bind,
+                    allowed_senders,
                     lost_after_secs,
                     name,
                 } => SourceSpec::Vmc {
                     port,
+                    bind,
+                    allowed_senders,
                     lost_after_secs,
                     name,
                 },

@@ -1,6 +1,12 @@
 //! The single HTTP listener: WebSocket upgrade on `GET /v1/stream`, JSON status on
 //! `GET /v1/status`, and static files (the web viewer) for everything else.
 //!
+//! ```text
+//!  accept ─▶ connection cap (limits.rs: evict the oldest unfinished request, or 503)
+//!         ─▶ request head (≤ 16 KiB, ≤ 10 s) ─▶ Host / Origin / token (access.rs: 403, 401)
+//!         ─▶ route: upgrade (frames ≤ 64 KiB, checked on the frame header) │ status │ file
+//! ```
+//!
 //! The request head is parsed by hand (method, path, a few headers): the server only needs
 //! GET requests, and this keeps an HTTP framework out of the dependency tree. The upgrade uses
 //! tungstenite's `derive_accept_key` and hands the socket, plus any bytes read past the head,
@@ -18,7 +24,10 @@ use tokio_tungstenite::tungstenite::handshake::derive_accept_key;
 use tokio_tungstenite::tungstenite::protocol::{Role, WebSocketConfig};
 use tokio_tungstenite::WebSocketStream;
 
+use crate::access::{bearer_token, query_token, Credentials, Route};
 use crate::clients::{serve_client, MAX_TRANSPORT_MESSAGE_BYTES};
+use crate::limits::Admission;
+use crate::recorder::RecordingStatus;
 use crate::state::ServerState;
 use crate::stats::TickPercentiles;
 
@@ -33,11 +42,19 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
     loop {
         tokio::select! {
             _ = shutdown.changed() => break,
-            accepted = listener.accept() => {
+            accepted = async {
+                state.connections.wait_for_room(ROOM_WAIT).await;
+                listener.accept().await
+            } => {
                 match accepted {
                     Ok((stream, peer)) => {
                         let _ = stream.set_nodelay(true);
-                        tokio::spawn(handle_connection(stream, peer.to_string(), state.clone()));
+                        match state.connections.admit() {
+                            Admission::Admitted { permit, evicted } => {
+                                tokio::spawn(handle_connection(stream, peer.to_string(), state.clone(), permit, evicted));
+                            }
+                            Admission::Full => refuse_full(stream, state.connections.max()),
+                        }
                     }
                     Err(e) => {
                         // Typically EMFILE; back off briefly rather than spin.
@@ -50,6 +67,21 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
     }
 }
 
+/// How long a refusal may take to write before the socket is simply closed.
+const REFUSAL_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// Longest the listener waits for evicted connections to close before accepting more.
+const ROOM_WAIT: Duration = Duration::from_millis(250);
+
+/// Answers a connection the cap has no room for and closes it at once. A new socket's send
+/// buffer is empty, so the non-blocking write takes the short answer whole; nothing waits,
+/// and the descriptor is released before the next accept.
+fn refuse_full(stream: TcpStream, max: usize) {
+    let body = format!("server full: {max} connections open; retry later\n");
+    let _ = stream.try_write(head(503, "text/plain", body.len()).as_bytes());
+    let _ = stream.try_write(body.as_bytes());
+}
+
 /// A parsed request head.
 #[derive(Debug, Default, PartialEq)]
 struct Request {
@@ -57,6 +89,20 @@ struct Request {
     path: String,
     upgrade_websocket: bool,
     websocket_key: Option<String>,
+    host: Option<String>,
+    origin: Option<String>,
+    /// From `Authorization: Bearer` or, failing that, `?token=`.
+    token: Option<String>,
+}
+
+impl Request {
+    fn credentials(&self) -> Credentials<'_> {
+        Credentials {
+            host: self.host.as_deref(),
+            origin: self.origin.as_deref(),
+            token: self.token.as_deref(),
+        }
+    }
 }
 
 fn parse_head(head: &str) -> Option<Request> {
@@ -68,6 +114,7 @@ fn parse_head(head: &str) -> Option<Request> {
     let mut req = Request {
         method,
         path,
+        token: query_token(target).map(str::to_string),
         ..Request::default()
     };
     for line in lines {
@@ -78,18 +125,42 @@ fn parse_head(head: &str) -> Option<Request> {
         match name.trim().to_ascii_lowercase().as_str() {
             "upgrade" => req.upgrade_websocket = value.eq_ignore_ascii_case("websocket"),
             "sec-websocket-key" => req.websocket_key = Some(value.to_string()),
+            "host" => req.host = Some(value.to_string()),
+            "origin" => req.origin = Some(value.to_string()),
+            "authorization" => {
+                if let Some(t) = bearer_token(value) {
+                    req.token = Some(t.to_string());
+                }
+            }
             _ => {}
         }
     }
     Some(req)
 }
 
-async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<ServerState>) {
+async fn handle_connection(
+    mut stream: TcpStream,
+    peer: String,
+    state: Arc<ServerState>,
+    permit: crate::limits::ConnectionPermit,
+    evicted: tokio::sync::oneshot::Receiver<()>,
+) {
     let mut buf = Vec::with_capacity(1024);
     // Each connection is its own task, so a client that never finishes its head (slowloris)
-    // holds only this task, and only until the timeout.
-    let head_end = match tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)).await
-    {
+    // holds only this task, and only until the timeout — or until a newer connection needs
+    // its slot.
+    let read = tokio::select! {
+        r = tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)) => r,
+        Ok(()) = evicted => {
+            let max = state.connections.max();
+            drop(permit);
+            let body = format!("server full: {max} connections open; an unfinished request made way for a newer one\n");
+            let _ = tokio::time::timeout(REFUSAL_TIMEOUT, respond(&mut stream, 503, "text/plain", body.as_bytes())).await;
+            return;
+        }
+    };
+    permit.promote();
+    let head_end = match read {
         Ok(HeadRead::Complete(end)) => end,
         Ok(HeadRead::TooLarge) => {
             let _ = respond(
@@ -113,8 +184,26 @@ async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<Serve
         let _ = respond(&mut stream, 405, "text/plain", b"only GET is supported\n").await;
         return;
     }
-    match req.path.as_str() {
-        "/v1/stream" => {
+    let route = match req.path.as_str() {
+        "/v1/stream" => Route::Stream,
+        "/v1/status" => Route::Status,
+        _ => Route::ViewerFile,
+    };
+    let access = match state.policy.decide(route, &req.credentials()) {
+        Ok(a) => a,
+        Err(refusal) => {
+            let _ = respond(
+                &mut stream,
+                refusal.status(),
+                "text/plain",
+                refusal.message().as_bytes(),
+            )
+            .await;
+            return;
+        }
+    };
+    match route {
+        Route::Stream => {
             let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
                 let _ = respond(
                     &mut stream,
@@ -135,19 +224,21 @@ async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<Serve
             if stream.write_all(response.as_bytes()).await.is_err() {
                 return;
             }
-            let config = WebSocketConfig::default()
-                .max_message_size(Some(MAX_TRANSPORT_MESSAGE_BYTES))
-                .max_frame_size(Some(MAX_TRANSPORT_MESSAGE_BYTES));
-            let ws =
-                WebSocketStream::from_partially_read(stream, leftover, Role::Server, Some(config))
-                    .await;
-            serve_client(ws, state, peer).await;
+            let ws = WebSocketStream::from_partially_read(
+                stream,
+                leftover,
+                Role::Server,
+                Some(websocket_config()),
+            )
+            .await;
+            serve_client(ws, state, peer, access).await;
+            drop(permit);
         }
-        "/v1/status" => {
+        Route::Status => {
             let body = serde_json::to_vec_pretty(&status(&state)).unwrap_or_default();
             let _ = respond(&mut stream, 200, "application/json", &body).await;
         }
-        path => match static_asset(path) {
+        Route::ViewerFile => match static_asset(&req.path) {
             Some((mime, body)) => {
                 let _ = respond(&mut stream, 200, mime, &body).await;
             }
@@ -156,6 +247,21 @@ async fn handle_connection(mut stream: TcpStream, peer: String, state: Arc<Serve
             }
         },
     }
+}
+
+/// Read buffer per WebSocket client: client messages are small JSON, and many idle clients
+/// should cost little (tungstenite allocates this eagerly; its default is 128 KiB).
+const CLIENT_READ_BUFFER_BYTES: usize = 4 * 1024;
+
+/// Limits for client connections. The frame limit is checked on the frame header, so a
+/// client announcing a 16 MB frame is refused before a byte of it is buffered; frames are
+/// written out as they are sent (no write buffering: the kernel buffer is the queue).
+fn websocket_config() -> WebSocketConfig {
+    WebSocketConfig::default()
+        .read_buffer_size(CLIENT_READ_BUFFER_BYTES)
+        .write_buffer_size(0)
+        .max_message_size(Some(MAX_TRANSPORT_MESSAGE_BYTES))
+        .max_frame_size(Some(MAX_TRANSPORT_MESSAGE_BYTES))
 }
 
 /// Kernel send buffer per WebSocket client. Small on purpose: frames are realtime, and a large
@@ -207,22 +313,35 @@ async fn respond(
     mime: &str,
     body: &[u8],
 ) -> std::io::Result<()> {
+    stream
+        .write_all(head(status, mime, body.len()).as_bytes())
+        .await?;
+    stream.write_all(body).await?;
+    stream.shutdown().await
+}
+
+/// A response head (every response closes the connection).
+fn head(status: u16, mime: &str, body_len: usize) -> String {
     let reason = match status {
         200 => "OK",
         400 => "Bad Request",
+        401 => "Unauthorized",
+        403 => "Forbidden",
+        503 => "Service Unavailable",
         404 => "Not Found",
         405 => "Method Not Allowed",
         426 => "Upgrade Required",
         431 => "Request Header Fields Too Large",
         _ => "Error",
     };
-    let head = format!(
-        "HTTP/1.1 {status} {reason}\r\nContent-Type: {mime}\r\nContent-Length: {}\r\nCache-Control: no-cache\r\nConnection: close\r\n\r\n",
-        body.len()
-    );
-    stream.write_all(head.as_bytes()).await?;
-    stream.write_all(body).await?;
-    stream.shutdown().await
+    let retry = if status == 503 {
+        "Retry-After: 1\r\n"
+    } else {
+        ""
+    };
+    format!(
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {mime}\r\nContent-Length: {body_len}\r\nCache-Control: no-cache\r\n{retry}Connection: close\r\n\r\n"
+    )
 }
 
 /// The web viewer's files (`clients/web/`), embedded at build time so `rigcast serve` needs
@@ -283,6 +402,29 @@ pub struct Status {
     pub vmc_send_errors: u64,
     /// Tick duration percentiles (µs) over the last ~1024 ticks.
     pub tick_micros: TickPercentiles,
+    /// Connections against the cap.
+    pub connections: ConnectionsStatus,
+    /// Clients that lost control messages to lag and were sent a fresh snapshot, total.
+    pub control_resyncs_total: u64,
+    /// Clients dropped because their socket accepted nothing for the stall timeout, total.
+    pub stalled_disconnects_total: u64,
+    /// The `--record` recording (`null` when not recording).
+    pub recording: Option<RecordingStatus>,
+}
+
+/// Connections in the status.
+#[derive(Debug, Serialize)]
+pub struct ConnectionsStatus {
+    /// Open now (WebSocket clients and requests in progress).
+    pub open: usize,
+    /// The cap.
+    pub max: usize,
+    /// Refused with 503 since start (evicted unfinished requests included).
+    pub refused_total: u64,
+    /// Unfinished requests evicted to make way for newer connections.
+    pub evicted_total: u64,
+    /// Soft open-file limit of the process (`null` when unknown).
+    pub fd_limit: Option<u64>,
 }
 
 /// One subject in the status.
@@ -308,6 +450,10 @@ pub struct SubjectStatus {
     pub source: Option<rigcast_protocol::control::SourceHealth>,
     /// UDP address a VMC source listens on.
     pub listen: Option<String>,
+    /// Skeleton changes applied (live sources learn their sender's skeleton).
+    pub skeleton_changes: u64,
+    /// Frames held back because skeleton changes came faster than the rate limit.
+    pub skeleton_frames_limited: u64,
 }
 
 /// Clients in the status.
@@ -330,6 +476,10 @@ pub struct ClientStatus {
     pub frames_sent: u64,
     /// frames dropped because it lagged
     pub missed_frames: u64,
+    /// `read_only` or `control` (opened with the token)
+    pub access: &'static str,
+    /// times it lost control messages to lag and got a fresh snapshot
+    pub control_resyncs: u64,
 }
 
 /// Snapshot of the counters.
@@ -350,6 +500,8 @@ pub fn status(state: &ServerState) -> Status {
                 inputs: s.inputs.clone(),
                 source: s.source_health(),
                 listen: s.listen_addr.map(|a| a.to_string()),
+                skeleton_changes: s.stats.skeleton_changes.load(Ordering::Relaxed),
+                skeleton_frames_limited: s.stats.skeleton_frames_limited.load(Ordering::Relaxed),
             }
         })
         .collect();
@@ -364,6 +516,11 @@ pub fn status(state: &ServerState) -> Status {
                     peer: c.peer.clone(),
                     frames_sent: c.frames_sent.load(Ordering::Relaxed),
                     missed_frames: c.missed_frames.load(Ordering::Relaxed),
+                    access: match c.access {
+                        crate::access::Access::ReadOnly => "read_only",
+                        crate::access::Access::Control => "control",
+                    },
+                    control_resyncs: c.control_resyncs.load(Ordering::Relaxed),
                 })
                 .collect()
         })
@@ -380,6 +537,16 @@ pub fn status(state: &ServerState) -> Status {
         dropped_frames_total: state.stats.dropped_frames.load(Ordering::Relaxed),
         vmc_send_errors: state.stats.vmc_send_errors.load(Ordering::Relaxed),
         tick_micros: state.stats.tick_percentiles(),
+        connections: ConnectionsStatus {
+            open: state.connections.open(),
+            max: state.connections.max(),
+            refused_total: state.connections.refused(),
+            evicted_total: state.connections.evicted(),
+            fd_limit: state.fd_limit.map(|l| l.soft),
+        },
+        control_resyncs_total: state.stats.control_resyncs.load(Ordering::Relaxed),
+        stalled_disconnects_total: state.stats.stalled_disconnects.load(Ordering::Relaxed),
+        recording: state.recorder.as_ref().map(|r| r.status()),
     }
 }
 

@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
+pub mod access;
 pub mod calibration;
 pub mod character;
 pub mod cli;
@@ -33,13 +34,16 @@ pub mod config;
 pub mod demo;
 pub mod engine;
 pub mod http;
+pub mod limits;
 pub mod live;
 pub mod mapper;
+pub mod mapping_store;
 pub mod performer;
 pub mod recorder;
 pub mod state;
 pub mod stats;
 pub mod subject;
+pub mod token;
 pub mod translated;
 
 use std::collections::HashMap;
@@ -53,8 +57,10 @@ use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
 
 pub use config::{
-    OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec, TargetSpec, VmcBoneNames,
+    AccessConfig, LimitsConfig, OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec,
+    TargetSpec, VmcBoneNames,
 };
+pub use token::{ControlToken, TokenSetting};
 
 use engine::{EngineCommand, TickContext, VmcTarget};
 use live::LiveContext;
@@ -84,6 +90,7 @@ pub struct ServerHandle {
     commands: mpsc::Sender<EngineCommand>,
     recorder: Option<(Arc<Recorder>, std::thread::JoinHandle<()>)>,
     state: Arc<ServerState>,
+    token: token::ResolvedToken,
 }
 
 impl ServerHandle {
@@ -100,6 +107,21 @@ impl ServerHandle {
     /// Shared state (subjects, counters).
     pub fn state(&self) -> &Arc<ServerState> {
         &self.state
+    }
+
+    /// The control token clients present to change the server.
+    pub fn control_token(&self) -> &ControlToken {
+        &self.token.token
+    }
+
+    /// The token, whether this start created it, and its file.
+    pub fn token_info(&self) -> &token::ResolvedToken {
+        &self.token
+    }
+
+    /// `ws://…/v1/stream?token=…`: a stream URL with control access.
+    pub fn control_stream_url(&self) -> String {
+        format!("{}?token={}", self.stream_url(), self.token.token.reveal())
     }
 
     /// Stops every task and thread and waits for them; finishes the recording. Client tasks
@@ -178,16 +200,19 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     }
     let mut loaded = Vec::new();
     let mut names = Vec::new();
+    // Files, serial ports, ffmpeg and ONNX Runtime block: none of it runs on a runtime worker.
     for spec in specs {
-        let (name, l, skeleton) = load_source(spec).await?;
+        let (name, l, skeleton) = tokio::task::spawn_blocking(move || load_source(spec)).await??;
         names.push(unique_name(&names, name));
         loaded.push((l, skeleton));
     }
     let mut targets = Vec::new();
     for p in &performer_specs {
-        let t = load_target(p).await?;
-        targets.push(t);
+        let p = p.clone();
+        targets.push(tokio::task::spawn_blocking(move || load_target(&p)).await??);
     }
+    let token_setting = config.access.token.clone();
+    let token = tokio::task::spawn_blocking(move || token_setting.resolve()).await??;
 
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let (events_tx, _) = broadcast::channel::<String>(EVENTS_CAPACITY);
@@ -283,7 +308,9 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         let subject = Arc::new(subject.with_truth(t.truth));
         let overrides_file = match &p.mapping {
             Some(path) => {
-                let text = std::fs::read_to_string(path)
+                let path2 = path.clone();
+                let text = tokio::task::spawn_blocking(move || std::fs::read_to_string(path2))
+                    .await?
                     .with_context(|| format!("cannot read the mapping file {}", path.display()))?;
                 Some(
                     parse_mapping_file(&text)
@@ -332,7 +359,8 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         config.mapping_cache_dir.clone(),
         config.rate_hz,
         events_tx.clone(),
-    );
+    )
+    .with_max_cache_entries(config.limits.mapping_cache_max_entries);
     let mapper = tokio::task::spawn_blocking(move || {
         mapper.build_all();
         mapper
@@ -374,8 +402,10 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         Some((socket, targets))
     };
 
-    let recorder = match &config.record {
-        Some(path) => Some(Arc::new(Recorder::create(path)?)),
+    let recorder = match config.record.clone() {
+        Some(path) => Some(Arc::new(
+            tokio::task::spawn_blocking(move || Recorder::create(&path)).await??,
+        )),
         None => None,
     };
 
@@ -383,6 +413,24 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         .await
         .with_context(|| format!("cannot listen on {}", config.listen))?;
     let local_addr = listener.local_addr()?;
+    let policy = access::AccessPolicy::new(
+        token.token.clone(),
+        access::BindScope::of(&local_addr),
+        &config.access.allowed_origins,
+        &config.access.allowed_hosts,
+    );
+    let fd_limit = limits::fd_limit();
+    let fd_cap = limits::default_max_connections(fd_limit);
+    let max_connections = match config.limits.max_connections {
+        Some(n) if n > fd_cap => {
+            eprintln!(
+                "rigcast: warning: max_connections {n} exceeds what the open-file limit allows; using {fd_cap}"
+            );
+            fd_cap
+        }
+        Some(n) => n,
+        None => fd_cap,
+    };
 
     let (frames_tx, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
     let (commands_tx, commands_rx) = mpsc::channel(64);
@@ -396,6 +444,13 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         next_client_id: AtomicU64::new(1),
         shutdown: shutdown_rx.clone(),
         commands: commands_tx.clone(),
+        policy,
+        connections: limits::ConnectionLimiter::new(max_connections),
+        fd_limit,
+        stalled_client_timeout: std::time::Duration::from_secs_f64(
+            config.limits.stalled_client_timeout_secs,
+        ),
+        recorder: recorder.clone(),
     });
 
     let stop_threads = Arc::new(AtomicBool::new(false));
@@ -485,11 +540,12 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         commands: commands_tx,
         recorder,
         state,
+        token,
     })
 }
 
 /// Control messages queued per client (mapping updates, skeleton changes, source status).
-const EVENTS_CAPACITY: usize = 256;
+pub(crate) const EVENTS_CAPACITY: usize = 256;
 
 /// Broadcasts `source_status` about once per second.
 async fn run_source_status(
@@ -531,7 +587,7 @@ fn unique_name(taken: &[String], name: String) -> String {
 
 /// Loads a character: a file (its animation only serves as a reference posture) or a
 /// built-in.
-async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
+fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
     match &p.target {
         TargetSpec::Skeleton { skeleton, name } => Ok(LoadedTarget {
             name: name.clone(),
@@ -555,12 +611,9 @@ async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> 
                     truth: None,
                 });
             }
-            let p2 = path.clone();
-            let (clip, truth) = tokio::task::spawn_blocking(move || {
-                rigcast_sources::load_clip(&p2).map(|c| (c, cmd::map::vrm_truth(&p2)))
-            })
-            .await?
-            .with_context(|| format!("cannot load target character {}", path.display()))?;
+            let (clip, truth) = rigcast_sources::load_clip(path)
+                .map(|c| (c, cmd::map::vrm_truth(path)))
+                .with_context(|| format!("cannot load target character {}", path.display()))?;
             let name = path
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -575,8 +628,9 @@ async fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> 
     }
 }
 
-/// Loads a source: its subject name, what runs it, and its (initial) skeleton.
-async fn load_source(
+/// Loads a source: its subject name, what runs it, and its (initial) skeleton. Blocks (files,
+/// devices, model loading): call it from `spawn_blocking`.
+fn load_source(
     spec: SourceSpec,
 ) -> anyhow::Result<(String, Loaded, Arc<rigcast_retarget::Skeleton>)> {
     let replay_of = |clip: rigcast_retarget::Clip,
@@ -597,12 +651,9 @@ async fn load_source(
             name,
             settings,
         } => {
-            let p = path.clone();
-            let (clip, truth) = tokio::task::spawn_blocking(move || {
-                rigcast_sources::load_clip(&p).map(|c| (c, cmd::map::vrm_truth(&p)))
-            })
-            .await?
-            .with_context(|| format!("cannot load source {}", path.display()))?;
+            let (clip, truth) = rigcast_sources::load_clip(&path)
+                .map(|c| (c, cmd::map::vrm_truth(&path)))
+                .with_context(|| format!("cannot load source {}", path.display()))?;
             let name = name.unwrap_or_else(|| {
                 path.file_stem()
                     .map(|s| s.to_string_lossy().into_owned())
@@ -634,15 +685,19 @@ async fn load_source(
         }
         SourceSpec::Vmc {
             port,
+            bind,
+            allowed_senders,
             lost_after_secs,
             name,
         } => {
             let mut cfg = VmcConfig::port(port);
+            cfg.bind = bind;
+            cfg.allowed_senders = allowed_senders;
             if let Some(l) = lost_after_secs {
                 cfg.lost_after_secs = l;
             }
             let source = VmcSource::bind(cfg)
-                .with_context(|| format!("cannot listen for VMC on UDP port {port}"))?;
+                .with_context(|| format!("cannot listen for VMC on UDP {bind} port {port}"))?;
             let listen = source.local_addr();
             let name =
                 name.unwrap_or_else(|| format!("vmc:{}", listen.map(|a| a.port()).unwrap_or(port)));

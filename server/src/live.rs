@@ -7,6 +7,11 @@
 //!            └─▶ watch<Frame>.send_modify (copy, no allocation)
 //!          every ~100 ms: status() ─▶ subject health (state, fps, latency, frames, dropped)
 //! ```
+//!
+//! Skeleton changes are rate-limited: a sender that changes its skeleton faster than once
+//! per [`MIN_SKELETON_CHANGE_INTERVAL`] (each change re-maps, re-announces and may add a cache
+//! entry) has its frames on the newer skeleton held back, and counted, until the interval has
+//! passed; then the latest skeleton is applied.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -25,6 +30,8 @@ use crate::subject::{HealthState, Subject};
 const POLL: Duration = Duration::from_millis(50);
 /// How often the health report is refreshed.
 const STATUS_EVERY: Duration = Duration::from_millis(100);
+/// Shortest time between two applied skeleton changes of one source.
+pub const MIN_SKELETON_CHANGE_INTERVAL: Duration = Duration::from_secs(1);
 
 /// What a live-source thread talks to.
 pub struct LiveContext {
@@ -57,12 +64,40 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
     let mut pose: Pose = ctx.subject.skeleton().rest_pose();
     let mut last_status = Instant::now() - STATUS_EVERY;
     let mut last_error: Option<String> = None;
+    let mut skeleton_pending = false;
+    let mut last_skeleton_change: Option<Instant> = None;
     while !ctx.stop.load(Ordering::Relaxed) {
+        // First, so that frames held back below never delay the health report.
+        if last_status.elapsed() >= STATUS_EVERY {
+            last_status = Instant::now();
+            let status = source.status();
+            ctx.subject.health.set_state(state_of(status.state));
+            if let Ok(mut g) = ctx.subject.health.live.lock() {
+                *g = Some(status);
+            }
+        }
         match source.next_frame(POLL, &mut pose) {
             Ok(Some(meta)) => {
-                if meta.skeleton_changed {
+                skeleton_pending |= meta.skeleton_changed;
+                if skeleton_pending {
+                    if last_skeleton_change
+                        .is_some_and(|t| t.elapsed() < MIN_SKELETON_CHANGE_INTERVAL)
+                    {
+                        // This frame is on a skeleton clients have not been told about.
+                        ctx.subject
+                            .stats
+                            .skeleton_frames_limited
+                            .fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
+                    skeleton_pending = false;
                     if let Some(skeleton) = source.skeleton() {
                         if ctx.subject.set_skeleton(skeleton.clone()) {
+                            last_skeleton_change = Some(Instant::now());
+                            ctx.subject
+                                .stats
+                                .skeleton_changes
+                                .fetch_add(1, Ordering::Relaxed);
                             announce_skeleton(&ctx);
                         }
                     }
@@ -98,14 +133,6 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                 }
                 // Device errors repeat quickly; don't spin.
                 std::thread::sleep(POLL);
-            }
-        }
-        if last_status.elapsed() >= STATUS_EVERY {
-            last_status = Instant::now();
-            let status = source.status();
-            ctx.subject.health.set_state(state_of(status.state));
-            if let Ok(mut g) = ctx.subject.health.live.lock() {
-                *g = Some(status);
             }
         }
     }

@@ -24,13 +24,14 @@ use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::mapping::{
-    apply_overrides, cache, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingCache,
-    MappingFile, MappingTable, SourceRef, TargetEntry, UNMAPPED,
+    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile,
+    MappingTable, SourceRef, TargetEntry, UNMAPPED,
 };
 use rigcast_retarget::{Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
 
 use crate::engine::EngineCommand;
+use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
 use crate::performer::{BuiltMapping, Mailbox};
 use crate::subject::Subject;
 
@@ -66,8 +67,7 @@ pub struct Mapper {
     subjects: Arc<Vec<Arc<Subject>>>,
     performers: Vec<PerformerPlan>,
     extras: HashMap<u32, SourceExtra>,
-    memory: MappingCache,
-    disk: Option<PathBuf>,
+    store: MappingStore,
     frame_time_secs: f32,
     events: broadcast::Sender<String>,
     options: MapOptions,
@@ -87,12 +87,18 @@ impl Mapper {
             subjects,
             performers,
             extras,
-            memory: MappingCache::new(),
-            disk,
+            store: MappingStore::new(disk, DEFAULT_MAX_ENTRIES),
             frame_time_secs: (1.0 / rate_hz) as f32,
             events,
             options: MapOptions::default(),
         }
+    }
+
+    /// Bounds the mapping cache (memory and disk) to `max_entries` tables.
+    pub fn with_max_cache_entries(mut self, max_entries: usize) -> Mapper {
+        let disk = self.store.take_disk();
+        self.store = MappingStore::new(disk, max_entries);
+        self
     }
 
     /// Builds every performer's mapping; failures are reported and leave that target at rest.
@@ -105,12 +111,6 @@ impl Mapper {
                 );
             }
         }
-    }
-
-    fn cache_path(&self, key: &CacheKey) -> Option<PathBuf> {
-        self.disk
-            .as_ref()
-            .map(|d| d.join(format!("{}.json", key.file_stem())))
     }
 
     /// Builds performer `i`'s mapping and hands it to the tick.
@@ -156,14 +156,7 @@ impl Mapper {
         // come from nor go into the cache.
         let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
         let key = CacheKey::new(&src_refs, &target, &self.options);
-        let cached = if use_cache {
-            self.memory.get(&key).map(|t| (*t).clone()).or_else(|| {
-                let text = std::fs::read_to_string(self.cache_path(&key)?).ok()?;
-                cache::decode(&text, &key)
-            })
-        } else {
-            None
-        };
+        let cached = if use_cache { self.store.get(&key) } else { None };
         let mut table = match cached {
             Some(t) if t.entries.len() == target.num_bones() => t,
             _ => {
@@ -177,15 +170,7 @@ impl Mapper {
         }
         apply_session(&mut table, &p.session, &src_refs, &target)?;
         if use_cache {
-            self.memory.insert(key.clone(), table.clone());
-        }
-        if let Some(path) = self.cache_path(&key).filter(|_| use_cache) {
-            // A failed cache write only costs a re-map next time.
-            let _ = path
-                .parent()
-                .map(std::fs::create_dir_all)
-                .transpose()
-                .and_then(|_| std::fs::write(&path, cache::encode(&key, &table)));
+            self.store.put(key, table.clone());
         }
         let opts = RetargetOptions {
             frame_time_secs: self.frame_time_secs,

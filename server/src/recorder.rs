@@ -10,7 +10,7 @@
 
 use std::fs::File;
 use std::io::BufWriter;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -25,14 +25,31 @@ use crate::subject::Subject;
 /// The writer type shared by the recorder and the raw taps.
 pub type SharedWriter = Arc<Mutex<RecordingWriter<BufWriter<File>>>>;
 
+/// A writer lock poisoned by a panicking holder (a raw tap's thread).
+const POISONED: &str = "the recording writer is unusable after a panic";
+
 /// Flush interval.
 const FLUSH_EVERY: Duration = Duration::from_secs(1);
 
 /// An open recording.
 pub struct Recorder {
     writer: SharedWriter,
+    path: PathBuf,
     /// Failed writes (the recording goes on).
     pub errors: AtomicU64,
+    /// The latest failure, for `/v1/status`.
+    last_error: Mutex<Option<String>>,
+}
+
+/// The recording in `/v1/status`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RecordingStatus {
+    /// The file.
+    pub path: String,
+    /// Failed writes since start (records lost; the recording goes on).
+    pub errors: u64,
+    /// The latest failure (`null` when none).
+    pub last_error: Option<String>,
 }
 
 impl Recorder {
@@ -44,8 +61,19 @@ impl Recorder {
             .with_context(|| format!("cannot write {}", path.display()))?;
         Ok(Recorder {
             writer: Arc::new(Mutex::new(writer)),
+            path: path.to_path_buf(),
             errors: AtomicU64::new(0),
+            last_error: Mutex::new(None),
         })
+    }
+
+    /// Where it records and how that is going.
+    pub fn status(&self) -> RecordingStatus {
+        RecordingStatus {
+            path: self.path.display().to_string(),
+            errors: self.errors.load(Ordering::Relaxed),
+            last_error: self.last_error.lock().ok().and_then(|e| e.clone()),
+        }
     }
 
     /// A raw tap for live source `subject`.
@@ -53,17 +81,22 @@ impl Recorder {
         RecordingTap::new(self.writer.clone(), subject)
     }
 
-    fn count<T, E>(&self, r: Result<T, E>) {
-        if r.is_err() {
+    fn count<T>(&self, r: Result<T, String>) {
+        if let Err(e) = r {
             self.errors.fetch_add(1, Ordering::Relaxed);
+            if let Ok(mut last) = self.last_error.lock() {
+                *last = Some(e);
+            }
         }
     }
 
     /// Writes a skeleton record.
     pub fn skeleton(&self, subject: u32, name: &str, skeleton: &Arc<Skeleton>) {
         let r = match self.writer.lock() {
-            Ok(mut w) => w.write_skeleton(subject, name, skeleton).map_err(|_| ()),
-            Err(_) => Err(()),
+            Ok(mut w) => w
+                .write_skeleton(subject, name, skeleton)
+                .map_err(|e| format!("writing a skeleton record: {e}")),
+            Err(_) => Err(POISONED.to_string()),
         };
         self.count(r);
     }
@@ -97,8 +130,8 @@ impl Recorder {
                 let r = match self.writer.lock() {
                     Ok(mut w) => w
                         .write_frame(s.id, frame.seq, frame.capture_nanos, &frame.pose)
-                        .map_err(|_| ()),
-                    Err(_) => Err(()),
+                        .map_err(|e| format!("writing a frame: {e}")),
+                    Err(_) => Err(POISONED.to_string()),
                 };
                 self.count(r);
             }
@@ -113,8 +146,8 @@ impl Recorder {
     /// Flushes buffered records to the file.
     pub fn flush(&self) {
         let r = match self.writer.lock() {
-            Ok(mut w) => w.flush().map_err(|_| ()),
-            Err(_) => Err(()),
+            Ok(mut w) => w.flush().map_err(|e| format!("flushing: {e}")),
+            Err(_) => Err(POISONED.to_string()),
         };
         self.count(r);
     }

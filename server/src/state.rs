@@ -7,7 +7,10 @@ use rigcast_protocol::control::SubjectInfo;
 use rigcast_protocol::{ServerMessage, PROTOCOL_VERSION};
 use tokio::sync::{broadcast, mpsc, watch};
 
+use crate::access::AccessPolicy;
 use crate::engine::{EngineCommand, OutFrame, Subject};
+use crate::limits::{ConnectionLimiter, FdLimit};
+use crate::recorder::Recorder;
 use crate::stats::Stats;
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
@@ -29,6 +32,16 @@ pub struct ServerState {
     pub shutdown: watch::Receiver<bool>,
     /// Requests to the engine.
     pub commands: mpsc::Sender<EngineCommand>,
+    /// Origin/Host/token rules of the listener.
+    pub policy: AccessPolicy,
+    /// The connection cap.
+    pub connections: Arc<ConnectionLimiter>,
+    /// The open-file limit at start.
+    pub fd_limit: Option<FdLimit>,
+    /// How long a client's socket may accept nothing before it is dropped.
+    pub stalled_client_timeout: std::time::Duration,
+    /// The recording, if any (its errors show in the status).
+    pub recorder: Option<Arc<Recorder>>,
 }
 
 impl ServerState {

@@ -63,17 +63,38 @@ pub struct SubjectStats {
     pub input: RateMeter,
     /// Capture time of the latest frame, Unix ns.
     pub last_capture_nanos: AtomicU64,
+    /// Skeleton changes applied.
+    pub skeleton_changes: AtomicU64,
+    /// Frames held back by the skeleton-change rate limit.
+    pub skeleton_frames_limited: AtomicU64,
 }
 
 /// Per-client counters.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct ClientStats {
     /// Frames sent.
     pub frames_sent: AtomicU64,
     /// Frames dropped because the client lagged.
     pub missed_frames: AtomicU64,
+    /// Snapshots sent after control messages were lost to lag.
+    pub control_resyncs: AtomicU64,
     /// Peer address, for display.
     pub peer: String,
+    /// What the client may do.
+    pub access: crate::access::Access,
+}
+
+impl ClientStats {
+    /// Zeroed counters for a client.
+    pub fn new(peer: String, access: crate::access::Access) -> ClientStats {
+        ClientStats {
+            frames_sent: AtomicU64::new(0),
+            missed_frames: AtomicU64::new(0),
+            control_resyncs: AtomicU64::new(0),
+            peer,
+            access,
+        }
+    }
 }
 
 /// Server-wide counters.
@@ -85,6 +106,10 @@ pub struct Stats {
     pub dropped_frames: AtomicU64,
     /// VMC datagrams that could not be sent.
     pub vmc_send_errors: AtomicU64,
+    /// Snapshots sent to clients that lost control messages to lag.
+    pub control_resyncs: AtomicU64,
+    /// Clients dropped for accepting nothing for the stall timeout.
+    pub stalled_disconnects: AtomicU64,
     /// Connected clients by id.
     pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
     tick_micros: Mutex<TickWindow>,
@@ -103,6 +128,8 @@ impl Default for Stats {
             output: RateMeter::default(),
             dropped_frames: AtomicU64::new(0),
             vmc_send_errors: AtomicU64::new(0),
+            control_resyncs: AtomicU64::new(0),
+            stalled_disconnects: AtomicU64::new(0),
             clients: Mutex::new(BTreeMap::new()),
             tick_micros: Mutex::new(TickWindow {
                 values: [0; TICK_WINDOW],

@@ -117,9 +117,12 @@ const SENSORS: [(u32, &str); 3] = [(0, "Hips"), (1, "LeftUpperArm"), (2, "LeftLo
 /// Runs `rigcast calibrate ARGS` (blocking, off the runtime's worker).
 async fn calibrate(args: Vec<String>) -> Output {
     tokio::task::spawn_blocking(move || {
+        // An empty config folder: the token comes from the arguments, never the user's file.
+        let config_home = std::env::temp_dir().join(format!("rigcast-calibrate-xdg-{}", std::process::id()));
         std::process::Command::new(env!("CARGO_BIN_EXE_rigcast"))
             .arg("calibrate")
             .args(&args)
+            .env("XDG_CONFIG_HOME", config_home)
             .output()
             .unwrap()
     })
@@ -208,7 +211,8 @@ async fn calibrate_command_removes_mounting_offsets() {
     })
     .await
     .unwrap();
-    let url = handle.stream_url();
+    // Calibrating changes the server: every request below carries the control token.
+    let url = handle.control_stream_url();
     let addr = handle.local_addr();
     let sk = default_humanoid().unwrap();
     let (mut ws, _) = tokio_tungstenite::connect_async(&url).await.unwrap();
@@ -246,6 +250,18 @@ async fn calibrate_command_removes_mounting_offsets() {
         };
         assert_eq!(reply["code"], code, "{request} → {reply}");
     }
+
+    // Without the token the request is refused, naming the remedy.
+    let out = calibrate(vec![
+        "--url".into(),
+        handle.stream_url(),
+        "--delay".into(),
+        "0".into(),
+    ])
+    .await;
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(err.contains("unauthorized") && err.contains("token"), "{err}");
 
     // No sensor data yet: the source is not live, so there is nothing to capture.
     let out = calibrate(vec![

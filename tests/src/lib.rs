@@ -362,3 +362,122 @@ pub fn rigcast_binary() -> PathBuf {
     assert!(bin.is_file(), "no binary at {}", bin.display());
     bin
 }
+
+/// A `rigcast serve` process of this build on a free loopback port, with its own config
+/// folder (so its control token is its own), its stdout collected line by line.
+pub struct ServeProcess {
+    /// The process (killed on drop).
+    pub child: KillOnDrop,
+    /// Where it listens.
+    pub addr: std::net::SocketAddr,
+    /// Its `XDG_CONFIG_HOME`.
+    pub config_home: PathBuf,
+    lines: Arc<std::sync::Mutex<Vec<String>>>,
+}
+
+impl ServeProcess {
+    /// Starts `rigcast serve --listen 127.0.0.1:PORT ARGS` and waits (≤ 60 s) until it prints
+    /// its connection cap (the last line of its access report). `max_open_files` sets the
+    /// process's RLIMIT_NOFILE (soft and hard) before it starts, like `ulimit -n`.
+    pub fn start(args: &[&str], config_home: PathBuf, max_open_files: Option<u64>) -> ServeProcess {
+        let listen = format!("127.0.0.1:{}", free_port());
+        Self::start_on(&listen, args, config_home, max_open_files)
+    }
+
+    /// [`ServeProcess::start`] on a given `--listen` address (port 0 allowed: the printed
+    /// stream address tells the real one).
+    pub fn start_on(
+        listen: &str,
+        args: &[&str],
+        config_home: PathBuf,
+        max_open_files: Option<u64>,
+    ) -> ServeProcess {
+        use std::io::BufRead;
+        use std::os::unix::process::CommandExt;
+        let mut cmd = std::process::Command::new(rigcast_binary());
+        cmd.args(["serve", "--listen", listen])
+            .args(args)
+            .env("XDG_CONFIG_HOME", &config_home)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped());
+        if let Some(n) = max_open_files {
+            // SAFETY: only setrlimit (async-signal-safe) runs between fork and exec.
+            unsafe {
+                cmd.pre_exec(move || {
+                    let lim = libc::rlimit {
+                        rlim_cur: n,
+                        rlim_max: n,
+                    };
+                    if libc::setrlimit(libc::RLIMIT_NOFILE, &lim) != 0 {
+                        return Err(std::io::Error::last_os_error());
+                    }
+                    Ok(())
+                });
+            }
+        }
+        let mut child = cmd.spawn().expect("rigcast starts");
+        let lines = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let (tx, rx) = std::sync::mpsc::channel();
+        for (pipe, prefix) in [
+            (
+                Box::new(child.stdout.take().unwrap()) as Box<dyn std::io::Read + Send>,
+                "",
+            ),
+            (Box::new(child.stderr.take().unwrap()), "stderr: "),
+        ] {
+            let lines = lines.clone();
+            let tx = tx.clone();
+            std::thread::spawn(move || {
+                for line in std::io::BufReader::new(pipe).lines().map_while(Result::ok) {
+                    if line.trim().starts_with("connections: ") {
+                        let _ = tx.send(());
+                    }
+                    lines.lock().unwrap().push(format!("{prefix}{line}"));
+                }
+            });
+        }
+        let child = KillOnDrop(child);
+        if rx.recv_timeout(Duration::from_secs(60)).is_err() {
+            panic!(
+                "rigcast did not report its connection cap within 60 s: {:?}",
+                lines.lock().unwrap()
+            );
+        }
+        let stream_line = lines
+            .lock()
+            .unwrap()
+            .iter()
+            .find_map(|l| l.trim().strip_prefix("stream: ws://").map(str::to_string))
+            .expect("stream address printed");
+        let addr = stream_line
+            .trim_end_matches("/v1/stream")
+            .parse()
+            .expect("a socket address");
+        ServeProcess {
+            child,
+            addr,
+            config_home,
+            lines,
+        }
+    }
+
+    /// Everything printed so far (stderr lines prefixed `stderr: `).
+    pub fn output(&self) -> Vec<String> {
+        self.lines.lock().unwrap().clone()
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.0.id()
+    }
+
+    /// Resident memory of the process (VmRSS), KiB.
+    pub fn rss_kib(&self) -> u64 {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.pid())).unwrap();
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmRSS:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+            .expect("VmRSS in /proc/PID/status")
+    }
+}

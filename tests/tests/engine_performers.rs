@@ -22,7 +22,8 @@ async fn demo_target_set_mapping_cache_and_record() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let mut ws = connect(&server.stream_url()).await;
+    // set_mapping changes the server: this client holds the control token.
+    let mut ws = connect(&server.control_stream_url()).await;
     let (hello, skeletons) = handshake(&mut ws).await;
     let ServerMessage::Hello { subjects, .. } = hello else {
         unreachable!()

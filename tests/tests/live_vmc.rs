@@ -109,6 +109,8 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
         rate_hz: RATE,
         sources: vec![SourceSpec::Vmc {
             port: 0,
+            bind: rigcast_server::config::DEFAULT_VMC_BIND,
+            allowed_senders: Vec::new(),
             lost_after_secs: Some(0.25),
             name: Some("performer".into()),
         }],

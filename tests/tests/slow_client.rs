@@ -76,7 +76,7 @@ async fn stalled_client_does_not_slow_others_and_is_told_what_it_missed() {
     socket.set_recv_buffer_size(4096).unwrap();
     let mut raw = socket.connect(server.local_addr()).await.unwrap();
     raw.write_all(
-        b"GET /v1/stream HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+        b"GET /v1/stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
           Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
     )
     .await

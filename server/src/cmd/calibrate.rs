@@ -39,6 +39,12 @@ pub struct CalibrateArgs {
     /// Seconds to get into the pose before the sensors are read.
     #[arg(long, default_value_t = 3.0)]
     pub delay: f32,
+    /// The server's control token (default: read from the token file).
+    #[arg(long)]
+    pub token: Option<String>,
+    /// The token file (default `$XDG_CONFIG_HOME/rigcast/token`).
+    #[arg(long, value_name = "PATH")]
+    pub token_file: Option<std::path::PathBuf>,
 }
 
 /// `--pose`.
@@ -77,7 +83,9 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             args.delay
         );
     }
-    let connect = tokio_tungstenite::connect_async(args.url.as_str());
+    let token = crate::token::client_token(args.token.as_deref(), args.token_file.as_deref())?;
+    let request = crate::token::authorized_request(&args.url, token.as_ref())?;
+    let connect = tokio_tungstenite::connect_async(request);
     let (mut ws, _) = tokio::time::timeout(ANSWER_TIMEOUT, connect)
         .await
         .with_context(|| format!("cannot connect to {}: timed out", args.url))?

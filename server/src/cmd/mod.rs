@@ -10,3 +10,4 @@ pub mod record;
 pub mod retarget;
 pub mod serve;
 pub mod setup;
+pub mod token;

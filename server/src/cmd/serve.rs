@@ -5,10 +5,12 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 
+use crate::access::BindScope;
 use crate::config::{
-    default_mapping_cache_dir, parse_listen, FileConfig, OnLost, PerformerSpec, ReplaySettings,
-    ServerConfig, SourceSpec,
+    default_mapping_cache_dir, parse_listen, AccessConfig, FileConfig, OnLost, PerformerSpec,
+    ReplaySettings, ServerConfig, SourceSpec, DEFAULT_VMC_BIND,
 };
+use crate::token::TokenSetting;
 
 /// Options of `rigcast serve`. Flags override `--config`.
 #[derive(Debug, Args, Default)]
@@ -43,6 +45,16 @@ pub struct ServeArgs {
     /// Don't read or write the on-disk mapping cache.
     #[arg(long)]
     pub no_mapping_cache: bool,
+    /// Allow web pages of this origin (e.g. `http://localhost:3000`) besides the served
+    /// viewer (repeatable; adds to the config's `allowed_origins`).
+    #[arg(long = "allow-origin", value_name = "ORIGIN")]
+    pub allowed_origins: Vec<String>,
+    /// The control token's file (default `$XDG_CONFIG_HOME/rigcast/token`).
+    #[arg(long, value_name = "PATH")]
+    pub token_file: Option<PathBuf>,
+    /// Most simultaneous connections (default: the open-file limit minus 64).
+    #[arg(long, value_name = "N")]
+    pub max_connections: Option<usize>,
 }
 
 /// Merges the config file and flags.
@@ -51,9 +63,24 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
         Some(path) => ServerConfig::from_file(FileConfig::load(path)?)?,
         None => ServerConfig {
             mapping_cache_dir: default_mapping_cache_dir(),
+            access: AccessConfig {
+                token: crate::token::default_token_path()
+                    .map(TokenSetting::File)
+                    .unwrap_or(TokenSetting::Ephemeral),
+                ..AccessConfig::default()
+            },
             ..ServerConfig::default()
         },
     };
+    if let Some(t) = &args.token_file {
+        cfg.access.token = TokenSetting::File(t.clone());
+    }
+    cfg.access
+        .allowed_origins
+        .extend(args.allowed_origins.iter().cloned());
+    if args.max_connections.is_some() {
+        cfg.limits.max_connections = args.max_connections;
+    }
     if args.no_mapping_cache {
         cfg.mapping_cache_dir = None;
     }
@@ -94,8 +121,8 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     Ok(cfg)
 }
 
-/// Parses `replay:PATH`, `vmc:PORT`, `serial:CONFIG.toml`, `video:FILE`, `webcam:INDEX` (and
-/// `demo`).
+/// Parses `replay:PATH`, `vmc:PORT` (loopback), `vmc:ADDR:PORT`, `serial:CONFIG.toml`,
+/// `video:FILE`, `webcam:INDEX` (and `demo`).
 pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
     if s == "demo" {
         return Ok(SourceSpec::EmbeddedDemo);
@@ -106,13 +133,27 @@ pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
             name: None,
             settings: ReplaySettings::default(),
         }),
-        Some(("vmc", port)) => Ok(SourceSpec::Vmc {
-            port: port.parse().map_err(|_| {
-                anyhow::anyhow!("--source {s:?}: expected vmc:PORT with a UDP port 0..=65535")
-            })?,
-            lost_after_secs: None,
-            name: None,
-        }),
+        Some(("vmc", arg)) => {
+            let bad = || {
+                anyhow::anyhow!(
+                    "--source {s:?}: expected vmc:PORT (loopback) or vmc:ADDR:PORT with a UDP port 0..=65535"
+                )
+            };
+            let (bind, port) = match arg.parse::<u16>() {
+                Ok(port) => (DEFAULT_VMC_BIND, port),
+                Err(_) => {
+                    let addr: std::net::SocketAddr = arg.parse().map_err(|_| bad())?;
+                    (addr.ip(), addr.port())
+                }
+            };
+            Ok(SourceSpec::Vmc {
+                port,
+                bind,
+                allowed_senders: Vec::new(),
+                lost_after_secs: None,
+                name: None,
+            })
+        }
         Some(("serial", path)) if !path.is_empty() => Ok(SourceSpec::Serial {
             config: PathBuf::from(path),
             name: None,
@@ -136,12 +177,14 @@ pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
 /// Runs the server until Ctrl-C.
 pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     let cfg = resolve(&args)?;
+    let fd = crate::limits::raise_fd_limit();
     let handle = crate::start(cfg.clone()).await?;
     let addr = handle.local_addr();
     println!("rigcast {} listening", env!("CARGO_PKG_VERSION"));
     println!("  stream: ws://{addr}/v1/stream");
     println!("  status: http://{addr}/v1/status");
     println!("  viewer: http://{addr}/");
+    print_access(&handle, fd);
     for s in handle.state().subjects.iter() {
         let info = s.info();
         let from = if s.is_target() {
@@ -164,12 +207,67 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     for v in &cfg.vmc_out {
         println!("  vmc out: {v}");
     }
+    for s in &cfg.sources {
+        if let SourceSpec::Vmc {
+            bind,
+            allowed_senders,
+            ..
+        } = s
+        {
+            if !bind.is_loopback() && allowed_senders.is_empty() {
+                println!(
+                    "  warning: VMC input on {bind} accepts datagrams from any host that can reach it; \
+                     list trusted senders in allowed_senders"
+                );
+            }
+        }
+    }
     tokio::signal::ctrl_c()
         .await
         .context("waiting for Ctrl-C")?;
     println!("rigcast: shutting down");
     handle.shutdown().await;
     Ok(())
+}
+
+/// Prints the access rules in force: the token (only when just created, or with a
+/// network-facing listener that cannot be used without it), the connection cap.
+fn print_access(handle: &crate::ServerHandle, fd: Option<crate::limits::FdLimit>) {
+    let addr = handle.local_addr();
+    let info = handle.token_info();
+    let scope = handle.state().policy.scope();
+    let secret = info.token.reveal();
+    let location = info
+        .path
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| "memory (this run only)".into());
+    if scope == BindScope::Network {
+        println!(
+            "  warning: listening on {addr}, beyond loopback: every client needs the control token, \
+             streaming and status included (traffic is not encrypted)"
+        );
+    }
+    if info.created {
+        println!("  control token created in {location}");
+        println!("  viewer with control: http://{addr}/?token={secret}");
+    } else {
+        println!(
+            "  control token: in {location} (`rigcast token show` prints it and the viewer link)"
+        );
+    }
+    let state = handle.state();
+    let fd_text = match fd {
+        Some(l) => match l.raised_from {
+            Some(old) => format!("open-file limit raised from {old} to {}", l.soft),
+            None => format!("open-file limit {}", l.soft),
+        },
+        None => "open-file limit unknown".into(),
+    };
+    println!(
+        "  connections: at most {} ({fd_text})",
+        state.connections.max()
+    );
 }
 
 #[cfg(test)]
@@ -196,6 +294,14 @@ mod tests {
             SourceSpec::Vmc { port: 39540, .. }
         ));
         assert!(parse_source("vmc:x").is_err());
+        assert!(matches!(
+            parse_source("vmc:39540").unwrap(),
+            SourceSpec::Vmc { bind, .. } if bind.is_loopback()
+        ));
+        assert!(matches!(
+            parse_source("vmc:0.0.0.0:39541").unwrap(),
+            SourceSpec::Vmc { bind, port: 39541, .. } if bind.is_unspecified()
+        ));
         assert!(matches!(
             parse_source("webcam:2").unwrap(),
             SourceSpec::Webcam { index: 2, .. }

@@ -40,9 +40,13 @@ const MAX_DATAGRAM: usize = 65_536;
 /// Configuration of a [`VmcSource`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VmcConfig {
-    /// Address to bind (default 0.0.0.0).
+    /// Address to bind (default 127.0.0.1: senders on this machine only).
     #[serde(default = "default_bind")]
     pub bind: IpAddr,
+    /// Sender IP addresses whose datagrams are decoded; others are counted and dropped.
+    /// Empty: every sender that can reach `bind`.
+    #[serde(default)]
+    pub allowed_senders: Vec<IpAddr>,
     /// UDP port (default 39539; 0 picks a free port, see [`VmcSource::local_addr`]).
     #[serde(default = "default_port")]
     pub port: u16,
@@ -55,7 +59,7 @@ pub struct VmcConfig {
 }
 
 fn default_bind() -> IpAddr {
-    IpAddr::V4(Ipv4Addr::UNSPECIFIED)
+    IpAddr::V4(Ipv4Addr::LOCALHOST)
 }
 fn default_port() -> u16 {
     DEFAULT_VMC_PORT
@@ -68,6 +72,7 @@ impl Default for VmcConfig {
     fn default() -> Self {
         VmcConfig {
             bind: default_bind(),
+            allowed_senders: Vec::new(),
             port: DEFAULT_VMC_PORT,
             lost_after_secs: default_lost_after(),
             mapping: OscMapping::vmc(),
@@ -101,6 +106,9 @@ enum Input {
     Udp {
         socket: UdpSocket,
         local: SocketAddr,
+        allowed: Vec<IpAddr>,
+        /// Datagrams from senders outside `allowed`.
+        rejected: u64,
     },
     Replay {
         packets: Vec<RawPacket>,
@@ -129,7 +137,12 @@ impl VmcSource {
         let local = socket.local_addr()?;
         Ok(VmcSource {
             name: format!("vmc:{}", local.port()),
-            input: Input::Udp { socket, local },
+            input: Input::Udp {
+                socket,
+                local,
+                allowed: config.allowed_senders,
+                rejected: 0,
+            },
             decoder: VmcDecoder::new(config.mapping)?,
             health: HealthTracker::new(lost_after),
             tap: None,
@@ -174,6 +187,14 @@ impl VmcSource {
         }
     }
 
+    /// Datagrams dropped because their sender is not in `allowed_senders`.
+    pub fn rejected_senders(&self) -> u64 {
+        match &self.input {
+            Input::Udp { rejected, .. } => *rejected,
+            Input::Replay { .. } => 0,
+        }
+    }
+
     /// True when a replay has delivered every packet (always false for UDP).
     pub fn replay_finished(&self) -> bool {
         match &self.input {
@@ -196,7 +217,12 @@ impl VmcSource {
     /// None when `deadline` passed first.
     fn receive(&mut self, deadline: Instant) -> Option<Recv> {
         match &mut self.input {
-            Input::Udp { socket, .. } => {
+            Input::Udp {
+                socket,
+                allowed,
+                rejected,
+                ..
+            } => {
                 let wait = deadline
                     .saturating_duration_since(Instant::now())
                     .max(Duration::from_millis(1));
@@ -204,6 +230,15 @@ impl VmcSource {
                     return None;
                 }
                 match socket.recv_from(&mut self.buf) {
+                    Ok((_, from)) if !allowed.is_empty() && !allowed.contains(&from.ip()) => {
+                        *rejected += 1;
+                        self.health.on_dropped(1);
+                        self.health.set_detail(&format!(
+                            "ignored {rejected} datagram(s) from senders not in allowed_senders (last {})",
+                            from.ip()
+                        ));
+                        Some(Recv::Rejected)
+                    }
                     Ok((n, _)) => Some(Recv::Buf(n)),
                     Err(e)
                         if matches!(
@@ -247,6 +282,8 @@ impl VmcSource {
 enum Recv {
     Buf(usize),
     Replay(usize),
+    /// A datagram from a sender that is not allowed (already counted).
+    Rejected,
 }
 
 impl LiveSource for VmcSource {
@@ -275,12 +312,18 @@ impl LiveSource for VmcSource {
                 }
                 return Ok(None);
             };
+            if matches!(recv, Recv::Rejected) {
+                if Instant::now() >= deadline {
+                    return Ok(None);
+                }
+                continue;
+            }
             let received = Instant::now();
             let capture_nanos = unix_nanos_now();
             let bytes: &[u8] = match (&recv, &self.input) {
                 (Recv::Buf(n), _) => &self.buf[..*n],
                 (Recv::Replay(i), Input::Replay { packets, .. }) => &packets[*i].bytes,
-                (Recv::Replay(_), Input::Udp { .. }) => &[],
+                (Recv::Replay(_) | Recv::Rejected, _) => &[],
             };
             if let Some(tap) = self.tap.as_mut() {
                 tap.raw(RawKind::Osc, capture_nanos, bytes);
