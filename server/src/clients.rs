@@ -266,7 +266,10 @@ where
 /// What a message needs. Exhaustive on purpose: a new message type must choose.
 fn required_access(msg: &ClientMessage) -> Access {
     match msg {
-        ClientMessage::Subscribe { .. } | ClientMessage::Ping { .. } => Access::ReadOnly,
+        // Choosing a frame version changes only what this client receives.
+        ClientMessage::Subscribe { .. }
+        | ClientMessage::Ping { .. }
+        | ClientMessage::SetProtocol { .. } => Access::ReadOnly,
         ClientMessage::SetMapping { .. } | ClientMessage::Calibrate { .. } => Access::Control,
     }
 }
@@ -276,6 +279,7 @@ fn type_name(msg: &ClientMessage) -> &'static str {
     match msg {
         ClientMessage::Subscribe { .. } => "subscribe",
         ClientMessage::Ping { .. } => "ping",
+        ClientMessage::SetProtocol { .. } => "set_protocol",
         ClientMessage::SetMapping { .. } => "set_mapping",
         ClientMessage::Calibrate { .. } => "calibrate",
     }

@@ -381,6 +381,8 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
         rate_hz: RATE,
         sources: vec![SourceSpec::Vmc {
             port: 0,
+            bind: rigcast_server::config::DEFAULT_VMC_BIND,
+            allowed_senders: Vec::new(),
             lost_after_secs: Some(0.25),
             name: Some("performer".into()),
         }],
