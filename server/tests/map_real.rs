@@ -321,3 +321,25 @@ fn demo_head_top_onto_ue_mannequin_head_from_head() {
         }
     }
 }
+
+/// A rig whose names mark the sides the other way round from its body (the Godot platformer
+/// robot names its left side `r-*`): the geometry's sides are used and `rigcast map` says so.
+#[test]
+fn mirrored_names_lose_to_geometry_with_a_warning() {
+    let (Some(src), Some(tgt)) = (
+        data("bvh/cmu_31joint_example.bvh"),
+        data("zoo/gltf/godot_robot__platformer_player.glb"),
+    ) else {
+        return;
+    };
+    let v = map_json(&src, &tgt, &[]);
+    let warnings = v["warnings"]["target"].as_array().unwrap();
+    assert!(
+        warnings.iter().any(|w| w.as_str().unwrap().contains("geometry")),
+        "no warning: {warnings:?}"
+    );
+    assert!(v["warnings"]["source"].as_array().unwrap().is_empty());
+    // The labels (checked against the mesh) put `r-thigh` on the character's left.
+    assert_eq!(mapped(&v, "r-thigh"), Some("LeftUpLeg"));
+    assert_eq!(mapped(&v, "l-forearm"), Some("RightForeArm"));
+}

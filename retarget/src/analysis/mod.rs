@@ -13,13 +13,17 @@
 //!   Analysis { up, forward, left, positions, sections, roles[bone] }
 //! ```
 //!
-//! Files: `topology` (order-free structure), `roles` (frame, centerline, limbs, sections),
+//! Files: `posture` (rest pose or the motion's medoid frame), `detached` (control and IK bones
+//! beside the body, and the limbs they continue), `forward` (facing from feet, joint bends over
+//! the motion, thumbs; geometry beats names), `topology` (order-free structure), `roles`
+//! (up, centerline, limbs, sections),
 //! `limbs` (chain splitting), `names` (name normalisation), `vocabulary` (roles and kinds),
 //! `humanoid` (Unity / VRM role map), `truth` (a file's own humanoid map overriding roles).
 //!
 //! Nothing here assumes a facing direction: the character's forward is where its feet (toes)
-//! point and where its head leans; side markers in names break the tie only when geometry gives
-//! no cue.
+//! point, the way its knees and elbows bend and its thumbs sit; side markers in names break the
+//! tie only when geometry gives no clear cue, and a clear cue that disagrees with the names is
+//! reported in `Analysis::warnings`.
 
 pub mod humanoid;
 mod detached;

@@ -214,6 +214,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
             "target": args.target.display().to_string(),
             "mapping": mapping,
             "roles": {"source": roles_json(ss, &sa), "target": roles_json(ts, &ta)},
+            "warnings": {"source": sa.warnings, "target": ta.warnings},
             "humanoid": {
                 "source": humanoid_json(ss, &sa, truth_s.as_deref()),
                 "target": humanoid_json(ts, &ta, truth_t.as_deref()),
@@ -229,6 +230,11 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         });
         println!("{out}");
     } else {
+        for (which, a) in [("source", &sa), ("target", &ta)] {
+            for w in &a.warnings {
+                eprintln!("warning: {which}: {w}");
+            }
+        }
         print!("{}", render_table(ss, &sa, ts, &ta, &table));
         println!(
             "{} of {} target bones mapped in {:.2} ms{} (files read in {:.1} ms)",
