@@ -24,8 +24,8 @@ use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::mapping::{
-    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile,
-    MappingTable, SourceRef, TargetEntry, UNMAPPED,
+    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
+    SourceRef, TargetEntry, UNMAPPED,
 };
 use rigcast_retarget::{Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
@@ -162,7 +162,11 @@ impl Mapper {
         // come from nor go into the cache.
         let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
         let key = CacheKey::new(&src_refs, &target, &self.options);
-        let cached = if use_cache { self.store.get(&key) } else { None };
+        let cached = if use_cache {
+            self.store.get(&key)
+        } else {
+            None
+        };
         let mut table = match cached {
             Some(t) if t.entries.len() == target.num_bones() => t,
             _ => {

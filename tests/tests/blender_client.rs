@@ -269,7 +269,12 @@ fn run_blender(
         .args(&zip_args)
         .args(["--mode", mode])
         .args(["--address", &addr.to_string(), "--seconds", "2.0"])
-        .args(token.map(|t| ["--token".to_string(), t]).into_iter().flatten())
+        .args(
+            token
+                .map(|t| ["--token".to_string(), t])
+                .into_iter()
+                .flatten(),
+        )
         .arg("--out")
         .arg(&out_json)
         // Install the add-on into a throwaway user scripts dir, not the user's own.

@@ -86,6 +86,8 @@ async fn recording_errors_show_in_the_status() {
     // Frames still flow.
     let mut ws = connect(&server.stream_url()).await;
     handshake(&mut ws).await;
-    assert!(!collect_frames(&mut ws, Duration::from_millis(300)).await.is_empty());
+    assert!(!collect_frames(&mut ws, Duration::from_millis(300))
+        .await
+        .is_empty());
     server.shutdown().await;
 }

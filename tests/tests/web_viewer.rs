@@ -643,7 +643,8 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
             let _ = s.write_all(response.as_bytes()).await;
         }
     });
-    cdp.call("Page.navigate", json!({ "url": foreign_url })).await;
+    cdp.call("Page.navigate", json!({ "url": foreign_url }))
+        .await;
     let start = Instant::now();
     let mut title = Value::Null;
     while start.elapsed() < Duration::from_secs(10) {
