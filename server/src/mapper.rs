@@ -6,7 +6,8 @@
 //!        ▼
 //!  table = memory cache ▸ disk cache (~/.cache/rigcast/mappings/KEY.json) ▸ auto_map_many
 //!        + overrides file (TOML) + the session's set_mapping overrides
-//!        ──▶ cache (memory + disk) ──▶ Mapping::build ──▶ mailbox (tick picks it up)
+//!        ──▶ cache (memory + disk, LRU-bounded, written only when changed: mapping_store.rs)
+//!        ──▶ Mapping::build ──▶ mailbox (tick picks it up)
 //!                                                   └──▶ `mapping` message to clients
 //! ```
 //!
