@@ -290,7 +290,12 @@ mod tests {
             ok(Some("127.0.0.1:8717"), Some("http://localhost:3000")),
             Ok(Access::ReadOnly)
         );
-        for bad in ["http://evil.example", "null", "http://127.0.0.1:9999", "https://127.0.0.1:8717"] {
+        for bad in [
+            "http://evil.example",
+            "null",
+            "http://127.0.0.1:9999",
+            "https://127.0.0.1:8717",
+        ] {
             assert!(
                 matches!(
                     ok(Some("127.0.0.1:8717"), Some(bad)),
@@ -307,7 +312,10 @@ mod tests {
             Ok(Access::Control)
         );
         assert_eq!(
-            p.decide(Route::Stream, &creds(None, None, Some("0123456789abcdef0124"))),
+            p.decide(
+                Route::Stream,
+                &creds(None, None, Some("0123456789abcdef0124"))
+            ),
             Err(Refusal::WrongToken)
         );
         // A right token does not excuse a foreign origin.
@@ -333,7 +341,10 @@ mod tests {
             BindScope::of(&"127.0.0.2:1".parse().unwrap()),
             BindScope::Loopback
         );
-        assert_eq!(BindScope::of(&"[::1]:1".parse().unwrap()), BindScope::Loopback);
+        assert_eq!(
+            BindScope::of(&"[::1]:1".parse().unwrap()),
+            BindScope::Loopback
+        );
     }
 
     #[test]

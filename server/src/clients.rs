@@ -92,7 +92,10 @@ pub async fn serve_client<S>(
     let mut frames = state.frames.subscribe();
     let mut events = state.events.subscribe();
     if let Err(End::Stalled) = run(ws, &state, &stats, &mut frames, &mut events).await {
-        state.stats.stalled_disconnects.fetch_add(1, Ordering::Relaxed);
+        state
+            .stats
+            .stalled_disconnects
+            .fetch_add(1, Ordering::Relaxed);
     }
     if let Ok(mut clients) = state.stats.clients.lock() {
         clients.remove(&client_id);

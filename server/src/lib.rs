@@ -450,7 +450,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         stalled_client_timeout: std::time::Duration::from_secs_f64(
             config.limits.stalled_client_timeout_secs,
         ),
-        recorder: recorder.clone(),
+        recorder: recorder.as_ref().map(|r| r.health()),
     });
 
     let stop_threads = Arc::new(AtomicBool::new(false));

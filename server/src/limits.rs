@@ -83,9 +83,11 @@ pub fn raise_fd_limit() -> Option<FdLimit> {
 /// The default cap for a soft open-file limit: the limit minus the reserve, at least 16.
 pub fn default_max_connections(limit: Option<FdLimit>) -> usize {
     match limit {
-        Some(l) if l.soft != libc::RLIM_INFINITY => {
-            l.soft.saturating_sub(FD_RESERVE).max(16).min(usize::MAX as u64) as usize
-        }
+        Some(l) if l.soft != libc::RLIM_INFINITY => l
+            .soft
+            .saturating_sub(FD_RESERVE)
+            .max(16)
+            .min(usize::MAX as u64) as usize,
         _ => FALLBACK_MAX_CONNECTIONS,
     }
 }

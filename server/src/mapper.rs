@@ -6,7 +6,8 @@
 //!        ▼
 //!  table = memory cache ▸ disk cache (~/.cache/rigcast/mappings/KEY.json) ▸ auto_map_many
 //!        + overrides file (TOML) + the session's set_mapping overrides
-//!        ──▶ cache (memory + disk) ──▶ Mapping::build ──▶ mailbox (tick picks it up)
+//!        ──▶ cache (memory + disk, LRU-bounded, written only when changed: mapping_store.rs)
+//!        ──▶ Mapping::build ──▶ mailbox (tick picks it up)
 //!                                                   └──▶ `mapping` message to clients
 //! ```
 //!
@@ -24,8 +25,8 @@ use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::mapping::{
-    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile,
-    MappingTable, SourceRef, TargetEntry, UNMAPPED,
+    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
+    SourceRef, TargetEntry, UNMAPPED,
 };
 use rigcast_retarget::{Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
@@ -156,7 +157,11 @@ impl Mapper {
         // come from nor go into the cache.
         let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
         let key = CacheKey::new(&src_refs, &target, &self.options);
-        let cached = if use_cache { self.store.get(&key) } else { None };
+        let cached = if use_cache {
+            self.store.get(&key)
+        } else {
+            None
+        };
         let mut table = match cached {
             Some(t) if t.entries.len() == target.num_bones() => t,
             _ => {

@@ -34,11 +34,29 @@ const FLUSH_EVERY: Duration = Duration::from_secs(1);
 /// An open recording.
 pub struct Recorder {
     writer: SharedWriter,
+    health: Arc<RecorderHealth>,
+}
+
+/// How a recording is going; shared with the status handler (which must not hold the
+/// recorder itself: finishing it needs the last reference).
+#[derive(Debug)]
+pub struct RecorderHealth {
     path: PathBuf,
     /// Failed writes (the recording goes on).
     pub errors: AtomicU64,
-    /// The latest failure, for `/v1/status`.
+    /// The latest failure.
     last_error: Mutex<Option<String>>,
+}
+
+impl RecorderHealth {
+    /// Where it records and how that is going.
+    pub fn status(&self) -> RecordingStatus {
+        RecordingStatus {
+            path: self.path.display().to_string(),
+            errors: self.errors.load(Ordering::Relaxed),
+            last_error: self.last_error.lock().ok().and_then(|e| e.clone()),
+        }
+    }
 }
 
 /// The recording in `/v1/status`.
@@ -61,19 +79,17 @@ impl Recorder {
             .with_context(|| format!("cannot write {}", path.display()))?;
         Ok(Recorder {
             writer: Arc::new(Mutex::new(writer)),
-            path: path.to_path_buf(),
-            errors: AtomicU64::new(0),
-            last_error: Mutex::new(None),
+            health: Arc::new(RecorderHealth {
+                path: path.to_path_buf(),
+                errors: AtomicU64::new(0),
+                last_error: Mutex::new(None),
+            }),
         })
     }
 
-    /// Where it records and how that is going.
-    pub fn status(&self) -> RecordingStatus {
-        RecordingStatus {
-            path: self.path.display().to_string(),
-            errors: self.errors.load(Ordering::Relaxed),
-            last_error: self.last_error.lock().ok().and_then(|e| e.clone()),
-        }
+    /// Its health, for `/v1/status`.
+    pub fn health(&self) -> Arc<RecorderHealth> {
+        self.health.clone()
     }
 
     /// A raw tap for live source `subject`.
@@ -83,8 +99,8 @@ impl Recorder {
 
     fn count<T>(&self, r: Result<T, String>) {
         if let Err(e) = r {
-            self.errors.fetch_add(1, Ordering::Relaxed);
-            if let Ok(mut last) = self.last_error.lock() {
+            self.health.errors.fetch_add(1, Ordering::Relaxed);
+            if let Ok(mut last) = self.health.last_error.lock() {
                 *last = Some(e);
             }
         }

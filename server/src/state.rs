@@ -10,7 +10,7 @@ use tokio::sync::{broadcast, mpsc, watch};
 use crate::access::AccessPolicy;
 use crate::engine::{EngineCommand, OutFrame, Subject};
 use crate::limits::{ConnectionLimiter, FdLimit};
-use crate::recorder::Recorder;
+use crate::recorder::RecorderHealth;
 use crate::stats::Stats;
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
@@ -40,8 +40,8 @@ pub struct ServerState {
     pub fd_limit: Option<FdLimit>,
     /// How long a client's socket may accept nothing before it is dropped.
     pub stalled_client_timeout: std::time::Duration,
-    /// The recording, if any (its errors show in the status).
-    pub recorder: Option<Arc<Recorder>>,
+    /// The recording's health, if recording (its errors show in the status).
+    pub recorder: Option<Arc<RecorderHealth>>,
 }
 
 impl ServerState {

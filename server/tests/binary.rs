@@ -27,8 +27,12 @@ impl Drop for Server {
 
 /// Starts the binary and reads the printed stream URL.
 fn spawn(args: &[&str]) -> Server {
+    // Its own config folder, so the control token it creates is not the user's.
+    let config_home =
+        std::env::temp_dir().join(format!("rigcast-binary-xdg-{}", std::process::id()));
     let mut child = Command::new(env!("CARGO_BIN_EXE_rigcast"))
         .args(args)
+        .env("XDG_CONFIG_HOME", config_home)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
@@ -179,8 +183,11 @@ async fn binary_serve_subcommand_honours_rate() {
 /// Runs the binary with `args`, expecting it to refuse them: it must exit (not start serving)
 /// within 20 s with a failure status. Returns stderr.
 fn refused(args: &[&str]) -> String {
+    let config_home =
+        std::env::temp_dir().join(format!("rigcast-binary-xdg-{}", std::process::id()));
     let mut child = Command::new(env!("CARGO_BIN_EXE_rigcast"))
         .args(args)
+        .env("XDG_CONFIG_HOME", config_home)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()

@@ -118,7 +118,8 @@ const SENSORS: [(u32, &str); 3] = [(0, "Hips"), (1, "LeftUpperArm"), (2, "LeftLo
 async fn calibrate(args: Vec<String>) -> Output {
     tokio::task::spawn_blocking(move || {
         // An empty config folder: the token comes from the arguments, never the user's file.
-        let config_home = std::env::temp_dir().join(format!("rigcast-calibrate-xdg-{}", std::process::id()));
+        let config_home =
+            std::env::temp_dir().join(format!("rigcast-calibrate-xdg-{}", std::process::id()));
         std::process::Command::new(env!("CARGO_BIN_EXE_rigcast"))
             .arg("calibrate")
             .args(&args)
@@ -261,7 +262,10 @@ async fn calibrate_command_removes_mounting_offsets() {
     .await;
     assert!(!out.status.success());
     let err = text(&out.stderr);
-    assert!(err.contains("unauthorized") && err.contains("token"), "{err}");
+    assert!(
+        err.contains("unauthorized") && err.contains("token"),
+        "{err}"
+    );
 
     // No sensor data yet: the source is not live, so there is nothing to capture.
     let out = calibrate(vec![

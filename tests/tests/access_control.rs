@@ -142,7 +142,10 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
         &[("Host", &host), ("Origin", "http://evil.example")],
         &[("Host", &host), ("Origin", "null")],
         &[("Host", &host), ("Origin", &other_port)],
-        &[("Host", "evil.example:8717"), ("Origin", "http://evil.example:8717")],
+        &[
+            ("Host", "evil.example:8717"),
+            ("Origin", "http://evil.example:8717"),
+        ],
         &[("Host", "evil.example")],
     ];
     for headers in refused {
@@ -166,7 +169,10 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
     assert_eq!(
         status_code(
             addr,
-            &upgrade("/v1/stream", &[("Authorization", &format!("Bearer {wrong}"))])
+            &upgrade(
+                "/v1/stream",
+                &[("Authorization", &format!("Bearer {wrong}"))]
+            )
         )
         .await,
         401
@@ -186,7 +192,10 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
     )
     .await;
     let message = expect_error(&mut viewer, ErrorCode::Unauthorized).await;
-    assert!(message.contains("set_mapping") && message.contains("token"), "{message}");
+    assert!(
+        message.contains("set_mapping") && message.contains("token"),
+        "{message}"
+    );
     send_text(&mut viewer, r#"{"type":"calibrate","subject":0}"#).await;
     expect_error(&mut viewer, ErrorCode::Unauthorized).await;
     // Nothing changed: no mapping was broadcast, the cache on disk is as it was.
@@ -210,7 +219,10 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
     .await;
     let mut acked = false;
     let entries = loop {
-        match next_json(&mut control, WAIT).await.expect("ack and mapping") {
+        match next_json(&mut control, WAIT)
+            .await
+            .expect("ack and mapping")
+        {
             ServerMessage::Ack { subject: 1, .. } => acked = true,
             ServerMessage::Error { code, message } => panic!("{code:?}: {message}"),
             ServerMessage::Mapping { entries, .. } if acked => break entries,
@@ -221,10 +233,13 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
     assert_eq!(thigh.source, None);
     // The read-only viewer sees the change too.
     loop {
-        if let ServerMessage::Mapping { entries, .. } =
-            next_json(&mut viewer, WAIT).await.expect("mapping broadcast")
+        if let ServerMessage::Mapping { entries, .. } = next_json(&mut viewer, WAIT)
+            .await
+            .expect("mapping broadcast")
         {
-            assert!(entries.iter().any(|e| e.target == "thigh_l" && e.source.is_none()));
+            assert!(entries
+                .iter()
+                .any(|e| e.target == "thigh_l" && e.source.is_none()));
             break;
         }
     }
@@ -239,8 +254,14 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
         .iter()
         .map(|c| c["access"].as_str().unwrap())
         .collect();
-    assert!(kinds.contains(&"read_only") && kinds.contains(&"control"), "{kinds:?}");
-    assert!(!body.contains(server.control_token().reveal()), "no token in the status");
+    assert!(
+        kinds.contains(&"read_only") && kinds.contains(&"control"),
+        "{kinds:?}"
+    );
+    assert!(
+        !body.contains(server.control_token().reveal()),
+        "no token in the status"
+    );
     server.shutdown().await;
 }
 
@@ -268,9 +289,14 @@ async fn a_listener_beyond_loopback_needs_the_token_to_stream() {
     let token = server.control_token().reveal().to_string();
     let mut ws = connect(&format!("ws://{addr}/v1/stream?token={token}")).await;
     handshake(&mut ws).await;
-    assert!(!collect_frames(&mut ws, Duration::from_millis(300)).await.is_empty());
+    assert!(!collect_frames(&mut ws, Duration::from_millis(300))
+        .await
+        .is_empty());
     let (head, _) = {
-        let raw = get("/v1/status", &[("Authorization", &format!("Bearer {token}"))]);
+        let raw = get(
+            "/v1/status",
+            &[("Authorization", &format!("Bearer {token}"))],
+        );
         let text = http_raw(addr, raw.as_bytes(), WAIT).await.unwrap();
         let (h, b) = text.split_once("\r\n\r\n").unwrap();
         (h.to_string(), b.to_string())

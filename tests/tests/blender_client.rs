@@ -244,13 +244,33 @@ async fn run_blender_off_runtime(
     mode: &'static str,
     zip: Zip,
 ) -> Value {
+    run_blender_with_token(blender, addr, work, mode, zip, None).await
+}
+
+/// [`run_blender_off_runtime`] with the server's control token typed into the add-on's
+/// Token field.
+async fn run_blender_with_token(
+    blender: PathBuf,
+    addr: SocketAddr,
+    work: &Path,
+    mode: &'static str,
+    zip: Zip,
+    token: Option<String>,
+) -> Value {
     let work = work.to_path_buf();
-    tokio::task::spawn_blocking(move || run_blender(&blender, addr, &work, mode, zip))
+    tokio::task::spawn_blocking(move || run_blender(&blender, addr, &work, mode, zip, token))
         .await
         .expect("blender task")
 }
 
-fn run_blender(blender: &Path, addr: SocketAddr, work: &Path, mode: &str, zip: Zip) -> Value {
+fn run_blender(
+    blender: &Path,
+    addr: SocketAddr,
+    work: &Path,
+    mode: &str,
+    zip: Zip,
+    token: Option<String>,
+) -> Value {
     let root = repo_root();
     let out_json = work.join("observations.json");
     let zip_args: Vec<std::ffi::OsString> = match zip {
@@ -272,7 +292,14 @@ fn run_blender(blender: &Path, addr: SocketAddr, work: &Path, mode: &str, zip: Z
         .arg("--")
         .args(&zip_args)
         .args(["--mode", mode])
-        .args(["--address", &addr.to_string(), "--seconds", "2.0", "--out"])
+        .args(["--address", &addr.to_string(), "--seconds", "2.0"])
+        .args(
+            token
+                .map(|t| ["--token".to_string(), t])
+                .into_iter()
+                .flatten(),
+        )
+        .arg("--out")
         .arg(&out_json)
         // Install the add-on into a throwaway user scripts dir, not the user's own.
         .env("BLENDER_USER_SCRIPTS", work.join("user_scripts"))
@@ -709,7 +736,10 @@ async fn blender_addon_shows_and_overrides_the_server_mapping() {
     let observed = Arc::new(Mutex::new(Observed::default()));
     let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
     let work = work_dir();
-    let result = run_blender_off_runtime(blender, addr, &work, "mapping", Zip::Build).await;
+    // Overriding a mapping changes the server: the add-on's Token field holds the token.
+    let token = server.control_token().reveal().to_string();
+    let result =
+        run_blender_with_token(blender, addr, &work, "mapping", Zip::Build, Some(token)).await;
     // Give the broadcast of the rebuilt mapping a moment to reach our client too.
     let deadline = Instant::now() + Duration::from_secs(5);
     while observed.lock().unwrap().mappings.len() < 2 && Instant::now() < deadline {
@@ -839,6 +869,8 @@ async fn addon_zip_connects_to_the_rigcast_binary() {
     let listen = format!("127.0.0.1:{}", free_port());
     let mut child = Command::new(&binary)
         .args(["serve", "--listen", &listen])
+        // Its own config folder: the token it creates is not the user's.
+        .env("XDG_CONFIG_HOME", work.join("config"))
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()

@@ -91,7 +91,8 @@ async fn a_full_server_refuses_with_503_and_admits_again_when_a_client_leaves() 
     match tokio_tungstenite::connect_async(server.stream_url()).await {
         Err(tokio_tungstenite::tungstenite::Error::Http(r)) => {
             assert_eq!(r.status(), 503);
-            let body = String::from_utf8_lossy(r.body().as_deref().unwrap_or_default()).into_owned();
+            let body =
+                String::from_utf8_lossy(r.body().as_deref().unwrap_or_default()).into_owned();
             assert!(body.contains("server full: 3 connections"), "{body}");
         }
         other => panic!("expected 503, got {other:?}"),
@@ -160,8 +161,14 @@ async fn a_client_that_never_reads_is_dropped_while_a_slow_reader_stays() {
         "dropped after {dropped_at:?}, before the 1.5 s timeout"
     );
     let s = status(addr).await;
-    assert_eq!(s["stalled_disconnects_total"], 1, "only the one that never reads");
-    assert_eq!(s["clients"]["count"], 1, "the slow reader is still connected");
+    assert_eq!(
+        s["stalled_disconnects_total"], 1,
+        "only the one that never reads"
+    );
+    assert_eq!(
+        s["clients"]["count"], 1,
+        "the slow reader is still connected"
+    );
     eprintln!("never-reading client dropped after {dropped_at:?}; slow reader kept for 5 s");
     server.shutdown().await;
 }
@@ -262,21 +269,42 @@ async fn a_client_whose_control_queue_overflowed_ends_with_the_current_state() {
         match serde_json::from_str(t.as_str()).unwrap() {
             ServerMessage::SubjectsChanged { .. } => resynced = true,
             m @ ServerMessage::Mapping { .. } => last_mapping = Some(m),
-            ServerMessage::Skeleton { subject, fingerprint, .. } => {
+            ServerMessage::Skeleton {
+                subject,
+                fingerprint,
+                ..
+            } => {
                 last_skeletons.insert(subject, fingerprint);
             }
             _ => {}
         }
     }
     assert!(resynced, "the overflowed client got a snapshot");
-    assert_eq!(last_mapping.as_ref(), Some(&fresh_mapping), "ends with the current mapping");
+    assert_eq!(
+        last_mapping.as_ref(),
+        Some(&fresh_mapping),
+        "ends with the current mapping"
+    );
     for s in &fresh_skeletons {
-        let ServerMessage::Skeleton { subject, fingerprint, .. } = s else {
+        let ServerMessage::Skeleton {
+            subject,
+            fingerprint,
+            ..
+        } = s
+        else {
             unreachable!()
         };
-        assert_eq!(last_skeletons.get(subject), Some(fingerprint), "subject {subject}");
+        assert_eq!(
+            last_skeletons.get(subject),
+            Some(fingerprint),
+            "subject {subject}"
+        );
     }
     let s = status(addr).await;
-    assert!(s["control_resyncs_total"].as_u64() >= Some(1), "{}", s["control_resyncs_total"]);
+    assert!(
+        s["control_resyncs_total"].as_u64() >= Some(1),
+        "{}",
+        s["control_resyncs_total"]
+    );
     server.shutdown().await;
 }

@@ -77,7 +77,9 @@ async fn memory_stays_bounded_under_half_sent_huge_frames_and_returns() {
     // Warm up what a normal client costs, then let it settle.
     let mut ws = connect(&format!("ws://{addr}/v1/stream")).await;
     handshake(&mut ws).await;
-    assert!(!collect_frames(&mut ws, Duration::from_secs(1)).await.is_empty());
+    assert!(!collect_frames(&mut ws, Duration::from_secs(1))
+        .await
+        .is_empty());
     drop(ws);
     tokio::time::sleep(Duration::from_secs(1)).await;
     let baseline = server.rss_kib();
@@ -102,7 +104,11 @@ async fn memory_stays_bounded_under_half_sent_huge_frames_and_returns() {
             accepted += sent;
             held.extend(socket);
         }
-        assert_eq!(held.len(), 40, "every attacker was upgraded and sent its frame header");
+        assert_eq!(
+            held.len(),
+            40,
+            "every attacker was upgraded and sent its frame header"
+        );
         // Hold the connections open for a moment, still sampling.
         for _ in 0..25 {
             peak = peak.max(server.rss_kib());
@@ -117,7 +123,10 @@ async fn memory_stays_bounded_under_half_sent_huge_frames_and_returns() {
             peak.saturating_sub(baseline),
             accepted / 40 / 1024
         );
-        assert!(peak < bound, "peak RSS {peak} KiB over the bound {bound} KiB");
+        assert!(
+            peak < bound,
+            "peak RSS {peak} KiB over the bound {bound} KiB"
+        );
         peaks.push(peak);
         floors.push(after);
     }
@@ -130,7 +139,9 @@ async fn memory_stays_bounded_under_half_sent_huge_frames_and_returns() {
     // The server still serves.
     let mut ws = connect(&format!("ws://{addr}/v1/stream")).await;
     handshake(&mut ws).await;
-    println!("half-sent 16 MB frames ×40: baseline {baseline} KiB, peaks {peaks:?}, after {floors:?}");
+    println!(
+        "half-sent 16 MB frames ×40: baseline {baseline} KiB, peaks {peaks:?}, after {floors:?}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -154,7 +165,10 @@ async fn at_1024_open_files_2000_idle_sockets_do_not_lock_out_a_viewer() {
     );
     // This test holds 2,000 sockets itself.
     let own = rigcast_server::limits::raise_fd_limit().unwrap();
-    assert!(own.soft >= 2_200, "the test process needs 2,200 open files: {own:?}");
+    assert!(
+        own.soft >= 2_200,
+        "the test process needs 2,200 open files: {own:?}"
+    );
     let t0 = Instant::now();
     let mut idle = Vec::new();
     for _ in 0..2000 {
@@ -181,11 +195,8 @@ async fn at_1024_open_files_2000_idle_sockets_do_not_lock_out_a_viewer() {
     eprintln!("viewer connected and streaming after {:?}", t1.elapsed());
     // The excess was told why: the oldest idle sockets got a 503 and were closed.
     let mut refusal = String::new();
-    let _ = tokio::time::timeout(
-        Duration::from_secs(2),
-        idle[0].read_to_string(&mut refusal),
-    )
-    .await;
+    let _ =
+        tokio::time::timeout(Duration::from_secs(2), idle[0].read_to_string(&mut refusal)).await;
     assert!(refusal.starts_with("HTTP/1.1 503"), "{refusal:?}");
     assert!(refusal.contains("server full"), "{refusal:?}");
     let (_, body) = http_get(addr, "/v1/status").await;
@@ -205,7 +216,10 @@ async fn at_1024_open_files_2000_idle_sockets_do_not_lock_out_a_viewer() {
     assert!(
         !out.iter().any(|l| l.contains("Too many open files")),
         "the server ran out of descriptors: {:?}",
-        out.iter().filter(|l| l.contains("accept")).take(3).collect::<Vec<_>>()
+        out.iter()
+            .filter(|l| l.contains("accept"))
+            .take(3)
+            .collect::<Vec<_>>()
     );
     println!("2000 idle sockets at ulimit -n 1024: {c}");
 }
@@ -217,14 +231,18 @@ fn control_token_is_created_private_printed_once_and_rotatable() {
     let first = ServeProcess::start(&["--no-mapping-cache"], home.clone(), None);
     let printed = first.output();
     drop(first);
-    let token = std::fs::read_to_string(&token_file).unwrap().trim().to_string();
+    let token = std::fs::read_to_string(&token_file)
+        .unwrap()
+        .trim()
+        .to_string();
     assert_eq!(token.len(), 64);
     let mode = std::fs::metadata(&token_file).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o600);
     assert!(
         printed
             .iter()
-            .any(|l| l.contains("viewer with control: http://") && l.contains(&format!("?token={token}"))),
+            .any(|l| l.contains("viewer with control: http://")
+                && l.contains(&format!("?token={token}"))),
         "{printed:?}"
     );
     // Later starts do not print it again.
@@ -232,7 +250,10 @@ fn control_token_is_created_private_printed_once_and_rotatable() {
     let printed = second.output();
     drop(second);
     assert!(!printed.iter().any(|l| l.contains(&token)), "{printed:?}");
-    assert!(printed.iter().any(|l| l.contains("rigcast token show")), "{printed:?}");
+    assert!(
+        printed.iter().any(|l| l.contains("rigcast token show")),
+        "{printed:?}"
+    );
     // `rigcast token show` prints it; `rotate` replaces it.
     let run = |args: &[&str]| {
         let out = std::process::Command::new(rigcast_binary())
@@ -240,13 +261,20 @@ fn control_token_is_created_private_printed_once_and_rotatable() {
             .env("XDG_CONFIG_HOME", &home)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         String::from_utf8_lossy(&out.stdout).trim().to_string()
     };
     assert_eq!(run(&["token", "show"]), token);
     let rotated = run(&["token", "rotate"]);
     assert_ne!(rotated, token);
-    assert_eq!(std::fs::read_to_string(&token_file).unwrap().trim(), rotated);
+    assert_eq!(
+        std::fs::read_to_string(&token_file).unwrap().trim(),
+        rotated
+    );
     assert_eq!(run(&["token", "show"]), rotated);
 }
 
@@ -263,7 +291,8 @@ async fn listening_beyond_loopback_warns_and_requires_the_token() {
     assert!(
         printed
             .iter()
-            .any(|l| l.contains("warning: listening on 0.0.0.0:") && l.contains("needs the control token")),
+            .any(|l| l.contains("warning: listening on 0.0.0.0:")
+                && l.contains("needs the control token")),
         "{printed:?}"
     );
     let local: SocketAddr = format!("127.0.0.1:{}", server.addr.port()).parse().unwrap();
@@ -278,5 +307,7 @@ async fn listening_beyond_loopback_warns_and_requires_the_token() {
         .to_string();
     let mut ws = connect(&format!("ws://{local}/v1/stream?token={token}")).await;
     handshake(&mut ws).await;
-    assert!(!collect_frames(&mut ws, Duration::from_millis(500)).await.is_empty());
+    assert!(!collect_frames(&mut ws, Duration::from_millis(500))
+        .await
+        .is_empty());
 }

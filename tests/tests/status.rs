@@ -51,3 +51,43 @@ async fn status_reports_documented_fields() {
     assert!(head.starts_with("HTTP/1.1 426"), "{head}");
     server.shutdown().await;
 }
+
+/// A recording whose writes fail (the disk is full) keeps the server running and says so in
+/// the status, instead of counting failures nobody reads.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn recording_errors_show_in_the_status() {
+    let full = std::path::Path::new("/dev/full");
+    if !full.exists() {
+        eprintln!("SKIP: no /dev/full on this system");
+        return;
+    }
+    let server = rigcast_server::start(rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![clip_source(fixture_clip())],
+        record: Some(full.to_path_buf()),
+        ..rigcast_server::ServerConfig::default()
+    })
+    .await
+    .unwrap();
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    let recording = loop {
+        let (_, body) = http_get(server.local_addr(), "/v1/status").await;
+        let status: serde_json::Value = serde_json::from_str(&body).unwrap();
+        let recording = status["recording"].clone();
+        if recording["errors"].as_u64() > Some(0) || std::time::Instant::now() > deadline {
+            break recording;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    };
+    assert_eq!(recording["path"], "/dev/full", "{recording}");
+    assert!(recording["errors"].as_u64() > Some(0), "{recording}");
+    let last = recording["last_error"].as_str().unwrap_or_default();
+    assert!(last.contains("space"), "{recording}");
+    // Frames still flow.
+    let mut ws = connect(&server.stream_url()).await;
+    handshake(&mut ws).await;
+    assert!(!collect_frames(&mut ws, Duration::from_millis(300))
+        .await
+        .is_empty());
+    server.shutdown().await;
+}

@@ -14,7 +14,14 @@ use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::*;
 
 /// Sends one frame of `pose` (bones named `names`) as VMC bundles.
-fn send_pose(socket: &UdpSocket, to: SocketAddr, enc: &mut VmcEncoder, names: &[String], pose: &Pose, t: f32) {
+fn send_pose(
+    socket: &UdpSocket,
+    to: SocketAddr,
+    enc: &mut VmcEncoder,
+    names: &[String],
+    pose: &Pose,
+    t: f32,
+) {
     let bones = names
         .iter()
         .zip(&pose.translations)
@@ -43,7 +50,14 @@ fn send_for(from: &str, to: SocketAddr, secs: f32, churn: bool) {
         if churn && k % 2 == 1 {
             pose.translations[3].x += 0.02;
         }
-        send_pose(&socket, to, &mut enc, &names, &pose, t0.elapsed().as_secs_f32());
+        send_pose(
+            &socket,
+            to,
+            &mut enc,
+            &names,
+            &pose,
+            t0.elapsed().as_secs_f32(),
+        );
         k += 1;
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -69,7 +83,9 @@ async fn vmc_input_listens_on_loopback_by_default() {
     // As written in a config file without a `bind`, and as `--source vmc:0`.
     let file: FileConfig = toml_config("[[sources]]\nkind = \"vmc\"\nport = 0\n");
     let mut config = ServerConfig::from_file(file).unwrap();
-    config.sources.push(rigcast_server::cmd::serve::parse_source("vmc:0").unwrap());
+    config
+        .sources
+        .push(rigcast_server::cmd::serve::parse_source("vmc:0").unwrap());
     config.listen = "127.0.0.1:0".parse().unwrap();
     config.mapping_cache_dir = None;
     let server = rigcast_server::start(config).await.unwrap();
@@ -109,7 +125,10 @@ async fn only_allowed_senders_drive_a_source() {
     assert_eq!(health["state"], "connecting", "{health}");
     assert!(health["dropped"].as_u64().unwrap() >= 20, "{health}");
     assert!(
-        health["detail"].as_str().unwrap().contains("allowed_senders"),
+        health["detail"]
+            .as_str()
+            .unwrap()
+            .contains("allowed_senders"),
         "{health}"
     );
     assert_eq!(s["subjects"][0]["input_frames"], 0);
@@ -119,7 +138,11 @@ async fn only_allowed_senders_drive_a_source() {
         .unwrap();
     tokio::time::sleep(Duration::from_millis(300)).await;
     let s = status(addr).await;
-    assert_eq!(s["subjects"][0]["source"]["state"], "live", "{}", s["subjects"][0]);
+    assert_eq!(
+        s["subjects"][0]["source"]["state"], "live",
+        "{}",
+        s["subjects"][0]
+    );
     assert!(s["subjects"][0]["input_frames"].as_u64().unwrap() >= 20);
     server.shutdown().await;
 }
@@ -145,7 +168,9 @@ async fn a_flood_of_skeleton_changes_is_rate_limited() {
     let t0 = Instant::now();
     while t0.elapsed() < Duration::from_millis(3500) {
         match next(&mut ws, Duration::from_secs(1)).await {
-            Some(Incoming::Json(ServerMessage::Skeleton { subject: 0, .. })) => skeleton_messages += 1,
+            Some(Incoming::Json(ServerMessage::Skeleton { subject: 0, .. })) => {
+                skeleton_messages += 1
+            }
             Some(Incoming::Json(ServerMessage::Mapping { .. })) => mapping_messages += 1,
             Some(_) => {}
             None => break,
@@ -154,14 +179,22 @@ async fn a_flood_of_skeleton_changes_is_rate_limited() {
     sender.await.unwrap();
     let s = status(addr).await;
     let changes = s["subjects"][0]["skeleton_changes"].as_u64().unwrap();
-    let limited = s["subjects"][0]["skeleton_frames_limited"].as_u64().unwrap();
+    let limited = s["subjects"][0]["skeleton_frames_limited"]
+        .as_u64()
+        .unwrap();
     eprintln!(
         "3 s of skeleton churn: {changes} changes applied, {limited} frames held back, \
          {skeleton_messages} skeleton and {mapping_messages} mapping messages"
     );
     // At most one change a second (plus the first), instead of ~150.
-    assert!((2..=5).contains(&changes), "{changes} skeleton changes applied");
+    assert!(
+        (2..=5).contains(&changes),
+        "{changes} skeleton changes applied"
+    );
     assert!(limited >= 50, "only {limited} frames held back");
-    assert!(skeleton_messages <= 5 && mapping_messages <= 6, "{skeleton_messages} / {mapping_messages}");
+    assert!(
+        skeleton_messages <= 5 && mapping_messages <= 6,
+        "{skeleton_messages} / {mapping_messages}"
+    );
     server.shutdown().await;
 }

@@ -9,6 +9,9 @@
 //! and are labelled, the mapping table shows the message's rows and colours (gradient and
 //! random), the target's bones and the mapped source bones are drawn in those colours, and the
 //! subject list shows the source's health. The screenshot is saved to target/viewer.png.
+//! The page is opened with the `?token=` link the server prints and must pass the token on
+//! (its stream has control access); a page from another origin in the same browser cannot
+//! open the stream at all.
 //!
 //! Needs `chromium` (scripts/install-apps.sh installs it). Missing Chromium fails the test
 //! with a clear message, unless RIGCAST_SKIP_APPS=1, which skips it with a printed reason.
@@ -350,7 +353,11 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
     assert_eq!(subjects[target as usize].kind, SubjectKind::Target);
     assert_eq!(subjects[source as usize].kind, SubjectKind::Source);
     assert_eq!(subjects[target as usize].source, Some(source));
-    let page_url = format!("http://{}/", server.local_addr());
+    let page_url = format!(
+        "http://{}/?token={}",
+        server.local_addr(),
+        server.control_token().reveal()
+    );
 
     let (browser, devtools_url) = launch_chromium(&chromium);
     let (ws, _) = tokio_tungstenite::connect_async(devtools_url.as_str())
@@ -415,6 +422,16 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
         "mapping message not received: {counts}"
     );
     assert_eq!(counts["health"], 1, "source_status not received: {counts}");
+    // The page handed its ?token= on: its stream (the only client now) has control access.
+    let (_, status_body) = rigcast_tests::http_get(server.local_addr(), "/v1/status").await;
+    let status: Value = serde_json::from_str(&status_body).unwrap();
+    let access: Vec<&str> = status["clients"]["list"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|c| c["access"].as_str())
+        .collect();
+    assert_eq!(access, ["control"], "{status_body}");
 
     // Both skeletons move.
     let pose_probe = "JSON.stringify(Object.fromEntries([...window.rigcast.views].map(([id, v]) => [id, v.worldP.map(p => [p.x, p.y, p.z])])))";
@@ -598,6 +615,47 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
     std::fs::create_dir_all(out.parent().unwrap()).unwrap();
     std::fs::write(&out, &png).unwrap();
     println!("screenshot: {} ({} bytes)", out.display(), png.len());
+
+    // A page of another origin (another port on the same host) tries what an attacker's page
+    // would: open the stream. The browser sends that page's Origin, and the server refuses.
+    let foreign = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let foreign_url = format!("http://{}/", foreign.local_addr().unwrap());
+    let page = format!(
+        "<!doctype html><title>waiting</title><script>\
+         const ws = new WebSocket('ws://{}/v1/stream');\
+         ws.onopen = () => {{ document.title = 'open'; }};\
+         ws.onerror = () => {{ document.title = 'refused'; }};</script>",
+        server.local_addr()
+    );
+    let serve_foreign = tokio::spawn(async move {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        // Bounded: the page and at most a few extra requests (favicon).
+        for _ in 0..8 {
+            let Ok((mut s, _)) = foreign.accept().await else {
+                return;
+            };
+            let mut buf = [0u8; 4096];
+            let _ = s.read(&mut buf).await;
+            let response = format!(
+                "HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{page}",
+                page.len()
+            );
+            let _ = s.write_all(response.as_bytes()).await;
+        }
+    });
+    cdp.call("Page.navigate", json!({ "url": foreign_url }))
+        .await;
+    let start = Instant::now();
+    let mut title = Value::Null;
+    while start.elapsed() < Duration::from_secs(10) {
+        title = cdp.eval("document.title").await;
+        if title == "open" || title == "refused" {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(title, "refused", "a foreign page's WebSocket to the server");
+    serve_foreign.abort();
 
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);

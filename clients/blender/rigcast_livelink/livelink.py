@@ -180,7 +180,9 @@ class Runtime:
         if settings.transport == "VMC":
             self.vmc = vmc_mod.VmcReceiver(settings.vmc_port)
         else:
-            self.session = session_mod.StreamSession(settings.address, settings.auto_reconnect)
+            self.session = session_mod.StreamSession(
+                settings.address, settings.auto_reconnect, settings.token.strip()
+            )
             self.session.start()
         ensure_timer()
 

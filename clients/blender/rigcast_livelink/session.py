@@ -47,9 +47,11 @@ def parse_address(address):
 class StreamSession:
     """One server connection with auto-reconnect. Thread-safe accessors for the main thread."""
 
-    def __init__(self, address, auto_reconnect=True):
+    def __init__(self, address, auto_reconnect=True, token=""):
         self.host, self.port, self.path = parse_address(address)
         self.auto_reconnect = auto_reconnect
+        # The server's control token ("" = read-only: frames and mappings, no overrides).
+        self.token = token
         self._lock = threading.Lock()
         self._latest = {}
         self._messages = collections.deque(maxlen=1024)
@@ -126,7 +128,9 @@ class StreamSession:
         while not self._stop.is_set():
             self.state = "connecting to %s:%d" % (self.host, self.port)
             try:
-                ws = wsclient.connect(self.host, self.port, self.path, timeout_secs=2.0)
+                ws = wsclient.connect(
+                    self.host, self.port, self.path, timeout_secs=2.0, token=self.token
+                )
             except (OSError, wsclient.WebSocketError) as exc:
                 self.connected = False
                 self.error = "cannot connect to %s:%d: %s" % (self.host, self.port, exc)

@@ -62,6 +62,15 @@ class RIGCAST_PG_settings(bpy.types.PropertyGroup):
     address: StringProperty(
         name="Server", default=DEFAULT_ADDRESS, description="rigcast server address, host:port"
     )
+    token: StringProperty(
+        name="Token",
+        default="",
+        subtype="PASSWORD",
+        description=(
+            "The server's control token (`rigcast token show` prints it). Needed to override "
+            "mappings, and to connect to a server listening beyond loopback; empty = view only"
+        ),
+    )
     transport: EnumProperty(
         name="Transport",
         items=[
@@ -233,6 +242,7 @@ class RIGCAST_PT_panel(bpy.types.Panel):
             box.prop(settings, "vmc_armature")
         else:
             box.prop(settings, "address")
+            box.prop(settings, "token")
             box.prop(settings, "auto_reconnect")
         row = box.row()
         if connected:

@@ -185,12 +185,20 @@ def _apply_mask(payload, mask):
     )
 
 
-def connect(host, port, path="/v1/stream", timeout_secs=3.0):
-    """Opens a TCP connection and performs the HTTP upgrade handshake."""
+def connect(host, port, path="/v1/stream", timeout_secs=3.0, token=""):
+    """Opens a TCP connection and performs the HTTP upgrade handshake.
+
+    A non-empty ``token`` (the server's control token) goes out as an
+    ``Authorization: Bearer`` header: needed to change the server (mapping overrides), and to
+    connect at all to a server listening beyond loopback.
+    """
+    if any(c in token for c in "\r\n"):
+        raise WebSocketError("the token must be a single line")
     sock = socket.create_connection((host, port), timeout=timeout_secs)
     try:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         key = base64.b64encode(os.urandom(16)).decode("ascii")
+        authorization = "Authorization: Bearer %s\r\n" % token if token else ""
         request = (
             "GET %s HTTP/1.1\r\n"
             "Host: %s:%d\r\n"
@@ -199,7 +207,8 @@ def connect(host, port, path="/v1/stream", timeout_secs=3.0):
             "Sec-WebSocket-Key: %s\r\n"
             "Sec-WebSocket-Version: 13\r\n"
             "User-Agent: rigcast-livelink\r\n"
-            "\r\n" % (path, host, port, key)
+            "%s"
+            "\r\n" % (path, host, port, key, authorization)
         )
         sock.sendall(request.encode("ascii"))
         response = bytearray()

@@ -98,6 +98,7 @@ def run(args, out):
     panel = bpy.types.RIGCAST_PT_panel
     out["panel"] = {"space": panel.bl_space_type, "region": panel.bl_region_type, "category": panel.bl_category}
     settings.address = args["address"]
+    settings.token = args.get("token", "")
     result = bpy.ops.rigcast.connect()
     if "FINISHED" not in result:
         raise RuntimeError("rigcast.connect returned %s" % result)
