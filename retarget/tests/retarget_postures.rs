@@ -9,7 +9,7 @@ mod retarget_fixtures;
 
 use glam::Vec3;
 use retarget_fixtures::{
-    angle_deg, bone, hip_height, motion, positions, table_by_canonical, Axes, Humanoid,
+    angle_deg, bone, leg_length, motion, positions, table_by_canonical, Axes, Humanoid,
     LIMB_SEGMENTS,
 };
 use rigcast_retarget::approx::quat_angle;
@@ -145,9 +145,9 @@ fn check(name: &str, sp: Humanoid, tp: Humanoid) -> Outcome {
         }
     }
 
-    // Root: displacement scaled by the hip-height ratio (computed from the generator's
+    // Root: displacement scaled by the leg-length ratio (computed from the generator's
     // parameters, not from the mapping).
-    let ratio = hip_height(&tp) / hip_height(&sp);
+    let ratio = leg_length(&tp) / leg_length(&sp);
     let scale = mapping.root_scale().expect("root");
     let hips_s = bone(&source, sp.prefix, "hips");
     let hips_t = bone(&target, tp.prefix, "hips");
@@ -159,7 +159,7 @@ fn check(name: &str, sp: Humanoid, tp: Humanoid) -> Outcome {
         let expected = ds * ratio;
         assert!(
             (dt - expected).length() <= 0.01 * expected.length() + 1e-6,
-            "{name}: frame {f}: hips moved {dt} but the source's scaled displacement is {expected} (mapping scale {scale}, hip-height ratio {ratio})"
+            "{name}: frame {f}: hips moved {dt} but the source's scaled displacement is {expected} (mapping scale {scale}, leg-length ratio {ratio})"
         );
     }
 

@@ -186,6 +186,7 @@ impl Mapper {
                 .map(|(r, a)| r.filter(|_| a.used_pose).cloned())
                 .collect(),
             target_reference: p.target_reference.clone().filter(|_| ta.used_pose),
+            source_up: analyses.first().map(|a| a.up),
             ..RetargetOptions::default()
         };
         let mut mapping = Mapping::build(&src_refs, &target, &table, &opts)

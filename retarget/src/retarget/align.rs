@@ -203,28 +203,32 @@ pub(crate) fn align(
     }
 }
 
-/// Hip height along a leg: from `top`'s joint down to `low`'s, the vertical drop of the first
-/// (hip-offset) segment, full lengths of mostly-vertical segments (thigh, shin: posture does not
-/// shorten them) and the vertical drop of mostly-horizontal ones (the foot).
+/// The joints from `top` down to `low` (inclusive), or `None` when `low` is not below `top`.
+fn path_down(skel: &Skeleton, top: BoneId, low: BoneId) -> Option<Vec<BoneId>> {
+    let mut path = vec![low];
+    let mut b = low;
+    while b != top {
+        b = skel.parent(b)?;
+        path.push(b);
+    }
+    path.reverse();
+    Some(path)
+}
+
+/// Hip height along a leg: from `top`'s joint down to `low`'s, the drop along `up` of the first
+/// (hip-offset) segment, full lengths of segments mostly along `up` (thigh, shin: posture does
+/// not shorten them) and the drop of mostly-horizontal ones (the foot).
 pub(crate) fn leg_height(
     skel: &Skeleton,
     worlds: &[WorldTransform],
     top: BoneId,
     low: BoneId,
+    up: Vec3,
     eps: f32,
 ) -> f32 {
-    let mut path = vec![low];
-    let mut b = low;
-    while b != top {
-        match skel.parent(b) {
-            Some(p) => {
-                path.push(p);
-                b = p;
-            }
-            None => return 0.0,
-        }
-    }
-    path.reverse();
+    let Some(path) = path_down(skel, top, low) else {
+        return 0.0;
+    };
     let mut h = 0.0;
     let mut first = true;
     for w in path.windows(2) {
@@ -233,14 +237,41 @@ pub(crate) fn leg_height(
         if len <= eps {
             continue;
         }
-        if first || d.y.abs() < 0.5 * len {
-            h += d.y.abs();
+        let drop = d.dot(up).abs();
+        if first || drop < 0.5 * len {
+            h += drop;
         } else {
             h += len;
         }
         first = false;
     }
     h
+}
+
+/// Segments within about 37° of `up` count as leg (thigh, shin); the foot's slope and the hip
+/// offset do not, so rigs whose ankles and toes are built differently measure alike.
+const LEG_SEGMENT_COS: f32 = 0.8;
+
+/// Leg length from a mapped upper-leg joint `top` down to a mapped foot joint `low`: the full
+/// lengths of the segments along `up` (thigh, shin), not the foot.
+/// Strides scale with it; measured between joints mapped to each other on both rigs, the
+/// ratio compares like with like whatever hip offsets and ankle heights the rigs have.
+pub(crate) fn leg_length(
+    skel: &Skeleton,
+    worlds: &[WorldTransform],
+    top: BoneId,
+    low: BoneId,
+    up: Vec3,
+    eps: f32,
+) -> f32 {
+    let Some(path) = path_down(skel, top, low) else {
+        return 0.0;
+    };
+    path.windows(2)
+        .map(|w| worlds[w[1].index()].translation - worlds[w[0].index()].translation)
+        .filter(|d| d.length() > eps && d.dot(up).abs() >= LEG_SEGMENT_COS * d.length())
+        .map(|d| d.length())
+        .sum()
 }
 
 #[cfg(test)]

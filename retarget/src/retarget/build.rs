@@ -345,25 +345,7 @@ impl Mapping {
                 bones[c].curl_frame = frame;
             }
         }
-        let root = setup.root_pair().map(|(rt, rs)| {
-            let input = rs.input as usize;
-            RootPlan::new(
-                Side {
-                    skel: sources[input],
-                    worlds: &setup.src_w[input],
-                    eps: setup.src_eps[input],
-                },
-                Side {
-                    skel: target,
-                    worlds: &setup.tgt_w,
-                    eps: setup.tgt_eps,
-                },
-                table,
-                rt,
-                rs,
-                opts,
-            )
-        });
+
         // History deep enough for the longest delay on each input.
         let history = sources
             .iter()
@@ -384,7 +366,7 @@ impl Mapping {
             target: target.clone(),
             bones,
             links,
-            root,
+            root: None,
             history,
             scratch: vec![WorldTransform::IDENTITY; target.num_bones()],
             chain_bones,
@@ -397,6 +379,30 @@ impl Mapping {
         for (plan, q) in mapping.bones.iter_mut().zip(&aligned.rotations) {
             plan.aligned_local = *q;
         }
+        // Root motion is planned on the aligned rest: the target in the source's posture and
+        // world, so heights and leg lengths on both sides are measured along the same up, even
+        // when the target's own rest lies along another axis (Z-up files).
+        let mut aligned_w = vec![WorldTransform::IDENTITY; target.num_bones()];
+        crate::fk::forward_kinematics(target, &aligned, &mut aligned_w);
+        mapping.root = setup.root_pair().map(|(rt, rs)| {
+            let input = rs.input as usize;
+            RootPlan::new(
+                Side {
+                    skel: sources[input],
+                    worlds: &setup.src_w[input],
+                    eps: setup.src_eps[input],
+                },
+                Side {
+                    skel: target,
+                    worlds: &aligned_w,
+                    eps: setup.tgt_eps,
+                },
+                table,
+                rt,
+                rs,
+                opts,
+            )
+        });
         mapping.reset();
         Ok(mapping)
     }

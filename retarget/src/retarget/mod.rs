@@ -11,8 +11,10 @@
 //!                                               segment between the mapped end joints
 //!        (several sources: sign-aligned, normalised weighted quaternion average)
 //!        local = parent_world⁻¹ · world     then reverse / weight options
-//!     root: hips = floor_t + ratio · (source hips − floor_s), ratio = hip (leg) heights;
-//!           feet calibrated onto the floor on the first frame (FootContact)
+//!     root: hips = floor_t + ratio · (source hips − floor_s) along the source's up,
+//!           horizontal travel × ratio, ratio = leg lengths between mapped joints (measured on
+//!           the target's aligned reference, in the source's world); feet calibrated onto the
+//!           floor on the first frame (FootContact)
 //! ```
 //!
 //! Why world space: copying local rotations (even rest-normalised, REFERENCE §3) is only right
@@ -186,7 +188,7 @@ impl Mapping {
         self.root.as_ref().map(|r| r.bone)
     }
 
-    /// Target / source hip-height ratio applied to root translation.
+    /// Target / source leg-length ratio applied to root translation.
     pub fn root_scale(&self) -> Option<f32> {
         self.root.as_ref().map(|r| r.scale)
     }
@@ -205,7 +207,7 @@ impl Mapping {
             }
             crate::fk::forward_kinematics(skel, p, &mut worlds);
             for b in &root.contact_bones {
-                lowest = lowest.min(worlds[b.index()].translation.y);
+                lowest = lowest.min(worlds[b.index()].translation.dot(root.up));
             }
         }
         lowest.is_finite().then_some(lowest)
@@ -287,14 +289,15 @@ impl Mapping {
             if let Some(root) = self.root.as_ref().filter(|r| r.bone.index() == t) {
                 let src =
                     self.history[root.input as usize].get(0)[root.source_bone.index()].translation;
-                let s = root.scale;
+                let (s, up) = (root.scale, root.up);
                 let floor_t = root.target_floor_y.unwrap_or(s * root.source_floor_y);
-                let y = floor_t + s * (src.y - root.source_floor_y);
+                // Height along the source's up, measured from each side's floor; the rest is
+                // horizontal travel, scaled by the leg-length ratio.
+                let y = floor_t + s * (src.dot(up) - root.source_floor_y);
+                let flat = |v: Vec3| v - up * v.dot(up);
                 position = match root.motion {
-                    RootMotion::Scaled => Vec3::new(s * src.x, y, s * src.z),
-                    RootMotion::InPlace => {
-                        Vec3::new(root.reference_position.x, y, root.reference_position.z)
-                    }
+                    RootMotion::Scaled => flat(src) * s + up * y,
+                    RootMotion::InPlace => flat(root.reference_position) + up * y,
                     RootMotion::Fixed => root.reference_position,
                 };
                 translation = parent.rotation.inverse() * (position - parent.translation);

@@ -1,14 +1,16 @@
 //! Options for building a [`super::Mapping`].
 
+use glam::Vec3;
+
 use crate::pose::Pose;
 
 /// What the target's root (the shallowest mapped target bone, normally the hips) does with the
 /// source's translation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RootMotion {
-    /// Hips translation scaled by the hip-height ratio, both horizontally and vertically
-    /// (heights measured from each side's floor: where its lowest foot joint sits when planted), so strides fit the target's legs and feet
-    /// neither float nor sink.
+    /// Hips translation scaled by the leg-length ratio, both horizontally and vertically
+    /// (heights measured from each side's floor: where its lowest foot joint sits when
+    /// planted), so strides fit the target's legs and feet neither float nor sink.
     #[default]
     Scaled,
     /// Like `Scaled` vertically, but the hips stay over the target's reference position
@@ -58,8 +60,12 @@ pub struct RetargetOptions {
     /// How the hips height is corrected so the feet neither float nor sink with different leg
     /// proportions.
     pub foot_contact: FootContact,
-    /// Overrides the automatically measured hip-height ratio (target / source).
+    /// Overrides the automatically measured leg-length ratio (target / source).
     pub root_scale: Option<f32>,
+    /// The up direction of the root motion's source in its own world (the skeleton analysis
+    /// finds it); `None` is +Y. Heights, floors and "horizontal" are measured along it, so a
+    /// Z-up capture keeps its feet on its floor.
+    pub source_up: Option<Vec3>,
     /// Height of the source's lowest foot joint when the foot is planted (its "floor"), in the
     /// source's world. `None`: taken from the reference posture when it stands near y = 0,
     /// else 0. Offline, measure it over the clip with [`super::Mapping::measure_source_floor`].
@@ -84,6 +90,7 @@ impl Default for RetargetOptions {
             root_motion: RootMotion::Scaled,
             foot_contact: FootContact::FirstFrame,
             root_scale: None,
+            source_up: None,
             source_floor_y: None,
             target_floor_y: None,
             frame_time_secs: 1.0 / 60.0,

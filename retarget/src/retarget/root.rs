@@ -12,6 +12,8 @@ use crate::skeleton::{BoneId, Skeleton};
 
 /// Legs told apart by the foot-contact calibration (more share the last slot).
 const MAX_LEGS: usize = 8;
+/// A source foot this close to the lowest one (metres) counts as standing for the calibration.
+const PLANTED_M: f32 = 0.02;
 
 /// How the target's root bone is placed.
 #[derive(Debug, Clone)]
@@ -20,6 +22,8 @@ pub(super) struct RootPlan {
     pub(super) input: u16,
     pub(super) source_bone: BoneId,
     pub(super) scale: f32,
+    /// The source's up direction (unit): heights and floors are measured along it.
+    pub(super) up: Vec3,
     pub(super) motion: RootMotion,
     pub(super) source_floor_y: f32,
     /// `None`: the target's rest does not show where its floor is; it then keeps the source's
@@ -75,8 +79,13 @@ impl RootPlan {
                 .then_some((t, s.bone))
             })
             .collect();
-        let y_t = |b: BoneId| tgt.worlds[b.index()].translation.y;
-        let y_s = |b: BoneId| src.worlds[b.index()].translation.y;
+        // Both postures are in the source's world (the target's is its aligned reference).
+        let up = opts
+            .source_up
+            .and_then(|u| u.try_normalize())
+            .unwrap_or(Vec3::Y);
+        let y_t = |b: BoneId| tgt.worlds[b.index()].translation.dot(up);
+        let y_s = |b: BoneId| src.worlds[b.index()].translation.dot(up);
         let low = below
             .iter()
             .copied()
@@ -85,15 +94,23 @@ impl RootPlan {
         let mut contacts = Vec::new();
         let (mut floor_t, mut floor_s) = (None, None);
         if let Some((tl, _)) = low {
-            let first = align::leg_height(tgt.skel, tgt.worlds, rt, tl, tgt.eps);
+            let first = align::leg_height(tgt.skel, tgt.worlds, rt, tl, up, tgt.eps);
             // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
             let (mut sum_t, mut sum_s) = (0.0, 0.0);
             for &(t, s) in below
                 .iter()
                 .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
             {
-                let ht = align::leg_height(tgt.skel, tgt.worlds, rt, t, tgt.eps);
-                let hs = align::leg_height(src.skel, src.worlds, rs.bone, s, src.eps);
+                let (ht, hs) = match top_pair(src, tgt, table, rt, rs, t, s) {
+                    Some((tt, st)) => (
+                        align::leg_length(tgt.skel, tgt.worlds, tt, t, up, tgt.eps),
+                        align::leg_length(src.skel, src.worlds, st, s, up, src.eps),
+                    ),
+                    None => (
+                        align::leg_height(tgt.skel, tgt.worlds, rt, t, up, tgt.eps),
+                        align::leg_height(src.skel, src.worlds, rs.bone, s, up, src.eps),
+                    ),
+                };
                 if ht > tgt.eps && hs > src.eps {
                     sum_t += ht;
                     sum_s += hs;
@@ -134,6 +151,7 @@ impl RootPlan {
             input: rs.input,
             source_bone: rs.bone,
             scale: opts.root_scale.unwrap_or(scale),
+            up,
             motion: opts.root_motion,
             source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
             target_floor_y: opts.target_floor_y.or(floor_t),
@@ -144,6 +162,34 @@ impl RootPlan {
             vertical_offset: None,
         }
     }
+}
+
+/// The topmost mapped pair on the leg above the foot pair (`t`, `s`): a target joint below
+/// the root whose source joint lies on the source's path from its root down to `s` (the upper
+/// legs), so both leg lengths are measured between joints mapped to each other.
+fn top_pair(
+    src: Side<'_>,
+    tgt: Side<'_>,
+    table: &MappingTable,
+    rt: BoneId,
+    rs: SourceRef,
+    t: BoneId,
+    s: BoneId,
+) -> Option<(BoneId, BoneId)> {
+    let mut best = None;
+    let mut a = tgt.skel.parent(t);
+    while let Some(b) = a.filter(|&b| b != rt) {
+        if let Some(sb) = primary(table, b).filter(|r| r.input == rs.input) {
+            if sb.bone != rs.bone
+                && align::is_descendant(src.skel, rs.bone, sb.bone)
+                && align::is_descendant(src.skel, sb.bone, s)
+            {
+                best = Some((b, sb.bone));
+            }
+        }
+        a = tgt.skel.parent(b);
+    }
+    best
 }
 
 impl Mapping {
@@ -177,7 +223,7 @@ impl Mapping {
             Some(p) => self.scratch[p.index()].rotation,
             None => Quat::IDENTITY,
         };
-        out.translations[root.bone.index()] += parent_rotation.inverse() * Vec3::new(0.0, dy, 0.0);
+        out.translations[root.bone.index()] += parent_rotation.inverse() * (root.up * dy);
     }
 
     /// The vertical move that puts the target's lowest foot joint at the scaled source height.
@@ -192,8 +238,8 @@ impl Mapping {
         let mut lowest_t = [f32::INFINITY; MAX_LEGS];
         for &(t, s, leg) in &root.contacts {
             let leg = leg as usize;
-            lowest_s[leg] = lowest_s[leg].min(src[s.index()].translation.y);
-            lowest_t[leg] = lowest_t[leg].min(self.scratch[t.index()].translation.y);
+            lowest_s[leg] = lowest_s[leg].min(src[s.index()].translation.dot(root.up));
+            lowest_t[leg] = lowest_t[leg].min(self.scratch[t.index()].translation.dot(root.up));
         }
         let error =
             |leg: usize| floor_t + scale * (lowest_s[leg] - root.source_floor_y) - lowest_t[leg];
@@ -203,8 +249,17 @@ impl Mapping {
             let low = legs.min_by(|&a, &b| lowest_t[a].total_cmp(&lowest_t[b]));
             low.map(error).unwrap_or(0.0)
         } else {
-            // One calibration for all frames: split the proportion mismatch between the feet.
-            let (sum, n) = legs.fold((0.0, 0), |(sum, n), l| (sum + error(l), n + 1));
+            // One calibration for all frames, from the feet that stand: a lifted foot's height
+            // says how the legs bend, not where the floor is. Several planted feet split their
+            // proportion mismatch.
+            let planted_s = legs
+                .clone()
+                .map(|l| lowest_s[l])
+                .fold(f32::INFINITY, f32::min)
+                + PLANTED_M;
+            let (sum, n) = legs
+                .filter(|&l| lowest_s[l] <= planted_s)
+                .fold((0.0, 0), |(sum, n), l| (sum + error(l), n + 1));
             if n > 0 {
                 sum / n as f32
             } else {

@@ -281,6 +281,11 @@ pub fn hip_height(spec: &Humanoid) -> f32 {
     (0.05 + 0.87 * spec.leg + 0.06) * spec.units
 }
 
+/// Leg length the generator builds in: thigh (0.45 leg) plus shin (0.42 leg).
+pub fn leg_length(spec: &Humanoid) -> f32 {
+    0.87 * spec.leg * spec.units
+}
+
 /// World joint positions of every bone.
 pub fn positions(skel: &Skeleton, pose: &Pose) -> Vec<Vec3> {
     world_transforms(skel, pose)

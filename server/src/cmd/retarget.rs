@@ -105,6 +105,7 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         },
         source_reference: vec![plan.source_reference],
         target_reference: plan.target_reference,
+        source_up: Some(plan.source_up),
         ..RetargetOptions::default()
     };
     let out = retarget_clip(&clip, &target, &table, &opts, true)?;
@@ -132,6 +133,8 @@ pub struct MappingPlan {
     pub source_reference: Option<Pose>,
     /// The same for the target (from its own animation, used for alignment only).
     pub target_reference: Option<Pose>,
+    /// The source's up direction, as its analysis found it (Z-up captures exist).
+    pub source_up: glam::Vec3,
 }
 
 /// Maps the clip's skeleton onto the target with the automatic mapper, then applies the
@@ -182,6 +185,7 @@ pub fn plan_mapping_with_truth(
     }
     Ok(MappingPlan {
         table,
+        source_up: sa.up,
         source_reference: sa.posture_pose(&source.poses),
         target_reference: ta.posture_pose(&target.poses),
     })

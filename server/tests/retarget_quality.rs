@@ -1,0 +1,396 @@
+//! How faithfully `rigcast retarget` moves real characters: every labelled human with motion in
+//! the shared data onto every other labelled human, measured in world space with the labels
+//! (not rigcast's own analysis) naming the joints on both sides:
+//! - limb directions: upper/lower arm, upper/lower leg, foot→toes of the output vs the source;
+//! - horizontal root travel, scaled by the leg-length ratio;
+//! - feet on the floor where the source's are.
+//!
+//! A table of every pair is printed. The bounds (≤ 2° mean, ≤ 5° max per pair; travel within
+//! 5 %; planted feet within 1 cm of the floor) are asserted on the pairs whose automatic mapping
+//! is right per the labels (each measured target joint driven by one of the source's acceptable
+//! bones for the same role), so the assertion covers more pairs as the mapping improves.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::Vec3;
+use rigcast_retarget::{world_transforms, BoneId, Clip, RetargetOptions, RootMotion, Skeleton};
+use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip};
+use serde_json::Value;
+
+/// Source frames measured per pair (evenly spread over the clip).
+const FRAMES_PER_PAIR: usize = 90;
+/// (joint, child joint) roles of the measured segments, per side.
+const SEGMENTS: [(&str, &str); 5] = [
+    ("upperArm", "lowerArm"),
+    ("lowerArm", "hand"),
+    ("upperLeg", "lowerLeg"),
+    ("lowerLeg", "foot"),
+    ("foot", "toes"),
+];
+
+struct Labelled {
+    path: PathBuf,
+    labels: Value,
+    clip: Clip,
+}
+
+impl Labelled {
+    /// The primary labelled bone of `role`, if the rig has it.
+    fn bone(&self, role: &str) -> Option<BoneId> {
+        let name = self.labels[role].as_array()?.first()?.as_str()?;
+        self.clip.skeleton.bone(name)
+    }
+
+    fn accepts(&self, role: &str, name: &str) -> bool {
+        self.labels[role]
+            .as_array()
+            .is_some_and(|a| a.iter().any(|n| n.as_str() == Some(name)))
+    }
+
+    fn name(&self) -> String {
+        self.path
+            .file_stem()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned()
+    }
+}
+
+fn load_humans(root: &Path) -> Vec<Labelled> {
+    let labels: Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("labels.json")).unwrap()).unwrap();
+    let mut out = Vec::new();
+    for (key, v) in labels.as_object().unwrap() {
+        if v["kind"] != "human" {
+            continue;
+        }
+        let path = root.join(key);
+        let clip = rigcast_sources::load_clip(&path).unwrap();
+        out.push(Labelled {
+            path,
+            labels: v.clone(),
+            clip,
+        });
+    }
+    out
+}
+
+fn sided(role: &str, side: &str) -> String {
+    format!("{role}.{side}")
+}
+
+/// Roles the measurement uses, both sides.
+fn measured_roles() -> Vec<String> {
+    let mut roles = vec!["hips".to_string()];
+    for side in ["L", "R"] {
+        for (a, b) in SEGMENTS {
+            for r in [a, b] {
+                let r = sided(r, side);
+                if !roles.contains(&r) {
+                    roles.push(r);
+                }
+            }
+        }
+    }
+    roles
+}
+
+/// Whether every measured role of the target (present on both rigs) is driven by one of the
+/// source's acceptable bones for that role; and the roles that are not.
+fn mapping_right(
+    src: &Labelled,
+    tgt: &Labelled,
+    table: &rigcast_retarget::mapping::MappingTable,
+) -> Vec<String> {
+    let mut wrong = Vec::new();
+    for role in measured_roles() {
+        let (Some(t), Some(_)) = (tgt.bone(&role), src.bone(&role)) else {
+            continue;
+        };
+        let mapped = table
+            .get(t)
+            .and_then(|e| e.primary())
+            .map(|r| src.clip.skeleton.name(r.bone).to_string());
+        if !mapped.as_deref().is_some_and(|n| src.accepts(&role, n)) {
+            wrong.push(format!("{role}←{}", mapped.unwrap_or_else(|| "-".into())));
+        }
+    }
+    wrong
+}
+
+fn subsample(clip: &Clip) -> Clip {
+    let step = (clip.num_frames() / FRAMES_PER_PAIR).max(1);
+    let poses: Vec<_> = clip.poses.iter().step_by(step).cloned().collect();
+    Clip::new(
+        clip.name.clone(),
+        clip.skeleton.clone(),
+        poses,
+        clip.frame_time_secs * step as f64,
+    )
+    .unwrap()
+}
+
+fn leg_length(s: &Skeleton, l: &Labelled) -> Option<f32> {
+    let rest = world_transforms(s, &s.rest_pose());
+    let p = |r: &str| l.bone(r).map(|b| rest[b.index()].translation);
+    let mut total = 0.0;
+    for side in ["L", "R"] {
+        let (a, b, c) = (
+            p(&sided("upperLeg", side))?,
+            p(&sided("lowerLeg", side))?,
+            p(&sided("foot", side))?,
+        );
+        total += (b - a).length() + (c - b).length();
+    }
+    Some(total / 2.0)
+}
+
+#[derive(Debug, Default)]
+struct Figures {
+    mean_deg: f32,
+    max_deg: f32,
+    worst_segment: String,
+    travel_error: Option<f32>,
+    planted_feet_cm: Option<f32>,
+}
+
+fn measure(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Figures {
+    let (ss, ts) = (&clip.skeleton, &out.skeleton);
+    let mut f = Figures::default();
+    let (mut sum, mut n) = (0.0f32, 0usize);
+    let pairs: Vec<(String, [BoneId; 4])> = ["L", "R"]
+        .iter()
+        .flat_map(|side| {
+            SEGMENTS
+                .iter()
+                .map(move |(a, b)| (sided(a, side), sided(b, side)))
+        })
+        .filter_map(|(a, b)| {
+            Some((
+                format!("{a}→{b}"),
+                [src.bone(&a)?, src.bone(&b)?, tgt.bone(&a)?, tgt.bone(&b)?],
+            ))
+        })
+        .collect();
+    let (mut src_hips, mut tgt_hips) = (Vec::new(), Vec::new());
+    let mut ups = Vec3::ZERO;
+    let mut feet: Vec<(f32, f32)> = Vec::new(); // (source height, target height) along up
+    let (sh, th) = (src.bone("hips"), tgt.bone("hips"));
+    let mut samples: Vec<(Vec<Vec3>, Vec<Vec3>)> = Vec::new();
+    for (sp, tp) in clip.poses.iter().zip(&out.poses) {
+        let ws: Vec<Vec3> = world_transforms(ss, sp)
+            .iter()
+            .map(|w| w.translation)
+            .collect();
+        let wt: Vec<Vec3> = world_transforms(ts, tp)
+            .iter()
+            .map(|w| w.translation)
+            .collect();
+        for (label, [a, b, c, d]) in &pairs {
+            let ds = ws[b.index()] - ws[a.index()];
+            let dt = wt[d.index()] - wt[c.index()];
+            if ds.length() < 1e-4 || dt.length() < 1e-4 {
+                continue;
+            }
+            let deg = ds.angle_between(dt).to_degrees();
+            sum += deg;
+            n += 1;
+            if deg > f.max_deg {
+                f.max_deg = deg;
+                f.worst_segment = label.clone();
+            }
+        }
+        if let (Some(sh), Some(th)) = (sh, th) {
+            src_hips.push(ws[sh.index()]);
+            tgt_hips.push(wt[th.index()]);
+            let feet_mid: Vec<Vec3> = ["foot.L", "foot.R"]
+                .iter()
+                .filter_map(|r| src.bone(r).map(|b| ws[b.index()]))
+                .collect();
+            if !feet_mid.is_empty() {
+                ups += ws[sh.index()] - feet_mid.iter().sum::<Vec3>() / feet_mid.len() as f32;
+            }
+        }
+        samples.push((ws, wt));
+    }
+    f.mean_deg = if n > 0 { sum / n as f32 } else { f32::NAN };
+    let up = ups.normalize_or_zero();
+    let ratio = leg_length(ts, tgt)
+        .zip(leg_length(ss, src))
+        .map(|(t, s)| t / s);
+    if let (Some(ratio), Some(first_s), Some(first_t)) = (ratio, src_hips.first(), tgt_hips.first())
+    {
+        let flat = |v: Vec3| v - up * v.dot(up);
+        let ds = flat(*src_hips.last().unwrap() - *first_s) * ratio;
+        let dt = flat(*tgt_hips.last().unwrap() - *first_t);
+        if ds.length() > 0.2 {
+            f.travel_error = Some((dt - ds).length() / ds.length());
+        }
+        // Feet: each side's lowest foot point (ankle or toes) per frame; each rig's floor is
+        // where its feet get lowest over the clip. Where the source's foot is planted (within
+        // 1 cm of its floor), the target's must be as high above its own floor (scaled).
+        for side in ["L", "R"] {
+            // The joints both rigs have, so like is compared with like.
+            let roles: Vec<String> = [sided("foot", side), sided("toes", side)]
+                .into_iter()
+                .filter(|r| src.bone(r).is_some() && tgt.bone(r).is_some())
+                .collect();
+            let sb: Vec<BoneId> = roles.iter().filter_map(|r| src.bone(r)).collect();
+            let tb: Vec<BoneId> = roles.iter().filter_map(|r| tgt.bone(r)).collect();
+            if sb.is_empty() || tb.is_empty() {
+                continue;
+            }
+            for (ws, wt) in &samples {
+                let low = |w: &[Vec3], b: &[BoneId]| {
+                    b.iter()
+                        .map(|b| w[b.index()].dot(up))
+                        .fold(f32::MAX, f32::min)
+                };
+                feet.push((low(ws, &sb), low(wt, &tb)));
+            }
+        }
+        if !feet.is_empty() {
+            let floor_s = feet.iter().map(|f| f.0).fold(f32::MAX, f32::min);
+            let floor_t = feet.iter().map(|f| f.1).fold(f32::MAX, f32::min);
+            let worst = feet
+                .iter()
+                .filter(|(hs, _)| hs - floor_s < 0.01)
+                .map(|(hs, ht)| ((ht - floor_t) - ratio * (hs - floor_s)).abs())
+                .fold(0.0f32, f32::max);
+            f.planted_feet_cm = Some(worst * 100.0);
+        }
+    }
+    f
+}
+
+/// One measured pair: its name, its figures, and the measured roles mapped wrong.
+struct Pair {
+    name: String,
+    figures: Figures,
+    wrong: Vec<String>,
+}
+
+/// Retargets every labelled human with motion onto every other one and measures each pair,
+/// printing the table. `None` when the shared data is absent.
+fn measure_pairs() -> Option<Vec<Pair>> {
+    let root =
+        common::shared_data("labels.json").and_then(|p| p.parent().map(Path::to_path_buf))?;
+    let humans = load_humans(&root);
+    let sources: Vec<&Labelled> = humans
+        .iter()
+        .filter(|h| h.clip.num_frames() >= 30)
+        .collect();
+    println!(
+        "{:<40} {:<40} {:>6} {:>6} {:>8} {:>8}  mapping",
+        "source", "target", "mean°", "max°", "travel%", "feet cm"
+    );
+    let mut pairs = Vec::new();
+    for src in &sources {
+        let clip = subsample(&src.clip);
+        for tgt in humans.iter().filter(|t| t.path != src.path) {
+            let plan = plan_mapping(&src.clip, &tgt.clip, None).unwrap();
+            let opts = RetargetOptions {
+                frame_time_secs: clip.frame_time_secs as f32,
+                root_motion: RootMotion::Scaled,
+                source_reference: vec![plan.source_reference.clone()],
+                target_reference: plan.target_reference.clone(),
+                source_up: Some(plan.source_up),
+                ..RetargetOptions::default()
+            };
+            let target = Arc::new((*tgt.clip.skeleton).clone());
+            let out = retarget_clip(&clip, &target, &plan.table, &opts, false).unwrap();
+            let figures = measure(src, tgt, &clip, &out);
+            let wrong = mapping_right(src, tgt, &plan.table);
+            let opt =
+                |v: Option<f32>, k: f32| v.map_or("-".to_string(), |v| format!("{:.1}", v * k));
+            println!(
+                "{:<40} {:<40} {:>6.2} {:>6.2} {:>8} {:>8}  {}",
+                src.name(),
+                tgt.name(),
+                figures.mean_deg,
+                figures.max_deg,
+                opt(figures.travel_error, 100.0),
+                opt(figures.planted_feet_cm, 1.0),
+                if wrong.is_empty() {
+                    "right".to_string()
+                } else {
+                    format!("wrong: {}", wrong.join(" "))
+                }
+            );
+            pairs.push(Pair {
+                name: format!("{} → {}", src.name(), tgt.name()),
+                figures,
+                wrong,
+            });
+        }
+    }
+    Some(pairs)
+}
+
+/// The pairs the automatic mapping gets right per the labels (asserted); at least one.
+fn right_pairs(pairs: &[Pair]) -> Vec<&Pair> {
+    let right: Vec<&Pair> = pairs.iter().filter(|p| p.wrong.is_empty()).collect();
+    println!(
+        "{} of {} pairs are mapped right per the labels and checked against the bounds",
+        right.len(),
+        pairs.len()
+    );
+    assert!(!right.is_empty(), "no pair maps right: nothing was checked");
+    right
+}
+
+#[test]
+fn limb_directions_and_root_travel_on_real_pairs() {
+    let Some(pairs) = measure_pairs() else {
+        return;
+    };
+    let mut failures = Vec::new();
+    for p in right_pairs(&pairs) {
+        let f = &p.figures;
+        if !(f.mean_deg <= 2.0 && f.max_deg <= 5.0) {
+            failures.push(format!(
+                "{}: limbs {:.2}° mean, {:.2}° max ({})",
+                p.name, f.mean_deg, f.max_deg, f.worst_segment
+            ));
+        }
+        if let Some(e) = f.travel_error.filter(|e| *e > 0.05) {
+            failures.push(format!("{}: root travel off by {:.1} %", p.name, 100.0 * e));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+/// Planted feet within 1 cm of the floor. Not met yet on every real pair: one vertical
+/// calibration of the hips cannot keep feet planted when the legs' proportions differ (thigh
+/// vs shin, ankle height); that needs foot locking with leg IK (the footplants work).
+#[test]
+#[ignore = "known gap until foot locking: planted feet are 1-13 cm off on some real pairs"]
+fn planted_feet_stay_on_the_floor_on_real_pairs() {
+    let Some(pairs) = measure_pairs() else {
+        return;
+    };
+    let failures: Vec<String> = right_pairs(&pairs)
+        .iter()
+        .filter_map(|p| {
+            p.figures
+                .planted_feet_cm
+                .filter(|cm| *cm > 1.0)
+                .map(|cm| format!("{}: planted feet {cm:.2} cm off the floor", p.name))
+        })
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
