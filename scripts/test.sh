@@ -4,7 +4,9 @@
 #   1. scripts/install-apps.sh  — Blender and Chromium from Debian (client end-to-end tests)
 #   2. scripts/setup-vision.sh  — ffmpeg, ONNX Runtime (PyPI wheel), BlazePose ONNX models
 #                                 (npm @mediapipe/pose, converted), real footage (PyPI pose2sim)
-#   3. cargo test --workspace   — unit, integration, end-to-end tests
+#   3. scripts/setup-vmc-check.sh — python-osc (PyPI) in a private venv: the independent VMC
+#                                 receiver the VMC output is judged with
+#   4. cargo test --workspace   — unit, integration, end-to-end tests
 # Both setup steps are idempotent and skip work already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,6 +18,9 @@ step "installing Blender and Chromium (if missing)"
 
 step "preparing the vision models and runtime (if missing)"
 ./scripts/setup-vision.sh
+
+step "preparing the independent VMC receiver (if missing)"
+./scripts/setup-vmc-check.sh
 
 step "cargo test --workspace"
 cargo test --workspace --no-fail-fast

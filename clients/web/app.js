@@ -2,7 +2,7 @@
 // targets), a subject list, a live rate/latency graph and the mapping table with colours.
 // Plain ES modules; three.js is vendored under vendor/three (no CDN at run time).
 import * as THREE from './vendor/three/three.module.js';
-import { Stream } from './stream.js';
+import { Stream, WANTED_PROTOCOL_VERSION } from './stream.js';
 import { Graph } from './graph.js';
 
 const KIND_COLORS = { source: 0x4fc3f7, target: 0xff8a65 };
@@ -49,6 +49,11 @@ class SubjectView {
     this.parents = this.bones.map((b) => (b.parent === null || b.parent === undefined ? -1 : b.parent));
     this.restT = this.bones.map((b) => new THREE.Vector3(...b.rest_translation));
     this.restR = this.bones.map((b) => new THREE.Quaternion(...b.rest_rotation));
+    // Version 2 frames: slot k of the frame's translations belongs to the k-th marked bone.
+    this.slot = new Array(n).fill(-1);
+    let slots = 0;
+    this.bones.forEach((b, i) => { if (b.translated) this.slot[i] = slots++; });
+    this.numTranslated = slots;
     this.worldR = this.bones.map(() => new THREE.Quaternion());
     this.worldP = this.bones.map(() => new THREE.Vector3());
     this.localR = new THREE.Quaternion();
@@ -63,6 +68,11 @@ class SubjectView {
     this.lineGeometry.setAttribute('color', new THREE.BufferAttribute(this.lineColors, 3));
     this.group.add(new THREE.LineSegments(this.lineGeometry, new THREE.LineBasicMaterial({ vertexColors: true })));
     this.rest();
+    this.restWorldP = this.worldP.map((p) => p.clone());
+    // In place: the deepest translated bone of the root chain (the hips of most rigs) keeps
+    // its rest ground position; everything moves with it.
+    this.anchor = 0;
+    for (let i = 0; i < n; i++) if (this.slot[i] >= 0 && (this.parents[i] < 0 || this.slot[this.parents[i]] >= 0)) this.anchor = i;
     this.height = this.computeHeight();
     const radius = Math.max(this.height * 0.012, 0.004);
     this.joints = new THREE.InstancedMesh(new THREE.SphereGeometry(radius, 10, 8), new THREE.MeshBasicMaterial(), n);
@@ -104,8 +114,14 @@ class SubjectView {
       if (frame) r.set(frame.rotations[4 * i], frame.rotations[4 * i + 1], frame.rotations[4 * i + 2], frame.rotations[4 * i + 3]);
       else r.copy(this.restR[i]);
       const p = this.parents[i];
-      const t = i === 0 && frame ? this.tmp.set(...frame.root) : this.tmp.copy(this.restT[i]);
-      if (i === 0 && frame && state.inPlace) { t.x = this.restT[0].x; t.z = this.restT[0].z; }
+      const t = this.tmp.copy(this.restT[i]);
+      if (frame && frame.version === 2 && this.slot[i] >= 0 && frame.translations.length === 3 * this.numTranslated) {
+        const k = 3 * this.slot[i];
+        t.set(frame.translations[k], frame.translations[k + 1], frame.translations[k + 2]);
+      } else if (frame && frame.version !== 2 && i === 0) {
+        t.set(...frame.root);
+        if (state.inPlace) { t.x = this.restT[0].x; t.z = this.restT[0].z; }
+      }
       if (p < 0) {
         this.worldR[i].copy(r);
         this.worldP[i].copy(t);
@@ -113,6 +129,11 @@ class SubjectView {
         this.worldR[i].multiplyQuaternions(this.worldR[p], r);
         this.worldP[i].copy(t.applyQuaternion(this.worldR[p])).add(this.worldP[p]);
       }
+    }
+    if (frame && frame.version === 2 && state.inPlace) {
+      const dx = this.worldP[this.anchor].x - this.restWorldP[this.anchor].x;
+      const dz = this.worldP[this.anchor].z - this.restWorldP[this.anchor].z;
+      for (const q of this.worldP) { q.x -= dx; q.z -= dz; }
     }
   }
 
@@ -280,6 +301,10 @@ function onMessage(message) {
   switch (message.type) {
     case 'hello':
       state.hello = message;
+      // Ask for version 2 frames (the hips' own motion, not only bone 0's) when offered.
+      if ((message.protocol_versions ?? [1]).includes(WANTED_PROTOCOL_VERSION)) {
+        state.stream?.send({ type: 'set_protocol', version: WANTED_PROTOCOL_VERSION });
+      }
       $('server-version').textContent = `server ${message.server_version ?? '?'} · protocol ${message.protocol_version} · tick ${message.tick_hz} Hz`;
       setSubjects(message.subjects ?? []);
       break;
@@ -289,6 +314,9 @@ function onMessage(message) {
     case 'skeleton':
       state.skeletons.set(message.subject, message);
       rebuildView(message.subject);
+      break;
+    case 'protocol':
+      state.protocolVersion = message.version;
       break;
     case 'mapping':
       state.mappings.set(message.subject, message);

@@ -49,6 +49,11 @@ pub struct BoneInfo {
     pub rest_translation: [f32; 3],
     /// Rest local rotation `[x, y, z, w]`, internal space.
     pub rest_rotation: [f32; 4],
+    /// Whether version 2 frames carry this bone's translation (the bones that move: roots,
+    /// the chain down to the hips, bones whose source has position channels). Absent (older
+    /// servers) reads as false.
+    #[serde(default)]
+    pub translated: bool,
 }
 
 /// One target bone of a `mapping` message.
@@ -145,8 +150,12 @@ impl ErrorCode {
 pub enum ServerMessage {
     /// First message on every connection.
     Hello {
-        /// [`crate::PROTOCOL_VERSION`].
+        /// The session's protocol (and frame) version: [`crate::PROTOCOL_VERSION`] until the
+        /// client asks for another with `set_protocol`.
         protocol_version: u16,
+        /// Every version the server can speak; absent (older servers) reads as `[1]`.
+        #[serde(default = "only_version_1")]
+        protocol_versions: Vec<u16>,
         /// The server's crate version.
         server_version: String,
         /// Output tick rate: frames per second per subject.
@@ -204,6 +213,11 @@ pub enum ServerMessage {
         /// One entry per source subject.
         sources: Vec<SourceHealth>,
     },
+    /// Answer to `set_protocol`: binary frames sent after this message use `version`.
+    Protocol {
+        /// The frame version now in use.
+        version: u16,
+    },
     /// A request was accepted (`set_mapping`, `calibrate`).
     Ack {
         /// The `type` of the request acknowledged.
@@ -247,6 +261,16 @@ pub enum ClientMessage {
         #[serde(default)]
         delay_secs: f32,
     },
+    /// Switch this connection's binary frames to another protocol version (one listed in
+    /// `hello.protocol_versions`); answered by `protocol`, or `error` `unsupported`.
+    SetProtocol {
+        /// Requested version.
+        version: u16,
+    },
+}
+
+fn only_version_1() -> Vec<u16> {
+    vec![1]
 }
 
 /// The pose a performer holds while calibrating.
@@ -274,7 +298,13 @@ impl CalibrationPose {
 pub const MAX_CALIBRATION_DELAY_SECS: f32 = 60.0;
 
 /// The `type` tags [`ClientMessage`] understands.
-pub const CLIENT_MESSAGE_TYPES: [&str; 4] = ["subscribe", "ping", "set_mapping", "calibrate"];
+pub const CLIENT_MESSAGE_TYPES: [&str; 5] = [
+    "subscribe",
+    "ping",
+    "set_mapping",
+    "calibrate",
+    "set_protocol",
+];
 
 /// Why an incoming client text message was rejected.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -361,6 +391,7 @@ mod tests {
         vec![
             ServerMessage::Hello {
                 protocol_version: 1,
+                protocol_versions: vec![1, 2],
                 server_version: "0.1.0".into(),
                 tick_hz: 60.0,
                 subjects: subjects(),
@@ -375,12 +406,14 @@ mod tests {
                         parent: None,
                         rest_translation: [0.0, 1.0, 0.0],
                         rest_rotation: [0.0, 0.0, 0.0, 1.0],
+                        translated: true,
                     },
                     BoneInfo {
                         name: "Spine".into(),
                         parent: Some(0),
                         rest_translation: [0.0, 0.1, 0.0],
                         rest_rotation: [0.0, 0.0, 0.5f32.sqrt(), 0.5f32.sqrt()],
+                        translated: false,
                     },
                 ],
             },
@@ -417,6 +450,7 @@ mod tests {
                 request: "set_mapping".into(),
                 subject: 1,
             },
+            ServerMessage::Protocol { version: 2 },
             ServerMessage::SourceStatus {
                 sources: vec![SourceHealth {
                     subject: 0,
@@ -483,6 +517,7 @@ mod tests {
                 pose: CalibrationPose::N,
                 delay_secs: 3.0,
             },
+            ClientMessage::SetProtocol { version: 2 },
         ] {
             let json = serde_json::to_string(&m).unwrap();
             assert_eq!(parse_client_message(&json).unwrap(), m, "{json}");
@@ -505,6 +540,29 @@ mod tests {
             parse_client_message(r#"{"type":"ping","nonce":5,"extra":true}"#).unwrap(),
             ClientMessage::Ping { nonce: 5 }
         );
+    }
+
+    #[test]
+    fn protocol_negotiation_messages_have_documented_shape() {
+        assert_eq!(
+            parse_client_message(r#"{"type":"set_protocol","version":2}"#).unwrap(),
+            ClientMessage::SetProtocol { version: 2 }
+        );
+        let reply = serde_json::to_value(ServerMessage::Protocol { version: 2 }).unwrap();
+        assert_eq!(reply, serde_json::json!({"type": "protocol", "version": 2}));
+        // An older server's hello (no protocol_versions) and skeleton (no translated) parse.
+        let hello: ServerMessage = serde_json::from_str(
+            r#"{"type":"hello","protocol_version":1,"server_version":"0","tick_hz":60.0,"subjects":[]}"#,
+        )
+        .unwrap();
+        assert!(
+            matches!(hello, ServerMessage::Hello { protocol_versions, .. } if protocol_versions == [1])
+        );
+        let bone: BoneInfo = serde_json::from_str(
+            r#"{"name":"a","parent":null,"rest_translation":[0,0,0],"rest_rotation":[0,0,0,1]}"#,
+        )
+        .unwrap();
+        assert!(!bone.translated);
     }
 
     #[test]

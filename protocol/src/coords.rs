@@ -1,10 +1,13 @@
 //! Coordinate conversions between the internal space and external tools' spaces.
 //!
 //! * Internal: right-handed, +Y up, metres (same as glTF).
-//! * Unity / VMC: left-handed, +Y up, metres. The two differ by a mirror of the Z axis, so
-//!   positions map by negating z. A rotation `R` becomes `M R M` (M = diag(1, 1, -1)): the
-//!   mirrored axis with the opposite angle, which in quaternion form is `(x, y, -z, -w)`
-//!   (equivalently `(-x, -y, z, w)`: `q` and `-q` are the same rotation).
+//! * Unity / VMC: left-handed, +Y up, +Z forward, metres. Characters face +Z in both spaces
+//!   (glTF and VRM/Unity avatars alike), so the two differ by a mirror of the **X** axis (the
+//!   convention UniVRM uses between glTF and Unity): positions map `(x, y, z) → (-x, y, z)`. A
+//!   rotation `R` becomes `M R M` (M = diag(-1, 1, 1)): the mirrored axis with the opposite
+//!   angle, which in quaternion form is `(x, -y, -z, w)`. Mirroring Z instead would turn every
+//!   character around, and since receivers apply the *local* rotations to their own +Z-facing
+//!   bones, that flips how every joint bends (knees forward), not only where the root faces.
 //! * Blender: right-handed, +Z up, metres. The two differ by a proper rotation of +90° about X
 //!   (internal +Y → Blender +Z, internal +Z → Blender -Y), the same mapping Blender's glTF
 //!   importer uses, so a character facing internal +Z faces Blender's front (-Y). Positions map
@@ -16,28 +19,28 @@
 
 use glam::{Quat, Vec3};
 
-/// Internal position → Unity position.
+/// Internal position → Unity position (`(-x, y, z)`).
 #[inline]
 pub fn unity_from_internal_position(p: Vec3) -> Vec3 {
-    Vec3::new(p.x, p.y, -p.z)
+    Vec3::new(-p.x, p.y, p.z)
 }
 
-/// Unity position → internal position.
+/// Unity position → internal position (the mirror is its own inverse).
 #[inline]
 pub fn internal_from_unity_position(p: Vec3) -> Vec3 {
-    Vec3::new(p.x, p.y, -p.z)
+    Vec3::new(-p.x, p.y, p.z)
 }
 
-/// Internal rotation → Unity rotation (`(x, y, -z, -w)`).
+/// Internal rotation → Unity rotation (`(x, -y, -z, w)`).
 #[inline]
 pub fn unity_from_internal_rotation(q: Quat) -> Quat {
-    Quat::from_xyzw(q.x, q.y, -q.z, -q.w)
+    Quat::from_xyzw(q.x, -q.y, -q.z, q.w)
 }
 
 /// Unity rotation → internal rotation (the mirror is its own inverse).
 #[inline]
 pub fn internal_from_unity_rotation(q: Quat) -> Quat {
-    Quat::from_xyzw(q.x, q.y, -q.z, -q.w)
+    Quat::from_xyzw(q.x, -q.y, -q.z, q.w)
 }
 
 /// Internal position → Blender position.
@@ -138,23 +141,21 @@ mod tests {
         }
     }
 
-    /// A known case worked by hand: +90° about +X in our right-handed space takes +Y to +Z.
-    /// In Unity that motion takes +Y to -Z (the mirrored +Z), which in Unity's left-handed
-    /// convention is a rotation of -90° about +X: quaternion (-sin 45°, 0, 0, cos 45°).
+    /// Known cases worked by hand (Unity applies `q v q*` with the same formula; only the
+    /// handedness of the axes differs). +90° about +X takes +Y to +Z in ours; neither axis is
+    /// mirrored, so the Unity quaternion is the same and does the same. +90° about +Y takes
+    /// forward (+Z) to +X in ours; ours +X is Unity −X, so in Unity it must take +Z to −X.
     #[test]
-    fn known_rotation_maps_to_expected_unity_rotation() {
-        let ours = Quat::from_rotation_x(FRAC_PI_2);
-        assert!(close(ours * Vec3::Y, Vec3::Z));
-        let unity = unity_from_internal_rotation(ours);
+    fn known_rotations_map_to_expected_unity_rotations() {
         let s = std::f32::consts::FRAC_1_SQRT_2;
-        let expected = Quat::from_xyzw(-s, 0.0, 0.0, s);
-        // q and -q are the same rotation.
-        assert!(unity.dot(expected).abs() > 1.0 - 1e-6, "{unity:?}");
-        assert!(close(unity * Vec3::Y, Vec3::new(0.0, 0.0, -1.0)));
-        // Yaw about the up axis: +90° about +Y in ours takes +Z to +X; in Unity the mirrored
-        // +Z is -Z, and it must go to +X as well: that is -90° about +Y there.
+        let pitch = unity_from_internal_rotation(Quat::from_rotation_x(FRAC_PI_2));
+        assert!(pitch.dot(Quat::from_xyzw(s, 0.0, 0.0, s)).abs() > 1.0 - 1e-6);
+        assert!(close(pitch * Vec3::Y, Vec3::Z));
         let yaw = unity_from_internal_rotation(Quat::from_rotation_y(FRAC_PI_2));
-        assert!(close(yaw * Vec3::new(0.0, 0.0, -1.0), Vec3::X));
+        assert!(close(yaw * Vec3::Z, -Vec3::X));
+        // A character facing internal +Z faces Unity +Z: forward is not mirrored.
+        assert_eq!(unity_from_internal_position(Vec3::Z), Vec3::Z);
+        assert_eq!(unity_from_internal_position(Vec3::X), -Vec3::X);
     }
 
     #[test]

@@ -1,11 +1,11 @@
 //! The binary pose frame: one subject's pose at one tick, sent as a WebSocket binary message.
 //!
-//! Little-endian, fixed layout (see `PROTOCOL.md`):
+//! Little-endian, fixed layout (see `PROTOCOL.md`). Two versions share the first 44 bytes:
 //!
 //! ```text
 //! off size field
 //!   0   4  magic "RGCF"
-//!   4   2  u16 protocol version (1)
+//!   4   2  u16 frame version (1 or 2)
 //!   6   2  u16 flags (0)
 //!   8   4  u32 subject id
 //!  12   4  u32 num_bones (n)
@@ -13,14 +13,23 @@
 //!  24   8  u64 capture_nanos       Unix epoch ns, when the pose was captured
 //!  32   8  u64 send_nanos          Unix epoch ns, when the server encoded the frame
 //!  40   4  u32 missed_frames       frames this client missed since its previous frame
+//! version 1:
 //!  44   4  u32 reserved (0)
-//!  48  12  3 × f32 root translation (metres, right-handed, +Y up)
+//!  48  12  3 × f32 translation of bone 0 (metres, right-handed, +Y up)
 //!  60 16n  n × (x, y, z, w) f32 local rotations, bone order of the `skeleton` message
+//! version 2:
+//!  44   4  u32 num_translations (m)
+//!  48 16n  n × (x, y, z, w) f32 local rotations
+//!  48+16n 12m  m × (x, y, z) f32 local translations of the bones the `skeleton` message marks
+//!          `translated`, in bone order
 //! ```
 //!
-//! [`encode_frame`] writes into a caller-owned `Vec` that is cleared and reused, so steady-state
-//! encoding allocates nothing. [`decode_frame_into`] validates every field and fills a reused
-//! rotation buffer.
+//! Version 1 carries only bone 0's translation, which loses the hips' motion on rigs whose
+//! hips are not bone 0 (a ground root above the pelvis, most game rigs); version 2 carries the
+//! translation of every bone that moves. [`encode_frame`] / [`append_frame_v2`] write into a
+//! caller-owned `Vec` that is reused, so steady-state encoding allocates nothing.
+//! [`decode_frame_into`] (version 1) and [`decode_any_into`] (both) validate every field and
+//! fill reused buffers.
 
 use glam::{Quat, Vec3};
 use thiserror::Error;
@@ -29,16 +38,28 @@ use crate::PROTOCOL_VERSION;
 
 /// The first four bytes of every frame.
 pub const FRAME_MAGIC: [u8; 4] = *b"RGCF";
-/// Size of the fixed part before the rotations.
+/// Size of the fixed part before the rotations (version 1).
 pub const FRAME_HEADER_BYTES: usize = 60;
+/// Size of the fixed part before the rotations (version 2).
+pub const FRAME_V2_HEADER_BYTES: usize = 48;
+/// Bytes per translated bone (version 2).
+pub const BYTES_PER_TRANSLATION: usize = 12;
+/// The frame version that carries translations of every moving bone.
+pub const FRAME_VERSION_2: u16 = 2;
 /// Bytes per bone rotation.
 pub const BYTES_PER_BONE: usize = 16;
 /// Offset of the `missed_frames` field, patched per client after a lag.
 pub const MISSED_FRAMES_OFFSET: usize = 40;
 
-/// Total size of a frame carrying `num_bones` rotations.
+/// Total size of a version 1 frame carrying `num_bones` rotations.
 pub const fn frame_len(num_bones: usize) -> usize {
     FRAME_HEADER_BYTES + BYTES_PER_BONE * num_bones
+}
+
+/// Total size of a version 2 frame with `num_bones` rotations and `num_translations`
+/// translations.
+pub const fn frame_len_v2(num_bones: usize, num_translations: usize) -> usize {
+    FRAME_V2_HEADER_BYTES + BYTES_PER_BONE * num_bones + BYTES_PER_TRANSLATION * num_translations
 }
 
 /// The scalar fields of a frame.
@@ -83,7 +104,7 @@ pub enum FrameError {
         /// version supported
         supported: u16,
     },
-    /// The byte length does not match `num_bones` (or the caller's expected count).
+    /// The byte length does not match `num_bones` (and, in version 2, `num_translations`).
     #[error("bone count mismatch: header says {num_bones} bones ({expected_len} bytes), got {len} bytes")]
     CountMismatch {
         /// bones in the header
@@ -108,23 +129,54 @@ pub enum FrameError {
 pub fn encode_frame(out: &mut Vec<u8>, header: &FrameHeader, root: Vec3, rotations: &[Quat]) {
     out.clear();
     out.reserve(frame_len(rotations.len()));
+    put_common_header(out, PROTOCOL_VERSION, header, rotations.len());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    put_floats(out, &root.to_array());
+    for q in rotations {
+        put_floats(out, &q.to_array());
+    }
+}
+
+/// Appends a version 2 frame to `out` (not cleared, so a v1 and a v2 encoding of the same
+/// pose can share one buffer): every rotation, then `translations[b]` for each bone `b` of
+/// `translated` (ascending bone indices, as the `skeleton` message lists them). Indices out of
+/// range are written as zero vectors rather than panicking; callers derive both from the same
+/// skeleton.
+pub fn append_frame_v2(
+    out: &mut Vec<u8>,
+    header: &FrameHeader,
+    rotations: &[Quat],
+    translations: &[Vec3],
+    translated: &[u16],
+) {
+    out.reserve(frame_len_v2(rotations.len(), translated.len()));
+    put_common_header(out, FRAME_VERSION_2, header, rotations.len());
+    out.extend_from_slice(&(translated.len() as u32).to_le_bytes());
+    for q in rotations {
+        put_floats(out, &q.to_array());
+    }
+    for &b in translated {
+        let t = translations.get(b as usize).copied().unwrap_or(Vec3::ZERO);
+        put_floats(out, &t.to_array());
+    }
+}
+
+/// The 44 bytes both versions share.
+fn put_common_header(out: &mut Vec<u8>, version: u16, header: &FrameHeader, num_bones: usize) {
     out.extend_from_slice(&FRAME_MAGIC);
-    out.extend_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+    out.extend_from_slice(&version.to_le_bytes());
     out.extend_from_slice(&header.flags.to_le_bytes());
     out.extend_from_slice(&header.subject.to_le_bytes());
-    out.extend_from_slice(&(rotations.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(num_bones as u32).to_le_bytes());
     out.extend_from_slice(&header.seq.to_le_bytes());
     out.extend_from_slice(&header.capture_nanos.to_le_bytes());
     out.extend_from_slice(&header.send_nanos.to_le_bytes());
     out.extend_from_slice(&header.missed_frames.to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes());
-    for v in root.to_array() {
+}
+
+fn put_floats(out: &mut Vec<u8>, values: &[f32]) {
+    for v in values {
         out.extend_from_slice(&v.to_le_bytes());
-    }
-    for q in rotations {
-        for v in q.to_array() {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
     }
 }
 
@@ -136,9 +188,32 @@ pub fn set_missed_frames(frame: &mut [u8], missed: u32) {
     }
 }
 
-/// Reads only the header (for routing), checking magic, version and length.
-pub fn decode_header(bytes: &[u8]) -> Result<(FrameHeader, u32), FrameError> {
-    if bytes.len() < FRAME_HEADER_BYTES {
+/// The shape of a frame as its header declares it (after the length check).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameShape {
+    /// Frame version (1 or 2).
+    pub version: u16,
+    /// Rotations carried.
+    pub num_bones: u32,
+    /// Translations carried (version 1: always 1, bone 0's).
+    pub num_translations: u32,
+}
+
+impl FrameShape {
+    fn rotations_at(&self) -> usize {
+        if self.version == PROTOCOL_VERSION {
+            FRAME_HEADER_BYTES
+        } else {
+            FRAME_V2_HEADER_BYTES
+        }
+    }
+}
+
+/// Reads only the header (for routing), checking magic, version and length. Accepts both
+/// frame versions; the returned shape tells which.
+pub fn decode_header_any(bytes: &[u8]) -> Result<(FrameHeader, FrameShape), FrameError> {
+    // Both versions need at least 48 bytes; version 1 needs 60 (checked below).
+    if bytes.len() < FRAME_V2_HEADER_BYTES {
         return Err(FrameError::ShortBuffer {
             len: bytes.len(),
             needed: FRAME_HEADER_BYTES,
@@ -149,14 +224,28 @@ pub fn decode_header(bytes: &[u8]) -> Result<(FrameHeader, u32), FrameError> {
         return Err(FrameError::BadMagic { found: magic });
     }
     let version = u16_at(bytes, 4);
-    if version != PROTOCOL_VERSION {
-        return Err(FrameError::UnsupportedVersion {
-            version,
-            supported: PROTOCOL_VERSION,
-        });
-    }
     let num_bones = u32_at(bytes, 12);
-    let expected_len = frame_len(num_bones as usize);
+    let (num_translations, expected_len) = match version {
+        PROTOCOL_VERSION => {
+            if bytes.len() < FRAME_HEADER_BYTES {
+                return Err(FrameError::ShortBuffer {
+                    len: bytes.len(),
+                    needed: FRAME_HEADER_BYTES,
+                });
+            }
+            (1, frame_len(num_bones as usize))
+        }
+        FRAME_VERSION_2 => {
+            let m = u32_at(bytes, 44);
+            (m, frame_len_v2(num_bones as usize, m as usize))
+        }
+        _ => {
+            return Err(FrameError::UnsupportedVersion {
+                version,
+                supported: FRAME_VERSION_2,
+            })
+        }
+    };
     if bytes.len() != expected_len {
         return Err(FrameError::CountMismatch {
             num_bones,
@@ -172,58 +261,118 @@ pub fn decode_header(bytes: &[u8]) -> Result<(FrameHeader, u32), FrameError> {
         send_nanos: u64_at(bytes, 32),
         missed_frames: u32_at(bytes, 40),
     };
-    Ok((header, num_bones))
+    let shape = FrameShape {
+        version,
+        num_bones,
+        num_translations,
+    };
+    Ok((header, shape))
 }
 
-/// Decodes a frame, replacing the contents of `rotations` (reused: no allocation once it has
-/// grown). Returns the header and the root translation.
+/// Reads only the header of a version 1 frame, checking magic, version and length.
+pub fn decode_header(bytes: &[u8]) -> Result<(FrameHeader, u32), FrameError> {
+    let (header, shape) = decode_header_any(bytes)?;
+    if shape.version != PROTOCOL_VERSION {
+        return Err(FrameError::UnsupportedVersion {
+            version: shape.version,
+            supported: PROTOCOL_VERSION,
+        });
+    }
+    Ok((header, shape.num_bones))
+}
+
+/// Decodes a version 1 frame, replacing the contents of `rotations` (reused: no allocation
+/// once it has grown). Returns the header and the root translation.
 pub fn decode_frame_into(
     bytes: &[u8],
     rotations: &mut Vec<Quat>,
 ) -> Result<(FrameHeader, Vec3), FrameError> {
-    let (header, num_bones) = decode_header(bytes)?;
+    let (header, _) = decode_header(bytes)?;
     let root = Vec3::new(
         finite_at(bytes, 48)?,
         finite_at(bytes, 52)?,
         finite_at(bytes, 56)?,
     );
+    read_rotations(bytes, FRAME_HEADER_BYTES, rotations)?;
+    Ok((header, root))
+}
+
+/// Decodes a frame of either version into reused buffers: `rotations` gets every bone's
+/// rotation, `translations` the carried translations (version 1: bone 0's; version 2: one per
+/// bone the `skeleton` message marks `translated`, in bone order).
+pub fn decode_any_into(
+    bytes: &[u8],
+    rotations: &mut Vec<Quat>,
+    translations: &mut Vec<Vec3>,
+) -> Result<(FrameHeader, FrameShape), FrameError> {
+    let (header, shape) = decode_header_any(bytes)?;
+    let rot_at = shape.rotations_at();
+    read_rotations(bytes, rot_at, rotations)?;
+    let trans_at = if shape.version == PROTOCOL_VERSION {
+        48
+    } else {
+        rot_at + BYTES_PER_BONE * shape.num_bones as usize
+    };
+    translations.clear();
+    translations.reserve(shape.num_translations as usize);
+    for k in 0..shape.num_translations as usize {
+        let o = trans_at + BYTES_PER_TRANSLATION * k;
+        translations.push(Vec3::new(
+            finite_at(bytes, o)?,
+            finite_at(bytes, o + 4)?,
+            finite_at(bytes, o + 8)?,
+        ));
+    }
+    Ok((header, shape))
+}
+
+fn read_rotations(bytes: &[u8], at: usize, rotations: &mut Vec<Quat>) -> Result<(), FrameError> {
+    let num_bones = u32_at(bytes, 12) as usize;
     rotations.clear();
-    rotations.reserve(num_bones as usize);
-    let body = &bytes[FRAME_HEADER_BYTES..];
+    rotations.reserve(num_bones);
+    let body = &bytes[at..at + BYTES_PER_BONE * num_bones];
     for (i, chunk) in body.chunks_exact(BYTES_PER_BONE).enumerate() {
         let f = |k: usize| f32::from_le_bytes([chunk[k], chunk[k + 1], chunk[k + 2], chunk[k + 3]]);
         let q = Quat::from_xyzw(f(0), f(4), f(8), f(12));
         if !q.is_finite() {
             // Slow path only on bad input: find the offending float for the error.
-            let base = FRAME_HEADER_BYTES + BYTES_PER_BONE * i;
+            let base = at + BYTES_PER_BONE * i;
             for k in 0..4 {
                 finite_at(bytes, base + 4 * k)?;
             }
         }
         rotations.push(q);
     }
-    Ok((header, root))
+    Ok(())
 }
 
-/// A decoded frame with owned rotations (convenient for tests and tools).
+/// A decoded frame with owned buffers (convenient for tests and tools).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DecodedFrame {
     /// Scalar fields.
     pub header: FrameHeader,
-    /// Root translation.
+    /// Frame version (1 or 2).
+    pub version: u16,
+    /// Bone 0's translation in version 1; in version 2 the first carried translation (the
+    /// first `translated` bone, normally the root), or zero when none is carried.
     pub root: Vec3,
     /// Local rotations.
     pub rotations: Vec<Quat>,
+    /// Carried translations (see [`decode_any_into`]).
+    pub translations: Vec<Vec3>,
 }
 
-/// Decodes a frame into owned buffers.
+/// Decodes a frame of either version into owned buffers.
 pub fn decode_frame(bytes: &[u8]) -> Result<DecodedFrame, FrameError> {
     let mut rotations = Vec::new();
-    let (header, root) = decode_frame_into(bytes, &mut rotations)?;
+    let mut translations = Vec::new();
+    let (header, shape) = decode_any_into(bytes, &mut rotations, &mut translations)?;
     Ok(DecodedFrame {
         header,
-        root,
+        version: shape.version,
+        root: translations.first().copied().unwrap_or(Vec3::ZERO),
         rotations,
+        translations,
     })
 }
 
@@ -346,14 +495,21 @@ mod tests {
             Err(FrameError::BadMagic { .. })
         ));
         let mut version = good.clone();
-        version[4] = 2;
+        version[4] = 3;
         assert_eq!(
             decode_frame(&version),
             Err(FrameError::UnsupportedVersion {
-                version: 2,
-                supported: 1
+                version: 3,
+                supported: 2
             })
         );
+        // A version 2 frame is not a version 1 frame for the v1-only decoder.
+        let mut v2 = Vec::new();
+        append_frame_v2(&mut v2, &h, &rots, &[root], &[0]);
+        assert!(matches!(
+            decode_frame_into(&v2, &mut Vec::new()),
+            Err(FrameError::UnsupportedVersion { version: 2, .. })
+        ));
         let mut count = good.clone();
         count[12] = 200;
         assert!(matches!(
@@ -371,6 +527,73 @@ mod tests {
         assert!(matches!(
             decode_frame(&inf),
             Err(FrameError::NonFinite { offset: 52, .. })
+        ));
+    }
+
+    fn v2_sample() -> (FrameHeader, Vec<Quat>, Vec<Vec3>, Vec<u16>) {
+        let (h, _, rots) = sample();
+        let trans = (0..5)
+            .map(|i| Vec3::new(i as f32, 0.5 * i as f32, -0.25))
+            .collect();
+        (h, rots, trans, vec![0, 1, 4])
+    }
+
+    #[test]
+    fn v2_round_trip_carries_the_marked_translations() {
+        let (h, rots, trans, marked) = v2_sample();
+        let mut buf = Vec::new();
+        append_frame_v2(&mut buf, &h, &rots, &trans, &marked);
+        assert_eq!(buf.len(), 48 + 16 * 5 + 12 * 3);
+        assert_eq!(buf[4..6], 2u16.to_le_bytes());
+        assert_eq!(buf[44..48], 3u32.to_le_bytes());
+        // The first rotation starts right after the 48-byte header.
+        assert_eq!(buf[48..52], rots[0].x.to_le_bytes());
+        // Translations follow the rotations, in the marked bones' order.
+        let at = 48 + 16 * 5 + 12 * 2;
+        assert_eq!(buf[at..at + 4], trans[4].x.to_le_bytes());
+        let d = decode_frame(&buf).unwrap();
+        assert_eq!(d.header, h);
+        assert_eq!(d.version, 2);
+        assert_eq!(d.rotations, rots);
+        assert_eq!(d.translations, vec![trans[0], trans[1], trans[4]]);
+        assert_eq!(d.root, trans[0]);
+    }
+
+    #[test]
+    fn v1_and_v2_share_one_buffer_and_the_v1_part_is_unchanged() {
+        let (h, rots, trans, marked) = v2_sample();
+        let mut v1 = Vec::new();
+        encode_frame(&mut v1, &h, trans[0], &rots);
+        let mut both = v1.clone();
+        append_frame_v2(&mut both, &h, &rots, &trans, &marked);
+        assert_eq!(both[..v1.len()], v1[..]);
+        let d1 = decode_frame(&both[..v1.len()]).unwrap();
+        assert_eq!((d1.version, d1.translations.clone()), (1, vec![trans[0]]));
+        let d2 = decode_frame(&both[v1.len()..]).unwrap();
+        assert_eq!(d2.translations.len(), 3);
+    }
+
+    #[test]
+    fn v2_rejects_inconsistent_counts_and_non_finite_translations() {
+        let (h, rots, trans, marked) = v2_sample();
+        let mut good = Vec::new();
+        append_frame_v2(&mut good, &h, &rots, &trans, &marked);
+        let mut lying = good.clone();
+        lying[44] = 4;
+        assert!(matches!(
+            decode_frame(&lying),
+            Err(FrameError::CountMismatch { .. })
+        ));
+        let mut nan = good.clone();
+        let last = nan.len() - 4;
+        nan[last..].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert!(matches!(
+            decode_frame(&nan),
+            Err(FrameError::NonFinite { offset, .. }) if offset == last
+        ));
+        assert!(matches!(
+            decode_frame(&good[..47]),
+            Err(FrameError::ShortBuffer { len: 47, .. })
         ));
     }
 

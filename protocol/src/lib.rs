@@ -6,7 +6,7 @@
 //!                      ┌──────── WebSocket  GET /v1/stream ────────┐
 //!   server ──text────▶ │ control::ServerMessage (JSON, tagged)     │ ──▶ client
 //!   server ◀─text───── │ control::ClientMessage (JSON, tagged)     │ ◀── client
-//!   server ──binary──▶ │ frame: "RGCF" header + root + n × quat    │ ──▶ client
+//!   server ──binary──▶ │ frame: "RGCF" header + n × quat + moves   │ ──▶ client
 //!                      └───────────────────────────────────────────┘
 //!   server ──UDP─────▶   vmc: OSC bundles (/VMC/Ext/...) ≤ 1500 B    ──▶ VMC receivers
 //! ```
@@ -31,6 +31,10 @@ pub mod vmc;
 pub use control::{ClientMessage, ErrorCode, ServerMessage};
 pub use frame::{FrameError, FrameHeader, FRAME_HEADER_BYTES, FRAME_MAGIC};
 
-/// Version of the WebSocket protocol (JSON messages and binary frames). Bumped on any
-/// incompatible change; clients must refuse versions they do not know.
+/// The protocol version every session starts in (JSON messages and version 1 binary frames),
+/// so clients written for version 1 keep working unchanged.
 pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Every protocol version the server speaks. A client switches with `set_protocol`; version 2
+/// differs only in the binary frame (translations of every moving bone, see [`frame`]).
+pub const PROTOCOL_VERSIONS: [u16; 2] = [1, 2];

@@ -530,8 +530,8 @@ mod tests {
             assert_eq!(name, &names[i]);
             assert_eq!(internal_from_unity_position(*p), t[i]);
             assert_eq!(internal_from_unity_rotation(*q), r[i]);
-            // Unity space on the wire: z of positions is mirrored.
-            assert_eq!(p.z, -t[i].z);
+            // Unity space on the wire: x of positions is mirrored.
+            assert_eq!(p.x, -t[i].x);
         }
     }
 

@@ -104,10 +104,7 @@ fn degenerate_rest_uses_the_representative_pose() {
     };
     let without = analyze(&SkeletonView::rest(&degenerate));
     assert!(!without.used_pose);
-    let with = analyze(&SkeletonView {
-        skeleton: &degenerate,
-        pose: Some(&frame),
-    });
+    let with = analyze(&SkeletonView::with_pose(&degenerate, Some(&frame)));
     assert!(with.used_pose);
     let tgt = CorpusEntry {
         skeleton: degenerate.clone(),
@@ -116,10 +113,7 @@ fn degenerate_rest_uses_the_representative_pose() {
     let src = entry("mixamo");
     let table = auto_map(
         &SkeletonView::rest(&src.skeleton),
-        &SkeletonView {
-            skeleton: &degenerate,
-            pose: Some(&frame),
-        },
+        &SkeletonView::with_pose(&degenerate, Some(&frame)),
         &MapOptions::default(),
     );
     for l in CORE_LABELS {

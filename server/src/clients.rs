@@ -187,6 +187,8 @@ where
     }
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
+    // Frame version; version 1 until the client asks for another (`set_protocol`).
+    let mut version = rigcast_protocol::PROTOCOL_VERSION;
     let mut pending_missed: u64 = 0;
     let mut shutdown = state.shutdown.clone();
     loop {
@@ -208,7 +210,7 @@ where
                 let Some(incoming) = incoming else { return Ok(()) };
                 let reply = match incoming {
                     Ok(Message::Text(text)) => {
-                        handle_text(text.as_str(), state, stats.access, &mut subscribed)
+                        handle_text(text.as_str(), state, stats.access, &mut subscribed, &mut version)
                     }
                     Ok(Message::Binary(b)) => Some(ServerMessage::error(
                         ErrorCode::BinaryNotAccepted,
@@ -235,14 +237,18 @@ where
                                 continue;
                             }
                         }
+                        let bytes = frame.version(version);
+                        if bytes.is_empty() {
+                            continue; // no frame of this version this tick
+                        }
                         let bytes = if pending_missed > 0 {
                             // Personalise the shared frame: only after a lag, so rare.
-                            let mut own = frame.bytes.to_vec();
+                            let mut own = bytes.to_vec();
                             set_missed_frames(&mut own, pending_missed.min(u32::MAX as u64) as u32);
                             pending_missed = 0;
                             Bytes::from(own)
                         } else {
-                            frame.bytes
+                            bytes
                         };
                         send(&mut sink, Message::Binary(bytes), stall).await?;
                         stats.frames_sent.fetch_add(1, Ordering::Relaxed);
@@ -263,7 +269,10 @@ where
 /// What a message needs. Exhaustive on purpose: a new message type must choose.
 fn required_access(msg: &ClientMessage) -> Access {
     match msg {
-        ClientMessage::Subscribe { .. } | ClientMessage::Ping { .. } => Access::ReadOnly,
+        // Choosing a frame version changes only what this client receives.
+        ClientMessage::Subscribe { .. }
+        | ClientMessage::Ping { .. }
+        | ClientMessage::SetProtocol { .. } => Access::ReadOnly,
         ClientMessage::SetMapping { .. } | ClientMessage::Calibrate { .. } => Access::Control,
     }
 }
@@ -273,6 +282,7 @@ fn type_name(msg: &ClientMessage) -> &'static str {
     match msg {
         ClientMessage::Subscribe { .. } => "subscribe",
         ClientMessage::Ping { .. } => "ping",
+        ClientMessage::SetProtocol { .. } => "set_protocol",
         ClientMessage::SetMapping { .. } => "set_mapping",
         ClientMessage::Calibrate { .. } => "calibrate",
     }
@@ -283,6 +293,7 @@ fn handle_text(
     state: &ServerState,
     access: Access,
     subscribed: &mut Option<HashSet<u32>>,
+    version: &mut u16,
 ) -> Option<ServerMessage> {
     if text.len() > MAX_CLIENT_MESSAGE_BYTES {
         return Some(ServerMessage::error(
@@ -312,6 +323,20 @@ fn handle_text(
             nonce,
             server_nanos: unix_nanos(),
         }),
+        ClientMessage::SetProtocol { version: wanted } => {
+            Some(if rigcast_protocol::PROTOCOL_VERSIONS.contains(&wanted) {
+                *version = wanted;
+                ServerMessage::Protocol { version: wanted }
+            } else {
+                ServerMessage::error(
+                    ErrorCode::Unsupported,
+                    format!(
+                        "protocol version {wanted} is not supported; this server speaks {:?}",
+                        rigcast_protocol::PROTOCOL_VERSIONS
+                    ),
+                )
+            })
+        }
         ClientMessage::Subscribe { subjects: None } => {
             *subscribed = None;
             None

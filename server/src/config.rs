@@ -417,8 +417,10 @@ pub const BUILTIN_PREFIX: &str = "builtin:";
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OnLost {
-    /// Ease to the mapping's aligned rest pose over about half a second.
+    /// Ease to the character's own rest pose over about half a second, standing where it was
+    /// (`"ease"`, or `"rest"`).
     #[default]
+    #[serde(alias = "rest")]
     Ease,
     /// Hold the last pose.
     Hold,

@@ -19,7 +19,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use rigcast_protocol::frame::{encode_frame, FrameHeader};
+use rigcast_protocol::frame::{append_frame_v2, encode_frame, FrameHeader};
 use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
 use rigcast_retarget::{forward_kinematics, Frame, WorldTransform};
 use tokio::sync::{broadcast, watch};
@@ -39,13 +39,30 @@ pub fn unix_nanos() -> u64 {
         .unwrap_or(0)
 }
 
-/// One encoded binary frame on its way to clients.
+/// One subject's pose of one tick on its way to clients, encoded once per protocol version.
 #[derive(Debug, Clone)]
 pub struct OutFrame {
     /// Subject id.
     pub subject: u32,
-    /// The encoded frame, shared by every client.
+    /// The version 1 frame followed by the version 2 frame, shared by every client (one
+    /// allocation per subject per tick; a client takes its version's part, see
+    /// [`OutFrame::version`]).
     pub bytes: Bytes,
+    /// Where the version 2 frame starts in `bytes`.
+    pub v2_at: usize,
+}
+
+impl OutFrame {
+    /// The frame in protocol `version` (2, or 1 for anything else). Slicing shares the
+    /// buffer; nothing is copied.
+    pub fn version(&self, version: u16) -> Bytes {
+        let at = self.v2_at.min(self.bytes.len());
+        if version == rigcast_protocol::frame::FRAME_VERSION_2 {
+            self.bytes.slice(at..)
+        } else {
+            self.bytes.slice(..at)
+        }
+    }
 }
 
 pub use crate::subject::Subject;
@@ -209,9 +226,23 @@ impl Ticker {
                 frame.pose.root_translation(),
                 &frame.pose.rotations,
             );
+            let v2_at = self.scratch.len();
+            let shape = subject.shape();
+            if frame.pose.num_bones() == shape.skeleton.num_bones() {
+                append_frame_v2(
+                    &mut self.scratch,
+                    &header,
+                    &frame.pose.rotations,
+                    &frame.pose.translations,
+                    &shape.translated,
+                );
+            } else {
+                // A live source's skeleton just changed and its pose is not resized yet:
+                // no v2 frame this tick rather than one that contradicts its skeleton message.
+                self.scratch.truncate(v2_at);
+            }
             if let Some((socket, targets)) = &ctx.vmc {
                 if targets.iter().any(|t| t.subject_index == index) {
-                    let shape = subject.shape();
                     let plan = &shape.vmc;
                     let pose = &frame.pose;
                     if pose.num_bones() == shape.skeleton.num_bones() {
@@ -274,6 +305,7 @@ impl Ticker {
             let _ = ctx.frames.send(OutFrame {
                 subject: subject.id,
                 bytes,
+                v2_at,
             });
         }
         ctx.stats.record_tick(tick_start.elapsed());

@@ -46,6 +46,7 @@ pub mod state;
 pub mod stats;
 pub mod subject;
 pub mod token;
+pub mod translated;
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -222,6 +223,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     let mut extras = HashMap::new();
     for (i, ((l, skeleton), name)) in loaded.iter().zip(&names).enumerate() {
         let mut truth = None;
+        let mut replay_poses = None;
         let (kind, listen, calibration) = match l {
             Loaded::Replay {
                 clip_poses,
@@ -229,6 +231,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
                 ..
             } => {
                 truth = t.clone();
+                replay_poses = Some(clip_poses.clone());
                 extras.insert(
                     i as u32,
                     SourceExtra {
@@ -253,12 +256,15 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             Vec::new(),
             config.vmc_bone_names,
         );
-        subjects.push(Arc::new(
-            subject
-                .with_listen_addr(listen)
-                .with_calibration(calibration)
-                .with_truth(truth),
-        ));
+        let subject = subject
+            .with_listen_addr(listen)
+            .with_calibration(calibration)
+            .with_truth(truth);
+        let subject = match &replay_poses {
+            Some(poses) => subject.with_moving_bones(poses),
+            None => subject,
+        };
+        subjects.push(Arc::new(subject));
         senders.push(tx);
     }
     let num_sources = subjects.len();

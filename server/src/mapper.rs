@@ -143,20 +143,14 @@ impl Mapper {
             .zip(&source_truths)
             .map(|((s, r), t)| {
                 analyze_with_truth(
-                    &SkeletonView {
-                        skeleton: s,
-                        pose: *r,
-                    },
+                    &SkeletonView::with_pose(s, *r),
                     *t,
                 )
             })
             .collect();
         let target_truth = p.target.truth();
         let ta = analyze_with_truth(
-            &SkeletonView {
-                skeleton: &target,
-                pose: p.target_reference.as_ref(),
-            },
+            &SkeletonView::with_pose(&target, p.target_reference.as_ref()),
             target_truth,
         );
         // The cache key knows the skeletons, not the truth: a truth-driven table must neither
@@ -201,13 +195,9 @@ impl Mapper {
                 mapping.set_source_floor_y(floor);
             }
         }
-        let aligned_rest = mapping.aligned_rest_pose();
         let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options);
         if let Ok(mut slot) = p.mailbox.lock() {
-            *slot = Some(BuiltMapping {
-                mapping,
-                aligned_rest,
-            });
+            *slot = Some(BuiltMapping { mapping });
         }
         if let Ok(mut m) = p.target.mapping_json.write() {
             *m = Some(json.clone());

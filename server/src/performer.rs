@@ -4,7 +4,8 @@
 //! ```text
 //!  sources' latest poses ─copy─▶ inputs (preallocated) ─apply─▶ live ─┐
 //!                                                                     ├─ blend ─▶ display ─▶ target watch
-//!  source lost:  from = display at loss ──slerp (0.5 s)──▶ aligned rest (or hold `from`)
+//!  source lost:  from = display at loss ──slerp (0.5 s)──▶ the character's own rest, where it
+//!                stands (or hold `from`)
 //!  source back:  from = display at return ──slerp (0.2 s)──▶ live
 //! ```
 //!
@@ -34,8 +35,6 @@ pub const MAX_INPUTS: usize = 8;
 pub struct BuiltMapping {
     /// The job.
     pub mapping: Mapping,
-    /// Where the target eases to when its source is lost.
-    pub aligned_rest: Pose,
 }
 
 /// Where the built mappings of one performer are handed to the tick.
@@ -60,6 +59,10 @@ pub struct Performer {
     live: Pose,
     from: Pose,
     display: Pose,
+    /// The target skeleton's own rest pose.
+    rest: Pose,
+    /// Where a lost target eases to: its rest, standing where it was (see [`rest_in_place`]).
+    settle: Pose,
     phase: Phase,
     on_lost: OnLost,
     last_input_seqs: [u64; MAX_INPUTS],
@@ -67,6 +70,18 @@ pub struct Performer {
     published: bool,
     /// The eased-to pose has been published (nothing changes until the source returns).
     settled: bool,
+}
+
+/// The character's own rest pose (not the source's rest retargeted, which for a T-pose source
+/// and an A-pose character is neither), standing where `from` left it: every bone takes its
+/// rest rotation and its rest height, but keeps its horizontal translation, so a character that
+/// walked away from the origin settles on the spot instead of sliding back. No allocation.
+fn rest_in_place(rest: &Pose, from: &Pose, out: &mut Pose) {
+    out.copy_from(rest);
+    for (t, f) in out.translations.iter_mut().zip(&from.translations) {
+        t.x = f.x;
+        t.z = f.z;
+    }
 }
 
 /// Smooth 0→1 ramp with zero slope at both ends (no jump when easing starts or ends).
@@ -94,7 +109,9 @@ impl Performer {
             inputs: Vec::new(),
             live: rest.clone(),
             from: rest.clone(),
-            display: rest,
+            display: rest.clone(),
+            settle: rest.clone(),
+            rest,
             phase: Phase::Live,
             on_lost,
             last_input_seqs: [0; MAX_INPUTS],
@@ -148,6 +165,7 @@ impl Performer {
         match (self.phase, lost) {
             (Phase::Live | Phase::Resuming(_), true) => {
                 self.from.copy_from(&self.display);
+                rest_in_place(&self.rest, &self.from, &mut self.settle);
                 self.phase = Phase::Lost(now);
                 self.settled = false;
             }
@@ -163,8 +181,7 @@ impl Performer {
                 OnLost::Ease => {
                     let k =
                         smoothstep(now.duration_since(t0).as_secs_f32() / EASE_OUT.as_secs_f32());
-                    self.display
-                        .interpolate_into(&self.from, &built.aligned_rest, k);
+                    self.display.interpolate_into(&self.from, &self.settle, k);
                     // Publish up to and including the frame that reaches rest.
                     moving = !self.settled;
                     self.settled = k >= 1.0;

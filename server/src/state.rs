@@ -59,6 +59,7 @@ impl ServerState {
     pub fn hello_json(&self) -> String {
         ServerMessage::Hello {
             protocol_version: PROTOCOL_VERSION,
+            protocol_versions: rigcast_protocol::PROTOCOL_VERSIONS.to_vec(),
             server_version: env!("CARGO_PKG_VERSION").to_string(),
             tick_hz: self.rate_hz,
             subjects: self.subject_infos(),

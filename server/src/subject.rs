@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex, RwLock};
 
 use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 use rigcast_sources::live::SourceStatus;
 use rigcast_sources::serial::CalibrationHandle;
@@ -17,6 +17,7 @@ use tokio::sync::watch;
 
 use crate::config::VmcBoneNames;
 use crate::stats::SubjectStats;
+use crate::translated::{translated_bones, MovingBones};
 
 /// Which bones go out over VMC and under which names.
 #[derive(Debug, Clone, Default)]
@@ -42,11 +43,19 @@ impl VmcPlan {
         names: VmcBoneNames,
         truth: Option<&[(String, String)]>,
     ) -> VmcPlan {
+        let analysis = analyze_with_truth(&SkeletonView::rest(skeleton), truth);
+        Self::from_analysis(skeleton, names, &analysis, truth)
+    }
+
+    /// [`VmcPlan::with_truth`] on an analysis already made.
+    fn from_analysis(
+        skeleton: &Skeleton,
+        names: VmcBoneNames,
+        analysis: &Analysis,
+        truth: Option<&[(String, String)]>,
+    ) -> VmcPlan {
         let roles = match names {
-            VmcBoneNames::Humanoid => {
-                let analysis = analyze_with_truth(&SkeletonView::rest(skeleton), truth);
-                humanoid_roles(skeleton, &analysis, truth)
-            }
+            VmcBoneNames::Humanoid => humanoid_roles(skeleton, analysis, truth),
             VmcBoneNames::Skeleton => Vec::new(),
         };
         if roles.is_empty() {
@@ -101,6 +110,9 @@ pub struct SubjectShape {
     pub skeleton_json: String,
     /// VMC output names.
     pub vmc: VmcPlan,
+    /// Ascending indices of the bones whose translations version 2 frames carry (marked
+    /// `translated` in the `skeleton` message).
+    pub translated: Vec<u16>,
 }
 
 impl SubjectShape {
@@ -109,7 +121,10 @@ impl SubjectShape {
         skeleton: Arc<Skeleton>,
         names: VmcBoneNames,
         truth: Option<&[(String, String)]>,
+        moving: &MovingBones,
     ) -> SubjectShape {
+        let analysis = analyze_with_truth(&SkeletonView::rest(&skeleton), truth);
+        let translated = translated_bones(&skeleton, &analysis, moving);
         let bones = skeleton
             .bone_ids()
             .map(|b| {
@@ -119,6 +134,7 @@ impl SubjectShape {
                     parent: skeleton.parent(b).map(|p| p.0 as u32),
                     rest_translation: rest.translation.to_array(),
                     rest_rotation: rest.rotation.to_array(),
+                    translated: translated.binary_search(&(b.0)).is_ok(),
                 }
             })
             .collect();
@@ -130,10 +146,11 @@ impl SubjectShape {
         }
         .to_json();
         SubjectShape {
-            vmc: VmcPlan::with_truth(&skeleton, names, truth),
+            vmc: VmcPlan::from_analysis(&skeleton, names, &analysis, truth),
             info,
             skeleton,
             skeleton_json,
+            translated,
         }
     }
 }
@@ -224,6 +241,8 @@ pub struct Subject {
     /// Calibration of a serial IMU source (see [`crate::calibration`]).
     pub calibration: Option<Calibration>,
     vmc_names: VmcBoneNames,
+    /// What moves besides the structural bones (see [`crate::translated`]).
+    moving: MovingBones,
     /// The file's own humanoid map (VRM: human bone name → bone name), ground truth for the
     /// roles of its bones in mapping and VMC output.
     truth: Option<Arc<[(String, String)]>>,
@@ -305,11 +324,20 @@ impl Subject {
         } else {
             HealthState::Connecting
         };
+        // Live inputs may move any bone; replays are measured once their clip is known
+        // (`with_moving_bones`); targets move their root chain and hips.
+        let moving = if source_kind == "replay" || !inputs.is_empty() {
+            MovingBones::Structural
+        } else {
+            MovingBones::All
+        };
         (
             Subject {
                 id,
                 source_kind,
-                shape: RwLock::new(Arc::new(SubjectShape::new(info, skeleton, vmc_names, None))),
+                shape: RwLock::new(Arc::new(SubjectShape::new(
+                    info, skeleton, vmc_names, None, &moving,
+                ))),
                 latest: rx,
                 stats: SubjectStats::default(),
                 health: Health::new(initial),
@@ -318,6 +346,7 @@ impl Subject {
                 listen_addr: None,
                 calibration: None,
                 vmc_names,
+                moving,
                 truth: None,
             },
             tx,
@@ -334,15 +363,27 @@ impl Subject {
     /// the VMC plan is rebuilt with it. `None` or empty leaves the roles inferred.
     pub fn with_truth(mut self, truth: Option<Vec<(String, String)>>) -> Subject {
         self.truth = truth.filter(|t| !t.is_empty()).map(Arc::from);
+        self.rebuild_shape();
+        self
+    }
+
+    /// Marks the bones that move in a replayed clip as translated in version 2 frames.
+    pub fn with_moving_bones(mut self, poses: &[Pose]) -> Subject {
+        self.moving = MovingBones::measured(&self.skeleton(), poses);
+        self.rebuild_shape();
+        self
+    }
+
+    fn rebuild_shape(&mut self) {
         let old = self.shape();
         let shape = SubjectShape::new(
             old.info.clone(),
             old.skeleton.clone(),
             self.vmc_names,
             self.truth.as_deref(),
+            &self.moving,
         );
         self.shape = RwLock::new(Arc::new(shape));
-        self
     }
 
     /// The file's humanoid map given by [`Subject::with_truth`], if any.
@@ -416,6 +457,7 @@ impl Subject {
             skeleton,
             self.vmc_names,
             self.truth.as_deref(),
+            &self.moving,
         ));
         match self.shape.write() {
             Ok(mut s) => *s = shape,

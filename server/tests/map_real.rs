@@ -241,14 +241,8 @@ fn real_files_with_meaningless_names_get_the_same_core_roles() {
         let skel = &clip.skeleton;
         let anon = skel.renamed(|b, _| format!("j{}", b.0)).expect("rename");
         let frame = clip.poses.get(clip.poses.len() / 2);
-        let named = analyze(&SkeletonView {
-            skeleton: skel,
-            pose: frame,
-        });
-        let blind = analyze(&SkeletonView {
-            skeleton: &anon,
-            pose: frame,
-        });
+        let named = analyze(&SkeletonView::with_pose(skel, frame));
+        let blind = analyze(&SkeletonView::with_pose(&anon, frame));
         let mut core = 0;
         for b in skel.bone_ids() {
             let r = named.roles[b.index()];
@@ -303,10 +297,7 @@ fn demo_head_top_onto_ue_mannequin_head_from_head() {
         for name in ["unreal", "unreal_apose", "unreal_anon"] {
             let ue = corpus::get(name).expect("corpus UE mannequin");
             let table = auto_map(
-                &SkeletonView {
-                    skeleton: src,
-                    pose: frame,
-                },
+                &SkeletonView::with_pose(src, frame),
                 &SkeletonView::rest(&ue.skeleton),
                 &MapOptions::default(),
             );
@@ -329,4 +320,26 @@ fn demo_head_top_onto_ue_mannequin_head_from_head() {
             }
         }
     }
+}
+
+/// A rig whose names mark the sides the other way round from its body (the Godot platformer
+/// robot names its left side `r-*`): the geometry's sides are used and `rigcast map` says so.
+#[test]
+fn mirrored_names_lose_to_geometry_with_a_warning() {
+    let (Some(src), Some(tgt)) = (
+        data("bvh/cmu_31joint_example.bvh"),
+        data("zoo/gltf/godot_robot__platformer_player.glb"),
+    ) else {
+        return;
+    };
+    let v = map_json(&src, &tgt, &[]);
+    let warnings = v["warnings"]["target"].as_array().unwrap();
+    assert!(
+        warnings.iter().any(|w| w.as_str().unwrap().contains("geometry")),
+        "no warning: {warnings:?}"
+    );
+    assert!(v["warnings"]["source"].as_array().unwrap().is_empty());
+    // The labels (checked against the mesh) put `r-thigh` on the character's left.
+    assert_eq!(mapped(&v, "r-thigh"), Some("LeftUpLeg"));
+    assert_eq!(mapped(&v, "l-forearm"), Some("RightForeArm"));
 }

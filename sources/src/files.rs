@@ -4,9 +4,9 @@ use std::path::Path;
 
 use rigcast_retarget::Clip;
 
-use crate::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
+use crate::bvh::{read_bvh, write_bvh, write_bvh_onto, BvhLayout, BvhReadOptions, BvhWriteOptions};
 use crate::error::SourceError;
-use crate::gltf::{read_gltf, write_glb, GltfReadOptions};
+use crate::gltf::{read_gltf, write_glb, write_glb_onto, GltfReadOptions, GltfTemplate};
 use crate::recording::{clip_from_recording, read_recording, write_clip_recording};
 
 /// Options for [`load_clip_with`].
@@ -73,7 +73,13 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
                     sample_fps: opts.sample_fps,
                 },
             )
-            .map(|r| r.clip)
+            .map(|r| {
+                // One line per skipped part; the file still loads.
+                for w in &r.warnings {
+                    eprintln!("warning: {}: {w}", path.display());
+                }
+                r.clip
+            })
         }
         "rcr" => {
             let bytes = read_file(path)?;
@@ -103,6 +109,65 @@ pub fn save_clip(path: &Path, clip: &Clip) -> Result<(), SourceError> {
             }
             .in_file(path))
         }
+    };
+    std::fs::write(path, bytes).map_err(|source| SourceError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A character file's own layout, kept so that motion written onto it is that file's rig again
+/// (see [`save_clip_onto`]).
+#[derive(Debug, Clone)]
+pub enum RigLayout {
+    /// A BVH file's hierarchy: joint order, End Sites, channels, offsets, units.
+    Bvh(BvhLayout),
+    /// A glTF file's document: nodes, names, skins, inverse bind matrices, meshes.
+    Gltf(Box<GltfTemplate>),
+    /// Nothing beyond the skeleton (recordings).
+    Skeleton,
+}
+
+/// Loads a character: its clip (skeleton and any animation) and its file's layout.
+pub fn load_rig(path: &Path) -> Result<(Clip, RigLayout), SourceError> {
+    let ext = extension(path);
+    let result = match ext.as_str() {
+        "bvh" => {
+            let bytes = read_file(path)?;
+            read_bvh(&bytes, &stem(path), &BvhReadOptions::default())
+                .map(|r| (r.clip, RigLayout::Bvh(r.layout)))
+        }
+        "gltf" | "glb" | "vrm" => {
+            let bytes = read_file(path)?;
+            read_gltf(
+                &bytes,
+                path.parent(),
+                &stem(path),
+                &GltfReadOptions::default(),
+            )
+            .map(|r| {
+                for w in &r.warnings {
+                    eprintln!("warning: {}: {w}", path.display());
+                }
+                (r.clip, RigLayout::Gltf(Box::new(r.template)))
+            })
+        }
+        _ => return load_clip(path).map(|c| (c, RigLayout::Skeleton)),
+    };
+    result.map_err(|e| e.in_file(path))
+}
+
+/// Saves a clip of a character loaded with [`load_rig`]. A `.bvh` output of a BVH character
+/// keeps that file's hierarchy exactly; a `.glb` output of a glTF character is that file's
+/// document with the clip as its animation. Any other combination is written as
+/// [`save_clip`] writes it.
+pub fn save_clip_onto(path: &Path, clip: &Clip, layout: &RigLayout) -> Result<(), SourceError> {
+    let bytes: Vec<u8> = match (extension(path).as_str(), layout) {
+        ("bvh", RigLayout::Bvh(l)) => write_bvh_onto(clip, l)
+            .map_err(|e| e.in_file(path))?
+            .into_bytes(),
+        ("glb", RigLayout::Gltf(t)) => write_glb_onto(t, clip).map_err(|e| e.in_file(path))?,
+        _ => return save_clip(path, clip),
     };
     std::fs::write(path, bytes).map_err(|source| SourceError::Io {
         path: path.to_path_buf(),

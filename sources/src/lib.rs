@@ -32,6 +32,8 @@ pub mod vmc_in;
 
 pub use demo::embedded_demo;
 pub use error::SourceError;
-pub use files::{load_clip, load_clip_with, save_clip, LoadOptions};
+pub use files::{
+    load_clip, load_clip_with, load_rig, save_clip, save_clip_onto, LoadOptions, RigLayout,
+};
 pub use info::{describe, FileInfo};
 pub use replay::{Replay, ReplayOptions};

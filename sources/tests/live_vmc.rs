@@ -477,16 +477,16 @@ fn unity_to_internal_conversion_and_root_folding() {
     assert_eq!(skel.names(), &["Hips", "Spine", "Head"]);
     // Head's parent is Spine: Chest/UpperChest/Neck were not sent.
     assert_eq!(skel.parent(skel.bone("Head").unwrap()), skel.bone("Spine"));
-    // Unity rotation of +0.3 rad about Y is -0.3 rad about Y in a Z-mirrored frame.
+    // Unity rotation of +0.3 rad about Y is -0.3 rad about Y in an X-mirrored frame.
     let spine = skel.bone("Spine").unwrap();
     let got = dec.pose().rotations[spine.index()];
     assert!(
         quat_angle(got, Quat::from_rotation_y(-0.3)) < 1e-5,
         "{got:?}"
     );
-    // Root (0.5, 0, 1) in Unity is (0.5, 0, -1) internally; the hips sit 1 m above it.
+    // Root (0.5, 0, 1) in Unity is (-0.5, 0, 1) internally; the hips sit 1 m above it.
     let hips = dec.pose().translations[0];
-    assert!((hips - Vec3::new(0.5, 1.0, -1.0)).length() < 1e-6, "{hips}");
+    assert!((hips - Vec3::new(-0.5, 1.0, 1.0)).length() < 1e-6, "{hips}");
     // The mirrored position of a bone offset.
     let head_rest = skel.rest()[skel.bone("Head").unwrap().index()].translation;
     assert!((head_rest - Vec3::new(0.0, 0.5, 0.0)).length() < 1e-6);

@@ -27,7 +27,7 @@ use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use futures_util::StreamExt;
+use futures_util::{SinkExt, StreamExt};
 use glam::{Quat, Vec3};
 use rigcast_protocol::frame::{decode_frame, DecodedFrame};
 use rigcast_retarget::{Clip, Pose, Skeleton};
@@ -72,6 +72,8 @@ struct WireSkeleton {
     parents: Vec<Option<usize>>,
     rest_translations: Vec<Vec3>,
     rest_rotations: Vec<Quat>,
+    /// Per bone: its slot among a version 2 frame's translations.
+    slots: Vec<Option<usize>>,
 }
 
 impl WireSkeleton {
@@ -88,6 +90,17 @@ impl WireSkeleton {
                 .collect(),
             rest_translations: bones.iter().map(|b| vec3(&b["rest_translation"])).collect(),
             rest_rotations: bones.iter().map(|b| quat(&b["rest_rotation"])).collect(),
+            slots: bones
+                .iter()
+                .scan(0, |next, b| {
+                    Some(if b["translated"].as_bool() == Some(true) {
+                        *next += 1;
+                        Some(*next - 1)
+                    } else {
+                        None
+                    })
+                })
+                .collect(),
         }
     }
 
@@ -96,6 +109,10 @@ impl WireSkeleton {
         let mut out: Vec<(Quat, Vec3)> = Vec::with_capacity(self.names.len());
         for i in 0..self.names.len() {
             let (rotation, translation) = match frame {
+                Some(f) if f.version == 2 => (
+                    f.rotations[i],
+                    self.slots[i].map_or(self.rest_translations[i], |k| f.translations[k]),
+                ),
                 Some(f) if i == 0 => (f.rotations[i], f.root),
                 Some(f) => (f.rotations[i], self.rest_translations[i]),
                 None => (self.rest_rotations[i], self.rest_translations[i]),
@@ -168,10 +185,17 @@ async fn watch_stream(addr: SocketAddr, observed: Arc<Mutex<Observed>>) {
     let (mut ws, _) = tokio_tungstenite::connect_async(url)
         .await
         .expect("test client connects");
+    // Version 2, as the add-on asks for: the frames carry every moving bone's translation.
+    ws.send(Message::text(r#"{"type":"set_protocol","version":2}"#))
+        .await
+        .expect("test client sends");
     while let Some(message) = ws.next().await {
         match message {
             Ok(Message::Binary(bytes)) => {
                 let frame = decode_frame(&bytes).expect("server frames decode");
+                if frame.version != 2 {
+                    continue; // sent before the switch
+                }
                 let key = (frame.header.subject, frame.header.seq);
                 observed.lock().unwrap().frames.insert(key, frame);
             }
@@ -438,6 +462,37 @@ async fn blender_addon_applies_and_records_the_live_stream() {
             worst_m < 1e-3,
             "subject {id}: Blender pose differs from FK of the server frame by {worst_m} m at {worst_at}"
         );
+        // The hips bob: each translated bone below a root (the mannequin's pelvis under its
+        // ground root) rises and falls in Blender as much as in FK of the server's frames.
+        for (i, name) in skeleton.names.iter().enumerate() {
+            if skeleton.slots[i].is_none() || skeleton.parents[i].is_none() {
+                continue;
+            }
+            let (mut in_blender, mut in_server) = (Vec::new(), Vec::new());
+            for obs in mine.iter().filter(|o| o.get("heads").is_some()) {
+                let seq = obs["seq"].as_u64().unwrap();
+                if let Some(frame) = observed.frames.get(&(id as u32, seq)) {
+                    in_blender.push(vec3(&obs["heads"][name][0]).z);
+                    in_server.push(skeleton.fk(Some(frame))[i].1.y);
+                }
+            }
+            let range = |v: &[f32]| {
+                v.iter().cloned().fold(f32::MIN, f32::max)
+                    - v.iter().cloned().fold(f32::MAX, f32::min)
+            };
+            let (rb, rs) = (range(&in_blender), range(&in_server));
+            println!("subject {id}: {name} height varies over {rb:.4} m in Blender, {rs:.4} m in server FK");
+            assert!(
+                (rb - rs).abs() < 1e-3,
+                "subject {id}: {name} height range {rb} vs {rs}"
+            );
+            if subject["kind"] == "target" {
+                assert!(
+                    rs > 0.01,
+                    "subject {id}: {name} height does not vary ({rs} m)"
+                );
+            }
+        }
 
         // 2. Rate: distinct frames applied per second over the recorded run.
         let applied: Vec<f64> = mine

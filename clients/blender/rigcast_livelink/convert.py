@@ -3,7 +3,8 @@
 Internal space (ours): right-handed, +Y up, metres. Blender: right-handed, +Z up.
 ours -> Blender is a +90 degree rotation about X: (x, y, z) -> (x, -z, y). A rotation
 q in ours becomes C q C^-1 in Blender, with C that same +90 degree X rotation.
-Unity/VMC: left-handed, +Y up: position (x, y, -z), quaternion (x, y, -z, -w) to ours.
+Unity/VMC: left-handed, +Y up, +Z forward like ours (avatars face +Z in both), so the two
+differ by a mirror of X: position (-x, y, z), quaternion (x, -y, -z, w) to ours.
 Quaternions here are (x, y, z, w) tuples, as on the wire; mathutils uses (w, x, y, z).
 """
 
@@ -51,8 +52,8 @@ def rotation_blender_to_ours(q):
 
 
 def position_unity_to_ours(p):
-    return (p[0], p[1], -p[2])
+    return (-p[0], p[1], p[2])
 
 
 def rotation_unity_to_ours(q):
-    return (q[0], q[1], -q[2], -q[3])
+    return (q[0], -q[1], -q[2], q[3])

@@ -54,7 +54,18 @@ def rest_world(bones):
 
 
 class BoneBinding:
-    __slots__ = ("pose_bone", "left", "right", "root_rotation_inv", "root_head", "is_root", "index")
+    __slots__ = (
+        "pose_bone",
+        "left",
+        "right",
+        "root_rotation_inv",
+        "root_head",
+        "is_root",
+        "index",
+        "slot",
+        "move_rotation",
+        "rest_translation",
+    )
 
 
 class Binding:
@@ -67,6 +78,12 @@ class Binding:
         self.num_unmatched = 0
         bones = skeleton["bones"]
         world_rotations, _ = rest_world(bones)
+        # Version 2 frames carry the translations of the bones marked `translated`, in order.
+        slots = {}
+        for index, bone in enumerate(bones):
+            if bone.get("translated"):
+                slots[index] = len(slots)
+        self.num_translated = len(slots)
         arm_bones = obj.data.bones
         lookup = {b.name.lower(): b.name for b in arm_bones}
         for index, bone in enumerate(bones):
@@ -89,6 +106,14 @@ class Binding:
             entry.is_root = bone.get("parent") is None and index == 0
             entry.root_rotation_inv = b_rot.inverted()
             entry.root_head = data_bone.matrix_local.to_translation()
+            entry.slot = slots.get(index)
+            # pose_bone.location is an offset from the rest head in the bone's rest axes: a
+            # parent-local offset (ours) is turned into armature space by the parent's rest
+            # world rotation, then into the bone's axes.
+            parent = bone.get("parent")
+            parent_rest = world_rotations[parent] if parent is not None else Quaternion()
+            entry.move_rotation = b_rot.inverted() @ C_OURS_TO_BLENDER @ parent_rest
+            entry.rest_translation = Vector(bone["rest_translation"])
             self.bones.append(entry)
 
     def apply(self, frame):
@@ -102,7 +127,16 @@ class Binding:
             if previous.dot(x) < 0.0:
                 x.negate()
             entry.pose_bone.rotation_quaternion = x
-            if entry.is_root:
+            if getattr(frame, "version", 1) == 2:
+                if entry.slot is None:
+                    continue
+                t = Vector(frame.translation(entry.slot))
+                if entry.is_root:
+                    head = vec_ours_to_blender(t)
+                    entry.pose_bone.location = entry.root_rotation_inv @ (head - entry.root_head)
+                else:
+                    entry.pose_bone.location = entry.move_rotation @ (t - entry.rest_translation)
+            elif entry.is_root:
                 head = vec_ours_to_blender(frame.root_translation)
                 entry.pose_bone.location = entry.root_rotation_inv @ (head - entry.root_head)
 
@@ -269,6 +303,13 @@ class Runtime:
                     len(skeleton["bones"]),
                 )
                 continue
+            if frame.version == 2 and len(frame.translations) != 3 * binding.num_translated:
+                self.last_error = "frame for subject %d carries %d translations, skeleton marks %d" % (
+                    item.subject_id,
+                    len(frame.translations) // 3,
+                    binding.num_translated,
+                )
+                continue
             binding.apply(frame)
             stats.apply_times.append(now)
             stats.num_applied += 1
@@ -351,7 +392,7 @@ class Take:
                 self._curve(pose_bone.name, "rotation_quaternion", index).keyframe_points.insert(
                     frame, q[index], options={"FAST"}
                 )
-            if entry.is_root:
+            if entry.is_root or getattr(entry, "slot", None) is not None:
                 location = pose_bone.location
                 for index in range(3):
                     self._curve(pose_bone.name, "location", index).keyframe_points.insert(

@@ -111,6 +111,18 @@ class StreamSession:
 
     # -- reader thread ---------------------------------------------------------------------
 
+    def _negotiate(self, ws, hello):
+        """Asks for version 2 frames (every moving bone's translation, not only bone 0's) when
+        the server offers them; an older server keeps sending version 1, which also decodes."""
+        offered = hello.get("protocol_versions") or [1]
+        if wire.WANTED_PROTOCOL_VERSION in offered:
+            try:
+                ws.send_text(
+                    json.dumps({"type": "set_protocol", "version": wire.WANTED_PROTOCOL_VERSION})
+                )
+            except OSError:
+                pass
+
     def _run(self):
         backoff_secs = 0.25
         while not self._stop.is_set():
@@ -185,6 +197,8 @@ class StreamSession:
                     continue
                 if not isinstance(message, dict):
                     continue
+                if message.get("type") == "hello":
+                    self._negotiate(ws, message)
                 if message.get("type") == "lagged":
                     missed = message.get("missed", 0)
                     if isinstance(missed, int):

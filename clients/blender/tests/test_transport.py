@@ -254,6 +254,23 @@ class WireTest(unittest.TestCase):
         self.assertEqual(frame.root_translation, (0.5, 1.0, -2.0))
         self.assertEqual(frame.rotation(0), (0.0, 0.5, 0.0, 0.75))
 
+    def test_decode_v2_matches_layout(self):
+        # Version 2, by hand: 48-byte header (44: translation count), rotations, translations.
+        data = b"RGCF" + struct.pack("<HHIIQQQII", 2, 0, 7, 2, 42, 1, 2, 0, 1)
+        data += struct.pack("<4f", 0.0, 0.5, 0.0, 0.75) + struct.pack("<4f", 0.0, 0.0, 0.0, 1.0)
+        data += struct.pack("<3f", 0.25, 0.9, -0.5)
+        frame = wire.decode_frame(data)
+        self.assertEqual((frame.version, frame.subject, frame.num_bones, frame.seq), (2, 7, 2, 42))
+        self.assertEqual(frame.rotation(1), (0.0, 0.0, 0.0, 1.0))
+        self.assertEqual(frame.translation(0), (0.25, 0.8999999761581421, -0.5))
+        self.assertEqual(wire.encode_frame_v2(7, 42, 1, [(0, 0.5, 0, 0.75), (0, 0, 0, 1)], [(0.25, 0.9, -0.5)], 2), data)
+        for bad in (data[:40], data + b"\0", data[:44] + struct.pack("<I", 2) + data[48:]):
+            with self.assertRaises(wire.FrameError):
+                wire.decode_frame(bad)
+        nan = data[:-4] + struct.pack("<f", float("nan"))
+        with self.assertRaises(wire.FrameError):
+            wire.decode_frame(nan)
+
     def test_bad_frames_are_errors(self):
         good = wire.encode_frame(0, 1, 2, (0, 0, 0), [(0, 0, 0, 1)])
         for bad, words in (
@@ -288,7 +305,8 @@ class ConvertTest(unittest.TestCase):
         self.assertClose(convert.rotation_blender_to_ours(convert.rotation_ours_to_blender(q)), q)
 
     def test_unity_mirror(self):
-        # Unity is ours mirrored in Z: a rotation must commute with that mirror.
+        # Unity is ours mirrored in X (both face +Z): a rotation must commute with that mirror.
+        self.assertEqual(convert.position_unity_to_ours((1.0, 2.0, 3.0)), (-1.0, 2.0, 3.0))
         q_unity = quat_axis_angle((0.6, 0.0, 0.8), 0.9)
         v_unity = (0.1, 0.7, 0.4)
         expected = convert.position_unity_to_ours(convert.qrotate(q_unity, v_unity))
@@ -316,10 +334,10 @@ class VmcTest(unittest.TestCase):
             self.assertTrue(wait_until(receiver.poll))
             wait_until(lambda: receiver.poll() or receiver.num_packets >= 2, 1.0)
             position, rotation = receiver.pose.bones["Hips"]
-            self.assertEqual(position, (0.0, 0.8999999761581421, -0.10000000149011612))
+            self.assertEqual(position, (-0.0, 0.8999999761581421, 0.10000000149011612))
             expected = convert.rotation_unity_to_ours(q)
             self.assertTrue(all(abs(a - b) < 1e-6 for a, b in zip(rotation, expected)))
-            self.assertEqual(receiver.pose.root[0], (1.0, 2.0, -3.0))
+            self.assertEqual(receiver.pose.root[0], (-1.0, 2.0, 3.0))
             self.assertNotIn("Spine", receiver.pose.bones)
             self.assertEqual(receiver.num_dropped, 2)
         finally:

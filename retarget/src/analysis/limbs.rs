@@ -47,13 +47,27 @@ pub(crate) fn fit_chain(
                     continue;
                 }
                 let upper: f32 = lengths[a..b].iter().sum();
-                let lower: f32 = lengths[b..e].iter().sum();
+                let mut lower: f32 = lengths[b..e].iter().sum();
+                let mut cost = 0.0;
+                // A chain ending in a lone leaf at the lower segment (glTF rigs without hands or
+                // feet): the leaf's length is unknown, not zero. Assume the expected ratio,
+                // at a price, so that the upper segment is still found.
+                let lone = if ratio < 1.1 { a == 0 } else { a <= 1 };
+                if lower <= 1e-6 && e == m && b == m - 1 && b == a + 1 && lone && upper > 1e-6 {
+                    lower = upper / ratio;
+                    cost += 0.4;
+                }
                 if upper <= 1e-6 || lower <= 1e-6 {
                     continue;
                 }
-                let mut cost = 4.0 * ((upper / lower).ln() - ratio.ln()).powi(2);
+                // Saturating: robots and cartoons have wild proportions, and past a point
+                // the bends and the clavicle's size must still be able to decide.
+                let d2 = ((upper / lower).ln() - ratio.ln()).powi(2);
+                cost += 4.0 * d2 / (1.0 + 2.0 * d2);
                 // Extra bones in a group (segments / twist bones) are allowed but not free.
-                cost += 0.12 * ((b - a - 1) + (e - b - 1)) as f32;
+                // Dearer than a long hand (Xsens measures the hand to the fingertips, ≈0.75
+                // of the forearm), so a hand is not folded into the forearm to shorten it.
+                cost += 0.2 * ((b - a - 1) + (e - b - 1)) as f32;
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
                 let bent = |i: usize| {
                     let (d0, d1) = (dirs.get(i - 1), dirs.get(i));
@@ -66,7 +80,13 @@ pub(crate) fn fit_chain(
                 };
                 cost += (a + 1..b).chain(b + 1..e).filter(|&i| bent(i)).count() as f32;
                 if a > 0 {
-                    let pre: f32 = lengths[..a].iter().sum();
+                    // The clavicle is the last bone before the upper arm; helpers before it
+                    // (MakeHuman's `__Clavicle`) do not make it longer.
+                    let pre: f32 = lengths[a - 1];
+                    // ...but a long bone before it is a limb segment, not a helper.
+                    for &l in &lengths[..a - 1] {
+                        cost += 4.0 * (l / upper - 0.5).max(0.0);
+                    }
                     // A clavicle is shorter than the upper segment; legs rarely have one.
                     let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
                     cost += k * (pre / upper - limit).max(0.0);

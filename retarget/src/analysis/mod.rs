@@ -13,16 +13,23 @@
 //!   Analysis { up, forward, left, positions, sections, roles[bone] }
 //! ```
 //!
-//! Files: `topology` (order-free structure), `roles` (frame, centerline, limbs, sections),
+//! Files: `posture` (rest pose or the motion's medoid frame), `detached` (control and IK bones
+//! beside the body, and the limbs they continue), `forward` (facing from feet, joint bends over
+//! the motion, thumbs; geometry beats names), `topology` (order-free structure), `roles`
+//! (up, centerline, limbs, sections),
 //! `limbs` (chain splitting), `names` (name normalisation), `vocabulary` (roles and kinds),
 //! `humanoid` (Unity / VRM role map), `truth` (a file's own humanoid map overriding roles).
 //!
 //! Nothing here assumes a facing direction: the character's forward is where its feet (toes)
-//! point and where its head leans; side markers in names break the tie only when geometry gives
-//! no cue.
+//! point, the way its knees and elbows bend and its thumbs sit; side markers in names break the
+//! tie only when geometry gives no clear cue, and a clear cue that disagrees with the names is
+//! reported in `Analysis::warnings`.
 
 pub mod humanoid;
+mod detached;
+mod forward;
 mod limbs;
+mod posture;
 pub mod names;
 mod roles;
 mod topology;
@@ -66,9 +73,12 @@ impl Side {
 pub struct SkeletonView<'a> {
     /// The skeleton.
     pub skeleton: &'a Skeleton,
-    /// A representative frame of its animation, used for geometry only when the rest pose is
-    /// degenerate (every bone along one axis, as some BVH exports have).
+    /// A representative frame of its animation, used for geometry when the rest pose is not a
+    /// posture (see `posture`). Ignored when `motion` has frames.
     pub pose: Option<&'a Pose>,
+    /// Frames of the skeleton's animation (may be empty). The analysis samples them for a
+    /// posture and for the up axis when the rest pose cannot be trusted.
+    pub motion: &'a [Pose],
 }
 
 impl<'a> SkeletonView<'a> {
@@ -77,6 +87,25 @@ impl<'a> SkeletonView<'a> {
         SkeletonView {
             skeleton,
             pose: None,
+            motion: &[],
+        }
+    }
+
+    /// A view of a skeleton with its animation frames.
+    pub fn from_clip(skeleton: &'a Skeleton, motion: &'a [Pose]) -> Self {
+        SkeletonView {
+            skeleton,
+            pose: None,
+            motion,
+        }
+    }
+
+    /// A view with one representative pose (live sources: the latest frame).
+    pub fn with_pose(skeleton: &'a Skeleton, pose: Option<&'a Pose>) -> Self {
+        SkeletonView {
+            skeleton,
+            pose,
+            motion: &[],
         }
     }
 }
@@ -163,8 +192,11 @@ pub struct Analysis {
     pub left: Vec3,
     /// World joint positions the analysis used (rest, or the representative pose).
     pub positions: Vec<Vec3>,
-    /// True when the rest pose was degenerate and the representative pose was used.
+    /// True when the rest pose was not a posture and a frame (or the representative pose) was
+    /// used instead.
     pub used_pose: bool,
+    /// Index into the view's `motion` of the frame the analysis read, if it read one.
+    pub posture_frame: Option<usize>,
     /// Largest extent of the skeleton, metres (the scale for tolerances).
     pub size: f32,
     /// Length of each bone (distance to its main child; 0 for leaves).
@@ -180,9 +212,18 @@ pub struct Analysis {
     pub humanoid: bool,
     /// Child continuing each bone's chain (towards its farthest descendant).
     pub main_child: Vec<Option<BoneId>>,
+    /// What the analysis overruled or doubted (names against geometry, …), for the user.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 impl Analysis {
+    /// The pose the analysis read its geometry from, when not the rest pose: the motion frame
+    /// it chose (`motion` must be the view's motion). Alignment stages use the same posture.
+    pub fn posture_pose(&self, motion: &[Pose]) -> Option<Pose> {
+        posture::frame_pose(motion, self.posture_frame).cloned()
+    }
+
     /// Role label of one bone (see [`BoneRole::label`]).
     pub fn label(&self, bone: BoneId) -> String {
         let r = &self.roles[bone.index()];

@@ -4,7 +4,7 @@ use glam::Vec3;
 
 use super::limbs::fit_chain;
 use super::names::{self, NameInfo};
-use super::topology::{is_degenerate, joint_positions, Topology};
+use super::topology::Topology;
 use super::vocabulary::{Role, SectionKind};
 use super::{Analysis, BoneRole, Section, Side, SkeletonView};
 use crate::skeleton::{BoneId, Skeleton};
@@ -29,6 +29,10 @@ enum LimbKind {
 
 struct Ctx<'a> {
     skel: &'a Skeleton,
+    /// Per leaf: the detached bone continuing it (an IK foot at the end of a shin).
+    extension: &'a [Option<BoneId>],
+    /// Control bones beside the body (see `detached`).
+    detached: &'a [bool],
     pos: &'a [Vec3],
     topo: &'a Topology,
     names: &'a [NameInfo],
@@ -51,6 +55,9 @@ impl Ctx<'_> {
     /// A leaf that only shadows its parent: coincident with it, lying on the parent's own
     /// segment (twist bones), or named as a helper.
     fn is_shadow(&self, b: BoneId) -> bool {
+        if self.detached[b.index()] {
+            return true;
+        }
         if !self.is_leaf(b) {
             return false;
         }
@@ -116,19 +123,19 @@ impl Ctx<'_> {
     }
 }
 
+/// A forward vote at least this large decides the sides against the names.
+const GEOMETRY_CLEAR: f32 = 0.15;
+
 pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let skel = view.skeleton;
     let n = skel.num_bones();
-    let mut pos = joint_positions(skel, None);
-    let mut used_pose = false;
-    if is_degenerate(&pos) {
-        if let Some(p) = view.pose.filter(|p| p.check(skel).is_ok()) {
-            pos = joint_positions(skel, Some(p));
-            used_pose = true;
-        }
-    }
+    let posture = super::posture::choose(view);
+    let pos = posture.positions.clone();
+    let used_pose = posture.used_pose;
     let names: Vec<NameInfo> = skel.names().iter().map(|s| names::normalize(s)).collect();
     let topo = Topology::build(skel, &pos);
+    let body = super::detached::find(skel, &topo);
+    let extension = super::detached::extensions(skel, &pos, &body);
     let (lo, hi) = pos.iter().fold(
         (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
@@ -136,7 +143,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let size = (hi - lo).max_element().max(1e-3);
 
     // 1. Lateral axis from mirror twins (order-free shape hashes), up checked against legs.
-    let (lateral, shallow_pair) = lateral_from_twins(skel, &topo);
+    let (lateral, shallow_pair) = lateral_from_twins(skel, &topo, &pos, &body.detached);
     let mut up = Vec3::Y;
     if let Some((p, a, b)) = shallow_pair {
         let ends = |x: BoneId| pos[topo.chain(x).last().copied().unwrap_or(x).index()];
@@ -153,6 +160,8 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     }
     let ctx = Ctx {
         skel,
+        extension: &extension,
+        detached: &body.detached,
         pos: &pos,
         topo: &topo,
         names: &names,
@@ -168,9 +177,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let mut central = vec![false; n];
     let mut limbs: Vec<Limb> = Vec::new();
     let mut in_limb = vec![false; n];
-    for root in skel.roots() {
-        central[root.index()] = true;
-    }
+    central[body.root.index()] = true;
     for i in 0..n {
         let p = BoneId(i as u16);
         if !central[i] {
@@ -179,6 +186,9 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         let mut plus = Vec::new();
         let mut minus = Vec::new();
         for &c in skel.children(p) {
+            if body.detached[c.index()] {
+                continue;
+            }
             // Coincident / on-segment leaves (Rigify ORG- copies) never extend the centerline;
             // named end joints that stick out (`head_end`) do.
             if ctx.is_shadow(c) && !ctx.names[c.index()].helper && skel.children(p).len() > 1 {
@@ -192,7 +202,10 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
                 .subtree(c)
                 .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
                 .fold(0.0, f32::max);
-            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size {
+            // A side limb's joints lie clearly to one side for its length; a neck that leans
+            // a centimetre off a 3 m robot's midline does not.
+            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
+            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size && off.abs() > 0.04 * extent {
                 if off > 0.0 {
                     plus.push(c);
                 } else {
@@ -213,6 +226,13 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         }
         for c in plus.into_iter().chain(minus) {
             let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
+            // Without a mirror twin, only a chain far to one side is a limb; a head that
+            // sits a little off the midline continues the body.
+            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
+            if off.abs() < 0.15 * extent {
+                central[c.index()] = true;
+                continue;
+            }
             let s = if off > 0.0 { Side::Left } else { Side::Right };
             limbs.push(make_limb(&ctx, p, vec![(c, s)], ground, hext));
         }
@@ -225,31 +245,31 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         }
     }
 
-    // 3. Forward: toes point forward; a horizontal body's higher end is its head.
+    // 3. Forward from the body's own cues (feet, joint bends over the motion, thumbs, slope).
     let fwd0 = lat.cross(up).normalize_or_zero(); // = forward if +lat is the character's left
-    let mut cue = 0.0f32;
-    for l in limbs.iter().filter(|l| l.ground && l.members.len() == 2) {
-        for &(m, _) in &l.members {
-            // Segments ending near the ground: the foot (ankle → toes) points forward. The
-            // whole leg may lean either way in a rest pose, so only these segments count.
-            for b in ctx.subtree(m).skip(1) {
-                if ctx.h(b) >= ground + 0.12 * hext {
-                    continue;
-                }
-                if let Some(p) = skel.parent(b) {
-                    cue += (pos[b.index()] - pos[p.index()]).dot(fwd0);
-                }
-            }
-        }
-    }
     let path0 = centerline(&ctx, &central);
-    if let (Some(&a), Some(&b)) = (path0.first(), path0.last()) {
-        let d = pos[b.index()] - pos[a.index()];
-        let (dh, dv) = (d.dot(fwd0), d.dot(up));
-        if dh.abs() > dv.abs() {
-            cue += 0.02 * size * dh.signum() * dv.signum();
-        }
-    }
+    let pairs = |want_ground: bool| -> Vec<[BoneId; 2]> {
+        limbs
+            .iter()
+            .filter(|l| l.members.len() == 2 && l.ground == want_ground && l.reach > 0.12 * size)
+            .map(|l| [l.members[0].0, l.members[1].0])
+            .collect()
+    };
+    let finput = super::forward::ForwardInput {
+        skel,
+        topo: &topo,
+        pos: &pos,
+        samples: &posture.samples,
+        up,
+        fwd0,
+        size,
+        ground,
+        hext,
+        legs: pairs(true),
+        arms: pairs(false),
+    };
+    let vote = super::forward::vote(&finput, path0.first().copied().zip(path0.last().copied()));
+    let cue = vote.total();
     let mut sign = if cue < 0.0 { -1.0 } else { 1.0 };
     // Names break ties and overrule geometry when they agree strongly.
     let (mut agree, mut disagree) = (0usize, 0usize);
@@ -278,8 +298,16 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     } else {
         None
     };
-    if let Some(s) = name_sign {
-        sign = s;
+    // Geometry wins when it is clear; names only break a tie it cannot.
+    let mut warnings = Vec::new();
+    match name_sign {
+        Some(s) if cue.abs() < GEOMETRY_CLEAR => sign = s,
+        Some(s) if s != sign => warnings.push(format!(
+            "names mark the sides the other way round from the geometry (forward vote {cue:.2}: \
+             feet {:.2}, bends {:.2}, thumbs {:.2}); the geometry's sides are used",
+            vote.feet, vote.bends, vote.thumbs
+        )),
+        _ => {}
     }
     let forward = fwd0 * sign;
     let left = up.cross(forward).normalize_or_zero();
@@ -301,6 +329,12 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         }
     }
     let k_of = |b: BoneId| path.iter().position(|&x| x == b);
+    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+        eprintln!("path {:?}", path.iter().map(|b| skel.name(*b)).collect::<Vec<_>>());
+        for l in &limbs {
+            eprintln!("limb at {} members {:?} reach {} ground {}", skel.name(l.parent), l.members.iter().map(|m| skel.name(m.0)).collect::<Vec<_>>(), l.reach, l.ground);
+        }
+    }
 
     // 5. Classify limbs.
     let mut kinds = vec![LimbKind::Appendage; limbs.len()];
@@ -318,8 +352,16 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             }
         }
     }
+    // Arms are limbs of a size with the legs: eyes and ears on a long-faced rig are not.
+    let leg_reach = limbs
+        .iter()
+        .zip(&kinds)
+        .filter(|(_, k)| **k == LimbKind::Leg)
+        .map(|(l, _)| l.reach)
+        .fold(0.0f32, f32::max);
     let arm_cands: Vec<usize> = (0..limbs.len())
         .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
+        .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
         .collect();
     let min_reach = arm_cands
         .iter()
@@ -414,8 +456,20 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         );
         spine_sec = Some(si);
         let conf = if leg_k.is_some() { 0.9 } else { 0.4 };
-        set(&mut roles, spine[0], Role::Hips, conf);
-        let body = &spine[1..];
+        // Legs on a branch of their own beside the spine (MakeHuman: `Root` carries the spine,
+        // a child `Hips` only the legs): the pelvis is their common parent.
+        let legs_beside = spine.len() > 2 && skel.parent(spine[0]) == Some(spine[1]);
+        // A first "spine" segment that points down is still the pelvis (a hip bone hung below
+        // the leg joint, RobotExpressive's `Body` → `Hips`).
+        let drops = spine.len() > 3
+            && (pos[spine[1].index()] - pos[spine[0].index()]).dot(up)
+                < -0.01 * (pos[spine[2].index()] - pos[spine[1].index()]).length();
+        let hips_at = usize::from(legs_beside || drops);
+        if hips_at == 1 {
+            set(&mut roles, spine[0], Role::Helper, conf);
+        }
+        set(&mut roles, spine[hips_at], Role::Hips, conf);
+        let body = &spine[hips_at + 1..];
         for (j, &b) in body.iter().enumerate() {
             let role = if j == 0 {
                 Role::Spine
@@ -553,6 +607,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             );
         }
     }
+    attach_detached(&ctx, &body, &mut roles);
     // Everything not placed yet: helpers, with the side of where they hang.
     for i in 0..n {
         if roles[i].role == Role::Unknown {
@@ -583,6 +638,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         left,
         positions: pos,
         used_pose,
+        posture_frame: posture.frame,
         size,
         lengths: topo.length.clone(),
         sections,
@@ -590,6 +646,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         names,
         humanoid: humanoid_legs == 1 && humanoid_arms == 1,
         main_child,
+        warnings,
     }
 }
 
@@ -630,9 +687,13 @@ fn limb_roles(
         .enumerate()
         .skip(2)
         .find(|(_, &b)| ctx.significant_children(b).len() >= 2)
-        .map(|(i, _)| i);
+        .map(|(i, _)| i)
+        .map(|i| if palms_below(ctx, &chain, i) { i + 1 } else { i });
     let is_leg = kind == LimbKind::Leg;
     let ratio = if is_leg { 1.05 } else { 1.12 };
+    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+        eprintln!("limb {:?} {:?} chain {:?} len {:?} fixed {:?}", kind as u8, side, chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(), lengths, fixed);
+    }
     let (limb_kind, ext_kind) = match kind {
         LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
         LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
@@ -863,7 +924,10 @@ fn forward_hint(_roles: &[BoneRole], ctx: &Ctx<'_>) -> Vec3 {
 fn lateral_from_twins(
     skel: &Skeleton,
     topo: &Topology,
+    pos: &[Vec3],
+    detached: &[bool],
 ) -> (Vec3, Option<(BoneId, BoneId, BoneId)>) {
+    let size = topo.reach.iter().copied().fold(0.0f32, f32::max).max(1e-6);
     let mut pairs: Vec<(f32, Vec3, usize, BoneId, BoneId, BoneId)> = Vec::new();
     for p in skel.bone_ids() {
         let ch = skel.children(p);
@@ -880,7 +944,17 @@ fn lateral_from_twins(
                 if same != 2 {
                     continue;
                 }
-                let v = topo.centroid[a.index()] - topo.centroid[b.index()];
+                if detached[a.index()] || detached[b.index()] {
+                    continue;
+                }
+                // The twins' own joints are mirror images even when the rest pose is not
+                // (one arm raised): use them, unless they coincide (CMU's hip helpers).
+                let joints = pos[a.index()] - pos[b.index()];
+                let v = if joints.length() > 0.02 * size {
+                    joints
+                } else {
+                    topo.centroid[a.index()] - topo.centroid[b.index()]
+                };
                 let w = v.length() * topo.size[a.index()] as f32;
                 if w > 0.0 {
                     pairs.push((w, v, skel.depth(p), p, a, b));
@@ -981,6 +1055,9 @@ fn make_limb(
         height += ctx.h(m);
         for b in ctx.subtree(m) {
             low = low.min(ctx.h(b));
+            if let Some(x) = ctx.extension[b.index()] {
+                low = low.min(ctx.h(x));
+            }
         }
     }
     let k = members.len().max(1) as f32;
@@ -1131,14 +1208,15 @@ fn head_index(
     if nm.helper || nm.tokens.iter().any(|t| t == "top") {
         return last - 1;
     }
+    // A bone named as the head is the head, however long the neck before it (the Fox) or
+    // however big the head (cartoon robots).
+    if nm.tokens.iter().any(|t| t == "head") {
+        return last;
+    }
     // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
     // the names (anonymised skeletons included).
     if let Some(top) = leaf_is_skull_top(ctx, head, limbs, kinds) {
         return if top { last - 1 } else { last };
-    }
-    // A bone named as the head is the head, however long the neck before it (the Fox).
-    if nm.tokens.iter().any(|t| t == "head") {
-        return last;
     }
     // Exporters that write end joints (BVH End Sites, Mixamo `_End`) write them everywhere:
     // if the toes have one, so has the head.
@@ -1210,4 +1288,50 @@ fn leaf_is_skull_top(
     } else {
         None
     }
+}
+
+/// Detached bones that continue a limb ending without its extremity (an IK foot under the
+/// root at the end of a shin) take the extremity's role; carriers and other controls stay
+/// helpers.
+fn attach_detached(ctx: &Ctx<'_>, body: &super::detached::BodyRoot, roles: &mut [BoneRole]) {
+    for l in ctx.skel.bone_ids() {
+        let Some(b) = ctx.extension[l.index()] else { continue };
+        let lr = roles[l.index()];
+        let role = match lr.role {
+            Role::LowerLeg => Role::Foot,
+            Role::LowerArm => Role::Hand,
+            _ => continue,
+        };
+        roles[b.index()] = BoneRole {
+            role,
+            position: 1.0,
+            confidence: lr.confidence * 0.8,
+            ..lr
+        };
+    }
+    for &c in &body.carriers {
+        roles[c.index()].role = Role::Helper;
+        roles[c.index()].confidence = 0.5;
+    }
+}
+
+/// Whether the branch at `chain[i]` is a forearm carrying several palm bones that all start
+/// at one wrist point away from it (RobotExpressive-style `Palm1..3`): then the hand is the
+/// palm on the chain, not the branching bone.
+fn palms_below(ctx: &Ctx<'_>, chain: &[BoneId], i: usize) -> bool {
+    let b = chain[i];
+    let Some(&next) = chain.get(i + 1) else {
+        return false;
+    };
+    let kids = ctx.significant_children(b);
+    let at = ctx.pos[next.index()];
+    let reach = (at - ctx.pos[b.index()]).length();
+    let prev = (ctx.pos[b.index()] - ctx.pos[chain[i - 1].index()]).length();
+    let together = kids
+        .iter()
+        .filter(|k| (ctx.pos[k.index()] - at).length() < 0.05 * reach)
+        .count();
+    // A forearm-long reach: a hand's own finger helpers (MakeHuman's `__Index1`) also start
+    // at one point, but a hand's length from the wrist.
+    together >= 2 && reach > 1.5 * prev
 }

@@ -74,12 +74,10 @@ fn cache_dir(args: &MapArgs) -> Option<PathBuf> {
     std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/rigcast/mappings"))
 }
 
-/// Representative frame for skeletons whose rest pose is degenerate: the middle frame.
+/// The skeleton with its animation: the analysis takes its posture from the motion when the
+/// rest pose is not one.
 fn view(clip: &Clip) -> SkeletonView<'_> {
-    SkeletonView {
-        skeleton: &clip.skeleton,
-        pose: clip.poses.get(clip.poses.len() / 2),
-    }
+    SkeletonView::from_clip(&clip.skeleton, &clip.poses)
 }
 
 /// A VRM file's humanoid map (human bone name → bone name): ground truth for its roles.
@@ -216,6 +214,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
             "target": args.target.display().to_string(),
             "mapping": mapping,
             "roles": {"source": roles_json(ss, &sa), "target": roles_json(ts, &ta)},
+            "warnings": {"source": sa.warnings, "target": ta.warnings},
             "humanoid": {
                 "source": humanoid_json(ss, &sa, truth_s.as_deref()),
                 "target": humanoid_json(ts, &ta, truth_t.as_deref()),
@@ -231,6 +230,11 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         });
         println!("{out}");
     } else {
+        for (which, a) in [("source", &sa), ("target", &ta)] {
+            for w in &a.warnings {
+                eprintln!("warning: {which}: {w}");
+            }
+        }
         print!("{}", render_table(ss, &sa, ts, &ta, &table));
         println!(
             "{} of {} target bones mapped in {:.2} ms{} (files read in {:.1} ms)",

@@ -1,6 +1,8 @@
 //! `rigcast retarget ANIM --target SKELETON -o OUT`: put an animation onto another character,
-//! offline. The output has the target's hierarchy, names and rest offsets and the source's frame
-//! count and frame time (unless `--fps` resamples); any animation in the target file is ignored.
+//! offline. The output has the source's frame count and frame time (unless `--fps` resamples);
+//! any animation in the target file is replaced. Written in the target's own format, it is the
+//! target's rig exactly: a BVH keeps its joint order, End Sites, channels and offsets, a GLB its
+//! nodes, names, skin joint order, inverse bind matrices and meshes.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -66,7 +68,7 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
             args.anim.display()
         );
     }
-    let target_clip = rigcast_sources::load_clip(&args.target)
+    let (target_clip, target_layout) = rigcast_sources::load_rig(&args.target)
         .map_err(|e| anyhow!("cannot read the target character: {e}"))?;
     let target = target_clip.skeleton.clone();
     if let Some(fps) = args.fps {
@@ -106,7 +108,10 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         ..RetargetOptions::default()
     };
     let out = retarget_clip(&clip, &target, &table, &opts, true)?;
-    rigcast_sources::save_clip(&args.output, &out).map_err(|e| anyhow!("cannot write: {e}"))?;
+    // Written onto the target file's own layout: a BVH keeps its hierarchy, a GLB its nodes,
+    // skin and meshes.
+    rigcast_sources::save_clip_onto(&args.output, &out, &target_layout)
+        .map_err(|e| anyhow!("cannot write: {e}"))?;
     println!(
         "wrote {} ({} bones, {} of them driven; {} frames at {:.3} fps)",
         args.output.display(),
@@ -162,22 +167,13 @@ pub fn plan_mapping_with_truth(
         }
         None => None,
     };
-    let representative = |c: &Clip| c.poses.get(c.poses.len() / 2).cloned();
-    let src_pose = representative(source);
-    let tgt_pose = representative(target);
     let (ss, ts) = (&*source.skeleton, &*target.skeleton);
     let sa = analyze_with_truth(
-        &SkeletonView {
-            skeleton: ss,
-            pose: src_pose.as_ref(),
-        },
+        &SkeletonView::from_clip(ss, &source.poses),
         truth.0,
     );
     let ta = analyze_with_truth(
-        &SkeletonView {
-            skeleton: ts,
-            pose: tgt_pose.as_ref(),
-        },
+        &SkeletonView::from_clip(ts, &target.poses),
         truth.1,
     );
     let mut table = map_analyzed(&[(ss, &sa)], (ts, &ta), &MapOptions::default());
@@ -186,8 +182,8 @@ pub fn plan_mapping_with_truth(
     }
     Ok(MappingPlan {
         table,
-        source_reference: src_pose.filter(|_| sa.used_pose),
-        target_reference: tgt_pose.filter(|_| ta.used_pose),
+        source_reference: sa.posture_pose(&source.poses),
+        target_reference: ta.posture_pose(&target.poses),
     })
 }
 

@@ -38,8 +38,9 @@ pub struct ServeArgs {
     /// Record every subject and the raw input of live sources into FILE.rcr.
     #[arg(long, value_name = "FILE.rcr")]
     pub record: Option<PathBuf>,
-    /// While a source is lost its targets ease to rest (`ease`, default) or hold (`hold`).
-    #[arg(long = "on-lost", value_name = "ease|hold")]
+    /// While a source is lost its targets ease to their own rest pose (`rest`, or `ease`, the
+    /// default) or hold the last pose (`hold`).
+    #[arg(long = "on-lost", value_name = "rest|hold")]
     pub on_lost: Option<String>,
     /// Don't read or write the on-disk mapping cache.
     #[arg(long)]
@@ -95,9 +96,9 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     }
     if let Some(o) = &args.on_lost {
         cfg.on_lost = match o.as_str() {
-            "ease" => OnLost::Ease,
+            "ease" | "rest" => OnLost::Ease,
             "hold" => OnLost::Hold,
-            _ => anyhow::bail!("--on-lost {o:?}: expected ease or hold"),
+            _ => anyhow::bail!("--on-lost {o:?}: expected rest (ease) or hold"),
         };
     }
     if let Some(listen) = &args.listen {

@@ -3,6 +3,7 @@
 //! ```text
 //!  .bvh text ──read_bvh──▶ BvhRead { clip (metres), scale, channels }
 //!  Clip ──write_bvh──▶ .bvh text (ZXY rotations, positions where they move)
+//!  Clip + BvhLayout ──write_bvh_onto──▶ .bvh text with that file's exact hierarchy
 //! ```
 //!
 //! End Sites become leaf bones named `<parent>_end` so their offsets survive; the writer turns
@@ -12,9 +13,11 @@
 //! malformed input and mangles leaves without End Sites; the grammar is small enough that our
 //! own parser can report every error with its line and never panic.
 
+mod layout;
 mod parse;
 mod write;
 
+pub use layout::{write_bvh_onto, BvhLayout, LayoutJoint};
 pub(crate) use parse::extent_of;
 pub use parse::{guess_scale, read_bvh, BvhRead, BvhReadOptions};
 pub use write::{write_bvh, BvhWriteOptions};

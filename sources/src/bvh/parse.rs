@@ -23,6 +23,7 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
 
+use super::layout::{BvhLayout, LayoutJoint};
 use super::Channel;
 use crate::error::SourceError;
 
@@ -48,6 +49,9 @@ pub struct BvhRead {
     pub num_end_sites: usize,
     /// Channels of each bone, indexed by the skeleton's bone ids (empty for End Sites).
     pub channels: Vec<Vec<Channel>>,
+    /// The file's hierarchy exactly as written (joint order, End Sites, channels, offsets), so
+    /// motion written onto this rig keeps it (see [`super::write_bvh_onto`]).
+    pub layout: BvhLayout,
 }
 
 #[derive(Debug)]
@@ -544,6 +548,20 @@ fn build(
         channels[to_bone[ji]] = j.channels.clone();
     }
     let num_end_sites = joints.iter().filter(|j| j.is_end_site).count();
+    let layout = BvhLayout {
+        joints: joints
+            .iter()
+            .enumerate()
+            .map(|(ji, j)| LayoutJoint {
+                bone: to_bone[ji],
+                parent: j.parent,
+                end_site: j.is_end_site,
+                channels: j.channels.clone(),
+                offset: j.offset,
+            })
+            .collect(),
+        scale,
+    };
     let clip = Clip::new(name, skeleton, poses, frame_time)?;
     Ok(BvhRead {
         clip,
@@ -552,5 +570,6 @@ fn build(
         num_joints: joints.len() - num_end_sites,
         num_end_sites,
         channels,
+        layout,
     })
 }

@@ -18,6 +18,7 @@ use glam::{Quat, Vec3, Vec4};
 use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
 
 use super::sample::{Interpolation, Track};
+use super::tolerate::{skip_undecodable_mesh_data, summarise_validation};
 use super::vrm::{vrm_human_bones, VrmVersion};
 use crate::error::SourceError;
 
@@ -66,12 +67,48 @@ pub struct GltfRead {
     pub origin: SkeletonOrigin,
     /// VRM humanoid role (e.g. `"leftUpperArm"`) → bone name, when the file is a VRM.
     pub vrm_roles: Option<BTreeMap<String, String>>,
+    /// What was skipped to read the file (mesh data in extensions the reader cannot decode).
+    pub warnings: Vec<String>,
+    /// The file's document, for writing motion back onto this rig.
+    pub template: GltfTemplate,
 }
 
 fn gltf_err(e: ::gltf::Error) -> SourceError {
-    SourceError::Gltf {
-        message: e.to_string(),
-    }
+    let message = match e {
+        ::gltf::Error::Validation(errors) => summarise_validation(
+            &errors
+                .iter()
+                .map(|(path, error)| (path.to_string(), error.to_string()))
+                .collect::<Vec<_>>(),
+        ),
+        other => other.to_string(),
+    };
+    SourceError::Gltf { message }
+}
+
+/// The document and GLB binary chunk, with mesh-only extensions the reader cannot decode
+/// skipped (see [`super::tolerate`]); the warning says what was skipped.
+type Parsed = (Document, Option<Vec<u8>>, Option<String>, serde_json::Value);
+
+fn parse_tolerantly(bytes: &[u8]) -> Result<Parsed, SourceError> {
+    let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
+        let glb = ::gltf::binary::Glb::from_slice(bytes).map_err(gltf_err)?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (bytes.to_vec(), None)
+    };
+    let mut value: serde_json::Value =
+        serde_json::from_slice(&json_bytes).map_err(|e| SourceError::Gltf {
+            message: format!("invalid glTF JSON: {e}"),
+        })?;
+    let original = value.clone();
+    let warning = skip_undecodable_mesh_data(&mut value);
+    let root: ::gltf::json::Root =
+        serde_json::from_value(value).map_err(|e| SourceError::Gltf {
+            message: format!("invalid glTF JSON: {e}"),
+        })?;
+    let document = Document::from_json(root).map_err(gltf_err)?;
+    Ok((document, blob, warning, original))
 }
 
 /// A node's local transform as (translation, rotation, uniform scale).
@@ -88,9 +125,9 @@ fn node_trs(node: &::gltf::Node<'_>) -> (Vec3, Quat, f32) {
 }
 
 /// Per bone: how a node-local (t, r) becomes the bone's local transform.
-#[derive(Debug, Clone, Copy)]
-struct BoneFrame {
-    node: usize,
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BoneFrame {
+    pub(crate) node: usize,
     /// Product of the uniform scales of all strict ancestors.
     translation_scale: f32,
     /// For top bones: the world transform of the parent chain above them.
@@ -105,6 +142,35 @@ impl BoneFrame {
             None => (t, r),
         }
     }
+
+    /// The inverse of [`BoneFrame::apply`]: a bone-local (t, r) as the node's own TRS.
+    pub(crate) fn unapply(&self, t: Vec3, r: Quat) -> (Vec3, Quat) {
+        let (t, r) = match self.above {
+            Some((at, ar)) => {
+                let inv = ar.inverse();
+                (inv * (t - at), (inv * r).normalize())
+            }
+            None => (t, r),
+        };
+        let s = if self.translation_scale.abs() > f32::EPSILON {
+            self.translation_scale
+        } else {
+            1.0
+        };
+        (t / s, r)
+    }
+}
+
+/// A glTF file's own document, kept so motion written onto its skeleton keeps everything else
+/// (nodes, names, skins, inverse bind matrices, meshes): see [`super::write_glb_onto`].
+#[derive(Debug, Clone, Default)]
+pub struct GltfTemplate {
+    /// The JSON as read (before any tolerance step).
+    pub(crate) json: serde_json::Value,
+    /// Every buffer's bytes, in buffer order.
+    pub(crate) buffers: Vec<Vec<u8>>,
+    /// Node and frame of each skeleton bone, in bone order.
+    pub(crate) frames: Vec<BoneFrame>,
 }
 
 /// Parses a glTF (JSON) or GLB file. `base_dir` resolves external buffer files.
@@ -114,11 +180,14 @@ pub fn read_gltf(
     name: &str,
     opts: &GltfReadOptions,
 ) -> Result<GltfRead, SourceError> {
-    let g = ::gltf::Gltf::from_slice(bytes).map_err(gltf_err)?;
-    let ::gltf::Gltf { document, blob } = g;
-    let buffers = ::gltf::import_buffers(&document, base_dir, blob).map_err(gltf_err)?;
-    let buffers: Vec<&[u8]> = buffers.iter().map(|b| &b.0[..]).collect();
-    read_document(&document, &buffers, name, opts)
+    let (document, blob, warning, json) = parse_tolerantly(bytes)?;
+    let data = ::gltf::import_buffers(&document, base_dir, blob).map_err(gltf_err)?;
+    let buffers: Vec<&[u8]> = data.iter().map(|b| &b.0[..]).collect();
+    let mut read = read_document(&document, &buffers, name, opts)?;
+    read.warnings.extend(warning);
+    read.template.json = json;
+    read.template.buffers = data.into_iter().map(|b| b.0).collect();
+    Ok(read)
 }
 
 /// The `gltf` crate's validation skips animation channel targets, and its accessors
@@ -303,6 +372,11 @@ fn read_document(
         num_joints: joints.len(),
         origin,
         vrm_roles,
+        warnings: Vec::new(),
+        template: GltfTemplate {
+            frames: bone_frames,
+            ..GltfTemplate::default()
+        },
     })
 }
 
@@ -610,9 +684,17 @@ fn sample_animation(
     } else {
         (end_secs as f64 * fps + 1e-3).floor() as usize + 1
     };
+    // On keys, sample at the keys themselves: a truncated frame time drifts from k / fps by
+    // a fraction of a frame over a long clip, which would interpolate between keys.
+    let key_times = first_times
+        .as_deref()
+        .filter(|t| on_keys && t.len() == num_frames);
     let mut poses = Vec::with_capacity(num_frames);
     for k in 0..num_frames {
-        let t = (k as f64 / fps) as f32;
+        let t = match key_times {
+            Some(times) => times[k],
+            None => (k as f64 / fps) as f32,
+        };
         let mut pose = Pose::from_rest(skeleton);
         for (b, f) in frames.iter().enumerate() {
             let (rest_t, rest_r, _) = trs[f.node];

@@ -332,3 +332,132 @@ fn malformed_gltf_gives_clear_errors() {
     // Binary garbage.
     assert!(read(&[0xff, 0xfe, 0x00, 0x01, 0x02], None).is_err());
 }
+
+/// A GLB from a JSON document and a binary chunk (both padded as the spec asks).
+fn glb_from(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).unwrap();
+    while j.len() % 4 != 0 {
+        j.push(b' ');
+    }
+    let mut b = bin.to_vec();
+    while b.len() % 4 != 0 {
+        b.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
+
+/// The demo as GLB, plus a skinned mesh the way Draco exporters write it: 300 attribute
+/// accessors without buffer views, the compressed bytes in one view named by the primitive's
+/// `KHR_draco_mesh_compression`, and the extension in `extensionsRequired`.
+fn draco_demo(attribute_view: Option<usize>) -> (Vec<u8>, rigcast_retarget::Clip) {
+    let clip = crate::embedded_demo().unwrap();
+    let written = write_glb(&clip).unwrap();
+    let glb = ::gltf::binary::Glb::from_slice(&written).unwrap();
+    let mut json: Value = serde_json::from_slice(&glb.json).unwrap();
+    let mut bin = glb.bin.unwrap().into_owned();
+    let compressed_view = json["bufferViews"].as_array().unwrap().len();
+    json["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": 64}));
+    bin.extend([0x44u8; 64]); // stands in for a Draco bitstream
+    json["buffers"][0]["byteLength"] = json!(bin.len());
+    let first = json["accessors"].as_array().unwrap().len();
+    let mut primitives = Vec::new();
+    for k in 0..100 {
+        let mut attrs = serde_json::Map::new();
+        for (a, (name, kind)) in [
+            ("POSITION", "VEC3"),
+            ("NORMAL", "VEC3"),
+            ("TEXCOORD_0", "VEC2"),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let mut acc = json!({"componentType": 5126, "count": 24, "type": kind});
+            if *name == "POSITION" {
+                acc["min"] = json!([-1.0, -1.0, -1.0]);
+                acc["max"] = json!([1.0, 1.0, 1.0]);
+            }
+            if let Some(v) = attribute_view {
+                acc["bufferView"] = json!(v);
+            }
+            json["accessors"].as_array_mut().unwrap().push(acc);
+            attrs.insert(name.to_string(), json!(first + 3 * k + a));
+        }
+        primitives.push(json!({
+            "attributes": attrs,
+            "extensions": {"KHR_draco_mesh_compression": {
+                "bufferView": compressed_view,
+                "attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}}}
+        }));
+    }
+    json["meshes"] = json!([{"primitives": primitives}]);
+    let mesh_node = json["nodes"].as_array().unwrap().len();
+    json["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"name": "body", "mesh": 0, "skin": 0}));
+    json["scenes"][0]["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!(mesh_node));
+    json["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    json["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    (glb_from(&json, &bin), clip)
+}
+
+#[test]
+fn draco_compressed_meshes_are_skipped_with_one_warning_and_the_skeleton_loads() {
+    let (bytes, clip) = draco_demo(None);
+    // The gltf crate alone refuses the file (that is what the tolerance is for).
+    assert!(::gltf::Gltf::from_slice(&bytes).is_err());
+    let r = read(&bytes, None).unwrap();
+    assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+    assert!(
+        r.warnings[0].contains("KHR_draco_mesh_compression"),
+        "{}",
+        r.warnings[0]
+    );
+    assert_eq!(r.clip.skeleton.names(), clip.skeleton.names());
+    assert_eq!(r.clip.num_frames(), clip.num_frames());
+    for (a, b) in r.clip.poses.iter().zip(&clip.poses) {
+        for (qa, qb) in a.rotations.iter().zip(&b.rotations) {
+            assert!(quat_close(*qa, *qb, 1e-5));
+        }
+    }
+    // A plain file has no warning.
+    let plain = read(&write_glb(&clip).unwrap(), None).unwrap();
+    assert!(plain.warnings.is_empty());
+}
+
+#[test]
+fn hundreds_of_bad_accessors_give_a_short_summarised_error() {
+    // The same file without the extension, every attribute accessor naming a missing view.
+    let (bytes, _) = draco_demo(Some(9999));
+    let glb = ::gltf::binary::Glb::from_slice(&bytes).unwrap();
+    let mut json: Value = serde_json::from_slice(&glb.json).unwrap();
+    json.as_object_mut().unwrap().remove("extensionsRequired");
+    json.as_object_mut().unwrap().remove("extensionsUsed");
+    let broken = glb_from(&json, &glb.bin.unwrap());
+    let message = read(&broken, None).unwrap_err().to_string();
+    println!("{message}");
+    assert!(
+        message.chars().count() <= MAX_ERROR_CHARS + 20,
+        "{} chars",
+        message.len()
+    );
+    assert!(message.contains("accessors[*].bufferView"), "{message}");
+    assert!(message.contains("×300"), "{message}");
+}

@@ -48,6 +48,10 @@ impl HealthTracker {
     /// Good (decodable) input arrived at `now`: the source is live.
     pub fn on_input(&mut self, now: Instant) {
         self.last_input = Some(now);
+        if self.state == SourceState::Lost {
+            // The detail said why the input was lost; it is back, so that no longer holds.
+            self.detail.clear();
+        }
         self.state = SourceState::Live;
     }
 

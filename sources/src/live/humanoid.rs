@@ -7,7 +7,8 @@
 //! only when a sender provides no position for a bone.
 //!
 //! Default offsets are in internal coordinates for a character standing in a T-pose as Unity
-//! senders do: facing -Z internally (Unity +Z, mirrored), so its left side is at -X.
+//! senders do: facing +Z (Unity +Z too: the two spaces differ by a mirror of X), so its left
+//! side is at +X internally (Unity -X).
 
 use std::sync::Arc;
 
@@ -43,60 +44,60 @@ pub const HUMAN_BONES: [HumanBone; NUM_HUMAN_BONES] = [
         parent: None,
         default_offset: [0.0, 0.95, 0.0],
     },
-    b("Spine", 0, [0.0, 0.10, 0.0]),                     // 1
-    b("Chest", 1, [0.0, 0.12, 0.0]),                     // 2
-    b("UpperChest", 2, [0.0, 0.12, 0.0]),                // 3
-    b("Neck", 3, [0.0, 0.14, 0.0]),                      // 4
-    b("Head", 4, [0.0, 0.10, 0.0]),                      // 5
-    b("LeftEye", 5, [-0.03, 0.07, -0.08]),               // 6
-    b("RightEye", 5, [0.03, 0.07, -0.08]),               // 7
-    b("Jaw", 5, [0.0, 0.0, -0.02]),                      // 8
-    b("LeftShoulder", 3, [-0.02, 0.10, 0.0]),            // 9
-    b("LeftUpperArm", 9, [-0.10, 0.0, 0.0]),             // 10
-    b("LeftLowerArm", 10, [-0.27, 0.0, 0.0]),            // 11
-    b("LeftHand", 11, [-0.25, 0.0, 0.0]),                // 12
-    b("RightShoulder", 3, [0.02, 0.10, 0.0]),            // 13
-    b("RightUpperArm", 13, [0.10, 0.0, 0.0]),            // 14
-    b("RightLowerArm", 14, [0.27, 0.0, 0.0]),            // 15
-    b("RightHand", 15, [0.25, 0.0, 0.0]),                // 16
-    b("LeftUpperLeg", 0, [-0.09, -0.05, 0.0]),           // 17
-    b("LeftLowerLeg", 17, [0.0, -0.42, 0.0]),            // 18
-    b("LeftFoot", 18, [0.0, -0.42, 0.0]),                // 19
-    b("LeftToes", 19, [0.0, -0.06, -0.12]),              // 20
-    b("RightUpperLeg", 0, [0.09, -0.05, 0.0]),           // 21
-    b("RightLowerLeg", 21, [0.0, -0.42, 0.0]),           // 22
-    b("RightFoot", 22, [0.0, -0.42, 0.0]),               // 23
-    b("RightToes", 23, [0.0, -0.06, -0.12]),             // 24
-    b("LeftThumbProximal", 12, [-0.02, -0.01, -0.03]),   // 25
-    b("LeftThumbIntermediate", 25, [-0.03, 0.0, -0.01]), // 26
-    b("LeftThumbDistal", 26, [-0.025, 0.0, 0.0]),        // 27
-    b("LeftIndexProximal", 12, [-0.08, 0.0, -0.025]),    // 28
-    b("LeftIndexIntermediate", 28, [-0.035, 0.0, 0.0]),  // 29
-    b("LeftIndexDistal", 29, [-0.025, 0.0, 0.0]),        // 30
-    b("LeftMiddleProximal", 12, [-0.08, 0.0, -0.005]),   // 31
-    b("LeftMiddleIntermediate", 31, [-0.04, 0.0, 0.0]),  // 32
-    b("LeftMiddleDistal", 32, [-0.025, 0.0, 0.0]),       // 33
-    b("LeftRingProximal", 12, [-0.075, 0.0, 0.015]),     // 34
-    b("LeftRingIntermediate", 34, [-0.035, 0.0, 0.0]),   // 35
-    b("LeftRingDistal", 35, [-0.025, 0.0, 0.0]),         // 36
-    b("LeftLittleProximal", 12, [-0.07, 0.0, 0.03]),     // 37
-    b("LeftLittleIntermediate", 37, [-0.025, 0.0, 0.0]), // 38
-    b("LeftLittleDistal", 38, [-0.02, 0.0, 0.0]),        // 39
-    b("RightThumbProximal", 16, [0.02, -0.01, -0.03]),   // 40
-    b("RightThumbIntermediate", 40, [0.03, 0.0, -0.01]), // 41
-    b("RightThumbDistal", 41, [0.025, 0.0, 0.0]),        // 42
-    b("RightIndexProximal", 16, [0.08, 0.0, -0.025]),    // 43
-    b("RightIndexIntermediate", 43, [0.035, 0.0, 0.0]),  // 44
-    b("RightIndexDistal", 44, [0.025, 0.0, 0.0]),        // 45
-    b("RightMiddleProximal", 16, [0.08, 0.0, -0.005]),   // 46
-    b("RightMiddleIntermediate", 46, [0.04, 0.0, 0.0]),  // 47
-    b("RightMiddleDistal", 47, [0.025, 0.0, 0.0]),       // 48
-    b("RightRingProximal", 16, [0.075, 0.0, 0.015]),     // 49
-    b("RightRingIntermediate", 49, [0.035, 0.0, 0.0]),   // 50
-    b("RightRingDistal", 50, [0.025, 0.0, 0.0]),         // 51
-    b("RightLittleProximal", 16, [0.07, 0.0, 0.03]),     // 52
-    b("RightLittleIntermediate", 52, [0.025, 0.0, 0.0]), // 53
-    b("RightLittleDistal", 53, [0.02, 0.0, 0.0]),        // 54
+    b("Spine", 0, [0.0, 0.10, 0.0]),                      // 1
+    b("Chest", 1, [0.0, 0.12, 0.0]),                      // 2
+    b("UpperChest", 2, [0.0, 0.12, 0.0]),                 // 3
+    b("Neck", 3, [0.0, 0.14, 0.0]),                       // 4
+    b("Head", 4, [0.0, 0.10, 0.0]),                       // 5
+    b("LeftEye", 5, [0.03, 0.07, 0.08]),                  // 6
+    b("RightEye", 5, [-0.03, 0.07, 0.08]),                // 7
+    b("Jaw", 5, [0.0, 0.0, 0.02]),                        // 8
+    b("LeftShoulder", 3, [0.02, 0.10, 0.0]),              // 9
+    b("LeftUpperArm", 9, [0.10, 0.0, 0.0]),               // 10
+    b("LeftLowerArm", 10, [0.27, 0.0, 0.0]),              // 11
+    b("LeftHand", 11, [0.25, 0.0, 0.0]),                  // 12
+    b("RightShoulder", 3, [-0.02, 0.10, 0.0]),            // 13
+    b("RightUpperArm", 13, [-0.10, 0.0, 0.0]),            // 14
+    b("RightLowerArm", 14, [-0.27, 0.0, 0.0]),            // 15
+    b("RightHand", 15, [-0.25, 0.0, 0.0]),                // 16
+    b("LeftUpperLeg", 0, [0.09, -0.05, 0.0]),             // 17
+    b("LeftLowerLeg", 17, [0.0, -0.42, 0.0]),             // 18
+    b("LeftFoot", 18, [0.0, -0.42, 0.0]),                 // 19
+    b("LeftToes", 19, [0.0, -0.06, 0.12]),                // 20
+    b("RightUpperLeg", 0, [-0.09, -0.05, 0.0]),           // 21
+    b("RightLowerLeg", 21, [0.0, -0.42, 0.0]),            // 22
+    b("RightFoot", 22, [0.0, -0.42, 0.0]),                // 23
+    b("RightToes", 23, [0.0, -0.06, 0.12]),               // 24
+    b("LeftThumbProximal", 12, [0.02, -0.01, 0.03]),      // 25
+    b("LeftThumbIntermediate", 25, [0.03, 0.0, 0.01]),    // 26
+    b("LeftThumbDistal", 26, [0.025, 0.0, 0.0]),          // 27
+    b("LeftIndexProximal", 12, [0.08, 0.0, 0.025]),       // 28
+    b("LeftIndexIntermediate", 28, [0.035, 0.0, 0.0]),    // 29
+    b("LeftIndexDistal", 29, [0.025, 0.0, 0.0]),          // 30
+    b("LeftMiddleProximal", 12, [0.08, 0.0, 0.005]),      // 31
+    b("LeftMiddleIntermediate", 31, [0.04, 0.0, 0.0]),    // 32
+    b("LeftMiddleDistal", 32, [0.025, 0.0, 0.0]),         // 33
+    b("LeftRingProximal", 12, [0.075, 0.0, -0.015]),      // 34
+    b("LeftRingIntermediate", 34, [0.035, 0.0, 0.0]),     // 35
+    b("LeftRingDistal", 35, [0.025, 0.0, 0.0]),           // 36
+    b("LeftLittleProximal", 12, [0.07, 0.0, -0.03]),      // 37
+    b("LeftLittleIntermediate", 37, [0.025, 0.0, 0.0]),   // 38
+    b("LeftLittleDistal", 38, [0.02, 0.0, 0.0]),          // 39
+    b("RightThumbProximal", 16, [-0.02, -0.01, 0.03]),    // 40
+    b("RightThumbIntermediate", 40, [-0.03, 0.0, 0.01]),  // 41
+    b("RightThumbDistal", 41, [-0.025, 0.0, 0.0]),        // 42
+    b("RightIndexProximal", 16, [-0.08, 0.0, 0.025]),     // 43
+    b("RightIndexIntermediate", 43, [-0.035, 0.0, 0.0]),  // 44
+    b("RightIndexDistal", 44, [-0.025, 0.0, 0.0]),        // 45
+    b("RightMiddleProximal", 16, [-0.08, 0.0, 0.005]),    // 46
+    b("RightMiddleIntermediate", 46, [-0.04, 0.0, 0.0]),  // 47
+    b("RightMiddleDistal", 47, [-0.025, 0.0, 0.0]),       // 48
+    b("RightRingProximal", 16, [-0.075, 0.0, -0.015]),    // 49
+    b("RightRingIntermediate", 49, [-0.035, 0.0, 0.0]),   // 50
+    b("RightRingDistal", 50, [-0.025, 0.0, 0.0]),         // 51
+    b("RightLittleProximal", 16, [-0.07, 0.0, -0.03]),    // 52
+    b("RightLittleIntermediate", 52, [-0.025, 0.0, 0.0]), // 53
+    b("RightLittleDistal", 53, [-0.02, 0.0, 0.0]),        // 54
 ];
 
 /// Index of a `HumanBodyBones` name in [`HUMAN_BONES`] (exact, case-sensitive, as VMC sends).

@@ -1,0 +1,131 @@
+//! Detached bones: control, IK and pole bones that hang beside the body instead of in it.
+//!
+//! Rigs exported from animation packages often carry their controls in the skeleton: IK foot
+//! targets and pole targets under the root (`FootL`, `PoleTargetL`), `*CONTROL` / `*ORIENT`
+//! bones, an armature root above the hips. Taken as body parts they become extra legs or a
+//! tail. The rule is structural, so it holds without names: from the root down, while a bone
+//! has exactly one large child subtree and only single-bone leaves beside it, the
+//! bone is a *carrier* (armature root, master control) and the small siblings are *detached*.
+//! The body starts at the first bone with two or more large children (or with one large child
+//! and nothing else worth detaching).
+//!
+//! A detached bone still carries motion when it continues a limb: an IK-driven foot placed at
+//! the end of a shin that has no foot of its own. [`continuation`] finds such bones so the
+//! analysis can give them the extremity's role.
+
+use glam::Vec3;
+
+use super::topology::Topology;
+use crate::skeleton::{BoneId, Skeleton};
+
+/// Subtrees of at most this many bones beside the body count as detached controls (leaves:
+/// a limb of a small rig can have three bones, a control has one).
+const SMALL: usize = 1;
+
+/// Where the body starts, and which bones are not part of it.
+pub(crate) struct BodyRoot {
+    /// First bone of the body proper.
+    pub root: BoneId,
+    /// Bones above the body root (armature root, master control).
+    pub carriers: Vec<BoneId>,
+    /// Per bone: part of a detached control subtree.
+    pub detached: Vec<bool>,
+}
+
+/// Finds the body root from the (first) skeleton root.
+pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
+    let n = skel.num_bones();
+    let mut detached = vec![false; n];
+    let mut carriers = Vec::new();
+    // Several roots: the body is the largest tree; the others are controls (Quaternius'
+    // IK feet are roots of their own).
+    let mut b = skel
+        .roots()
+        .max_by_key(|r| (topo.size[r.index()], std::cmp::Reverse(r.index())))
+        .unwrap_or(BoneId(0));
+    for r in skel.roots().filter(|&r| r != b) {
+        let s = r.index();
+        for d in detached.iter_mut().skip(s).take(topo.size[s]) {
+            *d = true;
+        }
+    }
+    loop {
+        let ch = skel.children(b);
+        let big: Vec<BoneId> = ch.iter().copied().filter(|c| topo.size[c.index()] > SMALL).collect();
+        if big.len() != 1 {
+            break;
+        }
+        let body = big[0];
+        // Without small siblings a single child only continues the body when b itself is a
+        // plain carrier: a zero-length or leaf-less top bone above the real root.
+        carriers.push(b);
+        for &c in ch.iter().filter(|&&c| c != body) {
+            let s = c.index();
+            for d in detached.iter_mut().skip(s).take(topo.size[s]) {
+                *d = true;
+            }
+        }
+        b = body;
+    }
+    // Keep a carrier only when something marks it as one: detached siblings, or it is the
+    // sole parent of the body with a short offset (an armature node), never a real pelvis.
+    BodyRoot {
+        root: b,
+        carriers,
+        detached,
+    }
+}
+
+/// For a detached bone, the limb leaf it continues: the leaf `l` whose segment from its parent,
+/// prolonged, reaches the bone: onwards from the leaf (under 90°: a hock or wrist may bend
+/// sharply), 0.3–3 segment lengths away; the nearest in direction wins.
+pub(crate) fn continuation(
+    skel: &Skeleton,
+    pos: &[Vec3],
+    bone: BoneId,
+    leaves: &[BoneId],
+) -> Option<BoneId> {
+    let pb = pos[bone.index()];
+    let mut best: Option<(f32, BoneId)> = None;
+    for &l in leaves {
+        let Some(p) = skel.parent(l) else { continue };
+        let seg = pos[l.index()] - pos[p.index()];
+        let to = pb - pos[l.index()];
+        let (ls, lt) = (seg.length(), to.length());
+        if ls < 1e-6 || !(0.3 * ls..=3.0 * ls).contains(&lt) {
+            continue;
+        }
+        // Onwards from the leaf, not back along the limb (a hock or wrist may bend sharply).
+        let cos = seg.dot(to) / (ls * lt);
+        if cos < 0.0 || (pb - pos[p.index()]).length() <= ls {
+            continue;
+        }
+        let cost = 1.0 - cos;
+        if best.is_none_or(|(c, _)| cost < c) {
+            best = Some((cost, l));
+        }
+    }
+    best.map(|(_, l)| l)
+}
+
+/// Per bone: the top-level detached bone that continues it, for the body's leaves.
+pub(crate) fn extensions(skel: &Skeleton, pos: &[Vec3], body: &BodyRoot) -> Vec<Option<BoneId>> {
+    let mut out = vec![None; skel.num_bones()];
+    let leaves: Vec<BoneId> = skel
+        .bone_ids()
+        .filter(|&b| !body.detached[b.index()] && skel.children(b).is_empty())
+        .collect();
+    for b in skel.bone_ids() {
+        let top = body.detached[b.index()]
+            && !skel.parent(b).is_some_and(|p| body.detached[p.index()]);
+        if !top {
+            continue;
+        }
+        if let Some(l) = continuation(skel, pos, b, &leaves) {
+            if out[l.index()].is_none() {
+                out[l.index()] = Some(b);
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,231 @@
+//! Forward: which way the character faces, from the body itself.
+//!
+//! The lateral axis comes from mirror twins; what remains is its sign (is the `+lat` twin the
+//! character's left?). Each cue below votes with a signed, scale-free number; positive means
+//! "forward is `lat × up`":
+//!
+//! - **feet**: segments ending near the ground (ankle → toes) point forward;
+//! - **bends**: over the motion's frames (and the posture), knees flex forward and elbows
+//!   backward of the line through their neighbours — true of every human and most animals,
+//!   whatever the rest pose;
+//! - **thumbs**: a hand's odd digit (the thumb) sits on the front of the palm in T-, A- and
+//!   I-poses alike;
+//! - **slope**: a horizontal body's higher end is its head.
+//!
+//! Names are not a cue here: the caller compares the geometric vote with the side markers in
+//! the names and lets geometry win whenever it is clear (two real rigs name their left side
+//! `r-*`).
+
+use glam::Vec3;
+
+use super::topology::Topology;
+use crate::skeleton::{BoneId, Skeleton};
+
+/// Inputs shared by the cues.
+pub(crate) struct ForwardInput<'a> {
+    pub skel: &'a Skeleton,
+    pub topo: &'a Topology,
+    /// Posture positions (the frame `up` and `fwd0` are expressed in).
+    pub pos: &'a [Vec3],
+    /// Sampled motion frames (world positions), possibly in another orientation.
+    pub samples: &'a [Vec<Vec3>],
+    pub up: Vec3,
+    /// `lat × up`: forward if the `+lat` twins are the character's left.
+    pub fwd0: Vec3,
+    pub size: f32,
+    pub ground: f32,
+    pub hext: f32,
+    /// Leg pairs (`[+lat member, -lat member]`, chain roots).
+    pub legs: Vec<[BoneId; 2]>,
+    /// Arm pairs, same convention.
+    pub arms: Vec<[BoneId; 2]>,
+}
+
+/// The cues' votes (each signed; see the module doc).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct ForwardVote {
+    pub feet: f32,
+    pub bends: f32,
+    pub thumbs: f32,
+    pub slope: f32,
+}
+
+impl ForwardVote {
+    /// Combined vote. Feet and bends are the most reliable; thumbs and the slope break ties.
+    pub fn total(&self) -> f32 {
+        self.feet + self.bends + 0.5 * self.thumbs + self.slope
+    }
+}
+
+/// All cues.
+pub(crate) fn vote(inp: &ForwardInput<'_>, path_ends: Option<(BoneId, BoneId)>) -> ForwardVote {
+    ForwardVote {
+        feet: feet_cue(inp),
+        bends: bend_cue(inp),
+        thumbs: thumb_cue(inp),
+        slope: slope_cue(inp, path_ends),
+    }
+}
+
+fn h(inp: &ForwardInput<'_>, b: BoneId) -> f32 {
+    inp.pos[b.index()].dot(inp.up)
+}
+
+/// Foot segments near the ground point forward (scale-free: summed horizontal length over
+/// the leg length).
+fn feet_cue(inp: &ForwardInput<'_>) -> f32 {
+    let mut cue = 0.0;
+    let mut reach = 0.0;
+    for pair in &inp.legs {
+        for &m in pair {
+            reach += inp.topo.reach[m.index()];
+            let s = m.index();
+            for i in s + 1..s + inp.topo.size[s] {
+                let b = BoneId(i as u16);
+                if h(inp, b) >= inp.ground + 0.12 * inp.hext {
+                    continue;
+                }
+                if let Some(p) = inp.skel.parent(b) {
+                    cue += (inp.pos[i] - inp.pos[p.index()]).dot(inp.fwd0);
+                }
+            }
+        }
+    }
+    if reach > 1e-6 {
+        4.0 * cue / reach
+    } else {
+        0.0
+    }
+}
+
+/// Knees bend forward, elbows backward: the middle joint's offset from the line through its
+/// neighbours, in each frame's own body frame, averaged over frames.
+fn bend_cue(inp: &ForwardInput<'_>) -> f32 {
+    let Some(legs) = inp.legs.first() else {
+        return 0.0;
+    };
+    let mut frames: Vec<&[Vec3]> = inp.samples.iter().map(|s| s.as_slice()).collect();
+    frames.push(inp.pos);
+    let mut sum = 0.0;
+    for p in &frames {
+        let Some(fwd) = frame_forward(inp, p, legs) else {
+            continue;
+        };
+        for pair in &inp.legs {
+            for &m in pair {
+                sum += bend(inp, p, m, fwd);
+            }
+        }
+        for pair in &inp.arms {
+            for &m in pair {
+                sum -= 0.5 * bend(inp, p, m, fwd);
+            }
+        }
+    }
+    3.0 * sum / frames.len() as f32
+}
+
+/// A frame's `lat × up` from its own hips (lateral) and legs (hanging down).
+fn frame_forward(inp: &ForwardInput<'_>, p: &[Vec3], legs: &[BoneId; 2]) -> Option<Vec3> {
+    let [a, b] = *legs;
+    let end = |m: BoneId| p[inp.topo.chain(m).last().copied().unwrap_or(m).index()];
+    let lat = (p[a.index()] - p[b.index()]).try_normalize()?;
+    let hips = (p[a.index()] + p[b.index()]) * 0.5;
+    let up = (hips - (end(a) + end(b)) * 0.5).try_normalize()?;
+    lat.cross(up).try_normalize()
+}
+
+/// Signed offset (over the segment length) of a limb chain's middle joint from the line
+/// through the joints around it, along `fwd`.
+fn bend(inp: &ForwardInput<'_>, p: &[Vec3], m: BoneId, fwd: Vec3) -> f32 {
+    let chain = inp.topo.chain(m);
+    if chain.len() < 3 {
+        return 0.0;
+    }
+    let mut cum = vec![0.0f32; chain.len()];
+    for i in 1..chain.len() {
+        cum[i] = cum[i - 1] + (p[chain[i].index()] - p[chain[i - 1].index()]).length();
+    }
+    let total = cum[chain.len() - 1];
+    if total < 1e-6 {
+        return 0.0;
+    }
+    let k = (1..chain.len() - 1)
+        .min_by(|&x, &y| (cum[x] - 0.42 * total).abs().total_cmp(&(cum[y] - 0.42 * total).abs()));
+    let Some(k) = k else { return 0.0 };
+    let pk = p[chain[k].index()];
+    // The segment before the middle joint: walk back over short helpers.
+    let mut s = k - 1;
+    while s > 0 && (pk - p[chain[s].index()]).length() < 0.2 * total {
+        s -= 1;
+    }
+    let ps = p[chain[s].index()];
+    let upper = (pk - ps).length();
+    let Some(j) = (k + 1..chain.len()).find(|&j| (p[chain[j].index()] - pk).length() >= 0.6 * upper)
+    else {
+        return 0.0;
+    };
+    let pj = p[chain[j].index()];
+    let Some(u) = (pj - ps).try_normalize() else {
+        return 0.0;
+    };
+    let d = (pk - ps) - u * (pk - ps).dot(u);
+    d.dot(fwd) / upper.max(1e-6)
+}
+
+/// The thumb sits on the front of the palm: in each hand with three or more digits, the digit
+/// whose shape differs from the others (or, if all agree, the one farthest from the rest).
+fn thumb_cue(inp: &ForwardInput<'_>) -> f32 {
+    let mut cue = 0.0;
+    for pair in &inp.arms {
+        for &m in pair {
+            if let Some(v) = thumb_offset(inp, m) {
+                cue += v;
+            }
+        }
+    }
+    cue
+}
+
+fn thumb_offset(inp: &ForwardInput<'_>, arm: BoneId) -> Option<f32> {
+    let hand = inp
+        .topo
+        .chain(arm)
+        .into_iter()
+        .find(|&b| inp.skel.children(b).len() >= 3)?;
+    let digits = inp.skel.children(hand);
+    let hash = |b: &BoneId| inp.topo.hash[b.index()];
+    let odd: Vec<usize> = (0..digits.len())
+        .filter(|&i| digits.iter().filter(|d| hash(d) == hash(&digits[i])).count() == 1)
+        .collect();
+    let thumb = if odd.len() == 1 {
+        odd[0]
+    } else {
+        return None;
+    };
+    let others: Vec<Vec3> = digits
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != thumb)
+        .map(|(_, d)| inp.topo.centroid[d.index()])
+        .collect();
+    let mean = others.iter().copied().sum::<Vec3>() / others.len() as f32;
+    let off = inp.topo.centroid[digits[thumb].index()] - mean;
+    let len = off.length();
+    if len < 1e-6 * inp.size {
+        return None;
+    }
+    Some(off.dot(inp.fwd0) / len)
+}
+
+/// A horizontal body (quadruped) carries its head higher than its tail.
+fn slope_cue(inp: &ForwardInput<'_>, path_ends: Option<(BoneId, BoneId)>) -> f32 {
+    let Some((a, b)) = path_ends else { return 0.0 };
+    let d = inp.pos[b.index()] - inp.pos[a.index()];
+    let (dh, dv) = (d.dot(inp.fwd0), d.dot(inp.up));
+    if dh.abs() > dv.abs() {
+        0.1 * dh.signum() * dv.signum()
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,436 @@
+//! Skeleton analysis and automatic mapping judged on real rigs: every labelled file in
+//! `../shared/data` (ground truth in `labels.json`, provenance in `zoo/SOURCES.md`), skipped
+//! with a printed reason when the data is absent.
+//!
+//! Scoring (per ordered pair source → target, on the core roles): a target role counts when
+//! both files label it; it is right when the target's labelled bone for it is driven by a
+//! source bone the source's labels accept for the same role. A *swap* is a sided role driven by
+//! the source's bone for the other side. A target bone that plays two labelled roles (a rig
+//! with one spine bone is both spine and chest) is right when it is driven by either. Each pair
+//! is scored twice: names intact, and the target's names replaced by meaningless ids with the
+//! children of every bone shuffled (the source keeps its names).
+#![allow(clippy::unwrap_used)] // tests may unwrap
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::mapping::{auto_map, MapOptions};
+use rigcast_retarget::{BoneId, Clip, Pose, RawBone, RawSkeleton, Skeleton};
+use rigcast_sources::load_clip;
+use serde_json::Value;
+
+/// The humanoid roles the acceptance counts (sided ones get `.L` / `.R` in the labels).
+const CORE: &[&str] = &[
+    "hips",
+    "spine",
+    "chest",
+    "neck",
+    "head",
+    "shoulder",
+    "upperArm",
+    "lowerArm",
+    "hand",
+    "upperLeg",
+    "lowerLeg",
+    "foot",
+    "toes",
+];
+
+/// Quadruped leg roles (hind legs use the humanoid leg names).
+const QUAD_LEGS: &[&str] = &[
+    "upperLeg",
+    "lowerLeg",
+    "foot",
+    "frontShoulder",
+    "frontUpper",
+    "frontLower",
+    "frontFoot",
+];
+
+fn data_dir() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    if p.join("labels.json").exists() {
+        Some(p)
+    } else {
+        println!("SKIP: real rigs not found ({}/labels.json)", p.display());
+        None
+    }
+}
+
+/// One labelled file: its clip and its role → acceptable bone names.
+struct Rig {
+    key: String,
+    kind: String,
+    clip: Clip,
+    roles: BTreeMap<String, Vec<String>>,
+}
+
+fn load_rigs(dir: &Path) -> Vec<Rig> {
+    let labels: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("labels.json")).unwrap()).unwrap();
+    let mut out = Vec::new();
+    for (key, v) in labels.as_object().unwrap() {
+        if key.starts_with('_') {
+            continue;
+        }
+        let clip = load_clip(&dir.join(key)).unwrap_or_else(|e| panic!("{key}: {e}"));
+        let mut roles = BTreeMap::new();
+        for (role, names) in v.as_object().unwrap() {
+            if let Some(list) = names.as_array() {
+                let list = list.iter().map(|n| n.as_str().unwrap().to_string()).collect();
+                roles.insert(role.clone(), list);
+            }
+        }
+        out.push(Rig {
+            key: key.clone(),
+            kind: v["kind"].as_str().unwrap().to_string(),
+            clip,
+            roles,
+        });
+    }
+    out
+}
+
+fn short(key: &str) -> &str {
+    let f = key.rsplit('/').next().unwrap_or(key);
+    f.split("__").next().unwrap_or(f)
+}
+
+/// Sided role names: `foot` → [`foot.L`, `foot.R`], `hips` → [`hips`].
+fn expand(roles: &[&str], labels: &BTreeMap<String, Vec<String>>) -> Vec<String> {
+    let mut out = Vec::new();
+    for r in roles {
+        if labels.contains_key(*r) {
+            out.push(r.to_string());
+        }
+        for s in [".L", ".R"] {
+            let k = format!("{r}{s}");
+            if labels.contains_key(&k) {
+                out.push(k);
+            }
+        }
+    }
+    out
+}
+
+fn other_side(role: &str) -> Option<String> {
+    role.strip_suffix(".L")
+        .map(|r| format!("{r}.R"))
+        .or_else(|| role.strip_suffix(".R").map(|r| format!("{r}.L")))
+}
+
+/// A deterministic permutation (xorshift-seeded Fisher–Yates).
+fn permutation(n: usize, seed: u64) -> Vec<usize> {
+    let mut s = seed | 1;
+    let mut v: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        v.swap(i, (s % (i as u64 + 1)) as usize);
+    }
+    v
+}
+
+/// The clip with every bone renamed to a meaningless id and children shuffled; returns the
+/// new clip and, per new bone, its original name.
+fn anonymise(clip: &Clip, seed: u64) -> (Clip, Vec<String>) {
+    let skel = &clip.skeleton;
+    let n = skel.num_bones();
+    let order = permutation(n, seed);
+    let ids = permutation(n, seed ^ 0x9e37_79b9);
+    let mut raw = RawSkeleton::default();
+    let mut raw_of = vec![0usize; n];
+    for (k, &old) in order.iter().enumerate() {
+        raw_of[old] = k;
+    }
+    for &old in &order {
+        let b = BoneId(old as u16);
+        raw.bones.push(RawBone {
+            name: format!("j{}", ids[old]),
+            parent: skel.parent(b).map(|p| raw_of[p.index()]),
+            rest: skel.rest()[old],
+        });
+    }
+    let new = Skeleton::build(&raw).unwrap();
+    let old_of: Vec<usize> = new
+        .bone_ids()
+        .map(|b| {
+            let id: usize = new.name(b)[1..].parse().unwrap();
+            ids.iter().position(|&x| x == id).unwrap()
+        })
+        .collect();
+    let poses: Vec<Pose> = clip
+        .poses
+        .iter()
+        .map(|p| Pose {
+            rotations: old_of.iter().map(|&o| p.rotations[o]).collect(),
+            translations: old_of.iter().map(|&o| p.translations[o]).collect(),
+        })
+        .collect();
+    let names = old_of.iter().map(|&o| skel.name(BoneId(o as u16)).to_string()).collect();
+    let clip = Clip::new(clip.name.clone(), std::sync::Arc::new(new), poses, clip.frame_time_secs)
+        .unwrap();
+    (clip, names)
+}
+
+fn view(clip: &Clip) -> SkeletonView<'_> {
+    SkeletonView::from_clip(&clip.skeleton, &clip.poses)
+}
+
+#[derive(Default, Clone, Copy)]
+struct Score {
+    right: usize,
+    total: usize,
+    swaps: usize,
+}
+
+impl Score {
+    fn add(&mut self, o: Score) {
+        self.right += o.right;
+        self.total += o.total;
+        self.swaps += o.swaps;
+    }
+    fn pct(&self) -> f64 {
+        100.0 * self.right as f64 / self.total.max(1) as f64
+    }
+}
+
+/// Maps `src` onto `tgt` (optionally anonymised) and scores the `roles`.
+fn score_pair(src: &Rig, tgt: &Rig, roles: &[&str], anon: bool, fails: &mut Vec<String>) -> Score {
+    let (tclip, tnames) = if anon {
+        anonymise(&tgt.clip, 0x5eed ^ tgt.key.len() as u64)
+    } else {
+        let names = tgt.clip.skeleton.names().to_vec();
+        (tgt.clip.clone(), names)
+    };
+    let table = auto_map(&view(&src.clip), &view(&tclip), &MapOptions::default());
+    let ss = &src.clip.skeleton;
+    // Original target name → which source bone name drives it.
+    let driver = |tname: &str| -> Option<&str> {
+        let k = tnames.iter().position(|n| n == tname)?;
+        let e = table.entries[k].as_ref()?;
+        Some(ss.name(e.sources[0].bone))
+    };
+    let mut sc = Score::default();
+    let troles = expand(roles, &tgt.roles);
+    for role in &troles {
+        let Some(accept) = src.roles.get(role) else { continue };
+        let tlist = &tgt.roles[role];
+        // Source names accepted for this role, and for the other roles its target bones play
+        // (a one-spine rig's bone is both spine and chest).
+        let mut ok_names: Vec<&String> = accept.iter().collect();
+        for (r, list) in &tgt.roles {
+            if r != role && list.iter().any(|b| tlist.contains(b)) && !r.starts_with("tail") {
+                if let Some(a) = src.roles.get(r) {
+                    ok_names.extend(a.iter());
+                }
+            }
+        }
+        sc.total += 1;
+        let drivers: Vec<Option<&str>> = tlist.iter().map(|t| driver(t)).collect();
+        if drivers
+            .iter()
+            .any(|d| d.is_some_and(|d| ok_names.iter().any(|n| *n == d)))
+        {
+            sc.right += 1;
+            continue;
+        }
+        let d = drivers[0];
+        let swapped = other_side(role)
+            .and_then(|o| src.roles.get(&o))
+            .is_some_and(|o| d.is_some_and(|d| o.iter().any(|n| n == d)));
+        if swapped {
+            sc.swaps += 1;
+        }
+        fails.push(format!(
+            "{} -> {}{}: {role} ({}) <- {}{}",
+            short(&src.key),
+            short(&tgt.key),
+            if anon { " [anon]" } else { "" },
+            tlist[0],
+            d.unwrap_or("-"),
+            if swapped { "  SWAP" } else { "" }
+        ));
+    }
+    sc
+}
+
+fn humans(rigs: &[Rig]) -> Vec<&Rig> {
+    rigs.iter()
+        .filter(|r| r.kind == "human" && !r.key.contains("kinect2"))
+        .collect()
+}
+
+/// Per-file analysis report: which labelled core bones the analysis gives the right role.
+#[test]
+fn analysis_roles_per_file() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    for rig in &rigs {
+        let a = analyze(&view(&rig.clip));
+        let skel = &rig.clip.skeleton;
+        let mut line = String::new();
+        for role in expand(CORE, &rig.roles) {
+            let bone = &rig.roles[&role][0];
+            let Some(b) = skel.bone(bone) else { continue };
+            line.push_str(&format!(" {role}:{}={}", bone, a.label(b)));
+        }
+        println!(
+            "{:<28} up={:?} fwd={:?} humanoid={}\n   {line}",
+            short(&rig.key),
+            a.up,
+            a.forward,
+            a.humanoid
+        );
+    }
+}
+
+fn print_table(title: &str, rows: &[(String, Score, Score)]) {
+    println!("\n{title}\n{:<28} {:>12} {:>14}", "target", "names", "meaningless");
+    for (name, a, b) in rows {
+        println!(
+            "{name:<28} {:>6.1}% ({:>2}) {:>7.1}% ({:>2})",
+            a.pct(),
+            a.swaps,
+            b.pct(),
+            b.swaps
+        );
+    }
+}
+
+#[test]
+fn human_to_human_core_roles() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    let (mut all_named, mut all_anon) = (Score::default(), Score::default());
+    let mut rows = Vec::new();
+    let mut fails = Vec::new();
+    for tgt in &hs {
+        let (mut named, mut anon) = (Score::default(), Score::default());
+        for src in &hs {
+            if std::ptr::eq(*src, *tgt) {
+                continue;
+            }
+            named.add(score_pair(src, tgt, CORE, false, &mut fails));
+            anon.add(score_pair(src, tgt, CORE, true, &mut fails));
+        }
+        all_named.add(named);
+        all_anon.add(anon);
+        rows.push((short(&tgt.key).to_string(), named, anon));
+    }
+    print_table("human -> human, core roles right per target (swaps)", &rows);
+    println!(
+        "ALL: names {:.1}% ({} swaps), meaningless {:.1}% ({} swaps), {} pairs",
+        all_named.pct(),
+        all_named.swaps,
+        all_anon.pct(),
+        all_anon.swaps,
+        hs.len() * (hs.len() - 1)
+    );
+    for f in &fails {
+        println!("  {f}");
+    }
+    assert!(all_named.pct() >= 99.0, "names intact: {:.1}%", all_named.pct());
+    assert!(all_anon.pct() >= 97.0, "meaningless names: {:.1}%", all_anon.pct());
+    assert_eq!(all_named.swaps + all_anon.swaps, 0, "left/right swaps");
+}
+
+/// Prints the posture positions and roles of the file named by `RIGCAST_ZOO_DUMP` (a key
+/// substring): a tool for reading a rig, not a check.
+#[test]
+#[ignore]
+fn dump_rig() {
+    let Some(dir) = data_dir() else { return };
+    let Ok(want) = std::env::var("RIGCAST_ZOO_DUMP") else { return };
+    for rig in load_rigs(&dir).iter().filter(|r| r.key.contains(&want)) {
+        let a = analyze(&view(&rig.clip));
+        let s = &rig.clip.skeleton;
+        println!("{} up={:?} fwd={:?} warnings={:?}", rig.key, a.up, a.forward, a.warnings);
+        for b in s.bone_ids() {
+            let p = a.positions[b.index()];
+            let d = "  ".repeat(s.depth(b));
+            println!("{d}{:<24} {:>7.3} {:>7.3} {:>7.3}  {}", s.name(b), p.x, p.y, p.z, a.label(b));
+        }
+    }
+}
+
+/// The source roles that may drive a quadruped's role: hind legs from legs, front legs from
+/// the same side's arms (or legs).
+fn quad_sources(role: &str) -> Vec<String> {
+    let (base, side) = match role.rsplit_once('.') {
+        Some((b, s)) => (b, format!(".{s}")),
+        None => (role, String::new()),
+    };
+    let from: &[&str] = match base {
+        "frontShoulder" => &["shoulder"],
+        "frontUpper" => &["upperArm", "upperLeg"],
+        "frontLower" => &["lowerArm", "lowerLeg"],
+        "frontFoot" => &["hand", "foot"],
+        other => return vec![format!("{other}{side}")],
+    };
+    from.iter().map(|f| format!("{f}{side}")).collect()
+}
+
+#[test]
+fn human_to_quadruped_legs() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    let quads: Vec<&Rig> = rigs.iter().filter(|r| r.kind == "quadruped").collect();
+    let mut all = Score::default();
+    let mut floors = Vec::new();
+    for tgt in &quads {
+        let mut sc = Score::default();
+        let mut fails = Vec::new();
+        for src in &hs {
+            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let (ss, ts) = (&src.clip.skeleton, &tgt.clip.skeleton);
+            for role in expand(QUAD_LEGS, &tgt.roles) {
+                let accept: Vec<&String> =
+                    quad_sources(&role).iter().filter_map(|r| src.roles.get(r)).flatten().collect();
+                if accept.is_empty() {
+                    continue;
+                }
+                let tb = ts.bone(&tgt.roles[&role][0]).unwrap();
+                let d = table.entries[tb.index()].as_ref().map(|e| ss.name(e.sources[0].bone));
+                sc.total += 1;
+                if d.is_some_and(|d| accept.iter().any(|a| *a == d)) {
+                    sc.right += 1;
+                    continue;
+                }
+                let other: Vec<&String> = other_side(&role)
+                    .map(|o| quad_sources(&o).iter().filter_map(|r| src.roles.get(r)).flatten().collect())
+                    .unwrap_or_default();
+                if d.is_some_and(|d| other.iter().any(|a| *a == d)) {
+                    sc.swaps += 1;
+                }
+                fails.push(format!("{} -> {}: {role} <- {}", short(&src.key), short(&tgt.key), d.unwrap_or("-")));
+            }
+        }
+        println!("{:<36} {:>6.1}% ({} swaps)", short(&tgt.key), sc.pct(), sc.swaps);
+        floors.push((tgt.key.clone(), sc));
+        for f in fails.iter().take(12) {
+            println!("  {f}");
+        }
+        all.add(sc);
+    }
+    println!("ALL quadruped legs: {:.1}% ({} swaps)", all.pct(), all.swaps);
+    // Regression floors at what the analysis reaches today; the goal is 100 % and no swaps on
+    // every quadruped (the Godot bug's forward is still read backwards, the Bip01 elephant's
+    // front legs stay unmapped).
+    for (key, sc) in &floors {
+        let (floor, swaps) = if key.contains("Horse") {
+            (98.0, 0)
+        } else if key.contains("Wolf") {
+            (60.0, 0)
+        } else {
+            (0.0, usize::MAX)
+        };
+        assert!(sc.pct() >= floor, "{key}: {:.1}% < {floor}%", sc.pct());
+        assert!(sc.swaps <= swaps, "{key}: {} swaps", sc.swaps);
+    }
+    assert!(all.pct() >= 60.0, "quadruped leg roles: {:.1}%", all.pct());
+}
