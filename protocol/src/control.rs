@@ -601,6 +601,9 @@ mod tests {
         let e =
             serde_json::to_value(ServerMessage::error(ErrorCode::NotCalibratable, "x")).unwrap();
         assert_eq!(e["code"], "not_calibratable");
+        let e = serde_json::to_value(ServerMessage::error(ErrorCode::Unauthorized, "x")).unwrap();
+        assert_eq!(e["code"], ErrorCode::Unauthorized.as_str());
+        assert_eq!(e["code"], "unauthorized");
     }
 
     #[test]

@@ -843,6 +843,59 @@ mod tests {
     }
 
     #[test]
+    fn parses_access_limits_and_vmc_bind() {
+        let text = r#"
+            allowed_origins = ["http://localhost:3000"]
+            allowed_hosts = ["studio.lan"]
+            token_file = "/x/token"
+            max_connections = 100
+            stalled_client_timeout_secs = 2.5
+            mapping_cache_max_entries = 7
+            [[sources]]
+            kind = "vmc"
+            port = 39540
+            [[sources]]
+            kind = "vmc"
+            port = 39541
+            bind = "0.0.0.0"
+            allowed_senders = ["192.168.1.20"]
+        "#;
+        let cfg = ServerConfig::from_file(toml::from_str(text).unwrap()).unwrap();
+        assert_eq!(cfg.access.allowed_origins, vec!["http://localhost:3000"]);
+        assert_eq!(cfg.access.allowed_hosts, vec!["studio.lan"]);
+        assert_eq!(
+            cfg.access.token,
+            TokenSetting::File(PathBuf::from("/x/token"))
+        );
+        assert_eq!(cfg.limits.max_connections, Some(100));
+        assert_eq!(cfg.limits.stalled_client_timeout_secs, 2.5);
+        assert_eq!(cfg.limits.mapping_cache_max_entries, 7);
+        // VMC input stays on loopback unless the file says otherwise.
+        assert!(matches!(
+            &cfg.sources[0],
+            SourceSpec::Vmc { bind, allowed_senders, .. } if bind.is_loopback() && allowed_senders.is_empty()
+        ));
+        assert!(matches!(
+            &cfg.sources[1],
+            SourceSpec::Vmc { bind, allowed_senders, .. }
+                if bind.is_unspecified() && allowed_senders == &["192.168.1.20".parse::<IpAddr>().unwrap()]
+        ));
+        // The library default keeps the token in memory; a file config uses a file.
+        assert_eq!(
+            ServerConfig::default().access.token,
+            TokenSetting::Ephemeral
+        );
+        for bad in [
+            "stalled_client_timeout_secs = 0",
+            "max_connections = 0",
+            "mapping_cache_max_entries = 0",
+        ] {
+            let file: FileConfig = toml::from_str(bad).unwrap();
+            assert!(ServerConfig::from_file(file).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
     fn rejects_bad_values() {
         assert!(
             toml::from_str::<FileConfig>("rate = 3").is_err(),

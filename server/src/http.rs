@@ -307,17 +307,26 @@ async fn read_head(stream: &mut TcpStream, buf: &mut Vec<u8>) -> HeadRead {
     }
 }
 
+/// A client must take a whole response within this time: a connection that requests the
+/// viewer's largest file and never reads must not hold its slot under the cap forever.
+const RESPONSE_TIMEOUT: Duration = Duration::from_secs(10);
+
 async fn respond(
     stream: &mut TcpStream,
     status: u16,
     mime: &str,
     body: &[u8],
 ) -> std::io::Result<()> {
-    stream
-        .write_all(head(status, mime, body.len()).as_bytes())
-        .await?;
-    stream.write_all(body).await?;
-    stream.shutdown().await
+    let write = async {
+        stream
+            .write_all(head(status, mime, body.len()).as_bytes())
+            .await?;
+        stream.write_all(body).await?;
+        stream.shutdown().await
+    };
+    tokio::time::timeout(RESPONSE_TIMEOUT, write)
+        .await
+        .unwrap_or_else(|_| Err(std::io::ErrorKind::TimedOut.into()))
 }
 
 /// A response head (every response closes the connection).

@@ -16,7 +16,9 @@
 //!        ┌──────────┼───────────┐
 //!   client task  client task  client task   (one per WebSocket; a lagging one gets
 //!        │            │            │          `lagged` + missed_frames, stays connected)
-//!   GET /v1/stream  (same listener also serves GET /v1/status and the viewer's files)
+//!   GET /v1/stream  (same listener also serves GET /v1/status and the viewer's files;
+//!                    every request passes the connection cap (limits.rs) and the
+//!                    Origin/Host/token checks (access.rs) first)
 //! ```
 //!
 //! [`start`] runs all of it in-process (tests use `127.0.0.1:0`); the binary's subcommands live

@@ -104,6 +104,7 @@ async fn a_full_server_refuses_with_503_and_admits_again_when_a_client_leaves() 
         match tokio_tungstenite::connect_async(server.stream_url()).await {
             Ok((mut ws, _)) => {
                 handshake(&mut ws).await;
+                clients.push(ws);
                 break;
             }
             Err(_) if Instant::now() < deadline => {
@@ -112,7 +113,17 @@ async fn a_full_server_refuses_with_503_and_admits_again_when_a_client_leaves() 
             Err(e) => panic!("no slot after a client left: {e}"),
         }
     }
-    let s = status(server.local_addr()).await;
+    // The status request needs a slot of its own.
+    drop(clients);
+    let deadline = Instant::now() + WAIT;
+    let s = loop {
+        let (head, body) = http_get(server.local_addr(), "/v1/status").await;
+        if head.starts_with("HTTP/1.1 200") {
+            break serde_json::from_str::<serde_json::Value>(&body).unwrap();
+        }
+        assert!(Instant::now() < deadline, "status still refused: {head}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
     assert_eq!(s["connections"]["max"], 3);
     assert!(s["connections"]["refused_total"].as_u64() >= Some(1));
     server.shutdown().await;

@@ -359,3 +359,51 @@ impl LiveSource for VmcSource {
         self.tap = tap;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn listens_on_loopback_by_default_and_drops_senders_not_allowed() {
+        let open = VmcSource::bind(VmcConfig::port(0)).unwrap();
+        assert!(open.local_addr().unwrap().ip().is_loopback());
+        let mut guarded = VmcSource::bind(VmcConfig {
+            allowed_senders: vec!["127.0.0.2".parse().unwrap()],
+            ..VmcConfig::port(0)
+        })
+        .unwrap();
+        let to = guarded.local_addr().unwrap();
+        let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
+        for _ in 0..3 {
+            sender
+                .send_to(b"/VMC/Ext/OK\0\0\0\0\0,i\0\0\0\0\0\x01", to)
+                .unwrap();
+        }
+        let mut pose = Pose {
+            rotations: Vec::new(),
+            translations: Vec::new(),
+        };
+        // Bounded: three datagrams, then a timeout with nothing decoded.
+        for _ in 0..3 {
+            assert!(guarded
+                .next_frame(Duration::from_millis(100), &mut pose)
+                .unwrap()
+                .is_none());
+        }
+        assert_eq!(guarded.rejected_senders(), 3);
+        let status = guarded.status();
+        assert_eq!(status.dropped, 3);
+        assert!(
+            status.detail.contains("allowed_senders"),
+            "{}",
+            status.detail
+        );
+        assert_eq!(
+            guarded.stats().datagrams,
+            0,
+            "rejected datagrams are not decoded"
+        );
+    }
+}
