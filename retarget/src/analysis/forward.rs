@@ -10,7 +10,8 @@
 //!   whatever the rest pose;
 //! - **thumbs**: a hand's odd digit (the thumb) sits on the front of the palm in T-, A- and
 //!   I-poses alike;
-//! - **slope**: a horizontal body's higher end is its head.
+//! - **slope**: a horizontal body's higher end is its head;
+//! - **lean**: the top end of the centerline (neck and head) leans forward.
 //!
 //! Names are not a cue here: the caller compares the geometric vote with the side markers in
 //! the names and lets geometry win whenever it is clear (two real rigs name their left side
@@ -48,23 +49,55 @@ pub(crate) struct ForwardVote {
     pub bends: f32,
     pub thumbs: f32,
     pub slope: f32,
+    pub lean: f32,
 }
 
 impl ForwardVote {
     /// Combined vote. Feet and bends are the most reliable; thumbs and the slope break ties.
     pub fn total(&self) -> f32 {
-        self.feet + self.bends + 0.5 * self.thumbs + self.slope
+        self.feet + self.bends + 0.5 * self.thumbs + self.slope + 0.5 * self.lean
     }
 }
 
 /// All cues.
-pub(crate) fn vote(inp: &ForwardInput<'_>, path_ends: Option<(BoneId, BoneId)>) -> ForwardVote {
+pub(crate) fn vote(inp: &ForwardInput<'_>, path: &[BoneId]) -> ForwardVote {
+    let ends = path.first().copied().zip(path.last().copied());
     ForwardVote {
         feet: feet_cue(inp),
         bends: bend_cue(inp),
         thumbs: thumb_cue(inp),
-        slope: slope_cue(inp, path_ends),
+        slope: slope_cue(inp, ends),
+        lean: lean_cue(inp, path),
     }
+}
+
+/// The head leans forward: the top end of the centerline (its last quarter by length) points
+/// ahead of the body, a little for an upright human, a lot for a crawling creature's head.
+fn lean_cue(inp: &ForwardInput<'_>, path: &[BoneId]) -> f32 {
+    if path.len() < 2 {
+        return 0.0;
+    }
+    let mut p: Vec<Vec3> = path.iter().map(|b| inp.pos[b.index()]).collect();
+    if p[0].dot(inp.up) > p[p.len() - 1].dot(inp.up) {
+        p.reverse();
+    }
+    let total: f32 = p.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+    let head = p[p.len() - 1];
+    let mut walked = 0.0;
+    let mut from = head;
+    for w in p.windows(2).rev() {
+        walked += (w[1] - w[0]).length();
+        from = w[0];
+        if walked >= 0.25 * total {
+            break;
+        }
+    }
+    let d = head - from;
+    let len = d.length();
+    if len < 1e-6 * inp.size {
+        return 0.0;
+    }
+    d.dot(inp.fwd0) / len
 }
 
 fn h(inp: &ForwardInput<'_>, b: BoneId) -> f32 {

@@ -268,7 +268,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         legs: pairs(true),
         arms: pairs(false),
     };
-    let vote = super::forward::vote(&finput, path0.first().copied().zip(path0.last().copied()));
+    let vote = super::forward::vote(&finput, &path0);
     let cue = vote.total();
     let mut sign = if cue < 0.0 { -1.0 } else { 1.0 };
     // Names break ties and overrule geometry when they agree strongly.
@@ -346,10 +346,22 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         .filter_map(|(i, l)| k_of(l.parent).map(|k| (k, i)))
         .min_by_key(|&(k, _)| k);
     if let Some((lk, _)) = leg_k {
-        for (i, l) in limbs.iter().enumerate() {
-            if big(l) && l.ground && k_of(l.parent) == Some(lk) {
-                kinds[i] = LimbKind::Leg;
-            }
+        // Several ground pairs on one central bone (a bug whose four legs hang from its root):
+        // the rear-most pair are the legs, the ones ahead are front legs.
+        let at_k: Vec<usize> = (0..limbs.len())
+            .filter(|&i| big(&limbs[i]) && limbs[i].ground && k_of(limbs[i].parent) == Some(lk))
+            .collect();
+        let ahead = |i: usize| {
+            let l = &limbs[i];
+            l.members.iter().map(|m| pos[m.0.index()].dot(forward)).sum::<f32>() / 2.0
+        };
+        let rear = at_k
+            .iter()
+            .copied()
+            .min_by(|&a, &b| ahead(a).total_cmp(&ahead(b)));
+        for &i in &at_k {
+            let clearly_ahead = rear.is_some_and(|r| ahead(i) - ahead(r) > 0.15 * size);
+            kinds[i] = if clearly_ahead { LimbKind::Arm } else { LimbKind::Leg };
         }
     }
     // Arms are limbs of a size with the legs: eyes and ears on a long-faced rig are not.
