@@ -375,6 +375,19 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
         .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
         .collect();
+    // A quadruped's front legs reach the ground; smaller pairs ahead of them (ears, antlers,
+    // horns) are head appendages, not a second pair of arms.
+    let front_legs: Vec<usize> = arm_cands.iter().copied().filter(|&i| limbs[i].ground).collect();
+    let arm_cands: Vec<usize> = arm_cands
+        .into_iter()
+        .filter(|&i| {
+            limbs[i].ground
+                || !front_legs.iter().any(|&f| {
+                    k_of(limbs[i].parent) > k_of(limbs[f].parent)
+                        && limbs[i].reach < 0.6 * limbs[f].reach
+                })
+        })
+        .collect();
     let min_reach = arm_cands
         .iter()
         .map(|&i| limbs[i].reach)
