@@ -1078,12 +1078,16 @@ fn make_limb(
         reach +=
             ctx.topo.reach[m.index()] + (ctx.pos[m.index()] - ctx.pos[parent.index()]).length();
         height += ctx.h(m);
+        let mut extra = 0.0f32;
         for b in ctx.subtree(m) {
             low = low.min(ctx.h(b));
             if let Some(x) = ctx.extension[b.index()] {
                 low = low.min(ctx.h(x));
+                // The detached foot is part of the limb's length too.
+                extra = extra.max((ctx.pos[x.index()] - ctx.pos[b.index()]).length());
             }
         }
+        reach += extra;
     }
     let k = members.len().max(1) as f32;
     Limb {
