@@ -76,41 +76,35 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
     }
 }
 
-/// For a detached bone, the limb leaf it continues: the leaf `l` whose segment from its parent,
-/// prolonged, reaches the bone: onwards from the leaf (under 90°: a hock or wrist may bend
-/// sharply), 0.3–3 segment lengths away; the nearest in direction wins.
-pub(crate) fn continuation(
-    skel: &Skeleton,
-    pos: &[Vec3],
-    bone: BoneId,
-    leaves: &[BoneId],
-) -> Option<BoneId> {
+/// How well a detached bone continues limb leaf `l` (its segment from its parent, prolonged):
+/// onwards from the leaf (under 90°: a hock or wrist may bend sharply), 0.3–3 segment lengths
+/// away. The cost is `1 − cos` of the bend; `None` when it does not continue it at all.
+fn continuation_cost(skel: &Skeleton, pos: &[Vec3], bone: BoneId, l: BoneId) -> Option<f32> {
     let pb = pos[bone.index()];
-    let mut best: Option<(f32, BoneId)> = None;
-    for &l in leaves {
-        let Some(p) = skel.parent(l) else { continue };
-        let seg = pos[l.index()] - pos[p.index()];
-        let to = pb - pos[l.index()];
-        let (ls, lt) = (seg.length(), to.length());
-        if ls < 1e-6 || !(0.3 * ls..=3.0 * ls).contains(&lt) {
-            continue;
-        }
-        // Onwards from the leaf, not back along the limb (a hock or wrist may bend sharply).
-        let cos = seg.dot(to) / (ls * lt);
-        if cos < 0.0 || (pb - pos[p.index()]).length() <= ls {
-            continue;
-        }
-        let cost = 1.0 - cos;
-        if best.is_none_or(|(c, _)| cost < c) {
-            best = Some((cost, l));
-        }
+    let p = skel.parent(l)?;
+    let seg = pos[l.index()] - pos[p.index()];
+    let to = pb - pos[l.index()];
+    let (ls, lt) = (seg.length(), to.length());
+    if ls < 1e-6 || !(0.3 * ls..=3.0 * ls).contains(&lt) {
+        return None;
     }
-    best.map(|(_, l)| l)
+    let cos = seg.dot(to) / (ls * lt);
+    if cos < 0.0 || (pb - pos[p.index()]).length() <= ls {
+        return None;
+    }
+    Some(1.0 - cos)
 }
 
-/// Per bone: the top-level detached bone that continues it, for the body's leaves.
-pub(crate) fn extensions(skel: &Skeleton, pos: &[Vec3], body: &BodyRoot) -> Vec<Option<BoneId>> {
-    let mut out = vec![None; skel.num_bones()];
+/// Per bone: the top-level detached bone that continues it downwards, for the body's leaves.
+/// Each leaf takes its best continuation (smallest bend), so a stray control bone that also
+/// lies ahead of a leaf cannot take the place of the one that carries the foot.
+pub(crate) fn extensions(
+    skel: &Skeleton,
+    pos: &[Vec3],
+    body: &BodyRoot,
+    up: Vec3,
+) -> Vec<Option<BoneId>> {
+    let mut best: Vec<Option<(f32, BoneId)>> = vec![None; skel.num_bones()];
     let leaves: Vec<BoneId> = skel
         .bone_ids()
         .filter(|&b| !body.detached[b.index()] && skel.children(b).is_empty())
@@ -121,11 +115,18 @@ pub(crate) fn extensions(skel: &Skeleton, pos: &[Vec3], body: &BodyRoot) -> Vec<
         if !top {
             continue;
         }
-        if let Some(l) = continuation(skel, pos, b, &leaves) {
-            if out[l.index()].is_none() {
-                out[l.index()] = Some(b);
+        for &l in &leaves {
+            let Some(cost) = continuation_cost(skel, pos, b, l) else { continue };
+            // Feet hang below the limb that ends above them; a control level with or above
+            // it (an orient bone) continues nothing.
+            let drop = (pos[l.index()] - pos[b.index()]).dot(up);
+            if drop < 0.3 * (pos[b.index()] - pos[l.index()]).length() {
+                continue;
+            }
+            if best[l.index()].is_none_or(|(c, _)| cost < c) {
+                best[l.index()] = Some((cost, b));
             }
         }
     }
-    out
+    best.into_iter().map(|x| x.map(|(_, b)| b)).collect()
 }

@@ -135,7 +135,6 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let names: Vec<NameInfo> = skel.names().iter().map(|s| names::normalize(s)).collect();
     let topo = Topology::build(skel, &pos);
     let body = super::detached::find(skel, &topo);
-    let extension = super::detached::extensions(skel, &pos, &body);
     let (lo, hi) = pos.iter().fold(
         (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
@@ -158,6 +157,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         lat = if up.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
         lat = (lat - up * lat.dot(up)).normalize_or_zero();
     }
+    let extension = super::detached::extensions(skel, &pos, &body, up);
     let ctx = Ctx {
         skel,
         extension: &extension,
@@ -632,7 +632,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             );
         }
     }
-    attach_detached(&ctx, &body, &mut roles);
+    attach_detached(&ctx, &body, &mut roles, &mut sections);
     // Everything not placed yet: helpers, with the side of where they hang.
     for i in 0..n {
         if roles[i].role == Role::Unknown {
@@ -1319,24 +1319,40 @@ fn leaf_is_skull_top(
     }
 }
 
-/// Detached bones that continue a limb ending without its extremity (an IK foot under the
-/// root at the end of a shin) take the extremity's role; carriers and other controls stay
-/// helpers.
-fn attach_detached(ctx: &Ctx<'_>, body: &super::detached::BodyRoot, roles: &mut [BoneRole]) {
+/// Detached bones that continue a leg ending without its foot (an IK foot under the root at
+/// the end of a shin) take the foot's role; carriers and other controls stay helpers.
+fn attach_detached(
+    ctx: &Ctx<'_>,
+    body: &super::detached::BodyRoot,
+    roles: &mut [BoneRole],
+    sections: &mut Vec<Section>,
+) {
     for l in ctx.skel.bone_ids() {
         let Some(b) = ctx.extension[l.index()] else { continue };
         let lr = roles[l.index()];
-        let role = match lr.role {
-            Role::LowerLeg => Role::Foot,
-            Role::LowerArm => Role::Hand,
+        // Only feet: IK foot targets carry the foot's motion; hand controls are handles.
+        let (role, kind) = match lr.role {
+            Role::LowerLeg => (Role::Foot, SectionKind::Foot),
             _ => continue,
         };
+        let parent = lr.section.map(|s| s as usize);
+        let ground = parent.is_some_and(|p| sections[p].ground);
         roles[b.index()] = BoneRole {
             role,
-            position: 1.0,
+            section: Some(sections.len() as u16),
+            position: 0.0,
             confidence: lr.confidence * 0.8,
             ..lr
         };
+        sections.push(Section {
+            kind,
+            side: lr.side,
+            limb: lr.limb,
+            bones: vec![b],
+            length: 0.0,
+            parent,
+            ground,
+        });
     }
     for &c in &body.carriers {
         roles[c.index()].role = Role::Helper;
