@@ -77,10 +77,7 @@ fn tick_allocates_one_buffer_per_subject() {
     );
     let t = Arc::new(t);
     assert!(!t.shape().vmc.bones.is_empty());
-    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
-        aligned_rest: mapping.aligned_rest_pose(),
-        mapping,
-    })));
+    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping { mapping })));
     let performer = Performer::new(
         t.clone(),
         target_tx,
