@@ -193,7 +193,20 @@ fn check(clip: &Clip, case: Case) {
     // offsets (hip-offset drop + thigh + shin + ankle-to-toe drop, both legs averaged), since
     // CMU's rest spreads the legs; target: as built.
     let src = &clip.skeleton;
-    let ratio = case.hip_height / cmu_hip_height(src);
+    // Strides scale with the legs: thigh + shin, measured on both rests from the joints the
+    // segments name (not from the mapping).
+    let leg = |skel: &Skeleton, joints: [(&str, &str); 4]| {
+        let rest = positions(skel, &skel.rest_pose());
+        let at = |n: &str| rest[skel.bone(n).expect("leg joint").index()];
+        joints
+            .iter()
+            .map(|(a, b)| (at(b) - at(a)).length())
+            .sum::<f32>()
+            / 2.0
+    };
+    let t = |i: usize| (case.segments[i].0.as_str(), case.segments[i].1.as_str());
+    let c = |i: usize| (CMU_SEGMENTS[i].1, CMU_SEGMENTS[i].2);
+    let ratio = leg(&case.target, [t(2), t(3), t(7), t(8)]) / leg(src, [c(2), c(3), c(7), c(8)]);
     let hs = src.bone("Hips").expect("hips").index();
     let ht = case.target.bone(&case.hips).expect("hips").index();
     let s0 = positions(src, &clip.poses[0])[hs];
@@ -210,7 +223,7 @@ fn check(clip: &Clip, case: Case) {
     let last = clip.num_frames() - 1;
     let travel = (positions(src, &clip.poses[last])[hs] - s0).length();
     println!(
-        "{}: source hips travel {travel:.3} m, hip-height ratio {ratio:.4}, worst relative displacement error {worst:.4}",
+        "{}: source hips travel {travel:.3} m, leg-length ratio {ratio:.4}, worst relative displacement error {worst:.4}",
         case.name
     );
     assert!(travel > 1.0, "the walk travels");
@@ -246,7 +259,20 @@ fn check(clip: &Clip, case: Case) {
     } else {
         ratio * src_floor
     };
+    // The standing foot (the source's lowest) must be exact: the hips' height is calibrated on
+    // it; a lifted foot bends with the target's own proportions, so it may differ a little.
+    let src_low = |side: &Vec<(String, &'static str)>| {
+        side.iter()
+            .map(|(_, n)| src_first[src.bone(n).expect("toe").index()].y)
+            .fold(f32::INFINITY, f32::min)
+    };
+    let standing = case.feet.iter().map(src_low).fold(f32::INFINITY, f32::min);
     for side in &case.feet {
+        let bound = if src_low(side) <= standing + 0.02 {
+            0.01
+        } else {
+            0.03
+        };
         let low_t = side
             .iter()
             .map(|(n, _)| first[case.target.bone(n).expect("toe").index()].y)
@@ -266,7 +292,7 @@ fn check(clip: &Clip, case: Case) {
             err * 100.0
         );
         assert!(
-            err < 0.01,
+            err < bound,
             "{}: {} is {err} m off at frame 0",
             case.name,
             side[0].0

@@ -359,11 +359,20 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     let (_, body) = http_get(server.local_addr(), "/v1/status").await;
     let status: serde_json::Value = serde_json::from_str(&body).unwrap();
     assert_eq!(status["subjects"][0]["source"]["detail"], "");
-    eprintln!("ease-in: biggest step {:.2}°", biggest.to_degrees());
+    // Easing in covers the whole way from rest back to the live pose over 0.2 s (12 ticks at
+    // 60 Hz); ticks skipped on a loaded machine make single steps bigger, but a snap would
+    // cover the whole distance in one step.
+    let distance = max_angle(&rest.rotations, &expected.rotations);
+    eprintln!(
+        "ease-in: biggest step {:.2}° of {:.1}°",
+        biggest.to_degrees(),
+        distance.to_degrees()
+    );
     assert!(
-        biggest.to_degrees() < 20.0,
-        "jump of {}° on resume",
-        biggest.to_degrees()
+        biggest < 0.4 * distance,
+        "jump of {}° on resume (of {}°)",
+        biggest.to_degrees(),
+        distance.to_degrees()
     );
     let err = max_angle(&expected.rotations, &last.unwrap().rotations);
     assert!(err < 2e-3, "after resuming the target is {err} rad off");

@@ -461,6 +461,29 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
         );
     }
 
+    // The viewer asked for protocol version 2 (the mannequin's pelvis moves under its ground
+    // root only there), and draws the pelvis bobbing.
+    let version = cdp
+        .eval_json("JSON.stringify(window.rigcast.protocolVersion ?? null)")
+        .await;
+    assert_eq!(version, 2, "the viewer did not switch to protocol v2");
+    let pelvis_probe = format!(
+        "JSON.stringify((() => {{ const v = window.rigcast.views.get({target}); \
+           const i = v.bones.findIndex(b => b.name === 'pelvis'); return v.worldP[i].y - v.worldP[0].y; }})())"
+    );
+    let mut heights = Vec::new();
+    for _ in 0..12 {
+        heights.push(cdp.eval_json(&pelvis_probe).await.as_f64().unwrap());
+        tokio::time::sleep(Duration::from_millis(90)).await;
+    }
+    let range = heights.iter().cloned().fold(f64::MIN, f64::max)
+        - heights.iter().cloned().fold(f64::MAX, f64::min);
+    println!("viewer: mannequin pelvis height above its root varies over {range:.4} m");
+    assert!(
+        range > 0.005,
+        "the viewer's pelvis does not bob: {heights:?}"
+    );
+
     // Side by side: on screen, inside the view, not overlapping.
     let bounds = cdp
         .eval_json("JSON.stringify(window.rigcast.screenBounds())")

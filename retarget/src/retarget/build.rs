@@ -397,6 +397,7 @@ impl Mapping {
                     worlds: &aligned_w,
                     eps: setup.tgt_eps,
                 },
+                &setup.tgt_w,
                 table,
                 rt,
                 rs,

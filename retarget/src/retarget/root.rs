@@ -61,6 +61,7 @@ impl RootPlan {
     pub(super) fn new(
         src: Side<'_>,
         tgt: Side<'_>,
+        tgt_own: &[WorldTransform],
         table: &MappingTable,
         rt: BoneId,
         rs: SourceRef,
@@ -143,7 +144,16 @@ impl RootPlan {
                 .iter()
                 .map(|&(_, b, _)| y_s(b))
                 .fold(f32::INFINITY, f32::min);
-            floor_t = floor_from_reference(y_t(tl), first);
+            // The target's floor is where its own reference stands, when that reference
+            // stands along the same up (its ground is then known); a rig lying along another
+            // axis has no floor in this world, and keeps the source's clearance instead.
+            let own_y = |b: BoneId| tgt_own[b.index()].translation.dot(up);
+            let standing = |y: &dyn Fn(BoneId) -> f32| y(rt) - y(tl);
+            floor_t = if standing(&own_y) > 0.8 * standing(&y_t) {
+                floor_from_reference(own_y(tl), first)
+            } else {
+                floor_from_reference(y_t(tl), first)
+            };
             floor_s = floor_from_reference(lowest_s, first / scale);
         }
         RootPlan {
