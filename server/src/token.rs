@@ -310,6 +310,18 @@ mod tests {
         load_or_create(&path).unwrap();
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600);
+        // Creating never replaces a token that appeared meanwhile (another server's).
+        let other = ControlToken::generate().unwrap();
+        assert!(matches!(
+            write_token(&path, &other, Replace::No).unwrap(),
+            Written::AlreadyThere
+        ));
+        assert_eq!(load_or_create(&path).unwrap().0, rotated);
+        assert_eq!(
+            std::fs::read_dir(path.parent().unwrap()).unwrap().count(),
+            1,
+            "no temporary file left"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
