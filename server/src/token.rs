@@ -171,8 +171,12 @@ pub fn load_or_create(path: &Path) -> anyhow::Result<(ControlToken, bool)> {
         }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             let token = ControlToken::generate()?;
-            write_token(path, &token)?;
-            Ok((token, true))
+            match write_token(path, &token, Replace::No)? {
+                Written::Yes => Ok((token, true)),
+                // Another server started at the same moment and created it first: use theirs,
+                // so both run with the token on disk.
+                Written::AlreadyThere => Ok((load_existing(path)?, false)),
+            }
         }
         Err(e) => Err(e).with_context(|| format!("cannot read {}", path.display())),
     }
@@ -181,13 +185,35 @@ pub fn load_or_create(path: &Path) -> anyhow::Result<(ControlToken, bool)> {
 /// Replaces the token in `path` with a new one (clients holding the old one lose control).
 pub fn rotate(path: &Path) -> anyhow::Result<ControlToken> {
     let token = ControlToken::generate()?;
-    write_token(path, &token)?;
+    write_token(path, &token, Replace::Yes)?;
     Ok(token)
 }
 
-/// Writes through a private temporary file and a rename, so the token is never readable by
-/// others, not even while being written, and a crash leaves the old or the new one.
-fn write_token(path: &Path, token: &ControlToken) -> anyhow::Result<()> {
+fn load_existing(path: &Path) -> anyhow::Result<ControlToken> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    ControlToken::from_text(&text)
+        .with_context(|| format!("the control token in {}", path.display()))
+}
+
+/// Whether [`write_token`] may replace an existing file.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Replace {
+    Yes,
+    No,
+}
+
+/// What [`write_token`] did.
+enum Written {
+    Yes,
+    /// `Replace::No` and the file exists.
+    AlreadyThere,
+}
+
+/// Writes through a private temporary file moved into place, so the token is never readable
+/// by others, not even while being written, and a crash leaves the old or the new one.
+/// Without `Replace::Yes` the move is a hard link, which fails if the file appeared meanwhile.
+fn write_token(path: &Path, token: &ControlToken, replace: Replace) -> anyhow::Result<Written> {
     let dir = path
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -208,7 +234,21 @@ fn write_token(path: &Path, token: &ControlToken) -> anyhow::Result<()> {
     file.write_all(format!("{}\n", token.reveal()).as_bytes())
         .and_then(|_| file.sync_all())
         .with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    let placed = match replace {
+        Replace::Yes => std::fs::rename(&tmp, path).map(|_| Written::Yes),
+        Replace::No => {
+            let linked = match std::fs::hard_link(&tmp, path) {
+                Ok(()) => Ok(Written::Yes),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    Ok(Written::AlreadyThere)
+                }
+                Err(e) => Err(e),
+            };
+            let _ = std::fs::remove_file(&tmp);
+            linked
+        }
+    };
+    placed.with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// A token file readable by others is fixed to 0600, with a warning: the token may have been
@@ -270,6 +310,18 @@ mod tests {
         load_or_create(&path).unwrap();
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600);
+        // Creating never replaces a token that appeared meanwhile (another server's).
+        let other = ControlToken::generate().unwrap();
+        assert!(matches!(
+            write_token(&path, &other, Replace::No).unwrap(),
+            Written::AlreadyThere
+        ));
+        assert_eq!(load_or_create(&path).unwrap().0, rotated);
+        assert_eq!(
+            std::fs::read_dir(path.parent().unwrap()).unwrap().count(),
+            1,
+            "no temporary file left"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
