@@ -480,3 +480,29 @@ fn corpus_has_every_kind_and_variant() {
     let ang = (-d.y).atan2(d.x).to_degrees();
     assert!((ang - 45.0).abs() < 2.0, "{ang}");
 }
+
+/// A plain chain of bones (a tentacle, a rope, a test rig) is a body of its own: mapped onto a
+/// copy of itself, every bone maps to itself (no bone is taken for an armature node above it).
+#[test]
+fn a_plain_chain_maps_onto_itself() {
+    let mut raw = RawSkeleton::default();
+    let mut parent = None;
+    for i in 0..6 {
+        let offset = if i == 0 { Vec3::ZERO } else { Vec3::new(0.0, 0.2, 0.01 * i as f32) };
+        parent = Some(raw.add(
+            format!("b{i}"),
+            parent,
+            rigcast_retarget::Transform::from_translation(offset),
+        ));
+    }
+    let chain = Skeleton::build(&raw).unwrap();
+    let table = auto_map(
+        &SkeletonView::rest(&chain),
+        &SkeletonView::rest(&chain),
+        &MapOptions::default(),
+    );
+    for b in chain.bone_ids() {
+        let e = table.entries[b.index()].as_ref();
+        assert_eq!(e.map(|e| e.sources[0].bone), Some(b), "{}", chain.name(b));
+    }
+}

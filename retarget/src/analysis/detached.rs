@@ -49,6 +49,7 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
             *d = true;
         }
     }
+    let mut plain_steps = 0;
     loop {
         let ch = skel.children(b);
         let big: Vec<BoneId> = ch.iter().copied().filter(|c| topo.size[c.index()] > SMALL).collect();
@@ -56,8 +57,17 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
             break;
         }
         let body = big[0];
-        // Without small siblings a single child only continues the body when b itself is a
-        // plain carrier: a zero-length or leaf-less top bone above the real root.
+        // Without small siblings a single child continues the body only below one armature
+        // node at the top, and only when the body branches right below it (a plain chain of
+        // bones is a body of its own, not a stack of carriers).
+        if ch.len() == 1 {
+            let branches_soon = skel.children(body).len() >= 2
+                || skel.children(body).iter().any(|g| skel.children(*g).len() >= 2);
+            if plain_steps > 0 || !branches_soon {
+                break;
+            }
+            plain_steps += 1;
+        }
         carriers.push(b);
         for &c in ch.iter().filter(|&&c| c != body) {
             let s = c.index();
@@ -67,8 +77,6 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
         }
         b = body;
     }
-    // Keep a carrier only when something marks it as one: detached siblings, or it is the
-    // sole parent of the body with a short offset (an armature node), never a real pelvis.
     BodyRoot {
         root: b,
         carriers,

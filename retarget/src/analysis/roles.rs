@@ -152,7 +152,9 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             up = snap_axis(-down.normalize_or_zero());
         }
     }
-    let mut lat = (lateral - up * lateral.dot(up)).normalize_or_zero();
+    // Rigs are built along axes; a rest or frame that is not quite symmetric (one arm
+    // forward) must not tilt the lateral axis into the body's length.
+    let mut lat = snap_axis((lateral - up * lateral.dot(up)).normalize_or_zero());
     if lat == Vec3::ZERO {
         lat = if up.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
         lat = (lat - up * lat.dot(up)).normalize_or_zero();
