@@ -423,3 +423,129 @@ fn human_to_quadruped_legs() {
         assert!(sc.right == sc.total, "{key}: {:.1}% of leg roles", sc.pct());
     }
 }
+
+/// Source role names (without side) that count as a leg / an arm of the same side.
+const LEG_ROLES: &[&str] = &["upperLeg", "lowerLeg", "foot", "toes"];
+const ARM_ROLES: &[&str] = &["shoulder", "upperArm", "lowerArm", "hand"];
+
+fn sided_names<'a>(rig: &'a Rig, roles: &[&str], side: &str) -> Vec<&'a String> {
+    roles
+        .iter()
+        .filter_map(|r| rig.roles.get(&format!("{r}{side}")))
+        .flatten()
+        .collect()
+}
+
+/// T-rex: legs from legs and its small arms from arms (same side), its tail from nothing
+/// (human sources have no tail).
+#[test]
+fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    for tgt in rigs.iter().filter(|r| r.kind == "biped_creature") {
+        let ts = &tgt.clip.skeleton;
+        for src in &hs {
+            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let ss = &src.clip.skeleton;
+            let driver = |t: &str| {
+                let b = ts.bone(t)?;
+                table.entries[b.index()].as_ref().map(|e| ss.name(e.sources[0].bone))
+            };
+            for side in [".L", ".R"] {
+                for (troles, sroles) in [(LEG_ROLES, LEG_ROLES), (ARM_ROLES, ARM_ROLES)] {
+                    let allowed = sided_names(src, sroles, side);
+                    let mut driven = 0;
+                    for t in sided_names(tgt, &troles[..3], side) {
+                        if let Some(d) = driver(t) {
+                            assert!(
+                                allowed.iter().any(|a| *a == d),
+                                "{} -> {}: {t} <- {d}",
+                                short(&src.key),
+                                short(&tgt.key)
+                            );
+                            driven += 1;
+                        }
+                    }
+                    assert!(driven >= 2, "{} -> {}: {side} limb barely mapped", short(&src.key), short(&tgt.key));
+                }
+            }
+            for t in tgt.roles.get("tail").into_iter().flatten() {
+                assert_eq!(driver(t), None, "{} -> {}: tail {t}", short(&src.key), short(&tgt.key));
+            }
+        }
+    }
+}
+
+/// Spider and crab: every human maps onto them without error, and the human legs drive leg
+/// bones (bones the analysis puts in ground-reaching limbs), never the body or the head.
+#[test]
+fn multi_legged_rigs_use_legs_for_legs() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    for tgt in rigs.iter().filter(|r| r.kind == "other") {
+        let ta = analyze(&view(&tgt.clip));
+        let ts = &tgt.clip.skeleton;
+        for src in &hs {
+            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let ss = &src.clip.skeleton;
+            let legs: Vec<&String> = [".L", ".R"]
+                .iter()
+                .flat_map(|s| sided_names(src, LEG_ROLES, s))
+                .collect();
+            let mut on_legs = 0;
+            for t in ts.bone_ids() {
+                let Some(e) = table.entries[t.index()].as_ref() else { continue };
+                let d = ss.name(e.sources[0].bone);
+                if !legs.iter().any(|l| *l == d) {
+                    continue;
+                }
+                let sec = ta.roles[t.index()].section.map(|s| &ta.sections[s as usize]);
+                assert!(
+                    sec.is_some_and(|s| s.ground),
+                    "{} -> {}: leg bone {d} drives {} ({})",
+                    short(&src.key),
+                    short(&tgt.key),
+                    ts.name(t),
+                    ta.label(t)
+                );
+                on_legs += 1;
+            }
+            assert!(on_legs >= 4, "{} -> {}: only {on_legs} leg bones used", short(&src.key), short(&tgt.key));
+        }
+    }
+}
+
+/// A hand-only rig whose joints are a flat, unparented set (WebXR): read by its joint names,
+/// its side from its chirality (the labels say left); the human's left hand drives its wrist
+/// and the human's fingers its fingers.
+#[test]
+fn flat_hand_rig_maps_by_names_and_chirality() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    for tgt in rigs.iter().filter(|r| r.kind == "hand") {
+        let ts = &tgt.clip.skeleton;
+        let wrist = ts.bone(&tgt.roles["hand.L"][0]).unwrap();
+        let a = analyze(&view(&tgt.clip));
+        assert_eq!(a.label(wrist), "left_hand", "{}", tgt.key);
+        for src in hs.iter().filter(|s| s.roles.contains_key("hand.L")) {
+            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let ss = &src.clip.skeleton;
+            let d = table.entries[wrist.index()].as_ref().map(|e| ss.name(e.sources[0].bone));
+            assert!(
+                d.is_some_and(|d| src.roles["hand.L"].iter().any(|n| n == d)),
+                "{} -> hand: wrist <- {d:?}",
+                short(&src.key)
+            );
+            // Fingers, where the source has them, come from the same finger of the left hand.
+            for t in ts.bone_ids().filter(|&t| a.label(t).starts_with("left_index")) {
+                if let Some(e) = table.entries[t.index()].as_ref() {
+                    let label = analyze(&view(&src.clip)).label(e.sources[0].bone);
+                    assert!(label.starts_with("left_index"), "{} -> {}: {label}", short(&src.key), ts.name(t));
+                }
+            }
+        }
+    }
+}

@@ -134,6 +134,10 @@ fn feet_cue(inp: &ForwardInput<'_>) -> f32 {
 /// Knees bend forward, elbows backward: the middle joint's offset from the line through its
 /// neighbours, in each frame's own body frame, averaged over frames.
 fn bend_cue(inp: &ForwardInput<'_>) -> f32 {
+    // Spiders and crabs bend their legs up and out, not forward: only bipeds and quadrupeds.
+    if inp.legs.len() > 2 {
+        return 0.0;
+    }
     let Some(legs) = inp.legs.first() else {
         return 0.0;
     };

@@ -27,6 +27,7 @@
 
 pub mod humanoid;
 mod detached;
+mod flat;
 mod forward;
 mod limbs;
 mod posture;

@@ -133,6 +133,11 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let pos = posture.positions.clone();
     let used_pose = posture.used_pose;
     let names: Vec<NameInfo> = skel.names().iter().map(|s| names::normalize(s)).collect();
+    if super::flat::is_flat(n, skel.roots().count()) {
+        if let Some(a) = super::flat::analyze_flat_hand(skel, pos.clone(), names.clone()) {
+            return a;
+        }
+    }
     let topo = Topology::build(skel, &pos);
     let body = super::detached::find(skel, &topo);
     let (lo, hi) = pos.iter().fold(
@@ -634,7 +639,6 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             );
         }
     }
-    attach_detached(&ctx, &body, &mut roles, &mut sections);
     // Everything not placed yet: helpers, with the side of where they hang.
     for i in 0..n {
         if roles[i].role == Role::Unknown {
@@ -657,6 +661,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
             }
         }
     }
+    attach_detached(&ctx, &body, &mut roles, &mut sections);
     let _ = spine_sec;
     let main_child = topo.main.clone();
     Analysis {
@@ -1322,7 +1327,7 @@ fn leaf_is_skull_top(
 }
 
 /// Detached bones that continue a leg ending without its foot (an IK foot under the root at
-/// the end of a shin) take the foot's role; carriers and other controls stay helpers.
+/// the end of a shin) take the foot's role; carriers and other controls become controls.
 fn attach_detached(
     ctx: &Ctx<'_>,
     body: &super::detached::BodyRoot,
@@ -1356,9 +1361,12 @@ fn attach_detached(
             ground,
         });
     }
-    for &c in &body.carriers {
-        roles[c.index()].role = Role::Helper;
-        roles[c.index()].confidence = 0.5;
+    for b in ctx.skel.bone_ids() {
+        let attached = ctx.extension.contains(&Some(b)) && roles[b.index()].role == Role::Foot;
+        if (ctx.detached[b.index()] && !attached) || body.carriers.contains(&b) {
+            roles[b.index()].role = Role::Control;
+            roles[b.index()].confidence = 0.5;
+        }
     }
 }
 

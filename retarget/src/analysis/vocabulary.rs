@@ -122,6 +122,9 @@ pub enum Role {
     Twist,
     /// Helper / mechanism / end joint with no anatomical role.
     Helper,
+    /// Control bone beside the body (IK target, pole target, orient handle, armature root):
+    /// never a body part, mapped only onto another control.
+    Control,
     /// Not recognised.
     Unknown,
 }
@@ -173,7 +176,12 @@ impl Role {
     pub fn is_helper(self) -> bool {
         matches!(
             self,
-            Role::Twist | Role::Helper | Role::HeadEnd | Role::ToeEnd | Role::Unknown
+            Role::Twist
+                | Role::Helper
+                | Role::Control
+                | Role::HeadEnd
+                | Role::ToeEnd
+                | Role::Unknown
         )
     }
 
@@ -209,6 +217,7 @@ impl Role {
             Tail(k) => format!("tail_{}", k + 1),
             Twist => "twist".into(),
             Helper => "helper".into(),
+            Control => "control".into(),
             Unknown => "unknown".into(),
         }
     }

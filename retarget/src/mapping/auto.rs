@@ -281,7 +281,9 @@ pub fn map_analyzed(
             let mut best: Vec<Candidate> = Vec::new();
             for s in sskel.bone_ids() {
                 let sr = sa.roles[s.index()];
-                if sr.role == Role::Unknown {
+                // Unknown bones and controls (IK / pole targets, armature roots) drive nothing:
+                // a rotation copied onto an IK handle moves no limb.
+                if matches!(sr.role, Role::Unknown | Role::Control) || tr.role == Role::Control {
                     continue;
                 }
                 // Helpers only map onto the same helper role; anatomy never maps onto helpers.
