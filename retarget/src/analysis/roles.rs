@@ -1327,7 +1327,8 @@ fn leaf_is_skull_top(
 }
 
 /// Detached bones that continue a leg ending without its foot (an IK foot under the root at
-/// the end of a shin) take the foot's role; carriers and other controls become controls.
+/// the end of a shin) take the foot's role; the other detached bones are controls, carriers
+/// helpers.
 fn attach_detached(
     ctx: &Ctx<'_>,
     body: &super::detached::BodyRoot,
@@ -1363,10 +1364,16 @@ fn attach_detached(
     }
     for b in ctx.skel.bone_ids() {
         let attached = ctx.extension.contains(&Some(b)) && roles[b.index()].role == Role::Foot;
-        if (ctx.detached[b.index()] && !attached) || body.carriers.contains(&b) {
+        if ctx.detached[b.index()] && !attached {
             roles[b.index()].role = Role::Control;
             roles[b.index()].confidence = 0.5;
         }
+    }
+    // Carriers (an armature node, UE's `root`) carry the root motion of some rigs: helpers,
+    // which map onto the other rig's carrier.
+    for &c in &body.carriers {
+        roles[c.index()].role = Role::Helper;
+        roles[c.index()].confidence = 0.5;
     }
 }
 

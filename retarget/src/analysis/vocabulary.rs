@@ -122,8 +122,8 @@ pub enum Role {
     Twist,
     /// Helper / mechanism / end joint with no anatomical role.
     Helper,
-    /// Control bone beside the body (IK target, pole target, orient handle, armature root):
-    /// never a body part, mapped only onto another control.
+    /// Control bone beside the body (IK target, pole target, orient handle): never a body
+    /// part, and drives or is driven by nothing.
     Control,
     /// Not recognised.
     Unknown,
