@@ -346,8 +346,13 @@ fn dump_rig() {
     let Some(dir) = data_dir() else { return };
     let Ok(want) = std::env::var("RIGCAST_ZOO_DUMP") else { return };
     for rig in load_rigs(&dir).iter().filter(|r| r.key.contains(&want)) {
-        let a = analyze(&view(&rig.clip));
-        let s = &rig.clip.skeleton;
+        let clip = if std::env::var("RIGCAST_ZOO_FOLD").is_ok() {
+            folded(&rig.clip)
+        } else {
+            rig.clip.clone()
+        };
+        let a = analyze(&view(&clip));
+        let s = &clip.skeleton;
         println!("{} up={:?} fwd={:?} warnings={:?}", rig.key, a.up, a.forward, a.warnings);
         for b in s.bone_ids() {
             let p = a.positions[b.index()];
@@ -547,5 +552,138 @@ fn flat_hand_rig_maps_by_names_and_chirality() {
                 }
             }
         }
+    }
+}
+
+/// The same motion on a LaFAN1 / Bandai-Namco-style skeleton: every bone's frame turned so that
+/// its main child's offset lies along its local X, with zero rest rotations, so the rest pose
+/// folds the body into lines and only the motion shows it. World motion is unchanged: with
+/// `q_b` the turn of bone `b`, offsets become `q_p⁻¹ · t_b` and local rotations
+/// `q_p⁻¹ · r_b · q_b`.
+fn folded(clip: &Clip) -> Clip {
+    use glam::{Quat, Vec3};
+    let skel = &clip.skeleton;
+    let turn: Vec<Quat> = skel
+        .bone_ids()
+        .map(|b| {
+            let main = skel
+                .children(b)
+                .iter()
+                .max_by_key(|c| {
+                    let s = c.index();
+                    (skel.bone_ids().filter(|d| is_below(skel, *d, BoneId(s as u16))).count(), s)
+                })
+                .copied();
+            match main.map(|c| skel.rest()[c.index()].translation.normalize_or_zero()) {
+                Some(d) if d != Vec3::ZERO => Quat::from_rotation_arc(Vec3::X, d),
+                _ => Quat::IDENTITY,
+            }
+        })
+        .collect();
+    let parent_turn = |b: BoneId| skel.parent(b).map(|p| turn[p.index()]).unwrap_or(Quat::IDENTITY);
+    let mut raw = skel.to_raw();
+    for b in skel.bone_ids() {
+        let qp = parent_turn(b).inverse();
+        raw.bones[b.index()].rest = rigcast_retarget::Transform::from_translation(
+            qp * skel.rest()[b.index()].translation,
+        );
+    }
+    let new = Skeleton::build(&raw).unwrap();
+    let poses = clip
+        .poses
+        .iter()
+        .map(|p| Pose {
+            rotations: skel
+                .bone_ids()
+                .map(|b| (parent_turn(b).inverse() * p.rotations[b.index()] * turn[b.index()]).normalize())
+                .collect(),
+            translations: skel
+                .bone_ids()
+                .map(|b| parent_turn(b).inverse() * p.translations[b.index()])
+                .collect(),
+        })
+        .collect();
+    Clip::new(clip.name.clone(), std::sync::Arc::new(new), poses, clip.frame_time_secs).unwrap()
+}
+
+fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
+    loop {
+        if b == ancestor {
+            return true;
+        }
+        match skel.parent(b) {
+            Some(p) => b = p,
+            None => return false,
+        }
+    }
+}
+
+/// The clip turned as a whole by `g` (rest and every frame of the root).
+fn turned(clip: &Clip, g: glam::Quat) -> Clip {
+    let skel = &clip.skeleton;
+    let mut raw = skel.to_raw();
+    for b in skel.roots() {
+        let r = &mut raw.bones[b.index()].rest;
+        r.translation = g * r.translation;
+        r.rotation = g * r.rotation;
+    }
+    let new = Skeleton::build(&raw).unwrap();
+    let roots: Vec<BoneId> = skel.roots().collect();
+    let poses = clip
+        .poses
+        .iter()
+        .map(|p| {
+            let mut p = p.clone();
+            for &b in &roots {
+                p.translations[b.index()] = g * p.translations[b.index()];
+                p.rotations[b.index()] = g * p.rotations[b.index()];
+            }
+            p
+        })
+        .collect();
+    Clip::new(clip.name.clone(), std::sync::Arc::new(new), poses, clip.frame_time_secs).unwrap()
+}
+
+/// Every labelled human with animation, folded LaFAN1-style, still maps from every other
+/// human; every labelled human turned Z-up (and turned arbitrarily) maps as before.
+#[test]
+fn folded_rests_and_turned_rigs_map_like_the_originals() {
+    let Some(dir) = data_dir() else { return };
+    let rigs = load_rigs(&dir);
+    let hs = humans(&rigs);
+    let z_up = glam::Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    let odd = glam::Quat::from_axis_angle(glam::Vec3::new(0.3, 1.0, 0.2).normalize(), 2.3)
+        * glam::Quat::from_rotation_x(0.35);
+    let variants: [(&str, &dyn Fn(&Clip) -> Clip); 3] = [
+        ("folded", &|c: &Clip| folded(c)),
+        ("z-up", &|c: &Clip| turned(c, z_up)),
+        ("turned", &|c: &Clip| turned(c, odd)),
+    ];
+    for (what, make) in variants {
+        let mut total = Score::default();
+        let mut fails = Vec::new();
+        for tgt in &hs {
+            if what == "folded" && tgt.clip.poses.len() < 2 {
+                continue;
+            }
+            let changed = Rig {
+                key: tgt.key.clone(),
+                kind: tgt.kind.clone(),
+                clip: make(&tgt.clip),
+                roles: tgt.roles.clone(),
+            };
+            for src in &hs {
+                if std::ptr::eq(*src, *tgt) {
+                    continue;
+                }
+                total.add(score_pair(src, &changed, CORE, false, &mut fails));
+            }
+        }
+        println!("{what}: {:.1}% ({} swaps)", total.pct(), total.swaps);
+        for f in fails.iter().take(30) {
+            println!("  {f}");
+        }
+        assert_eq!(total.swaps, 0, "{what}: swaps");
+        assert!(total.pct() >= 97.0, "{what}: {:.1}%", total.pct());
     }
 }

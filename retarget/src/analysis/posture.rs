@@ -44,7 +44,7 @@ pub(crate) fn choose(view: &SkeletonView<'_>) -> Posture {
         .step_by(step)
         .map(|&i| joint_positions(skel, Some(&view.motion[i])))
         .collect();
-    let (positions, frame, used_pose) = if is_posture(&rest) {
+    let (positions, frame, used_pose) = if is_posture(skel, &rest) {
         (rest, None, false)
     } else if let Some(i) = medoid(view, &valid) {
         (joint_positions(skel, Some(&view.motion[i])), Some(i), true)
@@ -61,9 +61,50 @@ pub(crate) fn choose(view: &SkeletonView<'_>) -> Posture {
     }
 }
 
-/// Whether joint positions show a body rather than a folded line of joints.
-fn is_posture(pos: &[Vec3]) -> bool {
-    !is_degenerate(pos)
+/// Whether the rest pose shows a body rather than a folded line of joints: not all joints on
+/// one line, and not a zero-rotation rest whose offsets nearly all lie along one local axis
+/// (LaFAN1 / Bandai-Namco BVH: each bone's frame turned so its child sits on its X axis, the
+/// posture living entirely in the motion's rotations).
+fn is_posture(skel: &crate::skeleton::Skeleton, pos: &[Vec3]) -> bool {
+    !is_degenerate(pos) && !folded_rest(skel)
+}
+
+/// Share of offsets along one signed local axis above which a zero-rotation rest is folded.
+const FOLDED_SHARE: f32 = 0.6;
+
+fn folded_rest(skel: &crate::skeleton::Skeleton) -> bool {
+    let rest = skel.rest();
+    let turned = rest
+        .iter()
+        .filter(|t| t.rotation.abs_diff_eq(glam::Quat::IDENTITY, 1e-4) == false)
+        .count();
+    // Rigs with real rest rotations (glTF's bones along their local Y) show their posture.
+    if turned * 10 > rest.len() {
+        return false;
+    }
+    let mut counts = [0usize; 6];
+    let mut total = 0usize;
+    for b in skel.bone_ids().filter(|&b| skel.parent(b).is_some()) {
+        let t = rest[b.index()].translation;
+        let len = t.length();
+        if len < 1e-6 {
+            continue;
+        }
+        total += 1;
+        let a = t.abs();
+        let (axis, v) = if a.x >= a.y && a.x >= a.z {
+            (0, t.x)
+        } else if a.y >= a.z {
+            (1, t.y)
+        } else {
+            (2, t.z)
+        };
+        if v.abs() >= 0.95 * len {
+            counts[axis * 2 + usize::from(v < 0.0)] += 1;
+        }
+    }
+    let top = counts.iter().copied().max().unwrap_or(0);
+    total >= 4 && top as f32 >= FOLDED_SHARE * total as f32
 }
 
 /// The sampled frame closest (sum of joint distances, root-relative) to the per-joint median.

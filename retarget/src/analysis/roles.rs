@@ -164,6 +164,9 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
         lat = if up.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
         lat = (lat - up * lat.dot(up)).normalize_or_zero();
     }
+    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+        eprintln!("lateral {lateral:?} lat {lat:?} up {up:?} shallow {shallow_pair:?}");
+    }
     let extension = super::detached::extensions(skel, &pos, &body, up);
     let ctx = Ctx {
         skel,
@@ -209,10 +212,7 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
                 .subtree(c)
                 .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
                 .fold(0.0, f32::max);
-            // A side limb's joints lie clearly to one side for its length; a neck that leans
-            // a centimetre off a 3 m robot's midline does not.
-            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
-            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size && off.abs() > 0.04 * extent {
+            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size {
                 if off > 0.0 {
                     plus.push(c);
                 } else {
