@@ -672,12 +672,15 @@ fn folded_rests_and_turned_rigs_map_like_the_originals() {
                 clip: make(&tgt.clip),
                 roles: tgt.roles.clone(),
             };
+            let mut row = Score::default();
             for src in &hs {
                 if std::ptr::eq(*src, *tgt) {
                     continue;
                 }
-                total.add(score_pair(src, &changed, CORE, false, &mut fails));
+                row.add(score_pair(src, &changed, CORE, false, &mut fails));
             }
+            println!("  {what} {:<28} {:>6.1}% ({} swaps)", short(&tgt.key), row.pct(), row.swaps);
+            total.add(row);
         }
         println!("{what}: {:.1}% ({} swaps)", total.pct(), total.swaps);
         for f in fails.iter().take(30) {

@@ -30,6 +30,42 @@ pub(crate) struct Posture {
     pub samples: Vec<Vec<Vec3>>,
 }
 
+/// The postures to try for a view, the preferred first: the rest pose alone when it is one,
+/// else the motion's medoid frame and a few frames spread over the motion (the analysis keeps
+/// the one that reads as the most complete body).
+///
+/// [`choose`] alone picks the first of them.
+pub(crate) fn candidates(view: &SkeletonView<'_>) -> Vec<Posture> {
+    let first = choose(view);
+    let Some(medoid) = first.frame else {
+        return vec![first];
+    };
+    // A folded rest: besides the medoid, a few frames spread over the motion, so a clip that
+    // is mostly a fall or a crouch still offers the analysis a body it can read.
+    let skel = view.skeleton;
+    let valid: Vec<usize> = (0..view.motion.len())
+        .filter(|&i| i != medoid && view.motion[i].check(skel).is_ok())
+        .collect();
+    let step = valid.len().div_ceil(EXTRA_CANDIDATES).max(1);
+    let mut out = vec![first];
+    for &i in valid.iter().step_by(step) {
+        let positions = joint_positions(skel, Some(&view.motion[i]));
+        if is_degenerate(&positions) {
+            continue;
+        }
+        out.push(Posture {
+            positions,
+            frame: Some(i),
+            used_pose: true,
+            samples: out[0].samples.clone(),
+        });
+    }
+    out
+}
+
+/// Frames tried besides the medoid when the rest is not a posture.
+const EXTRA_CANDIDATES: usize = 4;
+
 /// Chooses the posture of a view: the rest pose when it is one, else the motion's medoid
 /// frame, else the view's representative pose, else the rest pose anyway.
 pub(crate) fn choose(view: &SkeletonView<'_>) -> Posture {
@@ -82,9 +118,24 @@ fn folded_rest(skel: &crate::skeleton::Skeleton) -> bool {
     if turned * 10 > rest.len() {
         return false;
     }
+    // Each bone's main child (the one with the largest subtree): in a folded rig its offset
+    // lies along the one axis by construction; controls beside the body do not count.
+    let n = skel.num_bones();
+    let mut size = vec![1usize; n];
+    for b in skel.bone_ids().collect::<Vec<_>>().into_iter().rev() {
+        if let Some(p) = skel.parent(b) {
+            size[p.index()] += size[b.index()];
+        }
+    }
+    let mains = skel.bone_ids().filter_map(|b| {
+        skel.children(b)
+            .iter()
+            .copied()
+            .max_by_key(|c| (size[c.index()], std::cmp::Reverse(c.index())))
+    });
     let mut counts = [0usize; 6];
     let mut total = 0usize;
-    for b in skel.bone_ids().filter(|&b| skel.parent(b).is_some()) {
+    for b in mains {
         let t = rest[b.index()].translation;
         let len = t.length();
         if len < 1e-6 {

@@ -127,9 +127,32 @@ impl Ctx<'_> {
 const GEOMETRY_CLEAR: f32 = 0.15;
 
 pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
+    let mut best: Option<(usize, Analysis)> = None;
+    for posture in super::posture::candidates(view) {
+        let a = analyze_posture(view, posture);
+        let score = coherence(&a);
+        if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+            eprintln!("candidate frame {:?} coherence {score} up {:?}", a.posture_frame, a.up);
+        }
+        if best.as_ref().is_none_or(|(s, _)| score > *s) {
+            best = Some((score, a));
+        }
+    }
+    match best {
+        Some((_, a)) => a,
+        None => analyze_posture(view, super::posture::choose(view)),
+    }
+}
+
+/// How completely an analysis reads as a body: core roles found, and a humanoid counts extra.
+fn coherence(a: &Analysis) -> usize {
+    let core = a.roles.iter().filter(|r| r.role.is_core()).count();
+    core + if a.humanoid { 10 } else { 0 }
+}
+
+fn analyze_posture(view: &SkeletonView<'_>, posture: super::posture::Posture) -> Analysis {
     let skel = view.skeleton;
     let n = skel.num_bones();
-    let posture = super::posture::choose(view);
     let pos = posture.positions.clone();
     let used_pose = posture.used_pose;
     let names: Vec<NameInfo> = skel.names().iter().map(|s| names::normalize(s)).collect();
