@@ -176,8 +176,29 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: super::posture::Posture) ->
         let ends = |x: BoneId| pos[topo.chain(x).last().copied().unwrap_or(x).index()];
         let d = (ends(a) + ends(b)) * 0.5 - pos[p.index()];
         let down = d - lateral * d.dot(lateral);
-        if down.length() > 0.05 * size && down.normalize_or_zero().dot(-Vec3::Y) < 0.5 {
-            up = snap_axis(-down.normalize_or_zero());
+        // The legs hang down and the body stands above its feet. When both say so the rig is
+        // turned as a whole (Z-up or any other way) and comes out the same; a quadruped's
+        // slanted hind legs alone (the body stands ahead of them) do not tilt it.
+        let feet = (ends(a) + ends(b)) * 0.5;
+        let body_n = body.detached.iter().filter(|d| !**d).count().max(1) as f32;
+        let centroid = skel
+            .bone_ids()
+            .filter(|x| !body.detached[x.index()])
+            .map(|x| pos[x.index()])
+            .sum::<Vec3>()
+            / body_n;
+        let above = centroid - feet;
+        let above = (above - lateral * above.dot(lateral)).normalize_or_zero();
+        let legs_up = -down.normalize_or_zero();
+        let agree = above.dot(legs_up) > 0.94;
+        if down.length() > 0.05 * size {
+            if agree && legs_up.dot(Vec3::Y) < 0.9 {
+                // Legs and body agree: a rig turned as a whole.
+                up = snap_axis((above + legs_up).normalize_or_zero());
+            } else if legs_up.dot(Vec3::Y) < 0.5 {
+                // Only the legs say so, and strongly (a Z-up quadruped).
+                up = snap_axis(legs_up);
+            }
         }
     }
     // Rigs are built along axes; a rest or frame that is not quite symmetric (one arm
