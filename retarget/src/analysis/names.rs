@@ -39,7 +39,61 @@ const PREFIXES: &[&str] = &[
     "j_bip_",
     "j_",
     "b_",
+    "m_avg_",
 ];
+
+/// Japanese (MMD) part names, longest first: (name part, canonical token). Sides are 左 / 右.
+const JAPANESE: &[(&str, &str)] = &[
+    ("上半身", "chest"),
+    ("下半身", "pelvis"),
+    ("センター", "root"),
+    ("足首", "foot"),
+    ("手首", "hand"),
+    ("つま先", "toe"),
+    ("親指", "thumb"),
+    ("人差指", "index"),
+    ("人指", "index"),
+    ("中指", "middle"),
+    ("薬指", "ring"),
+    ("小指", "little"),
+    ("ひざ", "shin"),
+    ("ひじ", "forearm"),
+    ("肩", "clavicle"),
+    ("腕", "upperarm"),
+    ("足", "thigh"),
+    ("首", "neck"),
+    ("頭", "head"),
+    ("目", "eye"),
+    ("捩", "twist"),
+    ("ＩＫ", "ik"),
+];
+
+/// Replaces Japanese part names by canonical ASCII words and pulls out 左 / 右.
+fn japanese(name: &str) -> (String, Option<Side>) {
+    let mut side = None;
+    let mut out = String::with_capacity(name.len());
+    let mut rest = name;
+    'scan: while let Some(c) = rest.chars().next() {
+        match c {
+            '左' => side = side.or(Some(Side::Left)),
+            '右' => side = side.or(Some(Side::Right)),
+            _ => {
+                for (jp, canon) in JAPANESE {
+                    if let Some(r) = rest.strip_prefix(jp) {
+                        out.push(' ');
+                        out.push_str(canon);
+                        out.push(' ');
+                        rest = r;
+                        continue 'scan;
+                    }
+                }
+                out.push(c);
+            }
+        }
+        rest = &rest[c.len_utf8()..];
+    }
+    (out, side)
+}
 
 /// Synonym folding: (token seen in names, canonical token).
 const SYNONYMS: &[(&str, &str)] = &[
@@ -139,7 +193,12 @@ pub fn split_words(name: &str) -> Vec<String> {
 
 /// Normalises one bone name.
 pub fn normalize(name: &str) -> NameInfo {
-    let mut rest = name.trim();
+    let (ascii, jp_side) = if name.is_ascii() {
+        (String::new(), None)
+    } else {
+        japanese(name)
+    };
+    let mut rest = if name.is_ascii() { name.trim() } else { ascii.trim() };
     let mut helper = false;
     let lower = rest.to_lowercase();
     for p in PREFIXES {
@@ -152,7 +211,7 @@ pub fn normalize(name: &str) -> NameInfo {
         }
     }
     // Daz/Poser style `lThigh` / `rShldr`: one lower-case l/r followed by a capital.
-    let mut side = None;
+    let mut side = jp_side;
     let mut chars = rest.chars();
     if let (Some(c0), Some(c1)) = (chars.next(), chars.next()) {
         if (c0 == 'l' || c0 == 'r') && c1.is_uppercase() {
@@ -193,6 +252,23 @@ pub fn normalize(name: &str) -> NameInfo {
         if let Ok(n) = w.parse::<u32>() {
             number = Some(n);
             i += 1;
+            continue;
+        }
+        // Vertebrae (Xsens MVN `L5`, `T8`, `C7`, the whole name): a spine or neck bone, not
+        // a side marker (`upper_arm.L.001` keeps its side).
+        let whole = i == 0 && words.len() == 2;
+        if let (true, Some(kind), Some(n)) = (
+            whole,
+            match w {
+                "l" | "t" => Some("spine"),
+                "c" => Some("neck"),
+                _ => None,
+            },
+            words.get(i + 1).and_then(|x| x.parse::<u32>().ok()),
+        ) {
+            tokens.push(kind.to_string());
+            number = Some(n);
+            i += 2;
             continue;
         }
         match w {
@@ -275,6 +351,35 @@ mod tests {
         assert_eq!(normalize("calf_l").tokens, vec!["shin"]);
         assert_eq!(normalize("Spine").side, None);
         assert_eq!(normalize("j12").tokens, vec!["j"]);
+    }
+
+    #[test]
+    fn conventions_people_use() {
+        // Xsens MVN vertebrae are spine bones, not left-side bones.
+        let n = normalize("L5");
+        assert_eq!((n.side, n.tokens.clone(), n.number), (None, vec!["spine".to_string()], Some(5)));
+        assert_eq!(normalize("T8").tokens, vec!["spine"]);
+        // 3ds Max Biped, SMPL, Character Creator, RobotExpressive (no separator).
+        let n = normalize("Bip01 L Thigh");
+        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["thigh".to_string()]));
+        let n = normalize("m_avg_R_Knee");
+        assert_eq!((n.side, n.tokens), (Some(Side::Right), vec!["shin".to_string()]));
+        let n = normalize("CC_Base_L_Upperarm");
+        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["upperarm".to_string()]));
+        let n = normalize("UpperArmL");
+        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["upperarm".to_string()]));
+        // Kinect: side word at the end, a tip is an end marker.
+        let n = normalize("HandTipLeft");
+        assert_eq!(n.side, Some(Side::Left));
+        assert!(n.helper);
+        // MMD (Japanese): 左足 is the left thigh, 右ひじ the right forearm, 上半身 the chest.
+        let n = normalize("左足");
+        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["thigh".to_string()]));
+        let n = normalize("右ひじ");
+        assert_eq!((n.side, n.tokens), (Some(Side::Right), vec!["forearm".to_string()]));
+        assert_eq!(normalize("左足首").tokens, vec!["foot"]);
+        assert_eq!(normalize("上半身").tokens, vec!["chest"]);
+        assert!(normalize("左足ＩＫ").helper);
     }
 
     #[test]
