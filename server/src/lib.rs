@@ -41,6 +41,7 @@ pub mod state;
 pub mod stats;
 pub mod subject;
 pub mod translated;
+pub mod vmc_pose;
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
