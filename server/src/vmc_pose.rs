@@ -117,7 +117,10 @@ mod tests {
         let mut raw = rigcast_retarget::RawSkeleton::default();
         let offsets: Vec<Quat> = (0..plain.num_bones())
             .map(|i| {
-                Quat::from_axis_angle(Vec3::new(1.0, i as f32, 2.0).normalize(), 0.3 * i as f32)
+                Quat::from_axis_angle(
+                    Vec3::new(1.0, i as f32, 2.0).normalize_or_zero(),
+                    0.3 * i as f32,
+                )
             })
             .collect();
         let rest = plain.rest();
@@ -154,7 +157,7 @@ mod tests {
         // A pose of the plain rig, and the same pose on the turned rig.
         let mut pose = plain.rest_pose();
         for (i, q) in pose.rotations.iter_mut().enumerate() {
-            *q = *q * Quat::from_rotation_x(0.1 * (i % 5) as f32);
+            *q *= Quat::from_rotation_x(0.1 * (i % 5) as f32);
         }
         let mut turned_pose = turned.rest_pose();
         for b in plain.bone_ids() {
