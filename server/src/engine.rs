@@ -260,23 +260,13 @@ impl Ticker {
                         }
                         let worlds = &self.worlds;
                         let direct = plan.direct;
-                        let parents = shape.skeleton.parents();
                         let bones = plan.bones.iter().map(|(name, b, anc)| {
-                            let (translation, rotation) = if direct
-                                || *anc == parents[*b].map(|p| p.index())
-                            {
+                            let (translation, rotation) = if direct {
                                 (pose.translations[*b], pose.rotations[*b])
                             } else {
-                                // Local relative to the nearest sent ancestor.
-                                let w = worlds[*b];
-                                match anc {
-                                    Some(a) => {
-                                        let pw = worlds[*a];
-                                        let inv = pw.rotation.inverse();
-                                        (inv * (w.translation - pw.translation), inv * w.rotation)
-                                    }
-                                    None => (w.translation, w.rotation),
-                                }
+                                // Relative to the nearest sent ancestor, in the receivers'
+                                // normalised T-pose frame.
+                                crate::vmc_pose::normalised_local(worlds, &plan.norm, *b, *anc)
                             };
                             VmcBone {
                                 name,

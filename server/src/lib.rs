@@ -47,6 +47,7 @@ pub mod stats;
 pub mod subject;
 pub mod token;
 pub mod translated;
+pub mod vmc_pose;
 
 use std::collections::HashMap;
 use std::net::SocketAddr;

@@ -25,8 +25,11 @@ pub struct VmcPlan {
     /// (name sent, bone index, index of the nearest sent ancestor). When the ancestor is not
     /// the bone's direct parent the local transform is recomputed from world transforms.
     pub bones: Vec<(String, usize, Option<usize>)>,
-    /// True when every sent bone's ancestor is its direct parent (locals can be sent as is).
+    /// True when the bones' own local transforms are sent as they are (the skeleton's own
+    /// names); false for humanoid role names, sent normalised (see [`crate::vmc_pose`]).
     pub direct: bool,
+    /// Per skeleton bone, the normaliser of its world rotation (identity when not sent).
+    pub norm: Vec<glam::Quat>,
 }
 
 impl VmcPlan {
@@ -71,6 +74,7 @@ impl VmcPlan {
                     })
                     .collect(),
                 direct: true,
+                norm: Vec::new(),
             };
         }
         let mut role_of: Vec<Option<&'static str>> = vec![None; skeleton.num_bones()];
@@ -78,7 +82,6 @@ impl VmcPlan {
             role_of[b.index()] = Some(h.unity_name());
         }
         let mut bones = Vec::new();
-        let mut direct = true;
         for b in skeleton.bone_ids() {
             let Some(name) = role_of[b.index()] else {
                 continue;
@@ -90,12 +93,15 @@ impl VmcPlan {
                 }
                 anc = skeleton.parent(a);
             }
-            if anc != skeleton.parent(b) {
-                direct = false;
-            }
             bones.push((name.to_string(), b.index(), anc.map(|a| a.index())));
         }
-        VmcPlan { bones, direct }
+        let sent: Vec<(String, usize)> = bones.iter().map(|(n, b, _)| (n.clone(), *b)).collect();
+        let norm = crate::vmc_pose::normalisers(skeleton, &sent, analysis.forward);
+        VmcPlan {
+            bones,
+            direct: false,
+            norm,
+        }
     }
 }
 

@@ -45,7 +45,7 @@ pub fn write_glb_onto(template: &GltfTemplate, clip: &Clip) -> Result<Vec<u8>, S
     }
     let animation = append_animation(&mut root, &mut bin, template, clip);
     root["animations"] = json!([animation]);
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     root["buffers"] = json!([{"byteLength": bin.len()}]);
@@ -58,7 +58,7 @@ fn merge_buffers(root: &mut Value, buffers: &[Vec<u8>]) -> Result<Vec<u8>, Sourc
     let mut bin = Vec::new();
     let mut base = Vec::with_capacity(buffers.len());
     for b in buffers {
-        while bin.len() % 16 != 0 {
+        while !bin.len().is_multiple_of(16) {
             bin.push(0);
         }
         base.push(bin.len());
@@ -145,7 +145,7 @@ fn append_animation(
                     kind: &str,
                     count: usize,
                     minmax: Option<(f32, f32)>| {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let offset = bin.len();
@@ -224,7 +224,7 @@ fn take_array(root: &mut Value, key: &str) -> Vec<Value> {
 fn encode_glb(root: &Value, bin: &[u8]) -> Result<Vec<u8>, SourceError> {
     let mut json_bytes =
         serde_json::to_vec(root).map_err(|e| bad(format!("cannot encode JSON: {e}")))?;
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
