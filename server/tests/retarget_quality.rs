@@ -176,23 +176,37 @@ fn measure(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Figures {
             ))
         })
         .collect();
+    // A segment whose end is not below its joint (an IK foot under the root, RobotExpressive)
+    // is no bone: its knee-to-foot line follows the IK target, not a rotation. Measure such a
+    // segment by the joint's own orientation: its rest direction turned with it.
+    let (rest_s, rest_t) = (
+        world_transforms(ss, &ss.rest_pose()),
+        world_transforms(ts, &ts.rest_pose()),
+    );
+    let direction = |skel: &Skeleton,
+                     rest: &[rigcast_retarget::WorldTransform],
+                     w: &[rigcast_retarget::WorldTransform],
+                     a: BoneId,
+                     b: BoneId| {
+        if is_below(skel, b, a) {
+            w[b.index()].translation - w[a.index()].translation
+        } else {
+            let d0 = rest[b.index()].translation - rest[a.index()].translation;
+            w[a.index()].rotation * rest[a.index()].rotation.inverse() * d0
+        }
+    };
     let (mut src_hips, mut tgt_hips) = (Vec::new(), Vec::new());
     let mut ups = Vec3::ZERO;
     let mut feet: Vec<(f32, f32)> = Vec::new(); // (source height, target height) along up
     let (sh, th) = (src.bone("hips"), tgt.bone("hips"));
     let mut samples: Vec<(Vec<Vec3>, Vec<Vec3>)> = Vec::new();
     for (sp, tp) in clip.poses.iter().zip(&out.poses) {
-        let ws: Vec<Vec3> = world_transforms(ss, sp)
-            .iter()
-            .map(|w| w.translation)
-            .collect();
-        let wt: Vec<Vec3> = world_transforms(ts, tp)
-            .iter()
-            .map(|w| w.translation)
-            .collect();
+        let (fs, ft) = (world_transforms(ss, sp), world_transforms(ts, tp));
+        let ws: Vec<Vec3> = fs.iter().map(|w| w.translation).collect();
+        let wt: Vec<Vec3> = ft.iter().map(|w| w.translation).collect();
         for (label, [a, b, c, d]) in &pairs {
-            let ds = ws[b.index()] - ws[a.index()];
-            let dt = wt[d.index()] - wt[c.index()];
+            let ds = direction(ss, &rest_s, &fs, *a, *b);
+            let dt = direction(ts, &rest_t, &ft, *c, *d);
             if ds.length() < 1e-4 || dt.length() < 1e-4 {
                 continue;
             }
@@ -393,4 +407,16 @@ fn planted_feet_stay_on_the_floor_on_real_pairs() {
         failures.len(),
         failures.join("\n")
     );
+}
+
+/// Whether `b` hangs below `a` in the hierarchy.
+fn is_below(skel: &Skeleton, b: BoneId, a: BoneId) -> bool {
+    let mut x = skel.parent(b);
+    while let Some(p) = x {
+        if p == a {
+            return true;
+        }
+        x = skel.parent(p);
+    }
+    false
 }

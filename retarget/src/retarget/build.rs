@@ -203,9 +203,11 @@ impl<'a> Setup<'a> {
         let (skel, w, eps) = (self.sources[input], &self.src_w[input], self.src_eps[input]);
         let s = sref.bone;
         // The source joint a mapped target joint corresponds to, if it lies below `from`.
+        // A leaf's end may hang elsewhere: an IK foot under the root is where the shin points.
         let corresponding = |tb: Option<BoneId>, from: BoneId| {
             let e = primary(self.table, tb?)?;
-            (e.input == sref.input && e.bone != from && align::is_descendant(skel, from, e.bone))
+            let below = align::is_descendant(skel, from, e.bone) || skel.children(from).is_empty();
+            (e.input == sref.input && e.bone != from && below)
                 .then_some(e.bone)
                 .and_then(|e| align::distinct_end(skel, w, from, e, eps))
         };
