@@ -488,7 +488,11 @@ fn a_plain_chain_maps_onto_itself() {
     let mut raw = RawSkeleton::default();
     let mut parent = None;
     for i in 0..6 {
-        let offset = if i == 0 { Vec3::ZERO } else { Vec3::new(0.0, 0.2, 0.01 * i as f32) };
+        let offset = if i == 0 {
+            Vec3::ZERO
+        } else {
+            Vec3::new(0.0, 0.2, 0.01 * i as f32)
+        };
         parent = Some(raw.add(
             format!("b{i}"),
             parent,

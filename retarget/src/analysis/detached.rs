@@ -52,7 +52,11 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
     let mut plain_steps = 0;
     loop {
         let ch = skel.children(b);
-        let big: Vec<BoneId> = ch.iter().copied().filter(|c| topo.size[c.index()] > SMALL).collect();
+        let big: Vec<BoneId> = ch
+            .iter()
+            .copied()
+            .filter(|c| topo.size[c.index()] > SMALL)
+            .collect();
         if big.len() != 1 {
             break;
         }
@@ -62,7 +66,10 @@ pub(crate) fn find(skel: &Skeleton, topo: &Topology) -> BodyRoot {
         // bones is a body of its own, not a stack of carriers).
         if ch.len() == 1 {
             let branches_soon = skel.children(body).len() >= 2
-                || skel.children(body).iter().any(|g| skel.children(*g).len() >= 2);
+                || skel
+                    .children(body)
+                    .iter()
+                    .any(|g| skel.children(*g).len() >= 2);
             if plain_steps > 0 || !branches_soon {
                 break;
             }
@@ -118,13 +125,15 @@ pub(crate) fn extensions(
         .filter(|&b| !body.detached[b.index()] && skel.children(b).is_empty())
         .collect();
     for b in skel.bone_ids() {
-        let top = body.detached[b.index()]
-            && !skel.parent(b).is_some_and(|p| body.detached[p.index()]);
+        let top =
+            body.detached[b.index()] && !skel.parent(b).is_some_and(|p| body.detached[p.index()]);
         if !top {
             continue;
         }
         for &l in &leaves {
-            let Some(cost) = continuation_cost(skel, pos, b, l) else { continue };
+            let Some(cost) = continuation_cost(skel, pos, b, l) else {
+                continue;
+            };
             // Feet hang below the limb that ends above them; a control level with or above
             // it (an orient bone) continues nothing.
             let drop = (pos[l.index()] - pos[b.index()]).dot(up);

@@ -49,7 +49,10 @@ fn hand_role(nm: &NameInfo) -> Option<Role> {
             joint: j.min(2),
         }),
         (_, 0) => Some(Role::Helper),
-        (d, j) => Some(Role::Finger { digit: d, joint: j - 1 }),
+        (d, j) => Some(Role::Finger {
+            digit: d,
+            joint: j - 1,
+        }),
     }
 }
 
@@ -66,11 +69,7 @@ pub(crate) fn hand_roles(names: &[NameInfo], pos: &[Vec3]) -> Option<(Vec<Option
     Some((roles, side))
 }
 
-fn chirality(
-    pos: &[Vec3],
-    hand: usize,
-    find: &dyn Fn(u8, u8) -> Option<usize>,
-) -> Option<Side> {
+fn chirality(pos: &[Vec3], hand: usize, find: &dyn Fn(u8, u8) -> Option<usize>) -> Option<Side> {
     let (index, middle, little) = (find(1, 0)?, find(2, 0)?, find(4, 0).or(find(3, 0))?);
     let thumb = find(0, 2).or(find(0, 1))?;
     let wrist = pos[hand];

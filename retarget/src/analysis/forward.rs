@@ -187,8 +187,11 @@ fn bend(inp: &ForwardInput<'_>, p: &[Vec3], m: BoneId, fwd: Vec3) -> f32 {
     if total < 1e-6 {
         return 0.0;
     }
-    let k = (1..chain.len() - 1)
-        .min_by(|&x, &y| (cum[x] - 0.42 * total).abs().total_cmp(&(cum[y] - 0.42 * total).abs()));
+    let k = (1..chain.len() - 1).min_by(|&x, &y| {
+        (cum[x] - 0.42 * total)
+            .abs()
+            .total_cmp(&(cum[y] - 0.42 * total).abs())
+    });
     let Some(k) = k else { return 0.0 };
     let pk = p[chain[k].index()];
     // The segment before the middle joint: walk back over short helpers.
@@ -198,7 +201,8 @@ fn bend(inp: &ForwardInput<'_>, p: &[Vec3], m: BoneId, fwd: Vec3) -> f32 {
     }
     let ps = p[chain[s].index()];
     let upper = (pk - ps).length();
-    let Some(j) = (k + 1..chain.len()).find(|&j| (p[chain[j].index()] - pk).length() >= 0.6 * upper)
+    let Some(j) =
+        (k + 1..chain.len()).find(|&j| (p[chain[j].index()] - pk).length() >= 0.6 * upper)
     else {
         return 0.0;
     };
@@ -233,7 +237,13 @@ fn thumb_offset(inp: &ForwardInput<'_>, arm: BoneId) -> Option<f32> {
     let digits = inp.skel.children(hand);
     let hash = |b: &BoneId| inp.topo.hash[b.index()];
     let odd: Vec<usize> = (0..digits.len())
-        .filter(|&i| digits.iter().filter(|d| hash(d) == hash(&digits[i])).count() == 1)
+        .filter(|&i| {
+            digits
+                .iter()
+                .filter(|d| hash(d) == hash(&digits[i]))
+                .count()
+                == 1
+        })
         .collect();
     let thumb = if odd.len() == 1 {
         odd[0]
@@ -264,5 +274,105 @@ fn slope_cue(inp: &ForwardInput<'_>, path_ends: Option<(BoneId, BoneId)>) -> f32
         0.1 * dh.signum() * dv.signum()
     } else {
         0.0
+    }
+}
+
+/// A forward vote at least this large decides the sides against the names.
+const GEOMETRY_CLEAR: f32 = 0.15;
+
+/// Which way the character faces, and what the analysis had to overrule to say so.
+pub(super) struct Facing {
+    /// Forward (unit).
+    pub forward: Vec3,
+    /// The provisional sides (`+lat` = left) were the wrong way round.
+    pub flipped: bool,
+    /// Names that disagreed with clear geometry.
+    pub warnings: Vec<String>,
+}
+
+/// Decides forward from the geometric vote; side markers in the names decide only when the
+/// geometry has no clear answer, and a clear answer they contradict is reported.
+pub(super) fn facing(
+    ctx: &super::context::Ctx<'_>,
+    limbs: &[super::context::Limb],
+    path: &[BoneId],
+    samples: &[Vec<Vec3>],
+    lat: Vec3,
+    (ground, hext): (f32, f32),
+) -> Facing {
+    let fwd0 = lat.cross(ctx.up).normalize_or_zero();
+    let pairs = |want_ground: bool| -> Vec<[BoneId; 2]> {
+        limbs
+            .iter()
+            .filter(|l| {
+                l.members.len() == 2 && l.ground == want_ground && l.reach > 0.12 * ctx.size
+            })
+            .map(|l| [l.members[0].0, l.members[1].0])
+            .collect()
+    };
+    let input = ForwardInput {
+        skel: ctx.skel,
+        topo: ctx.topo,
+        pos: ctx.pos,
+        samples,
+        up: ctx.up,
+        fwd0,
+        size: ctx.size,
+        ground,
+        hext,
+        legs: pairs(true),
+        arms: pairs(false),
+    };
+    let v = vote(&input, path);
+    let cue = v.total();
+    let geometry = if cue < 0.0 { -1.0 } else { 1.0 };
+    let mut warnings = Vec::new();
+    let sign = match name_sign(ctx, limbs) {
+        Some(s) if cue.abs() < GEOMETRY_CLEAR => s,
+        Some(s) if s != geometry => {
+            warnings.push(format!(
+                "names mark the sides the other way round from the geometry (forward vote \
+                 {cue:.2}: feet {:.2}, bends {:.2}, thumbs {:.2}); the geometry's sides are used",
+                v.feet, v.bends, v.thumbs
+            ));
+            geometry
+        }
+        _ => geometry,
+    };
+    Facing {
+        forward: fwd0 * sign,
+        flipped: sign < 0.0,
+        warnings,
+    }
+}
+
+/// The sides the names mark, relative to the provisional ones: `Some(1.0)` when at least
+/// three quarters of the side markers in the limbs agree with them, `Some(-1.0)` when as many
+/// disagree, `None` otherwise (or with fewer than four markers).
+fn name_sign(ctx: &super::context::Ctx<'_>, limbs: &[super::context::Limb]) -> Option<f32> {
+    use super::Side;
+    let (mut agree, mut disagree) = (0usize, 0usize);
+    for l in limbs {
+        for &(m, s) in &l.members {
+            for b in ctx.subtree(m) {
+                match (ctx.names[b.index()].side, s) {
+                    (Some(Side::Left), Side::Left) | (Some(Side::Right), Side::Right) => agree += 1,
+                    (Some(Side::Left), Side::Right) | (Some(Side::Right), Side::Left) => {
+                        disagree += 1
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    let total = (agree + disagree) as f32;
+    if agree + disagree < 4 {
+        None
+    } else if agree as f32 >= 0.75 * total {
+        Some(1.0)
+    } else if disagree as f32 >= 0.75 * total {
+        Some(-1.0)
+    } else {
+        None
     }
 }

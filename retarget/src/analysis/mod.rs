@@ -25,14 +25,19 @@
 //! tie only when geometry gives no clear cue, and a clear cue that disagrees with the names is
 //! reported in `Analysis::warnings`.
 
-pub mod humanoid;
+mod centerline;
+mod context;
 mod detached;
+mod extremities;
 mod flat;
 mod forward;
+mod frame;
+pub mod humanoid;
 mod limbs;
-mod posture;
 pub mod names;
+mod posture;
 mod roles;
+mod sections;
 mod topology;
 pub mod truth;
 mod vocabulary;

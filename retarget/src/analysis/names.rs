@@ -198,7 +198,11 @@ pub fn normalize(name: &str) -> NameInfo {
     } else {
         japanese(name)
     };
-    let mut rest = if name.is_ascii() { name.trim() } else { ascii.trim() };
+    let mut rest = if name.is_ascii() {
+        name.trim()
+    } else {
+        ascii.trim()
+    };
     let mut helper = false;
     let lower = rest.to_lowercase();
     for p in PREFIXES {
@@ -357,26 +361,47 @@ mod tests {
     fn conventions_people_use() {
         // Xsens MVN vertebrae are spine bones, not left-side bones.
         let n = normalize("L5");
-        assert_eq!((n.side, n.tokens.clone(), n.number), (None, vec!["spine".to_string()], Some(5)));
+        assert_eq!(
+            (n.side, n.tokens.clone(), n.number),
+            (None, vec!["spine".to_string()], Some(5))
+        );
         assert_eq!(normalize("T8").tokens, vec!["spine"]);
         // 3ds Max Biped, SMPL, Character Creator, RobotExpressive (no separator).
         let n = normalize("Bip01 L Thigh");
-        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["thigh".to_string()]));
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(Side::Left), vec!["thigh".to_string()])
+        );
         let n = normalize("m_avg_R_Knee");
-        assert_eq!((n.side, n.tokens), (Some(Side::Right), vec!["shin".to_string()]));
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(Side::Right), vec!["shin".to_string()])
+        );
         let n = normalize("CC_Base_L_Upperarm");
-        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["upperarm".to_string()]));
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(Side::Left), vec!["upperarm".to_string()])
+        );
         let n = normalize("UpperArmL");
-        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["upperarm".to_string()]));
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(Side::Left), vec!["upperarm".to_string()])
+        );
         // Kinect: side word at the end, a tip is an end marker.
         let n = normalize("HandTipLeft");
         assert_eq!(n.side, Some(Side::Left));
         assert!(n.helper);
         // MMD (Japanese): 左足 is the left thigh, 右ひじ the right forearm, 上半身 the chest.
         let n = normalize("左足");
-        assert_eq!((n.side, n.tokens), (Some(Side::Left), vec!["thigh".to_string()]));
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(Side::Left), vec!["thigh".to_string()])
+        );
         let n = normalize("右ひじ");
-        assert_eq!((n.side, n.tokens), (Some(Side::Right), vec!["forearm".to_string()]));
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(Side::Right), vec!["forearm".to_string()])
+        );
         assert_eq!(normalize("左足首").tokens, vec!["foot"]);
         assert_eq!(normalize("上半身").tokens, vec!["chest"]);
         assert!(normalize("左足ＩＫ").helper);

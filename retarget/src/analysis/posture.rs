@@ -112,7 +112,7 @@ fn folded_rest(skel: &crate::skeleton::Skeleton) -> bool {
     let rest = skel.rest();
     let turned = rest
         .iter()
-        .filter(|t| t.rotation.abs_diff_eq(glam::Quat::IDENTITY, 1e-4) == false)
+        .filter(|t| !t.rotation.abs_diff_eq(glam::Quat::IDENTITY, 1e-4))
         .count();
     // Rigs with real rest rotations (glTF's bones along their local Y) show their posture.
     if turned * 10 > rest.len() {
@@ -184,7 +184,8 @@ fn medoid(view: &SkeletonView<'_>, valid: &[usize]) -> Option<usize> {
             Vec3::new(axis(|p| p.x), axis(|p| p.y), axis(|p| p.z))
         })
         .collect();
-    let cost = |p: &Vec<Vec3>| -> f32 { p.iter().zip(&median).map(|(a, b)| (*a - *b).length()).sum() };
+    let cost =
+        |p: &Vec<Vec3>| -> f32 { p.iter().zip(&median).map(|(a, b)| (*a - *b).length()).sum() };
     let best = (0..frames.len()).min_by(|&a, &b| cost(&frames[a]).total_cmp(&cost(&frames[b])))?;
     // `frames` skipped degenerate samples: find the pick it came from.
     let mut k = 0;
@@ -211,6 +212,6 @@ fn relative(mut p: Vec<Vec3>) -> Vec<Vec3> {
 }
 
 /// The pose of a posture frame (for alignment stages that need the same posture).
-pub(crate) fn frame_pose<'a>(motion: &'a [Pose], frame: Option<usize>) -> Option<&'a Pose> {
+pub(crate) fn frame_pose(motion: &[Pose], frame: Option<usize>) -> Option<&Pose> {
     frame.and_then(|i| motion.get(i))
 }

@@ -1,0 +1,221 @@
+//! The centerline and the limbs hanging off it. Starting from the body root, a child whose
+//! subtree lies clearly to one side (along the lateral axis) starts a limb, the others continue
+//! the central tree; mirror-image limbs on the two sides pair up. The centerline is the central
+//! tree's longest path, oriented tail → head.
+
+use glam::Vec3;
+
+use super::context::{Ctx, Limb};
+use super::Side;
+use crate::skeleton::BoneId;
+
+/// The central tree (per bone) and the limbs hanging off it. Sides are provisional: `Left`
+/// means "on the `+lat` side" until the forward axis is known.
+pub(super) fn central_and_limbs(
+    ctx: &Ctx<'_>,
+    root: BoneId,
+    lat: Vec3,
+    ground: f32,
+    hext: f32,
+) -> (Vec<bool>, Vec<Limb>) {
+    let (skel, pos, topo, size) = (ctx.skel, ctx.pos, ctx.topo, ctx.size);
+    let n = skel.num_bones();
+    let mut central = vec![false; n];
+    let mut limbs: Vec<Limb> = Vec::new();
+    central[root.index()] = true;
+    for i in 0..n {
+        let p = BoneId(i as u16);
+        if !central[i] {
+            continue;
+        }
+        let mut plus = Vec::new();
+        let mut minus = Vec::new();
+        for &c in skel.children(p) {
+            if ctx.detached[c.index()] {
+                continue;
+            }
+            // Coincident / on-segment leaves (Rigify ORG- copies) never extend the centerline;
+            // named end joints that stick out (`head_end`) do.
+            if ctx.is_shadow(c) && !ctx.names[c.index()].helper && skel.children(p).len() > 1 {
+                continue;
+            }
+            if ctx.is_shadow(c) && ctx.names[c.index()].helper && ctx.is_coincident(c) {
+                continue;
+            }
+            let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
+            let spread = ctx
+                .subtree(c)
+                .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
+                .fold(0.0, f32::max);
+            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size {
+                if off > 0.0 {
+                    plus.push(c);
+                } else {
+                    minus.push(c);
+                }
+            } else {
+                central[c.index()] = true;
+            }
+        }
+        for (a, b) in pair_up(ctx, &mut plus, &mut minus) {
+            limbs.push(make_limb(
+                ctx,
+                p,
+                vec![(a, Side::Left), (b, Side::Right)],
+                ground,
+                hext,
+            ));
+        }
+        for c in plus.into_iter().chain(minus) {
+            let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
+            // Without a mirror twin, only a chain far to one side is a limb; a head that
+            // sits a little off the midline continues the body.
+            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
+            if off.abs() < 0.15 * extent {
+                central[c.index()] = true;
+                continue;
+            }
+            let s = if off > 0.0 { Side::Left } else { Side::Right };
+            limbs.push(make_limb(ctx, p, vec![(c, s)], ground, hext));
+        }
+    }
+    (central, limbs)
+}
+
+/// The centerline turned to run tail → head: its head end is the higher and more forward one.
+pub(super) fn oriented(ctx: &Ctx<'_>, mut path: Vec<BoneId>) -> Vec<BoneId> {
+    if let (Some(&a), Some(&b)) = (path.first(), path.last()) {
+        let score =
+            |x: BoneId| ctx.pos[x.index()].dot(ctx.up) + 0.7 * ctx.pos[x.index()].dot(ctx.forward);
+        if score(a) > score(b) {
+            path.reverse();
+        }
+    }
+    path
+}
+
+/// Pairs off-center children on the two sides as mirror images (similar reach and height,
+/// equal shapes preferred). Unpaired ones stay in the lists.
+fn pair_up(
+    ctx: &Ctx<'_>,
+    plus: &mut Vec<BoneId>,
+    minus: &mut Vec<BoneId>,
+) -> Vec<(BoneId, BoneId)> {
+    let mut out = Vec::new();
+    loop {
+        let mut best: Option<(f32, usize, usize)> = None;
+        for (i, &a) in plus.iter().enumerate() {
+            for (j, &b) in minus.iter().enumerate() {
+                let ra = ctx.topo.reach[a.index()] + 1e-3;
+                let rb = ctx.topo.reach[b.index()] + 1e-3;
+                let mut cost = (ra / rb).ln().abs();
+                cost += (ctx.h(a) - ctx.h(b)).abs() / ctx.size * 4.0;
+                cost += (ctx.topo.centroid[a.index()].dot(ctx.up)
+                    - ctx.topo.centroid[b.index()].dot(ctx.up))
+                .abs()
+                    / ctx.size
+                    * 4.0;
+                if ctx.topo.hash[a.index()] != ctx.topo.hash[b.index()] {
+                    cost += 0.5;
+                }
+                if cost < 1.5 && best.is_none_or(|(c, ..)| cost < c) {
+                    best = Some((cost, i, j));
+                }
+            }
+        }
+        let Some((_, i, j)) = best else { break };
+        out.push((plus.remove(i), minus.remove(j)));
+    }
+    out
+}
+
+fn make_limb(
+    ctx: &Ctx<'_>,
+    parent: BoneId,
+    members: Vec<(BoneId, Side)>,
+    ground: f32,
+    hext: f32,
+) -> Limb {
+    let mut reach = 0.0;
+    let mut low = f32::MAX;
+    let mut height = 0.0;
+    for &(m, _) in &members {
+        reach +=
+            ctx.topo.reach[m.index()] + (ctx.pos[m.index()] - ctx.pos[parent.index()]).length();
+        height += ctx.h(m);
+        let mut extra = 0.0f32;
+        for b in ctx.subtree(m) {
+            low = low.min(ctx.h(b));
+            if let Some(x) = ctx.extension[b.index()] {
+                low = low.min(ctx.h(x));
+                // The detached foot is part of the limb's length too.
+                extra = extra.max((ctx.pos[x.index()] - ctx.pos[b.index()]).length());
+            }
+        }
+        reach += extra;
+    }
+    let k = members.len().max(1) as f32;
+    Limb {
+        parent,
+        members,
+        reach: reach / k,
+        ground: low < ground + 0.2 * hext,
+        height: height / k,
+    }
+}
+
+/// Longest path (by length) through the central tree, as a bone list.
+pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool]) -> Vec<BoneId> {
+    let n = central.len();
+    let Some(root) = (0..n).find(|&i| central[i]) else {
+        return Vec::new();
+    };
+    // Undirected adjacency among central bones.
+    let neighbours = |b: usize| {
+        let mut v: Vec<usize> = ctx
+            .skel
+            .children(BoneId(b as u16))
+            .iter()
+            .map(|c| c.index())
+            .filter(|&c| central[c])
+            .collect();
+        if let Some(p) = ctx.skel.parent(BoneId(b as u16)) {
+            if central[p.index()] {
+                v.push(p.index());
+            }
+        }
+        v
+    };
+    let far = |start: usize| -> (usize, Vec<Option<usize>>) {
+        let mut dist = vec![f32::NAN; n];
+        let mut prev = vec![None; n];
+        dist[start] = 0.0;
+        let mut stack = vec![start];
+        while let Some(b) = stack.pop() {
+            for c in neighbours(b) {
+                if dist[c].is_nan() {
+                    // A tiny per-edge term lets zero-length helpers still extend a path.
+                    dist[c] = dist[b] + (ctx.pos[c] - ctx.pos[b]).length() + 1e-4 * ctx.size;
+                    prev[c] = Some(b);
+                    stack.push(c);
+                }
+            }
+        }
+        let mut best = start;
+        for i in 0..n {
+            if !dist[i].is_nan() && dist[i] > dist[best] + 1e-6 {
+                best = i;
+            }
+        }
+        (best, prev)
+    };
+    let (a, _) = far(root);
+    let (b, prev) = far(a);
+    let mut path = vec![BoneId(b as u16)];
+    let mut cur = b;
+    while let Some(p) = prev[cur] {
+        path.push(BoneId(p as u16));
+        cur = p;
+    }
+    path
+}

@@ -1,0 +1,278 @@
+//! Along one limb: clavicle | upper | lower segment (split by [`fit_chain`]), then the hand or
+//! foot, its toes or digits (thumb first, by their position on the palm).
+
+use glam::Vec3;
+
+use super::context::{Builder, Ctx, LimbKind};
+use super::limbs::fit_chain;
+use super::vocabulary::{Role, SectionKind};
+use super::Side;
+use crate::skeleton::BoneId;
+
+/// One limb member to place: its chain root and where it hangs.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LimbMember {
+    pub(super) root: BoneId,
+    pub(super) side: Side,
+    pub(super) kind: LimbKind,
+    pub(super) limb_index: u8,
+    pub(super) ground: bool,
+    pub(super) parent_sec: Option<usize>,
+}
+
+/// Assigns roles along one limb member (arm, leg or wing) and its extremity and digits.
+pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
+    let LimbMember {
+        root: m,
+        side,
+        kind,
+        limb_index,
+        ground,
+        parent_sec,
+    } = member;
+    let chain = ctx.topo.chain(m);
+    let lengths: Vec<f32> = chain.iter().map(|b| ctx.topo.length[b.index()]).collect();
+    let dirs: Vec<Vec3> = chain
+        .iter()
+        .map(|b| match ctx.topo.main[b.index()] {
+            Some(c) => (ctx.pos[c.index()] - ctx.pos[b.index()]).normalize_or_zero(),
+            None => Vec3::ZERO,
+        })
+        .collect();
+    let fixed = chain
+        .iter()
+        .enumerate()
+        .skip(2)
+        .find(|(_, &b)| ctx.significant_children(b).len() >= 2)
+        .map(|(i, _)| i)
+        .map(|i| {
+            if palms_below(ctx, &chain, i) {
+                i + 1
+            } else {
+                i
+            }
+        });
+    let is_leg = kind == LimbKind::Leg;
+    let ratio = if is_leg { 1.05 } else { 1.12 };
+    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
+        eprintln!(
+            "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
+            kind as u8,
+            side,
+            chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
+            lengths,
+            fixed
+        );
+    }
+    let (limb_kind, ext_kind) = match kind {
+        LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
+        LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
+        _ => (SectionKind::Arm, SectionKind::Hand),
+    };
+    // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
+    // the foot anywhere up to the branch.
+    let fitted = match fixed {
+        Some(f) if is_leg => fit_chain(&lengths[..=f], &dirs[..=f], None, ratio),
+        _ => fit_chain(&lengths, &dirs, fixed, ratio),
+    };
+    let Some(split) = fitted else {
+        let si = out.add_section(
+            limb_kind,
+            side,
+            limb_index,
+            chain.clone(),
+            parent_sec,
+            ground,
+        );
+        let _ = si;
+        let role = if is_leg {
+            Role::UpperLeg
+        } else {
+            Role::UpperArm
+        };
+        out.roles[chain[0].index()].role = role;
+        out.roles[chain[0].index()].confidence = 0.3;
+        return;
+    };
+    let conf = (0.95 * (-split.cost).exp()).clamp(0.2, 0.95);
+    let e = split.extremity.min(chain.len());
+    let limb_bones = chain[..e].to_vec();
+    let li = out.add_section(limb_kind, side, limb_index, limb_bones, parent_sec, ground);
+    for (j, &b) in chain.iter().enumerate().take(split.upper) {
+        let role = if j + 1 == split.upper {
+            if is_leg {
+                Role::PelvisSide
+            } else {
+                Role::Clavicle
+            }
+        } else {
+            Role::Helper
+        };
+        out.set(b, role, conf);
+    }
+    out.set(
+        chain[split.upper],
+        if is_leg {
+            Role::UpperLeg
+        } else {
+            Role::UpperArm
+        },
+        conf,
+    );
+    for &b in &chain[split.upper + 1..split.lower] {
+        out.set(b, Role::Twist, conf);
+    }
+    out.set(
+        chain[split.lower],
+        if is_leg {
+            Role::LowerLeg
+        } else {
+            Role::LowerArm
+        },
+        conf,
+    );
+    for &b in &chain[split.lower + 1..e] {
+        out.set(b, Role::Twist, conf);
+    }
+    if e >= chain.len() {
+        return;
+    }
+    let hand = chain[e];
+    let ext_role = if is_leg { Role::Foot } else { Role::Hand };
+    if let Some(f) = fixed.filter(|&f| f >= e) {
+        let hi = out.add_section(
+            ext_kind,
+            side,
+            limb_index,
+            chain[e..=f].to_vec(),
+            Some(li),
+            ground,
+        );
+        out.set(hand, ext_role, conf);
+        for (k, &b) in chain[e + 1..=f].iter().enumerate() {
+            out.set(b, if k == 0 { Role::Toes } else { Role::Helper }, conf);
+        }
+        let hand = chain[f];
+        // Digits: significant children; a zero-length "palm" helper is looked through.
+        let mut digits = Vec::new();
+        for c in ctx.significant_children(hand) {
+            let coincident =
+                (ctx.pos[c.index()] - ctx.pos[hand.index()]).length() < 1e-3 * ctx.size;
+            if coincident && !ctx.is_leaf(c) {
+                out.set(c, Role::Helper, conf);
+                out.roles[c.index()].section = Some(hi as u16);
+                out.roles[c.index()].side = side;
+                digits.extend(ctx.significant_children(c));
+            } else {
+                digits.push(c);
+            }
+        }
+        let fwd_of = |b: BoneId| {
+            let ch = ctx.topo.chain(b);
+            let c: Vec3 = ch.iter().map(|x| ctx.pos[x.index()]).sum::<Vec3>() / ch.len() as f32;
+            c
+        };
+        let forward = ctx.forward;
+        digits.sort_by(|&a, &b| fwd_of(b).dot(forward).total_cmp(&fwd_of(a).dot(forward)));
+        if is_leg && digits.len() <= 2 {
+            // A foot with a heel: the main chain carries the toes, the rest are helpers.
+            let main = ctx.topo.main[hand.index()];
+            for &d in &digits {
+                let ch = ctx.topo.chain(d);
+                for (k, &b) in ch.iter().enumerate() {
+                    let role = match (Some(d) == main, k) {
+                        (true, 0) => Role::Toes,
+                        (true, _) => Role::ToeEnd,
+                        _ => Role::Helper,
+                    };
+                    out.set(b, role, conf * 0.8);
+                    out.roles[b.index()].section = Some(hi as u16);
+                    out.roles[b.index()].side = side;
+                }
+            }
+            return;
+        }
+        let names_for: &[u8] = match digits.len() {
+            1 => &[1],
+            2 => &[0, 1],
+            3 => &[0, 1, 2],
+            4 => &[0, 1, 2, 4],
+            _ => &[0, 1, 2, 3, 4],
+        };
+        for (j, &d) in digits.iter().enumerate() {
+            let digit = names_for.get(j).copied().unwrap_or(j.min(255) as u8);
+            let ch = ctx.topo.chain(d);
+            out.add_section(
+                SectionKind::Digit,
+                side,
+                limb_index,
+                ch.clone(),
+                Some(hi),
+                ground,
+            );
+            for (k, &b) in ch.iter().enumerate() {
+                out.set(
+                    b,
+                    Role::Finger {
+                        digit,
+                        joint: k.min(255) as u8,
+                    },
+                    conf * 0.8,
+                );
+            }
+        }
+    } else {
+        let rest = chain[e..].to_vec();
+        out.add_section(ext_kind, side, limb_index, rest.clone(), Some(li), ground);
+        out.set(hand, ext_role, conf);
+        let mut k = 0usize;
+        for (i, &b) in rest.iter().enumerate().skip(1) {
+            // A joint coincident with the previous one is a helper (CMU `LeftFingerBase`).
+            if (ctx.pos[b.index()] - ctx.pos[rest[i - 1].index()]).length() < 1e-3 * ctx.size {
+                out.set(b, Role::Helper, conf * 0.8);
+                continue;
+            }
+            k += 1;
+            // End sites (`lFoot_end`) are ends, not toes / fingers.
+            if ctx.is_leaf(b) && ctx.names[b.index()].helper {
+                let role = if is_leg { Role::ToeEnd } else { Role::Helper };
+                out.set(b, role, conf * 0.8);
+                continue;
+            }
+            let role = if is_leg {
+                if k == 1 {
+                    Role::Toes
+                } else {
+                    Role::ToeEnd
+                }
+            } else {
+                Role::Finger {
+                    digit: 1,
+                    joint: (k - 1).min(255) as u8,
+                }
+            };
+            out.set(b, role, conf * 0.8);
+        }
+    }
+}
+
+/// Whether the branch at `chain[i]` is a forearm carrying several palm bones that all start
+/// at one wrist point away from it (RobotExpressive-style `Palm1..3`): then the hand is the
+/// palm on the chain, not the branching bone.
+fn palms_below(ctx: &Ctx<'_>, chain: &[BoneId], i: usize) -> bool {
+    let b = chain[i];
+    let Some(&next) = chain.get(i + 1) else {
+        return false;
+    };
+    let kids = ctx.significant_children(b);
+    let at = ctx.pos[next.index()];
+    let reach = (at - ctx.pos[b.index()]).length();
+    let prev = (ctx.pos[b.index()] - ctx.pos[chain[i - 1].index()]).length();
+    let together = kids
+        .iter()
+        .filter(|k| (ctx.pos[k.index()] - at).length() < 0.05 * reach)
+        .count();
+    // A forearm-long reach: a hand's own finger helpers (MakeHuman's `__Index1`) also start
+    // at one point, but a hand's length from the wrist.
+    together >= 2 && reach > 1.5 * prev
+}

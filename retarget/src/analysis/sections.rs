@@ -1,0 +1,396 @@
+//! The trunk and what hangs from it: which limb pairs are legs, arms, wings or head
+//! appendages, and the spine / tail / head sections along the centerline with the neck, head
+//! and head end told apart.
+
+use super::context::{Builder, Ctx, Limb, LimbKind};
+use super::vocabulary::{Role, SectionKind};
+use super::Side;
+use crate::skeleton::BoneId;
+
+/// What the limbs are, and where the trunk's parts start on the centerline.
+pub(super) struct Layout {
+    /// Kind of each limb (same order as the limbs).
+    pub(super) kinds: Vec<LimbKind>,
+    /// Centerline index of the bone the (rear-most) legs hang from, if there are legs.
+    pub(super) legs_at: Option<usize>,
+    /// First spine bone on the centerline (the legs' bone, else 0).
+    pub(super) r: usize,
+    /// Last spine bone on the centerline (where the front-most arms hang).
+    pub(super) f: usize,
+}
+
+/// Classifies the limbs: the rear-most ground pair are the legs (a second ground pair on the
+/// same bone, clearly ahead, are front legs), limbs of a size with the legs are arms (or wings,
+/// when much longer than the other arms), everything else and whatever hangs beyond the
+/// front-most arms are appendages.
+pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout {
+    let k_of = |b: BoneId| path.iter().position(|&x| x == b);
+    let mut kinds = vec![LimbKind::Appendage; limbs.len()];
+    let big = |l: &Limb| l.reach > 0.12 * ctx.size && l.members.len() == 2;
+    let leg_k = limbs
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| big(l) && l.ground)
+        .filter_map(|(i, l)| k_of(l.parent).map(|k| (k, i)))
+        .min_by_key(|&(k, _)| k);
+    if let Some((lk, _)) = leg_k {
+        // Several ground pairs on one central bone (a bug whose four legs hang from its root):
+        // the rear-most pair are the legs, the ones ahead are front legs.
+        let at_k: Vec<usize> = (0..limbs.len())
+            .filter(|&i| big(&limbs[i]) && limbs[i].ground && k_of(limbs[i].parent) == Some(lk))
+            .collect();
+        let ahead = |i: usize| {
+            let l = &limbs[i];
+            l.members
+                .iter()
+                .map(|m| ctx.pos[m.0.index()].dot(ctx.forward))
+                .sum::<f32>()
+                / 2.0
+        };
+        let rear = at_k
+            .iter()
+            .copied()
+            .min_by(|&a, &b| ahead(a).total_cmp(&ahead(b)));
+        for &i in &at_k {
+            let clearly_ahead = rear.is_some_and(|r| ahead(i) - ahead(r) > 0.15 * ctx.size);
+            kinds[i] = if clearly_ahead {
+                LimbKind::Arm
+            } else {
+                LimbKind::Leg
+            };
+        }
+    }
+    // Arms are limbs of a ctx.size with the legs: eyes and ears on a long-faced rig are not.
+    let leg_reach = limbs
+        .iter()
+        .zip(&kinds)
+        .filter(|(_, k)| **k == LimbKind::Leg)
+        .map(|(l, _)| l.reach)
+        .fold(0.0f32, f32::max);
+    let arm_cands: Vec<usize> = (0..limbs.len())
+        .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
+        .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
+        .collect();
+    // A quadruped's front legs reach the ground; smaller pairs ahead of them (ears, antlers,
+    // horns) are head appendages, not a second pair of arms.
+    let front_legs: Vec<usize> = arm_cands
+        .iter()
+        .copied()
+        .filter(|&i| limbs[i].ground)
+        .collect();
+    let arm_cands: Vec<usize> = arm_cands
+        .into_iter()
+        .filter(|&i| {
+            limbs[i].ground
+                || !front_legs.iter().any(|&f| {
+                    k_of(limbs[i].parent) > k_of(limbs[f].parent)
+                        && limbs[i].reach < 0.6 * limbs[f].reach
+                })
+        })
+        .collect();
+    let min_reach = arm_cands
+        .iter()
+        .map(|&i| limbs[i].reach)
+        .fold(f32::MAX, f32::min);
+    for &i in &arm_cands {
+        kinds[i] = if arm_cands.len() > 1 && limbs[i].reach > 1.6 * min_reach {
+            LimbKind::Wing
+        } else {
+            LimbKind::Arm
+        };
+    }
+    let r = leg_k.map(|(k, _)| k).unwrap_or(0);
+    let front = |kind: LimbKind| {
+        (0..limbs.len())
+            .filter(|&i| kinds[i] == kind)
+            .filter_map(|i| k_of(limbs[i].parent))
+            .max()
+    };
+    let f = front(LimbKind::Arm)
+        .or(front(LimbKind::Wing))
+        .unwrap_or(r)
+        .max(r);
+    // Limbs attached beyond the front-most limbs are head appendages (eyes, ears).
+    for (i, l) in limbs.iter().enumerate() {
+        if let Some(k) = k_of(l.parent) {
+            if k > f && kinds[i] != LimbKind::Leg {
+                kinds[i] = LimbKind::Appendage;
+            }
+        }
+    }
+
+    Layout {
+        kinds,
+        legs_at: leg_k.map(|(k, _)| k),
+        r,
+        f,
+    }
+}
+
+/// Spine, tail and head sections along the centerline, with their roles. Returns the head
+/// section's index, if there is a head.
+pub(super) fn trunk(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    path: &[BoneId],
+    layout: &Layout,
+    central: &[bool],
+    limbs: &[Limb],
+    (ground, hext): (f32, f32),
+) -> Option<usize> {
+    let mut head_sec = None;
+    if !path.is_empty() {
+        let spine: Vec<BoneId> = path[layout.r..=layout.f.min(path.len() - 1)].to_vec();
+        let si = out.add_section(
+            SectionKind::Spine,
+            Side::Center,
+            0,
+            spine.clone(),
+            None,
+            false,
+        );
+        let conf = if layout.legs_at.is_some() { 0.9 } else { 0.4 };
+        // Legs on a branch of their own beside the spine (MakeHuman: `Root` carries the spine,
+        // a child `Hips` only the legs): the pelvis is their common parent.
+        let legs_beside = spine.len() > 2 && ctx.skel.parent(spine[0]) == Some(spine[1]);
+        // A first "spine" segment that points down is still the pelvis (a hip bone hung below
+        // the leg joint, RobotExpressive's `Body` → `Hips`).
+        let drops = spine.len() > 3
+            && (ctx.pos[spine[1].index()] - ctx.pos[spine[0].index()]).dot(ctx.up)
+                < -0.01 * (ctx.pos[spine[2].index()] - ctx.pos[spine[1].index()]).length();
+        let hips_at = usize::from(legs_beside || drops);
+        if hips_at == 1 {
+            out.set(spine[0], Role::Helper, conf);
+        }
+        out.set(spine[hips_at], Role::Hips, conf);
+        let body = &spine[hips_at + 1..];
+        for (j, &b) in body.iter().enumerate() {
+            let role = if j == 0 {
+                Role::Spine
+            } else if j + 1 == body.len() {
+                Role::Chest
+            } else {
+                Role::SpineMid
+            };
+            out.set(b, role, conf * 0.95);
+        }
+        if layout.r > 0 {
+            let tail: Vec<BoneId> = path[..layout.r].iter().rev().copied().collect();
+            out.add_section(
+                SectionKind::Tail,
+                Side::Center,
+                0,
+                tail.clone(),
+                Some(si),
+                false,
+            );
+            for (j, &b) in tail.iter().enumerate() {
+                out.set(b, Role::Tail(j.min(255) as u8), 0.8);
+            }
+        }
+        if layout.f + 1 < path.len() {
+            let head: Vec<BoneId> = path[layout.f + 1..].to_vec();
+            let hi = out.add_section(
+                SectionKind::Head,
+                Side::Center,
+                0,
+                head.clone(),
+                Some(si),
+                false,
+            );
+            head_sec = Some(hi);
+            let head_idx = head_index(
+                ctx,
+                &head,
+                central,
+                limbs,
+                &layout.kinds,
+                leg_len(ctx, limbs, &layout.kinds),
+                uses_end_joints(ctx, limbs, &layout.kinds, ground, hext),
+            );
+            for (j, &b) in head.iter().enumerate() {
+                let role = if j < head_idx {
+                    Role::Neck(j.min(255) as u8)
+                } else if j == head_idx {
+                    Role::Head
+                } else {
+                    Role::HeadEnd
+                };
+                out.set(b, role, 0.8);
+            }
+            // Central side branches at the head: the jaw (forward / down), else helpers.
+            let hb = head[head_idx];
+            for &c in ctx.skel.children(hb) {
+                if central[c.index()] && !head.contains(&c) && !ctx.is_shadow(c) {
+                    out.set(c, Role::Jaw, 0.6);
+                    out.roles[c.index()].section = Some(hi as u16);
+                }
+            }
+        }
+    }
+    head_sec
+}
+
+/// Mean leg length (thigh to ground) of the legs, for head proportions.
+fn leg_len(ctx: &Ctx<'_>, limbs: &[Limb], kinds: &[LimbKind]) -> Option<f32> {
+    limbs
+        .iter()
+        .zip(kinds)
+        .find(|(_, k)| **k == LimbKind::Leg)
+        .map(|(l, _)| l.reach)
+        .filter(|r| *r > 1e-4 * ctx.size)
+}
+
+/// Whether the legs end in end joints: a leaf lying level with its parent on the ground (a
+/// toe tip after the toe base), as opposed to a toe joint below the ankle. `None` without legs.
+fn uses_end_joints(
+    ctx: &Ctx<'_>,
+    limbs: &[Limb],
+    kinds: &[LimbKind],
+    ground: f32,
+    hext: f32,
+) -> Option<bool> {
+    let mut seen = None;
+    for (l, k) in limbs.iter().zip(kinds) {
+        if *k != LimbKind::Leg {
+            continue;
+        }
+        for &(m, _) in &l.members {
+            let chain = ctx.topo.chain(m);
+            if chain.len() < 3 {
+                continue;
+            }
+            let leaf = chain[chain.len() - 1];
+            let parent = chain[chain.len() - 2];
+            let level = (ctx.h(leaf) - ctx.h(parent)).abs() < 0.02 * hext;
+            let low = ctx.h(parent) < ground + 0.05 * hext;
+            let ends = level && low;
+            seen = Some(seen.unwrap_or(false) || ends);
+        }
+    }
+    seen
+}
+
+/// Which bone of the head section is the head: where eyes or a jaw attach, else the last bone
+/// unless it is an end joint (by name, or by being too long for a neck-to-head segment).
+fn head_index(
+    ctx: &Ctx<'_>,
+    head: &[BoneId],
+    central: &[bool],
+    limbs: &[Limb],
+    kinds: &[LimbKind],
+    leg: Option<f32>,
+    end_joints: Option<bool>,
+) -> usize {
+    for (j, &b) in head.iter().enumerate() {
+        let has_pair = limbs
+            .iter()
+            .zip(kinds)
+            .any(|(l, k)| l.parent == b && *k == LimbKind::Appendage && l.members.len() == 2);
+        let has_jaw = ctx
+            .skel
+            .children(b)
+            .iter()
+            .any(|c| central[c.index()] && !head.contains(c) && !ctx.is_shadow(*c));
+        if has_pair || has_jaw {
+            return j;
+        }
+    }
+    let last = head.len() - 1;
+    if last == 0 || !ctx.is_leaf(head[last]) {
+        return last;
+    }
+    let leaf = head[last];
+    // A zero-length leaf only marks its parent's end (BVH End Site written at the joint).
+    if (ctx.pos[leaf.index()] - ctx.pos[head[last - 1].index()]).length()
+        < 1e-3 * ctx.size.max(1e-3)
+    {
+        return last - 1;
+    }
+    let nm = &ctx.names[leaf.index()];
+    // End markers: `_end`/`End`/`Nub` (helper tokens) and the skull top (`head_top`,
+    // `HeadTop_End`), even when the name also says "head".
+    if nm.helper || nm.tokens.iter().any(|t| t == "top") {
+        return last - 1;
+    }
+    // A bone named as the head is the head, however long the neck before it (the Fox) or
+    // however big the head (cartoon robots).
+    if nm.tokens.iter().any(|t| t == "head") {
+        return last;
+    }
+    // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
+    // the names (anonymised skeletons included).
+    if let Some(top) = leaf_is_skull_top(ctx, head, limbs, kinds) {
+        return if top { last - 1 } else { last };
+    }
+    // Exporters that write end joints (BVH End Sites, Mixamo `_End`) write them everywhere:
+    // if the toes have one, so has the head.
+    if let Some(ends) = end_joints {
+        return if ends { last - 1 } else { last };
+    }
+    let seg = (ctx.pos[head[last].index()] - ctx.pos[head[last - 1].index()]).length();
+    let limit = leg.map(|l| 0.14 * l).unwrap_or(0.07 * ctx.size);
+    if seg > limit {
+        last - 1
+    } else {
+        last
+    }
+}
+
+/// Whether the leaf ending an upright body's head chain is the top of the skull (an end
+/// marker) rather than the head joint itself. Measured in torso lengths (shoulder line minus
+/// hip height) above the shoulder line: the skull top sits ≈0.55–0.65 above, the skull base
+/// (where head joints sit) ≈0.25–0.4. A skull-top leaf also ends a head-long segment (≥ 0.2
+/// torso) from a joint that is itself above the shoulders. `None` when the body is not upright
+/// (no arms above legs: quadrupeds, creatures) or the leaf is in the ambiguous band, so other
+/// evidence decides.
+fn leaf_is_skull_top(
+    ctx: &Ctx<'_>,
+    head: &[BoneId],
+    limbs: &[Limb],
+    kinds: &[LimbKind],
+) -> Option<bool> {
+    let n = head.len();
+    if n < 2 {
+        return None;
+    }
+    // Shoulder line: the highest of each arm chain's first joints, because a clavicle may start
+    // low on the chest (CMU's zero-length `LeftShoulder`) while the upper arm sits on top.
+    let mut shoulder: Option<f32> = None;
+    let mut hip: Option<f32> = None;
+    for (l, k) in limbs.iter().zip(kinds) {
+        match k {
+            LimbKind::Arm => {
+                for &(m, _) in &l.members {
+                    let top = ctx
+                        .topo
+                        .chain(m)
+                        .iter()
+                        .take(3)
+                        .map(|b| ctx.h(*b))
+                        .fold(f32::MIN, f32::max);
+                    shoulder = Some(shoulder.map_or(top, |s| s.max(top)));
+                }
+            }
+            LimbKind::Leg => hip = Some(hip.map_or(l.height, |h| h.max(l.height))),
+            _ => {}
+        }
+    }
+    let (shoulder, hip) = (shoulder?, hip?);
+    let torso = shoulder - hip;
+    if torso < 0.1 * ctx.size {
+        return None;
+    }
+    let leaf = head[n - 1];
+    let below = head[n - 2];
+    let r_leaf = (ctx.h(leaf) - shoulder) / torso;
+    let r_below = (ctx.h(below) - shoulder) / torso;
+    let seg = (ctx.pos[leaf.index()] - ctx.pos[below.index()]).length() / torso;
+    if r_leaf >= 0.47 && r_below >= 0.1 && seg >= 0.2 {
+        Some(true)
+    } else if r_leaf <= 0.42 {
+        Some(false)
+    } else {
+        None
+    }
+}
