@@ -22,19 +22,8 @@ use serde_json::Value;
 
 /// The humanoid roles the acceptance counts (sided ones get `.L` / `.R` in the labels).
 const CORE: &[&str] = &[
-    "hips",
-    "spine",
-    "chest",
-    "neck",
-    "head",
-    "shoulder",
-    "upperArm",
-    "lowerArm",
-    "hand",
-    "upperLeg",
-    "lowerLeg",
-    "foot",
-    "toes",
+    "hips", "spine", "chest", "neck", "head", "shoulder", "upperArm", "lowerArm", "hand",
+    "upperLeg", "lowerLeg", "foot", "toes",
 ];
 
 /// Quadruped leg roles (hind legs use the humanoid leg names).
@@ -78,7 +67,10 @@ fn load_rigs(dir: &Path) -> Vec<Rig> {
         let mut roles = BTreeMap::new();
         for (role, names) in v.as_object().unwrap() {
             if let Some(list) = names.as_array() {
-                let list = list.iter().map(|n| n.as_str().unwrap().to_string()).collect();
+                let list = list
+                    .iter()
+                    .map(|n| n.as_str().unwrap().to_string())
+                    .collect();
                 roles.insert(role.clone(), list);
             }
         }
@@ -169,9 +161,17 @@ fn anonymise(clip: &Clip, seed: u64) -> (Clip, Vec<String>) {
             translations: old_of.iter().map(|&o| p.translations[o]).collect(),
         })
         .collect();
-    let names = old_of.iter().map(|&o| skel.name(BoneId(o as u16)).to_string()).collect();
-    let clip = Clip::new(clip.name.clone(), std::sync::Arc::new(new), poses, clip.frame_time_secs)
-        .unwrap();
+    let names = old_of
+        .iter()
+        .map(|&o| skel.name(BoneId(o as u16)).to_string())
+        .collect();
+    let clip = Clip::new(
+        clip.name.clone(),
+        std::sync::Arc::new(new),
+        poses,
+        clip.frame_time_secs,
+    )
+    .unwrap();
     (clip, names)
 }
 
@@ -216,7 +216,9 @@ fn score_pair(src: &Rig, tgt: &Rig, roles: &[&str], anon: bool, fails: &mut Vec<
     let mut sc = Score::default();
     let troles = expand(roles, &tgt.roles);
     for role in &troles {
-        let Some(accept) = src.roles.get(role) else { continue };
+        let Some(accept) = src.roles.get(role) else {
+            continue;
+        };
         let tlist = &tgt.roles[role];
         // Source names accepted for this role, and for the other roles its target bones play
         // (a one-spine rig's bone is both spine and chest).
@@ -288,7 +290,10 @@ fn analysis_roles_per_file() {
 }
 
 fn print_table(title: &str, rows: &[(String, Score, Score)]) {
-    println!("\n{title}\n{:<28} {:>12} {:>14}", "target", "names", "meaningless");
+    println!(
+        "\n{title}\n{:<28} {:>12} {:>14}",
+        "target", "names", "meaningless"
+    );
     for (name, a, b) in rows {
         println!(
             "{name:<28} {:>6.1}% ({:>2}) {:>7.1}% ({:>2})",
@@ -333,8 +338,16 @@ fn human_to_human_core_roles() {
     for f in &fails {
         println!("  {f}");
     }
-    assert!(all_named.pct() >= 99.0, "names intact: {:.1}%", all_named.pct());
-    assert!(all_anon.pct() >= 97.0, "meaningless names: {:.1}%", all_anon.pct());
+    assert!(
+        all_named.pct() >= 99.0,
+        "names intact: {:.1}%",
+        all_named.pct()
+    );
+    assert!(
+        all_anon.pct() >= 97.0,
+        "meaningless names: {:.1}%",
+        all_anon.pct()
+    );
     assert_eq!(all_named.swaps + all_anon.swaps, 0, "left/right swaps");
 }
 
@@ -344,7 +357,9 @@ fn human_to_human_core_roles() {
 #[ignore]
 fn dump_rig() {
     let Some(dir) = data_dir() else { return };
-    let Ok(want) = std::env::var("RIGCAST_ZOO_DUMP") else { return };
+    let Ok(want) = std::env::var("RIGCAST_ZOO_DUMP") else {
+        return;
+    };
     for rig in load_rigs(&dir).iter().filter(|r| r.key.contains(&want)) {
         let clip = if std::env::var("RIGCAST_ZOO_FOLD").is_ok() {
             folded(&rig.clip)
@@ -353,11 +368,21 @@ fn dump_rig() {
         };
         let a = analyze(&view(&clip));
         let s = &clip.skeleton;
-        println!("{} up={:?} fwd={:?} warnings={:?}", rig.key, a.up, a.forward, a.warnings);
+        println!(
+            "{} up={:?} fwd={:?} warnings={:?}",
+            rig.key, a.up, a.forward, a.warnings
+        );
         for b in s.bone_ids() {
             let p = a.positions[b.index()];
             let d = "  ".repeat(s.depth(b));
-            println!("{d}{:<24} {:>7.3} {:>7.3} {:>7.3}  {}", s.name(b), p.x, p.y, p.z, a.label(b));
+            println!(
+                "{d}{:<24} {:>7.3} {:>7.3} {:>7.3}  {}",
+                s.name(b),
+                p.x,
+                p.y,
+                p.z,
+                a.label(b)
+            );
         }
     }
 }
@@ -394,35 +419,60 @@ fn human_to_quadruped_legs() {
             let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
             let (ss, ts) = (&src.clip.skeleton, &tgt.clip.skeleton);
             for role in expand(QUAD_LEGS, &tgt.roles) {
-                let accept: Vec<&String> =
-                    quad_sources(&role).iter().filter_map(|r| src.roles.get(r)).flatten().collect();
+                let accept: Vec<&String> = quad_sources(&role)
+                    .iter()
+                    .filter_map(|r| src.roles.get(r))
+                    .flatten()
+                    .collect();
                 if accept.is_empty() {
                     continue;
                 }
                 let tb = ts.bone(&tgt.roles[&role][0]).unwrap();
-                let d = table.entries[tb.index()].as_ref().map(|e| ss.name(e.sources[0].bone));
+                let d = table.entries[tb.index()]
+                    .as_ref()
+                    .map(|e| ss.name(e.sources[0].bone));
                 sc.total += 1;
                 if d.is_some_and(|d| accept.iter().any(|a| *a == d)) {
                     sc.right += 1;
                     continue;
                 }
                 let other: Vec<&String> = other_side(&role)
-                    .map(|o| quad_sources(&o).iter().filter_map(|r| src.roles.get(r)).flatten().collect())
+                    .map(|o| {
+                        quad_sources(&o)
+                            .iter()
+                            .filter_map(|r| src.roles.get(r))
+                            .flatten()
+                            .collect()
+                    })
                     .unwrap_or_default();
                 if d.is_some_and(|d| other.iter().any(|a| *a == d)) {
                     sc.swaps += 1;
                 }
-                fails.push(format!("{} -> {}: {role} <- {}", short(&src.key), short(&tgt.key), d.unwrap_or("-")));
+                fails.push(format!(
+                    "{} -> {}: {role} <- {}",
+                    short(&src.key),
+                    short(&tgt.key),
+                    d.unwrap_or("-")
+                ));
             }
         }
-        println!("{:<36} {:>6.1}% ({} swaps)", short(&tgt.key), sc.pct(), sc.swaps);
+        println!(
+            "{:<36} {:>6.1}% ({} swaps)",
+            short(&tgt.key),
+            sc.pct(),
+            sc.swaps
+        );
         floors.push((tgt.key.clone(), sc));
         for f in fails.iter().take(12) {
             println!("  {f}");
         }
         all.add(sc);
     }
-    println!("ALL quadruped legs: {:.1}% ({} swaps)", all.pct(), all.swaps);
+    println!(
+        "ALL quadruped legs: {:.1}% ({} swaps)",
+        all.pct(),
+        all.swaps
+    );
     for (key, sc) in &floors {
         assert_eq!(sc.swaps, 0, "{key}: left/right swaps");
         assert!(sc.right == sc.total, "{key}: {:.1}% of leg roles", sc.pct());
@@ -455,7 +505,9 @@ fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
             let ss = &src.clip.skeleton;
             let driver = |t: &str| {
                 let b = ts.bone(t)?;
-                table.entries[b.index()].as_ref().map(|e| ss.name(e.sources[0].bone))
+                table.entries[b.index()]
+                    .as_ref()
+                    .map(|e| ss.name(e.sources[0].bone))
             };
             for side in [".L", ".R"] {
                 for (troles, sroles) in [(LEG_ROLES, LEG_ROLES), (ARM_ROLES, ARM_ROLES)] {
@@ -472,11 +524,22 @@ fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
                             driven += 1;
                         }
                     }
-                    assert!(driven >= 2, "{} -> {}: {side} limb barely mapped", short(&src.key), short(&tgt.key));
+                    assert!(
+                        driven >= 2,
+                        "{} -> {}: {side} limb barely mapped",
+                        short(&src.key),
+                        short(&tgt.key)
+                    );
                 }
             }
             for t in tgt.roles.get("tail").into_iter().flatten() {
-                assert_eq!(driver(t), None, "{} -> {}: tail {t}", short(&src.key), short(&tgt.key));
+                assert_eq!(
+                    driver(t),
+                    None,
+                    "{} -> {}: tail {t}",
+                    short(&src.key),
+                    short(&tgt.key)
+                );
             }
         }
     }
@@ -501,12 +564,16 @@ fn multi_legged_rigs_use_legs_for_legs() {
                 .collect();
             let mut on_legs = 0;
             for t in ts.bone_ids() {
-                let Some(e) = table.entries[t.index()].as_ref() else { continue };
+                let Some(e) = table.entries[t.index()].as_ref() else {
+                    continue;
+                };
                 let d = ss.name(e.sources[0].bone);
                 if !legs.iter().any(|l| *l == d) {
                     continue;
                 }
-                let sec = ta.roles[t.index()].section.map(|s| &ta.sections[s as usize]);
+                let sec = ta.roles[t.index()]
+                    .section
+                    .map(|s| &ta.sections[s as usize]);
                 assert!(
                     sec.is_some_and(|s| s.ground),
                     "{} -> {}: leg bone {d} drives {} ({})",
@@ -517,7 +584,12 @@ fn multi_legged_rigs_use_legs_for_legs() {
                 );
                 on_legs += 1;
             }
-            assert!(on_legs >= 4, "{} -> {}: only {on_legs} leg bones used", short(&src.key), short(&tgt.key));
+            assert!(
+                on_legs >= 4,
+                "{} -> {}: only {on_legs} leg bones used",
+                short(&src.key),
+                short(&tgt.key)
+            );
         }
     }
 }
@@ -538,17 +610,27 @@ fn flat_hand_rig_maps_by_names_and_chirality() {
         for src in hs.iter().filter(|s| s.roles.contains_key("hand.L")) {
             let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
             let ss = &src.clip.skeleton;
-            let d = table.entries[wrist.index()].as_ref().map(|e| ss.name(e.sources[0].bone));
+            let d = table.entries[wrist.index()]
+                .as_ref()
+                .map(|e| ss.name(e.sources[0].bone));
             assert!(
                 d.is_some_and(|d| src.roles["hand.L"].iter().any(|n| n == d)),
                 "{} -> hand: wrist <- {d:?}",
                 short(&src.key)
             );
             // Fingers, where the source has them, come from the same finger of the left hand.
-            for t in ts.bone_ids().filter(|&t| a.label(t).starts_with("left_index")) {
+            for t in ts
+                .bone_ids()
+                .filter(|&t| a.label(t).starts_with("left_index"))
+            {
                 if let Some(e) = table.entries[t.index()].as_ref() {
                     let label = analyze(&view(&src.clip)).label(e.sources[0].bone);
-                    assert!(label.starts_with("left_index"), "{} -> {}: {label}", short(&src.key), ts.name(t));
+                    assert!(
+                        label.starts_with("left_index"),
+                        "{} -> {}: {label}",
+                        short(&src.key),
+                        ts.name(t)
+                    );
                 }
             }
         }
@@ -571,7 +653,12 @@ fn folded(clip: &Clip) -> Clip {
                 .iter()
                 .max_by_key(|c| {
                     let s = c.index();
-                    (skel.bone_ids().filter(|d| is_below(skel, *d, BoneId(s as u16))).count(), s)
+                    (
+                        skel.bone_ids()
+                            .filter(|d| is_below(skel, *d, BoneId(s as u16)))
+                            .count(),
+                        s,
+                    )
                 })
                 .copied();
             match main.map(|c| skel.rest()[c.index()].translation.normalize_or_zero()) {
@@ -580,13 +667,16 @@ fn folded(clip: &Clip) -> Clip {
             }
         })
         .collect();
-    let parent_turn = |b: BoneId| skel.parent(b).map(|p| turn[p.index()]).unwrap_or(Quat::IDENTITY);
+    let parent_turn = |b: BoneId| {
+        skel.parent(b)
+            .map(|p| turn[p.index()])
+            .unwrap_or(Quat::IDENTITY)
+    };
     let mut raw = skel.to_raw();
     for b in skel.bone_ids() {
         let qp = parent_turn(b).inverse();
-        raw.bones[b.index()].rest = rigcast_retarget::Transform::from_translation(
-            qp * skel.rest()[b.index()].translation,
-        );
+        raw.bones[b.index()].rest =
+            rigcast_retarget::Transform::from_translation(qp * skel.rest()[b.index()].translation);
     }
     let new = Skeleton::build(&raw).unwrap();
     let poses = clip
@@ -595,7 +685,10 @@ fn folded(clip: &Clip) -> Clip {
         .map(|p| Pose {
             rotations: skel
                 .bone_ids()
-                .map(|b| (parent_turn(b).inverse() * p.rotations[b.index()] * turn[b.index()]).normalize())
+                .map(|b| {
+                    (parent_turn(b).inverse() * p.rotations[b.index()] * turn[b.index()])
+                        .normalize()
+                })
                 .collect(),
             translations: skel
                 .bone_ids()
@@ -603,7 +696,13 @@ fn folded(clip: &Clip) -> Clip {
                 .collect(),
         })
         .collect();
-    Clip::new(clip.name.clone(), std::sync::Arc::new(new), poses, clip.frame_time_secs).unwrap()
+    Clip::new(
+        clip.name.clone(),
+        std::sync::Arc::new(new),
+        poses,
+        clip.frame_time_secs,
+    )
+    .unwrap()
 }
 
 fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
@@ -617,6 +716,9 @@ fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
         }
     }
 }
+
+/// A way of rebuilding a clip (folded, turned).
+type Variant<'a> = &'a dyn Fn(&Clip) -> Clip;
 
 /// The clip turned as a whole by `g` (rest and every frame of the root).
 fn turned(clip: &Clip, g: glam::Quat) -> Clip {
@@ -641,7 +743,13 @@ fn turned(clip: &Clip, g: glam::Quat) -> Clip {
             p
         })
         .collect();
-    Clip::new(clip.name.clone(), std::sync::Arc::new(new), poses, clip.frame_time_secs).unwrap()
+    Clip::new(
+        clip.name.clone(),
+        std::sync::Arc::new(new),
+        poses,
+        clip.frame_time_secs,
+    )
+    .unwrap()
 }
 
 /// Every labelled human with animation, folded LaFAN1-style, still maps from every other
@@ -652,9 +760,9 @@ fn folded_rests_and_turned_rigs_map_like_the_originals() {
     let rigs = load_rigs(&dir);
     let hs = humans(&rigs);
     let z_up = glam::Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
-    let odd = glam::Quat::from_axis_angle(glam::Vec3::new(0.3, 1.0, 0.2).normalize(), 2.3)
+    let odd = glam::Quat::from_axis_angle(glam::Vec3::new(0.3, 1.0, 0.2).normalize_or_zero(), 2.3)
         * glam::Quat::from_rotation_x(0.35);
-    let variants: [(&str, &dyn Fn(&Clip) -> Clip); 3] = [
+    let variants: [(&str, Variant); 3] = [
         ("folded", &|c: &Clip| folded(c)),
         ("z-up", &|c: &Clip| turned(c, z_up)),
         ("turned", &|c: &Clip| turned(c, odd)),
@@ -679,7 +787,12 @@ fn folded_rests_and_turned_rigs_map_like_the_originals() {
                 }
                 row.add(score_pair(src, &changed, CORE, false, &mut fails));
             }
-            println!("  {what} {:<28} {:>6.1}% ({} swaps)", short(&tgt.key), row.pct(), row.swaps);
+            println!(
+                "  {what} {:<28} {:>6.1}% ({} swaps)",
+                short(&tgt.key),
+                row.pct(),
+                row.swaps
+            );
             total.add(row);
         }
         println!("{what}: {:.1}% ({} swaps)", total.pct(), total.swaps);

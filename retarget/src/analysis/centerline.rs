@@ -219,3 +219,38 @@ pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool]) -> Vec<BoneId> {
     }
     path
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::analysis::{analyze, Role, SkeletonView};
+
+    #[test]
+    fn a_shuffled_anonymous_human_has_the_same_centerline() {
+        let named = crate::corpus::get("cmu_cgspeed").expect("corpus");
+        let anon = crate::corpus::get("cmu_cgspeed_anon").expect("corpus");
+        let roles = |e: &crate::corpus::CorpusEntry| {
+            let a = analyze(&SkeletonView::rest(&e.skeleton));
+            let mut central: Vec<String> = e
+                .skeleton
+                .bone_ids()
+                .filter(|b| {
+                    matches!(
+                        a.roles[b.index()].role,
+                        Role::Hips
+                            | Role::Spine
+                            | Role::SpineMid
+                            | Role::Chest
+                            | Role::Neck(_)
+                            | Role::Head
+                    )
+                })
+                .map(|b| e.labels[b.index()].clone())
+                .collect();
+            central.sort();
+            central
+        };
+        let r = roles(&named);
+        assert!(r.len() >= 5, "{r:?}");
+        assert_eq!(r, roles(&anon));
+    }
+}

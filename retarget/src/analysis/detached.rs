@@ -147,3 +147,65 @@ pub(crate) fn extensions(
     }
     best.into_iter().map(|x| x.map(|(_, b)| b)).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::topology::joint_positions;
+    use crate::skeleton::{RawSkeleton, Transform};
+
+    fn skeleton(bones: &[(&str, Option<usize>, [f32; 3])]) -> Skeleton {
+        let mut raw = RawSkeleton::default();
+        for (name, parent, t) in bones {
+            raw.add(
+                *name,
+                *parent,
+                Transform::from_translation(Vec3::from_array(*t)),
+            );
+        }
+        Skeleton::build(&raw).expect("skeleton")
+    }
+
+    #[test]
+    fn controls_beside_the_body_and_the_foot_they_stand_for() {
+        // root at the floor: a body (hips with a leg ending at the shin, and a spine) and two
+        // leaf controls, one at the ankle below the shin, one far in front of the knee.
+        let s = skeleton(&[
+            ("root", None, [0.0, 0.0, 0.0]),
+            ("hips", Some(0), [0.0, 1.0, 0.0]),
+            ("thigh", Some(1), [0.1, 0.0, 0.0]),
+            ("shin", Some(2), [0.0, -0.45, 0.0]),
+            ("spine", Some(1), [0.0, 0.3, 0.0]),
+            ("chest", Some(4), [0.0, 0.3, 0.0]),
+            ("ik_foot", Some(0), [0.1, 0.08, 0.0]),
+            ("pole", Some(0), [0.1, 0.55, 0.8]),
+        ]);
+        let pos = joint_positions(&s, None);
+        let topo = Topology::build(&s, &pos);
+        let body = find(&s, &topo);
+        let id = |n: &str| s.bone(n).expect("bone");
+        assert_eq!(body.root, id("hips"));
+        assert_eq!(body.carriers, vec![id("root")]);
+        assert!(body.detached[id("ik_foot").index()] && body.detached[id("pole").index()]);
+        assert!(!body.detached[id("shin").index()]);
+        let ext = extensions(&s, &pos, &body, Vec3::Y);
+        assert_eq!(ext[id("shin").index()], Some(id("ik_foot")));
+        assert_eq!(ext.iter().flatten().count(), 1);
+    }
+
+    #[test]
+    fn a_plain_chain_has_no_carriers() {
+        let s = skeleton(&[
+            ("a", None, [0.0, 0.0, 0.0]),
+            ("b", Some(0), [0.0, 0.2, 0.0]),
+            ("c", Some(1), [0.0, 0.2, 0.0]),
+            ("d", Some(2), [0.0, 0.2, 0.0]),
+            ("e", Some(3), [0.0, 0.2, 0.0]),
+        ]);
+        let pos = joint_positions(&s, None);
+        let body = find(&s, &Topology::build(&s, &pos));
+        assert_eq!(body.root, BoneId(0));
+        assert!(body.carriers.is_empty());
+        assert!(body.detached.iter().all(|d| !d));
+    }
+}

@@ -185,3 +185,57 @@ pub(crate) fn analyze_flat_hand(
         warnings,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::names::normalize;
+
+    /// A flat left hand: fingers along -Y, knuckles across Z (index at -Z), the thumb standing
+    /// out towards +X (the palm side), as WebXR's generic left hand is built.
+    fn hand(mirror: f32) -> (Vec<NameInfo>, Vec<Vec3>) {
+        let mut names = vec!["wrist".to_string()];
+        let mut pos = vec![Vec3::new(0.0, 0.05, 0.0)];
+        for (d, z) in [
+            ("index", -0.02),
+            ("middle", 0.0),
+            ("ring", 0.02),
+            ("pinky", 0.04),
+        ] {
+            for (j, y) in [
+                ("proximal", -0.03),
+                ("intermediate", -0.07),
+                ("distal", -0.09),
+            ] {
+                names.push(format!("{d}-finger-phalanx-{j}"));
+                pos.push(Vec3::new(0.0, y, z));
+            }
+        }
+        for (j, p) in [
+            ("metacarpal", Vec3::new(0.01, 0.02, -0.02)),
+            ("phalanx-proximal", Vec3::new(0.02, 0.0, -0.04)),
+            ("phalanx-distal", Vec3::new(0.03, -0.02, -0.06)),
+        ] {
+            names.push(format!("thumb-{j}"));
+            pos.push(p);
+        }
+        let pos = pos
+            .into_iter()
+            .map(|p| Vec3::new(p.x * mirror, p.y, p.z))
+            .collect();
+        (names.iter().map(|n| normalize(n)).collect(), pos)
+    }
+
+    #[test]
+    fn joints_by_name_and_the_side_by_chirality() {
+        let (names, pos) = hand(1.0);
+        let (roles, side) = hand_roles(&names, &pos).expect("a hand");
+        assert_eq!(side, Side::Left);
+        assert_eq!(roles[0], Some(Role::Hand));
+        assert_eq!(roles[1], Some(Role::Finger { digit: 1, joint: 0 }));
+        // Mirrored through the palm plane it is a right hand.
+        let (names, pos) = hand(-1.0);
+        assert_eq!(hand_roles(&names, &pos).expect("a hand").1, Side::Right);
+        assert!(is_flat(25, 25) && !is_flat(25, 1));
+    }
+}

@@ -376,3 +376,29 @@ fn name_sign(ctx: &super::context::Ctx<'_>, limbs: &[super::context::Limb]) -> O
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::analysis::{analyze, Side, SkeletonView};
+
+    #[test]
+    fn geometry_beats_names_that_lie_and_says_so() {
+        let e = crate::corpus::get("mixamo_apose").expect("corpus");
+        let honest = analyze(&SkeletonView::rest(&e.skeleton));
+        assert!(honest.forward.z > 0.99 && honest.warnings.is_empty());
+        // The same rig with its names mirrored (`Left` ↔ `Right`), as some real rigs ship.
+        let liar = e
+            .skeleton
+            .renamed(|_, n| {
+                n.replace("Left", "Tmp")
+                    .replace("Right", "Left")
+                    .replace("Tmp", "Right")
+            })
+            .expect("rename");
+        let a = analyze(&SkeletonView::rest(&liar));
+        assert!(a.forward.z > 0.99, "{}", a.forward);
+        assert_eq!(a.warnings.len(), 1, "{:?}", a.warnings);
+        let b = liar.bone("mixamorig:RightUpLeg").expect("bone");
+        assert_eq!(a.roles[b.index()].side, Side::Left);
+    }
+}

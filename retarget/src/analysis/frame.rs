@@ -154,3 +154,40 @@ pub(super) fn snap_axis(v: Vec3) -> Vec3 {
     }
     v
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::detached;
+    use crate::analysis::topology::joint_positions;
+    use glam::Quat;
+
+    fn axes_of(skel: &Skeleton) -> (Vec3, Vec3) {
+        let pos = joint_positions(skel, None);
+        let topo = Topology::build(skel, &pos);
+        let body = detached::find(skel, &topo);
+        up_and_lateral(skel, &topo, &pos, &body, 1.8)
+    }
+
+    #[test]
+    fn upright_and_z_up_humans() {
+        let e = crate::corpus::get("mixamo").expect("corpus");
+        let (up, lat) = axes_of(&e.skeleton);
+        assert!(up.abs_diff_eq(Vec3::Y, 1e-4), "{up}");
+        assert!(lat.x.abs() > 0.999, "{lat}");
+        let mut raw = e.skeleton.to_raw();
+        let turn = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
+        raw.bones[0].rest.rotation = turn * raw.bones[0].rest.rotation;
+        let z_up = Skeleton::build(&raw).expect("skeleton");
+        let (up, lat) = axes_of(&z_up);
+        assert!(up.abs_diff_eq(Vec3::Z, 1e-4), "{up}");
+        assert!(lat.x.abs() > 0.999, "{lat}");
+    }
+
+    #[test]
+    fn snapping_only_near_an_axis() {
+        assert_eq!(snap_axis(Vec3::new(0.1, -0.99, 0.0).normalize_or_zero()), -Vec3::Y);
+        let v = Vec3::new(0.6, 0.8, 0.0);
+        assert_eq!(snap_axis(v), v);
+    }
+}

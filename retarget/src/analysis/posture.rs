@@ -215,3 +215,43 @@ fn relative(mut p: Vec<Vec3>) -> Vec<Vec3> {
 pub(crate) fn frame_pose(motion: &[Pose], frame: Option<usize>) -> Option<&Pose> {
     frame.and_then(|i| motion.get(i))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::{RawSkeleton, Skeleton, Transform};
+
+    #[test]
+    fn a_t_pose_is_a_posture_and_a_folded_rest_is_not() {
+        let e = crate::corpus::get("cmu_max").expect("corpus");
+        assert!(is_posture(&e.skeleton, &joint_positions(&e.skeleton, None)));
+        // Every main child on its parent's +X: LaFAN1-style. Side branches need not be.
+        let mut raw = RawSkeleton::default();
+        let hips = raw.add("hips", None, Transform::IDENTITY);
+        let mut p = hips;
+        for i in 0..4 {
+            p = raw.add(
+                format!("s{i}"),
+                Some(p),
+                Transform::from_translation(Vec3::X * 0.2),
+            );
+        }
+        for side in [-1.0f32, 1.0] {
+            let mut q = raw.add(
+                format!("leg{side}"),
+                Some(hips),
+                Transform::from_translation(Vec3::new(0.0, 0.0, 0.1 * side)),
+            );
+            for i in 0..3 {
+                q = raw.add(
+                    format!("leg{side}_{i}"),
+                    Some(q),
+                    Transform::from_translation(Vec3::X * 0.4),
+                );
+            }
+        }
+        let folded = Skeleton::build(&raw).expect("skeleton");
+        assert!(folded_rest(&folded));
+        assert!(!is_posture(&folded, &joint_positions(&folded, None)));
+    }
+}

@@ -394,3 +394,29 @@ fn leaf_is_skull_top(
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::analysis::{analyze, SectionKind, SkeletonView};
+
+    #[test]
+    fn quadruped_legs_front_legs_and_tail() {
+        let e = crate::corpus::get("horse").expect("corpus");
+        let a = analyze(&SkeletonView::rest(&e.skeleton));
+        let count = |k: SectionKind, ground: bool| {
+            a.sections
+                .iter()
+                .filter(|s| s.kind == k && s.ground == ground)
+                .count()
+        };
+        assert_eq!(count(SectionKind::Leg, true), 2);
+        assert_eq!(
+            count(SectionKind::Arm, true),
+            2,
+            "front legs are ground-reaching arms"
+        );
+        assert_eq!(count(SectionKind::Tail, false), 1);
+        assert_eq!(count(SectionKind::Head, false), 1);
+        assert!(!a.humanoid);
+    }
+}
