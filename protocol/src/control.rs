@@ -183,6 +183,10 @@ pub enum ServerMessage {
         source_subject: u32,
         /// One entry per target bone.
         entries: Vec<MappingEntry>,
+        /// What the skeleton analysis overruled or doubted on either side (for example names
+        /// that mark the sides the other way round from the body); absent when empty.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        warnings: Vec<String>,
     },
     /// The client fell behind and frames were dropped for it; it stays connected.
     Lagged {
@@ -420,6 +424,7 @@ mod tests {
             ServerMessage::Mapping {
                 subject: 1,
                 source_subject: 0,
+                warnings: vec!["names mark the sides the other way round".into()],
                 entries: vec![
                     MappingEntry {
                         target: "body".into(),

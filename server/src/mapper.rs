@@ -196,7 +196,12 @@ impl Mapper {
                 mapping.set_source_floor_y(floor);
             }
         }
-        let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options);
+        let warnings: Vec<String> = analyses
+            .iter()
+            .flat_map(|a| a.warnings.iter().map(|w| format!("source: {w}")))
+            .chain(ta.warnings.iter().map(|w| format!("target: {w}")))
+            .collect();
+        let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options, warnings);
         if let Ok(mut slot) = p.mailbox.lock() {
             *slot = Some(BuiltMapping { mapping });
         }
@@ -300,6 +305,7 @@ fn mapping_message(
     analysis: &Analysis,
     table: &MappingTable,
     opts: &MapOptions,
+    warnings: Vec<String>,
 ) -> String {
     let colors = mapping_colors(target, analysis, table);
     let max = opts.max_score().max(1e-6);
@@ -328,6 +334,7 @@ fn mapping_message(
         subject: subject.id,
         source_subject: subject.inputs.first().copied().unwrap_or(0),
         entries,
+        warnings,
     }
     .to_json()
 }

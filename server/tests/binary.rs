@@ -133,6 +133,7 @@ async fn check_demo_stream(url: &str, rate_hz: f64) {
             subject: 1,
             source_subject: 0,
             entries,
+            ..
         } => Some(entries),
         _ => None,
     });

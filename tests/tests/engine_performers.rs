@@ -134,3 +134,37 @@ async fn wait_for(ws: &mut Ws, f: impl Fn(&ServerMessage) -> bool) -> ServerMess
         }
     }
 }
+
+/// A target whose names mark the sides the other way round from its body (the Godot platformer
+/// robot in ../shared/data names its left side `r-*`): the live `mapping` message drives the
+/// robot's `r-thigh` (its left) from the performer's left thigh and carries the warning.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn mapping_message_warns_when_names_lie_about_sides() {
+    let Some(robot) = shared_data("zoo/gltf/godot_robot__platformer_player.glb") else {
+        return;
+    };
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        mapping_cache_dir: Some(temp_path("cache-lying").with_file_name("mappings-lying")),
+        performers: vec![rigcast_server::config::PerformerSpec::target_file(robot)],
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let mut ws = connect(&server.stream_url()).await;
+    let _ = handshake(&mut ws).await;
+    let ServerMessage::Mapping {
+        entries, warnings, ..
+    } = wait_for(&mut ws, |m| matches!(m, ServerMessage::Mapping { .. })).await
+    else {
+        unreachable!()
+    };
+    assert!(
+        warnings.iter().any(|w| w.starts_with("target:") && w.contains("geometry")),
+        "{warnings:?}"
+    );
+    let source_of = |t: &str| entries.iter().find(|e| e.target == t).and_then(|e| e.source.clone());
+    // The bundled demo walk's thighs are `leg_upper_l` / `leg_upper_r`.
+    assert_eq!(source_of("r-thigh").as_deref(), Some("leg_upper_l"));
+    assert_eq!(source_of("l-thigh").as_deref(), Some("leg_upper_r"));
+    server.shutdown().await;
+}

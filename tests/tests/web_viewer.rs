@@ -223,6 +223,7 @@ async fn server_mapping(
                 subject,
                 source_subject,
                 entries,
+                ..
             }) => return (subjects, subject, source_subject, entries),
             Some(_) => {}
             None => panic!("no mapping message within 10 s"),
