@@ -32,6 +32,7 @@ mod extremities;
 mod flat;
 mod forward;
 mod frame;
+mod byname;
 pub mod humanoid;
 mod limbs;
 pub mod names;
@@ -284,7 +285,38 @@ impl Analysis {
 /// Analyses a skeleton. Never fails: an unusual skeleton just gets more `Unknown` roles and
 /// lower confidences.
 pub fn analyze(view: &SkeletonView<'_>) -> Analysis {
-    roles::analyze_impl(view)
+    let mut a = roles::analyze_impl(view);
+    names_over_broken_geometry(view.skeleton, &mut a);
+    a
+}
+
+/// When the names describe a complete humanoid and the geometry's reading disagrees with them
+/// on most of its bones (offsets shifted a level, joints stacked: geometry that cannot be
+/// trusted), the names' roles are taken as the truth, and the analysis says so.
+fn names_over_broken_geometry(skeleton: &Skeleton, a: &mut Analysis) {
+    let Some(map) = byname::humanoid_from_names(skeleton, &a.names) else {
+        return;
+    };
+    let agree = map
+        .iter()
+        .filter(|(h, b)| {
+            let (Some(h), Some(b)) = (HumanBone::parse(h), skeleton.bone(b)) else {
+                return false;
+            };
+            truth::human_bone_role(h, false).0 == a.roles[b.index()].role
+        })
+        .count();
+    if 2 * agree >= map.len() {
+        return;
+    }
+    truth::apply_truth(skeleton, a, &map);
+    byname::sections_from_roles(skeleton, a);
+    a.humanoid = true;
+    a.warnings.push(format!(
+        "the geometry does not read as the body its names describe ({agree} of {} named bones \
+         agree): roles come from the names",
+        map.len()
+    ));
 }
 
 /// [`analyze`], then the file's own humanoid map (VRM: human bone name → bone name) as ground

@@ -170,7 +170,8 @@ impl<'a> Setup<'a> {
     fn target_segment(&self, t: BoneId) -> TargetSegment {
         let (skel, w, eps) = (self.target, &self.tgt_w, self.tgt_eps);
         let mapped = |b: BoneId| self.is_mapped(b);
-        let mapped_end = align::chain_end(skel, w, t, eps, &mapped);
+        let mapped_end = align::chain_end(skel, w, t, eps, &mapped)
+            .or_else(|| self.detached_end(t));
         let any_end = mapped_end.or_else(|| align::chain_end(skel, w, t, eps, &|_| true));
         let direction = match any_end {
             Some(e) => align::direction(w, t, e),
@@ -187,6 +188,22 @@ impl<'a> Setup<'a> {
             next_end,
             bend,
         }
+    }
+
+    /// For a leaf target bone, the target bone driven by its source's child: where the leaf
+    /// ends when that end hangs elsewhere in the target (an IK foot under the root).
+    fn detached_end(&self, t: BoneId) -> Option<BoneId> {
+        if !self.target.children(t).is_empty() {
+            return None;
+        }
+        let s = primary(self.table, t)?;
+        let src = self.sources.get(s.input as usize)?;
+        let kids = src.children(s.bone);
+        self.target.bone_ids().find(|&u| {
+            u != t
+                && primary(self.table, u)
+                    .is_some_and(|p| p.input == s.input && kids.contains(&p.bone))
+        })
     }
 
     /// The link from source bone `sref` to target bone `t`: the source joints matching the
