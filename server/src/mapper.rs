@@ -141,12 +141,7 @@ impl Mapper {
             .iter()
             .zip(&references)
             .zip(&source_truths)
-            .map(|((s, r), t)| {
-                analyze_with_truth(
-                    &SkeletonView::with_pose(s, *r),
-                    *t,
-                )
-            })
+            .map(|((s, r), t)| analyze_with_truth(&SkeletonView::with_pose(s, *r), *t))
             .collect();
         let target_truth = p.target.truth();
         let ta = analyze_with_truth(
@@ -201,7 +196,15 @@ impl Mapper {
             .flat_map(|a| a.warnings.iter().map(|w| format!("source: {w}")))
             .chain(ta.warnings.iter().map(|w| format!("target: {w}")))
             .collect();
-        let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options, warnings);
+        let json = mapping_message(
+            &p.target,
+            &sources,
+            &target,
+            &ta,
+            &table,
+            &self.options,
+            warnings,
+        );
         if let Ok(mut slot) = p.mailbox.lock() {
             *slot = Some(BuiltMapping { mapping });
         }

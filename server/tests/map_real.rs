@@ -335,7 +335,9 @@ fn mirrored_names_lose_to_geometry_with_a_warning() {
     let v = map_json(&src, &tgt, &[]);
     let warnings = v["warnings"]["target"].as_array().unwrap();
     assert!(
-        warnings.iter().any(|w| w.as_str().unwrap().contains("geometry")),
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("geometry")),
         "no warning: {warnings:?}"
     );
     assert!(v["warnings"]["source"].as_array().unwrap().is_empty());

@@ -815,7 +815,11 @@ fn broken_geometry_maps_by_names() {
         return;
     };
     let a = analyze(&view(&broken.clip));
-    assert!(a.warnings.iter().any(|w| w.contains("names")), "{:?}", a.warnings);
+    assert!(
+        a.warnings.iter().any(|w| w.contains("names")),
+        "{:?}",
+        a.warnings
+    );
     let (mut into, mut from) = (Score::default(), Score::default());
     let mut fails = Vec::new();
     for other in humans(&rigs) {

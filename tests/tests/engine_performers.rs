@@ -159,10 +159,17 @@ async fn mapping_message_warns_when_names_lie_about_sides() {
         unreachable!()
     };
     assert!(
-        warnings.iter().any(|w| w.starts_with("target:") && w.contains("geometry")),
+        warnings
+            .iter()
+            .any(|w| w.starts_with("target:") && w.contains("geometry")),
         "{warnings:?}"
     );
-    let source_of = |t: &str| entries.iter().find(|e| e.target == t).and_then(|e| e.source.clone());
+    let source_of = |t: &str| {
+        entries
+            .iter()
+            .find(|e| e.target == t)
+            .and_then(|e| e.source.clone())
+    };
     // The bundled demo walk's thighs are `leg_upper_l` / `leg_upper_r`.
     assert_eq!(source_of("r-thigh").as_deref(), Some("leg_upper_l"));
     assert_eq!(source_of("l-thigh").as_deref(), Some("leg_upper_r"));

@@ -85,8 +85,14 @@ pub(crate) fn humanoid_from_names(
         }
     }
     let find = |h: HumanBone| map.iter().find(|(x, _)| *x == h).map(|(_, b)| *b);
-    let thighs = [find(HumanBone::LeftUpperLeg)?, find(HumanBone::RightUpperLeg)?];
-    let arms = [find(HumanBone::LeftUpperArm)?, find(HumanBone::RightUpperArm)?];
+    let thighs = [
+        find(HumanBone::LeftUpperLeg)?,
+        find(HumanBone::RightUpperLeg)?,
+    ];
+    let arms = [
+        find(HumanBone::LeftUpperArm)?,
+        find(HumanBone::RightUpperArm)?,
+    ];
     let hips = skel
         .bone_ids()
         .find(|b| parts[b.index()] == Some(Part::Pelvis))
@@ -147,7 +153,8 @@ fn limb_bones(side: Side) -> [(Part, HumanBone); 8] {
 fn joint_naming(skel: &Skeleton, names: &[NameInfo], parts: &mut [Option<Part>], side: Side) {
     let on_side = |b: BoneId| names[b.index()].side == Some(side);
     let has = |parts: &[Option<Part>], p: Part| {
-        skel.bone_ids().any(|b| on_side(b) && parts[b.index()] == Some(p))
+        skel.bone_ids()
+            .any(|b| on_side(b) && parts[b.index()] == Some(p))
     };
     if !has(parts, Part::UpperArm) {
         let forearm = skel
@@ -188,6 +195,60 @@ fn common_parent(skel: &Skeleton, [a, b]: [BoneId; 2]) -> Option<BoneId> {
         y = skel.parent(p);
     }
     None
+}
+
+/// Sections rebuilt from the roles alone (after the names replaced a reading of broken
+/// geometry): spine, head, and per side arm, hand, leg and foot, bones in hierarchy order.
+pub(crate) fn sections_from_roles(skel: &Skeleton, a: &mut super::Analysis) {
+    use super::{Role, Section, SectionKind};
+    let kind_of = |r: Role| match r {
+        Role::Hips | Role::Spine | Role::SpineMid | Role::Chest => Some(SectionKind::Spine),
+        Role::Neck(_) | Role::Head => Some(SectionKind::Head),
+        Role::Clavicle | Role::UpperArm | Role::LowerArm => Some(SectionKind::Arm),
+        Role::Hand => Some(SectionKind::Hand),
+        Role::PelvisSide | Role::UpperLeg | Role::LowerLeg => Some(SectionKind::Leg),
+        Role::Foot | Role::Toes => Some(SectionKind::Foot),
+        _ => None,
+    };
+    let mut sections: Vec<Section> = Vec::new();
+    for r in a.roles.iter_mut() {
+        r.section = None;
+    }
+    for b in skel.bone_ids() {
+        let r = a.roles[b.index()];
+        let Some(kind) = kind_of(r.role) else {
+            continue;
+        };
+        let idx = match sections
+            .iter()
+            .position(|s| s.kind == kind && s.side == r.side)
+        {
+            Some(i) => i,
+            None => {
+                let ground = matches!(kind, SectionKind::Leg | SectionKind::Foot);
+                sections.push(Section {
+                    kind,
+                    side: r.side,
+                    limb: 0,
+                    bones: Vec::new(),
+                    length: 0.0,
+                    parent: None,
+                    ground,
+                });
+                sections.len() - 1
+            }
+        };
+        sections[idx].bones.push(b);
+        a.roles[b.index()].section = Some(idx as u16);
+        a.roles[b.index()].limb = 0;
+    }
+    for s in &sections {
+        let n = s.bones.len().max(1) as f32;
+        for (j, b) in s.bones.iter().enumerate() {
+            a.roles[b.index()].position = j as f32 / n;
+        }
+    }
+    a.sections = sections;
 }
 
 #[cfg(test)]
@@ -245,53 +306,4 @@ mod tests {
         let names: Vec<NameInfo> = s.names().iter().map(|n| normalize(n)).collect();
         assert!(humanoid_from_names(&s, &names).is_none());
     }
-}
-
-/// Sections rebuilt from the roles alone (after the names replaced a reading of broken
-/// geometry): spine, head, and per side arm, hand, leg and foot, bones in hierarchy order.
-pub(crate) fn sections_from_roles(skel: &Skeleton, a: &mut super::Analysis) {
-    use super::{Role, Section, SectionKind};
-    let kind_of = |r: Role| match r {
-        Role::Hips | Role::Spine | Role::SpineMid | Role::Chest => Some(SectionKind::Spine),
-        Role::Neck(_) | Role::Head => Some(SectionKind::Head),
-        Role::Clavicle | Role::UpperArm | Role::LowerArm => Some(SectionKind::Arm),
-        Role::Hand => Some(SectionKind::Hand),
-        Role::PelvisSide | Role::UpperLeg | Role::LowerLeg => Some(SectionKind::Leg),
-        Role::Foot | Role::Toes => Some(SectionKind::Foot),
-        _ => None,
-    };
-    let mut sections: Vec<Section> = Vec::new();
-    for r in a.roles.iter_mut() {
-        r.section = None;
-    }
-    for b in skel.bone_ids() {
-        let r = a.roles[b.index()];
-        let Some(kind) = kind_of(r.role) else { continue };
-        let idx = match sections.iter().position(|s| s.kind == kind && s.side == r.side) {
-            Some(i) => i,
-            None => {
-                let ground = matches!(kind, SectionKind::Leg | SectionKind::Foot);
-                sections.push(Section {
-                    kind,
-                    side: r.side,
-                    limb: 0,
-                    bones: Vec::new(),
-                    length: 0.0,
-                    parent: None,
-                    ground,
-                });
-                sections.len() - 1
-            }
-        };
-        sections[idx].bones.push(b);
-        a.roles[b.index()].section = Some(idx as u16);
-        a.roles[b.index()].limb = 0;
-    }
-    for s in &sections {
-        let n = s.bones.len().max(1) as f32;
-        for (j, b) in s.bones.iter().enumerate() {
-            a.roles[b.index()].position = j as f32 / n;
-        }
-    }
-    a.sections = sections;
 }

@@ -186,7 +186,10 @@ mod tests {
 
     #[test]
     fn snapping_only_near_an_axis() {
-        assert_eq!(snap_axis(Vec3::new(0.1, -0.99, 0.0).normalize_or_zero()), -Vec3::Y);
+        assert_eq!(
+            snap_axis(Vec3::new(0.1, -0.99, 0.0).normalize_or_zero()),
+            -Vec3::Y
+        );
         let v = Vec3::new(0.6, 0.8, 0.0);
         assert_eq!(snap_axis(v), v);
     }

@@ -25,6 +25,7 @@
 //! tie only when geometry gives no clear cue, and a clear cue that disagrees with the names is
 //! reported in `Analysis::warnings`.
 
+mod byname;
 mod centerline;
 mod context;
 mod detached;
@@ -32,7 +33,6 @@ mod extremities;
 mod flat;
 mod forward;
 mod frame;
-mod byname;
 pub mod humanoid;
 mod limbs;
 pub mod names;

@@ -170,8 +170,8 @@ impl<'a> Setup<'a> {
     fn target_segment(&self, t: BoneId) -> TargetSegment {
         let (skel, w, eps) = (self.target, &self.tgt_w, self.tgt_eps);
         let mapped = |b: BoneId| self.is_mapped(b);
-        let mapped_end = align::chain_end(skel, w, t, eps, &mapped)
-            .or_else(|| self.detached_end(t));
+        let mapped_end =
+            align::chain_end(skel, w, t, eps, &mapped).or_else(|| self.detached_end(t));
         let any_end = mapped_end.or_else(|| align::chain_end(skel, w, t, eps, &|_| true));
         let direction = match any_end {
             Some(e) => align::direction(w, t, e),
