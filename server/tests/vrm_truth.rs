@@ -106,6 +106,8 @@ fn vrm_bytes() -> (Vec<u8>, Vec<(&'static str, usize)>) {
 
 fn temp_dir() -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("rigcast-vrm-truth-{}", std::process::id()));
+    // A folder left by an earlier process with the same id is stale.
+    let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
 }

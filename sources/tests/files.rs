@@ -8,6 +8,8 @@ use rigcast_sources::{LoadOptions, SourceError};
 
 fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("rigcast-sources-{tag}-{}", std::process::id()));
+    // A folder left by an earlier process with the same id is stale.
+    let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
 }

@@ -275,6 +275,9 @@ pub fn temp_path(name: &str) -> PathBuf {
         std::process::id(),
         N.fetch_add(1, Ordering::Relaxed)
     ));
+    // Each call gets its own folder; one left by an earlier process with the same id (ids are
+    // reused) is stale and must not leak into this test (a stale token file, a stale cache).
+    let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
 }
