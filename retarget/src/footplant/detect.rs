@@ -35,8 +35,9 @@ pub struct PlantSettings {
     /// A contact joint is near the ground below this fraction of the leg length above its
     /// ground (0.05: 4 cm on a 0.8 m leg).
     pub height_ratio: f32,
-    /// ... and slow below this many leg lengths per second (0.3: 24 cm/s on a 0.8 m leg; a
-    /// swinging foot moves at 2–5 m/s, a standing one jitters at 2–15 cm/s over 1/30 s).
+    /// ... and slow below this many leg lengths per second (0.25: 20 cm/s on a 0.8 m leg; a
+    /// swinging foot moves at 2–5 m/s, a standing one jitters at 2–15 cm/s over 1/30 s, a
+    /// ball pivoting under a rising heel at 10–25 cm/s).
     pub speed_ratio: f32,
     /// A planted foot stays planted until its joints exceed the thresholds times this.
     pub release_factor: f32,
@@ -53,8 +54,8 @@ impl Default for PlantSettings {
     fn default() -> Self {
         PlantSettings {
             height_ratio: 0.05,
-            speed_ratio: 0.3,
-            release_factor: 1.5,
+            speed_ratio: 0.25,
+            release_factor: 1.3,
             window_secs: 1.0 / 30.0,
             min_plant_secs: 1.0 / 30.0,
             min_gap_secs: 1.0 / 30.0,
@@ -219,6 +220,12 @@ pub struct PlantTrack {
 }
 
 impl PlantTrack {
+    /// A track from per-frame flags (frame-major, `legs.len()` per frame), e.g. the causal
+    /// detector's outputs collected over a clip.
+    pub fn from_flags(legs: Vec<Leg>, planted: Vec<bool>) -> PlantTrack {
+        PlantTrack { legs, planted }
+    }
+
     /// Number of frames.
     pub fn num_frames(&self) -> usize {
         self.planted.len().checked_div(self.legs.len()).unwrap_or(0)
