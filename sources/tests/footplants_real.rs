@@ -159,3 +159,33 @@ fn pymo_walk_plants_alternate() {
     // 8.9 s at 120 fps: nine steps per foot.
     check_alternation("zoo/bvh/sparse_spine_head__pymo_meredith.bvh", 8);
 }
+
+#[test]
+fn quadrupeds_stand_on_four_feet() {
+    for rel in [
+        "zoo/gltf/quaternius_quadruped__Horse.glb",
+        "zoo/gltf/quaternius_quadruped__Wolf.glb",
+    ] {
+        let Some(path) = shared(rel) else {
+            return;
+        };
+        let (clip, _) = rigcast_sources::load_rig(&path).unwrap();
+        let analysis = analyze(&SkeletonView::rest(&clip.skeleton));
+        let legs = find_legs(&clip.skeleton, &analysis);
+        let names: Vec<_> = legs
+            .iter()
+            .map(|l| (l.kind, l.side, clip.skeleton.name(l.foot).to_string()))
+            .collect();
+        println!("{rel}: {names:?}");
+        use rigcast_retarget::footplant::LegKind;
+        for kind in [LegKind::Hind, LegKind::Front] {
+            for side in [Side::Left, Side::Right] {
+                assert_eq!(
+                    legs.iter().filter(|l| l.kind == kind && l.side == side).count(),
+                    1,
+                    "{rel}: {kind:?} {side:?} in {names:?}"
+                );
+            }
+        }
+    }
+}

@@ -78,8 +78,12 @@ struct Foot {
 #[derive(Debug, Clone, Copy, Default)]
 struct Goal {
     active: bool,
+    /// How much of the lock is blended in (smoothed weight).
+    blend: f32,
     ankle: Vec3,
     rotation: Quat,
+    /// The ball relative to the ankle (after the heading turn).
+    ball_offset: Option<Vec3>,
 }
 
 /// Foot locking for one performer (one mapping). Build once off the realtime path; per frame
@@ -129,7 +133,9 @@ impl FootLock {
             return None;
         }
         let aligned = world_transforms(&tgt_skel, &mapping.aligned_rest_pose());
-        let height = |b: BoneId| aligned[b.index()].translation.dot(up);
+        // Standing clearances from the character's own posture (it is authored standing; the
+        // aligned rest shows the source's rest, whose feet need not be flat).
+        let height = |b: BoneId| target.positions[b.index()].dot(target.up);
         let lowest = target_legs
             .iter()
             .flat_map(|l| [Some(l.foot), l.toes])
@@ -257,19 +263,21 @@ impl FootLock {
         } else {
             1.0
         };
-        let mut any = false;
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             self.goals[i] = self.foot_goal(i, wants, step);
-            any |= self.goals[i].active;
         }
-        if !any {
-            return;
+        // The floor first (a locked goal lifted above it may need the hips lower), then again
+        // after the hips came down: an unlocked foot moves down with them.
+        for i in 0..self.feet.len() {
+            self.clamp_to_floor(i, 0.0);
         }
-        if self.lower_hips(out) {
+        let drop = self.lower_hips(out);
+        if drop > 0.0 {
             forward_kinematics(&self.target, out, &mut self.worlds);
         }
         for i in 0..self.feet.len() {
+            self.clamp_to_floor(i, drop);
             if self.goals[i].active {
                 self.solve_leg(i, out);
             }
@@ -308,36 +316,49 @@ impl FootLock {
             (f.weight - step).max(0.0)
         };
         let s = smooth(f.weight);
-        let mut ankle = animated + s * (f.lock_position - animated);
+        let ankle = animated + s * (f.lock_position - animated);
         let turn = s * wrap(f.lock_heading - heading_now);
-        let rotation = (Quat::from_axis_angle(up, turn) * ankle_w.rotation).normalize();
-        // Heel and ball above the floor.
-        let heel_low = self.floor + f.heel_clearance - ankle.dot(up);
-        let ball_low = match f.leg.toes {
-            Some(t) => {
-                let ball = ankle
-                    + Quat::from_axis_angle(up, turn)
-                        * (self.worlds[t.index()].translation - animated);
-                self.floor + f.ball_clearance - ball.dot(up)
-            }
-            None => f32::NEG_INFINITY,
-        };
-        let lift = heel_low.max(ball_low).max(0.0);
-        ankle += up * lift;
+        let yaw = Quat::from_axis_angle(up, turn);
+        let rotation = (yaw * ankle_w.rotation).normalize();
+        let ball_offset = f
+            .leg
+            .toes
+            .map(|t| yaw * (self.worlds[t.index()].translation - animated));
         f.shown_position = ankle;
         f.shown_heading = heading_now + turn;
         self.feet[i] = f;
         Goal {
-            active: s > 0.0 || lift > 0.0,
+            active: s > 0.0,
+            blend: s,
             ankle,
             rotation,
+            ball_offset,
         }
     }
 
-    /// Lowers the root so every active goal is within its leg's reach. True when it moved.
-    fn lower_hips(&self, out: &mut Pose) -> bool {
+    /// Raises goal `i` so heel and ball stay above the floor, after the hips came down by
+    /// `drop` (which carries the animated share of the goal down with them).
+    fn clamp_to_floor(&mut self, i: usize, drop: f32) {
+        let f = &self.feet[i];
+        let g = &mut self.goals[i];
+        g.ankle -= self.up * ((1.0 - g.blend) * drop);
+        let heel_low = self.floor + f.heel_clearance - g.ankle.dot(self.up);
+        let ball_low = match g.ball_offset {
+            Some(o) => self.floor + f.ball_clearance - (g.ankle + o).dot(self.up),
+            None => f32::NEG_INFINITY,
+        };
+        let lift = heel_low.max(ball_low).max(0.0);
+        if lift > 0.0 {
+            g.ankle += self.up * lift;
+            g.active = true;
+        }
+        self.feet[i].shown_position = g.ankle;
+    }
+
+    /// Lowers the root so every active goal is within its leg's reach; returns by how much.
+    fn lower_hips(&self, out: &mut Pose) -> f32 {
         let Some(root) = self.root else {
-            return false;
+            return 0.0;
         };
         let mut drop: f32 = 0.0;
         let mut limit = f32::INFINITY;
@@ -359,14 +380,14 @@ impl FootLock {
         }
         let drop = drop.clamp(0.0, limit);
         if drop <= 0.0 {
-            return false;
+            return 0.0;
         }
         let parent = match self.target.parent(root) {
             Some(p) => self.worlds[p.index()].rotation,
             None => Quat::IDENTITY,
         };
         out.translations[root.index()] -= parent.inverse() * (self.up * drop);
-        true
+        drop
     }
 
     /// Two-bone IK of foot `i` onto its goal; writes the upper, lower and foot rotations.

@@ -91,8 +91,20 @@ pub fn find_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
         let Some(lower) = find_below(skel, analysis, lower_role, r.side, r.limb, b) else {
             continue;
         };
-        let Some(foot) = find_below(skel, analysis, foot_role, r.side, r.limb, lower) else {
-            continue;
+        // A foot that does not hang below its shin (a rig whose feet sit beside the legs)
+        // cannot be reached by bending the leg: such a leg is not locked.
+        let found = find_below(skel, analysis, foot_role, r.side, r.limb, lower);
+        let (b, lower, foot) = match (found, kind) {
+            (Some(foot), _) => (b, lower, foot),
+            // A front leg that ends at its forearm (the hoof is the forearm's end): the
+            // chain is shoulder blade, upper arm, forearm.
+            (None, LegKind::Front) => match skel.parent(b).filter(|&p| {
+                analysis.roles[p.index()].role == Role::Clavicle
+            }) {
+                Some(clavicle) => (clavicle, b, lower),
+                None => continue,
+            },
+            (None, LegKind::Hind) => continue,
         };
         let toes = toe_role
             .and_then(|t| find_below(skel, analysis, t, r.side, r.limb, foot))
