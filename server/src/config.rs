@@ -158,6 +158,9 @@ pub struct FilePerformer {
     pub in_place: bool,
     /// What the character does while its source is lost.
     pub on_lost: Option<OnLost>,
+    /// Pin the character's feet while the source's are planted (default: on for humanoid and
+    /// quadruped characters).
+    pub foot_lock: Option<bool>,
 }
 
 /// One `[[sources]]` entry.
@@ -466,6 +469,8 @@ pub struct PerformerSpec {
     pub in_place: bool,
     /// Behaviour while the source is lost (default: the server's `on_lost`).
     pub on_lost: Option<OnLost>,
+    /// Foot locking (`None`: on for humanoid and quadruped characters).
+    pub foot_lock: Option<bool>,
 }
 
 impl PerformerSpec {
@@ -478,6 +483,7 @@ impl PerformerSpec {
             mapping: None,
             in_place: false,
             on_lost: None,
+            foot_lock: None,
         }
     }
 }
@@ -656,6 +662,7 @@ impl ServerConfig {
                 mapping: p.mapping,
                 in_place: p.in_place,
                 on_lost: p.on_lost,
+                foot_lock: p.foot_lock,
             })
             .collect();
         cfg.sources = file
