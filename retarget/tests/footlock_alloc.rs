@@ -54,7 +54,8 @@ fn stepping(source: &Skeleton, num_frames: usize) -> Vec<Pose> {
             p.translations[0] += Vec3::Y * rise;
             if (60..90).contains(&f) {
                 let swing = ((f - 60) as f32 / 30.0 * std::f32::consts::PI).sin() * 0.6;
-                p.rotations[thigh.index()] = rest.rotations[thigh.index()] * Quat::from_rotation_x(-swing);
+                p.rotations[thigh.index()] =
+                    rest.rotations[thigh.index()] * Quat::from_rotation_x(-swing);
             }
             p
         })
@@ -109,9 +110,18 @@ fn steady_state_foot_lock_allocates_nothing() {
     assert!((standing - risen).length() < 1e-3, "{standing} → {risen}");
     assert_eq!(counted, 0, "the foot lock allocated {counted} times");
     // Every path ran: locks held, a release (the swing), the hips came down for the rise.
-    assert!(locked_frames > 40, "{locked_frames} frames with both feet locked");
-    assert!(released_frames > 10, "{released_frames} frames with a foot released");
-    assert!(hips_lowered > 10, "{hips_lowered} frames with the hips lowered");
+    assert!(
+        locked_frames > 40,
+        "{locked_frames} frames with both feet locked"
+    );
+    assert!(
+        released_frames > 10,
+        "{released_frames} frames with a foot released"
+    );
+    assert!(
+        hips_lowered > 10,
+        "{hips_lowered} frames with the hips lowered"
+    );
     // The counter works.
     let before = allocations();
     let _w = world_transforms(&target, &out);

@@ -24,11 +24,11 @@ use anyhow::Context;
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
+use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::mapping::{
     apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
     SourceRef, TargetEntry, UNMAPPED,
 };
-use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::{Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
 
@@ -145,12 +145,7 @@ impl Mapper {
             .iter()
             .zip(&references)
             .zip(&source_truths)
-            .map(|((s, r), t)| {
-                analyze_with_truth(
-                    &SkeletonView::with_pose(s, *r),
-                    *t,
-                )
-            })
+            .map(|((s, r), t)| analyze_with_truth(&SkeletonView::with_pose(s, *r), *t))
             .collect();
         let target_truth = p.target.truth();
         let ta = analyze_with_truth(

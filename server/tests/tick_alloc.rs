@@ -86,7 +86,10 @@ fn tick_allocates_one_buffer_per_subject() {
         LockSettings::default(),
     );
     assert!(foot_lock.is_some());
-    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping { mapping, foot_lock })));
+    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
+        mapping,
+        foot_lock,
+    })));
     let performer = Performer::new(
         t.clone(),
         target_tx,

@@ -10,7 +10,9 @@ use std::ops::Range;
 use std::path::PathBuf;
 
 use rigcast_retarget::analysis::{analyze, Side, SkeletonView};
-use rigcast_retarget::footplant::{detect_clip, find_legs, PlantDetector, PlantSettings, PlantTrack};
+use rigcast_retarget::footplant::{
+    detect_clip, find_legs, PlantDetector, PlantSettings, PlantTrack,
+};
 use rigcast_retarget::Clip;
 
 /// Hand-read plants of cmu_131_01_walk.bvh, half-open frame ranges. Left: stance before the
@@ -65,7 +67,14 @@ fn tracks(clip: &Clip) -> (PlantTrack, PlantTrack, usize, usize) {
     let (left, right) = (column(Side::Left), column(Side::Right));
     let settings = PlantSettings::default();
     let dt = clip.frame_time_secs as f32;
-    let two_sided = detect_clip(&clip.skeleton, &legs, &clip.poses, dt, analysis.up, &settings);
+    let two_sided = detect_clip(
+        &clip.skeleton,
+        &legs,
+        &clip.poses,
+        dt,
+        analysis.up,
+        &settings,
+    );
     // The causal detector, run as the live path runs it, into a track of the same shape.
     let mut det = PlantDetector::new(&clip.skeleton, &legs, analysis.up, settings);
     let mut causal = Vec::new();
@@ -87,7 +96,13 @@ fn agreement(track: &PlantTrack, leg: usize, reference: &[Range<usize>], lag: us
 
 /// Starts of the steps (plants of at least 0.1 s; a brief touch is no step) of two legs,
 /// merged in time order, as a string of L/R.
-fn order(clip: &Clip, track: &PlantTrack, left: usize, right: usize, within: Range<usize>) -> String {
+fn order(
+    clip: &Clip,
+    track: &PlantTrack,
+    left: usize,
+    right: usize,
+    within: Range<usize>,
+) -> String {
     let min_len = (0.1 / clip.frame_time_secs).round() as usize;
     let steps = |leg: usize, c: char| {
         track
@@ -121,10 +136,18 @@ fn cmu_walk_plants_match_the_hand_read_reference() {
             agreement(track, left, &CMU_LEFT, lag),
             agreement(track, right, &CMU_RIGHT, lag),
         );
-        println!("{name}: frame agreement left {:.1} %, right {:.1} %", 100.0 * l, 100.0 * r);
+        println!(
+            "{name}: frame agreement left {:.1} %, right {:.1} %",
+            100.0 * l,
+            100.0 * r
+        );
         assert!(l >= 0.9 && r >= 0.9, "{name}: left {l:.3}, right {r:.3}");
         // The walk (frames 480–800) alternates: R L R L R.
-        assert_eq!(order(&clip, track, left, right, 480..800), "RLRLR", "{name}");
+        assert_eq!(
+            order(&clip, track, left, right, 480..800),
+            "RLRLR",
+            "{name}"
+        );
     }
 }
 
@@ -136,8 +159,15 @@ fn check_alternation(relative: &str, min_steps: usize) {
     let clip = rigcast_sources::load_clip(&path).unwrap();
     let (two_sided, _, left, right) = tracks(&clip);
     let steps = order(&clip, &two_sided, left, right, 0..clip.num_frames());
-    println!("{relative}: {} frames, plant order {steps}", clip.num_frames());
-    println!("  left {:?}\n  right {:?}", two_sided.intervals(left), two_sided.intervals(right));
+    println!(
+        "{relative}: {} frames, plant order {steps}",
+        clip.num_frames()
+    );
+    println!(
+        "  left {:?}\n  right {:?}",
+        two_sided.intervals(left),
+        two_sided.intervals(right)
+    );
     let each = |c: char| steps.matches(c).count();
     assert!(each('L') >= min_steps && each('R') >= min_steps, "{steps}");
     // Alternation: most consecutive plant starts switch feet.
@@ -181,7 +211,9 @@ fn quadrupeds_stand_on_four_feet() {
         for kind in [LegKind::Hind, LegKind::Front] {
             for side in [Side::Left, Side::Right] {
                 assert_eq!(
-                    legs.iter().filter(|l| l.kind == kind && l.side == side).count(),
+                    legs.iter()
+                        .filter(|l| l.kind == kind && l.side == side)
+                        .count(),
                     1,
                     "{rel}: {kind:?} {side:?} in {names:?}"
                 );

@@ -195,10 +195,7 @@ impl PlantDetector {
             let mut now = next_state(was, &readings, h, v, s.release_factor);
             // A fresh plant is held for the shortest plant, so a jittery landing does not
             // flicker the lock.
-            if was
-                && !now
-                && self.now_secs - self.planted_since[f] < f64::from(s.min_plant_secs)
-            {
+            if was && !now && self.now_secs - self.planted_since[f] < f64::from(s.min_plant_secs) {
                 now = true;
             }
             if now && !was {
@@ -234,9 +231,7 @@ impl PlantTrack {
     /// The state of every leg at `frame` (empty past the end).
     pub fn frame(&self, frame: usize) -> &[bool] {
         let n = self.legs.len();
-        self.planted
-            .get(frame * n..(frame + 1) * n)
-            .unwrap_or(&[])
+        self.planted.get(frame * n..(frame + 1) * n).unwrap_or(&[])
     }
 
     /// Whether `leg` is planted at `frame`.
@@ -362,10 +357,7 @@ fn clip_ground(samples: impl Iterator<Item = (f32, f32)> + Clone, slow: f32) -> 
         heights = samples.map(|(h, _)| h).collect();
     }
     heights.sort_by(f32::total_cmp);
-    heights
-        .get(heights.len() / 50)
-        .copied()
-        .unwrap_or(0.0)
+    heights.get(heights.len() / 50).copied().unwrap_or(0.0)
 }
 
 /// Runs of `false` shorter than `max_len` between two `true`s become `true`.
@@ -410,20 +402,31 @@ mod tests {
 
     #[test]
     fn gaps_close_and_short_plants_drop() {
-        let mut c = [true, true, false, true, true, true, false, false, false, true];
+        let mut c = [
+            true, true, false, true, true, true, false, false, false, true,
+        ];
         close_gaps(&mut c, 2);
-        assert_eq!(c, [true, true, true, true, true, true, false, false, false, true]);
+        assert_eq!(
+            c,
+            [true, true, true, true, true, true, false, false, false, true]
+        );
         drop_short(&mut c, 2);
-        assert_eq!(c, [true, true, true, true, true, true, false, false, false, false]);
+        assert_eq!(
+            c,
+            [true, true, true, true, true, true, false, false, false, false]
+        );
     }
 
     #[test]
     fn hysteresis_keeps_a_plant_inside_the_looser_bounds() {
         let r = |h: f32, v: f32| {
-            [Some(Reading {
-                height_above_ground: h,
-                speed: v,
-            }), None]
+            [
+                Some(Reading {
+                    height_above_ground: h,
+                    speed: v,
+                }),
+                None,
+            ]
         };
         // Between the plant and release thresholds: plants only if already planted.
         assert!(!next_state(false, &r(0.012, 0.1), 0.01, 0.2, 1.5));
@@ -434,7 +437,9 @@ mod tests {
 
     #[test]
     fn the_ground_ignores_one_glitched_frame() {
-        let mut s: Vec<(f32, f32)> = (0..200).map(|i| (1.0 + 0.001 * (i % 3) as f32, 0.0)).collect();
+        let mut s: Vec<(f32, f32)> = (0..200)
+            .map(|i| (1.0 + 0.001 * (i % 3) as f32, 0.0))
+            .collect();
         s[17] = (-5.0, 0.0);
         assert!((clip_ground(s.iter().copied(), 0.1) - 1.0).abs() < 0.003);
     }

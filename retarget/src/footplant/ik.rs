@@ -23,7 +23,13 @@ pub const MAX_EXTENSION: f32 = 0.9995;
 
 /// Moves the chain `hip → knee → ankle` so the ankle reaches `goal` (or as close as the bone
 /// lengths allow), keeping the knee on the `pole` side of the hip–goal line.
-pub fn solve_two_bone(hip: Vec3, knee: Vec3, ankle: Vec3, goal: Vec3, pole: Vec3) -> TwoBoneSolution {
+pub fn solve_two_bone(
+    hip: Vec3,
+    knee: Vec3,
+    ankle: Vec3,
+    goal: Vec3,
+    pole: Vec3,
+) -> TwoBoneSolution {
     let a = (knee - hip).length();
     let b = (ankle - knee).length();
     let to_goal = goal - hip;
@@ -81,7 +87,11 @@ mod tests {
 
     #[test]
     fn reaches_a_goal_and_bends_towards_the_pole() {
-        let (hip, knee, ankle) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.5, 0.02), Vec3::ZERO);
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.02),
+            Vec3::ZERO,
+        );
         let goal = Vec3::new(0.1, 0.2, 0.05);
         let s = solve_two_bone(hip, knee, ankle, goal, Vec3::Z);
         let (k, a) = apply(&s, hip, knee, ankle);
@@ -96,24 +106,40 @@ mod tests {
 
     #[test]
     fn an_unreachable_goal_stretches_the_leg_towards_it_without_flipping() {
-        let (hip, knee, ankle) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.5, 0.05), Vec3::ZERO);
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.05),
+            Vec3::ZERO,
+        );
         let goal = Vec3::new(0.0, -1.0, 0.3);
         let s = solve_two_bone(hip, knee, ankle, goal, Vec3::Z);
         let (k, a) = apply(&s, hip, knee, ankle);
         let reach = (knee - hip).length() + (ankle - knee).length();
         assert!(((a - hip).length() - reach * MAX_EXTENSION).abs() < 1e-3);
-        assert!((a - hip).normalize().dot((goal - hip).normalize()) > 0.9999);
+        assert!(
+            (a - hip)
+                .normalize_or_zero()
+                .dot((goal - hip).normalize_or_zero())
+                > 0.9999
+        );
         // Still bent forward, however little.
-        let line = (a - hip).normalize();
+        let line = (a - hip).normalize_or_zero();
         assert!(((k - hip) - line * (k - hip).dot(line)).z > 0.0);
     }
 
     #[test]
     fn the_pole_side_decides_the_bend_even_from_a_straight_leg() {
-        let (hip, knee, ankle) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::ZERO);
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::ZERO,
+        );
         for pole in [Vec3::Z, -Vec3::Z, Vec3::X] {
             let s = solve_two_bone(hip, knee, ankle, Vec3::new(0.0, 0.3, 0.0), pole);
-            assert!((s.knee - Vec3::new(0.0, 0.65, 0.0)).dot(pole) > 0.3, "{pole}");
+            assert!(
+                (s.knee - Vec3::new(0.0, 0.65, 0.0)).dot(pole) > 0.3,
+                "{pole}"
+            );
         }
     }
 }

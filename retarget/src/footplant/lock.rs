@@ -217,7 +217,9 @@ impl FootLock {
 
     /// Whether target foot `i` is held by a lock now (blend weight above one half).
     pub fn is_locked(&self, i: usize) -> bool {
-        self.feet.get(i).is_some_and(|f| f.locked && f.weight >= 0.5)
+        self.feet
+            .get(i)
+            .is_some_and(|f| f.locked && f.weight >= 0.5)
     }
 
     /// Forgets locks and the detector's history (a source restarted or seeked).
@@ -412,7 +414,8 @@ impl FootLock {
             None => Quat::IDENTITY,
         };
         let upper_world = s.upper * wu.rotation;
-        out.rotations[leg.upper.index()] = (parent_world(leg.upper).inverse() * upper_world).normalize();
+        out.rotations[leg.upper.index()] =
+            (parent_world(leg.upper).inverse() * upper_world).normalize();
         // Bones between upper and lower (twist bones) turn with the upper bone.
         let lower_parent = s.upper * parent_world(leg.lower);
         let lower_world = s.lower * s.upper * wl.rotation;

@@ -98,9 +98,10 @@ pub fn find_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
             (Some(foot), _) => (b, lower, foot),
             // A front leg that ends at its forearm (the hoof is the forearm's end): the
             // chain is shoulder blade, upper arm, forearm.
-            (None, LegKind::Front) => match skel.parent(b).filter(|&p| {
-                analysis.roles[p.index()].role == Role::Clavicle
-            }) {
+            (None, LegKind::Front) => match skel
+                .parent(b)
+                .filter(|&p| analysis.roles[p.index()].role == Role::Clavicle)
+            {
                 Some(clavicle) => (clavicle, b, lower),
                 None => continue,
             },

@@ -181,14 +181,8 @@ pub fn plan_mapping_with_truth(
         None => None,
     };
     let (ss, ts) = (&*source.skeleton, &*target.skeleton);
-    let sa = analyze_with_truth(
-        &SkeletonView::from_clip(ss, &source.poses),
-        truth.0,
-    );
-    let ta = analyze_with_truth(
-        &SkeletonView::from_clip(ts, &target.poses),
-        truth.1,
-    );
+    let sa = analyze_with_truth(&SkeletonView::from_clip(ss, &source.poses), truth.0);
+    let ta = analyze_with_truth(&SkeletonView::from_clip(ts, &target.poses), truth.1);
     let mut table = map_analyzed(&[(ss, &sa)], (ts, &ta), &MapOptions::default());
     if let Some(file) = &overrides {
         apply_overrides(&mut table, file, &[ss], ts).context("mapping file")?;
