@@ -821,6 +821,7 @@ mod tests {
             target = "/x/hero.glb"
             in_place = true
             on_lost = "ease"
+            foot_lock = false
         "#;
         let cfg = ServerConfig::from_file(toml::from_str(text).unwrap()).unwrap();
         assert_eq!(cfg.on_lost, OnLost::Hold);
@@ -846,6 +847,7 @@ mod tests {
         assert_eq!(p.sources, vec!["face".to_string(), "suit".to_string()]);
         assert!(p.in_place);
         assert_eq!(p.on_lost, Some(OnLost::Ease));
+        assert_eq!(p.foot_lock, Some(false));
         assert!(toml::from_str::<FileConfig>("on_lost = \"drop\"").is_err());
     }
 

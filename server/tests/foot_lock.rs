@@ -18,8 +18,10 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::Vec3;
-use rigcast_retarget::footplant::{detect_clip, find_legs, Leg, PlantSettings, PlantTrack};
-use rigcast_retarget::{world_transforms, Clip, RetargetOptions, WorldTransform};
+use rigcast_retarget::footplant::{
+    detect_clip, find_legs, FootLock, Leg, LockSettings, PlantSettings, PlantTrack,
+};
+use rigcast_retarget::{world_transforms, Clip, Mapping, RetargetOptions, WorldTransform};
 use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked, MappingPlan};
 
 /// Figures of one output.
@@ -28,6 +30,9 @@ struct Quality {
     drift_cm_per_frame: f64,
     deepest_below_floor_cm: f32,
     knee_flips: usize,
+    /// Largest change of a heel or ball joint's per-frame move (its second difference): a
+    /// pop shows here as a spike, a smooth swing does not.
+    largest_kick_cm: f32,
 }
 
 fn retarget(source: &Clip, plan: &MappingPlan, target: &Clip, lock: bool) -> Clip {
@@ -84,6 +89,7 @@ fn measure(
     let (mut sum, mut n) = (0.0f64, 0usize);
     let mut deepest = f32::NEG_INFINITY;
     let mut flips = 0;
+    let mut largest_kick: f32 = 0.0;
     for &(leg, src) in legs {
         let joints: Vec<_> = [Some(leg.foot), leg.toes].into_iter().flatten().collect();
         for f in 0..out.num_frames() {
@@ -91,6 +97,14 @@ fn measure(
             let p = |b: rigcast_retarget::BoneId| w[b.index()].translation;
             for &j in &joints {
                 deepest = deepest.max(rest[j.index()].translation.y - p(j).y);
+                if f > 1 {
+                    let (a, b) = (
+                        worlds[f - 1][j.index()].translation,
+                        worlds[f - 2][j.index()].translation,
+                    );
+                    let kick = (p(j) - 2.0 * a + b).length();
+                    largest_kick = largest_kick.max(kick * 100.0);
+                }
                 if f > 0 && plants.is_planted(f, src) && plants.is_planted(f - 1, src) {
                     let before = worlds[f - 1][j.index()].translation;
                     sum += f64::from(flat(p(j) - before).length()) * 100.0;
@@ -111,6 +125,7 @@ fn measure(
         drift_cm_per_frame: sum / n.max(1) as f64,
         deepest_below_floor_cm: deepest * 100.0,
         knee_flips: flips,
+        largest_kick_cm: largest_kick,
     }
 }
 
@@ -172,7 +187,8 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
         );
         println!(
             "{name}: leg {:.3} m; drift {:.4} cm/frame locked, {:.4} free; lowest below floor \
-             {:.2} cm locked, {:.2} free; knee flips {} locked, {} free",
+             {:.2} cm locked, {:.2} free; knee flips {} locked, {} free; largest foot kick \
+             {:.2} cm/frame² locked, {:.2} free",
             legs[0].0.length,
             locked.drift_cm_per_frame,
             free.drift_cm_per_frame,
@@ -180,6 +196,8 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
             free.deepest_below_floor_cm,
             locked.knee_flips,
             free.knee_flips,
+            locked.largest_kick_cm,
+            free.largest_kick_cm,
         );
         lengths.push(legs[0].0.length);
         assert!(locked.drift_cm_per_frame <= 0.05, "{name}: {locked:?}");
@@ -189,11 +207,96 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
         );
         assert!(locked.deepest_below_floor_cm <= 0.5, "{name}: {locked:?}");
         assert_eq!(locked.knee_flips, 0, "{name}: {locked:?}");
+        // Locks blend in and out: no foot changes speed from one frame to the next much more
+        // than in the animation itself.
+        assert!(
+            locked.largest_kick_cm <= 1.5 * free.largest_kick_cm,
+            "{name}: {locked:?} vs {free:?}"
+        );
     }
     // Different leg lengths, as the acceptance asks.
     lengths.sort_by(f32::total_cmp);
     assert!(
         lengths[lengths.len() - 1] > 1.3 * lengths[0],
         "leg lengths {lengths:?}"
+    );
+}
+
+/// The live path: the performer stage's causal detection and lock, frame by frame as the
+/// tick runs them, on the mannequin; drift is measured over the (two-sided) plants.
+#[test]
+fn cmu_walk_live_lock_keeps_planted_feet() {
+    let Some(walk) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+        return;
+    };
+    let source = rigcast_sources::load_clip(&walk).unwrap();
+    let mannequin = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Clip::new(
+        "mannequin",
+        mannequin.clone(),
+        vec![mannequin.rest_pose()],
+        1.0 / 30.0,
+    )
+    .unwrap();
+    let plan = plan_mapping(&source, &target, None).unwrap();
+    let opts = RetargetOptions {
+        frame_time_secs: source.frame_time_secs as f32,
+        source_up: Some(plan.source_up),
+        ..RetargetOptions::default()
+    };
+    let mut mapping = Mapping::build(&[&source.skeleton], &mannequin, &plan.table, &opts).unwrap();
+    let mut lock = FootLock::new(
+        &mapping,
+        &plan.source_analysis,
+        &plan.target_analysis,
+        LockSettings::default(),
+    )
+    .unwrap();
+    let dt = source.frame_time_secs as f32;
+    let (mut free, mut locked) = (Vec::new(), Vec::new());
+    let mut out = mapping.new_target_pose();
+    for p in &source.poses {
+        mapping.apply_one(p, &mut out).unwrap();
+        free.push(out.clone());
+        lock.apply_live(p, true, dt, &mut out);
+        locked.push(out.clone());
+    }
+    let source_legs = find_legs(&source.skeleton, &plan.source_analysis);
+    let plants = detect_clip(
+        &source.skeleton,
+        &source_legs,
+        &source.poses,
+        dt,
+        plan.source_up,
+        &PlantSettings::default(),
+    );
+    let legs: Vec<(Leg, usize)> = find_legs(&mannequin, &plan.target_analysis)
+        .into_iter()
+        .filter_map(|l| Some((l, source_legs.iter().position(|s| s.key() == l.key())?)))
+        .collect();
+    let rest = world_transforms(&mannequin, &mannequin.rest_pose());
+    let as_clip = |poses: Vec<rigcast_retarget::Pose>| {
+        Clip::new("out", mannequin.clone(), poses, source.frame_time_secs).unwrap()
+    };
+    let free_clip = as_clip(free);
+    let axes = bend_axes(&free_clip, &legs);
+    let free = measure(&free_clip, &legs, &plants, &rest, &axes);
+    let locked = measure(&as_clip(locked), &legs, &plants, &rest, &axes);
+    println!(
+        "live, mannequin: drift {:.4} cm/frame locked, {:.4} free; lowest below floor {:.2} cm \
+         locked; knee flips {}; largest foot kick {:.2} cm/frame² locked, {:.2} free",
+        locked.drift_cm_per_frame,
+        free.drift_cm_per_frame,
+        locked.deepest_below_floor_cm,
+        locked.knee_flips,
+        locked.largest_kick_cm,
+        free.largest_kick_cm
+    );
+    assert!(locked.drift_cm_per_frame <= 0.05, "{locked:?}");
+    assert!(locked.deepest_below_floor_cm <= 0.5, "{locked:?}");
+    assert_eq!(locked.knee_flips, 0);
+    assert!(
+        locked.largest_kick_cm <= 1.5 * free.largest_kick_cm,
+        "{locked:?} vs {free:?}"
     );
 }

@@ -20,6 +20,7 @@ use glam::{Quat, Vec3};
 use super::detect::{PlantDetector, PlantSettings};
 use super::ik::{solve_two_bone, MAX_EXTENSION};
 use super::rig::{find_legs, Leg, MAX_FEET};
+use super::spring::Decay;
 use crate::analysis::Analysis;
 use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
 use crate::pose::Pose;
@@ -64,22 +65,29 @@ struct Foot {
     /// The knee's side of the hip–ankle line, in the upper bone's frame (kept for straight
     /// legs, where the animation does not show it).
     pole_local: Vec3,
-    weight: f32,
     locked: bool,
     lock_position: Vec3,
     lock_heading: f32,
-    /// Where the ankle and heading were shown last frame (a re-plant during a blend-out
-    /// locks there, not at the animated foot, so it does not jump).
+    /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
+    position_offset: Decay<Vec3>,
+    heading_offset: Decay<f32>,
+    /// Last frame: where the ankle was shown and the animated ankle, for velocities.
     shown_position: Vec3,
+    shown_velocity: Vec3,
     shown_heading: f32,
+    shown_heading_rate: f32,
+    animated_position: Vec3,
+    animated_heading: f32,
+    /// The foot has been seen (velocities are known).
+    seen: bool,
 }
 
 /// The per-frame goal of one foot.
 #[derive(Debug, Clone, Copy, Default)]
 struct Goal {
     active: bool,
-    /// How much of the lock is blended in (smoothed weight).
-    blend: f32,
+    /// The goal is fixed in the world (locked) rather than carried by the hips.
+    pinned: bool,
     ankle: Vec3,
     rotation: Quat,
     /// The ball relative to the ankle (after the heading turn).
@@ -100,12 +108,10 @@ pub struct FootLock {
     floor: f32,
     settings: LockSettings,
     worlds: Vec<WorldTransform>,
-}
-
-/// Smooth 0→1 ramp with zero slope at both ends.
-fn smooth(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    x * x * (3.0 - 2.0 * x)
+    /// How far the hips came down last frame (an unpinned foot comes down with them).
+    last_drop: f32,
+    /// How much higher than needed the hips still are on their way back up.
+    drop_offset: Decay<f32>,
 }
 
 /// The angle in (−π, π] equal to `a` modulo a turn.
@@ -176,12 +182,18 @@ impl FootLock {
                     ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
                     heading_local: w(leg.foot).rotation.inverse() * heading_dir,
                     pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
-                    weight: 0.0,
                     locked: false,
                     lock_position: ankle,
                     lock_heading: 0.0,
+                    position_offset: Decay::default(),
+                    heading_offset: Decay::default(),
                     shown_position: ankle,
+                    shown_velocity: Vec3::ZERO,
                     shown_heading: 0.0,
+                    shown_heading_rate: 0.0,
+                    animated_position: ankle,
+                    animated_heading: 0.0,
+                    seen: false,
                 }
             })
             .collect();
@@ -196,6 +208,8 @@ impl FootLock {
             up,
             floor,
             settings,
+            last_drop: 0.0,
+            drop_offset: Decay::default(),
         })
     }
 
@@ -215,20 +229,22 @@ impl FootLock {
         self.detector.planted()
     }
 
-    /// Whether target foot `i` is held by a lock now (blend weight above one half).
+    /// Whether target foot `i` is held by a lock now.
     pub fn is_locked(&self, i: usize) -> bool {
-        self.feet
-            .get(i)
-            .is_some_and(|f| f.locked && f.weight >= 0.5)
+        self.feet.get(i).is_some_and(|f| f.locked)
     }
 
     /// Forgets locks and the detector's history (a source restarted or seeked).
     pub fn reset(&mut self) {
         self.detector.reset();
         for f in &mut self.feet {
-            f.weight = 0.0;
             f.locked = false;
+            f.seen = false;
+            f.position_offset = Decay::default();
+            f.heading_offset = Decay::default();
         }
+        self.last_drop = 0.0;
+        self.drop_offset = Decay::default();
     }
 
     /// Live: detects plants causally on `source` (the mapping's root input pose, a new sample
@@ -260,29 +276,29 @@ impl FootLock {
             return;
         }
         forward_kinematics(&self.target, out, &mut self.worlds);
-        let step = if self.settings.blend_secs > 0.0 {
-            dt_secs.max(0.0) / self.settings.blend_secs
-        } else {
-            1.0
-        };
+        let dt = dt_secs.max(0.0);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
-            self.goals[i] = self.foot_goal(i, wants, step);
+            self.goals[i] = self.foot_goal(i, wants, dt);
         }
         // The floor first (a locked goal lifted above it may need the hips lower), then again
         // after the hips came down: an unlocked foot moves down with them.
         for i in 0..self.feet.len() {
             self.clamp_to_floor(i, 0.0);
         }
-        let drop = self.lower_hips(out);
+        let drop = self.lower_hips(out, dt);
+        self.last_drop = drop;
         if drop > 0.0 {
             forward_kinematics(&self.target, out, &mut self.worlds);
         }
         for i in 0..self.feet.len() {
             self.clamp_to_floor(i, drop);
-            if self.goals[i].active {
-                self.solve_leg(i, out);
-            }
+            let shown = if self.goals[i].active {
+                self.solve_leg(i, out)
+            } else {
+                self.worlds[self.feet[i].leg.foot.index()].translation
+            };
+            self.shown_at(i, shown, dt);
         }
     }
 
@@ -294,48 +310,89 @@ impl FootLock {
     }
 
     /// Updates foot `i`'s lock state and returns where its ankle and rotation should go.
-    fn foot_goal(&mut self, i: usize, wants: bool, step: f32) -> Goal {
-        let foot = self.feet[i];
-        let ankle_w = self.worlds[foot.leg.foot.index()];
+    fn foot_goal(&mut self, i: usize, wants: bool, dt: f32) -> Goal {
+        let ankle_w = self.worlds[self.feet[i].leg.foot.index()];
         let animated = ankle_w.translation;
-        let heading_now = self.heading(&foot, ankle_w.rotation);
+        let heading_now = self.heading(&self.feet[i], ankle_w.rotation);
         let up = self.up;
         let flat = |v: Vec3| v - up * v.dot(up);
-        let mut f = foot;
-        if wants && !f.locked {
-            f.locked = true;
-            let resume = f.weight > 0.0;
-            f.lock_position = if resume { f.shown_position } else { animated };
-            f.lock_heading = if resume { f.shown_heading } else { heading_now };
+        let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
+        let halflife = 0.5 * self.settings.blend_secs;
+        let last_drop = self.last_drop;
+        let f = &mut self.feet[i];
+        if !f.seen {
+            (f.shown_position, f.shown_heading) = (animated, heading_now);
+            (f.animated_position, f.animated_heading) = (animated, heading_now);
+            f.seen = true;
         }
-        let drift = flat(f.lock_position - animated).length();
-        if f.locked && (!wants || drift > self.settings.max_drift_ratio * f.leg.length) {
+        let (anim_velocity, anim_rate) = if dt > 0.0 {
+            (
+                (animated - f.animated_position) / dt,
+                wrap(heading_now - f.animated_heading) / dt,
+            )
+        } else {
+            (Vec3::ZERO, 0.0)
+        };
+        (f.animated_position, f.animated_heading) = (animated, heading_now);
+        let was = f.locked;
+        if wants && !f.locked {
+            // Pinned where it is shown now (where the animated foot is, unless an earlier
+            // lock is still blending out).
+            f.locked = true;
+            f.lock_position = f.shown_position;
+            f.lock_heading = f.shown_heading;
+        }
+        if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
             f.locked = false;
         }
-        f.weight = if f.locked {
-            (f.weight + step).min(1.0)
+        let (target, target_heading, velocity, rate) = if f.locked {
+            (f.lock_position, f.lock_heading, Vec3::ZERO, 0.0)
         } else {
-            (f.weight - step).max(0.0)
+            (animated, heading_now, anim_velocity, anim_rate)
         };
-        let s = smooth(f.weight);
-        let ankle = animated + s * (f.lock_position - animated);
-        let turn = s * wrap(f.lock_heading - heading_now);
+        if f.locked != was {
+            // Take up the difference in place and in speed; it decays from here. An unpinned
+            // foot is carried down with the hips: measured from where that puts it.
+            let carried = if f.locked { 0.0 } else { last_drop };
+            f.position_offset = Decay {
+                value: f.shown_position - (target - up * carried),
+                velocity: f.shown_velocity - velocity,
+            };
+            f.heading_offset = Decay {
+                value: wrap(f.shown_heading - target_heading),
+                velocity: f.shown_heading_rate - rate,
+            };
+        }
+        f.position_offset.step(dt, halflife);
+        f.heading_offset.step(dt, halflife);
+        let ankle = target + f.position_offset.value;
+        let heading = target_heading + f.heading_offset.value;
+        let turn = wrap(heading - heading_now);
+        if dt > 0.0 {
+            f.shown_heading_rate = wrap(heading - f.shown_heading) / dt;
+        }
+        f.shown_heading = heading;
+        let active = f.locked || f.position_offset.is_active() || f.heading_offset.is_active();
+        let pinned = f.locked;
+        let toes = f.leg.toes;
         let yaw = Quat::from_axis_angle(up, turn);
-        let rotation = (yaw * ankle_w.rotation).normalize();
-        let ball_offset = f
-            .leg
-            .toes
-            .map(|t| yaw * (self.worlds[t.index()].translation - animated));
-        f.shown_position = ankle;
-        f.shown_heading = heading_now + turn;
-        self.feet[i] = f;
+        let ball_offset = toes.map(|t| yaw * (self.worlds[t.index()].translation - animated));
         Goal {
-            active: s > 0.0,
-            blend: s,
+            active,
+            pinned,
             ankle,
-            rotation,
+            rotation: (yaw * ankle_w.rotation).normalize(),
             ball_offset,
         }
+    }
+
+    /// Records where foot `i` was shown this frame (for the next frame's velocities).
+    fn shown_at(&mut self, i: usize, ankle: Vec3, dt: f32) {
+        let f = &mut self.feet[i];
+        if dt > 0.0 {
+            f.shown_velocity = (ankle - f.shown_position) / dt;
+        }
+        f.shown_position = ankle;
     }
 
     /// Raises goal `i` so heel and ball stay above the floor, after the hips came down by
@@ -343,7 +400,9 @@ impl FootLock {
     fn clamp_to_floor(&mut self, i: usize, drop: f32) {
         let f = &self.feet[i];
         let g = &mut self.goals[i];
-        g.ankle -= self.up * ((1.0 - g.blend) * drop);
+        if !g.pinned {
+            g.ankle -= self.up * drop;
+        }
         let heel_low = self.floor + f.heel_clearance - g.ankle.dot(self.up);
         let ball_low = match g.ball_offset {
             Some(o) => self.floor + f.ball_clearance - (g.ankle + o).dot(self.up),
@@ -354,18 +413,23 @@ impl FootLock {
             g.ankle += self.up * lift;
             g.active = true;
         }
-        self.feet[i].shown_position = g.ankle;
     }
 
-    /// Lowers the root so every active goal is within its leg's reach; returns by how much.
-    fn lower_hips(&self, out: &mut Pose) -> f32 {
+    /// Lowers the root so every pinned goal is within its leg's reach; returns by how much.
+    /// The hips come down at once (a pinned foot must stay reachable) but go back up through
+    /// a decaying offset, so a release does not pop the body up.
+    fn lower_hips(&mut self, out: &mut Pose, dt: f32) -> f32 {
         let Some(root) = self.root else {
             return 0.0;
         };
         let mut drop: f32 = 0.0;
         let mut limit = f32::INFINITY;
+        for foot in &self.feet {
+            limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
+        }
         for (foot, goal) in self.feet.iter().zip(&self.goals) {
-            if !goal.active {
+            // Only pinned goals: the others come down with the hips, so lowering cannot help.
+            if !goal.pinned {
                 continue;
             }
             let p = |b: BoneId| self.worlds[b.index()].translation;
@@ -378,9 +442,17 @@ impl FootLock {
                 let need = r_up - (reach * reach - r_flat2).max(0.0).sqrt();
                 drop = drop.max(need);
             }
-            limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
         }
-        let drop = drop.clamp(0.0, limit);
+        let required = drop.clamp(0.0, limit);
+        let above = self.last_drop - required;
+        let drop = if above > 0.0 {
+            self.drop_offset.value = above;
+            self.drop_offset.step(dt, 0.5 * self.settings.blend_secs);
+            required + self.drop_offset.value.max(0.0)
+        } else {
+            self.drop_offset = Decay::default();
+            required
+        };
         if drop <= 0.0 {
             return 0.0;
         }
@@ -392,8 +464,9 @@ impl FootLock {
         drop
     }
 
-    /// Two-bone IK of foot `i` onto its goal; writes the upper, lower and foot rotations.
-    fn solve_leg(&mut self, i: usize, out: &mut Pose) {
+    /// Two-bone IK of foot `i` onto its goal; writes the upper, lower and foot rotations and
+    /// returns where the ankle went.
+    fn solve_leg(&mut self, i: usize, out: &mut Pose) -> Vec3 {
         let leg = self.feet[i].leg;
         let goal = self.goals[i];
         let w = |b: BoneId| self.worlds[b.index()];
@@ -422,6 +495,6 @@ impl FootLock {
         out.rotations[leg.lower.index()] = (lower_parent.inverse() * lower_world).normalize();
         let foot_parent = s.lower * s.upper * parent_world(leg.foot);
         out.rotations[leg.foot.index()] = (foot_parent.inverse() * goal.rotation).normalize();
-        self.feet[i].shown_position = s.ankle;
+        s.ankle
     }
 }

@@ -16,6 +16,7 @@ pub mod detect;
 pub mod ik;
 pub mod lock;
 pub mod rig;
+pub mod spring;
 
 pub use detect::{detect_clip, PlantDetector, PlantSettings, PlantTrack};
 pub use ik::{solve_two_bone, TwoBoneSolution};
