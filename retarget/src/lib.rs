@@ -25,6 +25,7 @@ pub mod clip;
 pub mod corpus;
 pub mod error;
 pub mod fk;
+pub mod footplant;
 pub mod mapping;
 pub mod pose;
 pub mod retarget;

@@ -158,6 +158,9 @@ pub struct FilePerformer {
     pub in_place: bool,
     /// What the character does while its source is lost.
     pub on_lost: Option<OnLost>,
+    /// Pin the character's feet while the source's are planted (default: on for humanoid and
+    /// quadruped characters).
+    pub foot_lock: Option<bool>,
 }
 
 /// One `[[sources]]` entry.
@@ -466,6 +469,8 @@ pub struct PerformerSpec {
     pub in_place: bool,
     /// Behaviour while the source is lost (default: the server's `on_lost`).
     pub on_lost: Option<OnLost>,
+    /// Foot locking (`None`: on for humanoid and quadruped characters).
+    pub foot_lock: Option<bool>,
 }
 
 impl PerformerSpec {
@@ -478,6 +483,7 @@ impl PerformerSpec {
             mapping: None,
             in_place: false,
             on_lost: None,
+            foot_lock: None,
         }
     }
 }
@@ -656,6 +662,7 @@ impl ServerConfig {
                 mapping: p.mapping,
                 in_place: p.in_place,
                 on_lost: p.on_lost,
+                foot_lock: p.foot_lock,
             })
             .collect();
         cfg.sources = file
@@ -814,6 +821,7 @@ mod tests {
             target = "/x/hero.glb"
             in_place = true
             on_lost = "ease"
+            foot_lock = false
         "#;
         let cfg = ServerConfig::from_file(toml::from_str(text).unwrap()).unwrap();
         assert_eq!(cfg.on_lost, OnLost::Hold);
@@ -839,6 +847,7 @@ mod tests {
         assert_eq!(p.sources, vec!["face".to_string(), "suit".to_string()]);
         assert!(p.in_place);
         assert_eq!(p.on_lost, Some(OnLost::Ease));
+        assert_eq!(p.foot_lock, Some(false));
         assert!(toml::from_str::<FileConfig>("on_lost = \"drop\"").is_err());
     }
 

@@ -332,6 +332,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             } else {
                 RootMotion::Scaled
             },
+            foot_lock: p.foot_lock,
             mailbox: Default::default(),
         });
         target_txs.push((tx, p.on_lost.unwrap_or(config.on_lost)));

@@ -24,6 +24,7 @@ use anyhow::Context;
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
+use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::mapping::{
     apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
     SourceRef, TargetEntry, UNMAPPED,
@@ -49,6 +50,9 @@ pub struct PerformerPlan {
     pub session: BTreeMap<String, Option<String>>,
     /// Root motion.
     pub root_motion: RootMotion,
+    /// Foot locking: `Some(on)` as configured, `None` for on when the character is a humanoid
+    /// or a quadruped.
+    pub foot_lock: Option<bool>,
     /// Where built mappings go.
     pub mailbox: Mailbox,
 }
@@ -205,8 +209,9 @@ impl Mapper {
             &self.options,
             warnings,
         );
+        let foot_lock = build_foot_lock(&mapping, &analyses, &ta, p.foot_lock);
         if let Ok(mut slot) = p.mailbox.lock() {
-            *slot = Some(BuiltMapping { mapping });
+            *slot = Some(BuiltMapping { mapping, foot_lock });
         }
         if let Ok(mut m) = p.target.mapping_json.write() {
             *m = Some(json.clone());
@@ -340,4 +345,23 @@ fn mapping_message(
         warnings,
     }
     .to_json()
+}
+
+/// The performer's foot lock, when configured on (or, unconfigured, when the character stands
+/// like a humanoid or a quadruped) and the character has legs to lock.
+fn build_foot_lock(
+    mapping: &Mapping,
+    sources: &[Analysis],
+    target: &Analysis,
+    configured: Option<bool>,
+) -> Option<FootLock> {
+    let standing = || {
+        let legs = find_legs(mapping.target(), target);
+        target.humanoid || legs.iter().filter(|l| l.kind == LegKind::Front).count() >= 2
+    };
+    if !configured.unwrap_or_else(standing) {
+        return None;
+    }
+    let source = sources.get(mapping.root_input()?)?;
+    FootLock::new(mapping, source, target, LockSettings::default())
 }

@@ -2,7 +2,7 @@
 //! easing when a source is lost and when it comes back.
 //!
 //! ```text
-//!  sources' latest poses ─copy─▶ inputs (preallocated) ─apply─▶ live ─┐
+//!  sources' latest poses ─copy─▶ inputs (preallocated) ─apply─▶ foot lock ─▶ live ─┐
 //!                                                                     ├─ blend ─▶ display ─▶ target watch
 //!  source lost:  from = display at loss ──slerp (0.5 s)──▶ the character's own rest, where it
 //!                stands (or hold `from`)
@@ -16,6 +16,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use rigcast_retarget::footplant::FootLock;
 use rigcast_retarget::{Frame, Mapping, Pose};
 use tokio::sync::watch;
 
@@ -35,7 +36,13 @@ pub const MAX_INPUTS: usize = 8;
 pub struct BuiltMapping {
     /// The job.
     pub mapping: Mapping,
+    /// Pins the target's feet while the source's are planted (`None`: off, or nothing to
+    /// lock on this character).
+    pub foot_lock: Option<FootLock>,
 }
+
+/// Longest gap between two source samples the plant detector treats as continuous motion.
+const MAX_SAMPLE_GAP_SECS: f32 = 0.25;
 
 /// Where the built mappings of one performer are handed to the tick.
 pub type Mailbox = Arc<Mutex<Option<BuiltMapping>>>;
@@ -66,6 +73,8 @@ pub struct Performer {
     phase: Phase,
     on_lost: OnLost,
     last_input_seqs: [u64; MAX_INPUTS],
+    /// Capture time of the foot lock's source input at its last sample.
+    last_lock_capture: u64,
     seq: u64,
     published: bool,
     /// The eased-to pose has been published (nothing changes until the source returns).
@@ -115,6 +124,7 @@ impl Performer {
             phase: Phase::Live,
             on_lost,
             last_input_seqs: [0; MAX_INPUTS],
+            last_lock_capture: 0,
             seq: 0,
             published: false,
             settled: false,
@@ -148,6 +158,7 @@ impl Performer {
         // pose that fits the mapping (after a skeleton change the rebuild is on its way).
         let mut newest_capture = 0u64;
         let mut changed = false;
+        let mut captures = [0u64; MAX_INPUTS];
         let mut lost = false;
         for (i, (src, copy)) in self.sources.iter().zip(&mut self.inputs).enumerate() {
             let frame = src.latest.borrow();
@@ -155,6 +166,7 @@ impl Performer {
                 return;
             }
             copy.copy_from(&frame.pose);
+            captures[i] = frame.capture_nanos;
             newest_capture = newest_capture.max(frame.capture_nanos);
             if frame.seq != self.last_input_seqs[i] {
                 self.last_input_seqs[i] = frame.seq;
@@ -172,6 +184,10 @@ impl Performer {
             (Phase::Lost(_), false) => {
                 self.from.copy_from(&self.display);
                 self.phase = Phase::Resuming(now);
+                // The motion seen before the loss says nothing about the feet now.
+                if let Some(lock) = built.foot_lock.as_mut() {
+                    lock.reset();
+                }
             }
             _ => {}
         }
@@ -199,6 +215,19 @@ impl Performer {
                 }
                 if built.mapping.apply(&refs[..n], &mut self.live).is_err() {
                     return;
+                }
+                if let Some(lock) = built.foot_lock.as_mut() {
+                    let input = built.mapping.root_input().unwrap_or(0).min(n - 1);
+                    let capture = captures[input];
+                    let fresh = capture != self.last_lock_capture;
+                    let dt = capture.saturating_sub(self.last_lock_capture) as f32 * 1e-9;
+                    self.last_lock_capture = capture;
+                    lock.apply_live(
+                        &self.inputs[input],
+                        fresh,
+                        dt.min(MAX_SAMPLE_GAP_SECS),
+                        &mut self.live,
+                    );
                 }
                 if let Phase::Resuming(t0) = self.phase {
                     let k =

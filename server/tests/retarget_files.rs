@@ -554,6 +554,7 @@ fn retarget_command_writes_the_target_skeleton() {
         mapping: None,
         fps: Some(30.0),
         in_place: false,
+        no_foot_lock: false,
     })
     .expect("retarget command");
     let out = rigcast_sources::load_clip(&out_path).expect("output loads");
@@ -580,6 +581,7 @@ fn retarget_command_writes_the_target_skeleton() {
         mapping: Some(mapping_path),
         fps: None,
         in_place: true,
+        no_foot_lock: false,
     })
     .expect("retarget with overrides");
     let held = rigcast_sources::load_clip(&held_path).expect("output loads");
@@ -613,6 +615,7 @@ fn retarget_command_writes_the_target_skeleton() {
         mapping: Some(bad_mapping),
         fps: None,
         in_place: false,
+        no_foot_lock: false,
     })
     .expect_err("unknown bone in the mapping file");
     assert!(format!("{err:#}").contains("NoSuchBone"), "{err:#}");
@@ -624,6 +627,7 @@ fn retarget_command_writes_the_target_skeleton() {
         mapping: None,
         fps: None,
         in_place: false,
+        no_foot_lock: false,
     })
     .expect_err("missing file");
     assert!(format!("{err:#}").contains("missing.bvh"), "{err:#}");

@@ -224,6 +224,7 @@ fn retargeting_onto_every_labelled_human_keeps_its_exact_hierarchy() {
             mapping: None,
             fps: None,
             in_place: false,
+            no_foot_lock: false,
         })
         .unwrap_or_else(|e| panic!("{}: {e:#}", target.display()));
         if out_ext == "bvh" {
@@ -242,6 +243,7 @@ fn retargeting_onto_every_labelled_human_keeps_its_exact_hierarchy() {
             mapping: None,
             fps: None,
             in_place: false,
+            no_foot_lock: false,
         })
         .unwrap();
         let exact = rigcast_sources::load_clip(&exact).unwrap();

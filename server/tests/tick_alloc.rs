@@ -1,5 +1,5 @@
 //! The tick allocates exactly one shared buffer per subject per tick in steady state (frame
-//! encoding, retargeting a target subject, VMC encoding and sending with humanoid names,
+//! encoding, retargeting a target subject with its foot lock, VMC encoding and sending with humanoid names,
 //! broadcast and stats reuse their memory). Proven with a counting global allocator, so this
 //! file holds only this test.
 #![allow(clippy::unwrap_used)]
@@ -8,7 +8,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
-use rigcast_retarget::analysis::SkeletonView;
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::footplant::{FootLock, LockSettings};
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions};
 use rigcast_server::config::{OnLost, VmcBoneNames};
@@ -77,7 +78,18 @@ fn tick_allocates_one_buffer_per_subject() {
     );
     let t = Arc::new(t);
     assert!(!t.shape().vmc.bones.is_empty());
-    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping { mapping })));
+    // With the foot lock, as the server runs a humanoid character by default.
+    let foot_lock = FootLock::new(
+        &mapping,
+        &analyze(&SkeletonView::rest(&clip.skeleton)),
+        &analyze(&SkeletonView::rest(&target)),
+        LockSettings::default(),
+    );
+    assert!(foot_lock.is_some());
+    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
+        mapping,
+        foot_lock,
+    })));
     let performer = Performer::new(
         t.clone(),
         target_tx,

@@ -221,6 +221,19 @@ impl Mapping {
         }
     }
 
+    /// The floor the target stands on in the output's world: the up direction (the source's,
+    /// unit) and the floor's height along it. `None` without root motion. Foot locking keeps
+    /// feet above it.
+    pub fn target_floor(&self) -> Option<(Vec3, f32)> {
+        let r = self.root.as_ref()?;
+        Some((r.up, r.target_floor_y.unwrap_or(r.scale * r.source_floor_y)))
+    }
+
+    /// The source input that drives root motion (the one whose legs the target's follow).
+    pub fn root_input(&self) -> Option<usize> {
+        self.root.as_ref().map(|r| r.input as usize)
+    }
+
     /// Number of target bones driven by at least one source bone.
     pub fn num_mapped(&self) -> usize {
         self.bones.iter().filter(|b| b.num_links > 0).count()

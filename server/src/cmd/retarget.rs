@@ -10,7 +10,8 @@ use std::sync::Arc;
 
 use anyhow::{anyhow, bail, Context};
 use clap::Args;
-use rigcast_retarget::analysis::{analyze_with_truth, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
+use rigcast_retarget::footplant::{detect_clip, FootLock, LockSettings, PlantSettings};
 use rigcast_retarget::mapping::{
     apply_overrides, map_analyzed, parse_mapping_file, MapOptions, MappingTable,
 };
@@ -36,6 +37,10 @@ pub struct RetargetArgs {
     /// Keep the hips over the spot horizontally (walk in place).
     #[arg(long)]
     pub in_place: bool,
+    /// Let the target's feet follow the retargeted legs as they are, instead of pinning each
+    /// foot where it lands while the source's foot is planted.
+    #[arg(long)]
+    pub no_foot_lock: bool,
 }
 
 /// Formats `rigcast_sources::save_clip` writes.
@@ -88,7 +93,7 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         args.mapping.as_deref(),
         (truth_s.as_deref(), truth_t.as_deref()),
     )?;
-    let table = plan.table;
+    let table = &plan.table;
     if table.num_mapped() == 0 {
         bail!(
             "no bone of {} could be mapped to a bone of {}",
@@ -103,12 +108,13 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         } else {
             RootMotion::Scaled
         },
-        source_reference: vec![plan.source_reference],
-        target_reference: plan.target_reference,
+        source_reference: vec![plan.source_reference.clone()],
+        target_reference: plan.target_reference.clone(),
         source_up: Some(plan.source_up),
         ..RetargetOptions::default()
     };
-    let out = retarget_clip(&clip, &target, &table, &opts, true)?;
+    let lock = (!args.no_foot_lock).then_some(&plan);
+    let out = retarget_clip_locked(&clip, &target, table, &opts, lock, true)?;
     // Written onto the target file's own layout: a BVH keeps its hierarchy, a GLB its nodes,
     // skin and meshes.
     rigcast_sources::save_clip_onto(&args.output, &out, &target_layout)
@@ -135,6 +141,10 @@ pub struct MappingPlan {
     pub target_reference: Option<Pose>,
     /// The source's up direction, as its analysis found it (Z-up captures exist).
     pub source_up: glam::Vec3,
+    /// The source skeleton's analysis (its legs drive foot locking).
+    pub source_analysis: Analysis,
+    /// The target skeleton's analysis.
+    pub target_analysis: Analysis,
 }
 
 /// Maps the clip's skeleton onto the target with the automatic mapper, then applies the
@@ -182,6 +192,8 @@ pub fn plan_mapping_with_truth(
         source_up: sa.up,
         source_reference: sa.posture_pose(&source.poses),
         target_reference: ta.posture_pose(&target.poses),
+        source_analysis: sa,
+        target_analysis: ta,
     })
 }
 
@@ -194,6 +206,20 @@ pub fn retarget_clip(
     opts: &RetargetOptions,
     progress: bool,
 ) -> anyhow::Result<Clip> {
+    retarget_clip_locked(clip, target, table, opts, None, progress)
+}
+
+/// [`retarget_clip`], with the target's feet locked while the source's are planted (plants
+/// detected over the whole clip, two-sided) when `lock` gives both skeletons' analyses. A
+/// target without standing legs is retargeted unlocked.
+pub fn retarget_clip_locked(
+    clip: &Clip,
+    target: &Skeleton,
+    table: &MappingTable,
+    opts: &RetargetOptions,
+    lock: Option<&MappingPlan>,
+    progress: bool,
+) -> anyhow::Result<Clip> {
     let mut mapping = Mapping::build(&[&clip.skeleton], target, table, opts)
         .context("cannot build the retargeting mapping")?;
     if opts.source_floor_y.is_none() {
@@ -201,6 +227,24 @@ pub fn retarget_clip(
             mapping.set_source_floor_y(floor);
         }
     }
+    let dt = clip.frame_time_secs as f32;
+    let mut foot_lock = lock.and_then(|plan| {
+        let lock = FootLock::new(
+            &mapping,
+            &plan.source_analysis,
+            &plan.target_analysis,
+            LockSettings::default(),
+        )?;
+        let plants = detect_clip(
+            &clip.skeleton,
+            lock.source_legs(),
+            &clip.poses,
+            dt,
+            plan.source_analysis.up,
+            &PlantSettings::default(),
+        );
+        Some((lock, plants))
+    });
     let n = clip.num_frames();
     let report = progress && n >= PROGRESS_MIN_FRAMES;
     let mut poses = Vec::with_capacity(n);
@@ -211,6 +255,9 @@ pub fn retarget_clip(
         mapping
             .apply_one(p, &mut out)
             .with_context(|| format!("frame {i} does not fit the source skeleton"))?;
+        if let Some((lock, plants)) = foot_lock.as_mut() {
+            lock.apply_planted(plants.frame(i), dt, &mut out);
+        }
         poses.push(out.clone());
         if report {
             let percent = (i + 1) * 100 / n;

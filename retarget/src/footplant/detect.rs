@@ -1,0 +1,446 @@
+//! Footplant detection: a foot is planted while its heel (foot joint) or ball (toes joint) is
+//! near the ground AND barely moving (seed 002). Thresholds scale with the leg's length and
+//! speeds are measured over at least `window_secs` (raw mocap feet jitter at 120 Hz, so
+//! frame-to-frame differences would read a standing foot as moving). Hysteresis (looser
+//! thresholds to stay planted than to plant) and a shortest plant keep the state from
+//! flickering.
+//!
+//! The ground is read from the motion, never assumed at 0: each contact joint's ground is the
+//! lowest level it reaches while slow (where it stands), so a rig whose ball joint sits 3 cm
+//! above its sole, or a capture whose floor is at y = −1, needs no calibration.
+//!
+//! Two modes share the rules:
+//! - [`PlantDetector`] (live, causal): speed from the sample `window_secs` back, so a plant is
+//!   seen about half a window late (8 ms for the default 1/30 s); the ground is the lowest slow
+//!   level seen so far. No allocation per sample.
+//! - [`detect_clip`] (files, two-sided): centred speeds, the ground from the whole clip (a low
+//!   percentile of slow frames, robust to a glitch), then plants shorter than `min_plant_secs`
+//!   dropped and gaps shorter than `min_gap_secs` closed.
+
+use glam::Vec3;
+
+use super::rig::{Leg, MAX_FEET};
+use crate::fk::{forward_kinematics, WorldTransform};
+use crate::pose::Pose;
+use crate::skeleton::{BoneId, Skeleton};
+
+/// Heel and ball.
+const JOINTS_PER_FOOT: usize = 2;
+/// Samples the causal detector keeps (enough for a 1/30 s window up to 900 Hz input).
+const RING: usize = 32;
+
+/// Thresholds of the detector, relative to each leg's length (hip to ankle).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantSettings {
+    /// A contact joint is near the ground below this fraction of the leg length above its
+    /// ground (0.05: 4 cm on a 0.8 m leg).
+    pub height_ratio: f32,
+    /// ... and slow below this many leg lengths per second (0.25: 20 cm/s on a 0.8 m leg; a
+    /// swinging foot moves at 2–5 m/s, a standing one jitters at 2–15 cm/s over 1/30 s, a
+    /// ball pivoting under a rising heel at 10–25 cm/s).
+    pub speed_ratio: f32,
+    /// A planted foot stays planted until its joints exceed the thresholds times this.
+    pub release_factor: f32,
+    /// Speeds are measured over at least this long.
+    pub window_secs: f32,
+    /// Plants shorter than this are noise (two-sided mode drops them; the causal mode holds a
+    /// plant at least this long).
+    pub min_plant_secs: f32,
+    /// Two-sided mode closes gaps shorter than this between two plants of one foot.
+    pub min_gap_secs: f32,
+}
+
+impl Default for PlantSettings {
+    fn default() -> Self {
+        PlantSettings {
+            height_ratio: 0.05,
+            speed_ratio: 0.25,
+            release_factor: 1.3,
+            window_secs: 1.0 / 30.0,
+            min_plant_secs: 1.0 / 30.0,
+            min_gap_secs: 1.0 / 30.0,
+        }
+    }
+}
+
+/// The contact joints of a leg: heel, and ball when the rig has one.
+fn contacts(leg: &Leg) -> [Option<BoneId>; JOINTS_PER_FOOT] {
+    [Some(leg.foot), leg.toes]
+}
+
+/// Per-joint evidence of one sample.
+#[derive(Debug, Clone, Copy)]
+struct Reading {
+    height_above_ground: f32,
+    speed: f32,
+}
+
+/// The hysteresis rule shared by both modes: plant when some contact joint is near and slow;
+/// stay planted while some joint is within the looser release thresholds.
+fn next_state(planted: bool, readings: &[Option<Reading>], h: f32, v: f32, k: f32) -> bool {
+    let holds = |r: &Reading, scale: f32| r.height_above_ground < h * scale && r.speed < v * scale;
+    let scale = if planted { k } else { 1.0 };
+    readings.iter().flatten().any(|r| holds(r, scale))
+}
+
+/// Live, causal footplant detection on one skeleton. Build once, call [`PlantDetector::push`]
+/// per source frame; allocates nothing after [`PlantDetector::new`].
+#[derive(Debug, Clone)]
+pub struct PlantDetector {
+    legs: Vec<Leg>,
+    up: Vec3,
+    settings: PlantSettings,
+    worlds: Vec<WorldTransform>,
+    /// Ring of (time, contact joint positions).
+    times: [f64; RING],
+    positions: [[Vec3; JOINTS_PER_FOOT * MAX_FEET]; RING],
+    head: usize,
+    len: usize,
+    now_secs: f64,
+    grounds: [f32; JOINTS_PER_FOOT * MAX_FEET],
+    planted: [bool; MAX_FEET],
+    planted_since: [f64; MAX_FEET],
+}
+
+impl PlantDetector {
+    /// A detector for `legs` of `skeleton`, with `up` the skeleton's up (unit).
+    pub fn new(skeleton: &Skeleton, legs: &[Leg], up: Vec3, settings: PlantSettings) -> Self {
+        PlantDetector {
+            legs: legs.iter().copied().take(MAX_FEET).collect(),
+            up: up.try_normalize().unwrap_or(Vec3::Y),
+            settings,
+            worlds: vec![WorldTransform::IDENTITY; skeleton.num_bones()],
+            times: [0.0; RING],
+            positions: [[Vec3::ZERO; JOINTS_PER_FOOT * MAX_FEET]; RING],
+            head: 0,
+            len: 0,
+            now_secs: 0.0,
+            grounds: [f32::INFINITY; JOINTS_PER_FOOT * MAX_FEET],
+            planted: [false; MAX_FEET],
+            planted_since: [0.0; MAX_FEET],
+        }
+    }
+
+    /// The legs, in the order of [`PlantDetector::planted`].
+    pub fn legs(&self) -> &[Leg] {
+        &self.legs
+    }
+
+    /// Forgets the motion seen so far (a source restarted or seeked); keeps the grounds.
+    pub fn reset(&mut self) {
+        self.len = 0;
+        self.planted = [false; MAX_FEET];
+    }
+
+    /// Current state per leg.
+    pub fn planted(&self) -> &[bool] {
+        &self.planted[..self.legs.len()]
+    }
+
+    /// Takes the next source pose, `dt_secs` after the previous one, and returns the state per
+    /// leg. A pose that does not fit the skeleton leaves the state unchanged.
+    pub fn push(&mut self, skeleton: &Skeleton, pose: &Pose, dt_secs: f32) -> &[bool] {
+        if pose.check(skeleton).is_err() || self.worlds.len() != skeleton.num_bones() {
+            return self.planted();
+        }
+        forward_kinematics(skeleton, pose, &mut self.worlds);
+        self.now_secs += f64::from(dt_secs.max(0.0));
+        self.head = (self.head + 1) % RING;
+        self.len = (self.len + 1).min(RING);
+        self.times[self.head] = self.now_secs;
+        for (f, leg) in self.legs.iter().enumerate() {
+            for (j, bone) in contacts(leg).iter().enumerate() {
+                if let Some(b) = bone {
+                    self.positions[self.head][f * JOINTS_PER_FOOT + j] =
+                        self.worlds[b.index()].translation;
+                }
+            }
+        }
+        // The newest sample at least a window back (or the oldest one kept).
+        let window = f64::from(self.settings.window_secs);
+        let mut back = self.head;
+        for k in 1..self.len {
+            back = (self.head + RING - k) % RING;
+            if self.now_secs - self.times[back] >= window {
+                break;
+            }
+        }
+        let elapsed = (self.now_secs - self.times[back]) as f32;
+        let s = self.settings;
+        for f in 0..self.legs.len() {
+            let leg = self.legs[f];
+            let (h, v) = (s.height_ratio * leg.length, s.speed_ratio * leg.length);
+            let mut readings = [None; JOINTS_PER_FOOT];
+            for (j, bone) in contacts(&leg).iter().enumerate() {
+                if bone.is_none() {
+                    continue;
+                }
+                let i = f * JOINTS_PER_FOOT + j;
+                let p = self.positions[self.head][i];
+                let speed = if elapsed > 0.0 {
+                    (p - self.positions[back][i]).length() / elapsed
+                } else {
+                    f32::INFINITY
+                };
+                let height = p.dot(self.up);
+                if speed < v {
+                    self.grounds[i] = self.grounds[i].min(height);
+                }
+                readings[j] = Some(Reading {
+                    height_above_ground: height - self.grounds[i],
+                    speed,
+                });
+            }
+            let was = self.planted[f];
+            let mut now = next_state(was, &readings, h, v, s.release_factor);
+            // A fresh plant is held for the shortest plant, so a jittery landing does not
+            // flicker the lock.
+            if was && !now && self.now_secs - self.planted_since[f] < f64::from(s.min_plant_secs) {
+                now = true;
+            }
+            if now && !was {
+                self.planted_since[f] = self.now_secs;
+            }
+            self.planted[f] = now;
+        }
+        self.planted()
+    }
+}
+
+/// Per-frame plant state of every leg over a clip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlantTrack {
+    /// The legs, in column order.
+    pub legs: Vec<Leg>,
+    /// Frame-major: `planted[frame * legs.len() + leg]`.
+    planted: Vec<bool>,
+}
+
+impl PlantTrack {
+    /// A track from per-frame flags (frame-major, `legs.len()` per frame), e.g. the causal
+    /// detector's outputs collected over a clip.
+    pub fn from_flags(legs: Vec<Leg>, planted: Vec<bool>) -> PlantTrack {
+        PlantTrack { legs, planted }
+    }
+
+    /// Number of frames.
+    pub fn num_frames(&self) -> usize {
+        self.planted.len().checked_div(self.legs.len()).unwrap_or(0)
+    }
+
+    /// The state of every leg at `frame` (empty past the end).
+    pub fn frame(&self, frame: usize) -> &[bool] {
+        let n = self.legs.len();
+        self.planted.get(frame * n..(frame + 1) * n).unwrap_or(&[])
+    }
+
+    /// Whether `leg` is planted at `frame`.
+    pub fn is_planted(&self, frame: usize, leg: usize) -> bool {
+        self.frame(frame).get(leg).copied().unwrap_or(false)
+    }
+
+    /// The plants of one leg as half-open frame ranges.
+    pub fn intervals(&self, leg: usize) -> Vec<std::ops::Range<usize>> {
+        let mut out = Vec::new();
+        let mut start = None;
+        for f in 0..self.num_frames() {
+            match (self.is_planted(f, leg), start) {
+                (true, None) => start = Some(f),
+                (false, Some(s)) => {
+                    out.push(s..f);
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+        if let Some(s) = start {
+            out.push(s..self.num_frames());
+        }
+        out
+    }
+}
+
+/// Two-sided detection over a whole clip (`poses` of `skeleton`, `frame_time_secs` apart, `up`
+/// the skeleton's up). Allocates; for files.
+pub fn detect_clip(
+    skeleton: &Skeleton,
+    legs: &[Leg],
+    poses: &[Pose],
+    frame_time_secs: f32,
+    up: Vec3,
+    settings: &PlantSettings,
+) -> PlantTrack {
+    let legs: Vec<Leg> = legs.iter().copied().take(MAX_FEET).collect();
+    let up = up.try_normalize().unwrap_or(Vec3::Y);
+    let n = poses.len();
+    let dt = frame_time_secs.max(1e-6);
+    // Contact joint positions per frame, joint-major.
+    let joints: Vec<(usize, BoneId)> = legs
+        .iter()
+        .enumerate()
+        .flat_map(|(f, l)| contacts(l).into_iter().flatten().map(move |b| (f, b)))
+        .collect();
+    let mut pos = vec![Vec3::ZERO; joints.len() * n];
+    let mut worlds = vec![WorldTransform::IDENTITY; skeleton.num_bones()];
+    for (i, p) in poses.iter().enumerate() {
+        if p.check(skeleton).is_err() {
+            continue;
+        }
+        forward_kinematics(skeleton, p, &mut worlds);
+        for (j, &(_, b)) in joints.iter().enumerate() {
+            pos[j * n + i] = worlds[b.index()].translation;
+        }
+    }
+    // Centred speeds over at least the window.
+    let half = ((settings.window_secs / dt) / 2.0).ceil().max(1.0) as usize;
+    let speed = |j: usize, i: usize| {
+        let (a, b) = (i.saturating_sub(half), (i + half).min(n.saturating_sub(1)));
+        if b <= a {
+            return f32::INFINITY;
+        }
+        (pos[j * n + b] - pos[j * n + a]).length() / ((b - a) as f32 * dt)
+    };
+    let mut speeds = vec![0.0; joints.len() * n];
+    for j in 0..joints.len() {
+        for i in 0..n {
+            speeds[j * n + i] = speed(j, i);
+        }
+    }
+    let grounds: Vec<f32> = joints
+        .iter()
+        .enumerate()
+        .map(|(j, &(f, _))| {
+            let v = settings.speed_ratio * legs[f].length;
+            let heights = (0..n).map(|i| (pos[j * n + i].dot(up), speeds[j * n + i]));
+            clip_ground(heights, v)
+        })
+        .collect();
+    let mut planted = vec![false; legs.len() * n];
+    for (f, leg) in legs.iter().enumerate() {
+        let (h, v) = (
+            settings.height_ratio * leg.length,
+            settings.speed_ratio * leg.length,
+        );
+        let mine: Vec<usize> = (0..joints.len()).filter(|&j| joints[j].0 == f).collect();
+        let mut state = false;
+        let mut column = vec![false; n];
+        for (i, slot) in column.iter_mut().enumerate() {
+            let mut readings = [None; JOINTS_PER_FOOT];
+            for (r, &j) in readings.iter_mut().zip(&mine) {
+                *r = Some(Reading {
+                    height_above_ground: pos[j * n + i].dot(up) - grounds[j],
+                    speed: speeds[j * n + i],
+                });
+            }
+            state = next_state(state, &readings, h, v, settings.release_factor);
+            *slot = state;
+        }
+        let frames = |secs: f32| (secs / dt).round() as usize;
+        close_gaps(&mut column, frames(settings.min_gap_secs));
+        drop_short(&mut column, frames(settings.min_plant_secs));
+        for (i, &p) in column.iter().enumerate() {
+            planted[i * legs.len() + f] = p;
+        }
+    }
+    PlantTrack { legs, planted }
+}
+
+/// A joint's ground over a clip: a low percentile of its heights on slow frames (where it
+/// stands), so one glitched frame does not sink the ground; all frames when none is slow.
+fn clip_ground(samples: impl Iterator<Item = (f32, f32)> + Clone, slow: f32) -> f32 {
+    let mut heights: Vec<f32> = samples
+        .clone()
+        .filter(|&(_, v)| v < slow)
+        .map(|(h, _)| h)
+        .collect();
+    if heights.is_empty() {
+        heights = samples.map(|(h, _)| h).collect();
+    }
+    heights.sort_by(f32::total_cmp);
+    heights.get(heights.len() / 50).copied().unwrap_or(0.0)
+}
+
+/// Runs of `false` shorter than `max_len` between two `true`s become `true`.
+fn close_gaps(column: &mut [bool], max_len: usize) {
+    for run in runs(column, false) {
+        let inner = run.start > 0 && run.end < column.len();
+        if inner && run.len() < max_len {
+            column[run].fill(true);
+        }
+    }
+}
+
+/// Runs of `true` shorter than `min_len` become `false`.
+fn drop_short(column: &mut [bool], min_len: usize) {
+    for run in runs(column, true) {
+        if run.len() < min_len {
+            column[run].fill(false);
+        }
+    }
+}
+
+fn runs(column: &[bool], value: bool) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < column.len() {
+        if column[i] == value {
+            let s = i;
+            while i < column.len() && column[i] == value {
+                i += 1;
+            }
+            out.push(s..i);
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaps_close_and_short_plants_drop() {
+        let mut c = [
+            true, true, false, true, true, true, false, false, false, true,
+        ];
+        close_gaps(&mut c, 2);
+        assert_eq!(
+            c,
+            [true, true, true, true, true, true, false, false, false, true]
+        );
+        drop_short(&mut c, 2);
+        assert_eq!(
+            c,
+            [true, true, true, true, true, true, false, false, false, false]
+        );
+    }
+
+    #[test]
+    fn hysteresis_keeps_a_plant_inside_the_looser_bounds() {
+        let r = |h: f32, v: f32| {
+            [
+                Some(Reading {
+                    height_above_ground: h,
+                    speed: v,
+                }),
+                None,
+            ]
+        };
+        // Between the plant and release thresholds: plants only if already planted.
+        assert!(!next_state(false, &r(0.012, 0.1), 0.01, 0.2, 1.5));
+        assert!(next_state(true, &r(0.012, 0.1), 0.01, 0.2, 1.5));
+        assert!(!next_state(true, &r(0.016, 0.1), 0.01, 0.2, 1.5));
+        assert!(!next_state(true, &r(0.001, 0.31), 0.01, 0.2, 1.5));
+    }
+
+    #[test]
+    fn the_ground_ignores_one_glitched_frame() {
+        let mut s: Vec<(f32, f32)> = (0..200)
+            .map(|i| (1.0 + 0.001 * (i % 3) as f32, 0.0))
+            .collect();
+        s[17] = (-5.0, 0.0);
+        assert!((clip_ground(s.iter().copied(), 0.1) - 1.0).abs() < 0.003);
+    }
+}

@@ -1,0 +1,145 @@
+//! Analytic two-bone IK (hip–knee–ankle) by the law of cosines. The knee stays on the side of
+//! the hip–goal line given by a pole direction (the animated knee's own side), so it bends in
+//! the leg's bend plane and can never flip through it.
+
+use glam::{Quat, Vec3};
+
+/// A solved leg: world-space rotations to pre-multiply onto the upper bone (about the hip)
+/// and then onto the lower bone (about the new knee), and where the ankle ends up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoBoneSolution {
+    /// Rotation of the upper bone (and everything below it) about the hip.
+    pub upper: Quat,
+    /// Further rotation of the lower bone (and below) about the new knee.
+    pub lower: Quat,
+    /// The new knee position.
+    pub knee: Vec3,
+    /// The new ankle position: the goal, or the nearest point the leg reaches.
+    pub ankle: Vec3,
+}
+
+/// Fraction of full extension the solver stops at, so the knee keeps a defined bend plane.
+pub const MAX_EXTENSION: f32 = 0.9995;
+
+/// Moves the chain `hip → knee → ankle` so the ankle reaches `goal` (or as close as the bone
+/// lengths allow), keeping the knee on the `pole` side of the hip–goal line.
+pub fn solve_two_bone(
+    hip: Vec3,
+    knee: Vec3,
+    ankle: Vec3,
+    goal: Vec3,
+    pole: Vec3,
+) -> TwoBoneSolution {
+    let a = (knee - hip).length();
+    let b = (ankle - knee).length();
+    let to_goal = goal - hip;
+    let unchanged = TwoBoneSolution {
+        upper: Quat::IDENTITY,
+        lower: Quat::IDENTITY,
+        knee,
+        ankle,
+    };
+    let Some(u) = to_goal.try_normalize() else {
+        return unchanged;
+    };
+    if a <= f32::EPSILON || b <= f32::EPSILON {
+        return unchanged;
+    }
+    let d = to_goal
+        .length()
+        .clamp((a - b).abs() * 1.0005 + 1e-6, (a + b) * MAX_EXTENSION);
+    // The pole, made perpendicular to the hip–goal line.
+    let v = (pole - u * pole.dot(u))
+        .try_normalize()
+        .unwrap_or_else(|| u.any_orthonormal_vector());
+    let cos_hip = ((a * a + d * d - b * b) / (2.0 * a * d)).clamp(-1.0, 1.0);
+    let sin_hip = (1.0 - cos_hip * cos_hip).max(0.0).sqrt();
+    let new_knee = hip + a * (cos_hip * u + sin_hip * v);
+    let new_ankle = hip + d * u;
+    let upper = arc(knee - hip, new_knee - hip);
+    let lower = arc(upper * (ankle - knee), new_ankle - new_knee);
+    TwoBoneSolution {
+        upper,
+        lower,
+        knee: new_knee,
+        ankle: new_ankle,
+    }
+}
+
+/// Shortest rotation taking direction `from` to direction `to` (identity when either is 0).
+fn arc(from: Vec3, to: Vec3) -> Quat {
+    match (from.try_normalize(), to.try_normalize()) {
+        (Some(f), Some(t)) => Quat::from_rotation_arc(f, t),
+        _ => Quat::IDENTITY,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::approx::vec_close;
+
+    fn apply(s: &TwoBoneSolution, hip: Vec3, knee: Vec3, ankle: Vec3) -> (Vec3, Vec3) {
+        let k = hip + s.upper * (knee - hip);
+        let a = k + s.lower * (s.upper * (ankle - knee));
+        (k, a)
+    }
+
+    #[test]
+    fn reaches_a_goal_and_bends_towards_the_pole() {
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.02),
+            Vec3::ZERO,
+        );
+        let goal = Vec3::new(0.1, 0.2, 0.05);
+        let s = solve_two_bone(hip, knee, ankle, goal, Vec3::Z);
+        let (k, a) = apply(&s, hip, knee, ankle);
+        assert!(vec_close(a, goal, 1e-4), "{a} vs {goal}");
+        assert!(vec_close(k, s.knee, 1e-4));
+        // Bone lengths kept, knee forward (+Z) of the hip–ankle line.
+        assert!(((k - hip).length() - (knee - hip).length()).abs() < 1e-4);
+        assert!(((a - k).length() - (ankle - knee).length()).abs() < 1e-4);
+        let mid = hip + (goal - hip) * ((k - hip).dot(goal - hip) / (goal - hip).length_squared());
+        assert!((k - mid).z > 0.05);
+    }
+
+    #[test]
+    fn an_unreachable_goal_stretches_the_leg_towards_it_without_flipping() {
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.05),
+            Vec3::ZERO,
+        );
+        let goal = Vec3::new(0.0, -1.0, 0.3);
+        let s = solve_two_bone(hip, knee, ankle, goal, Vec3::Z);
+        let (k, a) = apply(&s, hip, knee, ankle);
+        let reach = (knee - hip).length() + (ankle - knee).length();
+        assert!(((a - hip).length() - reach * MAX_EXTENSION).abs() < 1e-3);
+        assert!(
+            (a - hip)
+                .normalize_or_zero()
+                .dot((goal - hip).normalize_or_zero())
+                > 0.9999
+        );
+        // Still bent forward, however little.
+        let line = (a - hip).normalize_or_zero();
+        assert!(((k - hip) - line * (k - hip).dot(line)).z > 0.0);
+    }
+
+    #[test]
+    fn the_pole_side_decides_the_bend_even_from_a_straight_leg() {
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::ZERO,
+        );
+        for pole in [Vec3::Z, -Vec3::Z, Vec3::X] {
+            let s = solve_two_bone(hip, knee, ankle, Vec3::new(0.0, 0.3, 0.0), pole);
+            assert!(
+                (s.knee - Vec3::new(0.0, 0.65, 0.0)).dot(pole) > 0.3,
+                "{pole}"
+            );
+        }
+    }
+}

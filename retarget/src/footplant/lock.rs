@@ -1,0 +1,500 @@
+//! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
+//! the target's foot stays where it landed (position and heading), its leg solved with the
+//! two-bone IK; the hips come down when a leg cannot reach; every switch blends over
+//! `blend_secs`; no foot joint goes below the target's floor.
+//!
+//! ```text
+//!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
+//!                                         ▼
+//!  target pose ─FK─▶ per foot: weight ramps to planted? 1 : 0 ──▶ goal = animated + s(w)·(lock − animated)
+//!                              heading: animated + s(w)·(locked − animated), about up
+//!                              floor: raise the goal so heel and ball stay above it
+//!               ─▶ hips lowered by what the farthest goal lacks ─FK─▶ two-bone IK per foot
+//! ```
+//! A lock is released when the source lifts the foot, or when the animated foot has left it
+//! farther than `max_drift_ratio` leg lengths (a turn on the spot, a slide): the foot then
+//! blends back to the animation instead of stretching the leg.
+
+use glam::{Quat, Vec3};
+
+use super::detect::{PlantDetector, PlantSettings};
+use super::ik::{solve_two_bone, MAX_EXTENSION};
+use super::rig::{find_legs, Leg, MAX_FEET};
+use super::spring::Decay;
+use crate::analysis::Analysis;
+use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
+use crate::pose::Pose;
+use crate::retarget::Mapping;
+use crate::skeleton::{BoneId, Skeleton};
+
+/// How the lock behaves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LockSettings {
+    /// Time to blend a lock in or out, seconds.
+    pub blend_secs: f32,
+    /// A lock lets go when the animated foot is this many leg lengths away horizontally.
+    pub max_drift_ratio: f32,
+    /// The hips never come down by more than this many leg lengths.
+    pub max_drop_ratio: f32,
+    /// The live detector's thresholds.
+    pub plants: PlantSettings,
+}
+
+impl Default for LockSettings {
+    fn default() -> Self {
+        LockSettings {
+            blend_secs: 0.1,
+            max_drift_ratio: 0.35,
+            max_drop_ratio: 0.3,
+            plants: PlantSettings::default(),
+        }
+    }
+}
+
+/// One target foot and its lock state.
+#[derive(Debug, Clone, Copy)]
+struct Foot {
+    leg: Leg,
+    /// The source leg (index into the detector's legs) whose plants drive this foot.
+    source: Option<usize>,
+    /// Heights of heel and ball above the floor when the target stands (its reference).
+    heel_clearance: f32,
+    ball_clearance: f32,
+    /// A horizontal direction fixed in the foot bone's frame (its heading).
+    heading_local: Vec3,
+    /// The knee's side of the hip–ankle line, in the upper bone's frame (kept for straight
+    /// legs, where the animation does not show it).
+    pole_local: Vec3,
+    locked: bool,
+    lock_position: Vec3,
+    lock_heading: f32,
+    /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
+    position_offset: Decay<Vec3>,
+    heading_offset: Decay<f32>,
+    /// Last frame: where the ankle was shown and the animated ankle, for velocities.
+    shown_position: Vec3,
+    shown_velocity: Vec3,
+    shown_heading: f32,
+    shown_heading_rate: f32,
+    animated_position: Vec3,
+    animated_heading: f32,
+    /// The foot has been seen (velocities are known).
+    seen: bool,
+}
+
+/// The per-frame goal of one foot.
+#[derive(Debug, Clone, Copy, Default)]
+struct Goal {
+    active: bool,
+    /// The goal is fixed in the world (locked) rather than carried by the hips.
+    pinned: bool,
+    ankle: Vec3,
+    rotation: Quat,
+    /// The ball relative to the ankle (after the heading turn).
+    ball_offset: Option<Vec3>,
+}
+
+/// Foot locking for one performer (one mapping). Build once off the realtime path; per frame
+/// [`FootLock::apply_live`] or [`FootLock::apply_planted`] allocate nothing.
+#[derive(Debug, Clone)]
+pub struct FootLock {
+    source: Skeleton,
+    target: Skeleton,
+    detector: PlantDetector,
+    feet: Vec<Foot>,
+    goals: [Goal; MAX_FEET],
+    root: Option<BoneId>,
+    up: Vec3,
+    floor: f32,
+    settings: LockSettings,
+    worlds: Vec<WorldTransform>,
+    /// How far the hips came down last frame (an unpinned foot comes down with them).
+    last_drop: f32,
+    /// How much higher than needed the hips still are on their way back up.
+    drop_offset: Decay<f32>,
+}
+
+/// The angle in (−π, π] equal to `a` modulo a turn.
+fn wrap(a: f32) -> f32 {
+    let t = std::f32::consts::TAU;
+    a - t * ((a + std::f32::consts::PI) / t).floor()
+}
+
+impl FootLock {
+    /// A lock for `mapping`'s target, driven by the plants of its root input. `source` and
+    /// `target` are the analyses of those skeletons. `None` when the target has no standing
+    /// legs or the mapping moves no root (nothing to lock against).
+    pub fn new(
+        mapping: &Mapping,
+        source: &Analysis,
+        target: &Analysis,
+        settings: LockSettings,
+    ) -> Option<FootLock> {
+        let (up, floor) = mapping.target_floor()?;
+        let src_skel = mapping.source(mapping.root_input()?)?.clone();
+        let tgt_skel = mapping.target().clone();
+        let source_legs = find_legs(&src_skel, source);
+        let target_legs = find_legs(&tgt_skel, target);
+        if target_legs.is_empty() {
+            return None;
+        }
+        let aligned = world_transforms(&tgt_skel, &mapping.aligned_rest_pose());
+        // Standing clearances from the character's own posture (it is authored standing; the
+        // aligned rest shows the source's rest, whose feet need not be flat).
+        let height = |b: BoneId| target.positions[b.index()].dot(target.up);
+        let lowest = target_legs
+            .iter()
+            .flat_map(|l| [Some(l.foot), l.toes])
+            .flatten()
+            .map(height)
+            .fold(f32::INFINITY, f32::min);
+        let feet = target_legs
+            .iter()
+            .map(|leg| {
+                let w = |b: BoneId| aligned[b.index()];
+                let ankle = w(leg.foot).translation;
+                let ahead = leg
+                    .toes
+                    .map(|t| w(t).translation - ankle)
+                    .unwrap_or(Vec3::ZERO);
+                let flat = ahead - up * ahead.dot(up);
+                let heading_dir = flat
+                    .try_normalize()
+                    .unwrap_or_else(|| up.any_orthonormal_vector());
+                let knee = w(leg.lower).translation;
+                let hip = w(leg.upper).translation;
+                let line = (ankle - hip).normalize_or_zero();
+                let bend = (knee - hip) - line * (knee - hip).dot(line);
+                // Knees bend the way the toes point; a quadruped's elbows the other way.
+                let toward = match leg.kind {
+                    super::rig::LegKind::Hind => heading_dir,
+                    super::rig::LegKind::Front => -heading_dir,
+                };
+                let pole = if bend.length() > 0.02 * leg.length {
+                    bend
+                } else {
+                    toward
+                };
+                Foot {
+                    leg: *leg,
+                    source: source_legs.iter().position(|s| s.key() == leg.key()),
+                    heel_clearance: height(leg.foot) - lowest,
+                    ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
+                    heading_local: w(leg.foot).rotation.inverse() * heading_dir,
+                    pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
+                    locked: false,
+                    lock_position: ankle,
+                    lock_heading: 0.0,
+                    position_offset: Decay::default(),
+                    heading_offset: Decay::default(),
+                    shown_position: ankle,
+                    shown_velocity: Vec3::ZERO,
+                    shown_heading: 0.0,
+                    shown_heading_rate: 0.0,
+                    animated_position: ankle,
+                    animated_heading: 0.0,
+                    seen: false,
+                }
+            })
+            .collect();
+        Some(FootLock {
+            detector: PlantDetector::new(&src_skel, &source_legs, source.up, settings.plants),
+            worlds: vec![WorldTransform::IDENTITY; tgt_skel.num_bones()],
+            source: src_skel,
+            target: tgt_skel,
+            feet,
+            goals: [Goal::default(); MAX_FEET],
+            root: mapping.root_bone(),
+            up,
+            floor,
+            settings,
+            last_drop: 0.0,
+            drop_offset: Decay::default(),
+        })
+    }
+
+    /// The source legs whose plants drive the lock (the order of [`FootLock::apply_planted`]'s
+    /// flags and of [`FootLock::source_planted`]).
+    pub fn source_legs(&self) -> &[Leg] {
+        self.detector.legs()
+    }
+
+    /// The target legs that are locked.
+    pub fn target_legs(&self) -> impl Iterator<Item = &Leg> {
+        self.feet.iter().map(|f| &f.leg)
+    }
+
+    /// The live detector's current state per source leg.
+    pub fn source_planted(&self) -> &[bool] {
+        self.detector.planted()
+    }
+
+    /// Whether target foot `i` is held by a lock now.
+    pub fn is_locked(&self, i: usize) -> bool {
+        self.feet.get(i).is_some_and(|f| f.locked)
+    }
+
+    /// Forgets locks and the detector's history (a source restarted or seeked).
+    pub fn reset(&mut self) {
+        self.detector.reset();
+        for f in &mut self.feet {
+            f.locked = false;
+            f.seen = false;
+            f.position_offset = Decay::default();
+            f.heading_offset = Decay::default();
+        }
+        self.last_drop = 0.0;
+        self.drop_offset = Decay::default();
+    }
+
+    /// Live: detects plants causally on `source` (the mapping's root input pose, a new sample
+    /// `dt_secs` after the previous one when `new_sample`), then locks `out` (the target pose
+    /// `apply` just wrote). Allocates nothing.
+    pub fn apply_live(&mut self, source: &Pose, new_sample: bool, dt_secs: f32, out: &mut Pose) {
+        if new_sample {
+            self.detector.push(&self.source, source, dt_secs);
+        }
+        let mut planted = [false; MAX_FEET];
+        for (p, s) in planted.iter_mut().zip(self.detector.planted()) {
+            *p = *s;
+        }
+        self.lock(&planted, dt_secs, out);
+    }
+
+    /// Offline: locks `out` with known plant flags per source leg (from [`super::detect_clip`]
+    /// on the source clip), `dt_secs` after the previous frame. Allocates nothing.
+    pub fn apply_planted(&mut self, planted: &[bool], dt_secs: f32, out: &mut Pose) {
+        let mut flags = [false; MAX_FEET];
+        for (p, s) in flags.iter_mut().zip(planted) {
+            *p = *s;
+        }
+        self.lock(&flags, dt_secs, out);
+    }
+
+    fn lock(&mut self, planted: &[bool; MAX_FEET], dt_secs: f32, out: &mut Pose) {
+        if out.check(&self.target).is_err() {
+            return;
+        }
+        forward_kinematics(&self.target, out, &mut self.worlds);
+        let dt = dt_secs.max(0.0);
+        for i in 0..self.feet.len() {
+            let wants = self.feet[i].source.is_some_and(|s| planted[s]);
+            self.goals[i] = self.foot_goal(i, wants, dt);
+        }
+        // The floor first (a locked goal lifted above it may need the hips lower), then again
+        // after the hips came down: an unlocked foot moves down with them.
+        for i in 0..self.feet.len() {
+            self.clamp_to_floor(i, 0.0);
+        }
+        let drop = self.lower_hips(out, dt);
+        self.last_drop = drop;
+        if drop > 0.0 {
+            forward_kinematics(&self.target, out, &mut self.worlds);
+        }
+        for i in 0..self.feet.len() {
+            self.clamp_to_floor(i, drop);
+            let shown = if self.goals[i].active {
+                self.solve_leg(i, out)
+            } else {
+                self.worlds[self.feet[i].leg.foot.index()].translation
+            };
+            self.shown_at(i, shown, dt);
+        }
+    }
+
+    fn heading(&self, foot: &Foot, rotation: Quat) -> f32 {
+        let d = rotation * foot.heading_local;
+        let e1 = self.up.any_orthonormal_vector();
+        let e2 = self.up.cross(e1);
+        d.dot(e2).atan2(d.dot(e1))
+    }
+
+    /// Updates foot `i`'s lock state and returns where its ankle and rotation should go.
+    fn foot_goal(&mut self, i: usize, wants: bool, dt: f32) -> Goal {
+        let ankle_w = self.worlds[self.feet[i].leg.foot.index()];
+        let animated = ankle_w.translation;
+        let heading_now = self.heading(&self.feet[i], ankle_w.rotation);
+        let up = self.up;
+        let flat = |v: Vec3| v - up * v.dot(up);
+        let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
+        let halflife = 0.5 * self.settings.blend_secs;
+        let last_drop = self.last_drop;
+        let f = &mut self.feet[i];
+        if !f.seen {
+            (f.shown_position, f.shown_heading) = (animated, heading_now);
+            (f.animated_position, f.animated_heading) = (animated, heading_now);
+            f.seen = true;
+        }
+        let (anim_velocity, anim_rate) = if dt > 0.0 {
+            (
+                (animated - f.animated_position) / dt,
+                wrap(heading_now - f.animated_heading) / dt,
+            )
+        } else {
+            (Vec3::ZERO, 0.0)
+        };
+        (f.animated_position, f.animated_heading) = (animated, heading_now);
+        let was = f.locked;
+        if wants && !f.locked {
+            // Pinned where it is shown now (where the animated foot is, unless an earlier
+            // lock is still blending out).
+            f.locked = true;
+            f.lock_position = f.shown_position;
+            f.lock_heading = f.shown_heading;
+        }
+        if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
+            f.locked = false;
+        }
+        let (target, target_heading, velocity, rate) = if f.locked {
+            (f.lock_position, f.lock_heading, Vec3::ZERO, 0.0)
+        } else {
+            (animated, heading_now, anim_velocity, anim_rate)
+        };
+        if f.locked != was {
+            // Take up the difference in place and in speed; it decays from here. An unpinned
+            // foot is carried down with the hips: measured from where that puts it.
+            let carried = if f.locked { 0.0 } else { last_drop };
+            f.position_offset = Decay {
+                value: f.shown_position - (target - up * carried),
+                velocity: f.shown_velocity - velocity,
+            };
+            f.heading_offset = Decay {
+                value: wrap(f.shown_heading - target_heading),
+                velocity: f.shown_heading_rate - rate,
+            };
+        }
+        f.position_offset.step(dt, halflife);
+        f.heading_offset.step(dt, halflife);
+        let ankle = target + f.position_offset.value;
+        let heading = target_heading + f.heading_offset.value;
+        let turn = wrap(heading - heading_now);
+        if dt > 0.0 {
+            f.shown_heading_rate = wrap(heading - f.shown_heading) / dt;
+        }
+        f.shown_heading = heading;
+        let active = f.locked || f.position_offset.is_active() || f.heading_offset.is_active();
+        let pinned = f.locked;
+        let toes = f.leg.toes;
+        let yaw = Quat::from_axis_angle(up, turn);
+        let ball_offset = toes.map(|t| yaw * (self.worlds[t.index()].translation - animated));
+        Goal {
+            active,
+            pinned,
+            ankle,
+            rotation: (yaw * ankle_w.rotation).normalize(),
+            ball_offset,
+        }
+    }
+
+    /// Records where foot `i` was shown this frame (for the next frame's velocities).
+    fn shown_at(&mut self, i: usize, ankle: Vec3, dt: f32) {
+        let f = &mut self.feet[i];
+        if dt > 0.0 {
+            f.shown_velocity = (ankle - f.shown_position) / dt;
+        }
+        f.shown_position = ankle;
+    }
+
+    /// Raises goal `i` so heel and ball stay above the floor, after the hips came down by
+    /// `drop` (which carries the animated share of the goal down with them).
+    fn clamp_to_floor(&mut self, i: usize, drop: f32) {
+        let f = &self.feet[i];
+        let g = &mut self.goals[i];
+        if !g.pinned {
+            g.ankle -= self.up * drop;
+        }
+        let heel_low = self.floor + f.heel_clearance - g.ankle.dot(self.up);
+        let ball_low = match g.ball_offset {
+            Some(o) => self.floor + f.ball_clearance - (g.ankle + o).dot(self.up),
+            None => f32::NEG_INFINITY,
+        };
+        let lift = heel_low.max(ball_low).max(0.0);
+        if lift > 0.0 {
+            g.ankle += self.up * lift;
+            g.active = true;
+        }
+    }
+
+    /// Lowers the root so every pinned goal is within its leg's reach; returns by how much.
+    /// The hips come down at once (a pinned foot must stay reachable) but go back up through
+    /// a decaying offset, so a release does not pop the body up.
+    fn lower_hips(&mut self, out: &mut Pose, dt: f32) -> f32 {
+        let Some(root) = self.root else {
+            return 0.0;
+        };
+        let mut drop: f32 = 0.0;
+        let mut limit = f32::INFINITY;
+        for foot in &self.feet {
+            limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
+        }
+        for (foot, goal) in self.feet.iter().zip(&self.goals) {
+            // Only pinned goals: the others come down with the hips, so lowering cannot help.
+            if !goal.pinned {
+                continue;
+            }
+            let p = |b: BoneId| self.worlds[b.index()].translation;
+            let (hip, knee, ankle) = (p(foot.leg.upper), p(foot.leg.lower), p(foot.leg.foot));
+            let reach = ((knee - hip).length() + (ankle - knee).length()) * MAX_EXTENSION * 0.999;
+            let r = hip - goal.ankle;
+            let r_up = r.dot(self.up);
+            let r_flat2 = (r.length_squared() - r_up * r_up).max(0.0);
+            if r.length() > reach {
+                let need = r_up - (reach * reach - r_flat2).max(0.0).sqrt();
+                drop = drop.max(need);
+            }
+        }
+        let required = drop.clamp(0.0, limit);
+        let above = self.last_drop - required;
+        let drop = if above > 0.0 {
+            self.drop_offset.value = above;
+            self.drop_offset.step(dt, 0.5 * self.settings.blend_secs);
+            required + self.drop_offset.value.max(0.0)
+        } else {
+            self.drop_offset = Decay::default();
+            required
+        };
+        if drop <= 0.0 {
+            return 0.0;
+        }
+        let parent = match self.target.parent(root) {
+            Some(p) => self.worlds[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.index()] -= parent.inverse() * (self.up * drop);
+        drop
+    }
+
+    /// Two-bone IK of foot `i` onto its goal; writes the upper, lower and foot rotations and
+    /// returns where the ankle went.
+    fn solve_leg(&mut self, i: usize, out: &mut Pose) -> Vec3 {
+        let leg = self.feet[i].leg;
+        let goal = self.goals[i];
+        let w = |b: BoneId| self.worlds[b.index()];
+        let (wu, wl, wf) = (w(leg.upper), w(leg.lower), w(leg.foot));
+        let (hip, knee, ankle) = (wu.translation, wl.translation, wf.translation);
+        // The animation's own bend side; the remembered one when the leg is straight.
+        let line = (ankle - hip).normalize_or_zero();
+        let bend = (knee - hip) - line * (knee - hip).dot(line);
+        let pole = if bend.length() > 0.01 * leg.length {
+            self.feet[i].pole_local = (wu.rotation.inverse() * bend).normalize_or_zero();
+            bend
+        } else {
+            wu.rotation * self.feet[i].pole_local
+        };
+        let s = solve_two_bone(hip, knee, ankle, goal.ankle, pole);
+        let parent_world = |b: BoneId| match self.target.parent(b) {
+            Some(p) => self.worlds[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        let upper_world = s.upper * wu.rotation;
+        out.rotations[leg.upper.index()] =
+            (parent_world(leg.upper).inverse() * upper_world).normalize();
+        // Bones between upper and lower (twist bones) turn with the upper bone.
+        let lower_parent = s.upper * parent_world(leg.lower);
+        let lower_world = s.lower * s.upper * wl.rotation;
+        out.rotations[leg.lower.index()] = (lower_parent.inverse() * lower_world).normalize();
+        let foot_parent = s.lower * s.upper * parent_world(leg.foot);
+        out.rotations[leg.foot.index()] = (foot_parent.inverse() * goal.rotation).normalize();
+        s.ankle
+    }
+}

@@ -1,0 +1,24 @@
+//! Footplants and foot locking (seed 002): when a foot stands on the ground, and keeping the
+//! target's foot there while it does.
+//!
+//! ```text
+//!  Analysis roles ─▶ rig::find_legs      hind legs (thigh, shin, foot, toes) and a
+//!                                        quadruped's front legs, by side and pair
+//!  source motion ─▶ detect               heel or ball near its ground AND slow, relative
+//!                                        to the leg's length; hysteresis; causal
+//!                                        (PlantDetector) or two-sided (detect_clip)
+//!  target pose   ─▶ lock (FootLock)      pin planted feet (position + heading), lower the
+//!                                        hips when out of reach, ik::solve_two_bone,
+//!                                        blend switches, keep feet above the floor
+//! ```
+
+pub mod detect;
+pub mod ik;
+pub mod lock;
+pub mod rig;
+pub mod spring;
+
+pub use detect::{detect_clip, PlantDetector, PlantSettings, PlantTrack};
+pub use ik::{solve_two_bone, TwoBoneSolution};
+pub use lock::{FootLock, LockSettings};
+pub use rig::{find_legs, Leg, LegKind, MAX_FEET};
