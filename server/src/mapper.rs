@@ -196,6 +196,17 @@ impl Mapper {
             }
         }
         let foot_lock = build_foot_lock(&mapping, &analyses, &ta, p.foot_lock);
+        if let Ok(mut feet) = p.target.stats.locked_feet.lock() {
+            *feet = foot_lock
+                .iter()
+                .flat_map(|l| l.target_legs())
+                .map(|leg| target.name(leg.foot).to_string())
+                .collect();
+        }
+        p.target
+            .stats
+            .feet_locked
+            .store(0, std::sync::atomic::Ordering::Relaxed);
         let json = mapping_message(&p.target, &sources, &target, &ta, &table, &self.options);
         if let Ok(mut slot) = p.mailbox.lock() {
             *slot = Some(BuiltMapping { mapping, foot_lock });
