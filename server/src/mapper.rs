@@ -230,6 +230,17 @@ impl Mapper {
                     eprintln!("rigcast: set_mapping for subject {subject}: {e:#}");
                 }
             }
+            EngineCommand::SetPerformer { subject, foot_lock } => {
+                let Some(i) = self.performers.iter().position(|p| p.target.id == subject) else {
+                    return;
+                };
+                if foot_lock.is_some() {
+                    self.performers[i].foot_lock = foot_lock;
+                }
+                if let Err(e) = self.build(i) {
+                    eprintln!("rigcast: set_performer for subject {subject}: {e:#}");
+                }
+            }
             EngineCommand::SkeletonChanged { subject } => {
                 for i in 0..self.performers.len() {
                     if self.performers[i].target.inputs.contains(&subject) {

@@ -46,9 +46,15 @@ async fn status_shows_the_feet_planting_in_turn() {
         let s = target_status(&server).await;
         assert_eq!(s["kind"], "target");
         if let Some(feet) = s["footplants"].as_array() {
-            bones = feet.iter().map(|f| f["bone"].as_str().unwrap().to_string()).collect();
+            bones = feet
+                .iter()
+                .map(|f| f["bone"].as_str().unwrap().to_string())
+                .collect();
             for f in feet {
-                seen.insert((f["bone"].as_str().unwrap().into(), f["planted"].as_bool().unwrap()));
+                seen.insert((
+                    f["bone"].as_str().unwrap().into(),
+                    f["planted"].as_bool().unwrap(),
+                ));
             }
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
@@ -57,7 +63,10 @@ async fn status_shows_the_feet_planting_in_turn() {
     assert_eq!(bones, vec!["foot_l".to_string(), "foot_r".to_string()]);
     for bone in &bones {
         for planted in [true, false] {
-            assert!(seen.contains(&(bone.clone(), planted)), "{bone} planted={planted} never seen");
+            assert!(
+                seen.contains(&(bone.clone(), planted)),
+                "{bone} planted={planted} never seen"
+            );
         }
     }
     server.shutdown().await;
@@ -72,5 +81,72 @@ async fn without_the_foot_lock_there_is_no_footplant_state() {
     let s = target_status(&server).await;
     assert_eq!(s["kind"], "target");
     assert!(s["footplants"].is_null(), "{s}");
+    server.shutdown().await;
+}
+
+/// `set_performer` turns the lock off and on at run time (control access).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn set_performer_switches_the_foot_lock() {
+    let Some(server) = start(None).await else {
+        return;
+    };
+    let (mut control, _) = tokio_tungstenite::connect_async(server.control_stream_url())
+        .await
+        .unwrap();
+    handshake(&mut control).await;
+    for (on, expect_null) in [(false, true), (true, false)] {
+        send_text(
+            &mut control,
+            &format!(r#"{{"type":"set_performer","subject":1,"foot_lock":{on}}}"#),
+        )
+        .await;
+        loop {
+            match next_json(&mut control, Duration::from_secs(5))
+                .await
+                .expect("ack")
+            {
+                rigcast_protocol::ServerMessage::Ack {
+                    request,
+                    subject: 1,
+                } => {
+                    assert_eq!(request, "set_performer");
+                    break;
+                }
+                rigcast_protocol::ServerMessage::Error { code, message } => {
+                    panic!("{code:?}: {message}")
+                }
+                _ => {}
+            }
+        }
+        // The rebuild happens off the tick; the status follows.
+        let t0 = Instant::now();
+        loop {
+            let s = target_status(&server).await;
+            if s["footplants"].is_null() == expect_null {
+                break;
+            }
+            assert!(t0.elapsed() < Duration::from_secs(5), "foot_lock {on}: {s}");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+    // A source subject is refused.
+    send_text(
+        &mut control,
+        r#"{"type":"set_performer","subject":0,"foot_lock":true}"#,
+    )
+    .await;
+    loop {
+        match next_json(&mut control, Duration::from_secs(5))
+            .await
+            .expect("error")
+        {
+            rigcast_protocol::ServerMessage::Error { code, .. } => {
+                assert_eq!(code, rigcast_protocol::control::ErrorCode::Unsupported);
+                break;
+            }
+            rigcast_protocol::ServerMessage::Ack { .. } => panic!("a source was accepted"),
+            _ => {}
+        }
+    }
     server.shutdown().await;
 }
