@@ -1,19 +1,21 @@
 //! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
 //! the target's foot stays where it landed (position and heading), its leg solved with the
-//! two-bone IK; the hips come down when a leg cannot reach; every switch blends over
-//! `blend_secs`; no foot joint goes below the target's floor.
+//! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
+//! `spring`); no foot joint goes below the target's floor.
 //!
 //! ```text
 //!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
 //!                                         ▼
-//!  target pose ─FK─▶ per foot: weight ramps to planted? 1 : 0 ──▶ goal = animated + s(w)·(lock − animated)
-//!                              heading: animated + s(w)·(locked − animated), about up
-//!                              floor: raise the goal so heel and ball stay above it
-//!               ─▶ hips lowered by what the farthest goal lacks ─FK─▶ two-bone IK per foot
+//!  target pose ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
+//!                     at a switch: offset = shown − that, in place and speed; it decays
+//!                     goal = where it should go + offset
+//!                     floor: raise the goal so heel and ball stay above it
+//!               ─▶ hips lowered by what the farthest pinned goal lacks (back up smoothly)
+//!               ─FK─▶ two-bone IK per foot (skipped where the goal is the animated foot)
 //! ```
 //! A lock is released when the source lifts the foot, or when the animated foot has left it
 //! farther than `max_drift_ratio` leg lengths (a turn on the spot, a slide): the foot then
-//! blends back to the animation instead of stretching the leg.
+//! glides back to the animation instead of stretching the leg.
 
 use glam::{Quat, Vec3};
 
@@ -30,7 +32,8 @@ use crate::skeleton::{BoneId, Skeleton};
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
-    /// Time to blend a lock in or out, seconds.
+    /// Time a lock takes to blend in or out, seconds (the blend offset's half-life is half of
+    /// it: after this long a quarter of the offset is left, after twice as long 2 %).
     pub blend_secs: f32,
     /// A lock lets go when the animated foot is this many leg lengths away horizontally.
     pub max_drift_ratio: f32,
