@@ -33,7 +33,7 @@ use crate::skeleton::{BoneId, Skeleton};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
     /// Time a lock takes to blend in or out, seconds (the blend offset's half-life is half of
-    /// it: after this long a quarter of the offset is left, after twice as long 2 %).
+    /// it: after this long a quarter of the offset is left, after twice as long 3 %).
     pub blend_secs: f32,
     /// A lock lets go when the animated foot is this many leg lengths away horizontally.
     pub max_drift_ratio: f32,
