@@ -271,6 +271,14 @@ pub enum ClientMessage {
         /// Requested version.
         version: u16,
     },
+    /// Change how a performer (a target subject) is run; fields left out stay as they are.
+    SetPerformer {
+        /// Target subject id.
+        subject: u32,
+        /// Pin the character's feet while the source's are planted.
+        #[serde(default)]
+        foot_lock: Option<bool>,
+    },
 }
 
 fn only_version_1() -> Vec<u16> {
@@ -302,12 +310,13 @@ impl CalibrationPose {
 pub const MAX_CALIBRATION_DELAY_SECS: f32 = 60.0;
 
 /// The `type` tags [`ClientMessage`] understands.
-pub const CLIENT_MESSAGE_TYPES: [&str; 5] = [
+pub const CLIENT_MESSAGE_TYPES: [&str; 6] = [
     "subscribe",
     "ping",
     "set_mapping",
     "calibrate",
     "set_protocol",
+    "set_performer",
 ];
 
 /// Why an incoming client text message was rejected.

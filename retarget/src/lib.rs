@@ -10,6 +10,8 @@
 //!                                      ▼
 //!                               [WorldTransform] (caller-owned buffer)
 //!
+//!   Mapping::apply (retarget) ─▶ target Pose ─▶ footplant::FootLock (planted feet pinned)
+//!
 //!   Clip = Skeleton + Vec<Pose> + frame time      (what files decode into)
 //!   Frame = { seq, capture_nanos, source_id, pose } (what moves through channels)
 //! ```

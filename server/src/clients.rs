@@ -273,7 +273,9 @@ fn required_access(msg: &ClientMessage) -> Access {
         ClientMessage::Subscribe { .. }
         | ClientMessage::Ping { .. }
         | ClientMessage::SetProtocol { .. } => Access::ReadOnly,
-        ClientMessage::SetMapping { .. } | ClientMessage::Calibrate { .. } => Access::Control,
+        ClientMessage::SetMapping { .. }
+        | ClientMessage::Calibrate { .. }
+        | ClientMessage::SetPerformer { .. } => Access::Control,
     }
 }
 
@@ -285,6 +287,7 @@ fn type_name(msg: &ClientMessage) -> &'static str {
         ClientMessage::SetProtocol { .. } => "set_protocol",
         ClientMessage::SetMapping { .. } => "set_mapping",
         ClientMessage::Calibrate { .. } => "calibrate",
+        ClientMessage::SetPerformer { .. } => "set_performer",
     }
 }
 
@@ -377,6 +380,28 @@ fn handle_text(
                 Err((code, message)) => ServerMessage::error(code, message),
             },
         ),
+        ClientMessage::SetPerformer { subject, foot_lock } => {
+            let Some(target) = state.subject(subject) else {
+                return Some(ServerMessage::error(
+                    ErrorCode::UnknownSubject,
+                    format!("unknown subject id {subject}"),
+                ));
+            };
+            if !target.is_target() {
+                return Some(ServerMessage::error(
+                    ErrorCode::Unsupported,
+                    format!(
+                        "subject {subject} is a source; set_performer applies to target subjects"
+                    ),
+                ));
+            }
+            Some(send_command(
+                state,
+                EngineCommand::SetPerformer { subject, foot_lock },
+                "set_performer",
+                subject,
+            ))
+        }
         ClientMessage::SetMapping { subject, overrides } => {
             let Some(target) = state.subject(subject) else {
                 return Some(ServerMessage::error(
@@ -404,6 +429,27 @@ fn handle_text(
                     "engine is shutting down",
                 )),
             }
+        }
+    }
+}
+
+/// Hands a command to the engine and answers `ack`, or an error when it cannot take it now.
+fn send_command(
+    state: &ServerState,
+    cmd: EngineCommand,
+    request: &str,
+    subject: u32,
+) -> ServerMessage {
+    match state.commands.try_send(cmd) {
+        Ok(()) => ServerMessage::Ack {
+            request: request.into(),
+            subject,
+        },
+        Err(mpsc::error::TrySendError::Full(_)) => {
+            ServerMessage::error(ErrorCode::Internal, "engine is busy; retry")
+        }
+        Err(mpsc::error::TrySendError::Closed(_)) => {
+            ServerMessage::error(ErrorCode::Internal, "engine is shutting down")
         }
     }
 }

@@ -77,6 +77,13 @@ pub enum EngineCommand {
         /// target bone → source bone
         overrides: std::collections::BTreeMap<String, Option<String>>,
     },
+    /// `set_performer` from a client: change how that target is run and rebuild.
+    SetPerformer {
+        /// target subject
+        subject: u32,
+        /// foot locking on or off (`None`: unchanged)
+        foot_lock: Option<bool>,
+    },
     /// A source subject's skeleton changed: rebuild the mappings that use it.
     SkeletonChanged {
         /// the source subject

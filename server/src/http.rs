@@ -463,6 +463,37 @@ pub struct SubjectStatus {
     pub skeleton_changes: u64,
     /// Frames held back because skeleton changes came faster than the rate limit.
     pub skeleton_frames_limited: u64,
+    /// A target's feet under its foot lock and whether each is held now (`null` without a
+    /// foot lock).
+    pub footplants: Option<Vec<FootStatus>>,
+}
+
+/// One foot of a target's foot lock.
+#[derive(Debug, Serialize)]
+pub struct FootStatus {
+    /// The foot bone.
+    pub bone: String,
+    /// Held where it was planted.
+    pub planted: bool,
+}
+
+/// The foot-lock part of a subject's status.
+fn footplants(stats: &crate::stats::SubjectStats) -> Option<Vec<FootStatus>> {
+    let names = stats.locked_feet.lock().ok()?;
+    if names.is_empty() {
+        return None;
+    }
+    let bits = stats.feet_locked.load(Ordering::Relaxed);
+    Some(
+        names
+            .iter()
+            .enumerate()
+            .map(|(i, bone)| FootStatus {
+                bone: bone.clone(),
+                planted: i < 32 && bits & (1 << i) != 0,
+            })
+            .collect(),
+    )
 }
 
 /// Clients in the status.
@@ -511,6 +542,7 @@ pub fn status(state: &ServerState) -> Status {
                 listen: s.listen_addr.map(|a| a.to_string()),
                 skeleton_changes: s.stats.skeleton_changes.load(Ordering::Relaxed),
                 skeleton_frames_limited: s.stats.skeleton_frames_limited.load(Ordering::Relaxed),
+                footplants: footplants(&s.stats),
             }
         })
         .collect();

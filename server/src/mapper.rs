@@ -210,6 +210,17 @@ impl Mapper {
             warnings,
         );
         let foot_lock = build_foot_lock(&mapping, &analyses, &ta, p.foot_lock);
+        if let Ok(mut feet) = p.target.stats.locked_feet.lock() {
+            *feet = foot_lock
+                .iter()
+                .flat_map(|l| l.target_legs())
+                .map(|leg| target.name(leg.foot).to_string())
+                .collect();
+        }
+        p.target
+            .stats
+            .feet_locked
+            .store(0, std::sync::atomic::Ordering::Relaxed);
         if let Ok(mut slot) = p.mailbox.lock() {
             *slot = Some(BuiltMapping { mapping, foot_lock });
         }
@@ -230,6 +241,17 @@ impl Mapper {
                 self.performers[i].session.extend(overrides);
                 if let Err(e) = self.build(i) {
                     eprintln!("rigcast: set_mapping for subject {subject}: {e:#}");
+                }
+            }
+            EngineCommand::SetPerformer { subject, foot_lock } => {
+                let Some(i) = self.performers.iter().position(|p| p.target.id == subject) else {
+                    return;
+                };
+                if foot_lock.is_some() {
+                    self.performers[i].foot_lock = foot_lock;
+                }
+                if let Err(e) = self.build(i) {
+                    eprintln!("rigcast: set_performer for subject {subject}: {e:#}");
                 }
             }
             EngineCommand::SkeletonChanged { subject } => {

@@ -228,6 +228,13 @@ impl Performer {
                         dt.min(MAX_SAMPLE_GAP_SECS),
                         &mut self.live,
                     );
+                    let held = (0..lock.target_legs().count().min(32))
+                        .filter(|&i| lock.is_locked(i))
+                        .fold(0u32, |bits, i| bits | 1 << i);
+                    self.target
+                        .stats
+                        .feet_locked
+                        .store(held, std::sync::atomic::Ordering::Relaxed);
                 }
                 if let Phase::Resuming(t0) = self.phase {
                     let k =

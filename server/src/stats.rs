@@ -67,6 +67,12 @@ pub struct SubjectStats {
     pub skeleton_changes: AtomicU64,
     /// Frames held back by the skeleton-change rate limit.
     pub skeleton_frames_limited: AtomicU64,
+    /// A target's feet held by its foot lock now: bit `i` for foot `i` of `locked_feet`
+    /// (written by the tick, without allocating).
+    pub feet_locked: std::sync::atomic::AtomicU32,
+    /// The foot bones its foot lock holds, in bit order (empty: no foot lock). Written when a
+    /// mapping is built.
+    pub locked_feet: std::sync::Mutex<Vec<String>>,
 }
 
 /// Per-client counters.

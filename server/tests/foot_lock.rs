@@ -300,3 +300,4 @@ fn cmu_walk_live_lock_keeps_planted_feet() {
         "{locked:?} vs {free:?}"
     );
 }
+

@@ -114,7 +114,12 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
             lost_after_secs: Some(0.25),
             name: Some("performer".into()),
         }],
-        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        // The output is compared with plain `Mapping::apply`: no foot lock on top (it is
+        // judged in server/tests/foot_lock.rs).
+        performers: vec![PerformerSpec {
+            foot_lock: Some(false),
+            ..PerformerSpec::target_file("builtin:mannequin")
+        }],
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();

@@ -18,7 +18,8 @@ pub struct TwoBoneSolution {
     pub ankle: Vec3,
 }
 
-/// Fraction of full extension the solver stops at, so the knee keeps a defined bend plane.
+/// Fraction of full extension the solver stops at, so the knee keeps a defined bend plane
+/// (unless the animation itself holds the leg straighter).
 pub const MAX_EXTENSION: f32 = 0.9995;
 
 /// Moves the chain `hip → knee → ankle` so the ankle reaches `goal` (or as close as the bone
@@ -45,9 +46,11 @@ pub fn solve_two_bone(
     if a <= f32::EPSILON || b <= f32::EPSILON {
         return unchanged;
     }
+    // A leg the animation already holds straighter than MAX_EXTENSION may stay that straight.
+    let longest = ((a + b) * MAX_EXTENSION).max((ankle - hip).length().min(a + b));
     let d = to_goal
         .length()
-        .clamp((a - b).abs() * 1.0005 + 1e-6, (a + b) * MAX_EXTENSION);
+        .clamp((a - b).abs() * 1.0005 + 1e-6, longest);
     // The pole, made perpendicular to the hip–goal line.
     let v = (pole - u * pole.dot(u))
         .try_normalize()

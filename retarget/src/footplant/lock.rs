@@ -1,19 +1,21 @@
 //! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
 //! the target's foot stays where it landed (position and heading), its leg solved with the
-//! two-bone IK; the hips come down when a leg cannot reach; every switch blends over
-//! `blend_secs`; no foot joint goes below the target's floor.
+//! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
+//! `spring`); no foot joint goes below the target's floor.
 //!
 //! ```text
 //!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
 //!                                         ▼
-//!  target pose ─FK─▶ per foot: weight ramps to planted? 1 : 0 ──▶ goal = animated + s(w)·(lock − animated)
-//!                              heading: animated + s(w)·(locked − animated), about up
-//!                              floor: raise the goal so heel and ball stay above it
-//!               ─▶ hips lowered by what the farthest goal lacks ─FK─▶ two-bone IK per foot
+//!  target pose ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
+//!                     at a switch: offset = shown − that, in place and speed; it decays
+//!                     goal = where it should go + offset
+//!                     floor: raise the goal so heel and ball stay above it
+//!               ─▶ hips lowered by what the farthest pinned goal lacks (back up smoothly)
+//!               ─FK─▶ two-bone IK per foot (skipped where the goal is the animated foot)
 //! ```
 //! A lock is released when the source lifts the foot, or when the animated foot has left it
 //! farther than `max_drift_ratio` leg lengths (a turn on the spot, a slide): the foot then
-//! blends back to the animation instead of stretching the leg.
+//! glides back to the animation instead of stretching the leg.
 
 use glam::{Quat, Vec3};
 
@@ -30,7 +32,8 @@ use crate::skeleton::{BoneId, Skeleton};
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
-    /// Time to blend a lock in or out, seconds.
+    /// Time a lock takes to blend in or out, seconds (the blend offset's half-life is half of
+    /// it: after this long a quarter of the offset is left, after twice as long 3 %).
     pub blend_secs: f32,
     /// A lock lets go when the animated foot is this many leg lengths away horizontally.
     pub max_drift_ratio: f32,
@@ -57,7 +60,8 @@ struct Foot {
     leg: Leg,
     /// The source leg (index into the detector's legs) whose plants drive this foot.
     source: Option<usize>,
-    /// Heights of heel and ball above the floor when the target stands (its reference).
+    /// Standing heights of heel and ball above the floor (the mapping floor's joint; negative
+    /// for a ball below an ankle the floor is measured at).
     heel_clearance: f32,
     ball_clearance: f32,
     /// A horizontal direction fixed in the foot bone's frame (its heading).
@@ -130,7 +134,7 @@ impl FootLock {
         target: &Analysis,
         settings: LockSettings,
     ) -> Option<FootLock> {
-        let (up, floor) = mapping.target_floor()?;
+        let (up, floor, floor_bone) = mapping.target_floor()?;
         let src_skel = mapping.source(mapping.root_input()?)?.clone();
         let tgt_skel = mapping.target().clone();
         let source_legs = find_legs(&src_skel, source);
@@ -142,12 +146,16 @@ impl FootLock {
         // Standing clearances from the character's own posture (it is authored standing; the
         // aligned rest shows the source's rest, whose feet need not be flat).
         let height = |b: BoneId| target.positions[b.index()].dot(target.up);
-        let lowest = target_legs
-            .iter()
-            .flat_map(|l| [Some(l.foot), l.toes])
-            .flatten()
-            .map(height)
-            .fold(f32::INFINITY, f32::min);
+        // Clearances are measured from the joint the mapping's floor height belongs to (the
+        // lowest foot joint when that one is not mapped).
+        let lowest = floor_bone.map(height).unwrap_or_else(|| {
+            target_legs
+                .iter()
+                .flat_map(|l| [Some(l.foot), l.toes])
+                .flatten()
+                .map(height)
+                .fold(f32::INFINITY, f32::min)
+        });
         let feet = target_legs
             .iter()
             .map(|leg| {
@@ -336,11 +344,11 @@ impl FootLock {
         (f.animated_position, f.animated_heading) = (animated, heading_now);
         let was = f.locked;
         if wants && !f.locked {
-            // Pinned where it is shown now (where the animated foot is, unless an earlier
-            // lock is still blending out).
+            // Pinned where the foot lands; if it is shown elsewhere (an earlier lock still
+            // letting go), the switch offset below glides it there.
             f.locked = true;
-            f.lock_position = f.shown_position;
-            f.lock_heading = f.shown_heading;
+            f.lock_position = animated;
+            f.lock_heading = heading_now;
         }
         if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
             f.locked = false;
@@ -434,7 +442,9 @@ impl FootLock {
             }
             let p = |b: BoneId| self.worlds[b.index()].translation;
             let (hip, knee, ankle) = (p(foot.leg.upper), p(foot.leg.lower), p(foot.leg.foot));
-            let reach = ((knee - hip).length() + (ankle - knee).length()) * MAX_EXTENSION * 0.999;
+            let full = (knee - hip).length() + (ankle - knee).length();
+            // As far as the solver stretches, or as the animation already does.
+            let reach = (full * MAX_EXTENSION).max((ankle - hip).length().min(full)) * 0.999;
             let r = hip - goal.ankle;
             let r_up = r.dot(self.up);
             let r_flat2 = (r.length_squared() - r_up * r_up).max(0.0);
@@ -472,6 +482,11 @@ impl FootLock {
         let w = |b: BoneId| self.worlds[b.index()];
         let (wu, wl, wf) = (w(leg.upper), w(leg.lower), w(leg.foot));
         let (hip, knee, ankle) = (wu.translation, wl.translation, wf.translation);
+        // Nothing to do where the foot already is (a standing, held pose stays exact).
+        let same_place = (goal.ankle - ankle).length() <= 1e-5 * leg.length;
+        if same_place && goal.rotation.dot(wf.rotation).abs() >= 1.0 - 1e-7 {
+            return ankle;
+        }
         // The animation's own bend side; the remembered one when the leg is straight.
         let line = (ankle - hip).normalize_or_zero();
         let bend = (knee - hip) - line * (knee - hip).dot(line);

@@ -96,8 +96,9 @@ pub fn find_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
         let found = find_below(skel, analysis, foot_role, r.side, r.limb, lower);
         let (b, lower, foot) = match (found, kind) {
             (Some(foot), _) => (b, lower, foot),
-            // A front leg that ends at its forearm (the hoof is the forearm's end): the
-            // chain is shoulder blade, upper arm, forearm.
+            // A front leg that ends at its forearm (the hoof is the forearm's far end, with
+            // no joint of its own): the chain is shoulder blade, upper arm, forearm, so the
+            // joint held is the forearm's top (the carpus), the lowest joint the rig has.
             (None, LegKind::Front) => match skel
                 .parent(b)
                 .filter(|&p| analysis.roles[p.index()].role == Role::Clavicle)

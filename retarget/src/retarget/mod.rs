@@ -222,11 +222,13 @@ impl Mapping {
     }
 
     /// The floor the target stands on in the output's world: the up direction (the source's,
-    /// unit) and the floor's height along it. `None` without root motion. Foot locking keeps
-    /// feet above it.
-    pub fn target_floor(&self) -> Option<(Vec3, f32)> {
+    /// unit), the floor's height along it, and the target joint that height is the standing
+    /// height of (the lowest mapped foot joint: an ankle when the source has no toes, so the
+    /// ground itself lies below it by that joint's clearance). `None` without root motion.
+    pub fn target_floor(&self) -> Option<(Vec3, f32, Option<BoneId>)> {
         let r = self.root.as_ref()?;
-        Some((r.up, r.target_floor_y.unwrap_or(r.scale * r.source_floor_y)))
+        let height = r.target_floor_y.unwrap_or(r.scale * r.source_floor_y);
+        Some((r.up, height, r.floor_bone))
     }
 
     /// The source input that drives root motion (the one whose legs the target's follow).

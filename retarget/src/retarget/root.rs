@@ -29,6 +29,9 @@ pub(super) struct RootPlan {
     /// `None`: the target's rest does not show where its floor is; it then keeps the source's
     /// floor clearance, scaled.
     pub(super) target_floor_y: Option<f32>,
+    /// The target joint whose reference height the floors are measured at (the lowest
+    /// mapped one below the root), if any.
+    pub(super) floor_bone: Option<BoneId>,
     pub(super) reference_position: Vec3,
     /// Source bones (of `input`) at the feet: what [`Mapping::measure_source_floor`] looks at.
     pub(super) contact_bones: Vec<BoneId>,
@@ -165,6 +168,7 @@ impl RootPlan {
             motion: opts.root_motion,
             source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
             target_floor_y: opts.target_floor_y.or(floor_t),
+            floor_bone: low.map(|(t, _)| t),
             reference_position: tgt.worlds[rt.index()].translation,
             contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
             contacts,

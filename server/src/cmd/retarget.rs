@@ -245,6 +245,16 @@ pub fn retarget_clip_locked(
         );
         Some((lock, plants))
     });
+    if progress {
+        if let Some((lock, plants)) = foot_lock.as_ref() {
+            let found: usize = (0..plants.legs.len()).map(|l| plants.intervals(l).len()).sum();
+            eprintln!(
+                "foot lock: {found} plants on {} source feet, {} target feet held",
+                plants.legs.len(),
+                lock.target_legs().count()
+            );
+        }
+    }
     let n = clip.num_frames();
     let report = progress && n >= PROGRESS_MIN_FRAMES;
     let mut poses = Vec::with_capacity(n);
