@@ -29,6 +29,10 @@ use crate::pose::Pose;
 use crate::retarget::Mapping;
 use crate::skeleton::{BoneId, Skeleton};
 
+/// How far (radians, ~26°) a planted foot's pinned heading may lag the animation's before it is
+/// dragged along (a pivot on the spot).
+const PIVOT_RAD: f32 = 0.45;
+
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
@@ -352,6 +356,15 @@ impl FootLock {
         }
         if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
             f.locked = false;
+        }
+        // The heading stays pinned against small turns (stance jitter), but a performer who
+        // pivots on a planted foot (turning on the spot) turns it: past `PIVOT_RAD` the pin
+        // is dragged along, so the toes never point far from the performer's.
+        if f.locked {
+            let off = wrap(heading_now - f.lock_heading);
+            if off.abs() > PIVOT_RAD {
+                f.lock_heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
+            }
         }
         let (target, target_heading, velocity, rate) = if f.locked {
             (f.lock_position, f.lock_heading, Vec3::ZERO, 0.0)
