@@ -432,10 +432,12 @@ impl ServeProcess {
             let tx = tx.clone();
             std::thread::spawn(move || {
                 for line in std::io::BufReader::new(pipe).lines().map_while(Result::ok) {
-                    if line.trim().starts_with("connections: ") {
+                    let cap = line.trim().starts_with("connections: ");
+                    // Stored before the start is signalled, so the caller sees this line.
+                    lines.lock().unwrap().push(format!("{prefix}{line}"));
+                    if cap {
                         let _ = tx.send(());
                     }
-                    lines.lock().unwrap().push(format!("{prefix}{line}"));
                 }
             });
         }
