@@ -300,4 +300,3 @@ fn cmu_walk_live_lock_keeps_planted_feet() {
         "{locked:?} vs {free:?}"
     );
 }
-

@@ -247,7 +247,9 @@ pub fn retarget_clip_locked(
     });
     if progress {
         if let Some((lock, plants)) = foot_lock.as_ref() {
-            let found: usize = (0..plants.legs.len()).map(|l| plants.intervals(l).len()).sum();
+            let found: usize = (0..plants.legs.len())
+                .map(|l| plants.intervals(l).len())
+                .sum();
             eprintln!(
                 "foot lock: {found} plants on {} source feet, {} target feet held",
                 plants.legs.len(),
