@@ -179,6 +179,22 @@ fn view(clip: &Clip) -> SkeletonView<'_> {
     SkeletonView::from_clip(&clip.skeleton, &clip.poses)
 }
 
+/// The automatic mapping of `src` onto `tgt`, both with their motion.
+fn map_rigs(src: &Rig, tgt: &Rig) -> rigcast_retarget::mapping::MappingTable {
+    auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default())
+}
+
+/// Name of the source bone driving target bone `t`, if it is mapped.
+fn driver<'a>(
+    table: &rigcast_retarget::mapping::MappingTable,
+    ss: &'a Skeleton,
+    t: BoneId,
+) -> Option<&'a str> {
+    table.entries[t.index()]
+        .as_ref()
+        .map(|e| ss.name(e.sources[0].bone))
+}
+
 #[derive(Default, Clone, Copy)]
 struct Score {
     right: usize,
@@ -208,10 +224,9 @@ fn score_pair(src: &Rig, tgt: &Rig, roles: &[&str], anon: bool, fails: &mut Vec<
     let table = auto_map(&view(&src.clip), &view(&tclip), &MapOptions::default());
     let ss = &src.clip.skeleton;
     // Original target name → which source bone name drives it.
-    let driver = |tname: &str| -> Option<&str> {
+    let driver_of = |tname: &str| -> Option<&str> {
         let k = tnames.iter().position(|n| n == tname)?;
-        let e = table.entries[k].as_ref()?;
-        Some(ss.name(e.sources[0].bone))
+        driver(&table, ss, BoneId(k as u16))
     };
     let mut sc = Score::default();
     let troles = expand(roles, &tgt.roles);
@@ -231,7 +246,7 @@ fn score_pair(src: &Rig, tgt: &Rig, roles: &[&str], anon: bool, fails: &mut Vec<
             }
         }
         sc.total += 1;
-        let drivers: Vec<Option<&str>> = tlist.iter().map(|t| driver(t)).collect();
+        let drivers: Vec<Option<&str>> = tlist.iter().map(|t| driver_of(t)).collect();
         if drivers
             .iter()
             .any(|d| d.is_some_and(|d| ok_names.iter().any(|n| *n == d)))
@@ -416,7 +431,7 @@ fn human_to_quadruped_legs() {
         let mut sc = Score::default();
         let mut fails = Vec::new();
         for src in &hs {
-            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let table = map_rigs(src, tgt);
             let (ss, ts) = (&src.clip.skeleton, &tgt.clip.skeleton);
             for role in expand(QUAD_LEGS, &tgt.roles) {
                 let accept: Vec<&String> = quad_sources(&role)
@@ -428,9 +443,7 @@ fn human_to_quadruped_legs() {
                     continue;
                 }
                 let tb = ts.bone(&tgt.roles[&role][0]).unwrap();
-                let d = table.entries[tb.index()]
-                    .as_ref()
-                    .map(|e| ss.name(e.sources[0].bone));
+                let d = driver(&table, ss, tb);
                 sc.total += 1;
                 if d.is_some_and(|d| accept.iter().any(|a| *a == d)) {
                     sc.right += 1;
@@ -501,20 +514,15 @@ fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
     for tgt in rigs.iter().filter(|r| r.kind == "biped_creature") {
         let ts = &tgt.clip.skeleton;
         for src in &hs {
-            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let table = map_rigs(src, tgt);
             let ss = &src.clip.skeleton;
-            let driver = |t: &str| {
-                let b = ts.bone(t)?;
-                table.entries[b.index()]
-                    .as_ref()
-                    .map(|e| ss.name(e.sources[0].bone))
-            };
+            let driver_of = |t: &str| driver(&table, ss, ts.bone(t)?);
             for side in [".L", ".R"] {
                 for (troles, sroles) in [(LEG_ROLES, LEG_ROLES), (ARM_ROLES, ARM_ROLES)] {
                     let allowed = sided_names(src, sroles, side);
                     let mut driven = 0;
                     for t in sided_names(tgt, &troles[..3], side) {
-                        if let Some(d) = driver(t) {
+                        if let Some(d) = driver_of(t) {
                             assert!(
                                 allowed.iter().any(|a| *a == d),
                                 "{} -> {}: {t} <- {d}",
@@ -534,7 +542,7 @@ fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
             }
             for t in tgt.roles.get("tail").into_iter().flatten() {
                 assert_eq!(
-                    driver(t),
+                    driver_of(t),
                     None,
                     "{} -> {}: tail {t}",
                     short(&src.key),
@@ -556,7 +564,7 @@ fn multi_legged_rigs_use_legs_for_legs() {
         let ta = analyze(&view(&tgt.clip));
         let ts = &tgt.clip.skeleton;
         for src in &hs {
-            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let table = map_rigs(src, tgt);
             let ss = &src.clip.skeleton;
             let legs: Vec<&String> = [".L", ".R"]
                 .iter()
@@ -564,10 +572,9 @@ fn multi_legged_rigs_use_legs_for_legs() {
                 .collect();
             let mut on_legs = 0;
             for t in ts.bone_ids() {
-                let Some(e) = table.entries[t.index()].as_ref() else {
+                let Some(d) = driver(&table, ss, t) else {
                     continue;
                 };
-                let d = ss.name(e.sources[0].bone);
                 if !legs.iter().any(|l| *l == d) {
                     continue;
                 }
@@ -608,11 +615,9 @@ fn flat_hand_rig_maps_by_names_and_chirality() {
         let a = analyze(&view(&tgt.clip));
         assert_eq!(a.label(wrist), "left_hand", "{}", tgt.key);
         for src in hs.iter().filter(|s| s.roles.contains_key("hand.L")) {
-            let table = auto_map(&view(&src.clip), &view(&tgt.clip), &MapOptions::default());
+            let table = map_rigs(src, tgt);
             let ss = &src.clip.skeleton;
-            let d = table.entries[wrist.index()]
-                .as_ref()
-                .map(|e| ss.name(e.sources[0].bone));
+            let d = driver(&table, ss, wrist);
             assert!(
                 d.is_some_and(|d| src.roles["hand.L"].iter().any(|n| n == d)),
                 "{} -> hand: wrist <- {d:?}",
