@@ -3,10 +3,8 @@
 //! two-bone IK) allocates nothing — counted with a global allocator, over frames that go
 //! through every one of those paths (checked, so the count is not of an idle lock).
 
+mod alloc_count;
 mod retarget_fixtures;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 
 use glam::{Quat, Vec3};
 use retarget_fixtures::{table_by_canonical, Axes, Humanoid};
@@ -14,32 +12,7 @@ use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
 use rigcast_retarget::{world_transforms, Mapping, Pose, RetargetOptions, Skeleton};
 
-struct Counting;
-
-thread_local! {
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    COUNT.with(|c| c.get())
-}
+use alloc_count::allocations;
 
 /// Source frames at 60 Hz: standing (both feet planted), the hips rising 2 cm (the planted
 /// feet stay, the legs must stretch), then the left leg swinging forward and back (its plant

@@ -3,42 +3,14 @@
 //! many-to-one blending, delays with a history ring, reverse, weights, root motion with foot
 //! contact, chain distribution, two inputs).
 
+mod alloc_count;
 mod retarget_fixtures;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 
 use retarget_fixtures::{motion, table_by_canonical, Axes, Humanoid};
 use rigcast_retarget::mapping::SourceRef;
 use rigcast_retarget::{FootContact, Mapping, RetargetOptions};
 
-struct Counting;
-
-thread_local! {
-    // Counted per thread so the test harness's other threads do not disturb the count.
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    COUNT.with(|c| c.get())
-}
+use alloc_count::allocations;
 
 #[test]
 fn steady_state_apply_allocates_nothing() {
