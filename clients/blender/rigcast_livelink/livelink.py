@@ -313,7 +313,14 @@ class Runtime:
                     binding.num_translated,
                 )
                 continue
-            binding.apply(frame)
+            try:
+                binding.apply(frame)
+            except Exception as exc:
+                # One broken armature (a bone deleted under the binding) must not stop the
+                # others; the binding is rebuilt on the next frame.
+                self.bindings.pop((item.subject_id, obj.name), None)
+                self.last_error = "applying subject %d to %s failed: %s" % (item.subject_id, obj.name, exc)
+                continue
             stats.apply_times.append(now)
             stats.num_applied += 1
             stats.last_seq = frame.seq

@@ -96,6 +96,10 @@ class Take:
 
     def add(self, binding, capture_nanos):
         """Keys the armature's current pose; returns the scene frame keyed, or None."""
+        # The user may delete the Action mid-take (Outliner, Python). The ID reference then
+        # raises ReferenceError, but the F-curves cached from it would dangle and keying them
+        # crashes Blender 4.x/5.x: touch the ID first, so the take stops with an error instead.
+        self.action.name  # noqa: B018 (raises ReferenceError once removed)
         frame = self.origin_frame + int(round((capture_nanos - self.origin_nanos) * 1e-9 * self.fps))
         if self.last_frame is not None and frame <= self.last_frame:
             return None

@@ -188,6 +188,9 @@ def run(args, out):
     if args["mode"] == "mapping":
         run_mapping(out, runtime, settings, pump)
         return
+    if args["mode"] == "record_failure":
+        run_record_failure(out, runtime, settings, scene, pump)
+        return
     subject_ids = [item.subject_id for item in settings.subjects]
     out["subject_ids"] = subject_ids
     for subject_id in subject_ids:
@@ -284,6 +287,38 @@ def play_back(scene, settings, observations, per_subject=8):
             sample["frame"] = frame
             samples.append(sample)
     return samples
+
+
+def run_record_failure(out, runtime, settings, scene, pump):
+    """One armature's take breaks mid-recording (its Action is deleted under it, as a user
+    might in the Outliner): that take stops with one reported error, the others record on and
+    every armature keeps receiving its live pose at the full rate."""
+    for item in settings.subjects:
+        result = bpy.ops.rigcast.create_armature(subject_id=item.subject_id)
+        if "FINISHED" not in result:
+            raise RuntimeError("create_armature(%d) returned %s" % (item.subject_id, result))
+    pump(0.5)
+    bpy.ops.rigcast.record()
+    pump(0.5)
+    broken = settings.subjects[0].armature.name
+    take = runtime.takes.get(broken)
+    if take is None:
+        raise RuntimeError("no take for %s after 0.5 s of recording" % broken)
+    bpy.data.actions.remove(take.action)
+    before = {item.subject_id: runtime.stats[item.subject_id].num_applied for item in settings.subjects}
+    started = time.monotonic()
+    pump(2.0)
+    secs = time.monotonic() - started
+    out["applied_fps_after_break"] = {
+        str(item.subject_id): (runtime.stats[item.subject_id].num_applied - before[item.subject_id]) / secs
+        for item in settings.subjects
+    }
+    bpy.ops.rigcast.record()
+    out["broken_armature"] = broken
+    out["record_errors"] = dict(runtime.record_errors)
+    out["last_error"] = runtime.last_error
+    out["actions"] = describe_actions(settings)
+    bpy.ops.rigcast.disconnect()
 
 
 def run_connect(out, runtime, settings, pump):
