@@ -35,6 +35,7 @@ pub mod cmd;
 pub mod config;
 pub mod demo;
 pub mod engine;
+pub mod footplants;
 pub mod http;
 pub mod limits;
 pub mod live;
@@ -526,6 +527,11 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             vmc,
             performers,
         },
+        shutdown_rx.clone(),
+    )));
+    tasks.push(tokio::spawn(footplants::run(
+        subjects.clone(),
+        events_tx.clone(),
         shutdown_rx.clone(),
     )));
     tasks.push(tokio::spawn(run_source_status(
