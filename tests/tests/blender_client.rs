@@ -176,6 +176,8 @@ struct Observed {
     skeletons: HashMap<u64, Value>,
     /// Every `mapping` message, in arrival order.
     mappings: Vec<Value>,
+    /// Every `footplants` message, in arrival order.
+    footplants: Vec<Value>,
     frames: HashMap<(u32, u64), DecodedFrame>,
 }
 
@@ -209,6 +211,7 @@ async fn watch_stream(addr: SocketAddr, observed: Arc<Mutex<Observed>>) {
                         o.skeletons.insert(id, value);
                     }
                     Some("mapping") => o.mappings.push(value),
+                    Some("footplants") => o.footplants.push(value),
                     _ => {}
                 }
             }
@@ -493,6 +496,11 @@ matrix!(survives_a_failing_take:
     blender_3_4_survives_a_failing_take => Blender::app(),
     blender_4_5_survives_a_failing_take => Blender::module("4.5"),
     blender_5_0_survives_a_failing_take => Blender::module("5.0"),
+);
+matrix!(exposes_the_footplants:
+    blender_3_4_exposes_the_footplants => Blender::app(),
+    blender_4_5_exposes_the_footplants => Blender::module("4.5"),
+    blender_5_0_exposes_the_footplants => Blender::module("5.0"),
 );
 matrix!(shows_and_overrides_the_server_mapping:
     blender_3_4_shows_and_overrides_the_server_mapping => Blender::app(),
@@ -911,6 +919,85 @@ async fn survives_a_failing_take(blender: Blender) {
             .any(|a| a["fcurves"].as_array().is_some_and(|c| !c.is_empty())),
         "{label}: no take survived: {actions:?}"
     );
+    let _ = std::fs::remove_dir_all(&work);
+}
+
+/// The foot-lock state reaches Blender: the CMU walk drives the mannequin (foot lock on), and
+/// the target armature's `rigcast_footplants` property and its foot bones' `rigcast_planted`
+/// equal the server's `footplants` messages (state, and position in Blender axes), with each
+/// foot seen planted and lifted. Skips without the shared walk.
+async fn exposes_the_footplants(blender: Blender) {
+    let Some(path) = rigcast_tests::shared_data("bvh/cmu_131_01_walk.bvh") else {
+        return;
+    };
+    let clip = rigcast_sources::load_clip(&path).unwrap();
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![rigcast_tests::clip_source(clip)],
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.expect("server starts");
+    let addr = server.local_addr();
+    let observed = Arc::new(Mutex::new(Observed::default()));
+    let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
+    let work = work_dir();
+    let result = run_blender_off_runtime(blender, addr, &work, "footplants", Zip::Build).await;
+    watcher.abort();
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let observed = observed.lock().unwrap();
+    let label = format!(
+        "Blender {}",
+        result["blender_version"].as_str().unwrap_or("?")
+    );
+    let samples = result["footplant_samples"].as_array().unwrap();
+    let mut seen = std::collections::HashSet::new();
+    let mut matched = 0;
+    for sample in samples {
+        let Some(message) = observed
+            .footplants
+            .iter()
+            .find(|m| m["seq"] == sample["seq"])
+        else {
+            continue; // our client joined later than Blender
+        };
+        for foot in message["feet"].as_array().unwrap() {
+            let bone = foot["bone"].as_str().unwrap();
+            let planted = i64::from(foot["planted"].as_bool().unwrap());
+            let shown = &sample["property"][bone];
+            assert_eq!(
+                shown["planted"].as_i64(),
+                Some(planted),
+                "{label}: {bone} in {sample}"
+            );
+            assert_eq!(
+                sample["bone_planted"][bone].as_i64(),
+                Some(planted),
+                "{label}: {bone}"
+            );
+            let expected = blender_from_ours(vec3(&foot["position"]));
+            let error = (vec3(&shown["position"]) - expected).length();
+            assert!(error < 1e-5, "{label}: {bone} position off by {error} m");
+            seen.insert((bone.to_string(), planted));
+        }
+        matched += 1;
+    }
+    println!(
+        "{label}: {matched} footplants states shown on the armature equal the server's: {seen:?}"
+    );
+    assert!(
+        matched >= 3,
+        "{label}: only {matched} states matched ({} samples)",
+        samples.len()
+    );
+    for bone in ["foot_l", "foot_r"] {
+        for planted in [0, 1] {
+            assert!(
+                seen.contains(&(bone.to_string(), planted)),
+                "{label}: {bone} never {planted}"
+            );
+        }
+    }
     let _ = std::fs::remove_dir_all(&work);
 }
 

@@ -165,6 +165,7 @@ class Runtime:
         self.subjects = {}
         self.skeletons = {}
         self.mappings = {}
+        self.footplants = {}  # target subject id -> latest `footplants` message
         self.bindings = {}
         self.stats = collections.defaultdict(SubjectStats)
         self.last_error = ""
@@ -244,10 +245,45 @@ class Runtime:
                 color_mode = settings.color_mode
                 if color_mode != "NONE":
                     apply_mapping_colors(settings, self, color_mode)
+        elif kind == "footplants":
+            subject = message.get("subject")
+            if isinstance(subject, int) and isinstance(message.get("feet"), list):
+                self.footplants[subject] = message
+                self.show_footplants(settings, subject)
         elif kind == "error":
             self.last_error = "%s: %s" % (message.get("code", "?"), message.get("message", ""))
         elif kind == "_disconnected":
             self.last_error = message.get("reason", "")
+
+    def show_footplants(self, settings, subject):
+        """Exposes a target's foot-lock state on its armature as custom properties:
+
+        - `obj["rigcast_footplants"]`: {foot bone: {"planted": 0/1, "position": (x, y, z)}}, the
+          position in the armature's space (Blender axes), where the lock pins the foot;
+        - `pose_bone["rigcast_planted"]`: 0/1 on each foot bone (usable in drivers).
+
+        Integers rather than booleans: Blender 3.4's ID properties have no boolean type.
+        """
+        message = self.footplants.get(subject)
+        if message is None:
+            return
+        for item in settings.subjects:
+            obj = item.armature
+            if item.subject_id != subject or obj is None or obj.type != "ARMATURE":
+                continue
+            state = {}
+            for foot in message["feet"]:
+                if not isinstance(foot, dict) or not isinstance(foot.get("bone"), str):
+                    continue
+                position = foot.get("position")
+                if not (isinstance(position, list) and len(position) == 3):
+                    continue
+                planted = 1 if foot.get("planted") is True else 0
+                state[foot["bone"]] = {"planted": planted, "position": tuple(vec_ours_to_blender(position))}
+                pose_bone = obj.pose.bones.get(foot["bone"])
+                if pose_bone is not None:
+                    pose_bone["rigcast_planted"] = planted
+            obj["rigcast_footplants"] = state
 
     def set_subjects(self, settings, subjects):
         assigned = {item.subject_id: item.armature for item in settings.subjects}

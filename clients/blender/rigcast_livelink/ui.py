@@ -152,6 +152,8 @@ class RIGCAST_OT_create_armature(bpy.types.Operator):
         for item in settings.subjects:
             if item.subject_id == subject_id:
                 item.armature = obj
+        # The foot-lock state arrives only on changes: show the latest one at once.
+        livelink.runtime.show_footplants(settings, subject_id)
         return {"FINISHED"}
 
 

@@ -188,6 +188,9 @@ def run(args, out):
     if args["mode"] == "mapping":
         run_mapping(out, runtime, settings, pump)
         return
+    if args["mode"] == "footplants":
+        run_footplants(out, runtime, settings, pump)
+        return
     if args["mode"] == "record_failure":
         run_record_failure(out, runtime, settings, scene, pump)
         return
@@ -318,6 +321,45 @@ def run_record_failure(out, runtime, settings, scene, pump):
     out["record_errors"] = dict(runtime.record_errors)
     out["last_error"] = runtime.last_error
     out["actions"] = describe_actions(settings)
+    bpy.ops.rigcast.disconnect()
+
+
+def run_footplants(out, runtime, settings, pump):
+    """The target's foot-lock state as the add-on exposes it: the armature's
+    `rigcast_footplants` property and each foot bone's `rigcast_planted`, sampled every tick for
+    a few seconds together with the seq of the `footplants` message behind it."""
+    targets = [item for item in settings.subjects if item.kind == "target"]
+    if not targets:
+        raise RuntimeError("the server streams no target subject")
+    target = targets[0]
+    bpy.ops.rigcast.create_armature(subject_id=target.subject_id)
+    obj = target.armature
+    samples = []
+    seen = set()
+
+    def sample():
+        message = runtime.footplants.get(target.subject_id)
+        state = obj.get("rigcast_footplants")
+        if message is None or state is None or message["seq"] in seen:
+            return False
+        seen.add(message["seq"])
+        samples.append(
+            {
+                "seq": message["seq"],
+                "property": {
+                    bone: {"planted": int(v["planted"]), "position": list(v["position"])}
+                    for bone, v in state.items()
+                },
+                "bone_planted": {
+                    bone: int(obj.pose.bones[bone].get("rigcast_planted", -1)) for bone in state.keys()
+                },
+            }
+        )
+        return False
+
+    pump(3.0, sample)
+    out["target_subject"] = target.subject_id
+    out["footplant_samples"] = samples
     bpy.ops.rigcast.disconnect()
 
 
