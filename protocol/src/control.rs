@@ -36,6 +36,10 @@ pub struct SubjectInfo {
     pub num_bones: u32,
     /// Skeleton fingerprint, 16 lowercase hex digits; changes whenever the skeleton does.
     pub fingerprint: String,
+    /// A target whose character file the server serves at `/v1/subjects/{id}/model.glb`:
+    /// `"glb"` or `"vrm"`. Absent otherwise (BVH and `.gltf` targets, built-ins, sources).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
 }
 
 /// One bone of a `skeleton` message, in the skeleton's depth-first order (`parent < index`).
@@ -411,6 +415,7 @@ mod tests {
                 source: None,
                 num_bones: 31,
                 fingerprint: "0123456789abcdef".into(),
+                model: None,
             },
             SubjectInfo {
                 id: 1,
@@ -419,6 +424,7 @@ mod tests {
                 source: Some(0),
                 num_bones: 12,
                 fingerprint: "fedcba9876543210".into(),
+                model: Some("vrm".into()),
             },
         ]
     }

@@ -56,6 +56,9 @@ pub enum Route {
     Stream,
     /// `GET /v1/status`.
     Status,
+    /// `GET /v1/subjects/{id}/model.glb`: a target's character file (the same access as the
+    /// status: it shows what the server runs).
+    Model,
     /// The viewer's embedded files.
     ViewerFile,
 }
@@ -159,7 +162,7 @@ impl AccessPolicy {
             (Some(t), _, _) if self.token.matches(t) => Ok(Access::Control),
             (Some(_), _, _) => Err(Refusal::WrongToken),
             (None, Route::ViewerFile, _) | (None, _, BindScope::Loopback) => Ok(Access::ReadOnly),
-            (None, Route::Stream | Route::Status, BindScope::Network) => {
+            (None, Route::Stream | Route::Status | Route::Model, BindScope::Network) => {
                 Err(Refusal::TokenRequired)
             }
         }

@@ -41,6 +41,7 @@ pub mod limits;
 pub mod live;
 pub mod mapper;
 pub mod mapping_store;
+pub mod model;
 pub mod performer;
 pub mod recorder;
 pub mod state;
@@ -182,6 +183,8 @@ struct LoadedTarget {
     reference: Option<rigcast_retarget::Pose>,
     /// A VRM file's humanoid map (ground truth for its roles).
     truth: Option<Vec<(String, String)>>,
+    /// The character file the viewer may fetch (binary glTF targets only).
+    model: Option<model::ModelFile>,
 }
 
 /// Loads the sources and characters, binds the listener and starts the engine. Returns once
@@ -309,7 +312,7 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             inputs,
             config.vmc_bone_names,
         );
-        let subject = Arc::new(subject.with_truth(t.truth));
+        let subject = Arc::new(subject.with_truth(t.truth).with_model(t.model));
         let overrides_file = match &p.mapping {
             Some(path) => {
                 let path2 = path.clone();
@@ -604,6 +607,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
             skeleton: skeleton.clone(),
             reference: None,
             truth: None,
+            model: None,
         }),
         TargetSpec::File(path) => {
             let text = path.to_string_lossy();
@@ -619,6 +623,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
                     skeleton: Arc::new(skeleton),
                     reference: None,
                     truth: None,
+                    model: None,
                 });
             }
             let (clip, truth) = rigcast_sources::load_clip(path)
@@ -633,6 +638,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
                 reference: clip.poses.get(clip.poses.len() / 2).cloned(),
                 skeleton: clip.skeleton,
                 truth,
+                model: model::ModelFile::for_target(path),
             })
         }
     }
