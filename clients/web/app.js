@@ -7,7 +7,7 @@ import * as THREE from 'three';
 import { Stream, WANTED_PROTOCOL_VERSION } from './stream.js';
 import { Graph } from './graph.js';
 import { ModelView } from './model.js';
-import { CameraRig, FrameBudget } from './controls.js';
+import { CameraRig, FrameBudget, softwareRendered } from './controls.js';
 
 const KIND_COLORS = { source: 0x4fc3f7, target: 0xff8a65 };
 const $ = (id) => document.getElementById(id);
@@ -39,7 +39,9 @@ window.rigcast = state; // for tests and the curious (devtools)
 
 // -- three.js scene ------------------------------------------------------------------------
 const canvas = $('scene');
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+// No MSAA on a CPU rasteriser: it multiplies the per-pixel cost (see controls.js).
+const software = softwareRendered();
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: !software, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio || 1);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x15171c);
@@ -53,7 +55,7 @@ keyLight.position.set(2, 4, 3);
 scene.add(keyLight);
 const rig = new CameraRig(camera, canvas);
 const budget = new FrameBudget(renderer);
-state.perf = () => budget.report();
+state.perf = () => ({ ...budget.report(), software });
 const labelLayer = $('labels');
 
 function nowNanos() {
@@ -424,7 +426,7 @@ function rebuildView(id) {
 /** Fetches a target's model (only offered for targets whose file the server serves). */
 function loadModel(id, view, skeleton) {
   const url = `/v1/subjects/${id}/model.glb${streamQuery}`;
-  ModelView.load(url, skeleton.bones).then((model) => {
+  ModelView.load(url, skeleton.bones, { cheap: software }).then((model) => {
     if (view.disposed) return; // a newer skeleton replaced this view meanwhile
     if (model.numBound === 0) throw new Error('no node of the model matches a bone of the skeleton');
     view.attachModel(model);
@@ -611,6 +613,7 @@ $('show-meshes').onchange = (event) => {
 };
 $('pause').onclick = () => {
   state.paused = !state.paused;
+  budget.frozen = state.paused; // a paused view keeps its resolution (screenshots compare)
   $('pause').textContent = state.paused ? 'resume' : 'pause';
   $('pause').classList.toggle('on', state.paused);
 };
@@ -664,6 +667,8 @@ setInterval(() => {
 let lastDraw = performance.now();
 function draw() {
   const start = performance.now();
+  requestAnimationFrame(draw);
+  if (!budget.due(start)) return; // leave the main thread to the stream (see FrameBudget)
   const dt = Math.min((start - lastDraw) / 1000, 0.1);
   lastDraw = start;
   // Paused: frames keep arriving (and are counted) but the pose on screen stays.
@@ -698,8 +703,7 @@ function draw() {
   counter.textContent = String(state.framesReceived);
   counter.dataset.frames = String(state.framesReceived);
   document.title = `rigcast viewer — ${state.framesReceived} frames`;
-  budget.tick(start, performance.now() - start);
-  requestAnimationFrame(draw);
+  budget.rendered(start, performance.now() - start);
 }
 resize();
 requestAnimationFrame(draw);

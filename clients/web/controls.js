@@ -49,11 +49,32 @@ export class CameraRig {
 }
 
 /**
- * Watches how long display frames take and trades resolution for rate: when the mean frame
- * interval stays above the budget (a 60 Hz stream wants a frame at least every ~33 ms to look
- * smooth), the canvas renders at a lower pixel ratio, down to `minRatio`; when frames are
- * quick again the ratio climbs back. Software rasterisers (no GPU) spend their time per pixel,
- * so this is the lever that works there; label placement is thinned too.
+ * Whether WebGL runs on a CPU rasteriser (SwiftShader, llvmpipe): such a renderer spends its
+ * time per pixel and per MSAA sample, so the viewer draws without antialiasing there.
+ */
+export function softwareRendered() {
+  try {
+    const gl = document.createElement('canvas').getContext('webgl2') ?? document.createElement('canvas').getContext('webgl');
+    if (!gl) return true;
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    const name = String(info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER));
+    gl.getExtension('WEBGL_lose_context')?.loseContext();
+    return /swiftshader|llvmpipe|software|softpipe/i.test(name);
+  } catch {
+    return true;
+  }
+}
+
+/**
+ * The frame-time budget. A stream is smooth when poses reach the screen promptly at a steady
+ * rate; on a slow (software) renderer two things break that. Rendering every display frame
+ * leaves the page no time to read the socket, so frames queue in the browser and latency
+ * grows by seconds; and each frame costs per pixel. So: (1) a render is skipped until the
+ * time since the previous one is at least twice what that render took, which keeps half the
+ * main thread for the stream (newest frame per subject wins, so nothing piles up); (2) when
+ * renders stay slower than the budget (a 60 Hz stream wants ~30 per second at least), the
+ * canvas renders at a lower pixel ratio, down to `minRatio`, and climbs back when renders are
+ * quick again; (3) label placement (DOM work) is thinned while over budget.
  */
 export class FrameBudget {
   constructor(renderer, { budgetMs = 33, minRatio = 0.5 } = {}) {
@@ -62,24 +83,39 @@ export class FrameBudget {
     this.minRatio = minRatio;
     this.maxRatio = Math.min(window.devicePixelRatio || 1, 2);
     this.ratio = this.maxRatio;
-    this.meanMs = 1000 / 60;
-    this.renderMs = 0;
-    this.last = null;
-    this.frames = 0;
+    this.intervalMs = 1000 / 60; // mean time between renders
+    this.renderMs = 0; // mean time a render takes
+    this.lastRender = null;
+    this.renders = 0;
     this.sinceChange = 0;
+    this.rendersPerSecond = 0;
+    this.windowStart = performance.now();
+    this.windowRenders = 0;
+    this.frozen = false; // keep the resolution (a paused, inspected view)
   }
 
-  /** Call once per display frame with the time spent drawing it. */
-  tick(now, renderMs) {
-    if (this.last !== null) this.meanMs = 0.9 * this.meanMs + 0.1 * (now - this.last);
-    this.renderMs = 0.9 * this.renderMs + 0.1 * renderMs;
-    this.last = now;
-    this.frames++;
+  /** Whether to render at this display frame. */
+  due(now) {
+    return this.lastRender === null || now - this.lastRender >= 2 * this.renderMs;
+  }
+
+  /** Call after each render with its start time and duration. */
+  rendered(now, renderMs) {
+    if (this.lastRender !== null) this.intervalMs = 0.9 * this.intervalMs + 0.1 * (now - this.lastRender);
+    this.renderMs = this.renders === 0 ? renderMs : 0.9 * this.renderMs + 0.1 * renderMs;
+    this.lastRender = now;
+    this.renders++;
+    this.windowRenders++;
+    if (now - this.windowStart >= 1000) {
+      this.rendersPerSecond = (1000 * this.windowRenders) / (now - this.windowStart);
+      this.windowStart = now;
+      this.windowRenders = 0;
+    }
     this.sinceChange++;
-    if (this.sinceChange < 30) return; // let a change show its effect first
+    if (this.sinceChange < 5 || this.frozen) return; // let a change show its effect first
     let next = this.ratio;
-    if (this.meanMs > this.budgetMs && this.ratio > this.minRatio) next = Math.max(this.minRatio, this.ratio * 0.75);
-    else if (this.meanMs < this.budgetMs * 0.6 && this.ratio < this.maxRatio) next = Math.min(this.maxRatio, this.ratio / 0.75);
+    if (this.intervalMs > this.budgetMs && this.ratio > this.minRatio) next = Math.max(this.minRatio, this.ratio * 0.75);
+    else if (this.intervalMs < this.budgetMs * 0.5 && this.ratio < this.maxRatio) next = Math.min(this.maxRatio, this.ratio / 0.75);
     if (next !== this.ratio) {
       this.ratio = next;
       this.sinceChange = 0;
@@ -89,13 +125,18 @@ export class FrameBudget {
     }
   }
 
-  /** Labels are DOM work: place them every frame only while within budget. */
+  /** Labels are DOM work: place them at every render only while within budget. */
   labelsDue() {
-    return this.meanMs <= this.budgetMs || this.frames % 4 === 0;
+    return this.intervalMs <= this.budgetMs || this.renders % 3 === 0;
   }
 
   report() {
-    return { frameMs: this.meanMs, renderMs: this.renderMs, pixelRatio: this.ratio, budgetMs: this.budgetMs };
+    return {
+      frameMs: this.intervalMs,
+      renderMs: this.renderMs,
+      rendersPerSecond: this.rendersPerSecond,
+      pixelRatio: this.ratio,
+      budgetMs: this.budgetMs,
+    };
   }
 }
-

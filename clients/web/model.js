@@ -23,12 +23,14 @@ function serverNames(json) {
 
 export class ModelView {
   /** Loads `url`; `bones` is the subject's skeleton message `bones`. Rejects on a bad file. */
-  static async load(url, bones) {
+  static async load(url, bones, { cheap = false } = {}) {
     const gltf = await loader.loadAsync(url);
-    return new ModelView(gltf, bones);
+    return new ModelView(gltf, bones, cheap);
   }
 
-  constructor(gltf, bones) {
+  /** `cheap`: replace physically based materials by Lambert ones (same colour and texture),
+   *  several times cheaper per pixel on a CPU rasteriser; VRM's MToon stays. */
+  constructor(gltf, bones, cheap = false) {
     this.vrm = gltf.userData.vrm ?? null;
     this.root = this.vrm ? this.vrm.scene : gltf.scene;
     if (this.vrm) {
@@ -64,6 +66,7 @@ export class ModelView {
     this.local = new THREE.Matrix4();
     this.skinnedMeshes = [];
     this.root.traverse((object) => {
+      if (cheap && object.isMesh) object.material = cheapen(object.material);
       if (object.isSkinnedMesh) {
         this.skinnedMeshes.push(object);
         // Bounds are those of the rest pose; a walking character leaves them.
@@ -101,4 +104,23 @@ export class ModelView {
     mesh.skeleton.update();
     return Array.from(mesh.skeleton.boneMatrices.slice(0, 16 * Math.min(mesh.skeleton.bones.length, 8)));
   }
+}
+
+/** A Lambert stand-in for a PBR material (or a list of them). */
+function cheapen(material) {
+  if (Array.isArray(material)) return material.map(cheapen);
+  if (!material?.isMeshStandardMaterial) return material;
+  const lambert = new THREE.MeshLambertMaterial({
+    color: material.color,
+    map: material.map,
+    emissive: material.emissive,
+    emissiveMap: material.emissiveMap,
+    transparent: material.transparent,
+    opacity: material.opacity,
+    alphaTest: material.alphaTest,
+    side: material.side,
+    vertexColors: material.vertexColors,
+  });
+  lambert.name = material.name;
+  return lambert;
 }

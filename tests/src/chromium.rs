@@ -29,7 +29,10 @@ impl Drop for Browser {
 }
 
 pub fn launch_chromium(chromium: &Path) -> (Browser, String) {
-    let profile = std::env::temp_dir().join(format!("rigcast-chromium-{}", std::process::id()));
+    // Several browsers of one test process must not share a profile (Chromium refuses).
+    static LAUNCHES: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let n = LAUNCHES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let profile = std::env::temp_dir().join(format!("rigcast-chromium-{}-{n}", std::process::id()));
     let _ = std::fs::remove_dir_all(&profile);
     let mut child = Command::new(chromium)
         .args([
