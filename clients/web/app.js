@@ -190,8 +190,9 @@ class SubjectView {
     if (this.model) this.model.root.visible = state.showMeshes;
   }
 
-  /** A marker on the floor under each planted foot (positions from the footplants message,
-   *  in the subject's space; moved with the in-place shift like the pose). */
+  /** A marker on the floor under each planted foot. It sits under the foot as drawn: the
+   *  message's position is where the foot was when it planted, and the lock then eases it onto
+   *  its pin over ~0.1 s (a few cm); the message position is the fallback. */
   setFootplants(message) {
     const seen = new Set();
     for (const foot of message.feet ?? []) {
@@ -209,7 +210,8 @@ class SubjectView {
         this.markers.set(foot.bone, marker);
       }
       marker.userData.foot = foot;
-      marker.visible = foot.planted === true;
+      // Before the first live pose the skeleton stands at rest, wherever that is: no marker.
+      marker.visible = foot.planted === true && this.placedLive === true;
     }
     for (const [bone, marker] of this.markers) if (!seen.has(bone)) marker.visible = false;
     this.placeMarkers();
@@ -219,7 +221,10 @@ class SubjectView {
     for (const marker of this.markers.values()) {
       const p = marker.userData.foot?.position;
       if (!p) continue;
-      marker.position.set(p[0] - this.shift.dx, this.floorY + 0.002, p[2] - this.shift.dz);
+      marker.visible = marker.userData.foot.planted === true && this.placedLive === true;
+      const i = marker.userData.index ?? (marker.userData.index = this.bones.findIndex((b) => b.name === marker.userData.foot.bone));
+      if (i >= 0 && this.placedLive) marker.position.set(this.worldP[i].x, this.floorY + 0.002, this.worldP[i].z);
+      else marker.position.set(p[0] - this.shift.dx, this.floorY + 0.002, p[2] - this.shift.dz);
     }
   }
 
@@ -329,7 +334,14 @@ state.footMarkers = () => {
   for (const [id, view] of state.views) {
     out[id] = [...view.markers].map(([bone, m]) => {
       const p = m.getWorldPosition(new THREE.Vector3());
-      return { bone, visible: m.visible, planted: m.userData.foot?.planted === true, position: [p.x, p.y, p.z] };
+      const i = view.bones.findIndex((b) => b.name === bone);
+      const j = i >= 0 ? view.worldP[i].clone().add(view.group.position) : null;
+      const f = m.userData.foot?.position;
+      const message = f && [f[0] - view.shift.dx + view.group.position.x, f[1], f[2] - view.shift.dz + view.group.position.z];
+      return {
+        bone, visible: m.visible, planted: m.userData.foot?.planted === true, message,
+        position: [p.x, p.y, p.z], joint: j && [j.x, j.y, j.z], floor: view.floorY + view.group.position.y,
+      };
     });
   }
   return out;
@@ -470,6 +482,7 @@ function onMessage(message) {
       break;
     case 'protocol':
       state.protocolVersion = message.version;
+      $('server-version').textContent = `server ${state.hello?.server_version ?? '?'} · protocol ${message.version} · tick ${state.hello?.tick_hz} Hz`;
       break;
     case 'mapping':
       state.mappings.set(message.subject, message);
