@@ -1033,6 +1033,66 @@ fn blender_addon_unit_tests_pass() {
     assert!(log.contains(" passed, 0 failed"), "no test summary:\n{log}");
 }
 
+/// The extensions platform's own validator (`blender_ext.py validate`, shipped inside Blender
+/// 4.2+) accepts the built zip's `blender_manifest.toml`, in 4.5 and 5.0.
+#[test]
+fn extension_manifest_passes_blenders_validator() {
+    let Some(python3) = find_app("python3") else {
+        return;
+    };
+    let work = work_dir();
+    let zip = work.join("rigcast_livelink.zip");
+    let built = Command::new(&python3)
+        .arg(repo_root().join("clients/blender/build_zip.py"))
+        .arg("--out")
+        .arg(&zip)
+        .output()
+        .expect("python3 runs");
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    for series in ["4.5", "5.0"] {
+        let Some(Blender::Module { python, .. }) = Blender::module(series) else {
+            continue;
+        };
+        let site = python.parent().unwrap().parent().unwrap().join("lib");
+        let validator = std::fs::read_dir(&site)
+            .unwrap()
+            .filter_map(Result::ok)
+            .map(|d| {
+                d.path().join(format!(
+                    "site-packages/bpy/{series}/scripts/addons_core/bl_pkg/cli/blender_ext.py"
+                ))
+            })
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| {
+                panic!(
+                    "no blender_ext.py in the bpy {series} wheel under {}",
+                    site.display()
+                )
+            });
+        let out = Command::new(&python)
+            .arg(&validator)
+            .arg("validate")
+            .arg(&zip)
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        println!("Blender {series} validator: {}", text.trim());
+        assert!(
+            out.status.success() && text.contains("Success"),
+            "Blender {series} rejects the manifest: {text}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&work);
+}
+
 /// Asserts that the add-on's mapping list (from the in-Blender script) equals a `mapping`
 /// message's entries: same rows in the same order, same bones, scores and colours.
 fn assert_list_equals_message(list: &Value, message: &Value, what: &str) {
