@@ -127,8 +127,19 @@ async fn viewer_draws_the_glb_target_skinned() {
         return;
     };
     let _one = ONE_BROWSER.lock().await;
-    let Some(xbot) = shared_data(XBOT) else {
-        return;
+    // X Bot when the shared characters are here, else a skinned GLB of the mannequin made
+    // by the tests (tests/src/skinned.rs).
+    let fixture_dir = rigcast_tests::temp_path("skinned");
+    let (xbot, name) = match shared_data(XBOT) {
+        Some(path) => (path, "mixamo_gltf__Xbot"),
+        None => {
+            std::fs::create_dir_all(&fixture_dir).unwrap();
+            let path = fixture_dir.join("skinned_mannequin.glb");
+            let skeleton = rigcast_server::character::builtin("mannequin").unwrap();
+            std::fs::write(&path, rigcast_tests::skinned::skinned_glb(&skeleton)).unwrap();
+            eprintln!("using the project's skinned GLB {} instead", path.display());
+            (path, "skinned_mannequin")
+        }
     };
     // Two skinned characters on one 60 Hz stream (the frame budget's case).
     let server = serve(&[&xbot, &xbot]).await;
@@ -138,8 +149,8 @@ async fn viewer_draws_the_glb_target_skinned() {
         .as_array()
         .unwrap()
         .iter()
-        .find(|s| s["name"] == "mixamo_gltf__Xbot")
-        .expect("the X Bot target")["id"]
+        .find(|s| s["name"] == name)
+        .expect("the skinned target")["id"]
         .as_u64()
         .unwrap() as u32;
 
@@ -227,8 +238,8 @@ async fn viewer_draws_the_glb_target_skinned() {
         mesh_png, stick_png,
         "the screenshot with the mesh equals the stick-figure one"
     );
-    // The X Bot stands ~2/3 of the view high: its body covers a few percent of the canvas
-    // (whatever resolution the frame budget chose).
+    // The character stands ~2/3 of the view high: its body covers a few percent of the
+    // canvas (whatever resolution the frame budget chose).
     assert!(
         changed as f64 > 0.01 * total as f64,
         "the mesh hardly shows: {changed} of {total} pixels differ"
@@ -237,6 +248,7 @@ async fn viewer_draws_the_glb_target_skinned() {
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let _ = std::fs::remove_dir_all(&fixture_dir);
 }
 
 /// Adds a `VRMC_vrm` (VRM 1.0) extension with X Bot's humanoid bones to the GLB: a VRM
