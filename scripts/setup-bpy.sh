@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Prepares Blender-as-a-Python-module for the add-on test matrix: one private venv per Blender
 # version, each holding the official `bpy` wheel from PyPI (CPython 3.11 wheels exist for the
-# 4.5 LTS and 5.0 series).
+# 4.2 LTS, 4.5 LTS and 5.0 series). 4.2 is the first with the extensions platform and still
+# has only legacy Actions; 4.5 has layered Actions beside the old API; 5.0 only layered ones.
 #
 #   $RIGCAST_HOME/bpy/<series>/venv/bin/python   (RIGCAST_HOME defaults to ~/.cache/rigcast)
 #
@@ -17,7 +18,7 @@ if [[ "${RIGCAST_SKIP_APPS:-0}" == "1" ]]; then
 fi
 
 # series → exact pinned release (pinned so every run tests the same Blender).
-VERSIONS=("4.5=4.5.15" "5.0=5.0.1")
+VERSIONS=("4.2=4.2.23" "4.5=4.5.15" "5.0=5.0.1")
 ROOT="${RIGCAST_HOME:-$HOME/.cache/rigcast}/bpy"
 PYTHON="${RIGCAST_BPY_PYTHON:-python3}"
 

@@ -86,7 +86,7 @@ pub fn skinned_glb(skeleton: &Skeleton) -> Vec<u8> {
     let mut bin = Vec::new();
     let mut views = Vec::new();
     let mut view = |bin: &mut Vec<u8>, bytes: Vec<u8>, target: Option<u32>| {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let mut v = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
@@ -109,7 +109,7 @@ pub fn skinned_glb(skeleton: &Skeleton) -> Vec<u8> {
     let weight_view = view(&mut bin, f32s(&weights.concat()), Some(34962));
     let index_view = view(&mut bin, u16s(&indices), Some(34963));
     let ibm_view = view(&mut bin, f32s(&ibm), None);
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let count = positions.len();
@@ -133,7 +133,7 @@ pub fn skinned_glb(skeleton: &Skeleton) -> Vec<u8> {
         "buffers": [{ "byteLength": bin.len() }],
     });
     let mut json_bytes = serde_json::to_vec(&doc).unwrap();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let mut out = Vec::new();

@@ -489,26 +489,31 @@ macro_rules! matrix {
 
 matrix!(applies_and_records_the_live_stream:
     blender_3_4_applies_and_records_the_live_stream => Blender::app(),
+    blender_4_2_applies_and_records_the_live_stream => Blender::module("4.2"),
     blender_4_5_applies_and_records_the_live_stream => Blender::module("4.5"),
     blender_5_0_applies_and_records_the_live_stream => Blender::module("5.0"),
 );
 matrix!(survives_a_failing_take:
     blender_3_4_survives_a_failing_take => Blender::app(),
+    blender_4_2_survives_a_failing_take => Blender::module("4.2"),
     blender_4_5_survives_a_failing_take => Blender::module("4.5"),
     blender_5_0_survives_a_failing_take => Blender::module("5.0"),
 );
 matrix!(exposes_the_footplants:
     blender_3_4_exposes_the_footplants => Blender::app(),
+    blender_4_2_exposes_the_footplants => Blender::module("4.2"),
     blender_4_5_exposes_the_footplants => Blender::module("4.5"),
     blender_5_0_exposes_the_footplants => Blender::module("5.0"),
 );
 matrix!(shows_and_overrides_the_server_mapping:
     blender_3_4_shows_and_overrides_the_server_mapping => Blender::app(),
+    blender_4_2_shows_and_overrides_the_server_mapping => Blender::module("4.2"),
     blender_4_5_shows_and_overrides_the_server_mapping => Blender::module("4.5"),
     blender_5_0_shows_and_overrides_the_server_mapping => Blender::module("5.0"),
 );
 matrix!(zip_connects_to_the_rigcast_binary:
     blender_3_4_zip_connects_to_the_rigcast_binary => Blender::app(),
+    blender_4_2_zip_connects_to_the_rigcast_binary => Blender::module("4.2"),
     blender_4_5_zip_connects_to_the_rigcast_binary => Blender::module("4.5"),
     blender_5_0_zip_connects_to_the_rigcast_binary => Blender::module("5.0"),
 );
@@ -1034,7 +1039,7 @@ fn blender_addon_unit_tests_pass() {
 }
 
 /// The extensions platform's own validator (`blender_ext.py validate`, shipped inside Blender
-/// 4.2+) accepts the built zip's `blender_manifest.toml`, in 4.5 and 5.0.
+/// 4.2+) accepts the built zip's `blender_manifest.toml`, in 4.2, 4.5 and 5.0.
 #[test]
 fn extension_manifest_passes_blenders_validator() {
     let Some(python3) = find_app("python3") else {
@@ -1053,7 +1058,7 @@ fn extension_manifest_passes_blenders_validator() {
         "{}",
         String::from_utf8_lossy(&built.stderr)
     );
-    for series in ["4.5", "5.0"] {
+    for series in ["4.2", "4.5", "5.0"] {
         let Some(Blender::Module { python, .. }) = Blender::module(series) else {
             continue;
         };

@@ -302,7 +302,7 @@ fn xbot_as_vrm(glb: &[u8]) -> Vec<u8> {
         "humanoid": { "humanBones": human },
     });
     let mut json_bytes = serde_json::to_vec(&doc).unwrap();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let rest = &glb[20 + json_len..]; // the BIN chunk, unchanged

@@ -101,6 +101,12 @@ def main():
         print(out["error"], file=sys.stderr)
     with open(args["out"], "w") as handle:
         json.dump(out, handle)
+    if os.path.basename(sys.argv[0]) == os.path.basename(__file__):
+        # Module mode (python run_in_blender.py): the bpy 4.2 wheel segfaults while the
+        # interpreter tears the module down, after all the work is done; leave without it.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0 if out["ok"] else 1)
     if not out["ok"]:
         sys.exit(1)
 
