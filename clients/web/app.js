@@ -56,6 +56,7 @@ scene.add(keyLight);
 const rig = new CameraRig(camera, canvas);
 const budget = new FrameBudget(renderer);
 state.perf = () => ({ ...budget.report(), software });
+state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
 const labelLayer = $('labels');
 
 function nowNanos() {

@@ -5,7 +5,8 @@
 //!   foot (right below the foot's drawn joint) and disappears when the foot lifts, each foot
 //!   seen both ways; the page's markers follow the server's `footplants` messages;
 //! - source lost: a VMC source whose sender stops turns `lost`, and the target's label says
-//!   "source lost" (and its bones dim) until the sender returns.
+//!   "source lost" (and its bones dim) until the sender returns;
+//! - controls: pause, the subject picker, follow and orbit (see the last test).
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashSet;
@@ -218,6 +219,153 @@ async fn viewer_says_when_a_targets_source_is_lost() {
     );
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
     sender.join().unwrap();
+    assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
+    let _ = cdp.call("Browser.close", json!({})).await;
+    drop(browser);
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+}
+
+/// The viewer's controls on the default demo: pause holds the drawn pose while frames keep
+/// arriving; the subject picker shows one subject alone; follow keeps the camera's offset to
+/// the followed subject's hips while they travel; dragging on the canvas orbits the camera,
+/// after which layouts no longer reframe it, until "reset view".
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn viewer_controls_pause_pick_follow_and_orbit() {
+    let Some(chromium) = find_app("chromium") else {
+        return;
+    };
+    let _one = ONE_BROWSER.lock().await;
+    let server = rigcast_tests::start_demo_server().await;
+    let (browser, mut cdp) =
+        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(30)
+        && cdp.eval("window.rigcast?.views?.get(1)?.placedLive === true && window.rigcast.views.get(0).placedLive === true").await != true
+    {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let pose = "JSON.stringify(window.rigcast.views.get(1).worldP.map(p => p.toArray()))";
+    let frames = "window.rigcast.framesReceived";
+
+    // Pause: the drawn pose stays, frames keep arriving.
+    cdp.eval("document.getElementById('pause').click()").await;
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let (p0, f0) = (
+        cdp.eval_json(pose).await,
+        cdp.eval(frames).await.as_u64().unwrap(),
+    );
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    let (p1, f1) = (
+        cdp.eval_json(pose).await,
+        cdp.eval(frames).await.as_u64().unwrap(),
+    );
+    assert_eq!(p0, p1, "the pose moved while paused");
+    assert!(
+        f1 > f0 + 30,
+        "frames stopped arriving while paused ({f0} → {f1})"
+    );
+    cdp.eval("document.getElementById('pause').click()").await;
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    assert_ne!(cdp.eval_json(pose).await, p1, "the pose did not resume");
+
+    // Subject picker: subject 1 alone.
+    let pick = |v: &str| {
+        format!("(() => {{ const s = document.getElementById('show-subject'); s.value = '{v}'; s.dispatchEvent(new Event('change')); return s.value; }})()")
+    };
+    assert_eq!(cdp.eval(&pick("1")).await, "1");
+    let visible = cdp
+        .eval_json(
+            "JSON.stringify([...window.rigcast.views].map(([id, v]) => [id, v.group.visible]))",
+        )
+        .await;
+    assert_eq!(
+        visible,
+        json!([[0, false], [1, true]]),
+        "picker shows subject 1 alone"
+    );
+    assert_eq!(cdp.eval(&pick("")).await, "");
+
+    // Follow subject 0 with root travel shown: the camera keeps its offset to the hips.
+    cdp.eval("(() => { const c = document.getElementById('in-place'); c.checked = false; c.dispatchEvent(new Event('change')); return true; })()").await;
+    cdp.eval("(() => { const s = document.getElementById('follow'); s.value = '0'; s.dispatchEvent(new Event('change')); return true; })()").await;
+    let probe = "JSON.stringify((() => { const v = window.rigcast.views.get(0); const h = v.worldP[v.anchor].clone().add(v.group.position); const c = window.rigcast.camera(); return { hips: h.toArray(), ...c }; })())";
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let a = cdp.eval_json(probe).await;
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let b = cdp.eval_json(probe).await;
+    let v = |x: &serde_json::Value, k: &str| -> Vec<f64> {
+        x[k].as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_f64().unwrap())
+            .collect()
+    };
+    let travel: f64 = (0..3)
+        .map(|i| (v(&b, "hips")[i] - v(&a, "hips")[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let camera_moved: f64 = (0..3)
+        .map(|i| (v(&b, "position")[i] - v(&a, "position")[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    println!("viewer: followed hips travelled {travel:.3} m, camera {camera_moved:.3} m");
+    // The camera moves with the hips as of the last drawn frame; the probe reads both at once,
+    // but the hips may have been drawn once more than the camera updated: allow one frame.
+    for k in ["position", "target"] {
+        let offset_a: Vec<f64> = (0..3).map(|i| v(&a, k)[i] - v(&a, "hips")[i]).collect();
+        let offset_b: Vec<f64> = (0..3).map(|i| v(&b, k)[i] - v(&b, "hips")[i]).collect();
+        let drift: f64 = (0..3)
+            .map(|i| (offset_a[i] - offset_b[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            drift < 0.05,
+            "camera {k} offset to the hips drifted {drift} m (hips travelled {travel} m)"
+        );
+    }
+    // The demo walks nearly on the spot; its hips still sway and bob by centimetres.
+    assert!(travel > 0.01, "the followed hips did not move ({travel} m)");
+    assert!(
+        (camera_moved - travel).abs() < 0.02,
+        "camera moved {camera_moved} m, hips {travel} m"
+    );
+    cdp.eval("(() => { const s = document.getElementById('follow'); s.value = ''; s.dispatchEvent(new Event('change')); return true; })()").await;
+
+    // Orbit: drag across the canvas.
+    let before = cdp
+        .eval_json("JSON.stringify(window.rigcast.camera())")
+        .await;
+    for (kind, x) in [
+        ("mousePressed", 600.0),
+        ("mouseMoved", 650.0),
+        ("mouseMoved", 700.0),
+        ("mouseMoved", 760.0),
+        ("mouseReleased", 760.0),
+    ] {
+        cdp.call(
+            "Input.dispatchMouseEvent",
+            json!({ "type": kind, "x": x, "y": 400.0, "button": "left", "buttons": if kind == "mouseReleased" { 0 } else { 1 }, "clickCount": 1 }),
+        )
+        .await;
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let after = cdp
+        .eval_json("JSON.stringify(window.rigcast.camera())")
+        .await;
+    assert_eq!(
+        after["userMoved"], true,
+        "the drag did not reach the orbit controls"
+    );
+    assert_ne!(
+        before["position"], after["position"],
+        "the camera did not orbit"
+    );
+    cdp.eval("document.getElementById('reset-view').click()")
+        .await;
+    let reset = cdp
+        .eval_json("JSON.stringify(window.rigcast.camera())")
+        .await;
+    assert_eq!(reset["userMoved"], false);
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
