@@ -131,13 +131,3 @@ class Take:
         self.channels.bind(self.obj)
         return self.action
 
-
-def iter_fcurves(action):
-    """Every F-curve of an Action, on either API (used by tests and tools)."""
-    if has_layered_actions():
-        for layer in action.layers:
-            for strip in layer.strips:
-                for bag in strip.channelbags:
-                    yield from bag.fcurves
-        return
-    yield from action.fcurves
