@@ -283,7 +283,13 @@ class SubjectView {
       const y = ((1 - v.y) / 2) * height;
       // Skip a label that would overprint one already placed this frame (readability); labels
       // are centred on x, so two overlap when their centres are closer than half their widths.
-      const labelWidth = label.textContent.length * 6.5 + 8;
+      // Measured once per text (a layout read each frame would cost more than the labels).
+      if (label.measuredText !== label.textContent) {
+        label.style.display = 'block';
+        label.measuredWidth = label.offsetWidth || label.textContent.length * 6.5 + 8;
+        label.measuredText = label.textContent;
+      }
+      const labelWidth = label.measuredWidth;
       const crowded = placed.some(([px, py, pw]) => Math.abs(px - x) < (pw + labelWidth) / 2 && Math.abs(py - y) < 13);
       const visible = v.z < 1 && Math.abs(v.x) <= 1.1 && Math.abs(v.y) <= 1.1 && !crowded;
       label.style.display = visible ? 'block' : 'none';
