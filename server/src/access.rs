@@ -333,9 +333,12 @@ mod tests {
         let none = creds(Some("192.168.1.5:8717"), None, None);
         assert_eq!(p.decide(Route::Stream, &none), Err(Refusal::TokenRequired));
         assert_eq!(p.decide(Route::Status, &none), Err(Refusal::TokenRequired));
+        // A target's model file shows what the server runs: data, like the status.
+        assert_eq!(p.decide(Route::Model, &none), Err(Refusal::TokenRequired));
         assert_eq!(p.decide(Route::ViewerFile, &none), Ok(Access::ReadOnly));
         let with = creds(Some("192.168.1.5:8717"), None, Some(token.reveal()));
         assert_eq!(p.decide(Route::Stream, &with), Ok(Access::Control));
+        assert_eq!(p.decide(Route::Model, &with), Ok(Access::Control));
         assert_eq!(
             BindScope::of(&"0.0.0.0:1".parse().unwrap()),
             BindScope::Network
