@@ -11,7 +11,8 @@
 //! - VRM: the same character turned into a VRM 1.0 file (the `VRMC_vrm` extension with its
 //!   humanoid bones added to the GLB's JSON); the page renders it through three-vrm.
 //! - Bad requests: an unknown subject, a target without a model file and a non-numeric id are
-//!   404s that say why.
+//!   404s that say why; a model the browser cannot decode (Draco-compressed) leaves the stick
+//!   figure and the subject list says why.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -391,4 +392,79 @@ async fn model_requests_without_a_model_are_404s_that_say_why() {
     let (_, status) = http_get(addr, "/v1/status").await;
     assert!(!status.contains("model.glb"));
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+}
+
+/// A model the browser cannot decode (here: one that requires Draco mesh compression, which
+/// the server reads past but the viewer has no decoder for) leaves the stick figure, and the
+/// subject list says why; the page throws nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
+    let Some(chromium) = find_app("chromium") else {
+        return;
+    };
+    let _one = ONE_BROWSER.lock().await;
+    let skeleton = rigcast_server::character::builtin("mannequin").unwrap();
+    let glb = rigcast_tests::skinned::skinned_glb(&skeleton);
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    doc["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    doc["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    let mut json_bytes = serde_json::to_vec(&doc).unwrap();
+    while !json_bytes.len().is_multiple_of(4) {
+        json_bytes.push(b' ');
+    }
+    let rest = &glb[20 + json_len..];
+    let mut out = b"glTF".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((20 + json_bytes.len() + rest.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json_bytes);
+    out.extend_from_slice(rest);
+    let dir = rigcast_tests::temp_path("draco");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("compressed.glb");
+    std::fs::write(&path, out).unwrap();
+
+    let server = serve(&[&path]).await;
+    let url = format!("http://{}/", server.local_addr());
+    let (browser, mut cdp) = DevTools::open(&chromium, &url).await;
+    let start = Instant::now();
+    let mut error = Value::Null;
+    while start.elapsed() < Duration::from_secs(30) {
+        error = cdp
+            .eval_json("JSON.stringify(window.rigcast?.modelErrors?.get(1) ?? null)")
+            .await;
+        if !error.is_null() {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    let message = error
+        .as_str()
+        .unwrap_or_else(|| panic!("no model error reported: {error}"));
+    assert!(message.to_lowercase().contains("draco"), "{message}");
+    let page = cdp
+        .eval_json(
+            "JSON.stringify({ meshes: window.rigcast.meshes(), overlay: window.rigcast.views.get(1).overlay.visible, \
+              note: document.querySelector('#subjects li[data-subject=\"1\"] .model')?.textContent })",
+        )
+        .await;
+    println!("viewer: model not loadable: {page}");
+    assert_eq!(page["meshes"], json!({}), "no mesh attached");
+    assert_eq!(page["overlay"], true, "the stick figure stays");
+    assert!(
+        page["note"].as_str().unwrap().contains("not shown"),
+        "{page}"
+    );
+    let thrown: Vec<&Value> = cdp
+        .events
+        .iter()
+        .filter(|e| e["method"] == "Runtime.exceptionThrown")
+        .collect();
+    assert!(thrown.is_empty(), "page threw: {thrown:?}");
+    let _ = cdp.call("Browser.close", json!({})).await;
+    drop(browser);
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let _ = std::fs::remove_dir_all(&dir);
 }
