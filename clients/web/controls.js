@@ -96,6 +96,7 @@ export class FrameBudget {
 
   /** Whether to render at this display frame. */
   due(now) {
+    this.windowFrames = (this.windowFrames ?? 0) + 1;
     return this.lastRender === null || now - this.lastRender >= 2 * this.renderMs;
   }
 
@@ -108,6 +109,10 @@ export class FrameBudget {
     this.windowRenders++;
     if (now - this.windowStart >= 1000) {
       this.rendersPerSecond = (1000 * this.windowRenders) / (now - this.windowStart);
+      // Display frames the browser offered (rendered or skipped): below 60 the browser itself
+      // (compositing, a CPU rasteriser in the GPU process) is the limit, not the page.
+      this.displayFramesPerSecond = (1000 * this.windowFrames) / (now - this.windowStart);
+      this.windowFrames = 0;
       this.windowStart = now;
       this.windowRenders = 0;
     }
@@ -135,6 +140,7 @@ export class FrameBudget {
       frameMs: this.intervalMs,
       renderMs: this.renderMs,
       rendersPerSecond: this.rendersPerSecond,
+      displayFramesPerSecond: this.displayFramesPerSecond ?? 0,
       pixelRatio: this.ratio,
       budgetMs: this.budgetMs,
     };
