@@ -311,6 +311,14 @@ class SubjectView {
 
   dispose() {
     this.disposed = true;
+    // A rebuilt view loads its model again: free this one's GPU buffers and textures.
+    this.model?.root.traverse((object) => {
+      object.geometry?.dispose();
+      for (const material of [object.material ?? []].flat()) {
+        for (const value of Object.values(material)) if (value?.isTexture) value.dispose();
+        material.dispose?.();
+      }
+    });
     this.subjectLabel.remove();
     for (const [, label] of this.boneLabels) label.remove();
     scene.remove(this.group);
