@@ -149,8 +149,11 @@ async fn handle_connection(
     // Each connection is its own task, so a client that never finishes its head (slowloris)
     // holds only this task, and only until the timeout — or until a newer connection needs
     // its slot.
+    let mut shutdown = state.shutdown.clone();
     let read = tokio::select! {
         r = tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)) => r,
+        // An unfinished request at shutdown is dropped, so the drain does not wait for it.
+        _ = async { shutdown.wait_for(|stop| *stop).await.is_ok() } => return,
         Ok(()) = evicted => {
             let max = state.connections.max();
             drop(permit);
