@@ -71,13 +71,50 @@ pub struct MappingEntry {
     pub color_random: [f32; 3],
 }
 
+/// What kind of input a source subject is (`kind` in `source_status`, `[[sources]]` and
+/// `--source KIND:ARG`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum SourceKind {
+    /// A file or clip played back.
+    Replay,
+    /// VMC/OSC over UDP.
+    Vmc,
+    /// A serial IMU suit.
+    Serial,
+    /// Pose estimation on a video file.
+    Video,
+    /// Pose estimation on a webcam.
+    Webcam,
+}
+
+impl SourceKind {
+    /// The name on the wire and in config files.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            SourceKind::Replay => "replay",
+            SourceKind::Vmc => "vmc",
+            SourceKind::Serial => "serial",
+            SourceKind::Video => "video",
+            SourceKind::Webcam => "webcam",
+        }
+    }
+}
+
+impl std::fmt::Display for SourceKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// Health of one source subject in a `source_status` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceHealth {
     /// Source subject id.
     pub subject: u32,
-    /// Source kind: `replay`, `vmc`, `serial` or `video`.
-    pub kind: String,
+    /// Source kind: `replay`, `vmc`, `serial`, `video` or `webcam`.
+    pub kind: SourceKind,
     /// `connecting`, `live`, `lost` or `finished` (a replay that reached its end).
     pub state: String,
     /// Frames per second arriving from the source.
@@ -468,7 +505,7 @@ mod tests {
             ServerMessage::SourceStatus {
                 sources: vec![SourceHealth {
                     subject: 0,
-                    kind: "vmc".into(),
+                    kind: SourceKind::Vmc,
                     state: "lost".into(),
                     input_fps: 59.5,
                     latency_ms: 1.5,

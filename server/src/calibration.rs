@@ -50,10 +50,9 @@ pub fn start(
     };
     let name = s.info().name;
     let Some(cal) = s.calibration.as_ref() else {
-        let what = if s.is_target() {
-            "a target (retargeted character)".to_string()
-        } else {
-            format!("a {} source", s.source_kind)
+        let what = match s.source_kind {
+            None => "a target (retargeted character)".to_string(),
+            Some(kind) => format!("a {kind} source"),
         };
         return Err((
             ErrorCode::NotCalibratable,

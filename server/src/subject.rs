@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
 use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
-use rigcast_protocol::ServerMessage;
+use rigcast_protocol::{ServerMessage, SourceKind};
 use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 use rigcast_sources::live::SourceStatus;
@@ -229,8 +229,8 @@ impl Health {
 pub struct Subject {
     /// Subject id (= index in the subject list).
     pub id: u32,
-    /// `replay`, `vmc`, `serial`, `video` or `target`.
-    pub source_kind: &'static str,
+    /// What feeds a source subject; `None` for a target (retargeted character).
+    pub source_kind: Option<SourceKind>,
     shape: RwLock<Arc<SubjectShape>>,
     /// Latest frame (from the source, or the tick for targets).
     pub latest: watch::Receiver<Frame>,
@@ -291,7 +291,7 @@ impl Subject {
             id,
             name,
             skeleton,
-            "replay",
+            Some(SourceKind::Replay),
             Vec::new(),
             VmcBoneNames::default(),
         )
@@ -303,7 +303,7 @@ impl Subject {
         id: u32,
         name: String,
         skeleton: Arc<Skeleton>,
-        source_kind: &'static str,
+        source_kind: Option<SourceKind>,
         inputs: Vec<u32>,
         vmc_names: VmcBoneNames,
     ) -> (Subject, watch::Sender<Frame>) {
@@ -325,14 +325,14 @@ impl Subject {
             source_id: id,
             pose: Pose::from_rest(&skeleton),
         });
-        let initial = if source_kind == "replay" || !inputs.is_empty() {
+        let initial = if source_kind == Some(SourceKind::Replay) || !inputs.is_empty() {
             HealthState::Live
         } else {
             HealthState::Connecting
         };
         // Live inputs may move any bone; replays are measured once their clip is known
         // (`with_moving_bones`); targets move their root chain and hips.
-        let moving = if source_kind == "replay" || !inputs.is_empty() {
+        let moving = if source_kind == Some(SourceKind::Replay) || !inputs.is_empty() {
             MovingBones::Structural
         } else {
             MovingBones::All
@@ -487,7 +487,7 @@ impl Subject {
         Some(match live {
             Some(s) => SourceHealth {
                 subject: self.id,
-                kind: self.source_kind.to_string(),
+                kind: self.source_kind?,
                 state,
                 input_fps: s.input_fps,
                 latency_ms: s.latency_ms,
@@ -497,7 +497,7 @@ impl Subject {
             },
             None => SourceHealth {
                 subject: self.id,
-                kind: self.source_kind.to_string(),
+                kind: self.source_kind?,
                 state,
                 input_fps: self.stats.input.rate_hz() as f32,
                 latency_ms: 0.0,
@@ -520,7 +520,7 @@ mod tests {
             0,
             "suit".into(),
             sk,
-            "serial",
+            Some(SourceKind::Serial),
             Vec::new(),
             VmcBoneNames::default(),
         );
@@ -561,7 +561,7 @@ mod tests {
             1,
             "v".into(),
             s.skeleton(),
-            "vmc",
+            Some(SourceKind::Vmc),
             Vec::new(),
             VmcBoneNames::default(),
         );

@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use anyhow::Context;
+use rigcast_protocol::SourceKind;
 use rigcast_retarget::RootMotion;
 use tokio::sync::{broadcast, watch};
 
@@ -130,7 +131,7 @@ fn source_subject(
                 reference: clip_poses.get(clip_poses.len() / 2).cloned(),
                 poses: clip_poses.clone(),
             });
-            ("replay", None, None)
+            (SourceKind::Replay, None, None)
         }
         Loaded::Live {
             kind,
@@ -139,8 +140,14 @@ fn source_subject(
             ..
         } => (*kind, *listen, calibration.clone()),
     };
-    let (subject, tx) =
-        Subject::with_kind(id, name, skeleton, kind, Vec::new(), config.vmc_bone_names);
+    let (subject, tx) = Subject::with_kind(
+        id,
+        name,
+        skeleton,
+        Some(kind),
+        Vec::new(),
+        config.vmc_bone_names,
+    );
     let subject = subject
         .with_listen_addr(listen)
         .with_calibration(calibration)
@@ -201,7 +208,7 @@ fn performer_plan(
         subjects.len() as u32,
         name,
         t.skeleton,
-        "target",
+        None,
         inputs,
         config.vmc_bone_names,
     );

@@ -6,6 +6,7 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 
 use anyhow::Context;
+use rigcast_protocol::SourceKind;
 use rigcast_retarget::mapping::{parse_mapping_file, MappingFile};
 use rigcast_retarget::{Pose, Skeleton};
 use rigcast_sources::live::LiveSource;
@@ -27,7 +28,7 @@ pub(crate) enum Loaded {
     },
     Live {
         source: Box<dyn LiveSource>,
-        kind: &'static str,
+        kind: SourceKind,
         listen: Option<SocketAddr>,
         /// Set for calibratable sources (serial IMU suits).
         calibration: Option<CalibrationHandle>,
@@ -260,7 +261,7 @@ fn load_source(
                 name,
                 Loaded::Live {
                     source: Box::new(source),
-                    kind: "vmc",
+                    kind: SourceKind::Vmc,
                     listen,
                     calibration: None,
                 },
@@ -283,7 +284,7 @@ fn load_source(
                 name,
                 Loaded::Live {
                     source: Box::new(source),
-                    kind: "serial",
+                    kind: SourceKind::Serial,
                     listen: None,
                     calibration,
                 },
@@ -296,7 +297,7 @@ fn load_source(
                 name.unwrap_or_else(|| format!("webcam:{index}")),
                 Loaded::Live {
                     source,
-                    kind: "webcam",
+                    kind: SourceKind::Webcam,
                     listen: None,
                     calibration: None,
                 },
@@ -309,7 +310,7 @@ fn load_source(
                 name.unwrap_or_else(|| stem(&path)),
                 Loaded::Live {
                     source,
-                    kind: "video",
+                    kind: SourceKind::Video,
                     listen: None,
                     calibration: None,
                 },

@@ -187,10 +187,9 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     print_access(&handle, fd);
     for s in handle.state().subjects.iter() {
         let info = s.info();
-        let from = if s.is_target() {
-            format!(", retargeted from {:?}", s.inputs)
-        } else {
-            format!(", {}", s.source_kind)
+        let from = match s.source_kind {
+            None => format!(", retargeted from {:?}", s.inputs),
+            Some(kind) => format!(", {kind}"),
         };
         let listen = s
             .listen_addr
