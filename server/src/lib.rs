@@ -56,7 +56,7 @@ use std::sync::Arc;
 pub use boot::{demo_clip, start, NO_WEBCAM_HINT};
 pub use config::{
     AccessConfig, LimitsConfig, OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec,
-    TargetSpec, VmcBoneNames,
+    TargetSpec, VmcBoneNames, VmcOut,
 };
 pub use token::{ControlToken, TokenSetting};
 

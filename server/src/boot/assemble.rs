@@ -239,15 +239,13 @@ async fn vmc_output(
     let default_subject = subjects.iter().position(|s| s.is_target()).unwrap_or(0);
     let mut targets = Vec::new();
     for entry in &config.vmc_out {
-        let (addr, subject_index) = match entry.rsplit_once('@') {
-            Some((addr, name)) => (
-                addr,
-                subjects
-                    .iter()
-                    .position(|s| s.info().name == name)
-                    .with_context(|| format!("VMC output {entry:?}: no subject named {name:?}"))?,
-            ),
-            None => (entry.as_str(), default_subject),
+        let addr = entry.address.as_str();
+        let subject_index = match &entry.subject {
+            Some(name) => subjects
+                .iter()
+                .position(|s| s.info().name == *name)
+                .with_context(|| format!("VMC output {entry}: no subject named {name:?}"))?,
+            None => default_subject,
         };
         let resolved = tokio::net::lookup_host(addr)
             .await
