@@ -108,6 +108,39 @@ impl std::fmt::Display for SourceKind {
     }
 }
 
+/// A source's connection state: the one name for it in every crate (`state` in
+/// `source_status` and `/v1/status`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceState {
+    /// No usable input yet (port not open, no sender yet).
+    Connecting,
+    /// Input arriving within the source's timeout.
+    Live,
+    /// Input stopped (silence beyond the timeout, or the device went away).
+    Lost,
+    /// A replay reached its end (not looping).
+    Finished,
+}
+
+impl SourceState {
+    /// The name on the wire.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            SourceState::Connecting => "connecting",
+            SourceState::Live => "live",
+            SourceState::Lost => "lost",
+            SourceState::Finished => "finished",
+        }
+    }
+}
+
+impl std::fmt::Display for SourceState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// Health of one source subject in a `source_status` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceHealth {
@@ -116,7 +149,7 @@ pub struct SourceHealth {
     /// Source kind: `replay`, `vmc`, `serial`, `video` or `webcam`.
     pub kind: SourceKind,
     /// `connecting`, `live`, `lost` or `finished` (a replay that reached its end).
-    pub state: String,
+    pub state: SourceState,
     /// Frames per second arriving from the source.
     pub input_fps: f32,
     /// Input arrival (or capture) to pose available, milliseconds (0 for replays).
@@ -416,6 +449,27 @@ impl ServerMessage {
 mod tests {
     use super::*;
 
+    #[test]
+    fn kind_and_state_names_are_their_json_names() {
+        for kind in [
+            SourceKind::Replay,
+            SourceKind::Vmc,
+            SourceKind::Serial,
+            SourceKind::Video,
+            SourceKind::Webcam,
+        ] {
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.as_str());
+        }
+        for state in [
+            SourceState::Connecting,
+            SourceState::Live,
+            SourceState::Lost,
+            SourceState::Finished,
+        ] {
+            assert_eq!(serde_json::to_value(state).unwrap(), state.as_str());
+        }
+    }
+
     fn subjects() -> Vec<SubjectInfo> {
         vec![
             SubjectInfo {
@@ -506,7 +560,7 @@ mod tests {
                 sources: vec![SourceHealth {
                     subject: 0,
                     kind: SourceKind::Vmc,
-                    state: "lost".into(),
+                    state: SourceState::Lost,
                     input_fps: 59.5,
                     latency_ms: 1.5,
                     frames: 1200,

@@ -21,7 +21,8 @@ use std::time::{Duration, Instant};
 use rigcast_protocol::control::{CalibrationPose, ErrorCode, MAX_CALIBRATION_DELAY_SECS};
 use tokio::sync::broadcast;
 
-use crate::subject::{HealthState, Subject};
+use crate::subject::Subject;
+use rigcast_protocol::SourceState;
 
 /// How long the source thread may take to act on a request (it checks at every read, at
 /// least every 50 ms).
@@ -98,7 +99,7 @@ async fn run(s: &Subject, pose: CalibrationPose) -> String {
         return format!("{FAILURE_PREFIX}: not a calibratable source");
     };
     let state = s.health.state();
-    if state != HealthState::Live {
+    if state != SourceState::Live {
         return format!(
             "{FAILURE_PREFIX}: the source is {} (no sensor data to capture)",
             state.as_str()

@@ -19,12 +19,12 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::{Frame, Pose};
-use rigcast_sources::live::{LiveSource, SourceState};
+use rigcast_sources::live::LiveSource;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use crate::engine::{unix_nanos, EngineCommand};
 use crate::recorder::Recorder;
-use crate::subject::{HealthState, Subject};
+use crate::subject::Subject;
 
 /// How long one `next_frame` call may block (bounds shutdown latency).
 const POLL: Duration = Duration::from_millis(50);
@@ -51,14 +51,6 @@ pub struct LiveContext {
     pub stop: Arc<AtomicBool>,
 }
 
-fn state_of(s: SourceState) -> HealthState {
-    match s {
-        SourceState::Connecting => HealthState::Connecting,
-        SourceState::Live => HealthState::Live,
-        SourceState::Lost => HealthState::Lost,
-    }
-}
-
 /// Runs a live source until `stop` is set.
 pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
     let mut pose: Pose = ctx.subject.skeleton().rest_pose();
@@ -71,7 +63,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
         if last_status.elapsed() >= STATUS_EVERY {
             last_status = Instant::now();
             let status = source.status();
-            ctx.subject.health.set_state(state_of(status.state));
+            ctx.subject.health.set_state(status.state);
             if let Ok(mut g) = ctx.subject.health.live.lock() {
                 *g = Some(status);
             }

@@ -59,16 +59,7 @@ impl RecorderHealth {
     }
 }
 
-/// The recording in `/v1/status`.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct RecordingStatus {
-    /// The file.
-    pub path: String,
-    /// Failed writes since start (records lost; the recording goes on).
-    pub errors: u64,
-    /// The latest failure (`null` when none).
-    pub last_error: Option<String>,
-}
+pub use rigcast_protocol::status::RecordingStatus;
 
 impl Recorder {
     /// Creates the file.

@@ -268,6 +268,7 @@ where
 mod tests {
     use super::*;
     use rigcast_protocol::control::SubjectKind;
+    use rigcast_protocol::SourceState;
 
     fn info(id: u32, name: &str) -> SubjectInfo {
         SubjectInfo {
@@ -284,7 +285,7 @@ mod tests {
         SourceHealth {
             subject: id,
             kind,
-            state: "live".into(),
+            state: SourceState::Live,
             input_fps: 0.0,
             latency_ms: 0.0,
             frames: 0,
