@@ -35,6 +35,45 @@ pub const SUCCESS_PREFIX: &str = "calibrated";
 /// Prefix of the failure text.
 pub const FAILURE_PREFIX: &str = "calibration failed";
 
+/// Why a `calibrate` request was refused; [`CalibrateRefusal::code`] and the text make the
+/// `error` reply.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CalibrateRefusal {
+    /// No subject has this id.
+    #[error("unknown subject id {subject}")]
+    UnknownSubject {
+        /// the id asked for
+        subject: u32,
+    },
+    /// The subject is not a serial IMU source.
+    #[error("subject {subject} ({name}) is {what}; only serial IMU sources can be calibrated")]
+    NotCalibratable {
+        /// the id
+        subject: u32,
+        /// its name
+        name: String,
+        /// what it is instead (`a target (retargeted character)`, `a vmc source`)
+        what: String,
+    },
+    /// The delay is out of range.
+    #[error("delay_secs {delay_secs} must be between 0 and {MAX_CALIBRATION_DELAY_SECS}")]
+    BadDelay {
+        /// the delay asked for
+        delay_secs: f32,
+    },
+}
+
+impl CalibrateRefusal {
+    /// The machine-readable reason in the `error` reply.
+    pub fn code(&self) -> ErrorCode {
+        match self {
+            CalibrateRefusal::UnknownSubject { .. } => ErrorCode::UnknownSubject,
+            CalibrateRefusal::NotCalibratable { .. } => ErrorCode::NotCalibratable,
+            CalibrateRefusal::BadDelay { .. } => ErrorCode::InvalidFields,
+        }
+    }
+}
+
 /// Validates a `calibrate` request and starts it; `Err` is the `error` reply.
 pub fn start(
     subjects: &Arc<Vec<Arc<Subject>>>,
@@ -42,12 +81,9 @@ pub fn start(
     subject: u32,
     pose: CalibrationPose,
     delay_secs: f32,
-) -> Result<(), (ErrorCode, String)> {
+) -> Result<(), CalibrateRefusal> {
     let Some(s) = subjects.get(subject as usize).filter(|s| s.id == subject) else {
-        return Err((
-            ErrorCode::UnknownSubject,
-            format!("unknown subject id {subject}"),
-        ));
+        return Err(CalibrateRefusal::UnknownSubject { subject });
     };
     let name = s.info().name;
     let Some(cal) = s.calibration.as_ref() else {
@@ -55,18 +91,14 @@ pub fn start(
             None => "a target (retargeted character)".to_string(),
             Some(kind) => format!("a {kind} source"),
         };
-        return Err((
-            ErrorCode::NotCalibratable,
-            format!(
-                "subject {subject} ({name}) is {what}; only serial IMU sources can be calibrated"
-            ),
-        ));
+        return Err(CalibrateRefusal::NotCalibratable {
+            subject,
+            name,
+            what,
+        });
     };
     if !(delay_secs.is_finite() && (0.0..=MAX_CALIBRATION_DELAY_SECS).contains(&delay_secs)) {
-        return Err((
-            ErrorCode::InvalidFields,
-            format!("delay_secs {delay_secs} must be between 0 and {MAX_CALIBRATION_DELAY_SECS}"),
-        ));
+        return Err(CalibrateRefusal::BadDelay { delay_secs });
     }
     let generation = cal.generation.fetch_add(1, Ordering::AcqRel) + 1;
     cal.set_text(format!(

@@ -377,7 +377,7 @@ fn handle_text(
                     request: "calibrate".into(),
                     subject,
                 },
-                Err((code, message)) => ServerMessage::error(code, message),
+                Err(refusal) => ServerMessage::error(refusal.code(), refusal.to_string()),
             },
         ),
         ClientMessage::SetPerformer { subject, foot_lock } => {

@@ -49,7 +49,23 @@ pub fn load_clip(path: &Path) -> Result<Clip, SourceError> {
 /// Loads a clip from `.bvh`, `.gltf`, `.glb`, `.vrm` or `.rcr`, choosing the format by
 /// extension. Errors name the file.
 pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceError> {
+    load_clip_and_humanoid(path, opts).map(|c| c.clip)
+}
+
+/// A clip and what its file says of the body: a VRM's humanoid map.
+#[derive(Debug, Clone)]
+pub struct LoadedClip {
+    /// The clip.
+    pub clip: Clip,
+    /// A `.vrm` file's humanoid map (human bone name → bone name), ground truth for the
+    /// analysis' roles; `None` for other files.
+    pub humanoid: Option<Vec<(String, String)>>,
+}
+
+/// [`load_clip_with`], with a VRM's humanoid map read from the same parse.
+pub fn load_clip_and_humanoid(path: &Path, opts: &LoadOptions) -> Result<LoadedClip, SourceError> {
     let ext = extension(path);
+    let mut humanoid = None;
     let result = match ext.as_str() {
         "bvh" => {
             let bytes = read_file(path)?;
@@ -78,6 +94,9 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
                 for w in &r.warnings {
                     eprintln!("warning: {}: {w}", path.display());
                 }
+                if ext == "vrm" {
+                    humanoid = r.vrm_roles.map(|m| m.into_iter().collect());
+                }
                 r.clip
             })
         }
@@ -90,7 +109,9 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
             expected: ".bvh, .gltf, .glb, .vrm, .rcr",
         }),
     };
-    result.map_err(|e| e.in_file(path))
+    result
+        .map(|clip| LoadedClip { clip, humanoid })
+        .map_err(|e| e.in_file(path))
 }
 
 /// Saves a clip as `.bvh`, `.glb` or `.rcr`, choosing the format by extension.

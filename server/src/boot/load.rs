@@ -12,7 +12,7 @@ use rigcast_retarget::{Pose, Skeleton};
 use rigcast_sources::live::LiveSource;
 use rigcast_sources::serial::{CalibrationHandle, SerialImuConfig, SerialImuSource};
 use rigcast_sources::vmc_in::{VmcConfig, VmcSource};
-use rigcast_sources::{Replay, ReplayOptions};
+use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip, Replay, ReplayOptions};
 
 use crate::config::{self, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec, TargetSpec};
 use crate::{character, demo, token};
@@ -161,8 +161,10 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
                     truth: None,
                 });
             }
-            let (clip, truth) = rigcast_sources::load_clip(path)
-                .map(|c| (c, crate::cmd::map::vrm_truth(path)))
+            let LoadedClip {
+                clip,
+                humanoid: truth,
+            } = load_clip_and_humanoid(path, &LoadOptions::default())
                 .with_context(|| format!("cannot load target character {}", path.display()))?;
             let name = path
                 .file_stem()
@@ -201,8 +203,10 @@ fn load_source(
             name,
             settings,
         } => {
-            let (clip, truth) = rigcast_sources::load_clip(&path)
-                .map(|c| (c, crate::cmd::map::vrm_truth(&path)))
+            let LoadedClip {
+                clip,
+                humanoid: truth,
+            } = load_clip_and_humanoid(&path, &LoadOptions::default())
                 .with_context(|| format!("cannot load source {}", path.display()))?;
             let name = name.unwrap_or_else(|| {
                 path.file_stem()
