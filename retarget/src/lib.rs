@@ -24,6 +24,7 @@
 
 pub mod analysis;
 pub mod clip;
+#[cfg(any(test, feature = "corpus"))]
 pub mod corpus;
 pub mod error;
 pub mod fk;
