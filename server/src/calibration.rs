@@ -105,6 +105,7 @@ pub fn start(
         "{PENDING_PREFIX} ({}) in {delay_secs:.1} s",
         pose.label()
     ));
+    // Err only means no client is listening right now.
     let _ = events.send(crate::source_status_json(subjects));
     let subjects = subjects.clone();
     let events = events.clone();
@@ -118,6 +119,7 @@ pub fn start(
             // A newer request owns the text now.
             if cal.generation.load(Ordering::Acquire) == generation {
                 cal.set_text(text);
+                // Err only means no client is listening right now.
                 let _ = events.send(crate::source_status_json(&subjects));
             }
         }

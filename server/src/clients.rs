@@ -162,6 +162,7 @@ where
         code,
         reason: reason.into(),
     };
+    // Closing is a courtesy: a client that is gone or stuck is dropped anyway.
     let _ = tokio::time::timeout(
         Duration::from_secs(1),
         sink.send(Message::Close(Some(frame))),

@@ -48,6 +48,7 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
             } => {
                 match accepted {
                     Ok((stream, peer)) => {
+                        // Latency tuning only: the connection works without it.
                         let _ = stream.set_nodelay(true);
                         match state.connections.admit() {
                             Admission::Admitted { permit, evicted } => {
@@ -58,7 +59,7 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
                     }
                     Err(e) => {
                         // Typically EMFILE; back off briefly rather than spin.
-                        eprintln!("rigcast: accept failed: {e}");
+                        tracing::warn!("accept failed: {e}");
                         tokio::time::sleep(Duration::from_millis(50)).await;
                     }
                 }
@@ -78,6 +79,7 @@ const ROOM_WAIT: Duration = Duration::from_millis(250);
 /// and the descriptor is released before the next accept.
 fn refuse_full(stream: TcpStream, max: usize) {
     let body = format!("server full: {max} connections open; retry later\n");
+    // The client may be gone already: there is nobody left to answer.
     let _ = stream.try_write(head(503, "text/plain", body.len()).as_bytes());
     let _ = stream.try_write(body.as_bytes());
 }
@@ -158,6 +160,7 @@ async fn handle_connection(
             let max = state.connections.max();
             drop(permit);
             let body = format!("server full: {max} connections open; an unfinished request made way for a newer one\n");
+            // The client may be gone already: there is nobody left to answer.
             let _ = tokio::time::timeout(REFUSAL_TIMEOUT, respond(&mut stream, 503, "text/plain", body.as_bytes())).await;
             return;
         }
@@ -166,6 +169,7 @@ async fn handle_connection(
     let head_end = match read {
         Ok(HeadRead::Complete(end)) => end,
         Ok(HeadRead::TooLarge) => {
+            // The client may be gone already: there is nobody left to answer.
             let _ = respond(
                 &mut stream,
                 431,
@@ -180,10 +184,12 @@ async fn handle_connection(
     let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
     let leftover = buf[head_end..].to_vec();
     let Some(req) = parse_head(&head) else {
+        // The client may be gone already: there is nobody left to answer.
         let _ = respond(&mut stream, 400, "text/plain", b"bad request\n").await;
         return;
     };
     if req.method != "GET" {
+        // The client may be gone already: there is nobody left to answer.
         let _ = respond(&mut stream, 405, "text/plain", b"only GET is supported\n").await;
         return;
     }
@@ -195,6 +201,7 @@ async fn handle_connection(
     let access = match state.policy.decide(route, &req.credentials()) {
         Ok(a) => a,
         Err(refusal) => {
+            // The client may be gone already: there is nobody left to answer.
             let _ = respond(
                 &mut stream,
                 refusal.status(),
@@ -208,6 +215,7 @@ async fn handle_connection(
     match route {
         Route::Stream => {
             let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
+                // The client may be gone already: there is nobody left to answer.
                 let _ = respond(
                     &mut stream,
                     426,
@@ -239,13 +247,16 @@ async fn handle_connection(
         }
         Route::Status => {
             let body = serde_json::to_vec_pretty(&status(&state)).unwrap_or_default();
+            // The client may be gone already: there is nobody left to answer.
             let _ = respond(&mut stream, 200, "application/json", &body).await;
         }
         Route::ViewerFile => match static_asset(&req.path) {
             Some((mime, body)) => {
+                // The client may be gone already: there is nobody left to answer.
                 let _ = respond(&mut stream, 200, mime, &body).await;
             }
             None => {
+                // The client may be gone already: there is nobody left to answer.
                 let _ = respond(&mut stream, 404, "text/plain", b"not found\n").await;
             }
         },

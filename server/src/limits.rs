@@ -207,6 +207,7 @@ impl ConnectionLimiter {
                 .flatten();
             match victim {
                 Some((_, tx)) => {
+                    // The evicted connection may have closed by itself already.
                     let _ = tx.send(());
                     self.evicted.fetch_add(1, Ordering::Relaxed);
                     self.refused.fetch_add(1, Ordering::Relaxed);

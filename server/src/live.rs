@@ -120,7 +120,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
             Err(e) => {
                 let text = e.to_string();
                 if last_error.as_deref() != Some(text.as_str()) {
-                    eprintln!("rigcast: source {}: {text}", ctx.subject.info().name);
+                    tracing::warn!("source {}: {text}", ctx.subject.info().name);
                     last_error = Some(text);
                 }
                 // Device errors repeat quickly; don't spin.
@@ -134,13 +134,16 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
 fn announce_skeleton(ctx: &LiveContext) {
     let shape = ctx.subject.shape();
     let infos = ctx.subjects.iter().map(|s| s.info()).collect();
+    // Err only means no client is listening right now.
     let _ = ctx
         .events
         .send(ServerMessage::SubjectsChanged { subjects: infos }.to_json());
+    // Err only means no client is listening right now.
     let _ = ctx.events.send(shape.skeleton_json.clone());
     if let Some(r) = &ctx.recorder {
         r.skeleton(ctx.subject.id, &shape.info.name, &shape.skeleton);
     }
+    // Fails only when the mapper has stopped (shutdown).
     let _ = ctx.commands.blocking_send(EngineCommand::SkeletonChanged {
         subject: ctx.subject.id,
     });

@@ -164,12 +164,16 @@ impl Recorder {
         match Arc::try_unwrap(self.writer) {
             Ok(m) => {
                 if let Ok(w) = m.into_inner() {
-                    let _ = w.finish();
+                    if let Err(e) = w.finish() {
+                        tracing::warn!("recording: cannot write the end record: {e}");
+                    }
                 }
             }
             Err(shared) => {
                 if let Ok(mut w) = shared.lock() {
-                    let _ = w.flush();
+                    if let Err(e) = w.flush() {
+                        tracing::warn!("recording: cannot flush: {e}");
+                    }
                 }
             }
         }

@@ -92,7 +92,7 @@ pub fn load_clip_and_humanoid(path: &Path, opts: &LoadOptions) -> Result<LoadedC
             .map(|r| {
                 // One line per skipped part; the file still loads.
                 for w in &r.warnings {
-                    eprintln!("warning: {}: {w}", path.display());
+                    tracing::warn!("{}: {w}", path.display());
                 }
                 if ext == "vrm" {
                     humanoid = r.vrm_roles.map(|m| m.into_iter().collect());
@@ -168,7 +168,7 @@ pub fn load_rig(path: &Path) -> Result<(Clip, RigLayout), SourceError> {
             )
             .map(|r| {
                 for w in &r.warnings {
-                    eprintln!("warning: {}: {w}", path.display());
+                    tracing::warn!("{}: {w}", path.display());
                 }
                 (r.clip, RigLayout::Gltf(Box::new(r.template)))
             })

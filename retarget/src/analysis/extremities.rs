@@ -54,16 +54,14 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
         });
     let is_leg = kind == LimbKind::Leg;
     let ratio = if is_leg { 1.05 } else { 1.12 };
-    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
-        eprintln!(
-            "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
-            kind as u8,
-            side,
-            chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
-            lengths,
-            fixed
-        );
-    }
+    tracing::trace!(
+        "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
+        kind as u8,
+        side,
+        chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
+        lengths,
+        fixed
+    );
     let (limb_kind, ext_kind) = match kind {
         LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
         LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),

@@ -392,7 +392,7 @@ pub fn demo_clip() -> anyhow::Result<rigcast_retarget::Clip> {
         Ok(clip) if clip.num_frames() > 0 => Ok(clip),
         Ok(_) => Ok(demo::procedural_clip(120, 30.0)?),
         Err(e) => {
-            eprintln!("rigcast: bundled demo unavailable ({e}); using the procedural demo");
+            tracing::warn!("bundled demo unavailable ({e}); using the procedural demo");
             Ok(demo::procedural_clip(120, 30.0)?)
         }
     }

@@ -165,8 +165,8 @@ fn max_connections(config: &ServerConfig) -> usize {
     let fd_cap = limits::default_max_connections(limits::fd_limit());
     match config.limits.max_connections {
         Some(n) if n > fd_cap => {
-            eprintln!(
-                "rigcast: warning: max_connections {n} exceeds what the open-file limit allows; using {fd_cap}"
+            tracing::warn!(
+                "max_connections {n} exceeds what the open-file limit allows; using {fd_cap}"
             );
             fd_cap
         }
@@ -234,8 +234,10 @@ impl Supervisor {
         // A task that panicked has nothing left to stop; its panic was already reported.
         let _ = self.listener.await;
         self.connections.wait_until_idle(DRAIN_TIMEOUT).await;
+        // As above: no receiver left means nothing left to stop.
         let _ = self.engine_stop.send(true);
         for task in self.engine_tasks {
+            // A panicked task has already reported its panic and has nothing left to stop.
             let _ = task.await;
         }
         self.stop_threads.store(true, Ordering::Relaxed);
@@ -246,15 +248,17 @@ impl Supervisor {
         // Joining blocks; a panicked thread's error is its (already printed) panic.
         let _ = tokio::task::spawn_blocking(move || {
             for t in threads {
+                // Err is a panic, already printed by the panic hook.
                 let _ = t.join();
             }
             if let Some((rec, thread)) = recorder {
+                // As above; the recording is still finished below.
                 let _ = thread.join();
                 // The live threads (and their taps) are gone, so this is the last handle.
                 if let Ok(rec) = Arc::try_unwrap(rec) {
                     rec.finish();
                 } else {
-                    eprintln!("rigcast: recording still shared at shutdown; flushed only");
+                    tracing::warn!("recording still shared at shutdown; flushed only");
                 }
             }
         })
