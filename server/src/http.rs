@@ -213,38 +213,7 @@ async fn handle_connection(
         }
     };
     match route {
-        Route::Stream => {
-            let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
-                // The client may be gone already: there is nobody left to answer.
-                let _ = respond(
-                    &mut stream,
-                    426,
-                    "text/plain",
-                    b"this endpoint needs a WebSocket upgrade\n",
-                )
-                .await;
-                return;
-            };
-            let accept = derive_accept_key(key.as_bytes());
-            let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
-                return;
-            };
-            let response = format!(
-                "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
-            );
-            if stream.write_all(response.as_bytes()).await.is_err() {
-                return;
-            }
-            let ws = WebSocketStream::from_partially_read(
-                stream,
-                leftover,
-                Role::Server,
-                Some(websocket_config()),
-            )
-            .await;
-            serve_client(ws, state, peer, access).await;
-            drop(permit);
-        }
+        Route::Stream => upgrade(stream, req, leftover, state, peer, access, permit).await,
         Route::Status => {
             let body = serde_json::to_vec_pretty(&status(&state)).unwrap_or_default();
             // The client may be gone already: there is nobody left to answer.
@@ -261,6 +230,49 @@ async fn handle_connection(
             }
         },
     }
+}
+
+/// `GET /v1/stream`: answers the WebSocket upgrade and runs the client session; the
+/// connection's slot (`permit`) is held until the session ends.
+async fn upgrade(
+    mut stream: TcpStream,
+    req: Request,
+    leftover: Vec<u8>,
+    state: Arc<ServerState>,
+    peer: String,
+    access: crate::access::Access,
+    permit: crate::limits::ConnectionPermit,
+) {
+    let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
+        // The client may be gone already: there is nobody left to answer.
+        let _ = respond(
+            &mut stream,
+            426,
+            "text/plain",
+            b"this endpoint needs a WebSocket upgrade\n",
+        )
+        .await;
+        return;
+    };
+    let accept = derive_accept_key(key.as_bytes());
+    let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
+        return;
+    };
+    let response = format!(
+            "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
+        );
+    if stream.write_all(response.as_bytes()).await.is_err() {
+        return;
+    }
+    let ws = WebSocketStream::from_partially_read(
+        stream,
+        leftover,
+        Role::Server,
+        Some(websocket_config()),
+    )
+    .await;
+    serve_client(ws, state, peer, access).await;
+    drop(permit);
 }
 
 /// Read buffer per WebSocket client: client messages are small JSON, and many idle clients

@@ -180,62 +180,28 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
     }
 }
 
-/// Loads a source: its subject name, what runs it, and its (initial) skeleton. Blocks (files,
-/// devices, model loading): call it from `spawn_blocking`.
-fn load_source(
-    spec: SourceSpec,
-) -> anyhow::Result<(String, Loaded, Arc<rigcast_retarget::Skeleton>)> {
-    let replay_of = |clip: rigcast_retarget::Clip,
-                     settings: ReplaySettings,
-                     truth: Option<Vec<(String, String)>>|
-     -> anyhow::Result<Loaded> {
-        let poses = Arc::new(clip.poses.clone());
-        Ok(Loaded::Replay {
-            player: replay(clip, settings)?,
-            speed: settings.speed,
-            clip_poses: poses,
-            truth,
-        })
-    };
-    Ok(match spec {
+/// A loaded source's subject name, what runs it and its (initial) skeleton.
+type Opened = (String, Loaded, Arc<Skeleton>);
+
+/// Loads a source: one arm per kind, each kind's opening in a function of its own. Blocks
+/// (files, devices, model loading): call it from `spawn_blocking`.
+fn load_source(spec: SourceSpec) -> anyhow::Result<Opened> {
+    match spec {
         SourceSpec::ReplayFile {
             path,
             name,
             settings,
-        } => {
-            let LoadedClip {
-                clip,
-                humanoid: truth,
-            } = load_clip_and_humanoid(&path, &LoadOptions::default())
-                .with_context(|| format!("cannot load source {}", path.display()))?;
-            let name = name.unwrap_or_else(|| {
-                path.file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_else(|| clip.name.clone())
-            });
-            let sk = clip.skeleton.clone();
-            (name, replay_of(clip, settings, truth)?, sk)
-        }
+        } => open_replay_file(&path, name, settings),
         SourceSpec::ReplayClip {
             clip,
             name,
             settings,
         } => {
-            let sk = clip.skeleton.clone();
-            (
-                name.unwrap_or_else(|| clip.name.clone()),
-                replay_of(clip, settings, None)?,
-                sk,
-            )
+            let name = name.unwrap_or_else(|| clip.name.clone());
+            replay_of(name, clip, settings, None)
         }
         SourceSpec::EmbeddedDemo => {
-            let clip = demo_clip()?;
-            let sk = clip.skeleton.clone();
-            (
-                "demo".to_string(),
-                replay_of(clip, ReplaySettings::default(), None)?,
-                sk,
-            )
+            replay_of("demo".into(), demo_clip()?, ReplaySettings::default(), None)
         }
         SourceSpec::Vmc {
             port,
@@ -250,78 +216,113 @@ fn load_source(
             if let Some(l) = lost_after_secs {
                 cfg.lost_after_secs = l;
             }
-            let source = VmcSource::bind(cfg)
-                .with_context(|| format!("cannot listen for VMC on UDP {bind} port {port}"))?;
-            let listen = source.local_addr();
-            let name =
-                name.unwrap_or_else(|| format!("vmc:{}", listen.map(|a| a.port()).unwrap_or(port)));
-            // Until the sender's own skeleton arrives, the standard humanoid stands in.
-            let sk = match source.skeleton() {
-                Some(s) => s,
-                None => rigcast_sources::live::humanoid::default_humanoid()
-                    .context("building the default humanoid")?,
-            };
-            (
-                name,
-                Loaded::Live {
-                    source: Box::new(source),
-                    kind: SourceKind::Vmc,
-                    listen,
-                    calibration: None,
-                },
-                sk,
-            )
+            open_vmc(cfg, name)
         }
-        SourceSpec::Serial { config, name } => {
-            let text = std::fs::read_to_string(&config)
-                .with_context(|| format!("cannot read serial config {}", config.display()))?;
-            let cfg = SerialImuConfig::from_toml(&text)
-                .with_context(|| format!("serial config {}", config.display()))?;
-            let humanoid = rigcast_sources::live::humanoid::default_humanoid()
-                .context("building the default humanoid")?;
-            let source = SerialImuSource::open(cfg, humanoid.clone())
-                .with_context(|| format!("cannot open the serial suit of {}", config.display()))?;
-            let sk = source.skeleton().unwrap_or(humanoid);
-            let name = name.unwrap_or_else(|| stem(&config));
-            let calibration = Some(source.calibration_handle());
-            (
-                name,
-                Loaded::Live {
-                    source: Box::new(source),
-                    kind: SourceKind::Serial,
-                    listen: None,
-                    calibration,
-                },
-                sk,
-            )
-        }
+        SourceSpec::Serial { config, name } => open_serial(&config, name),
         SourceSpec::Webcam { index, name } => {
             let (source, sk) = open_webcam(index)?;
-            (
-                name.unwrap_or_else(|| format!("webcam:{index}")),
-                Loaded::Live {
-                    source,
-                    kind: SourceKind::Webcam,
-                    listen: None,
-                    calibration: None,
-                },
-                sk,
-            )
+            let name = name.unwrap_or_else(|| format!("webcam:{index}"));
+            Ok((name, Loaded::live(source, SourceKind::Webcam), sk))
         }
         SourceSpec::Video { path, name } => {
             let (source, sk) = open_video(&path)?;
-            (
-                name.unwrap_or_else(|| stem(&path)),
-                Loaded::Live {
-                    source,
-                    kind: SourceKind::Video,
-                    listen: None,
-                    calibration: None,
-                },
-                sk,
-            )
+            let name = name.unwrap_or_else(|| stem(&path));
+            Ok((name, Loaded::live(source, SourceKind::Video), sk))
         }
-    })
+    }
+}
+
+impl Loaded {
+    /// A live source that neither listens on a port nor calibrates.
+    fn live(source: Box<dyn LiveSource>, kind: SourceKind) -> Loaded {
+        Loaded::Live {
+            source,
+            kind,
+            listen: None,
+            calibration: None,
+        }
+    }
+}
+
+/// A clip played back as subject `name`.
+fn replay_of(
+    name: String,
+    clip: rigcast_retarget::Clip,
+    settings: ReplaySettings,
+    truth: Option<Vec<(String, String)>>,
+) -> anyhow::Result<Opened> {
+    let skeleton = clip.skeleton.clone();
+    let clip_poses = Arc::new(clip.poses.clone());
+    let loaded = Loaded::Replay {
+        player: replay(clip, settings)?,
+        speed: settings.speed,
+        clip_poses,
+        truth,
+    };
+    Ok((name, loaded, skeleton))
+}
+
+/// A file (BVH, glTF/GLB/VRM, .rcr) played back; a VRM's humanoid map comes along.
+fn open_replay_file(
+    path: &std::path::Path,
+    name: Option<String>,
+    settings: ReplaySettings,
+) -> anyhow::Result<Opened> {
+    let LoadedClip {
+        clip,
+        humanoid: truth,
+    } = load_clip_and_humanoid(path, &LoadOptions::default())
+        .with_context(|| format!("cannot load source {}", path.display()))?;
+    let name = name.unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| clip.name.clone())
+    });
+    replay_of(name, clip, settings, truth)
+}
+
+/// VMC/OSC input on a UDP port.
+fn open_vmc(cfg: VmcConfig, name: Option<String>) -> anyhow::Result<Opened> {
+    let (bind, port) = (cfg.bind, cfg.port);
+    let source = VmcSource::bind(cfg)
+        .with_context(|| format!("cannot listen for VMC on UDP {bind} port {port}"))?;
+    let listen = source.local_addr();
+    let name = name.unwrap_or_else(|| format!("vmc:{}", listen.map(|a| a.port()).unwrap_or(port)));
+    // Until the sender's own skeleton arrives, the standard humanoid stands in.
+    let sk = match source.skeleton() {
+        Some(s) => s,
+        None => rigcast_sources::live::humanoid::default_humanoid()
+            .context("building the default humanoid")?,
+    };
+    let loaded = Loaded::Live {
+        source: Box::new(source),
+        kind: SourceKind::Vmc,
+        listen,
+        calibration: None,
+    };
+    Ok((name, loaded, sk))
+}
+
+/// A serial IMU suit described by the TOML file `config`.
+fn open_serial(config: &std::path::Path, name: Option<String>) -> anyhow::Result<Opened> {
+    let text = std::fs::read_to_string(config)
+        .with_context(|| format!("cannot read serial config {}", config.display()))?;
+    let cfg = SerialImuConfig::from_toml(&text)
+        .with_context(|| format!("serial config {}", config.display()))?;
+    let humanoid = rigcast_sources::live::humanoid::default_humanoid()
+        .context("building the default humanoid")?;
+    let source = SerialImuSource::open(cfg, humanoid.clone())
+        .with_context(|| format!("cannot open the serial suit of {}", config.display()))?;
+    let sk = source.skeleton().unwrap_or(humanoid);
+    let name = name.unwrap_or_else(|| stem(config));
+    let calibration = Some(source.calibration_handle());
+    let loaded = Loaded::Live {
+        source: Box::new(source),
+        kind: SourceKind::Serial,
+        listen: None,
+        calibration,
+    };
+    Ok((name, loaded, sk))
 }
 
 fn stem(p: &std::path::Path) -> String {
