@@ -89,22 +89,17 @@ pub enum SourceKind {
     Webcam,
 }
 
-impl SourceKind {
-    /// The name on the wire and in config files.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            SourceKind::Replay => "replay",
-            SourceKind::Vmc => "vmc",
-            SourceKind::Serial => "serial",
-            SourceKind::Video => "video",
-            SourceKind::Webcam => "webcam",
-        }
+impl std::fmt::Display for SourceKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        wire_name(self, f)
     }
 }
 
-impl std::fmt::Display for SourceKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
+/// Writes a unit variant's serde name (`SourceKind::Vmc` → `vmc`): one spelling, serde's.
+fn wire_name<T: Serialize>(value: &T, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+    match serde_json::to_value(value) {
+        Ok(serde_json::Value::String(name)) => f.write_str(&name),
+        _ => Err(std::fmt::Error),
     }
 }
 
@@ -123,21 +118,9 @@ pub enum SourceState {
     Finished,
 }
 
-impl SourceState {
-    /// The name on the wire.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            SourceState::Connecting => "connecting",
-            SourceState::Live => "live",
-            SourceState::Lost => "lost",
-            SourceState::Finished => "finished",
-        }
-    }
-}
-
 impl std::fmt::Display for SourceState {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
+        wire_name(self, f)
     }
 }
 
@@ -458,7 +441,7 @@ mod tests {
             SourceKind::Video,
             SourceKind::Webcam,
         ] {
-            assert_eq!(serde_json::to_value(kind).unwrap(), kind.as_str());
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.to_string());
         }
         for state in [
             SourceState::Connecting,
@@ -466,7 +449,7 @@ mod tests {
             SourceState::Lost,
             SourceState::Finished,
         ] {
-            assert_eq!(serde_json::to_value(state).unwrap(), state.as_str());
+            assert_eq!(serde_json::to_value(state).unwrap(), state.to_string());
         }
     }
 

@@ -134,10 +134,7 @@ async fn run(s: &Subject, pose: CalibrationPose) -> String {
     };
     let state = s.health.state();
     if state != SourceState::Live {
-        return format!(
-            "{FAILURE_PREFIX}: the source is {} (no sensor data to capture)",
-            state.as_str()
-        );
+        return format!("{FAILURE_PREFIX}: the source is {state} (no sensor data to capture)");
     }
     let (before, _) = cal.handle.outcome();
     match pose {

@@ -41,6 +41,13 @@ pub(crate) fn stem(path: &Path) -> String {
         .to_string()
 }
 
+/// One warning per skipped part of a glTF file; the file still loads.
+fn warn_skipped(path: &Path, warnings: &[String]) {
+    for w in warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+}
+
 /// Loads a clip with default options; see [`load_clip_with`].
 pub fn load_clip(path: &Path) -> Result<Clip, SourceError> {
     load_clip_with(path, &LoadOptions::default())
@@ -90,10 +97,7 @@ pub fn load_clip_and_humanoid(path: &Path, opts: &LoadOptions) -> Result<LoadedC
                 },
             )
             .map(|r| {
-                // One line per skipped part; the file still loads.
-                for w in &r.warnings {
-                    tracing::warn!("{}: {w}", path.display());
-                }
+                warn_skipped(path, &r.warnings);
                 if ext == "vrm" {
                     humanoid = r.vrm_roles.map(|m| m.into_iter().collect());
                 }
@@ -167,9 +171,7 @@ pub fn load_rig(path: &Path) -> Result<(Clip, RigLayout), SourceError> {
                 &GltfReadOptions::default(),
             )
             .map(|r| {
-                for w in &r.warnings {
-                    tracing::warn!("{}: {w}", path.display());
-                }
+                warn_skipped(path, &r.warnings);
                 (r.clip, RigLayout::Gltf(Box::new(r.template)))
             })
         }

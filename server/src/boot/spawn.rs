@@ -66,15 +66,8 @@ pub(crate) struct Started {
 /// Opens the recording and the listener, then starts sources, mapper, recorder, tick, the
 /// status broadcaster and the listener.
 pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Result<Started> {
-    let Assembly {
-        subjects,
-        sources,
-        performers,
-        mapper,
-        vmc,
-        events,
-        token,
-    } = parts;
+    let subjects = parts.subjects.clone();
+    let events = parts.events.clone();
     let recorder = match config.record.clone() {
         Some(path) => Some(Arc::new(
             tokio::task::spawn_blocking(move || Recorder::create(&path)).await??,
@@ -100,7 +93,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         shutdown: connections_rx,
         commands: commands.clone(),
         policy: access::AccessPolicy::new(
-            token.token.clone(),
+            parts.token.token.clone(),
             access::BindScope::of(&local_addr),
             &config.access.allowed_origins,
             &config.access.allowed_hosts,
@@ -121,10 +114,13 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         threads: Vec::new(),
         recorder: None,
     };
-    for source in sources {
+    for source in parts.sources {
         supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx)?;
     }
-    supervisor.spawn_thread("rigcast-mapper".into(), move || mapper.run(commands_rx))?;
+    supervisor.spawn_thread("rigcast-mapper".into(), {
+        let mapper = parts.mapper;
+        move || mapper.run(commands_rx)
+    })?;
     if let Some(rec) = recorder {
         let (r, subs, stop) = (
             rec.clone(),
@@ -143,8 +139,8 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         frames,
         stats,
         rate_hz: config.rate_hz,
-        vmc,
-        performers,
+        vmc: parts.vmc,
+        performers: parts.performers,
     };
     supervisor
         .engine_tasks
@@ -155,7 +151,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     Ok(Started {
         local_addr,
         state,
-        token,
+        token: parts.token,
         supervisor,
     })
 }

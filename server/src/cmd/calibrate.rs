@@ -196,7 +196,7 @@ fn pick_subject(
                 let kind = sources
                     .iter()
                     .find(|h| h.subject == s.id)
-                    .map_or("target", |h| h.kind.as_str());
+                    .map_or("target".to_string(), |h| h.kind.to_string());
                 format!("{} {:?} ({kind})", s.id, s.name)
             })
             .collect::<Vec<_>>()

@@ -258,20 +258,16 @@ pub fn render_table(
 ) -> String {
     use std::fmt::Write;
     let mut out = String::new();
-    let w = ts
-        .names()
-        .iter()
-        .map(|n| n.len())
-        .max()
-        .unwrap_or(6)
-        .clamp(6, 40);
-    let ws = ss
-        .names()
-        .iter()
-        .map(|n| n.len())
-        .max()
-        .unwrap_or(6)
-        .clamp(6, 40);
+    // Column widths: the longest bone name, within 6..=40.
+    let width = |s: &Skeleton| {
+        s.names()
+            .iter()
+            .map(|n| n.len())
+            .max()
+            .unwrap_or(6)
+            .clamp(6, 40)
+    };
+    let (w, ws) = (width(ts), width(ss));
     let _ = writeln!(
         out,
         "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  evidence",
