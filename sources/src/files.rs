@@ -6,7 +6,7 @@ use rigcast_retarget::Clip;
 
 use crate::bvh::{read_bvh, write_bvh, write_bvh_onto, BvhLayout, BvhReadOptions, BvhWriteOptions};
 use crate::error::SourceError;
-use crate::gltf::{read_gltf, write_glb, write_glb_onto, GltfReadOptions, GltfTemplate};
+use crate::gltf::{read_gltf, write_glb, write_glb_onto, GltfRead, GltfReadOptions, GltfTemplate};
 use crate::recording::{clip_from_recording, read_recording, write_clip_recording};
 
 /// Options for [`load_clip_with`].
@@ -41,11 +41,14 @@ pub(crate) fn stem(path: &Path) -> String {
         .to_string()
 }
 
-/// One warning per skipped part of a glTF file; the file still loads.
-fn warn_skipped(path: &Path, warnings: &[String]) {
-    for w in warnings {
+/// Reads a glTF/GLB/VRM file, with one warning per skipped part (the file still loads).
+fn read_gltf_file(path: &Path, opts: &GltfReadOptions) -> Result<GltfRead, SourceError> {
+    let bytes = read_file(path)?;
+    let read = read_gltf(&bytes, path.parent(), &stem(path), opts)?;
+    for w in &read.warnings {
         tracing::warn!("{}: {w}", path.display());
     }
+    Ok(read)
 }
 
 /// Loads a clip with default options; see [`load_clip_with`].
@@ -86,18 +89,11 @@ pub fn load_clip_and_humanoid(path: &Path, opts: &LoadOptions) -> Result<LoadedC
             .map(|r| r.clip)
         }
         "gltf" | "glb" | "vrm" => {
-            let bytes = read_file(path)?;
-            read_gltf(
-                &bytes,
-                path.parent(),
-                &stem(path),
-                &GltfReadOptions {
-                    animation: opts.animation.clone(),
-                    sample_fps: opts.sample_fps,
-                },
-            )
-            .map(|r| {
-                warn_skipped(path, &r.warnings);
+            let gltf_opts = GltfReadOptions {
+                animation: opts.animation.clone(),
+                sample_fps: opts.sample_fps,
+            };
+            read_gltf_file(path, &gltf_opts).map(|r| {
                 if ext == "vrm" {
                     humanoid = r.vrm_roles.map(|m| m.into_iter().collect());
                 }
@@ -162,19 +158,8 @@ pub fn load_rig(path: &Path) -> Result<(Clip, RigLayout), SourceError> {
             read_bvh(&bytes, &stem(path), &BvhReadOptions::default())
                 .map(|r| (r.clip, RigLayout::Bvh(r.layout)))
         }
-        "gltf" | "glb" | "vrm" => {
-            let bytes = read_file(path)?;
-            read_gltf(
-                &bytes,
-                path.parent(),
-                &stem(path),
-                &GltfReadOptions::default(),
-            )
-            .map(|r| {
-                warn_skipped(path, &r.warnings);
-                (r.clip, RigLayout::Gltf(Box::new(r.template)))
-            })
-        }
+        "gltf" | "glb" | "vrm" => read_gltf_file(path, &GltfReadOptions::default())
+            .map(|r| (r.clip, RigLayout::Gltf(Box::new(r.template)))),
         _ => return load_clip(path).map(|c| (c, RigLayout::Skeleton)),
     };
     result.map_err(|e| e.in_file(path))
