@@ -37,7 +37,7 @@ pub async fn run(
 ) {
     let targets: Vec<Arc<Subject>> = subjects
         .iter()
-        .filter(|s| s.source_kind == "target")
+        .filter(|s| s.is_target())
         .cloned()
         .collect();
     if targets.is_empty() {
