@@ -71,8 +71,16 @@ impl BodySplit {
                 .find(|b| analysis.roles[b.index()].role == role)
         };
         let waist = find(Role::Hips).ok_or_else(|| GraftError::Body("no pelvis found".into()))?;
+        // Where the arms attach: the chest, or on a sparse spine (one bone) the arms' parent.
+        let arm_root = || {
+            find(Role::Clavicle)
+                .or_else(|| find(Role::UpperArm))
+                .and_then(|b| skel.parent(b))
+        };
         let chest = find(Role::Chest)
+            .or_else(arm_root)
             .or_else(|| find(Role::Neck(0)))
+            .filter(|&c| c != waist)
             .ok_or_else(|| GraftError::Body("no chest (where the arms attach) found".into()))?;
         let mut spine = Vec::new();
         let mut b = chest;

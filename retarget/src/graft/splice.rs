@@ -3,8 +3,9 @@
 //! is, so its footplants survive untouched; upper bones take the graft's local rotations, so
 //! arm and head motion relative to the chest are the graft's exactly. The graft's torso is
 //! turned about the vertical so that it heads where the locomotion's pelvis heads (the two
-//! walkers may face different ways), and the first spine bones blend from the locomotion's
-//! rotation to the graft's over a few bones, which hides the join.
+//! walkers may face different ways), and the first spine bones blend, in world space, from the
+//! locomotion's rotation to the graft's over a few bones, which hides the join: the last
+//! blended bone (and so the chest) stands exactly as the graft's turned torso does.
 
 use glam::{Quat, Vec3};
 
@@ -59,28 +60,29 @@ impl Splice {
                 *o = *u;
             }
         }
-        // The graft's first spine bone, turned to the locomotion's heading, under the
-        // locomotion's pelvis.
-        let first = self.split.spine[0];
-        // About the vertical only (a rotation arc between opposite headings could tilt).
+        // The graft's torso, turned to the locomotion's heading about the vertical (a
+        // rotation arc between opposite headings could tilt it), blended in world space along
+        // the first spine bones: the last of them is the graft's exactly, so the chest and
+        // all above it stand as the graft's do; the locomotion's pelvis stays below.
         let (from, to) = (
             self.heading(&self.upper_worlds),
             self.heading(&self.lower_worlds),
         );
         let up = self.split.up;
         let turn = Quat::from_axis_angle(up, from.cross(to).dot(up).atan2(from.dot(to)));
-        let parent = s
-            .parent(first)
+        let mut parent = s
+            .parent(self.split.spine[0])
             .map(|p| self.lower_worlds[p.index()].rotation)
             .unwrap_or(Quat::IDENTITY);
-        let turned = parent.inverse() * turn * self.upper_worlds[first.index()].rotation;
         for &(b, w) in &self.split.blend {
-            let graft = if b == first {
-                turned
-            } else {
-                upper.rotations[b.index()]
-            };
-            out.rotations[b.index()] = blend(lower.rotations[b.index()], graft, w);
+            let i = b.index();
+            let world = blend(
+                self.lower_worlds[i].rotation,
+                turn * self.upper_worlds[i].rotation,
+                w,
+            );
+            out.rotations[i] = (parent.inverse() * world).normalize();
+            parent = world;
         }
         true
     }

@@ -37,23 +37,72 @@ pub fn plant_events(track: &PlantTrack) -> Vec<PlantEvent> {
 }
 
 /// Pairs the events of two clips outwards from an anchor pair (`lower[at.0]` ↔ `upper[at.1]`,
-/// the same foot): each next landing is paired while both clips land the same foot; a
-/// mismatch or the end of either list stops the run. Returns (lower frame, upper frame).
+/// the same foot): each next landing is paired while both clips land the same foot. Where they
+/// do not, one clip has an extra landing (a stutter step, a plant split in two): the shorter
+/// of the two next intervals, relative to its clip's typical interval, is skipped once; a run
+/// ends where that does not resynchronise them or either list ends. Returns (lower frame,
+/// upper frame).
 pub fn pair_from(
     lower: &[PlantEvent],
     upper: &[PlantEvent],
     at: (usize, usize),
 ) -> Vec<(usize, usize)> {
+    let mut forward = walk(lower, upper, at, Direction::Forward);
+    let mut backward = walk(lower, upper, at, Direction::Backward);
+    backward.reverse();
+    backward.pop();
+    backward.append(&mut forward);
+    backward
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Direction {
+    Forward,
+    Backward,
+}
+
+/// The median interval between consecutive landings, in frames (1 when fewer than two).
+fn typical_gap(events: &[PlantEvent]) -> f64 {
+    let mut gaps: Vec<usize> = events.windows(2).map(|w| w[1].frame - w[0].frame).collect();
+    gaps.sort_unstable();
+    gaps.get(gaps.len() / 2)
+        .map(|&g| g.max(1) as f64)
+        .unwrap_or(1.0)
+}
+
+fn walk(
+    lower: &[PlantEvent],
+    upper: &[PlantEvent],
+    at: (usize, usize),
+    dir: Direction,
+) -> Vec<(usize, usize)> {
+    let step = |i: usize, k: usize, len: usize| match dir {
+        Direction::Forward => (i + k < len).then_some(i + k),
+        Direction::Backward => i.checked_sub(k),
+    };
+    let (gl, gu) = (typical_gap(lower), typical_gap(upper));
+    let gap = |e: &[PlantEvent], a: usize, b: usize| e[a].frame.abs_diff(e[b].frame) as f64;
     let mut pairs = vec![(lower[at.0].frame, upper[at.1].frame)];
     let (mut i, mut j) = at;
-    while i + 1 < lower.len() && j + 1 < upper.len() && lower[i + 1].foot == upper[j + 1].foot {
-        (i, j) = (i + 1, j + 1);
+    while let (Some(ni), Some(nj)) = (step(i, 1, lower.len()), step(j, 1, upper.len())) {
+        let next = if lower[ni].foot == upper[nj].foot {
+            Some((ni, nj))
+        } else {
+            // Skip the shorter interval's landing, if that brings the feet back in step.
+            let skip_lower = gap(lower, i, ni) / gl < gap(upper, j, nj) / gu;
+            let (si, sj) = if skip_lower {
+                (step(i, 2, lower.len()), Some(nj))
+            } else {
+                (Some(ni), step(j, 2, upper.len()))
+            };
+            match (si, sj) {
+                (Some(a), Some(b)) if lower[a].foot == upper[b].foot => Some((a, b)),
+                _ => None,
+            }
+        };
+        let Some((a, b)) = next else { break };
+        (i, j) = (a, b);
         pairs.push((lower[i].frame, upper[j].frame));
-    }
-    let (mut i, mut j) = at;
-    while i > 0 && j > 0 && lower[i - 1].foot == upper[j - 1].foot {
-        (i, j) = (i - 1, j - 1);
-        pairs.insert(0, (lower[i].frame, upper[j].frame));
     }
     pairs
 }
@@ -188,9 +237,25 @@ mod tests {
     }
 
     #[test]
-    fn a_different_foot_stops_the_pairing() {
-        let lower = [ev(0, Side::Left), ev(10, Side::Right), ev(20, Side::Right)];
-        let upper = [ev(3, Side::Left), ev(13, Side::Right), ev(23, Side::Left)];
+    fn a_stutter_step_is_skipped_and_a_lasting_mismatch_stops_the_pairing() {
+        use Side::{Left as L, Right as R};
+        // The lower clip has an extra right landing 2 frames after one (a split plant).
+        let lower = [ev(0, L), ev(10, R), ev(12, R), ev(20, L), ev(30, R)];
+        let upper = [ev(3, L), ev(13, R), ev(23, L), ev(33, R)];
+        assert_eq!(
+            pair_from(&lower, &upper, (0, 0)),
+            vec![(0, 3), (10, 13), (20, 23), (30, 33)]
+        );
+        // Both clips land the same foot twice in a row, out of step: no skip resynchronises.
+        let lower = [ev(0, L), ev(10, R), ev(20, R), ev(30, R)];
+        let upper = [ev(3, L), ev(13, R), ev(23, L), ev(33, L)];
         assert_eq!(pair_from(&lower, &upper, (0, 0)), vec![(0, 3), (10, 13)]);
+        // Backwards from a later anchor.
+        let lower = [ev(0, L), ev(10, R), ev(20, L)];
+        let upper = [ev(5, R), ev(15, L), ev(25, R), ev(35, L)];
+        assert_eq!(
+            pair_from(&lower, &upper, (2, 3)),
+            vec![(0, 15), (10, 25), (20, 35)]
+        );
     }
 }
