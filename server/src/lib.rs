@@ -35,6 +35,7 @@ pub mod cmd;
 pub mod config;
 pub mod demo;
 pub mod engine;
+pub mod graft_live;
 pub mod http;
 pub mod limits;
 pub mod live;
