@@ -103,6 +103,11 @@ impl LiveGraft {
         })
     }
 
+    /// The waist cut on the character.
+    pub fn split(&self) -> &BodySplit {
+        self.splice.split()
+    }
+
     /// Keeps `older`'s stride clock (phase, travel) when this graft replaces it after a re-map.
     pub fn continue_from(&mut self, older: &mut LiveGraft) {
         if let (Some(new), Some(old)) = (self.gait.as_mut(), older.gait.as_mut()) {
@@ -128,7 +133,10 @@ impl LiveGraft {
         let mut flags = [false; MAX_FEET];
         let lower = match (self.gait.as_mut(), lower_source) {
             (Some(g), _) => {
-                for (f, p) in flags.iter_mut().zip(g.advance(tick_secs, &mut self.lower_pose)) {
+                for (f, p) in flags
+                    .iter_mut()
+                    .zip(g.advance(tick_secs, &mut self.lower_pose))
+                {
                     *f = *p;
                 }
                 &self.lower_pose

@@ -323,7 +323,19 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
             }
             None => None,
         };
+        let graft = match p.graft.as_ref().map(|g| &g.lower) {
+            None => None,
+            Some(config::LowerSpec::Source(_)) => Some(graft_live::LowerInput::Source),
+            Some(config::LowerSpec::Clip(path)) => {
+                let path = path.clone();
+                let clip = tokio::task::spawn_blocking(move || rigcast_sources::load_clip(&path))
+                    .await?
+                    .context("the graft's lower-body clip")?;
+                Some(graft_live::LowerInput::Clip(Arc::new(clip)))
+            }
+        };
         plans.push(PerformerPlan {
+            graft,
             target: subject.clone(),
             target_reference: t.reference,
             overrides_file,

@@ -56,16 +56,17 @@ impl GaitLoop {
     /// order is the flags' order), `up` the clip skeleton's up.
     pub fn new(clip: &Clip, plants: &PlantTrack, up: Vec3) -> Result<GaitLoop, GraftError> {
         let skel = &clip.skeleton;
-        let (a, b) = best_stride(clip, plants)?;
         let mover = mover(clip);
+        // The mover's parent stands still: its frame at the first pose is the frame for all.
         let parent_rot = skel
             .parent(mover)
-            .map(|p| crate::fk::world_transforms(skel, &clip.poses[a])[p.index()].rotation)
+            .map(|p| crate::fk::world_transforms(skel, &clip.poses[0])[p.index()].rotation)
             .unwrap_or(Quat::IDENTITY);
         let up = (parent_rot.inverse() * up)
             .try_normalize()
             .unwrap_or(Vec3::Y);
         let m = mover.index();
+        let (a, b) = best_stride(clip, plants, m, up)?;
         let (start, end) = (&clip.poses[a], &clip.poses[b]);
         let stride_turn = twist_angle(end.rotations[m] * start.rotations[m].inverse(), up);
         let yaw = Quat::from_axis_angle(up, stride_turn);
@@ -160,32 +161,44 @@ fn mover(clip: &Clip) -> BoneId {
         .unwrap_or(BoneId(0))
 }
 
-/// The stride (consecutive landings of one foot, another foot landing between) whose end pose
-/// is nearest its start, by the summed rotation angles of every bone but the root's.
-fn best_stride(clip: &Clip, plants: &PlantTrack) -> Result<(usize, usize), GraftError> {
+/// The stride to loop: among strides (consecutive landings of one foot, another foot landing
+/// between) that travel at least half as far as the farthest one (a clip's idle shuffles
+/// start and end alike but do not walk), the one whose end pose is nearest its start, by the
+/// summed rotation angles of every bone below the mover.
+fn best_stride(
+    clip: &Clip,
+    plants: &PlantTrack,
+    mover: usize,
+    up: Vec3,
+) -> Result<(usize, usize), GraftError> {
     let events = plant_events(plants);
     let distance = |a: &Pose, b: &Pose| -> f32 {
-        let pairs = a.rotations.iter().zip(&b.rotations).skip(1);
+        let pairs = a.rotations.iter().zip(&b.rotations).skip(mover + 1);
         pairs.map(|(x, y)| crate::approx::quat_angle(*x, *y)).sum()
     };
-    let mut best: Option<(f32, (usize, usize))> = None;
-    for (k, e) in events.iter().enumerate() {
-        let Some(next) = events[k + 1..].iter().position(|n| n.foot == e.foot) else {
-            continue;
-        };
-        let between = &events[k + 1..k + 1 + next];
-        if between.is_empty() {
-            continue;
-        }
-        let end = events[k + 1 + next].frame;
-        let d = distance(&clip.poses[e.frame], &clip.poses[end]);
-        if best.is_none_or(|(bd, _)| d < bd) {
-            best = Some((d, (e.frame, end)));
-        }
-    }
-    best.map(|(_, s)| s).ok_or_else(|| {
-        GraftError::Body("the locomotion clip has no full stride (a foot landing twice)".into())
-    })
+    let travel = |a: usize, b: usize| {
+        let d = clip.poses[b].translations[mover] - clip.poses[a].translations[mover];
+        flat(d, up).length()
+    };
+    let strides: Vec<(usize, usize)> = events
+        .iter()
+        .enumerate()
+        .filter_map(|(k, e)| {
+            let next = events[k + 1..].iter().position(|n| n.foot == e.foot)?;
+            (next > 0).then(|| (e.frame, events[k + 1 + next].frame))
+        })
+        .collect();
+    let farthest = strides
+        .iter()
+        .map(|&(a, b)| travel(a, b))
+        .fold(0.0f32, f32::max);
+    strides
+        .into_iter()
+        .filter(|&(a, b)| travel(a, b) >= 0.5 * farthest)
+        .map(|(a, b)| (distance(&clip.poses[a], &clip.poses[b]), (a, b)))
+        .min_by(|x, y| x.0.total_cmp(&y.0))
+        .map(|(_, s)| s)
+        .ok_or(GraftError::NoStride)
 }
 
 /// The stride with its end pose brought onto its start (turned by the stride's turn at the

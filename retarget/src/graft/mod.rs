@@ -59,6 +59,9 @@ pub enum GraftError {
     /// A clip without frames.
     #[error("the {0} clip has no frames")]
     Empty(&'static str),
+    /// A locomotion clip to loop in which no foot lands twice.
+    #[error("the locomotion clip has no full stride to loop (no foot lands twice)")]
+    NoStride,
 }
 
 /// How a graft is made.
