@@ -19,7 +19,8 @@ use std::sync::Arc;
 use anyhow::Context;
 use rigcast_retarget::analysis::Analysis;
 use rigcast_retarget::footplant::{detect_clip, find_legs, FootLock, PlantSettings, MAX_FEET};
-use rigcast_retarget::graft::{BodySplit, GaitLoop, GraftSettings, Splice};
+use rigcast_retarget::graft::{BodySplit, GaitLoop, GraftSettings, Half, Splice};
+use rigcast_retarget::mapping::MappingTable;
 use rigcast_retarget::{Clip, Mapping, Pose};
 
 /// Where a graft's lower body comes from.
@@ -165,4 +166,21 @@ impl LiveGraft {
         }
         true
     }
+}
+
+/// One table for the `mapping` message: each target bone's entry from its half's table, the
+/// lower body's sources as input 1.
+pub fn merged_table(upper: &MappingTable, lower: &MappingTable, split: &BodySplit) -> MappingTable {
+    let mut merged = upper.clone();
+    for (t, (m, l)) in merged.entries.iter_mut().zip(&lower.entries).enumerate() {
+        if split.halves.get(t) == Some(&Half::Lower) {
+            *m = l.clone().map(|mut e| {
+                for s in &mut e.sources {
+                    s.input = 1;
+                }
+                e
+            });
+        }
+    }
+    merged
 }

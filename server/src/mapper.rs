@@ -347,18 +347,7 @@ impl Mapper {
             clip.as_deref(),
         )?;
         // The `mapping` message: each target bone's source from the table of its half.
-        let mut merged = upper_table.clone();
-        let split = graft.split();
-        for t in target.bone_ids() {
-            if split.half(t) == rigcast_retarget::graft::Half::Lower {
-                merged.entries[t.index()] = lower_table.entries[t.index()].clone().map(|mut e| {
-                    for s in &mut e.sources {
-                        s.input = 1;
-                    }
-                    e
-                });
-            }
-        }
+        let merged = crate::graft_live::merged_table(&upper_table, &lower_table, graft.split());
         let warnings: Vec<String> = [
             ("upper source", &upper.1),
             ("lower body", &lower.1),

@@ -124,27 +124,9 @@ pub fn plan(
     };
     let (g_events, l_events) = (plant_events(g_plants), plant_events(l_plants));
     let g_end = (g.num_frames() - 1) as f64 * g.frame_time_secs;
-    let mut best: Option<(usize, bool, f32, (usize, usize))> = None;
-    for (i, le) in l_events.iter().enumerate() {
-        for (j, ge) in g_events
-            .iter()
-            .enumerate()
-            .filter(|(_, ge)| ge.foot == le.foot)
-        {
-            let paired = pair_from(&l_events, &g_events, (i, j)).len();
-            let transition = lower_c.first[ge.frame] == lower_c.second[le.frame];
-            let distance = gl.distance2(ge.frame, &ll, le.frame);
-            let better = match best {
-                None => true,
-                Some((p, t, d, _)) => (paired, transition, -distance) > (p, t, -d),
-            };
-            if better {
-                best = Some((paired, transition, distance, (i, j)));
-            }
-        }
-    }
-    let (pairs, anchor, transition) = match best {
-        Some((_, t, _, at)) => {
+    let anchor = best_anchor(&l_events, &g_events, &lower_c, (&ll, &gl));
+    let (pairs, anchor, transition) = match anchor {
+        Some((at, t)) => {
             let pairs = pair_from(&l_events, &g_events, at);
             let anchor = (l_events[at.0].frame, g_events[at.1].frame);
             (pairs, Some(anchor), t)
@@ -160,6 +142,37 @@ pub fn plan(
         anchor_is_transition: transition,
         shared_clusters: (shared(&lower_c), shared(&upper_c)),
     })
+}
+
+/// The anchor landing pair (indices into the locomotion's and the graft's landings, same
+/// foot) and whether it is a transition: the pair that pairs the most landings, then one whose
+/// lower-body clusters are shared, then the nearest lower-body poses.
+fn best_anchor(
+    lower: &[PlantEvent],
+    graft: &[PlantEvent],
+    clusters: &Clustering,
+    (lower_features, graft_features): (&Features, &Features),
+) -> Option<((usize, usize), bool)> {
+    let mut best: Option<(usize, bool, f32, (usize, usize))> = None;
+    for (i, le) in lower.iter().enumerate() {
+        for (j, ge) in graft
+            .iter()
+            .enumerate()
+            .filter(|(_, ge)| ge.foot == le.foot)
+        {
+            let paired = pair_from(lower, graft, (i, j)).len();
+            let transition = clusters.first[ge.frame] == clusters.second[le.frame];
+            let distance = graft_features.distance2(ge.frame, lower_features, le.frame);
+            let better = match best {
+                None => true,
+                Some((p, t, d, _)) => (paired, transition, -distance) > (p, t, -d),
+            };
+            if better {
+                best = Some((paired, transition, distance, (i, j)));
+            }
+        }
+    }
+    best.map(|(_, t, _, at)| (at, t))
 }
 
 /// Makes the grafted clip: per locomotion frame, the graft sampled at the warped time and
