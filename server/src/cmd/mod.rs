@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod convert;
 pub mod graft;
 pub mod info;
+pub mod loadtest;
 pub mod map;
 pub mod pose;
 pub mod record;
