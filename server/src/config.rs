@@ -103,6 +103,8 @@ pub struct FileConfig {
     pub max_connections: Option<usize>,
     /// A client whose socket accepts nothing for this long is disconnected (default 10 s).
     pub stalled_client_timeout_secs: Option<f64>,
+    /// Cluster mode: share subjects with other nodes over NATS.
+    pub cluster: Option<crate::cluster::ClusterConfig>,
 }
 
 /// A `vmc_out` entry.
@@ -607,6 +609,8 @@ pub struct ServerConfig {
     pub access: AccessConfig,
     /// Connection, client and cache bounds.
     pub limits: LimitsConfig,
+    /// Cluster mode (NATS), off when `None`.
+    pub cluster: Option<crate::cluster::ClusterConfig>,
 }
 
 /// The default on-disk mapping cache: `$XDG_CACHE_HOME/rigcast/mappings`, else
@@ -633,6 +637,7 @@ impl Default for ServerConfig {
             mapping_cache_dir: None,
             access: AccessConfig::default(),
             limits: LimitsConfig::default(),
+            cluster: None,
         }
     }
 }
@@ -731,6 +736,7 @@ impl ServerConfig {
                 .map(TokenSetting::File)
                 .unwrap_or(TokenSetting::Ephemeral),
         };
+        cfg.cluster = file.cluster.clone();
         cfg.limits = LimitsConfig {
             max_connections: file.max_connections,
             stalled_client_timeout_secs: file

@@ -295,6 +295,11 @@ impl Ticker {
                 }
             }
             drop(frame);
+            if subject.is_relayed() {
+                // Another node's subject: its frames reach clients as they arrive from the
+                // cluster (cluster::run_relay), not re-encoded here.
+                continue;
+            }
             // The one allocation per subject per tick: the shared, immutable frame, which must
             // outlive the tick because client tasks send it later.
             let bytes = Bytes::copy_from_slice(&self.scratch);

@@ -31,6 +31,7 @@ pub mod calibration;
 pub mod character;
 pub mod cli;
 pub mod clients;
+pub mod cluster;
 pub mod cmd;
 pub mod config;
 pub mod demo;
@@ -43,6 +44,7 @@ pub mod mapper;
 pub mod mapping_store;
 pub mod performer;
 pub mod recorder;
+pub mod skeleton_wire;
 pub mod state;
 pub mod stats;
 pub mod subject;
@@ -188,7 +190,16 @@ struct LoadedTarget {
 /// the server accepts connections.
 pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
     config.validate()?;
-    let defaulted = config.sources.is_empty();
+    let cluster = match &config.cluster {
+        Some(c) => Some(Arc::new(cluster::Cluster::connect(c).await?)),
+        None => None,
+    };
+    let remote_entries = match &cluster {
+        Some(c) => c.remote_entries().await?,
+        None => Vec::new(),
+    };
+    // A node that relays other nodes' subjects needs no demo of its own.
+    let defaulted = config.sources.is_empty() && remote_entries.is_empty();
     let specs = if defaulted {
         vec![SourceSpec::EmbeddedDemo]
     } else {
@@ -209,6 +220,26 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         let (name, l, skeleton) = tokio::task::spawn_blocking(move || load_source(spec)).await??;
         names.push(unique_name(&names, name));
         loaded.push((l, skeleton));
+    }
+    let mut relays = Vec::new();
+    if let Some(c) = &cluster {
+        for e in &remote_entries {
+            let (source, tx) = cluster::RemoteSource::new(e, c.config.lost_after())
+                .with_context(|| format!("cluster subject {}", e.relayed_name()))?;
+            let skeleton = source
+                .skeleton()
+                .context("a remote source has a skeleton")?;
+            let subject = c.config.frame_subject(&e.site, &cluster::token(&e.name));
+            relays.push((loaded.len() as u32, subject, tx));
+            names.push(unique_name(&names, e.relayed_name()));
+            let live = Loaded::Live {
+                source: Box::new(source),
+                kind: cluster::REMOTE_KIND,
+                listen: None,
+                calibration: None,
+            };
+            loaded.push((live, skeleton));
+        }
     }
     let mut targets = Vec::new();
     for p in &performer_specs {
@@ -546,6 +577,16 @@ pub async fn start(config: ServerConfig) -> anyhow::Result<ServerHandle> {
         events_tx,
         shutdown_rx.clone(),
     )));
+    if let Some(c) = &cluster {
+        for (id, subject, tx) in relays {
+            let relay = cluster::run_relay(c.client.clone(), subject, id, tx, state.clone());
+            tasks.push(tokio::spawn(relay));
+        }
+        tasks.push(tokio::spawn(cluster::run_publisher(
+            c.clone(),
+            state.clone(),
+        )));
+    }
     tasks.push(tokio::spawn(http::run_listener(listener, state.clone())));
 
     Ok(ServerHandle {

@@ -71,9 +71,16 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
         if last_status.elapsed() >= STATUS_EVERY {
             last_status = Instant::now();
             let status = source.status();
-            ctx.subject.health.set_state(state_of(status.state));
+            let state = state_of(status.state);
+            let changed = ctx.subject.health.state() != state;
+            ctx.subject.health.set_state(state);
             if let Ok(mut g) = ctx.subject.health.live.lock() {
                 *g = Some(status);
+            }
+            if changed {
+                // Clients hear of a loss or a recovery now, not at the next periodic report.
+                // Err only means no client is connected.
+                let _ = ctx.events.send(crate::source_status_json(&ctx.subjects));
             }
         }
         match source.next_frame(POLL, &mut pose) {

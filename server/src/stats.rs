@@ -116,6 +116,11 @@ pub struct Stats {
     pub control_resyncs: AtomicU64,
     /// Clients dropped for accepting nothing for the stall timeout.
     pub stalled_disconnects: AtomicU64,
+    /// Frames not handed to NATS (cluster mode): publish failures and frames the publisher
+    /// fell behind on.
+    pub cluster_publish_errors: AtomicU64,
+    /// Frames received from NATS that were malformed and dropped (cluster mode).
+    pub cluster_bad_frames: AtomicU64,
     /// Connected clients by id.
     pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
     tick_micros: Mutex<TickWindow>,
@@ -136,6 +141,8 @@ impl Default for Stats {
             vmc_send_errors: AtomicU64::new(0),
             control_resyncs: AtomicU64::new(0),
             stalled_disconnects: AtomicU64::new(0),
+            cluster_publish_errors: AtomicU64::new(0),
+            cluster_bad_frames: AtomicU64::new(0),
             clients: Mutex::new(BTreeMap::new()),
             tick_micros: Mutex::new(TickWindow {
                 values: [0; TICK_WINDOW],

@@ -472,6 +472,12 @@ impl Subject {
         true
     }
 
+    /// Whether this subject is another node's, relayed from the cluster (its frames are
+    /// forwarded as received instead of being encoded by this node's tick).
+    pub fn is_relayed(&self) -> bool {
+        self.source_kind == crate::cluster::REMOTE_KIND
+    }
+
     /// Whether this is a retargeted character.
     pub fn is_target(&self) -> bool {
         !self.inputs.is_empty()

@@ -55,6 +55,12 @@ pub struct ServeArgs {
     /// Most simultaneous connections (default: the open-file limit minus 64).
     #[arg(long, value_name = "N")]
     pub max_connections: Option<usize>,
+    /// Cluster mode: NATS servers to share subjects through (`nats://HOST:PORT[,…]`).
+    #[arg(long, value_name = "URL[,URL…]", requires = "site")]
+    pub nats: Option<String>,
+    /// Cluster mode: this node's name in the deployment.
+    #[arg(long, value_name = "NAME", requires = "nats")]
+    pub site: Option<String>,
 }
 
 /// Merges the config file and flags.
@@ -83,6 +89,17 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     }
     if args.no_mapping_cache {
         cfg.mapping_cache_dir = None;
+    }
+    if let (Some(servers), Some(site)) = (&args.nats, &args.site) {
+        // Flags override the file's servers and site; its credentials and namespace stay.
+        let mut c = cfg
+            .cluster
+            .take()
+            .unwrap_or_else(|| crate::cluster::ClusterConfig::new(servers, site));
+        c.servers = crate::cluster::ClusterConfig::new(servers, site).servers;
+        c.site = site.clone();
+        c.validate()?;
+        cfg.cluster = Some(c);
     }
     if !args.targets.is_empty() {
         cfg.performers = args
