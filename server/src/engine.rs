@@ -28,7 +28,7 @@ use tokio_tungstenite::tungstenite::Bytes;
 
 use crate::performer::Performer;
 use crate::stats::Stats;
-use crate::subject::HealthState;
+use rigcast_protocol::SourceState;
 use rigcast_sources::Replay;
 
 /// Wall clock as Unix epoch nanoseconds.
@@ -132,7 +132,7 @@ pub async fn run_replay_source(
             None => finished = true,
         });
         if finished {
-            subject.health.set_state(HealthState::Finished);
+            subject.health.set_state(SourceState::Finished);
             break;
         }
         subject.stats.input.tick();

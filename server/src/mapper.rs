@@ -113,8 +113,8 @@ impl Mapper {
     pub fn build_all(&mut self) {
         for i in 0..self.performers.len() {
             if let Err(e) = self.build(i) {
-                eprintln!(
-                    "rigcast: cannot map {}: {e:#}",
+                tracing::error!(
+                    "cannot map {}: {e:#}",
                     self.performers[i].target.info().name
                 );
             }
@@ -251,6 +251,7 @@ impl Mapper {
         if let Ok(mut m) = p.target.mapping_json.write() {
             *m = Some(json.clone());
         }
+        // Err only means no client is listening right now.
         let _ = self.events.send(json);
     }
 
@@ -386,7 +387,7 @@ impl Mapper {
                 };
                 self.performers[i].session.extend(overrides);
                 if let Err(e) = self.build(i) {
-                    eprintln!("rigcast: set_mapping for subject {subject}: {e:#}");
+                    tracing::error!("set_mapping for subject {subject}: {e:#}");
                 }
             }
             EngineCommand::SetPerformer { subject, foot_lock } => {
@@ -397,7 +398,7 @@ impl Mapper {
                     self.performers[i].foot_lock = foot_lock;
                 }
                 if let Err(e) = self.build(i) {
-                    eprintln!("rigcast: set_performer for subject {subject}: {e:#}");
+                    tracing::error!("set_performer for subject {subject}: {e:#}");
                 }
             }
             EngineCommand::SkeletonChanged { subject } => {
@@ -406,7 +407,7 @@ impl Mapper {
                         // The old reference pose belongs to the old skeleton.
                         self.extras.remove(&subject);
                         if let Err(e) = self.build(i) {
-                            eprintln!("rigcast: re-mapping after a skeleton change: {e:#}");
+                            tracing::error!("re-mapping after a skeleton change: {e:#}");
                         }
                     }
                 }

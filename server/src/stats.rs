@@ -6,8 +6,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use serde::Serialize;
-
 /// Ticks kept for the duration percentiles (about 17 s at 60 Hz).
 const TICK_WINDOW: usize = 1024;
 
@@ -153,20 +151,7 @@ impl Default for Stats {
     }
 }
 
-/// Tick duration percentiles in microseconds.
-#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq)]
-pub struct TickPercentiles {
-    /// median
-    pub p50: u32,
-    /// 90th percentile
-    pub p90: u32,
-    /// 99th percentile
-    pub p99: u32,
-    /// maximum
-    pub max: u32,
-    /// ticks in the window
-    pub samples: usize,
-}
+pub use rigcast_protocol::status::TickPercentiles;
 
 impl Stats {
     /// Records one tick's duration (no allocation).

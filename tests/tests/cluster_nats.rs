@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::control::SubjectInfo;
 use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
-use rigcast_protocol::ServerMessage;
+use rigcast_protocol::{ServerMessage, SourceState};
 use rigcast_tests::{connect, free_port, handshake, next, temp_path, Incoming, ServeProcess, Ws};
 
 /// Debian installs nats-server in /usr/sbin, which is not always on PATH.
@@ -241,7 +241,12 @@ fn compare(
 }
 
 /// Waits until a `source_status` says subject `id` is in `state`; how long it took.
-async fn wait_state(ws: &mut Ws, id: u32, state: &str, timeout: Duration) -> Option<Duration> {
+async fn wait_state(
+    ws: &mut Ws,
+    id: u32,
+    state: SourceState,
+    timeout: Duration,
+) -> Option<Duration> {
     let start = Instant::now();
     let end = start + timeout;
     while let Some(left) = end.checked_duration_since(Instant::now()) {
@@ -335,8 +340,8 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     let demo_c = sc["demo@a"].id;
     drop(a);
     let (lost_b, lost_c) = tokio::join!(
-        wait_state(&mut wb, demo_b, "lost", Duration::from_secs(3)),
-        wait_state(&mut wc, demo_c, "lost", Duration::from_secs(3))
+        wait_state(&mut wb, demo_b, SourceState::Lost, Duration::from_secs(3)),
+        wait_state(&mut wc, demo_c, SourceState::Lost, Duration::from_secs(3))
     );
     println!("A killed: lost on B after {lost_b:?}, on C after {lost_c:?}");
     assert!(
@@ -351,8 +356,8 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     // A comes back: live again on B and C within 2 s of it serving.
     let a = spawn_node(a_args, "a").await;
     let (live_b, live_c) = tokio::join!(
-        wait_state(&mut wb, demo_b, "live", Duration::from_secs(5)),
-        wait_state(&mut wc, demo_c, "live", Duration::from_secs(5))
+        wait_state(&mut wb, demo_b, SourceState::Live, Duration::from_secs(5)),
+        wait_state(&mut wc, demo_c, SourceState::Live, Duration::from_secs(5))
     );
     println!("A restarted: live on B after {live_b:?}, on C after {live_c:?}");
 

@@ -38,9 +38,6 @@ pub use entry::{token, SubjectEntry};
 pub use publish::run_publisher;
 pub use remote::{run_relay, RemoteSource};
 
-/// The source kind of a subject relayed from another node.
-pub const REMOTE_KIND: &str = "remote";
-
 /// `[cluster]` in the config file (or `--nats` / `--site` on the command line).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -227,6 +224,80 @@ impl Cluster {
         }
         out.sort_by(|a, b| (&a.site, &a.name).cmp(&(&b.site, &b.name)));
         Ok(out)
+    }
+}
+
+/// One of another node's subjects, ready to become a source subject here.
+pub struct RemoteSubject {
+    /// `NAME@SITE`.
+    pub name: String,
+    /// Its source.
+    pub source: RemoteSource,
+    /// Its skeleton.
+    pub skeleton: std::sync::Arc<rigcast_retarget::Skeleton>,
+}
+
+/// What feeds one relayed subject: its frames' NATS subject, the id it has here, its source.
+pub struct Relay {
+    /// Subject id on this node.
+    pub id: u32,
+    /// The NATS subject its frames arrive on.
+    pub subject: String,
+    /// Its source's queue.
+    pub tx: std::sync::mpsc::SyncSender<tokio_tungstenite::tungstenite::Bytes>,
+}
+
+/// This node's part of the cluster, between loading and spawning.
+pub struct ClusterLink {
+    /// The connection.
+    pub cluster: std::sync::Arc<Cluster>,
+    /// One per relayed subject.
+    pub relays: Vec<Relay>,
+}
+
+/// Connects to the cluster of `config` and makes a subject of every other node's subject; the
+/// first gets id `first_id` (the subjects follow this node's own sources).
+pub async fn join(
+    config: &ClusterConfig,
+    first_id: u32,
+) -> anyhow::Result<(ClusterLink, Vec<RemoteSubject>)> {
+    let cluster = std::sync::Arc::new(Cluster::connect(config).await?);
+    let mut relays = Vec::new();
+    let mut subjects = Vec::new();
+    for (k, e) in cluster.remote_entries().await?.iter().enumerate() {
+        let (source, tx) = RemoteSource::new(e, config.lost_after())
+            .with_context(|| format!("cluster subject {}", e.relayed_name()))?;
+        let skeleton = source.skeleton_arc();
+        relays.push(Relay {
+            id: first_id + k as u32,
+            subject: config.frame_subject(&e.site, &token(&e.name)),
+            tx,
+        });
+        subjects.push(RemoteSubject {
+            name: e.relayed_name(),
+            source,
+            skeleton,
+        });
+    }
+    Ok((ClusterLink { cluster, relays }, subjects))
+}
+
+impl ClusterLink {
+    /// Starts the relays and the publisher; they stop when `state` shuts down.
+    pub fn spawn(
+        self,
+        state: &std::sync::Arc<crate::state::ServerState>,
+    ) -> Vec<tokio::task::JoinHandle<()>> {
+        let mut tasks: Vec<_> = self
+            .relays
+            .into_iter()
+            .map(|r| {
+                let client = self.cluster.client.clone();
+                tokio::spawn(run_relay(client, r.subject, r.id, r.tx, state.clone()))
+            })
+            .collect();
+        tasks.push(tokio::spawn(run_publisher(self.cluster, state.clone())));
+        tasks
     }
 }
 

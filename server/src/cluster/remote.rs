@@ -67,6 +67,11 @@ impl RemoteSource {
         ))
     }
 
+    /// Its skeleton.
+    pub fn skeleton_arc(&self) -> Arc<Skeleton> {
+        self.skeleton.clone()
+    }
+
     /// Fills `out` from a published message (version 1 then version 2 frame); the header, or
     /// `None` when it does not fit this subject's skeleton.
     fn decode(&mut self, bytes: &[u8], out: &mut Pose) -> Option<FrameHeader> {
