@@ -78,7 +78,7 @@ fn a_grafted_performer_ticks_without_allocating() {
         1,
         "target".into(),
         target.clone(),
-        "target",
+        None,
         vec![0],
         VmcBoneNames::Humanoid,
     );
