@@ -11,6 +11,7 @@
 //!                               [WorldTransform] (caller-owned buffer)
 //!
 //!   Mapping::apply (retarget) ─▶ target Pose ─▶ footplant::FootLock (planted feet pinned)
+//!   graft: upper body of one clip spliced onto another's legs, in step with its footplants
 //!
 //!   Clip = Skeleton + Vec<Pose> + frame time      (what files decode into)
 //!   Frame = { seq, capture_nanos, source_id, pose } (what moves through channels)
@@ -29,6 +30,7 @@ pub mod corpus;
 pub mod error;
 pub mod fk;
 pub mod footplant;
+pub mod graft;
 pub mod mapping;
 pub mod pose;
 pub mod retarget;

@@ -36,6 +36,8 @@ pub enum Command {
     Record(cmd::record::RecordArgs),
     /// Put an animation onto another character (offline), written as BVH or GLB.
     Retarget(cmd::retarget::RetargetArgs),
+    /// Graft the upper body of one clip onto another's legs, in step with its footplants.
+    Graft(cmd::graft::GraftArgs),
     /// Measure the realtime path (retarget, FK, mapping build, frame encode) on this machine.
     Bench(cmd::bench::BenchArgs),
     /// Map the bones of SOURCE onto TARGET automatically (table, or --json).
@@ -61,6 +63,7 @@ impl Command {
             Command::Convert(a) => cmd::convert::run(a),
             Command::Record(a) => cmd::record::run(a).await,
             Command::Retarget(a) => cmd::retarget::run(&a),
+            Command::Graft(a) => cmd::graft::run(&a),
             Command::Bench(a) => cmd::bench::run(&a),
             Command::Map(a) => cmd::map::run(&a),
             Command::Pose(a) => cmd::pose::run(&a),

@@ -249,6 +249,41 @@ pub struct FilePerformer {
     /// Pin the character's feet while the source's are planted (default: on for humanoid and
     /// quadruped characters).
     pub foot_lock: Option<bool>,
+    /// A graft: the source subject whose upper body (spine above the waist, arms, head) drives
+    /// the character; with `lower`, instead of `source`.
+    pub upper: Option<String>,
+    /// A graft's lower body (pelvis, legs): a source subject, or a locomotion clip file
+    /// (`.bvh`, `.glb`, `.gltf`, `.vrm`, `.rcr`) looped in step, its footplants locked.
+    pub lower: Option<String>,
+}
+
+/// File extensions that make a performer's `lower` a locomotion clip rather than a subject.
+pub const CLIP_EXTENSIONS: [&str; 5] = ["bvh", "glb", "gltf", "vrm", "rcr"];
+
+/// Whether `lower` names a clip file (by its extension) rather than a source subject.
+pub fn is_clip_path(lower: &str) -> bool {
+    Path::new(lower)
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| CLIP_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// Where a grafted performer's lower body comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LowerSpec {
+    /// A source subject (the performer's second input).
+    Source(String),
+    /// A locomotion clip, looped one stride at a time.
+    Clip(PathBuf),
+}
+
+/// A performer grafted from two inputs (see `graft_live`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GraftSpec {
+    /// The source subject whose upper body drives the character.
+    pub upper: String,
+    /// The lower body's input.
+    pub lower: LowerSpec,
 }
 
 fn vmc_port() -> u16 {
@@ -290,6 +325,11 @@ impl FileConfig {
         }
         for p in &mut cfg.performers {
             resolve(&mut p.target);
+            if let Some(lower) = p.lower.as_mut().filter(|l| is_clip_path(l)) {
+                let mut path = PathBuf::from(&*lower);
+                resolve(&mut path);
+                *lower = path.to_string_lossy().into_owned();
+            }
             if let Some(m) = p.mapping.as_mut() {
                 resolve(m);
             }
@@ -658,6 +698,9 @@ pub struct PerformerSpec {
     pub on_lost: Option<OnLost>,
     /// Foot locking (`None`: on for humanoid and quadruped characters).
     pub foot_lock: Option<bool>,
+    /// Upper and lower body from two inputs (`sources` then lists the upper source, and the
+    /// lower one when it is a source).
+    pub graft: Option<GraftSpec>,
 }
 
 impl PerformerSpec {
@@ -671,8 +714,57 @@ impl PerformerSpec {
             in_place: false,
             on_lost: None,
             foot_lock: None,
+            graft: None,
         }
     }
+}
+
+/// A `[[performers]]` entry as the server runs it: `upper` + `lower` make a graft, whose
+/// inputs are the upper source and (unless the lower body is a clip) the lower one.
+fn performer_spec(p: FilePerformer) -> Result<PerformerSpec, ConfigError> {
+    let graft = match (p.upper, p.lower, &p.source) {
+        (None, None, _) => None,
+        (Some(upper), Some(lower), None) => Some(GraftSpec {
+            upper,
+            lower: if is_clip_path(&lower) {
+                LowerSpec::Clip(PathBuf::from(lower))
+            } else {
+                LowerSpec::Source(lower)
+            },
+        }),
+        (_, _, Some(_)) => {
+            return Err(ConfigError::Invalid {
+                field: "performers.upper / performers.lower",
+                message: "a grafted performer takes `upper` and `lower` instead of `source`".into(),
+            })
+        }
+        _ => {
+            return Err(ConfigError::Invalid {
+                field: "performers.upper / performers.lower",
+                message: "a graft needs both `upper` (a source) and `lower` (a source or a clip)"
+                    .into(),
+            })
+        }
+    };
+    let sources = match (&graft, p.source) {
+        (Some(g), _) => match &g.lower {
+            LowerSpec::Source(l) => vec![g.upper.clone(), l.clone()],
+            LowerSpec::Clip(_) => vec![g.upper.clone()],
+        },
+        (None, None) => Vec::new(),
+        (None, Some(FileNames::One(s))) => vec![s],
+        (None, Some(FileNames::Many(v))) => v,
+    };
+    Ok(PerformerSpec {
+        sources,
+        target: TargetSpec::File(p.target),
+        name: p.name,
+        mapping: p.mapping,
+        in_place: p.in_place,
+        on_lost: p.on_lost,
+        foot_lock: p.foot_lock,
+        graft,
+    })
 }
 
 /// Fully resolved server settings.
@@ -827,20 +919,8 @@ impl ServerConfig {
         cfg.performers = file
             .performers
             .into_iter()
-            .map(|p| PerformerSpec {
-                sources: match p.source {
-                    None => Vec::new(),
-                    Some(FileNames::One(s)) => vec![s],
-                    Some(FileNames::Many(v)) => v,
-                },
-                target: TargetSpec::File(p.target),
-                name: p.name,
-                mapping: p.mapping,
-                in_place: p.in_place,
-                on_lost: p.on_lost,
-                foot_lock: p.foot_lock,
-            })
-            .collect();
+            .map(performer_spec)
+            .collect::<Result<_, _>>()?;
         cfg.sources = file.sources;
         cfg.validate()?;
         Ok(cfg)
@@ -917,6 +997,52 @@ mod tests {
             "{err}"
         );
         assert!(FileConfig::load(&dir.join("missing.toml")).is_err());
+    }
+
+    #[test]
+    fn grafted_performers_take_upper_and_lower() {
+        let dir = std::env::temp_dir().join(format!("rigcast-graftcfg-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("rigcast.toml");
+        let text = r#"
+            [[performers]]
+            target = "builtin:mannequin"
+            upper = "webcam"
+            lower = "walks/walk.bvh"
+            [[performers]]
+            target = "builtin:mannequin"
+            upper = "webcam"
+            lower = "suit"
+        "#;
+        std::fs::write(&path, text).unwrap();
+        let cfg = ServerConfig::from_file(FileConfig::load(&path).unwrap()).unwrap();
+        let (a, b) = (&cfg.performers[0], &cfg.performers[1]);
+        assert_eq!(a.sources, vec!["webcam".to_string()]);
+        assert_eq!(
+            a.graft,
+            Some(GraftSpec {
+                upper: "webcam".into(),
+                lower: LowerSpec::Clip(dir.join("walks/walk.bvh")),
+            })
+        );
+        assert_eq!(b.sources, vec!["webcam".to_string(), "suit".to_string()]);
+        assert_eq!(
+            b.graft.as_ref().unwrap().lower,
+            LowerSpec::Source("suit".into())
+        );
+        for (bad, want) in [
+            ("upper = \"webcam\"", "needs both"),
+            ("lower = \"walk.bvh\"", "needs both"),
+            (
+                "source = \"x\"\nupper = \"a\"\nlower = \"b\"",
+                "instead of `source`",
+            ),
+        ] {
+            let text = format!("[[performers]]\ntarget = \"builtin:mannequin\"\n{bad}\n");
+            let file: FileConfig = toml::from_str(&text).unwrap();
+            let err = ServerConfig::from_file(file).unwrap_err().to_string();
+            assert!(err.contains(want), "{bad}: {err}");
+        }
     }
 
     #[test]

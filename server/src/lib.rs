@@ -38,6 +38,7 @@ pub mod config;
 pub mod demo;
 pub mod engine;
 pub mod footplants;
+pub mod graft_live;
 pub mod http;
 pub mod limits;
 pub mod live;

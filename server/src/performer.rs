@@ -22,6 +22,7 @@ use tokio::sync::watch;
 
 use crate::config::OnLost;
 use crate::engine::unix_nanos;
+use crate::graft_live::{LiveGraft, LockTiming};
 use crate::subject::Subject;
 use rigcast_protocol::SourceState;
 
@@ -38,8 +39,11 @@ pub struct BuiltMapping {
     /// The job.
     pub mapping: Mapping,
     /// Pins the target's feet while the source's are planted (`None`: off, or nothing to
-    /// lock on this character).
+    /// lock on this character). For a graft, on the lower body's plants.
     pub foot_lock: Option<FootLock>,
+    /// A graft: `mapping` then drives the upper body from input 0, this the lower body (from
+    /// input 1, or its looping clip) and the splice.
+    pub graft: Option<LiveGraft>,
 }
 
 /// Longest gap between two source samples the plant detector treats as continuous motion.
@@ -76,6 +80,8 @@ pub struct Performer {
     last_input_seqs: [u64; MAX_INPUTS],
     /// Capture time of the foot lock's source input at its last sample.
     last_lock_capture: u64,
+    /// When the previous tick ran (a graft's looping clip moves on by the time between).
+    last_tick: Option<Instant>,
     seq: u64,
     published: bool,
     /// The eased-to pose has been published (nothing changes until the source returns).
@@ -92,6 +98,17 @@ fn rest_in_place(rest: &Pose, from: &Pose, out: &mut Pose) {
         t.x = f.x;
         t.z = f.z;
     }
+}
+
+/// Publishes which of the target's feet the lock holds (a bitmask for the status API).
+fn store_held_feet(target: &Subject, lock: &FootLock) {
+    let held = (0..lock.target_legs().count().min(32))
+        .filter(|&i| lock.is_locked(i))
+        .fold(0u32, |bits, i| bits | 1 << i);
+    target
+        .stats
+        .feet_locked
+        .store(held, std::sync::atomic::Ordering::Relaxed);
 }
 
 /// Smooth 0→1 ramp with zero slope at both ends (no jump when easing starts or ends).
@@ -126,6 +143,7 @@ impl Performer {
             on_lost,
             last_input_seqs: [0; MAX_INPUTS],
             last_lock_capture: 0,
+            last_tick: None,
             seq: 0,
             published: false,
             settled: false,
@@ -136,18 +154,35 @@ impl Performer {
         let Ok(mut slot) = self.mailbox.try_lock() else {
             return;
         };
-        let Some(built) = slot.take() else { return };
+        let Some(mut built) = slot.take() else { return };
         drop(slot);
-        // Rare (a rebuild): size the input copies for the new source skeletons.
+        // Rare (a rebuild): size the input copies for the new source skeletons (a graft's
+        // lower source is the last input).
         self.inputs = (0..built.mapping.num_inputs())
             .filter_map(|i| built.mapping.source(i).map(|s| s.rest_pose()))
             .collect();
+        if let Some(g) = built.graft.as_mut() {
+            if g.gait.is_none() {
+                self.inputs
+                    .extend(g.lower_mapping.source(0).map(|s| s.rest_pose()));
+            }
+            // The looping clip keeps its phase across a re-map.
+            if let Some(old) = self.current.as_mut().and_then(|c| c.graft.as_mut()) {
+                g.continue_from(old);
+            }
+        }
         self.current = Some(built);
     }
 
     /// Runs one tick: apply, ease, publish. Allocates nothing in steady state.
     pub fn tick(&mut self, now: Instant) {
         self.take_new_mapping();
+        let tick_secs = self
+            .last_tick
+            .map(|t| now.saturating_duration_since(t).as_secs_f64())
+            .unwrap_or(0.0)
+            .min(f64::from(MAX_SAMPLE_GAP_SECS));
+        self.last_tick = Some(now);
         let Some(built) = self.current.as_mut() else {
             return;
         };
@@ -192,7 +227,8 @@ impl Performer {
             }
             _ => {}
         }
-        let mut moving = changed;
+        // A looping clip moves every tick, whatever the upper source does.
+        let mut moving = changed || built.graft.as_ref().is_some_and(|g| g.gait.is_some());
         match self.phase {
             Phase::Lost(t0) => match self.on_lost {
                 OnLost::Ease => {
@@ -214,10 +250,41 @@ impl Performer {
                 for (r, p) in refs.iter_mut().zip(&self.inputs) {
                     *r = p;
                 }
-                if built.mapping.apply(&refs[..n], &mut self.live).is_err() {
+                if let Some(g) = built.graft.as_mut() {
+                    let timing = match g.gait {
+                        Some(_) => LockTiming {
+                            fresh: true,
+                            dt_secs: tick_secs as f32,
+                        },
+                        None => {
+                            let capture = captures[n - 1];
+                            let fresh = capture != self.last_lock_capture;
+                            let dt = capture.saturating_sub(self.last_lock_capture) as f32 * 1e-9;
+                            self.last_lock_capture = capture;
+                            LockTiming {
+                                fresh,
+                                dt_secs: dt.min(MAX_SAMPLE_GAP_SECS),
+                            }
+                        }
+                    };
+                    let lower = (n > 1).then(|| &self.inputs[n - 1]);
+                    let lock = built.foot_lock.as_mut().map(|l| (l, timing));
+                    if !g.apply(
+                        &mut built.mapping,
+                        &self.inputs[0],
+                        lower,
+                        tick_secs,
+                        lock,
+                        &mut self.live,
+                    ) {
+                        return;
+                    }
+                    if let Some(lock) = built.foot_lock.as_ref() {
+                        store_held_feet(&self.target, lock);
+                    }
+                } else if built.mapping.apply(&refs[..n], &mut self.live).is_err() {
                     return;
-                }
-                if let Some(lock) = built.foot_lock.as_mut() {
+                } else if let Some(lock) = built.foot_lock.as_mut() {
                     let input = built.mapping.root_input().unwrap_or(0).min(n - 1);
                     let capture = captures[input];
                     let fresh = capture != self.last_lock_capture;
@@ -229,13 +296,7 @@ impl Performer {
                         dt.min(MAX_SAMPLE_GAP_SECS),
                         &mut self.live,
                     );
-                    let held = (0..lock.target_legs().count().min(32))
-                        .filter(|&i| lock.is_locked(i))
-                        .fold(0u32, |bits, i| bits | 1 << i);
-                    self.target
-                        .stats
-                        .feet_locked
-                        .store(held, std::sync::atomic::Ordering::Relaxed);
+                    store_held_feet(&self.target, lock);
                 }
                 if let Phase::Resuming(t0) = self.phase {
                     let k =

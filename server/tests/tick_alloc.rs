@@ -89,6 +89,7 @@ fn tick_allocates_one_buffer_per_subject() {
     let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
         mapping,
         foot_lock,
+        graft: None,
     })));
     let performer = Performer::new(
         t.clone(),

@@ -178,6 +178,7 @@ fn performer_plan(
         spec,
         target: t,
         overrides_file,
+        graft,
     } = p;
     let inputs: Vec<u32> = if spec.sources.is_empty() {
         vec![0]
@@ -227,6 +228,7 @@ fn performer_plan(
         },
         foot_lock: spec.foot_lock,
         mailbox: Default::default(),
+        graft,
     };
     Ok((plan, tx))
 }

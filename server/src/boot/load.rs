@@ -58,6 +58,8 @@ pub(crate) struct LoadedPerformer {
     pub spec: PerformerSpec,
     pub target: LoadedTarget,
     pub overrides_file: Option<MappingFile>,
+    /// A grafted performer's lower body (its clip read when it is one).
+    pub graft: Option<crate::graft_live::LowerInput>,
 }
 
 /// Everything the server reads at start.
@@ -129,10 +131,12 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
             Some(path) => Some(tokio::task::spawn_blocking(move || read_mapping(&path)).await??),
             None => None,
         };
+        let graft = load_graft_lower(&spec).await?;
         performers.push(LoadedPerformer {
             spec,
             target,
             overrides_file,
+            graft,
         });
     }
     let token_setting = config.access.token.clone();
@@ -165,6 +169,25 @@ pub(crate) fn unique_name(taken: &[String], name: String) -> String {
 
 /// Loads a character: a file (its animation only serves as a reference posture) or a
 /// built-in.
+/// A grafted performer's lower body: a source (resolved with the performer's inputs) or a
+/// locomotion clip, read here.
+async fn load_graft_lower(
+    spec: &PerformerSpec,
+) -> anyhow::Result<Option<crate::graft_live::LowerInput>> {
+    use crate::graft_live::LowerInput;
+    Ok(match spec.graft.as_ref().map(|g| &g.lower) {
+        None => None,
+        Some(config::LowerSpec::Source(_)) => Some(LowerInput::Source),
+        Some(config::LowerSpec::Clip(path)) => {
+            let path = path.clone();
+            let clip = tokio::task::spawn_blocking(move || rigcast_sources::load_clip(&path))
+                .await?
+                .context("the graft's lower-body clip")?;
+            Some(LowerInput::Clip(Arc::new(clip)))
+        }
+    })
+}
+
 fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
     match &p.target {
         TargetSpec::Skeleton { skeleton, name } => Ok(LoadedTarget {

@@ -49,11 +49,9 @@ const OUTPUT_EXTENSIONS: [&str; 3] = ["bvh", "glb", "rcr"];
 /// Clips longer than this report progress on stderr.
 const PROGRESS_MIN_FRAMES: usize = 2000;
 
-/// Runs the command.
-pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
-    // Refuse an unwritable output format before doing any work.
-    let ext = args
-        .output
+/// The output's extension, lowercased, when it is one that can be written.
+pub fn output_extension(output: &Path) -> anyhow::Result<String> {
+    let ext = output
         .extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
@@ -61,9 +59,16 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
     if !OUTPUT_EXTENSIONS.contains(&ext.as_str()) {
         bail!(
             "{}: cannot write .{ext} files; the output must end in .bvh, .glb or .rcr",
-            args.output.display()
+            output.display()
         );
     }
+    Ok(ext)
+}
+
+/// Runs the command.
+pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
+    // Refuse an unwritable output format before doing any work.
+    output_extension(&args.output)?;
     // Source errors already name the file and the cause; no extra context, so nothing repeats.
     let mut clip = rigcast_sources::load_clip(&args.anim)
         .map_err(|e| anyhow!("cannot read the animation: {e}"))?;

@@ -1,0 +1,180 @@
+//! Foot locking on a quadruped target (issue 13): the CMU 131_01 walk retargeted offline onto
+//! Quaternius' Horse and Wolf (labelled quadrupeds of the zoo; front legs driven by the
+//! walker's arms). Measured on the output: the rig's four feet are found (two hind, two front),
+//! the feet the source's plants drive (the hind ones) hold still while planted, no heel or
+//! ball joint of any of the four feet goes below its standing height by more than 0.5 cm more
+//! than the unlocked retarget already does, and no knee or elbow flips its bend (the sign of
+//! its bend axis in the upper bone's frame, against the unlocked output's). Skips with a
+//! printed reason when the shared data is absent.
+//!
+//! Not met yet (ignored; run with `--ignored --nocapture` for the figures). On the Horse: four
+//! feet found, no flips, but the joint the analysis takes for a hind foot (`BackLowerLeg.L`,
+//! the hock, 1.18 m up at rest) is put near the mapping's floor (0.0) by the retarget, 1.12 m
+//! below its standing height with the lock (1.19 m without) — the leg split and the floor
+//! joint for a hoofed leg are wrong, not the lock; planted hind-foot drift is 0.056 cm/frame
+//! (budget 0.05); the front feet, driven by the walker's arms, hang 0.6–1.6 m up.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use glam::Vec3;
+use rigcast_retarget::footplant::{detect_clip, find_legs, Leg, LegKind, PlantSettings};
+use rigcast_retarget::{world_transforms, Clip, RetargetOptions, WorldTransform};
+use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked, MappingPlan};
+
+fn retarget(source: &Clip, plan: &MappingPlan, target: &Clip, lock: bool) -> Clip {
+    let opts = RetargetOptions {
+        frame_time_secs: source.frame_time_secs as f32,
+        source_reference: vec![plan.source_reference.clone()],
+        target_reference: plan.target_reference.clone(),
+        source_up: Some(plan.source_up),
+        ..RetargetOptions::default()
+    };
+    retarget_clip_locked(
+        source,
+        &target.skeleton,
+        &plan.table,
+        &opts,
+        lock.then_some(plan),
+        false,
+    )
+    .unwrap()
+}
+
+fn worlds(c: &Clip) -> Vec<Vec<WorldTransform>> {
+    c.poses
+        .iter()
+        .map(|p| world_transforms(&c.skeleton, p))
+        .collect()
+}
+
+/// Deepest a heel or ball joint of `leg` goes below its standing (rest) height, metres.
+fn deepest(w: &[Vec<WorldTransform>], rest: &[WorldTransform], leg: &Leg) -> f32 {
+    let joints: Vec<_> = [Some(leg.foot), leg.toes].into_iter().flatten().collect();
+    w.iter()
+        .flat_map(|f| {
+            joints
+                .iter()
+                .map(move |j| rest[j.index()].translation.y - f[j.index()].translation.y)
+        })
+        .fold(f32::NEG_INFINITY, f32::max)
+}
+
+/// The bend axis of the middle joint in the upper bone's frame, per frame (zero when straight).
+fn bend_axes(w: &[Vec<WorldTransform>], leg: &Leg) -> Vec<Vec3> {
+    w.iter()
+        .map(|f| {
+            let p = |b: rigcast_retarget::BoneId| f[b.index()].translation;
+            let (a, b, c) = (p(leg.upper), p(leg.lower), p(leg.foot));
+            if (b - a).angle_between(c - b).to_degrees() < 10.0 {
+                return Vec3::ZERO;
+            }
+            f[leg.upper.index()].rotation.inverse() * (b - a).cross(c - b).normalize_or_zero()
+        })
+        .collect()
+}
+
+#[test]
+#[ignore = "not met: the hock read as the hind foot is put on the floor (1.1 m low); arm-driven front feet float"]
+fn cmu_walk_on_quadrupeds_keeps_four_feet_above_the_floor_without_flips() {
+    let Some(walk) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+        return;
+    };
+    let source = rigcast_sources::load_clip(&walk).unwrap();
+    for rel in [
+        "zoo/gltf/quaternius_quadruped__Horse.glb",
+        "zoo/gltf/quaternius_quadruped__Wolf.glb",
+    ] {
+        let Some(path) = common::shared_data(rel) else {
+            return;
+        };
+        let target = rigcast_sources::load_rig(&path).unwrap().0;
+        let plan = plan_mapping(&source, &target, None).unwrap();
+        let legs = find_legs(&target.skeleton, &plan.target_analysis);
+        let kinds = |k: LegKind| legs.iter().filter(|l| l.kind == k).count();
+        println!(
+            "{rel}: {} hind and {} front feet",
+            kinds(LegKind::Hind),
+            kinds(LegKind::Front)
+        );
+        assert_eq!(
+            (kinds(LegKind::Hind), kinds(LegKind::Front)),
+            (2, 2),
+            "{rel}"
+        );
+        let mapping = rigcast_retarget::Mapping::build(
+            &[&source.skeleton],
+            &target.skeleton,
+            &plan.table,
+            &RetargetOptions {
+                source_reference: vec![plan.source_reference.clone()],
+                target_reference: plan.target_reference.clone(),
+                source_up: Some(plan.source_up),
+                ..RetargetOptions::default()
+            },
+        )
+        .unwrap();
+        let rest_w = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
+        let lowest_rest = legs
+            .iter()
+            .map(|l| rest_w[l.foot.index()].translation.y)
+            .fold(f32::INFINITY, f32::min);
+        println!(
+            "  the mapping's floor {:?}, the rest's lowest ankle {lowest_rest:.3}",
+            mapping.target_floor().map(|f| f.1)
+        );
+        let (free, locked) = (
+            retarget(&source, &plan, &target, false),
+            retarget(&source, &plan, &target, true),
+        );
+        let (wf, wl) = (worlds(&free), worlds(&locked));
+        let rest = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
+        let source_legs = find_legs(&source.skeleton, &plan.source_analysis);
+        let plants = detect_clip(
+            &source.skeleton,
+            &source_legs,
+            &source.poses,
+            source.frame_time_secs as f32,
+            plan.source_up,
+            &PlantSettings::default(),
+        );
+        for leg in &legs {
+            let name = target.skeleton.name(leg.foot);
+            let (df, dl) = (deepest(&wf, &rest, leg), deepest(&wl, &rest, leg));
+            let (af, al) = (bend_axes(&wf, leg), bend_axes(&wl, leg));
+            let reference = af.iter().fold(Vec3::ZERO, |s, a| s + *a);
+            let flips = al.iter().filter(|a| a.dot(reference) < 0.0).count();
+            // Drift of a hind foot while its source foot is planted.
+            let src = source_legs.iter().position(|s| s.key() == leg.key());
+            let (mut drift, mut n) = (0.0f32, 0);
+            if let Some(s) = src {
+                for f in 1..locked.num_frames() {
+                    if plants.is_planted(f, s) && plants.is_planted(f - 1, s) {
+                        let m = wl[f][leg.foot.index()].translation
+                            - wl[f - 1][leg.foot.index()].translation;
+                        drift += Vec3::new(m.x, 0.0, m.z).length() * 100.0;
+                        n += 1;
+                    }
+                }
+            }
+            let drift = drift / n.max(1) as f32;
+            println!(
+                "  {name} ({:?}): below floor {:.2} cm locked, {:.2} free; flips {flips}; drift while planted {drift:.4} cm/frame ({n} frames)",
+                leg.kind,
+                dl * 100.0,
+                df * 100.0
+            );
+            assert!(
+                dl <= df.max(0.0) + 0.005,
+                "{rel} {name}: {dl} below vs {df} free"
+            );
+            assert_eq!(flips, 0, "{rel} {name}");
+            if src.is_some() {
+                assert!(
+                    n > 100 && drift <= 0.05,
+                    "{rel} {name}: drift {drift} over {n}"
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,132 @@
+//! A grafted performer's tick allocates nothing in steady state: the upper source through its
+//! mapping, the CMU 131_01 walk looping one stride at a time through the lower mapping, the
+//! waist splice and the foot lock on the walk's plants. Proven with a counting global
+//! allocator (this file holds only this test), over ticks that are checked to move the
+//! character and to cross the stride's seam. Skips when the shared data is absent.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::footplant::{FootLock, LockSettings};
+use rigcast_retarget::mapping::{auto_map, MapOptions};
+use rigcast_retarget::{Mapping, RetargetOptions, RootMotion};
+use rigcast_server::config::{OnLost, VmcBoneNames};
+use rigcast_server::engine::Subject;
+use rigcast_server::graft_live::LiveGraft;
+use rigcast_server::performer::{BuiltMapping, Performer};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn a_grafted_performer_ticks_without_allocating() {
+    // A walk that travels (the bundled demo walks on the spot: its feet never stand still).
+    let Some(path) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+        return;
+    };
+    let walk = rigcast_sources::load_clip(&path).unwrap();
+    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let map = |from: &rigcast_retarget::Skeleton, motion| {
+        let table = auto_map(
+            &SkeletonView::from_clip(from, &walk.poses),
+            &SkeletonView::rest(&target),
+            &MapOptions::default(),
+        );
+        let opts = RetargetOptions {
+            root_motion: motion,
+            ..RetargetOptions::default()
+        };
+        Mapping::build(&[from], &target, &table, &opts).unwrap()
+    };
+    // The upper source is the walk too (its arms swing); the lower body is its looping clip.
+    let upper = map(&walk.skeleton, RootMotion::InPlace);
+    let lower = map(&walk.skeleton, RootMotion::Scaled);
+    let (wa, ta) = (
+        analyze(&SkeletonView::from_clip(&walk.skeleton, &walk.poses)),
+        analyze(&SkeletonView::rest(&target)),
+    );
+    let foot_lock = FootLock::new(&lower, &wa, &ta, LockSettings::default());
+    assert!(foot_lock.is_some());
+    let graft = LiveGraft::new(&upper, lower, &wa, &ta, Some(&walk)).unwrap();
+    let stride = graft.gait.as_ref().unwrap().stride_secs();
+    let (source, source_tx) = Subject::new(0, "walk".into(), walk.skeleton.clone());
+    let (t, target_tx) = Subject::with_kind(
+        1,
+        "target".into(),
+        target.clone(),
+        None,
+        vec![0],
+        VmcBoneNames::Humanoid,
+    );
+    let t = Arc::new(t);
+    let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
+        mapping: upper,
+        foot_lock,
+        graft: Some(graft),
+    })));
+    let mut performer = Performer::new(
+        t.clone(),
+        target_tx,
+        vec![Arc::new(source)],
+        mailbox,
+        OnLost::Ease,
+    );
+    let advance = |k: usize| {
+        source_tx.send_modify(|f| {
+            f.pose.copy_from(&walk.poses[k % walk.poses.len()]);
+            f.seq += 1;
+            f.capture_nanos = 1 + k as u64 * 16_666_667;
+        });
+    };
+    let dt = Duration::from_micros(16_667);
+    let mut now = Instant::now();
+    for k in 0..3 {
+        advance(k);
+        performer.tick(now);
+        now += dt;
+    }
+    let seq = t.latest.borrow().seq;
+    let pelvis = target.bone("pelvis").unwrap().index();
+    let start = t.latest.borrow().pose.translations[pelvis];
+    // Over more than one stride, so the loop's seam is crossed.
+    let ticks = ((1.5 * stride) / dt.as_secs_f64()) as usize;
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for k in 0..ticks {
+        advance(3 + k);
+        performer.tick(now);
+        now += dt;
+    }
+    let allocated = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let moved = (t.latest.borrow().pose.translations[pelvis] - start).length();
+    assert_eq!(
+        t.latest.borrow().seq,
+        seq + ticks as u64,
+        "a frame every tick"
+    );
+    assert!(moved > 0.3, "the character walked {moved} m");
+    assert_eq!(allocated, 0, "{allocated} allocations over {ticks} ticks");
+}
