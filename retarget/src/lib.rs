@@ -28,6 +28,7 @@ pub mod corpus;
 pub mod error;
 pub mod fk;
 pub mod footplant;
+pub mod graph;
 pub mod mapping;
 pub mod pose;
 pub mod retarget;
