@@ -41,7 +41,7 @@ pub struct GraphSettings {
 impl Default for GraphSettings {
     fn default() -> Self {
         GraphSettings {
-            threshold: 0.1,
+            threshold: 0.25,
             window_secs: 1.0 / 3.0,
             velocity_weight_secs: 0.1,
             coarse_step_secs: 1.0 / 30.0,
@@ -186,6 +186,7 @@ impl MotionGraph {
         let mut features = Vec::with_capacity(clips.len());
         let mut graph_clips = Vec::with_capacity(clips.len());
         let mut offset = 0;
+        let mut loops = Vec::with_capacity(clips.len());
         for (index, (clip, analysis)) in clips.iter().zip(analyses).enumerate() {
             let clip = resample(clip, frame_time, index)?;
             let body = BodyPoints::find(analysis).map_err(|e| GraphError::ClipMismatch {
@@ -200,6 +201,7 @@ impl MotionGraph {
                 frame_time as f32,
                 settings.velocity_weight_secs,
             );
+            loops.push(loop_closure(&track, settings.threshold));
             graph_clips.push(GraphClip {
                 name: clip.name.clone(),
                 path: None,
@@ -217,7 +219,7 @@ impl MotionGraph {
             threshold: settings.threshold,
         };
         let similar = find_similar(&features, params, progress);
-        Ok(connect(settings, frame_time, graph_clips, &similar))
+        Ok(connect(settings, frame_time, graph_clips, &similar, &loops))
     }
 
     /// Number of nodes (frames), kept or not.
@@ -278,6 +280,7 @@ fn connect(
     frame_time: f64,
     clips: Vec<GraphClip>,
     similar: &[Similar],
+    loops: &[Option<f32>],
 ) -> MotionGraph {
     let n = clips.last().map(|c| c.offset + c.frames).unwrap_or(0);
     let node = |(c, f): (usize, usize)| clips[c].offset + f;
@@ -294,6 +297,15 @@ fn connect(
             to: (a + 1) as u32,
             distance: s.distance,
         });
+    }
+    for (c, d) in clips.iter().zip(loops) {
+        if let (Some(distance), true) = (d, c.frames > 2) {
+            all.push(Transition {
+                from: (c.offset + c.frames - 1) as u32,
+                to: (c.offset + 1) as u32,
+                distance: *distance,
+            });
+        }
     }
     let mut g: DiGraph<(), ()> = DiGraph::with_capacity(n, n + all.len());
     for _ in 0..n {
@@ -329,6 +341,24 @@ fn connect(
         similar_pairs: similar.len(),
         components,
     }
+}
+
+/// A looping clip (game animations usually are: the last frame repeats the first) closes on
+/// itself: the distance between its last and first postures (body points in their heading
+/// frames, leg lengths, RMS) when under half the threshold. Its windows cannot be compared
+/// (they would run past the ends), hence the stricter bound on the posture alone. The loop
+/// becomes the transition last → 1 (frame 0 stands for the last).
+fn loop_closure(track: &ClipTrack, threshold: f32) -> Option<f32> {
+    let (first, last) = (track.points.first()?, track.points.last()?);
+    let local = |p: &[glam::Vec3; super::body::NUM_POINTS], h: &super::Planar| {
+        let back = h.inverse(track.up);
+        p.map(|q| back.apply(track.up, q))
+    };
+    let a = local(first, track.headings.first()?);
+    let b = local(last, track.headings.last()?);
+    let sum: f32 = a.iter().zip(&b).map(|(x, y)| x.distance_squared(*y)).sum();
+    let d = (sum / a.len() as f32).sqrt() / track.leg;
+    (d <= 0.5 * threshold).then_some(d)
 }
 
 fn to_ranges(sorted: &[usize]) -> Vec<Range<usize>> {

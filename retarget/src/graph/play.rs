@@ -14,7 +14,7 @@ use super::build::{resampled_clips, MotionGraph};
 use super::features::ClipTrack;
 use super::walk::{blend_frames, Edges};
 use super::GraphError;
-use crate::analysis::Analysis;
+use crate::analysis::{Analysis, SkeletonView};
 use crate::clip::Clip;
 use crate::fk::WorldTransform;
 use crate::pose::Pose;
@@ -222,6 +222,10 @@ pub struct Walker {
     threshold: f32,
     new_pose: Pose,
     old_pose: Pose,
+    /// The last pose written (a blend forced on mid-blend starts from it).
+    shown: Pose,
+    /// How far each root moved in the last step.
+    root_step: Vec<Vec3>,
     /// Transitions taken so far.
     pub transitions_taken: usize,
 }
@@ -243,6 +247,8 @@ impl Walker {
             threshold: graph.settings.threshold,
             new_pose: pb.skeleton.rest_pose(),
             old_pose: pb.skeleton.rest_pose(),
+            shown: pb.skeleton.rest_pose(),
+            root_step: vec![Vec3::ZERO; pb.roots.len()],
             transitions_taken: 0,
         }
     }
@@ -285,6 +291,8 @@ impl Walker {
         let (node, align) = pb.nearest(pose, worlds);
         self.start_at(node, align);
         self.old_pose.copy_from(pose);
+        self.shown.copy_from(pose);
+        self.root_step.fill(Vec3::ZERO);
         self.fade = Some(Fade {
             from: FadeFrom::Held,
             step: 0,
@@ -306,16 +314,27 @@ impl Walker {
     /// Writes the current pose into `out` without moving.
     pub fn write(&mut self, pb: &Playback, out: &mut Pose) {
         pb.sample(self.cursor, &self.align, &mut self.new_pose);
-        let Some(fade) = self.fade else {
-            out.copy_from(&self.new_pose);
-            return;
-        };
-        if let FadeFrom::Clip { node, align } = fade.from {
-            pb.sample(node, &align, &mut self.old_pose);
+        match self.fade {
+            None => out.copy_from(&self.new_pose),
+            Some(fade) => {
+                match fade.from {
+                    FadeFrom::Clip { node, align } => pb.sample(node, &align, &mut self.old_pose),
+                    // A held pose keeps the roots moving as they were, so the path does not stop.
+                    FadeFrom::Held => {
+                        for (r, v) in pb.roots.iter().zip(&self.root_step) {
+                            self.old_pose.translations[r.index()] += *v;
+                        }
+                    }
+                }
+                let t = fade.step as f32 / fade.frames as f32;
+                let old_weight = 2.0 * t * t * t - 3.0 * t * t + 1.0;
+                out.interpolate_into(&self.new_pose, &self.old_pose, old_weight);
+            }
         }
-        let t = fade.step as f32 / fade.frames as f32;
-        let old_weight = 2.0 * t * t * t - 3.0 * t * t + 1.0;
-        out.interpolate_into(&self.new_pose, &self.old_pose, old_weight);
+        for (r, v) in pb.roots.iter().zip(&mut self.root_step) {
+            *v = out.translations[r.index()] - self.shown.translations[r.index()];
+        }
+        self.shown.copy_from(out);
     }
 
     /// Moves one frame along the graph and writes the new pose into `out`. Allocates nothing.
@@ -338,12 +357,19 @@ impl Walker {
         // Transition: `next − 1` is similar to the cursor; put its heading onto the cursor's.
         let up = pb.up();
         let onto = pb.headings[self.cursor].then_after(up, &pb.headings[next - 1].inverse(up));
-        let old = (self.cursor + 1).min(pb.clip_end[self.cursor] as usize - 1);
-        self.fade = Some(Fade {
-            from: FadeFrom::Clip {
-                node: old,
+        let from = if self.fade.is_some() {
+            // Forced on mid-blend (the clip ran out): fade from what is shown now, not from an
+            // old continuation the blend had already half left.
+            self.old_pose.copy_from(&self.shown);
+            FadeFrom::Held
+        } else {
+            FadeFrom::Clip {
+                node: (self.cursor + 1).min(pb.clip_end[self.cursor] as usize - 1),
                 align: self.align,
-            },
+            }
+        };
+        self.fade = Some(Fade {
+            from,
             step: 0,
             frames: pb.blend,
         });
@@ -430,4 +456,38 @@ impl Walker {
         let x = self.rng.wrapping_mul(0x2545_f491_4f6c_dd1d);
         (x >> 40) as f32 / (1u64 << 24) as f32
     }
+}
+
+/// The clips moved onto one rig for playing (a graph's clips may come from different rigs;
+/// a walk plays one): clips already on `rig`'s skeleton are kept, the others retargeted with
+/// the automatic mapping, their floor measured over the clip. Offline; allocates.
+pub fn clips_onto_rig(clips: &[Clip], rig: &Clip) -> Result<Vec<Clip>, GraphError> {
+    use crate::mapping::{auto_map, MapOptions};
+    use crate::retarget::{Mapping, RetargetOptions};
+    let target = SkeletonView::from_clip(&rig.skeleton, &rig.poses);
+    clips
+        .iter()
+        .enumerate()
+        .map(|(index, c)| {
+            if c.skeleton.fingerprint() == rig.skeleton.fingerprint() {
+                return Ok(c.clone());
+            }
+            let fail = |e: crate::RetargetError| GraphError::ClipMismatch {
+                index,
+                name: c.name.clone(),
+                reason: format!("cannot retarget it onto the playing rig: {e}"),
+            };
+            let source = SkeletonView::from_clip(&c.skeleton, &c.poses);
+            let table = auto_map(&source, &target, &MapOptions::default());
+            let opts = RetargetOptions {
+                frame_time_secs: c.frame_time_secs as f32,
+                ..RetargetOptions::default()
+            };
+            let mut m = Mapping::build(&[&c.skeleton], &rig.skeleton, &table, &opts).map_err(fail)?;
+            if let Some(floor) = m.measure_source_floor(&c.poses) {
+                m.set_source_floor_y(floor);
+            }
+            m.apply_clip(c).map_err(fail)
+        })
+        .collect()
 }

@@ -11,7 +11,8 @@
 //! 2. **Pruned distances.** Every distance gives up as soon as its partial sum passes the
 //!    bound ([`super::features::distance_sq_bounded`]); most pairs in a database are far
 //!    apart and stop after the first few points.
-//! 3. **Refinement.** From each surviving grid pair, steepest descent over full-resolution
+//! 3. **Refinement.** From each surviving grid pair on a valley floor (no larger than its
+//!    neighbours across the diagonal), steepest descent over full-resolution
 //!    neighbours finds the exact local minimum, which is kept when it is a minimum over its
 //!    whole neighbourhood (radius ≈ 1/15 s, Kovar's 5 × 5 at 30 Hz) and below the threshold.
 //!
@@ -194,18 +195,18 @@ pub fn find_similar(
     out
 }
 
-/// True when coarse cell (k, b) (value `d`, in `rows[1]`) is no larger than its neighbours in
-/// the three rows, neighbours across a clip boundary not counting.
+/// True when coarse cell (k, b) (value `d`, in `rows[1]`) lies on a valley floor: no larger
+/// than its two neighbours across the diagonal ((k − 1, b + 1) and (k + 1, b − 1)). Similar
+/// stretches of motion make valleys along the diagonal; their floor rarely lies on grid
+/// frames, so a full 3 × 3 minimum test on the grid misses minima, while descending from every
+/// floor cell finds each of them (neighbours across a clip boundary do not count).
 fn coarse_minimum(rows: &[Vec<f32>; 3], grid: &[(usize, usize)], b: usize, d: f32) -> bool {
     let clip = grid[b].0;
-    for row in rows {
-        for nb in b.saturating_sub(1)..=(b + 1).min(grid.len() - 1) {
-            if grid[nb].0 == clip && row[nb] < d {
-                return false;
-            }
-        }
-    }
-    true
+    let lower = |row: &[f32], nb: Option<usize>| {
+        nb.filter(|&nb| nb < grid.len() && grid[nb].0 == clip)
+            .is_some_and(|nb| row[nb] < d)
+    };
+    !(lower(&rows[0], Some(b + 1)) || lower(&rows[2], b.checked_sub(1)))
 }
 
 /// The exhaustive reference: every pair at full resolution, local minima over the same
