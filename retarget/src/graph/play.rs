@@ -357,9 +357,10 @@ impl Walker {
         // Transition: `next − 1` is similar to the cursor; put its heading onto the cursor's.
         let up = pb.up();
         let onto = pb.headings[self.cursor].then_after(up, &pb.headings[next - 1].inverse(up));
-        let from = if self.fade.is_some() {
-            // Forced on mid-blend (the clip ran out): fade from what is shown now, not from an
-            // old continuation the blend had already half left.
+        let from = if self.fade.is_some() || self.cursor + 1 >= pb.clip_end[self.cursor] as usize {
+            // Forced on mid-blend (the clip ran out), or the old clip has no next frame: fade
+            // from what is shown now (roots moving on), not from an old continuation the blend
+            // had already half left or that would stand still.
             self.old_pose.copy_from(&self.shown);
             FadeFrom::Held
         } else {
@@ -391,6 +392,9 @@ impl Walker {
         if let FadeFrom::Clip { node, .. } = &mut f.from {
             if *node + 1 < pb.clip_end[*node] as usize {
                 *node += 1;
+            } else {
+                // The old clip ended: hold its last shown pose, roots moving on.
+                f.from = FadeFrom::Held;
             }
         }
     }
