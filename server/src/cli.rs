@@ -48,6 +48,8 @@ pub enum Command {
     Calibrate(cmd::calibrate::CalibrateArgs),
     /// Show or rotate the control token (needed to change mappings or calibrate).
     Token(cmd::token::TokenArgs),
+    /// Open many clients on a running server and report their frame rate and latency.
+    Loadtest(cmd::loadtest::LoadtestArgs),
 }
 
 impl Command {
@@ -65,6 +67,7 @@ impl Command {
             Command::Setup(a) => cmd::setup::run(&a),
             Command::Calibrate(a) => cmd::calibrate::run(a).await,
             Command::Token(a) => cmd::token::run(&a),
+            Command::Loadtest(a) => cmd::loadtest::run(a).await,
         }
     }
 }

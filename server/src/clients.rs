@@ -74,6 +74,55 @@ where
     }
 }
 
+/// Queues one message without writing it yet (see [`flush`]), giving up after `stall`.
+async fn feed<S>(sink: &mut Sink<S>, msg: Message, stall: Duration) -> Result<(), End>
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    match tokio::time::timeout(stall, sink.feed(msg)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(_)) => Err(End::Transport),
+        Err(_) => Err(End::Stalled),
+    }
+}
+
+/// Writes what [`feed`] queued, giving up after `stall`.
+async fn flush<S>(sink: &mut Sink<S>, stall: Duration) -> Result<(), End>
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    match tokio::time::timeout(stall, sink.flush()).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(_)) => Err(End::Transport),
+        Err(_) => Err(End::Stalled),
+    }
+}
+
+/// Frames sent in one write at most (a tick makes one per subject).
+const MAX_FRAMES_PER_WRITE: usize = 32;
+
+/// The next frame already queued for this client, if any (never waits).
+fn next_queued(
+    frames: &mut broadcast::Receiver<crate::engine::OutFrame>,
+) -> Option<Result<crate::engine::OutFrame, RecvError>> {
+    match frames.try_recv() {
+        Ok(f) => Some(Ok(f)),
+        Err(TryRecvError::Lagged(n)) => Some(Err(RecvError::Lagged(n))),
+        Err(TryRecvError::Empty | TryRecvError::Closed) => None,
+    }
+}
+
+/// The shared frame, or after a lag a copy carrying the frames this client missed (rare).
+fn personalise(bytes: Bytes, pending_missed: &mut u64) -> Bytes {
+    if *pending_missed == 0 {
+        return bytes;
+    }
+    let mut own = bytes.to_vec();
+    set_missed_frames(&mut own, (*pending_missed).min(u64::from(u32::MAX)) as u32);
+    *pending_missed = 0;
+    Bytes::from(own)
+}
+
 /// Serves one upgraded connection until it closes or the server shuts down.
 pub async fn serve_client<S>(
     ws: WebSocketStream<S>,
@@ -230,37 +279,40 @@ where
                 }
             }
             received = frames.recv() => {
-                match received {
-                    Ok(frame) => {
-                        if let Some(set) = &subscribed {
-                            if !set.contains(&frame.subject) {
-                                continue;
+                // Every frame already queued goes out in one write: with several subjects a
+                // tick produces several frames, and one syscall per client per tick is what
+                // keeps fan-out cheap. The batch is bounded so control messages still get in.
+                let mut next = Some(received);
+                let mut batch = 0;
+                while let Some(received) = next.take() {
+                    match received {
+                        Ok(frame) => {
+                            let wanted = subscribed.as_ref().is_none_or(|s| s.contains(&frame.subject));
+                            let bytes = frame.version(version);
+                            if wanted && !bytes.is_empty() {
+                                let bytes = personalise(bytes, &mut pending_missed);
+                                feed(&mut sink, Message::Binary(bytes), stall).await?;
+                                stats.frames_sent.fetch_add(1, Ordering::Relaxed);
                             }
                         }
-                        let bytes = frame.version(version);
-                        if bytes.is_empty() {
-                            continue; // no frame of this version this tick
+                        Err(RecvError::Lagged(n)) => {
+                            pending_missed += n;
+                            stats.missed_frames.fetch_add(n, Ordering::Relaxed);
+                            state.stats.dropped_frames.fetch_add(n, Ordering::Relaxed);
+                            let text = ServerMessage::Lagged { missed: n }.to_json();
+                            feed(&mut sink, Message::text(text), stall).await?;
                         }
-                        let bytes = if pending_missed > 0 {
-                            // Personalise the shared frame: only after a lag, so rare.
-                            let mut own = bytes.to_vec();
-                            set_missed_frames(&mut own, pending_missed.min(u32::MAX as u64) as u32);
-                            pending_missed = 0;
-                            Bytes::from(own)
-                        } else {
-                            bytes
-                        };
-                        send(&mut sink, Message::Binary(bytes), stall).await?;
-                        stats.frames_sent.fetch_add(1, Ordering::Relaxed);
+                        Err(RecvError::Closed) => {
+                            flush(&mut sink, stall).await?;
+                            return Ok(());
+                        }
                     }
-                    Err(RecvError::Lagged(n)) => {
-                        pending_missed += n;
-                        stats.missed_frames.fetch_add(n, Ordering::Relaxed);
-                        state.stats.dropped_frames.fetch_add(n, Ordering::Relaxed);
-                        send(&mut sink, Message::text(ServerMessage::Lagged { missed: n }.to_json()), stall).await?;
+                    batch += 1;
+                    if batch < MAX_FRAMES_PER_WRITE {
+                        next = next_queued(frames);
                     }
-                    Err(RecvError::Closed) => return Ok(()),
                 }
+                flush(&mut sink, stall).await?;
             }
         }
     }

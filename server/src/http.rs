@@ -218,6 +218,10 @@ async fn handle_connection(
             let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
                 return;
             };
+            // Frames are written whole, one write per tick: Nagle's algorithm would only hold
+            // the next tick's write back waiting for an ACK. Safe to drop the error: a socket
+            // where the option cannot be set still streams, only with that delay.
+            let _ = stream.set_nodelay(true);
             let response = format!(
                 "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
             );
