@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod calibrate;
 pub mod convert;
+pub mod graph;
 pub mod info;
 pub mod loadtest;
 pub mod map;
