@@ -236,3 +236,4 @@ fn looping_game_idles_close_on_themselves() {
         assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64, "{file}");
     }
 }
+

@@ -26,8 +26,14 @@ use crate::skeleton::Skeleton;
 
 /// Taps of the window: before, centre, after.
 const TAPS: usize = 3;
+/// Values per block (one tap's points, or the velocities), padded with zeros to a multiple
+/// of [`LANES`] so the distance runs on whole SIMD registers.
+pub const BLOCK: usize = (NUM_POINTS * 3).div_ceil(LANES) * LANES;
 /// Values per frame vector.
-pub const DIM: usize = (TAPS + 1) * NUM_POINTS * 3;
+pub const DIM: usize = (TAPS + 1) * BLOCK;
+/// Independent partial sums in the distance loop (the compiler keeps them in vector registers;
+/// one running sum would be a chain of dependent adds it may not reorder).
+pub const LANES: usize = 8;
 
 /// Body points and headings of every frame of one clip (world space of its rig).
 #[derive(Debug, Clone)]
@@ -109,19 +115,19 @@ impl ClipFeatures {
             let i = k + half;
             let to_local = track.headings[i].inverse(track.up);
             let floor = track.up * track.floor;
-            let mut w = 0;
-            let mut push = |v: Vec3, s: f32, out: &mut [f32]| {
-                out[w..w + 3].copy_from_slice(&(v * s).to_array());
-                w += 3;
-            };
+            let mut blocks = out.chunks_exact_mut(BLOCK);
             for tap in [i - half, i, i + half] {
-                for p in &track.points[tap] {
-                    push(to_local.apply(track.up, *p - floor), scale, out);
+                let block = blocks.next().unwrap_or_default();
+                for (slot, p) in block.chunks_exact_mut(3).zip(&track.points[tap]) {
+                    let v = to_local.apply(track.up, *p - floor) * scale;
+                    slot.copy_from_slice(&v.to_array());
                 }
             }
             let turn = to_local.rotation(track.up);
-            for (a, b) in track.points[i + 1].iter().zip(&track.points[i - 1]) {
-                push(turn * (*a - *b), vel_scale, out);
+            let block = blocks.next().unwrap_or_default();
+            let velocities = track.points[i + 1].iter().zip(&track.points[i - 1]);
+            for (slot, (a, b)) in block.chunks_exact_mut(3).zip(velocities) {
+                slot.copy_from_slice(&(turn * (*a - *b) * vel_scale).to_array());
             }
         }
         ClipFeatures {
@@ -152,12 +158,15 @@ impl ClipFeatures {
 #[inline]
 pub fn distance_sq_bounded(a: &[f32], b: &[f32], bound: f32) -> f32 {
     let mut sum = 0.0;
-    for (ca, cb) in a.chunks(NUM_POINTS * 3).zip(b.chunks(NUM_POINTS * 3)) {
-        sum += ca
-            .iter()
-            .zip(cb)
-            .map(|(x, y)| (x - y) * (x - y))
-            .sum::<f32>();
+    for (ba, bb) in a.chunks_exact(BLOCK).zip(b.chunks_exact(BLOCK)) {
+        let mut lanes = [0.0f32; LANES];
+        for (ca, cb) in ba.chunks_exact(LANES).zip(bb.chunks_exact(LANES)) {
+            for l in 0..LANES {
+                let d = ca[l] - cb[l];
+                lanes[l] += d * d;
+            }
+        }
+        sum += lanes.iter().sum::<f32>();
         if sum > bound {
             return sum;
         }

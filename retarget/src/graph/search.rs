@@ -12,8 +12,8 @@
 //!    bound ([`super::features::distance_sq_bounded`]); most pairs in a database are far
 //!    apart and stop after the first few points.
 //! 3. **Refinement.** From each surviving grid pair on a valley floor (no larger than its
-//!    neighbours across the diagonal), steepest descent over full-resolution
-//!    neighbours finds the exact local minimum, which is kept when it is a minimum over its
+//!    neighbours across the diagonal), steepest descent over full-resolution neighbours,
+//!    kept within one grid step of its start, finds the exact local minimum, which is kept when it is a minimum over its
 //!    whole neighbourhood (radius ≈ 1/15 s, Kovar's 5 × 5 at 30 Hz) and below the threshold.
 //!
 //! Pairs within one clip closer than `min_gap` frames are never transitions (they are the
@@ -69,8 +69,12 @@ impl Db<'_> {
         Some(distance_sq_bounded(va, vb, bound))
     }
 
-    /// Steepest descent to a local minimum at full resolution.
-    fn descend(&self, mut a: (usize, usize), mut b: (usize, usize), mut d: f32) -> Pair {
+    /// Steepest descent to a local minimum at full resolution, staying within `stride` frames
+    /// of the start on both axes: a minimum farther away is the business of the grid cell
+    /// nearer to it (`None` when the descent would leave).
+    fn descend(&self, start: ((usize, usize), (usize, usize)), d: f32) -> Option<Pair> {
+        let ((mut a, mut b), mut d) = (start, d);
+        let reach = self.p.stride.max(1);
         loop {
             let mut best = (a, b, d);
             for (da, db) in NEIGHBOURS {
@@ -84,9 +88,12 @@ impl Db<'_> {
                 }
             }
             if best.2 >= d {
-                return (a, b, d);
+                return Some((a, b, d));
             }
             (a, b, d) = best;
+            if a.1.abs_diff(start.0 .1) > reach || b.1.abs_diff(start.1 .1) > reach {
+                return None;
+            }
         }
     }
 
@@ -176,7 +183,9 @@ pub fn find_similar(
             if !d.is_finite() || !coarse_minimum(&rows, &grid, b, d) {
                 continue;
             }
-            let (ma, mb, md) = db.descend(grid[k], grid[b], d);
+            let Some((ma, mb, md)) = db.descend((grid[k], grid[b]), d) else {
+                continue;
+            };
             if md > fine || !seen.insert((ma, mb)) || !db.is_minimum(ma, mb, md) {
                 continue;
             }
