@@ -71,15 +71,72 @@ pub struct MappingEntry {
     pub color_random: [f32; 3],
 }
 
+/// What kind of input a source subject is (`kind` in `source_status`, `[[sources]]` and
+/// `--source KIND:ARG`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum SourceKind {
+    /// A file or clip played back.
+    Replay,
+    /// VMC/OSC over UDP.
+    Vmc,
+    /// A serial IMU suit.
+    Serial,
+    /// Pose estimation on a video file.
+    Video,
+    /// Pose estimation on a webcam.
+    Webcam,
+    /// Another rigcast node's subject, relayed through the cluster (NATS). Never configured
+    /// as a source: the cluster makes these.
+    #[cfg_attr(feature = "clap", value(skip))]
+    Remote,
+}
+
+impl std::fmt::Display for SourceKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        wire_name(self, f)
+    }
+}
+
+/// Writes a unit variant's serde name (`SourceKind::Vmc` → `vmc`): one spelling, serde's.
+fn wire_name<T: Serialize>(value: &T, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+    match serde_json::to_value(value) {
+        Ok(serde_json::Value::String(name)) => f.write_str(&name),
+        _ => Err(std::fmt::Error),
+    }
+}
+
+/// A source's connection state: the one name for it in every crate (`state` in
+/// `source_status` and `/v1/status`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceState {
+    /// No usable input yet (port not open, no sender yet).
+    Connecting,
+    /// Input arriving within the source's timeout.
+    Live,
+    /// Input stopped (silence beyond the timeout, or the device went away).
+    Lost,
+    /// A replay reached its end (not looping).
+    Finished,
+}
+
+impl std::fmt::Display for SourceState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        wire_name(self, f)
+    }
+}
+
 /// Health of one source subject in a `source_status` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceHealth {
     /// Source subject id.
     pub subject: u32,
-    /// Source kind: `replay`, `vmc`, `serial` or `video`.
-    pub kind: String,
+    /// Source kind: `replay`, `vmc`, `serial`, `video` or `webcam`.
+    pub kind: SourceKind,
     /// `connecting`, `live`, `lost` or `finished` (a replay that reached its end).
-    pub state: String,
+    pub state: SourceState,
     /// Frames per second arriving from the source.
     pub input_fps: f32,
     /// Input arrival (or capture) to pose available, milliseconds (0 for replays).
@@ -379,6 +436,27 @@ impl ServerMessage {
 mod tests {
     use super::*;
 
+    #[test]
+    fn kind_and_state_names_are_their_json_names() {
+        for kind in [
+            SourceKind::Replay,
+            SourceKind::Vmc,
+            SourceKind::Serial,
+            SourceKind::Video,
+            SourceKind::Webcam,
+        ] {
+            assert_eq!(serde_json::to_value(kind).unwrap(), kind.to_string());
+        }
+        for state in [
+            SourceState::Connecting,
+            SourceState::Live,
+            SourceState::Lost,
+            SourceState::Finished,
+        ] {
+            assert_eq!(serde_json::to_value(state).unwrap(), state.to_string());
+        }
+    }
+
     fn subjects() -> Vec<SubjectInfo> {
         vec![
             SubjectInfo {
@@ -468,8 +546,8 @@ mod tests {
             ServerMessage::SourceStatus {
                 sources: vec![SourceHealth {
                     subject: 0,
-                    kind: "vmc".into(),
-                    state: "lost".into(),
+                    kind: SourceKind::Vmc,
+                    state: SourceState::Lost,
                     input_fps: 59.5,
                     latency_ms: 1.5,
                     frames: 1200,

@@ -302,8 +302,11 @@ pub const MAX_BUNDLE_DEPTH: usize = 8;
 /// Checks an OSC datagram's bundle framing before it reaches a recursive decoder: every bundle's
 /// size-prefixed elements exactly fill it and bundles nest at most [`MAX_BUNDLE_DEPTH`] deep.
 /// Plain messages pass (the decoder validates them). Shared by every OSC input in rigcast.
-pub fn check_osc_framing(datagram: &[u8]) -> Result<(), String> {
-    check_framing(datagram, 0, 0)
+pub fn check_osc_framing(datagram: &[u8]) -> Result<(), VmcError> {
+    check_framing(datagram, 0, 0).map_err(|reason| VmcError::Osc {
+        len: datagram.len(),
+        reason,
+    })
 }
 
 /// Checks that a bundle's size-prefixed elements exactly fill it and that bundles nest at most

@@ -6,6 +6,9 @@ use thiserror::Error;
 /// everything they need is validated when their inputs are built.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum RetargetError {
+    /// A [`crate::RetargetContext`] used with a plan it was not made for.
+    #[error("retarget context was made for another plan (use RetargetPlan::new_context)")]
+    ForeignContext,
     /// A skeleton needs at least one bone.
     #[error("skeleton has no bones")]
     EmptySkeleton,

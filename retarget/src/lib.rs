@@ -24,6 +24,7 @@
 
 pub mod analysis;
 pub mod clip;
+#[cfg(any(test, feature = "corpus"))]
 pub mod corpus;
 pub mod error;
 pub mod fk;
@@ -39,7 +40,9 @@ pub use clip::Clip;
 pub use error::RetargetError;
 pub use fk::{forward_kinematics, world_transforms, WorldTransform};
 pub use pose::{Frame, Pose};
-pub use retarget::{FootContact, Mapping, RetargetOptions, RootMotion};
+pub use retarget::{
+    FootContact, Mapping, RetargetContext, RetargetOptions, RetargetPlan, RootMotion,
+};
 pub use rotation::RotationOrder;
 pub use skeleton::{BoneId, RawBone, RawSkeleton, Skeleton, Transform};
 

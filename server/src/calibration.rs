@@ -21,7 +21,8 @@ use std::time::{Duration, Instant};
 use rigcast_protocol::control::{CalibrationPose, ErrorCode, MAX_CALIBRATION_DELAY_SECS};
 use tokio::sync::broadcast;
 
-use crate::subject::{HealthState, Subject};
+use crate::subject::Subject;
+use rigcast_protocol::SourceState;
 
 /// How long the source thread may take to act on a request (it checks at every read, at
 /// least every 50 ms).
@@ -34,6 +35,45 @@ pub const SUCCESS_PREFIX: &str = "calibrated";
 /// Prefix of the failure text.
 pub const FAILURE_PREFIX: &str = "calibration failed";
 
+/// Why a `calibrate` request was refused; [`CalibrateRefusal::code`] and the text make the
+/// `error` reply.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CalibrateRefusal {
+    /// No subject has this id.
+    #[error("unknown subject id {subject}")]
+    UnknownSubject {
+        /// the id asked for
+        subject: u32,
+    },
+    /// The subject is not a serial IMU source.
+    #[error("subject {subject} ({name}) is {what}; only serial IMU sources can be calibrated")]
+    NotCalibratable {
+        /// the id
+        subject: u32,
+        /// its name
+        name: String,
+        /// what it is instead (`a target (retargeted character)`, `a vmc source`)
+        what: String,
+    },
+    /// The delay is out of range.
+    #[error("delay_secs {delay_secs} must be between 0 and {MAX_CALIBRATION_DELAY_SECS}")]
+    BadDelay {
+        /// the delay asked for
+        delay_secs: f32,
+    },
+}
+
+impl CalibrateRefusal {
+    /// The machine-readable reason in the `error` reply.
+    pub fn code(&self) -> ErrorCode {
+        match self {
+            CalibrateRefusal::UnknownSubject { .. } => ErrorCode::UnknownSubject,
+            CalibrateRefusal::NotCalibratable { .. } => ErrorCode::NotCalibratable,
+            CalibrateRefusal::BadDelay { .. } => ErrorCode::InvalidFields,
+        }
+    }
+}
+
 /// Validates a `calibrate` request and starts it; `Err` is the `error` reply.
 pub fn start(
     subjects: &Arc<Vec<Arc<Subject>>>,
@@ -41,38 +81,31 @@ pub fn start(
     subject: u32,
     pose: CalibrationPose,
     delay_secs: f32,
-) -> Result<(), (ErrorCode, String)> {
+) -> Result<(), CalibrateRefusal> {
     let Some(s) = subjects.get(subject as usize).filter(|s| s.id == subject) else {
-        return Err((
-            ErrorCode::UnknownSubject,
-            format!("unknown subject id {subject}"),
-        ));
+        return Err(CalibrateRefusal::UnknownSubject { subject });
     };
     let name = s.info().name;
     let Some(cal) = s.calibration.as_ref() else {
-        let what = if s.is_target() {
-            "a target (retargeted character)".to_string()
-        } else {
-            format!("a {} source", s.source_kind)
+        let what = match s.source_kind {
+            None => "a target (retargeted character)".to_string(),
+            Some(kind) => format!("a {kind} source"),
         };
-        return Err((
-            ErrorCode::NotCalibratable,
-            format!(
-                "subject {subject} ({name}) is {what}; only serial IMU sources can be calibrated"
-            ),
-        ));
+        return Err(CalibrateRefusal::NotCalibratable {
+            subject,
+            name,
+            what,
+        });
     };
     if !(delay_secs.is_finite() && (0.0..=MAX_CALIBRATION_DELAY_SECS).contains(&delay_secs)) {
-        return Err((
-            ErrorCode::InvalidFields,
-            format!("delay_secs {delay_secs} must be between 0 and {MAX_CALIBRATION_DELAY_SECS}"),
-        ));
+        return Err(CalibrateRefusal::BadDelay { delay_secs });
     }
     let generation = cal.generation.fetch_add(1, Ordering::AcqRel) + 1;
     cal.set_text(format!(
         "{PENDING_PREFIX} ({}) in {delay_secs:.1} s",
         pose.label()
     ));
+    // Err only means no client is listening right now.
     let _ = events.send(crate::source_status_json(subjects));
     let subjects = subjects.clone();
     let events = events.clone();
@@ -86,6 +119,7 @@ pub fn start(
             // A newer request owns the text now.
             if cal.generation.load(Ordering::Acquire) == generation {
                 cal.set_text(text);
+                // Err only means no client is listening right now.
                 let _ = events.send(crate::source_status_json(&subjects));
             }
         }
@@ -99,11 +133,8 @@ async fn run(s: &Subject, pose: CalibrationPose) -> String {
         return format!("{FAILURE_PREFIX}: not a calibratable source");
     };
     let state = s.health.state();
-    if state != HealthState::Live {
-        return format!(
-            "{FAILURE_PREFIX}: the source is {} (no sensor data to capture)",
-            state.as_str()
-        );
+    if state != SourceState::Live {
+        return format!("{FAILURE_PREFIX}: the source is {state} (no sensor data to capture)");
     }
     let (before, _) = cal.handle.outcome();
     match pose {

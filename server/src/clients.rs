@@ -211,6 +211,7 @@ where
         code,
         reason: reason.into(),
     };
+    // Closing is a courtesy: a client that is gone or stuck is dropped anyway.
     let _ = tokio::time::timeout(
         Duration::from_secs(1),
         sink.send(Message::Close(Some(frame))),
@@ -398,21 +399,7 @@ fn handle_text(
         }
         ClientMessage::Subscribe {
             subjects: Some(ids),
-        } => {
-            let unknown: Vec<u32> = ids
-                .iter()
-                .copied()
-                .filter(|id| state.subject(*id).is_none())
-                .collect();
-            if !unknown.is_empty() {
-                return Some(ServerMessage::error(
-                    ErrorCode::UnknownSubject,
-                    format!("unknown subject id(s) {unknown:?}; subscription unchanged"),
-                ));
-            }
-            *subscribed = Some(ids.into_iter().collect());
-            None
-        }
+        } => subscribe(state, ids, subscribed),
         ClientMessage::Calibrate {
             subject,
             pose,
@@ -429,60 +416,74 @@ fn handle_text(
                     request: "calibrate".into(),
                     subject,
                 },
-                Err((code, message)) => ServerMessage::error(code, message),
+                Err(refusal) => ServerMessage::error(refusal.code(), refusal.to_string()),
             },
         ),
         ClientMessage::SetPerformer { subject, foot_lock } => {
-            let Some(target) = state.subject(subject) else {
-                return Some(ServerMessage::error(
-                    ErrorCode::UnknownSubject,
-                    format!("unknown subject id {subject}"),
-                ));
-            };
-            if !target.is_target() {
-                return Some(ServerMessage::error(
-                    ErrorCode::Unsupported,
-                    format!(
-                        "subject {subject} is a source; set_performer applies to target subjects"
-                    ),
-                ));
-            }
-            Some(send_command(
-                state,
-                EngineCommand::SetPerformer { subject, foot_lock },
-                "set_performer",
-                subject,
-            ))
+            Some(set_performer(state, subject, foot_lock))
         }
         ClientMessage::SetMapping { subject, overrides } => {
-            let Some(target) = state.subject(subject) else {
-                return Some(ServerMessage::error(
-                    ErrorCode::UnknownSubject,
-                    format!("unknown subject id {subject}"),
-                ));
-            };
-            if let Err(message) = check_overrides(state, target, &overrides) {
-                return Some(ServerMessage::error(ErrorCode::Unsupported, message));
-            }
-            match state
-                .commands
-                .try_send(EngineCommand::SetMapping { subject, overrides })
-            {
-                Ok(()) => Some(ServerMessage::Ack {
-                    request: "set_mapping".into(),
-                    subject,
-                }),
-                Err(mpsc::error::TrySendError::Full(_)) => Some(ServerMessage::error(
-                    ErrorCode::Internal,
-                    "engine is busy; retry",
-                )),
-                Err(mpsc::error::TrySendError::Closed(_)) => Some(ServerMessage::error(
-                    ErrorCode::Internal,
-                    "engine is shutting down",
-                )),
-            }
+            Some(set_mapping(state, subject, overrides))
         }
     }
+}
+
+/// `subscribe` to some subjects: all must exist, else nothing changes.
+fn subscribe(
+    state: &ServerState,
+    ids: Vec<u32>,
+    subscribed: &mut Option<HashSet<u32>>,
+) -> Option<ServerMessage> {
+    let unknown: Vec<u32> = ids
+        .iter()
+        .copied()
+        .filter(|id| state.subject(*id).is_none())
+        .collect();
+    if !unknown.is_empty() {
+        return Some(ServerMessage::error(
+            ErrorCode::UnknownSubject,
+            format!("unknown subject id(s) {unknown:?}; subscription unchanged"),
+        ));
+    }
+    *subscribed = Some(ids.into_iter().collect());
+    None
+}
+
+/// `set_performer`: switches a target's foot lock (a re-map, off the tick).
+fn set_performer(state: &ServerState, subject: u32, foot_lock: Option<bool>) -> ServerMessage {
+    let Some(target) = state.subject(subject) else {
+        return ServerMessage::error(
+            ErrorCode::UnknownSubject,
+            format!("unknown subject id {subject}"),
+        );
+    };
+    if !target.is_target() {
+        return ServerMessage::error(
+            ErrorCode::Unsupported,
+            format!("subject {subject} is a source; set_performer applies to target subjects"),
+        );
+    }
+    let cmd = EngineCommand::SetPerformer { subject, foot_lock };
+    send_command(state, cmd, "set_performer", subject)
+}
+
+/// `set_mapping`: overrides checked against the skeletons now, applied by the mapper.
+fn set_mapping(
+    state: &ServerState,
+    subject: u32,
+    overrides: std::collections::BTreeMap<String, Option<String>>,
+) -> ServerMessage {
+    let Some(target) = state.subject(subject) else {
+        return ServerMessage::error(
+            ErrorCode::UnknownSubject,
+            format!("unknown subject id {subject}"),
+        );
+    };
+    if let Err(message) = check_overrides(state, target, &overrides) {
+        return ServerMessage::error(ErrorCode::Unsupported, message);
+    }
+    let cmd = EngineCommand::SetMapping { subject, overrides };
+    send_command(state, cmd, "set_mapping", subject)
 }
 
 /// Hands a command to the engine and answers `ack`, or an error when it cannot take it now.

@@ -19,6 +19,9 @@
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 
+use std::str::FromStr;
+
+use rigcast_protocol::SourceKind;
 use rigcast_retarget::Clip;
 use serde::Deserialize;
 use thiserror::Error;
@@ -53,6 +56,22 @@ pub enum ConfigError {
         /// the TOML error (with line and column)
         source: toml::de::Error,
     },
+    /// A `--source` argument of no known kind.
+    #[error(
+        "unknown source {text:?}; expected replay:FILE, vmc:PORT, serial:CONFIG.toml, video:FILE, webcam:INDEX or demo"
+    )]
+    UnknownSource {
+        /// the argument
+        text: String,
+    },
+    /// A `--source` argument of a known kind whose argument is malformed.
+    #[error("--source {text:?}: expected {expected}")]
+    BadSourceArg {
+        /// the argument
+        text: String,
+        /// the grammar of its kind
+        expected: &'static str,
+    },
     /// A value is out of range or malformed.
     #[error("invalid {field}: {message}")]
     Invalid {
@@ -73,10 +92,10 @@ pub struct FileConfig {
     pub rate_hz: Option<f64>,
     /// Pose sources.
     #[serde(default)]
-    pub sources: Vec<FileSource>,
+    pub sources: Vec<SourceSpec>,
     /// VMC receivers: `"host:port"` or `{ address = "host:port", subject = "name" }`.
     #[serde(default)]
-    pub vmc_out: Vec<FileVmcOut>,
+    pub vmc_out: Vec<VmcOut>,
     /// Bone names sent over VMC: `"humanoid"` (default) or `"skeleton"`.
     pub vmc_bone_names: Option<VmcBoneNames>,
     /// Retargeted characters.
@@ -103,21 +122,90 @@ pub struct FileConfig {
     pub max_connections: Option<usize>,
     /// A client whose socket accepts nothing for this long is disconnected (default 10 s).
     pub stalled_client_timeout_secs: Option<f64>,
+    /// Cluster mode: share subjects with other nodes over NATS.
+    pub cluster: Option<crate::cluster::ClusterConfig>,
 }
 
-/// A `vmc_out` entry.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
-pub enum FileVmcOut {
-    /// `"host:port"`: receives the default subject.
-    Address(String),
-    /// A receiver and the subject (by name) it receives.
-    Table {
-        /// `host:port`
-        address: String,
-        /// Subject name (default: the first target, else the first source).
-        subject: Option<String>,
-    },
+/// A VMC receiver and the subject it receives: `vmc_out = ["host:port", { address =
+/// "host:port", subject = "name" }]` in the file, `--vmc-out host:port[@subject]` on the
+/// command line ([`FromStr`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct VmcOut {
+    /// `host:port`, resolved at start.
+    pub address: String,
+    /// Subject name (`None`: the first target, else the first source).
+    pub subject: Option<String>,
+}
+
+impl VmcOut {
+    /// The default subject sent to `address`.
+    pub fn to(address: impl Into<String>) -> VmcOut {
+        VmcOut {
+            address: address.into(),
+            subject: None,
+        }
+    }
+}
+
+impl FromStr for VmcOut {
+    type Err = std::convert::Infallible;
+
+    /// `host:port` or `host:port@subject`.
+    fn from_str(s: &str) -> Result<VmcOut, Self::Err> {
+        Ok(match s.rsplit_once('@') {
+            Some((address, subject)) => VmcOut {
+                address: address.into(),
+                subject: Some(subject.into()),
+            },
+            None => VmcOut::to(s),
+        })
+    }
+}
+
+impl std::fmt::Display for VmcOut {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.subject {
+            Some(subject) => write!(f, "{}@{subject}", self.address),
+            None => f.write_str(&self.address),
+        }
+    }
+}
+
+/// The table spelling of a `vmc_out` entry.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VmcOutTable {
+    address: String,
+    subject: Option<String>,
+}
+
+/// `"host:port"` or a table; by hand rather than `untagged`, so that a wrong key in the table
+/// is reported by name.
+impl<'de> Deserialize<'de> for VmcOut {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<VmcOut, D::Error> {
+        struct Spellings;
+        impl<'de> serde::de::Visitor<'de> for Spellings {
+            type Value = VmcOut;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"host:port\" or { address = \"host:port\", subject = \"name\" }")
+            }
+
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<VmcOut, E> {
+                Ok(VmcOut::to(v))
+            }
+
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<VmcOut, A::Error> {
+                let t =
+                    VmcOutTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))?;
+                Ok(VmcOut {
+                    address: t.address,
+                    subject: t.subject,
+                })
+            }
+        }
+        d.deserialize_any(Spellings)
+    }
 }
 
 /// `mapping_cache = true | false | "folder"`.
@@ -163,67 +251,6 @@ pub struct FilePerformer {
     pub foot_lock: Option<bool>,
 }
 
-/// One `[[sources]]` entry.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum FileSource {
-    /// Replays an animation file (BVH, glTF/GLB/VRM, .rcr recording).
-    Replay {
-        /// The file (relative paths are relative to the config file).
-        path: PathBuf,
-        /// Playback speed factor.
-        #[serde(default = "one")]
-        speed: f64,
-        /// Loop at the end (default true).
-        #[serde(default = "yes", rename = "loop")]
-        looping: bool,
-        /// Start this many seconds into the clip.
-        #[serde(default)]
-        start_offset_secs: f64,
-        /// Subject name (default: the file stem).
-        name: Option<String>,
-    },
-    /// VMC/OSC input on a UDP port.
-    Vmc {
-        /// UDP port (default 39539).
-        #[serde(default = "vmc_port")]
-        port: u16,
-        /// Address to listen on (default 127.0.0.1: only this machine's senders).
-        #[serde(default = "loopback")]
-        bind: IpAddr,
-        /// Sender IP addresses accepted (empty: any that can reach `bind`).
-        #[serde(default)]
-        allowed_senders: Vec<IpAddr>,
-        /// Silence longer than this marks the source lost (seconds, default 0.5).
-        lost_after_secs: Option<f32>,
-        /// Subject name (default `vmc:PORT`).
-        name: Option<String>,
-    },
-    /// A serial IMU suit described by a TOML file (see `SerialImuConfig`).
-    Serial {
-        /// The suit's config file.
-        config: PathBuf,
-        /// Subject name (default: the config file stem).
-        name: Option<String>,
-    },
-    /// Pose estimation on a video file (needs `rigcast setup vision`).
-    Video {
-        /// The video.
-        path: PathBuf,
-        /// Subject name (default: the file stem).
-        name: Option<String>,
-    },
-    /// Pose estimation on a webcam (needs `rigcast setup vision` and a build with
-    /// `--features webcam`).
-    Webcam {
-        /// Camera index (default 0: the first camera).
-        #[serde(default)]
-        index: u32,
-        /// Subject name (default `webcam:INDEX`).
-        name: Option<String>,
-    },
-}
-
 fn vmc_port() -> u16 {
     rigcast_sources::vmc_in::DEFAULT_VMC_PORT
 }
@@ -257,11 +284,8 @@ impl FileConfig {
             }
         };
         for s in &mut cfg.sources {
-            match s {
-                FileSource::Replay { path, .. }
-                | FileSource::Serial { config: path, .. }
-                | FileSource::Video { path, .. } => resolve(path),
-                FileSource::Vmc { .. } | FileSource::Webcam { .. } => {}
+            if let Some(path) = s.file_mut() {
+                resolve(path);
             }
         }
         for p in &mut cfg.performers {
@@ -304,12 +328,17 @@ impl Default for ReplaySettings {
     }
 }
 
-/// Where a subject's poses come from.
-#[derive(Debug, Clone)]
+/// Where a subject's poses come from. One schema for both spellings: a `[[sources]]` entry
+/// deserialises straight into it (`kind` picks the variant, unknown keys are errors), and
+/// `--source KIND:ARG` parses into it ([`FromStr`]; [`SourceSpec::to_cli`] writes it back).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum SourceSpec {
-    /// Replay a file.
+    /// Replay a file (`kind = "replay"`: `path`, `speed`, `loop`, `start_offset_secs`, `name`;
+    /// `--source replay:FILE`).
+    #[serde(rename = "replay", deserialize_with = "replay_keys")]
     ReplayFile {
-        /// The file.
+        /// The file (relative paths in a config file are relative to it).
         path: PathBuf,
         /// Subject name (default: file stem).
         name: Option<String>,
@@ -317,6 +346,7 @@ pub enum SourceSpec {
         settings: ReplaySettings,
     },
     /// Replay a clip already in memory (tests, generated content).
+    #[serde(skip)]
     ReplayClip {
         /// The clip.
         clip: Clip,
@@ -325,44 +355,200 @@ pub enum SourceSpec {
         /// Playback.
         settings: ReplaySettings,
     },
-    /// The bundled demo recording, looping.
+    /// The bundled demo recording, looping (`--source demo`).
+    #[serde(skip)]
     EmbeddedDemo,
     /// VMC/OSC input (`--source vmc:PORT` on loopback, `vmc:ADDR:PORT` elsewhere; port 0
     /// picks a free one).
     Vmc {
-        /// UDP port.
+        /// UDP port (default 39539).
+        #[serde(default = "vmc_port")]
         port: u16,
         /// Address to listen on ([`DEFAULT_VMC_BIND`] unless configured).
+        #[serde(default = "loopback")]
         bind: IpAddr,
         /// Sender IP addresses accepted (empty: any that can reach `bind`).
+        #[serde(default)]
         allowed_senders: Vec<IpAddr>,
         /// Silence before the source counts as lost (default 0.5 s).
         lost_after_secs: Option<f32>,
         /// Subject name (default `vmc:PORT`).
         name: Option<String>,
     },
-    /// Serial IMU suit (`--source serial:CONFIG.toml`).
+    /// Serial IMU suit described by a TOML file (see `SerialImuConfig`;
+    /// `--source serial:CONFIG.toml`).
     Serial {
         /// The suit's TOML config.
         config: PathBuf,
         /// Subject name (default: the config file stem).
         name: Option<String>,
     },
-    /// Pose estimation on a video file (`--source video:FILE`).
+    /// Pose estimation on a video file (needs `rigcast setup vision`; `--source video:FILE`).
     Video {
         /// The video.
         path: PathBuf,
         /// Subject name (default: the file stem).
         name: Option<String>,
     },
-    /// Pose estimation on a webcam (`--source webcam:INDEX`; needs the `webcam` feature).
+    /// Pose estimation on a webcam (needs `rigcast setup vision` and a build with
+    /// `--features webcam`; `--source webcam:INDEX`).
     Webcam {
-        /// Camera index.
+        /// Camera index (default 0: the first camera).
+        #[serde(default)]
         index: u32,
         /// Subject name (default `webcam:INDEX`).
         name: Option<String>,
     },
 }
+
+/// The keys of a `kind = "replay"` entry, flat in the file, grouped in [`SourceSpec`].
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReplayKeys {
+    path: PathBuf,
+    #[serde(default = "one")]
+    speed: f64,
+    #[serde(default = "yes", rename = "loop")]
+    looping: bool,
+    #[serde(default)]
+    start_offset_secs: f64,
+    name: Option<String>,
+}
+
+type ReplayFields = (PathBuf, Option<String>, ReplaySettings);
+
+fn replay_keys<'de, D: serde::Deserializer<'de>>(d: D) -> Result<ReplayFields, D::Error> {
+    let k = ReplayKeys::deserialize(d)?;
+    let settings = ReplaySettings {
+        speed: k.speed,
+        looping: k.looping,
+        start_offset_secs: k.start_offset_secs,
+    };
+    Ok((k.path, k.name, settings))
+}
+
+impl SourceSpec {
+    /// What kind of source this is.
+    pub fn kind(&self) -> SourceKind {
+        match self {
+            SourceSpec::ReplayFile { .. }
+            | SourceSpec::ReplayClip { .. }
+            | SourceSpec::EmbeddedDemo => SourceKind::Replay,
+            SourceSpec::Vmc { .. } => SourceKind::Vmc,
+            SourceSpec::Serial { .. } => SourceKind::Serial,
+            SourceSpec::Video { .. } => SourceKind::Video,
+            SourceSpec::Webcam { .. } => SourceKind::Webcam,
+        }
+    }
+
+    /// The file this source reads, if any (resolved against a config file's folder).
+    pub fn file_mut(&mut self) -> Option<&mut PathBuf> {
+        match self {
+            SourceSpec::ReplayFile { path, .. }
+            | SourceSpec::Serial { config: path, .. }
+            | SourceSpec::Video { path, .. } => Some(path),
+            SourceSpec::ReplayClip { .. }
+            | SourceSpec::EmbeddedDemo
+            | SourceSpec::Vmc { .. }
+            | SourceSpec::Webcam { .. } => None,
+        }
+    }
+
+    /// The `--source` argument that parses back into this spec, or `None` when the command
+    /// line cannot say it (an in-memory clip, names, non-default settings).
+    pub fn to_cli(&self) -> Option<String> {
+        let default_replay = ReplaySettings::default();
+        Some(match self {
+            SourceSpec::EmbeddedDemo => "demo".to_string(),
+            SourceSpec::ReplayFile {
+                path,
+                name: None,
+                settings,
+            } if *settings == default_replay => format!("replay:{}", path.display()),
+            SourceSpec::Vmc {
+                port,
+                bind,
+                allowed_senders,
+                lost_after_secs: None,
+                name: None,
+            } if allowed_senders.is_empty() => {
+                if *bind == DEFAULT_VMC_BIND {
+                    format!("vmc:{port}")
+                } else {
+                    format!("vmc:{}", SocketAddr::new(*bind, *port))
+                }
+            }
+            SourceSpec::Serial { config, name: None } => format!("serial:{}", config.display()),
+            SourceSpec::Video { path, name: None } => format!("video:{}", path.display()),
+            SourceSpec::Webcam { index, name: None } => format!("webcam:{index}"),
+            _ => return None,
+        })
+    }
+}
+
+/// `--source` arguments: `replay:PATH`, `vmc:PORT` (loopback), `vmc:ADDR:PORT`,
+/// `serial:CONFIG.toml`, `video:FILE`, `webcam:INDEX` and `demo`.
+impl FromStr for SourceSpec {
+    type Err = ConfigError;
+
+    fn from_str(s: &str) -> Result<SourceSpec, ConfigError> {
+        if s == "demo" {
+            return Ok(SourceSpec::EmbeddedDemo);
+        }
+        let unknown = || ConfigError::UnknownSource { text: s.into() };
+        let (kind, arg) = s.split_once(':').ok_or_else(unknown)?;
+        let kind = <SourceKind as clap::ValueEnum>::from_str(kind, false).map_err(|_| unknown())?;
+        let bad = |expected| ConfigError::BadSourceArg {
+            text: s.into(),
+            expected,
+        };
+        let file = || {
+            (!arg.is_empty())
+                .then(|| PathBuf::from(arg))
+                .ok_or_else(unknown)
+        };
+        Ok(match kind {
+            SourceKind::Replay => SourceSpec::ReplayFile {
+                path: file()?,
+                name: None,
+                settings: ReplaySettings::default(),
+            },
+            SourceKind::Vmc => {
+                let (bind, port) = match arg.parse::<u16>() {
+                    Ok(port) => (DEFAULT_VMC_BIND, port),
+                    Err(_) => {
+                        let addr: SocketAddr = arg.parse().map_err(|_| bad(VMC_GRAMMAR))?;
+                        (addr.ip(), addr.port())
+                    }
+                };
+                SourceSpec::Vmc {
+                    port,
+                    bind,
+                    allowed_senders: Vec::new(),
+                    lost_after_secs: None,
+                    name: None,
+                }
+            }
+            SourceKind::Serial => SourceSpec::Serial {
+                config: file()?,
+                name: None,
+            },
+            SourceKind::Video => SourceSpec::Video {
+                path: file()?,
+                name: None,
+            },
+            SourceKind::Webcam => SourceSpec::Webcam {
+                index: arg.parse().map_err(|_| bad(WEBCAM_GRAMMAR))?,
+                name: None,
+            },
+            // Skipped by the parser above; other nodes' subjects come from `[cluster]`.
+            SourceKind::Remote => return Err(unknown()),
+        })
+    }
+}
+
+const VMC_GRAMMAR: &str = "vmc:PORT (loopback) or vmc:ADDR:PORT with a UDP port 0..=65535";
+const WEBCAM_GRAMMAR: &str = "webcam:INDEX with a camera number, e.g. webcam:0";
 
 /// VMC input listens on loopback unless told otherwise: a performer's skeleton must not be
 /// replaceable by any host on the network.
@@ -417,13 +603,14 @@ impl Default for LimitsConfig {
 pub const BUILTIN_PREFIX: &str = "builtin:";
 
 /// What a target character does while its source is lost.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum OnLost {
     /// Ease to the character's own rest pose over about half a second, standing where it was
     /// (`"ease"`, or `"rest"`).
     #[default]
     #[serde(alias = "rest")]
+    #[value(alias = "rest")]
     Ease,
     /// Hold the last pose.
     Hold,
@@ -497,9 +684,8 @@ pub struct ServerConfig {
     pub rate_hz: f64,
     /// Subjects to stream (empty = the embedded demo).
     pub sources: Vec<SourceSpec>,
-    /// VMC receivers (`host:port`, resolved at start; `host:port@SUBJECT` picks the subject,
-    /// default the first target, else the first source).
-    pub vmc_out: Vec<String>,
+    /// VMC receivers (resolved at start).
+    pub vmc_out: Vec<VmcOut>,
     /// Retargeted characters. With no sources and no performers the server streams the
     /// bundled demo and the built-in mannequin retargeted from it.
     pub performers: Vec<PerformerSpec>,
@@ -515,6 +701,8 @@ pub struct ServerConfig {
     pub access: AccessConfig,
     /// Connection, client and cache bounds.
     pub limits: LimitsConfig,
+    /// Cluster mode (NATS), off when `None`.
+    pub cluster: Option<crate::cluster::ClusterConfig>,
 }
 
 /// The default on-disk mapping cache: `$XDG_CACHE_HOME/rigcast/mappings`, else
@@ -541,6 +729,7 @@ impl Default for ServerConfig {
             mapping_cache_dir: None,
             access: AccessConfig::default(),
             limits: LimitsConfig::default(),
+            cluster: None,
         }
     }
 }
@@ -607,21 +796,7 @@ impl ServerConfig {
         if let Some(rate) = file.rate_hz {
             cfg.rate_hz = rate;
         }
-        cfg.vmc_out = file
-            .vmc_out
-            .into_iter()
-            .map(|v| match v {
-                FileVmcOut::Address(a) => a,
-                FileVmcOut::Table {
-                    address,
-                    subject: Some(s),
-                } => format!("{address}@{s}"),
-                FileVmcOut::Table {
-                    address,
-                    subject: None,
-                } => address,
-            })
-            .collect();
+        cfg.vmc_out = file.vmc_out;
         cfg.vmc_bone_names = file.vmc_bone_names.unwrap_or_default();
         cfg.on_lost = file.on_lost.unwrap_or_default();
         cfg.record = file.record;
@@ -639,6 +814,7 @@ impl ServerConfig {
                 .map(TokenSetting::File)
                 .unwrap_or(TokenSetting::Ephemeral),
         };
+        cfg.cluster = file.cluster.clone();
         cfg.limits = LimitsConfig {
             max_connections: file.max_connections,
             stalled_client_timeout_secs: file
@@ -665,43 +841,7 @@ impl ServerConfig {
                 foot_lock: p.foot_lock,
             })
             .collect();
-        cfg.sources = file
-            .sources
-            .into_iter()
-            .map(|s| match s {
-                FileSource::Replay {
-                    path,
-                    speed,
-                    looping,
-                    start_offset_secs,
-                    name,
-                } => SourceSpec::ReplayFile {
-                    path,
-                    name,
-                    settings: ReplaySettings {
-                        speed,
-                        looping,
-                        start_offset_secs,
-                    },
-                },
-                FileSource::Vmc {
-                    port,
-                    bind,
-                    allowed_senders,
-                    lost_after_secs,
-                    name,
-                } => SourceSpec::Vmc {
-                    port,
-                    bind,
-                    allowed_senders,
-                    lost_after_secs,
-                    name,
-                },
-                FileSource::Serial { config, name } => SourceSpec::Serial { config, name },
-                FileSource::Video { path, name } => SourceSpec::Video { path, name },
-                FileSource::Webcam { index, name } => SourceSpec::Webcam { index, name },
-            })
-            .collect();
+        cfg.sources = file.sources;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -736,7 +876,7 @@ mod tests {
         let cfg = ServerConfig::from_file(file).unwrap();
         assert_eq!(cfg.listen.port(), 9000);
         assert_eq!(cfg.rate_hz, 120.0);
-        assert_eq!(cfg.vmc_out, vec!["127.0.0.1:39539".to_string()]);
+        assert_eq!(cfg.vmc_out, vec![VmcOut::to("127.0.0.1:39539")]);
         match &cfg.sources[0] {
             SourceSpec::ReplayFile {
                 path,
@@ -828,7 +968,13 @@ mod tests {
         assert_eq!(cfg.vmc_bone_names, VmcBoneNames::Skeleton);
         assert!(cfg.mapping_cache_dir.is_none());
         assert_eq!(cfg.record, Some(PathBuf::from("/tmp/x.rcr")));
-        assert_eq!(cfg.vmc_out, vec!["127.0.0.1:1", "127.0.0.1:2@hero"]);
+        assert_eq!(
+            cfg.vmc_out,
+            vec![
+                VmcOut::to("127.0.0.1:1"),
+                "127.0.0.1:2@hero".parse().unwrap()
+            ]
+        );
         assert!(matches!(
             cfg.sources[0],
             SourceSpec::Vmc { port: 39540, .. }
@@ -923,5 +1069,77 @@ mod tests {
         let file: FileConfig =
             toml::from_str("[[sources]]\nkind = \"replay\"\npath = \"a\"\nspeed = 0").unwrap();
         assert!(ServerConfig::from_file(file).is_err());
+    }
+
+    #[test]
+    fn unknown_keys_are_errors_naming_the_key_and_the_file() {
+        let dir = std::env::temp_dir().join(format!("rigcast-keys-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("studio.toml");
+        for (text, key) in [
+            ("rate = 3\n", "rate"),
+            (
+                "[[sources]]\nkind = \"replay\"\npath = \"a.bvh\"\nsped = 2\n",
+                "sped",
+            ),
+            ("[[sources]]\nkind = \"vmc\"\nprot = 39540\n", "prot"),
+            ("[[sources]]\nkind = \"teleport\"\n", "teleport"),
+            (
+                "vmc_out = [{ address = \"127.0.0.1:1\", subjct = \"x\" }]\n",
+                "subjct",
+            ),
+            (
+                "[[performers]]\ntarget = \"a.glb\"\nfootlock = true\n",
+                "footlock",
+            ),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let err = FileConfig::load(&path).unwrap_err().to_string();
+            assert!(err.contains("studio.toml"), "{text}: {err}");
+            assert!(err.contains(&format!("`{key}`")), "{text}: {err}");
+        }
+    }
+
+    #[test]
+    fn cli_grammar_round_trips_through_the_spec() {
+        for arg in [
+            "demo",
+            "replay:walk.bvh",
+            "replay:/x/y z.rcr",
+            "vmc:39540",
+            "vmc:0",
+            "vmc:0.0.0.0:39541",
+            "vmc:[::1]:39542",
+            "serial:suit.toml",
+            "video:clip.mp4",
+            "webcam:2",
+        ] {
+            let spec: SourceSpec = arg.parse().unwrap();
+            assert_eq!(spec.to_cli().as_deref(), Some(arg), "{spec:?}");
+        }
+        let spec: SourceSpec = "vmc:0.0.0.0:39541".parse().unwrap();
+        assert_eq!(spec.kind(), SourceKind::Vmc);
+        // The file spelling and the command-line spelling give the same spec.
+        let file: FileConfig =
+            toml::from_str("[[sources]]\nkind = \"vmc\"\nport = 39540\n").unwrap();
+        let cli: SourceSpec = "vmc:39540".parse().unwrap();
+        assert_eq!(format!("{:?}", file.sources[0]), format!("{cli:?}"));
+        let named = SourceSpec::Serial {
+            config: "suit.toml".into(),
+            name: Some("suit".into()),
+        };
+        assert_eq!(named.to_cli(), None, "a name has no command-line spelling");
+        for (bad, says) in [
+            ("teleport:x", "unknown source"),
+            ("replay:", "unknown source"),
+            ("vmc:nope", "vmc:PORT"),
+            ("webcam:front", "webcam:INDEX"),
+        ] {
+            let err = bad.parse::<SourceSpec>().unwrap_err().to_string();
+            assert!(err.contains(says), "{bad}: {err}");
+        }
+        let out: VmcOut = "127.0.0.1:2@hero".parse().unwrap();
+        assert_eq!(out.subject.as_deref(), Some("hero"));
+        assert_eq!(out.to_string(), "127.0.0.1:2@hero");
     }
 }

@@ -28,7 +28,7 @@ use tokio_tungstenite::tungstenite::Bytes;
 
 use crate::performer::Performer;
 use crate::stats::Stats;
-use crate::subject::HealthState;
+use rigcast_protocol::SourceState;
 use rigcast_sources::Replay;
 
 /// Wall clock as Unix epoch nanoseconds.
@@ -132,7 +132,7 @@ pub async fn run_replay_source(
             None => finished = true,
         });
         if finished {
-            subject.health.set_state(HealthState::Finished);
+            subject.health.set_state(SourceState::Finished);
             break;
         }
         subject.stats.input.tick();
@@ -295,6 +295,11 @@ impl Ticker {
                 }
             }
             drop(frame);
+            if subject.is_relayed() {
+                // Another node's subject: its frames reach clients as they arrive from the
+                // cluster (cluster::run_relay), not re-encoded here.
+                continue;
+            }
             // The one allocation per subject per tick: the shared, immutable frame, which must
             // outlive the tick because client tasks send it later.
             let bytes = Bytes::copy_from_slice(&self.scratch);

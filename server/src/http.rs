@@ -17,7 +17,6 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
-use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio_tungstenite::tungstenite::handshake::derive_accept_key;
@@ -27,9 +26,10 @@ use tokio_tungstenite::WebSocketStream;
 use crate::access::{bearer_token, query_token, Credentials, Route};
 use crate::clients::{serve_client, MAX_TRANSPORT_MESSAGE_BYTES};
 use crate::limits::Admission;
-use crate::recorder::RecordingStatus;
 use crate::state::ServerState;
-use crate::stats::TickPercentiles;
+use rigcast_protocol::status::{
+    ClientAccess, ClientStatus, ClientsStatus, ConnectionsStatus, FootStatus, Status, SubjectStatus,
+};
 
 /// Largest request head accepted.
 const MAX_HEAD_BYTES: usize = 16 * 1024;
@@ -48,6 +48,7 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
             } => {
                 match accepted {
                     Ok((stream, peer)) => {
+                        // Latency tuning only: the connection works without it.
                         let _ = stream.set_nodelay(true);
                         match state.connections.admit() {
                             Admission::Admitted { permit, evicted } => {
@@ -58,7 +59,7 @@ pub async fn run_listener(listener: TcpListener, state: Arc<ServerState>) {
                     }
                     Err(e) => {
                         // Typically EMFILE; back off briefly rather than spin.
-                        eprintln!("rigcast: accept failed: {e}");
+                        tracing::warn!("accept failed: {e}");
                         tokio::time::sleep(Duration::from_millis(50)).await;
                     }
                 }
@@ -78,6 +79,7 @@ const ROOM_WAIT: Duration = Duration::from_millis(250);
 /// and the descriptor is released before the next accept.
 fn refuse_full(stream: TcpStream, max: usize) {
     let body = format!("server full: {max} connections open; retry later\n");
+    // The client may be gone already: there is nobody left to answer.
     let _ = stream.try_write(head(503, "text/plain", body.len()).as_bytes());
     let _ = stream.try_write(body.as_bytes());
 }
@@ -149,12 +151,16 @@ async fn handle_connection(
     // Each connection is its own task, so a client that never finishes its head (slowloris)
     // holds only this task, and only until the timeout — or until a newer connection needs
     // its slot.
+    let mut shutdown = state.shutdown.clone();
     let read = tokio::select! {
         r = tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)) => r,
+        // An unfinished request at shutdown is dropped, so the drain does not wait for it.
+        _ = async { shutdown.wait_for(|stop| *stop).await.is_ok() } => return,
         Ok(()) = evicted => {
             let max = state.connections.max();
             drop(permit);
             let body = format!("server full: {max} connections open; an unfinished request made way for a newer one\n");
+            // The client may be gone already: there is nobody left to answer.
             let _ = tokio::time::timeout(REFUSAL_TIMEOUT, respond(&mut stream, 503, "text/plain", body.as_bytes())).await;
             return;
         }
@@ -163,6 +169,7 @@ async fn handle_connection(
     let head_end = match read {
         Ok(HeadRead::Complete(end)) => end,
         Ok(HeadRead::TooLarge) => {
+            // The client may be gone already: there is nobody left to answer.
             let _ = respond(
                 &mut stream,
                 431,
@@ -177,10 +184,12 @@ async fn handle_connection(
     let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
     let leftover = buf[head_end..].to_vec();
     let Some(req) = parse_head(&head) else {
+        // The client may be gone already: there is nobody left to answer.
         let _ = respond(&mut stream, 400, "text/plain", b"bad request\n").await;
         return;
     };
     if req.method != "GET" {
+        // The client may be gone already: there is nobody left to answer.
         let _ = respond(&mut stream, 405, "text/plain", b"only GET is supported\n").await;
         return;
     }
@@ -192,6 +201,7 @@ async fn handle_connection(
     let access = match state.policy.decide(route, &req.credentials()) {
         Ok(a) => a,
         Err(refusal) => {
+            // The client may be gone already: there is nobody left to answer.
             let _ = respond(
                 &mut stream,
                 refusal.status(),
@@ -203,54 +213,70 @@ async fn handle_connection(
         }
     };
     match route {
-        Route::Stream => {
-            let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
-                let _ = respond(
-                    &mut stream,
-                    426,
-                    "text/plain",
-                    b"this endpoint needs a WebSocket upgrade\n",
-                )
-                .await;
-                return;
-            };
-            let accept = derive_accept_key(key.as_bytes());
-            let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
-                return;
-            };
-            // Frames are written whole, one write per tick: Nagle's algorithm would only hold
-            // the next tick's write back waiting for an ACK. Safe to drop the error: a socket
-            // where the option cannot be set still streams, only with that delay.
-            let _ = stream.set_nodelay(true);
-            let response = format!(
-                "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
-            );
-            if stream.write_all(response.as_bytes()).await.is_err() {
-                return;
-            }
-            let ws = WebSocketStream::from_partially_read(
-                stream,
-                leftover,
-                Role::Server,
-                Some(websocket_config()),
-            )
-            .await;
-            serve_client(ws, state, peer, access).await;
-            drop(permit);
-        }
+        Route::Stream => upgrade(stream, req, leftover, state, peer, access, permit).await,
         Route::Status => {
             let body = serde_json::to_vec_pretty(&status(&state)).unwrap_or_default();
+            // The client may be gone already: there is nobody left to answer.
             let _ = respond(&mut stream, 200, "application/json", &body).await;
         }
         Route::ViewerFile => match static_asset(&req.path) {
             Some((mime, body)) => {
+                // The client may be gone already: there is nobody left to answer.
                 let _ = respond(&mut stream, 200, mime, &body).await;
             }
             None => {
+                // The client may be gone already: there is nobody left to answer.
                 let _ = respond(&mut stream, 404, "text/plain", b"not found\n").await;
             }
         },
     }
+}
+
+/// `GET /v1/stream`: answers the WebSocket upgrade and runs the client session; the
+/// connection's slot (`permit`) is held until the session ends.
+async fn upgrade(
+    mut stream: TcpStream,
+    req: Request,
+    leftover: Vec<u8>,
+    state: Arc<ServerState>,
+    peer: String,
+    access: crate::access::Access,
+    permit: crate::limits::ConnectionPermit,
+) {
+    let (true, Some(key)) = (req.upgrade_websocket, req.websocket_key) else {
+        // The client may be gone already: there is nobody left to answer.
+        let _ = respond(
+            &mut stream,
+            426,
+            "text/plain",
+            b"this endpoint needs a WebSocket upgrade\n",
+        )
+        .await;
+        return;
+    };
+    let accept = derive_accept_key(key.as_bytes());
+    let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
+        return;
+    };
+    // Frames are written whole, one write per tick: Nagle's algorithm would only hold the
+    // next tick's write back waiting for an ACK. Safe to drop the error: a socket where the
+    // option cannot be set still streams, only with that delay.
+    let _ = stream.set_nodelay(true);
+    let response = format!(
+            "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
+        );
+    if stream.write_all(response.as_bytes()).await.is_err() {
+        return;
+    }
+    let ws = WebSocketStream::from_partially_read(
+        stream,
+        leftover,
+        Role::Server,
+        Some(websocket_config()),
+    )
+    .await;
+    serve_client(ws, state, peer, access).await;
+    drop(permit);
 }
 
 /// Read buffer per WebSocket client: client messages are small JSON, and many idle clients
@@ -396,91 +422,6 @@ const VIEWER_FILES: &[(&str, &str, &[u8])] = &[
     viewer_file!("/vendor/three/LICENSE", "text/plain; charset=utf-8"),
 ];
 
-/// `GET /v1/status` body.
-#[derive(Debug, Serialize)]
-pub struct Status {
-    /// Server crate version.
-    pub server_version: &'static str,
-    /// Configured output rate.
-    pub tick_hz: f64,
-    /// Measured output rate (ticks per second).
-    pub output_rate_hz: f64,
-    /// Per-subject input.
-    pub subjects: Vec<SubjectStatus>,
-    /// Connected clients.
-    pub clients: ClientsStatus,
-    /// Frames dropped for lagging clients, total since start.
-    pub dropped_frames_total: u64,
-    /// VMC datagrams that failed to send.
-    pub vmc_send_errors: u64,
-    /// Tick duration percentiles (µs) over the last ~1024 ticks.
-    pub tick_micros: TickPercentiles,
-    /// Connections against the cap.
-    pub connections: ConnectionsStatus,
-    /// Clients that lost control messages to lag and were sent a fresh snapshot, total.
-    pub control_resyncs_total: u64,
-    /// Clients dropped because their socket accepted nothing for the stall timeout, total.
-    pub stalled_disconnects_total: u64,
-    /// The `--record` recording (`null` when not recording).
-    pub recording: Option<RecordingStatus>,
-}
-
-/// Connections in the status.
-#[derive(Debug, Serialize)]
-pub struct ConnectionsStatus {
-    /// Open now (WebSocket clients and requests in progress).
-    pub open: usize,
-    /// The cap.
-    pub max: usize,
-    /// Refused with 503 since start (evicted unfinished requests included).
-    pub refused_total: u64,
-    /// Unfinished requests evicted to make way for newer connections.
-    pub evicted_total: u64,
-    /// Soft open-file limit of the process (`null` when unknown).
-    pub fd_limit: Option<u64>,
-}
-
-/// One subject in the status.
-#[derive(Debug, Serialize)]
-pub struct SubjectStatus {
-    /// id
-    pub id: u32,
-    /// name
-    pub name: String,
-    /// bones
-    pub num_bones: u32,
-    /// Frames per second arriving from the source.
-    pub input_fps: f64,
-    /// Frames produced since start.
-    pub input_frames: u64,
-    /// Capture time of the latest frame, Unix ns (0 = none yet).
-    pub last_capture_nanos: u64,
-    /// `source` or `target`.
-    pub kind: &'static str,
-    /// Source subjects of a target.
-    pub inputs: Vec<u32>,
-    /// Health of a source (replays: `live` or `finished`).
-    pub source: Option<rigcast_protocol::control::SourceHealth>,
-    /// UDP address a VMC source listens on.
-    pub listen: Option<String>,
-    /// Skeleton changes applied (live sources learn their sender's skeleton).
-    pub skeleton_changes: u64,
-    /// Frames held back because skeleton changes came faster than the rate limit.
-    pub skeleton_frames_limited: u64,
-    /// A target's feet under its foot lock and whether each is held now (`null` without a
-    /// foot lock).
-    pub footplants: Option<Vec<FootStatus>>,
-}
-
-/// One foot of a target's foot lock.
-#[derive(Debug, Serialize)]
-pub struct FootStatus {
-    /// The foot bone.
-    pub bone: String,
-    /// Held where it was planted.
-    pub planted: bool,
-}
-
 /// The foot-lock part of a subject's status.
 fn footplants(stats: &crate::stats::SubjectStats) -> Option<Vec<FootStatus>> {
     let names = stats.locked_feet.lock().ok()?;
@@ -500,32 +441,6 @@ fn footplants(stats: &crate::stats::SubjectStats) -> Option<Vec<FootStatus>> {
     )
 }
 
-/// Clients in the status.
-#[derive(Debug, Serialize)]
-pub struct ClientsStatus {
-    /// Connected clients.
-    pub count: usize,
-    /// Each client.
-    pub list: Vec<ClientStatus>,
-}
-
-/// One client in the status.
-#[derive(Debug, Serialize)]
-pub struct ClientStatus {
-    /// connection id
-    pub id: u64,
-    /// peer address
-    pub peer: String,
-    /// frames sent
-    pub frames_sent: u64,
-    /// frames dropped because it lagged
-    pub missed_frames: u64,
-    /// `read_only` or `control` (opened with the token)
-    pub access: &'static str,
-    /// times it lost control messages to lag and got a fresh snapshot
-    pub control_resyncs: u64,
-}
-
 /// Snapshot of the counters.
 pub fn status(state: &ServerState) -> Status {
     let subjects = state
@@ -540,7 +455,7 @@ pub fn status(state: &ServerState) -> Status {
                 input_fps: s.stats.input.rate_hz(),
                 input_frames: s.stats.input.total(),
                 last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
-                kind: if s.is_target() { "target" } else { "source" },
+                kind: s.info().kind,
                 inputs: s.inputs.clone(),
                 source: s.source_health(),
                 listen: s.listen_addr.map(|a| a.to_string()),
@@ -562,8 +477,8 @@ pub fn status(state: &ServerState) -> Status {
                     frames_sent: c.frames_sent.load(Ordering::Relaxed),
                     missed_frames: c.missed_frames.load(Ordering::Relaxed),
                     access: match c.access {
-                        crate::access::Access::ReadOnly => "read_only",
-                        crate::access::Access::Control => "control",
+                        crate::access::Access::ReadOnly => ClientAccess::ReadOnly,
+                        crate::access::Access::Control => ClientAccess::Control,
                     },
                     control_resyncs: c.control_resyncs.load(Ordering::Relaxed),
                 })
@@ -571,7 +486,7 @@ pub fn status(state: &ServerState) -> Status {
         })
         .unwrap_or_default();
     Status {
-        server_version: env!("CARGO_PKG_VERSION"),
+        server_version: env!("CARGO_PKG_VERSION").to_string(),
         tick_hz: state.rate_hz,
         output_rate_hz: state.stats.output.rate_hz(),
         subjects,

@@ -158,6 +158,24 @@ impl ConnectionLimiter {
         }
     }
 
+    /// Waits (at most `limit`) until no connection is open: shutdown lets sessions close.
+    pub async fn wait_until_idle(&self, limit: std::time::Duration) {
+        let deadline = tokio::time::Instant::now() + limit;
+        while self.open() > 0 {
+            let released = self.released.notified();
+            if self.open() == 0 {
+                return;
+            }
+            // Notify wakes one waiter per release; poll too, in case another waiter took it.
+            let poll = tokio::time::sleep(std::time::Duration::from_millis(20));
+            tokio::select! {
+                _ = released => {}
+                _ = poll => {}
+                _ = tokio::time::sleep_until(deadline) => return,
+            }
+        }
+    }
+
     /// The cap.
     pub fn max(&self) -> usize {
         self.max
@@ -189,6 +207,7 @@ impl ConnectionLimiter {
                 .flatten();
             match victim {
                 Some((_, tx)) => {
+                    // The evicted connection may have closed by itself already.
                     let _ = tx.send(());
                     self.evicted.fetch_add(1, Ordering::Relaxed);
                     self.refused.fetch_add(1, Ordering::Relaxed);

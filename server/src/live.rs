@@ -19,12 +19,12 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::{Frame, Pose};
-use rigcast_sources::live::{LiveSource, SourceState};
+use rigcast_sources::live::LiveSource;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use crate::engine::{unix_nanos, EngineCommand};
 use crate::recorder::Recorder;
-use crate::subject::{HealthState, Subject};
+use crate::subject::Subject;
 
 /// How long one `next_frame` call may block (bounds shutdown latency).
 const POLL: Duration = Duration::from_millis(50);
@@ -51,14 +51,6 @@ pub struct LiveContext {
     pub stop: Arc<AtomicBool>,
 }
 
-fn state_of(s: SourceState) -> HealthState {
-    match s {
-        SourceState::Connecting => HealthState::Connecting,
-        SourceState::Live => HealthState::Live,
-        SourceState::Lost => HealthState::Lost,
-    }
-}
-
 /// Runs a live source until `stop` is set.
 pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
     let mut pose: Pose = ctx.subject.skeleton().rest_pose();
@@ -71,9 +63,15 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
         if last_status.elapsed() >= STATUS_EVERY {
             last_status = Instant::now();
             let status = source.status();
-            ctx.subject.health.set_state(state_of(status.state));
+            let changed = ctx.subject.health.state() != status.state;
+            ctx.subject.health.set_state(status.state);
             if let Ok(mut g) = ctx.subject.health.live.lock() {
                 *g = Some(status);
+            }
+            if changed {
+                // Clients hear of a loss or a recovery now, not at the next periodic report.
+                // Err only means no client is connected.
+                let _ = ctx.events.send(crate::source_status_json(&ctx.subjects));
             }
         }
         match source.next_frame(POLL, &mut pose) {
@@ -128,7 +126,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
             Err(e) => {
                 let text = e.to_string();
                 if last_error.as_deref() != Some(text.as_str()) {
-                    eprintln!("rigcast: source {}: {text}", ctx.subject.info().name);
+                    tracing::warn!("source {}: {text}", ctx.subject.info().name);
                     last_error = Some(text);
                 }
                 // Device errors repeat quickly; don't spin.
@@ -142,13 +140,16 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
 fn announce_skeleton(ctx: &LiveContext) {
     let shape = ctx.subject.shape();
     let infos = ctx.subjects.iter().map(|s| s.info()).collect();
+    // Err only means no client is listening right now.
     let _ = ctx
         .events
         .send(ServerMessage::SubjectsChanged { subjects: infos }.to_json());
+    // Err only means no client is listening right now.
     let _ = ctx.events.send(shape.skeleton_json.clone());
     if let Some(r) = &ctx.recorder {
         r.skeleton(ctx.subject.id, &shape.info.name, &shape.skeleton);
     }
+    // Fails only when the mapper has stopped (shutdown).
     let _ = ctx.commands.blocking_send(EngineCommand::SkeletonChanged {
         subject: ctx.subject.id,
     });

@@ -110,8 +110,8 @@ impl Mapper {
     pub fn build_all(&mut self) {
         for i in 0..self.performers.len() {
             if let Err(e) = self.build(i) {
-                eprintln!(
-                    "rigcast: cannot map {}: {e:#}",
+                tracing::error!(
+                    "cannot map {}: {e:#}",
                     self.performers[i].target.info().name
                 );
             }
@@ -227,6 +227,7 @@ impl Mapper {
         if let Ok(mut m) = p.target.mapping_json.write() {
             *m = Some(json.clone());
         }
+        // Err only means no client is listening right now.
         let _ = self.events.send(json);
         Ok(())
     }
@@ -240,7 +241,7 @@ impl Mapper {
                 };
                 self.performers[i].session.extend(overrides);
                 if let Err(e) = self.build(i) {
-                    eprintln!("rigcast: set_mapping for subject {subject}: {e:#}");
+                    tracing::error!("set_mapping for subject {subject}: {e:#}");
                 }
             }
             EngineCommand::SetPerformer { subject, foot_lock } => {
@@ -251,7 +252,7 @@ impl Mapper {
                     self.performers[i].foot_lock = foot_lock;
                 }
                 if let Err(e) = self.build(i) {
-                    eprintln!("rigcast: set_performer for subject {subject}: {e:#}");
+                    tracing::error!("set_performer for subject {subject}: {e:#}");
                 }
             }
             EngineCommand::SkeletonChanged { subject } => {
@@ -260,7 +261,7 @@ impl Mapper {
                         // The old reference pose belongs to the old skeleton.
                         self.extras.remove(&subject);
                         if let Err(e) = self.build(i) {
-                            eprintln!("rigcast: re-mapping after a skeleton change: {e:#}");
+                            tracing::error!("re-mapping after a skeleton change: {e:#}");
                         }
                     }
                 }

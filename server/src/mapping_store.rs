@@ -137,6 +137,7 @@ impl MappingStore {
         }
         files.sort();
         for (_, p) in &files[..files.len() - self.max_entries] {
+            // Nothing there to remove is fine.
             let _ = std::fs::remove_file(p);
         }
     }
@@ -164,6 +165,7 @@ mod tests {
     #[test]
     fn bounded_in_memory_and_on_disk() {
         let dir = std::env::temp_dir().join(format!("rigcast-store-{}", std::process::id()));
+        // Nothing there to remove is fine.
         let _ = std::fs::remove_dir_all(&dir);
         let mut store = MappingStore::new(Some(dir.clone()), 3);
         let target = skeleton(2);

@@ -22,7 +22,8 @@ use tokio::sync::watch;
 
 use crate::config::OnLost;
 use crate::engine::unix_nanos;
-use crate::subject::{HealthState, Subject};
+use crate::subject::Subject;
+use rigcast_protocol::SourceState;
 
 /// Time to ease to rest after a loss.
 pub const EASE_OUT: Duration = Duration::from_millis(500);
@@ -172,7 +173,7 @@ impl Performer {
                 self.last_input_seqs[i] = frame.seq;
                 changed = true;
             }
-            lost |= src.health.state() == HealthState::Lost;
+            lost |= src.health.state() == SourceState::Lost;
         }
         match (self.phase, lost) {
             (Phase::Live | Phase::Resuming(_), true) => {

@@ -59,16 +59,7 @@ impl RecorderHealth {
     }
 }
 
-/// The recording in `/v1/status`.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct RecordingStatus {
-    /// The file.
-    pub path: String,
-    /// Failed writes since start (records lost; the recording goes on).
-    pub errors: u64,
-    /// The latest failure (`null` when none).
-    pub last_error: Option<String>,
-}
+pub use rigcast_protocol::status::RecordingStatus;
 
 impl Recorder {
     /// Creates the file.
@@ -173,12 +164,16 @@ impl Recorder {
         match Arc::try_unwrap(self.writer) {
             Ok(m) => {
                 if let Ok(w) = m.into_inner() {
-                    let _ = w.finish();
+                    if let Err(e) = w.finish() {
+                        tracing::warn!("recording: cannot write the end record: {e}");
+                    }
                 }
             }
             Err(shared) => {
                 if let Ok(mut w) = shared.lock() {
-                    let _ = w.flush();
+                    if let Err(e) = w.flush() {
+                        tracing::warn!("recording: cannot flush: {e}");
+                    }
                 }
             }
         }

@@ -6,8 +6,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use serde::Serialize;
-
 /// Ticks kept for the duration percentiles (about 17 s at 60 Hz).
 const TICK_WINDOW: usize = 1024;
 
@@ -116,6 +114,11 @@ pub struct Stats {
     pub control_resyncs: AtomicU64,
     /// Clients dropped for accepting nothing for the stall timeout.
     pub stalled_disconnects: AtomicU64,
+    /// Frames not handed to NATS (cluster mode): publish failures and frames the publisher
+    /// fell behind on.
+    pub cluster_publish_errors: AtomicU64,
+    /// Frames received from NATS that were malformed and dropped (cluster mode).
+    pub cluster_bad_frames: AtomicU64,
     /// Connected clients by id.
     pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
     tick_micros: Mutex<TickWindow>,
@@ -136,6 +139,8 @@ impl Default for Stats {
             vmc_send_errors: AtomicU64::new(0),
             control_resyncs: AtomicU64::new(0),
             stalled_disconnects: AtomicU64::new(0),
+            cluster_publish_errors: AtomicU64::new(0),
+            cluster_bad_frames: AtomicU64::new(0),
             clients: Mutex::new(BTreeMap::new()),
             tick_micros: Mutex::new(TickWindow {
                 values: [0; TICK_WINDOW],
@@ -146,20 +151,7 @@ impl Default for Stats {
     }
 }
 
-/// Tick duration percentiles in microseconds.
-#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq)]
-pub struct TickPercentiles {
-    /// median
-    pub p50: u32,
-    /// 90th percentile
-    pub p90: u32,
-    /// 99th percentile
-    pub p99: u32,
-    /// maximum
-    pub max: u32,
-    /// ticks in the window
-    pub samples: usize,
-}
+pub use rigcast_protocol::status::TickPercentiles;
 
 impl Stats {
     /// Records one tick's duration (no allocation).

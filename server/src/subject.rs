@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
 use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
-use rigcast_protocol::ServerMessage;
+use rigcast_protocol::{ServerMessage, SourceKind, SourceState};
 use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 use rigcast_sources::live::SourceStatus;
@@ -161,38 +161,22 @@ impl SubjectShape {
     }
 }
 
-/// Health states (stored in an atomic so the tick can read them for free).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-pub enum HealthState {
-    /// No input yet.
-    Connecting = 0,
-    /// Input arriving.
-    Live = 1,
-    /// Input stopped.
-    Lost = 2,
-    /// A replay reached its end (not looping).
-    Finished = 3,
+/// The state as stored in [`Health`]'s atomic.
+fn state_from_u8(v: u8) -> SourceState {
+    match v {
+        0 => SourceState::Connecting,
+        2 => SourceState::Lost,
+        3 => SourceState::Finished,
+        _ => SourceState::Live,
+    }
 }
 
-impl HealthState {
-    /// Lower-case name used in JSON.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            HealthState::Connecting => "connecting",
-            HealthState::Live => "live",
-            HealthState::Lost => "lost",
-            HealthState::Finished => "finished",
-        }
-    }
-
-    fn from_u8(v: u8) -> HealthState {
-        match v {
-            0 => HealthState::Connecting,
-            2 => HealthState::Lost,
-            3 => HealthState::Finished,
-            _ => HealthState::Live,
-        }
+fn state_to_u8(s: SourceState) -> u8 {
+    match s {
+        SourceState::Connecting => 0,
+        SourceState::Live => 1,
+        SourceState::Lost => 2,
+        SourceState::Finished => 3,
     }
 }
 
@@ -205,22 +189,22 @@ pub struct Health {
 }
 
 impl Health {
-    fn new(state: HealthState) -> Health {
+    fn new(state: SourceState) -> Health {
         Health {
-            state: AtomicU8::new(state as u8),
+            state: AtomicU8::new(state_to_u8(state)),
             live: Mutex::new(None),
         }
     }
 
     /// Current state.
     #[inline]
-    pub fn state(&self) -> HealthState {
-        HealthState::from_u8(self.state.load(Ordering::Relaxed))
+    pub fn state(&self) -> SourceState {
+        state_from_u8(self.state.load(Ordering::Relaxed))
     }
 
     /// Sets the state.
-    pub fn set_state(&self, s: HealthState) {
-        self.state.store(s as u8, Ordering::Relaxed);
+    pub fn set_state(&self, s: SourceState) {
+        self.state.store(state_to_u8(s), Ordering::Relaxed);
     }
 }
 
@@ -229,8 +213,8 @@ impl Health {
 pub struct Subject {
     /// Subject id (= index in the subject list).
     pub id: u32,
-    /// `replay`, `vmc`, `serial`, `video` or `target`.
-    pub source_kind: &'static str,
+    /// What feeds a source subject; `None` for a target (retargeted character).
+    pub source_kind: Option<SourceKind>,
     shape: RwLock<Arc<SubjectShape>>,
     /// Latest frame (from the source, or the tick for targets).
     pub latest: watch::Receiver<Frame>,
@@ -291,7 +275,7 @@ impl Subject {
             id,
             name,
             skeleton,
-            "replay",
+            Some(SourceKind::Replay),
             Vec::new(),
             VmcBoneNames::default(),
         )
@@ -303,7 +287,7 @@ impl Subject {
         id: u32,
         name: String,
         skeleton: Arc<Skeleton>,
-        source_kind: &'static str,
+        source_kind: Option<SourceKind>,
         inputs: Vec<u32>,
         vmc_names: VmcBoneNames,
     ) -> (Subject, watch::Sender<Frame>) {
@@ -325,14 +309,14 @@ impl Subject {
             source_id: id,
             pose: Pose::from_rest(&skeleton),
         });
-        let initial = if source_kind == "replay" || !inputs.is_empty() {
-            HealthState::Live
+        let initial = if source_kind == Some(SourceKind::Replay) || !inputs.is_empty() {
+            SourceState::Live
         } else {
-            HealthState::Connecting
+            SourceState::Connecting
         };
         // Live inputs may move any bone; replays are measured once their clip is known
         // (`with_moving_bones`); targets move their root chain and hips.
-        let moving = if source_kind == "replay" || !inputs.is_empty() {
+        let moving = if source_kind == Some(SourceKind::Replay) || !inputs.is_empty() {
             MovingBones::Structural
         } else {
             MovingBones::All
@@ -421,7 +405,7 @@ impl Subject {
             live_detail
         } else if live_detail.is_empty()
             || about_calibration
-            || self.health.state() == HealthState::Live
+            || self.health.state() == SourceState::Live
         {
             cal
         } else {
@@ -472,6 +456,12 @@ impl Subject {
         true
     }
 
+    /// Whether this subject is another node's, relayed from the cluster (its frames are
+    /// forwarded as received instead of being encoded by this node's tick).
+    pub fn is_relayed(&self) -> bool {
+        self.source_kind == Some(rigcast_protocol::SourceKind::Remote)
+    }
+
     /// Whether this is a retargeted character.
     pub fn is_target(&self) -> bool {
         !self.inputs.is_empty()
@@ -482,12 +472,12 @@ impl Subject {
         if self.is_target() {
             return None;
         }
-        let state = self.health.state().as_str().to_string();
+        let state = self.health.state();
         let live = self.health.live.lock().ok().and_then(|g| g.clone());
         Some(match live {
             Some(s) => SourceHealth {
                 subject: self.id,
-                kind: self.source_kind.to_string(),
+                kind: self.source_kind?,
                 state,
                 input_fps: s.input_fps,
                 latency_ms: s.latency_ms,
@@ -497,7 +487,7 @@ impl Subject {
             },
             None => SourceHealth {
                 subject: self.id,
-                kind: self.source_kind.to_string(),
+                kind: self.source_kind?,
                 state,
                 input_fps: self.stats.input.rate_hz() as f32,
                 latency_ms: 0.0,
@@ -520,15 +510,15 @@ mod tests {
             0,
             "suit".into(),
             sk,
-            "serial",
+            Some(SourceKind::Serial),
             Vec::new(),
             VmcBoneNames::default(),
         );
         let s = s.with_calibration(Some(CalibrationHandle::default()));
-        let report = |state: HealthState, detail: &str| {
+        let report = |state: SourceState, detail: &str| {
             s.health.set_state(state);
             *s.health.live.lock().unwrap() = Some(SourceStatus {
-                state: rigcast_sources::live::SourceState::Live,
+                state: SourceState::Live,
                 input_fps: 0.0,
                 latency_ms: 0.0,
                 frames: 0,
@@ -539,7 +529,7 @@ mod tests {
         };
         // Before any request the source's own note shows.
         assert_eq!(
-            report(HealthState::Live, "not calibrated"),
+            report(SourceState::Live, "not calibrated"),
             "not calibrated"
         );
         s.calibration
@@ -548,12 +538,12 @@ mod tests {
             .set_text("calibrated (N-pose)".into());
         // The server's account supersedes the source's own calibration note…
         assert_eq!(
-            report(HealthState::Live, "calibrated"),
+            report(SourceState::Live, "calibrated"),
             "calibrated (N-pose)"
         );
         // …but a lost device still says why.
         assert_eq!(
-            report(HealthState::Lost, "/dev/x: end of stream; reconnecting"),
+            report(SourceState::Lost, "/dev/x: end of stream; reconnecting"),
             "/dev/x: end of stream; reconnecting; calibrated (N-pose)"
         );
         // Sources without calibration pass their detail through.
@@ -561,7 +551,7 @@ mod tests {
             1,
             "v".into(),
             s.skeleton(),
-            "vmc",
+            Some(SourceKind::Vmc),
             Vec::new(),
             VmcBoneNames::default(),
         );

@@ -224,6 +224,7 @@ fn write_token(path: &Path, token: &ControlToken, replace: Replace) -> anyhow::R
         .create(dir)
         .with_context(|| format!("cannot create {}", dir.display()))?;
     let tmp = dir.join(format!(".token.{}.tmp", std::process::id()));
+    // Nothing there to remove is fine.
     let _ = std::fs::remove_file(&tmp);
     let mut file = std::fs::OpenOptions::new()
         .write(true)
@@ -244,6 +245,7 @@ fn write_token(path: &Path, token: &ControlToken, replace: Replace) -> anyhow::R
                 }
                 Err(e) => Err(e),
             };
+            // Nothing there to remove is fine.
             let _ = std::fs::remove_file(&tmp);
             linked
         }
@@ -261,8 +263,8 @@ fn tighten_permissions(path: &Path) -> anyhow::Result<()> {
     if mode & 0o077 != 0 {
         std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))
             .with_context(|| format!("cannot chmod 0600 {}", path.display()))?;
-        eprintln!(
-            "rigcast: warning: {} was readable by other users (mode {:o}); now 0600. \
+        tracing::warn!(
+            "{} was readable by other users (mode {:o}); now 0600. \
              Run `rigcast token rotate` if others may have read it.",
             path.display(),
             mode & 0o777
@@ -294,6 +296,7 @@ mod tests {
     #[test]
     fn file_is_created_private_reused_and_rotated() {
         let dir = std::env::temp_dir().join(format!("rigcast-token-{}", std::process::id()));
+        // Nothing there to remove is fine.
         let _ = std::fs::remove_dir_all(&dir);
         let path = dir.join("sub").join("token");
         let (first, created) = load_or_create(&path).unwrap();

@@ -72,7 +72,7 @@ fn tick_allocates_one_buffer_per_subject() {
         3,
         "target".into(),
         target.clone(),
-        "target",
+        None,
         vec![0],
         VmcBoneNames::Humanoid,
     );

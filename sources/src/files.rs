@@ -6,7 +6,7 @@ use rigcast_retarget::Clip;
 
 use crate::bvh::{read_bvh, write_bvh, write_bvh_onto, BvhLayout, BvhReadOptions, BvhWriteOptions};
 use crate::error::SourceError;
-use crate::gltf::{read_gltf, write_glb, write_glb_onto, GltfReadOptions, GltfTemplate};
+use crate::gltf::{read_gltf, write_glb, write_glb_onto, GltfRead, GltfReadOptions, GltfTemplate};
 use crate::recording::{clip_from_recording, read_recording, write_clip_recording};
 
 /// Options for [`load_clip_with`].
@@ -41,6 +41,16 @@ pub(crate) fn stem(path: &Path) -> String {
         .to_string()
 }
 
+/// Reads a glTF/GLB/VRM file, with one warning per skipped part (the file still loads).
+fn read_gltf_file(path: &Path, opts: &GltfReadOptions) -> Result<GltfRead, SourceError> {
+    let bytes = read_file(path)?;
+    let read = read_gltf(&bytes, path.parent(), &stem(path), opts)?;
+    for w in &read.warnings {
+        tracing::warn!("{}: {w}", path.display());
+    }
+    Ok(read)
+}
+
 /// Loads a clip with default options; see [`load_clip_with`].
 pub fn load_clip(path: &Path) -> Result<Clip, SourceError> {
     load_clip_with(path, &LoadOptions::default())
@@ -49,7 +59,23 @@ pub fn load_clip(path: &Path) -> Result<Clip, SourceError> {
 /// Loads a clip from `.bvh`, `.gltf`, `.glb`, `.vrm` or `.rcr`, choosing the format by
 /// extension. Errors name the file.
 pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceError> {
+    load_clip_and_humanoid(path, opts).map(|c| c.clip)
+}
+
+/// A clip and what its file says of the body: a VRM's humanoid map.
+#[derive(Debug, Clone)]
+pub struct LoadedClip {
+    /// The clip.
+    pub clip: Clip,
+    /// A `.vrm` file's humanoid map (human bone name → bone name), ground truth for the
+    /// analysis' roles; `None` for other files.
+    pub humanoid: Option<Vec<(String, String)>>,
+}
+
+/// [`load_clip_with`], with a VRM's humanoid map read from the same parse.
+pub fn load_clip_and_humanoid(path: &Path, opts: &LoadOptions) -> Result<LoadedClip, SourceError> {
     let ext = extension(path);
+    let mut humanoid = None;
     let result = match ext.as_str() {
         "bvh" => {
             let bytes = read_file(path)?;
@@ -63,20 +89,13 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
             .map(|r| r.clip)
         }
         "gltf" | "glb" | "vrm" => {
-            let bytes = read_file(path)?;
-            read_gltf(
-                &bytes,
-                path.parent(),
-                &stem(path),
-                &GltfReadOptions {
-                    animation: opts.animation.clone(),
-                    sample_fps: opts.sample_fps,
-                },
-            )
-            .map(|r| {
-                // One line per skipped part; the file still loads.
-                for w in &r.warnings {
-                    eprintln!("warning: {}: {w}", path.display());
+            let gltf_opts = GltfReadOptions {
+                animation: opts.animation.clone(),
+                sample_fps: opts.sample_fps,
+            };
+            read_gltf_file(path, &gltf_opts).map(|r| {
+                if ext == "vrm" {
+                    humanoid = r.vrm_roles.map(|m| m.into_iter().collect());
                 }
                 r.clip
             })
@@ -90,7 +109,9 @@ pub fn load_clip_with(path: &Path, opts: &LoadOptions) -> Result<Clip, SourceErr
             expected: ".bvh, .gltf, .glb, .vrm, .rcr",
         }),
     };
-    result.map_err(|e| e.in_file(path))
+    result
+        .map(|clip| LoadedClip { clip, humanoid })
+        .map_err(|e| e.in_file(path))
 }
 
 /// Saves a clip as `.bvh`, `.glb` or `.rcr`, choosing the format by extension.
@@ -137,21 +158,8 @@ pub fn load_rig(path: &Path) -> Result<(Clip, RigLayout), SourceError> {
             read_bvh(&bytes, &stem(path), &BvhReadOptions::default())
                 .map(|r| (r.clip, RigLayout::Bvh(r.layout)))
         }
-        "gltf" | "glb" | "vrm" => {
-            let bytes = read_file(path)?;
-            read_gltf(
-                &bytes,
-                path.parent(),
-                &stem(path),
-                &GltfReadOptions::default(),
-            )
-            .map(|r| {
-                for w in &r.warnings {
-                    eprintln!("warning: {}: {w}", path.display());
-                }
-                (r.clip, RigLayout::Gltf(Box::new(r.template)))
-            })
-        }
+        "gltf" | "glb" | "vrm" => read_gltf_file(path, &GltfReadOptions::default())
+            .map(|r| (r.clip, RigLayout::Gltf(Box::new(r.template)))),
         _ => return load_clip(path).map(|c| (c, RigLayout::Skeleton)),
     };
     result.map_err(|e| e.in_file(path))

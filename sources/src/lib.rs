@@ -33,7 +33,8 @@ pub mod vmc_in;
 pub use demo::embedded_demo;
 pub use error::SourceError;
 pub use files::{
-    load_clip, load_clip_with, load_rig, save_clip, save_clip_onto, LoadOptions, RigLayout,
+    load_clip, load_clip_and_humanoid, load_clip_with, load_rig, save_clip, save_clip_onto,
+    LoadOptions, LoadedClip, RigLayout,
 };
 pub use info::{describe, FileInfo};
 pub use replay::{Replay, ReplayOptions};

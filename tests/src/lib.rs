@@ -212,7 +212,7 @@ pub async fn start_server(
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz,
         sources,
-        vmc_out,
+        vmc_out: vmc_out.iter().map(|v| v.parse().unwrap()).collect(),
         ..rigcast_server::ServerConfig::default()
     };
     rigcast_server::start(config).await.unwrap()

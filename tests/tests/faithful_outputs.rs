@@ -189,7 +189,9 @@ async fn websocket_v2_pelvis_matches_server_fk_in_the_same_tick_and_v1_still_dec
     let udp = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
     let config = rigcast_server::ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        vmc_out: vec![udp.local_addr().unwrap().to_string()],
+        vmc_out: vec![rigcast_server::VmcOut::to(
+            udp.local_addr().unwrap().to_string(),
+        )],
         ..rigcast_server::ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
@@ -343,7 +345,7 @@ async fn vmc_output_poses_an_independent_z_facing_avatar() {
     let port: u16 = first.strip_prefix("PORT ").unwrap().parse().unwrap();
     let config = rigcast_server::ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        vmc_out: vec![format!("127.0.0.1:{port}")],
+        vmc_out: vec![rigcast_server::VmcOut::to(format!("127.0.0.1:{port}"))],
         ..rigcast_server::ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();

@@ -94,7 +94,7 @@ fn source_record(m: &ServerMessage) -> Option<(String, String)> {
         ServerMessage::SourceStatus { sources } => sources
             .iter()
             .find(|s| s.subject == 0)
-            .map(|s| (s.state.clone(), s.detail.clone())),
+            .map(|s| (s.state.to_string(), s.detail.clone())),
         _ => None,
     }
 }

@@ -27,7 +27,7 @@ async fn check_file_streams_its_rotations(path: &Path) {
             name: None,
             settings: ReplaySettings::default(),
         }],
-        vmc_out: vec![vmc_addr],
+        vmc_out: vec![rigcast_server::VmcOut::to(vmc_addr)],
         vmc_bone_names: rigcast_server::VmcBoneNames::Skeleton,
         ..rigcast_server::ServerConfig::default()
     })

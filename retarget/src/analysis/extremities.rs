@@ -54,16 +54,14 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
         });
     let is_leg = kind == LimbKind::Leg;
     let ratio = if is_leg { 1.05 } else { 1.12 };
-    if std::env::var("RIGCAST_DEBUG_LIMBS").is_ok() {
-        eprintln!(
-            "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
-            kind as u8,
-            side,
-            chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
-            lengths,
-            fixed
-        );
-    }
+    tracing::trace!(
+        "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
+        kind as u8,
+        side,
+        chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
+        lengths,
+        fixed
+    );
     let (limb_kind, ext_kind) = match kind {
         LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
         LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
@@ -110,27 +108,16 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
         };
         out.set(b, role, conf);
     }
-    out.set(
-        chain[split.upper],
-        if is_leg {
-            Role::UpperLeg
-        } else {
-            Role::UpperArm
-        },
-        conf,
-    );
+    let (upper_role, lower_role) = if is_leg {
+        (Role::UpperLeg, Role::LowerLeg)
+    } else {
+        (Role::UpperArm, Role::LowerArm)
+    };
+    out.set(chain[split.upper], upper_role, conf);
     for &b in &chain[split.upper + 1..split.lower] {
         out.set(b, Role::Twist, conf);
     }
-    out.set(
-        chain[split.lower],
-        if is_leg {
-            Role::LowerLeg
-        } else {
-            Role::LowerArm
-        },
-        conf,
-    );
+    out.set(chain[split.lower], lower_role, conf);
     for &b in &chain[split.lower + 1..e] {
         out.set(b, Role::Twist, conf);
     }
@@ -152,107 +139,138 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
         for (k, &b) in chain[e + 1..=f].iter().enumerate() {
             out.set(b, if k == 0 { Role::Toes } else { Role::Helper }, conf);
         }
-        let hand = chain[f];
-        // Digits: significant children; a zero-length "palm" helper is looked through.
-        let mut digits = Vec::new();
-        for c in ctx.significant_children(hand) {
-            let coincident =
-                (ctx.pos[c.index()] - ctx.pos[hand.index()]).length() < 1e-3 * ctx.size;
-            if coincident && !ctx.is_leaf(c) {
-                out.set(c, Role::Helper, conf);
-                out.roles[c.index()].section = Some(hi as u16);
-                out.roles[c.index()].side = side;
-                digits.extend(ctx.significant_children(c));
-            } else {
-                digits.push(c);
-            }
-        }
-        let fwd_of = |b: BoneId| {
-            let ch = ctx.topo.chain(b);
-            let c: Vec3 = ch.iter().map(|x| ctx.pos[x.index()]).sum::<Vec3>() / ch.len() as f32;
-            c
-        };
-        let forward = ctx.forward;
-        digits.sort_by(|&a, &b| fwd_of(b).dot(forward).total_cmp(&fwd_of(a).dot(forward)));
-        if is_leg && digits.len() <= 2 {
-            // A foot with a heel: the main chain carries the toes, the rest are helpers.
-            let main = ctx.topo.main[hand.index()];
-            for &d in &digits {
-                let ch = ctx.topo.chain(d);
-                for (k, &b) in ch.iter().enumerate() {
-                    let role = match (Some(d) == main, k) {
-                        (true, 0) => Role::Toes,
-                        (true, _) => Role::ToeEnd,
-                        _ => Role::Helper,
-                    };
-                    out.set(b, role, conf * 0.8);
-                    out.roles[b.index()].section = Some(hi as u16);
-                    out.roles[b.index()].side = side;
-                }
-            }
-            return;
-        }
-        let names_for: &[u8] = match digits.len() {
-            1 => &[1],
-            2 => &[0, 1],
-            3 => &[0, 1, 2],
-            4 => &[0, 1, 2, 4],
-            _ => &[0, 1, 2, 3, 4],
-        };
-        for (j, &d) in digits.iter().enumerate() {
-            let digit = names_for.get(j).copied().unwrap_or(j.min(255) as u8);
-            let ch = ctx.topo.chain(d);
-            out.add_section(
-                SectionKind::Digit,
-                side,
-                limb_index,
-                ch.clone(),
-                Some(hi),
-                ground,
-            );
-            for (k, &b) in ch.iter().enumerate() {
-                out.set(
-                    b,
-                    Role::Finger {
-                        digit,
-                        joint: k.min(255) as u8,
-                    },
-                    conf * 0.8,
-                );
-            }
-        }
+        place_digits(ctx, out, member, chain[f], hi, conf);
     } else {
         let rest = chain[e..].to_vec();
         out.add_section(ext_kind, side, limb_index, rest.clone(), Some(li), ground);
         out.set(hand, ext_role, conf);
-        let mut k = 0usize;
-        for (i, &b) in rest.iter().enumerate().skip(1) {
-            // A joint coincident with the previous one is a helper (CMU `LeftFingerBase`).
-            if (ctx.pos[b.index()] - ctx.pos[rest[i - 1].index()]).length() < 1e-3 * ctx.size {
-                out.set(b, Role::Helper, conf * 0.8);
-                continue;
-            }
-            k += 1;
-            // End sites (`lFoot_end`) are ends, not toes / fingers.
-            if ctx.is_leaf(b) && ctx.names[b.index()].helper {
-                let role = if is_leg { Role::ToeEnd } else { Role::Helper };
-                out.set(b, role, conf * 0.8);
-                continue;
-            }
-            let role = if is_leg {
-                if k == 1 {
-                    Role::Toes
-                } else {
-                    Role::ToeEnd
-                }
-            } else {
-                Role::Finger {
-                    digit: 1,
-                    joint: (k - 1).min(255) as u8,
-                }
-            };
-            out.set(b, role, conf * 0.8);
+        place_extremity_chain(ctx, out, &rest, is_leg, conf);
+    }
+}
+
+/// Roles of a hand or foot's digits below `hand` (section `hi`): toes and helpers for a foot
+/// with a heel, else fingers named thumb first.
+fn place_digits(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    member: LimbMember,
+    hand: BoneId,
+    hi: usize,
+    conf: f32,
+) {
+    let LimbMember {
+        side,
+        kind,
+        limb_index,
+        ground,
+        ..
+    } = member;
+    let is_leg = kind == LimbKind::Leg;
+    // Digits: significant children; a zero-length "palm" helper is looked through.
+    let mut digits = Vec::new();
+    for c in ctx.significant_children(hand) {
+        let coincident = (ctx.pos[c.index()] - ctx.pos[hand.index()]).length() < 1e-3 * ctx.size;
+        if coincident && !ctx.is_leaf(c) {
+            out.set(c, Role::Helper, conf);
+            out.roles[c.index()].section = Some(hi as u16);
+            out.roles[c.index()].side = side;
+            digits.extend(ctx.significant_children(c));
+        } else {
+            digits.push(c);
         }
+    }
+    let fwd_of = |b: BoneId| {
+        let ch = ctx.topo.chain(b);
+        let c: Vec3 = ch.iter().map(|x| ctx.pos[x.index()]).sum::<Vec3>() / ch.len() as f32;
+        c
+    };
+    let forward = ctx.forward;
+    digits.sort_by(|&a, &b| fwd_of(b).dot(forward).total_cmp(&fwd_of(a).dot(forward)));
+    if is_leg && digits.len() <= 2 {
+        // A foot with a heel: the main chain carries the toes, the rest are helpers.
+        let main = ctx.topo.main[hand.index()];
+        for &d in &digits {
+            let ch = ctx.topo.chain(d);
+            for (k, &b) in ch.iter().enumerate() {
+                let role = match (Some(d) == main, k) {
+                    (true, 0) => Role::Toes,
+                    (true, _) => Role::ToeEnd,
+                    _ => Role::Helper,
+                };
+                out.set(b, role, conf * 0.8);
+                out.roles[b.index()].section = Some(hi as u16);
+                out.roles[b.index()].side = side;
+            }
+        }
+        return;
+    }
+    let names_for: &[u8] = match digits.len() {
+        1 => &[1],
+        2 => &[0, 1],
+        3 => &[0, 1, 2],
+        4 => &[0, 1, 2, 4],
+        _ => &[0, 1, 2, 3, 4],
+    };
+    for (j, &d) in digits.iter().enumerate() {
+        let digit = names_for.get(j).copied().unwrap_or(j.min(255) as u8);
+        let ch = ctx.topo.chain(d);
+        out.add_section(
+            SectionKind::Digit,
+            side,
+            limb_index,
+            ch.clone(),
+            Some(hi),
+            ground,
+        );
+        for (k, &b) in ch.iter().enumerate() {
+            out.set(
+                b,
+                Role::Finger {
+                    digit,
+                    joint: k.min(255) as u8,
+                },
+                conf * 0.8,
+            );
+        }
+    }
+}
+
+/// Roles along an extremity without branches (`rest[0]` is the hand or foot): helpers for
+/// coincident joints, then toes / one finger, ends.
+fn place_extremity_chain(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    rest: &[BoneId],
+    is_leg: bool,
+    conf: f32,
+) {
+    let mut k = 0usize;
+    for (i, &b) in rest.iter().enumerate().skip(1) {
+        // A joint coincident with the previous one is a helper (CMU `LeftFingerBase`).
+        if (ctx.pos[b.index()] - ctx.pos[rest[i - 1].index()]).length() < 1e-3 * ctx.size {
+            out.set(b, Role::Helper, conf * 0.8);
+            continue;
+        }
+        k += 1;
+        // End sites (`lFoot_end`) are ends, not toes / fingers.
+        if ctx.is_leaf(b) && ctx.names[b.index()].helper {
+            let role = if is_leg { Role::ToeEnd } else { Role::Helper };
+            out.set(b, role, conf * 0.8);
+            continue;
+        }
+        let role = if is_leg {
+            if k == 1 {
+                Role::Toes
+            } else {
+                Role::ToeEnd
+            }
+        } else {
+            Role::Finger {
+                digit: 1,
+                joint: (k - 1).min(255) as u8,
+            }
+        };
+        out.set(b, role, conf * 0.8);
     }
 }
 

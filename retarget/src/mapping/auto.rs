@@ -281,19 +281,7 @@ pub fn map_analyzed(
             let mut best: Vec<Candidate> = Vec::new();
             for s in sskel.bone_ids() {
                 let sr = sa.roles[s.index()];
-                // Unknown bones and controls (IK / pole targets, armature roots) drive nothing:
-                // a rotation copied onto an IK handle moves no limb.
-                if matches!(sr.role, Role::Unknown | Role::Control) || tr.role == Role::Control {
-                    continue;
-                }
-                // Helpers only map onto the same helper role; anatomy never maps onto helpers.
-                if (tr.role.is_helper() || sr.role.is_helper()) && tr.role != sr.role {
-                    continue;
-                }
-                if matches!(tr.role, Role::Eye | Role::Jaw)
-                    != matches!(sr.role, Role::Eye | Role::Jaw)
-                    || (matches!(tr.role, Role::Eye | Role::Jaw) && tr.role != sr.role)
-                {
+                if !may_drive(sr.role, tr.role) {
                     continue;
                 }
                 let ssec = sr.section.map(|x| &sa.sections[x as usize]);
@@ -392,12 +380,35 @@ pub fn map_analyzed(
         chosen_input[t.index()] = cands.first().map(|c| c.input);
         per_target[t.index()] = cands;
     }
+    let picked = assign(&per_target, opts.remove_duplicates);
+    fill_table(&mut table, tskel, &per_target, &picked, opts);
+    table
+}
+
+/// Whether a source bone of role `source` may drive a target bone of role `target` at all.
+fn may_drive(source: Role, target: Role) -> bool {
+    let (sr, tr) = (source, target);
+    // Unknown bones and controls (IK / pole targets, armature roots) drive nothing:
+    // a rotation copied onto an IK handle moves no limb.
+    if matches!(sr, Role::Unknown | Role::Control) || tr == Role::Control {
+        return false;
+    }
+    // Helpers only map onto the same helper role; anatomy never maps onto helpers.
+    if (tr.is_helper() || sr.is_helper()) && tr != sr {
+        return false;
+    }
+    let face = |r: Role| matches!(r, Role::Eye | Role::Jaw);
+    !(face(tr) != face(sr) || (face(tr) && tr != sr))
+}
+
+/// Which candidate each target bone takes (an index into its list, `None`: unmapped).
+fn assign(per_target: &[Vec<Candidate>], remove_duplicates: bool) -> Vec<Option<usize>> {
     // Assignment. With duplicate removal every source bone drives at most one target bone:
     // a greedy matching on the global score order (the best pairs are fixed first, a loser
     // falls back to its next candidate instead of going unmapped).
     let mut used: std::collections::HashSet<(u16, BoneId)> = std::collections::HashSet::new();
-    let mut picked: Vec<Option<usize>> = vec![None; tskel.num_bones()];
-    if opts.remove_duplicates {
+    let mut picked: Vec<Option<usize>> = vec![None; per_target.len()];
+    if remove_duplicates {
         let mut all: Vec<(f32, usize, usize)> = Vec::new();
         for (t, cs) in per_target.iter().enumerate() {
             for (k, c) in cs.iter().enumerate() {
@@ -420,6 +431,18 @@ pub fn map_analyzed(
             }
         }
     }
+    picked
+}
+
+/// The table entries of the picked candidates (with other inputs' close seconds blended in
+/// when asked).
+fn fill_table(
+    table: &mut MappingTable,
+    tskel: &Skeleton,
+    per_target: &[Vec<Candidate>],
+    picked: &[Option<usize>],
+    opts: &MapOptions,
+) {
     for t in tskel.bone_ids() {
         let Some(k) = picked[t.index()] else { continue };
         let cs = &per_target[t.index()];
@@ -452,7 +475,6 @@ pub fn map_analyzed(
             evidence: top.evidence.clone(),
         });
     }
-    table
 }
 
 /// Candidates kept per target bone and source input (enough for duplicate fallback).

@@ -4,7 +4,7 @@
 use glam::{Quat, Vec3};
 
 use super::root::{RootPlan, Side};
-use super::{align, BonePlan, History, Link, Mapping, RetargetOptions, NO_END};
+use super::{align, BonePlan, Link, Mapping, RetargetOptions, RetargetPlan, NO_END};
 use crate::error::RetargetError;
 use crate::fk::{world_transforms, WorldTransform};
 use crate::mapping::{BoneOptions, MappingTable, SourceRef};
@@ -365,45 +365,28 @@ impl Mapping {
             }
         }
 
-        // History deep enough for the longest delay on each input.
-        let history = sources
-            .iter()
-            .enumerate()
-            .map(|(i, s)| {
-                let longest = links
-                    .iter()
-                    .filter(|l| l.input as usize == i)
-                    .map(|l| l.delay_frames as usize)
-                    .max()
-                    .unwrap_or(0);
-                History::new(s.num_bones(), longest + 1)
-            })
-            .collect();
-
-        let mut mapping = Mapping {
+        let mut plan = RetargetPlan {
             sources: sources.iter().map(|s| (*s).clone()).collect(),
             target: target.clone(),
             bones,
             links,
             root: None,
-            history,
-            scratch: vec![WorldTransform::IDENTITY; target.num_bones()],
             chain_bones,
-            curl: vec![Quat::IDENTITY; target.num_bones()],
         };
+        let mut context = plan.new_context();
         // The aligned rest: what the target shows while every source holds its reference.
         let refs: Vec<&Pose> = setup.src_ref.iter().collect();
         let mut aligned = target.rest_pose();
-        mapping.solve(&refs, &mut aligned, false);
-        for (plan, q) in mapping.bones.iter_mut().zip(&aligned.rotations) {
-            plan.aligned_local = *q;
+        plan.solve(&mut context, &refs, &mut aligned, false);
+        for (bone, q) in plan.bones.iter_mut().zip(&aligned.rotations) {
+            bone.aligned_local = *q;
         }
         // Root motion is planned on the aligned rest: the target in the source's posture and
         // world, so heights and leg lengths on both sides are measured along the same up, even
         // when the target's own rest lies along another axis (Z-up files).
         let mut aligned_w = vec![WorldTransform::IDENTITY; target.num_bones()];
         crate::fk::forward_kinematics(target, &aligned, &mut aligned_w);
-        mapping.root = setup.root_pair().map(|(rt, rs)| {
+        plan.root = setup.root_pair().map(|(rt, rs)| {
             let input = rs.input as usize;
             RootPlan::new(
                 Side {
@@ -423,7 +406,10 @@ impl Mapping {
                 opts,
             )
         });
-        mapping.reset();
-        Ok(mapping)
+        context.reset();
+        Ok(Mapping {
+            plan: std::sync::Arc::new(plan),
+            context,
+        })
     }
 }

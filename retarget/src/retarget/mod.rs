@@ -30,7 +30,10 @@ mod build;
 mod history;
 mod options;
 mod root;
+#[cfg(feature = "corpus")]
 pub mod workloads;
+
+use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
@@ -84,43 +87,82 @@ struct BonePlan {
     curl_frame: Quat,
 }
 
-/// A built retargeting job: (source skeleton(s), target skeleton, mapping table, options) with
-/// rest alignment, offsets, history buffers and scratch space precomputed.
-///
-/// Call [`Mapping::apply`] (or [`Mapping::apply_one`]) once per frame; it allocates nothing.
-/// `apply` takes `&mut self` because of the delay history; give every performer its own clone.
+/// The per-frame plan of a retargeting job, built once from (source skeleton(s), target
+/// skeleton, [`MappingTable`](crate::mapping::MappingTable), options): rest alignment,
+/// offsets, chains and root motion, precomputed. Immutable once built: share it
+/// (`Arc<RetargetPlan>`) between every performer that drives the same pair, each with its own
+/// [`RetargetContext`] (like ozz's `SamplingJob` and its `Context`).
 #[derive(Debug, Clone)]
-pub struct Mapping {
+pub struct RetargetPlan {
     sources: Vec<Skeleton>,
     target: Skeleton,
     bones: Vec<BonePlan>,
     links: Vec<Link>,
     root: Option<RootPlan>,
-    history: Vec<History>,
-    scratch: Vec<WorldTransform>,
     /// Interior chains (see `BonePlan::chain_first`).
     chain_bones: Vec<u16>,
+}
+
+/// The per-performer state of a retargeting job: source history (for per-bone delays),
+/// scratch world transforms, this frame's chain bends and the foot-contact calibration. Made
+/// by [`RetargetPlan::new_context`], sized for that plan; allocates nothing afterwards.
+#[derive(Debug, Clone)]
+pub struct RetargetContext {
+    history: Vec<History>,
+    scratch: Vec<WorldTransform>,
     /// Per chain root, this frame's share of its bend.
     curl: Vec<Quat>,
+    /// The `FirstFrame` foot-contact correction, once measured.
+    vertical_offset: Option<f32>,
+}
+
+impl RetargetContext {
+    /// Forgets the delay history and the foot calibration (e.g. after a source restarts or
+    /// seeks).
+    pub fn reset(&mut self) {
+        for h in &mut self.history {
+            h.reset();
+        }
+        self.vertical_offset = None;
+    }
+}
+
+/// A plan with one context: the retargeting job of one performer. [`Mapping::build`] makes
+/// both; everything the plan answers is reachable through `Deref`. Cloning is cheap (the plan
+/// is shared) and gives the clone its own context.
+///
+/// Call [`Mapping::apply`] (or [`Mapping::apply_one`]) once per frame; it allocates nothing.
+#[derive(Debug, Clone)]
+pub struct Mapping {
+    plan: Arc<RetargetPlan>,
+    context: RetargetContext,
+}
+
+impl std::ops::Deref for Mapping {
+    type Target = RetargetPlan;
+
+    fn deref(&self) -> &RetargetPlan {
+        &self.plan
+    }
 }
 
 impl Mapping {
+    /// A job of `plan` with a fresh context.
+    pub fn from_plan(plan: Arc<RetargetPlan>) -> Mapping {
+        let context = plan.new_context();
+        Mapping { plan, context }
+    }
+
+    /// The shared plan.
+    pub fn plan(&self) -> &Arc<RetargetPlan> {
+        &self.plan
+    }
+
     /// Retargets one frame: `sources[i]` is the current pose of input `i`; writes every bone of
     /// `out` (a pose of the target skeleton). Allocates nothing. Errors only when the poses do
     /// not fit the skeletons this mapping was built for.
     pub fn apply(&mut self, sources: &[&Pose], out: &mut Pose) -> Result<(), RetargetError> {
-        if sources.len() != self.sources.len() {
-            return Err(RetargetError::PoseSizeMismatch {
-                expected: self.sources.len(),
-                got: sources.len(),
-            });
-        }
-        for (pose, skel) in sources.iter().zip(&self.sources) {
-            pose.check(skel)?;
-        }
-        out.check(&self.target)?;
-        self.solve(sources, out, true);
-        Ok(())
+        self.plan.apply(&mut self.context, sources, out)
     }
 
     /// [`Mapping::apply`] for a mapping with a single source input.
@@ -130,12 +172,14 @@ impl Mapping {
 
     /// Forgets the delay history (e.g. after a source restarts or seeks).
     pub fn reset(&mut self) {
-        for h in &mut self.history {
-            h.reset();
-        }
-        if let Some(root) = self.root.as_mut() {
-            root.vertical_offset = None;
-        }
+        self.context.reset();
+    }
+
+    /// Sets the source floor height (see [`RetargetOptions::source_floor_y`]); a plan shared
+    /// with other jobs is copied first.
+    pub fn set_source_floor_y(&mut self, y: f32) {
+        Arc::make_mut(&mut self.plan).set_source_floor_y(y);
+        self.context.vertical_offset = None;
     }
 
     /// Retargets a whole clip from the single source input (offline use; allocates the result).
@@ -151,6 +195,59 @@ impl Mapping {
         }
         self.reset();
         Clip::new(clip.name.clone(), target, poses, clip.frame_time_secs)
+    }
+}
+
+impl RetargetPlan {
+    /// A context for this plan: history deep enough for the longest delay on each input.
+    pub fn new_context(&self) -> RetargetContext {
+        let history = self
+            .sources
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let longest = self
+                    .links
+                    .iter()
+                    .filter(|l| l.input as usize == i)
+                    .map(|l| l.delay_frames as usize)
+                    .max()
+                    .unwrap_or(0);
+                History::new(s.num_bones(), longest + 1)
+            })
+            .collect();
+        RetargetContext {
+            history,
+            scratch: vec![WorldTransform::IDENTITY; self.target.num_bones()],
+            curl: vec![Quat::IDENTITY; self.target.num_bones()],
+            vertical_offset: None,
+        }
+    }
+
+    /// Retargets one frame with `context` (one of this plan's): see [`Mapping::apply`].
+    pub fn apply(
+        &self,
+        context: &mut RetargetContext,
+        sources: &[&Pose],
+        out: &mut Pose,
+    ) -> Result<(), RetargetError> {
+        if sources.len() != self.sources.len() {
+            return Err(RetargetError::PoseSizeMismatch {
+                expected: self.sources.len(),
+                got: sources.len(),
+            });
+        }
+        if context.history.len() != self.sources.len()
+            || context.scratch.len() != self.target.num_bones()
+        {
+            return Err(RetargetError::ForeignContext);
+        }
+        for (pose, skel) in sources.iter().zip(&self.sources) {
+            pose.check(skel)?;
+        }
+        out.check(&self.target)?;
+        self.solve(context, sources, out, true);
+        Ok(())
     }
 
     /// The target skeleton.
@@ -213,11 +310,11 @@ impl Mapping {
         lowest.is_finite().then_some(lowest)
     }
 
-    /// Sets the source floor height (see [`RetargetOptions::source_floor_y`]).
+    /// Sets the source floor height (see [`RetargetOptions::source_floor_y`]); contexts
+    /// calibrated against the old floor want a [`RetargetContext::reset`].
     pub fn set_source_floor_y(&mut self, y: f32) {
         if let Some(r) = self.root.as_mut() {
             r.source_floor_y = y;
-            r.vertical_offset = None;
         }
     }
 
@@ -242,22 +339,28 @@ impl Mapping {
     }
 
     /// The per-frame work, shared by `apply` and by `build` (which computes the aligned rest).
-    fn solve(&mut self, sources: &[&Pose], out: &mut Pose, with_options: bool) {
-        for ((h, skel), pose) in self.history.iter_mut().zip(&self.sources).zip(sources) {
+    fn solve(
+        &self,
+        ctx: &mut RetargetContext,
+        sources: &[&Pose],
+        out: &mut Pose,
+        with_options: bool,
+    ) {
+        for ((h, skel), pose) in ctx.history.iter_mut().zip(&self.sources).zip(sources) {
             h.push(skel, pose);
         }
         let parents = self.target.parents();
         let rest = self.target.rest();
         for t in 0..self.bones.len() {
             let parent = match parents[t] {
-                Some(p) => self.scratch[p.index()],
+                Some(p) => ctx.scratch[p.index()],
                 None => WorldTransform::IDENTITY,
             };
             let plan = &self.bones[t];
             let (local, world_rotation) = if plan.num_links == 0 {
                 let local = if with_options && plan.curl_root != NO_END {
                     // Interior of a longer target chain: take the chain root's share of the bend.
-                    let share = self.curl[plan.curl_root as usize];
+                    let share = ctx.curl[plan.curl_root as usize];
                     plan.rest_local * plan.curl_frame.inverse() * share * plan.curl_frame
                 } else {
                     plan.rest_local
@@ -271,7 +374,7 @@ impl Mapping {
                     .iter()
                     .enumerate()
                 {
-                    let worlds = self.history[link.input as usize].get(link.delay_frames as usize);
+                    let worlds = ctx.history[link.input as usize].get(link.delay_frames as usize);
                     let ws = worlds[link.bone as usize];
                     let mut q = ws.rotation * link.offset;
                     if link.end != NO_END {
@@ -293,7 +396,7 @@ impl Mapping {
                 if with_options && plan.chain_len > 0 {
                     let (local, world, share) =
                         self.distribute(plan, parent.rotation, local, world);
-                    self.curl[t] = share;
+                    ctx.curl[t] = share;
                     (local, world)
                 } else {
                     (local, world)
@@ -303,7 +406,7 @@ impl Mapping {
             let mut position = parent.translation + parent.rotation * translation;
             if let Some(root) = self.root.as_ref().filter(|r| r.bone.index() == t) {
                 let src =
-                    self.history[root.input as usize].get(0)[root.source_bone.index()].translation;
+                    ctx.history[root.input as usize].get(0)[root.source_bone.index()].translation;
                 let (s, up) = (root.scale, root.up);
                 let floor_t = root.target_floor_y.unwrap_or(s * root.source_floor_y);
                 // Height along the source's up, measured from each side's floor; the rest is
@@ -317,7 +420,7 @@ impl Mapping {
                 };
                 translation = parent.rotation.inverse() * (position - parent.translation);
             }
-            self.scratch[t] = WorldTransform {
+            ctx.scratch[t] = WorldTransform {
                 rotation: world_rotation,
                 translation: position,
             };
@@ -328,11 +431,11 @@ impl Mapping {
                 local
             };
         }
-        self.place_feet(out);
+        self.place_feet(ctx, out);
     }
 }
 
-impl Mapping {
+impl RetargetPlan {
     /// Spreads a mapped bone's bend (relative to its aligned rest) evenly over itself and the
     /// unmapped bones between it and its mapped end, then swings it so the chain's chord still
     /// points where the rigid solution pointed. Returns (local, world, per-bone share).

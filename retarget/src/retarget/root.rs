@@ -4,7 +4,7 @@
 use glam::{Quat, Vec3};
 
 use super::build::primary;
-use super::{align, FootContact, Mapping, RetargetOptions, RootMotion};
+use super::{align, FootContact, RetargetContext, RetargetOptions, RetargetPlan, RootMotion};
 use crate::fk::WorldTransform;
 use crate::mapping::{MappingTable, SourceRef};
 use crate::pose::Pose;
@@ -33,14 +33,12 @@ pub(super) struct RootPlan {
     /// mapped one below the root), if any.
     pub(super) floor_bone: Option<BoneId>,
     pub(super) reference_position: Vec3,
-    /// Source bones (of `input`) at the feet: what [`Mapping::measure_source_floor`] looks at.
+    /// Source bones (of `input`) at the feet: what [`RetargetPlan::measure_source_floor`] looks at.
     pub(super) contact_bones: Vec<BoneId>,
-    /// (target, source) foot joint pairs for [`Mapping::place_feet`].
+    /// (target, source) foot joint pairs for [`RetargetPlan::place_feet`].
     /// With the index of the leg (root child subtree) each belongs to, below `MAX_LEGS`.
     pub(super) contacts: Vec<(BoneId, BoneId, u8)>,
     pub(super) foot_contact: FootContact,
-    /// The `FirstFrame` correction, once measured.
-    pub(super) vertical_offset: Option<f32>,
 }
 
 /// One skeleton in its reference posture, for build-time measurements.
@@ -173,7 +171,6 @@ impl RootPlan {
             contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
             contacts,
             foot_contact: opts.foot_contact,
-            vertical_offset: None,
         }
     }
 }
@@ -206,11 +203,11 @@ fn top_pair(
     best
 }
 
-impl Mapping {
+impl RetargetPlan {
     /// Moves the root vertically so the lowest foot joint stands as high above the target's
     /// floor as the source's stands above its floor (scaled): the legs' own geometry then sets
     /// the hips height, so different proportions neither float nor sink.
-    pub(super) fn place_feet(&mut self, out: &mut Pose) {
+    pub(super) fn place_feet(&self, ctx: &mut RetargetContext, out: &mut Pose) {
         let Some(root) = self.root.as_ref() else {
             return;
         };
@@ -220,32 +217,27 @@ impl Mapping {
         {
             return;
         }
-        let dy = match (root.foot_contact, root.vertical_offset) {
+        let dy = match (root.foot_contact, ctx.vertical_offset) {
             (FootContact::FirstFrame, Some(dy)) => dy,
             _ => {
-                let dy = self.foot_offset();
-                if let Some(root) = self.root.as_mut() {
-                    root.vertical_offset = Some(dy);
-                }
+                let dy = self.foot_offset(ctx);
+                ctx.vertical_offset = Some(dy);
                 dy
             }
         };
-        let Some(root) = self.root.as_ref() else {
-            return;
-        };
         let parent_rotation = match self.target.parent(root.bone) {
-            Some(p) => self.scratch[p.index()].rotation,
+            Some(p) => ctx.scratch[p.index()].rotation,
             None => Quat::IDENTITY,
         };
         out.translations[root.bone.index()] += parent_rotation.inverse() * (root.up * dy);
     }
 
     /// The vertical move that puts the target's lowest foot joint at the scaled source height.
-    fn foot_offset(&self) -> f32 {
+    fn foot_offset(&self, ctx: &RetargetContext) -> f32 {
         let Some(root) = self.root.as_ref() else {
             return 0.0;
         };
-        let src = self.history[root.input as usize].get(0);
+        let src = ctx.history[root.input as usize].get(0);
         let scale = root.scale;
         let floor_t = root.target_floor_y.unwrap_or(scale * root.source_floor_y);
         let mut lowest_s = [f32::INFINITY; MAX_LEGS];
@@ -253,7 +245,7 @@ impl Mapping {
         for &(t, s, leg) in &root.contacts {
             let leg = leg as usize;
             lowest_s[leg] = lowest_s[leg].min(src[s.index()].translation.dot(root.up));
-            lowest_t[leg] = lowest_t[leg].min(self.scratch[t.index()].translation.dot(root.up));
+            lowest_t[leg] = lowest_t[leg].min(ctx.scratch[t.index()].translation.dot(root.up));
         }
         let error =
             |leg: usize| floor_t + scale * (lowest_s[leg] - root.source_floor_y) - lowest_t[leg];

@@ -18,7 +18,7 @@ use futures_util::{SinkExt, StreamExt};
 use rigcast_protocol::control::{
     CalibrationPose, ClientMessage, SourceHealth, SubjectInfo, MAX_CALIBRATION_DELAY_SECS,
 };
-use rigcast_protocol::ServerMessage;
+use rigcast_protocol::{ServerMessage, SourceKind};
 use tokio::time::Instant;
 use tokio_tungstenite::tungstenite::Message;
 
@@ -196,7 +196,7 @@ fn pick_subject(
                 let kind = sources
                     .iter()
                     .find(|h| h.subject == s.id)
-                    .map_or("target", |h| h.kind.as_str());
+                    .map_or("target".to_string(), |h| h.kind.to_string());
                 format!("{} {:?} ({kind})", s.id, s.name)
             })
             .collect::<Vec<_>>()
@@ -214,7 +214,10 @@ fn pick_subject(
             None => bail!("no subject named or numbered {w:?}; subjects: {}", list()),
         };
     }
-    let serial: Vec<&SourceHealth> = sources.iter().filter(|h| h.kind == "serial").collect();
+    let serial: Vec<&SourceHealth> = sources
+        .iter()
+        .filter(|h| h.kind == SourceKind::Serial)
+        .collect();
     match serial.as_slice() {
         [one] => {
             let name = subjects
@@ -265,6 +268,7 @@ where
 mod tests {
     use super::*;
     use rigcast_protocol::control::SubjectKind;
+    use rigcast_protocol::SourceState;
 
     fn info(id: u32, name: &str) -> SubjectInfo {
         SubjectInfo {
@@ -277,11 +281,11 @@ mod tests {
         }
     }
 
-    fn health(id: u32, kind: &str) -> SourceHealth {
+    fn health(id: u32, kind: SourceKind) -> SourceHealth {
         SourceHealth {
             subject: id,
-            kind: kind.into(),
-            state: "live".into(),
+            kind,
+            state: SourceState::Live,
             input_fps: 0.0,
             latency_ms: 0.0,
             frames: 0,
@@ -293,7 +297,11 @@ mod tests {
     #[test]
     fn picks_the_only_serial_source_or_the_named_one() {
         let subjects = [info(0, "walk"), info(1, "suit"), info(2, "7")];
-        let sources = [health(0, "replay"), health(1, "serial"), health(2, "vmc")];
+        let sources = [
+            health(0, SourceKind::Replay),
+            health(1, SourceKind::Serial),
+            health(2, SourceKind::Vmc),
+        ];
         assert_eq!(pick_subject(&subjects, &sources, None).unwrap().0, 1);
         assert_eq!(
             pick_subject(&subjects, &sources, Some("walk")).unwrap().0,
@@ -312,7 +320,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("no calibratable source"), "{e}");
-        let two = [health(0, "serial"), health(1, "serial")];
+        let two = [health(0, SourceKind::Serial), health(1, SourceKind::Serial)];
         let e = pick_subject(&subjects, &two, None).unwrap_err().to_string();
         assert!(e.contains("--subject"), "{e}");
     }

@@ -17,7 +17,7 @@ use clap::Args;
 use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::mapping::{
     apply_overrides, cache, file, map_analyzed, mapping_colors, parse_mapping_file,
-    to_mapping_file, CacheKey, MapOptions, MappingTable,
+    to_mapping_file, BoneColors, CacheKey, MapOptions, MappingTable,
 };
 use rigcast_retarget::{Clip, Skeleton};
 use serde_json::{json, Map, Value};
@@ -188,27 +188,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
 
     let colors = mapping_colors(ts, &ta, &table);
     if args.json {
-        let mut mapping = Map::new();
-        let mut scores = Map::new();
-        let mut evidence = Map::new();
-        let mut color_map = Map::new();
-        for t in ts.bone_ids() {
-            let name = ts.name(t).to_string();
-            let e = table.get(t);
-            let src_name = e
-                .and_then(|e| e.primary())
-                .filter(|p| p.bone.index() < ss.num_bones())
-                .map(|p| Value::String(ss.name(p.bone).to_string()))
-                .unwrap_or(Value::Null);
-            mapping.insert(name.clone(), src_name);
-            if let Some(e) = e {
-                scores.insert(name.clone(), json!(e.score));
-                evidence.insert(name.clone(), json!(e.evidence));
-            }
-            if let Some(c) = colors[t.index()] {
-                color_map.insert(name, json!({"gradient": c.gradient, "random": c.random}));
-            }
-        }
+        let (mapping, scores, evidence, color_map) = per_bone_json(ss, ts, &table, &colors);
         let out = json!({
             "source": args.source.display().to_string(),
             "target": args.target.display().to_string(),
@@ -248,6 +228,42 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Per target bone: its source bone's name, score, evidence and colours, as JSON maps.
+fn per_bone_json(
+    ss: &Skeleton,
+    ts: &Skeleton,
+    table: &MappingTable,
+    colors: &[Option<BoneColors>],
+) -> (
+    Map<String, Value>,
+    Map<String, Value>,
+    Map<String, Value>,
+    Map<String, Value>,
+) {
+    let mut mapping = Map::new();
+    let mut scores = Map::new();
+    let mut evidence = Map::new();
+    let mut color_map = Map::new();
+    for t in ts.bone_ids() {
+        let name = ts.name(t).to_string();
+        let e = table.get(t);
+        let src_name = e
+            .and_then(|e| e.primary())
+            .filter(|p| p.bone.index() < ss.num_bones())
+            .map(|p| Value::String(ss.name(p.bone).to_string()))
+            .unwrap_or(Value::Null);
+        mapping.insert(name.clone(), src_name);
+        if let Some(e) = e {
+            scores.insert(name.clone(), json!(e.score));
+            evidence.insert(name.clone(), json!(e.evidence));
+        }
+        if let Some(c) = colors[t.index()] {
+            color_map.insert(name, json!({"gradient": c.gradient, "random": c.random}));
+        }
+    }
+    (mapping, scores, evidence, color_map)
+}
+
 /// The readable table: target bone, its role, source bone, its role, score, evidence.
 pub fn render_table(
     ss: &Skeleton,
@@ -258,20 +274,16 @@ pub fn render_table(
 ) -> String {
     use std::fmt::Write;
     let mut out = String::new();
-    let w = ts
-        .names()
-        .iter()
-        .map(|n| n.len())
-        .max()
-        .unwrap_or(6)
-        .clamp(6, 40);
-    let ws = ss
-        .names()
-        .iter()
-        .map(|n| n.len())
-        .max()
-        .unwrap_or(6)
-        .clamp(6, 40);
+    // Column widths: the longest bone name, within 6..=40.
+    let width = |s: &Skeleton| {
+        s.names()
+            .iter()
+            .map(|n| n.len())
+            .max()
+            .unwrap_or(6)
+            .clamp(6, 40)
+    };
+    let (w, ws) = (width(ts), width(ss));
     let _ = writeln!(
         out,
         "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  evidence",

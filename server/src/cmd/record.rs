@@ -13,11 +13,10 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::Args;
 use futures_util::StreamExt;
-use glam::{Quat, Vec3};
-use rigcast_protocol::control::BoneInfo;
+use glam::Quat;
 use rigcast_protocol::frame::decode_frame_into;
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::{Pose, RawSkeleton, Skeleton, Transform};
+use rigcast_retarget::{Pose, Skeleton};
 use rigcast_sources::recording::RecordingWriter;
 use tokio_tungstenite::tungstenite::Message;
 
@@ -163,18 +162,4 @@ pub async fn record(
     Ok(summary)
 }
 
-/// Rebuilds a skeleton from a `skeleton` message's bones.
-pub fn skeleton_from_bones(bones: &[BoneInfo]) -> anyhow::Result<Skeleton> {
-    let mut raw = RawSkeleton::default();
-    for b in bones {
-        raw.add(
-            b.name.clone(),
-            b.parent.map(|p| p as usize),
-            Transform {
-                translation: Vec3::from_array(b.rest_translation),
-                rotation: Quat::from_array(b.rest_rotation),
-            },
-        );
-    }
-    Ok(Skeleton::build(&raw)?)
-}
+pub use crate::skeleton_wire::skeleton_from_bones;

@@ -8,7 +8,7 @@ use clap::Args;
 use crate::access::BindScope;
 use crate::config::{
     default_mapping_cache_dir, parse_listen, AccessConfig, FileConfig, OnLost, PerformerSpec,
-    ReplaySettings, ServerConfig, SourceSpec, DEFAULT_VMC_BIND,
+    ServerConfig, SourceSpec,
 };
 use crate::token::TokenSetting;
 
@@ -24,7 +24,8 @@ pub struct ServeArgs {
     /// Listen address (default 127.0.0.1:8717; port 0 picks a free one).
     #[arg(long)]
     pub listen: Option<String>,
-    /// VMC receiver HOST:PORT (repeatable). Replaces the config's list.
+    /// VMC receiver HOST:PORT, or HOST:PORT@SUBJECT for another subject than the first
+    /// target (repeatable). Replaces the config's list.
     #[arg(long = "vmc-out", value_name = "HOST:PORT")]
     pub vmc_out: Vec<String>,
     /// Output rate in Hz (1..=240, default 60).
@@ -55,6 +56,12 @@ pub struct ServeArgs {
     /// Most simultaneous connections (default: the open-file limit minus 64).
     #[arg(long, value_name = "N")]
     pub max_connections: Option<usize>,
+    /// Cluster mode: NATS servers to share subjects through (`nats://HOST:PORT[,…]`).
+    #[arg(long, value_name = "URL[,URL…]", requires = "site")]
+    pub nats: Option<String>,
+    /// Cluster mode: this node's name in the deployment.
+    #[arg(long, value_name = "NAME", requires = "nats")]
+    pub site: Option<String>,
 }
 
 /// Merges the config file and flags.
@@ -84,6 +91,17 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     if args.no_mapping_cache {
         cfg.mapping_cache_dir = None;
     }
+    if let (Some(servers), Some(site)) = (&args.nats, &args.site) {
+        // Flags override the file's servers and site; its credentials and namespace stay.
+        let mut c = cfg
+            .cluster
+            .take()
+            .unwrap_or_else(|| crate::cluster::ClusterConfig::new(servers, site));
+        c.servers = crate::cluster::ClusterConfig::new(servers, site).servers;
+        c.site = site.clone();
+        c.validate()?;
+        cfg.cluster = Some(c);
+    }
     if !args.targets.is_empty() {
         cfg.performers = args
             .targets
@@ -95,11 +113,8 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
         cfg.record = Some(r.clone());
     }
     if let Some(o) = &args.on_lost {
-        cfg.on_lost = match o.as_str() {
-            "ease" | "rest" => OnLost::Ease,
-            "hold" => OnLost::Hold,
-            _ => anyhow::bail!("--on-lost {o:?}: expected rest (ease) or hold"),
-        };
+        cfg.on_lost = <OnLost as clap::ValueEnum>::from_str(o, false)
+            .map_err(|_| anyhow::anyhow!("--on-lost {o:?}: expected rest (ease) or hold"))?;
     }
     if let Some(listen) = &args.listen {
         cfg.listen = parse_listen(listen)?;
@@ -108,70 +123,26 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
         cfg.rate_hz = rate;
     }
     if !args.vmc_out.is_empty() {
-        cfg.vmc_out = args.vmc_out.clone();
+        cfg.vmc_out = args
+            .vmc_out
+            .iter()
+            .map(|v| v.parse())
+            .collect::<Result<_, _>>()?;
     }
     if !args.sources.is_empty() {
         cfg.sources = args
             .sources
             .iter()
-            .map(|s| parse_source(s))
-            .collect::<anyhow::Result<_>>()?;
+            .map(|s| s.parse())
+            .collect::<Result<_, _>>()?;
     }
     cfg.validate()?;
     Ok(cfg)
 }
 
-/// Parses `replay:PATH`, `vmc:PORT` (loopback), `vmc:ADDR:PORT`, `serial:CONFIG.toml`,
-/// `video:FILE`, `webcam:INDEX` (and `demo`).
+/// Parses a `--source` argument (see [`SourceSpec`]'s `FromStr`).
 pub fn parse_source(s: &str) -> anyhow::Result<SourceSpec> {
-    if s == "demo" {
-        return Ok(SourceSpec::EmbeddedDemo);
-    }
-    match s.split_once(':') {
-        Some(("replay", path)) if !path.is_empty() => Ok(SourceSpec::ReplayFile {
-            path: PathBuf::from(path),
-            name: None,
-            settings: ReplaySettings::default(),
-        }),
-        Some(("vmc", arg)) => {
-            let bad = || {
-                anyhow::anyhow!(
-                    "--source {s:?}: expected vmc:PORT (loopback) or vmc:ADDR:PORT with a UDP port 0..=65535"
-                )
-            };
-            let (bind, port) = match arg.parse::<u16>() {
-                Ok(port) => (DEFAULT_VMC_BIND, port),
-                Err(_) => {
-                    let addr: std::net::SocketAddr = arg.parse().map_err(|_| bad())?;
-                    (addr.ip(), addr.port())
-                }
-            };
-            Ok(SourceSpec::Vmc {
-                port,
-                bind,
-                allowed_senders: Vec::new(),
-                lost_after_secs: None,
-                name: None,
-            })
-        }
-        Some(("serial", path)) if !path.is_empty() => Ok(SourceSpec::Serial {
-            config: PathBuf::from(path),
-            name: None,
-        }),
-        Some(("video", path)) if !path.is_empty() => Ok(SourceSpec::Video {
-            path: PathBuf::from(path),
-            name: None,
-        }),
-        Some(("webcam", index)) => Ok(SourceSpec::Webcam {
-            index: index.parse().map_err(|_| {
-                anyhow::anyhow!("--source {s:?}: expected webcam:INDEX with a camera number, e.g. webcam:0")
-            })?,
-            name: None,
-        }),
-        _ => anyhow::bail!(
-            "unknown source {s:?}; expected replay:FILE, vmc:PORT, serial:CONFIG.toml, video:FILE, webcam:INDEX or demo"
-        ),
-    }
+    Ok(s.parse()?)
 }
 
 /// Runs the server until Ctrl-C.
@@ -187,10 +158,9 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     print_access(&handle, fd);
     for s in handle.state().subjects.iter() {
         let info = s.info();
-        let from = if s.is_target() {
-            format!(", retargeted from {:?}", s.inputs)
-        } else {
-            format!(", {}", s.source_kind)
+        let from = match s.source_kind {
+            None => format!(", retargeted from {:?}", s.inputs),
+            Some(kind) => format!(", {kind}"),
         };
         let listen = s
             .listen_addr

@@ -62,6 +62,7 @@ pub fn write_bvh_onto(clip: &Clip, layout: &BvhLayout) -> Result<String, SourceE
             write_block(&mut out, clip, layout, &children, i, 0);
         }
     }
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "MOTION\nFrames: {}", clip.num_frames());
     let _ = writeln!(out, "Frame Time: {}", clip.frame_time_secs);
     let mut line = String::new();
@@ -78,6 +79,7 @@ pub fn write_bvh_onto(clip: &Clip, layout: &BvhLayout) -> Result<String, SourceE
                     Channel::Zposition => t.z,
                     _ => rot.next().copied().unwrap_or(0.0),
                 };
+                // Writing to a String cannot fail.
                 let _ = write!(line, "{v} ");
             }
         }
@@ -109,6 +111,7 @@ fn write_block(
     let pad = "\t".repeat(depth);
     let o = j.offset;
     if j.end_site {
+        // Writing to a String cannot fail.
         let _ = writeln!(out, "{pad}End Site\n{pad}{{");
         let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", o.x, o.y, o.z);
         let _ = writeln!(out, "{pad}}}");
@@ -116,13 +119,16 @@ fn write_block(
     }
     let keyword = if j.parent.is_none() { "ROOT" } else { "JOINT" };
     let name = clip.skeleton.name(BoneId(j.bone as u16));
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "{pad}{keyword} {name}\n{pad}{{");
     let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", o.x, o.y, o.z);
     let names: Vec<&str> = j.channels.iter().map(|c| c.name()).collect();
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "{pad}\tCHANNELS {} {}", names.len(), names.join(" "));
     for &c in &children[i] {
         write_block(out, clip, layout, children, c, depth + 1);
     }
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "{pad}}}");
 }
 

@@ -83,6 +83,7 @@ pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceEr
     for root in s.roots() {
         write_joint(&mut out, clip, root, 0, &end_site, &has_position, opts);
     }
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "MOTION\nFrames: {}", clip.num_frames());
     let _ = writeln!(out, "Frame Time: {}", clip.frame_time_secs);
     let mut line = String::new();
@@ -95,10 +96,12 @@ pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceEr
             }
             if has_position[i] {
                 let t = pose.translations[i] * u;
+                // Writing to a String cannot fail.
                 let _ = write!(line, "{} {} {} ", t.x, t.y, t.z);
             }
             let a = opts.order.from_quat(pose.rotations[i]);
             for v in a {
+                // Writing to a String cannot fail.
                 let _ = write!(line, "{} ", v.to_degrees());
             }
         }
@@ -122,6 +125,7 @@ fn write_joint(
     let pad = "\t".repeat(depth);
     let offset: Vec3 = s.rest()[i].translation * opts.units_per_metre;
     if end_site[i] {
+        // Writing to a String cannot fail.
         let _ = writeln!(out, "{pad}End Site\n{pad}{{");
         let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", offset.x, offset.y, offset.z);
         let _ = writeln!(out, "{pad}}}");
@@ -132,6 +136,7 @@ fn write_joint(
     } else {
         "JOINT"
     };
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "{pad}{keyword} {}\n{pad}{{", s.name(bone));
     let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", offset.x, offset.y, offset.z);
     let rot: Vec<String> = opts
@@ -141,16 +146,19 @@ fn write_joint(
         .map(|c| format!("{c}rotation"))
         .collect();
     if has_position[i] {
+        // Writing to a String cannot fail.
         let _ = writeln!(
             out,
             "{pad}\tCHANNELS 6 Xposition Yposition Zposition {}",
             rot.join(" ")
         );
     } else {
+        // Writing to a String cannot fail.
         let _ = writeln!(out, "{pad}\tCHANNELS 3 {}", rot.join(" "));
     }
     for &c in s.children(bone) {
         write_joint(out, clip, c, depth + 1, end_site, has_position, opts);
     }
+    // Writing to a String cannot fail.
     let _ = writeln!(out, "{pad}}}");
 }

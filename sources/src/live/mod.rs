@@ -27,17 +27,8 @@ pub use crate::error::SourceError;
 pub use crate::recording::{RawKind, RawPacket};
 pub use health::HealthTracker;
 
-/// Connection state of a live source.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SourceState {
-    /// Not yet received any usable input (port not open, no sender yet).
-    Connecting,
-    /// Input arrived within the source's timeout.
-    Live,
-    /// Input stopped (silence beyond the timeout, or the device went away).
-    Lost,
-}
+/// Connection state of a live source (live sources never report `Finished`).
+pub use rigcast_protocol::control::SourceState;
 
 /// Health of a live source, as reported in `/v1/status` and the protocol.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

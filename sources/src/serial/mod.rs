@@ -132,7 +132,7 @@ struct CalibrationShared {
     /// The held pose of the pending request (`None`: the rest pose).
     pose: Mutex<Option<Pose>>,
     /// Attempts finished so far and the last one's result.
-    outcome: Mutex<(u64, Option<Result<(), String>>)>,
+    outcome: Mutex<(u64, Option<Result<(), Arc<SourceError>>>)>,
 }
 
 impl CalibrationHandle {
@@ -155,7 +155,7 @@ impl CalibrationHandle {
     /// Number of calibration attempts the source has finished and the last one's result
     /// (`Err` carries the reason). Compare the count before and after a request to wait for
     /// its outcome.
-    pub fn outcome(&self) -> (u64, Option<Result<(), String>>) {
+    pub fn outcome(&self) -> (u64, Option<Result<(), Arc<SourceError>>>) {
         match self.0.outcome.lock() {
             Ok(g) => g.clone(),
             Err(p) => p.into_inner().clone(),
@@ -170,7 +170,7 @@ impl CalibrationHandle {
         Some(self.0.pose.lock().ok().and_then(|mut p| p.take()))
     }
 
-    fn finish(&self, result: Result<(), String>) {
+    fn finish(&self, result: Result<(), Arc<SourceError>>) {
         if let Ok(mut g) = self.0.outcome.lock() {
             g.0 += 1;
             g.1 = Some(result);
@@ -401,7 +401,7 @@ impl LiveSource for SerialImuSource {
                     Err(e) => e.to_string(),
                 };
                 self.health.set_detail(&msg);
-                self.calibration.finish(result.map_err(|e| e.to_string()));
+                self.calibration.finish(result.map_err(Arc::new));
             }
             self.ensure_open(Instant::now());
             let Some(chunk) = self.read_chunk(deadline) else {

@@ -227,6 +227,7 @@ impl FfmpegSource {
     fn stderr_text(&mut self) -> String {
         let mut text = String::new();
         if let Some(mut e) = self.child.stderr.take() {
+            // Best effort: at worst the error message is incomplete.
             let _ = e.read_to_string(&mut text);
         }
         text.trim().to_string()

@@ -1,0 +1,225 @@
+//! The `GET /v1/status` body (documented in PROTOCOL.md): the server's counters, one record
+//! per subject and per client. Serialised by the server, deserialisable by clients and tests.
+
+use serde::{Deserialize, Serialize};
+
+use crate::control::{SourceHealth, SubjectKind};
+
+/// What a client may do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClientAccess {
+    /// Watch only.
+    ReadOnly,
+    /// Change the server (opened with the control token).
+    Control,
+}
+
+/// `GET /v1/status` body.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    /// Server crate version.
+    pub server_version: String,
+    /// Configured output rate.
+    pub tick_hz: f64,
+    /// Measured output rate (ticks per second).
+    pub output_rate_hz: f64,
+    /// Per-subject input.
+    pub subjects: Vec<SubjectStatus>,
+    /// Connected clients.
+    pub clients: ClientsStatus,
+    /// Frames dropped for lagging clients, total since start.
+    pub dropped_frames_total: u64,
+    /// VMC datagrams that failed to send.
+    pub vmc_send_errors: u64,
+    /// Tick duration percentiles (µs) over the last ~1024 ticks.
+    pub tick_micros: TickPercentiles,
+    /// Connections against the cap.
+    pub connections: ConnectionsStatus,
+    /// Clients that lost control messages to lag and were sent a fresh snapshot, total.
+    pub control_resyncs_total: u64,
+    /// Clients dropped because their socket accepted nothing for the stall timeout, total.
+    pub stalled_disconnects_total: u64,
+    /// The `--record` recording (`null` when not recording).
+    pub recording: Option<RecordingStatus>,
+}
+
+/// Connections in the status.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ConnectionsStatus {
+    /// Open now (WebSocket clients and requests in progress).
+    pub open: usize,
+    /// The cap.
+    pub max: usize,
+    /// Refused with 503 since start (evicted unfinished requests included).
+    pub refused_total: u64,
+    /// Unfinished requests evicted to make way for newer connections.
+    pub evicted_total: u64,
+    /// Soft open-file limit of the process (`null` when unknown).
+    pub fd_limit: Option<u64>,
+}
+
+/// One subject in the status.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SubjectStatus {
+    /// id
+    pub id: u32,
+    /// name
+    pub name: String,
+    /// bones
+    pub num_bones: u32,
+    /// Frames per second arriving from the source.
+    pub input_fps: f64,
+    /// Frames produced since start.
+    pub input_frames: u64,
+    /// Capture time of the latest frame, Unix ns (0 = none yet).
+    pub last_capture_nanos: u64,
+    /// `source` or `target`.
+    pub kind: SubjectKind,
+    /// Source subjects of a target.
+    pub inputs: Vec<u32>,
+    /// Health of a source (replays: `live` or `finished`).
+    pub source: Option<SourceHealth>,
+    /// UDP address a VMC source listens on.
+    pub listen: Option<String>,
+    /// Skeleton changes applied (live sources learn their sender's skeleton).
+    pub skeleton_changes: u64,
+    /// Frames held back because skeleton changes came faster than the rate limit.
+    pub skeleton_frames_limited: u64,
+    /// A target's feet under its foot lock and whether each is held now (`null` without a
+    /// foot lock).
+    pub footplants: Option<Vec<FootStatus>>,
+}
+
+/// One foot of a target's foot lock.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FootStatus {
+    /// The foot bone.
+    pub bone: String,
+    /// Held where it was planted.
+    pub planted: bool,
+}
+
+/// Clients in the status.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClientsStatus {
+    /// Connected clients.
+    pub count: usize,
+    /// Each client.
+    pub list: Vec<ClientStatus>,
+}
+
+/// One client in the status.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClientStatus {
+    /// connection id
+    pub id: u64,
+    /// peer address
+    pub peer: String,
+    /// frames sent
+    pub frames_sent: u64,
+    /// frames dropped because it lagged
+    pub missed_frames: u64,
+    /// `read_only` or `control` (opened with the token)
+    pub access: ClientAccess,
+    /// times it lost control messages to lag and got a fresh snapshot
+    pub control_resyncs: u64,
+}
+
+/// Tick duration percentiles in microseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TickPercentiles {
+    /// median
+    pub p50: u32,
+    /// 90th percentile
+    pub p90: u32,
+    /// 99th percentile
+    pub p99: u32,
+    /// maximum
+    pub max: u32,
+    /// ticks in the window
+    pub samples: usize,
+}
+
+/// The recording in `/v1/status`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RecordingStatus {
+    /// The file.
+    pub path: String,
+    /// Failed writes since start (records lost; the recording goes on).
+    pub errors: u64,
+    /// The latest failure (`null` when none).
+    pub last_error: Option<String>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::{SourceKind, SourceState};
+
+    #[test]
+    fn status_round_trips_through_json() {
+        let status = Status {
+            server_version: "0.1.0".into(),
+            tick_hz: 60.0,
+            output_rate_hz: 59.5,
+            subjects: vec![SubjectStatus {
+                id: 0,
+                name: "demo".into(),
+                num_bones: 25,
+                input_fps: 60.0,
+                input_frames: 312,
+                last_capture_nanos: 1,
+                kind: SubjectKind::Source,
+                inputs: vec![],
+                source: Some(SourceHealth {
+                    subject: 0,
+                    kind: SourceKind::Replay,
+                    state: SourceState::Live,
+                    input_fps: 60.0,
+                    latency_ms: 0.0,
+                    frames: 312,
+                    dropped: 0,
+                    detail: String::new(),
+                }),
+                listen: None,
+                skeleton_changes: 0,
+                skeleton_frames_limited: 0,
+                footplants: Some(vec![FootStatus {
+                    bone: "foot_l".into(),
+                    planted: true,
+                }]),
+            }],
+            clients: ClientsStatus {
+                count: 1,
+                list: vec![ClientStatus {
+                    id: 1,
+                    peer: "127.0.0.1:50412".into(),
+                    frames_sent: 600,
+                    missed_frames: 0,
+                    access: ClientAccess::ReadOnly,
+                    control_resyncs: 0,
+                }],
+            },
+            dropped_frames_total: 0,
+            vmc_send_errors: 0,
+            tick_micros: TickPercentiles::default(),
+            connections: ConnectionsStatus {
+                open: 1,
+                max: 960,
+                refused_total: 0,
+                evicted_total: 0,
+                fd_limit: Some(1024),
+            },
+            control_resyncs_total: 0,
+            stalled_disconnects_total: 0,
+            recording: None,
+        };
+        let json = serde_json::to_value(&status).unwrap();
+        assert_eq!(json["subjects"][0]["kind"], "source");
+        assert_eq!(json["subjects"][0]["source"]["state"], "live");
+        assert_eq!(json["clients"]["list"][0]["access"], "read_only");
+        let back: Status = serde_json::from_value(json).unwrap();
+        assert_eq!(back, status);
+    }
+}

@@ -1,0 +1,268 @@
+//! Start, step 2: turn what was loaded into the engine's parts — one subject per source and
+//! per performer, the performers' plans and the mapper that builds their first mappings, the
+//! VMC receivers. Nothing runs yet.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use anyhow::Context;
+use rigcast_protocol::SourceKind;
+use rigcast_retarget::RootMotion;
+use tokio::sync::{broadcast, watch};
+
+use super::load::{Inputs, Loaded, LoadedPerformer, LoadedSource};
+use crate::config::ServerConfig;
+use crate::engine::VmcTarget;
+use crate::mapper::{Mapper, PerformerPlan, SourceExtra};
+use crate::performer::{self, Performer};
+use crate::subject::Subject;
+use crate::token;
+use rigcast_retarget::Frame;
+
+/// A source subject with what feeds it.
+pub(crate) struct SourceRunner {
+    pub subject: Arc<Subject>,
+    pub tx: watch::Sender<Frame>,
+    pub loaded: Loaded,
+}
+
+/// The engine's parts, ready to spawn.
+pub(crate) struct Assembly {
+    /// Sources first (ids `0..sources.len()`), then targets.
+    pub subjects: Arc<Vec<Arc<Subject>>>,
+    pub sources: Vec<SourceRunner>,
+    pub performers: Vec<Performer>,
+    /// First mappings built; runs on its own thread from here on.
+    pub mapper: Mapper,
+    /// The VMC output socket and its receivers (`None` without receivers).
+    pub vmc: Option<(std::net::UdpSocket, Vec<VmcTarget>)>,
+    pub events: broadcast::Sender<String>,
+    pub token: token::ResolvedToken,
+    /// Cluster mode: relays and publisher to start.
+    pub cluster: Option<crate::cluster::ClusterLink>,
+}
+
+/// Builds the subjects, performers and mapper of `inputs`, and resolves the VMC receivers.
+pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::Result<Assembly> {
+    let (events, _) = broadcast::channel::<String>(crate::EVENTS_CAPACITY);
+    let names: Vec<String> = inputs.sources.iter().map(|s| s.name.clone()).collect();
+    let mut subjects = Vec::new();
+    let mut sources = Vec::new();
+    let mut extras = HashMap::new();
+    for (i, source) in inputs.sources.into_iter().enumerate() {
+        let (runner, extra) = source_subject(i as u32, source, config);
+        if let Some(extra) = extra {
+            extras.insert(i as u32, extra);
+        }
+        subjects.push(runner.subject.clone());
+        sources.push(runner);
+    }
+    let mut plans = Vec::new();
+    let mut target_txs = Vec::new();
+    for p in inputs.performers {
+        let on_lost = p.spec.on_lost.unwrap_or(config.on_lost);
+        let (plan, tx) = performer_plan(p, &names, &subjects, config)?;
+        subjects.push(plan.target.clone());
+        plans.push(plan);
+        target_txs.push((tx, on_lost));
+    }
+    let subjects = Arc::new(subjects);
+    let performers = plans
+        .iter()
+        .zip(target_txs)
+        .map(|(plan, (tx, on_lost))| {
+            let inputs = plan.target.inputs.iter();
+            Performer::new(
+                plan.target.clone(),
+                tx,
+                inputs.map(|id| subjects[*id as usize].clone()).collect(),
+                plan.mailbox.clone(),
+                on_lost,
+            )
+        })
+        .collect();
+    let mut mapper = Mapper::new(
+        subjects.clone(),
+        plans,
+        extras,
+        config.mapping_cache_dir.clone(),
+        config.rate_hz,
+        events.clone(),
+    )
+    .with_max_cache_entries(config.limits.mapping_cache_max_entries);
+    let mapper = tokio::task::spawn_blocking(move || {
+        mapper.build_all();
+        mapper
+    })
+    .await?;
+    let vmc = vmc_output(config, &subjects).await?;
+    Ok(Assembly {
+        subjects,
+        sources,
+        performers,
+        mapper,
+        vmc,
+        events,
+        token: inputs.token,
+        cluster: inputs.cluster,
+    })
+}
+
+/// The subject of source `id`, and for a replay what the mapper may know of its motion.
+fn source_subject(
+    id: u32,
+    source: LoadedSource,
+    config: &ServerConfig,
+) -> (SourceRunner, Option<SourceExtra>) {
+    let LoadedSource {
+        name,
+        loaded,
+        skeleton,
+    } = source;
+    let mut truth = None;
+    let mut replay_poses = None;
+    let mut extra = None;
+    let (kind, listen, calibration) = match &loaded {
+        Loaded::Replay {
+            clip_poses,
+            truth: t,
+            ..
+        } => {
+            truth = t.clone();
+            replay_poses = Some(clip_poses.clone());
+            extra = Some(SourceExtra {
+                reference: clip_poses.get(clip_poses.len() / 2).cloned(),
+                poses: clip_poses.clone(),
+            });
+            (SourceKind::Replay, None, None)
+        }
+        Loaded::Live {
+            kind,
+            listen,
+            calibration,
+            ..
+        } => (*kind, *listen, calibration.clone()),
+    };
+    let (subject, tx) = Subject::with_kind(
+        id,
+        name,
+        skeleton,
+        Some(kind),
+        Vec::new(),
+        config.vmc_bone_names,
+    );
+    let subject = subject
+        .with_listen_addr(listen)
+        .with_calibration(calibration)
+        .with_truth(truth);
+    let subject = match &replay_poses {
+        Some(poses) => subject.with_moving_bones(poses),
+        None => subject,
+    };
+    let runner = SourceRunner {
+        subject: Arc::new(subject),
+        tx,
+        loaded,
+    };
+    (runner, extra)
+}
+
+/// A performer's target subject (the next id after `subjects`) and its mapping plan.
+fn performer_plan(
+    p: LoadedPerformer,
+    source_names: &[String],
+    subjects: &[Arc<Subject>],
+    config: &ServerConfig,
+) -> anyhow::Result<(PerformerPlan, watch::Sender<Frame>)> {
+    let LoadedPerformer {
+        spec,
+        target: t,
+        overrides_file,
+    } = p;
+    let inputs: Vec<u32> = if spec.sources.is_empty() {
+        vec![0]
+    } else {
+        spec.sources
+            .iter()
+            .map(|n| {
+                source_names
+                    .iter()
+                    .position(|m| m == n)
+                    .map(|i| i as u32)
+                    .with_context(|| {
+                        format!(
+                            "performer {}: no source named {n:?} (sources: {source_names:?})",
+                            t.name
+                        )
+                    })
+            })
+            .collect::<anyhow::Result<_>>()?
+    };
+    if inputs.len() > performer::MAX_INPUTS {
+        anyhow::bail!(
+            "performer {}: at most {} sources per target",
+            t.name,
+            performer::MAX_INPUTS
+        );
+    }
+    let all_names: Vec<String> = subjects.iter().map(|s| s.info().name).collect();
+    let name = super::load::unique_name(&all_names, spec.name.clone().unwrap_or(t.name));
+    let (subject, tx) = Subject::with_kind(
+        subjects.len() as u32,
+        name,
+        t.skeleton,
+        None,
+        inputs,
+        config.vmc_bone_names,
+    );
+    let plan = PerformerPlan {
+        target: Arc::new(subject.with_truth(t.truth)),
+        target_reference: t.reference,
+        overrides_file,
+        session: Default::default(),
+        root_motion: if spec.in_place {
+            RootMotion::InPlace
+        } else {
+            RootMotion::Scaled
+        },
+        foot_lock: spec.foot_lock,
+        mailbox: Default::default(),
+    };
+    Ok((plan, tx))
+}
+
+/// The VMC output socket and its receivers, resolved; `None` without receivers.
+async fn vmc_output(
+    config: &ServerConfig,
+    subjects: &[Arc<Subject>],
+) -> anyhow::Result<Option<(std::net::UdpSocket, Vec<VmcTarget>)>> {
+    if config.vmc_out.is_empty() {
+        return Ok(None);
+    }
+    let default_subject = subjects.iter().position(|s| s.is_target()).unwrap_or(0);
+    let mut targets = Vec::new();
+    for entry in &config.vmc_out {
+        let addr = entry.address.as_str();
+        let subject_index = match &entry.subject {
+            Some(name) => subjects
+                .iter()
+                .position(|s| s.info().name == *name)
+                .with_context(|| format!("VMC output {entry}: no subject named {name:?}"))?,
+            None => default_subject,
+        };
+        let resolved = tokio::net::lookup_host(addr)
+            .await
+            .with_context(|| format!("cannot resolve VMC receiver {addr:?}"))?
+            .next()
+            .with_context(|| format!("VMC receiver {addr:?} resolves to no address"))?;
+        targets.push(VmcTarget {
+            addr: resolved,
+            subject_index,
+        });
+    }
+    let socket = std::net::UdpSocket::bind(("0.0.0.0", 0)).context("binding VMC socket")?;
+    socket
+        .set_nonblocking(true)
+        .context("making VMC socket non-blocking")?;
+    Ok(Some((socket, targets)))
+}

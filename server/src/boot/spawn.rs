@@ -1,0 +1,286 @@
+//! Start, step 3: open the outputs (recording, listener) and start every task and thread
+//! under one [`Supervisor`], which also stops them, in order:
+//!
+//! ```text
+//!  1. listener stops accepting; client sessions are told to close (WebSocket 1001) and
+//!     unfinished requests are dropped; wait (≤ DRAIN_TIMEOUT) until every connection is gone
+//!  2. tick, replay sources, source_status: stopped and awaited
+//!  3. live-source threads and the mapper: stopped and joined
+//!  4. recorder thread joined, then the recording finished (its last writer is gone)
+//! ```
+//!
+//! Like axum's graceful shutdown: no new connections, open ones finish, then the rest.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::net::TcpListener;
+use tokio::sync::{broadcast, mpsc, watch};
+use tokio::task::JoinHandle;
+
+use super::assemble::{Assembly, SourceRunner};
+use super::load::Loaded;
+use crate::config::ServerConfig;
+use crate::engine::{self, EngineCommand, TickContext};
+use crate::limits::ConnectionLimiter;
+use crate::live::{self, LiveContext};
+use crate::recorder::Recorder;
+use crate::state::ServerState;
+use crate::subject::Subject;
+use crate::{access, http, limits, stats, token};
+
+/// Frames kept per client before it counts as lagging: about two seconds at the default rate
+/// with one subject.
+const BROADCAST_CAPACITY: usize = 128;
+
+/// Longest shutdown waits for open connections to close.
+const DRAIN_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Owns every task and thread of a running server and stops them in order.
+pub struct Supervisor {
+    /// Stage 1: the listener and the client sessions.
+    connections_stop: watch::Sender<bool>,
+    listener: JoinHandle<()>,
+    connections: Arc<ConnectionLimiter>,
+    /// Stage 2: the tick, replays and the status broadcaster.
+    engine_stop: watch::Sender<bool>,
+    engine_tasks: Vec<JoinHandle<()>>,
+    /// Stage 3: live sources and the mapper.
+    stop_threads: Arc<AtomicBool>,
+    commands: mpsc::Sender<EngineCommand>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+    /// Stage 4.
+    recorder: Option<(Arc<Recorder>, std::thread::JoinHandle<()>)>,
+}
+
+/// A started server's parts, for [`crate::ServerHandle`].
+pub(crate) struct Started {
+    pub local_addr: std::net::SocketAddr,
+    pub state: Arc<ServerState>,
+    pub token: token::ResolvedToken,
+    pub supervisor: Supervisor,
+}
+
+/// Opens the recording and the listener, then starts sources, mapper, recorder, tick, the
+/// status broadcaster and the listener.
+pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Result<Started> {
+    let subjects = parts.subjects.clone();
+    let events = parts.events.clone();
+    let recorder = match config.record.clone() {
+        Some(path) => Some(Arc::new(
+            tokio::task::spawn_blocking(move || Recorder::create(&path)).await??,
+        )),
+        None => None,
+    };
+    let listener = TcpListener::bind(config.listen)
+        .await
+        .with_context(|| format!("cannot listen on {}", config.listen))?;
+    let local_addr = listener.local_addr()?;
+    let (connections_stop, connections_rx) = watch::channel(false);
+    let (engine_stop, engine_rx) = watch::channel(false);
+    let (frames, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
+    let (commands, commands_rx) = mpsc::channel(64);
+    let stats = Arc::new(stats::Stats::default());
+    let state = Arc::new(ServerState {
+        subjects: subjects.clone(),
+        frames: frames.clone(),
+        events: events.clone(),
+        stats: stats.clone(),
+        rate_hz: config.rate_hz,
+        next_client_id: AtomicU64::new(1),
+        shutdown: connections_rx,
+        commands: commands.clone(),
+        policy: access::AccessPolicy::new(
+            parts.token.token.clone(),
+            access::BindScope::of(&local_addr),
+            &config.access.allowed_origins,
+            &config.access.allowed_hosts,
+        ),
+        connections: limits::ConnectionLimiter::new(max_connections(config)),
+        fd_limit: limits::fd_limit(),
+        stalled_client_timeout: Duration::from_secs_f64(config.limits.stalled_client_timeout_secs),
+        recorder: recorder.as_ref().map(|r| r.health()),
+    });
+    let mut supervisor = Supervisor {
+        connections_stop,
+        listener: tokio::spawn(std::future::ready(())),
+        connections: state.connections.clone(),
+        engine_stop,
+        engine_tasks: Vec::new(),
+        stop_threads: Arc::new(AtomicBool::new(false)),
+        commands: commands.clone(),
+        threads: Vec::new(),
+        recorder: None,
+    };
+    for source in parts.sources {
+        supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx)?;
+    }
+    supervisor.spawn_thread("rigcast-mapper".into(), {
+        let mapper = parts.mapper;
+        move || mapper.run(commands_rx)
+    })?;
+    if let Some(rec) = recorder {
+        let (r, subs, stop) = (
+            rec.clone(),
+            subjects.clone(),
+            supervisor.stop_threads.clone(),
+        );
+        let rate = config.rate_hz;
+        let thread = std::thread::Builder::new()
+            .name("rigcast-recorder".into())
+            .spawn(move || r.run(&subs, rate, &stop))
+            .context("cannot start the recorder thread")?;
+        supervisor.recorder = Some((rec, thread));
+    }
+    let tick = TickContext {
+        subjects: subjects.clone(),
+        frames,
+        stats,
+        rate_hz: config.rate_hz,
+        vmc: parts.vmc,
+        performers: parts.performers,
+    };
+    supervisor
+        .engine_tasks
+        .push(tokio::spawn(engine::run_tick(tick, engine_rx.clone())));
+    let status = run_source_status(subjects, events, engine_rx);
+    supervisor.engine_tasks.push(tokio::spawn(status));
+    if let Some(link) = parts.cluster {
+        supervisor.engine_tasks.extend(link.spawn(&state));
+    }
+    supervisor.listener = tokio::spawn(http::run_listener(listener, state.clone()));
+    Ok(Started {
+        local_addr,
+        state,
+        token: parts.token,
+        supervisor,
+    })
+}
+
+/// The configured connection cap, or what the open-file limit allows.
+fn max_connections(config: &ServerConfig) -> usize {
+    let fd_cap = limits::default_max_connections(limits::fd_limit());
+    match config.limits.max_connections {
+        Some(n) if n > fd_cap => {
+            tracing::warn!(
+                "max_connections {n} exceeds what the open-file limit allows; using {fd_cap}"
+            );
+            fd_cap
+        }
+        Some(n) => n,
+        None => fd_cap,
+    }
+}
+
+impl Supervisor {
+    /// A replay becomes a task; a live source a thread (its `next_frame` blocks).
+    fn spawn_source(
+        &mut self,
+        source: SourceRunner,
+        state: &ServerState,
+        recorder: Option<&Arc<Recorder>>,
+        engine_rx: &watch::Receiver<bool>,
+    ) -> anyhow::Result<()> {
+        let SourceRunner {
+            subject,
+            tx,
+            loaded,
+        } = source;
+        match loaded {
+            Loaded::Replay { player, speed, .. } => {
+                let task = engine::run_replay_source(player, speed, tx, subject, engine_rx.clone());
+                self.engine_tasks.push(tokio::spawn(task));
+            }
+            Loaded::Live { mut source, .. } => {
+                if let Some(rec) = recorder {
+                    source.set_raw_tap(Some(Box::new(rec.tap(subject.id))));
+                }
+                let name = format!("rigcast-live-{}", subject.id);
+                let ctx = LiveContext {
+                    subject,
+                    tx,
+                    subjects: state.subjects.clone(),
+                    events: state.events.clone(),
+                    commands: state.commands.clone(),
+                    recorder: recorder.cloned(),
+                    stop: self.stop_threads.clone(),
+                };
+                self.spawn_thread(name, move || live::run_live(source, ctx))?;
+            }
+        }
+        Ok(())
+    }
+
+    fn spawn_thread(
+        &mut self,
+        name: String,
+        run: impl FnOnce() + Send + 'static,
+    ) -> anyhow::Result<()> {
+        let thread = std::thread::Builder::new()
+            .name(name.clone())
+            .spawn(run)
+            .with_context(|| format!("cannot start the thread {name}"))?;
+        self.threads.push(thread);
+        Ok(())
+    }
+
+    /// Stops everything in order (see the module doc) and waits for it.
+    pub async fn shutdown(self) {
+        // A send fails only when every receiver is gone: then nobody is left to stop.
+        let _ = self.connections_stop.send(true);
+        // A task that panicked has nothing left to stop; its panic was already reported.
+        let _ = self.listener.await;
+        self.connections.wait_until_idle(DRAIN_TIMEOUT).await;
+        // As above: no receiver left means nothing left to stop.
+        let _ = self.engine_stop.send(true);
+        for task in self.engine_tasks {
+            // A panicked task has already reported its panic and has nothing left to stop.
+            let _ = task.await;
+        }
+        self.stop_threads.store(true, Ordering::Relaxed);
+        // Fails only when the mapper has already stopped.
+        let _ = self.commands.send(EngineCommand::Shutdown).await;
+        let threads = self.threads;
+        let recorder = self.recorder;
+        // Joining blocks; a panicked thread's error is its (already printed) panic.
+        let _ = tokio::task::spawn_blocking(move || {
+            for t in threads {
+                // Err is a panic, already printed by the panic hook.
+                let _ = t.join();
+            }
+            if let Some((rec, thread)) = recorder {
+                // As above; the recording is still finished below.
+                let _ = thread.join();
+                // The live threads (and their taps) are gone, so this is the last handle.
+                if let Ok(rec) = Arc::try_unwrap(rec) {
+                    rec.finish();
+                } else {
+                    tracing::warn!("recording still shared at shutdown; flushed only");
+                }
+            }
+        })
+        .await;
+    }
+}
+
+/// Broadcasts `source_status` about once per second.
+async fn run_source_status(
+    subjects: Arc<Vec<Arc<Subject>>>,
+    events: broadcast::Sender<String>,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    let mut interval = tokio::time::interval(Duration::from_secs(1));
+    loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = shutdown.changed() => break,
+        }
+        if events.receiver_count() == 0 {
+            continue;
+        }
+        // No receiver between the check and the send: nobody to tell.
+        let _ = events.send(crate::source_status_json(&subjects));
+    }
+}

@@ -1,0 +1,307 @@
+//! Cluster mode: several rigcast nodes share their subjects over NATS, so a viewer or engine
+//! connected to any node sees every performer and character of the deployment.
+//!
+//! ```text
+//!  node A                                NATS                              node B
+//!  tick ─▶ frames ─▶ publish ─▶ core: {ns}.frame.{site}.{key} ──▶ relay ─▶ B's clients (bytes
+//!                                                                 │       as sent by A, only
+//!                                                                 │       the subject id is B's)
+//!                                                                 └──▶ RemoteSource ─▶ B's
+//!                                                                      performers, VMC, status
+//!  subjects ─▶ entry ─▶ JetStream KV "{ns}_subjects", key {site}.{key}: skeleton + mapping
+//!                       (retained: B reads it at start and makes one subject per entry)
+//! ```
+//!
+//! - **Who computes what.** A performer (mapping + retarget) runs on the node that has its
+//!   source. A node that relays another's subject forwards the frames it receives as they are
+//!   (same seq, same rotations, same `send_nanos`) the moment they arrive, without waiting for
+//!   its own tick; it re-encodes nothing.
+//! - **Loss.** A remote subject whose frames stop for `lost_after_secs` is a lost source on the
+//!   relaying node (its performers ease, hold or idle as configured); when the frames come
+//!   back (the node restarted) it is live again. Nothing restarts elsewhere.
+//! - **Names.** Subjects are matched across nodes by site and name, never by id (ids are per
+//!   node). On a relaying node a remote subject is called `NAME@SITE`.
+//! - **Discovery.** A node reads the KV bucket when it starts: subjects published after that
+//!   show up on it after its next start.
+
+mod entry;
+mod publish;
+mod remote;
+
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use async_nats::jetstream::{self, kv};
+use serde::Deserialize;
+
+pub use entry::{token, SubjectEntry};
+pub use publish::run_publisher;
+pub use remote::{run_relay, RemoteSource};
+
+/// `[cluster]` in the config file (or `--nats` / `--site` on the command line).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClusterConfig {
+    /// NATS servers, `nats://HOST:PORT`; the client fails over between them.
+    pub servers: Vec<String>,
+    /// This node's name in the deployment (letters, digits, `-`, `_`).
+    pub site: String,
+    /// Prefix of every NATS subject and of the KV bucket, so deployments sharing a NATS
+    /// system stay apart (default `rigcast`).
+    #[serde(default = "default_namespace")]
+    pub namespace: String,
+    /// NATS user name (with `password`).
+    #[serde(default)]
+    pub user: Option<String>,
+    /// NATS password.
+    #[serde(default)]
+    pub password: Option<String>,
+    /// NATS nkey seed (`SU…`), instead of a user and password.
+    #[serde(default)]
+    pub nkey_seed: Option<String>,
+    /// Replicas of the KV bucket when this node creates it (3 on a 3-server cluster keeps the
+    /// retained state through the loss of one server).
+    #[serde(default = "default_replicas")]
+    pub kv_replicas: usize,
+    /// Silence after which a remote subject counts as lost, seconds.
+    #[serde(default = "default_lost_after")]
+    pub lost_after_secs: f32,
+}
+
+fn default_namespace() -> String {
+    "rigcast".into()
+}
+
+fn default_replicas() -> usize {
+    1
+}
+
+fn default_lost_after() -> f32 {
+    0.5
+}
+
+impl ClusterConfig {
+    /// A cluster config for `servers` (comma-separated list allowed) as `site`.
+    pub fn new(servers: &str, site: &str) -> ClusterConfig {
+        ClusterConfig {
+            servers: servers
+                .split(',')
+                .map(|s| s.trim().to_string())
+                .filter(|s| !s.is_empty())
+                .collect(),
+            site: site.to_string(),
+            namespace: default_namespace(),
+            user: None,
+            password: None,
+            nkey_seed: None,
+            kv_replicas: default_replicas(),
+            lost_after_secs: default_lost_after(),
+        }
+    }
+
+    /// Checks names and credentials before anything connects.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        if self.servers.is_empty() {
+            bail!("cluster: no NATS server given (servers = [\"nats://HOST:PORT\"])");
+        }
+        for (what, value) in [("site", &self.site), ("namespace", &self.namespace)] {
+            if value.is_empty() || token(value) != *value {
+                bail!("cluster: {what} {value:?} may only hold letters, digits, '-' and '_'");
+            }
+        }
+        if self.password.is_some() != self.user.is_some() {
+            bail!("cluster: user and password go together");
+        }
+        if self.nkey_seed.is_some() && self.user.is_some() {
+            bail!("cluster: give either an nkey seed or a user and password, not both");
+        }
+        if !(1..=5).contains(&self.kv_replicas) {
+            bail!("cluster: kv_replicas must be 1 to 5");
+        }
+        if !(self.lost_after_secs.is_finite() && self.lost_after_secs > 0.0) {
+            bail!("cluster: lost_after_secs must be a positive number of seconds");
+        }
+        Ok(())
+    }
+
+    /// The KV bucket holding every node's subject entries.
+    pub fn bucket(&self) -> String {
+        format!("{}_subjects", self.namespace)
+    }
+
+    /// The core NATS subject carrying the frames of subject `key` of `site`.
+    pub fn frame_subject(&self, site: &str, key: &str) -> String {
+        format!("{}.frame.{site}.{key}", self.namespace)
+    }
+
+    /// How long a remote subject may be silent before it counts as lost.
+    pub fn lost_after(&self) -> Duration {
+        Duration::from_secs_f32(self.lost_after_secs)
+    }
+}
+
+/// A connection to the deployment's NATS system and its subject bucket.
+pub struct Cluster {
+    /// The client (cheap to clone; reconnects and fails over by itself).
+    pub client: async_nats::Client,
+    /// The subject bucket.
+    pub kv: kv::Store,
+    /// The settings it was made with.
+    pub config: ClusterConfig,
+}
+
+/// How long connecting to NATS may take at start-up before the server gives up.
+const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
+impl Cluster {
+    /// Connects to the first reachable server of `config` and opens (or creates) the bucket.
+    pub async fn connect(config: &ClusterConfig) -> anyhow::Result<Cluster> {
+        config.validate()?;
+        let mut opts = async_nats::ConnectOptions::new()
+            .name(format!("rigcast {}", config.site))
+            .connection_timeout(CONNECT_TIMEOUT)
+            .max_reconnects(None::<usize>);
+        if let (Some(u), Some(p)) = (&config.user, &config.password) {
+            opts = opts.user_and_password(u.clone(), p.clone());
+        }
+        if let Some(seed) = &config.nkey_seed {
+            opts = opts.nkey(seed.clone());
+        }
+        let servers = config.servers.join(", ");
+        let client =
+            tokio::time::timeout(CONNECT_TIMEOUT * 2, opts.connect(config.servers.as_slice()))
+                .await
+                .map_err(|_| anyhow::anyhow!("no answer within {:?}", CONNECT_TIMEOUT * 2))
+                .and_then(|r| r.map_err(anyhow::Error::from))
+                .with_context(|| format!("cannot connect to NATS at {servers}"))?;
+        let js = jetstream::new(client.clone());
+        let kv = match js.get_key_value(config.bucket()).await {
+            Ok(kv) => kv,
+            Err(_) => js
+                .create_key_value(kv::Config {
+                    bucket: config.bucket(),
+                    description: "rigcast subjects: skeleton and mapping per site and name".into(),
+                    history: 1,
+                    num_replicas: config.kv_replicas,
+                    ..Default::default()
+                })
+                .await
+                .with_context(|| {
+                    format!(
+                        "cannot open the KV bucket {} (is JetStream enabled on {servers}?)",
+                        config.bucket()
+                    )
+                })?,
+        };
+        Ok(Cluster {
+            client,
+            kv,
+            config: config.clone(),
+        })
+    }
+
+    /// Every other site's subject entries in the bucket now.
+    pub async fn remote_entries(&self) -> anyhow::Result<Vec<SubjectEntry>> {
+        use futures_util::StreamExt;
+        let mut keys = self
+            .kv
+            .keys()
+            .await
+            .context("cannot list the cluster's subjects")?;
+        let mut out = Vec::new();
+        while let Some(key) = keys.next().await {
+            let Ok(key) = key else { continue };
+            if key.starts_with(&format!("{}.", self.config.site)) {
+                continue; // our own, from an earlier run
+            }
+            let Ok(Some(value)) = self.kv.get(key.clone()).await else {
+                continue;
+            };
+            match SubjectEntry::parse(&value) {
+                Ok(e) => out.push(e),
+                Err(e) => warn(&format!("cluster: entry {key} skipped: {e}")),
+            }
+        }
+        out.sort_by(|a, b| (&a.site, &a.name).cmp(&(&b.site, &b.name)));
+        Ok(out)
+    }
+}
+
+/// One of another node's subjects, ready to become a source subject here.
+pub struct RemoteSubject {
+    /// `NAME@SITE`.
+    pub name: String,
+    /// Its source.
+    pub source: RemoteSource,
+    /// Its skeleton.
+    pub skeleton: std::sync::Arc<rigcast_retarget::Skeleton>,
+}
+
+/// What feeds one relayed subject: its frames' NATS subject, the id it has here, its source.
+pub struct Relay {
+    /// Subject id on this node.
+    pub id: u32,
+    /// The NATS subject its frames arrive on.
+    pub subject: String,
+    /// Its source's queue.
+    pub tx: std::sync::mpsc::SyncSender<tokio_tungstenite::tungstenite::Bytes>,
+}
+
+/// This node's part of the cluster, between loading and spawning.
+pub struct ClusterLink {
+    /// The connection.
+    pub cluster: std::sync::Arc<Cluster>,
+    /// One per relayed subject.
+    pub relays: Vec<Relay>,
+}
+
+/// Connects to the cluster of `config` and makes a subject of every other node's subject; the
+/// first gets id `first_id` (the subjects follow this node's own sources).
+pub async fn join(
+    config: &ClusterConfig,
+    first_id: u32,
+) -> anyhow::Result<(ClusterLink, Vec<RemoteSubject>)> {
+    let cluster = std::sync::Arc::new(Cluster::connect(config).await?);
+    let mut relays = Vec::new();
+    let mut subjects = Vec::new();
+    for (k, e) in cluster.remote_entries().await?.iter().enumerate() {
+        let (source, tx) = RemoteSource::new(e, config.lost_after())
+            .with_context(|| format!("cluster subject {}", e.relayed_name()))?;
+        let skeleton = source.skeleton_arc();
+        relays.push(Relay {
+            id: first_id + k as u32,
+            subject: config.frame_subject(&e.site, &token(&e.name)),
+            tx,
+        });
+        subjects.push(RemoteSubject {
+            name: e.relayed_name(),
+            source,
+            skeleton,
+        });
+    }
+    Ok((ClusterLink { cluster, relays }, subjects))
+}
+
+impl ClusterLink {
+    /// Starts the relays and the publisher; they stop when `state` shuts down.
+    pub fn spawn(
+        self,
+        state: &std::sync::Arc<crate::state::ServerState>,
+    ) -> Vec<tokio::task::JoinHandle<()>> {
+        let mut tasks: Vec<_> = self
+            .relays
+            .into_iter()
+            .map(|r| {
+                let client = self.cluster.client.clone();
+                tokio::spawn(run_relay(client, r.subject, r.id, r.tx, state.clone()))
+            })
+            .collect();
+        tasks.push(tokio::spawn(run_publisher(self.cluster, state.clone())));
+        tasks
+    }
+}
+
+/// Start-up warnings go to stderr like the server's other start-up reports.
+fn warn(text: &str) {
+    eprintln!("warning: {text}");
+}

@@ -1,0 +1,259 @@
+//! Another node's subject on this node: [`run_relay`] forwards its frames to this node's
+//! clients the moment they arrive (only the subject id is rewritten to this node's), and hands
+//! them to a [`RemoteSource`], which makes it an ordinary live source for performers, VMC out
+//! and `source_status`.
+
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use futures_util::StreamExt;
+use glam::{Quat, Vec3};
+use rigcast_protocol::frame::{decode_any_into, decode_header_any, frame_len, FrameHeader};
+use rigcast_retarget::{Pose, Skeleton};
+use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, SourceError, SourceStatus};
+use tokio_tungstenite::tungstenite::Bytes;
+
+use super::SubjectEntry;
+use crate::engine::{unix_nanos, OutFrame};
+use crate::state::ServerState;
+
+/// Frames waiting for the source thread; it only ever needs the newest, so a full queue
+/// drops (the relay to clients is not affected).
+const QUEUE: usize = 8;
+/// Offset of the subject id in a frame header (both versions).
+const SUBJECT_AT: usize = 8;
+
+/// A live source fed by the frames another node publishes for one of its subjects.
+pub struct RemoteSource {
+    name: String,
+    skeleton: Arc<Skeleton>,
+    /// Bones whose translation version 2 frames carry, in bone order.
+    translated: Vec<usize>,
+    rx: Receiver<Bytes>,
+    health: HealthTracker,
+    rotations: Vec<Quat>,
+    translations: Vec<Vec3>,
+    announced: bool,
+}
+
+impl RemoteSource {
+    /// The source of `entry`'s subject, and the sender its relay feeds.
+    pub fn new(
+        entry: &SubjectEntry,
+        lost_after: Duration,
+    ) -> anyhow::Result<(RemoteSource, SyncSender<Bytes>)> {
+        let skeleton = Arc::new(crate::skeleton_wire::skeleton_from_bones(&entry.bones)?);
+        let translated = (entry.bones.iter().enumerate())
+            .filter(|(_, b)| b.translated)
+            .map(|(i, _)| i)
+            .collect();
+        let (tx, rx) = sync_channel(QUEUE);
+        let mut health = HealthTracker::new(lost_after);
+        health.set_detail(&format!("relayed from {}", entry.site));
+        Ok((
+            RemoteSource {
+                name: entry.relayed_name(),
+                skeleton,
+                translated,
+                rx,
+                health,
+                rotations: Vec::new(),
+                translations: Vec::new(),
+                announced: false,
+            },
+            tx,
+        ))
+    }
+
+    /// Its skeleton.
+    pub fn skeleton_arc(&self) -> Arc<Skeleton> {
+        self.skeleton.clone()
+    }
+
+    /// Fills `out` from a published message (version 1 then version 2 frame); the header, or
+    /// `None` when it does not fit this subject's skeleton.
+    fn decode(&mut self, bytes: &[u8], out: &mut Pose) -> Option<FrameHeader> {
+        let v2 = bytes.get(v1_len(bytes)?..)?;
+        let (header, _) = decode_any_into(v2, &mut self.rotations, &mut self.translations).ok()?;
+        let n = self.skeleton.num_bones();
+        if self.rotations.len() != n || self.translations.len() != self.translated.len() {
+            return None;
+        }
+        if out.num_bones() != n {
+            *out = self.skeleton.rest_pose(); // only after a skeleton change
+        }
+        out.rotations.copy_from_slice(&self.rotations);
+        for (i, t) in out.translations.iter_mut().enumerate() {
+            *t = self.skeleton.rest()[i].translation;
+        }
+        for (&bone, &t) in self.translated.iter().zip(&self.translations) {
+            out.translations[bone] = t;
+        }
+        Some(header)
+    }
+}
+
+impl LiveSource for RemoteSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn skeleton(&self) -> Option<Arc<Skeleton>> {
+        Some(self.skeleton.clone())
+    }
+
+    fn next_frame(
+        &mut self,
+        timeout: Duration,
+        out: &mut Pose,
+    ) -> Result<Option<FrameMeta>, SourceError> {
+        match self.rx.recv_timeout(timeout) {
+            Ok(bytes) => {
+                let now = Instant::now();
+                if let Some(h) = self.decode(&bytes, out) {
+                    self.health.on_input(now);
+                    // Publish (the other node's encode) to here: the hop through NATS.
+                    let hop = unix_nanos().saturating_sub(h.send_nanos);
+                    self.health.on_frame(now, Duration::from_nanos(hop));
+                    let skeleton_changed = !self.announced;
+                    self.announced = true;
+                    return Ok(Some(FrameMeta {
+                        seq: h.seq,
+                        capture_nanos: h.capture_nanos,
+                        skeleton_changed,
+                    }));
+                }
+                self.health.on_dropped(1);
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => {
+                // The relay ended (shutdown, or NATS refused the subscription).
+                self.health.on_device_lost("relay stopped");
+                std::thread::sleep(timeout);
+            }
+        }
+        self.health.poll(Instant::now());
+        Ok(None)
+    }
+
+    fn status(&self) -> SourceStatus {
+        self.health.status()
+    }
+}
+
+/// Length of the version 1 frame at the start of a published message.
+fn v1_len(bytes: &[u8]) -> Option<usize> {
+    let n = u32::from_le_bytes(bytes.get(12..16)?.try_into().ok()?);
+    Some(frame_len(n as usize))
+}
+
+/// A published message as this node's frame of subject `id`: validated, with the subject id
+/// of both versions rewritten; `None` when malformed.
+pub fn relabel(bytes: &[u8], id: u32) -> Option<OutFrame> {
+    let v2_at = v1_len(bytes)?;
+    decode_header_any(bytes.get(..v2_at)?).ok()?;
+    let has_v2 = bytes.len() > v2_at;
+    if has_v2 {
+        decode_header_any(&bytes[v2_at..]).ok()?;
+    }
+    let mut own = bytes.to_vec();
+    own[SUBJECT_AT..SUBJECT_AT + 4].copy_from_slice(&id.to_le_bytes());
+    if has_v2 {
+        own[v2_at + SUBJECT_AT..v2_at + SUBJECT_AT + 4].copy_from_slice(&id.to_le_bytes());
+    }
+    Some(OutFrame {
+        subject: id,
+        bytes: Bytes::from(own),
+        v2_at,
+    })
+}
+
+/// Subscribes to `subject` (another node's frames) and forwards every message to this node's
+/// clients as subject `id`, and to its source, until shutdown.
+pub async fn run_relay(
+    client: async_nats::Client,
+    subject: String,
+    id: u32,
+    to_source: SyncSender<Bytes>,
+    state: Arc<ServerState>,
+) {
+    let mut sub = match client.subscribe(subject.clone()).await {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("warning: cluster: cannot subscribe to {subject}: {e}");
+            return;
+        }
+    };
+    let mut shutdown = state.shutdown.clone();
+    loop {
+        tokio::select! {
+            biased;
+            _ = shutdown.changed() => break,
+            msg = sub.next() => {
+                let Some(msg) = msg else { break };
+                let Some(frame) = relabel(&msg.payload, id) else {
+                    state.stats.cluster_bad_frames.fetch_add(1, Ordering::Relaxed);
+                    continue;
+                };
+                // Err only means "no client connected right now".
+                let _ = state.frames.send(frame);
+                match to_source.try_send(msg.payload) {
+                    Ok(()) | Err(TrySendError::Full(_)) => {}
+                    Err(TrySendError::Disconnected(_)) => break,
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rigcast_protocol::frame::{append_frame_v2, decode_frame, encode_frame};
+
+    fn published(subject: u32) -> Vec<u8> {
+        let header = FrameHeader {
+            flags: 0,
+            subject,
+            seq: 42,
+            capture_nanos: 1,
+            send_nanos: 2,
+            missed_frames: 0,
+        };
+        let rotations = [Quat::IDENTITY, Quat::from_rotation_y(0.5)];
+        let mut out = Vec::new();
+        encode_frame(&mut out, &header, Vec3::new(0.0, 1.0, 0.0), &rotations);
+        append_frame_v2(&mut out, &header, &rotations, &[Vec3::Y, Vec3::X], &[0]);
+        out
+    }
+
+    #[test]
+    fn relabelling_changes_only_the_subject_id() {
+        let bytes = published(7);
+        let f = relabel(&bytes, 3).unwrap();
+        assert_eq!(f.subject, 3);
+        let (v1, v2) = (f.version(1), f.version(2));
+        let d = decode_frame(&v1).unwrap();
+        assert_eq!(
+            (d.header.subject, d.header.seq, d.header.send_nanos),
+            (3, 42, 2)
+        );
+        assert_eq!(decode_header_any(&v2).unwrap().0.subject, 3);
+        let mut back = f.bytes.to_vec();
+        back[SUBJECT_AT..SUBJECT_AT + 4].copy_from_slice(&7u32.to_le_bytes());
+        let at = f.v2_at + SUBJECT_AT;
+        back[at..at + 4].copy_from_slice(&7u32.to_le_bytes());
+        assert_eq!(back, bytes);
+    }
+
+    #[test]
+    fn malformed_messages_are_refused() {
+        let bytes = published(7);
+        assert!(relabel(&bytes[..20], 1).is_none());
+        assert!(relabel(&bytes[..bytes.len() - 3], 1).is_none());
+        assert!(relabel(b"not a frame at all", 1).is_none());
+        assert!(relabel(&[], 1).is_none());
+    }
+}

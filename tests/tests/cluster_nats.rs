@@ -1,0 +1,392 @@
+//! Cluster mode through real NATS: a 3-server `nats-server` cluster (JetStream on) on
+//! loopback and three `rigcast serve` nodes.
+//!
+//! - Node A has a replay source (the bundled walk) and a VMC source fed by this test.
+//! - Node B retargets A's walk onto the built-in mannequin (its performer runs where its
+//!   character is, driven by A's source through NATS).
+//! - Node C has nothing of its own and relays everything.
+//!
+//! Clients on B and C must get A's subjects with the rotations a direct client on A gets
+//! (1e-6, matched by seq) and in order; C must get B's character like B's own clients; killing
+//! A must make B and C report A's sources lost within 1 s, restarting it live again within
+//! 2 s; killing one NATS server must not stop the streams.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use rigcast_protocol::control::SubjectInfo;
+use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::{ServerMessage, SourceState};
+use rigcast_tests::{connect, free_port, handshake, next, temp_path, Incoming, ServeProcess, Ws};
+
+/// Debian installs nats-server in /usr/sbin, which is not always on PATH.
+fn nats_server() -> Option<PathBuf> {
+    let on_path = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join("nats-server"))
+            .find(|p| p.is_file())
+    });
+    let found = on_path.or_else(|| {
+        let p = PathBuf::from("/usr/sbin/nats-server");
+        p.is_file().then_some(p)
+    });
+    if found.is_none() {
+        if std::env::var("RIGCAST_SKIP_APPS").as_deref() == Ok("1") {
+            eprintln!("SKIP: nats-server not installed and RIGCAST_SKIP_APPS=1");
+            return None;
+        }
+        panic!("nats-server not found: run scripts/install-apps.sh (or set RIGCAST_SKIP_APPS=1)");
+    }
+    found
+}
+
+/// Three clustered NATS servers with JetStream, killed on drop.
+struct NatsCluster {
+    servers: Vec<Option<Child>>,
+    client_ports: Vec<u16>,
+}
+
+impl NatsCluster {
+    fn start(bin: &PathBuf) -> NatsCluster {
+        let client_ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
+        let route_ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
+        let monitor_ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
+        let routes = route_ports
+            .iter()
+            .map(|p| format!("nats://127.0.0.1:{p}"))
+            .collect::<Vec<_>>()
+            .join(",");
+        let dir = temp_path("nats-cluster");
+        let servers = (0..3)
+            .map(|i| {
+                let store = dir.join(format!("n{i}"));
+                std::fs::create_dir_all(&store).unwrap();
+                let child = Command::new(bin)
+                    .args(["-a", "127.0.0.1", "-p", &client_ports[i].to_string()])
+                    .args(["-m", &monitor_ports[i].to_string()])
+                    .args(["-n", &format!("n{i}"), "--cluster_name", "rigcast-test"])
+                    .args(["--cluster", &format!("nats://127.0.0.1:{}", route_ports[i])])
+                    .args(["--routes", &routes, "-js", "-sd"])
+                    .arg(&store)
+                    .stdout(Stdio::null())
+                    .stderr(Stdio::null())
+                    .spawn()
+                    .expect("nats-server starts");
+                Some(child)
+            })
+            .collect();
+        let cluster = NatsCluster {
+            servers,
+            client_ports,
+        };
+        // JetStream needs its meta leader elected before a KV bucket can be made.
+        let deadline = Instant::now() + Duration::from_secs(30);
+        for port in &monitor_ports {
+            while !healthy(*port) {
+                assert!(
+                    Instant::now() < deadline,
+                    "NATS cluster not healthy in 30 s"
+                );
+                std::thread::sleep(Duration::from_millis(200));
+            }
+        }
+        cluster
+    }
+
+    fn urls(&self) -> String {
+        self.client_ports
+            .iter()
+            .map(|p| format!("nats://127.0.0.1:{p}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+
+    fn kill(&mut self, i: usize) {
+        if let Some(mut c) = self.servers[i].take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+impl Drop for NatsCluster {
+    fn drop(&mut self) {
+        for i in 0..self.servers.len() {
+            self.kill(i);
+        }
+    }
+}
+
+/// NATS's own health check, JetStream included.
+fn healthy(monitor_port: u16) -> bool {
+    use std::io::{Read, Write};
+    let Ok(mut s) = std::net::TcpStream::connect(("127.0.0.1", monitor_port)) else {
+        return false;
+    };
+    let _ = s.set_read_timeout(Some(Duration::from_secs(2)));
+    let req = "GET /healthz HTTP/1.0\r\nHost: localhost\r\n\r\n";
+    if s.write_all(req.as_bytes()).is_err() {
+        return false;
+    }
+    let mut body = String::new();
+    let _ = s.read_to_string(&mut body);
+    body.contains("\"ok\"")
+}
+
+/// Sends a gently moving humanoid over VMC until stopped.
+fn vmc_sender(port: u16, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        let skeleton = rigcast_sources::live::humanoid::default_humanoid().unwrap();
+        let names: Vec<String> = skeleton.names().to_vec();
+        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut enc = VmcEncoder::new();
+        let start = Instant::now();
+        while !stop.load(Ordering::Relaxed) {
+            let t = start.elapsed().as_secs_f32();
+            let mut pose = skeleton.rest_pose();
+            for r in pose.rotations.iter_mut().skip(1) {
+                *r = glam::Quat::from_rotation_x(0.3 * (2.0 * t).sin());
+            }
+            let bones = names
+                .iter()
+                .zip(&pose.translations)
+                .zip(&pose.rotations)
+                .map(|((name, &translation), &rotation)| VmcBone {
+                    name,
+                    translation,
+                    rotation,
+                });
+            for bundle in enc.encode(t, bones) {
+                let _ = socket.send_to(bundle, ("127.0.0.1", port));
+            }
+            std::thread::sleep(Duration::from_millis(16));
+        }
+    })
+}
+
+fn node(args: &[String], name: &str) -> ServeProcess {
+    let home = temp_path(&format!("xdg-cluster-{name}"));
+    std::fs::create_dir_all(&home).unwrap();
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    ServeProcess::start(&args, home, None)
+}
+
+async fn spawn_node(args: Vec<String>, name: &'static str) -> ServeProcess {
+    tokio::task::spawn_blocking(move || node(&args, name))
+        .await
+        .unwrap()
+}
+
+/// A client and the subjects its server announced, by name.
+async fn client(p: &ServeProcess) -> (Ws, HashMap<String, SubjectInfo>) {
+    let mut ws = connect(&format!("ws://{}/v1/stream", p.addr)).await;
+    let (hello, _) = handshake(&mut ws).await;
+    let ServerMessage::Hello { subjects, .. } = hello else {
+        panic!("no hello: {hello:?}");
+    };
+    (
+        ws,
+        subjects.into_iter().map(|s| (s.name.clone(), s)).collect(),
+    )
+}
+
+/// Per subject id: (seq, rotations) of every frame received for `secs`.
+type Frames = HashMap<u32, Vec<(u64, Vec<glam::Quat>)>>;
+
+async fn collect(ws: &mut Ws, secs: f64) -> Frames {
+    let mut out: Frames = HashMap::new();
+    let end = Instant::now() + Duration::from_secs_f64(secs);
+    while let Some(left) = end.checked_duration_since(Instant::now()) {
+        match next(ws, left).await {
+            Some(Incoming::Frame(f, _)) => out
+                .entry(f.header.subject)
+                .or_default()
+                .push((f.header.seq, f.rotations)),
+            Some(Incoming::Json(_)) => {}
+            None => break,
+        }
+    }
+    out
+}
+
+/// Compares a relayed subject's frames with the originating node's by seq: the number of
+/// frames matched, after asserting equal rotations and non-decreasing seqs.
+fn compare(
+    origin: &[(u64, Vec<glam::Quat>)],
+    relayed: &[(u64, Vec<glam::Quat>)],
+    what: &str,
+) -> usize {
+    assert!(
+        relayed.windows(2).all(|w| w[0].0 <= w[1].0),
+        "{what}: frames out of order"
+    );
+    let by_seq: HashMap<u64, &Vec<glam::Quat>> = origin.iter().map(|(s, r)| (*s, r)).collect();
+    let mut matched = 0;
+    for (seq, rot) in relayed {
+        let Some(o) = by_seq.get(seq) else { continue };
+        assert_eq!(o.len(), rot.len(), "{what}: bone count");
+        for (a, b) in o.iter().zip(rot) {
+            let d = (glam::Vec4::from(*a) - glam::Vec4::from(*b))
+                .abs()
+                .max_element();
+            assert!(d <= 1e-6, "{what}: seq {seq} differs by {d}");
+        }
+        matched += 1;
+    }
+    matched
+}
+
+/// Waits until a `source_status` says subject `id` is in `state`; how long it took.
+async fn wait_state(
+    ws: &mut Ws,
+    id: u32,
+    state: SourceState,
+    timeout: Duration,
+) -> Option<Duration> {
+    let start = Instant::now();
+    let end = start + timeout;
+    while let Some(left) = end.checked_duration_since(Instant::now()) {
+        if let Some(Incoming::Json(ServerMessage::SourceStatus { sources })) = next(ws, left).await
+        {
+            if sources.iter().any(|s| s.subject == id && s.state == state) {
+                return Some(start.elapsed());
+            }
+        }
+    }
+    None
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn three_nodes_share_subjects_through_a_nats_cluster() {
+    let Some(bin) = nats_server() else { return };
+    let mut nats = tokio::task::spawn_blocking(move || NatsCluster::start(&bin))
+        .await
+        .unwrap();
+    let urls = nats.urls();
+    let vmc_port = free_port();
+    let stop = Arc::new(AtomicBool::new(false));
+    let sender = vmc_sender(vmc_port, stop.clone());
+    let cluster_args = |site: &str| -> Vec<String> {
+        vec!["--nats".into(), urls.clone(), "--site".into(), site.into()]
+    };
+    let mut a_args = cluster_args("a");
+    a_args.extend(["--source", "demo", "--source"].map(String::from));
+    a_args.push(format!("vmc:{vmc_port}"));
+    let a = spawn_node(a_args.clone(), "a").await;
+    let vmc_name = format!("vmc:{vmc_port}");
+    // A's VMC source goes live before B and C start, so its skeleton is the sender's.
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let mut b_args = cluster_args("b");
+    b_args.extend(["--target", "builtin:mannequin"].map(String::from));
+    let b = spawn_node(b_args, "b").await;
+    let c = spawn_node(cluster_args("c"), "c").await;
+
+    let (mut wa, sa) = client(&a).await;
+    let (mut wb, sb) = client(&b).await;
+    let (mut wc, sc) = client(&c).await;
+    println!("A: {:?}\nB: {:?}\nC: {:?}", sa.keys(), sb.keys(), sc.keys());
+    for name in ["demo", vmc_name.as_str()] {
+        let relayed = format!("{name}@a");
+        assert!(
+            sb.contains_key(&relayed),
+            "B lacks {relayed}: {:?}",
+            sb.keys()
+        );
+        assert!(
+            sc.contains_key(&relayed),
+            "C lacks {relayed}: {:?}",
+            sc.keys()
+        );
+    }
+    assert!(
+        sc.contains_key("mannequin@b"),
+        "C lacks B's character: {:?}",
+        sc.keys()
+    );
+
+    // Same rotations as a direct client on the origin node, in order.
+    let (fa, fb, fc) = tokio::join!(
+        collect(&mut wa, 2.5),
+        collect(&mut wb, 2.5),
+        collect(&mut wc, 2.5)
+    );
+    for name in ["demo", vmc_name.as_str()] {
+        let relayed = format!("{name}@a");
+        let origin = &fa[&sa[name].id];
+        for (label, frames, subjects) in [("B", &fb, &sb), ("C", &fc, &sc)] {
+            let got = &frames[&subjects[&relayed].id];
+            let n = compare(origin, got, &format!("{relayed} on {label}"));
+            println!(
+                "{relayed} on {label}: {n} frames equal to A's (of {})",
+                got.len()
+            );
+            assert!(n >= 30, "{relayed} on {label}: only {n} frames matched A's");
+        }
+    }
+    let n = compare(
+        &fb[&sb["mannequin"].id],
+        &fc[&sc["mannequin@b"].id],
+        "mannequin@b on C",
+    );
+    println!("mannequin@b on C: {n} frames equal to B's");
+    assert!(n >= 30, "mannequin@b on C: only {n} frames matched B's");
+
+    // Node A goes away: its sources are lost on B and C within 1 s.
+    let demo_b = sb["demo@a"].id;
+    let demo_c = sc["demo@a"].id;
+    drop(a);
+    let (lost_b, lost_c) = tokio::join!(
+        wait_state(&mut wb, demo_b, SourceState::Lost, Duration::from_secs(3)),
+        wait_state(&mut wc, demo_c, SourceState::Lost, Duration::from_secs(3))
+    );
+    println!("A killed: lost on B after {lost_b:?}, on C after {lost_c:?}");
+    assert!(
+        lost_b.is_some_and(|d| d <= Duration::from_secs(1)),
+        "B: {lost_b:?}"
+    );
+    assert!(
+        lost_c.is_some_and(|d| d <= Duration::from_secs(1)),
+        "C: {lost_c:?}"
+    );
+
+    // A comes back: live again on B and C within 2 s of it serving.
+    let a = spawn_node(a_args, "a").await;
+    let (live_b, live_c) = tokio::join!(
+        wait_state(&mut wb, demo_b, SourceState::Live, Duration::from_secs(5)),
+        wait_state(&mut wc, demo_c, SourceState::Live, Duration::from_secs(5))
+    );
+    println!("A restarted: live on B after {live_b:?}, on C after {live_c:?}");
+
+    assert!(
+        live_b.is_some_and(|d| d <= Duration::from_secs(2)),
+        "B: {live_b:?}"
+    );
+    assert!(
+        live_c.is_some_and(|d| d <= Duration::from_secs(2)),
+        "C: {live_c:?}"
+    );
+
+    // One NATS server dies: the streams go on (clients fail over to the others).
+    nats.kill(0);
+    // Reading on meanwhile: a client that stops reading is sent its backlog later.
+    tokio::join!(collect(&mut wb, 3.0), collect(&mut wc, 3.0));
+    let (fb, fc) = tokio::join!(collect(&mut wb, 1.0), collect(&mut wc, 1.0));
+    let count = |f: &Frames, id: u32| f.get(&id).map_or(0, Vec::len);
+
+    println!(
+        "after losing a NATS server: {} frames of demo@a on B, {} on C in 1 s",
+        count(&fb, demo_b),
+        count(&fc, demo_c)
+    );
+    // The tick rate (60 Hz), give or take scheduling.
+    for n in [count(&fb, demo_b), count(&fc, demo_c)] {
+        assert!((30..=90).contains(&n), "{n} frames in 1 s");
+    }
+    stop.store(true, Ordering::Relaxed);
+    sender.join().unwrap();
+    drop(a);
+}
