@@ -45,7 +45,13 @@ fn rig() -> Arc<Skeleton> {
 }
 
 fn clip(skel: &Arc<Skeleton>, name: &str, frames: usize, phase: f32) -> Clip {
-    Clip::new(name, skel.clone(), gait(skel, frames, phase), 1.0 / FPS as f64).expect("clip")
+    Clip::new(
+        name,
+        skel.clone(),
+        gait(skel, frames, phase),
+        1.0 / FPS as f64,
+    )
+    .expect("clip")
 }
 
 fn graph(clips: &[Clip]) -> MotionGraph {
@@ -57,7 +63,10 @@ fn transitions_join_frames_whole_periods_apart() {
     let skel = rig();
     let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
     let g = graph(&clips);
-    assert!(!g.transitions.is_empty(), "a periodic motion has transitions");
+    assert!(
+        !g.transitions.is_empty(),
+        "a periodic motion has transitions"
+    );
     let b_start = g.clips[1].offset as f32;
     for t in &g.transitions {
         // Gait phase of each frame, in periods.
@@ -75,7 +84,11 @@ fn transitions_join_frames_whole_periods_apart() {
         assert!(t.distance <= g.settings.threshold);
     }
     // Both clips loop into each other: nearly everything stays.
-    assert!(g.num_kept() as f32 >= 0.9 * g.num_frames() as f32, "{}", g.num_kept());
+    assert!(
+        g.num_kept() as f32 >= 0.9 * g.num_frames() as f32,
+        "{}",
+        g.num_kept()
+    );
     let crossing = g
         .transitions
         .iter()
@@ -115,7 +128,12 @@ fn shortest_walk_reaches_the_goal_through_cheap_joins() {
 fn largest_steps(skel: &Skeleton, poses: &[Pose]) -> (f32, f32) {
     let worlds: Vec<Vec<Vec3>> = poses
         .iter()
-        .map(|p| world_transforms(skel, p).iter().map(|w| w.translation).collect())
+        .map(|p| {
+            world_transforms(skel, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
         .collect();
     let mut root: f32 = 0.0;
     let mut joint: f32 = 0.0;
@@ -143,13 +161,23 @@ fn wandering_keeps_root_and_joints_continuous() {
             out.clone()
         })
         .collect();
-    assert!(walker.transitions_taken >= 5, "{}", walker.transitions_taken);
+    assert!(
+        walker.transitions_taken >= 5,
+        "{}",
+        walker.transitions_taken
+    );
     let (clip_root, clip_joint) = largest_steps(&skel, &clips[0].poses);
     let (root, joint) = largest_steps(&skel, &poses);
     // Transitions add at most 1 cm to the root's largest step, and joints move at most twice
     // as far in a frame as they ever do in the clip.
-    assert!(root <= clip_root + 0.01, "root step {root} vs clip {clip_root}");
-    assert!(joint <= 2.0 * clip_joint, "joint step {joint} vs clip {clip_joint}");
+    assert!(
+        root <= clip_root + 0.01,
+        "root step {root} vs clip {clip_root}"
+    );
+    assert!(
+        joint <= 2.0 * clip_joint,
+        "joint step {joint} vs clip {clip_joint}"
+    );
 }
 
 #[test]

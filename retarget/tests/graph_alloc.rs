@@ -26,8 +26,8 @@ fn gait(skel: &Skeleton, frames: usize) -> Vec<Pose> {
             for b in skel.bone_ids().skip(1) {
                 let k = b.0 as f32;
                 let axis = Vec3::new((k * 1.3).sin(), (k * 0.7).cos(), 0.4).normalize();
-                p.rotations[b.index()] =
-                    rest.rotations[b.index()] * Quat::from_axis_angle(axis, size * (TAU * t + k).sin());
+                p.rotations[b.index()] = rest.rotations[b.index()]
+                    * Quat::from_axis_angle(axis, size * (TAU * t + k).sin());
             }
             p.translations[0] += Vec3::Z * (1.2 * f as f32 / 60.0);
             p
@@ -39,8 +39,12 @@ fn gait(skel: &Skeleton, frames: usize) -> Vec<Pose> {
 fn walker_steps_allocate_nothing() {
     let skel = Arc::new(Humanoid::default().build());
     let clip = Clip::new("a", skel.clone(), gait(&skel, 400), 1.0 / 60.0).expect("clip");
-    let g = MotionGraph::build(std::slice::from_ref(&clip), GraphSettings::default(), &mut |_| {})
-        .expect("builds");
+    let g = MotionGraph::build(
+        std::slice::from_ref(&clip),
+        GraphSettings::default(),
+        &mut |_| {},
+    )
+    .expect("builds");
     let analysis = analyze(&SkeletonView::from_clip(&skel, &clip.poses));
     let pb = Playback::new(&g, std::slice::from_ref(&clip), &analysis).expect("playback");
     let mut walker = Walker::new(&g, &pb, 5);
@@ -59,7 +63,11 @@ fn walker_steps_allocate_nothing() {
         blended += usize::from(walker.is_blending());
     }
     let made = allocations() - before;
-    assert!(walker.transitions_taken >= 3, "{}", walker.transitions_taken);
+    assert!(
+        walker.transitions_taken >= 3,
+        "{}",
+        walker.transitions_taken
+    );
     assert!(blended > 50, "{blended}");
     assert_eq!(made, 0, "{made} allocations in 2000 steps");
 }

@@ -88,13 +88,36 @@ fn build_info_and_walk_on_real_clips() {
 
     for (bad, says) in [
         (vec!["graph", "info", "/nonexistent.rmg"], "cannot read"),
-        (vec!["graph", "info", clips[0].to_str().unwrap()], "not a valid motion graph"),
         (
-            vec!["graph", "walk", graph.to_str().unwrap(), "--from", "7:1", "--to", "0:1", "-o", "x.bvh"],
+            vec!["graph", "info", clips[0].to_str().unwrap()],
+            "not a valid motion graph",
+        ),
+        (
+            vec![
+                "graph",
+                "walk",
+                graph.to_str().unwrap(),
+                "--from",
+                "7:1",
+                "--to",
+                "0:1",
+                "-o",
+                "x.bvh",
+            ],
             "does not exist",
         ),
         (
-            vec!["graph", "walk", graph.to_str().unwrap(), "--from", "0:99999", "--to", "0:1", "-o", "x.bvh"],
+            vec![
+                "graph",
+                "walk",
+                graph.to_str().unwrap(),
+                "--from",
+                "0:99999",
+                "--to",
+                "0:1",
+                "-o",
+                "x.bvh",
+            ],
             "past its end",
         ),
     ] {

@@ -66,7 +66,9 @@ fn build(clips: &[Clip]) -> MotionGraph {
         t.elapsed()
     );
     for c in &g.clips {
-        let kept = (c.offset..c.offset + c.frames).filter(|&n| g.is_kept(n)).count();
+        let kept = (c.offset..c.offset + c.frames)
+            .filter(|&n| g.is_kept(n))
+            .count();
         println!("  {}: {kept} / {} frames kept", c.name, c.frames);
     }
     g
@@ -124,7 +126,11 @@ fn pruned_search_finds_the_exhaustive_transitions() {
         .iter()
         .filter(|e| fast.iter().any(|f| f.a == e.a && f.b == e.b))
         .count();
-    assert!(found as f64 >= 0.9 * all.len() as f64, "{found} of {}", all.len());
+    assert!(
+        found as f64 >= 0.9 * all.len() as f64,
+        "{found} of {}",
+        all.len()
+    );
     // Nothing the pruned search reports is missing from the reference.
     for f in &fast {
         assert!(all.iter().any(|e| e.a == f.a && e.b == f.b), "{f:?}");
@@ -135,7 +141,12 @@ fn pruned_search_finds_the_exhaustive_transitions() {
 fn joints(skel: &Skeleton, poses: &[Pose]) -> Vec<Vec<Vec3>> {
     poses
         .iter()
-        .map(|p| world_transforms(skel, p).iter().map(|w| w.translation).collect())
+        .map(|p| {
+            world_transforms(skel, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
         .collect()
 }
 
@@ -170,7 +181,10 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
         assert!(t.distance <= g.settings.threshold, "{t:?}");
         jumps += 1;
     }
-    println!("walk {from} → {to}: {} frames, {jumps} transitions", path.len());
+    println!(
+        "walk {from} → {to}: {} frames, {jumps} transitions",
+        path.len()
+    );
     assert!(jumps >= 1, "the walk crosses clips");
 
     // Played on the 31-joint CMU rig, then wandering for 30 s.
@@ -207,7 +221,12 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
     for c in &played {
         let j = joints(skel, &c.poses);
         let v: Vec<f32> = (1..j.len() - 1).map(|t| velocity_jump(&j, t)).collect();
-        println!("  {} p99 {:.4} max {:.4}", c.name, percentile_99(v.clone()), v.iter().fold(0.0f32, |a, b| a.max(*b)));
+        println!(
+            "  {} p99 {:.4} max {:.4}",
+            c.name,
+            percentile_99(v.clone()),
+            v.iter().fold(0.0f32, |a, b| a.max(*b))
+        );
     }
     let j = joints(skel, &poses);
     let mut worst: f32 = 0.0;
@@ -236,4 +255,3 @@ fn looping_game_idles_close_on_themselves() {
         assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64, "{file}");
     }
 }
-

@@ -22,10 +22,7 @@ const POINTS: [&[(Role, Side)]; NUM_POINTS] = [
         (Role::SpineMid, Side::Center),
         (Role::Spine, Side::Center),
     ],
-    &[
-        (Role::Head, Side::Center),
-        (Role::Neck(0), Side::Center),
-    ],
+    &[(Role::Head, Side::Center), (Role::Neck(0), Side::Center)],
     &[(Role::UpperArm, Side::Left)],
     &[(Role::UpperArm, Side::Right)],
     &[(Role::Hand, Side::Left), (Role::LowerArm, Side::Left)],
@@ -124,8 +121,8 @@ impl BodyPoints {
         let leg = |hip: usize, knee: usize, foot: usize| {
             (at(knee) - at(hip)).length() + (at(foot) - at(knee)).length()
         };
-        let leg = 0.5
-            * (leg(LEFT_LEG, LEFT_KNEE, LEFT_FOOT) + leg(RIGHT_LEG, RIGHT_KNEE, RIGHT_FOOT));
+        let leg =
+            0.5 * (leg(LEFT_LEG, LEFT_KNEE, LEFT_FOOT) + leg(RIGHT_LEG, RIGHT_KNEE, RIGHT_FOOT));
         if !(leg.is_finite() && leg > 1e-6) {
             return Err(GraphError::MissingBodyPart {
                 part: "legs with length".into(),

@@ -62,7 +62,9 @@ impl GraphSettings {
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(GraphError::BadSetting(format!("{name} must be > 0, not {v}")));
+                return Err(GraphError::BadSetting(format!(
+                    "{name} must be > 0, not {v}"
+                )));
             }
         }
         let non_negative = [
@@ -72,7 +74,9 @@ impl GraphSettings {
         ];
         for (name, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(GraphError::BadSetting(format!("{name} must be ≥ 0, not {v}")));
+                return Err(GraphError::BadSetting(format!(
+                    "{name} must be ≥ 0, not {v}"
+                )));
             }
         }
         Ok(())
@@ -313,11 +317,19 @@ fn connect(
     }
     for c in &clips {
         for f in 1..c.frames {
-            g.add_edge(NodeIndex::new(c.offset + f - 1), NodeIndex::new(c.offset + f), ());
+            g.add_edge(
+                NodeIndex::new(c.offset + f - 1),
+                NodeIndex::new(c.offset + f),
+                (),
+            );
         }
     }
     for t in &all {
-        g.add_edge(NodeIndex::new(t.from as usize), NodeIndex::new(t.to as usize), ());
+        g.add_edge(
+            NodeIndex::new(t.from as usize),
+            NodeIndex::new(t.to as usize),
+            (),
+        );
     }
     let sccs = tarjan_scc(&g);
     let components = sccs.len();

@@ -93,14 +93,23 @@ fn short(e: &serde_json::Error) -> String {
 
 fn check(g: &MotionGraph) -> Result<(), String> {
     if !(g.frame_time_secs.is_finite() && g.frame_time_secs > 0.0) {
-        return Err(format!("frame_time_secs {} is not positive", g.frame_time_secs));
+        return Err(format!(
+            "frame_time_secs {} is not positive",
+            g.frame_time_secs
+        ));
     }
     let mut next = 0;
     for (i, c) in g.clips.iter().enumerate() {
         if c.offset != next {
-            return Err(format!("clip {i} starts at node {}, expected {next}", c.offset));
+            return Err(format!(
+                "clip {i} starts at node {}, expected {next}",
+                c.offset
+            ));
         }
-        next = c.offset.checked_add(c.frames).ok_or("clip frames overflow")?;
+        next = c
+            .offset
+            .checked_add(c.frames)
+            .ok_or("clip frames overflow")?;
     }
     let mut end = 0;
     for r in &g.kept {

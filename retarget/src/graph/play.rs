@@ -45,7 +45,11 @@ pub struct Playback {
 impl Playback {
     /// Prepares `clips` (the graph's clips, in order, all on `analysis`'s rig; they are
     /// resampled to the graph's frame time) for playing `graph`.
-    pub fn new(graph: &MotionGraph, clips: &[Clip], analysis: &Analysis) -> Result<Playback, GraphError> {
+    pub fn new(
+        graph: &MotionGraph,
+        clips: &[Clip],
+        analysis: &Analysis,
+    ) -> Result<Playback, GraphError> {
         if clips.len() != graph.clips.len() {
             return Err(GraphError::BadSetting(format!(
                 "the graph has {} clips, {} were given",
@@ -442,7 +446,11 @@ impl Walker {
         }
         let mut r = self.random() * total;
         let mut last = None;
-        for (t, d) in pb.edges.transitions(here).filter(|&(t, _)| allowed(self, t)) {
+        for (t, d) in pb
+            .edges
+            .transitions(here)
+            .filter(|&(t, _)| allowed(self, t))
+        {
             last = Some(t);
             r -= weight(d);
             if r <= 0.0 {
@@ -487,7 +495,8 @@ pub fn clips_onto_rig(clips: &[Clip], rig: &Clip) -> Result<Vec<Clip>, GraphErro
                 frame_time_secs: c.frame_time_secs as f32,
                 ..RetargetOptions::default()
             };
-            let mut m = Mapping::build(&[&c.skeleton], &rig.skeleton, &table, &opts).map_err(fail)?;
+            let mut m =
+                Mapping::build(&[&c.skeleton], &rig.skeleton, &table, &opts).map_err(fail)?;
             if let Some(floor) = m.measure_source_floor(&c.poses) {
                 m.set_source_floor_y(floor);
             }

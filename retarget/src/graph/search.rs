@@ -145,14 +145,22 @@ pub fn find_similar(
     let grid: Vec<(usize, usize)> = clips
         .iter()
         .enumerate()
-        .flat_map(|(c, f)| f.valid_range().step_by(p.stride.max(1)).map(move |i| (c, i)))
+        .flat_map(|(c, f)| {
+            f.valid_range()
+                .step_by(p.stride.max(1))
+                .map(move |i| (c, i))
+        })
         .collect();
     let coarse = squared_bound(p.threshold * (1.0 + COARSE_MARGIN));
     let fine = squared_bound(p.threshold);
     let g = grid.len();
     // Three coarse rows at a time (k − 1, k, k + 1): enough to tell a coarse local minimum
     // without holding the G × G matrix.
-    let mut rows = [vec![f32::INFINITY; g], vec![f32::INFINITY; g], vec![f32::INFINITY; g]];
+    let mut rows = [
+        vec![f32::INFINITY; g],
+        vec![f32::INFINITY; g],
+        vec![f32::INFINITY; g],
+    ];
     let fill = |k: usize, row: &mut [f32]| {
         for (b, v) in row.iter_mut().enumerate() {
             *v = match db.dist_sq(grid[k], grid[b], coarse) {

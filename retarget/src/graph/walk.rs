@@ -73,7 +73,11 @@ impl Edges {
 /// costing its time, plus each transition's [`GraphSettings::transition_cost_secs`] scaled
 /// up by how far its distance is towards the threshold. The walk lists every node in play
 /// order, `from` first and `to` last.
-pub fn shortest_walk(graph: &MotionGraph, from: usize, to: usize) -> Result<Vec<usize>, GraphError> {
+pub fn shortest_walk(
+    graph: &MotionGraph,
+    from: usize,
+    to: usize,
+) -> Result<Vec<usize>, GraphError> {
     for f in [from, to] {
         if f >= graph.num_frames() {
             return Err(GraphError::NotANode {
@@ -117,7 +121,11 @@ pub fn petgraph_of(graph: &MotionGraph) -> DiGraph<(), f32> {
     }
     for t in &graph.transitions {
         let cost = step + s.transition_cost_secs * (1.0 + t.distance / s.threshold);
-        g.add_edge(NodeIndex::new(t.from as usize), NodeIndex::new(t.to as usize), cost);
+        g.add_edge(
+            NodeIndex::new(t.from as usize),
+            NodeIndex::new(t.to as usize),
+            cost,
+        );
     }
     g
 }

@@ -46,9 +46,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<()> {
         settings.blend_secs = b;
     }
     let key = cache_key(&clips, &settings);
-    let cached = (!args.no_cache)
-        .then(|| read_cached(&key))
-        .flatten();
+    let cached = (!args.no_cache).then(|| read_cached(&key)).flatten();
     let started = Instant::now();
     let mut graph = match cached {
         Some(g) => {

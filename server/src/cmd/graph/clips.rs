@@ -56,10 +56,7 @@ impl ClipSpec {
 }
 
 fn name(path: &Path, animation: Option<&str>) -> String {
-    let stem = path
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .unwrap_or("clip");
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("clip");
     match animation {
         Some(a) => format!("{stem}#{a}"),
         None => stem.to_string(),

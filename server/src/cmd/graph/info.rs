@@ -25,8 +25,16 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let g = read_graph(&args.graph)?;
     let percent = 100.0 * g.num_kept() as f64 / g.num_frames().max(1) as f64;
     println!("frame rate:   {:.2} fps", 1.0 / g.frame_time_secs);
-    println!("nodes:        {} frames, {} kept ({percent:.1} %)", g.num_frames(), g.num_kept());
-    println!("edges:        {} ({} transitions)", g.num_edges(), g.transitions.len());
+    println!(
+        "nodes:        {} frames, {} kept ({percent:.1} %)",
+        g.num_frames(),
+        g.num_kept()
+    );
+    println!(
+        "edges:        {} ({} transitions)",
+        g.num_edges(),
+        g.transitions.len()
+    );
     println!(
         "components:   {} before pruning, the largest kept",
         g.components

@@ -177,7 +177,10 @@ fn clip_index(graph: &MotionGraph, s: &str) -> anyhow::Result<usize> {
         if i < graph.clips.len() {
             return Ok(i);
         }
-        bail!("clip {i} does not exist (the graph has {})", graph.clips.len());
+        bail!(
+            "clip {i} does not exist (the graph has {})",
+            graph.clips.len()
+        );
     }
     graph
         .clips
@@ -205,4 +208,3 @@ fn node(graph: &MotionGraph, s: &str) -> anyhow::Result<usize> {
     }
     Ok(n)
 }
-
