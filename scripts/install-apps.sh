@@ -16,6 +16,8 @@ command -v chromium >/dev/null 2>&1 || need+=(chromium)
 command -v nats-server >/dev/null 2>&1 || [[ -x /usr/sbin/nats-server ]] || need+=(nats-server)
 # Blender's bundled Python imports numpy at startup on Debian.
 dpkg -s python3-numpy >/dev/null 2>&1 || need+=(python3-numpy)
+# The Python venvs of the test setup (setup-vmc-check.sh, setup-bpy.sh) need Debian's venv module.
+dpkg -s python3-venv >/dev/null 2>&1 || need+=(python3-venv)
 # Headless Blender and Chromium want these fonts for UI text and the screenshot's labels.
 dpkg -s fonts-dejavu-core >/dev/null 2>&1 || need+=(fonts-dejavu-core)
 

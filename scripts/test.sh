@@ -6,8 +6,10 @@
 #                                 (npm @mediapipe/pose, converted), real footage (PyPI pose2sim)
 #   3. scripts/setup-vmc-check.sh — python-osc (PyPI) in a private venv: the independent VMC
 #                                 receiver the VMC output is judged with
-#   4. cargo test --workspace   — unit, integration, end-to-end tests
-# Both setup steps are idempotent and skip work already done.
+#   4. scripts/setup-bpy.sh     — the official `bpy` wheels (Blender 4.2, 4.5 LTS, 5.0) from PyPI,
+#                                 one cached venv each: the add-on's Blender test matrix
+#   5. cargo test --workspace   — unit, integration, end-to-end tests
+# The setup steps are idempotent and skip work already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -21,6 +23,9 @@ step "preparing the vision models and runtime (if missing)"
 
 step "preparing the independent VMC receiver (if missing)"
 ./scripts/setup-vmc-check.sh
+
+step "preparing Blender 4.2, 4.5 and 5.0 as Python modules (if missing)"
+./scripts/setup-bpy.sh
 
 step "cargo test --workspace"
 cargo test --workspace --no-fail-fast

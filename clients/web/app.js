@@ -1,9 +1,13 @@
-// rigcast viewer: every subject's skeleton side by side (sources and their retargeted
-// targets), a subject list, a live rate/latency graph and the mapping table with colours.
-// Plain ES modules; three.js is vendored under vendor/three (no CDN at run time).
-import * as THREE from './vendor/three/three.module.js';
+// rigcast viewer: every subject side by side (sources and their retargeted targets) — a
+// target with a model file as its skinned mesh (GLB, VRM), everything else as a skeleton —
+// with foot-plant markers, a subject list, a live rate/latency graph and the mapping table.
+// Plain ES modules; three.js and three-vrm are vendored under vendor/ (no CDN at run time),
+// `three` resolved by index.html's import map.
+import * as THREE from 'three';
 import { Stream, WANTED_PROTOCOL_VERSION } from './stream.js';
 import { Graph } from './graph.js';
+import { ModelView } from './model.js';
+import { CameraRig, FrameBudget, softwareRendered } from './controls.js';
 
 const KIND_COLORS = { source: 0x4fc3f7, target: 0xff8a65 };
 const $ = (id) => document.getElementById(id);
@@ -23,18 +27,36 @@ const state = {
   mappingSubject: null,
   colorMode: 'gradient',
   inPlace: true, // drop horizontal root travel so walking subjects stay in view
+  footplants: new Map(), // target id -> newest footplants message
+  showSkeleton: true, // the bone overlay (on top of meshes)
+  showMeshes: true,
+  paused: false,
+  only: null, // subject picker: show only this subject (null: all)
+  follow: null, // follow this subject with the camera
+  modelErrors: new Map(), // id -> why its model could not be shown
 };
 window.rigcast = state; // for tests and the curious (devtools)
 
 // -- three.js scene ------------------------------------------------------------------------
 const canvas = $('scene');
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+// No MSAA on a CPU rasteriser: it multiplies the per-pixel cost (see controls.js).
+const software = softwareRendered();
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: !software, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio || 1);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x15171c);
 const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
 const grid = new THREE.GridHelper(20, 40, 0x3a4050, 0x262a35);
 scene.add(grid);
+// Skinned meshes need light; a hemisphere and a key light are enough for any material.
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 2.0));
+const keyLight = new THREE.DirectionalLight(0xffffff, 1.5);
+keyLight.position.set(2, 4, 3);
+scene.add(keyLight);
+const rig = new CameraRig(camera, canvas);
+const budget = new FrameBudget(renderer);
+state.perf = () => ({ ...budget.report(), software });
+state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
 const labelLayer = $('labels');
 
 function nowNanos() {
@@ -56,6 +78,7 @@ class SubjectView {
     this.numTranslated = slots;
     this.worldR = this.bones.map(() => new THREE.Quaternion());
     this.worldP = this.bones.map(() => new THREE.Vector3());
+    this.shift = { dx: 0, dz: 0 }; // the in-place shift of the last pose
     this.localR = new THREE.Quaternion();
     this.tmp = new THREE.Vector3();
     this.group = new THREE.Group();
@@ -66,22 +89,33 @@ class SubjectView {
     this.lineGeometry = new THREE.BufferGeometry();
     this.lineGeometry.setAttribute('position', new THREE.BufferAttribute(linePositions, 3));
     this.lineGeometry.setAttribute('color', new THREE.BufferAttribute(this.lineColors, 3));
-    this.group.add(new THREE.LineSegments(this.lineGeometry, new THREE.LineBasicMaterial({ vertexColors: true })));
+    // The overlay: lines and joints drawn over a mesh (no depth test), so both show.
+    this.overlay = new THREE.Group();
+    this.overlay.renderOrder = 2;
+    this.lineMaterial = new THREE.LineBasicMaterial({ vertexColors: true, depthTest: false, transparent: true });
+    this.overlay.add(new THREE.LineSegments(this.lineGeometry, this.lineMaterial));
+    this.group.add(this.overlay);
     this.rest();
     this.restWorldP = this.worldP.map((p) => p.clone());
+    this.floorY = Math.min(...this.restWorldP.map((p) => p.y));
+    this.model = null;
+    this.lost = false;
+    this.markers = new Map(); // foot bone -> marker mesh
     // In place: the deepest translated bone of the root chain (the hips of most rigs) keeps
     // its rest ground position; everything moves with it.
     this.anchor = 0;
     for (let i = 0; i < n; i++) if (this.slot[i] >= 0 && (this.parents[i] < 0 || this.slot[this.parents[i]] >= 0)) this.anchor = i;
     this.height = this.computeHeight();
     const radius = Math.max(this.height * 0.012, 0.004);
-    this.joints = new THREE.InstancedMesh(new THREE.SphereGeometry(radius, 10, 8), new THREE.MeshBasicMaterial(), n);
-    this.group.add(this.joints);
+    this.joints = new THREE.InstancedMesh(new THREE.SphereGeometry(radius, 10, 8), new THREE.MeshBasicMaterial({ depthTest: false, transparent: true }), n);
+    this.joints.renderOrder = 2;
+    this.overlay.add(this.joints);
     this.matrix = new THREE.Matrix4();
     this.setColors(null);
     // Labels: the subject's name, and the bone names at the tips of chains (hands, feet, head).
     const from = info.kind === 'target' ? ` ← ${state.subjects.get(info.source)?.name ?? info.source}` : '';
-    this.subjectLabel = makeLabel(`${info.name} (${info.kind}${from})`, `subject ${info.kind}`);
+    this.labelText = `${info.name} (${info.kind}${from})`;
+    this.subjectLabel = makeLabel(this.labelText, `subject ${info.kind}`);
     const childCount = new Array(n).fill(0);
     this.parents.forEach((p) => { if (p >= 0) childCount[p]++; });
     this.boneLabels = [];
@@ -130,11 +164,79 @@ class SubjectView {
         this.worldP[i].copy(t.applyQuaternion(this.worldR[p])).add(this.worldP[p]);
       }
     }
+    this.shift.dx = 0;
+    this.shift.dz = 0;
     if (frame && frame.version === 2 && state.inPlace) {
       const dx = this.worldP[this.anchor].x - this.restWorldP[this.anchor].x;
       const dz = this.worldP[this.anchor].z - this.restWorldP[this.anchor].z;
       for (const q of this.worldP) { q.x -= dx; q.z -= dz; }
+      this.shift.dx = dx;
+      this.shift.dz = dz;
     }
+  }
+
+  /** The character's own mesh, loaded after the view was made; the skeleton stays as an
+   *  overlay (toggle) and a fallback. */
+  attachModel(model) {
+    this.model = model;
+    this.group.add(model.root);
+    model.root.visible = state.showMeshes;
+    model.drive(this.worldR, this.worldP, 0);
+    this.applyVisibility();
+  }
+
+  applyVisibility() {
+    // Without a mesh the skeleton is the subject: never hide it then.
+    this.overlay.visible = state.showSkeleton || !this.model || !state.showMeshes;
+    if (this.model) this.model.root.visible = state.showMeshes;
+  }
+
+  /** A marker on the floor under each planted foot. It sits under the foot as drawn: the
+   *  message's position is where the foot was when it planted, and the lock then eases it onto
+   *  its pin over ~0.1 s (a few cm); the message position is the fallback. */
+  setFootplants(message) {
+    const seen = new Set();
+    for (const foot of message.feet ?? []) {
+      seen.add(foot.bone);
+      let marker = this.markers.get(foot.bone);
+      if (!marker) {
+        const r = Math.max(this.height * 0.05, 0.02);
+        marker = new THREE.Mesh(
+          new THREE.RingGeometry(r * 0.55, r, 24).rotateX(-Math.PI / 2),
+          new THREE.MeshBasicMaterial({ color: 0x7cff6b, side: THREE.DoubleSide, depthTest: false, transparent: true, opacity: 0.9 }),
+        );
+        marker.renderOrder = 3;
+        marker.name = `footplant ${foot.bone}`;
+        this.group.add(marker);
+        this.markers.set(foot.bone, marker);
+      }
+      marker.userData.foot = foot;
+      // Before the first live pose the skeleton stands at rest, wherever that is: no marker.
+      marker.visible = foot.planted === true && this.placedLive === true;
+    }
+    for (const [bone, marker] of this.markers) if (!seen.has(bone)) marker.visible = false;
+    this.placeMarkers();
+  }
+
+  placeMarkers() {
+    for (const marker of this.markers.values()) {
+      const p = marker.userData.foot?.position;
+      if (!p) continue;
+      marker.visible = marker.userData.foot.planted === true && this.placedLive === true;
+      const i = marker.userData.index ?? (marker.userData.index = this.bones.findIndex((b) => b.name === marker.userData.foot.bone));
+      if (i >= 0 && this.placedLive) marker.position.set(this.worldP[i].x, this.floorY + 0.002, this.worldP[i].z);
+      else marker.position.set(p[0] - this.shift.dx, this.floorY + 0.002, p[2] - this.shift.dz);
+    }
+  }
+
+  /** A target whose source is lost eases to rest: say so on the label and grey the bones. */
+  setLost(lost) {
+    if (lost === this.lost) return;
+    this.lost = lost;
+    this.subjectLabel.classList.toggle('lost', lost);
+    this.subjectLabel.textContent = this.labelText + (lost ? ' — source lost' : '');
+    this.lineMaterial.opacity = lost ? 0.35 : 1;
+    this.joints.material.opacity = lost ? 0.35 : 1;
   }
 
   update() {
@@ -181,7 +283,13 @@ class SubjectView {
       const y = ((1 - v.y) / 2) * height;
       // Skip a label that would overprint one already placed this frame (readability); labels
       // are centred on x, so two overlap when their centres are closer than half their widths.
-      const labelWidth = label.textContent.length * 6.5 + 8;
+      // Measured once per text (a layout read each frame would cost more than the labels).
+      if (label.measuredText !== label.textContent) {
+        label.style.display = 'block';
+        label.measuredWidth = label.offsetWidth || label.textContent.length * 6.5 + 8;
+        label.measuredText = label.textContent;
+      }
+      const labelWidth = label.measuredWidth;
       const crowded = placed.some(([px, py, pw]) => Math.abs(px - x) < (pw + labelWidth) / 2 && Math.abs(py - y) < 13);
       const visible = v.z < 1 && Math.abs(v.x) <= 1.1 && Math.abs(v.y) <= 1.1 && !crowded;
       label.style.display = visible ? 'block' : 'none';
@@ -190,6 +298,11 @@ class SubjectView {
       label.style.left = `${x}px`;
       label.style.top = `${y}px`;
     };
+    if (!this.group.visible) {
+      this.subjectLabel.style.display = 'none';
+      for (const [, label] of this.boneLabels) label.style.display = 'none';
+      return;
+    }
     let top = this.worldP[0];
     for (const p of this.worldP) if (p.y > top.y) top = p;
     place(this.subjectLabel, new THREE.Vector3(this.worldP[0].x, top.y, this.worldP[0].z), this.height * 0.1);
@@ -197,11 +310,57 @@ class SubjectView {
   }
 
   dispose() {
+    this.disposed = true;
+    // A rebuilt view loads its model again: free this one's GPU buffers and textures.
+    this.model?.root.traverse((object) => {
+      object.geometry?.dispose();
+      for (const material of [object.material ?? []].flat()) {
+        for (const value of Object.values(material)) if (value?.isTexture) value.dispose();
+        material.dispose?.();
+      }
+    });
     this.subjectLabel.remove();
     for (const [, label] of this.boneLabels) label.remove();
     scene.remove(this.group);
   }
 }
+
+/** What the tests read about meshes: per subject with a model, its skinned meshes and a
+ *  sample of the first one's bone matrices (they change as the pose does). */
+state.meshes = () => {
+  const out = {};
+  for (const [id, view] of state.views) {
+    if (!view.model) continue;
+    out[id] = {
+      skinnedMeshes: view.model.skinnedMeshes.length,
+      isVrm: view.model.vrm !== null,
+      bound: view.model.numBound,
+      bones: view.bones.length,
+      visible: view.model.root.visible,
+      boneMatrices: view.model.boneMatrixSample(),
+    };
+  }
+  return out;
+};
+
+/** The foot-plant markers: per subject, per foot, shown or not, and where (scene space). */
+state.footMarkers = () => {
+  const out = {};
+  for (const [id, view] of state.views) {
+    out[id] = [...view.markers].map(([bone, m]) => {
+      const p = m.getWorldPosition(new THREE.Vector3());
+      const i = view.bones.findIndex((b) => b.name === bone);
+      const j = i >= 0 ? view.worldP[i].clone().add(view.group.position) : null;
+      const f = m.userData.foot?.position;
+      const message = f && [f[0] - view.shift.dx + view.group.position.x, f[1], f[2] - view.shift.dz + view.group.position.z];
+      return {
+        bone, visible: m.visible, planted: m.userData.foot?.planted === true, message,
+        position: [p.x, p.y, p.z], joint: j && [j.x, j.y, j.z], floor: view.floorY + view.group.position.y,
+      };
+    });
+  }
+  return out;
+};
 
 /** Screen-space box [left, top, right, bottom] (CSS px) of each subject's joints, by id. */
 state.screenBounds = () => {
@@ -231,9 +390,11 @@ function makeLabel(text, kind) {
 }
 
 // Sources first, each followed by its retargeted targets, side by side along +X.
-function layout() {
+function layout(forceCamera = false) {
   const order = [];
-  const ids = [...state.views.keys()].sort((a, b) => a - b);
+  // The subject picker shows one subject alone (and frames it).
+  for (const [id, view] of state.views) view.group.visible = state.only === null || state.only === id;
+  const ids = [...state.views.keys()].filter((id) => state.views.get(id).group.visible).sort((a, b) => a - b);
   for (const id of ids) {
     const view = state.views.get(id);
     if (view.info.kind !== 'target' || !state.views.has(view.info.source)) {
@@ -260,8 +421,7 @@ function layout() {
   const size = all.getSize(new THREE.Vector3());
   const fit = Math.max(size.y * 1.7, (size.x * 1.15) / Math.max(camera.aspect, 0.1));
   const distance = fit / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2)));
-  camera.position.set(center.x, center.y + size.y * 0.25, center.z + distance);
-  camera.lookAt(center.x, center.y, center.z);
+  rig.frame(new THREE.Vector3(center.x, center.y + size.y * 0.25, center.z + distance), center, forceCamera);
   grid.position.set(center.x, all.min.y, center.z);
   grid.scale.setScalar(Math.max(size.x, size.y) / 10);
 }
@@ -282,14 +442,34 @@ function rebuildView(id) {
   state.views.get(id)?.dispose();
   state.views.delete(id);
   if (!info || !skeleton) return;
-  state.views.set(id, new SubjectView(info, skeleton));
+  const view = new SubjectView(info, skeleton);
+  state.views.set(id, view);
+  if (info.model) loadModel(id, view, skeleton);
   resize();
   applyMappingColors();
   renderSubjects();
 }
 
+/** Fetches a target's model (only offered for targets whose file the server serves). */
+function loadModel(id, view, skeleton) {
+  const url = `/v1/subjects/${id}/model.glb${streamQuery}`;
+  ModelView.load(url, skeleton.bones, { cheap: software }).then((model) => {
+    if (view.disposed) return; // a newer skeleton replaced this view meanwhile
+    if (model.numBound === 0) throw new Error('no node of the model matches a bone of the skeleton');
+    view.attachModel(model);
+    state.modelErrors.delete(id);
+    layout();
+  }).catch((error) => {
+    // Keep the stick figure and say why.
+    state.modelErrors.set(id, String(error?.message ?? error));
+    console.warn(`subject ${id}: model not shown: ${error}`);
+    renderSubjects();
+  });
+}
+
 function setSubjects(list) {
   state.subjects = new Map(list.map((s) => [s.id, s]));
+  renderPickers();
   for (const id of [...state.views.keys()]) if (!state.subjects.has(id)) { state.views.get(id).dispose(); state.views.delete(id); }
   if (state.mappingSubject === null || !state.subjects.has(state.mappingSubject)) {
     state.mappingSubject = list.find((s) => s.kind === 'target')?.id ?? null;
@@ -317,6 +497,7 @@ function onMessage(message) {
       break;
     case 'protocol':
       state.protocolVersion = message.version;
+      $('server-version').textContent = `server ${state.hello?.server_version ?? '?'} · protocol ${message.version} · tick ${state.hello?.tick_hz} Hz`;
       break;
     case 'mapping':
       state.mappings.set(message.subject, message);
@@ -325,7 +506,15 @@ function onMessage(message) {
       break;
     case 'source_status':
       for (const record of message.sources ?? []) state.sourceStatus.set(record.subject, record);
+      for (const view of state.views.values()) {
+        const health = state.sourceStatus.get(view.info.kind === 'target' ? view.info.source : view.info.id);
+        view.setLost(health?.state === 'lost');
+      }
       renderSubjects();
+      break;
+    case 'footplants':
+      state.footplants.set(message.subject, message);
+      state.views.get(message.subject)?.setFootplants(message);
       break;
     case 'lagged':
       state.missed += message.missed ?? 0;
@@ -387,6 +576,13 @@ function renderSubjects() {
     } else {
       healthDiv.textContent = 'no source status yet';
     }
+    const modelError = state.modelErrors.get(info.id);
+    if (info.model) {
+      const note = document.createElement('div');
+      note.className = modelError ? 'model bad' : 'model';
+      note.textContent = modelError ? `${info.model} model not shown: ${modelError}` : `${info.model} model`;
+      li.appendChild(note);
+    }
     li.onclick = () => { if (info.kind === 'target') { state.mappingSubject = info.id; renderMapping(); applyMappingColors(); } };
     list.appendChild(li);
   }
@@ -435,6 +631,43 @@ function applyMappingColors() {
 }
 
 $('in-place').onchange = (event) => { state.inPlace = event.target.checked; };
+$('show-skeleton').onchange = (event) => {
+  state.showSkeleton = event.target.checked;
+  for (const view of state.views.values()) view.applyVisibility();
+};
+$('show-meshes').onchange = (event) => {
+  state.showMeshes = event.target.checked;
+  for (const view of state.views.values()) view.applyVisibility();
+};
+$('pause').onclick = () => {
+  state.paused = !state.paused;
+  budget.frozen = state.paused; // a paused view keeps its resolution (screenshots compare)
+  $('pause').textContent = state.paused ? 'resume' : 'pause';
+  $('pause').classList.toggle('on', state.paused);
+};
+$('reset-view').onclick = () => { rig.userMoved = false; layout(true); };
+$('show-subject').onchange = (event) => {
+  state.only = event.target.value === '' ? null : Number(event.target.value);
+  layout(true);
+};
+$('follow').onchange = (event) => {
+  state.follow = event.target.value === '' ? null : Number(event.target.value);
+  rig.follow(state.follow === null ? null : () => {
+    const view = state.views.get(state.follow);
+    return view ? view.worldP[view.anchor].clone().add(view.group.position) : null;
+  });
+};
+
+/** The subject picker and follow menus list the current subjects. */
+function renderPickers() {
+  for (const [id, first] of [['show-subject', 'all subjects'], ['follow', 'no follow']]) {
+    const select = $(id);
+    const value = select.value;
+    select.replaceChildren(new Option(first, ''));
+    for (const info of state.subjects.values()) select.add(new Option(`${info.id} ${info.name}`, String(info.id)));
+    select.value = [...select.options].some((o) => o.value === value) ? value : '';
+  }
+}
 
 $('color-mode').onchange = (event) => {
   state.colorMode = event.target.value;
@@ -459,32 +692,46 @@ setInterval(() => {
 }, 250);
 
 // -- draw loop: newest frame per subject, once per display frame ---------------------------
+let lastDraw = performance.now();
 function draw() {
-  for (const [id, frame] of state.latest) {
-    const view = state.views.get(id);
-    if (view && frame.numBones === view.bones.length) {
-      view.fk(frame);
-      view.update();
-      state.framesDrawn++;
-      // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
-      // views out again on each subject's first live pose.
-      if (!view.placedLive) {
-        view.placedLive = true;
-        view.height = view.computeHeight();
-        layout();
+  const start = performance.now();
+  requestAnimationFrame(draw);
+  if (!budget.due(start)) return; // leave the main thread to the stream (see FrameBudget)
+  const dt = Math.min((start - lastDraw) / 1000, 0.1);
+  lastDraw = start;
+  // Paused: frames keep arriving (and are counted) but the pose on screen stays.
+  if (!state.paused) {
+    for (const [id, frame] of state.latest) {
+      const view = state.views.get(id);
+      if (view && frame.numBones === view.bones.length) {
+        view.fk(frame);
+        view.update();
+        if (view.model && state.showMeshes) view.model.drive(view.worldR, view.worldP, dt);
+        view.placeMarkers();
+        state.framesDrawn++;
+        // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
+        // views out again on each subject's first live pose.
+        if (!view.placedLive) {
+          view.placedLive = true;
+          view.height = view.computeHeight();
+          layout();
+        }
       }
     }
+    state.latest.clear();
   }
-  state.latest.clear();
+  rig.update();
   const { clientWidth: w, clientHeight: h } = canvas.parentElement;
   renderer.render(scene, camera);
-  const placed = [];
-  for (const view of state.views.values()) view.placeLabels(w, h, placed);
+  if (budget.labelsDue()) {
+    const placed = [];
+    for (const view of state.views.values()) view.placeLabels(w, h, placed);
+  }
   const counter = $('frame-count');
   counter.textContent = String(state.framesReceived);
   counter.dataset.frames = String(state.framesReceived);
   document.title = `rigcast viewer — ${state.framesReceived} frames`;
-  requestAnimationFrame(draw);
+  budget.rendered(start, performance.now() - start);
 }
 resize();
 requestAnimationFrame(draw);

@@ -36,6 +36,10 @@ pub struct SubjectInfo {
     pub num_bones: u32,
     /// Skeleton fingerprint, 16 lowercase hex digits; changes whenever the skeleton does.
     pub fingerprint: String,
+    /// A target whose character file the server serves at `/v1/subjects/{id}/model.glb`:
+    /// `"glb"` or `"vrm"`. Absent otherwise (BVH and `.gltf` targets, built-ins, sources).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
 }
 
 /// One bone of a `skeleton` message, in the skeleton's depth-first order (`parent < index`).
@@ -150,6 +154,18 @@ pub struct SourceHealth {
     /// `calibration failed: REASON`). Empty when there is nothing to say.
     #[serde(default)]
     pub detail: String,
+}
+
+/// One foot in a `footplants` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FootState {
+    /// The target's foot (ankle) bone.
+    pub bone: String,
+    /// Held where it landed by the foot lock.
+    pub planted: bool,
+    /// The foot bone's world position in the subject's frame (internal space, metres):
+    /// forward kinematics of frame `seq`, so where the foot is pinned while planted.
+    pub position: [f32; 3],
 }
 
 /// Machine-readable reason in an `error` message.
@@ -273,6 +289,17 @@ pub enum ServerMessage {
     SourceStatus {
         /// One entry per source subject.
         sources: Vec<SourceHealth>,
+    },
+    /// A target's foot-lock state: sent whenever a foot is planted or lifts (and on connect),
+    /// so clients can draw planted feet without polling `/v1/status`.
+    Footplants {
+        /// Target subject id.
+        subject: u32,
+        /// The `seq` of the subject's frame the positions were taken from.
+        seq: u64,
+        /// One entry per locked foot, in the foot lock's order; empty when the target's foot
+        /// lock is off.
+        feet: Vec<FootState>,
     },
     /// Answer to `set_protocol`: binary frames sent after this message use `version`.
     Protocol {
@@ -466,6 +493,7 @@ mod tests {
                 source: None,
                 num_bones: 31,
                 fingerprint: "0123456789abcdef".into(),
+                model: None,
             },
             SubjectInfo {
                 id: 1,
@@ -474,6 +502,7 @@ mod tests {
                 source: Some(0),
                 num_bones: 12,
                 fingerprint: "fedcba9876543210".into(),
+                model: Some("vrm".into()),
             },
         ]
     }
@@ -543,6 +572,22 @@ mod tests {
                 subject: 1,
             },
             ServerMessage::Protocol { version: 2 },
+            ServerMessage::Footplants {
+                subject: 1,
+                seq: 77,
+                feet: vec![
+                    FootState {
+                        bone: "foot_l".into(),
+                        planted: true,
+                        position: [0.1, 0.08, 0.25],
+                    },
+                    FootState {
+                        bone: "foot_r".into(),
+                        planted: false,
+                        position: [-0.1, 0.2, 0.5],
+                    },
+                ],
+            },
             ServerMessage::SourceStatus {
                 sources: vec![SourceHealth {
                     subject: 0,
@@ -565,6 +610,23 @@ mod tests {
             let back: ServerMessage = serde_json::from_str(&json).unwrap();
             assert_eq!(back, m, "{json}");
         }
+    }
+
+    #[test]
+    fn footplants_message_is_the_documented_json() {
+        let m = ServerMessage::Footplants {
+            subject: 1,
+            seq: 77,
+            feet: vec![FootState {
+                bone: "foot_l".into(),
+                planted: true,
+                position: [0.5, 0.0, -0.25],
+            }],
+        };
+        assert_eq!(
+            m.to_json(),
+            r#"{"type":"footplants","subject":1,"seq":77,"feet":[{"bone":"foot_l","planted":true,"position":[0.5,0.0,-0.25]}]}"#
+        );
     }
 
     #[test]

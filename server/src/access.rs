@@ -56,6 +56,9 @@ pub enum Route {
     Stream,
     /// `GET /v1/status`.
     Status,
+    /// `GET /v1/subjects/{id}/model.glb`: a target's character file (the same access as the
+    /// status: it shows what the server runs).
+    Model,
     /// The viewer's embedded files.
     ViewerFile,
 }
@@ -159,7 +162,7 @@ impl AccessPolicy {
             (Some(t), _, _) if self.token.matches(t) => Ok(Access::Control),
             (Some(_), _, _) => Err(Refusal::WrongToken),
             (None, Route::ViewerFile, _) | (None, _, BindScope::Loopback) => Ok(Access::ReadOnly),
-            (None, Route::Stream | Route::Status, BindScope::Network) => {
+            (None, Route::Stream | Route::Status | Route::Model, BindScope::Network) => {
                 Err(Refusal::TokenRequired)
             }
         }
@@ -330,9 +333,12 @@ mod tests {
         let none = creds(Some("192.168.1.5:8717"), None, None);
         assert_eq!(p.decide(Route::Stream, &none), Err(Refusal::TokenRequired));
         assert_eq!(p.decide(Route::Status, &none), Err(Refusal::TokenRequired));
+        // A target's model file shows what the server runs: data, like the status.
+        assert_eq!(p.decide(Route::Model, &none), Err(Refusal::TokenRequired));
         assert_eq!(p.decide(Route::ViewerFile, &none), Ok(Access::ReadOnly));
         let with = creds(Some("192.168.1.5:8717"), None, Some(token.reveal()));
         assert_eq!(p.decide(Route::Stream, &with), Ok(Access::Control));
+        assert_eq!(p.decide(Route::Model, &with), Ok(Access::Control));
         assert_eq!(
             BindScope::of(&"0.0.0.0:1".parse().unwrap()),
             BindScope::Network

@@ -165,6 +165,12 @@ fn state_messages(state: &ServerState) -> Vec<String> {
             .iter()
             .filter_map(|s| s.mapping_json.read().ok().and_then(|m| m.clone())),
     );
+    out.extend(
+        state
+            .subjects
+            .iter()
+            .filter_map(|s| s.stats.footplants_json.lock().ok().and_then(|m| m.clone())),
+    );
     out.push(crate::source_status_json(&state.subjects));
     out
 }

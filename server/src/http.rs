@@ -193,9 +193,12 @@ async fn handle_connection(
         let _ = respond(&mut stream, 405, "text/plain", b"only GET is supported\n").await;
         return;
     }
-    let route = match req.path.as_str() {
+    let path = req.path.split(['?', '#']).next().unwrap_or("");
+    let model = crate::model::model_request(path);
+    let route = match path {
         "/v1/stream" => Route::Stream,
         "/v1/status" => Route::Status,
+        _ if model.is_some() => Route::Model,
         _ => Route::ViewerFile,
     };
     let access = match state.policy.decide(route, &req.credentials()) {
@@ -219,6 +222,13 @@ async fn handle_connection(
             // The client may be gone already: there is nobody left to answer.
             let _ = respond(&mut stream, 200, "application/json", &body).await;
         }
+        Route::Model => {
+            let (status, mime, body) = match model.unwrap_or_else(|| Err("no subject".into())) {
+                Ok(id) => model_response(&state, id).await,
+                Err(message) => (404, "text/plain", format!("{message}\n").into_bytes()),
+            };
+            let _ = respond(&mut stream, status, mime, &body).await;
+        }
         Route::ViewerFile => match static_asset(&req.path) {
             Some((mime, body)) => {
                 // The client may be gone already: there is nobody left to answer.
@@ -229,6 +239,27 @@ async fn handle_connection(
                 let _ = respond(&mut stream, 404, "text/plain", b"not found\n").await;
             }
         },
+    }
+}
+
+/// The answer to `GET /v1/subjects/{id}/model.glb`: the target's configured model file, or a
+/// 404 saying why there is none.
+async fn model_response(state: &Arc<ServerState>, id: u32) -> (u16, &'static str, Vec<u8>) {
+    let not_found = |message: String| (404, "text/plain", format!("{message}\n").into_bytes());
+    let Some(subject) = state.subjects.get(id as usize) else {
+        return not_found(format!("no subject {id}"));
+    };
+    let Some(model) = subject.model.clone() else {
+        return not_found(format!(
+            "subject {id} ({}) has no model file (only .glb/.vrm targets have one)",
+            subject.info().name
+        ));
+    };
+    // File reads block: not on a runtime worker.
+    match tokio::task::spawn_blocking(move || model.read()).await {
+        Ok(Ok(bytes)) => (200, "model/gltf-binary", bytes),
+        Ok(Err(message)) => not_found(message),
+        Err(_) => (500, "text/plain", b"model read failed\n".to_vec()),
     }
 }
 
@@ -420,6 +451,29 @@ const VIEWER_FILES: &[(&str, &str, &[u8])] = &[
         "text/javascript; charset=utf-8"
     ),
     viewer_file!("/vendor/three/LICENSE", "text/plain; charset=utf-8"),
+    viewer_file!(
+        "/vendor/three/addons/loaders/GLTFLoader.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!(
+        "/vendor/three/addons/utils/BufferGeometryUtils.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!(
+        "/vendor/three/addons/utils/SkeletonUtils.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!(
+        "/vendor/three/addons/controls/OrbitControls.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!(
+        "/vendor/three-vrm/three-vrm.module.min.js",
+        "text/javascript; charset=utf-8"
+    ),
+    viewer_file!("/vendor/three-vrm/LICENSE", "text/plain; charset=utf-8"),
+    viewer_file!("/model.js", "text/javascript; charset=utf-8"),
+    viewer_file!("/controls.js", "text/javascript; charset=utf-8"),
 ];
 
 /// The foot-lock part of a subject's status.

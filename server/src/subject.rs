@@ -236,6 +236,8 @@ pub struct Subject {
     /// The file's own humanoid map (VRM: human bone name → bone name), ground truth for the
     /// roles of its bones in mapping and VMC output.
     truth: Option<Arc<[(String, String)]>>,
+    /// A target's character file the viewer may fetch (see [`crate::model`]).
+    pub model: Option<crate::model::ModelFile>,
 }
 
 /// A calibratable source's handle and the server's account of its calibration.
@@ -302,6 +304,7 @@ impl Subject {
             source: inputs.first().copied(),
             num_bones: skeleton.num_bones() as u32,
             fingerprint: skeleton.fingerprint_hex(),
+            model: None,
         };
         let (tx, rx) = watch::channel(Frame {
             seq: 0,
@@ -338,6 +341,7 @@ impl Subject {
                 vmc_names,
                 moving,
                 truth: None,
+                model: None,
             },
             tx,
         )
@@ -354,6 +358,23 @@ impl Subject {
     pub fn with_truth(mut self, truth: Option<Vec<(String, String)>>) -> Subject {
         self.truth = truth.filter(|t| !t.is_empty()).map(Arc::from);
         self.rebuild_shape();
+        self
+    }
+
+    /// Serves `model` as this target's mesh (announced as `model` in the subject list).
+    pub fn with_model(mut self, model: Option<crate::model::ModelFile>) -> Subject {
+        let old = self.shape();
+        let mut info = old.info.clone();
+        info.model = model.as_ref().map(|m| m.format.to_string());
+        let shape = SubjectShape::new(
+            info,
+            old.skeleton.clone(),
+            self.vmc_names,
+            self.truth.as_deref(),
+            &self.moving,
+        );
+        self.shape = RwLock::new(Arc::new(shape));
+        self.model = model;
         self
     }
 

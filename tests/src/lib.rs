@@ -2,6 +2,9 @@
 //! speaks the rigcast protocol, fixtures built in code, and the path to shared test data.
 #![allow(clippy::unwrap_used)]
 
+pub mod chromium;
+pub mod skinned;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};

@@ -150,3 +150,162 @@ async fn set_performer_switches_the_foot_lock() {
     }
     server.shutdown().await;
 }
+
+/// World positions of every bone of a version 2 frame, by forward kinematics of the wire
+/// skeleton: the client's own computation, independent of the server's.
+fn wire_fk(
+    bones: &[rigcast_protocol::control::BoneInfo],
+    frame: &rigcast_protocol::frame::DecodedFrame,
+) -> Vec<glam::Vec3> {
+    use glam::{Quat, Vec3};
+    let mut slot = 0;
+    let mut world: Vec<(Quat, Vec3)> = Vec::with_capacity(bones.len());
+    for (i, bone) in bones.iter().enumerate() {
+        let translation = if bone.translated {
+            slot += 1;
+            frame.translations[slot - 1]
+        } else {
+            Vec3::from(bone.rest_translation)
+        };
+        let rotation = frame.rotations[i];
+        world.push(match bone.parent {
+            None => (rotation, translation),
+            Some(p) => {
+                let (pr, pp) = world[p as usize];
+                (pr * rotation, pp + pr * translation)
+            }
+        });
+    }
+    world.into_iter().map(|(_, p)| p).collect()
+}
+
+/// The `footplants` side message: pushed when a foot plants or lifts, each foot's position is
+/// forward kinematics of the frame it names (checked with the client's own FK), a planted foot
+/// stays where it is until the next message while a lifted one travels, and both feet plant
+/// in turn over the walk.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn footplants_message_follows_the_feet() {
+    use rigcast_protocol::ServerMessage;
+    let Some(server) = start(None).await else {
+        return;
+    };
+    let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
+    send_text(&mut ws, r#"{"type":"set_protocol","version":2}"#).await;
+    let mut bones = None;
+    let mut frames = std::collections::HashMap::new();
+    let mut order: Vec<u64> = Vec::new();
+    let mut messages = Vec::new();
+    let t0 = Instant::now();
+    while let Some(left) = Duration::from_millis(2500).checked_sub(t0.elapsed()) {
+        match next(&mut ws, left).await {
+            Some(Incoming::Json(ServerMessage::Skeleton {
+                subject: 1,
+                bones: b,
+                ..
+            })) => bones = Some(b),
+            Some(Incoming::Json(m @ ServerMessage::Footplants { .. })) => messages.push(m),
+            Some(Incoming::Frame(f, _)) if f.header.subject == 1 && f.version == 2 => {
+                order.push(f.header.seq);
+                frames.insert(f.header.seq, f);
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    let bones = bones.expect("the mannequin's skeleton");
+    let index = |name: &str| bones.iter().position(|b| b.name == name).unwrap();
+    assert!(
+        messages.len() >= 3,
+        "only {} footplants messages",
+        messages.len()
+    );
+    let mut seen = HashSet::new();
+    let mut checked = 0;
+    let (mut planted_travel, mut lifted_travel) = (0.0f32, 0.0f32);
+    for (k, m) in messages.iter().enumerate() {
+        let ServerMessage::Footplants { subject, seq, feet } = m else {
+            unreachable!()
+        };
+        assert_eq!(*subject, 1);
+        assert_eq!(feet.len(), 2, "{m:?}");
+        let Some(frame) = frames.get(seq) else {
+            continue; // before our set_protocol took effect
+        };
+        let world = wire_fk(&bones, frame);
+        // Frames until the next message: the state holds over them.
+        let next_seq = messages.get(k + 1).map(|n| match n {
+            ServerMessage::Footplants { seq, .. } => *seq,
+            _ => u64::MAX,
+        });
+        let span: Vec<&u64> = order
+            .iter()
+            .filter(|s| **s >= *seq && next_seq.is_some_and(|n| **s < n))
+            .collect();
+        for foot in feet {
+            seen.insert((foot.bone.clone(), foot.planted));
+            let at = world[index(&foot.bone)];
+            let error = (at - glam::Vec3::from(foot.position)).length();
+            assert!(
+                error < 1e-4,
+                "{}: position off FK of frame {seq} by {error} m",
+                foot.bone
+            );
+            // The lock eases a landing foot onto its pin (and off it) with a 0.1 s spring: judge
+            // a plant after its first 0.1 s and before its last frame.
+            let settle = 6;
+            if span.len() < settle + 4 {
+                continue;
+            }
+            let judged = &span[settle..span.len() - 1];
+            let from = wire_fk(&bones, &frames[judged[0]])[index(&foot.bone)];
+            let travel = judged
+                .iter()
+                .map(|s| {
+                    let p = wire_fk(&bones, &frames[*s])[index(&foot.bone)] - from;
+                    (p.x * p.x + p.z * p.z).sqrt()
+                })
+                .fold(0.0, f32::max);
+            if foot.planted {
+                planted_travel = planted_travel.max(travel);
+            } else {
+                lifted_travel = lifted_travel.max(travel);
+            }
+        }
+        checked += 1;
+    }
+    println!(
+        "{} footplants messages over 2.5 s, {checked} checked against FK; planted feet moved ≤ {planted_travel:.3} m, lifted ones up to {lifted_travel:.3} m",
+        messages.len()
+    );
+    assert!(checked >= 3, "only {checked} messages matched a frame");
+    for bone in ["foot_l", "foot_r"] {
+        for planted in [true, false] {
+            assert!(
+                seen.contains(&(bone.to_string(), planted)),
+                "{bone} never {planted}: {seen:?}"
+            );
+        }
+    }
+    assert!(
+        planted_travel < 0.01,
+        "a planted foot slid {planted_travel} m"
+    );
+    assert!(
+        lifted_travel > 0.1,
+        "lifted feet never travelled ({lifted_travel} m)"
+    );
+    // A client connecting now gets the current state at once.
+    let mut late = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
+    let mut got = false;
+    let t1 = Instant::now();
+    while t1.elapsed() < Duration::from_secs(2) {
+        if let Some(Incoming::Json(ServerMessage::Footplants { .. })) =
+            next(&mut late, Duration::from_secs(2)).await
+        {
+            got = true;
+            break;
+        }
+    }
+    assert!(got, "a late client got no footplants state");
+    server.shutdown().await;
+}

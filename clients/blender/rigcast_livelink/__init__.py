@@ -24,10 +24,10 @@ if bpy is not None:
     if "ui" in locals():
         import importlib
 
-        for _module in (convert, wire, wsclient, vmc, session, livelink, ui):  # noqa: F821
+        for _module in (convert, wire, wsclient, vmc, session, record, livelink, ui):  # noqa: F821
             importlib.reload(_module)
     else:
-        from . import convert, livelink, session, ui, vmc, wire, wsclient
+        from . import convert, livelink, record, session, ui, vmc, wire, wsclient
 
 
 def register():

@@ -20,6 +20,7 @@ import time
 import bpy
 from mathutils import Matrix, Quaternion, Vector
 
+from . import record as record_mod
 from . import session as session_mod
 from . import vmc as vmc_mod
 
@@ -164,11 +165,14 @@ class Runtime:
         self.subjects = {}
         self.skeletons = {}
         self.mappings = {}
+        self.footplants = {}  # target subject id -> latest `footplants` message
         self.bindings = {}
         self.stats = collections.defaultdict(SubjectStats)
         self.last_error = ""
         self.recording = False
         self.takes = {}  # armature name -> Take while recording
+        self.record_errors = {}  # armature name -> why its take stopped
+        self.last_keyed = {}  # armature name -> scene frame keyed by its latest frame, or None
         self.observers = []  # callables(subject_id, frame, obj); used by tests
         self.last_redraw = 0.0
         self.vmc_binding = None
@@ -241,10 +245,45 @@ class Runtime:
                 color_mode = settings.color_mode
                 if color_mode != "NONE":
                     apply_mapping_colors(settings, self, color_mode)
+        elif kind == "footplants":
+            subject = message.get("subject")
+            if isinstance(subject, int) and isinstance(message.get("feet"), list):
+                self.footplants[subject] = message
+                self.show_footplants(settings, subject)
         elif kind == "error":
             self.last_error = "%s: %s" % (message.get("code", "?"), message.get("message", ""))
         elif kind == "_disconnected":
             self.last_error = message.get("reason", "")
+
+    def show_footplants(self, settings, subject):
+        """Exposes a target's foot-lock state on its armature as custom properties:
+
+        - `obj["rigcast_footplants"]`: {foot bone: {"planted": 0/1, "position": (x, y, z)}}, the
+          position in the armature's space (Blender axes), where the lock pins the foot;
+        - `pose_bone["rigcast_planted"]`: 0/1 on each foot bone (usable in drivers).
+
+        Integers rather than booleans: Blender 3.4's ID properties have no boolean type.
+        """
+        message = self.footplants.get(subject)
+        if message is None:
+            return
+        for item in settings.subjects:
+            obj = item.armature
+            if item.subject_id != subject or obj is None or obj.type != "ARMATURE":
+                continue
+            state = {}
+            for foot in message["feet"]:
+                if not isinstance(foot, dict) or not isinstance(foot.get("bone"), str):
+                    continue
+                position = foot.get("position")
+                if not (isinstance(position, list) and len(position) == 3):
+                    continue
+                planted = 1 if foot.get("planted") is True else 0
+                state[foot["bone"]] = {"planted": planted, "position": tuple(vec_ours_to_blender(position))}
+                pose_bone = obj.pose.bones.get(foot["bone"])
+                if pose_bone is not None:
+                    pose_bone["rigcast_planted"] = planted
+            obj["rigcast_footplants"] = state
 
     def set_subjects(self, settings, subjects):
         assigned = {item.subject_id: item.armature for item in settings.subjects}
@@ -310,7 +349,14 @@ class Runtime:
                     binding.num_translated,
                 )
                 continue
-            binding.apply(frame)
+            try:
+                binding.apply(frame)
+            except Exception as exc:
+                # One broken armature (a bone deleted under the binding) must not stop the
+                # others; the binding is rebuilt on the next frame.
+                self.bindings.pop((item.subject_id, obj.name), None)
+                self.last_error = "applying subject %d to %s failed: %s" % (item.subject_id, obj.name, exc)
+                continue
             stats.apply_times.append(now)
             stats.num_applied += 1
             stats.last_seq = frame.seq
@@ -336,75 +382,44 @@ class Runtime:
     def start_recording(self, scene):
         self.recording = True
         self.takes = {}
+        self.record_errors = {}
+        self.last_keyed = {}
 
     def stop_recording(self):
         """Finishes every take and assigns each Action to its armature."""
         self.recording = False
-        for take in self.takes.values():
-            take.finish()
+        for name, take in self.takes.items():
+            try:
+                take.finish()
+            except Exception as exc:
+                self.note_record_error(name, "finishing the take", exc)
         self.takes = {}
 
     def record(self, scene, obj, binding, capture_nanos):
-        take = self.takes.get(obj.name)
-        if take is None:
-            take = Take(obj, scene, capture_nanos)
-            self.takes[obj.name] = take
-        take.add(binding, capture_nanos)
+        """Keys one armature's pose. A failure stops that armature's take only, once.
 
-
-class Take:
-    """One armature's recording into a new Action, assigned only when recording stops.
-
-    While recording, the Action is kept off the armature: an assigned Action would be evaluated
-    by the depsgraph at the scene's current frame and fight the live pose. Keys go straight to
-    F-curves (quaternion w, x, y, z grouped by bone) at the scene frame the capture time falls
-    on; network jitter therefore does not warp the take, and the scene's frame rate is used,
-    never changed.
-    """
-
-    def __init__(self, obj, scene, first_capture_nanos):
-        self.obj = obj
-        self.fps = scene.render.fps / scene.render.fps_base
-        self.origin_nanos = first_capture_nanos
-        self.origin_frame = scene.frame_current
-        self.last_frame = None
-        self.action = bpy.data.actions.new("rigcast_%s" % obj.name)
-        self.curves = {}
-
-    def _curve(self, bone_name, prop, index):
-        key = (bone_name, prop, index)
-        curve = self.curves.get(key)
-        if curve is None:
-            path = 'pose.bones["%s"].%s' % (bpy.utils.escape_identifier(bone_name), prop)
-            curve = self.action.fcurves.new(path, index=index, action_group=bone_name)
-            self.curves[key] = curve
-        return curve
-
-    def add(self, binding, capture_nanos):
-        frame = self.origin_frame + int(round((capture_nanos - self.origin_nanos) * 1e-9 * self.fps))
-        if self.last_frame is not None and frame <= self.last_frame:
+        Recording must never cost the live pose: an exception raised every tick (an API this
+        Blender lacks, a removed Action) would otherwise repeat at the display rate and starve
+        the other armatures of their frames.
+        """
+        if obj.name in self.record_errors:
             return
-        self.last_frame = frame
-        for entry in binding.bones:
-            pose_bone = entry.pose_bone
-            q = pose_bone.rotation_quaternion
-            for index in range(4):
-                self._curve(pose_bone.name, "rotation_quaternion", index).keyframe_points.insert(
-                    frame, q[index], options={"FAST"}
-                )
-            if entry.is_root or getattr(entry, "slot", None) is not None:
-                location = pose_bone.location
-                for index in range(3):
-                    self._curve(pose_bone.name, "location", index).keyframe_points.insert(
-                        frame, location[index], options={"FAST"}
-                    )
+        try:
+            take = self.takes.get(obj.name)
+            if take is None:
+                take = record_mod.Take(obj, scene, capture_nanos)
+                self.takes[obj.name] = take
+            keyed = take.add(binding, capture_nanos)
+            self.last_keyed[obj.name] = keyed
+        except Exception as exc:
+            self.takes.pop(obj.name, None)
+            self.note_record_error(obj.name, "recording", exc)
 
-    def finish(self):
-        for curve in self.curves.values():
-            curve.update()
-        if self.obj.animation_data is None:
-            self.obj.animation_data_create()
-        self.obj.animation_data.action = self.action
+    def note_record_error(self, name, what, exc):
+        message = "%s %s failed: %s: %s" % (what, name, type(exc).__name__, exc)
+        self.record_errors[name] = message
+        self.last_error = message
+        print("rigcast:", message)
 
 
 class VmcBinding:

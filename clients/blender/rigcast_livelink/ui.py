@@ -152,6 +152,8 @@ class RIGCAST_OT_create_armature(bpy.types.Operator):
         for item in settings.subjects:
             if item.subject_id == subject_id:
                 item.armature = obj
+        # The foot-lock state arrives only on changes: show the latest one at once.
+        livelink.runtime.show_footplants(settings, subject_id)
         return {"FINISHED"}
 
 
@@ -268,6 +270,15 @@ class RIGCAST_PT_panel(bpy.types.Panel):
                     missed = session.num_frames_missed if session else 0
                     skipped = session.num_frames_skipped if session else 0
                     col.label(text="missed %d (server)   skipped %d (display)" % (missed, skipped))
+                plants = runtime.footplants.get(settings.subjects[settings.subject_index].subject_id)
+                if plants is not None and plants.get("feet"):
+                    # The foot lock's state; also on the armature as custom properties.
+                    feet = "   ".join(
+                        "%s %s" % (f.get("bone", "?"), "planted" if f.get("planted") else "free")
+                        for f in plants["feet"]
+                        if isinstance(f, dict)
+                    )
+                    layout.label(text="feet: " + feet, icon="INFO")
 
             layout.label(text="Mapping (pick a row, pick a bone)")
             layout.template_list("RIGCAST_UL_mapping", "", settings, "mapping_items", settings, "mapping_index", rows=5)

@@ -1,11 +1,16 @@
 """End-to-end check of the add-on inside real Blender, driven by tests/tests/blender_client.rs.
 
     blender -b --factory-startup --python-exit-code 1 \
-        --python clients/blender/tests/run_in_blender.py -- \
-        (--zip dist/rigcast_livelink.zip | --build-zip OUT.zip) --address 127.0.0.1:8717 --out obs.json \
-        [--mode stream|mapping|connect] [--seconds 2]
+        --python clients/blender/tests/run_in_blender.py -- ARGS
+    python run_in_blender.py -- ARGS          (a venv holding the `bpy` wheel: module mode)
 
-Every mode installs the add-on from the zip with default preferences, enables it and connects.
+    ARGS: (--zip dist/rigcast_livelink.zip | --build-zip OUT.zip) --address 127.0.0.1:8717
+          --out obs.json [--mode stream|mapping|connect] [--seconds 2] [--install legacy|extension]
+
+Every mode installs the add-on from the zip with default preferences (`legacy`: the add-on
+route, every version; `extension`: the 4.2+ extensions platform), enables it and connects. The
+source tree is never on sys.path: the code that runs is the installed copy, and the script
+reports where it was loaded from so the caller can check.
 - stream (default): creates an armature per subject with the add-on's operator, applies the
   stream for --seconds while recording, then writes what it observed (per applied frame: seq,
   capture time, bone head positions; the recorded Action's curves). The Rust side judges the
@@ -17,10 +22,11 @@ Every mode installs the add-on from the zip with default preferences, enables it
 - connect: only checks that the panel is registered, records the default settings, and waits
   for the hello, the skeletons and applied frames.
 
-Background Blender runs no event loop, so timers never fire there; this script calls the
-same per-tick function the add-on's timer calls, at 60 Hz.
+Background Blender and the `bpy` module run no event loop, so timers never fire there; this
+script calls the add-on's timer function itself, at 60 Hz.
 """
 
+import importlib.util
 import json
 import os
 import sys
@@ -52,11 +58,32 @@ def find_addon_module():
     raise RuntimeError("add-on module rigcast_livelink.livelink not loaded")
 
 
-def install_addon(zip_path):
-    bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
-    result = bpy.ops.preferences.addon_enable(module="rigcast_livelink")
-    if "FINISHED" not in result:
-        raise RuntimeError("addon_enable returned %s" % result)
+CLIENT_DIR = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+
+def build_zip(out_path):
+    """Builds the zip with the documented builder, loaded by file path so that its folder (the
+    add-on's source tree) never lands on sys.path."""
+    spec = importlib.util.spec_from_file_location("rigcast_build_zip", os.path.join(CLIENT_DIR, "build_zip.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.build(out_path)
+
+
+def install_addon(zip_path, how):
+    if how == "extension":
+        # Blender 4.2+: the extensions platform validates the manifest and installs into the
+        # user repository; the module is then bl_ext.user_default.rigcast_livelink.
+        result = bpy.ops.extensions.package_install_files(
+            filepath=zip_path, repo="user_default", enable_on_install=True
+        )
+        if "FINISHED" not in result:
+            raise RuntimeError("package_install_files returned %s" % result)
+    else:
+        bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
+        result = bpy.ops.preferences.addon_enable(module="rigcast_livelink")
+        if "FINISHED" not in result:
+            raise RuntimeError("addon_enable returned %s" % result)
     if not hasattr(bpy.types.Scene, "rigcast"):
         raise RuntimeError("add-on enabled but Scene.rigcast is not registered")
     if not hasattr(bpy.types, "RIGCAST_PT_panel"):
@@ -74,20 +101,27 @@ def main():
         print(out["error"], file=sys.stderr)
     with open(args["out"], "w") as handle:
         json.dump(out, handle)
+    if os.path.basename(sys.argv[0]) == os.path.basename(__file__):
+        # Module mode (python run_in_blender.py): the bpy 4.2 wheel segfaults while the
+        # interpreter tears the module down, after all the work is done; leave without it.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0 if out["ok"] else 1)
     if not out["ok"]:
         sys.exit(1)
 
 
 def run(args, out):
     if "build-zip" in args:
-        # Build with the documented builder, under Blender's own Python (no system python needed).
-        sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-        import build_zip
-
-        build_zip.build(args["build-zip"])
+        # Build with the documented builder, under this Python (no system python needed).
+        build_zip(args["build-zip"])
         args["zip"] = args["build-zip"]
-    install_addon(os.path.abspath(args["zip"]))
+    out["install"] = args.get("install", "legacy")
+    out["source_dir_on_path"] = [p for p in sys.path if os.path.normpath(os.path.abspath(p or ".")) == CLIENT_DIR]
+    install_addon(os.path.abspath(args["zip"]), out["install"])
     livelink = find_addon_module()
+    out["addon_file"] = livelink.__file__
+    out["addon_module"] = livelink.__name__
     runtime = livelink.runtime
     scene = bpy.context.scene
     out["scene_fps_before"] = [scene.render.fps, scene.render.fps_base]
@@ -117,7 +151,7 @@ def run(args, out):
         start = time.monotonic()
         next_tick = start
         while time.monotonic() - start < seconds:
-            runtime.tick(scene)
+            livelink.tick()
             if pending:
                 if collect:
                     # Reading bone positions needs a depsgraph update, which costs more than
@@ -127,7 +161,12 @@ def run(args, out):
                     if with_heads:
                         bpy.context.view_layer.update()
                     for subject_id, frame, obj in pending:
-                        observations.append(observe(subject_id, frame, obj, with_heads))
+                        record = observe(subject_id, frame, obj, with_heads)
+                        # The scene frame this pose was keyed at (None: not keyed, a newer
+                        # frame fell on an already keyed scene frame).
+                        if runtime.recording:
+                            record["keyed_frame"] = runtime.last_keyed.get(obj.name)
+                        observations.append(record)
                 del pending[:]
             num_ticks[0] += 1
             if until is not None and until():
@@ -154,6 +193,12 @@ def run(args, out):
         return
     if args["mode"] == "mapping":
         run_mapping(out, runtime, settings, pump)
+        return
+    if args["mode"] == "footplants":
+        run_footplants(out, runtime, settings, pump)
+        return
+    if args["mode"] == "record_failure":
+        run_record_failure(out, runtime, settings, scene, pump)
         return
     subject_ids = [item.subject_id for item in settings.subjects]
     out["subject_ids"] = subject_ids
@@ -196,19 +241,22 @@ def run(args, out):
     }
     out["observations"] = observations
     out["scene_fps_after"] = [scene.render.fps, scene.render.fps_base]
+    out["record_errors"] = dict(runtime.record_errors)
     out["actions"] = describe_actions(settings)
+    out["playback"] = play_back(scene, settings, observations)
     bpy.ops.rigcast.disconnect()
     out["status_after_disconnect"] = runtime.status_text()
 
 
 def observe(subject_id, frame, obj, with_heads):
-    record = {
-        "subject": subject_id,
-        "seq": frame.seq,
-        "capture_nanos": frame.capture_nanos,
-        "received_nanos": frame.received_nanos,
-        "applied_nanos": time.time_ns(),
-    }
+    record = {"subject": subject_id}
+    if frame is not None:
+        record.update(
+            seq=frame.seq,
+            capture_nanos=frame.capture_nanos,
+            received_nanos=frame.received_nanos,
+            applied_nanos=time.time_ns(),
+        )
     if not with_heads:
         return record
     # Three points per bone (head, tail, head + bone Z axis) pin its full orientation, twist
@@ -221,6 +269,104 @@ def observe(subject_id, frame, obj, with_heads):
         heads[pose_bone.name] = [list(m.to_translation()), list(matrix_world @ pose_bone.tail), list(z_point)]
     record["heads"] = heads
     return record
+
+
+def play_back(scene, settings, observations, per_subject=8):
+    """Plays the recorded Actions back at keyed frames and reads the poses they produce.
+
+    The caller compares each with forward kinematics of the server frame that was keyed there
+    (found by seq), so "playback equals the recorded poses" is judged against the server, not
+    against the add-on's own numbers.
+    """
+    samples = []
+    by_subject = {item.subject_id: item.armature for item in settings.subjects}
+    keyed = {}
+    for record in observations:
+        if record.get("keyed_frame") is not None:
+            keyed.setdefault(record["subject"], []).append(record["keyed_frame"])
+    for subject_id, frames in keyed.items():
+        obj = by_subject.get(subject_id)
+        if obj is None or obj.animation_data is None or obj.animation_data.action is None:
+            continue
+        step = max(1, len(frames) // per_subject)
+        for frame in frames[1::step][:per_subject]:
+            scene.frame_set(int(frame))
+            bpy.context.view_layer.update()
+            sample = observe(subject_id, None, obj, True)
+            sample["frame"] = frame
+            samples.append(sample)
+    return samples
+
+
+def run_record_failure(out, runtime, settings, scene, pump):
+    """One armature's take breaks mid-recording (its Action is deleted under it, as a user
+    might in the Outliner): that take stops with one reported error, the others record on and
+    every armature keeps receiving its live pose at the full rate."""
+    for item in settings.subjects:
+        result = bpy.ops.rigcast.create_armature(subject_id=item.subject_id)
+        if "FINISHED" not in result:
+            raise RuntimeError("create_armature(%d) returned %s" % (item.subject_id, result))
+    pump(0.5)
+    bpy.ops.rigcast.record()
+    pump(0.5)
+    broken = settings.subjects[0].armature.name
+    take = runtime.takes.get(broken)
+    if take is None:
+        raise RuntimeError("no take for %s after 0.5 s of recording" % broken)
+    bpy.data.actions.remove(take.action)
+    before = {item.subject_id: runtime.stats[item.subject_id].num_applied for item in settings.subjects}
+    started = time.monotonic()
+    pump(2.0)
+    secs = time.monotonic() - started
+    out["applied_fps_after_break"] = {
+        str(item.subject_id): (runtime.stats[item.subject_id].num_applied - before[item.subject_id]) / secs
+        for item in settings.subjects
+    }
+    bpy.ops.rigcast.record()
+    out["broken_armature"] = broken
+    out["record_errors"] = dict(runtime.record_errors)
+    out["last_error"] = runtime.last_error
+    out["actions"] = describe_actions(settings)
+    bpy.ops.rigcast.disconnect()
+
+
+def run_footplants(out, runtime, settings, pump):
+    """The target's foot-lock state as the add-on exposes it: the armature's
+    `rigcast_footplants` property and each foot bone's `rigcast_planted`, sampled every tick for
+    a few seconds together with the seq of the `footplants` message behind it."""
+    targets = [item for item in settings.subjects if item.kind == "target"]
+    if not targets:
+        raise RuntimeError("the server streams no target subject")
+    target = targets[0]
+    bpy.ops.rigcast.create_armature(subject_id=target.subject_id)
+    obj = target.armature
+    samples = []
+    seen = set()
+
+    def sample():
+        message = runtime.footplants.get(target.subject_id)
+        state = obj.get("rigcast_footplants")
+        if message is None or state is None or message["seq"] in seen:
+            return False
+        seen.add(message["seq"])
+        samples.append(
+            {
+                "seq": message["seq"],
+                "property": {
+                    bone: {"planted": int(v["planted"]), "position": list(v["position"])}
+                    for bone, v in state.items()
+                },
+                "bone_planted": {
+                    bone: int(obj.pose.bones[bone].get("rigcast_planted", -1)) for bone in state.keys()
+                },
+            }
+        )
+        return False
+
+    pump(3.0, sample)
+    out["target_subject"] = target.subject_id
+    out["footplant_samples"] = samples
+    bpy.ops.rigcast.disconnect()
 
 
 def run_connect(out, runtime, settings, pump):
@@ -367,7 +513,15 @@ def describe_actions(settings):
                     "values": [k.co[1] for k in fcurve.keyframe_points],
                 }
             )
-        actions[str(item.subject_id)] = {"name": action.name, "fcurves": curves}
+        slot = getattr(obj.animation_data, "action_slot", None)
+        actions[str(item.subject_id)] = {
+            "name": action.name,
+            "fcurves": curves,
+            "layered": bool(getattr(action, "layers", None)),
+            # 4.4+: the slot the armature is bound to (None: unbound, plays nothing in 5.0).
+            "slot": slot.identifier if slot is not None else None,
+            "num_slots": len(action.slots) if hasattr(action, "slots") else None,
+        }
     return actions
 
 

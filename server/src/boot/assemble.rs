@@ -216,7 +216,7 @@ fn performer_plan(
         config.vmc_bone_names,
     );
     let plan = PerformerPlan {
-        target: Arc::new(subject.with_truth(t.truth)),
+        target: Arc::new(subject.with_truth(t.truth).with_model(t.model)),
         target_reference: t.reference,
         overrides_file,
         session: Default::default(),

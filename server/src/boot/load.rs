@@ -49,6 +49,8 @@ pub(crate) struct LoadedTarget {
     pub reference: Option<Pose>,
     /// A VRM file's humanoid map (ground truth for its roles).
     pub truth: Option<Vec<(String, String)>>,
+    /// The character file the viewer may fetch (binary glTF targets only).
+    pub model: Option<crate::model::ModelFile>,
 }
 
 /// A performer's spec with its character and mapping overrides read.
@@ -170,6 +172,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
             skeleton: skeleton.clone(),
             reference: None,
             truth: None,
+            model: None,
         }),
         TargetSpec::File(path) => {
             let text = path.to_string_lossy();
@@ -185,6 +188,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
                     skeleton: Arc::new(skeleton),
                     reference: None,
                     truth: None,
+                    model: None,
                 });
             }
             let LoadedClip {
@@ -201,6 +205,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
                 reference: clip.poses.get(clip.poses.len() / 2).cloned(),
                 skeleton: clip.skeleton,
                 truth,
+                model: crate::model::ModelFile::for_target(path),
             })
         }
     }

@@ -29,7 +29,7 @@ use crate::live::{self, LiveContext};
 use crate::recorder::Recorder;
 use crate::state::ServerState;
 use crate::subject::Subject;
-use crate::{access, http, limits, stats, token};
+use crate::{access, footplants, http, limits, stats, token};
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
 /// with one subject.
@@ -145,6 +145,11 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     supervisor
         .engine_tasks
         .push(tokio::spawn(engine::run_tick(tick, engine_rx.clone())));
+    supervisor.engine_tasks.push(tokio::spawn(footplants::run(
+        subjects.clone(),
+        events.clone(),
+        engine_rx.clone(),
+    )));
     let status = run_source_status(subjects, events, engine_rx);
     supervisor.engine_tasks.push(tokio::spawn(status));
     if let Some(link) = parts.cluster {

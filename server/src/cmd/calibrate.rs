@@ -278,6 +278,7 @@ mod tests {
             source: None,
             num_bones: 1,
             fingerprint: "0".repeat(16),
+            model: None,
         }
     }
 

@@ -222,23 +222,5 @@ fn take_array(root: &mut Value, key: &str) -> Vec<Value> {
 }
 
 fn encode_glb(root: &Value, bin: &[u8]) -> Result<Vec<u8>, SourceError> {
-    let mut json_bytes =
-        serde_json::to_vec(root).map_err(|e| bad(format!("cannot encode JSON: {e}")))?;
-    while !json_bytes.len().is_multiple_of(4) {
-        json_bytes.push(b' ');
-    }
-    let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
-    let total_u32 =
-        u32::try_from(total).map_err(|_| bad(format!("GLB of {total} bytes exceeds 4 GiB")))?;
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&total_u32.to_le_bytes());
-    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json_bytes);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(bin);
-    Ok(out)
+    super::write::glb_container(root, Some(bin))
 }

@@ -116,22 +116,23 @@ pub fn write_glb(clip: &Clip) -> Result<Vec<u8>, SourceError> {
         root["bufferViews"] = json!(views);
         root["buffers"] = json!([{"byteLength": bin.len()}]);
     }
-    let mut json_bytes = serde_json::to_vec(&root).map_err(|e| SourceError::Gltf {
-        message: format!("cannot encode JSON: {e}"),
-    })?;
-    while json_bytes.len() & 3 != 0 {
-        json_bytes.push(b' ');
-    }
     while bin.len() & 3 != 0 {
         bin.push(0);
     }
-    let mut total = 12 + 8 + json_bytes.len();
-    if !bin.is_empty() {
-        total += 8 + bin.len();
+    glb_container(&root, (!bin.is_empty()).then_some(&bin[..]))
+}
+
+/// A GLB file of `root` and its binary chunk (`None`: no BIN chunk), JSON padded to 4 bytes.
+pub(super) fn glb_container(root: &Value, bin: Option<&[u8]>) -> Result<Vec<u8>, SourceError> {
+    let bad = |message: String| SourceError::Gltf { message };
+    let mut json_bytes =
+        serde_json::to_vec(root).map_err(|e| bad(format!("cannot encode JSON: {e}")))?;
+    while json_bytes.len() & 3 != 0 {
+        json_bytes.push(b' ');
     }
-    let total_u32 = u32::try_from(total).map_err(|_| SourceError::Gltf {
-        message: format!("GLB of {total} bytes exceeds 4 GiB"),
-    })?;
+    let total = 12 + 8 + json_bytes.len() + bin.map_or(0, |b| 8 + b.len());
+    let total_u32 =
+        u32::try_from(total).map_err(|_| bad(format!("GLB of {total} bytes exceeds 4 GiB")))?;
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -139,10 +140,10 @@ pub fn write_glb(clip: &Clip) -> Result<Vec<u8>, SourceError> {
     out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
     out.extend_from_slice(b"JSON");
     out.extend_from_slice(&json_bytes);
-    if !bin.is_empty() {
+    if let Some(bin) = bin {
         out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
         out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
+        out.extend_from_slice(bin);
     }
     Ok(out)
 }

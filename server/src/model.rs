@@ -1,0 +1,125 @@
+//! Target characters' model files, served to the viewer at `GET /v1/subjects/{id}/model.glb`
+//! so it can draw the skinned mesh the performer drives.
+//!
+//! Only files the operator configured as a performer's target are served, and only as what
+//! they are: a binary glTF container (`.glb`, or `.vrm`, which is a GLB with the VRM
+//! extension). A `.gltf` target (JSON with external buffers) has no single file to send, so the
+//! viewer keeps drawing its skeleton; so do BVH targets and built-in characters. The path is
+//! never taken from the request: the request names a subject id, the server looks up its file.
+
+use std::path::{Path, PathBuf};
+
+/// The first bytes of every binary glTF file.
+const GLB_MAGIC: &[u8; 4] = b"glTF";
+
+/// Largest model the server reads into memory for one request.
+pub const MAX_MODEL_BYTES: u64 = 512 * 1024 * 1024;
+
+/// A target's servable model file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ModelFile {
+    /// The configured path.
+    pub path: PathBuf,
+    /// `glb` or `vrm` (announced in the subject list as `model`).
+    pub format: &'static str,
+}
+
+impl ModelFile {
+    /// The model of a target loaded from `path`, when it is a binary glTF container.
+    pub fn for_target(path: &Path) -> Option<ModelFile> {
+        let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+        let format = match ext.as_str() {
+            "glb" => "glb",
+            "vrm" => "vrm",
+            _ => return None,
+        };
+        // The loader has already read it as glTF; this only rules out a renamed .gltf text file.
+        let mut magic = [0u8; 4];
+        use std::io::Read;
+        std::fs::File::open(path)
+            .ok()?
+            .read_exact(&mut magic)
+            .ok()?;
+        (&magic == GLB_MAGIC).then(|| ModelFile {
+            path: path.to_path_buf(),
+            format,
+        })
+    }
+
+    /// The file's bytes now (it may have been replaced or removed since the server started).
+    pub fn read(&self) -> Result<Vec<u8>, String> {
+        let meta = std::fs::metadata(&self.path)
+            .map_err(|e| format!("model file {}: {e}", self.path.display()))?;
+        if meta.len() > MAX_MODEL_BYTES {
+            return Err(format!(
+                "model file {} is {} bytes, more than the {MAX_MODEL_BYTES} served",
+                self.path.display(),
+                meta.len()
+            ));
+        }
+        let bytes = std::fs::read(&self.path)
+            .map_err(|e| format!("model file {}: {e}", self.path.display()))?;
+        if !bytes.starts_with(GLB_MAGIC) {
+            return Err(format!(
+                "model file {} is no longer a binary glTF file",
+                self.path.display()
+            ));
+        }
+        Ok(bytes)
+    }
+}
+
+/// The subject id in a model request path (`/v1/subjects/{id}/model.glb`), or None when the
+/// path is not one.
+pub fn model_request(path: &str) -> Option<Result<u32, String>> {
+    let rest = path.strip_prefix("/v1/subjects/")?;
+    let id = rest.strip_suffix("/model.glb")?;
+    Some(
+        id.parse::<u32>()
+            .map_err(|_| format!("subject id {id:?} is not a number")),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn request_paths() {
+        assert_eq!(model_request("/v1/subjects/3/model.glb"), Some(Ok(3)));
+        assert!(matches!(
+            model_request("/v1/subjects/x/model.glb"),
+            Some(Err(_))
+        ));
+        assert!(matches!(
+            model_request("/v1/subjects//model.glb"),
+            Some(Err(_))
+        ));
+        assert_eq!(model_request("/v1/subjects/3/model.gltf"), None);
+        assert_eq!(model_request("/v1/status"), None);
+    }
+
+    #[test]
+    fn only_binary_gltf_containers_are_models() {
+        let dir = std::env::temp_dir().join(format!("rigcast-model-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let glb = dir.join("a.glb");
+        std::fs::write(&glb, b"glTF\x02\x00\x00\x00rest").unwrap();
+        let vrm = dir.join("a.VRM");
+        std::fs::write(&vrm, b"glTF\x02\x00\x00\x00rest").unwrap();
+        let text = dir.join("b.glb");
+        std::fs::write(&text, b"{\"asset\":{}}").unwrap();
+        let gltf = dir.join("c.gltf");
+        std::fs::write(&gltf, b"glTF").unwrap();
+        assert_eq!(ModelFile::for_target(&glb).unwrap().format, "glb");
+        assert_eq!(ModelFile::for_target(&vrm).unwrap().format, "vrm");
+        assert_eq!(ModelFile::for_target(&text), None);
+        assert_eq!(ModelFile::for_target(&gltf), None);
+        assert_eq!(ModelFile::for_target(&dir.join("missing.glb")), None);
+        let model = ModelFile::for_target(&glb).unwrap();
+        assert!(model.read().unwrap().starts_with(b"glTF"));
+        std::fs::remove_file(&glb).unwrap();
+        assert!(model.read().unwrap_err().contains("a.glb"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
