@@ -31,6 +31,7 @@ pub mod error;
 pub mod fk;
 pub mod footplant;
 pub mod graft;
+pub mod graph;
 pub mod mapping;
 pub mod pose;
 pub mod retarget;

@@ -50,6 +50,8 @@ pub enum Command {
     Calibrate(cmd::calibrate::CalibrateArgs),
     /// Show or rotate the control token (needed to change mappings or calibrate).
     Token(cmd::token::TokenArgs),
+    /// Motion graphs: build from clips, walk between poses, describe (`rigcast graph --help`).
+    Graph(cmd::graph::GraphArgs),
     /// Open many clients on a running server and report their frame rate and latency.
     Loadtest(cmd::loadtest::LoadtestArgs),
 }
@@ -71,6 +73,7 @@ impl Command {
             Command::Calibrate(a) => cmd::calibrate::run(a).await,
             Command::Token(a) => cmd::token::run(&a),
             Command::Loadtest(a) => cmd::loadtest::run(a).await,
+            Command::Graph(a) => cmd::graph::run(&a),
         }
     }
 }

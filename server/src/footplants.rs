@@ -35,11 +35,7 @@ pub async fn run(
     events: broadcast::Sender<String>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    let targets: Vec<Arc<Subject>> = subjects
-        .iter()
-        .filter(|s| s.is_target())
-        .cloned()
-        .collect();
+    let targets: Vec<Arc<Subject>> = subjects.iter().filter(|s| s.is_target()).cloned().collect();
     if targets.is_empty() {
         return;
     }

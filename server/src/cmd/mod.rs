@@ -4,6 +4,7 @@ pub mod bench;
 pub mod calibrate;
 pub mod convert;
 pub mod graft;
+pub mod graph;
 pub mod info;
 pub mod loadtest;
 pub mod map;

@@ -1,0 +1,239 @@
+//! Motion graphs on a generated humanoid whose motion has a known period: transitions must
+//! join frames a whole number of periods apart, walks must reach their goal with joins under
+//! the threshold and a continuous root path, and files must round-trip and refuse damage.
+
+mod retarget_fixtures;
+
+use std::f32::consts::TAU;
+use std::sync::Arc;
+
+use glam::{Quat, Vec3};
+use retarget_fixtures::Humanoid;
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::graph::walk::shortest_walk;
+use rigcast_retarget::graph::{GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker};
+use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
+
+const FPS: f32 = 60.0;
+/// Period of the generated gait, frames.
+const PERIOD: usize = 50;
+
+/// A gait with period `PERIOD`: every bone swings about its own axis with its own phase, the
+/// hips travel forward. The swing's size drifts slowly (period 7.3 gaits) so that frames one
+/// period apart are close but not equal: distances have isolated minima, as in real capture.
+fn gait(skel: &Skeleton, frames: usize, phase: f32) -> Vec<Pose> {
+    let rest = skel.rest_pose();
+    (0..frames)
+        .map(|f| {
+            let t = f as f32 / PERIOD as f32 + phase;
+            let size = 0.5 + 0.08 * (TAU * t / 7.3).sin();
+            let mut p = rest.clone();
+            for b in skel.bone_ids().skip(1) {
+                let k = b.0 as f32;
+                let axis = Vec3::new((k * 1.3).sin(), (k * 0.7).cos(), 0.4).normalize();
+                let swing = Quat::from_axis_angle(axis, size * (TAU * t + k * 0.9).sin());
+                p.rotations[b.index()] = rest.rotations[b.index()] * swing;
+            }
+            p.translations[0] += Vec3::Z * (1.2 * f as f32 / FPS);
+            p
+        })
+        .collect()
+}
+
+fn rig() -> Arc<Skeleton> {
+    Arc::new(Humanoid::default().build())
+}
+
+fn clip(skel: &Arc<Skeleton>, name: &str, frames: usize, phase: f32) -> Clip {
+    Clip::new(
+        name,
+        skel.clone(),
+        gait(skel, frames, phase),
+        1.0 / FPS as f64,
+    )
+    .expect("clip")
+}
+
+fn graph(clips: &[Clip]) -> MotionGraph {
+    MotionGraph::build(clips, GraphSettings::default(), &mut |_| {}).expect("builds")
+}
+
+#[test]
+fn transitions_join_frames_whole_periods_apart() {
+    let skel = rig();
+    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
+    let g = graph(&clips);
+    assert!(
+        !g.transitions.is_empty(),
+        "a periodic motion has transitions"
+    );
+    let b_start = g.clips[1].offset as f32;
+    for t in &g.transitions {
+        // Gait phase of each frame, in periods.
+        let phase = |n: u32| {
+            let n = n as f32;
+            if n < b_start {
+                n / PERIOD as f32
+            } else {
+                (n - b_start) / PERIOD as f32 + 0.37
+            }
+        };
+        let gap = phase(t.to - 1) - phase(t.from);
+        let off = (gap - gap.round()).abs() * PERIOD as f32;
+        assert!(off <= 3.0, "{t:?}: {off} frames off a whole period");
+        assert!(t.distance <= g.settings.threshold);
+    }
+    // Both clips loop into each other: nearly everything stays.
+    assert!(
+        g.num_kept() as f32 >= 0.9 * g.num_frames() as f32,
+        "{}",
+        g.num_kept()
+    );
+    let crossing = g
+        .transitions
+        .iter()
+        .filter(|t| ((t.from as f32) < b_start) != ((t.to as f32) < b_start))
+        .count();
+    assert!(crossing > 0, "clips a and b are joined");
+}
+
+#[test]
+fn shortest_walk_reaches_the_goal_through_cheap_joins() {
+    let skel = rig();
+    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
+    let g = graph(&clips);
+    let (from, to) = (g.clips[0].offset + 40, g.clips[1].offset + 250);
+    let path = shortest_walk(&g, from, to).expect("a walk");
+    assert_eq!((path[0], *path.last().expect("nodes")), (from, to));
+    for w in path.windows(2) {
+        if w[1] != w[0] + 1 {
+            let t = g
+                .transitions
+                .iter()
+                .find(|t| t.from as usize == w[0] && t.to as usize == w[1])
+                .expect("every jump is a transition");
+            assert!(t.distance <= g.settings.threshold);
+        } else {
+            assert!(g.has_successor(w[0]));
+        }
+    }
+    assert!(matches!(
+        shortest_walk(&g, 0, to),
+        Err(GraphError::NotANode { frame: 0, .. })
+    ));
+    assert!(shortest_walk(&g, from, 1_000_000).is_err());
+}
+
+/// Largest per-frame move of the root, and of any joint, over `poses`.
+fn largest_steps(skel: &Skeleton, poses: &[Pose]) -> (f32, f32) {
+    let worlds: Vec<Vec<Vec3>> = poses
+        .iter()
+        .map(|p| {
+            world_transforms(skel, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
+        .collect();
+    let mut root: f32 = 0.0;
+    let mut joint: f32 = 0.0;
+    for w in worlds.windows(2) {
+        root = root.max(w[0][0].distance(w[1][0]));
+        for (a, b) in w[0].iter().zip(&w[1]) {
+            joint = joint.max(a.distance(*b));
+        }
+    }
+    (root, joint)
+}
+
+#[test]
+fn wandering_keeps_root_and_joints_continuous() {
+    let skel = rig();
+    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
+    let g = graph(&clips);
+    let analysis = analyze(&SkeletonView::from_clip(&skel, &clips[0].poses));
+    let pb = Playback::new(&g, &clips, &analysis).expect("playback");
+    let mut walker = Walker::new(&g, &pb, 7);
+    let mut out = skel.rest_pose();
+    let poses: Vec<Pose> = (0..1200)
+        .map(|_| {
+            walker.step(&pb, &mut out);
+            out.clone()
+        })
+        .collect();
+    assert!(
+        walker.transitions_taken >= 5,
+        "{}",
+        walker.transitions_taken
+    );
+    let (clip_root, clip_joint) = largest_steps(&skel, &clips[0].poses);
+    let (root, joint) = largest_steps(&skel, &poses);
+    // Transitions add at most 1 cm to the root's largest step, and joints move at most twice
+    // as far in a frame as they ever do in the clip.
+    assert!(
+        root <= clip_root + 0.01,
+        "root step {root} vs clip {clip_root}"
+    );
+    assert!(
+        joint <= 2.0 * clip_joint,
+        "joint step {joint} vs clip {clip_joint}"
+    );
+}
+
+#[test]
+fn take_over_starts_at_the_nearest_frame_where_the_pose_stands() {
+    let skel = rig();
+    let clips = [clip(&skel, "a", 400, 0.0)];
+    let g = graph(&clips);
+    let analysis = analyze(&SkeletonView::from_clip(&skel, &clips[0].poses));
+    let pb = Playback::new(&g, &clips, &analysis).expect("playback");
+    let mut walker = Walker::new(&g, &pb, 1);
+    // Frame 123 turned 90° and moved 5 m: the walker starts at 123 (or one period away) and
+    // shows it turned and moved.
+    let moved = Planar {
+        yaw: 1.57,
+        offset: Vec3::new(5.0, 0.0, 0.0),
+    };
+    let mut pose = skel.rest_pose();
+    pb.sample(123, &moved, &mut pose);
+    let mut worlds = vec![rigcast_retarget::WorldTransform::IDENTITY; skel.num_bones()];
+    let node = walker.take_over(&pb, &pose, 1, &mut worlds);
+    let off = (node as i64 - 123).rem_euclid(PERIOD as i64);
+    assert!(off <= 1 || off >= PERIOD as i64 - 1, "node {node}");
+    let mut shown = skel.rest_pose();
+    walker.write(&pb, &mut shown);
+    assert!(shown.translations[0].distance(pose.translations[0]) < 0.05);
+}
+
+#[test]
+fn files_round_trip_and_damage_is_an_error() {
+    let skel = rig();
+    let g = graph(&[clip(&skel, "a", 300, 0.0)]);
+    let text = g.to_json();
+    assert_eq!(MotionGraph::from_json(&text).expect("reads"), g);
+    let newer = text.replacen("\"version\":1", "\"version\":9", 1);
+    let e = MotionGraph::from_json(&newer).expect_err("version 9");
+    assert!(e.to_string().contains("version 9"), "{e}");
+    assert!(MotionGraph::from_json(&text[..text.len() / 2]).is_err());
+    assert!(MotionGraph::from_json("{\"format\":\"x\",\"version\":1}").is_err());
+    let far = text.replacen("\"transitions\":[[", "\"transitions\":[[4000000,", 1);
+    assert!(MotionGraph::from_json(&far).is_err());
+}
+
+#[test]
+fn a_rig_without_legs_is_a_clear_error() {
+    let mut raw = rigcast_retarget::RawSkeleton::default();
+    let root = raw.add("root", None, rigcast_retarget::Transform::IDENTITY);
+    raw.add(
+        "tip",
+        Some(root),
+        rigcast_retarget::Transform::from_translation(Vec3::Y),
+    );
+    let skel = Arc::new(Skeleton::build(&raw).expect("skeleton"));
+    let poses = vec![skel.rest_pose(); 30];
+    let c = Clip::new("stick", skel, poses, 1.0 / 30.0).expect("clip");
+    let e = MotionGraph::build(&[c], GraphSettings::default(), &mut |_| {}).expect_err("no legs");
+    assert!(e.to_string().contains("rig has no"), "{e}");
+    let e = MotionGraph::build(&[], GraphSettings::default(), &mut |_| {}).expect_err("empty");
+    assert!(matches!(e, GraphError::NoFrames));
+}

@@ -1,0 +1,50 @@
+//! `rigcast graph build|walk|info`: motion graphs offline (issue 14). `build` reads clips and
+//! writes a `.rmg` file (format in `retarget/GRAPH.md`), cached by the clips' fingerprints;
+//! `walk` animates the cheapest walk between two frames (then, optionally, wanders) and writes
+//! it as BVH on one clip's rig; `info` prints the graph's size and components.
+
+mod build;
+mod clips;
+mod info;
+mod walk;
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+
+/// Options of `rigcast graph`.
+#[derive(Debug, Args)]
+pub struct GraphArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub action: GraphAction,
+}
+
+/// `rigcast graph` actions.
+#[derive(Debug, Subcommand)]
+pub enum GraphAction {
+    /// Build a graph from clips (`FILE` or `FILE#ANIMATION` for glTF) into a .rmg file.
+    Build(build::BuildArgs),
+    /// Animate the cheapest walk between two frames (`CLIP:FRAME`, CLIP a number or name).
+    Walk(walk::WalkArgs),
+    /// Print nodes, edges, transitions and components of a .rmg file.
+    Info(info::InfoArgs),
+}
+
+/// Runs `rigcast graph`.
+pub fn run(args: &GraphArgs) -> anyhow::Result<()> {
+    match &args.action {
+        GraphAction::Build(a) => build::run(a),
+        GraphAction::Walk(a) => walk::run(a),
+        GraphAction::Info(a) => info::run(a),
+    }
+}
+
+/// The graph cache: `$XDG_CACHE_HOME/rigcast/graphs`, else `~/.cache/rigcast/graphs`.
+fn default_cache_dir() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("rigcast").join("graphs"))
+}

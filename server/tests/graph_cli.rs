@@ -1,0 +1,130 @@
+//! `rigcast graph build|info|walk` end to end on real clips in `../shared/data` (skipped with a
+//! printed reason when absent): the real binary builds a graph of the CMU walk and run and the
+//! PyMO walk, `info` reports its size, `walk` writes a BVH whose frame count is the walk's and
+//! whose root path has no jump; bad input gets a short error and a non-zero exit, not a panic.
+#![allow(clippy::unwrap_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use rigcast_sources::load_clip;
+
+fn data_dir() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    if p.join("bvh/cmu_31joint_example.bvh").exists() {
+        Some(p)
+    } else {
+        println!("SKIP: real clips not found ({}/bvh)", p.display());
+        None
+    }
+}
+
+fn rigcast(args: &[&str], cache: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(args)
+        .env("XDG_CACHE_HOME", cache)
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+#[test]
+fn build_info_and_walk_on_real_clips() {
+    let Some(data) = data_dir() else { return };
+    let dir = std::env::temp_dir().join(format!("rigcast-graph-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let graph = dir.join("g.rmg");
+    let clips = [
+        data.join("bvh/cmu_31joint_example.bvh"),
+        data.join("bvh/cmu_run.bvh"),
+        data.join("zoo/bvh/sparse_spine_head__pymo_meredith.bvh"),
+    ];
+    let mut args: Vec<String> = vec!["graph".into(), "build".into()];
+    args.extend(clips.iter().map(|p| p.display().to_string()));
+    args.extend(["-o".into(), graph.display().to_string()]);
+    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = rigcast(&argv, &dir);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("100%"), "a progress bar: {}", text(&o));
+    // Built again: from the cache.
+    let o = rigcast(&argv, &dir);
+    assert!(text(&o).contains("from the cache"), "{}", text(&o));
+
+    let o = rigcast(&["graph", "info", graph.to_str().unwrap()], &dir);
+    let info = text(&o);
+    assert!(o.status.success(), "{info}");
+    assert!(info.contains("nodes:        1514 frames"), "{info}");
+
+    let out = dir.join("walk.bvh");
+    let o = rigcast(
+        &[
+            "graph",
+            "walk",
+            graph.to_str().unwrap(),
+            "--from",
+            "cmu_31joint_example:60",
+            "--to",
+            "sparse_spine_head__pymo_meredith:800",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let walk = load_clip(&out).unwrap();
+    assert!(walk.num_frames() > 10);
+    let root: Vec<_> = walk.poses.iter().map(|p| p.root_translation()).collect();
+    for w in root.windows(3) {
+        let jump = ((w[2] - w[1]) - (w[1] - w[0])).length();
+        assert!(jump < 0.01, "root path jumps {jump} m");
+    }
+
+    for (bad, says) in [
+        (vec!["graph", "info", "/nonexistent.rmg"], "cannot read"),
+        (
+            vec!["graph", "info", clips[0].to_str().unwrap()],
+            "not a valid motion graph",
+        ),
+        (
+            vec![
+                "graph",
+                "walk",
+                graph.to_str().unwrap(),
+                "--from",
+                "7:1",
+                "--to",
+                "0:1",
+                "-o",
+                "x.bvh",
+            ],
+            "does not exist",
+        ),
+        (
+            vec![
+                "graph",
+                "walk",
+                graph.to_str().unwrap(),
+                "--from",
+                "0:99999",
+                "--to",
+                "0:1",
+                "-o",
+                "x.bvh",
+            ],
+            "past its end",
+        ),
+    ] {
+        let o = rigcast(&bad, &dir);
+        assert!(!o.status.success());
+        assert!(text(&o).contains(says), "{bad:?}: {}", text(&o));
+        assert!(!text(&o).contains("panicked"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

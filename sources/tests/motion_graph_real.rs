@@ -1,0 +1,257 @@
+//! Motion graphs on real clips in `../shared/data` (acceptance, issue 14): the CMU walk, walk
+//! and run captures and the PyMO walk build one graph that keeps most frames; the pruned
+//! search finds what the exhaustive one finds; a walk between two chosen poses exists with
+//! every join under the threshold; played back (through the walker the live fallback uses),
+//! joins keep joint velocities and the root path continuous; looping game idles close on
+//! themselves. Skipped with a printed reason when the data is absent.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::graph::body::BodyPoints;
+use rigcast_retarget::graph::features::{ClipFeatures, ClipTrack};
+use rigcast_retarget::graph::play::clips_onto_rig;
+use rigcast_retarget::graph::search::{find_similar, find_similar_exhaustive, SearchParams};
+use rigcast_retarget::graph::walk::shortest_walk;
+use rigcast_retarget::graph::{GraphSettings, MotionGraph, Planar, Playback, Walker};
+use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
+use rigcast_sources::{load_clip_with, LoadOptions};
+
+fn data_dir() -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    if p.join("bvh/cmu_131_01_walk.bvh").exists() {
+        Some(p)
+    } else {
+        println!("SKIP: real clips not found ({}/bvh)", p.display());
+        None
+    }
+}
+
+fn load(dir: &Path, file: &str, animation: Option<&str>) -> Clip {
+    let opts = LoadOptions {
+        animation: animation.map(str::to_string),
+        sample_fps: Some(120.0),
+        ..LoadOptions::default()
+    };
+    load_clip_with(&dir.join(file), &opts).expect("loads")
+}
+
+/// The motion-capture humanoids, all at 120 Hz: 2,509 frames.
+fn mocap(dir: &Path) -> Vec<Clip> {
+    [
+        "bvh/cmu_131_01_walk.bvh",
+        "bvh/cmu_31joint_example.bvh",
+        "bvh/cmu_run.bvh",
+        "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
+    ]
+    .iter()
+    .map(|f| load(dir, f, None))
+    .collect()
+}
+
+fn build(clips: &[Clip]) -> MotionGraph {
+    let t = Instant::now();
+    let g = MotionGraph::build(clips, GraphSettings::default(), &mut |_| {}).expect("builds");
+    println!(
+        "{} frames, {} kept ({:.1} %), {} edges, {} transitions, {} components before pruning, \
+         built in {:?}",
+        g.num_frames(),
+        g.num_kept(),
+        100.0 * g.num_kept() as f64 / g.num_frames() as f64,
+        g.num_edges(),
+        g.transitions.len(),
+        g.components,
+        t.elapsed()
+    );
+    for c in &g.clips {
+        let kept = (c.offset..c.offset + c.frames)
+            .filter(|&n| g.is_kept(n))
+            .count();
+        println!("  {}: {kept} / {} frames kept", c.name, c.frames);
+    }
+    g
+}
+
+#[test]
+fn mocap_clips_build_one_graph_keeping_most_frames() {
+    let Some(dir) = data_dir() else { return };
+    let g = build(&mocap(&dir));
+    assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64);
+    for c in &g.clips {
+        let kept = (c.offset..c.offset + c.frames).any(|n| g.is_kept(n));
+        assert!(kept, "{} is joined to the others", c.name);
+    }
+}
+
+#[test]
+fn pruned_search_finds_the_exhaustive_transitions() {
+    let Some(dir) = data_dir() else { return };
+    let clips = [
+        load(&dir, "bvh/cmu_31joint_example.bvh", None),
+        load(&dir, "bvh/cmu_run.bvh", None),
+    ];
+    let s = GraphSettings::default();
+    let ft = clips[0].frame_time_secs;
+    let features: Vec<ClipFeatures> = clips
+        .iter()
+        .map(|c| {
+            let a = analyze(&SkeletonView::from_clip(&c.skeleton, &c.poses));
+            let body = BodyPoints::find(&a).expect("humanoid");
+            let track = ClipTrack::measure(&c.skeleton, &body, &c.poses);
+            let half = GraphSettings::frames(s.window_secs / 2.0, ft, 1);
+            ClipFeatures::compute(&track, half, ft as f32, s.velocity_weight_secs)
+        })
+        .collect();
+    let p = SearchParams {
+        stride: GraphSettings::frames(s.coarse_step_secs, ft, 1),
+        radius: GraphSettings::frames(s.minimum_radius_secs, ft, 2),
+        min_gap: GraphSettings::frames(s.window_secs, ft, 2),
+        threshold: s.threshold,
+    };
+    let t = Instant::now();
+    let fast = find_similar(&features, p, &mut |_| {});
+    let fast_time = t.elapsed();
+    let t = Instant::now();
+    let all = find_similar_exhaustive(&features, p);
+    println!(
+        "pruned: {} pairs in {fast_time:?}; exhaustive: {} pairs in {:?}",
+        fast.len(),
+        all.len(),
+        t.elapsed()
+    );
+    assert!(!all.is_empty());
+    let found = all
+        .iter()
+        .filter(|e| fast.iter().any(|f| f.a == e.a && f.b == e.b))
+        .count();
+    assert!(
+        found as f64 >= 0.9 * all.len() as f64,
+        "{found} of {}",
+        all.len()
+    );
+    // Nothing the pruned search reports is missing from the reference.
+    for f in &fast {
+        assert!(all.iter().any(|e| e.a == f.a && e.b == f.b), "{f:?}");
+    }
+}
+
+/// World joint positions of every frame.
+fn joints(skel: &Skeleton, poses: &[Pose]) -> Vec<Vec<Vec3>> {
+    poses
+        .iter()
+        .map(|p| {
+            world_transforms(skel, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
+        .collect()
+}
+
+/// Largest change of any joint's per-frame velocity at frame `t` (between the steps
+/// t−1 → t and t → t+1).
+fn velocity_jump(j: &[Vec<Vec3>], t: usize) -> f32 {
+    (0..j[t].len())
+        .map(|b| ((j[t + 1][b] - j[t][b]) - (j[t][b] - j[t - 1][b])).length())
+        .fold(0.0, f32::max)
+}
+
+fn percentile_99(mut v: Vec<f32>) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v[(v.len() as f64 * 0.99) as usize]
+}
+
+#[test]
+fn a_walk_between_two_poses_has_cheap_smooth_joins() {
+    let Some(dir) = data_dir() else { return };
+    let clips = mocap(&dir);
+    let g = build(&clips);
+    let from = g.clips[1].offset + 60;
+    let to = g.clips[3].offset + 800;
+    let path = shortest_walk(&g, from, to).expect("a walk between the chosen poses");
+    let mut jumps = 0;
+    for w in path.windows(2).filter(|w| w[1] != w[0] + 1) {
+        let t = g
+            .transitions
+            .iter()
+            .find(|t| t.from as usize == w[0] && t.to as usize == w[1])
+            .expect("a transition");
+        assert!(t.distance <= g.settings.threshold, "{t:?}");
+        jumps += 1;
+    }
+    println!(
+        "walk {from} → {to}: {} frames, {jumps} transitions",
+        path.len()
+    );
+    assert!(jumps >= 1, "the walk crosses clips");
+
+    // Played on the 31-joint CMU rig, then wandering for 30 s.
+    let rig = &clips[1];
+    let played = clips_onto_rig(&clips, rig).expect("retargets");
+    let analysis = analyze(&SkeletonView::from_clip(&rig.skeleton, &rig.poses));
+    let pb = Playback::new(&g, &played, &analysis).expect("playback");
+    let mut walker = Walker::new(&g, &pb, 11);
+    walker.follow(&path, Planar::IDENTITY);
+    let mut out = rig.skeleton.rest_pose();
+    let mut poses = Vec::new();
+    let mut joins = Vec::new();
+    walker.write(&pb, &mut out);
+    poses.push(out.clone());
+    for _ in 0..path.len() + 3600 {
+        let before = walker.transitions_taken;
+        walker.step(&pb, &mut out);
+        if walker.transitions_taken > before {
+            joins.push(poses.len());
+        }
+        poses.push(out.clone());
+    }
+    println!("{} frames played, {} joins", poses.len(), joins.len());
+    assert!(joins.len() >= jumps + 5, "it kept wandering");
+    let skel = &rig.skeleton;
+    let own: Vec<f32> = played
+        .iter()
+        .flat_map(|c| {
+            let j = joints(skel, &c.poses);
+            (1..j.len() - 1).map(move |t| velocity_jump(&j, t))
+        })
+        .collect();
+    let p99 = percentile_99(own);
+    for c in &played {
+        let j = joints(skel, &c.poses);
+        let v: Vec<f32> = (1..j.len() - 1).map(|t| velocity_jump(&j, t)).collect();
+        println!(
+            "  {} p99 {:.4} max {:.4}",
+            c.name,
+            percentile_99(v.clone()),
+            v.iter().fold(0.0f32, |a, b| a.max(*b))
+        );
+    }
+    let j = joints(skel, &poses);
+    let mut worst: f32 = 0.0;
+    let mut worst_root: f32 = 0.0;
+    for &k in joins.iter().filter(|&&k| k + 2 < j.len()) {
+        for t in k.saturating_sub(1).max(1)..=k + 1 {
+            worst = worst.max(velocity_jump(&j, t));
+            let r = |t: usize| j[t][0];
+            worst_root = worst_root.max(((r(t + 1) - r(t)) - (r(t) - r(t - 1))).length());
+        }
+    }
+    println!("joins: largest velocity change {worst:.4} m/frame (clips' p99 {p99:.4}), root {worst_root:.4} m");
+    assert!(worst <= 2.0 * p99, "{worst} > 2 × {p99}");
+    assert!(worst_root <= 0.01, "root jumps {worst_root} m");
+}
+
+#[test]
+fn looping_game_idles_close_on_themselves() {
+    let Some(dir) = data_dir() else { return };
+    for (file, anim) in [
+        ("zoo/gltf/robotexpressive__RobotExpressive.glb", "Idle"),
+        ("zoo/gltf/godot_robot__platformer_player.glb", "idle"),
+    ] {
+        let clip = load(&dir, file, Some(anim));
+        let g = build(std::slice::from_ref(&clip));
+        assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64, "{file}");
+    }
+}
