@@ -390,3 +390,93 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     sender.join().unwrap();
     drop(a);
 }
+
+/// Writes a config file with a `[cluster]` table and returns its path.
+fn cluster_config(name: &str, body: &str) -> PathBuf {
+    let dir = temp_path(&format!("cluster-config-{name}"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("rigcast.toml");
+    std::fs::write(&path, body).unwrap();
+    path
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn credentials_are_required_and_namespaces_keep_deployments_apart() {
+    let Some(bin) = nats_server() else { return };
+    let port = free_port();
+    let store = temp_path("nats-auth");
+    std::fs::create_dir_all(&store).unwrap();
+    let server = Command::new(&bin)
+        .args(["-a", "127.0.0.1", "-p", &port.to_string(), "--user", "rig"])
+        .args(["--pass", "s3cret", "-js", "-sd"])
+        .arg(&store)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let _server = rigcast_tests::KillOnDrop(server);
+    let config = |ns: &str, site: &str, password: &str| {
+        format!(
+            "[cluster]\nservers = [\"nats://127.0.0.1:{port}\"]\nsite = \"{site}\"\n\
+             namespace = \"{ns}\"\nuser = \"rig\"\npassword = \"{password}\"\n"
+        )
+    };
+    // JetStream takes a moment after the port opens.
+    tokio::time::sleep(Duration::from_secs(1)).await;
+
+    // Wrong password: a short, clear refusal, not a hang.
+    let bad = cluster_config("bad", &config("one", "a", "wrong"));
+    let rigcast = tokio::task::spawn_blocking(rigcast_tests::rigcast_binary)
+        .await
+        .unwrap();
+    let started = Instant::now();
+    let out = tokio::task::spawn_blocking(move || {
+        Command::new(rigcast)
+            .args(["serve", "--listen", "127.0.0.1:0", "--config"])
+            .arg(&bad)
+            .output()
+            .unwrap()
+    })
+    .await
+    .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    println!("wrong password: {err}");
+    assert!(!out.status.success());
+    assert!(err.contains("cannot connect to NATS"), "{err}");
+    assert!(err.len() < 600, "error too long: {err}");
+    assert!(
+        started.elapsed() < Duration::from_secs(15),
+        "refused only after {:?}",
+        started.elapsed()
+    );
+
+    // Right password, two namespaces on one NATS system: B does not see A's subjects.
+    let one = cluster_config("one", &config("one", "a", "s3cret"));
+    let two = cluster_config("two", &config("two", "b", "s3cret"));
+    let a_args = vec!["--config".to_string(), one.display().to_string()];
+    let a = spawn_node(a_args, "auth-a").await;
+    let b_args = vec!["--config".to_string(), two.display().to_string()];
+    let b = spawn_node(b_args, "auth-b").await;
+    let (_wa, sa) = client(&a).await;
+    let (_wb, sb) = client(&b).await;
+    println!(
+        "namespace one: {:?}; namespace two: {:?}",
+        sa.keys(),
+        sb.keys()
+    );
+    assert!(sa.contains_key("demo"));
+    assert!(
+        sb.keys().all(|n| !n.ends_with("@a")),
+        "namespace two sees namespace one: {:?}",
+        sb.keys()
+    );
+    // The same namespace does.
+    let c_conf = cluster_config("one-c", &config("one", "c", "s3cret"));
+    let c = spawn_node(
+        vec!["--config".into(), c_conf.display().to_string()],
+        "auth-c",
+    )
+    .await;
+    let (_wc, sc) = client(&c).await;
+    assert!(sc.contains_key("demo@a"), "{:?}", sc.keys());
+}
