@@ -28,45 +28,46 @@ nats_port="$(free_port)"
 pids+=($!)
 sleep 1
 
-# serve SITE: starts a node and prints its port once it accepts connections.
+# serve SITE: starts a node; sets $port once it accepts connections.
 serve() {
-    local site="$1" port
+    local site="$1"
     port="$(free_port)"
     XDG_CONFIG_HOME="$work/$site" "$bin" serve --listen "127.0.0.1:$port" --rate "$rate" \
         --no-mapping-cache --nats "nats://127.0.0.1:$nats_port" --site "$site" \
         >"$work/$site.log" 2>&1 &
     pids+=($!)
     for _ in $(seq 100); do
-        grep -q "connections:" "$work/$site.log" 2>/dev/null && { echo "$port"; return; }
+        grep -q "connections:" "$work/$site.log" 2>/dev/null && return
         sleep 0.1
     done
     echo "bench-fanout: node $site did not start:" >&2; cat "$work/$site.log" >&2; exit 1
 }
 
-port_a="$(serve a)"   # the demo: a replayed walk and the mannequin retargeted from it
-port_c="$(serve c)"   # relays A's two subjects
+serve a; port_a="$port"   # the demo: a replayed walk and the mannequin retargeted from it
+serve c; port_c="$port"   # relays A's two subjects
 url() { echo "ws://127.0.0.1:$1/v1/stream"; }
 load() { "$bin" loadtest --url "$(url "$1")" --clients "$2" --secs "$secs" --json; }
 
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 echo "tick: $rate Hz, 2 subjects, $secs s per measurement"
-summary() {
-    python3 -c '
+cat >"$work/summary.py" <<'PY'
 import json, sys
-r = json.load(open(sys.argv[2]))
-l = r["latency_us"]
-print(f"{sys.argv[1]:<28} {r[\"connected\"]:>5}/{r[\"clients\"]:<5} "
-      f"rate/subject {r[\"subject_rate_hz\"]:7.1f} Hz (slowest client {r[\"client_rate_hz\"][\"min\"]/2:6.1f})  "
-      f"p50 {l[\"p50\"]/1000:6.2f} ms  p99 {l[\"p99\"]/1000:6.2f} ms  max {l[\"max\"]/1000:7.2f} ms  "
-      f"lagged {r[\"lagged\"]} missed {r[\"missed_frames\"]}")
-' "$1" "$2"
-}
+label, path = sys.argv[1], sys.argv[2]
+r = json.load(open(path))
+lat, rate = r["latency_us"], r["client_rate_hz"]
+print(f"{label:<26} {r['connected']:>5}/{r['clients']:<5} "
+      f"per subject {r['subject_rate_hz']:6.1f} Hz (slowest client {rate['min'] / 2:6.1f})  "
+      f"p50 {lat['p50'] / 1000:6.2f} ms  p99 {lat['p99'] / 1000:6.2f} ms  "
+      f"max {lat['max'] / 1000:7.2f} ms  lagged {r['lagged']}  missed {r['missed_frames']}")
+PY
+summary() { python3 "$work/summary.py" "$1" "$2"; }
 
 load "$port_a" 1 >"$work/base.json"
 summary "baseline (1 client, A)" "$work/base.json"
 load "$port_a" 1 >"$work/direct.json" &
+direct=$!
 load "$port_c" 1 >"$work/nats.json"
-wait
+wait "$direct"
 summary "direct, same run (A)" "$work/direct.json"
 summary "through NATS (C)" "$work/nats.json"
 load "$port_a" 100 >"$work/c100.json"
