@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The one test command (README; CI's .ci/run calls it). On a fresh Debian 12 machine it first
 # installs what the real-program tests need, then runs every test of the workspace:
-#   1. scripts/install-apps.sh  — Blender and Chromium from Debian (client end-to-end tests)
+#   1. scripts/install-apps.sh  — Blender, Chromium, nats-server from Debian (end-to-end tests)
 #   2. scripts/setup-vision.sh  — ffmpeg, ONNX Runtime (PyPI wheel), BlazePose ONNX models
 #                                 (npm @mediapipe/pose, converted), real footage (PyPI pose2sim)
 #   3. scripts/setup-vmc-check.sh — python-osc (PyPI) in a private venv: the independent VMC
@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 
 step() { printf '\n=== %s ===\n' "$*"; }
 
-step "installing Blender and Chromium (if missing)"
+step "installing Blender, Chromium and nats-server (if missing)"
 ./scripts/install-apps.sh
 
 step "preparing the vision models and runtime (if missing)"
