@@ -227,15 +227,21 @@ impl Ticker {
                 send_nanos,
                 missed_frames: 0,
             };
-            encode_frame(
-                &mut self.scratch,
-                &header,
-                frame.pose.root_translation(),
-                &frame.pose.rotations,
-            );
+            // Another node's subject: its frames reach clients as they arrive from the cluster
+            // (cluster::run_relay), so the tick only serves its VMC receivers.
+            let relayed = subject.is_relayed();
+            self.scratch.clear();
+            if !relayed {
+                encode_frame(
+                    &mut self.scratch,
+                    &header,
+                    frame.pose.root_translation(),
+                    &frame.pose.rotations,
+                );
+            }
             let v2_at = self.scratch.len();
             let shape = subject.shape();
-            if frame.pose.num_bones() == shape.skeleton.num_bones() {
+            if !relayed && frame.pose.num_bones() == shape.skeleton.num_bones() {
                 append_frame_v2(
                     &mut self.scratch,
                     &header,
@@ -295,9 +301,7 @@ impl Ticker {
                 }
             }
             drop(frame);
-            if subject.is_relayed() {
-                // Another node's subject: its frames reach clients as they arrive from the
-                // cluster (cluster::run_relay), not re-encoded here.
+            if relayed {
                 continue;
             }
             // The one allocation per subject per tick: the shared, immutable frame, which must

@@ -30,6 +30,32 @@ pub enum Incoming {
     Frame(DecodedFrame, u64),
 }
 
+/// Sends `pose` (bones named `names`, in order) as one VMC packet set stamped `t`, the way a
+/// VMC performer application does.
+pub fn send_vmc_pose(
+    socket: &std::net::UdpSocket,
+    to: std::net::SocketAddr,
+    enc: &mut rigcast_protocol::vmc::VmcEncoder,
+    names: &[String],
+    pose: &Pose,
+    t: f32,
+) {
+    let bones = names
+        .iter()
+        .zip(&pose.translations)
+        .zip(&pose.rotations)
+        .map(
+            |((name, &translation), &rotation)| rigcast_protocol::vmc::VmcBone {
+                name,
+                translation,
+                rotation,
+            },
+        );
+    for bundle in enc.encode(t, bones) {
+        socket.send_to(bundle, to).unwrap();
+    }
+}
+
 /// Unix epoch nanoseconds.
 pub fn unix_nanos() -> u64 {
     std::time::SystemTime::now()

@@ -19,7 +19,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_protocol::control::SubjectInfo;
-use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::{ServerMessage, SourceState};
 use rigcast_tests::{connect, free_port, handshake, next, temp_path, Incoming, ServeProcess, Ws};
 
@@ -151,18 +151,8 @@ fn vmc_sender(port: u16, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
             for r in pose.rotations.iter_mut().skip(1) {
                 *r = glam::Quat::from_rotation_x(0.3 * (2.0 * t).sin());
             }
-            let bones = names
-                .iter()
-                .zip(&pose.translations)
-                .zip(&pose.rotations)
-                .map(|((name, &translation), &rotation)| VmcBone {
-                    name,
-                    translation,
-                    rotation,
-                });
-            for bundle in enc.encode(t, bones) {
-                let _ = socket.send_to(bundle, ("127.0.0.1", port));
-            }
+            let to = std::net::SocketAddr::from(([127, 0, 0, 1], port));
+            rigcast_tests::send_vmc_pose(&socket, to, &mut enc, &names, &pose, t);
             std::thread::sleep(Duration::from_millis(16));
         }
     })

@@ -9,11 +9,11 @@ use std::time::{Duration, Instant};
 
 use glam::{Quat, Vec3};
 use rigcast_protocol::control::BoneInfo;
-use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::mapping::{auto_map, MapOptions};
-use rigcast_retarget::{Mapping, Pose, RawSkeleton, RetargetOptions, Skeleton, Transform};
+use rigcast_retarget::{Mapping, RawSkeleton, RetargetOptions, Skeleton, Transform};
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::*;
 
@@ -39,29 +39,6 @@ fn max_angle(a: &[Quat], b: &[Quat]) -> f32 {
         .zip(b)
         .map(|(&x, &y)| rotation_angle(x, y))
         .fold(0.0, f32::max)
-}
-
-/// Sends `pose` of `clip` as one VMC packet set.
-fn send_pose(
-    socket: &std::net::UdpSocket,
-    to: std::net::SocketAddr,
-    enc: &mut VmcEncoder,
-    names: &[String],
-    pose: &Pose,
-    t: f32,
-) {
-    let bones = names
-        .iter()
-        .zip(&pose.translations)
-        .zip(&pose.rotations)
-        .map(|((name, &translation), &rotation)| VmcBone {
-            name,
-            translation,
-            rotation,
-        });
-    for bundle in enc.encode(t, bones) {
-        socket.send_to(bundle, to).unwrap();
-    }
 }
 
 /// Waits for a JSON message matching `f`.
@@ -157,7 +134,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
                 } else {
                     &clip.poses[17]
                 };
-                send_pose(
+                rigcast_tests::send_vmc_pose(
                     &socket,
                     to,
                     &mut enc,
@@ -324,7 +301,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
         let mut enc = VmcEncoder::new();
         let t0 = Instant::now();
         while t0.elapsed() < Duration::from_millis(900) {
-            send_pose(&sender, to, &mut enc, &names, &clip.poses[17], 10.0);
+            rigcast_tests::send_vmc_pose(&sender, to, &mut enc, &names, &clip.poses[17], 10.0);
             std::thread::sleep(Duration::from_secs_f64(1.0 / RATE));
         }
     });
@@ -418,7 +395,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
             let mut k = 0;
             while t0.elapsed() < Duration::from_millis(millis) {
                 let pose = &clip.poses[if moving { k % clip.poses.len() } else { 17 }];
-                send_pose(
+                rigcast_tests::send_vmc_pose(
                     &socket,
                     to,
                     &mut enc,

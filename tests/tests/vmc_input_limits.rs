@@ -6,35 +6,11 @@
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
-use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::Pose;
 use rigcast_server::config::FileConfig;
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::*;
-
-/// Sends one frame of `pose` (bones named `names`) as VMC bundles.
-fn send_pose(
-    socket: &UdpSocket,
-    to: SocketAddr,
-    enc: &mut VmcEncoder,
-    names: &[String],
-    pose: &Pose,
-    t: f32,
-) {
-    let bones = names
-        .iter()
-        .zip(&pose.translations)
-        .zip(&pose.rotations)
-        .map(|((name, &translation), &rotation)| VmcBone {
-            name,
-            translation,
-            rotation,
-        });
-    for bundle in enc.encode(t, bones) {
-        socket.send_to(bundle, to).unwrap();
-    }
-}
 
 /// Sends the procedural humanoid's frames from `from` to `to` for `secs` at ~100 Hz;
 /// with `churn`, every other frame moves one bone's offset by 2 cm (a new skeleton).
@@ -50,7 +26,7 @@ fn send_for(from: &str, to: SocketAddr, secs: f32, churn: bool) {
         if churn && k % 2 == 1 {
             pose.translations[3].x += 0.02;
         }
-        send_pose(
+        rigcast_tests::send_vmc_pose(
             &socket,
             to,
             &mut enc,
