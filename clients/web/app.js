@@ -143,6 +143,8 @@ class SubjectView {
 
   fk(frame) {
     const n = this.bones.length;
+    // Which frame the drawn pose is (null at rest): lets a footplants message be matched to it.
+    this.drawnSeq = frame ? frame.seq : null;
     for (let i = 0; i < n; i++) {
       const r = this.localR;
       if (frame) r.set(frame.rotations[4 * i], frame.rotations[4 * i + 1], frame.rotations[4 * i + 2], frame.rotations[4 * i + 3]);
@@ -211,6 +213,7 @@ class SubjectView {
         this.markers.set(foot.bone, marker);
       }
       marker.userData.foot = foot;
+      marker.userData.seq = message.seq;
       // Before the first live pose the skeleton stands at rest, wherever that is: no marker.
       marker.visible = foot.planted === true && this.placedLive === true;
     }
@@ -355,6 +358,7 @@ state.footMarkers = () => {
       const message = f && [f[0] - view.shift.dx + view.group.position.x, f[1], f[2] - view.shift.dz + view.group.position.z];
       return {
         bone, visible: m.visible, planted: m.userData.foot?.planted === true, message,
+        messageSeq: m.userData.seq ?? null, drawnSeq: view.drawnSeq ?? null,
         position: [p.x, p.y, p.z], joint: j && [j.x, j.y, j.z], floor: view.floorY + view.group.position.y,
       };
     });

@@ -52,8 +52,11 @@ async fn viewer_marks_planted_feet() {
     let mut seen = HashSet::new();
     let mut checked = 0;
     let mut worst = 0.0f64;
+    let (mut compared, mut near_message) = (0, 0);
     let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(20) && (seen.len() < 4 || checked < 5) {
+    while start.elapsed() < Duration::from_secs(20)
+        && (seen.len() < 4 || checked < 5 || compared < 5)
+    {
         let markers = cdp
             .eval_json("JSON.stringify(window.rigcast?.footMarkers ? window.rigcast.footMarkers()[1] ?? [] : [])")
             .await;
@@ -89,12 +92,20 @@ async fn viewer_marks_planted_feet() {
                     .collect();
                 let horizontal = ((p[0] - j[0]).powi(2) + (p[2] - j[2]).powi(2)).sqrt();
                 // The message's position is where the foot stood when it planted; the lock
-                // eases it onto its pin over ~0.1 s, a few centimetres.
-                let from_message = ((p[0] - q[0]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-                assert!(
-                    from_message < 0.12,
-                    "marker {from_message} m from the message's position: {m}"
-                );
+                // eases it onto its pin over ~0.1 s, a few centimetres. Only a pose drawn from
+                // the message's frame or later can show the landed foot; and the release
+                // reaches the page up to a check period (plus a loaded machine's delay) after
+                // the foot lifts, so a few poses drawn in that gap show the swing.
+                let drawn = m["drawnSeq"].as_u64().unwrap_or(0);
+                if drawn >= m["messageSeq"].as_u64().unwrap_or(u64::MAX) {
+                    let from_message = ((p[0] - q[0]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+                    compared += 1;
+                    if from_message < 0.12 {
+                        near_message += 1;
+                    } else {
+                        println!("viewer: marker {from_message:.3} m from its message: {m}");
+                    }
+                }
                 worst = worst.max(horizontal);
                 checked += 1;
             }
@@ -114,6 +125,10 @@ async fn viewer_marks_planted_feet() {
         }
     }
     assert!(checked >= 5, "only {checked} shown markers checked");
+    assert!(
+        compared >= 5 && near_message * 10 >= compared * 8,
+        "only {near_message} of {compared} shown markers within 0.12 m of their message"
+    );
     assert!(
         worst < 0.05,
         "a marker lies {worst} m from its planted foot"
@@ -290,40 +305,46 @@ async fn viewer_controls_pause_pick_follow_and_orbit() {
     cdp.eval("(() => { const s = document.getElementById('follow'); s.value = '0'; s.dispatchEvent(new Event('change')); return true; })()").await;
     let probe = "JSON.stringify((() => { const v = window.rigcast.views.get(0); const h = v.worldP[v.anchor].clone().add(v.group.position); const c = window.rigcast.camera(); return { hips: h.toArray(), ...c }; })())";
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let a = cdp.eval_json(probe).await;
-    tokio::time::sleep(Duration::from_millis(1500)).await;
-    let b = cdp.eval_json(probe).await;
-    let v = |x: &serde_json::Value, k: &str| -> Vec<f64> {
-        x[k].as_array()
-            .unwrap()
-            .iter()
-            .map(|c| c.as_f64().unwrap())
-            .collect()
+    // The demo walks nearly on the spot, so its hips sway and bob by centimetres and come back
+    // each cycle: sample through a second and a half and judge the farthest sample from the
+    // first, not two samples that may fall at the same phase.
+    let mut probes = Vec::new();
+    for _ in 0..16 {
+        probes.push(cdp.eval_json(probe).await);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let v = |x: &serde_json::Value, k: &str| -> [f64; 3] {
+        let a = x[k].as_array().unwrap();
+        [0, 1, 2].map(|i| a[i].as_f64().unwrap())
     };
-    let travel: f64 = (0..3)
-        .map(|i| (v(&b, "hips")[i] - v(&a, "hips")[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    let camera_moved: f64 = (0..3)
-        .map(|i| (v(&b, "position")[i] - v(&a, "position")[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let dist = |p: [f64; 3], q: [f64; 3]| -> f64 {
+        (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt()
+    };
+    let first = &probes[0];
+    let far = probes
+        .iter()
+        .max_by(|x, y| {
+            dist(v(x, "hips"), v(first, "hips")).total_cmp(&dist(v(y, "hips"), v(first, "hips")))
+        })
+        .unwrap();
+    let travel = dist(v(far, "hips"), v(first, "hips"));
+    let camera_moved = dist(v(far, "position"), v(first, "position"));
     println!("viewer: followed hips travelled {travel:.3} m, camera {camera_moved:.3} m");
     // The camera moves with the hips as of the last drawn frame; the probe reads both at once,
     // but the hips may have been drawn once more than the camera updated: allow one frame.
-    for k in ["position", "target"] {
-        let offset_a: Vec<f64> = (0..3).map(|i| v(&a, k)[i] - v(&a, "hips")[i]).collect();
-        let offset_b: Vec<f64> = (0..3).map(|i| v(&b, k)[i] - v(&b, "hips")[i]).collect();
-        let drift: f64 = (0..3)
-            .map(|i| (offset_a[i] - offset_b[i]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        assert!(
-            drift < 0.05,
-            "camera {k} offset to the hips drifted {drift} m (hips travelled {travel} m)"
-        );
+    for b in &probes {
+        for k in ["position", "target"] {
+            let (ha, hb) = (v(first, "hips"), v(b, "hips"));
+            let (ka, kb) = (v(first, k), v(b, k));
+            let offset_a = [0, 1, 2].map(|i| ka[i] - ha[i]);
+            let offset_b = [0, 1, 2].map(|i| kb[i] - hb[i]);
+            let drift = dist(offset_a, offset_b);
+            assert!(
+                drift < 0.05,
+                "camera {k} offset to the hips drifted {drift} m (hips travelled {travel} m)"
+            );
+        }
     }
-    // The demo walks nearly on the spot; its hips still sway and bob by centimetres.
     assert!(travel > 0.01, "the followed hips did not move ({travel} m)");
     assert!(
         (camera_moved - travel).abs() < 0.02,
