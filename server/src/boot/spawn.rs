@@ -102,6 +102,8 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         fd_limit: limits::fd_limit(),
         stalled_client_timeout: Duration::from_secs_f64(config.limits.stalled_client_timeout_secs),
         recorder: recorder.as_ref().map(|r| r.health()),
+        forwarder: (parts.cluster.as_ref())
+            .map(|link| Arc::new(link.forwarder(parts.token.token.clone()))),
     });
     let mut supervisor = Supervisor {
         connections_stop,

@@ -24,6 +24,7 @@
 //! - **Discovery.** A node reads the KV bucket when it starts: subjects published after that
 //!   show up on it after its next start.
 
+mod control;
 mod entry;
 mod publish;
 mod remote;
@@ -34,6 +35,7 @@ use anyhow::{bail, Context};
 use async_nats::jetstream::{self, kv};
 use serde::Deserialize;
 
+pub use control::{run_control_service, subject_of, Forwarder, Origin};
 pub use entry::{token, SubjectEntry};
 pub use publish::run_publisher;
 pub use remote::{run_relay, RemoteSource};
@@ -245,6 +247,8 @@ pub struct Relay {
     pub subject: String,
     /// Its source's queue.
     pub tx: std::sync::mpsc::SyncSender<tokio_tungstenite::tungstenite::Bytes>,
+    /// Where it lives (its control requests go there).
+    pub origin: Origin,
 }
 
 /// This node's part of the cluster, between loading and spawning.
@@ -272,6 +276,10 @@ pub async fn join(
             id: first_id + k as u32,
             subject: config.frame_subject(&e.site, &token(&e.name)),
             tx,
+            origin: Origin {
+                site: e.site.clone(),
+                name: e.name.clone(),
+            },
         });
         subjects.push(RemoteSubject {
             name: e.relayed_name(),
@@ -283,7 +291,18 @@ pub async fn join(
 }
 
 impl ClusterLink {
-    /// Starts the relays and the publisher; they stop when `state` shuts down.
+    /// The forwarder of control requests about the relayed subjects, signing with `token`.
+    pub fn forwarder(&self, token: crate::token::ControlToken) -> Forwarder {
+        let c = &self.cluster;
+        let f = Forwarder::new(c.client.clone(), &c.config.namespace, &c.config.site, token);
+        for r in &self.relays {
+            f.add(r.id, r.origin.clone());
+        }
+        f
+    }
+
+    /// Starts the relays, the publisher and the control service; they stop when `state`
+    /// shuts down.
     pub fn spawn(
         self,
         state: &std::sync::Arc<crate::state::ServerState>,
@@ -296,6 +315,13 @@ impl ClusterLink {
                 tokio::spawn(run_relay(client, r.subject, r.id, r.tx, state.clone()))
             })
             .collect();
+        let c = &self.cluster;
+        tasks.push(tokio::spawn(run_control_service(
+            c.client.clone(),
+            c.config.namespace.clone(),
+            c.config.site.clone(),
+            state.clone(),
+        )));
         tasks.push(tokio::spawn(run_publisher(self.cluster, state.clone())));
         tasks
     }
