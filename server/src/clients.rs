@@ -160,24 +160,22 @@ pub async fn serve_client<S>(
 /// The state that control messages describe, as those messages: every subject's skeleton,
 /// every built mapping, the sources' health. Sent on connect and after a control-queue lag.
 fn state_messages(state: &ServerState) -> Vec<String> {
-    let mut out: Vec<String> = state
-        .subjects
+    let subjects = state.subjects();
+    let mut out: Vec<String> = subjects
         .iter()
         .map(|s| s.shape().skeleton_json.clone())
         .collect();
     out.extend(
-        state
-            .subjects
+        subjects
             .iter()
             .filter_map(|s| s.mapping_json.read().ok().and_then(|m| m.clone())),
     );
     out.extend(
-        state
-            .subjects
+        subjects
             .iter()
             .filter_map(|s| s.stats.footplants_json.lock().ok().and_then(|m| m.clone())),
     );
-    out.push(crate::source_status_json(&state.subjects));
+    out.push(crate::source_status_json(&state.subjects()));
     out
 }
 
@@ -473,7 +471,7 @@ pub(crate) fn apply_change(state: &ServerState, msg: ClientMessage) -> ServerMes
             pose,
             delay_secs,
         } => match crate::calibration::start(
-            &state.subjects,
+            &state.subjects(),
             &state.events,
             subject,
             pose,
@@ -547,7 +545,7 @@ fn set_mapping(
             format!("unknown subject id {subject}"),
         );
     };
-    if let Err(message) = check_overrides(state, target, &overrides) {
+    if let Err(message) = check_overrides(state, &target, &overrides) {
         return ServerMessage::error(ErrorCode::Unsupported, message);
     }
     let cmd = EngineCommand::SetMapping { subject, overrides };

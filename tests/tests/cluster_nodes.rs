@@ -1,6 +1,7 @@
 //! Cluster mode between nodes, through a real `nats-server`: control requests about another
 //! node's subject are carried out by that node (with the deployment's control token checked
-//! there too).
+//! there too); nodes that start later are found by the ones already running, and a node that
+//! stops cleanly makes its subjects lost elsewhere at once.
 //!
 //! - Node A has the bundled walk; node B retargets it onto the built-in mannequin; node C
 //!   relays both (and has a walk of its own); all three hold the same token file. Node D relays too but holds another
@@ -13,9 +14,9 @@
 use std::time::Duration;
 
 use rigcast_protocol::control::MappingEntry;
-use rigcast_protocol::{ErrorCode, ServerMessage};
+use rigcast_protocol::{ErrorCode, ServerMessage, SourceState};
 use rigcast_tests::nats::{client_with, nats_server, spawn_node_with_token, NatsCluster};
-use rigcast_tests::{next_json, send_text, Ws};
+use rigcast_tests::{next, next_json, send_text, Incoming, Ws};
 
 const TOKEN: &str = "deployment-token-0123456789abcdef";
 const OTHER_TOKEN: &str = "another-deployment-0123456789abc";
@@ -163,4 +164,126 @@ async fn control_requests_are_carried_out_by_the_owning_node() {
     assert_eq!(code, ErrorCode::Internal);
     assert!(message.contains("node a"), "{message}");
     assert!(started.elapsed() <= Duration::from_secs(3));
+}
+
+/// Waits for a `subjects_changed` naming `name`; its id.
+async fn wait_subject(ws: &mut Ws, name: &str, timeout: Duration) -> Option<u32> {
+    let end = tokio::time::Instant::now() + timeout;
+    while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
+        if let ServerMessage::SubjectsChanged { subjects } = next_json(ws, left).await? {
+            if let Some(s) = subjects.iter().find(|s| s.name == name) {
+                return Some(s.id);
+            }
+        }
+    }
+    None
+}
+
+/// Waits until a `source_status` shows subject `id` in `state`; its detail and how long it
+/// took.
+async fn wait_state(
+    ws: &mut Ws,
+    id: u32,
+    state: SourceState,
+    timeout: Duration,
+) -> Option<(String, Duration)> {
+    let start = std::time::Instant::now();
+    let end = tokio::time::Instant::now() + timeout;
+    while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
+        if let ServerMessage::SourceStatus { sources } = next_json(ws, left).await? {
+            if let Some(s) = sources.iter().find(|s| s.subject == id && s.state == state) {
+                return Some((s.detail.clone(), start.elapsed()));
+            }
+        }
+    }
+    None
+}
+
+/// (seq, rotations) of every frame of subject `id` received for `secs`.
+async fn frames_of(ws: &mut Ws, id: u32, secs: f64) -> Vec<(u64, Vec<glam::Quat>)> {
+    let mut out = Vec::new();
+    let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
+    while let Some(left) = end.checked_duration_since(std::time::Instant::now()) {
+        match next(ws, left).await {
+            Some(Incoming::Frame(f, _)) if f.header.subject == id => {
+                out.push((f.header.seq, f.rotations))
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    out
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn nodes_that_start_later_are_found_and_a_clean_stop_is_a_loss() {
+    let Some(bin) = nats_server() else { return };
+    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
+        .await
+        .unwrap();
+    let args = |site: &str| -> Vec<String> {
+        ["--nats", &nats.urls(), "--site", site, "--source", "demo"]
+            .map(String::from)
+            .to_vec()
+    };
+    // W runs first and knows nothing of A.
+    let w = spawn_node_with_token(args("w"), "disc-w", None).await;
+    let (mut ww, sw) = client_with(&w, None).await;
+    assert!(!sw.contains_key("demo@a"), "{:?}", sw.keys());
+
+    // A starts later: W finds its subject while running and streams it as A does.
+    let a = spawn_node_with_token(args("a"), "disc-a", None).await;
+    let id = wait_subject(&mut ww, "demo@a", Duration::from_secs(5))
+        .await
+        .expect("W announces A's subject");
+    let (mut wa, sa) = client_with(&a, None).await;
+    let (on_w, on_a) = tokio::join!(
+        frames_of(&mut ww, id, 2.0),
+        frames_of(&mut wa, sa["demo"].id, 2.0)
+    );
+    let by_seq: std::collections::HashMap<u64, &Vec<glam::Quat>> =
+        on_a.iter().map(|(s, r)| (*s, r)).collect();
+    let mut matched = 0;
+    for (seq, rot) in &on_w {
+        let Some(o) = by_seq.get(seq) else { continue };
+        for (x, y) in o.iter().zip(rot) {
+            let d = (glam::Vec4::from(*x) - glam::Vec4::from(*y))
+                .abs()
+                .max_element();
+            assert!(d <= 1e-6, "seq {seq} differs by {d}");
+        }
+        matched += 1;
+    }
+    println!(
+        "demo@a found on W: {matched} of {} frames equal to A's",
+        on_w.len()
+    );
+    assert!(matched >= 30, "only {matched} frames matched A's");
+    let (_, status) = rigcast_tests::http_get(w.addr, "/v1/status").await;
+    let status: serde_json::Value = serde_json::from_str(&status).unwrap();
+    assert_eq!(
+        status["cluster"]["subjects_discovered"], 1,
+        "{}",
+        status["cluster"]
+    );
+
+    // A stops cleanly (Ctrl-C): it removes its entries, and W says so at once.
+    // SAFETY: kill(2) on a child process id this test started.
+    assert_eq!(unsafe { libc::kill(a.pid() as i32, libc::SIGINT) }, 0);
+    let lost = wait_state(&mut ww, id, SourceState::Lost, Duration::from_secs(3)).await;
+    println!("A stopped: {lost:?}");
+    let (detail, after) = lost.expect("lost on W");
+    assert!(detail.contains("removed"), "{detail}");
+    assert!(after <= Duration::from_secs(2), "{after:?}");
+    drop(a);
+
+    // A again: the same subject on W is live again, not a second one.
+    let a = spawn_node_with_token(args("a"), "disc-a", None).await;
+    let live = wait_state(&mut ww, id, SourceState::Live, Duration::from_secs(5)).await;
+    println!("A restarted: {live:?}");
+    assert!(live.is_some());
+    let (_, sw) = client_with(&w, None).await;
+    let relayed: Vec<&String> = sw.keys().filter(|n| n.ends_with("@a")).collect();
+    assert_eq!(relayed, vec!["demo@a"]);
+    drop(a);
 }

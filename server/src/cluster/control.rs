@@ -216,6 +216,11 @@ impl Forwarder {
         }
     }
 
+    /// This node's site.
+    pub fn site(&self) -> &str {
+        &self.site
+    }
+
     /// Records that local subject `id` is relayed from `origin`.
     pub fn add(&self, id: u32, origin: Origin) {
         if let Ok(mut o) = self.origins.write() {
@@ -335,10 +340,8 @@ fn serve(checker: &mut Checker, payload: &[u8], state: &ServerState) -> ServerMe
         .stats
         .cluster_control_served
         .fetch_add(1, Ordering::Relaxed);
-    let own = state
-        .subjects
-        .iter()
-        .find(|s| !s.is_relayed() && s.info().name == body.name);
+    let subjects = state.subjects();
+    let own = (subjects.iter()).find(|s| !s.is_relayed() && s.info().name == body.name);
     let Some(own) = own else {
         return ServerMessage::error(
             ErrorCode::UnknownSubject,

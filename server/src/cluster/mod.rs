@@ -25,6 +25,7 @@
 //!   show up on it after its next start.
 
 mod control;
+mod discover;
 mod entry;
 mod publish;
 mod remote;
@@ -36,9 +37,10 @@ use async_nats::jetstream::{self, kv};
 use serde::Deserialize;
 
 pub use control::{run_control_service, subject_of, Forwarder, Origin};
+pub use discover::{run_discovery, Known, LiveThreads};
 pub use entry::{token, SubjectEntry};
 pub use publish::run_publisher;
-pub use remote::{run_relay, RemoteSource};
+pub use remote::{run_relay, Change, RemoteFeeds, RemoteSource};
 
 /// `[cluster]` in the config file (or `--nats` / `--site` on the command line).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -245,8 +247,10 @@ pub struct Relay {
     pub id: u32,
     /// The NATS subject its frames arrive on.
     pub subject: String,
-    /// Its source's queue.
-    pub tx: std::sync::mpsc::SyncSender<tokio_tungstenite::tungstenite::Bytes>,
+    /// Its source's queues.
+    pub feeds: RemoteFeeds,
+    /// Its bucket key.
+    pub key: String,
     /// Where it lives (its control requests go there).
     pub origin: Origin,
 }
@@ -269,13 +273,14 @@ pub async fn join(
     let mut relays = Vec::new();
     let mut subjects = Vec::new();
     for (k, e) in cluster.remote_entries().await?.iter().enumerate() {
-        let (source, tx) = RemoteSource::new(e, config.lost_after())
+        let (source, feeds) = RemoteSource::new(e, config.lost_after())
             .with_context(|| format!("cluster subject {}", e.relayed_name()))?;
         let skeleton = source.skeleton_arc();
         relays.push(Relay {
             id: first_id + k as u32,
             subject: config.frame_subject(&e.site, &token(&e.name)),
-            tx,
+            feeds,
+            key: e.key(),
             origin: Origin {
                 site: e.site.clone(),
                 name: e.name.clone(),
@@ -301,21 +306,34 @@ impl ClusterLink {
         f
     }
 
-    /// Starts the relays, the publisher and the control service; they stop when `state`
-    /// shuts down.
+    /// Starts the relays, the bucket watch, the publisher and the control service; they stop
+    /// when `state` shuts down. Subjects found later get their source threads from `live`.
     pub fn spawn(
         self,
         state: &std::sync::Arc<crate::state::ServerState>,
+        live: LiveThreads,
     ) -> Vec<tokio::task::JoinHandle<()>> {
-        let mut tasks: Vec<_> = self
-            .relays
-            .into_iter()
-            .map(|r| {
-                let client = self.cluster.client.clone();
-                tokio::spawn(run_relay(client, r.subject, r.id, r.tx, state.clone()))
-            })
-            .collect();
+        let mut known = std::collections::HashMap::new();
+        let mut tasks = Vec::new();
+        for r in self.relays {
+            let client = self.cluster.client.clone();
+            let (frames, changes) = (r.feeds.frames, r.feeds.changes);
+            known.insert(r.key, Known { changes });
+            tasks.push(tokio::spawn(run_relay(
+                client,
+                r.subject,
+                r.id,
+                frames,
+                state.clone(),
+            )));
+        }
         let c = &self.cluster;
+        tasks.push(tokio::spawn(run_discovery(
+            c.clone(),
+            known,
+            state.clone(),
+            live,
+        )));
         tasks.push(tokio::spawn(run_control_service(
             c.client.clone(),
             c.config.namespace.clone(),
