@@ -9,7 +9,7 @@
 //!                                                                 └──▶ RemoteSource ─▶ B's
 //!                                                                      performers, VMC, status
 //!  subjects ─▶ entry ─▶ JetStream KV "{ns}_subjects", key {site}.{key}: skeleton + mapping
-//!                       (retained: B reads it at start and makes one subject per entry)
+//!                       (retained and watched: B makes one subject per entry, also later)
 //! ```
 //!
 //! - **Who computes what.** A performer (mapping + retarget) runs on the node that has its
@@ -21,8 +21,12 @@
 //!   back (the node restarted) it is live again. Nothing restarts elsewhere.
 //! - **Names.** Subjects are matched across nodes by site and name, never by id (ids are per
 //!   node). On a relaying node a remote subject is called `NAME@SITE`.
-//! - **Discovery.** A node reads the KV bucket when it starts: subjects published after that
-//!   show up on it after its next start.
+//! - **Discovery.** A node reads the KV bucket when it starts and watches it while it runs
+//!   (`discover`): subjects published later become relayed subjects here without a restart.
+//! - **Control.** A change to a relayed subject is carried out by its owner (`control`),
+//!   with the deployment's control token checked there too.
+//! - **Mappings.** The automatic mapper's tables are shared through a second bucket
+//!   (`mappings`), so a pair is mapped once per deployment.
 
 mod control;
 mod discover;
