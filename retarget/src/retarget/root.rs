@@ -49,6 +49,61 @@ pub(super) struct Side<'a> {
     pub(super) eps: f32,
 }
 
+/// Segments within about 37° of `up` count as leg (thigh, shin); the foot's slope and the hip
+/// offset do not, so rigs whose ankles and toes are built differently measure alike.
+const LEG_SEGMENT_COS: f32 = 0.8;
+
+impl Side<'_> {
+    /// The segments (joint to joint, world space) from `top` down to `low`, those longer than
+    /// `eps`; empty when `low` is not below `top`.
+    fn segments_down(&self, top: BoneId, low: BoneId) -> Vec<Vec3> {
+        let mut path = vec![low];
+        let mut b = low;
+        while b != top {
+            match self.skel.parent(b) {
+                Some(p) => b = p,
+                None => return Vec::new(),
+            }
+            path.push(b);
+        }
+        path.windows(2)
+            .map(|w| self.worlds[w[0].index()].translation - self.worlds[w[1].index()].translation)
+            .filter(|d| d.length() > self.eps)
+            .rev()
+            .collect()
+    }
+
+    /// Hip height along a leg: from `top`'s joint down to `low`'s, the drop along `up` of the
+    /// first (hip-offset) segment, full lengths of segments mostly along `up` (thigh, shin:
+    /// posture does not shorten them) and the drop of mostly-horizontal ones (the foot).
+    pub(super) fn leg_height(&self, top: BoneId, low: BoneId, up: Vec3) -> f32 {
+        self.segments_down(top, low)
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let (drop, len) = (d.dot(up).abs(), d.length());
+                if i == 0 || drop < 0.5 * len {
+                    drop
+                } else {
+                    len
+                }
+            })
+            .sum()
+    }
+
+    /// Leg length from a mapped upper-leg joint `top` down to a mapped foot joint `low`: the
+    /// full lengths of the segments along `up` (thigh, shin), not the foot. Strides scale with
+    /// it; measured between joints mapped to each other on both rigs, the ratio compares like
+    /// with like whatever hip offsets and ankle heights the rigs have.
+    pub(super) fn leg_length(&self, top: BoneId, low: BoneId, up: Vec3) -> f32 {
+        self.segments_down(top, low)
+            .iter()
+            .filter(|d| d.dot(up).abs() >= LEG_SEGMENT_COS * d.length())
+            .map(|d| d.length())
+            .sum()
+    }
+}
+
 /// The floor a reference posture stands on: its lowest foot joint when that is near y = 0 (a
 /// character authored standing on the ground); unknown for a rest floating at the origin (like
 /// CMU's, with the hips at y = 0).
@@ -96,7 +151,7 @@ impl RootPlan {
         let mut contacts = Vec::new();
         let (mut floor_t, mut floor_s) = (None, None);
         if let Some((tl, _)) = low {
-            let first = align::leg_height(tgt.skel, tgt.worlds, rt, tl, up, tgt.eps);
+            let first = tgt.leg_height(rt, tl, up);
             // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
             let (mut sum_t, mut sum_s) = (0.0, 0.0);
             for &(t, s) in below
@@ -104,14 +159,8 @@ impl RootPlan {
                 .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
             {
                 let (ht, hs) = match top_pair(src, tgt, table, rt, rs, t, s) {
-                    Some((tt, st)) => (
-                        align::leg_length(tgt.skel, tgt.worlds, tt, t, up, tgt.eps),
-                        align::leg_length(src.skel, src.worlds, st, s, up, src.eps),
-                    ),
-                    None => (
-                        align::leg_height(tgt.skel, tgt.worlds, rt, t, up, tgt.eps),
-                        align::leg_height(src.skel, src.worlds, rs.bone, s, up, src.eps),
-                    ),
+                    Some((tt, st)) => (tgt.leg_length(tt, t, up), src.leg_length(st, s, up)),
+                    None => (tgt.leg_height(rt, t, up), src.leg_height(rs.bone, s, up)),
                 };
                 if ht > tgt.eps && hs > src.eps {
                     sum_t += ht;
