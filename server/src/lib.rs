@@ -53,6 +53,7 @@ pub mod skeleton_wire;
 pub mod state;
 pub mod stats;
 pub mod subject;
+pub mod subject_list;
 pub mod token;
 pub mod translated;
 pub mod vmc_pose;

@@ -150,6 +150,19 @@ pub struct Stats {
     pub cluster_publish_errors: AtomicU64,
     /// Frames received from NATS that were malformed and dropped (cluster mode).
     pub cluster_bad_frames: AtomicU64,
+    /// Control requests this node forwarded to the nodes owning their subjects.
+    pub cluster_control_forwarded: AtomicU64,
+    /// Control requests from other nodes this node carried out (or answered with an error
+    /// about the request itself).
+    pub cluster_control_served: AtomicU64,
+    /// Control requests from other nodes refused: wrong token, stale, replayed, malformed.
+    pub cluster_control_refused: AtomicU64,
+    /// Other nodes' subjects found while running (after the start).
+    pub cluster_subjects_discovered: AtomicU64,
+    /// Mapping tables taken from the cluster's shared cache.
+    pub cluster_mappings_fetched: AtomicU64,
+    /// Mapping tables put in the cluster's shared cache.
+    pub cluster_mappings_shared: AtomicU64,
     /// Connected clients by id.
     pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
     tick_micros: Mutex<TickWindow>,
@@ -172,6 +185,12 @@ impl Default for Stats {
             stalled_disconnects: AtomicU64::new(0),
             cluster_publish_errors: AtomicU64::new(0),
             cluster_bad_frames: AtomicU64::new(0),
+            cluster_control_forwarded: AtomicU64::new(0),
+            cluster_control_served: AtomicU64::new(0),
+            cluster_control_refused: AtomicU64::new(0),
+            cluster_subjects_discovered: AtomicU64::new(0),
+            cluster_mappings_fetched: AtomicU64::new(0),
+            cluster_mappings_shared: AtomicU64::new(0),
             clients: Mutex::new(BTreeMap::new()),
             tick_micros: Mutex::new(TickWindow {
                 values: [0; TICK_WINDOW],

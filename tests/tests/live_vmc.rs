@@ -84,7 +84,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects[0].listen_addr.unwrap().port();
+    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
     let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
     let mut ws = connect(&server.stream_url()).await;
     let (hello, _) = handshake(&mut ws).await;
@@ -366,7 +366,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects[0].listen_addr.unwrap().port();
+    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
     let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
     let mut ws = connect(&server.stream_url()).await;
     handshake(&mut ws).await;

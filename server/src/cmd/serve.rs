@@ -156,7 +156,7 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     println!("  status: http://{addr}/v1/status");
     println!("  viewer: http://{addr}/");
     print_access(&handle, fd);
-    for s in handle.state().subjects.iter() {
+    for s in handle.state().subjects().iter() {
         let info = s.info();
         let from = match s.source_kind {
             None => format!(", retargeted from {:?}", s.inputs),
