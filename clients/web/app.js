@@ -250,12 +250,15 @@ class SubjectView {
     }
   }
 
-  /** A target whose source is lost eases to rest: say so on the label and grey the bones. */
-  setLost(lost) {
-    if (lost === this.lost) return;
+  /** A target whose source is lost eases to rest (or walks its idle graph, `motion` from
+   *  `source_status.targets`): say so on the label and grey the bones. */
+  setLost(lost, motion) {
+    const idle = lost && motion === 'idle_graph';
+    if (lost === this.lost && idle === this.idling) return;
     this.lost = lost;
+    this.idling = idle;
     this.subjectLabel.classList.toggle('lost', lost);
-    this.subjectLabel.textContent = this.labelText + (lost ? ' — source lost' : '');
+    this.subjectLabel.textContent = this.labelText + (idle ? ' — source lost, on idle graph' : lost ? ' — source lost' : '');
     this.lineMaterial.opacity = lost ? 0.35 : 1;
     this.joints.material.opacity = lost ? 0.35 : 1;
   }
@@ -530,7 +533,8 @@ function onMessage(message) {
       for (const record of message.sources ?? []) state.sourceStatus.set(record.subject, record);
       for (const view of state.views.values()) {
         const health = state.sourceStatus.get(view.info.kind === 'target' ? view.info.source : view.info.id);
-        view.setLost(health?.state === 'lost');
+        const target = (message.targets ?? []).find((t) => t.subject === view.info.id);
+        view.setLost(health?.state === 'lost', target?.motion);
       }
       renderSubjects();
       break;

@@ -1,6 +1,7 @@
 //! Counters behind `GET /v1/status`. Written by the hot paths with atomics (and one
 //! uncontended mutex for the tick-duration window), read by the status handler.
 
+use rigcast_protocol::TargetMotion;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -73,6 +74,34 @@ pub struct SubjectStats {
     pub locked_feet: std::sync::Mutex<Vec<String>>,
     /// The latest `footplants` message of a target (see `footplants`), for new clients.
     pub footplants_json: std::sync::Mutex<Option<String>>,
+    /// What drives a target now (written by the tick, read by `source_status`).
+    pub motion: MotionCell,
+}
+
+/// A [`TargetMotion`] the tick stores without locking or allocating.
+#[derive(Debug, Default)]
+pub struct MotionCell(std::sync::atomic::AtomicU8);
+
+const MOTIONS: [TargetMotion; 5] = [
+    TargetMotion::Live,
+    TargetMotion::Resuming,
+    TargetMotion::Rest,
+    TargetMotion::Hold,
+    TargetMotion::IdleGraph,
+];
+
+impl MotionCell {
+    /// Stores `m`.
+    pub fn store(&self, m: TargetMotion) {
+        let i = MOTIONS.iter().position(|x| *x == m).unwrap_or(0);
+        self.0.store(i as u8, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The last stored motion (`live` before any).
+    pub fn load(&self) -> TargetMotion {
+        let i = self.0.load(std::sync::atomic::Ordering::Relaxed) as usize;
+        MOTIONS.get(i).copied().unwrap_or(TargetMotion::Live)
+    }
 }
 
 /// Per-client counters.

@@ -101,7 +101,8 @@ async fn wait_state(
     let start = Instant::now();
     let end = start + timeout;
     while let Some(left) = end.checked_duration_since(Instant::now()) {
-        if let Some(Incoming::Json(ServerMessage::SourceStatus { sources })) = next(ws, left).await
+        if let Some(Incoming::Json(ServerMessage::SourceStatus { sources, .. })) =
+            next(ws, left).await
         {
             if sources.iter().any(|s| s.subject == id && s.state == state) {
                 return Some(start.elapsed());

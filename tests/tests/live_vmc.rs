@@ -52,7 +52,7 @@ fn source_state(m: &ServerMessage) -> Option<String> {
 /// (state, detail) of subject 0 in a `source_status` message.
 fn source_record(m: &ServerMessage) -> Option<(String, String)> {
     match m {
-        ServerMessage::SourceStatus { sources } => sources
+        ServerMessage::SourceStatus { sources, .. } => sources
             .iter()
             .find(|s| s.subject == 0)
             .map(|s| (s.state.to_string(), s.detail.clone())),

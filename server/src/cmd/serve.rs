@@ -114,7 +114,7 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     }
     if let Some(o) = &args.on_lost {
         cfg.on_lost = <OnLost as clap::ValueEnum>::from_str(o, false)
-            .map_err(|_| anyhow::anyhow!("--on-lost {o:?}: expected rest (ease) or hold"))?;
+            .map_err(|_| anyhow::anyhow!("--on-lost {o:?}: expected rest (ease), hold or idle"))?;
     }
     if let Some(listen) = &args.listen {
         cfg.listen = parse_listen(listen)?;
