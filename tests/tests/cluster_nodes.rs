@@ -153,6 +153,12 @@ async fn control_requests_are_carried_out_by_the_owning_node() {
             .is_none(),
         "B re-mapped for a refused request"
     );
+    // Each node counted its part: C forwarded 2 requests to B, B served them and refused D's.
+    let (on_b_status, on_c_status) = (cluster_status(&b).await, cluster_status(&c).await);
+    println!("B: {on_b_status}\nC: {on_c_status}");
+    assert_eq!(on_b_status["control_served"], 2);
+    assert_eq!(on_b_status["control_refused"], 1);
+    assert_eq!(on_c_status["control_forwarded"], 3);
 
     // The owner gone: a short error, not a hang.
     drop(a);
