@@ -22,6 +22,7 @@
 
 pub mod assets;
 pub mod body;
+pub mod detector;
 pub mod error;
 pub mod ffmpeg;
 pub mod frame;
@@ -30,6 +31,7 @@ pub mod lengths;
 pub mod model;
 pub mod one_euro;
 pub mod pipeline;
+pub mod read_ahead;
 pub mod replay;
 pub mod roi;
 pub mod solve;
@@ -42,7 +44,7 @@ pub mod webcam;
 pub use assets::{ModelKind, VisionAssets};
 pub use body::blazepose_skeleton;
 pub use error::VisionError;
-pub use ffmpeg::FfmpegSource;
+pub use ffmpeg::{DecodeSize, FfmpegSource};
 pub use frame::{FrameSource, MemorySource, RgbFrame};
 pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
 pub use model::{InputRange, LandmarkModel};
@@ -51,7 +53,7 @@ pub use replay::LandmarkReplaySource;
 pub use solve::{PoseSolver, SolverConfig};
 pub use source::VisionSource;
 pub use stages::LandmarkStages;
-pub use tracker::{PoseTracker, TrackerConfig};
+pub use tracker::{Finder, PoseTracker, TrackerConfig};
 #[cfg(feature = "webcam")]
 pub use webcam::Webcam;
 
