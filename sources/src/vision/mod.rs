@@ -2,12 +2,14 @@
 //! rotations of a BlazePose source skeleton.
 //!
 //! ```text
-//!  FrameSource (ffmpeg video / image sequence, webcam, memory)
-//!      │ RgbFrame (RGB8 + timestamp)
+//!  FrameSource (ffmpeg video / image sequence at the model's resolution, webcam, memory)
+//!      │ RgbFrame (RGB8 + timestamp; decoded ahead on a thread)
 //!      ▼
-//!  PoseTracker ── ROI from last frame's aux landmarks 33/34 ──▶ LandmarkModel (ort)
-//!      │          (no person: search candidate crops, keep the highest presence)
-//!      ▼ Landmarks (33 image + world points, visibility, presence)
+//!  PoseTracker ── per identity slot #0..#N-1: ROI from its last aux landmarks 33/34
+//!      │          ──▶ LandmarkModel (ort), once per tracked person per frame
+//!      │          (someone lost / slots free: PersonDetector finds people, or the
+//!      │           candidate-crop search without the detector model)
+//!      ▼ Landmarks per person (33 image + world points, visibility, presence)
 //!      │   ◀── LandmarkReplaySource: recorded landmarks re-enter here (no model, no camera)
 //!  LandmarkStages: One Euro smoothing per coordinate, constant limb lengths (world)
 //!      ▼
