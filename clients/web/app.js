@@ -56,6 +56,24 @@ scene.add(keyLight);
 const rig = new CameraRig(camera, canvas);
 const budget = new FrameBudget(renderer);
 state.perf = () => ({ ...budget.report(), software });
+/** What one render costs the renderer itself (waiting for it to finish), with and without the
+ *  meshes, in ms: tells the page's own drawing apart from a busy machine or browser. */
+state.renderCost = (renders = 5) => {
+  const gl = renderer.getContext();
+  const time = () => {
+    gl.finish();
+    const t0 = performance.now();
+    for (let i = 0; i < renders; i++) { renderer.render(scene, camera); gl.finish(); }
+    return (performance.now() - t0) / renders;
+  };
+  const meshes = [...state.views.values()].map((v) => v.model?.root).filter(Boolean);
+  const withMeshes = time();
+  const shown = meshes.map((m) => m.visible);
+  meshes.forEach((m) => { m.visible = false; });
+  const withoutMeshes = time();
+  meshes.forEach((m, i) => { m.visible = shown[i]; });
+  return { withMeshes, withoutMeshes, pixels: renderer.domElement.width * renderer.domElement.height };
+};
 state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
 const labelLayer = $('labels');
 
@@ -232,12 +250,15 @@ class SubjectView {
     }
   }
 
-  /** A target whose source is lost eases to rest: say so on the label and grey the bones. */
-  setLost(lost) {
-    if (lost === this.lost) return;
+  /** A target whose source is lost eases to rest (or walks its idle graph, `motion` from
+   *  `source_status.targets`): say so on the label and grey the bones. */
+  setLost(lost, motion) {
+    const idle = lost && motion === 'idle_graph';
+    if (lost === this.lost && idle === this.idling) return;
     this.lost = lost;
+    this.idling = idle;
     this.subjectLabel.classList.toggle('lost', lost);
-    this.subjectLabel.textContent = this.labelText + (lost ? ' — source lost' : '');
+    this.subjectLabel.textContent = this.labelText + (idle ? ' — source lost, on idle graph' : lost ? ' — source lost' : '');
     this.lineMaterial.opacity = lost ? 0.35 : 1;
     this.joints.material.opacity = lost ? 0.35 : 1;
   }
@@ -512,7 +533,8 @@ function onMessage(message) {
       for (const record of message.sources ?? []) state.sourceStatus.set(record.subject, record);
       for (const view of state.views.values()) {
         const health = state.sourceStatus.get(view.info.kind === 'target' ? view.info.source : view.info.id);
-        view.setLost(health?.state === 'lost');
+        const target = (message.targets ?? []).find((t) => t.subject === view.info.id);
+        view.setLost(health?.state === 'lost', target?.motion);
       }
       renderSubjects();
       break;

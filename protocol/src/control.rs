@@ -156,6 +156,37 @@ pub struct SourceHealth {
     pub detail: String,
 }
 
+/// What drives a target character at the moment (`motion` in `source_status.targets`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TargetMotion {
+    /// Its source(s): live motion.
+    Live,
+    /// The source came back; blending from the fallback to live motion.
+    Resuming,
+    /// Source lost: easing to (or standing at) the character's rest pose.
+    Rest,
+    /// Source lost: holding the last pose.
+    Hold,
+    /// Source lost: walking on the performer's idle motion graph.
+    IdleGraph,
+}
+
+impl std::fmt::Display for TargetMotion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        wire_name(self, f)
+    }
+}
+
+/// One target subject in a `source_status` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetHealth {
+    /// Target subject id.
+    pub subject: u32,
+    /// What drives it.
+    pub motion: TargetMotion,
+}
+
 /// One foot in a `footplants` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FootState {
@@ -289,6 +320,9 @@ pub enum ServerMessage {
     SourceStatus {
         /// One entry per source subject.
         sources: Vec<SourceHealth>,
+        /// One entry per target subject (older servers omit it: read it as empty).
+        #[serde(default)]
+        targets: Vec<TargetHealth>,
     },
     /// A target's foot-lock state: sent whenever a foot is planted or lifts (and on connect),
     /// so clients can draw planted feet without polling `/v1/status`.
@@ -599,6 +633,10 @@ mod tests {
                     dropped: 3,
                     detail: "calibrated (T-pose)".into(),
                 }],
+                targets: vec![TargetHealth {
+                    subject: 1,
+                    motion: TargetMotion::IdleGraph,
+                }],
             },
         ]
     }
@@ -749,7 +787,7 @@ mod tests {
         let old = r#"{"type":"source_status","sources":[{"subject":0,"kind":"vmc","state":"live","input_fps":1.0,"latency_ms":0.0,"frames":1,"dropped":0}]}"#;
         let m: ServerMessage = serde_json::from_str(old).unwrap();
         assert!(
-            matches!(m, ServerMessage::SourceStatus { sources } if sources[0].detail.is_empty())
+            matches!(m, ServerMessage::SourceStatus { sources, targets } if sources[0].detail.is_empty() && targets.is_empty())
         );
         assert_eq!(ErrorCode::NotCalibratable.as_str(), "not_calibratable");
         let e =

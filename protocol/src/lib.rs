@@ -29,7 +29,10 @@ pub mod frame;
 pub mod status;
 pub mod vmc;
 
-pub use control::{ClientMessage, ErrorCode, FootState, ServerMessage, SourceKind, SourceState};
+pub use control::{
+    ClientMessage, ErrorCode, FootState, ServerMessage, SourceKind, SourceState, TargetHealth,
+    TargetMotion,
+};
 pub use frame::{FrameError, FrameHeader, FRAME_HEADER_BYTES, FRAME_MAGIC};
 
 /// The protocol version every session starts in (JSON messages and version 1 binary frames),

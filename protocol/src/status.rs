@@ -42,6 +42,32 @@ pub struct Status {
     pub stalled_disconnects_total: u64,
     /// The `--record` recording (`null` when not recording).
     pub recording: Option<RecordingStatus>,
+    /// Cluster mode's counters (absent when the node is not in a cluster).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cluster: Option<ClusterStatus>,
+}
+
+/// This node's part in a cluster (NATS), in the status.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ClusterStatus {
+    /// This node's site name.
+    pub site: String,
+    /// Frames not handed to NATS.
+    pub publish_errors: u64,
+    /// Malformed frames received from NATS and dropped.
+    pub bad_frames: u64,
+    /// Control requests forwarded to the nodes owning their subjects.
+    pub control_forwarded: u64,
+    /// Control requests from other nodes carried out or answered here.
+    pub control_served: u64,
+    /// Control requests from other nodes refused (wrong token, stale, replayed, malformed).
+    pub control_refused: u64,
+    /// Other nodes' subjects found after this node started.
+    pub subjects_discovered: u64,
+    /// Mapping tables taken from the cluster's shared cache instead of being computed here.
+    pub mappings_from_cluster: u64,
+    /// Mapping tables computed here and put in the shared cache.
+    pub mappings_shared: u64,
 }
 
 /// Connections in the status.
@@ -214,6 +240,7 @@ mod tests {
             control_resyncs_total: 0,
             stalled_disconnects_total: 0,
             recording: None,
+            cluster: None,
         };
         let json = serde_json::to_value(&status).unwrap();
         assert_eq!(json["subjects"][0]["kind"], "source");

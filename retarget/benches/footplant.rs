@@ -8,7 +8,6 @@ use rigcast_retarget::footplant::{
     detect_clip, find_legs, FootLock, LockSettings, PlantDetector, PlantSettings,
 };
 use rigcast_retarget::retarget::workloads::humanoid_from_cmu;
-use rigcast_retarget::{Mapping, RetargetOptions};
 
 fn bench(c: &mut Criterion) {
     let w = humanoid_from_cmu().expect("corpus builds");
@@ -39,23 +38,9 @@ fn bench(c: &mut Criterion) {
         })
     });
 
-    let mut mapping = Mapping::build(
-        &[&w.source],
-        &w.target,
-        &w.table,
-        &RetargetOptions::default(),
-    )
-    .expect("workload builds");
+    let mut mapping = w.mapping().expect("workload builds");
     let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("legs");
-    let outs: Vec<_> = w
-        .poses
-        .iter()
-        .map(|p| {
-            let mut out = mapping.new_target_pose();
-            mapping.apply_one(p, &mut out).expect("apply");
-            out
-        })
-        .collect();
+    let outs = w.retargeted(&mut mapping).expect("apply");
     let mut out = mapping.new_target_pose();
     let mut k = 0;
     c.bench_function("foot_lock_ik_humanoid65_both_planted", |b| {

@@ -7,26 +7,12 @@ use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{find_legs, PlantTrack};
 use rigcast_retarget::graft::{BodySplit, GaitLoop, Splice};
 use rigcast_retarget::retarget::workloads::humanoid_from_cmu;
-use rigcast_retarget::{Clip, Mapping, RetargetOptions};
+use rigcast_retarget::Clip;
 
 fn bench(c: &mut Criterion) {
     let w = humanoid_from_cmu().expect("corpus builds");
-    let mut mapping = Mapping::build(
-        &[&w.source],
-        &w.target,
-        &w.table,
-        &RetargetOptions::default(),
-    )
-    .expect("workload builds");
-    let outs: Vec<_> = w
-        .poses
-        .iter()
-        .map(|p| {
-            let mut out = mapping.new_target_pose();
-            mapping.apply_one(p, &mut out).expect("apply");
-            out
-        })
-        .collect();
+    let mut mapping = w.mapping().expect("workload builds");
+    let outs = w.retargeted(&mut mapping).expect("apply");
     let ta = analyze(&SkeletonView::rest(&w.target));
     let split = BodySplit::new(&w.target, &ta, 3).expect("the humanoid splits");
     let mut splice = Splice::new(&w.target, split);

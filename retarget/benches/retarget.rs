@@ -7,13 +7,7 @@ use rigcast_retarget::retarget::workloads::{creature_from_humanoid, humanoid_fro
 use rigcast_retarget::{forward_kinematics, Mapping, RetargetOptions, WorldTransform};
 
 fn per_frame(c: &mut Criterion, name: &str, w: &Workload) {
-    let mut mapping = Mapping::build(
-        &[&w.source],
-        &w.target,
-        &w.table,
-        &RetargetOptions::default(),
-    )
-    .expect("workload builds");
+    let mut mapping = w.mapping().expect("workload builds");
     let mut out = mapping.new_target_pose();
     let mut i = 0;
     c.bench_function(name, |b| {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rigcast_retarget::graft::{self, BodySplit, GraftSettings};
-use rigcast_retarget::{RetargetOptions, RootMotion};
+use rigcast_retarget::RootMotion;
 use rigcast_server::cmd::graft::{graft_clips, plants};
 use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip};
 
@@ -36,14 +36,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| graft_clips(&upper, &lower, None, &settings, false).expect("graft"))
     });
     let plan = plan_mapping(&upper, &lower, None).expect("plan");
-    let opts = RetargetOptions {
-        frame_time_secs: upper.frame_time_secs as f32,
-        root_motion: RootMotion::InPlace,
-        source_reference: vec![plan.source_reference.clone()],
-        target_reference: plan.target_reference.clone(),
-        source_up: Some(plan.source_up),
-        ..RetargetOptions::default()
-    };
+    let opts = plan.retarget_options(&upper, RootMotion::InPlace);
     group.bench_function("baseline_plain_retarget_of_the_upper_clip", |b| {
         b.iter(|| {
             retarget_clip(&upper, &lower.skeleton, &plan.table, &opts, false).expect("retarget")

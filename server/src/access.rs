@@ -125,6 +125,11 @@ pub struct AccessPolicy {
 }
 
 impl AccessPolicy {
+    /// The control token (the key of forwarded control requests in cluster mode).
+    pub fn token(&self) -> &ControlToken {
+        &self.token
+    }
+
     /// Rules for a listener in `scope`.
     pub fn new(
         token: ControlToken,

@@ -18,8 +18,11 @@
 //! client gets a fresh snapshot of the state those messages describe — `subjects_changed`,
 //! every `skeleton`, every `mapping`, `source_status` — before its next frame.
 //!
-//! Access: messages that change the server (`set_mapping`, `calibrate`) need a connection
-//! opened with the control token ([`Access::Control`]); others are answered `unauthorized`.
+//! Access: messages that change the server (`set_mapping`, `calibrate`, `set_performer`)
+//! need a connection opened with the control token ([`Access::Control`]); others are
+//! answered `unauthorized`. In cluster mode such a message about another node's subject is
+//! forwarded to that node ([`crate::cluster::Forwarder`]), which checks the token again, and
+//! its answer arrives later through the session's reply queue.
 
 use std::collections::HashSet;
 use std::sync::atomic::Ordering;
@@ -98,6 +101,9 @@ where
     }
 }
 
+/// Requests a session may have waiting for other nodes' answers at once.
+const MAX_FORWARDS_IN_FLIGHT: usize = 8;
+
 /// Frames sent in one write at most (a tick makes one per subject).
 const MAX_FRAMES_PER_WRITE: usize = 32;
 
@@ -154,24 +160,22 @@ pub async fn serve_client<S>(
 /// The state that control messages describe, as those messages: every subject's skeleton,
 /// every built mapping, the sources' health. Sent on connect and after a control-queue lag.
 fn state_messages(state: &ServerState) -> Vec<String> {
-    let mut out: Vec<String> = state
-        .subjects
+    let subjects = state.subjects();
+    let mut out: Vec<String> = subjects
         .iter()
         .map(|s| s.shape().skeleton_json.clone())
         .collect();
     out.extend(
-        state
-            .subjects
+        subjects
             .iter()
             .filter_map(|s| s.mapping_json.read().ok().and_then(|m| m.clone())),
     );
     out.extend(
-        state
-            .subjects
+        subjects
             .iter()
             .filter_map(|s| s.stats.footplants_json.lock().ok().and_then(|m| m.clone())),
     );
-    out.push(crate::source_status_json(&state.subjects));
+    out.push(crate::source_status_json(&state.subjects()));
     out
 }
 
@@ -247,6 +251,8 @@ where
     let mut version = rigcast_protocol::PROTOCOL_VERSION;
     let mut pending_missed: u64 = 0;
     let mut shutdown = state.shutdown.clone();
+    // Answers of requests forwarded to other nodes (cluster mode).
+    let (replies, mut forwarded) = mpsc::channel::<ServerMessage>(MAX_FORWARDS_IN_FLIGHT);
     loop {
         tokio::select! {
             biased;
@@ -262,11 +268,16 @@ where
                     Err(RecvError::Closed) => return Ok(()),
                 }
             }
+            // `replies` lives as long as this loop, so this never yields `None`.
+            Some(answer) = forwarded.recv() => {
+                send(&mut sink, Message::text(answer.to_json()), stall).await?;
+            }
             incoming = stream.next() => {
                 let Some(incoming) = incoming else { return Ok(()) };
                 let reply = match incoming {
                     Ok(Message::Text(text)) => {
-                        handle_text(text.as_str(), state, stats.access, &mut subscribed, &mut version)
+                        let session = Session { access: stats.access, subscribed: &mut subscribed, version: &mut version, replies: &replies };
+                        handle_text(text.as_str(), state, session)
                     }
                     Ok(Message::Binary(b)) => Some(ServerMessage::error(
                         ErrorCode::BinaryNotAccepted,
@@ -350,13 +361,21 @@ fn type_name(msg: &ClientMessage) -> &'static str {
     }
 }
 
-fn handle_text(
-    text: &str,
-    state: &ServerState,
+/// A session's own settings that its messages change, and its reply queue.
+struct Session<'a> {
     access: Access,
-    subscribed: &mut Option<HashSet<u32>>,
-    version: &mut u16,
-) -> Option<ServerMessage> {
+    subscribed: &'a mut Option<HashSet<u32>>,
+    version: &'a mut u16,
+    replies: &'a mpsc::Sender<ServerMessage>,
+}
+
+fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<ServerMessage> {
+    let Session {
+        access,
+        subscribed,
+        version,
+        replies,
+    } = session;
     if text.len() > MAX_CLIENT_MESSAGE_BYTES {
         return Some(ServerMessage::error(
             ErrorCode::MessageTooLarge,
@@ -379,6 +398,9 @@ fn handle_text(
                 type_name(&msg)
             ),
         ));
+    }
+    if let Some(now) = forward_if_relayed(state, &msg, replies) {
+        return now;
     }
     match msg {
         ClientMessage::Ping { nonce } => Some(ServerMessage::Pong {
@@ -406,31 +428,69 @@ fn handle_text(
         ClientMessage::Subscribe {
             subjects: Some(ids),
         } => subscribe(state, ids, subscribed),
+        change @ (ClientMessage::Calibrate { .. }
+        | ClientMessage::SetPerformer { .. }
+        | ClientMessage::SetMapping { .. }) => Some(apply_change(state, change)),
+    }
+}
+
+/// In cluster mode, hands a change to another node's subject to that node: `Some(answer
+/// now)` when it was taken (the owner's answer follows through `replies`) or refused here,
+/// `None` when the subject is this node's own.
+fn forward_if_relayed(
+    state: &ServerState,
+    msg: &ClientMessage,
+    replies: &mpsc::Sender<ServerMessage>,
+) -> Option<Option<ServerMessage>> {
+    let forwarder = state.forwarder.as_ref()?;
+    let id = crate::cluster::subject_of(msg)?;
+    let origin = forwarder.origin(id)?;
+    let Ok(permit) = replies.clone().try_reserve_owned() else {
+        return Some(Some(ServerMessage::error(
+            ErrorCode::Internal,
+            format!("{MAX_FORWARDS_IN_FLIGHT} requests already wait for other nodes; retry"),
+        )));
+    };
+    state
+        .stats
+        .cluster_control_forwarded
+        .fetch_add(1, Ordering::Relaxed);
+    let (forwarder, msg) = (forwarder.clone(), msg.clone());
+    tokio::spawn(async move {
+        permit.send(forwarder.forward(id, &origin, msg).await);
+    });
+    Some(None)
+}
+
+/// Carries out a request that changes the server (the connection's right to it already
+/// checked, here or by the node that forwarded it).
+pub(crate) fn apply_change(state: &ServerState, msg: ClientMessage) -> ServerMessage {
+    match msg {
         ClientMessage::Calibrate {
             subject,
             pose,
             delay_secs,
-        } => Some(
-            match crate::calibration::start(
-                &state.subjects,
-                &state.events,
+        } => match crate::calibration::start(
+            &state.subjects(),
+            &state.events,
+            subject,
+            pose,
+            delay_secs,
+        ) {
+            Ok(()) => ServerMessage::Ack {
+                request: "calibrate".into(),
                 subject,
-                pose,
-                delay_secs,
-            ) {
-                Ok(()) => ServerMessage::Ack {
-                    request: "calibrate".into(),
-                    subject,
-                },
-                Err(refusal) => ServerMessage::error(refusal.code(), refusal.to_string()),
             },
-        ),
+            Err(refusal) => ServerMessage::error(refusal.code(), refusal.to_string()),
+        },
         ClientMessage::SetPerformer { subject, foot_lock } => {
-            Some(set_performer(state, subject, foot_lock))
+            set_performer(state, subject, foot_lock)
         }
-        ClientMessage::SetMapping { subject, overrides } => {
-            Some(set_mapping(state, subject, overrides))
-        }
+        ClientMessage::SetMapping { subject, overrides } => set_mapping(state, subject, overrides),
+        other => ServerMessage::error(
+            ErrorCode::Unsupported,
+            format!("{} does not change the server", type_name(&other)),
+        ),
     }
 }
 
@@ -485,7 +545,7 @@ fn set_mapping(
             format!("unknown subject id {subject}"),
         );
     };
-    if let Err(message) = check_overrides(state, target, &overrides) {
+    if let Err(message) = check_overrides(state, &target, &overrides) {
         return ServerMessage::error(ErrorCode::Unsupported, message);
     }
     let cmd = EngineCommand::SetMapping { subject, overrides };

@@ -246,6 +246,12 @@ pub struct FilePerformer {
     pub in_place: bool,
     /// What the character does while its source is lost.
     pub on_lost: Option<OnLost>,
+    /// A motion graph (`.rmg`, from `rigcast graph build`) the character walks on while its
+    /// source is lost; implies `on_lost = "idle"`.
+    pub idle_graph: Option<PathBuf>,
+    /// Seconds to blend back to live motion when the source returns (default 0.3 with an
+    /// idle graph, else 0.2).
+    pub resume_secs: Option<f64>,
     /// Pin the character's feet while the source's are planted (default: on for humanoid and
     /// quadruped characters).
     pub foot_lock: Option<bool>,
@@ -654,6 +660,8 @@ pub enum OnLost {
     Ease,
     /// Hold the last pose.
     Hold,
+    /// Walk on the performer's `idle_graph` from the nearest pose (`"idle"`).
+    Idle,
 }
 
 /// Bone names in VMC output.
@@ -696,6 +704,11 @@ pub struct PerformerSpec {
     pub in_place: bool,
     /// Behaviour while the source is lost (default: the server's `on_lost`).
     pub on_lost: Option<OnLost>,
+    /// The motion graph walked while the source is lost (with [`OnLost::Idle`]).
+    pub idle_graph: Option<PathBuf>,
+    /// Blend back to live over this many seconds when the source returns (`None`: 0.3 s
+    /// after an idle graph, 0.2 s otherwise).
+    pub resume_secs: Option<f64>,
     /// Foot locking (`None`: on for humanoid and quadruped characters).
     pub foot_lock: Option<bool>,
     /// Upper and lower body from two inputs (`sources` then lists the upper source, and the
@@ -713,6 +726,8 @@ impl PerformerSpec {
             mapping: None,
             in_place: false,
             on_lost: None,
+            idle_graph: None,
+            resume_secs: None,
             foot_lock: None,
             graft: None,
         }
@@ -755,13 +770,25 @@ fn performer_spec(p: FilePerformer) -> Result<PerformerSpec, ConfigError> {
         (None, Some(FileNames::One(s))) => vec![s],
         (None, Some(FileNames::Many(v))) => v,
     };
+    let on_lost = match (p.on_lost, &p.idle_graph) {
+        (None, Some(_)) => Some(OnLost::Idle),
+        (Some(OnLost::Ease | OnLost::Hold), Some(_)) => {
+            return Err(ConfigError::Invalid {
+                field: "performers.idle_graph",
+                message: "an idle graph is walked with on_lost = \"idle\" (or no on_lost)".into(),
+            })
+        }
+        (o, _) => o,
+    };
     Ok(PerformerSpec {
         sources,
         target: TargetSpec::File(p.target),
         name: p.name,
         mapping: p.mapping,
         in_place: p.in_place,
-        on_lost: p.on_lost,
+        on_lost,
+        idle_graph: p.idle_graph,
+        resume_secs: p.resume_secs,
         foot_lock: p.foot_lock,
         graft,
     })
@@ -827,8 +854,9 @@ impl Default for ServerConfig {
 }
 
 impl ServerConfig {
-    /// Checks ranges (rate, replay speeds).
+    /// Checks ranges (rate, replay speeds) and that every idling performer has a graph.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_performers()?;
         let stall = self.limits.stalled_client_timeout_secs;
         if !(stall.is_finite() && stall > 0.0) {
             return Err(ConfigError::Invalid {
@@ -874,6 +902,28 @@ impl ServerConfig {
                     field: "start_offset_secs",
                     message: format!("{} must be ≥ 0", settings.start_offset_secs),
                 });
+            }
+        }
+        Ok(())
+    }
+
+    /// An idle fallback needs its graph; a resume time is a positive number of seconds.
+    fn validate_performers(&self) -> Result<(), ConfigError> {
+        for p in &self.performers {
+            let idle = p.on_lost.unwrap_or(self.on_lost) == OnLost::Idle;
+            if idle && p.idle_graph.is_none() {
+                return Err(ConfigError::Invalid {
+                    field: "on_lost",
+                    message: "\"idle\" needs the performer's idle_graph (a .rmg file)".into(),
+                });
+            }
+            if let Some(r) = p.resume_secs {
+                if !(r.is_finite() && (0.0..=10.0).contains(&r)) {
+                    return Err(ConfigError::Invalid {
+                        field: "performers.resume_secs",
+                        message: format!("{r} must be between 0 and 10 seconds"),
+                    });
+                }
             }
         }
         Ok(())
@@ -1062,6 +1112,29 @@ mod tests {
         );
         assert_eq!(cfg.on_lost, OnLost::Ease);
         assert!(cfg.mapping_cache_dir.is_some() || std::env::var_os("HOME").is_none());
+    }
+
+    #[test]
+    fn idle_graph_implies_idle_and_idle_needs_a_graph() {
+        let parse = |t: &str| ServerConfig::from_file(toml::from_str(t).unwrap());
+        let cfg = parse(
+            "[[performers]]\ntarget = \"builtin:mannequin\"\nidle_graph = \"/x/idle.rmg\"\nresume_secs = 0.5",
+        )
+        .unwrap();
+        let p = &cfg.performers[0];
+        assert_eq!(p.on_lost, Some(OnLost::Idle));
+        assert_eq!(p.idle_graph, Some(PathBuf::from("/x/idle.rmg")));
+        assert_eq!(p.resume_secs, Some(0.5));
+        let no_graph = parse("on_lost = \"idle\"\n[[performers]]\ntarget = \"builtin:mannequin\"");
+        assert!(no_graph.unwrap_err().to_string().contains("idle_graph"));
+        let conflict = parse(
+            "[[performers]]\ntarget = \"builtin:mannequin\"\nidle_graph = \"/x/i.rmg\"\non_lost = \"hold\"",
+        );
+        assert!(conflict.unwrap_err().to_string().contains("idle"));
+        let bad_time = parse(
+            "[[performers]]\ntarget = \"builtin:mannequin\"\nidle_graph = \"/x/i.rmg\"\nresume_secs = -1",
+        );
+        assert!(bad_time.unwrap_err().to_string().contains("resume_secs"));
     }
 
     #[test]

@@ -246,7 +246,7 @@ async fn handle_connection(
 /// 404 saying why there is none.
 async fn model_response(state: &Arc<ServerState>, id: u32) -> (u16, &'static str, Vec<u8>) {
     let not_found = |message: String| (404, "text/plain", format!("{message}\n").into_bytes());
-    let Some(subject) = state.subjects.get(id as usize) else {
+    let Some(subject) = state.subject(id) else {
         return not_found(format!("no subject {id}"));
     };
     let Some(model) = subject.model.clone() else {
@@ -498,7 +498,7 @@ fn footplants(stats: &crate::stats::SubjectStats) -> Option<Vec<FootStatus>> {
 /// Snapshot of the counters.
 pub fn status(state: &ServerState) -> Status {
     let subjects = state
-        .subjects
+        .subjects()
         .iter()
         .map(|s| {
             let info = s.info();
@@ -561,7 +561,25 @@ pub fn status(state: &ServerState) -> Status {
         control_resyncs_total: state.stats.control_resyncs.load(Ordering::Relaxed),
         stalled_disconnects_total: state.stats.stalled_disconnects.load(Ordering::Relaxed),
         recording: state.recorder.as_ref().map(|r| r.status()),
+        cluster: cluster_status(state),
     }
+}
+
+fn cluster_status(state: &ServerState) -> Option<rigcast_protocol::status::ClusterStatus> {
+    let site = state.forwarder.as_ref()?.site().to_string();
+    let s = &state.stats;
+    let n = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    Some(rigcast_protocol::status::ClusterStatus {
+        site,
+        publish_errors: n(&s.cluster_publish_errors),
+        bad_frames: n(&s.cluster_bad_frames),
+        control_forwarded: n(&s.cluster_control_forwarded),
+        control_served: n(&s.cluster_control_served),
+        control_refused: n(&s.cluster_control_refused),
+        subjects_discovered: n(&s.cluster_subjects_discovered),
+        mappings_from_cluster: n(&s.cluster_mappings_fetched),
+        mappings_shared: n(&s.cluster_mappings_shared),
+    })
 }
 
 #[cfg(test)]

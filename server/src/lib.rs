@@ -39,7 +39,9 @@ pub mod demo;
 pub mod engine;
 pub mod footplants;
 pub mod graft_live;
+pub mod graph_files;
 pub mod http;
+pub mod idle_graph;
 pub mod limits;
 pub mod live;
 pub mod mapper;
@@ -51,6 +53,7 @@ pub mod skeleton_wire;
 pub mod state;
 pub mod stats;
 pub mod subject;
+pub mod subject_list;
 pub mod token;
 pub mod translated;
 pub mod vmc_pose;
@@ -121,6 +124,14 @@ pub(crate) const EVENTS_CAPACITY: usize = 256;
 pub fn source_status_json(subjects: &[Arc<Subject>]) -> String {
     rigcast_protocol::ServerMessage::SourceStatus {
         sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
+        targets: subjects
+            .iter()
+            .filter(|s| s.is_target())
+            .map(|s| rigcast_protocol::TargetHealth {
+                subject: s.id,
+                motion: s.stats.motion.load(),
+            })
+            .collect(),
     }
     .to_json()
 }

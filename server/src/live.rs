@@ -40,7 +40,7 @@ pub struct LiveContext {
     /// Its slot.
     pub tx: watch::Sender<Frame>,
     /// All subjects (for `subjects_changed`).
-    pub subjects: Arc<Vec<Arc<Subject>>>,
+    pub subjects: Arc<crate::subject_list::SubjectList>,
     /// Control messages to clients.
     pub events: broadcast::Sender<String>,
     /// Requests to the mapper.
@@ -71,7 +71,9 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
             if changed {
                 // Clients hear of a loss or a recovery now, not at the next periodic report.
                 // Err only means no client is connected.
-                let _ = ctx.events.send(crate::source_status_json(&ctx.subjects));
+                let _ = ctx
+                    .events
+                    .send(crate::source_status_json(&ctx.subjects.snapshot()));
             }
         }
         match source.next_frame(POLL, &mut pose) {
@@ -139,7 +141,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
 /// Tells clients, the recorder and the mapper about a new skeleton.
 fn announce_skeleton(ctx: &LiveContext) {
     let shape = ctx.subject.shape();
-    let infos = ctx.subjects.iter().map(|s| s.info()).collect();
+    let infos = ctx.subjects.snapshot().iter().map(|s| s.info()).collect();
     // Err only means no client is listening right now.
     let _ = ctx
         .events

@@ -5,8 +5,10 @@
 //!  sources' latest poses ─copy─▶ inputs (preallocated) ─apply─▶ foot lock ─▶ live ─┐
 //!                                                                     ├─ blend ─▶ display ─▶ target watch
 //!  source lost:  from = display at loss ──slerp (0.5 s)──▶ the character's own rest, where it
-//!                stands (or hold `from`)
-//!  source back:  from = display at return ──slerp (0.2 s)──▶ live
+//!                stands; or hold `from`; or (idle graph) from ──blend (the graph's
+//!                cross-fade time) onto a walk on the graph from the nearest node (`idle_graph`)
+//!  source back:  from = display at return ──blend onto the moving live pose (0.2 s; 0.3 s
+//!                after an idle graph; `resume_secs`)──▶ live
 //! ```
 //!
 //! Mappings are built off the tick (see `mapper`) and handed over through a mailbox the tick
@@ -23,13 +25,16 @@ use tokio::sync::watch;
 use crate::config::OnLost;
 use crate::engine::unix_nanos;
 use crate::graft_live::{LiveGraft, LockTiming};
+use crate::idle_graph::IdleGraph;
 use crate::subject::Subject;
-use rigcast_protocol::SourceState;
+use rigcast_protocol::{SourceState, TargetMotion};
 
 /// Time to ease to rest after a loss.
 pub const EASE_OUT: Duration = Duration::from_millis(500);
 /// Time to ease back in after a return.
 pub const EASE_IN: Duration = Duration::from_millis(200);
+/// Time to blend back from an idle graph to live motion (unless configured).
+pub const IDLE_RESUME: Duration = Duration::from_millis(300);
 /// Most source subjects one target can blend (keeps the per-tick input list on the stack).
 pub const MAX_INPUTS: usize = 8;
 
@@ -77,6 +82,14 @@ pub struct Performer {
     settle: Pose,
     phase: Phase,
     on_lost: OnLost,
+    /// The graph walked while the source is lost (with [`OnLost::Idle`]).
+    idle: Option<IdleGraph>,
+    /// How long the blend back to live takes.
+    resume: Duration,
+    /// Each bone's difference from `from` in the last blend (see [`blend_onto`]).
+    turns: Pose,
+    /// The next blend is the first since `from` was taken.
+    blend_fresh: bool,
     last_input_seqs: [u64; MAX_INPUTS],
     /// Capture time of the foot lock's source input at its last sample.
     last_lock_capture: u64,
@@ -111,6 +124,50 @@ fn store_held_feet(target: &Subject, lock: &FootLock) {
         .store(held, std::sync::atomic::Ordering::Relaxed);
 }
 
+/// Writes `onto` with `1 − k` of its per-bone difference from `from` on top: rotations
+/// `part(from · onto⁻¹, 1 − k) · onto`, translations lerped. `turns` holds each bone's
+/// difference of the previous call (`fresh`: none yet, start on the short arc); keeping each
+/// difference's sign continuous with it means a bone whose difference passes 180° as `onto`
+/// moves keeps turning the same way, where a plain slerp between the poses would flip to the
+/// other short arc in one frame. No allocation.
+fn blend_onto(from: &Pose, onto: &Pose, k: f32, turns: &mut Pose, fresh: bool, out: &mut Pose) {
+    let keep = 1.0 - k;
+    let bones = out
+        .rotations
+        .iter_mut()
+        .zip(&from.rotations)
+        .zip(&onto.rotations);
+    for (((r, f), o), prev) in bones.zip(&mut turns.rotations) {
+        let mut d = (*f * o.inverse()).normalize();
+        let flip = if fresh { d.w < 0.0 } else { d.dot(*prev) < 0.0 };
+        if flip {
+            d = -d;
+        }
+        *prev = d;
+        *r = (part_of_turn(d, keep) * *o).normalize();
+    }
+    let moves = out
+        .translations
+        .iter_mut()
+        .zip(&from.translations)
+        .zip(&onto.translations);
+    for ((t, f), o) in moves {
+        *t = o.lerp(*f, keep);
+    }
+}
+
+/// The fraction `s` of the turn `q` taken the way `q` goes (its angle may exceed 180°, unlike
+/// a slerp from identity, which takes the short arc).
+fn part_of_turn(q: glam::Quat, s: f32) -> glam::Quat {
+    let v = glam::Vec3::new(q.x, q.y, q.z);
+    let half = v.length().atan2(q.w);
+    let Some(axis) = v.try_normalize() else {
+        return glam::Quat::IDENTITY;
+    };
+    let (sin, cos) = (half * s).sin_cos();
+    glam::Quat::from_xyzw(axis.x * sin, axis.y * sin, axis.z * sin, cos)
+}
+
 /// Smooth 0→1 ramp with zero slope at both ends (no jump when easing starts or ends).
 fn smoothstep(x: f32) -> f32 {
     let x = x.clamp(0.0, 1.0);
@@ -135,12 +192,16 @@ impl Performer {
             current: None,
             inputs: Vec::new(),
             live: rest.clone(),
+            turns: rest.clone(),
             from: rest.clone(),
             display: rest.clone(),
             settle: rest.clone(),
             rest,
             phase: Phase::Live,
             on_lost,
+            idle: None,
+            resume: EASE_IN,
+            blend_fresh: true,
             last_input_seqs: [0; MAX_INPUTS],
             last_lock_capture: 0,
             last_tick: None,
@@ -148,6 +209,20 @@ impl Performer {
             published: false,
             settled: false,
         }
+    }
+
+    /// Walks `idle` while the source is lost (with [`OnLost::Idle`]) and blends back to live
+    /// over `resume` (default [`IDLE_RESUME`]).
+    pub fn with_idle_graph(mut self, idle: IdleGraph, resume: Option<Duration>) -> Performer {
+        self.idle = Some(idle);
+        self.resume = resume.unwrap_or(IDLE_RESUME);
+        self
+    }
+
+    /// Blends back to live over `resume` when the source returns.
+    pub fn with_resume(mut self, resume: Duration) -> Performer {
+        self.resume = resume;
+        self
     }
 
     fn take_new_mapping(&mut self) {
@@ -174,7 +249,8 @@ impl Performer {
         self.current = Some(built);
     }
 
-    /// Runs one tick: apply, ease, publish. Allocates nothing in steady state.
+    /// Runs one tick: read the sources, follow them (or fall back while they are lost), publish.
+    /// Allocates nothing in steady state.
     pub fn tick(&mut self, now: Instant) {
         self.take_new_mapping();
         let tick_secs = self
@@ -183,43 +259,91 @@ impl Performer {
             .unwrap_or(0.0)
             .min(f64::from(MAX_SAMPLE_GAP_SECS));
         self.last_tick = Some(now);
-        let Some(built) = self.current.as_mut() else {
+        // Taken out for the tick (a move, no allocation) so the steps below can borrow `self`.
+        let Some(mut built) = self.current.take() else {
             return;
         };
+        let shown = self.step(&mut built, now, tick_secs);
+        self.current = Some(built);
+        if let Some((moving, capture)) = shown {
+            self.publish(moving, capture);
+        }
+    }
+
+    /// One tick's pose into `display`: whether it changed and the capture time to stamp it
+    /// with, or `None` when there is nothing to show yet.
+    fn step(
+        &mut self,
+        built: &mut BuiltMapping,
+        now: Instant,
+        tick_secs: f64,
+    ) -> Option<(bool, u64)> {
+        let read = self.read_inputs()?;
+        self.change_phase(built, read.lost, now);
+        let moving = match self.phase {
+            Phase::Lost(t0) => self.fall_back(now.duration_since(t0), tick_secs),
+            Phase::Live | Phase::Resuming(_) => {
+                self.follow_live(built, &read, tick_secs)?;
+                self.blend_in(now)
+                    || read.changed
+                    || built.graft.as_ref().is_some_and(|g| g.gait.is_some())
+            }
+        };
+        self.target.stats.motion.store(self.motion());
+        let capture = match self.phase {
+            Phase::Lost(_) => unix_nanos(),
+            _ => read.newest_capture,
+        };
+        Some((moving, capture))
+    }
+
+    /// Copies the sources' latest poses; `None` until every source has produced a pose that
+    /// fits the mapping (after a skeleton change the rebuild is on its way).
+    fn read_inputs(&mut self) -> Option<InputRead> {
         let n = self.inputs.len().min(MAX_INPUTS);
         if n == 0 || n != self.sources.len() {
-            return;
+            return None;
         }
-        // Copy the sources' latest poses; skip the tick until every source has produced a
-        // pose that fits the mapping (after a skeleton change the rebuild is on its way).
-        let mut newest_capture = 0u64;
-        let mut changed = false;
-        let mut captures = [0u64; MAX_INPUTS];
-        let mut lost = false;
+        let mut read = InputRead {
+            newest_capture: 0,
+            changed: false,
+            captures: [0; MAX_INPUTS],
+            lost: false,
+        };
         for (i, (src, copy)) in self.sources.iter().zip(&mut self.inputs).enumerate() {
             let frame = src.latest.borrow();
             if frame.capture_nanos == 0 || frame.pose.num_bones() != copy.num_bones() {
-                return;
+                return None;
             }
             copy.copy_from(&frame.pose);
-            captures[i] = frame.capture_nanos;
-            newest_capture = newest_capture.max(frame.capture_nanos);
+            read.captures[i] = frame.capture_nanos;
+            read.newest_capture = read.newest_capture.max(frame.capture_nanos);
             if frame.seq != self.last_input_seqs[i] {
                 self.last_input_seqs[i] = frame.seq;
-                changed = true;
+                read.changed = true;
             }
-            lost |= src.health.state() == SourceState::Lost;
+            read.lost |= src.health.state() == SourceState::Lost;
         }
+        Some(read)
+    }
+
+    /// Starts the fallback when a source is lost, the blend back when it returns.
+    fn change_phase(&mut self, built: &mut BuiltMapping, lost: bool, now: Instant) {
         match (self.phase, lost) {
             (Phase::Live | Phase::Resuming(_), true) => {
                 self.from.copy_from(&self.display);
                 rest_in_place(&self.rest, &self.from, &mut self.settle);
+                if let (OnLost::Idle, Some(idle)) = (self.on_lost, self.idle.as_mut()) {
+                    idle.take_over(&self.from, &mut self.settle);
+                    self.blend_fresh = true;
+                }
                 self.phase = Phase::Lost(now);
                 self.settled = false;
             }
             (Phase::Lost(_), false) => {
                 self.from.copy_from(&self.display);
                 self.phase = Phase::Resuming(now);
+                self.blend_fresh = true;
                 // The motion seen before the loss says nothing about the feet now.
                 if let Some(lock) = built.foot_lock.as_mut() {
                     lock.reset();
@@ -227,102 +351,144 @@ impl Performer {
             }
             _ => {}
         }
-        // A looping clip moves every tick, whatever the upper source does.
-        let mut moving = changed || built.graft.as_ref().is_some_and(|g| g.gait.is_some());
-        match self.phase {
-            Phase::Lost(t0) => match self.on_lost {
-                OnLost::Ease => {
-                    let k =
-                        smoothstep(now.duration_since(t0).as_secs_f32() / EASE_OUT.as_secs_f32());
-                    self.display.interpolate_into(&self.from, &self.settle, k);
-                    // Publish up to and including the frame that reaches rest.
-                    moving = !self.settled;
-                    self.settled = k >= 1.0;
-                }
-                OnLost::Hold => {
-                    self.display.copy_from(&self.from);
-                    moving = !self.settled;
-                    self.settled = true;
-                }
-            },
-            Phase::Live | Phase::Resuming(_) => {
-                let mut refs: [&Pose; MAX_INPUTS] = [&self.inputs[0]; MAX_INPUTS];
-                for (r, p) in refs.iter_mut().zip(&self.inputs) {
-                    *r = p;
-                }
-                if let Some(g) = built.graft.as_mut() {
-                    let timing = match g.gait {
-                        Some(_) => LockTiming {
-                            fresh: true,
-                            dt_secs: tick_secs as f32,
-                        },
-                        None => {
-                            let capture = captures[n - 1];
-                            let fresh = capture != self.last_lock_capture;
-                            let dt = capture.saturating_sub(self.last_lock_capture) as f32 * 1e-9;
-                            self.last_lock_capture = capture;
-                            LockTiming {
-                                fresh,
-                                dt_secs: dt.min(MAX_SAMPLE_GAP_SECS),
-                            }
-                        }
-                    };
-                    let lower = (n > 1).then(|| &self.inputs[n - 1]);
-                    let lock = built.foot_lock.as_mut().map(|l| (l, timing));
-                    if !g.apply(
-                        &mut built.mapping,
-                        &self.inputs[0],
-                        lower,
-                        tick_secs,
-                        lock,
-                        &mut self.live,
-                    ) {
-                        return;
-                    }
-                    if let Some(lock) = built.foot_lock.as_ref() {
-                        store_held_feet(&self.target, lock);
-                    }
-                } else if built.mapping.apply(&refs[..n], &mut self.live).is_err() {
-                    return;
-                } else if let Some(lock) = built.foot_lock.as_mut() {
-                    let input = built.mapping.root_input().unwrap_or(0).min(n - 1);
-                    let capture = captures[input];
-                    let fresh = capture != self.last_lock_capture;
-                    let dt = capture.saturating_sub(self.last_lock_capture) as f32 * 1e-9;
-                    self.last_lock_capture = capture;
-                    lock.apply_live(
-                        &self.inputs[input],
-                        fresh,
-                        dt.min(MAX_SAMPLE_GAP_SECS),
-                        &mut self.live,
-                    );
-                    store_held_feet(&self.target, lock);
-                }
-                if let Phase::Resuming(t0) = self.phase {
-                    let k =
-                        smoothstep(now.duration_since(t0).as_secs_f32() / EASE_IN.as_secs_f32());
-                    self.display.interpolate_into(&self.from, &self.live, k);
-                    moving = true;
-                    if k >= 1.0 {
-                        self.phase = Phase::Live;
-                    }
-                } else {
-                    self.display.copy_from(&self.live);
-                }
+    }
+
+    /// The pose while the source is lost, `since` the loss; whether it changed.
+    fn fall_back(&mut self, since: Duration, tick_secs: f64) -> bool {
+        let secs = since.as_secs_f32();
+        match (self.on_lost, self.idle.as_mut()) {
+            (OnLost::Idle, Some(idle)) => {
+                // Blend from the pose at the loss onto the walk as it moves on.
+                let k = smoothstep(secs / idle.blend_secs().max(1e-3));
+                idle.advance(tick_secs, &mut self.settle);
+                let fresh = std::mem::take(&mut self.blend_fresh);
+                blend_onto(
+                    &self.from,
+                    &self.settle,
+                    k,
+                    &mut self.turns,
+                    fresh,
+                    &mut self.display,
+                );
+                true
+            }
+            (OnLost::Hold, _) => {
+                self.display.copy_from(&self.from);
+                let moving = !self.settled;
+                self.settled = true;
+                moving
+            }
+            // Ease (and an idle performer whose graph did not load: validated at start).
+            _ => {
+                let k = smoothstep(secs / EASE_OUT.as_secs_f32());
+                self.display.interpolate_into(&self.from, &self.settle, k);
+                // Publish up to and including the frame that reaches rest.
+                let moving = !self.settled;
+                self.settled = k >= 1.0;
+                moving
             }
         }
-        // A new seq whenever the pose changes (clients skip repeated seqs).
+    }
+
+    /// Retargets the inputs into `live` (graft or plain, then the foot lock); `None` when the
+    /// poses do not fit the mapping.
+    fn follow_live(
+        &mut self,
+        built: &mut BuiltMapping,
+        read: &InputRead,
+        tick_secs: f64,
+    ) -> Option<()> {
+        let n = self.inputs.len().min(MAX_INPUTS);
+        if let Some(g) = built.graft.as_mut() {
+            let timing = match g.gait {
+                Some(_) => LockTiming {
+                    fresh: true,
+                    dt_secs: tick_secs as f32,
+                },
+                None => self.lock_timing(read.captures[n - 1]),
+            };
+            let lower = (n > 1).then(|| &self.inputs[n - 1]);
+            let lock = built.foot_lock.as_mut().map(|l| (l, timing));
+            if !g.apply(
+                &mut built.mapping,
+                &self.inputs[0],
+                lower,
+                tick_secs,
+                lock,
+                &mut self.live,
+            ) {
+                return None;
+            }
+            if let Some(lock) = built.foot_lock.as_ref() {
+                store_held_feet(&self.target, lock);
+            }
+            return Some(());
+        }
+        let mut refs: [&Pose; MAX_INPUTS] = [&self.inputs[0]; MAX_INPUTS];
+        for (r, p) in refs.iter_mut().zip(&self.inputs) {
+            *r = p;
+        }
+        built.mapping.apply(&refs[..n], &mut self.live).ok()?;
+        if let Some(lock) = built.foot_lock.as_mut() {
+            let input = built.mapping.root_input().unwrap_or(0).min(n - 1);
+            let timing = self.lock_timing(read.captures[input]);
+            lock.apply_live(
+                &self.inputs[input],
+                timing.fresh,
+                timing.dt_secs,
+                &mut self.live,
+            );
+            store_held_feet(&self.target, lock);
+        }
+        Some(())
+    }
+
+    /// Whether the foot lock's input has a new sample, and the time since its previous one.
+    fn lock_timing(&mut self, capture: u64) -> LockTiming {
+        let fresh = capture != self.last_lock_capture;
+        let dt = capture.saturating_sub(self.last_lock_capture) as f32 * 1e-9;
+        self.last_lock_capture = capture;
+        LockTiming {
+            fresh,
+            dt_secs: dt.min(MAX_SAMPLE_GAP_SECS),
+        }
+    }
+
+    /// `live` into `display`, blended in from the fallback while resuming; whether it blends.
+    fn blend_in(&mut self, now: Instant) -> bool {
+        let Phase::Resuming(t0) = self.phase else {
+            self.display.copy_from(&self.live);
+            return false;
+        };
+        let k =
+            smoothstep(now.duration_since(t0).as_secs_f32() / self.resume.as_secs_f32().max(1e-3));
+        self.display.interpolate_into(&self.from, &self.live, k);
+        if k >= 1.0 {
+            self.phase = Phase::Live;
+        }
+        true
+    }
+
+    /// What drives the character now (for `source_status`).
+    fn motion(&self) -> TargetMotion {
+        match (self.phase, self.on_lost, self.idle.is_some()) {
+            (Phase::Live, ..) => TargetMotion::Live,
+            (Phase::Resuming(_), ..) => TargetMotion::Resuming,
+            (Phase::Lost(_), OnLost::Idle, true) => TargetMotion::IdleGraph,
+            (Phase::Lost(_), OnLost::Hold, _) => TargetMotion::Hold,
+            (Phase::Lost(_), ..) => TargetMotion::Rest,
+        }
+    }
+
+    /// Sends `display` as the target's frame, with a new seq whenever the pose changed
+    /// (clients skip repeated seqs).
+    fn publish(&mut self, moving: bool, capture: u64) {
         if !moving && self.published {
             return;
         }
         self.seq += 1;
         self.published = true;
         let seq = self.seq;
-        let capture = if matches!(self.phase, Phase::Lost(_)) {
-            unix_nanos()
-        } else {
-            newest_capture
-        };
         let display = &self.display;
         self.tx.send_modify(|f| {
             if f.pose.num_bones() == display.num_bones() {
@@ -337,4 +503,12 @@ impl Performer {
             .last_capture_nanos
             .store(capture, std::sync::atomic::Ordering::Relaxed);
     }
+}
+
+/// What one tick read from the sources.
+struct InputRead {
+    newest_capture: u64,
+    changed: bool,
+    captures: [u64; MAX_INPUTS],
+    lost: bool,
 }

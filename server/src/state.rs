@@ -15,8 +15,8 @@ use crate::stats::Stats;
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
 pub struct ServerState {
-    /// Subjects in id order (id = index).
-    pub subjects: Arc<Vec<Arc<Subject>>>,
+    /// Subjects in id order (id = index); grows when the cluster finds another node's.
+    pub subject_list: Arc<crate::subject_list::SubjectList>,
     /// Frame fan-out; client tasks call `subscribe`.
     pub frames: broadcast::Sender<OutFrame>,
     /// Control messages for every client (`mapping`, `skeleton`, `subjects_changed`,
@@ -42,17 +42,27 @@ pub struct ServerState {
     pub stalled_client_timeout: std::time::Duration,
     /// The recording's health, if recording (its errors show in the status).
     pub recorder: Option<Arc<RecorderHealth>>,
+    /// Cluster mode: where relayed subjects' control requests go.
+    pub forwarder: Option<Arc<crate::cluster::Forwarder>>,
 }
 
 impl ServerState {
+    /// The subjects now.
+    pub fn subjects(&self) -> Arc<Vec<Arc<Subject>>> {
+        self.subject_list.snapshot()
+    }
+
     /// A subject by id.
-    pub fn subject(&self, id: u32) -> Option<&Arc<Subject>> {
-        self.subjects.get(id as usize).filter(|s| s.id == id)
+    pub fn subject(&self, id: u32) -> Option<Arc<Subject>> {
+        self.subjects()
+            .get(id as usize)
+            .filter(|s| s.id == id)
+            .cloned()
     }
 
     /// The subjects as listed in `hello`.
     pub fn subject_infos(&self) -> Vec<SubjectInfo> {
-        self.subjects.iter().map(|s| s.info()).collect()
+        self.subjects().iter().map(|s| s.info()).collect()
     }
 
     /// The `hello` message.

@@ -1,6 +1,7 @@
 //! Counters behind `GET /v1/status`. Written by the hot paths with atomics (and one
 //! uncontended mutex for the tick-duration window), read by the status handler.
 
+use rigcast_protocol::TargetMotion;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -73,6 +74,34 @@ pub struct SubjectStats {
     pub locked_feet: std::sync::Mutex<Vec<String>>,
     /// The latest `footplants` message of a target (see `footplants`), for new clients.
     pub footplants_json: std::sync::Mutex<Option<String>>,
+    /// What drives a target now (written by the tick, read by `source_status`).
+    pub motion: MotionCell,
+}
+
+/// A [`TargetMotion`] the tick stores without locking or allocating.
+#[derive(Debug, Default)]
+pub struct MotionCell(std::sync::atomic::AtomicU8);
+
+const MOTIONS: [TargetMotion; 5] = [
+    TargetMotion::Live,
+    TargetMotion::Resuming,
+    TargetMotion::Rest,
+    TargetMotion::Hold,
+    TargetMotion::IdleGraph,
+];
+
+impl MotionCell {
+    /// Stores `m`.
+    pub fn store(&self, m: TargetMotion) {
+        let i = MOTIONS.iter().position(|x| *x == m).unwrap_or(0);
+        self.0.store(i as u8, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The last stored motion (`live` before any).
+    pub fn load(&self) -> TargetMotion {
+        let i = self.0.load(std::sync::atomic::Ordering::Relaxed) as usize;
+        MOTIONS.get(i).copied().unwrap_or(TargetMotion::Live)
+    }
 }
 
 /// Per-client counters.
@@ -121,6 +150,19 @@ pub struct Stats {
     pub cluster_publish_errors: AtomicU64,
     /// Frames received from NATS that were malformed and dropped (cluster mode).
     pub cluster_bad_frames: AtomicU64,
+    /// Control requests this node forwarded to the nodes owning their subjects.
+    pub cluster_control_forwarded: AtomicU64,
+    /// Control requests from other nodes this node carried out (or answered with an error
+    /// about the request itself).
+    pub cluster_control_served: AtomicU64,
+    /// Control requests from other nodes refused: wrong token, stale, replayed, malformed.
+    pub cluster_control_refused: AtomicU64,
+    /// Other nodes' subjects found while running (after the start).
+    pub cluster_subjects_discovered: AtomicU64,
+    /// Mapping tables taken from the cluster's shared cache.
+    pub cluster_mappings_fetched: AtomicU64,
+    /// Mapping tables put in the cluster's shared cache.
+    pub cluster_mappings_shared: AtomicU64,
     /// Connected clients by id.
     pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
     tick_micros: Mutex<TickWindow>,
@@ -143,6 +185,12 @@ impl Default for Stats {
             stalled_disconnects: AtomicU64::new(0),
             cluster_publish_errors: AtomicU64::new(0),
             cluster_bad_frames: AtomicU64::new(0),
+            cluster_control_forwarded: AtomicU64::new(0),
+            cluster_control_served: AtomicU64::new(0),
+            cluster_control_refused: AtomicU64::new(0),
+            cluster_subjects_discovered: AtomicU64::new(0),
+            cluster_mappings_fetched: AtomicU64::new(0),
+            cluster_mappings_shared: AtomicU64::new(0),
             clients: Mutex::new(BTreeMap::new()),
             tick_micros: Mutex::new(TickWindow {
                 values: [0; TICK_WINDOW],

@@ -21,7 +21,9 @@ use glam::Vec3;
 use rigcast_retarget::footplant::{
     detect_clip, find_legs, FootLock, Leg, LockSettings, PlantSettings, PlantTrack,
 };
-use rigcast_retarget::{world_transforms, Clip, Mapping, RetargetOptions, WorldTransform};
+use rigcast_retarget::{
+    world_transforms, Clip, Mapping, RetargetOptions, RootMotion, WorldTransform,
+};
 use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked, MappingPlan};
 
 /// Figures of one output.
@@ -36,13 +38,7 @@ struct Quality {
 }
 
 fn retarget(source: &Clip, plan: &MappingPlan, target: &Clip, lock: bool) -> Clip {
-    let opts = RetargetOptions {
-        frame_time_secs: source.frame_time_secs as f32,
-        source_reference: vec![plan.source_reference.clone()],
-        target_reference: plan.target_reference.clone(),
-        source_up: Some(plan.source_up),
-        ..RetargetOptions::default()
-    };
+    let opts = plan.retarget_options(source, RootMotion::default());
     retarget_clip_locked(
         source,
         &target.skeleton,

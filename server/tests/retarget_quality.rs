@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::Vec3;
-use rigcast_retarget::{world_transforms, BoneId, Clip, RetargetOptions, RootMotion, Skeleton};
+use rigcast_retarget::{world_transforms, BoneId, Clip, RootMotion, Skeleton};
 use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip};
 use serde_json::Value;
 
@@ -307,14 +307,7 @@ fn measure_pairs() -> Option<Vec<Pair>> {
         let clip = subsample(&src.clip);
         for tgt in humans.iter().filter(|t| t.path != src.path) {
             let plan = plan_mapping(&src.clip, &tgt.clip, None).unwrap();
-            let opts = RetargetOptions {
-                frame_time_secs: clip.frame_time_secs as f32,
-                root_motion: RootMotion::Scaled,
-                source_reference: vec![plan.source_reference.clone()],
-                target_reference: plan.target_reference.clone(),
-                source_up: Some(plan.source_up),
-                ..RetargetOptions::default()
-            };
+            let opts = plan.retarget_options(&clip, RootMotion::Scaled);
             let target = Arc::new((*tgt.clip.skeleton).clone());
             let out = retarget_clip(&clip, &target, &plan.table, &opts, false).unwrap();
             let figures = measure(src, tgt, &clip, &out);

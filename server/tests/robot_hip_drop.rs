@@ -14,7 +14,7 @@
 mod common;
 
 use rigcast_retarget::footplant::{detect_clip, find_legs, FootLock, LockSettings, PlantSettings};
-use rigcast_retarget::{world_transforms, Mapping, RetargetOptions};
+use rigcast_retarget::{world_transforms, Mapping, RootMotion};
 use rigcast_server::cmd::retarget::plan_mapping;
 
 #[test]
@@ -28,13 +28,7 @@ fn robot_thigh_directions_per_hip_drop_limit() {
     let source = rigcast_sources::load_clip(&walk).unwrap();
     let target = rigcast_sources::load_rig(&robot).unwrap().0;
     let plan = plan_mapping(&source, &target, None).unwrap();
-    let opts = RetargetOptions {
-        frame_time_secs: source.frame_time_secs as f32,
-        source_reference: vec![plan.source_reference.clone()],
-        target_reference: plan.target_reference.clone(),
-        source_up: Some(plan.source_up),
-        ..RetargetOptions::default()
-    };
+    let opts = plan.retarget_options(&source, RootMotion::default());
     let dt = source.frame_time_secs as f32;
     for (limit, drift_ratio) in [
         (0.3f32, 0.35f32),

@@ -3,6 +3,7 @@
 #![allow(clippy::unwrap_used)]
 
 pub mod chromium;
+pub mod nats;
 pub mod skinned;
 
 use std::path::PathBuf;

@@ -10,132 +10,19 @@
 //! (1e-6, matched by seq) and in order; C must get B's character like B's own clients; killing
 //! A must make B and C report A's sources lost within 1 s, restarting it live again within
 //! 2 s; killing one NATS server must not stop the streams.
+#![allow(clippy::unwrap_used)]
 
 use std::collections::HashMap;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use rigcast_protocol::control::SubjectInfo;
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::{ServerMessage, SourceState};
-use rigcast_tests::{connect, free_port, handshake, next, temp_path, Incoming, ServeProcess, Ws};
-
-/// Debian installs nats-server in /usr/sbin, which is not always on PATH.
-fn nats_server() -> Option<PathBuf> {
-    let on_path = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|d| d.join("nats-server"))
-            .find(|p| p.is_file())
-    });
-    let found = on_path.or_else(|| {
-        let p = PathBuf::from("/usr/sbin/nats-server");
-        p.is_file().then_some(p)
-    });
-    if found.is_none() {
-        if std::env::var("RIGCAST_SKIP_APPS").as_deref() == Ok("1") {
-            eprintln!("SKIP: nats-server not installed and RIGCAST_SKIP_APPS=1");
-            return None;
-        }
-        panic!("nats-server not found: run scripts/install-apps.sh (or set RIGCAST_SKIP_APPS=1)");
-    }
-    found
-}
-
-/// Three clustered NATS servers with JetStream, killed on drop.
-struct NatsCluster {
-    servers: Vec<Option<Child>>,
-    client_ports: Vec<u16>,
-}
-
-impl NatsCluster {
-    fn start(bin: &PathBuf) -> NatsCluster {
-        let client_ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
-        let route_ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
-        let monitor_ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
-        let routes = route_ports
-            .iter()
-            .map(|p| format!("nats://127.0.0.1:{p}"))
-            .collect::<Vec<_>>()
-            .join(",");
-        let dir = temp_path("nats-cluster");
-        let servers = (0..3)
-            .map(|i| {
-                let store = dir.join(format!("n{i}"));
-                std::fs::create_dir_all(&store).unwrap();
-                let child = Command::new(bin)
-                    .args(["-a", "127.0.0.1", "-p", &client_ports[i].to_string()])
-                    .args(["-m", &monitor_ports[i].to_string()])
-                    .args(["-n", &format!("n{i}"), "--cluster_name", "rigcast-test"])
-                    .args(["--cluster", &format!("nats://127.0.0.1:{}", route_ports[i])])
-                    .args(["--routes", &routes, "-js", "-sd"])
-                    .arg(&store)
-                    .stdout(Stdio::null())
-                    .stderr(Stdio::null())
-                    .spawn()
-                    .expect("nats-server starts");
-                Some(child)
-            })
-            .collect();
-        let cluster = NatsCluster {
-            servers,
-            client_ports,
-        };
-        // JetStream needs its meta leader elected before a KV bucket can be made.
-        let deadline = Instant::now() + Duration::from_secs(30);
-        for port in &monitor_ports {
-            while !healthy(*port) {
-                assert!(
-                    Instant::now() < deadline,
-                    "NATS cluster not healthy in 30 s"
-                );
-                std::thread::sleep(Duration::from_millis(200));
-            }
-        }
-        cluster
-    }
-
-    fn urls(&self) -> String {
-        self.client_ports
-            .iter()
-            .map(|p| format!("nats://127.0.0.1:{p}"))
-            .collect::<Vec<_>>()
-            .join(",")
-    }
-
-    fn kill(&mut self, i: usize) {
-        if let Some(mut c) = self.servers[i].take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-impl Drop for NatsCluster {
-    fn drop(&mut self) {
-        for i in 0..self.servers.len() {
-            self.kill(i);
-        }
-    }
-}
-
-/// NATS's own health check, JetStream included.
-fn healthy(monitor_port: u16) -> bool {
-    use std::io::{Read, Write};
-    let Ok(mut s) = std::net::TcpStream::connect(("127.0.0.1", monitor_port)) else {
-        return false;
-    };
-    let _ = s.set_read_timeout(Some(Duration::from_secs(2)));
-    let req = "GET /healthz HTTP/1.0\r\nHost: localhost\r\n\r\n";
-    if s.write_all(req.as_bytes()).is_err() {
-        return false;
-    }
-    let mut body = String::new();
-    let _ = s.read_to_string(&mut body);
-    body.contains("\"ok\"")
-}
+use rigcast_tests::nats::{client, nats_server, spawn_node, NatsCluster};
+use rigcast_tests::{free_port, next, temp_path, Incoming, Ws};
 
 /// Sends a gently moving humanoid over VMC until stopped.
 fn vmc_sender(port: u16, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
@@ -156,32 +43,6 @@ fn vmc_sender(port: u16, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
             std::thread::sleep(Duration::from_millis(16));
         }
     })
-}
-
-fn node(args: &[String], name: &str) -> ServeProcess {
-    let home = temp_path(&format!("xdg-cluster-{name}"));
-    std::fs::create_dir_all(&home).unwrap();
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    ServeProcess::start(&args, home, None)
-}
-
-async fn spawn_node(args: Vec<String>, name: &'static str) -> ServeProcess {
-    tokio::task::spawn_blocking(move || node(&args, name))
-        .await
-        .unwrap()
-}
-
-/// A client and the subjects its server announced, by name.
-async fn client(p: &ServeProcess) -> (Ws, HashMap<String, SubjectInfo>) {
-    let mut ws = connect(&format!("ws://{}/v1/stream", p.addr)).await;
-    let (hello, _) = handshake(&mut ws).await;
-    let ServerMessage::Hello { subjects, .. } = hello else {
-        panic!("no hello: {hello:?}");
-    };
-    (
-        ws,
-        subjects.into_iter().map(|s| (s.name.clone(), s)).collect(),
-    )
 }
 
 /// Per subject id: (seq, rotations) of every frame received for `secs`.
@@ -240,7 +101,8 @@ async fn wait_state(
     let start = Instant::now();
     let end = start + timeout;
     while let Some(left) = end.checked_duration_since(Instant::now()) {
-        if let Some(Incoming::Json(ServerMessage::SourceStatus { sources })) = next(ws, left).await
+        if let Some(Incoming::Json(ServerMessage::SourceStatus { sources, .. })) =
+            next(ws, left).await
         {
             if sources.iter().any(|s| s.subject == id && s.state == state) {
                 return Some(start.elapsed());

@@ -254,12 +254,15 @@ async fn footplants_message_follows_the_feet() {
             );
             // The lock eases a landing foot onto its pin (and off it) with a spring that leaves a
             // quarter of the landing offset after 0.1 s and a few percent after 0.2 s: judge a
-            // plant after its first 0.2 s (12 frames at 60 Hz) and before its last frame.
-            let settle = 12;
-            if span.len() < settle + 4 {
+            // plant after its first 0.2 s (12 frames at 60 Hz). The message names the frame the
+            // server saw the change in, sampled at `footplants::CHECK_HZ` (30 Hz): a release
+            // can reach the message up to one check period (two frames at 60 Hz) after the
+            // lock let go, so the span's last three frames may show the foot lifting.
+            let (settle, tail) = (12, 3);
+            if span.len() < settle + tail + 3 {
                 continue;
             }
-            let judged = &span[settle..span.len() - 1];
+            let judged = &span[settle..span.len() - tail];
             let from = wire_fk(&bones, &frames[judged[0]])[index(&foot.bone)];
             let travel = judged
                 .iter()

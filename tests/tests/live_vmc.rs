@@ -7,32 +7,16 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use glam::{Quat, Vec3};
-use rigcast_protocol::control::BoneInfo;
+use glam::Quat;
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::mapping::{auto_map, MapOptions};
-use rigcast_retarget::{Mapping, RawSkeleton, RetargetOptions, Skeleton, Transform};
+use rigcast_retarget::{Mapping, RetargetOptions};
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::*;
 
 const RATE: f64 = 60.0;
-
-fn skeleton_from(bones: &[BoneInfo]) -> Skeleton {
-    let mut raw = RawSkeleton::default();
-    for b in bones {
-        raw.add(
-            b.name.clone(),
-            b.parent.map(|p| p as usize),
-            Transform {
-                translation: Vec3::from_array(b.rest_translation),
-                rotation: Quat::from_array(b.rest_rotation),
-            },
-        );
-    }
-    Skeleton::build(&raw).unwrap()
-}
 
 fn max_angle(a: &[Quat], b: &[Quat]) -> f32 {
     a.iter()
@@ -68,7 +52,7 @@ fn source_state(m: &ServerMessage) -> Option<String> {
 /// (state, detail) of subject 0 in a `source_status` message.
 fn source_record(m: &ServerMessage) -> Option<(String, String)> {
     match m {
-        ServerMessage::SourceStatus { sources } => sources
+        ServerMessage::SourceStatus { sources, .. } => sources
             .iter()
             .find(|s| s.subject == 0)
             .map(|s| (s.state.to_string(), s.detail.clone())),
@@ -100,7 +84,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects[0].listen_addr.unwrap().port();
+    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
     let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
     let mut ws = connect(&server.stream_url()).await;
     let (hello, _) = handshake(&mut ws).await;
@@ -160,7 +144,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     while t0.elapsed() < Duration::from_millis(1500) {
         match next(&mut ws, Duration::from_secs(2)).await.unwrap() {
             Incoming::Json(ServerMessage::Skeleton { subject, bones, .. }) => {
-                let sk = skeleton_from(&bones);
+                let sk = rigcast_server::skeleton_wire::skeleton_from_bones(&bones).unwrap();
                 if subject == 0 {
                     source_skeleton = Some(sk);
                 } else {
@@ -382,7 +366,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects[0].listen_addr.unwrap().port();
+    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
     let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
     let mut ws = connect(&server.stream_url()).await;
     handshake(&mut ws).await;

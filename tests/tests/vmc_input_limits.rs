@@ -90,7 +90,7 @@ async fn only_allowed_senders_drive_a_source() {
     .await
     .unwrap();
     let addr = server.local_addr();
-    let to = server.state().subjects[0].listen_addr.unwrap();
+    let to = server.state().subjects()[0].listen_addr.unwrap();
     // 127.0.0.1 is not on the list: counted and dropped, the source stays connecting.
     tokio::task::spawn_blocking(move || send_for("127.0.0.1:0", to, 0.6, false))
         .await
@@ -134,7 +134,7 @@ async fn a_flood_of_skeleton_changes_is_rate_limited() {
     .await
     .unwrap();
     let addr = server.local_addr();
-    let to = server.state().subjects[0].listen_addr.unwrap();
+    let to = server.state().subjects()[0].listen_addr.unwrap();
     let mut ws = connect(&server.stream_url()).await;
     handshake(&mut ws).await;
     // A new skeleton every other frame, ~50 changes a second, for 3 s.

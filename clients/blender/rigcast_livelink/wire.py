@@ -89,6 +89,20 @@ def _decode_v2(data, received_nanos):
             "v2 frame for %d bones and %d translations is %d bytes, expected %d"
             % (num_bones, num_t, len(data), expected)
         )
+    frame = _header_frame(version, flags, subject, num_bones, seq, capture_nanos, send_nanos, missed)
+    frame.rotations = struct.unpack_from("<%df" % (4 * num_bones), data, V2_HEADER_BYTES)
+    frame.translations = struct.unpack_from(
+        "<%df" % (3 * num_t), data, V2_HEADER_BYTES + 16 * num_bones
+    )
+    _check_finite(frame.rotations, "rotation")
+    _check_finite(frame.translations, "translation")
+    frame.root_translation = tuple(frame.translations[0:3]) if num_t else (0.0, 0.0, 0.0)
+    frame.received_nanos = received_nanos
+    return frame
+
+
+def _header_frame(version, flags, subject, num_bones, seq, capture_nanos, send_nanos, missed):
+    """A PoseFrame holding the header fields both versions share."""
     frame = PoseFrame()
     frame.version = version
     frame.subject = subject
@@ -98,14 +112,6 @@ def _decode_v2(data, received_nanos):
     frame.send_nanos = send_nanos
     frame.missed_frames = missed
     frame.flags = flags
-    frame.rotations = struct.unpack_from("<%df" % (4 * num_bones), data, V2_HEADER_BYTES)
-    frame.translations = struct.unpack_from(
-        "<%df" % (3 * num_t), data, V2_HEADER_BYTES + 16 * num_bones
-    )
-    _check_finite(frame.rotations, "rotation")
-    _check_finite(frame.translations, "translation")
-    frame.root_translation = tuple(frame.translations[0:3]) if num_t else (0.0, 0.0, 0.0)
-    frame.received_nanos = received_nanos
     return frame
 
 
@@ -136,15 +142,7 @@ def _decode_v1(data, received_nanos):
         raise FrameError(
             "frame for %d bones is %d bytes, expected %d" % (num_bones, len(data), expected)
         )
-    frame = PoseFrame()
-    frame.version = version
-    frame.subject = subject
-    frame.num_bones = num_bones
-    frame.seq = seq
-    frame.capture_nanos = capture_nanos
-    frame.send_nanos = send_nanos
-    frame.missed_frames = missed
-    frame.flags = flags
+    frame = _header_frame(version, flags, subject, num_bones, seq, capture_nanos, send_nanos, missed)
     frame.root_translation = (rx, ry, rz)
     frame.translations = (rx, ry, rz)
     frame.rotations = struct.unpack_from("<%df" % (4 * num_bones), data, HEADER_BYTES)

@@ -22,67 +22,19 @@ pub(super) struct LimbMember {
 
 /// Assigns roles along one limb member (arm, leg or wing) and its extremity and digits.
 pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
-    let LimbMember {
-        root: m,
-        side,
-        kind,
-        limb_index,
-        ground,
-        parent_sec,
-    } = member;
-    let chain = ctx.topo.chain(m);
-    let lengths: Vec<f32> = chain.iter().map(|b| ctx.topo.length[b.index()]).collect();
-    let dirs: Vec<Vec3> = chain
-        .iter()
-        .map(|b| match ctx.topo.main[b.index()] {
-            Some(c) => (ctx.pos[c.index()] - ctx.pos[b.index()]).normalize_or_zero(),
-            None => Vec3::ZERO,
-        })
-        .collect();
-    let fixed = chain
-        .iter()
-        .enumerate()
-        .skip(2)
-        .find(|(_, &b)| ctx.significant_children(b).len() >= 2)
-        .map(|(i, _)| i)
-        .map(|i| {
-            if palms_below(ctx, &chain, i) {
-                i + 1
-            } else {
-                i
-            }
-        });
-    let is_leg = kind == LimbKind::Leg;
-    let ratio = if is_leg { 1.05 } else { 1.12 };
-    tracing::trace!(
-        "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
-        kind as u8,
-        side,
-        chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
-        lengths,
-        fixed
-    );
-    let (limb_kind, ext_kind) = match kind {
-        LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
-        LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
-        _ => (SectionKind::Arm, SectionKind::Hand),
-    };
-    // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
-    // the foot anywhere up to the branch.
-    let fitted = match fixed {
-        Some(f) if is_leg => fit_chain(&lengths[..=f], &dirs[..=f], None, ratio),
-        _ => fit_chain(&lengths, &dirs, fixed, ratio),
-    };
-    let Some(split) = fitted else {
-        let si = out.add_section(
+    let chain = ctx.topo.chain(member.root);
+    let fixed = branch_point(ctx, &chain);
+    let is_leg = member.kind == LimbKind::Leg;
+    let (limb_kind, _) = section_kinds(member.kind);
+    let Some(split) = fit_member(ctx, &chain, fixed, member) else {
+        out.add_section(
             limb_kind,
-            side,
-            limb_index,
+            member.side,
+            member.limb_index,
             chain.clone(),
-            parent_sec,
-            ground,
+            member.parent_sec,
+            member.ground,
         );
-        let _ = si;
         let role = if is_leg {
             Role::UpperLeg
         } else {
@@ -94,17 +46,89 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
     };
     let conf = (0.95 * (-split.cost).exp()).clamp(0.2, 0.95);
     let e = split.extremity.min(chain.len());
-    let limb_bones = chain[..e].to_vec();
-    let li = out.add_section(limb_kind, side, limb_index, limb_bones, parent_sec, ground);
+    let li = out.add_section(
+        limb_kind,
+        member.side,
+        member.limb_index,
+        chain[..e].to_vec(),
+        member.parent_sec,
+        member.ground,
+    );
+    segment_roles(out, &chain, &split, is_leg, conf);
+    if e < chain.len() {
+        let fixed_in_rest = fixed.filter(|&f| f >= e).map(|f| f - e);
+        extremity_roles(ctx, out, member, &chain[e..], fixed_in_rest, li, conf);
+    }
+}
+
+/// The limb's and its extremity's section kinds.
+fn section_kinds(kind: LimbKind) -> (SectionKind, SectionKind) {
+    match kind {
+        LimbKind::Leg => (SectionKind::Leg, SectionKind::Foot),
+        LimbKind::Wing => (SectionKind::Wing, SectionKind::Hand),
+        _ => (SectionKind::Arm, SectionKind::Hand),
+    }
+}
+
+/// Where the chain branches into digits (two or more significant children, from its third
+/// bone on), moved one bone on when the branching bone's palm hangs below it.
+fn branch_point(ctx: &Ctx<'_>, chain: &[BoneId]) -> Option<usize> {
+    chain
+        .iter()
+        .enumerate()
+        .skip(2)
+        .find(|(_, &b)| ctx.significant_children(b).len() >= 2)
+        .map(|(i, _)| i)
+        .map(|i| if palms_below(ctx, chain, i) { i + 1 } else { i })
+}
+
+/// Splits the chain into clavicle | upper | lower | extremity by bone lengths and directions.
+fn fit_member(
+    ctx: &Ctx<'_>,
+    chain: &[BoneId],
+    fixed: Option<usize>,
+    member: LimbMember,
+) -> Option<super::limbs::ChainSplit> {
+    let lengths: Vec<f32> = chain.iter().map(|b| ctx.topo.length[b.index()]).collect();
+    let dirs: Vec<Vec3> = chain
+        .iter()
+        .map(|b| match ctx.topo.main[b.index()] {
+            Some(c) => (ctx.pos[c.index()] - ctx.pos[b.index()]).normalize_or_zero(),
+            None => Vec3::ZERO,
+        })
+        .collect();
+    let is_leg = member.kind == LimbKind::Leg;
+    let ratio = if is_leg { 1.05 } else { 1.12 };
+    tracing::trace!(
+        "limb {:?} {:?} chain {:?} len {:?} fixed {:?}",
+        member.kind as u8,
+        member.side,
+        chain.iter().map(|b| ctx.skel.name(*b)).collect::<Vec<_>>(),
+        lengths,
+        fixed
+    );
+    // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
+    // the foot anywhere up to the branch.
+    match fixed {
+        Some(f) if is_leg => fit_chain(&lengths[..=f], &dirs[..=f], None, ratio),
+        _ => fit_chain(&lengths, &dirs, fixed, ratio),
+    }
+}
+
+/// Clavicle (or pelvis side) and helpers, upper and lower segment with their twist bones.
+fn segment_roles(
+    out: &mut Builder,
+    chain: &[BoneId],
+    split: &super::limbs::ChainSplit,
+    is_leg: bool,
+    conf: f32,
+) {
+    let e = split.extremity.min(chain.len());
     for (j, &b) in chain.iter().enumerate().take(split.upper) {
-        let role = if j + 1 == split.upper {
-            if is_leg {
-                Role::PelvisSide
-            } else {
-                Role::Clavicle
-            }
-        } else {
-            Role::Helper
+        let role = match (j + 1 == split.upper, is_leg) {
+            (true, true) => Role::PelvisSide,
+            (true, false) => Role::Clavicle,
+            (false, _) => Role::Helper,
         };
         out.set(b, role, conf);
     }
@@ -121,30 +145,42 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
     for &b in &chain[split.lower + 1..e] {
         out.set(b, Role::Twist, conf);
     }
-    if e >= chain.len() {
-        return;
-    }
-    let hand = chain[e];
+}
+
+/// The hand or foot (`rest[0]`) and what follows it: with a branch point (`fixed`, an index
+/// into `rest`) the toes up to it and the digits beyond; else the extremity's own chain.
+fn extremity_roles(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    member: LimbMember,
+    rest: &[BoneId],
+    fixed: Option<usize>,
+    limb_section: usize,
+    conf: f32,
+) {
+    let is_leg = member.kind == LimbKind::Leg;
+    let (_, ext_kind) = section_kinds(member.kind);
     let ext_role = if is_leg { Role::Foot } else { Role::Hand };
-    if let Some(f) = fixed.filter(|&f| f >= e) {
+    let (side, limb_index, ground) = (member.side, member.limb_index, member.ground);
+    if let Some(f) = fixed {
         let hi = out.add_section(
             ext_kind,
             side,
             limb_index,
-            chain[e..=f].to_vec(),
-            Some(li),
+            rest[..=f].to_vec(),
+            Some(limb_section),
             ground,
         );
-        out.set(hand, ext_role, conf);
-        for (k, &b) in chain[e + 1..=f].iter().enumerate() {
+        out.set(rest[0], ext_role, conf);
+        for (k, &b) in rest[1..=f].iter().enumerate() {
             out.set(b, if k == 0 { Role::Toes } else { Role::Helper }, conf);
         }
-        place_digits(ctx, out, member, chain[f], hi, conf);
+        place_digits(ctx, out, member, rest[f], hi, conf);
     } else {
-        let rest = chain[e..].to_vec();
-        out.add_section(ext_kind, side, limb_index, rest.clone(), Some(li), ground);
-        out.set(hand, ext_role, conf);
-        place_extremity_chain(ctx, out, &rest, is_leg, conf);
+        let section = Some(limb_section);
+        out.add_section(ext_kind, side, limb_index, rest.to_vec(), section, ground);
+        out.set(rest[0], ext_role, conf);
+        place_extremity_chain(ctx, out, rest, is_leg, conf);
     }
 }
 

@@ -198,24 +198,35 @@ pub fn normalize(name: &str) -> NameInfo {
     } else {
         japanese(name)
     };
-    let mut rest = if name.is_ascii() {
+    let rest = if name.is_ascii() {
         name.trim()
     } else {
         ascii.trim()
     };
-    let mut helper = false;
+    let (rest, mut helper) = strip_prefix(rest);
+    let (rest, side) = side_markers(rest, jp_side);
+    let mut info = tokenize(&split_words(rest), side);
+    helper |= info.helper;
+    info.helper = helper;
+    info
+}
+
+/// Drops one known rig prefix (`mixamorig:`, `DEF-`, `ORG-`…); `ORG-`/`MCH-` mark helpers.
+fn strip_prefix(rest: &str) -> (&str, bool) {
     let lower = rest.to_lowercase();
     for p in PREFIXES {
         if lower.starts_with(p) {
-            if *p == "org-" || *p == "mch-" {
-                helper = true;
-            }
-            rest = &rest[p.len()..];
-            break;
+            return (&rest[p.len()..], *p == "org-" || *p == "mch-");
         }
     }
-    // Daz/Poser style `lThigh` / `rShldr`: one lower-case l/r followed by a capital.
-    let mut side = jp_side;
+    (rest, false)
+}
+
+/// Side markers a word split would lose: a Daz/Poser `lThigh` / `rShldr` prefix (one
+/// lower-case l/r before a capital), a `.L` / `_l` / ` L` / `-l` suffix, or such a marker in
+/// the middle (`_l_`, `.L.001`: UE twist bones, Rigify segments). `side` (a side already
+/// known, from Japanese) wins over them.
+fn side_markers(mut rest: &str, mut side: Option<Side>) -> (&str, Option<Side>) {
     let mut chars = rest.chars();
     if let (Some(c0), Some(c1)) = (chars.next(), chars.next()) {
         if (c0 == 'l' || c0 == 'r') && c1.is_uppercase() {
@@ -223,7 +234,6 @@ pub fn normalize(name: &str) -> NameInfo {
             rest = &rest[1..];
         }
     }
-    // Suffix markers that a word split would lose (`.L`, `_l`, ` L`).
     let lower = rest.to_lowercase();
     for (suf, s) in [
         (".l", Side::Left),
@@ -236,20 +246,21 @@ pub fn normalize(name: &str) -> NameInfo {
         ("-r", Side::Right),
     ] {
         if lower.ends_with(suf) {
-            side = side.or(Some(s));
-            rest = &rest[..rest.len() - 2];
-            break;
+            return (&rest[..rest.len() - 2], side.or(Some(s)));
         }
-        // `_l_` / `.L.001` / `_L_01` in the middle (UE twist bones, Rigify segments).
-        let mid = format!("{suf}.");
-        let mid2 = format!("{suf}_");
+        let (mid, mid2) = (format!("{suf}."), format!("{suf}_"));
         if lower.contains(&mid) || lower.contains(&mid2) {
             side = side.or(Some(s));
         }
     }
-    let words = split_words(rest);
-    let mut tokens = Vec::new();
-    let mut number = None;
+    (rest, side)
+}
+
+/// Canonical tokens of a name's words: numbers become the name's number, side words its side,
+/// vertebra names (`L5`, `T8`, `C7`) spine or neck, two-word compounds one token, synonyms
+/// their canonical word; helper words mark a helper.
+fn tokenize(words: &[String], mut side: Option<Side>) -> NameInfo {
+    let (mut tokens, mut number, mut helper) = (Vec::new(), None, false);
     let mut i = 0;
     while i < words.len() {
         let w = words[i].as_str();
@@ -260,52 +271,28 @@ pub fn normalize(name: &str) -> NameInfo {
         }
         // Vertebrae (Xsens MVN `L5`, `T8`, `C7`, the whole name): a spine or neck bone, not
         // a side marker (`upper_arm.L.001` keeps its side).
-        let whole = i == 0 && words.len() == 2;
-        if let (true, Some(kind), Some(n)) = (
-            whole,
-            match w {
-                "l" | "t" => Some("spine"),
-                "c" => Some("neck"),
-                _ => None,
-            },
-            words.get(i + 1).and_then(|x| x.parse::<u32>().ok()),
-        ) {
+        if let Some((kind, n)) = vertebra(words, i) {
             tokens.push(kind.to_string());
             number = Some(n);
             i += 2;
             continue;
         }
-        match w {
-            "left" | "l" | "lft" => {
-                side = side.or(Some(Side::Left));
-                i += 1;
-                continue;
-            }
-            "right" | "r" | "rt" | "rgt" => {
-                side = side.or(Some(Side::Right));
-                i += 1;
-                continue;
-            }
-            _ => {}
+        if let Some(s) = side_word(w) {
+            side = side.or(Some(s));
+            i += 1;
+            continue;
         }
         // Join two-word compounds ("up leg", "fore arm", "upper arm", "toe base").
-        if let Some(next) = words.get(i + 1) {
-            let joined = format!("{w}{next}");
-            if let Some(&(_, canon)) = SYNONYMS.iter().find(|(k, _)| *k == joined) {
-                tokens.push(canon.to_string());
-                i += 2;
-                continue;
-            }
+        if let Some(canon) = words
+            .get(i + 1)
+            .and_then(|next| synonym(&format!("{w}{next}")))
+        {
+            tokens.push(canon.to_string());
+            i += 2;
+            continue;
         }
-        if HELPER_TOKENS.contains(&w) {
-            helper = true;
-        }
-        let canon = SYNONYMS
-            .iter()
-            .find(|(k, _)| *k == w)
-            .map(|&(_, c)| c.to_string())
-            .unwrap_or_else(|| w.to_string());
-        tokens.push(canon);
+        helper |= HELPER_TOKENS.contains(&w);
+        tokens.push(synonym(w).unwrap_or(w).to_string());
         i += 1;
     }
     NameInfo {
@@ -314,6 +301,33 @@ pub fn normalize(name: &str) -> NameInfo {
         helper,
         number,
     }
+}
+
+/// `L5`, `T8` (spine) or `C7` (neck) as the whole two-word name, from word `i`.
+fn vertebra(words: &[String], i: usize) -> Option<(&'static str, u32)> {
+    if i != 0 || words.len() != 2 {
+        return None;
+    }
+    let kind = match words[i].as_str() {
+        "l" | "t" => "spine",
+        "c" => "neck",
+        _ => return None,
+    };
+    Some((kind, words.get(i + 1)?.parse::<u32>().ok()?))
+}
+
+/// The side a whole word names (`left`, `r`, `rgt`…).
+fn side_word(w: &str) -> Option<Side> {
+    match w {
+        "left" | "l" | "lft" => Some(Side::Left),
+        "right" | "r" | "rt" | "rgt" => Some(Side::Right),
+        _ => None,
+    }
+}
+
+/// The canonical word for `w`, when it is a known synonym.
+fn synonym(w: &str) -> Option<&'static str> {
+    SYNONYMS.iter().find(|(k, _)| *k == w).map(|&(_, c)| c)
 }
 
 /// Similarity of two normalised names in 0..=1 (Jaccard over tokens; side ignored).

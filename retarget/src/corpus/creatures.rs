@@ -330,69 +330,74 @@ pub fn dragon() -> Builder {
         );
     }
     for left in [true, false] {
-        let s = sfx(left);
-        // Hind leg: thigh, shin, foot (+ helper ankle), 4 toes × 3.
-        let hind = vec![
-            (
-                format!("thigh.{s}"),
-                m(vec3(0.35, 1.5, -1.0), left),
-                lab(left, "upper_leg"),
-            ),
-            (
-                format!("shin.{s}"),
-                m(vec3(0.4, 0.9, -0.8), left),
-                lab(left, "lower_leg"),
-            ),
-            (
-                format!("ankle.{s}"),
-                m(vec3(0.4, 0.35, -1.0), left),
-                lab(left, "foot"),
-            ),
-            (
-                format!("hind_foot.{s}"),
-                m(vec3(0.4, 0.08, -0.9), left),
-                lab(left, "toes"),
-            ),
-        ];
-        let foot = chain(&mut b, pelvis, &hind);
-        claws(&mut b, foot, left, "hind", 3);
-        let front = vec![
-            (
-                format!("shoulder.{s}"),
-                m(vec3(0.2, 1.75, 1.0), left),
-                lab(left, "clavicle"),
-            ),
-            (
-                format!("upper_arm.{s}"),
-                m(vec3(0.4, 1.55, 1.05), left),
-                lab(left, "upper_arm"),
-            ),
-            (
-                format!("forearm.{s}"),
-                m(vec3(0.42, 0.95, 1.15), left),
-                lab(left, "lower_arm"),
-            ),
-            (
-                format!("hand.{s}"),
-                m(vec3(0.42, 0.42, 1.05), left),
-                lab(left, "hand"),
-            ),
-        ];
-        let hand = chain(&mut b, chest, &front);
-        claws(&mut b, hand, left, "front", 3);
-        // Wings: 4 fingers of 9 joints plus a one-joint thumb.
-        let before = b.names.len();
-        wing(&mut b, chest, left, vec3(0.15, 1.85, 0.8), 4.0, 4, 9);
-        let wing_hand = b.find(&format!("wing_hand.{s}")).unwrap_or(before);
-        let whp = b.world_pos[wing_hand];
-        b.add(
-            &format!("wing_thumb.{s}"),
-            Some(wing_hand),
-            whp + m(vec3(0.1, 0.0, 0.2), left),
-            &lab(left, "wing_finger"),
-        );
+        dragon_limbs(&mut b, pelvis, chest, left);
     }
     b
+}
+
+/// One side of the dragon: hind leg with claws, foreleg with claws, and a wing.
+fn dragon_limbs(b: &mut Builder, pelvis: usize, chest: usize, left: bool) {
+    let s = sfx(left);
+    // Hind leg: thigh, shin, foot (+ helper ankle), 4 toes × 3.
+    let hind = vec![
+        (
+            format!("thigh.{s}"),
+            m(vec3(0.35, 1.5, -1.0), left),
+            lab(left, "upper_leg"),
+        ),
+        (
+            format!("shin.{s}"),
+            m(vec3(0.4, 0.9, -0.8), left),
+            lab(left, "lower_leg"),
+        ),
+        (
+            format!("ankle.{s}"),
+            m(vec3(0.4, 0.35, -1.0), left),
+            lab(left, "foot"),
+        ),
+        (
+            format!("hind_foot.{s}"),
+            m(vec3(0.4, 0.08, -0.9), left),
+            lab(left, "toes"),
+        ),
+    ];
+    let foot = chain(b, pelvis, &hind);
+    claws(b, foot, left, "hind", 3);
+    let front = vec![
+        (
+            format!("shoulder.{s}"),
+            m(vec3(0.2, 1.75, 1.0), left),
+            lab(left, "clavicle"),
+        ),
+        (
+            format!("upper_arm.{s}"),
+            m(vec3(0.4, 1.55, 1.05), left),
+            lab(left, "upper_arm"),
+        ),
+        (
+            format!("forearm.{s}"),
+            m(vec3(0.42, 0.95, 1.15), left),
+            lab(left, "lower_arm"),
+        ),
+        (
+            format!("hand.{s}"),
+            m(vec3(0.42, 0.42, 1.05), left),
+            lab(left, "hand"),
+        ),
+    ];
+    let hand = chain(b, chest, &front);
+    claws(b, hand, left, "front", 3);
+    // Wings: 4 fingers of 9 joints plus a one-joint thumb.
+    let before = b.names.len();
+    wing(b, chest, left, vec3(0.15, 1.85, 0.8), 4.0, 4, 9);
+    let wing_hand = b.find(&format!("wing_hand.{s}")).unwrap_or(before);
+    let whp = b.world_pos[wing_hand];
+    b.add(
+        &format!("wing_thumb.{s}"),
+        Some(wing_hand),
+        whp + m(vec3(0.1, 0.0, 0.2), left),
+        &lab(left, "wing_finger"),
+    );
 }
 
 fn claws(b: &mut Builder, parent: usize, left: bool, prefix: &str, joints: usize) {

@@ -88,7 +88,41 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
     } else {
         None
     };
-    let hips_name = match style {
+    let hips_name = hips_name(style);
+    let hips = body.add(hips_name, ground_root, hips_pos, "hips");
+    if style == Style::Rigify {
+        body.add("ORG-spine", Some(hips), hips_pos, "helper");
+    }
+    let spine = spine_chain(style);
+    let mut parent = hips;
+    for (name, y, label) in &spine {
+        parent = body.add(name, Some(parent), vec3(0.0, *y, 0.0), label);
+    }
+    let chest = parent;
+    let chest_y = body.b.world_pos[chest].y;
+    let neck_chain = neck_chain(style, chest_y);
+    let mut p = chest;
+    let mut head = chest;
+    for (name, pos, label) in &neck_chain {
+        p = body.add(name, Some(p), *pos, label);
+        if *label == "head" {
+            head = p;
+        }
+    }
+    face(&mut body, style, head);
+    for left in [true, false] {
+        arm(&mut body, style, chest, left, fingers);
+        leg(&mut body, style, hips, left);
+    }
+    if style == Style::UnityX {
+        body.b.bones_along_x();
+    }
+    body.b
+}
+
+/// The hips bone's name in `style`.
+fn hips_name(style: Style) -> &'static str {
+    match style {
         Style::Mixamo => "mixamorig:Hips",
         Style::Unreal => "pelvis",
         Style::Rigify => "DEF-spine",
@@ -98,13 +132,13 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
         Style::Vrm => "J_Bip_C_Hips",
         Style::UnityX => "Hips",
         Style::HeadTop => "pelvis",
-    };
-    let hips = body.add(hips_name, ground_root, hips_pos, "hips");
-    if style == Style::Rigify {
-        body.add("ORG-spine", Some(hips), hips_pos, "helper");
     }
-    // Spine: (name, height, label); zero-length helpers repeat the previous height.
-    let spine: Vec<(&str, f32, &str)> = match style {
+}
+
+/// The spine above the hips in `style`: (name, height, label); zero-length helpers repeat the
+/// previous height.
+fn spine_chain(style: Style) -> Vec<(&'static str, f32, &'static str)> {
+    match style {
         Style::Mixamo => vec![
             ("mixamorig:Spine", 1.05, "spine"),
             ("mixamorig:Spine1", 1.17, "spine_mid"),
@@ -150,15 +184,12 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
             ("spine_upper", 1.17, "spine_mid"),
             ("chest", 1.31, "chest"),
         ],
-    };
-    let mut parent = hips;
-    for (name, y, label) in &spine {
-        parent = body.add(name, Some(parent), vec3(0.0, *y, 0.0), label);
     }
-    let chest = parent;
-    let chest_y = body.b.world_pos[chest].y;
-    // Neck and head.
-    let neck_chain: Vec<(&str, Vec3, &str)> = match style {
+}
+
+/// Neck and head above the chest (at height `chest_y`) in `style`: (name, position, label).
+fn neck_chain(style: Style, chest_y: f32) -> Vec<(&'static str, Vec3, &'static str)> {
+    match style {
         Style::Mixamo => vec![
             ("mixamorig:Neck", vec3(0.0, 1.46, 0.01), "neck"),
             ("mixamorig:Head", vec3(0.0, 1.57, 0.02), "head"),
@@ -202,15 +233,11 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
             ("head", vec3(0.0, 1.57, 0.0), "head"),
             ("head_top", vec3(0.0, 1.75, 0.0), "head_end"),
         ],
-    };
-    let mut p = chest;
-    let mut head = chest;
-    for (name, pos, label) in &neck_chain {
-        p = body.add(name, Some(p), *pos, label);
-        if *label == "head" {
-            head = p;
-        }
     }
+}
+
+/// Face landmarks some styles hang from the head (MediaPipe's nose, eyes and ears; VRM's eyes).
+fn face(body: &mut Body, style: Style, head: usize) {
     match style {
         Style::MediaPipe => {
             body.add("nose", Some(head), vec3(0.0, 1.62, 0.11), "head_end");
@@ -246,14 +273,6 @@ pub fn humanoid(style: Style, fingers: bool) -> Builder {
         }
         _ => {}
     }
-    for left in [true, false] {
-        arm(&mut body, style, chest, left, fingers);
-        leg(&mut body, style, hips, left);
-    }
-    if style == Style::UnityX {
-        body.b.bones_along_x();
-    }
-    body.b
 }
 
 fn arm(body: &mut Body, style: Style, chest: usize, left: bool, fingers: bool) {
@@ -330,6 +349,16 @@ fn arm(body: &mut Body, style: Style, chest: usize, left: bool, fingers: bool) {
         );
     }
     let hand = body.add(&hand_name, Some(hand_parent), wrist, &lab(left, "hand"));
+    hand_extras(body, style, hand, left, fingers);
+}
+
+/// What hangs from the hand in `style`: CMU's finger base and thumb helpers, SMPL's hand,
+/// MediaPipe's three finger landmarks, else five fingers when `fingers`.
+fn hand_extras(body: &mut Body, style: Style, hand: usize, left: bool, fingers: bool) {
+    let y = 1.43;
+    let wrist = mirror(vec3(0.72, y, -0.01), left);
+    let m = |v: Vec3| mirror(v, left);
+    let sn = |k: &str| side_name(style, k, left);
     match style {
         Style::CmuCgspeed => {
             let fb = body.add(&sn("FingerBase"), Some(hand), wrist, &lab(left, "helper"));

@@ -234,155 +234,228 @@ pub fn map_analyzed(
     opts: &MapOptions,
 ) -> MappingTable {
     let (tskel, ta) = target;
-    let w = &opts.weights;
-    let tgraph = SectionGraph::new(ta);
-    let sgraphs: Vec<SectionGraph> = sources.iter().map(|(_, a)| SectionGraph::new(a)).collect();
-    let tdirs: Vec<Vec3> = tskel
-        .bone_ids()
-        .map(|b| ta.body_direction(tskel, b))
-        .collect();
-    let sdirs: Vec<Vec<Vec3>> = sources
-        .iter()
-        .map(|(s, a)| s.bone_ids().map(|b| a.body_direction(s, b)).collect())
-        .collect();
-    let multi_legged = ta
-        .sections
-        .iter()
-        .filter(|s| s.ground && matches!(s.kind, SectionKind::Arm | SectionKind::Leg))
-        .count()
-        > 2;
-    let cos_max = w.orientation_max_deg.to_radians();
-
+    let scorer = Scorer::new(sources, target, opts);
     let mut table = MappingTable::empty(tskel.num_bones());
     let mut chosen_input: Vec<Option<u16>> = vec![None; tskel.num_bones()];
     let mut per_target: Vec<Vec<Candidate>> = (0..tskel.num_bones()).map(|_| Vec::new()).collect();
     for t in tskel.bone_ids() {
-        let tr = ta.roles[t.index()];
-        if tr.role == Role::Unknown {
+        if ta.roles[t.index()].role == Role::Unknown {
             continue;
         }
-        let tsec = tr.section.map(|s| &ta.sections[s as usize]);
-        let mut tside = tr.side;
-        if opts.mirror && multi_legged {
-            if let Some(sec) = tsec {
-                let front = sec.ground
-                    && matches!(
-                        sec.kind,
-                        SectionKind::Arm | SectionKind::Hand | SectionKind::Digit
-                    );
-                if front || (sec.ground && sec.limb % 2 == 1) {
-                    tside = tside.flipped();
-                }
-            }
-        }
         let parent_input = tskel.parent(t).and_then(|p| chosen_input[p.index()]);
-        let mut cands: Vec<Candidate> = Vec::new();
-        for (input, (sskel, sa)) in sources.iter().enumerate() {
-            let mut best: Vec<Candidate> = Vec::new();
-            for s in sskel.bone_ids() {
-                let sr = sa.roles[s.index()];
-                if !may_drive(sr.role, tr.role) {
-                    continue;
-                }
-                let ssec = sr.section.map(|x| &sa.sections[x as usize]);
-                let mut score = 0.0;
-                let mut ev = Vec::new();
-                if sr.side == tside {
-                    score += w.side;
-                    ev.push(format!("side={}", side_name(tside)));
-                }
-                if let (Some(a), Some(b)) = (tsec, ssec) {
-                    if a.kind == b.kind {
-                        let k = if a.limb == b.limb { 1.0 } else { 0.2 };
-                        score += w.same_type * k;
-                        ev.push(format!("type={}", a.kind.name()));
-                    } else if a.kind.similar(b.kind) {
-                        score += w.similar_type;
-                        ev.push(format!("similar={}~{}", a.kind.name(), b.kind.name()));
-                    }
-                    if a.bones.len() == b.bones.len() {
-                        score += w.bone_count;
-                    }
-                    if let (Some(ti), Some(si)) = (tr.section, sr.section) {
-                        let tp = &tgraph.kind_path[ti as usize];
-                        let sp = &sgraphs[input].kind_path[si as usize];
-                        let common = tp.iter().zip(sp).take_while(|(x, y)| x == y).count();
-                        let mut st = common as f32 / tp.len().max(sp.len()).max(1) as f32;
-                        if tgraph.num_children[ti as usize]
-                            == sgraphs[input].num_children[si as usize]
-                        {
-                            st = (st + 0.25).min(1.0);
-                        }
-                        score += w.structure * st;
-                        if st >= 0.99 {
-                            ev.push("structure".into());
-                        }
-                    }
-                }
-                if tr.role == sr.role {
-                    score += w.role;
-                    ev.push(format!("role={}", tr.role.name()));
-                }
-                if tr.role == sr.role {
-                    // Same role is the same place in the section's sequence.
-                    score += w.sequence;
-                } else {
-                    // Otherwise partial credit by position along the section (length ratio).
-                    let same_family = family(tr.role) != 0 && family(tr.role) == family(sr.role);
-                    let finger_digit = matches!((tr.role, sr.role), (Role::Finger { digit: a, .. }, Role::Finger { digit: b, .. }) if a == b);
-                    let k = if same_family || finger_digit {
-                        2.0
-                    } else {
-                        4.0
-                    };
-                    score +=
-                        0.5 * w.sequence * (1.0 - k * (tr.position - sr.position).abs()).max(0.0);
-                }
-                let (dt, ds) = (tdirs[t.index()], sdirs[input][s.index()]);
-                if dt != Vec3::ZERO && ds != Vec3::ZERO {
-                    let ang = dt.dot(ds).clamp(-1.0, 1.0).acos();
-                    let o = w.orientation * (1.0 - (ang / cos_max).powi(2)).max(0.0);
-                    if o > 0.0 {
-                        score += o;
-                        ev.push("orientation".into());
-                    }
-                }
-                let ns = names::similarity(&ta.names[t.index()], &sa.names[s.index()]);
-                if ns > 0.0 {
-                    score += w.name * ns;
-                    ev.push(format!("name:{ns:.2}"));
-                }
-                if parent_input == Some(input as u16) && sources.len() > 1 {
-                    score += w.continuity;
-                }
-                if opts.preferred_source == Some(input as u16) {
-                    score += w.preference;
-                    ev.push("preferred".into());
-                }
-                // Ties: the closer position along the section, then the closer length ratio.
-                let tie = (tr.position - sr.position).abs() * 1e-3
-                    + (rel_len(ta, t) - rel_len(sa, s)).abs() * 1e-3;
-                let score = score - tie;
-                if score >= opts.threshold {
-                    best.push(Candidate {
-                        input: input as u16,
-                        bone: s,
-                        score,
-                        evidence: ev,
-                    });
-                }
-            }
-            best.sort_by(|a, b| b.score.total_cmp(&a.score));
-            best.truncate(KEEP_PER_INPUT);
-            cands.extend(best);
-        }
-        cands.sort_by(|a, b| b.score.total_cmp(&a.score));
+        let cands = scorer.candidates(t, parent_input);
         chosen_input[t.index()] = cands.first().map(|c| c.input);
         per_target[t.index()] = cands;
     }
     let picked = assign(&per_target, opts.remove_duplicates);
     fill_table(&mut table, tskel, &per_target, &picked, opts);
     table
+}
+
+/// What scoring a (target bone, source bone) pair looks at, computed once per mapping: the
+/// skeletons, their analyses, section graphs and body directions.
+struct Scorer<'a> {
+    sources: &'a [(&'a Skeleton, &'a Analysis)],
+    ta: &'a Analysis,
+    opts: &'a MapOptions,
+    tgraph: SectionGraph,
+    sgraphs: Vec<SectionGraph>,
+    tdirs: Vec<Vec3>,
+    sdirs: Vec<Vec<Vec3>>,
+    /// More than two ground limbs: a quadruped's (or insect's) legs, whose sides may mirror.
+    multi_legged: bool,
+    /// The orientation term's cut-off angle, radians.
+    max_angle: f32,
+}
+
+impl<'a> Scorer<'a> {
+    fn new(
+        sources: &'a [(&'a Skeleton, &'a Analysis)],
+        (tskel, ta): (&'a Skeleton, &'a Analysis),
+        opts: &'a MapOptions,
+    ) -> Scorer<'a> {
+        Scorer {
+            sources,
+            ta,
+            opts,
+            tgraph: SectionGraph::new(ta),
+            sgraphs: sources.iter().map(|(_, a)| SectionGraph::new(a)).collect(),
+            tdirs: tskel
+                .bone_ids()
+                .map(|b| ta.body_direction(tskel, b))
+                .collect(),
+            sdirs: sources
+                .iter()
+                .map(|(s, a)| s.bone_ids().map(|b| a.body_direction(s, b)).collect())
+                .collect(),
+            multi_legged: ta
+                .sections
+                .iter()
+                .filter(|s| s.ground && matches!(s.kind, SectionKind::Arm | SectionKind::Leg))
+                .count()
+                > 2,
+            max_angle: opts.weights.orientation_max_deg.to_radians(),
+        }
+    }
+
+    /// Every source's best candidates for target bone `t`, best first (at most
+    /// `KEEP_PER_INPUT` per source). `parent_input`: the source chosen for `t`'s parent.
+    fn candidates(&self, t: BoneId, parent_input: Option<u16>) -> Vec<Candidate> {
+        let tside = self.target_side(t);
+        let mut cands: Vec<Candidate> = Vec::new();
+        for (input, (sskel, _)) in self.sources.iter().enumerate() {
+            let mut best: Vec<Candidate> = sskel
+                .bone_ids()
+                .filter_map(|s| self.score(t, tside, parent_input, input, s))
+                .filter(|c| c.score >= self.opts.threshold)
+                .collect();
+            best.sort_by(|a, b| b.score.total_cmp(&a.score));
+            best.truncate(KEEP_PER_INPUT);
+            cands.extend(best);
+        }
+        cands.sort_by(|a, b| b.score.total_cmp(&a.score));
+        cands
+    }
+
+    /// The side `t` should be matched on: with `mirror` on a multi-legged target, front limbs
+    /// and every second ground limb take the other side (a walker's left arm drives the right
+    /// foreleg, as in a diagonal gait).
+    fn target_side(&self, t: BoneId) -> Side {
+        let tr = self.ta.roles[t.index()];
+        let Some(sec) = tr.section.map(|s| &self.ta.sections[s as usize]) else {
+            return tr.side;
+        };
+        if !(self.opts.mirror && self.multi_legged) {
+            return tr.side;
+        }
+        let front = sec.ground
+            && matches!(
+                sec.kind,
+                SectionKind::Arm | SectionKind::Hand | SectionKind::Digit
+            );
+        if front || (sec.ground && sec.limb % 2 == 1) {
+            tr.side.flipped()
+        } else {
+            tr.side
+        }
+    }
+
+    /// The score of source bone `s` (of source `input`) for target bone `t`, with the
+    /// evidence behind it; `None` when `s` may not drive `t` at all.
+    fn score(
+        &self,
+        t: BoneId,
+        tside: Side,
+        parent_input: Option<u16>,
+        input: usize,
+        s: BoneId,
+    ) -> Option<Candidate> {
+        let (w, sa) = (&self.opts.weights, self.sources[input].1);
+        let (tr, sr) = (self.ta.roles[t.index()], sa.roles[s.index()]);
+        if !may_drive(sr.role, tr.role) {
+            return None;
+        }
+        let mut score = 0.0;
+        let mut ev = Vec::new();
+        if sr.side == tside {
+            score += w.side;
+            ev.push(format!("side={}", side_name(tside)));
+        }
+        score += self.section_score(t, input, s, &mut ev);
+        score += role_score(w, tr.role, sr.role, tr.position - sr.position, &mut ev);
+        score += self.orientation_score(t, input, s, &mut ev);
+        let ns = names::similarity(&self.ta.names[t.index()], &sa.names[s.index()]);
+        if ns > 0.0 {
+            score += w.name * ns;
+            ev.push(format!("name:{ns:.2}"));
+        }
+        if parent_input == Some(input as u16) && self.sources.len() > 1 {
+            score += w.continuity;
+        }
+        if self.opts.preferred_source == Some(input as u16) {
+            score += w.preference;
+            ev.push("preferred".into());
+        }
+        // Ties: the closer position along the section, then the closer length ratio.
+        let tie = (tr.position - sr.position).abs() * 1e-3
+            + (rel_len(self.ta, t) - rel_len(sa, s)).abs() * 1e-3;
+        Some(Candidate {
+            input: input as u16,
+            bone: s,
+            score: score - tie,
+            evidence: ev,
+        })
+    }
+
+    /// Section kind, bone count and place in the section tree of `t` and `s` alike.
+    fn section_score(&self, t: BoneId, input: usize, s: BoneId, ev: &mut Vec<String>) -> f32 {
+        let (w, sa) = (&self.opts.weights, self.sources[input].1);
+        let (tr, sr) = (self.ta.roles[t.index()], sa.roles[s.index()]);
+        let (Some(ti), Some(si)) = (tr.section, sr.section) else {
+            return 0.0;
+        };
+        let (a, b) = (&self.ta.sections[ti as usize], &sa.sections[si as usize]);
+        let mut score = 0.0;
+        if a.kind == b.kind {
+            let k = if a.limb == b.limb { 1.0 } else { 0.2 };
+            score += w.same_type * k;
+            ev.push(format!("type={}", a.kind.name()));
+        } else if a.kind.similar(b.kind) {
+            score += w.similar_type;
+            ev.push(format!("similar={}~{}", a.kind.name(), b.kind.name()));
+        }
+        if a.bones.len() == b.bones.len() {
+            score += w.bone_count;
+        }
+        let (tg, sg) = (&self.tgraph, &self.sgraphs[input]);
+        let (tp, sp) = (&tg.kind_path[ti as usize], &sg.kind_path[si as usize]);
+        let common = tp.iter().zip(sp).take_while(|(x, y)| x == y).count();
+        let mut st = common as f32 / tp.len().max(sp.len()).max(1) as f32;
+        if tg.num_children[ti as usize] == sg.num_children[si as usize] {
+            st = (st + 0.25).min(1.0);
+        }
+        if st >= 0.99 {
+            ev.push("structure".into());
+        }
+        score + w.structure * st
+    }
+
+    /// How closely `t` and `s` point the same way in their bodies' frames.
+    fn orientation_score(&self, t: BoneId, input: usize, s: BoneId, ev: &mut Vec<String>) -> f32 {
+        let (dt, ds) = (self.tdirs[t.index()], self.sdirs[input][s.index()]);
+        if dt == Vec3::ZERO || ds == Vec3::ZERO {
+            return 0.0;
+        }
+        let ang = dt.dot(ds).clamp(-1.0, 1.0).acos();
+        let o = self.opts.weights.orientation * (1.0 - (ang / self.max_angle).powi(2)).max(0.0);
+        if o > 0.0 {
+            ev.push("orientation".into());
+        }
+        o
+    }
+}
+
+/// Same role (and so the same place in its section), else partial credit by position along
+/// the section (`position_gap`: target's minus source's, as length ratios).
+fn role_score(
+    w: &Weights,
+    target: Role,
+    source: Role,
+    position_gap: f32,
+    ev: &mut Vec<String>,
+) -> f32 {
+    if target == source {
+        ev.push(format!("role={}", target.name()));
+        return w.role + w.sequence;
+    }
+    let same_family = family(target) != 0 && family(target) == family(source);
+    let finger_digit = matches!((target, source), (Role::Finger { digit: a, .. }, Role::Finger { digit: b, .. }) if a == b);
+    let k = if same_family || finger_digit {
+        2.0
+    } else {
+        4.0
+    };
+    0.5 * w.sequence * (1.0 - k * position_gap.abs()).max(0.0)
 }
 
 /// Whether a source bone of role `source` may drive a target bone of role `target` at all.

@@ -38,6 +38,10 @@ pub(super) struct RootPlan {
     /// (target, source) foot joint pairs for [`RetargetPlan::place_feet`].
     /// With the index of the leg (root child subtree) each belongs to, below `MAX_LEGS`.
     pub(super) contacts: Vec<(BoneId, BoneId, u8)>,
+    /// Per leg, how far above the floor its lowest contact joint stands when the source's
+    /// foot is down, beyond the source's clearance scaled: non-zero only for a leg whose
+    /// mapped joints end well above the ground (a hoofed leg mapped down to the hock).
+    pub(super) stand: [f32; MAX_LEGS],
     pub(super) foot_contact: FootContact,
 }
 
@@ -49,12 +53,79 @@ pub(super) struct Side<'a> {
     pub(super) eps: f32,
 }
 
-/// The floor a reference posture stands on: its lowest foot joint when that is near y = 0 (a
-/// character authored standing on the ground); unknown for a rest floating at the origin (like
-/// CMU's, with the hips at y = 0).
-fn floor_from_reference(lowest_y: f32, leg_height: f32) -> Option<f32> {
-    (lowest_y.abs() <= 0.25 * leg_height).then_some(lowest_y)
+/// Segments within about 37° of `up` count as leg (thigh, shin); the foot's slope and the hip
+/// offset do not, so rigs whose ankles and toes are built differently measure alike.
+const LEG_SEGMENT_COS: f32 = 0.8;
+
+impl Side<'_> {
+    /// The segments (joint to joint, world space) from `top` down to `low`, those longer than
+    /// `eps`; empty when `low` is not below `top`.
+    fn segments_down(&self, top: BoneId, low: BoneId) -> Vec<Vec3> {
+        let mut path = vec![low];
+        let mut b = low;
+        while b != top {
+            match self.skel.parent(b) {
+                Some(p) => b = p,
+                None => return Vec::new(),
+            }
+            path.push(b);
+        }
+        path.windows(2)
+            .map(|w| self.worlds[w[0].index()].translation - self.worlds[w[1].index()].translation)
+            .filter(|d| d.length() > self.eps)
+            .rev()
+            .collect()
+    }
+
+    /// Hip height along a leg: from `top`'s joint down to `low`'s, the drop along `up` of the
+    /// first (hip-offset) segment, full lengths of segments mostly along `up` (thigh, shin:
+    /// posture does not shorten them) and the drop of mostly-horizontal ones (the foot).
+    pub(super) fn leg_height(&self, top: BoneId, low: BoneId, up: Vec3) -> f32 {
+        self.segments_down(top, low)
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let (drop, len) = (d.dot(up).abs(), d.length());
+                if i == 0 || drop < 0.5 * len {
+                    drop
+                } else {
+                    len
+                }
+            })
+            .sum()
+    }
+
+    /// Leg length from a mapped upper-leg joint `top` down to a mapped foot joint `low`: the
+    /// full lengths of the segments along `up` (thigh, shin), not the foot. Strides scale with
+    /// it; measured between joints mapped to each other on both rigs, the ratio compares like
+    /// with like whatever hip offsets and ankle heights the rigs have.
+    pub(super) fn leg_length(&self, top: BoneId, low: BoneId, up: Vec3) -> f32 {
+        self.segments_down(top, low)
+            .iter()
+            .filter(|d| d.dot(up).abs() >= LEG_SEGMENT_COS * d.length())
+            .map(|d| d.length())
+            .sum()
+    }
 }
+
+/// The floor a reference posture stands on: its lowest foot joint when that is near y = 0 (a
+/// character authored standing on the ground); y = 0 itself when the lowest mapped joint
+/// stands above it but well below the root (`root_y`): a leg whose last segments are not
+/// mapped, like a hoofed leg ending at the hock; unknown for a rest floating at the origin
+/// (like CMU's, with the hips at y = 0 and the feet below).
+fn floor_from_reference(lowest_y: f32, leg_height: f32, root_y: f32) -> Option<f32> {
+    if lowest_y.abs() <= 0.25 * leg_height {
+        Some(lowest_y)
+    } else if lowest_y > 0.0 && lowest_y < 0.5 * root_y {
+        Some(0.0)
+    } else {
+        None
+    }
+}
+
+/// A contact joint standing higher above its floor than this share of the leg's height is
+/// not where the leg meets the ground (see [`floor_from_reference`]).
+const RAISED_CONTACT: f32 = 0.25;
 
 impl RootPlan {
     /// Hip-height ratio from each reference posture, measured down the legs to the lowest mapped
@@ -95,8 +166,9 @@ impl RootPlan {
         let mut scale = align::extent(tgt.worlds) / align::extent(src.worlds);
         let mut contacts = Vec::new();
         let (mut floor_t, mut floor_s) = (None, None);
+        let mut stand = [0.0; MAX_LEGS];
         if let Some((tl, _)) = low {
-            let first = align::leg_height(tgt.skel, tgt.worlds, rt, tl, up, tgt.eps);
+            let first = tgt.leg_height(rt, tl, up);
             // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
             let (mut sum_t, mut sum_s) = (0.0, 0.0);
             for &(t, s) in below
@@ -104,14 +176,8 @@ impl RootPlan {
                 .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
             {
                 let (ht, hs) = match top_pair(src, tgt, table, rt, rs, t, s) {
-                    Some((tt, st)) => (
-                        align::leg_length(tgt.skel, tgt.worlds, tt, t, up, tgt.eps),
-                        align::leg_length(src.skel, src.worlds, st, s, up, src.eps),
-                    ),
-                    None => (
-                        align::leg_height(tgt.skel, tgt.worlds, rt, t, up, tgt.eps),
-                        align::leg_height(src.skel, src.worlds, rs.bone, s, up, src.eps),
-                    ),
+                    Some((tt, st)) => (tgt.leg_length(tt, t, up), src.leg_length(st, s, up)),
+                    None => (tgt.leg_height(rt, t, up), src.leg_height(rs.bone, s, up)),
                 };
                 if ht > tgt.eps && hs > src.eps {
                     sum_t += ht;
@@ -150,12 +216,23 @@ impl RootPlan {
             // axis has no floor in this world, and keeps the source's clearance instead.
             let own_y = |b: BoneId| tgt_own[b.index()].translation.dot(up);
             let standing = |y: &dyn Fn(BoneId) -> f32| y(rt) - y(tl);
-            floor_t = if standing(&own_y) > 0.8 * standing(&y_t) {
-                floor_from_reference(own_y(tl), first)
+            let y_floor: &dyn Fn(BoneId) -> f32 = if standing(&own_y) > 0.8 * standing(&y_t) {
+                &own_y
             } else {
-                floor_from_reference(y_t(tl), first)
+                &y_t
             };
-            floor_s = floor_from_reference(lowest_s, first / scale);
+            floor_t = floor_from_reference(y_floor(tl), first, y_floor(rt));
+            floor_s = floor_from_reference(lowest_s, first / scale, y_s(rs.bone));
+            if let Some(floor) = floor_t {
+                stand = raised_contacts(
+                    &contacts,
+                    y_floor,
+                    floor,
+                    |b| y_s(b) - lowest_s,
+                    scale,
+                    first,
+                );
+            }
         }
         RootPlan {
             bone: rt,
@@ -170,9 +247,39 @@ impl RootPlan {
             reference_position: tgt.worlds[rt.index()].translation,
             contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
             contacts,
+            stand,
             foot_contact: opts.foot_contact,
         }
     }
+}
+
+/// Per leg, the raised-contact offset of [`RootPlan::stand`]: the target's lowest contact joint's
+/// height above `floor` (by `y_t`), less the source's matching joint's clearance in its
+/// reference (`clear_s`) scaled, when the target's stands higher than [`RAISED_CONTACT`] of
+/// the leg height `first`.
+fn raised_contacts(
+    contacts: &[(BoneId, BoneId, u8)],
+    y_t: &dyn Fn(BoneId) -> f32,
+    floor: f32,
+    clear_s: impl Fn(BoneId) -> f32,
+    scale: f32,
+    first: f32,
+) -> [f32; MAX_LEGS] {
+    let mut lowest = [(f32::INFINITY, 0.0f32); MAX_LEGS];
+    for &(t, s, leg) in contacts {
+        let slot = &mut lowest[leg as usize];
+        if y_t(t) < slot.0 {
+            *slot = (y_t(t), clear_s(s));
+        }
+    }
+    lowest.map(|(y, clear)| {
+        let raised = y - floor;
+        if y.is_finite() && raised > RAISED_CONTACT * first {
+            (raised - scale * clear).max(0.0)
+        } else {
+            0.0
+        }
+    })
 }
 
 /// The topmost mapped pair on the leg above the foot pair (`t`, `s`): a target joint below
@@ -247,8 +354,10 @@ impl RetargetPlan {
             lowest_s[leg] = lowest_s[leg].min(src[s.index()].translation.dot(root.up));
             lowest_t[leg] = lowest_t[leg].min(ctx.scratch[t.index()].translation.dot(root.up));
         }
-        let error =
-            |leg: usize| floor_t + scale * (lowest_s[leg] - root.source_floor_y) - lowest_t[leg];
+        let error = |leg: usize| {
+            floor_t + root.stand[leg] + scale * (lowest_s[leg] - root.source_floor_y)
+                - lowest_t[leg]
+        };
         let legs = (0..MAX_LEGS).filter(|&l| lowest_t[l].is_finite());
         if root.foot_contact == FootContact::EveryFrame {
             // The lowest foot carries the weight: it decides.

@@ -16,6 +16,7 @@ use crate::corpus;
 use crate::mapping::{auto_map, MapOptions, MappingTable};
 use crate::pose::Pose;
 use crate::skeleton::Skeleton;
+use crate::{Mapping, RetargetError, RetargetOptions};
 
 /// A deterministic walk-like motion: every bone swings about its own axis with its own phase,
 /// the root travels forward and bobs.
@@ -47,6 +48,30 @@ pub struct Workload {
     pub table: MappingTable,
     /// Source poses to feed.
     pub poses: Vec<Pose>,
+}
+
+impl Workload {
+    /// The workload's mapping with default options (what every bench drives).
+    pub fn mapping(&self) -> Result<Mapping, RetargetError> {
+        Mapping::build(
+            &[&self.source],
+            &self.target,
+            &self.table,
+            &RetargetOptions::default(),
+        )
+    }
+
+    /// Every source pose retargeted by `mapping` (inputs for benches of later stages).
+    pub fn retargeted(&self, mapping: &mut Mapping) -> Result<Vec<Pose>, RetargetError> {
+        self.poses
+            .iter()
+            .map(|p| {
+                let mut out = mapping.new_target_pose();
+                mapping.apply_one(p, &mut out)?;
+                Ok(out)
+            })
+            .collect()
+    }
 }
 
 fn workload(source: Skeleton, target: Skeleton) -> Workload {

@@ -59,26 +59,35 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
     }
     let mut plans = Vec::new();
     let mut target_txs = Vec::new();
-    for p in inputs.performers {
-        let on_lost = p.spec.on_lost.unwrap_or(config.on_lost);
+    for mut p in inputs.performers {
+        let fallback = Fallback {
+            on_lost: p.spec.on_lost.unwrap_or(config.on_lost),
+            idle: p.idle.take(),
+            resume: p.spec.resume_secs.map(std::time::Duration::from_secs_f64),
+        };
         let (plan, tx) = performer_plan(p, &names, &subjects, config)?;
         subjects.push(plan.target.clone());
         plans.push(plan);
-        target_txs.push((tx, on_lost));
+        target_txs.push((tx, fallback));
     }
     let subjects = Arc::new(subjects);
     let performers = plans
         .iter()
         .zip(target_txs)
-        .map(|(plan, (tx, on_lost))| {
+        .map(|(plan, (tx, fallback))| {
             let inputs = plan.target.inputs.iter();
-            Performer::new(
+            let performer = Performer::new(
                 plan.target.clone(),
                 tx,
                 inputs.map(|id| subjects[*id as usize].clone()).collect(),
                 plan.mailbox.clone(),
-                on_lost,
-            )
+                fallback.on_lost,
+            );
+            match (fallback.idle, fallback.resume) {
+                (Some(idle), resume) => performer.with_idle_graph(idle, resume),
+                (None, Some(resume)) => performer.with_resume(resume),
+                (None, None) => performer,
+            }
         })
         .collect();
     let mut mapper = Mapper::new(
@@ -106,6 +115,13 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         token: inputs.token,
         cluster: inputs.cluster,
     })
+}
+
+/// What a performer does while its source is lost, and how it comes back.
+struct Fallback {
+    on_lost: crate::config::OnLost,
+    idle: Option<crate::idle_graph::IdleGraph>,
+    resume: Option<std::time::Duration>,
 }
 
 /// The subject of source `id`, and for a replay what the mapper may know of its motion.
@@ -179,6 +195,7 @@ fn performer_plan(
         target: t,
         overrides_file,
         graft,
+        idle: _,
     } = p;
     let inputs: Vec<u32> = if spec.sources.is_empty() {
         vec![0]

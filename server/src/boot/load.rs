@@ -60,6 +60,8 @@ pub(crate) struct LoadedPerformer {
     pub overrides_file: Option<MappingFile>,
     /// A grafted performer's lower body (its clip read when it is one).
     pub graft: Option<crate::graft_live::LowerInput>,
+    /// The graph walked while its source is lost, prepared for the character.
+    pub idle: Option<crate::idle_graph::IdleGraph>,
 }
 
 /// Everything the server reads at start.
@@ -132,11 +134,13 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
             None => None,
         };
         let graft = load_graft_lower(&spec).await?;
+        let idle = load_idle_graph(&spec, &target, config.rate_hz).await?;
         performers.push(LoadedPerformer {
             spec,
             target,
             overrides_file,
             graft,
+            idle,
         });
     }
     let token_setting = config.access.token.clone();
@@ -147,6 +151,26 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
         token,
         cluster,
     })
+}
+
+/// A performer's idle graph, read and prepared for its character (blocking work off the
+/// runtime's workers).
+async fn load_idle_graph(
+    spec: &PerformerSpec,
+    target: &LoadedTarget,
+    rate_hz: f64,
+) -> anyhow::Result<Option<crate::idle_graph::IdleGraph>> {
+    let Some(path) = spec.idle_graph.clone() else {
+        return Ok(None);
+    };
+    let skeleton = target.skeleton.clone();
+    let reference = target.reference.clone();
+    let tick_secs = (1.0 / rate_hz) as f32;
+    let idle = tokio::task::spawn_blocking(move || {
+        crate::idle_graph::IdleGraph::load(&path, &skeleton, reference.as_ref(), tick_secs)
+    })
+    .await??;
+    Ok(Some(idle))
 }
 
 /// A performer's mapping overrides file.

@@ -28,7 +28,6 @@ use crate::limits::ConnectionLimiter;
 use crate::live::{self, LiveContext};
 use crate::recorder::Recorder;
 use crate::state::ServerState;
-use crate::subject::Subject;
 use crate::{access, footplants, http, limits, stats, token};
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
@@ -51,6 +50,8 @@ pub struct Supervisor {
     stop_threads: Arc<AtomicBool>,
     commands: mpsc::Sender<EngineCommand>,
     threads: Vec<std::thread::JoinHandle<()>>,
+    /// Live threads started while running (relayed subjects the cluster found).
+    late_threads: Arc<std::sync::Mutex<Vec<std::thread::JoinHandle<()>>>>,
     /// Stage 4.
     recorder: Option<(Arc<Recorder>, std::thread::JoinHandle<()>)>,
 }
@@ -83,8 +84,9 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     let (frames, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
     let (commands, commands_rx) = mpsc::channel(64);
     let stats = Arc::new(stats::Stats::default());
+    let subject_list = Arc::new(crate::subject_list::SubjectList::new(subjects.clone()));
     let state = Arc::new(ServerState {
-        subjects: subjects.clone(),
+        subject_list: subject_list.clone(),
         frames: frames.clone(),
         events: events.clone(),
         stats: stats.clone(),
@@ -102,6 +104,8 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         fd_limit: limits::fd_limit(),
         stalled_client_timeout: Duration::from_secs_f64(config.limits.stalled_client_timeout_secs),
         recorder: recorder.as_ref().map(|r| r.health()),
+        forwarder: (parts.cluster.as_ref())
+            .map(|link| Arc::new(link.forwarder(parts.token.token.clone()))),
     });
     let mut supervisor = Supervisor {
         connections_stop,
@@ -112,6 +116,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         stop_threads: Arc::new(AtomicBool::new(false)),
         commands: commands.clone(),
         threads: Vec::new(),
+        late_threads: Arc::default(),
         recorder: None,
     };
     for source in parts.sources {
@@ -150,10 +155,14 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         events.clone(),
         engine_rx.clone(),
     )));
-    let status = run_source_status(subjects, events, engine_rx);
+    let status = run_source_status(subject_list, events, engine_rx);
     supervisor.engine_tasks.push(tokio::spawn(status));
     if let Some(link) = parts.cluster {
-        supervisor.engine_tasks.extend(link.spawn(&state));
+        let live = crate::cluster::LiveThreads {
+            stop: supervisor.stop_threads.clone(),
+            threads: supervisor.late_threads.clone(),
+        };
+        supervisor.engine_tasks.extend(link.spawn(&state, live));
     }
     supervisor.listener = tokio::spawn(http::run_listener(listener, state.clone()));
     Ok(Started {
@@ -206,7 +215,7 @@ impl Supervisor {
                 let ctx = LiveContext {
                     subject,
                     tx,
-                    subjects: state.subjects.clone(),
+                    subjects: state.subject_list.clone(),
                     events: state.events.clone(),
                     commands: state.commands.clone(),
                     recorder: recorder.cloned(),
@@ -247,7 +256,10 @@ impl Supervisor {
         self.stop_threads.store(true, Ordering::Relaxed);
         // Fails only when the mapper has already stopped.
         let _ = self.commands.send(EngineCommand::Shutdown).await;
-        let threads = self.threads;
+        let mut threads = self.threads;
+        if let Ok(mut late) = self.late_threads.lock() {
+            threads.append(&mut late);
+        }
         let recorder = self.recorder;
         // Joining blocks; a panicked thread's error is its (already printed) panic.
         let _ = tokio::task::spawn_blocking(move || {
@@ -272,7 +284,7 @@ impl Supervisor {
 
 /// Broadcasts `source_status` about once per second.
 async fn run_source_status(
-    subjects: Arc<Vec<Arc<Subject>>>,
+    subjects: Arc<crate::subject_list::SubjectList>,
     events: broadcast::Sender<String>,
     mut shutdown: watch::Receiver<bool>,
 ) {
@@ -286,6 +298,6 @@ async fn run_source_status(
             continue;
         }
         // No receiver between the check and the send: nobody to tell.
-        let _ = events.send(crate::source_status_json(&subjects));
+        let _ = events.send(crate::source_status_json(&subjects.snapshot()));
     }
 }

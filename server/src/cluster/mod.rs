@@ -24,6 +24,8 @@
 //! - **Discovery.** A node reads the KV bucket when it starts: subjects published after that
 //!   show up on it after its next start.
 
+mod control;
+mod discover;
 mod entry;
 mod publish;
 mod remote;
@@ -34,9 +36,11 @@ use anyhow::{bail, Context};
 use async_nats::jetstream::{self, kv};
 use serde::Deserialize;
 
+pub use control::{run_control_service, subject_of, Forwarder, Origin};
+pub use discover::{run_discovery, Known, LiveThreads};
 pub use entry::{token, SubjectEntry};
 pub use publish::run_publisher;
-pub use remote::{run_relay, RemoteSource};
+pub use remote::{run_relay, Change, RemoteFeeds, RemoteSource};
 
 /// `[cluster]` in the config file (or `--nats` / `--site` on the command line).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -243,8 +247,12 @@ pub struct Relay {
     pub id: u32,
     /// The NATS subject its frames arrive on.
     pub subject: String,
-    /// Its source's queue.
-    pub tx: std::sync::mpsc::SyncSender<tokio_tungstenite::tungstenite::Bytes>,
+    /// Its source's queues.
+    pub feeds: RemoteFeeds,
+    /// Its bucket key.
+    pub key: String,
+    /// Where it lives (its control requests go there).
+    pub origin: Origin,
 }
 
 /// This node's part of the cluster, between loading and spawning.
@@ -265,13 +273,18 @@ pub async fn join(
     let mut relays = Vec::new();
     let mut subjects = Vec::new();
     for (k, e) in cluster.remote_entries().await?.iter().enumerate() {
-        let (source, tx) = RemoteSource::new(e, config.lost_after())
+        let (source, feeds) = RemoteSource::new(e, config.lost_after())
             .with_context(|| format!("cluster subject {}", e.relayed_name()))?;
         let skeleton = source.skeleton_arc();
         relays.push(Relay {
             id: first_id + k as u32,
             subject: config.frame_subject(&e.site, &token(&e.name)),
-            tx,
+            feeds,
+            key: e.key(),
+            origin: Origin {
+                site: e.site.clone(),
+                name: e.name.clone(),
+            },
         });
         subjects.push(RemoteSubject {
             name: e.relayed_name(),
@@ -283,19 +296,50 @@ pub async fn join(
 }
 
 impl ClusterLink {
-    /// Starts the relays and the publisher; they stop when `state` shuts down.
+    /// The forwarder of control requests about the relayed subjects, signing with `token`.
+    pub fn forwarder(&self, token: crate::token::ControlToken) -> Forwarder {
+        let c = &self.cluster;
+        let f = Forwarder::new(c.client.clone(), &c.config.namespace, &c.config.site, token);
+        for r in &self.relays {
+            f.add(r.id, r.origin.clone());
+        }
+        f
+    }
+
+    /// Starts the relays, the bucket watch, the publisher and the control service; they stop
+    /// when `state` shuts down. Subjects found later get their source threads from `live`.
     pub fn spawn(
         self,
         state: &std::sync::Arc<crate::state::ServerState>,
+        live: LiveThreads,
     ) -> Vec<tokio::task::JoinHandle<()>> {
-        let mut tasks: Vec<_> = self
-            .relays
-            .into_iter()
-            .map(|r| {
-                let client = self.cluster.client.clone();
-                tokio::spawn(run_relay(client, r.subject, r.id, r.tx, state.clone()))
-            })
-            .collect();
+        let mut known = std::collections::HashMap::new();
+        let mut tasks = Vec::new();
+        for r in self.relays {
+            let client = self.cluster.client.clone();
+            let (frames, changes) = (r.feeds.frames, r.feeds.changes);
+            known.insert(r.key, Known { changes });
+            tasks.push(tokio::spawn(run_relay(
+                client,
+                r.subject,
+                r.id,
+                frames,
+                state.clone(),
+            )));
+        }
+        let c = &self.cluster;
+        tasks.push(tokio::spawn(run_discovery(
+            c.clone(),
+            known,
+            state.clone(),
+            live,
+        )));
+        tasks.push(tokio::spawn(run_control_service(
+            c.client.clone(),
+            c.config.namespace.clone(),
+            c.config.site.clone(),
+            state.clone(),
+        )));
         tasks.push(tokio::spawn(run_publisher(self.cluster, state.clone())));
         tasks
     }

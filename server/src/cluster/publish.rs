@@ -1,6 +1,7 @@
 //! Publishing this node's subjects: every frame the tick encodes goes out on core NATS as it
 //! is (both protocol versions in one message), and each subject's entry (skeleton, mapping)
-//! is kept current in the KV bucket.
+//! is kept current in the KV bucket. A node that stops cleanly deletes its entries, so the
+//! others show its subjects lost at once and say why.
 
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -19,7 +20,7 @@ pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
     let mut shutdown = state.shutdown.clone();
     // By subject id: the NATS subject its frames go out on (None: relayed, not ours).
     let subjects: Vec<Option<async_nats::Subject>> = state
-        .subjects
+        .subjects()
         .iter()
         .map(|s| {
             (!s.is_relayed()).then(|| {
@@ -59,6 +60,25 @@ pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
             },
         }
     }
+    remove_entries(&cluster, &state).await;
+}
+
+/// How long a stopping node spends on deleting its entries at most.
+const REMOVE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// Deletes the entry of every local subject (on a clean stop).
+async fn remove_entries(cluster: &Cluster, state: &ServerState) {
+    let keys: Vec<String> = (state.subjects().iter())
+        .filter(|s| !s.is_relayed())
+        .filter_map(|s| entry_of(&cluster.config.site, s).map(|e| e.key()))
+        .collect();
+    let delete_all = async {
+        for key in keys {
+            // A failed delete leaves the entry: the others still see the frames stop.
+            let _ = cluster.kv.delete(key).await;
+        }
+    };
+    let _ = tokio::time::timeout(REMOVE_TIMEOUT, delete_all).await;
 }
 
 /// Whether a control message changes what the bucket holds (a skeleton or a mapping).
@@ -72,7 +92,7 @@ fn changes_an_entry(text: &str) -> bool {
 /// Writes the entry of every local subject (rare: at start and when a skeleton or mapping
 /// changes). A failed write is reported and retried at the next change.
 async fn put_entries(cluster: &Cluster, state: &ServerState) {
-    for s in state.subjects.iter().filter(|s| !s.is_relayed()) {
+    for s in state.subjects().iter().filter(|s| !s.is_relayed()) {
         let Some(entry) = entry_of(&cluster.config.site, s) else {
             continue;
         };

@@ -1,7 +1,8 @@
 //! Another node's subject on this node: [`run_relay`] forwards its frames to this node's
 //! clients the moment they arrive (only the subject id is rewritten to this node's), and hands
 //! them to a [`RemoteSource`], which makes it an ordinary live source for performers, VMC out
-//! and `source_status`.
+//! and `source_status`. What the bucket says about the subject later (a new skeleton, the
+//! entry removed) reaches the source as a [`Change`].
 
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
@@ -15,6 +16,8 @@ use rigcast_retarget::{Pose, Skeleton};
 use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, SourceError, SourceStatus};
 use tokio_tungstenite::tungstenite::Bytes;
 
+use rigcast_protocol::control::BoneInfo;
+
 use super::SubjectEntry;
 use crate::engine::{unix_nanos, OutFrame};
 use crate::state::ServerState;
@@ -25,13 +28,38 @@ const QUEUE: usize = 8;
 /// Offset of the subject id in a frame header (both versions).
 const SUBJECT_AT: usize = 8;
 
+/// Changes of queued at most (entries change rarely; a full queue drops the newest, and the
+/// next change of the same entry brings it up to date).
+const CHANGES: usize = 4;
+
+/// What the bucket says about a relayed subject after it was made.
+#[derive(Debug, Clone)]
+pub enum Change {
+    /// Its entry was put again (its node restarted, or its skeleton changed).
+    Entry(Box<SubjectEntry>),
+    /// Its entry was deleted (its node stopped) or purged.
+    Removed,
+}
+
+/// The queues that feed a [`RemoteSource`].
+pub struct RemoteFeeds {
+    /// The subject's frames, from its relay.
+    pub frames: SyncSender<Bytes>,
+    /// Its entry's changes, from the bucket watch.
+    pub changes: SyncSender<Change>,
+}
+
 /// A live source fed by the frames another node publishes for one of its subjects.
 pub struct RemoteSource {
     name: String,
+    bones: Vec<BoneInfo>,
     skeleton: Arc<Skeleton>,
     /// Bones whose translation version 2 frames carry, in bone order.
     translated: Vec<usize>,
     rx: Receiver<Bytes>,
+    changes: Receiver<Change>,
+    /// Its entry was removed: frames still arriving are not taken as the subject being live.
+    removed: bool,
     health: HealthTracker,
     rotations: Vec<Quat>,
     translations: Vec<Vec3>,
@@ -39,32 +67,64 @@ pub struct RemoteSource {
 }
 
 impl RemoteSource {
-    /// The source of `entry`'s subject, and the sender its relay feeds.
+    /// The source of `entry`'s subject, and the queues that feed it.
     pub fn new(
         entry: &SubjectEntry,
         lost_after: Duration,
-    ) -> anyhow::Result<(RemoteSource, SyncSender<Bytes>)> {
+    ) -> anyhow::Result<(RemoteSource, RemoteFeeds)> {
         let skeleton = Arc::new(crate::skeleton_wire::skeleton_from_bones(&entry.bones)?);
-        let translated = (entry.bones.iter().enumerate())
-            .filter(|(_, b)| b.translated)
-            .map(|(i, _)| i)
-            .collect();
         let (tx, rx) = sync_channel(QUEUE);
+        let (changes_tx, changes) = sync_channel(CHANGES);
         let mut health = HealthTracker::new(lost_after);
         health.set_detail(&format!("relayed from {}", entry.site));
         Ok((
             RemoteSource {
                 name: entry.relayed_name(),
+                bones: entry.bones.clone(),
                 skeleton,
-                translated,
+                translated: translated_of(&entry.bones),
                 rx,
+                changes,
+                removed: false,
                 health,
                 rotations: Vec::new(),
                 translations: Vec::new(),
                 announced: false,
             },
-            tx,
+            RemoteFeeds {
+                frames: tx,
+                changes: changes_tx,
+            },
         ))
+    }
+
+    /// Applies the bucket's news: a new skeleton is announced with the next frame on it; a
+    /// removed entry makes the subject lost until it is put again.
+    fn apply_changes(&mut self) {
+        while let Ok(change) = self.changes.try_recv() {
+            match change {
+                Change::Entry(entry) => {
+                    self.removed = false;
+                    if entry.bones == self.bones {
+                        continue;
+                    }
+                    match crate::skeleton_wire::skeleton_from_bones(&entry.bones) {
+                        Ok(skeleton) => {
+                            self.skeleton = Arc::new(skeleton);
+                            self.translated = translated_of(&entry.bones);
+                            self.bones = entry.bones;
+                            self.announced = false;
+                        }
+                        Err(e) => self.health.on_device_lost(format!("bad skeleton: {e}")),
+                    }
+                }
+                Change::Removed => {
+                    self.removed = true;
+                    self.health
+                        .on_device_lost("its node removed it from the cluster");
+                }
+            }
+        }
     }
 
     /// Its skeleton.
@@ -109,7 +169,9 @@ impl LiveSource for RemoteSource {
         timeout: Duration,
         out: &mut Pose,
     ) -> Result<Option<FrameMeta>, SourceError> {
+        self.apply_changes();
         match self.rx.recv_timeout(timeout) {
+            Ok(_) if self.removed => {}
             Ok(bytes) => {
                 let now = Instant::now();
                 if let Some(h) = self.decode(&bytes, out) {
@@ -141,6 +203,14 @@ impl LiveSource for RemoteSource {
     fn status(&self) -> SourceStatus {
         self.health.status()
     }
+}
+
+/// Indices of the bones whose translation version 2 frames carry.
+fn translated_of(bones: &[BoneInfo]) -> Vec<usize> {
+    (bones.iter().enumerate())
+        .filter(|(_, b)| b.translated)
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// Length of the version 1 frame at the start of a published message.
@@ -246,6 +316,88 @@ mod tests {
         let at = f.v2_at + SUBJECT_AT;
         back[at..at + 4].copy_from_slice(&7u32.to_le_bytes());
         assert_eq!(back, bytes);
+    }
+
+    fn chain(n: usize) -> SubjectEntry {
+        let bones = (0..n)
+            .map(|i| BoneInfo {
+                name: format!("b{i}"),
+                parent: i.checked_sub(1).map(|p| p as u32),
+                rest_translation: [0.0, 0.1, 0.0],
+                rest_rotation: [0.0, 0.0, 0.0, 1.0],
+                translated: i == 0,
+            })
+            .collect();
+        SubjectEntry {
+            site: "a".into(),
+            name: "walk".into(),
+            bones,
+            mapping: None,
+        }
+    }
+
+    /// A published message of `n` bones (bone 0 translated), seq `seq`.
+    fn published_n(n: usize, seq: u64) -> Bytes {
+        let header = FrameHeader {
+            flags: 0,
+            subject: 0,
+            seq,
+            capture_nanos: 1,
+            send_nanos: unix_nanos(),
+            missed_frames: 0,
+        };
+        let rotations = vec![Quat::from_rotation_y(0.25); n];
+        let translations = vec![Vec3::Y; n];
+        let mut out = Vec::new();
+        encode_frame(&mut out, &header, Vec3::Y, &rotations);
+        append_frame_v2(&mut out, &header, &rotations, &translations, &[0]);
+        Bytes::from(out)
+    }
+
+    #[test]
+    fn bucket_changes_reach_the_source() {
+        let (mut source, feeds) = RemoteSource::new(&chain(2), Duration::from_secs(5)).unwrap();
+        let mut pose = source.skeleton_arc().rest_pose();
+        let wait = Duration::from_millis(100);
+        feeds.frames.send(published_n(2, 1)).unwrap();
+        let first = source.next_frame(wait, &mut pose).unwrap().unwrap();
+        assert!(
+            first.skeleton_changed,
+            "the first frame announces the skeleton"
+        );
+        feeds.frames.send(published_n(2, 2)).unwrap();
+        assert!(
+            !source
+                .next_frame(wait, &mut pose)
+                .unwrap()
+                .unwrap()
+                .skeleton_changed
+        );
+        // The node's skeleton grew: frames on it are taken, announced as a new skeleton.
+        feeds
+            .changes
+            .send(Change::Entry(Box::new(chain(3))))
+            .unwrap();
+        feeds.frames.send(published_n(3, 3)).unwrap();
+        let grown = source.next_frame(wait, &mut pose).unwrap().unwrap();
+        assert!(grown.skeleton_changed);
+        assert_eq!(source.skeleton().unwrap().num_bones(), 3);
+        assert_eq!(pose.num_bones(), 3);
+        // Removed: lost, and frames no longer count.
+        feeds.changes.send(Change::Removed).unwrap();
+        feeds.frames.send(published_n(3, 4)).unwrap();
+        assert!(source.next_frame(wait, &mut pose).unwrap().is_none());
+        let status = source.status();
+        assert_eq!(status.state, rigcast_protocol::SourceState::Lost);
+        assert!(status.detail.contains("removed"), "{}", status.detail);
+        // Put again: live with the next frame.
+        feeds
+            .changes
+            .send(Change::Entry(Box::new(chain(3))))
+            .unwrap();
+        feeds.frames.send(published_n(3, 5)).unwrap();
+        assert_eq!(source.next_frame(wait, &mut pose).unwrap().unwrap().seq, 5);
+        assert_eq!(source.status().state, rigcast_protocol::SourceState::Live);
     }
 
     #[test]

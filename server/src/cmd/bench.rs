@@ -79,12 +79,7 @@ fn measure(name: &'static str, budget: Duration, mut f: impl FnMut()) -> Measure
 }
 
 fn apply_bench(name: &'static str, w: &Workload, budget: Duration) -> anyhow::Result<Measurement> {
-    let mut mapping = Mapping::build(
-        &[&w.source],
-        &w.target,
-        &w.table,
-        &RetargetOptions::default(),
-    )?;
+    let mut mapping = w.mapping()?;
     let mut out = mapping.new_target_pose();
     let mut i = 0;
     let mut failed = None;

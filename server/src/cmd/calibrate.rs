@@ -101,7 +101,7 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     let sources: Vec<SourceHealth> = loop {
         match next_message(&mut ws, Instant::now() + ANSWER_TIMEOUT).await? {
             ServerMessage::Hello { subjects: s, .. } => subjects = Some(s),
-            ServerMessage::SourceStatus { sources } => break sources,
+            ServerMessage::SourceStatus { sources, .. } => break sources,
             _ => {}
         }
     };
@@ -158,7 +158,7 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
                     let _ = std::io::stdout().flush();
                 }
             }
-            ServerMessage::SourceStatus { sources } => {
+            ServerMessage::SourceStatus { sources, .. } => {
                 let Some(detail) = sources.iter().find(|s| s.subject == id).map(|s| &s.detail)
                 else {
                     continue;

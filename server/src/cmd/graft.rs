@@ -12,7 +12,7 @@ use clap::Args;
 use rigcast_retarget::analysis::Analysis;
 use rigcast_retarget::footplant::{detect_clip, find_legs, PlantSettings, PlantTrack};
 use rigcast_retarget::graft::{self, BodySplit, GraftPlan, GraftSettings};
-use rigcast_retarget::{Clip, RetargetOptions, RootMotion};
+use rigcast_retarget::{Clip, RootMotion};
 
 use super::retarget::{plan_mapping, retarget_clip};
 
@@ -135,14 +135,7 @@ pub fn graft_clips(
     if plan.table.num_mapped() == 0 {
         bail!("no bone of the lower clip's rig could be mapped to the upper clip's");
     }
-    let opts = RetargetOptions {
-        frame_time_secs: upper.frame_time_secs as f32,
-        root_motion: RootMotion::InPlace,
-        source_reference: vec![plan.source_reference.clone()],
-        target_reference: plan.target_reference.clone(),
-        source_up: Some(plan.source_up),
-        ..RetargetOptions::default()
-    };
+    let opts = plan.retarget_options(upper, RootMotion::InPlace);
     let upper_on_lower = retarget_clip(upper, &lower.skeleton, &plan.table, &opts, false)
         .context("cannot retarget the upper clip onto the lower clip's rig")?;
     let upper_plants = plants(upper, &plan.source_analysis);

@@ -106,18 +106,12 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
             args.anim.display()
         );
     }
-    let opts = RetargetOptions {
-        frame_time_secs: clip.frame_time_secs as f32,
-        root_motion: if args.in_place {
-            RootMotion::InPlace
-        } else {
-            RootMotion::Scaled
-        },
-        source_reference: vec![plan.source_reference.clone()],
-        target_reference: plan.target_reference.clone(),
-        source_up: Some(plan.source_up),
-        ..RetargetOptions::default()
+    let motion = if args.in_place {
+        RootMotion::InPlace
+    } else {
+        RootMotion::Scaled
     };
+    let opts = plan.retarget_options(&clip, motion);
     let lock = (!args.no_foot_lock).then_some(&plan);
     let out = retarget_clip_locked(&clip, &target, table, &opts, lock, true)?;
     // Written onto the target file's own layout: a BVH keeps its hierarchy, a GLB its nodes,
@@ -150,6 +144,21 @@ pub struct MappingPlan {
     pub source_analysis: Analysis,
     /// The target skeleton's analysis.
     pub target_analysis: Analysis,
+}
+
+impl MappingPlan {
+    /// Options to retarget `source` (the clip this plan was made for) with this plan: its
+    /// frame time, both reference postures and the source's up, with `root_motion`.
+    pub fn retarget_options(&self, source: &Clip, root_motion: RootMotion) -> RetargetOptions {
+        RetargetOptions {
+            frame_time_secs: source.frame_time_secs as f32,
+            root_motion,
+            source_reference: vec![self.source_reference.clone()],
+            target_reference: self.target_reference.clone(),
+            source_up: Some(self.source_up),
+            ..RetargetOptions::default()
+        }
+    }
 }
 
 /// Maps the clip's skeleton onto the target with the automatic mapper, then applies the

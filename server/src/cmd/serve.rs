@@ -114,7 +114,7 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     }
     if let Some(o) = &args.on_lost {
         cfg.on_lost = <OnLost as clap::ValueEnum>::from_str(o, false)
-            .map_err(|_| anyhow::anyhow!("--on-lost {o:?}: expected rest (ease) or hold"))?;
+            .map_err(|_| anyhow::anyhow!("--on-lost {o:?}: expected rest (ease), hold or idle"))?;
     }
     if let Some(listen) = &args.listen {
         cfg.listen = parse_listen(listen)?;
@@ -156,7 +156,7 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
     println!("  status: http://{addr}/v1/status");
     println!("  viewer: http://{addr}/");
     print_access(&handle, fd);
-    for s in handle.state().subjects.iter() {
+    for s in handle.state().subjects().iter() {
         let info = s.info();
         let from = match s.source_kind {
             None => format!(", retargeted from {:?}", s.inputs),

@@ -8,7 +8,7 @@ use anyhow::{bail, Context};
 use clap::Args;
 use rigcast_retarget::graph::{clip_fingerprint, GraphSettings, MotionGraph};
 
-use super::clips::ClipSpec;
+use crate::graph_files::ClipSpec;
 
 /// Options of `rigcast graph build`.
 #[derive(Debug, Args)]

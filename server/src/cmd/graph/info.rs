@@ -2,22 +2,15 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use clap::Args;
-use rigcast_retarget::graph::MotionGraph;
+
+use crate::graph_files::read_graph;
 
 /// Options of `rigcast graph info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
     /// The graph file (.rmg).
     pub graph: PathBuf,
-}
-
-/// Reads a graph file with a short error naming it.
-pub fn read_graph(path: &PathBuf) -> anyhow::Result<MotionGraph> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    MotionGraph::from_json(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
 /// Runs the command.

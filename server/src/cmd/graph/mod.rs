@@ -4,7 +4,6 @@
 //! it as BVH on one clip's rig; `info` prints the graph's size and components.
 
 mod build;
-mod clips;
 mod info;
 mod walk;
 

@@ -8,13 +8,13 @@ use rigcast_retarget::analysis::{analyze, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{detect_clip, FootLock, LockSettings, PlantSettings};
 use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::walk::shortest_walk;
-use rigcast_retarget::graph::{clip_fingerprint, MotionGraph, Planar, Playback, Walker};
+use rigcast_retarget::graph::{MotionGraph, Planar, Playback, Walker};
 use rigcast_retarget::mapping::MappingTable;
 use rigcast_retarget::{Clip, Mapping, Pose, RetargetOptions};
 use rigcast_sources::RigLayout;
 
-use super::clips::ClipSpec;
-use super::info::read_graph;
+use crate::graph_files::read_graph;
+use crate::graph_files::{clip_spec, load_graph_clips};
 
 /// Options of `rigcast graph walk`.
 #[derive(Debug, Args)]
@@ -127,7 +127,7 @@ fn lock_feet(pb: &Playback, analysis: &Analysis, poses: &mut [Pose]) {
     }
 }
 
-fn save(path: &PathBuf, clip: &Clip, layout: &RigLayout) -> anyhow::Result<()> {
+fn save(path: &std::path::Path, clip: &Clip, layout: &RigLayout) -> anyhow::Result<()> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -143,32 +143,6 @@ fn save(path: &PathBuf, clip: &Clip, layout: &RigLayout) -> anyhow::Result<()> {
         rigcast_sources::save_clip(path, clip)
     };
     r.map_err(|e| anyhow!("{e}"))
-}
-
-fn clip_spec(graph: &MotionGraph, i: usize) -> anyhow::Result<ClipSpec> {
-    let c = &graph.clips[i];
-    let p = c
-        .path
-        .as_deref()
-        .ok_or_else(|| anyhow!("the graph does not say where clip {i} ({}) is", c.name))?;
-    Ok(ClipSpec::parse(p))
-}
-
-/// The graph's clips, read again and checked against their fingerprints.
-fn load_graph_clips(graph: &MotionGraph) -> anyhow::Result<Vec<Clip>> {
-    (0..graph.clips.len())
-        .map(|i| {
-            let clip = clip_spec(graph, i)?.load()?;
-            let want = &graph.clips[i].fingerprint;
-            if &format!("{:016x}", clip_fingerprint(&clip)) != want {
-                bail!(
-                    "clip {i} ({}) changed since the graph was built; rebuild it",
-                    graph.clips[i].name
-                );
-            }
-            Ok(clip)
-        })
-        .collect()
 }
 
 /// A clip by number or name.

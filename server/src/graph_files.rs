@@ -1,8 +1,11 @@
-//! Clip arguments: `FILE` or `FILE#ANIMATION` (a glTF file's animation by name or index).
+//! Motion-graph files and their clips, read by `rigcast graph` and by the idle fallback at
+//! start: clip references `FILE` or `FILE#ANIMATION` (a glTF file's animation by name or
+//! index), and a `.rmg` file read with a short error naming it.
 
 use std::path::{Path, PathBuf};
 
-use anyhow::anyhow;
+use anyhow::{anyhow, bail, Context};
+use rigcast_retarget::graph::{clip_fingerprint, MotionGraph};
 use rigcast_retarget::Clip;
 use rigcast_sources::{load_clip_with, LoadOptions};
 
@@ -61,4 +64,38 @@ fn name(path: &Path, animation: Option<&str>) -> String {
         Some(a) => format!("{stem}#{a}"),
         None => stem.to_string(),
     }
+}
+
+/// Where clip `i` of `graph` is.
+pub fn clip_spec(graph: &MotionGraph, i: usize) -> anyhow::Result<ClipSpec> {
+    let c = &graph.clips[i];
+    let p = c
+        .path
+        .as_deref()
+        .ok_or_else(|| anyhow!("the graph does not say where clip {i} ({}) is", c.name))?;
+    Ok(ClipSpec::parse(p))
+}
+
+/// The graph's clips, read again and checked against their fingerprints.
+pub fn load_graph_clips(graph: &MotionGraph) -> anyhow::Result<Vec<Clip>> {
+    (0..graph.clips.len())
+        .map(|i| {
+            let clip = clip_spec(graph, i)?.load()?;
+            let want = &graph.clips[i].fingerprint;
+            if &format!("{:016x}", clip_fingerprint(&clip)) != want {
+                bail!(
+                    "clip {i} ({}) changed since the graph was built; rebuild it",
+                    graph.clips[i].name
+                );
+            }
+            Ok(clip)
+        })
+        .collect()
+}
+
+/// Reads a graph file with a short error naming it.
+pub fn read_graph(path: &Path) -> anyhow::Result<MotionGraph> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    MotionGraph::from_json(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
 }

@@ -1,0 +1,46 @@
+//! The subject list as the listener, client sessions, live threads and status see it. It
+//! grows while the server runs when the cluster finds another node's subject, so readers take
+//! a snapshot (an `Arc` clone) and never hold the lock. The tick, the mapper, the recorder
+//! and the foot-plant sampler keep the list of the start: subjects added later are relayed
+//! ones, which none of them handles.
+
+use std::sync::{Arc, RwLock};
+
+use crate::subject::Subject;
+
+/// Subjects in id order (id = index); only ever appended to.
+#[derive(Debug)]
+pub struct SubjectList {
+    all: RwLock<Arc<Vec<Arc<Subject>>>>,
+}
+
+impl SubjectList {
+    /// The list of the start.
+    pub fn new(subjects: Arc<Vec<Arc<Subject>>>) -> SubjectList {
+        SubjectList {
+            all: RwLock::new(subjects),
+        }
+    }
+
+    /// The subjects now.
+    pub fn snapshot(&self) -> Arc<Vec<Arc<Subject>>> {
+        match self.all.read() {
+            Ok(g) => g.clone(),
+            Err(p) => p.into_inner().clone(),
+        }
+    }
+
+    /// Appends the subject `make` builds for the next id; returns it.
+    pub fn push(&self, make: impl FnOnce(u32) -> Arc<Subject>) -> Arc<Subject> {
+        let mut guard = match self.all.write() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        let subject = make(guard.len() as u32);
+        let mut next = Vec::with_capacity(guard.len() + 1);
+        next.extend(guard.iter().cloned());
+        next.push(subject.clone());
+        *guard = Arc::new(next);
+        subject
+    }
+}
