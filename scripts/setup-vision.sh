@@ -5,7 +5,12 @@
 #     lib/libonnxruntime.so          ONNX Runtime 1.31.1, taken from the PyPI wheel
 #     models/pose_landmark_{lite,full,heavy}.onnx   BlazePose landmark models (npm @mediapipe/pose,
 #                                    converted from TFLite with tf2onnx in a private venv)
-#     pose2sim/cam01..cam04.mp4      real footage for the acceptance tests (PyPI wheel pose2sim)
+#     models/pose_detection.onnx     BlazePose person detector (same npm package: its
+#                                    pose_solution_packed_assets.data is pose_detection.tflite;
+#                                    sparse fp16 weights made dense by scripts/densify_tflite.py
+#                                    first, which tf2onnx cannot read as they are)
+#     pose2sim/cam01..cam04.mp4      real footage for the acceptance tests (PyPI wheel pose2sim),
+#     pose2sim/multi_cam01..04.mp4   and its two-person demo
 #     READY                          written last; the Rust side checks it
 #
 # It also installs the Debian package ffmpeg (video decoding runs through an ffmpeg child process).
@@ -71,7 +76,9 @@ need_models=()
 for m in lite full heavy; do
     [[ -f "$ROOT/models/pose_landmark_$m.onnx" ]] || need_models+=("$m")
 done
-if [[ ${#need_models[@]} -gt 0 ]]; then
+need_detector=0
+[[ -f "$ROOT/models/pose_detection.onnx" ]] || need_detector=1
+if [[ ${#need_models[@]} -gt 0 || $need_detector == 1 ]]; then
     if [[ ! -f "$ROOT/downloads/mediapipe/package/pose_landmark_lite.tflite" ]]; then
         log "fetching npm @mediapipe/pose@$MEDIAPIPE_POSE_VERSION"
         rm -rf "$ROOT/downloads/mediapipe"
@@ -95,12 +102,30 @@ if [[ ${#need_models[@]} -gt 0 ]]; then
             || { cat "$ROOT/downloads/convert_$m.log" >&2; exit 1; }
         mv "$out.tmp" "$out"
     done
+    if [[ $need_detector == 1 ]]; then
+        log "converting pose_detection.tflite -> onnx"
+        pkg="$ROOT/downloads/mediapipe/package"
+        out="$ROOT/models/pose_detection.onnx"
+        cp "$pkg/pose_solution_packed_assets.data" "$ROOT/downloads/pose_detection.tflite"
+        TF_CPP_MIN_LOG_LEVEL=3 "$VENV/bin/python" "$(dirname "$0")/densify_tflite.py" \
+            "$ROOT/downloads/pose_detection.tflite" "$ROOT/downloads/pose_detection_dense.tflite" \
+            >"$ROOT/downloads/convert_detector.log" 2>&1 \
+            || { cat "$ROOT/downloads/convert_detector.log" >&2; exit 1; }
+        TF_CPP_MIN_LOG_LEVEL=3 "$VENV/bin/python" -m tf2onnx.convert \
+            --tflite "$ROOT/downloads/pose_detection_dense.tflite" \
+            --output "$out.tmp" --opset 17 >>"$ROOT/downloads/convert_detector.log" 2>&1 \
+            || { cat "$ROOT/downloads/convert_detector.log" >&2; exit 1; }
+        rm -f "$ROOT/downloads/pose_detection.tflite" "$ROOT/downloads/pose_detection_dense.tflite"
+        mv "$out.tmp" "$out"
+    fi
     # The converter venv (~1.6 GB) and the npm package are only needed to make the models.
     rm -rf "$VENV" "$ROOT/downloads/mediapipe"
 fi
 
 # --- Real footage: pose2sim demo videos ---------------------------------------------------------
-if [[ ! -f "$ROOT/pose2sim/cam04.mp4" ]]; then
+# Demo_SinglePerson (cam01..cam04.mp4) and Demo_MultiPerson (multi_cam01..multi_cam04.mp4: two
+# people on a platform, a third one in the background; 1088×1920, 60 fps, 100 frames).
+if [[ ! -f "$ROOT/pose2sim/cam04.mp4" || ! -f "$ROOT/pose2sim/multi_cam04.mp4" ]]; then
     log "fetching pose2sim==$POSE2SIM_VERSION wheel (demo videos)"
     rm -rf "$ROOT/downloads/pose2sim"
     "$PY" -m pip download -q --no-deps "pose2sim==$POSE2SIM_VERSION" -d "$ROOT/downloads/pose2sim"
@@ -109,12 +134,13 @@ if [[ ! -f "$ROOT/pose2sim/cam04.mp4" ]]; then
 import sys, zipfile, os
 wheel, out = sys.argv[1], sys.argv[2]
 with zipfile.ZipFile(wheel) as z:
-    for i in range(1, 5):
-        name = f"Pose2Sim/Demo_SinglePerson/videos/cam0{i}.mp4"
-        tmp = os.path.join(out, f"cam0{i}.mp4.tmp")
-        with z.open(name) as src, open(tmp, "wb") as dst:
-            dst.write(src.read())
-        os.replace(tmp, os.path.join(out, f"cam0{i}.mp4"))
+    for demo, prefix in (("Demo_SinglePerson", ""), ("Demo_MultiPerson", "multi_")):
+        for i in range(1, 5):
+            name = f"Pose2Sim/{demo}/videos/cam0{i}.mp4"
+            tmp = os.path.join(out, f"{prefix}cam0{i}.mp4.tmp")
+            with z.open(name) as src, open(tmp, "wb") as dst:
+                dst.write(src.read())
+            os.replace(tmp, os.path.join(out, f"{prefix}cam0{i}.mp4"))
 EOF
     rm -rf "$ROOT/downloads/pose2sim"
 fi

@@ -413,8 +413,11 @@ fn stem(p: &std::path::Path) -> String {
 fn open_video(
     path: &std::path::Path,
 ) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
-    use rigcast_sources::vision::{FfmpegSource, PipelineConfig, PosePipeline, VisionSource};
-    let frames = FfmpegSource::open(path)
+    use rigcast_sources::vision::{
+        ffmpeg::DEFAULT_SEQUENCE_FPS, DecodeSize, FfmpegSource, PipelineConfig, PosePipeline,
+        VisionSource,
+    };
+    let frames = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, DEFAULT_SEQUENCE_FPS)
         .with_context(|| format!("cannot open video {}", path.display()))?;
     let pipeline = PosePipeline::new(&PipelineConfig::default())
         .context("pose estimation is not set up (run `rigcast setup vision`)")?;

@@ -1,12 +1,16 @@
-//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy] [--max-frames N]`:
-//! offline pose extraction from a video file or image sequence, with progress on standard error.
+//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy] [--people N]
+//! [--finder detector|search] [--decode-side PIXELS] [--threads N] [--max-frames N]`:
+//! offline pose extraction from a video file or image sequence, with progress on standard error
+//! and a last line with the frame rate (decoding included) and the tracker's counters.
 //!
 //! `--json` prints exactly one JSON object on standard output:
-//! `{"fps", "frames": [{"time_secs", "image", "world"}]}` — `image` is 33 × `[x, y, z,
-//! visibility]` in pixels of the input (z in the same pixel scale, smaller = nearer), `world`
-//! is 33 × `[x, y, z]` metres, hip-centred, in BlazePose's axes (x right in the image, y down,
-//! z away from the camera); both `null` for frames without a person. `-o` writes the motion
-//! as BVH on the BlazePose source skeleton (frames without a person hold the last pose).
+//! `{"fps", "frames": [{"time_secs", "image", "world", "people"}]}` — `image` is 33 × `[x, y,
+//! z, visibility]` in pixels of the input (z in the same pixel scale, smaller = nearer),
+//! `world` is 33 × `[x, y, z]` metres, hip-centred, in BlazePose's axes (x right in the image,
+//! y down, z away from the camera); both `null` for frames without person `#0`. `people` holds
+//! one `{"image", "world"}` per identity slot (`#0`, `#1`, …; `null`s when that person is not
+//! seen). `-o` writes person `#0`'s motion as BVH on the BlazePose source skeleton (frames
+//! without them hold the last pose).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -17,8 +21,8 @@ use anyhow::Context;
 use clap::Args;
 use rigcast_retarget::{Clip, Pose};
 use rigcast_sources::vision::{
-    FfmpegSource, FrameSource, Landmarks, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
-    NUM_LANDMARKS,
+    DecodeSize, FfmpegSource, Finder, FrameSource, Landmarks, ModelKind, PipelineConfig,
+    PosePipeline, RgbFrame, TrackerConfig, NUM_LANDMARKS,
 };
 
 /// Options of `rigcast pose`.
@@ -42,7 +46,36 @@ pub struct PoseArgs {
     /// Stop after this many frames (previews, tests).
     #[arg(long, value_name = "N")]
     pub max_frames: Option<u64>,
+    /// Decode with the short side scaled down to this many pixels (0: the video's own size).
+    /// Landmarks are reported in pixels of the video either way.
+    #[arg(long, value_name = "PIXELS", default_value_t = DEFAULT_DECODE_SIDE)]
+    pub decode_side: u32,
+    /// Inference threads (ONNX Runtime intra-op).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// People tracked at once.
+    #[arg(long, value_name = "N")]
+    pub people: Option<usize>,
+    /// How people are found: the person detector, or the landmark model over candidate crops.
+    #[arg(long, value_parser = parse_finder)]
+    pub finder: Option<Finder>,
 }
+
+fn parse_finder(s: &str) -> Result<Finder, String> {
+    match s {
+        "detector" => Ok(Finder::Detector),
+        "search" => Ok(Finder::Search),
+        other => Err(format!(
+            "unknown finder {other:?}: expected detector or search"
+        )),
+    }
+}
+
+/// The default of `--decode-side`, see [`DecodeSize::FOR_MODEL`].
+const DEFAULT_DECODE_SIDE: u32 = match DecodeSize::FOR_MODEL {
+    DecodeSize::ShortSide(side) => side,
+    DecodeSize::Full => 0,
+};
 
 fn parse_model(s: &str) -> Result<ModelKind, String> {
     s.parse()
@@ -53,15 +86,26 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     if !args.json && args.output.is_none() {
         anyhow::bail!("nothing to do: pass --json and/or -o OUT.bvh");
     }
-    let mut source = if args.video.is_dir() || args.video.to_string_lossy().contains('%') {
-        FfmpegSource::open_sequence(&args.video, args.fps)?
-    } else {
-        FfmpegSource::open_video(&args.video)?
+    let size = match args.decode_side {
+        0 => DecodeSize::Full,
+        side => DecodeSize::ShortSide(side),
     };
+    let mut source = FfmpegSource::open_at(&args.video, size, args.fps)?;
     let fps = source.fps().unwrap_or(args.fps);
+    let defaults = PipelineConfig::default();
+    let tracker = TrackerConfig {
+        max_people: args.people.unwrap_or(defaults.tracker.max_people),
+        finder: args.finder.unwrap_or(defaults.tracker.finder),
+        ..defaults.tracker
+    };
+    if tracker.max_people == 0 {
+        anyhow::bail!("--people must be at least 1");
+    }
     let config = PipelineConfig {
         model: args.model,
-        ..PipelineConfig::default()
+        threads: args.threads.unwrap_or(defaults.threads),
+        tracker,
+        ..defaults
     };
     let mut pipeline = PosePipeline::new(&config)?;
     let skeleton = Arc::clone(pipeline.skeleton());
@@ -78,13 +122,16 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     let (mut num_frames, mut num_found) = (0u64, 0u64);
     let mut line = String::new();
     while args.max_frames.is_none_or(|max| num_frames < max) && source.next_frame(&mut frame)? {
-        let landmarks = pipeline.process(&frame, &mut pose)?;
-        if landmarks.is_some() {
+        pipeline.process_frame(&frame)?;
+        if pipeline.person(0).is_some() {
             num_found += 1;
+            if let Some(p) = pipeline.pose(0) {
+                pose.clone_from(p);
+            }
         }
         if args.json {
             line.clear();
-            frame_json(frame.time_secs, landmarks, &mut line);
+            frame_json(frame.time_secs, &pipeline, &mut line);
             if num_frames > 0 {
                 out.write_all(b",")?;
             }
@@ -107,7 +154,7 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     }
     out.flush()?;
     eprintln!(
-        "pose: {num_frames} frames, person in {num_found}, {:.1} s ({:.1} fps), {:?}",
+        "pose: {num_frames} frames, person #0 in {num_found}, {:.1} s ({:.1} fps), {:?}",
         started.elapsed().as_secs_f64(),
         num_frames as f64 / started.elapsed().as_secs_f64().max(1e-9),
         pipeline.stats()
@@ -142,42 +189,58 @@ fn json_number(v: f64) -> String {
     }
 }
 
-fn frame_json(time_secs: f64, landmarks: Option<&Landmarks>, out: &mut String) {
+fn frame_json(time_secs: f64, pipeline: &PosePipeline, out: &mut String) {
     use std::fmt::Write as _;
     let _ = write!(out, "{{\"time_secs\":{}", json_number(time_secs));
-    match landmarks {
-        None => out.push_str(",\"image\":null,\"world\":null}"),
-        Some(lm) => {
-            out.push_str(",\"image\":[");
-            for (i, p) in lm.image.iter().take(NUM_LANDMARKS).enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                let _ = write!(
-                    out,
-                    "[{},{},{},{}]",
-                    json_number(p.x as f64),
-                    json_number(p.y as f64),
-                    json_number(p.z as f64),
-                    json_number(p.w as f64)
-                );
-            }
-            out.push_str("],\"world\":[");
-            for (i, p) in lm.world.iter().take(NUM_LANDMARKS).enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                let _ = write!(
-                    out,
-                    "[{},{},{}]",
-                    json_number(p.x as f64),
-                    json_number(p.y as f64),
-                    json_number(p.z as f64)
-                );
-            }
-            out.push_str("]}");
+    out.push(',');
+    person_json(pipeline.person(0), out);
+    out.push_str(",\"people\":[");
+    for slot in 0..pipeline.num_people() {
+        if slot > 0 {
+            out.push(',');
         }
+        out.push('{');
+        person_json(pipeline.person(slot), out);
+        out.push('}');
     }
+    out.push_str("]}");
+}
+
+/// `"image":[…],"world":[…]` (or both `null`) for one person.
+fn person_json(landmarks: Option<&Landmarks>, out: &mut String) {
+    use std::fmt::Write as _;
+    let Some(lm) = landmarks else {
+        out.push_str("\"image\":null,\"world\":null");
+        return;
+    };
+    out.push_str("\"image\":[");
+    for (i, p) in lm.image.iter().take(NUM_LANDMARKS).enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        let _ = write!(
+            out,
+            "[{},{},{},{}]",
+            json_number(p.x as f64),
+            json_number(p.y as f64),
+            json_number(p.z as f64),
+            json_number(p.w as f64)
+        );
+    }
+    out.push_str("],\"world\":[");
+    for (i, p) in lm.world.iter().take(NUM_LANDMARKS).enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        let _ = write!(
+            out,
+            "[{},{},{}]",
+            json_number(p.x as f64),
+            json_number(p.y as f64),
+            json_number(p.z as f64)
+        );
+    }
+    out.push(']');
 }
 
 #[cfg(test)]
@@ -185,18 +248,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn frame_json_is_valid_with_and_without_a_person() {
-        let mut s = String::new();
-        frame_json(0.5, None, &mut s);
+    fn person_json_is_valid_with_and_without_a_person() {
+        let mut s = String::from("{");
+        person_json(None, &mut s);
+        s.push('}');
         let v: serde_json::Value = serde_json::from_str(&s).unwrap();
         assert!(v["image"].is_null() && v["world"].is_null());
-        assert_eq!(v["time_secs"], 0.5);
 
         let mut lm = Landmarks::default();
         lm.image[32] = glam::Vec4::new(10.0, 20.0, -3.0, 0.9);
         lm.world[0] = glam::Vec3::new(f32::NAN, 0.1, 0.2);
-        s.clear();
-        frame_json(1.0, Some(&lm), &mut s);
+        s = String::from("{");
+        person_json(Some(&lm), &mut s);
+        s.push('}');
         let v: serde_json::Value = serde_json::from_str(&s).unwrap();
         assert_eq!(v["image"].as_array().unwrap().len(), 33);
         assert_eq!(v["world"].as_array().unwrap().len(), 33);

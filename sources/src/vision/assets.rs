@@ -82,6 +82,16 @@ impl VisionAssets {
             .join(format!("models/pose_landmark_{}.onnx", kind.as_str()))
     }
 
+    /// The person detector.
+    pub fn detector_model(&self) -> PathBuf {
+        self.root.join("models/pose_detection.onnx")
+    }
+
+    /// One of the pose2sim two-person demo videos (`camera` 1..=4).
+    pub fn pose2sim_multi_video(&self, camera: u32) -> PathBuf {
+        self.root.join(format!("pose2sim/multi_cam{camera:02}.mp4"))
+    }
+
     /// One of the pose2sim demo videos (`camera` 1..=4).
     pub fn pose2sim_video(&self, camera: u32) -> PathBuf {
         self.root.join(format!("pose2sim/cam{camera:02}.mp4"))

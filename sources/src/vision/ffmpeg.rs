@@ -5,13 +5,50 @@
 //! and licences out of our process. `ffprobe` tells the size and rate first; frames are then
 //! read as exactly `width × height × 3` bytes each. Timestamps are `index / fps` (constant
 //! frame rate, which is what `-f rawvideo` delivers after ffmpeg's own rate handling).
+//!
+//! [`DecodeSize`] lets ffmpeg scale the picture while it converts to RGB: the landmark model
+//! sees a 256-pixel crop, so a 1080×1920 frame carries about four times more pixels than any
+//! crop can use, and copying them through the pipe costs as much as decoding. Frames are read
+//! ahead on a thread ([`ReadAhead`]) so decoding overlaps inference.
 
-use std::io::{ErrorKind, Read};
+use std::io::Read;
 use std::path::Path;
-use std::process::{Child, ChildStdout, Command, Stdio};
+use std::process::{Child, Command, Stdio};
 
 use super::error::VisionError;
 use super::frame::{FrameSource, RgbFrame};
+use super::read_ahead::{ReadAhead, ReadEnd};
+
+/// Frames decoded ahead of the caller (each one `width × height × 3` bytes of memory).
+const READ_AHEAD_FRAMES: usize = 2;
+
+/// The size ffmpeg delivers frames at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DecodeSize {
+    /// The video's own size.
+    #[default]
+    Full,
+    /// Scaled down (never up) so that the short side has this many pixels, aspect kept.
+    ShortSide(u32),
+}
+
+impl DecodeSize {
+    /// What the pose pipeline decodes at by default: a person who fills half the frame's
+    /// height still gets a crop of about 300 pixels, more than the model's 256.
+    pub const FOR_MODEL: DecodeSize = DecodeSize::ShortSide(512);
+
+    /// The decoded size for a `width × height` video: even sides, aspect kept.
+    pub fn apply(self, width: u32, height: u32) -> (u32, u32) {
+        match self {
+            DecodeSize::ShortSide(side) if side > 0 && width.min(height) > side => {
+                let k = side as f64 / width.min(height) as f64;
+                let even = |v: u32| ((v as f64 * k / 2.0).round() as u32 * 2).max(2);
+                (even(width), even(height))
+            }
+            _ => (width, height),
+        }
+    }
+}
 
 /// Frame rate assumed for image sequences unless told otherwise.
 pub const DEFAULT_SEQUENCE_FPS: f64 = 30.0;
@@ -20,9 +57,10 @@ pub const DEFAULT_SEQUENCE_FPS: f64 = 30.0;
 pub struct FfmpegSource {
     input: String,
     child: Child,
-    stdout: ChildStdout,
+    frames: ReadAhead,
     width: u32,
     height: u32,
+    source_from_frame: f32,
     fps: f64,
     next_index: u64,
 }
@@ -133,8 +171,13 @@ pub fn probe(input: &str, pre_args: &[&str]) -> Result<VideoInfo, VisionError> {
 }
 
 impl FfmpegSource {
-    /// Opens a video file (any codec ffmpeg decodes).
+    /// Opens a video file (any codec ffmpeg decodes) at its own size.
     pub fn open_video(path: &Path) -> Result<FfmpegSource, VisionError> {
+        Self::open_video_at(path, DecodeSize::Full)
+    }
+
+    /// Opens a video file, decoded at `size`.
+    pub fn open_video_at(path: &Path, size: DecodeSize) -> Result<FfmpegSource, VisionError> {
         if !path.exists() {
             return Err(VisionError::NoInput {
                 path: path.to_path_buf(),
@@ -147,12 +190,21 @@ impl FfmpegSource {
         } else {
             DEFAULT_SEQUENCE_FPS
         };
-        Self::spawn(input, &[], info, fps)
+        Self::spawn(input, &[], info, fps, size)
     }
 
     /// Opens an image sequence: either a directory (every `.png`/`.jpg`/`.jpeg` in name order)
     /// or a printf pattern such as `frames/img_%04d.png`.
     pub fn open_sequence(pattern: &Path, fps: f64) -> Result<FfmpegSource, VisionError> {
+        Self::open_sequence_at(pattern, fps, DecodeSize::Full)
+    }
+
+    /// [`Self::open_sequence`], decoded at `size`.
+    pub fn open_sequence_at(
+        pattern: &Path,
+        fps: f64,
+        size: DecodeSize,
+    ) -> Result<FfmpegSource, VisionError> {
         let fps = if fps > 0.0 { fps } else { DEFAULT_SEQUENCE_FPS };
         let rate = format!("{fps}");
         if pattern.is_dir() {
@@ -168,21 +220,30 @@ impl FfmpegSource {
                 rate.as_str(),
             ];
             let info = probe(&input, &pre)?;
-            return Self::spawn(input, &pre, info, fps);
+            return Self::spawn(input, &pre, info, fps, size);
         }
         let input = pattern.to_string_lossy().into_owned();
         let pre = ["-f", "image2", "-framerate", rate.as_str()];
         let info = probe(&input, &pre)?;
-        Self::spawn(input, &pre, info, fps)
+        Self::spawn(input, &pre, info, fps, size)
     }
 
     /// Opens whatever `path` is: a directory or a `%` pattern is an image sequence, anything
-    /// else a video file.
+    /// else a video file. Decoded at its own size.
     pub fn open(path: &Path) -> Result<FfmpegSource, VisionError> {
+        Self::open_at(path, DecodeSize::Full, DEFAULT_SEQUENCE_FPS)
+    }
+
+    /// [`Self::open`] decoded at `size`; `sequence_fps` is the rate of an image sequence.
+    pub fn open_at(
+        path: &Path,
+        size: DecodeSize,
+        sequence_fps: f64,
+    ) -> Result<FfmpegSource, VisionError> {
         if path.is_dir() || path.to_string_lossy().contains('%') {
-            Self::open_sequence(path, DEFAULT_SEQUENCE_FPS)
+            Self::open_sequence_at(path, sequence_fps, size)
         } else {
-            Self::open_video(path)
+            Self::open_video_at(path, size)
         }
     }
 
@@ -191,13 +252,24 @@ impl FfmpegSource {
         pre_args: &[&str],
         info: VideoInfo,
         fps: f64,
+        size: DecodeSize,
     ) -> Result<FfmpegSource, VisionError> {
-        let mut child = Command::new("ffmpeg")
+        let (width, height) = size.apply(info.width, info.height);
+        let mut command = Command::new("ffmpeg");
+        command
             .args(["-nostdin", "-v", "error"])
             .args(pre_args)
             .arg("-i")
             .arg(&input)
-            .args(["-map", "0:v:0", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
+            .args(["-map", "0:v:0"]);
+        if (width, height) != (info.width, info.height) {
+            // Scaling and the RGB conversion happen in one swscale pass.
+            command
+                .arg("-vf")
+                .arg(format!("scale={width}:{height}:flags=bilinear"));
+        }
+        let mut child = command
+            .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -213,12 +285,16 @@ impl FfmpegSource {
             .stdout
             .take()
             .ok_or_else(|| decoder_error("ffmpeg", &input, "no stdout pipe"))?;
+        let frame_bytes = width as usize * height as usize * 3;
+        let frames = ReadAhead::spawn(stdout, frame_bytes, READ_AHEAD_FRAMES)
+            .map_err(|e| decoder_error("ffmpeg", &input, format!("reader thread: {e}")))?;
         Ok(FfmpegSource {
             input,
             child,
-            stdout,
-            width: info.width,
-            height: info.height,
+            frames,
+            width,
+            height,
+            source_from_frame: info.width as f32 / width as f32,
             fps,
             next_index: 0,
         })
@@ -266,36 +342,33 @@ impl FrameSource for FfmpegSource {
         (self.width, self.height)
     }
     fn next_frame(&mut self, out: &mut RgbFrame) -> Result<bool, VisionError> {
-        out.resize(self.width, self.height);
-        let mut filled = 0;
-        while filled < out.data.len() {
-            match self.stdout.read(&mut out.data[filled..]) {
-                Ok(0) => break,
-                Ok(n) => filled += n,
-                Err(e) if e.kind() == ErrorKind::Interrupted => {}
-                Err(e) => return Err(decoder_error("ffmpeg", &self.input, e.to_string())),
+        match self.frames.next_into(&mut out.data) {
+            Ok(()) => {}
+            Err(ReadEnd::End) => {
+                let status = self.child.wait().ok();
+                if status.is_some_and(|s| !s.success()) {
+                    let msg = self.stderr_text();
+                    return Err(decoder_error("ffmpeg", &self.input, msg));
+                }
+                return Ok(false);
             }
-        }
-        if filled == 0 {
-            let status = self.child.wait().ok();
-            if status.is_some_and(|s| !s.success()) {
+            Err(ReadEnd::Truncated(filled)) => {
                 let msg = self.stderr_text();
-                return Err(decoder_error("ffmpeg", &self.input, msg));
+                let expected = self.frames.frame_bytes();
+                return Err(decoder_error(
+                    "ffmpeg",
+                    &self.input,
+                    format!(
+                        "frame {} truncated: got {filled} of {expected} bytes {msg}",
+                        self.next_index
+                    ),
+                ));
             }
-            return Ok(false);
+            Err(ReadEnd::Failed(e)) => return Err(decoder_error("ffmpeg", &self.input, e)),
         }
-        if filled < out.data.len() {
-            let msg = self.stderr_text();
-            return Err(decoder_error(
-                "ffmpeg",
-                &self.input,
-                format!(
-                    "frame {} truncated: got {filled} of {} bytes {msg}",
-                    self.next_index,
-                    out.data.len()
-                ),
-            ));
-        }
+        out.width = self.width;
+        out.height = self.height;
+        out.source_from_frame = self.source_from_frame;
         out.index = self.next_index;
         out.time_secs = self.next_index as f64 / self.fps;
         self.next_index += 1;
@@ -305,8 +378,23 @@ impl FrameSource for FfmpegSource {
 
 impl Drop for FfmpegSource {
     fn drop(&mut self) {
-        // A reader that stops early must not leave ffmpeg blocked on a full pipe.
+        // A reader that stops early must not leave ffmpeg blocked on a full pipe. Killing it
+        // also ends the read-ahead thread (its pipe reaches the end).
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_side_scaling_keeps_aspect_and_never_upscales() {
+        assert_eq!(DecodeSize::ShortSide(540).apply(1080, 1920), (540, 960));
+        assert_eq!(DecodeSize::ShortSide(512).apply(1088, 1920), (512, 904));
+        assert_eq!(DecodeSize::ShortSide(720).apply(640, 480), (640, 480));
+        assert_eq!(DecodeSize::Full.apply(1768, 994), (1768, 994));
+        assert_eq!(DecodeSize::ShortSide(0).apply(100, 50), (100, 50));
     }
 }

@@ -3,7 +3,7 @@
 use super::error::VisionError;
 
 /// One RGB frame, 8 bits per channel, rows top to bottom, no padding.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RgbFrame {
     /// Width in pixels.
     pub width: u32,
@@ -15,6 +15,16 @@ pub struct RgbFrame {
     pub time_secs: f64,
     /// Frame number from the start of the source.
     pub index: u64,
+    /// Source pixels per frame pixel: above 1 when the decoder scaled the picture down to
+    /// the model's resolution. Landmarks leave the pipeline in source pixels, so what a
+    /// caller sees does not depend on the decode size.
+    pub source_from_frame: f32,
+}
+
+impl Default for RgbFrame {
+    fn default() -> Self {
+        RgbFrame::new(0, 0)
+    }
 }
 
 impl RgbFrame {
@@ -26,6 +36,7 @@ impl RgbFrame {
             data: vec![0; width as usize * height as usize * 3],
             time_secs: 0.0,
             index: 0,
+            source_from_frame: 1.0,
         }
     }
 
@@ -104,6 +115,7 @@ impl FrameSource for MemorySource {
         out.data.copy_from_slice(&f.data);
         out.time_secs = f.time_secs;
         out.index = f.index;
+        out.source_from_frame = f.source_from_frame;
         self.next += 1;
         Ok(true)
     }

@@ -99,15 +99,18 @@ pub struct Landmarks {
 
 impl Default for Landmarks {
     fn default() -> Self {
-        Landmarks {
-            image: [Vec4::ZERO; NUM_MODEL_LANDMARKS],
-            world: [Vec3::ZERO; NUM_MODEL_LANDMARKS],
-            presence: 0.0,
-        }
+        Landmarks::ZERO
     }
 }
 
 impl Landmarks {
+    /// All zero, presence 0.
+    pub const ZERO: Landmarks = Landmarks {
+        image: [Vec4::ZERO; NUM_MODEL_LANDMARKS],
+        world: [Vec3::ZERO; NUM_MODEL_LANDMARKS],
+        presence: 0.0,
+    };
+
     /// Visibility of body landmark `i` in [0, 1].
     #[inline]
     pub fn visibility(&self, i: usize) -> f32 {
@@ -118,6 +121,19 @@ impl Landmarks {
     #[inline]
     pub fn world_internal(&self, i: usize) -> Vec3 {
         world_to_internal(self.world[i])
+    }
+
+    /// Multiplies the image landmarks' x, y and z (all in pixels) by `k`: from the pixels of a
+    /// scaled frame to those of the source.
+    pub fn scale_image(&mut self, k: f32) {
+        if k == 1.0 {
+            return;
+        }
+        for p in self.image.iter_mut() {
+            p.x *= k;
+            p.y *= k;
+            p.z *= k;
+        }
     }
 }
 

@@ -2,12 +2,14 @@
 //! rotations of a BlazePose source skeleton.
 //!
 //! ```text
-//!  FrameSource (ffmpeg video / image sequence, webcam, memory)
-//!      │ RgbFrame (RGB8 + timestamp)
+//!  FrameSource (ffmpeg video / image sequence at the model's resolution, webcam, memory)
+//!      │ RgbFrame (RGB8 + timestamp; decoded ahead on a thread)
 //!      ▼
-//!  PoseTracker ── ROI from last frame's aux landmarks 33/34 ──▶ LandmarkModel (ort)
-//!      │          (no person: search candidate crops, keep the highest presence)
-//!      ▼ Landmarks (33 image + world points, visibility, presence)
+//!  PoseTracker ── per identity slot #0..#N-1: ROI from its last aux landmarks 33/34
+//!      │          ──▶ LandmarkModel (ort), once per tracked person per frame
+//!      │          (someone lost / slots free: PersonDetector finds people, or the
+//!      │           candidate-crop search without the detector model)
+//!      ▼ Landmarks per person (33 image + world points, visibility, presence)
 //!      │   ◀── LandmarkReplaySource: recorded landmarks re-enter here (no model, no camera)
 //!  LandmarkStages: One Euro smoothing per coordinate, constant limb lengths (world)
 //!      ▼
@@ -22,6 +24,7 @@
 
 pub mod assets;
 pub mod body;
+pub mod detector;
 pub mod error;
 pub mod ffmpeg;
 pub mod frame;
@@ -30,6 +33,7 @@ pub mod lengths;
 pub mod model;
 pub mod one_euro;
 pub mod pipeline;
+pub mod read_ahead;
 pub mod replay;
 pub mod roi;
 pub mod solve;
@@ -42,7 +46,7 @@ pub mod webcam;
 pub use assets::{ModelKind, VisionAssets};
 pub use body::blazepose_skeleton;
 pub use error::VisionError;
-pub use ffmpeg::FfmpegSource;
+pub use ffmpeg::{DecodeSize, FfmpegSource};
 pub use frame::{FrameSource, MemorySource, RgbFrame};
 pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
 pub use model::{InputRange, LandmarkModel};
@@ -51,7 +55,7 @@ pub use replay::LandmarkReplaySource;
 pub use solve::{PoseSolver, SolverConfig};
 pub use source::VisionSource;
 pub use stages::LandmarkStages;
-pub use tracker::{PoseTracker, TrackerConfig};
+pub use tracker::{Finder, PoseTracker, TrackerConfig};
 #[cfg(feature = "webcam")]
 pub use webcam::Webcam;
 

@@ -87,7 +87,7 @@ impl std::fmt::Debug for LandmarkModel {
     }
 }
 
-fn model_err(path: &Path, e: impl std::fmt::Display) -> VisionError {
+pub(crate) fn model_err(path: &Path, e: impl std::fmt::Display) -> VisionError {
     VisionError::Model {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -108,18 +108,7 @@ impl LandmarkModel {
                 what: "landmark model",
             });
         }
-        let session = Session::builder(&env)
-            .map_err(|e| model_err(model, e))?
-            .with_optimization_level(GraphOptimizationLevel::Level3)
-            .map_err(|e| model_err(model, e))?
-            .with_intra_threads(threads.max(1))
-            .map_err(|e| model_err(model, e))?
-            // Spinning workers burn a core waiting for work; on a 2-core machine shared with the
-            // decoder and the server that costs more than the wake-up latency it saves.
-            .with_intra_op_spinning(spin_enabled())
-            .map_err(|e| model_err(model, e))?
-            .commit_from_file(model)
-            .map_err(|e| model_err(model, e))?;
+        let session = build_session(&env, model, threads)?;
         // Segmentation and heatmap outputs are not needed; not fetching them saves copies.
         let run_options = RunOptions::new()
             .map_err(|e| model_err(model, e))?
@@ -168,7 +157,7 @@ impl LandmarkModel {
         };
         {
             let (_, data) = self.input.extract_tensor_mut();
-            warp_crop(frame, roi, scale, offset, data);
+            warp_crop(frame, roi, INPUT_SIZE, scale, offset, data);
         }
         let outputs = self
             .session
@@ -200,7 +189,31 @@ impl LandmarkModel {
     }
 }
 
-fn check_len(name: &'static str, actual: usize, expected: usize) -> Result<(), VisionError> {
+/// An optimised session on `threads` intra-op threads (one model of the pipeline).
+pub(crate) fn build_session(
+    env: &Environment,
+    model: &Path,
+    threads: usize,
+) -> Result<Session, VisionError> {
+    Session::builder(env)
+        .map_err(|e| model_err(model, e))?
+        .with_optimization_level(GraphOptimizationLevel::Level3)
+        .map_err(|e| model_err(model, e))?
+        .with_intra_threads(threads.max(1))
+        .map_err(|e| model_err(model, e))?
+        // Spinning workers burn a core waiting for work; on a 2-core machine shared with the
+        // decoder and the server that costs more than the wake-up latency it saves.
+        .with_intra_op_spinning(spin_enabled())
+        .map_err(|e| model_err(model, e))?
+        .commit_from_file(model)
+        .map_err(|e| model_err(model, e))
+}
+
+pub(crate) fn check_len(
+    name: &'static str,
+    actual: usize,
+    expected: usize,
+) -> Result<(), VisionError> {
     if actual == expected {
         Ok(())
     } else {
@@ -235,11 +248,19 @@ fn decode(raw: &[f32], raw_world: &[f32], presence: f32, roi: &Roi, out: &mut La
     };
 }
 
-/// Bilinear warp of `roi` into an `INPUT_SIZE²` RGB float buffer (`v · scale + offset`), black
-/// outside the frame.
-pub fn warp_crop(frame: &RgbFrame, roi: &Roi, scale: f32, offset: f32, out: &mut [f32]) {
-    debug_assert_eq!(out.len(), INPUT_SIZE * INPUT_SIZE * 3);
-    let n = INPUT_SIZE as f32;
+/// Bilinear warp of `roi` into a `side²` RGB float buffer (`v · scale + offset`), black
+/// outside the frame. Writes every value of `out`, so a model's input tensor is filled in
+/// place and never reallocated.
+pub fn warp_crop(
+    frame: &RgbFrame,
+    roi: &Roi,
+    side: usize,
+    scale: f32,
+    offset: f32,
+    out: &mut [f32],
+) {
+    debug_assert_eq!(out.len(), side * side * 3);
+    let n = side as f32;
     let (s, c) = roi.rotation.sin_cos();
     let step = roi.size / n;
     // Frame position of crop pixel (u, v) centre: origin + u·du + v·dv.
@@ -249,10 +270,10 @@ pub fn warp_crop(frame: &RgbFrame, roi: &Roi, scale: f32, offset: f32, out: &mut
     let (w, h) = (frame.width as i32, frame.height as i32);
     let stride = frame.width as usize * 3;
     let data = &frame.data;
-    for v in 0..INPUT_SIZE {
+    for v in 0..side {
         let row = origin + dv * v as f32;
-        let out_row = &mut out[v * INPUT_SIZE * 3..(v + 1) * INPUT_SIZE * 3];
-        for u in 0..INPUT_SIZE {
+        let out_row = &mut out[v * side * 3..(v + 1) * side * 3];
+        for u in 0..side {
             let p = row + du * u as f32;
             let x0 = p.x.floor();
             let y0 = p.y.floor();
@@ -310,7 +331,7 @@ mod tests {
         let f = gradient_frame(256, 256);
         let roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
         let mut out = vec![0.0; INPUT_SIZE * INPUT_SIZE * 3];
-        warp_crop(&f, &roi, 1.0, 0.0, &mut out);
+        warp_crop(&f, &roi, INPUT_SIZE, 1.0, 0.0, &mut out);
         for (u, v) in [(0usize, 0usize), (10, 200), (255, 255), (128, 3)] {
             let i = (v * INPUT_SIZE + u) * 3;
             assert!((out[i] - u as f32).abs() < 1e-3, "u {u} got {}", out[i]);
@@ -324,7 +345,7 @@ mod tests {
         let f = gradient_frame(64, 64);
         let roi = Roi::square(Vec2::new(32.0, 32.0), 1024.0);
         let mut out = vec![9.0; INPUT_SIZE * INPUT_SIZE * 3];
-        warp_crop(&f, &roi, 1.0 / 127.5, -1.0, &mut out);
+        warp_crop(&f, &roi, INPUT_SIZE, 1.0 / 127.5, -1.0, &mut out);
         assert!((out[0] + 1.0).abs() < 1e-6, "corner is black → −1");
     }
 
@@ -334,7 +355,7 @@ mod tests {
         let mut roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
         roi.rotation = std::f32::consts::FRAC_PI_2;
         let mut out = vec![0.0; INPUT_SIZE * INPUT_SIZE * 3];
-        warp_crop(&f, &roi, 1.0, 0.0, &mut out);
+        warp_crop(&f, &roi, INPUT_SIZE, 1.0, 0.0, &mut out);
         // Moving right in the crop (u) moves down in the frame (y): the green channel grows.
         let g = |u: usize, v: usize| out[(v * INPUT_SIZE + u) * 3 + 1];
         assert!(g(200, 128) > g(50, 128) + 100.0);

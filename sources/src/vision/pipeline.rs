@@ -6,13 +6,14 @@ use std::sync::Arc;
 use rigcast_retarget::{Pose, Skeleton};
 
 use super::assets::{ModelKind, VisionAssets};
+use super::detector::PersonDetector;
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::Landmarks;
 use super::model::{InputRange, LandmarkModel};
 use super::solve::SolverConfig;
 use super::stages::LandmarkStages;
-use super::tracker::{PoseTracker, TrackerConfig, TrackerStats};
+use super::tracker::{Finder, PoseTracker, TrackerConfig, TrackerStats};
 
 /// Everything needed to build a [`PosePipeline`].
 #[derive(Debug, Clone)]
@@ -59,32 +60,63 @@ impl Default for PipelineConfig {
     }
 }
 
-/// Frame → landmarks → rotations of the BlazePose skeleton. Allocates only when built.
+/// Frame → landmarks → rotations of the BlazePose skeleton, for each tracked person.
+/// Allocates only when built.
 #[derive(Debug)]
 pub struct PosePipeline {
     tracker: PoseTracker,
+    people: Vec<Person>,
+}
+
+/// One identity slot's stages and outputs.
+#[derive(Debug)]
+struct Person {
     stages: LandmarkStages,
+    /// The tracker's landmarks in source pixels (before smoothing).
     raw: Landmarks,
+    pose: Pose,
+    seen: bool,
 }
 
 impl PosePipeline {
-    /// Loads the runtime and model named by `config`.
+    /// Loads the runtime, the landmark model and (for [`Finder::Detector`]) the person
+    /// detector named by `config`.
     pub fn new(config: &PipelineConfig) -> Result<PosePipeline, VisionError> {
         let assets = &config.assets;
         let library = assets.require(assets.runtime_library(), "ONNX Runtime shared library")?;
         let model_path = assets.require(assets.landmark_model(config.model), "landmark model")?;
         let mut model = LandmarkModel::load(&library, &model_path, config.threads)?;
         model.set_input_range(config.input_range);
-        Ok(PosePipeline {
-            tracker: PoseTracker::new(model, config.tracker),
-            stages: config.stages()?,
-            raw: Landmarks::default(),
-        })
+        let detector = match config.tracker.finder {
+            Finder::Detector => {
+                let path = assets.require(assets.detector_model(), "person detector model")?;
+                Some(PersonDetector::load(
+                    &library,
+                    &path,
+                    config.threads,
+                    config.tracker.min_detection_score,
+                )?)
+            }
+            Finder::Search => None,
+        };
+        let tracker = PoseTracker::new(model, detector, config.tracker);
+        let mut people = Vec::with_capacity(tracker.max_people());
+        for _ in 0..tracker.max_people() {
+            let stages = config.stages()?;
+            let pose = stages.skeleton().rest_pose();
+            people.push(Person {
+                stages,
+                raw: Landmarks::default(),
+                pose,
+                seen: false,
+            });
+        }
+        Ok(PosePipeline { tracker, people })
     }
 
     /// The BlazePose source skeleton poses are written for.
     pub fn skeleton(&self) -> &Arc<Skeleton> {
-        self.stages.skeleton()
+        self.people[0].stages.skeleton()
     }
 
     /// Tracker counters.
@@ -92,9 +124,14 @@ impl PosePipeline {
         self.tracker.stats()
     }
 
-    /// Per-bone confidence of the last solved frame.
+    /// Identity slots (`#0` … `#num_people-1`).
+    pub fn num_people(&self) -> usize {
+        self.people.len()
+    }
+
+    /// Per-bone confidence of person `#0`'s last solved frame.
     pub fn confidence(&self) -> &[f32] {
-        self.stages.confidence()
+        self.people[0].stages.confidence()
     }
 
     /// The tracker (e.g. to switch the model's input range).
@@ -102,25 +139,71 @@ impl PosePipeline {
         &mut self.tracker
     }
 
-    /// Processes one frame. With a person in view, returns the (smoothed) landmarks and writes
-    /// the solved pose into `pose` (sized for [`Self::skeleton`]); with none, returns `None`
-    /// and leaves `pose` unchanged (the caller holds the last pose).
+    /// Processes one frame for everyone: afterwards [`Self::person`], [`Self::pose`] and
+    /// [`Self::raw_person`] tell each slot's result. A slot not seen in this frame keeps its
+    /// last pose (the caller holds it).
+    pub fn process_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        self.tracker.process_frame(frame)?;
+        for (slot, person) in self.people.iter_mut().enumerate() {
+            match self.tracker.person(slot) {
+                Some(tracked) => {
+                    person.raw = *tracked;
+                    person.raw.scale_image(frame.source_from_frame);
+                    person
+                        .stages
+                        .process(&person.raw, frame.time_secs, &mut person.pose);
+                    person.seen = true;
+                }
+                None => {
+                    person.stages.lost();
+                    person.seen = false;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Smoothed landmarks (source pixels) of person `slot` in the last frame, if seen.
+    pub fn person(&self, slot: usize) -> Option<&Landmarks> {
+        let p = self.people.get(slot).filter(|p| p.seen)?;
+        Some(p.stages.smoothed())
+    }
+
+    /// Raw landmarks (source pixels, before smoothing) of person `slot`, if seen in the last
+    /// frame: what the raw tap records.
+    pub fn raw_person(&self, slot: usize) -> Option<&Landmarks> {
+        self.people.get(slot).filter(|p| p.seen).map(|p| &p.raw)
+    }
+
+    /// The pose of person `slot` (the last solved one, held while not seen).
+    pub fn pose(&self, slot: usize) -> Option<&Pose> {
+        self.people.get(slot).map(|p| &p.pose)
+    }
+
+    /// Processes one frame. With person `#0` in view, returns their (smoothed) landmarks and
+    /// writes their solved pose into `pose` (sized for [`Self::skeleton`]); with none, returns
+    /// `None` and leaves `pose` unchanged (the caller holds the last pose).
     pub fn process(
         &mut self,
         frame: &RgbFrame,
         pose: &mut Pose,
     ) -> Result<Option<&Landmarks>, VisionError> {
-        let found = self.tracker.process(frame, &mut self.raw)?;
-        if !found {
-            self.stages.lost();
+        self.process_frame(frame)?;
+        let person = &self.people[0];
+        if !person.seen {
             return Ok(None);
         }
-        Ok(Some(self.stages.process(&self.raw, frame.time_secs, pose)))
+        if pose.num_bones() == person.pose.num_bones() {
+            pose.copy_from(&person.pose);
+        } else {
+            pose.clone_from(&person.pose);
+        }
+        Ok(Some(person.stages.smoothed()))
     }
 
-    /// Raw (unsmoothed) landmarks of the last frame with a person: what the raw tap records
-    /// and [`super::LandmarkReplaySource`] feeds back through the same stages.
+    /// Raw (unsmoothed) landmarks of person `#0`'s last frame with a person: what the raw tap
+    /// records and [`super::LandmarkReplaySource`] feeds back through the same stages.
     pub fn raw_landmarks(&self) -> &Landmarks {
-        &self.raw
+        &self.people[0].raw
     }
 }

@@ -1,39 +1,79 @@
-//! Finding and tracking one person: candidate-crop search to start or recover, ROI tracking
-//! from the previous frame's auxiliary landmarks, and a guard against left/right label swaps.
+//! Finding and tracking up to N people: a person detector (or, without one, a candidate-crop
+//! search) to start or recover, ROI tracking from each person's auxiliary landmarks of the
+//! previous frame, stable identities, and a guard against left/right label swaps.
 //!
-//! Why a search instead of MediaPipe's detector: the detector does not convert to ONNX as is.
-//! The landmark model itself reports a pose presence, so running it over a handful of crops
-//! (the whole frame letterboxed, centred squares, a coarse grid) and keeping the most present
-//! one finds the person; one refinement pass with the ROI from that result's auxiliary
-//! landmarks then centres and scales the crop. While presence stays above the threshold each
-//! frame just reuses the previous ROI; when it drops, the next frame searches again.
+//! Per frame the landmark model runs once per tracked person, on the ROI its own last
+//! landmarks gave: no search while tracking holds. The finder runs only when someone was
+//! lost this frame, when nobody is tracked, or every `find_every_frames` frames while fewer
+//! than `max_people` are tracked.
+//!
+//! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
+//! back the slot whose last position is nearest (within half its ROI) rather than any free
+//! one, so two performers crossing do not trade names; two tracks that converge on one body
+//! (joint by joint) are one person twice, and the one that jumped further is dropped.
+//!
+//! [`Finder::Search`] is the fallback without the detector model: the landmark model itself
+//! reports a pose presence, so running it over a handful of crops (the whole frame
+//! letterboxed, centred squares, a coarse grid) and keeping the most present one finds a
+//! person, and refinement passes with the ROI from that result's auxiliary landmarks centre
+//! and scale the crop.
 
 use glam::{Vec2, Vec3};
 
+use super::detector::{Detection, PersonDetector};
 use super::error::VisionError;
 use super::frame::RgbFrame;
-use super::landmarks::{idx, Landmarks};
+use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
 use super::model::LandmarkModel;
 use super::roi::Roi;
+/// How the tracker finds people it does not track yet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Finder {
+    /// The BlazePose person detector over the whole frame (one run finds everyone).
+    #[default]
+    Detector,
+    /// The landmark model over a fixed set of candidate crops (one person per search).
+    Search,
+}
 
 /// Tracker settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackerConfig {
-    /// Minimum pose presence for a result to count as a person.
+    /// Minimum pose presence for a result to count as a new person.
     pub presence_threshold: f32,
-    /// Refinement passes after a search hit (each one model run).
+    /// Minimum pose presence to keep tracking a person (lower than the above: someone
+    /// half-hidden behind another performer is still the same person).
+    pub keep_presence_threshold: f32,
+    /// Refinement passes after a [`Finder::Search`] hit (each one model run).
     pub refine_passes: usize,
     /// Undo the model's facing/away reading flips (left/right label swaps) by matching the
     /// torso against recent frames.
     pub swap_guard: bool,
+    /// People tracked at once (identities `#0` … `#max_people-1`).
+    pub max_people: usize,
+    /// How new people are found.
+    pub finder: Finder,
+    /// While fewer than `max_people` are tracked, look for more this often (frames).
+    pub find_every_frames: u32,
+    /// Minimum detector score.
+    pub min_detection_score: f32,
+    /// For this many frames after losing a person, their slot only takes someone found near
+    /// where they were last seen.
+    pub reacquire_frames: u32,
 }
 
 impl Default for TrackerConfig {
     fn default() -> Self {
         TrackerConfig {
             presence_threshold: 0.5,
+            keep_presence_threshold: 0.3,
             refine_passes: 2,
             swap_guard: true,
+            max_people: 2,
+            finder: Finder::Detector,
+            find_every_frames: 10,
+            min_detection_score: 0.3,
+            reacquire_frames: 60,
         }
     }
 }
@@ -68,39 +108,115 @@ const GUARD_PAIRS: [(usize, usize); 2] = [
 /// How fast the flip guard's reference follows accepted frames (fraction per frame).
 const REFERENCE_RATE: f32 = 0.3;
 
+/// A detection whose hips lie within this fraction of a tracked person's height from that
+/// person's hips is that person.
+const TRACKED_HIPS: f32 = 0.25;
+
+/// While a person lost this recently is not found again, the finder runs every frame.
+const EAGER_FIND_FRAMES: u32 = 30;
+
 /// Counters for diagnostics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TrackerStats {
-    /// Model runs.
+    /// Landmark model runs.
     pub inferences: u64,
-    /// Candidate searches started.
+    /// Candidate-crop searches started.
     pub searches: u64,
+    /// Person detector runs.
+    pub detections: u64,
     /// Left/right label swaps undone.
     pub swaps_fixed: u64,
+    /// People who started being tracked.
+    pub tracks_started: u64,
+    /// Tracked people lost (presence below the threshold).
+    pub tracks_lost: u64,
+    /// Tracks dropped because they converged on someone already tracked.
+    pub duplicates_dropped: u64,
 }
 
-/// Finds and tracks one person with a [`LandmarkModel`].
+/// One identity slot.
+#[derive(Debug, Clone, Copy)]
+struct Track {
+    /// The crop for the next frame, while tracked.
+    roi: Option<Roi>,
+    /// The last crop that showed the person (kept after losing them, to look there again).
+    last_roi: Option<Roi>,
+    /// Accepted this frame.
+    seen: bool,
+    /// The last accepted landmarks (frame pixels).
+    landmarks: Landmarks,
+    reference: Option<[Vec3; 2]>,
+    /// Body box (centre, size) of the last and the one before accepted frames.
+    place: Option<(Vec2, Vec2)>,
+    previous_place: Option<(Vec2, Vec2)>,
+    /// Frames since the person was lost (0 while tracked).
+    lost_frames: u32,
+}
+
+impl Track {
+    const EMPTY: Track = Track {
+        roi: None,
+        last_roi: None,
+        seen: false,
+        landmarks: Landmarks::ZERO,
+        reference: None,
+        place: None,
+        previous_place: None,
+        lost_frames: 0,
+    };
+
+    fn tracked(&self) -> bool {
+        self.roi.is_some()
+    }
+
+    fn lose(&mut self) {
+        self.roi = None;
+        self.seen = false;
+        self.reference = None;
+        self.lost_frames = 1;
+    }
+}
+
+/// Finds and tracks up to [`TrackerConfig::max_people`] people.
 #[derive(Debug)]
 pub struct PoseTracker {
     model: LandmarkModel,
+    detector: Option<PersonDetector>,
     config: TrackerConfig,
-    roi: Option<Roi>,
+    tracks: Vec<Track>,
     candidates: Vec<Roi>,
+    detections: Vec<Detection>,
     scratch: Landmarks,
-    reference: Option<[Vec3; 2]>,
+    frames_since_find: u32,
     stats: TrackerStats,
 }
 
 impl PoseTracker {
-    /// A tracker with no person yet.
-    pub fn new(model: LandmarkModel, config: TrackerConfig) -> PoseTracker {
+    /// A tracker with nobody yet. `detector` is required for [`Finder::Detector`]; without
+    /// one the tracker searches.
+    pub fn new(
+        model: LandmarkModel,
+        detector: Option<PersonDetector>,
+        config: TrackerConfig,
+    ) -> PoseTracker {
+        let config = TrackerConfig {
+            max_people: config.max_people.max(1),
+            finder: if detector.is_some() {
+                config.finder
+            } else {
+                Finder::Search
+            },
+            ..config
+        };
         PoseTracker {
             model,
+            detector,
             config,
-            roi: None,
+            tracks: vec![Track::EMPTY; config.max_people],
             candidates: Vec::with_capacity(16),
+            detections: Vec::with_capacity(super::detector::MAX_DETECTIONS),
             scratch: Landmarks::default(),
-            reference: None,
+            frames_since_find: 0,
             stats: TrackerStats::default(),
         }
     }
@@ -110,78 +226,364 @@ impl PoseTracker {
         &mut self.model
     }
 
+    /// The settings in force (the finder falls back to search without a detector).
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
     /// Counters since creation.
     pub fn stats(&self) -> TrackerStats {
         self.stats
     }
 
-    /// The ROI that the next frame will use, if tracking.
-    pub fn roi(&self) -> Option<Roi> {
-        self.roi
+    /// Identity slots.
+    pub fn max_people(&self) -> usize {
+        self.tracks.len()
     }
 
-    /// Forgets the tracked person; the next frame searches.
+    /// Landmarks of person `slot` in the last frame (frame pixels), if seen in it.
+    pub fn person(&self, slot: usize) -> Option<&Landmarks> {
+        self.tracks
+            .get(slot)
+            .filter(|t| t.seen)
+            .map(|t| &t.landmarks)
+    }
+
+    /// The ROI that person `slot` will be cropped with next frame, if tracked.
+    pub fn roi(&self, slot: usize) -> Option<Roi> {
+        self.tracks.get(slot).and_then(|t| t.roi)
+    }
+
+    /// Forgets everyone; the next frame looks for people afresh.
     pub fn reset(&mut self) {
-        self.roi = None;
-        self.reference = None;
+        self.tracks.fill(Track::EMPTY);
     }
 
-    /// Processes one frame. Returns true and fills `out` when a person was found.
-    pub fn process(&mut self, frame: &RgbFrame, out: &mut Landmarks) -> Result<bool, VisionError> {
-        let threshold = self.config.presence_threshold;
-        let mut found = false;
-        if let Some(roi) = self.roi {
-            self.model.infer(frame, &roi, out)?;
+    /// Processes one frame: every tracked person once, then the finder when it is due.
+    /// Afterwards [`Self::person`] tells who was seen.
+    pub fn process_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        let mut lost_now = false;
+        for slot in 0..self.tracks.len() {
+            self.tracks[slot].seen = false;
+            let Some(roi) = self.tracks[slot].roi else {
+                continue;
+            };
+            self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
-            found = out.presence >= threshold;
+            let kept = self.scratch.presence >= self.config.keep_presence_threshold
+                && self.tracks[slot]
+                    .place
+                    .is_none_or(|p| continues(p, body_box(&self.scratch)));
+            if kept {
+                let found = self.scratch;
+                self.accept(slot, &found);
+            } else {
+                self.tracks[slot].lose();
+                self.stats.tracks_lost += 1;
+                lost_now = true;
+            }
         }
-        if !found {
-            self.reference = None;
-            found = self.search(frame, out)?;
+        lost_now |= self.drop_duplicates();
+        let num_tracked = self.tracks.iter().filter(|t| t.tracked()).count();
+        self.frames_since_find = self.frames_since_find.saturating_add(1);
+        let recently_lost = self
+            .tracks
+            .iter()
+            .any(|t| !t.tracked() && t.place.is_some() && t.lost_frames <= EAGER_FIND_FRAMES);
+        let due = lost_now
+            || recently_lost
+            || num_tracked == 0
+            || self.frames_since_find >= self.config.find_every_frames;
+        if num_tracked < self.tracks.len() && due {
+            self.frames_since_find = 0;
+            self.look_where_lost(frame)?;
+            match self.config.finder {
+                Finder::Detector => self.find_by_detector(frame)?,
+                Finder::Search => self.find_by_search(frame)?,
+            }
         }
-        if !found {
-            self.roi = None;
-            return Ok(false);
+        for t in self.tracks.iter_mut().filter(|t| !t.tracked()) {
+            t.lost_frames = t.lost_frames.saturating_add(1);
         }
-        if let Some(reference) = self.reference.as_ref().filter(|_| self.config.swap_guard) {
-            if labels_swapped(reference, out) {
-                flip_interpretation(out);
+        Ok(())
+    }
+
+    /// Single-person convenience: processes the frame and copies person `#0` into `out`.
+    /// Returns whether `#0` was seen.
+    pub fn process(&mut self, frame: &RgbFrame, out: &mut Landmarks) -> Result<bool, VisionError> {
+        self.process_frame(frame)?;
+        match self.person(0) {
+            Some(lm) => {
+                *out = *lm;
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+
+    /// Takes `lm` as person `slot`'s landmarks this frame.
+    fn accept(&mut self, slot: usize, lm: &Landmarks) {
+        let guard = self.config.swap_guard;
+        let t = &mut self.tracks[slot];
+        t.landmarks = *lm;
+        if let Some(reference) = t.reference.as_ref().filter(|_| guard) {
+            if labels_swapped(reference, &t.landmarks) {
+                flip_interpretation(&mut t.landmarks);
                 self.stats.swaps_fixed += 1;
             }
         }
-        self.roi = next_roi(out);
-        update_reference(&mut self.reference, out);
-        Ok(true)
+        t.roi = next_roi(&t.landmarks);
+        if t.roi.is_some() {
+            t.last_roi = t.roi;
+        }
+        t.seen = true;
+        t.lost_frames = 0;
+        t.previous_place = t.place;
+        t.place = Some(body_box(&t.landmarks));
+        update_reference(&mut t.reference, &t.landmarks);
     }
 
-    fn search(&mut self, frame: &RgbFrame, out: &mut Landmarks) -> Result<bool, VisionError> {
+    /// Drops one of every two tracks that now cover the same body: the one whose box jumped
+    /// further from its previous frame (it is the one that slid onto the other person).
+    /// Returns whether any was dropped.
+    fn drop_duplicates(&mut self) -> bool {
+        let mut dropped = false;
+        for a in 0..self.tracks.len() {
+            for b in a + 1..self.tracks.len() {
+                let (ta, tb) = (&self.tracks[a], &self.tracks[b]);
+                if !(ta.seen && tb.seen) {
+                    continue;
+                }
+                if !same_body(&ta.landmarks, &tb.landmarks) {
+                    continue;
+                }
+                let jump = |t: &Track| {
+                    t.previous_place
+                        .zip(t.place)
+                        .map_or(f32::INFINITY, |(p, c)| {
+                            p.0.distance(c.0) / p.1.max_element().max(1.0)
+                        })
+                };
+                let loser = if jump(ta) > jump(tb) { a } else { b };
+                let t = &mut self.tracks[loser];
+                t.lose();
+                // Remember where it was before it slid, for taking the slot back.
+                t.place = t.previous_place;
+                self.stats.duplicates_dropped += 1;
+                dropped = true;
+            }
+        }
+        dropped
+    }
+
+    /// True when `hips` (frame pixels) lie near a tracked person's hips: the detector's box is
+    /// the face, so its hip keypoint is what says whom it found.
+    fn is_tracked_at(&self, hips: Vec2) -> bool {
+        self.tracks.iter().filter(|t| t.tracked()).any(|t| {
+            t.place
+                .is_some_and(|(_, s)| hip_centre(&t.landmarks).distance(hips) < TRACKED_HIPS * s.y)
+        })
+    }
+
+    /// True when `lm` is the body of someone tracked (see [`same_body`]).
+    fn is_tracked_body(&self, lm: &Landmarks) -> bool {
+        self.tracks
+            .iter()
+            .filter(|t| t.tracked())
+            .any(|t| same_body(&t.landmarks, lm))
+    }
+
+    /// One landmark run at the last crop of each recently lost person: someone hidden for a
+    /// few frames usually reappears where they were, often facing away from the camera where
+    /// the (face-based) detector cannot see them.
+    fn look_where_lost(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        for slot in 0..self.tracks.len() {
+            let t = &self.tracks[slot];
+            if t.tracked() || t.lost_frames > EAGER_FIND_FRAMES {
+                continue;
+            }
+            let Some(roi) = t.last_roi else { continue };
+            self.model.infer(frame, &roi, &mut self.scratch)?;
+            self.stats.inferences += 1;
+            let place = self.tracks[slot].place;
+            if self.scratch.presence >= self.config.presence_threshold
+                && !self.is_tracked_body(&self.scratch)
+                && place.is_none_or(|p| continues(p, body_box(&self.scratch)))
+            {
+                let found = self.scratch;
+                self.tracks[slot].reference = None;
+                self.accept(slot, &found);
+            }
+        }
+        Ok(())
+    }
+
+    /// The detector over the whole frame, then, while someone is still missing, over the
+    /// squares of the short side along the long one: a small or far person the whole-frame
+    /// pass misses appears up to twice as large there.
+    fn find_by_detector(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        Roi::search_candidates(frame.width, frame.height, &mut self.candidates);
+        for region in 0..4 {
+            if self.tracks.iter().all(|t| t.tracked()) {
+                break;
+            }
+            let Some(detector) = self.detector.as_mut() else {
+                return Ok(());
+            };
+            detector.detect_in(frame, &self.candidates[region], &mut self.detections)?;
+            self.stats.detections += 1;
+            self.start_detected(frame)?;
+        }
+        Ok(())
+    }
+
+    /// Starts tracks for this detector pass's detections that are nobody tracked yet.
+    fn start_detected(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        // Nearest (largest body circle) first: performers stand in front of bystanders.
+        self.detections
+            .sort_unstable_by(|a, b| b.body_radius().total_cmp(&a.body_radius()));
+        for i in 0..self.detections.len() {
+            if self.tracks.iter().all(|t| t.tracked()) {
+                break;
+            }
+            let d = self.detections[i];
+            if self.is_tracked_at(d.hip_center) {
+                continue;
+            }
+            let Some(roi) = d.roi() else { continue };
+            self.model.infer(frame, &roi, &mut self.scratch)?;
+            self.stats.inferences += 1;
+            if self.scratch.presence >= self.config.presence_threshold {
+                let found = self.scratch;
+                self.start_track(&found);
+            }
+        }
+        Ok(())
+    }
+
+    fn find_by_search(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         self.stats.searches += 1;
         Roi::search_candidates(frame.width, frame.height, &mut self.candidates);
+        let mut best = Landmarks::default();
         let mut best_presence = -1.0;
         for i in 0..self.candidates.len() {
             let roi = self.candidates[i];
             self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
             if self.scratch.presence > best_presence {
-                best_presence = self.scratch.presence;
-                *out = self.scratch;
+                // A crop showing someone already tracked does not count.
+                if !self.is_tracked_body(&self.scratch) {
+                    best_presence = self.scratch.presence;
+                    best = self.scratch;
+                }
             }
         }
         if best_presence < self.config.presence_threshold {
-            return Ok(false);
+            return Ok(());
         }
         // Re-crop around the person found; keep a refinement only if it is still a person.
         for _ in 0..self.config.refine_passes {
-            let Some(roi) = next_roi(out) else { break };
+            let Some(roi) = next_roi(&best) else { break };
             self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
             if self.scratch.presence < self.config.presence_threshold {
                 break;
             }
-            *out = self.scratch;
+            best = self.scratch;
         }
-        Ok(true)
+        self.start_track(&best);
+        Ok(())
     }
+
+    /// Gives a newly found person a slot: the recently lost slot they are nearest to, else a
+    /// slot nobody held recently. Someone found far from every recently lost person while
+    /// only such slots are free is left alone (most likely a bystander, while the performer
+    /// is hidden).
+    fn start_track(&mut self, lm: &Landmarks) {
+        if self.is_tracked_body(lm) {
+            return;
+        }
+        let center = body_box(lm).0;
+        let window = self.config.reacquire_frames;
+        let recent = |t: &Track| t.place.is_some() && t.lost_frames <= window;
+        let nearest = self
+            .tracks
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| !t.tracked() && recent(t))
+            .filter_map(|(i, t)| {
+                let (c, s) = t.place?;
+                let d = c.distance(center) / s.max_element().max(1.0);
+                (d < 0.5).then_some((i, d))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i);
+        let slot = nearest.or_else(|| self.tracks.iter().position(|t| !t.tracked() && !recent(t)));
+        let Some(slot) = slot else { return };
+        let t = &mut self.tracks[slot];
+        t.reference = None;
+        t.place = None;
+        t.previous_place = None;
+        self.accept(slot, lm);
+        self.stats.tracks_started += 1;
+    }
+}
+
+/// Landmarks compared to tell one body found twice from two bodies that overlap on screen.
+const BODY_POINTS: [usize; 8] = [
+    idx::LEFT_SHOULDER,
+    idx::RIGHT_SHOULDER,
+    idx::LEFT_HIP,
+    idx::RIGHT_HIP,
+    idx::LEFT_KNEE,
+    idx::RIGHT_KNEE,
+    idx::LEFT_ANKLE,
+    idx::RIGHT_ANKLE,
+];
+
+/// True when two landmark sets are the same body: their joints lie on top of each other
+/// (mean distance under a tenth of the body's height). People crossing overlap as boxes but
+/// not joint by joint.
+fn same_body(a: &Landmarks, b: &Landmarks) -> bool {
+    let height = body_box(a).1.y.max(body_box(b).1.y).max(1.0);
+    let mean = BODY_POINTS
+        .iter()
+        .map(|&i| Vec2::new(a.image[i].x - b.image[i].x, a.image[i].y - b.image[i].y).length())
+        .sum::<f32>()
+        / BODY_POINTS.len() as f32;
+    mean < 0.1 * height
+}
+
+/// True when body box `next` can be the same person as `last` one frame later: about the
+/// same height and not far away. Two people crossing differ in both (the one behind looks
+/// smaller), so a crop that slides from one to the other shows up as a jump.
+fn continues(last: (Vec2, Vec2), next: (Vec2, Vec2)) -> bool {
+    let (h0, h1) = (last.1.y.max(1.0), next.1.y.max(1.0));
+    let ratio = h1 / h0;
+    (0.75..=1.33).contains(&ratio) && last.0.distance(next.0) < 0.3 * h0
+}
+
+/// Midpoint of the hips, frame pixels.
+fn hip_centre(lm: &Landmarks) -> Vec2 {
+    let (l, r) = (lm.image[idx::LEFT_HIP], lm.image[idx::RIGHT_HIP]);
+    Vec2::new(l.x + r.x, l.y + r.y) * 0.5
+}
+
+/// The box around the 33 body landmarks (centre, size), frame pixels.
+fn body_box(lm: &Landmarks) -> (Vec2, Vec2) {
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    for p in &lm.image[..NUM_LANDMARKS] {
+        let p = Vec2::new(p.x, p.y);
+        if p.is_finite() {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+    }
+    if lo.x > hi.x {
+        return (Vec2::ZERO, Vec2::ZERO);
+    }
+    ((lo + hi) * 0.5, hi - lo)
 }
 
 fn next_roi(lm: &Landmarks) -> Option<Roi> {

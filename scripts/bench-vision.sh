@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Frame rate of `rigcast pose` (decoding included) on the pose2sim footage, lite and full, in one
+# run with its baselines, so the figures can be read as ratios on whatever load the machine has:
+#
+#   - the same binary with the old per-frame path (`--decode-side 0 --finder search --people 1`)
+#   - RIGCAST_BEFORE=/path/to/rigcast: another build (e.g. of main) run on the same clips
+#   - MediaPipe Python 0.10.14 on the same decoded frames (installed into a throwaway venv under
+#     ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1 leaves it out)
+#
+# Usage: scripts/bench-vision.sh [path/to/rigcast]   (default: target/release/rigcast; build it
+# with `cargo build --release -p rigcast-server`). Needs scripts/setup-vision.sh to have run.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BIN="${1:-${CARGO_TARGET_DIR:-target}/release/rigcast}"
+ROOT="${RIGCAST_HOME:-$HOME/.cache/rigcast}/vision"
+# The two-person demo: 4 cameras × 100 frames, 1088×1920, two performers and a bystander.
+CLIPS=("$ROOT"/pose2sim/multi_cam0{1,2,3,4}.mp4)
+
+# Runs `rigcast pose` over every clip; prints total frames / total seconds.
+run() {
+    local bin="$1"; shift
+    local frames=0 secs=0
+    for clip in "${CLIPS[@]}"; do
+        line=$("$bin" pose "$clip" --json "$@" 2>&1 >/dev/null | grep -E '^pose: [0-9]+ frames' | tail -1)
+        n=$(sed -E 's/^pose: ([0-9]+) frames.*/\1/' <<<"$line")
+        fps=$(sed -E 's/.*\(([0-9.]+) fps\).*/\1/' <<<"$line")
+        frames=$((frames + n))
+        secs=$(python3 -c "print($secs + $n / $fps)")
+    done
+    python3 -c "print(f'{$frames / $secs:.1f}')"
+}
+
+echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+for model in lite full; do
+    two=$(run "$BIN" --model "$model")
+    one=$(run "$BIN" --model "$model" --people 1)
+    old_path=$(run "$BIN" --model "$model" --decode-side 0 --finder search --people 1)
+    one_thread=$(run "$BIN" --model "$model" --people 1 --threads 1)
+    echo "$model: rigcast 2 people $two fps | 1 person $one | old path in this build (full-size decode, search, 1 person) $old_path | 1 person on 1 thread $one_thread"
+    if [[ -n "${RIGCAST_BEFORE:-}" ]]; then
+        echo "$model: before build ($RIGCAST_BEFORE) $(run "$RIGCAST_BEFORE" --model "$model") fps"
+    fi
+done
+
+if [[ "${RIGCAST_SKIP_MEDIAPIPE:-0}" != "1" ]]; then
+    VENV="$HOME/.cache/rigcast/mediapipe-0.10.14"
+    if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c "import mediapipe" 2>/dev/null; then
+        python3 -m venv "$VENV"
+        "$VENV/bin/python" -m pip install -q "mediapipe==0.10.14"
+    fi
+    for model in lite full; do
+        for clip in "${CLIPS[@]}"; do
+            "$VENV/bin/python" scripts/bench_mediapipe.py "$clip" "$model" 2>/dev/null | grep '^mediapipe'
+        done | python3 -c "
+import sys, re
+f = s = m = 0
+for line in sys.stdin:
+    n = int(re.search(r'frames=(\d+)', line).group(1))
+    f += n
+    s += n / float(re.search(r'fps_with_decoding=([\d.]+)', line).group(1))
+    m += n / float(re.search(r'fps_model_only=([\d.]+)', line).group(1))
+print(f'$model: mediapipe {f / s:.1f} fps with decoding, {f / m:.1f} fps model only ({f} frames)')"
+    done
+fi
