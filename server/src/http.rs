@@ -566,8 +566,9 @@ pub fn status(state: &ServerState) -> Status {
 }
 
 fn cluster_status(state: &ServerState) -> Option<rigcast_protocol::status::ClusterStatus> {
-    let site = state.forwarder.as_ref()?.site().to_string();
-    let s = &state.stats;
+    let cluster = state.cluster.as_ref()?;
+    let site = cluster.config.site.clone();
+    let (s, m) = (&state.stats, &cluster.mapping_counts);
     let n = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
     Some(rigcast_protocol::status::ClusterStatus {
         site,
@@ -577,8 +578,8 @@ fn cluster_status(state: &ServerState) -> Option<rigcast_protocol::status::Clust
         control_served: n(&s.cluster_control_served),
         control_refused: n(&s.cluster_control_refused),
         subjects_discovered: n(&s.cluster_subjects_discovered),
-        mappings_from_cluster: n(&s.cluster_mappings_fetched),
-        mappings_shared: n(&s.cluster_mappings_shared),
+        mappings_from_cluster: n(&m.fetched),
+        mappings_shared: n(&m.shared),
     })
 }
 

@@ -4,7 +4,8 @@
 //!  start / set_mapping / source skeleton changed
 //!        │
 //!        ▼
-//!  table = memory cache ▸ disk cache (~/.cache/rigcast/mappings/KEY.json) ▸ auto_map_many
+//!  table = memory cache ▸ disk cache (~/.cache/rigcast/mappings/KEY.json)
+//!          ▸ cluster mode: the nodes' shared cache (crate::cluster::SharedMappings) ▸ auto_map_many
 //!        + overrides file (TOML) + the session's set_mapping overrides
 //!        ──▶ cache (memory + disk, LRU-bounded, written only when changed: mapping_store.rs)
 //!        ──▶ Mapping::build ──▶ mailbox (tick picks it up)
@@ -76,6 +77,8 @@ pub struct Mapper {
     performers: Vec<PerformerPlan>,
     extras: HashMap<u32, SourceExtra>,
     store: MappingStore,
+    /// Cluster mode: automatic tables shared with the other nodes.
+    shared: Option<crate::cluster::SharedMappings>,
     frame_time_secs: f32,
     events: broadcast::Sender<String>,
     options: MapOptions,
@@ -96,6 +99,7 @@ impl Mapper {
             performers,
             extras,
             store: MappingStore::new(disk, DEFAULT_MAX_ENTRIES),
+            shared: None,
             frame_time_secs: (1.0 / rate_hz) as f32,
             events,
             options: MapOptions::default(),
@@ -106,6 +110,12 @@ impl Mapper {
     pub fn with_max_cache_entries(mut self, max_entries: usize) -> Mapper {
         let disk = self.store.take_disk();
         self.store = MappingStore::new(disk, max_entries);
+        self
+    }
+
+    /// Looks up (and offers) automatic tables in the cluster's shared cache too.
+    pub fn with_shared(mut self, shared: Option<crate::cluster::SharedMappings>) -> Mapper {
+        self.shared = shared;
         self
     }
 
@@ -162,8 +172,9 @@ impl Mapper {
         // come from nor go into the cache.
         let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
         let key = CacheKey::new(&src_refs, &target, &self.options);
+        let shared = self.shared.as_ref().filter(|_| use_cache);
         let cached = if use_cache {
-            self.store.get(&key)
+            (self.store.get(&key)).or_else(|| shared.and_then(|s| s.get(&key)))
         } else {
             None
         };
@@ -172,7 +183,11 @@ impl Mapper {
             _ => {
                 let pairs: Vec<(&Skeleton, &Analysis)> =
                     src_refs.iter().copied().zip(&analyses).collect();
-                map_analyzed(&pairs, (&target, &ta), &self.options)
+                let computed = map_analyzed(&pairs, (&target, &ta), &self.options);
+                if let Some(s) = shared {
+                    s.put(&key, &computed);
+                }
+                computed
             }
         };
         if let Some(file) = &p.overrides_file {

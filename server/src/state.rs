@@ -42,6 +42,8 @@ pub struct ServerState {
     pub stalled_client_timeout: std::time::Duration,
     /// The recording's health, if recording (its errors show in the status).
     pub recorder: Option<Arc<RecorderHealth>>,
+    /// Cluster mode: the connection (its settings and counters, for the status).
+    pub cluster: Option<Arc<crate::cluster::Cluster>>,
     /// Cluster mode: where relayed subjects' control requests go.
     pub forwarder: Option<Arc<crate::cluster::Forwarder>>,
 }

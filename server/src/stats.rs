@@ -159,10 +159,6 @@ pub struct Stats {
     pub cluster_control_refused: AtomicU64,
     /// Other nodes' subjects found while running (after the start).
     pub cluster_subjects_discovered: AtomicU64,
-    /// Mapping tables taken from the cluster's shared cache.
-    pub cluster_mappings_fetched: AtomicU64,
-    /// Mapping tables put in the cluster's shared cache.
-    pub cluster_mappings_shared: AtomicU64,
     /// Connected clients by id.
     pub clients: Mutex<BTreeMap<u64, std::sync::Arc<ClientStats>>>,
     tick_micros: Mutex<TickWindow>,
@@ -189,8 +185,6 @@ impl Default for Stats {
             cluster_control_served: AtomicU64::new(0),
             cluster_control_refused: AtomicU64::new(0),
             cluster_subjects_discovered: AtomicU64::new(0),
-            cluster_mappings_fetched: AtomicU64::new(0),
-            cluster_mappings_shared: AtomicU64::new(0),
             clients: Mutex::new(BTreeMap::new()),
             tick_micros: Mutex::new(TickWindow {
                 values: [0; TICK_WINDOW],

@@ -232,7 +232,7 @@ fn binary_rejects_bad_flags_with_clear_errors() {
         (&["--source", "teleport:x"], "unknown source"),
         (&["--source", "vmc:99999"], "vmc:PORT"),
         (&["--source", "replay:"], "unknown source"),
-        (&["--on-lost", "drop"], "expected rest (ease) or hold"),
+        (&["--on-lost", "drop"], "expected rest (ease), hold or idle"),
         (
             &["--config", "/no/such/rigcast.toml"],
             "/no/such/rigcast.toml",

@@ -36,6 +36,39 @@ fn retarget(source: &Clip, plan: &MappingPlan, target: &Clip, lock: bool) -> Cli
     .unwrap()
 }
 
+/// The CMU walk and the zoo's labelled quadrupeds (name, rig); `None` (printed) without the
+/// shared data.
+fn walk_and_quadrupeds() -> Option<(Clip, Vec<(&'static str, Clip)>)> {
+    let walk = common::shared_data("bvh/cmu_131_01_walk.bvh")?;
+    let source = rigcast_sources::load_clip(&walk).unwrap();
+    let mut targets = Vec::new();
+    for rel in [
+        "zoo/gltf/quaternius_quadruped__Horse.glb",
+        "zoo/gltf/quaternius_quadruped__Wolf.glb",
+    ] {
+        let path = common::shared_data(rel)?;
+        targets.push((rel, rigcast_sources::load_rig(&path).unwrap().0));
+    }
+    Some((source, targets))
+}
+
+/// The source's legs and their plants over the whole clip (two-sided).
+fn source_plants(
+    source: &Clip,
+    plan: &MappingPlan,
+) -> (Vec<Leg>, rigcast_retarget::footplant::PlantTrack) {
+    let legs = find_legs(&source.skeleton, &plan.source_analysis);
+    let plants = detect_clip(
+        &source.skeleton,
+        &legs,
+        &source.poses,
+        source.frame_time_secs as f32,
+        plan.source_up,
+        &PlantSettings::default(),
+    );
+    (legs, plants)
+}
+
 fn worlds(c: &Clip) -> Vec<Vec<WorldTransform>> {
     c.poses
         .iter()
@@ -72,19 +105,11 @@ fn bend_axes(w: &[Vec<WorldTransform>], leg: &Leg) -> Vec<Vec3> {
 #[test]
 #[ignore = "not met: the lock lowers the hips under a pinned hock (25 cm); arm-driven front feet float"]
 fn cmu_walk_on_quadrupeds_keeps_four_feet_above_the_floor_without_flips() {
-    let Some(walk) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some((source, targets)) = walk_and_quadrupeds() else {
         return;
     };
-    let source = rigcast_sources::load_clip(&walk).unwrap();
-    for rel in [
-        "zoo/gltf/quaternius_quadruped__Horse.glb",
-        "zoo/gltf/quaternius_quadruped__Wolf.glb",
-    ] {
-        let Some(path) = common::shared_data(rel) else {
-            return;
-        };
-        let target = rigcast_sources::load_rig(&path).unwrap().0;
-        let plan = plan_mapping(&source, &target, None).unwrap();
+    for (rel, target) in &targets {
+        let plan = plan_mapping(&source, target, None).unwrap();
         let legs = find_legs(&target.skeleton, &plan.target_analysis);
         let kinds = |k: LegKind| legs.iter().filter(|l| l.kind == k).count();
         println!(
@@ -124,15 +149,7 @@ fn cmu_walk_on_quadrupeds_keeps_four_feet_above_the_floor_without_flips() {
         );
         let (wf, wl) = (worlds(&free), worlds(&locked));
         let rest = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
-        let source_legs = find_legs(&source.skeleton, &plan.source_analysis);
-        let plants = detect_clip(
-            &source.skeleton,
-            &source_legs,
-            &source.poses,
-            source.frame_time_secs as f32,
-            plan.source_up,
-            &PlantSettings::default(),
-        );
+        let (source_legs, plants) = source_plants(&source, &plan);
         for leg in &legs {
             let name = target.skeleton.name(leg.foot);
             let (df, dl) = (deepest(&wf, &rest, leg), deepest(&wl, &rest, leg));
@@ -183,19 +200,11 @@ fn cmu_walk_on_quadrupeds_keeps_four_feet_above_the_floor_without_flips() {
 /// standing height above the floor.
 #[test]
 fn raised_hind_feet_keep_the_body_at_its_standing_height() {
-    let Some(walk) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some((source, targets)) = walk_and_quadrupeds() else {
         return;
     };
-    let source = rigcast_sources::load_clip(&walk).unwrap();
-    for rel in [
-        "zoo/gltf/quaternius_quadruped__Horse.glb",
-        "zoo/gltf/quaternius_quadruped__Wolf.glb",
-    ] {
-        let Some(path) = common::shared_data(rel) else {
-            return;
-        };
-        let target = rigcast_sources::load_rig(&path).unwrap().0;
-        let plan = plan_mapping(&source, &target, None).unwrap();
+    for (rel, target) in &targets {
+        let plan = plan_mapping(&source, target, None).unwrap();
         let legs = find_legs(&target.skeleton, &plan.target_analysis);
         let free = worlds(&retarget(&source, &plan, &target, false));
         let standing_pose = plan
@@ -210,15 +219,7 @@ fn raised_hind_feet_keep_the_body_at_its_standing_height() {
                 rigcast_retarget::analysis::Side::Center,
             )
             .unwrap();
-        let source_legs = find_legs(&source.skeleton, &plan.source_analysis);
-        let plants = detect_clip(
-            &source.skeleton,
-            &source_legs,
-            &source.poses,
-            source.frame_time_secs as f32,
-            plan.source_up,
-            &PlantSettings::default(),
-        );
+        let (source_legs, plants) = source_plants(&source, &plan);
         let both_down: Vec<usize> = (0..free.len())
             .filter(|&f| (0..source_legs.len()).all(|l| plants.is_planted(f, l)))
             .collect();

@@ -7,8 +7,6 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -21,26 +19,11 @@ use rigcast_server::engine::Subject;
 use rigcast_server::graft_live::LiveGraft;
 use rigcast_server::performer::{BuiltMapping, Performer};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "common/counting.rs"]
+mod counting;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn a_grafted_performer_ticks_without_allocating() {
@@ -114,13 +97,13 @@ fn a_grafted_performer_ticks_without_allocating() {
     let start = t.latest.borrow().pose.translations[pelvis];
     // Over more than one stride, so the loop's seam is crossed.
     let ticks = ((1.5 * stride) / dt.as_secs_f64()) as usize;
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = counting::allocations();
     for k in 0..ticks {
         advance(3 + k);
         performer.tick(now);
         now += dt;
     }
-    let allocated = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocated = counting::allocations() - before;
     let moved = (t.latest.borrow().pose.translations[pelvis] - start).length();
     assert_eq!(
         t.latest.borrow().seq,

@@ -3,8 +3,6 @@
 //! with a counting global allocator, so this file holds only this test.
 #![allow(clippy::unwrap_used)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -18,26 +16,11 @@ use rigcast_server::engine::Subject;
 use rigcast_server::idle_graph::IdleGraph;
 use rigcast_server::performer::{BuiltMapping, Performer};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "common/counting.rs"]
+mod counting;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn walking_the_idle_graph_allocates_nothing() {
@@ -103,13 +86,13 @@ fn walking_the_idle_graph_allocates_nothing() {
     }
     source.health.set_state(SourceState::Lost);
     // The take-over and the walk, counted from the tick that notices the loss.
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = counting::allocations();
     let seq = t.latest.borrow().seq;
     const TICKS: usize = 200;
     for _ in 0..TICKS {
         tick(&mut performer);
     }
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocations = counting::allocations() - before;
     assert_eq!(allocations, 0, "the idle walk allocated");
     // It published a new pose on every tick (moving, not settled).
     assert_eq!(t.latest.borrow().seq, seq + TICKS as u64);

@@ -4,8 +4,6 @@
 //! file holds only this test.
 #![allow(clippy::unwrap_used)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use rigcast_retarget::analysis::{analyze, SkeletonView};
@@ -17,26 +15,11 @@ use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
 use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "common/counting.rs"]
+mod counting;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn tick_allocates_one_buffer_per_subject() {
@@ -137,13 +120,13 @@ fn tick_allocates_one_buffer_per_subject() {
         ticker.tick();
     }
     let target_seq = target_subject.latest.borrow().seq;
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = counting::allocations();
     const TICKS: usize = 100;
     for k in 0..TICKS {
         advance(k + 3);
         ticker.tick();
     }
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocations = counting::allocations() - before;
     assert_eq!(
         allocations,
         TICKS * 4,

@@ -153,6 +153,12 @@ async fn control_requests_are_carried_out_by_the_owning_node() {
             .is_none(),
         "B re-mapped for a refused request"
     );
+    // Each node counted its part: C forwarded 2 requests to B, B served them and refused D's.
+    let (on_b_status, on_c_status) = (cluster_status(&b).await, cluster_status(&c).await);
+    println!("B: {on_b_status}\nC: {on_c_status}");
+    assert_eq!(on_b_status["control_served"], 2);
+    assert_eq!(on_b_status["control_refused"], 1);
+    assert_eq!(on_c_status["control_forwarded"], 3);
 
     // The owner gone: a short error, not a hang.
     drop(a);
@@ -286,4 +292,61 @@ async fn nodes_that_start_later_are_found_and_a_clean_stop_is_a_loss() {
     let relayed: Vec<&String> = sw.keys().filter(|n| n.ends_with("@a")).collect();
     assert_eq!(relayed, vec!["demo@a"]);
     drop(a);
+}
+
+/// The `cluster` part of a node's `/v1/status`.
+async fn cluster_status(p: &rigcast_tests::ServeProcess) -> serde_json::Value {
+    let (_, body) = rigcast_tests::http_get(p.addr, "/v1/status").await;
+    let status: serde_json::Value = serde_json::from_str(&body).unwrap();
+    status["cluster"].clone()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_mapping_computed_on_one_node_is_taken_by_the_next() {
+    let Some(bin) = nats_server() else { return };
+    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
+        .await
+        .unwrap();
+    // Same walk onto the same character on both nodes; no disk cache, so only the
+    // cluster's cache can spare B the computation.
+    let args = |site: &str| -> Vec<String> {
+        let mut v: Vec<String> = ["--nats", &nats.urls(), "--site", site]
+            .map(String::from)
+            .to_vec();
+        v.extend(
+            [
+                "--source",
+                "demo",
+                "--target",
+                "builtin:mannequin",
+                "--no-mapping-cache",
+            ]
+            .map(String::from),
+        );
+        v
+    };
+    let a = spawn_node_with_token(args("a"), "map-a", None).await;
+    let on_a = cluster_status(&a).await;
+    println!("A: {on_a}");
+    assert_eq!(on_a["mappings_shared"], 1);
+    assert_eq!(on_a["mappings_from_cluster"], 0);
+
+    let b = spawn_node_with_token(args("b"), "map-b", None).await;
+    let on_b = cluster_status(&b).await;
+    println!("B: {on_b}");
+    assert_eq!(on_b["mappings_from_cluster"], 1);
+    assert_eq!(on_b["mappings_shared"], 0);
+
+    // And B's performer runs on A's table.
+    let (mut wa, sa) = client_with(&a, None).await;
+    let (mut wb, sb) = client_with(&b, None).await;
+    let ma = next_mapping(&mut wa, sa["mannequin"].id, Duration::from_secs(5)).await;
+    let mb = next_mapping(&mut wb, sb["mannequin"].id, Duration::from_secs(5)).await;
+    let pairs = |m: Option<Vec<MappingEntry>>| -> Vec<(String, Option<String>)> {
+        m.expect("a mapping")
+            .into_iter()
+            .map(|e| (e.target, e.source))
+            .collect()
+    };
+    assert_eq!(pairs(ma), pairs(mb));
 }

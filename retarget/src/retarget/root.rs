@@ -188,25 +188,7 @@ impl RootPlan {
                 scale = sum_t / sum_s;
             }
             // Feet: mapped joints near the lowest one (toes, ankles, both sides).
-            let near = y_t(tl) + 0.15 * first;
-            let mut legs: Vec<BoneId> = Vec::new();
-            contacts = below
-                .iter()
-                .copied()
-                .filter(|(t, _)| y_t(*t) <= near)
-                .map(|(t, s)| {
-                    // The leg: the root's child this joint hangs from.
-                    let mut top = t;
-                    while let Some(p) = tgt.skel.parent(top).filter(|&p| p != rt) {
-                        top = p;
-                    }
-                    let leg = legs.iter().position(|&l| l == top).unwrap_or_else(|| {
-                        legs.push(top);
-                        legs.len() - 1
-                    });
-                    (t, s, leg.min(MAX_LEGS - 1) as u8)
-                })
-                .collect();
+            contacts = contact_pairs(tgt.skel, &below, rt, y_t(tl) + 0.15 * first, &y_t);
             let lowest_s = contacts
                 .iter()
                 .map(|&(_, b, _)| y_s(b))
@@ -251,6 +233,36 @@ impl RootPlan {
             foot_contact: opts.foot_contact,
         }
     }
+}
+
+/// The (target, source, leg) foot pairs: mapped joints below the root no higher than `near`,
+/// each with the index of its leg (the root child it hangs from; more than `MAX_LEGS` share
+/// the last).
+fn contact_pairs(
+    skel: &Skeleton,
+    below: &[(BoneId, BoneId)],
+    rt: BoneId,
+    near: f32,
+    y_t: &dyn Fn(BoneId) -> f32,
+) -> Vec<(BoneId, BoneId, u8)> {
+    let mut legs: Vec<BoneId> = Vec::new();
+    below
+        .iter()
+        .copied()
+        .filter(|(t, _)| y_t(*t) <= near)
+        .map(|(t, s)| {
+            // The leg: the root's child this joint hangs from.
+            let mut top = t;
+            while let Some(p) = skel.parent(top).filter(|&p| p != rt) {
+                top = p;
+            }
+            let leg = legs.iter().position(|&l| l == top).unwrap_or_else(|| {
+                legs.push(top);
+                legs.len() - 1
+            });
+            (t, s, leg.min(MAX_LEGS - 1) as u8)
+        })
+        .collect()
 }
 
 /// Per leg, the raised-contact offset of [`RootPlan::stand`]: the target's lowest contact joint's

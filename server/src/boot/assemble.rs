@@ -98,7 +98,15 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         config.rate_hz,
         events.clone(),
     )
-    .with_max_cache_entries(config.limits.mapping_cache_max_entries);
+    .with_max_cache_entries(config.limits.mapping_cache_max_entries)
+    .with_shared(inputs.cluster.as_ref().map(|link| {
+        let c = &link.cluster;
+        crate::cluster::SharedMappings::new(
+            c.mappings.clone(),
+            tokio::runtime::Handle::current(),
+            c.mapping_counts.clone(),
+        )
+    }));
     let mapper = tokio::task::spawn_blocking(move || {
         mapper.build_all();
         mapper

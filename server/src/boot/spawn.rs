@@ -104,6 +104,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         fd_limit: limits::fd_limit(),
         stalled_client_timeout: Duration::from_secs_f64(config.limits.stalled_client_timeout_secs),
         recorder: recorder.as_ref().map(|r| r.health()),
+        cluster: parts.cluster.as_ref().map(|link| link.cluster.clone()),
         forwarder: (parts.cluster.as_ref())
             .map(|link| Arc::new(link.forwarder(parts.token.token.clone()))),
     });

@@ -216,11 +216,6 @@ impl Forwarder {
         }
     }
 
-    /// This node's site.
-    pub fn site(&self) -> &str {
-        &self.site
-    }
-
     /// Records that local subject `id` is relayed from `origin`.
     pub fn add(&self, id: u32, origin: Origin) {
         if let Ok(mut o) = self.origins.write() {

@@ -9,7 +9,7 @@
 //!                                                                 └──▶ RemoteSource ─▶ B's
 //!                                                                      performers, VMC, status
 //!  subjects ─▶ entry ─▶ JetStream KV "{ns}_subjects", key {site}.{key}: skeleton + mapping
-//!                       (retained: B reads it at start and makes one subject per entry)
+//!                       (retained and watched: B makes one subject per entry, also later)
 //! ```
 //!
 //! - **Who computes what.** A performer (mapping + retarget) runs on the node that has its
@@ -21,12 +21,17 @@
 //!   back (the node restarted) it is live again. Nothing restarts elsewhere.
 //! - **Names.** Subjects are matched across nodes by site and name, never by id (ids are per
 //!   node). On a relaying node a remote subject is called `NAME@SITE`.
-//! - **Discovery.** A node reads the KV bucket when it starts: subjects published after that
-//!   show up on it after its next start.
+//! - **Discovery.** A node reads the KV bucket when it starts and watches it while it runs
+//!   (`discover`): subjects published later become relayed subjects here without a restart.
+//! - **Control.** A change to a relayed subject is carried out by its owner (`control`),
+//!   with the deployment's control token checked there too.
+//! - **Mappings.** The automatic mapper's tables are shared through a second bucket
+//!   (`mappings`), so a pair is mapped once per deployment.
 
 mod control;
 mod discover;
 mod entry;
+mod mappings;
 mod publish;
 mod remote;
 
@@ -39,6 +44,7 @@ use serde::Deserialize;
 pub use control::{run_control_service, subject_of, Forwarder, Origin};
 pub use discover::{run_discovery, Known, LiveThreads};
 pub use entry::{token, SubjectEntry};
+pub use mappings::{MappingShareCounts, SharedMappings};
 pub use publish::run_publisher;
 pub use remote::{run_relay, Change, RemoteFeeds, RemoteSource};
 
@@ -133,6 +139,11 @@ impl ClusterConfig {
         format!("{}_subjects", self.namespace)
     }
 
+    /// The KV bucket of the shared mapping cache.
+    pub fn mappings_bucket(&self) -> String {
+        format!("{}_mappings", self.namespace)
+    }
+
     /// The core NATS subject carrying the frames of subject `key` of `site`.
     pub fn frame_subject(&self, site: &str, key: &str) -> String {
         format!("{}.frame.{site}.{key}", self.namespace)
@@ -150,8 +161,31 @@ pub struct Cluster {
     pub client: async_nats::Client,
     /// The subject bucket.
     pub kv: kv::Store,
+    /// The shared mapping cache's bucket.
+    pub mappings: kv::Store,
+    /// How often the shared mapping cache was used.
+    pub mapping_counts: std::sync::Arc<MappingShareCounts>,
     /// The settings it was made with.
     pub config: ClusterConfig,
+}
+
+/// Largest the shared mapping cache's bucket grows (a table is a few KB); beyond it puts are
+/// refused and tables are computed where needed.
+const MAPPINGS_MAX_BYTES: i64 = 64 << 20;
+
+/// Opens bucket `name`, creating it with `config` when it does not exist yet.
+async fn open_bucket(
+    js: &jetstream::Context,
+    config: kv::Config,
+    servers: &str,
+) -> anyhow::Result<kv::Store> {
+    if let Ok(kv) = js.get_key_value(config.bucket.clone()).await {
+        return Ok(kv);
+    }
+    let name = config.bucket.clone();
+    js.create_key_value(config).await.with_context(|| {
+        format!("cannot open the KV bucket {name} (is JetStream enabled on {servers}?)")
+    })
 }
 
 /// How long connecting to NATS may take at start-up before the server gives up.
@@ -179,27 +213,28 @@ impl Cluster {
                 .and_then(|r| r.map_err(anyhow::Error::from))
                 .with_context(|| format!("cannot connect to NATS at {servers}"))?;
         let js = jetstream::new(client.clone());
-        let kv = match js.get_key_value(config.bucket()).await {
-            Ok(kv) => kv,
-            Err(_) => js
-                .create_key_value(kv::Config {
-                    bucket: config.bucket(),
-                    description: "rigcast subjects: skeleton and mapping per site and name".into(),
-                    history: 1,
-                    num_replicas: config.kv_replicas,
-                    ..Default::default()
-                })
-                .await
-                .with_context(|| {
-                    format!(
-                        "cannot open the KV bucket {} (is JetStream enabled on {servers}?)",
-                        config.bucket()
-                    )
-                })?,
+        let subjects = kv::Config {
+            bucket: config.bucket(),
+            description: "rigcast subjects: skeleton and mapping per site and name".into(),
+            history: 1,
+            num_replicas: config.kv_replicas,
+            ..Default::default()
         };
+        let kv = open_bucket(&js, subjects, &servers).await?;
+        let shared = kv::Config {
+            bucket: config.mappings_bucket(),
+            description: "rigcast mapping cache shared by the nodes".into(),
+            history: 1,
+            max_bytes: MAPPINGS_MAX_BYTES,
+            num_replicas: config.kv_replicas,
+            ..Default::default()
+        };
+        let mappings = open_bucket(&js, shared, &servers).await?;
         Ok(Cluster {
             client,
             kv,
+            mappings,
+            mapping_counts: Default::default(),
             config: config.clone(),
         })
     }
