@@ -4,7 +4,7 @@
 #
 #   - the same binary with the old per-frame path (`--decode-side 0 --finder search --people 1`)
 #   - RIGCAST_BEFORE=/path/to/rigcast: another build (e.g. of main) run on the same clips
-#   - MediaPipe Python 0.10.14 on the same decoded frames (installed into a throwaway venv under
+#   - MediaPipe Python 0.10.14 (its own detector and tracking) on the same decoded frames (installed into a throwaway venv under
 #     ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1 leaves it out)
 #
 # Usage: scripts/bench-vision.sh [path/to/rigcast]   (default: target/release/rigcast; build it
@@ -47,6 +47,17 @@ if [[ "${RIGCAST_SKIP_MEDIAPIPE:-0}" != "1" ]]; then
     if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c "import mediapipe" 2>/dev/null; then
         python3 -m venv "$VENV"
         "$VENV/bin/python" -m pip install -q "mediapipe==0.10.14"
+    fi
+    # The wheel ships only the full landmark model and downloads lite on first use, which a
+    # machine without general internet cannot: take lite from the npm package the setup uses.
+    MP_DIR=$("$VENV/bin/python" -c "import mediapipe, os; print(os.path.dirname(mediapipe.__file__))")
+    LITE="$MP_DIR/modules/pose_landmark/pose_landmark_lite.tflite"
+    if [[ ! -f "$LITE" ]]; then
+        tmp=$(mktemp -d)
+        (cd "$tmp" && npm pack --silent "@mediapipe/pose@0.5.1675469404" >/dev/null 2>&1 \
+            && tar xzf mediapipe-pose-*.tgz)
+        cp "$tmp/package/pose_landmark_lite.tflite" "$LITE"
+        rm -rf "$tmp"
     fi
     for model in lite full; do
         for clip in "${CLIPS[@]}"; do

@@ -106,7 +106,12 @@ fn pose_json_and_bvh_on_real_footage() {
 
     let mut with_person = 0;
     for (i, f) in frames.iter().enumerate() {
-        assert_eq!(f.as_object().unwrap().len(), 3, "frame {i}: {f}");
+        assert_eq!(f.as_object().unwrap().len(), 4, "frame {i}: {f}");
+        // One entry per identity slot (two by default); slot #0 is the top-level person.
+        let people = f["people"].as_array().unwrap();
+        assert_eq!(people.len(), 2, "frame {i}: {f}");
+        assert_eq!(people[0]["image"], f["image"], "frame {i}");
+        assert_eq!(people[0]["world"], f["world"], "frame {i}");
         let t = f["time_secs"].as_f64().unwrap();
         assert!((t - i as f64 / 60.0).abs() < 1e-4, "frame {i}: time {t}");
         match (&f["image"], &f["world"]) {
