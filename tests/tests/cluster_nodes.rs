@@ -190,7 +190,7 @@ async fn wait_state(
     let start = std::time::Instant::now();
     let end = tokio::time::Instant::now() + timeout;
     while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
-        if let ServerMessage::SourceStatus { sources } = next_json(ws, left).await? {
+        if let ServerMessage::SourceStatus { sources, .. } = next_json(ws, left).await? {
             if let Some(s) = sources.iter().find(|s| s.subject == id && s.state == state) {
                 return Some((s.detail.clone(), start.elapsed()));
             }

@@ -1,6 +1,7 @@
 //! `rigcast loadtest` against a real `rigcast serve` on loopback: every client connects, gets
 //! every subject at the tick rate with nothing lagged, and the latencies it reports are
 //! plausible; a server that is not there is a short, clear error.
+#![allow(clippy::unwrap_used)]
 
 use std::process::Command;
 
