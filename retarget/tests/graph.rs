@@ -30,7 +30,7 @@ fn gait(skel: &Skeleton, frames: usize, phase: f32) -> Vec<Pose> {
             let mut p = rest.clone();
             for b in skel.bone_ids().skip(1) {
                 let k = b.0 as f32;
-                let axis = Vec3::new((k * 1.3).sin(), (k * 0.7).cos(), 0.4).normalize();
+                let axis = Vec3::new((k * 1.3).sin(), (k * 0.7).cos(), 0.4).normalize_or_zero();
                 let swing = Quat::from_axis_angle(axis, size * (TAU * t + k * 0.9).sin());
                 p.rotations[b.index()] = rest.rotations[b.index()] * swing;
             }

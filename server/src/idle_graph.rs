@@ -1,5 +1,5 @@
-//! The idle fallback (issue 14, part 4): a motion graph a performer's character walks on while
-//! its source is lost, so it keeps breathing or idling instead of freezing.
+//! The idle fallback: a motion graph a performer's character walks on while its source is
+//! lost, so it keeps breathing or idling instead of freezing.
 //!
 //! ```text
 //!  at start (blocking):  .rmg + its clips ─▶ clips on one rig (clip 0's) ─▶ Playback

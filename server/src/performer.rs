@@ -7,8 +7,8 @@
 //!  source lost:  from = display at loss ──slerp (0.5 s)──▶ the character's own rest, where it
 //!                stands; or hold `from`; or (idle graph) from ──blend (the graph's
 //!                cross-fade time) onto a walk on the graph from the nearest node (`idle_graph`)
-//!  source back:  from = display at return ──blend onto the moving live pose (0.2 s; 0.3 s
-//!                after an idle graph; `resume_secs`)──▶ live
+//!  source back:  from = display at return ──blend onto the moving live pose, each bone
+//!                turning one way (0.2 s; 0.3 s after an idle graph; `resume_secs`)──▶ live
 //! ```
 //!
 //! Mappings are built off the tick (see `mapper`) and handed over through a mailbox the tick
@@ -462,7 +462,18 @@ impl Performer {
         };
         let k =
             smoothstep(now.duration_since(t0).as_secs_f32() / self.resume.as_secs_f32().max(1e-3));
-        self.display.interpolate_into(&self.from, &self.live, k);
+        // Onto the moving live pose, each bone turning one way: an idle graph's arm can stand
+        // near 180° from the performer's, and a plain slerp would flip to the other short arc
+        // (a whole-arm swing in one frame) when the live arm crosses that line.
+        let fresh = std::mem::take(&mut self.blend_fresh);
+        blend_onto(
+            &self.from,
+            &self.live,
+            k,
+            &mut self.turns,
+            fresh,
+            &mut self.display,
+        );
         if k >= 1.0 {
             self.phase = Phase::Live;
         }
@@ -511,4 +522,51 @@ struct InputRead {
     changed: bool,
     captures: [u64; MAX_INPUTS],
     lost: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Quat, Vec3};
+
+    fn one_bone(q: Quat) -> Pose {
+        Pose {
+            rotations: vec![q],
+            translations: vec![Vec3::ZERO],
+        }
+    }
+
+    /// Halfway from no turn onto a bone turning past 180° about Z: the blend is half of the
+    /// turn the bone has made (85° … 95°), continuing the same way, where a slerp between
+    /// the poses flips to −85° once the turn passes 180°.
+    #[test]
+    fn a_blend_onto_a_bone_crossing_180_degrees_keeps_turning_one_way() {
+        let from = one_bone(Quat::IDENTITY);
+        let mut turns = one_bone(Quat::IDENTITY);
+        let mut out = one_bone(Quat::IDENTITY);
+        for (i, degrees) in (170..=190).enumerate() {
+            let theta = (degrees as f32).to_radians();
+            let onto = one_bone(Quat::from_rotation_z(theta));
+            blend_onto(&from, &onto, 0.5, &mut turns, i == 0, &mut out);
+            let expected = Quat::from_rotation_z(theta * 0.5);
+            let off = out.rotations[0].angle_between(expected).to_degrees();
+            // 0.1°: acos near 1 in f32 resolves no finer; a flip would be 170° off.
+            assert!(off < 0.1, "at {degrees}°: {off}° off half the turn");
+        }
+    }
+
+    /// The first blend takes the short arc, as a slerp between the two poses does.
+    #[test]
+    fn a_fresh_blend_matches_the_short_arc_slerp() {
+        let from = one_bone(Quat::from_rotation_y(2.0));
+        let onto = one_bone(Quat::from_rotation_x(-1.5) * Quat::from_rotation_z(0.7));
+        let mut turns = one_bone(Quat::IDENTITY);
+        let (mut out, mut slerped) = (from.clone(), from.clone());
+        for k in [0.0, 0.3, 0.8, 1.0] {
+            blend_onto(&from, &onto, k, &mut turns, true, &mut out);
+            slerped.interpolate_into(&from, &onto, k);
+            let off = out.rotations[0].angle_between(slerped.rotations[0]);
+            assert!(off < 1e-3, "k {k}: {off} rad from the slerp");
+        }
+    }
 }

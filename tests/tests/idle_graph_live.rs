@@ -1,15 +1,16 @@
-//! The idle fallback (issue 14, part 4) through the real server: a VMC performer drives the
-//! built-in mannequin, whose `idle_graph` is a motion graph built here from the real CMU walk
-//! and run (a different rig: the server retargets it). The sender stops; once the server
-//! declares the source lost the mannequin moves on within 100 ms, neither frozen nor at rest,
-//! and its limbs take the graph's poses, not the performer's; the sender resumes and after the
-//! resume blend (0.3 s) the upper body is the live motion again.
+//! The idle fallback through the real server: a VMC performer drives the built-in mannequin,
+//! whose `idle_graph` is a motion graph built here from the real CMU walk and run (a different
+//! rig: the server retargets it). The sender stops; once the server declares the source lost
+//! the mannequin moves on within 100 ms, neither frozen nor at rest, and its limbs take the
+//! graph's poses, not the performer's; `source_status` says `idle_graph` within 200 ms. The
+//! sender resumes and after the resume blend (0.3 s) the upper body is the live motion again.
 //!
 //! The jump bound, derived from the motions themselves in this run: no published frame moves
-//! any joint further than twice the larger of the two motions' own 99th-percentile per-frame
-//! joint displacement (live frames before the loss, graph frames once the take-over blend is
-//! over) — the issue's "2× the clip's own p99 frame-to-frame change" applied to both sides of
-//! each hand-over. Skips when the shared data is absent.
+//! any joint further per tick than twice the larger of the two motions' own 99th-percentile
+//! per-tick joint displacement (live frames before the loss, graph frames once the take-over
+//! blend is over) — twice the clip's own p99 frame-to-frame change, applied to both sides of
+//! both hand-overs (the take-over and the hand-back). Per tick: a frame after a stalled tick
+//! may cover the ticks it missed. Skips when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -27,8 +28,13 @@ use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::*;
 
 const TARGET: u32 = 1;
+const RATE_HZ: f64 = 60.0;
 const LOST_AFTER_SECS: f32 = 0.25;
 const RESUME_SECS: f64 = 0.3;
+/// A target's motion reaches clients within this of its source's loss or return: the server
+/// looks every 50 ms, plus a tick and a loaded machine's scheduling (the periodic report alone
+/// would take up to 1 s).
+const LABEL_WITHIN_MS: f64 = 200.0;
 
 /// What the client saw, with receive times (Unix ns).
 #[derive(Default)]
@@ -98,6 +104,25 @@ fn joint_steps(skel: &Skeleton, frames: &[&(DecodedFrame, u64)]) -> Vec<f32> {
         .collect()
 }
 
+/// [`joint_steps`] per tick period: a frame published after the server's tick stalled (the
+/// machine is shared) covers the ticks it missed, at the motion's own speed. A snap covers
+/// its distance in one tick and is still caught.
+fn joint_steps_per_tick(skel: &Skeleton, frames: &[&(DecodedFrame, u64)]) -> Vec<f32> {
+    let tick_nanos = 1e9 / RATE_HZ;
+    joint_steps(skel, frames)
+        .into_iter()
+        .zip(frames.windows(2))
+        .map(|(step, w)| {
+            let nanos = w[1]
+                .0
+                .header
+                .send_nanos
+                .saturating_sub(w[0].0.header.send_nanos);
+            step / (nanos as f64 / tick_nanos).round().max(1.0) as f32
+        })
+        .collect()
+}
+
 fn p99(mut v: Vec<f32>) -> f32 {
     v.sort_by(f32::total_cmp);
     v[((v.len() - 1) as f32 * 0.99) as usize]
@@ -159,7 +184,7 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     let names: Vec<String> = live.skeleton.names().to_vec();
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        rate_hz: 60.0,
+        rate_hz: RATE_HZ,
         sources: vec![SourceSpec::Vmc {
             port: 0,
             bind: rigcast_server::config::DEFAULT_VMC_BIND,
@@ -330,37 +355,81 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
         let steps = joint_steps(&skel, w);
         assert!(steps.iter().sum::<f32>() > 0.005, "frozen on the graph");
     }
+    // The label follows the tick's change at once, not at the next once-a-second report.
+    let idle_label = seen
+        .motions
+        .iter()
+        .find(|&&(t, m)| t >= lost_at && t < resumed_at && m == TargetMotion::IdleGraph)
+        .unwrap_or_else(|| panic!("source_status never said idle_graph: {:?}", seen.motions));
+    let idle_label_ms = ms(idle_label.0, lost_at);
+    println!("idle_graph said {idle_label_ms:.0} ms after the loss");
     assert!(
-        seen.motions
-            .iter()
-            .any(|&(t, m)| t > lost_at && t < resumed_at && m == TargetMotion::IdleGraph),
-        "source_status never said idle_graph: {:?}",
-        seen.motions
+        idle_label_ms <= LABEL_WITHIN_MS,
+        "idle_graph said {idle_label_ms:.0} ms after the loss"
     );
 
-    // Back on live within the resume blend: the upper body (the foot lock only moves legs)
-    // matches the live motion seen before the loss.
+    // Back on live after the resume blend: said within the blend's time (and the label's
+    // delay) of the return, and from then on the upper body (the foot lock only moves legs)
+    // matches the live motion seen before the loss. From the label, not a fixed time: a tick
+    // stalled on the shared machine can end the blend late.
     let back_at = seen.back_at.expect("the source never came back");
-    let settled = between(back_at + ms_ns(RESUME_SECS * 1000.0 + 100.0), u64::MAX);
+    let live_again = seen
+        .motions
+        .iter()
+        .find(|&&(t, m)| t >= back_at && m == TargetMotion::Live)
+        .unwrap_or_else(|| panic!("source_status never said live again: {:?}", seen.motions));
+    let live_again_ms = ms(live_again.0, back_at);
+    println!("live said {live_again_ms:.0} ms after the return");
+    assert!(
+        live_again_ms <= RESUME_SECS * 1000.0 + LABEL_WITHIN_MS,
+        "live said {live_again_ms:.0} ms after the return"
+    );
+    let settled = between(live_again.0, u64::MAX);
     assert!(settled.len() > 20, "too few frames after the resume");
     let back_err = settled
         .iter()
         .map(|(f, _)| best_match_degrees(&live_on_target, &upper, f))
         .fold(0.0f32, f32::max);
-    println!("after the resume blend: worst upper-body match to live {back_err:.2}°");
-    assert!(back_err < 1.0, "not back on live motion ({back_err:.2}°)");
+    // A live pose the client did not see before the loss (a tick on the loaded machine that
+    // took two source frames at once) is at most one live step from one it saw.
+    let live_step = live_before
+        .windows(2)
+        .map(|w| best_match_degrees(&[pose_of(&skel, &w[0].0)], &upper, &w[1].0))
+        .fold(1.0f32, f32::max);
+    println!(
+        "after the resume blend: worst upper-body match to live {back_err:.2}° (largest live step {live_step:.2}°)"
+    );
+    let off_graph = seen
+        .motions
+        .iter()
+        .find(|&&(t, m)| t >= back_at && m != TargetMotion::IdleGraph)
+        .unwrap_or_else(|| panic!("source_status stayed on idle_graph: {:?}", seen.motions));
+    let off_graph_ms = ms(off_graph.0, back_at);
+    println!("{} said {off_graph_ms:.0} ms after the return", off_graph.1);
+    assert!(
+        off_graph_ms <= LABEL_WITHIN_MS,
+        "{} said {off_graph_ms:.0} ms after the return",
+        off_graph.1
+    );
+    assert!(
+        back_err <= live_step,
+        "not back on live motion ({back_err:.2}°, live step {live_step:.2}°)"
+    );
 
-    // No frame of the take-over jumps further than twice the larger motion's own p99 step.
-    let live_p99 = p99(joint_steps(&skel, &live_before));
-    let graph_p99 = p99(joint_steps(&skel, &on_graph));
+    // No frame of the take-over or the hand-back jumps further than twice the larger motion's
+    // own p99 step.
+    let live_p99 = p99(joint_steps_per_tick(&skel, &live_before));
+    let graph_p99 = p99(joint_steps_per_tick(&skel, &on_graph));
     let bound = 2.0 * live_p99.max(graph_p99);
     let worst_in = |a: u64, b: u64| {
-        joint_steps(&skel, &between(a, b))
+        joint_steps_per_tick(&skel, &between(a, b))
             .into_iter()
             .fold(0.0f32, f32::max)
     };
     let take_over = worst_in(last_live.1, lost_at + ms_ns(blend + 100.0));
-    let hand_back = worst_in(back_at.saturating_sub(ms_ns(50.0)), u64::MAX);
+    // From the sender's restart (before the server can see it), so the window holds the
+    // whole resume blend however late the status message came.
+    let hand_back = worst_in(resumed_at, u64::MAX);
     println!(
         "joint steps: live p99 {:.1} mm, graph p99 {:.1} mm, bound {:.1} mm; worst over the take-over {:.1} mm, over the hand-back {:.1} mm",
         live_p99 * 1e3,
@@ -371,7 +440,11 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     );
     assert!(
         take_over <= bound,
-        "a frame jumped {take_over} m (bound {bound} m)"
+        "a frame of the take-over jumped {take_over} m (bound {bound} m)"
+    );
+    assert!(
+        hand_back <= bound,
+        "a frame of the hand-back jumped {hand_back} m (bound {bound} m)"
     );
     let _ = std::fs::remove_file(graph_file);
 }

@@ -1,21 +1,21 @@
-//! The viewer shows a performer's state (issues 13 and 15), in real headless Chromium against
-//! the real server:
+//! The viewer shows a performer's state, in real headless Chromium against the real server:
 //! - foot plants: the CMU walk (shared data; skipped with a printed reason when absent) drives
 //!   the built-in mannequin with its foot lock; a marker lies on the floor under each planted
 //!   foot (right below the foot's drawn joint) and disappears when the foot lifts, each foot
 //!   seen both ways; the page's markers follow the server's `footplants` messages;
 //! - source lost: a VMC source whose sender stops turns `lost`, and the target's label says
-//!   "source lost" (and its bones dim) until the sender returns;
+//!   "source lost" (and its bones dim) until the sender returns; with an idle graph (shared
+//!   data) it also says "on idle graph", promptly;
 //! - controls: pause, the subject picker, follow and orbit (see the last test).
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashSet;
 use std::time::{Duration, Instant};
 
-use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
+use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::chromium::DevTools;
-use rigcast_tests::{clip_source, find_app, shared_data};
+use rigcast_tests::{clip_source, find_app, send_vmc_pose, shared_data};
 use serde_json::json;
 
 static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
@@ -145,60 +145,10 @@ async fn viewer_says_when_a_targets_source_is_lost() {
         return;
     };
     let _one = ONE_BROWSER.lock().await;
-    let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
-    let names: Vec<String> = clip.skeleton.names().to_vec();
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![SourceSpec::Vmc {
-            port: 0,
-            bind: rigcast_server::config::DEFAULT_VMC_BIND,
-            allowed_senders: Vec::new(),
-            lost_after_secs: Some(0.25),
-            name: Some("performer".into()),
-        }],
-        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
-        ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let (_, status) = rigcast_tests::http_get(server.local_addr(), "/v1/status").await;
-    let status: serde_json::Value = serde_json::from_str(&status).unwrap();
-    let vmc: std::net::SocketAddr = status["subjects"][0]["listen"]
-        .as_str()
-        .unwrap()
-        .parse()
-        .unwrap();
-    let to: std::net::SocketAddr = format!("127.0.0.1:{}", vmc.port()).parse().unwrap();
-
-    // The sender: one pose set every 1/30 s while `sending`.
+    let (server, to) = start_vmc_server(PerformerSpec::target_file("builtin:mannequin")).await;
     let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sender = {
-        let (sending, stop) = (sending.clone(), stop.clone());
-        std::thread::spawn(move || {
-            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-            let mut enc = VmcEncoder::new();
-            let mut k = 0usize;
-            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                if sending.load(std::sync::atomic::Ordering::Relaxed) {
-                    let pose = &clip.poses[k % clip.poses.len()];
-                    let bones = names
-                        .iter()
-                        .zip(&pose.translations)
-                        .zip(&pose.rotations)
-                        .map(|((name, &translation), &rotation)| VmcBone {
-                            name,
-                            translation,
-                            rotation,
-                        });
-                    for bundle in enc.encode(k as f32 / 30.0, bones) {
-                        let _ = socket.send_to(bundle, to);
-                    }
-                    k += 1;
-                }
-                std::thread::sleep(Duration::from_millis(33));
-            }
-        })
-    };
+    let sender = spawn_sender(to, sending.clone(), stop.clone());
     let (browser, mut cdp) =
         DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
     let probe = "JSON.stringify((() => { const v = window.rigcast?.views?.get(1); return v ? { lost: v.lost, label: v.subjectLabel.textContent } : null; })())";
@@ -238,6 +188,148 @@ async fn viewer_says_when_a_targets_source_is_lost() {
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+}
+
+/// A server with one VMC source (lost after 0.25 s of silence) driving `performer`; the
+/// source's UDP address.
+async fn start_vmc_server(
+    performer: PerformerSpec,
+) -> (rigcast_server::ServerHandle, std::net::SocketAddr) {
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![SourceSpec::Vmc {
+            port: 0,
+            bind: rigcast_server::config::DEFAULT_VMC_BIND,
+            allowed_senders: Vec::new(),
+            lost_after_secs: Some(0.25),
+            name: Some("performer".into()),
+        }],
+        performers: vec![performer],
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let (_, status) = rigcast_tests::http_get(server.local_addr(), "/v1/status").await;
+    let status: serde_json::Value = serde_json::from_str(&status).unwrap();
+    let vmc: std::net::SocketAddr = status["subjects"][0]["listen"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let to = format!("127.0.0.1:{}", vmc.port()).parse().unwrap();
+    (server, to)
+}
+
+/// The sender: the demo clip, one pose set every 1/30 s while `sending`, until `stop`.
+fn spawn_sender(
+    to: std::net::SocketAddr,
+    sending: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> std::thread::JoinHandle<()> {
+    let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
+    let names: Vec<String> = clip.skeleton.names().to_vec();
+    std::thread::spawn(move || {
+        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut enc = VmcEncoder::new();
+        let mut k = 0usize;
+        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            if sending.load(std::sync::atomic::Ordering::Relaxed) {
+                let pose = &clip.poses[k % clip.poses.len()];
+                send_vmc_pose(&socket, to, &mut enc, &names, pose, k as f32 / 30.0);
+                k += 1;
+            }
+            std::thread::sleep(Duration::from_millis(33));
+        }
+    })
+}
+
+/// Builds an idle graph from the real CMU walk and run into a temporary `.rmg` file.
+fn build_idle_graph() -> Option<std::path::PathBuf> {
+    let paths = [
+        shared_data("bvh/cmu_131_01_walk.bvh")?,
+        shared_data("bvh/cmu_run.bvh")?,
+    ];
+    let clips: Vec<_> = paths
+        .iter()
+        .map(|p| rigcast_sources::load_clip(p).unwrap())
+        .collect();
+    let settings = rigcast_retarget::graph::GraphSettings::default();
+    let mut graph =
+        rigcast_retarget::graph::MotionGraph::build(&clips, settings, &mut |_| {}).unwrap();
+    for (c, p) in graph.clips.iter_mut().zip(&paths) {
+        c.path = Some(std::fs::canonicalize(p).unwrap().display().to_string());
+    }
+    let file = rigcast_tests::temp_path("viewer_idle.rmg");
+    std::fs::write(&file, graph.to_json()).unwrap();
+    Some(file)
+}
+
+/// A performer on an idle graph: each time its source is lost the target's label says so, and
+/// that it is on the idle graph, within 300 ms of saying "source lost" (the motion reaches the
+/// page as soon as the tick changes it, not with the next once-a-second status; polled every
+/// 20 ms here), and drops both when the sender returns.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn viewer_says_when_a_target_walks_its_idle_graph() {
+    let Some(chromium) = find_app("chromium") else {
+        return;
+    };
+    let Some(graph_file) = build_idle_graph() else {
+        return;
+    };
+    let _one = ONE_BROWSER.lock().await;
+    let performer = PerformerSpec {
+        on_lost: Some(rigcast_server::config::OnLost::Idle),
+        idle_graph: Some(graph_file.clone()),
+        ..PerformerSpec::target_file("builtin:mannequin")
+    };
+    let (server, to) = start_vmc_server(performer).await;
+    let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let sender = spawn_sender(to, sending.clone(), stop.clone());
+    let (browser, mut cdp) =
+        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let label = "window.rigcast?.views?.get(1)?.subjectLabel?.textContent ?? ''";
+    // The first time the label satisfies `want`, polled every 20 ms for up to 20 s.
+    async fn first(cdp: &mut DevTools, label: &str, want: impl Fn(&str) -> bool) -> Instant {
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(20) {
+            if cdp.eval(label).await.as_str().is_some_and(&want) {
+                return Instant::now();
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        panic!("the label never changed: {}", cdp.eval(label).await);
+    }
+    let t0 = first(&mut cdp, label, |l| {
+        !l.is_empty() && !l.contains("source lost")
+    })
+    .await;
+    // Three losses a third of a second apart in the phase of the once-a-second report: a
+    // label that waited for that report would be late (over 300 ms) in at least one.
+    let mut worst_ms = 0.0f64;
+    for i in 0..3 {
+        let at = t0 + Duration::from_millis(1000 + 3333 * i);
+        tokio::time::sleep_until(at.into()).await;
+        sending.store(false, std::sync::atomic::Ordering::Relaxed);
+        let lost = first(&mut cdp, label, |l| l.contains("source lost")).await;
+        let idle = first(&mut cdp, label, |l| l.contains("idle graph")).await;
+        let idle_ms = idle.duration_since(lost).as_secs_f64() * 1e3;
+        let shown = cdp.eval(label).await;
+        sending.store(true, std::sync::atomic::Ordering::Relaxed);
+        first(&mut cdp, label, |l| {
+            !l.is_empty() && !l.contains("source lost")
+        })
+        .await;
+        println!("viewer: loss {i}: {shown} shown {idle_ms:.0} ms after \"source lost\"");
+        worst_ms = worst_ms.max(idle_ms);
+    }
+    assert!(worst_ms <= 300.0, "idle graph label {worst_ms:.0} ms late");
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    sender.join().unwrap();
+    assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
+    let _ = cdp.call("Browser.close", json!({})).await;
+    drop(browser);
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let _ = std::fs::remove_file(graph_file);
 }
 
 /// The viewer's controls on the default demo: pause holds the drawn pose while frames keep

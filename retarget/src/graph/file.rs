@@ -124,7 +124,7 @@ fn check(g: &MotionGraph) -> Result<(), String> {
     let mut last = 0;
     for t in &g.transitions {
         let (a, b) = (t.from as usize, t.to as usize);
-        if !(g.is_kept(a) && g.is_kept(b)) || !t.distance.is_finite() || t.from < last {
+        if !(g.is_kept(a) && g.is_kept(b) && t.distance.is_finite()) || t.from < last {
             return Err(format!(
                 "transition {a} → {b} is unsorted, leaves the kept nodes or has no distance"
             ));

@@ -208,7 +208,7 @@ pub fn find_similar(
         }
     }
     progress(1.0);
-    out.sort_by(|x, y| (x.a, x.b).cmp(&(y.a, y.b)));
+    out.sort_by_key(|x| (x.a, x.b));
     out
 }
 

@@ -283,22 +283,54 @@ impl Supervisor {
     }
 }
 
-/// Broadcasts `source_status` about once per second.
+/// How often the status task looks at the targets' motions: a change (a target starting on
+/// its idle graph, resuming, back live) reaches clients within this and a tick, instead of
+/// waiting for the once-a-second report. Polling keeps the tick free of any wake-up call.
+const MOTION_POLL: Duration = Duration::from_millis(50);
+
+/// Broadcasts `source_status` about once per second, and as soon as a target's motion changes.
 async fn run_source_status(
     subjects: Arc<crate::subject_list::SubjectList>,
     events: broadcast::Sender<String>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    let mut interval = tokio::time::interval(Duration::from_secs(1));
+    let mut poll = tokio::time::interval(MOTION_POLL);
+    poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut last_sent: Option<std::time::Instant> = None;
+    let mut motions = Vec::new();
     loop {
         tokio::select! {
-            _ = interval.tick() => {}
+            _ = poll.tick() => {}
             _ = shutdown.changed() => break,
         }
+        let now = subjects.snapshot();
+        let changed = motions_changed(&now, &mut motions);
+        let due = last_sent.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
+        if !(changed || due) {
+            continue;
+        }
+        last_sent = Some(std::time::Instant::now());
         if events.receiver_count() == 0 {
             continue;
         }
         // No receiver between the check and the send: nobody to tell.
-        let _ = events.send(crate::source_status_json(&subjects.snapshot()));
+        let _ = events.send(crate::source_status_json(&now));
     }
+}
+
+/// Whether any target's motion differs from `seen` (then updated to the current ones).
+fn motions_changed(
+    subjects: &[Arc<crate::subject::Subject>],
+    seen: &mut Vec<(u32, rigcast_protocol::TargetMotion)>,
+) -> bool {
+    let current = subjects
+        .iter()
+        .filter(|s| s.is_target())
+        .map(|s| (s.id, s.stats.motion.load()));
+    if current.clone().eq(seen.iter().copied()) {
+        return false;
+    }
+    seen.clear();
+    seen.extend(current);
+    true
 }

@@ -228,18 +228,21 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Per target bone, keyed by its name: source bone, score, evidence, colours.
+type PerBoneMaps = (
+    Map<String, Value>,
+    Map<String, Value>,
+    Map<String, Value>,
+    Map<String, Value>,
+);
+
 /// Per target bone: its source bone's name, score, evidence and colours, as JSON maps.
 fn per_bone_json(
     ss: &Skeleton,
     ts: &Skeleton,
     table: &MappingTable,
     colors: &[Option<BoneColors>],
-) -> (
-    Map<String, Value>,
-    Map<String, Value>,
-    Map<String, Value>,
-    Map<String, Value>,
-) {
+) -> PerBoneMaps {
     let mut mapping = Map::new();
     let mut scores = Map::new();
     let mut evidence = Map::new();
