@@ -56,24 +56,6 @@ scene.add(keyLight);
 const rig = new CameraRig(camera, canvas);
 const budget = new FrameBudget(renderer);
 state.perf = () => ({ ...budget.report(), software });
-/** What one render costs the renderer itself (waiting for it to finish), with and without the
- *  meshes, in ms: tells the page's own drawing apart from a busy machine or browser. */
-state.renderCost = (renders = 5) => {
-  const gl = renderer.getContext();
-  const time = () => {
-    gl.finish();
-    const t0 = performance.now();
-    for (let i = 0; i < renders; i++) { renderer.render(scene, camera); gl.finish(); }
-    return (performance.now() - t0) / renders;
-  };
-  const meshes = [...state.views.values()].map((v) => v.model?.root).filter(Boolean);
-  const withMeshes = time();
-  const shown = meshes.map((m) => m.visible);
-  meshes.forEach((m) => { m.visible = false; });
-  const withoutMeshes = time();
-  meshes.forEach((m, i) => { m.visible = shown[i]; });
-  return { withMeshes, withoutMeshes, pixels: renderer.domElement.width * renderer.domElement.height };
-};
 state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
 const labelLayer = $('labels');
 
