@@ -431,6 +431,10 @@ impl ServeProcess {
         cmd.args(["serve", "--listen", listen])
             .args(args)
             .env("XDG_CONFIG_HOME", &config_home)
+            // Its own mapping cache too: a test's set_mapping overrides are kept in the cache
+            // (by design, they survive restarts) and must not reach other tests' servers.
+            .env("XDG_CACHE_HOME", config_home.join("cache"))
+            .env_remove("RIGCAST_CACHE_DIR")
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped());
         if let Some(n) = max_open_files {
