@@ -21,10 +21,8 @@ use glam::Vec3;
 use rigcast_retarget::footplant::{
     detect_clip, find_legs, FootLock, Leg, LockSettings, PlantSettings, PlantTrack,
 };
-use rigcast_retarget::{
-    world_transforms, Clip, Mapping, RetargetOptions, RootMotion, WorldTransform,
-};
-use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked, MappingPlan};
+use rigcast_retarget::{world_transforms, Clip, Mapping, RetargetOptions, WorldTransform};
+use rigcast_server::cmd::retarget::plan_mapping;
 
 /// Figures of one output.
 #[derive(Debug, Clone, Copy)]
@@ -35,19 +33,6 @@ struct Quality {
     /// Largest change of a heel or ball joint's per-frame move (its second difference): a
     /// pop shows here as a spike, a smooth swing does not.
     largest_kick_cm: f32,
-}
-
-fn retarget(source: &Clip, plan: &MappingPlan, target: &Clip, lock: bool) -> Clip {
-    let opts = plan.retarget_options(source, RootMotion::default());
-    retarget_clip_locked(
-        source,
-        &target.skeleton,
-        &plan.table,
-        &opts,
-        lock.then_some(plan),
-        false,
-    )
-    .unwrap()
 }
 
 /// Each leg's knee bend axis in its thigh's frame, averaged over the strongly bent frames of
@@ -171,11 +156,11 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
             .collect();
         assert_eq!(legs.len(), 2, "{name}: both legs paired with the source's");
         let rest = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
-        let free_clip = retarget(&source, &plan, target, false);
+        let free_clip = common::retarget(&source, &plan, target, false);
         let axes = bend_axes(&free_clip, &legs);
         let free = measure(&free_clip, &legs, &plants, &rest, &axes);
         let locked = measure(
-            &retarget(&source, &plan, target, true),
+            &common::retarget(&source, &plan, target, true),
             &legs,
             &plants,
             &rest,

@@ -20,21 +20,8 @@ mod common;
 
 use glam::Vec3;
 use rigcast_retarget::footplant::{detect_clip, find_legs, Leg, LegKind, PlantSettings};
-use rigcast_retarget::{world_transforms, Clip, RetargetOptions, RootMotion, WorldTransform};
-use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked, MappingPlan};
-
-fn retarget(source: &Clip, plan: &MappingPlan, target: &Clip, lock: bool) -> Clip {
-    let opts = plan.retarget_options(source, RootMotion::default());
-    retarget_clip_locked(
-        source,
-        &target.skeleton,
-        &plan.table,
-        &opts,
-        lock.then_some(plan),
-        false,
-    )
-    .unwrap()
-}
+use rigcast_retarget::{world_transforms, Clip, RetargetOptions, WorldTransform};
+use rigcast_server::cmd::retarget::{plan_mapping, MappingPlan};
 
 /// The CMU walk and the zoo's labelled quadrupeds (name, rig); `None` (printed) without the
 /// shared data.
@@ -144,8 +131,8 @@ fn cmu_walk_on_quadrupeds_keeps_four_feet_above_the_floor_without_flips() {
             mapping.target_floor().map(|f| f.1)
         );
         let (free, locked) = (
-            retarget(&source, &plan, &target, false),
-            retarget(&source, &plan, &target, true),
+            common::retarget(&source, &plan, &target, false),
+            common::retarget(&source, &plan, &target, true),
         );
         let (wf, wl) = (worlds(&free), worlds(&locked));
         let rest = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
@@ -206,7 +193,7 @@ fn raised_hind_feet_keep_the_body_at_its_standing_height() {
     for (rel, target) in &targets {
         let plan = plan_mapping(&source, target, None).unwrap();
         let legs = find_legs(&target.skeleton, &plan.target_analysis);
-        let free = worlds(&retarget(&source, &plan, &target, false));
+        let free = worlds(&common::retarget(&source, &plan, &target, false));
         let standing_pose = plan
             .target_reference
             .clone()

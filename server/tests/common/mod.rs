@@ -17,3 +17,23 @@ pub fn shared_data(relative: &str) -> Option<PathBuf> {
         None
     }
 }
+
+/// `source` retarget onto `target` offline with `plan`'s own options (default root motion),
+/// its feet locked when `lock`: what the foot-lock tests compare, locked against free.
+pub fn retarget(
+    source: &rigcast_retarget::Clip,
+    plan: &rigcast_server::cmd::retarget::MappingPlan,
+    target: &rigcast_retarget::Clip,
+    lock: bool,
+) -> rigcast_retarget::Clip {
+    let opts = plan.retarget_options(source, rigcast_retarget::RootMotion::default());
+    rigcast_server::cmd::retarget::retarget_clip_locked(
+        source,
+        &target.skeleton,
+        &plan.table,
+        &opts,
+        lock.then_some(plan),
+        false,
+    )
+    .unwrap()
+}
