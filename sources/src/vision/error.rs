@@ -86,4 +86,15 @@ pub enum VisionError {
         /// why
         message: String,
     },
+    /// A `#N` person beyond the people the pipeline tracks.
+    #[error("person #{person}: only {num_people} people are tracked (#0..#{last})", last = num_people.saturating_sub(1))]
+    NoSuchPerson {
+        /// the person asked for
+        person: usize,
+        /// people tracked
+        num_people: usize,
+    },
+    /// The pipeline thread could not be started.
+    #[error("cannot start the pipeline thread: {0}")]
+    Thread(String),
 }

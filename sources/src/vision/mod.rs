@@ -17,6 +17,8 @@
 //!      │         confidence per bone: hold, then ease to rest
 //!      ▼
 //!  Pose on the BlazePose skeleton ──▶ VisionSource (LiveSource) / `rigcast pose`
+//!                                  └─▶ SharedVision: one pipeline thread, one PersonSource
+//!                                      (LiveSource) per tracked person `#0`, `#1`, …
 //! ```
 //!
 //! The runtime library and models are installed by `scripts/setup-vision.sh` (`rigcast setup
@@ -36,6 +38,7 @@ pub mod pipeline;
 pub mod read_ahead;
 pub mod replay;
 pub mod roi;
+pub mod shared;
 pub mod solve;
 pub mod source;
 pub mod stages;
@@ -52,6 +55,7 @@ pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
 pub use model::{InputRange, LandmarkModel};
 pub use pipeline::{PipelineConfig, PosePipeline};
 pub use replay::LandmarkReplaySource;
+pub use shared::{PersonSource, SharedVision};
 pub use solve::{PoseSolver, SolverConfig};
 pub use source::VisionSource;
 pub use stages::LandmarkStages;

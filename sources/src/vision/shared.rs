@@ -1,0 +1,466 @@
+//! [`SharedVision`]: one camera or video, one pipeline thread, one live source per tracked
+//! person.
+//!
+//! ```text
+//!  pipeline thread: FrameSource ─▶ PosePipeline::process_frame (decode + model once for all)
+//!      │  per slot #k: pose, raw landmarks, seen ──▶ Mutex<Slots> (copied, no allocation)
+//!      └─ frame counter += 1, Condvar::notify_all
+//!                  │
+//!   PersonSource #0 ◀─┤ next_frame: wait for a newer frame, copy slot #0's pose
+//!   PersonSource #1 ◀─┘ next_frame: wait for a newer frame, copy slot #1's pose
+//! ```
+//!
+//! Each [`PersonSource`] is a [`LiveSource`] of its own, so each person is a subject of its
+//! own with its own health: a person who leaves the view makes only their subject report
+//! "no person in view" (and, after [`LOST_AFTER`], lost), while the others stay live. The
+//! thread starts at the first `next_frame` of any person (like [`super::VisionSource`], a file
+//! starts playing when the server starts reading it) and stops when the last person source
+//! is dropped. A subject that reads more slowly than the pipeline produces skips to the latest
+//! frame (latest pose wins, as everywhere else).
+
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use rigcast_retarget::{Pose, Skeleton};
+
+use super::error::VisionError;
+use super::frame::{FrameSource, RgbFrame};
+use super::landmarks::Landmarks;
+use super::pipeline::PosePipeline;
+use super::source::{encode_landmarks, LANDMARK_RECORD_BYTES};
+use crate::live::{
+    unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
+    SourceStatus,
+};
+
+/// A person not seen for this long is reported lost (their performer falls back); shorter
+/// gaps (someone briefly hidden behind another) only show as "no person in view".
+pub const LOST_AFTER: Duration = Duration::from_secs(1);
+
+/// How often the paced pipeline thread looks at the stop flag while waiting for a frame's
+/// time.
+const STOP_POLL: Duration = Duration::from_millis(50);
+
+/// Why the pipeline thread stopped producing frames.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Ended {
+    /// The file ended.
+    EndOfInput,
+    /// Decoding or inference failed; the message is reported once per subject.
+    Failed(String),
+}
+
+/// One person's latest result, written by the pipeline thread.
+#[derive(Debug)]
+struct Slot {
+    pose: Pose,
+    raw: Landmarks,
+    seen: bool,
+}
+
+/// What the pipeline thread and the person sources share (under one mutex).
+#[derive(Debug)]
+struct Slots {
+    /// Frames processed so far; a person source waits for this to pass what it last read.
+    frames: u64,
+    /// Wall clock of the last frame's processing start (Unix nanoseconds).
+    capture_nanos: u64,
+    /// When the last frame's processing started (latency is measured from here).
+    arrived: Instant,
+    /// Frame time of the last frame, seconds from the start of the input.
+    time_secs: f64,
+    slots: Vec<Slot>,
+    ended: Option<Ended>,
+    /// Set when the last person source is dropped.
+    stop: bool,
+}
+
+#[derive(Debug)]
+struct Shared {
+    slots: Mutex<Slots>,
+    changed: Condvar,
+}
+
+impl Shared {
+    /// The slots, even if a thread panicked while holding them (the data is plain values
+    /// that are always consistent between fields' writes, so carrying on is safe).
+    fn lock(&self) -> MutexGuard<'_, Slots> {
+        self.slots.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// What the thread runs, until it is started.
+struct Runner {
+    frames: Box<dyn FrameSource>,
+    pipeline: PosePipeline,
+    realtime: bool,
+}
+
+/// Owned by every person source; the last one dropped stops the thread.
+struct Hub {
+    shared: Arc<Shared>,
+    runner: Mutex<Option<Runner>>,
+    thread: Mutex<Option<JoinHandle<()>>>,
+}
+
+impl Drop for Hub {
+    fn drop(&mut self) {
+        self.shared.lock().stop = true;
+        self.shared.changed.notify_all();
+        // Not joined: a webcam read may block for a while and a drop must not. The thread
+        // notices `stop` after its current frame and exits on its own.
+        let _ = self.thread.get_mut().map(|t| t.take());
+    }
+}
+
+impl Hub {
+    /// Starts the pipeline thread if nobody has yet.
+    fn start(&self) -> Result<(), VisionError> {
+        let runner = match self.runner.lock() {
+            Ok(mut r) => r.take(),
+            Err(_) => None,
+        };
+        let Some(runner) = runner else {
+            return Ok(());
+        };
+        let shared = self.shared.clone();
+        let handle = std::thread::Builder::new()
+            .name("vision".into())
+            .spawn(move || run_pipeline(runner, &shared))
+            .map_err(|e| VisionError::Thread(e.to_string()))?;
+        if let Ok(mut t) = self.thread.lock() {
+            *t = Some(handle);
+        }
+        Ok(())
+    }
+}
+
+/// One camera or video shared by several subjects (one per tracked person).
+pub struct SharedVision {
+    hub: Arc<Hub>,
+    skeleton: Arc<Skeleton>,
+    num_people: usize,
+}
+
+impl std::fmt::Debug for SharedVision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SharedVision")
+            .field("num_people", &self.num_people)
+            .finish()
+    }
+}
+
+impl SharedVision {
+    /// Serves `frames` through `pipeline` for [`PosePipeline::num_people`] people. With
+    /// `realtime`, frames are released at their timestamps (a file plays like a camera).
+    pub fn new(frames: Box<dyn FrameSource>, pipeline: PosePipeline, realtime: bool) -> Self {
+        let skeleton = pipeline.skeleton().clone();
+        let num_people = pipeline.num_people();
+        let slots = (0..num_people)
+            .map(|_| Slot {
+                pose: skeleton.rest_pose(),
+                raw: Landmarks::default(),
+                seen: false,
+            })
+            .collect();
+        let shared = Arc::new(Shared {
+            slots: Mutex::new(Slots {
+                frames: 0,
+                capture_nanos: 0,
+                arrived: Instant::now(),
+                time_secs: 0.0,
+                slots,
+                ended: None,
+                stop: false,
+            }),
+            changed: Condvar::new(),
+        });
+        let hub = Hub {
+            shared,
+            runner: Mutex::new(Some(Runner {
+                frames,
+                pipeline,
+                realtime,
+            })),
+            thread: Mutex::new(None),
+        };
+        SharedVision {
+            hub: Arc::new(hub),
+            skeleton,
+            num_people,
+        }
+    }
+
+    /// People tracked (`#0` … `#num_people-1`).
+    pub fn num_people(&self) -> usize {
+        self.num_people
+    }
+
+    /// The BlazePose skeleton every person's poses are on.
+    pub fn skeleton(&self) -> &Arc<Skeleton> {
+        &self.skeleton
+    }
+
+    /// The live source of person `#person`, named `name`.
+    pub fn person(
+        &self,
+        person: usize,
+        name: impl Into<String>,
+    ) -> Result<PersonSource, VisionError> {
+        if person >= self.num_people {
+            return Err(VisionError::NoSuchPerson {
+                person,
+                num_people: self.num_people,
+            });
+        }
+        let mut health = HealthTracker::new(LOST_AFTER);
+        health.set_detail("waiting for the first frame");
+        Ok(PersonSource {
+            name: name.into(),
+            hub: self.hub.clone(),
+            skeleton: self.skeleton.clone(),
+            person,
+            last_frame: 0,
+            ended_reported: false,
+            health,
+            tap: None,
+            record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
+            tap_anchor_nanos: None,
+        })
+    }
+}
+
+/// The pipeline thread: decode, pace, process, publish, until the input ends, fails or the
+/// last person source is dropped.
+fn run_pipeline(mut runner: Runner, shared: &Shared) {
+    let (w, h) = runner.frames.size();
+    let mut frame = RgbFrame::new(w, h);
+    let mut started: Option<Instant> = None;
+    let ended = loop {
+        if shared.lock().stop {
+            return;
+        }
+        match runner.frames.next_frame(&mut frame) {
+            Ok(true) => {}
+            Ok(false) => break Ended::EndOfInput,
+            Err(e) => break Ended::Failed(e.to_string()),
+        }
+        if runner.realtime && !pace(&frame, &mut started, shared) {
+            return;
+        }
+        let arrived = Instant::now();
+        let capture_nanos = unix_nanos_now();
+        if let Err(e) = runner.pipeline.process_frame(&frame) {
+            break Ended::Failed(e.to_string());
+        }
+        publish(&runner.pipeline, &frame, arrived, capture_nanos, shared);
+    };
+    shared.lock().ended = Some(ended);
+    shared.changed.notify_all();
+}
+
+/// Sleeps until `frame` is due (wall clock from the first frame); false when stopped while
+/// waiting.
+fn pace(frame: &RgbFrame, started: &mut Option<Instant>, shared: &Shared) -> bool {
+    let now = Instant::now();
+    let start = *started.get_or_insert_with(|| now - Duration::from_secs_f64(frame.time_secs));
+    let due = start + Duration::from_secs_f64(frame.time_secs.max(0.0));
+    while !wait_until(due, Instant::now() + STOP_POLL) {
+        if shared.lock().stop {
+            return false;
+        }
+    }
+    true
+}
+
+/// Copies every slot's result out of the pipeline and wakes the person sources.
+fn publish(
+    pipeline: &PosePipeline,
+    frame: &RgbFrame,
+    arrived: Instant,
+    capture_nanos: u64,
+    shared: &Shared,
+) {
+    let mut s = shared.lock();
+    for (k, slot) in s.slots.iter_mut().enumerate() {
+        slot.seen = pipeline.person(k).is_some();
+        if let (true, Some(pose)) = (slot.seen, pipeline.pose(k)) {
+            slot.pose.copy_from(pose);
+        }
+        if let Some(raw) = pipeline.raw_person(k) {
+            slot.raw = *raw;
+        }
+    }
+    s.frames += 1;
+    s.capture_nanos = capture_nanos;
+    s.arrived = arrived;
+    s.time_secs = frame.time_secs;
+    drop(s);
+    shared.changed.notify_all();
+}
+
+/// One tracked person of a [`SharedVision`], as a live source on the BlazePose skeleton.
+pub struct PersonSource {
+    name: String,
+    hub: Arc<Hub>,
+    skeleton: Arc<Skeleton>,
+    person: usize,
+    /// The pipeline's frame counter when this source last read.
+    last_frame: u64,
+    ended_reported: bool,
+    health: HealthTracker,
+    tap: Option<Box<dyn RawTap>>,
+    record: Vec<u8>,
+    /// Wall-clock nanoseconds of frame time 0, for tap timestamps (as in VisionSource).
+    tap_anchor_nanos: Option<u64>,
+}
+
+impl std::fmt::Debug for PersonSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PersonSource")
+            .field("name", &self.name)
+            .field("person", &self.person)
+            .finish()
+    }
+}
+
+/// What one read of the shared slots found.
+enum Read {
+    /// A newer frame; the person seen in it (their pose copied out) or not.
+    Frame {
+        seen: bool,
+        arrived: Instant,
+        capture_nanos: u64,
+    },
+    /// Nothing newer within the timeout.
+    Nothing,
+    /// The input is over (reported once).
+    Ended(Ended),
+}
+
+impl PersonSource {
+    /// Which person this is (`#person`).
+    pub fn person(&self) -> usize {
+        self.person
+    }
+
+    /// Waits up to `timeout` for a frame newer than the last one read and copies this
+    /// person's pose into `out`. No allocation once `out` fits the skeleton.
+    fn read(&mut self, timeout: Duration, out: &mut Pose) -> Read {
+        let shared = &self.hub.shared;
+        let deadline = Instant::now() + timeout;
+        let mut s = shared.lock();
+        loop {
+            if s.frames > self.last_frame {
+                break;
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            match &s.ended {
+                Some(ended) if !self.ended_reported => return Read::Ended(ended.clone()),
+                // Nothing will come any more; still block for the timeout so that the
+                // caller's polling loop does not spin.
+                Some(_) => {
+                    drop(s);
+                    std::thread::sleep(left);
+                    return Read::Nothing;
+                }
+                None if left.is_zero() => return Read::Nothing,
+                None => {}
+            }
+            s = match shared.changed.wait_timeout(s, left) {
+                Ok((guard, _)) => guard,
+                Err(e) => e.into_inner().0,
+            };
+        }
+        self.last_frame = s.frames;
+        let slot = &s.slots[self.person];
+        let seen = slot.seen;
+        if seen {
+            crate::live::fit_pose(out, &self.skeleton);
+            out.copy_from(&slot.pose);
+        }
+        if let Some(tap) = self.tap.as_mut() {
+            let frame_nanos = (s.time_secs.max(0.0) * 1e9).round() as u64;
+            let anchor = *self
+                .tap_anchor_nanos
+                .get_or_insert_with(|| s.capture_nanos.saturating_sub(frame_nanos));
+            if seen {
+                encode_landmarks(&slot.raw, &mut self.record);
+            } else {
+                self.record.clear();
+            }
+            tap.raw(RawKind::Landmarks, anchor + frame_nanos, &self.record);
+        }
+        Read::Frame {
+            seen,
+            arrived: s.arrived,
+            capture_nanos: s.capture_nanos,
+        }
+    }
+}
+
+impl LiveSource for PersonSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn skeleton(&self) -> Option<Arc<Skeleton>> {
+        Some(self.skeleton.clone())
+    }
+
+    fn next_frame(
+        &mut self,
+        timeout: Duration,
+        out: &mut Pose,
+    ) -> Result<Option<FrameMeta>, SourceError> {
+        if let Err(e) = self.hub.start() {
+            self.health.on_device_lost(e.to_string());
+            return Err(SourceError::Stream(std::io::Error::other(e)));
+        }
+        match self.read(timeout, out) {
+            Read::Frame {
+                seen: true,
+                arrived,
+                capture_nanos,
+            } => {
+                self.health.on_input(Instant::now());
+                self.health.set_detail("");
+                // The skeleton is fixed (BlazePose), so only the first frame announces it.
+                Ok(Some(self.health.produced(arrived, capture_nanos, false)))
+            }
+            Read::Frame { seen: false, .. } => {
+                // Frames keep coming but without this person: after LOST_AFTER the subject
+                // is lost (its performer falls back); the other people are unaffected.
+                self.health.poll(Instant::now());
+                self.health.set_detail("no person in view");
+                Ok(None)
+            }
+            Read::Nothing => {
+                self.health.poll(Instant::now());
+                Ok(None)
+            }
+            Read::Ended(ended) => {
+                self.ended_reported = true;
+                match ended {
+                    Ended::EndOfInput => {
+                        self.health.on_device_lost("end of input");
+                        Ok(None)
+                    }
+                    Ended::Failed(message) => {
+                        self.health.on_device_lost(message.clone());
+                        Err(SourceError::Stream(std::io::Error::other(message)))
+                    }
+                }
+            }
+        }
+    }
+
+    fn status(&self) -> SourceStatus {
+        self.health.status()
+    }
+
+    fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
+        self.tap = tap;
+    }
+}
