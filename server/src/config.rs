@@ -429,11 +429,17 @@ pub enum SourceSpec {
         /// Subject name (default: the config file stem).
         name: Option<String>,
     },
-    /// Pose estimation on a video file (needs `rigcast setup vision`; `--source video:FILE`).
+    /// Pose estimation on a video file (needs `rigcast setup vision`; `--source video:FILE`,
+    /// `video:FILE#PERSON` for one of several people in it).
     Video {
         /// The video.
         path: PathBuf,
-        /// Subject name (default: the file stem).
+        /// Which tracked person (`#0`, `#1`, …; default 0). Entries naming the same file share
+        /// one decoder and one model run per frame.
+        person: Option<usize>,
+        /// People tracked in this video (default 2); `person` must be below it.
+        people: Option<usize>,
+        /// Subject name (default: the file stem, plus `#PERSON` when a person is given).
         name: Option<String>,
     },
     /// Pose estimation on a webcam (needs `rigcast setup vision` and a build with
@@ -442,7 +448,11 @@ pub enum SourceSpec {
         /// Camera index (default 0: the first camera).
         #[serde(default)]
         index: u32,
-        /// Subject name (default `webcam:INDEX`).
+        /// Which tracked person, as for `Video` (`--source webcam:INDEX#PERSON`).
+        person: Option<usize>,
+        /// People tracked on this camera (default 2).
+        people: Option<usize>,
+        /// Subject name (default `webcam:INDEX`, plus `#PERSON` when a person is given).
         name: Option<String>,
     },
 }
@@ -525,8 +535,18 @@ impl SourceSpec {
                 }
             }
             SourceSpec::Serial { config, name: None } => format!("serial:{}", config.display()),
-            SourceSpec::Video { path, name: None } => format!("video:{}", path.display()),
-            SourceSpec::Webcam { index, name: None } => format!("webcam:{index}"),
+            SourceSpec::Video {
+                path,
+                person,
+                people: None,
+                name: None,
+            } => format!("video:{}{}", path.display(), person_suffix(*person)),
+            SourceSpec::Webcam {
+                index,
+                person,
+                people: None,
+                name: None,
+            } => format!("webcam:{index}{}", person_suffix(*person)),
             _ => return None,
         })
     }
@@ -579,14 +599,27 @@ impl FromStr for SourceSpec {
                 config: file()?,
                 name: None,
             },
-            SourceKind::Video => SourceSpec::Video {
-                path: file()?,
-                name: None,
-            },
-            SourceKind::Webcam => SourceSpec::Webcam {
-                index: arg.parse().map_err(|_| bad(WEBCAM_GRAMMAR))?,
-                name: None,
-            },
+            SourceKind::Video => {
+                let (path, person) = split_person(arg).map_err(|_| bad(VIDEO_GRAMMAR))?;
+                if path.is_empty() {
+                    return Err(unknown());
+                }
+                SourceSpec::Video {
+                    path: PathBuf::from(path),
+                    person,
+                    people: None,
+                    name: None,
+                }
+            }
+            SourceKind::Webcam => {
+                let (index, person) = split_person(arg).map_err(|_| bad(WEBCAM_GRAMMAR))?;
+                SourceSpec::Webcam {
+                    index: index.parse().map_err(|_| bad(WEBCAM_GRAMMAR))?,
+                    person,
+                    people: None,
+                    name: None,
+                }
+            }
             // Skipped by the parser above; other nodes' subjects come from `[cluster]`.
             SourceKind::Remote => return Err(unknown()),
         })
@@ -594,7 +627,28 @@ impl FromStr for SourceSpec {
 }
 
 const VMC_GRAMMAR: &str = "vmc:PORT (loopback) or vmc:ADDR:PORT with a UDP port 0..=65535";
-const WEBCAM_GRAMMAR: &str = "webcam:INDEX with a camera number, e.g. webcam:0";
+const WEBCAM_GRAMMAR: &str =
+    "webcam:INDEX or webcam:INDEX#PERSON with a camera number and a person number, e.g. webcam:0#1";
+const VIDEO_GRAMMAR: &str =
+    "video:FILE or video:FILE#PERSON with a person number (#0 is the first tracked person)";
+
+/// Splits `FILE#PERSON` at its last `#`. No `#`: no person. A `#` followed by anything but a
+/// number is an error, unless the whole text is an existing file (a name that contains `#`).
+fn split_person(arg: &str) -> Result<(&str, Option<usize>), ()> {
+    let Some((head, tail)) = arg.rsplit_once('#') else {
+        return Ok((arg, None));
+    };
+    match tail.parse::<usize>() {
+        Ok(person) => Ok((head, Some(person))),
+        Err(_) if Path::new(arg).is_file() => Ok((arg, None)),
+        Err(_) => Err(()),
+    }
+}
+
+/// The `#PERSON` of a `--source` argument (nothing for the default person).
+pub(crate) fn person_suffix(person: Option<usize>) -> String {
+    person.map(|p| format!("#{p}")).unwrap_or_default()
+}
 
 /// VMC input listens on loopback unless told otherwise: a performer's skeleton must not be
 /// replaceable by any host on the network.
@@ -1185,7 +1239,9 @@ mod tests {
             cfg.sources[2],
             SourceSpec::Webcam {
                 index: 1,
-                name: None
+                person: None,
+                name: None,
+                ..
             }
         ));
         let p = &cfg.performers[0];
@@ -1311,7 +1367,10 @@ mod tests {
             "vmc:[::1]:39542",
             "serial:suit.toml",
             "video:clip.mp4",
+            "video:clip.mp4#1",
+            "video:/x/two people.mp4#0",
             "webcam:2",
+            "webcam:0#1",
         ] {
             let spec: SourceSpec = arg.parse().unwrap();
             assert_eq!(spec.to_cli().as_deref(), Some(arg), "{spec:?}");
@@ -1333,6 +1392,10 @@ mod tests {
             ("replay:", "unknown source"),
             ("vmc:nope", "vmc:PORT"),
             ("webcam:front", "webcam:INDEX"),
+            ("webcam:0#one", "webcam:INDEX#PERSON"),
+            ("video:clip.mp4#one", "video:FILE#PERSON"),
+            ("video:clip.mp4#-1", "video:FILE#PERSON"),
+            ("video:#1", "unknown source"),
         ] {
             let err = bad.parse::<SourceSpec>().unwrap_err().to_string();
             assert!(err.contains(says), "{bad}: {err}");

@@ -102,9 +102,12 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
         )));
     }
     let mut sources: Vec<LoadedSource> = Vec::new();
+    // Subjects of one video or camera share its pipeline.
+    let vision = super::vision::VisionInputs::default();
     for spec in specs {
+        let vision = vision.clone();
         let (name, loaded, skeleton) =
-            tokio::task::spawn_blocking(move || load_source(spec)).await??;
+            tokio::task::spawn_blocking(move || load_source(spec, &vision)).await??;
         let taken: Vec<String> = sources.iter().map(|s| s.name.clone()).collect();
         sources.push(LoadedSource {
             name: unique_name(&taken, name),
@@ -263,7 +266,7 @@ type Opened = (String, Loaded, Arc<Skeleton>);
 
 /// Loads a source: one arm per kind, each kind's opening in a function of its own. Blocks
 /// (files, devices, model loading): call it from `spawn_blocking`.
-fn load_source(spec: SourceSpec) -> anyhow::Result<Opened> {
+fn load_source(spec: SourceSpec, vision: &super::vision::VisionInputs) -> anyhow::Result<Opened> {
     match spec {
         SourceSpec::ReplayFile {
             path,
@@ -297,14 +300,25 @@ fn load_source(spec: SourceSpec) -> anyhow::Result<Opened> {
             open_vmc(cfg, name)
         }
         SourceSpec::Serial { config, name } => open_serial(&config, name),
-        SourceSpec::Webcam { index, name } => {
-            let (source, sk) = open_webcam(index)?;
-            let name = name.unwrap_or_else(|| format!("webcam:{index}"));
+        SourceSpec::Webcam {
+            index,
+            person,
+            people,
+            name,
+        } => {
+            let (source, sk) = open_webcam(index, person, people, vision)?;
+            let suffix = config::person_suffix(person);
+            let name = name.unwrap_or_else(|| format!("webcam:{index}{suffix}"));
             Ok((name, Loaded::live(source, SourceKind::Webcam), sk))
         }
-        SourceSpec::Video { path, name } => {
-            let (source, sk) = open_video(&path)?;
-            let name = name.unwrap_or_else(|| stem(&path));
+        SourceSpec::Video {
+            path,
+            person,
+            people,
+            name,
+        } => {
+            let (source, sk) = open_video(&path, person, people, vision)?;
+            let name = name.unwrap_or_else(|| stem(&path) + &config::person_suffix(person));
             Ok((name, Loaded::live(source, SourceKind::Video), sk))
         }
     }
@@ -409,20 +423,17 @@ fn stem(p: &std::path::Path) -> String {
         .unwrap_or_else(|| p.display().to_string())
 }
 
-/// Pose estimation on a video file, as a live source (frames released in real time).
+/// Person `person` of a video file, as a live source (frames released in real time); the
+/// file's pipeline is shared with its other people's subjects.
 fn open_video(
     path: &std::path::Path,
+    person: Option<usize>,
+    people: Option<usize>,
+    vision: &super::vision::VisionInputs,
 ) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
-    use rigcast_sources::vision::{
-        ffmpeg::DEFAULT_SEQUENCE_FPS, DecodeSize, FfmpegSource, PipelineConfig, PosePipeline,
-        VisionSource,
-    };
-    let frames = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, DEFAULT_SEQUENCE_FPS)
-        .with_context(|| format!("cannot open video {}", path.display()))?;
-    let pipeline = PosePipeline::new(&PipelineConfig::default())
-        .context("pose estimation is not set up (run `rigcast setup vision`)")?;
-    let sk = pipeline.skeleton().clone();
-    let source = VisionSource::new(stem(path), Box::new(frames), pipeline, true);
+    use super::vision::{open_file, VisionInput};
+    let input = VisionInput::file(path);
+    let (source, sk) = vision.person(input, person, people, || open_file(path), true)?;
     Ok((Box::new(source), sk))
 }
 
@@ -435,14 +446,18 @@ pub const NO_WEBCAM_HINT: &str = "this rigcast was built without webcam support;
 #[cfg(feature = "webcam")]
 fn open_webcam(
     index: u32,
+    person: Option<usize>,
+    people: Option<usize>,
+    vision: &super::vision::VisionInputs,
 ) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
-    use rigcast_sources::vision::{open_webcam, PipelineConfig, PosePipeline, VisionSource};
-    let frames = open_webcam(index).with_context(|| format!("cannot open webcam {index}"))?;
-    let pipeline = PosePipeline::new(&PipelineConfig::default())
-        .context("pose estimation is not set up (run `rigcast setup vision`)")?;
-    let sk = pipeline.skeleton().clone();
+    use super::vision::VisionInput;
+    let open = || {
+        rigcast_sources::vision::open_webcam(index)
+            .with_context(|| format!("cannot open webcam {index}"))
+    };
     // A camera delivers frames as they happen; no pacing needed (realtime = false).
-    let source = VisionSource::new(format!("webcam:{index}"), frames, pipeline, false);
+    let input = VisionInput::Webcam(index);
+    let (source, sk) = vision.person(input, person, people, open, false)?;
     Ok((Box::new(source), sk))
 }
 
@@ -450,6 +465,9 @@ fn open_webcam(
 #[cfg(not(feature = "webcam"))]
 fn open_webcam(
     index: u32,
+    _person: Option<usize>,
+    _people: Option<usize>,
+    _vision: &super::vision::VisionInputs,
 ) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
     anyhow::bail!("--source webcam:{index}: {NO_WEBCAM_HINT}")
 }

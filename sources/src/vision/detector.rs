@@ -17,10 +17,11 @@ use glam::Vec2;
 use ort::session::Session;
 use ort::value::Tensor;
 
+use super::bound::BoundRun;
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::sigmoid;
-use super::model::{build_session, check_len, model_err, runtime, warp_crop};
+use super::model::{build_session, model_err, runtime, warp_crop};
 use super::roi::Roi;
 
 /// Side of the detector's square input, pixels.
@@ -124,6 +125,8 @@ pub fn anchors() -> Vec<Vec2> {
 pub struct PersonDetector {
     path: PathBuf,
     session: Session,
+    /// Boxes and scores, written in place by each run.
+    run: BoundRun<2>,
     input: Tensor<f32>,
     anchors: Vec<Vec2>,
     min_score: f32,
@@ -156,6 +159,12 @@ impl PersonDetector {
             });
         }
         let session = build_session(&env, model, threads)?;
+        let run = BoundRun::new(
+            &session,
+            model,
+            [OUT_BOXES, OUT_SCORES],
+            [NUM_ANCHORS * NUM_COORDS, NUM_ANCHORS],
+        )?;
         let input = Tensor::from_array((
             [1usize, DETECTOR_SIZE, DETECTOR_SIZE, 3],
             vec![0.0f32; DETECTOR_SIZE * DETECTOR_SIZE * 3],
@@ -164,6 +173,7 @@ impl PersonDetector {
         Ok(PersonDetector {
             path: model.to_path_buf(),
             session,
+            run,
             input,
             anchors: anchors(),
             min_score,
@@ -197,33 +207,15 @@ impl PersonDetector {
             let (_, data) = self.input.extract_tensor_mut();
             warp_crop(frame, &letterbox, DETECTOR_SIZE, 1.0 / 127.5, -1.0, data);
         }
-        let outputs = self
-            .session
-            .run(ort::inputs![&self.input])
-            .map_err(|e| model_err(&self.path, e))?;
-        let get = |name: &'static str| -> Result<&[f32], VisionError> {
-            let v = outputs.get(name).ok_or(VisionError::OutputShape {
-                name,
-                expected: 1,
-                actual: 0,
-            })?;
-            let (_, data) = v
-                .try_extract_tensor::<f32>()
-                .map_err(|e| model_err(&self.path, e))?;
-            Ok(data)
-        };
-        let boxes = get(OUT_BOXES)?;
-        let scores = get(OUT_SCORES)?;
-        check_len(OUT_BOXES, boxes.len(), NUM_ANCHORS * NUM_COORDS)?;
-        check_len(OUT_SCORES, scores.len(), NUM_ANCHORS)?;
+        self.run.run(&mut self.session, &self.input)?;
+        // Lengths were checked against the model when the outputs were bound.
         decode_anchors(
-            boxes,
-            scores,
+            self.run.output(0),
+            self.run.output(1),
             &self.anchors,
             self.min_score,
             &mut self.candidates,
         );
-        drop(outputs);
         weighted_nms(&mut self.candidates, out);
         // From letterbox units ([0, 1]² over the long side) to frame pixels.
         let origin = letterbox.center - Vec2::splat(letterbox.size / 2.0);

@@ -26,6 +26,7 @@
 
 pub mod assets;
 pub mod body;
+mod bound;
 pub mod detector;
 pub mod error;
 pub mod ffmpeg;

@@ -12,9 +12,10 @@ use std::sync::OnceLock;
 use glam::{Vec2, Vec3, Vec4};
 use ort::environment::Environment;
 use ort::session::builder::GraphOptimizationLevel;
-use ort::session::{OutputSelector, RunOptions, Session};
+use ort::session::Session;
 use ort::value::Tensor;
 
+use super::bound::BoundRun;
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{sigmoid, Landmarks, NUM_MODEL_LANDMARKS};
@@ -71,11 +72,11 @@ fn spin_enabled() -> bool {
 pub struct LandmarkModel {
     path: PathBuf,
     session: Session,
-    run_options: RunOptions<ort::session::HasSelectedOutputs>,
+    /// Landmarks, presence and world landmarks: the only outputs fetched (segmentation and
+    /// heatmap are not needed, and not fetching them saves their copies).
+    run: BoundRun<3>,
     input: Tensor<f32>,
     range: InputRange,
-    raw_landmarks: [f32; NUM_MODEL_LANDMARKS * 5],
-    raw_world: [f32; NUM_MODEL_LANDMARKS * 3],
 }
 
 impl std::fmt::Debug for LandmarkModel {
@@ -109,15 +110,12 @@ impl LandmarkModel {
             });
         }
         let session = build_session(&env, model, threads)?;
-        // Segmentation and heatmap outputs are not needed; not fetching them saves copies.
-        let run_options = RunOptions::new()
-            .map_err(|e| model_err(model, e))?
-            .with_outputs(
-                OutputSelector::no_default()
-                    .with(OUT_LANDMARKS)
-                    .with(OUT_PRESENCE)
-                    .with(OUT_WORLD),
-            );
+        let run = BoundRun::new(
+            &session,
+            model,
+            [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD],
+            [NUM_MODEL_LANDMARKS * 5, 1, NUM_MODEL_LANDMARKS * 3],
+        )?;
         let input = Tensor::from_array((
             [1usize, INPUT_SIZE, INPUT_SIZE, 3],
             vec![0.0f32; INPUT_SIZE * INPUT_SIZE * 3],
@@ -126,11 +124,9 @@ impl LandmarkModel {
         Ok(LandmarkModel {
             path: model.to_path_buf(),
             session,
-            run_options,
+            run,
             input,
             range: InputRange::default(),
-            raw_landmarks: [0.0; NUM_MODEL_LANDMARKS * 5],
-            raw_world: [0.0; NUM_MODEL_LANDMARKS * 3],
         })
     }
 
@@ -159,32 +155,10 @@ impl LandmarkModel {
             let (_, data) = self.input.extract_tensor_mut();
             warp_crop(frame, roi, INPUT_SIZE, scale, offset, data);
         }
-        let outputs = self
-            .session
-            .run_with_options(ort::inputs![&self.input], &self.run_options)
-            .map_err(|e| model_err(&self.path, e))?;
-        let get = |name: &'static str| -> Result<&[f32], VisionError> {
-            let v = outputs.get(name).ok_or(VisionError::OutputShape {
-                name,
-                expected: 1,
-                actual: 0,
-            })?;
-            let (_, data) = v
-                .try_extract_tensor::<f32>()
-                .map_err(|e| model_err(&self.path, e))?;
-            Ok(data)
-        };
-        let lm = get(OUT_LANDMARKS)?;
-        let world = get(OUT_WORLD)?;
-        let presence = get(OUT_PRESENCE)?;
-        check_len(OUT_LANDMARKS, lm.len(), self.raw_landmarks.len())?;
-        check_len(OUT_WORLD, world.len(), self.raw_world.len())?;
-        check_len(OUT_PRESENCE, presence.len(), 1)?;
-        self.raw_landmarks.copy_from_slice(lm);
-        self.raw_world.copy_from_slice(world);
-        let presence = presence[0];
-        drop(outputs);
-        decode(&self.raw_landmarks, &self.raw_world, presence, roi, out);
+        self.run.run(&mut self.session, &self.input)?;
+        // Lengths were checked against the model when the outputs were bound.
+        let (lm, presence, world) = (self.run.output(0), self.run.output(1), self.run.output(2));
+        decode(lm, world, presence[0], roi, out);
         Ok(())
     }
 }

@@ -64,7 +64,8 @@ struct Slot {
 struct Slots {
     /// Frames processed so far; a person source waits for this to pass what it last read.
     frames: u64,
-    /// Wall clock of the last frame's processing start (Unix nanoseconds).
+    /// When the last frame was captured (Unix nanoseconds): for a paced file, when it was
+    /// due; for a camera, when its processing started.
     capture_nanos: u64,
     /// When the last frame's processing started (latency is measured from here).
     arrived: Instant,
@@ -237,6 +238,7 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
     let (w, h) = runner.frames.size();
     let mut frame = RgbFrame::new(w, h);
     let mut started: Option<Instant> = None;
+    let mut anchor_nanos: Option<u64> = None;
     let ended = loop {
         if shared.lock().stop {
             return;
@@ -250,7 +252,17 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
             return;
         }
         let arrived = Instant::now();
-        let capture_nanos = unix_nanos_now();
+        let capture_nanos = if runner.realtime {
+            // A paced file is "captured" when its frame is due, wall clock anchored at the
+            // first frame: consumers can tell the frame's place in the file from it, and a
+            // pipeline that falls behind shows as latency instead of being hidden.
+            let frame_nanos = (frame.time_secs.max(0.0) * 1e9).round() as u64;
+            let anchor =
+                *anchor_nanos.get_or_insert_with(|| unix_nanos_now().saturating_sub(frame_nanos));
+            anchor + frame_nanos
+        } else {
+            unix_nanos_now()
+        };
         if let Err(e) = runner.pipeline.process_frame(&frame) {
             break Ended::Failed(e.to_string());
         }

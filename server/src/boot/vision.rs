@@ -1,0 +1,133 @@
+//! Video and webcam subjects: every subject of one file or camera (`video:FILE#0`,
+//! `video:FILE#1`, …) is one person of one shared pipeline, so the input is decoded and the
+//! model run once per frame for all of them, not once per subject.
+//!
+//! ```text
+//!  [[sources]] video FILE #0 ─┐
+//!  [[sources]] video FILE #1 ─┴─▶ VisionInputs: FILE → SharedVision ─▶ PersonSource #0, #1
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use anyhow::Context;
+use rigcast_retarget::Skeleton;
+use rigcast_sources::vision::{
+    ffmpeg::DEFAULT_SEQUENCE_FPS, DecodeSize, FfmpegSource, FrameSource, PersonSource,
+    PipelineConfig, PosePipeline, SharedVision, TrackerConfig,
+};
+
+/// What a vision subject watches.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[cfg_attr(not(feature = "webcam"), allow(dead_code))]
+pub(crate) enum VisionInput {
+    /// A video file (canonical path when it resolves, so two spellings share).
+    File(PathBuf),
+    /// A camera by index.
+    Webcam(u32),
+}
+
+impl VisionInput {
+    /// The input of `path`.
+    pub(crate) fn file(path: &Path) -> VisionInput {
+        VisionInput::File(std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()))
+    }
+}
+
+impl std::fmt::Display for VisionInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            VisionInput::File(p) => write!(f, "video {}", p.display()),
+            VisionInput::Webcam(i) => write!(f, "webcam {i}"),
+        }
+    }
+}
+
+/// One opened input and the people count it was opened for.
+struct Opened {
+    input: VisionInput,
+    people: usize,
+    shared: SharedVision,
+}
+
+/// The inputs opened so far while loading one configuration (shared by its source specs).
+#[derive(Clone, Default)]
+pub(crate) struct VisionInputs {
+    opened: Arc<Mutex<Vec<Opened>>>,
+}
+
+impl VisionInputs {
+    /// Person `person` (default 0) of `input`, opening the input with `open` if no earlier
+    /// spec did. `people` (default: the tracker's) must agree with earlier specs of the input.
+    /// Blocks (decoder, model loading).
+    pub(crate) fn person(
+        &self,
+        input: VisionInput,
+        person: Option<usize>,
+        people: Option<usize>,
+        open: impl FnOnce() -> anyhow::Result<Box<dyn FrameSource>>,
+        realtime: bool,
+    ) -> anyhow::Result<(PersonSource, Arc<Skeleton>)> {
+        let mut opened = self
+            .opened
+            .lock()
+            .map_err(|_| anyhow::anyhow!("vision inputs poisoned"))?;
+        let index = match opened.iter().position(|o| o.input == input) {
+            Some(i) => {
+                if let Some(p) = people.filter(|p| *p != opened[i].people) {
+                    anyhow::bail!(
+                        "{input}: people = {p} here, but an earlier source of the same input \
+                         tracks {}; give them all the same people",
+                        opened[i].people
+                    );
+                }
+                i
+            }
+            None => {
+                let people = people.unwrap_or(TrackerConfig::default().max_people);
+                if people == 0 {
+                    anyhow::bail!("{input}: people must be at least 1");
+                }
+                let frames = open()?;
+                let shared = SharedVision::new(frames, pipeline(people)?, realtime);
+                opened.push(Opened {
+                    input: input.clone(),
+                    people,
+                    shared,
+                });
+                opened.len() - 1
+            }
+        };
+        let shared = &opened[index].shared;
+        let person = person.unwrap_or(0);
+        let name = format!("{input}#{person}");
+        let source = shared.person(person, name).with_context(|| {
+            format!(
+                "{input}: no person #{person} (set people = {} in its [[sources]] entry to \
+                 track more)",
+                person + 1
+            )
+        })?;
+        Ok((source, shared.skeleton().clone()))
+    }
+}
+
+/// The landmark pipeline for `people` people.
+fn pipeline(people: usize) -> anyhow::Result<PosePipeline> {
+    let defaults = PipelineConfig::default();
+    let config = PipelineConfig {
+        tracker: TrackerConfig {
+            max_people: people,
+            ..defaults.tracker
+        },
+        ..defaults
+    };
+    PosePipeline::new(&config).context("pose estimation is not set up (run `rigcast setup vision`)")
+}
+
+/// A video file's frames at the model's decode size.
+pub(crate) fn open_file(path: &Path) -> anyhow::Result<Box<dyn FrameSource>> {
+    let frames = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, DEFAULT_SEQUENCE_FPS)
+        .with_context(|| format!("cannot open video {}", path.display()))?;
+    Ok(Box::new(frames))
+}
