@@ -73,33 +73,6 @@ fn correlation(pairs: &[(f32, f32)]) -> f32 {
     cov / (va * vb).sqrt().max(1e-12)
 }
 
-/// Frames the performer's smoothing may trail the source by: its filter lags a few frames.
-const MAX_LAG_FRAMES: usize = 6;
-
-/// The best correlation of `target` (video frame, value) with `person` over lags of 0 to
-/// [`MAX_LAG_FRAMES`] (the target behind the person): (correlation, lag, pairs).
-fn best_correlation(target: &[(usize, f32)], person: &[Option<f32>]) -> (f32, usize, usize) {
-    (0..=MAX_LAG_FRAMES)
-        .map(|lag| {
-            let pairs: Vec<(f32, f32)> = target
-                .iter()
-                .filter_map(|&(frame, v)| {
-                    let e = person.get(frame.checked_sub(lag)?)?.as_ref()?;
-                    Some((v, *e))
-                })
-                .collect();
-            eprintln!("  lag {lag}: {:.3}", correlation(&pairs));
-            (correlation(&pairs), lag, pairs.len())
-        })
-        .fold((f32::NEG_INFINITY, 0, 0), |best, c| {
-            if c.0 > best.0 {
-                c
-            } else {
-                best
-            }
-        })
-}
-
 /// One target as the client saw it.
 struct Target {
     id: u32,
@@ -271,34 +244,41 @@ async fn two_people_of_one_video_drive_two_targets_at_the_tick_rate() {
         .min()
         .unwrap();
     for (k, t) in targets.iter().enumerate() {
-        let on_timeline: Vec<(usize, f32)> = t
-            .knees
-            .iter()
-            .map(|(&capture, &bend)| {
-                let frame = ((capture - start) as f64 * 1e-9 * VIDEO_FPS).round() as usize;
-                (frame, bend)
-            })
-            .collect();
-        let (c_own, lag_own, n) = best_correlation(&on_timeline, &expected[k]);
-        let (c_other, lag_other, _) = best_correlation(&on_timeline, &expected[1 - k]);
+        // (target knees, person's knees) per video frame where the person was seen.
+        let pairs = |person: &[Option<f32>]| -> Vec<(f32, f32)> {
+            t.knees
+                .iter()
+                .filter_map(|(&capture, &bend)| {
+                    let frame = ((capture - start) as f64 * 1e-9 * VIDEO_FPS).round() as usize;
+                    Some((bend, (*person.get(frame)?)?))
+                })
+                .collect()
+        };
+        let (own, other) = (pairs(&expected[k]), pairs(&expected[1 - k]));
+        let (c_own, c_other) = (correlation(&own), correlation(&other));
         eprintln!(
-            "target {} (person #{k}): {n} frames on the video's timeline, knee correlation with \
-             #{k} {c_own:.2} (lag {lag_own}), with #{} {c_other:.2} (lag {lag_other})",
+            "target {} (person #{k}): {} frames on the video's timeline, knee correlation with \
+             #{k} {c_own:.2}, with #{} {c_other:.2}",
             t.id,
+            own.len(),
             1 - k
         );
+        let n = own.len();
         assert!(
             n >= 40,
             "target {}: only {n} frames on the video's timeline",
             t.id
         );
+        // Measured: 0.64-0.66 (mannequin, #0) and 0.86 (X Bot, #1) with their own person,
+        // -0.29 to -0.46 with the other one. A target driven by the wrong person, or not
+        // moving, fails both bounds.
         assert!(
-            c_own > 0.6,
+            c_own > 0.5,
             "target {} does not follow person #{k}: {c_own:.2}",
             t.id
         );
         assert!(
-            c_own > c_other + 0.3,
+            c_own > c_other + 0.5,
             "target {} follows #{} as well: {c_own:.2} vs {c_other:.2}",
             t.id,
             1 - k
