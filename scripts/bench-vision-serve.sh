@@ -42,17 +42,22 @@ for _ in $(seq 600); do
     grep -q "connections:" "$work/serve.log" 2>/dev/null && break
     sleep 0.1
 done
+cat >"$work/status.py" <<'PY'
+import json, sys
+s = json.load(sys.stdin)
+parts = []
+for x in s["subjects"]:
+    src = x.get("source")
+    if src:
+        parts.append(f"{x['name']}: {src['state']} {src['input_fps']:.1f} fps ({src['detail']})")
+print("  ".join(parts), f"| output {s['output_rate_hz']:.1f} Hz")
+PY
 echo "machine: $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg) at start; tick $rate Hz"
 "$bin" loadtest --url "ws://127.0.0.1:$port/v1/stream" --clients 1 --secs 3 --json >"$work/load.json" &
 load=$!
 for _ in $(seq 8); do
     sleep 0.5
-    curl -s "http://127.0.0.1:$port/v1/status" | python3 -c '
-import json, sys
-s = json.load(sys.stdin)
-print("  ".join(f"{x[\"name\"]}: {x[\"source\"][\"state\"]} {x[\"source\"][\"input_fps\"]:.1f} fps"
-                for x in s["subjects"] if x.get("source")),
-      f"| output {s[\"output_rate_hz\"]:.1f} Hz")'
+    curl -s "http://127.0.0.1:$port/v1/status" | python3 "$work/status.py"
 done
 wait "$load"
 python3 - "$work/load.json" <<'PY'

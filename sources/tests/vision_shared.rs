@@ -17,6 +17,41 @@ use rigcast_sources::vision::{
     VisionError,
 };
 
+/// The footage with person `#0` (the woman in front) taken out of the picture from frame
+/// `from` on: everything left of x = 440 and below y = 660 (source pixels) painted black.
+/// Offline, her visible landmarks stay within x ≤ 428 and y ≥ 669 over the clip; the man
+/// behind her (#1, x 153–835, y 408–1198) keeps most of his body in view.
+struct WithoutPersonZero {
+    inner: FfmpegSource,
+    from: u64,
+}
+
+impl FrameSource for WithoutPersonZero {
+    fn describe(&self) -> &str {
+        self.inner.describe()
+    }
+    fn fps(&self) -> Option<f64> {
+        self.inner.fps()
+    }
+    fn size(&self) -> (u32, u32) {
+        self.inner.size()
+    }
+    fn next_frame(&mut self, out: &mut RgbFrame) -> Result<bool, VisionError> {
+        if !self.inner.next_frame(out)? {
+            return Ok(false);
+        }
+        if out.index >= self.from {
+            let k = out.source_from_frame;
+            let (x_end, y_start) = ((440.0 / k) as usize, (660.0 / k) as usize);
+            let w = out.width as usize;
+            for y in y_start.min(out.height as usize)..out.height as usize {
+                out.data[(y * w) * 3..(y * w + x_end.min(w)) * 3].fill(0);
+            }
+        }
+        Ok(true)
+    }
+}
+
 /// Largest bone rotation difference between two poses, radians.
 fn pose_distance(a: &Pose, b: &Pose) -> f32 {
     a.rotations
@@ -136,4 +171,128 @@ fn each_person_source_carries_its_own_slot_of_one_shared_pipeline() {
     // The two people move differently.
     let d = pose_distance(&results[0].0[40], &results[1].0[40]);
     assert!(d > 0.2, "the two subjects' poses differ by only {d} rad");
+}
+
+/// How one person source's subject fared.
+struct Fate {
+    /// Frames produced from video frame [`LATE_FRAME`] on.
+    late_frames: usize,
+    /// Every distinct "state: detail" in order.
+    details: Vec<String>,
+    final_state: SourceState,
+}
+
+/// Person #0 is taken out of the picture from this video frame on.
+const CUT_FRAME: u64 = 30;
+/// Frames from here on are "late in the clip", well after the cut.
+const LATE_FRAME: f64 = 45.0;
+
+/// Reads `source` until its input ends. A paced file stamps each frame with its due time, so
+/// the video frame of a produced pose is its capture time after `first_capture` × 60 fps.
+fn follow(mut source: impl LiveSource, first_capture: &std::sync::Mutex<Option<u64>>) -> Fate {
+    let mut pose = source.skeleton().unwrap().rest_pose();
+    let mut fate = Fate {
+        late_frames: 0,
+        details: Vec::new(),
+        final_state: SourceState::Connecting,
+    };
+    for _ in 0..4000 {
+        if let Some(meta) = source
+            .next_frame(Duration::from_millis(50), &mut pose)
+            .unwrap()
+        {
+            // Both people are seen in frame 0, so the earliest capture of either is frame 0.
+            let first = *first_capture
+                .lock()
+                .unwrap()
+                .get_or_insert(meta.capture_nanos);
+            let frame = meta.capture_nanos.saturating_sub(first) as f64 * 1e-9 * 60.0;
+            fate.late_frames += usize::from(frame.round() >= LATE_FRAME);
+        }
+        let status = source.status();
+        let note = format!("{:?}: {}", status.state, status.detail);
+        if fate.details.last() != Some(&note) {
+            fate.details.push(note);
+        }
+        fate.final_state = status.state;
+        if status.detail == "end of input" {
+            break;
+        }
+    }
+    fate
+}
+
+#[test]
+fn a_person_leaving_the_view_loses_only_their_own_subject() {
+    let Some(assets) = assets_or_skip("shared vision, one person leaves") else {
+        return;
+    };
+    let config = PipelineConfig {
+        assets: assets.clone(),
+        ..PipelineConfig::default()
+    };
+    let video = assets.pose2sim_multi_video(2);
+    let inner = FfmpegSource::open_at(&video, DecodeSize::FOR_MODEL, 30.0).unwrap();
+    let frames = WithoutPersonZero {
+        inner,
+        from: CUT_FRAME,
+    };
+    // Paced: 100 frames at 60 fps take at least 1.7 s, so a second without person #0 is
+    // within the clip even if the pipeline keeps up.
+    let shared = SharedVision::new(Box::new(frames), PosePipeline::new(&config).unwrap(), true);
+    let sources = [
+        shared.person(0, "#0").unwrap(),
+        shared.person(1, "#1").unwrap(),
+    ];
+    drop(shared);
+    let first_capture = std::sync::Mutex::new(None);
+    let fates: Vec<Fate> = std::thread::scope(|s| {
+        let handles: Vec<_> = sources
+            .into_iter()
+            .map(|src| {
+                let first_capture = &first_capture;
+                s.spawn(move || follow(src, first_capture))
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    for (slot, f) in fates.iter().enumerate() {
+        eprintln!(
+            "#{slot}: {} frames late in the clip, {:?}",
+            f.late_frames, f.details
+        );
+    }
+    let (zero, one) = (&fates[0], &fates[1]);
+    assert!(
+        zero.details.iter().any(|d| d == "Live: no person in view"),
+        "#0 never reported that she left: {:?}",
+        zero.details
+    );
+    assert!(
+        zero.details.iter().any(|d| d == "Lost: no person in view"),
+        "#0 was not lost after a second without her: {:?}",
+        zero.details
+    );
+    assert!(
+        one.details
+            .iter()
+            .all(|d| !d.contains("no person in view") && !d.starts_with("Lost: no")),
+        "#1 was affected by #0 leaving: {:?}",
+        one.details
+    );
+    // Frames 45..100: the man stays in view (a reader may skip one now and then).
+    assert!(
+        one.late_frames >= 45,
+        "#1 stopped: {} late frames",
+        one.late_frames
+    );
+    assert_eq!(
+        zero.late_frames, 0,
+        "#0 produced poses with her out of view"
+    );
+    assert_eq!(
+        one.final_state,
+        SourceState::Lost,
+        "end of input makes everyone lost"
+    );
 }
