@@ -202,11 +202,11 @@ async fn calibrate_command_removes_mounting_offsets() {
     let handle = rigcast_server::start(ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         sources: vec![
-            SourceSpec::Serial {
+            SourceSpec::Serial(rigcast_server::config::SerialSpec {
                 config: config.clone(),
                 name: None,
-            },
-            SourceSpec::EmbeddedDemo,
+            }),
+            SourceSpec::demo(),
         ],
         ..ServerConfig::default()
     })

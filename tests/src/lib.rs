@@ -289,11 +289,11 @@ pub async fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, String
 
 /// A replay of an in-memory clip, looping from the start at normal speed.
 pub fn clip_source(clip: Clip) -> rigcast_server::SourceSpec {
-    rigcast_server::SourceSpec::ReplayClip {
+    rigcast_server::SourceSpec::ReplayClip(rigcast_server::config::ReplayClipSpec {
         clip,
         name: None,
         settings: rigcast_server::ReplaySettings::default(),
-    }
+    })
 }
 
 /// A unique temporary path (no tempfile crate: pid + name + counter).

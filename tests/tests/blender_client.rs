@@ -526,12 +526,12 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         sources: vec![
-            SourceSpec::EmbeddedDemo,
-            SourceSpec::ReplayClip {
+            SourceSpec::demo(),
+            SourceSpec::ReplayClip(rigcast_server::config::ReplayClipSpec {
                 clip: twisted(&demo),
                 name: Some("twisted".into()),
                 settings: ReplaySettings::default(),
-            },
+            }),
         ],
         performers: vec![PerformerSpec {
             sources: vec!["demo".into()],

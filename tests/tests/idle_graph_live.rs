@@ -185,13 +185,13 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: RATE_HZ,
-        sources: vec![SourceSpec::Vmc {
+        sources: vec![SourceSpec::Vmc(rigcast_server::config::VmcSpec {
             port: 0,
             bind: rigcast_server::config::DEFAULT_VMC_BIND,
             allowed_senders: Vec::new(),
             lost_after_secs: Some(LOST_AFTER_SECS),
             name: Some("performer".into()),
-        }],
+        })],
         performers: vec![PerformerSpec {
             on_lost: Some(OnLost::Idle),
             idle_graph: Some(graph_file.clone()),

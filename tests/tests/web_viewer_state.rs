@@ -197,13 +197,13 @@ async fn start_vmc_server(
 ) -> (rigcast_server::ServerHandle, std::net::SocketAddr) {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![SourceSpec::Vmc {
+        sources: vec![SourceSpec::Vmc(rigcast_server::config::VmcSpec {
             port: 0,
             bind: rigcast_server::config::DEFAULT_VMC_BIND,
             allowed_senders: Vec::new(),
             lost_after_secs: Some(0.25),
             name: Some("performer".into()),
-        }],
+        })],
         performers: vec![performer],
         ..ServerConfig::default()
     };

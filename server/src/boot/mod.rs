@@ -13,7 +13,6 @@ pub(crate) mod load;
 pub mod spawn;
 
 pub(crate) use load::unique_name;
-pub use load::{demo_clip, NO_WEBCAM_HINT};
 pub use spawn::Supervisor;
 
 use crate::config::ServerConfig;
