@@ -237,9 +237,8 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
                 // The ease follows the clock, so a tick the loaded machine ran late moves
                 // further: judge each step per tick period actually elapsed (send times).
                 if let Some((p, sent)) = &prev {
-                    let ticks = (f.header.send_nanos.saturating_sub(*sent) as f64 * 1e-9
-                        * RATE)
-                        .max(1.0);
+                    let ticks =
+                        (f.header.send_nanos.saturating_sub(*sent) as f64 * 1e-9 * RATE).max(1.0);
                     steps.push(max_angle(p, &f.rotations) / ticks as f32);
                 }
                 to_rest.push(max_angle(&f.rotations, &rest.rotations));
