@@ -313,6 +313,16 @@ pub fn chain_clip(bones: usize, frames: usize, spacing: f32, step: f32, fps: f64
     Clip::new("chain", skeleton, poses, 1.0 / fps).unwrap()
 }
 
+/// A VMC input on a free loopback port, subject "performer", lost after `lost_after_secs`
+/// of silence: the live source of the end-to-end VMC tests.
+pub fn vmc_performer(lost_after_secs: f32) -> rigcast_server::SourceSpec {
+    rigcast_server::SourceSpec::Vmc(rigcast_server::config::VmcSpec {
+        lost_after_secs: Some(lost_after_secs),
+        name: Some("performer".into()),
+        ..rigcast_server::config::VmcSpec::loopback(0)
+    })
+}
+
 /// A replay of an in-memory clip, looping from the start at normal speed.
 pub fn clip_source(clip: Clip) -> rigcast_server::SourceSpec {
     rigcast_server::SourceSpec::ReplayClip(rigcast_server::config::ReplayClipSpec {

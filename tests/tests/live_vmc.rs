@@ -13,7 +13,7 @@ use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions};
-use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
+use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
 const RATE: f64 = 60.0;
@@ -68,13 +68,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: RATE,
-        sources: vec![SourceSpec::Vmc(rigcast_server::config::VmcSpec {
-            port: 0,
-            bind: rigcast_server::config::DEFAULT_VMC_BIND,
-            allowed_senders: Vec::new(),
-            lost_after_secs: Some(0.25),
-            name: Some("performer".into()),
-        })],
+        sources: vec![rigcast_tests::vmc_performer(0.25)],
         // The output is compared with plain `Mapping::apply`: no foot lock on top (it is
         // judged in server/tests/foot_lock.rs).
         performers: vec![PerformerSpec {
@@ -358,13 +352,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: RATE,
-        sources: vec![SourceSpec::Vmc(rigcast_server::config::VmcSpec {
-            port: 0,
-            bind: rigcast_server::config::DEFAULT_VMC_BIND,
-            allowed_senders: Vec::new(),
-            lost_after_secs: Some(0.25),
-            name: Some("performer".into()),
-        })],
+        sources: vec![rigcast_tests::vmc_performer(0.25)],
         performers: vec![PerformerSpec::target_file("builtin:mannequin")],
         on_lost: rigcast_server::config::OnLost::Hold,
         ..ServerConfig::default()
