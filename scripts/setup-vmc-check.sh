@@ -8,18 +8,12 @@
 # (the tests that need it then skip too, with a printed reason).
 set -euo pipefail
 
-if [[ "${RIGCAST_SKIP_APPS:-0}" == "1" ]]; then
-    echo "setup-vmc-check: RIGCAST_SKIP_APPS=1, skipping"
-    exit 0
-fi
-
 PYTHON_OSC_VERSION="1.10.2"
 ROOT="${RIGCAST_HOME:-$HOME/.cache/rigcast}/vmc-check"
 VENV="$ROOT/venv"
 
-if "$VENV/bin/python" -c "import pythonosc" >/dev/null 2>&1; then
-    exit 0
-fi
+[[ "${RIGCAST_SKIP_APPS:-0}" == "1" ]] && { echo "setup-vmc-check: RIGCAST_SKIP_APPS=1, skipping"; exit 0; }
+"$VENV/bin/python" -c "import pythonosc" >/dev/null 2>&1 && exit 0
 echo "setup-vmc-check: creating $VENV with python-osc $PYTHON_OSC_VERSION" >&2
 mkdir -p "$ROOT"
 python3 -m venv "$VENV"

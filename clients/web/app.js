@@ -360,7 +360,7 @@ state.footMarkers = () => {
       const f = m.userData.foot?.position;
       const message = f && [f[0] - view.shift.dx + view.group.position.x, f[1], f[2] - view.shift.dz + view.group.position.z];
       return {
-        bone, visible: m.visible, planted: m.userData.foot?.planted === true, message,
+        bone, visible: m.visible, planted: m.userData.foot?.planted === true, live: view.placedLive === true, message,
         messageSeq: m.userData.seq ?? null, drawnSeq: view.drawnSeq ?? null,
         position: [p.x, p.y, p.z], joint: j && [j.x, j.y, j.z], floor: view.floorY + view.group.position.y,
       };

@@ -16,16 +16,18 @@
 //!
 //! Command-line flags override file values; see `cmd::serve`.
 
-use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
 use std::str::FromStr;
 
-use rigcast_protocol::SourceKind;
-use rigcast_retarget::Clip;
 use serde::Deserialize;
 use thiserror::Error;
 
+pub use crate::source_kinds::{
+    DemoSpec, ReplayClipSpec, ReplayFileSpec, ReplaySettings, SerialSpec, SourceSpec, VideoSpec,
+    VmcSpec, WebcamSpec, DEFAULT_VMC_BIND,
+};
 pub use crate::token::TokenSetting;
 
 /// Default listen address: loopback only (nothing is exposed to the network unless asked) on
@@ -292,21 +294,6 @@ pub struct GraftSpec {
     pub lower: LowerSpec,
 }
 
-fn vmc_port() -> u16 {
-    rigcast_sources::vmc_in::DEFAULT_VMC_PORT
-}
-
-fn loopback() -> IpAddr {
-    IpAddr::V4(Ipv4Addr::LOCALHOST)
-}
-
-fn one() -> f64 {
-    1.0
-}
-fn yes() -> bool {
-    true
-}
-
 impl FileConfig {
     /// Reads and parses a config file; relative source paths are resolved against its folder.
     pub fn load(path: &Path) -> Result<FileConfig, ConfigError> {
@@ -352,307 +339,6 @@ impl FileConfig {
         Ok(cfg)
     }
 }
-
-/// Playback settings of a replayed clip.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ReplaySettings {
-    /// Speed factor (> 0).
-    pub speed: f64,
-    /// Loop at the end.
-    pub looping: bool,
-    /// Seconds into the clip to start at.
-    pub start_offset_secs: f64,
-}
-
-impl Default for ReplaySettings {
-    fn default() -> Self {
-        ReplaySettings {
-            speed: 1.0,
-            looping: true,
-            start_offset_secs: 0.0,
-        }
-    }
-}
-
-/// Where a subject's poses come from. One schema for both spellings: a `[[sources]]` entry
-/// deserialises straight into it (`kind` picks the variant, unknown keys are errors), and
-/// `--source KIND:ARG` parses into it ([`FromStr`]; [`SourceSpec::to_cli`] writes it back).
-#[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SourceSpec {
-    /// Replay a file (`kind = "replay"`: `path`, `speed`, `loop`, `start_offset_secs`, `name`;
-    /// `--source replay:FILE`).
-    #[serde(rename = "replay", deserialize_with = "replay_keys")]
-    ReplayFile {
-        /// The file (relative paths in a config file are relative to it).
-        path: PathBuf,
-        /// Subject name (default: file stem).
-        name: Option<String>,
-        /// Playback.
-        settings: ReplaySettings,
-    },
-    /// Replay a clip already in memory (tests, generated content).
-    #[serde(skip)]
-    ReplayClip {
-        /// The clip.
-        clip: Clip,
-        /// Subject name (default: the clip name).
-        name: Option<String>,
-        /// Playback.
-        settings: ReplaySettings,
-    },
-    /// The bundled demo recording, looping (`--source demo`).
-    #[serde(skip)]
-    EmbeddedDemo,
-    /// VMC/OSC input (`--source vmc:PORT` on loopback, `vmc:ADDR:PORT` elsewhere; port 0
-    /// picks a free one).
-    Vmc {
-        /// UDP port (default 39539).
-        #[serde(default = "vmc_port")]
-        port: u16,
-        /// Address to listen on ([`DEFAULT_VMC_BIND`] unless configured).
-        #[serde(default = "loopback")]
-        bind: IpAddr,
-        /// Sender IP addresses accepted (empty: any that can reach `bind`).
-        #[serde(default)]
-        allowed_senders: Vec<IpAddr>,
-        /// Silence before the source counts as lost (default 0.5 s).
-        lost_after_secs: Option<f32>,
-        /// Subject name (default `vmc:PORT`).
-        name: Option<String>,
-    },
-    /// Serial IMU suit described by a TOML file (see `SerialImuConfig`;
-    /// `--source serial:CONFIG.toml`).
-    Serial {
-        /// The suit's TOML config.
-        config: PathBuf,
-        /// Subject name (default: the config file stem).
-        name: Option<String>,
-    },
-    /// Pose estimation on a video file (needs `rigcast setup vision`; `--source video:FILE`,
-    /// `video:FILE#PERSON` for one of several people in it).
-    Video {
-        /// The video.
-        path: PathBuf,
-        /// Which tracked person (`#0`, `#1`, …; default 0). Entries naming the same file share
-        /// one decoder and one model run per frame.
-        person: Option<usize>,
-        /// People tracked in this video (default 2); `person` must be below it.
-        people: Option<usize>,
-        /// Subject name (default: the file stem, plus `#PERSON` when a person is given).
-        name: Option<String>,
-    },
-    /// Pose estimation on a webcam (needs `rigcast setup vision` and a build with
-    /// `--features webcam`; `--source webcam:INDEX`).
-    Webcam {
-        /// Camera index (default 0: the first camera).
-        #[serde(default)]
-        index: u32,
-        /// Which tracked person, as for `Video` (`--source webcam:INDEX#PERSON`).
-        person: Option<usize>,
-        /// People tracked on this camera (default 2).
-        people: Option<usize>,
-        /// Subject name (default `webcam:INDEX`, plus `#PERSON` when a person is given).
-        name: Option<String>,
-    },
-}
-
-/// The keys of a `kind = "replay"` entry, flat in the file, grouped in [`SourceSpec`].
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ReplayKeys {
-    path: PathBuf,
-    #[serde(default = "one")]
-    speed: f64,
-    #[serde(default = "yes", rename = "loop")]
-    looping: bool,
-    #[serde(default)]
-    start_offset_secs: f64,
-    name: Option<String>,
-}
-
-type ReplayFields = (PathBuf, Option<String>, ReplaySettings);
-
-fn replay_keys<'de, D: serde::Deserializer<'de>>(d: D) -> Result<ReplayFields, D::Error> {
-    let k = ReplayKeys::deserialize(d)?;
-    let settings = ReplaySettings {
-        speed: k.speed,
-        looping: k.looping,
-        start_offset_secs: k.start_offset_secs,
-    };
-    Ok((k.path, k.name, settings))
-}
-
-impl SourceSpec {
-    /// What kind of source this is.
-    pub fn kind(&self) -> SourceKind {
-        match self {
-            SourceSpec::ReplayFile { .. }
-            | SourceSpec::ReplayClip { .. }
-            | SourceSpec::EmbeddedDemo => SourceKind::Replay,
-            SourceSpec::Vmc { .. } => SourceKind::Vmc,
-            SourceSpec::Serial { .. } => SourceKind::Serial,
-            SourceSpec::Video { .. } => SourceKind::Video,
-            SourceSpec::Webcam { .. } => SourceKind::Webcam,
-        }
-    }
-
-    /// The file this source reads, if any (resolved against a config file's folder).
-    pub fn file_mut(&mut self) -> Option<&mut PathBuf> {
-        match self {
-            SourceSpec::ReplayFile { path, .. }
-            | SourceSpec::Serial { config: path, .. }
-            | SourceSpec::Video { path, .. } => Some(path),
-            SourceSpec::ReplayClip { .. }
-            | SourceSpec::EmbeddedDemo
-            | SourceSpec::Vmc { .. }
-            | SourceSpec::Webcam { .. } => None,
-        }
-    }
-
-    /// The `--source` argument that parses back into this spec, or `None` when the command
-    /// line cannot say it (an in-memory clip, names, non-default settings).
-    pub fn to_cli(&self) -> Option<String> {
-        let default_replay = ReplaySettings::default();
-        Some(match self {
-            SourceSpec::EmbeddedDemo => "demo".to_string(),
-            SourceSpec::ReplayFile {
-                path,
-                name: None,
-                settings,
-            } if *settings == default_replay => format!("replay:{}", path.display()),
-            SourceSpec::Vmc {
-                port,
-                bind,
-                allowed_senders,
-                lost_after_secs: None,
-                name: None,
-            } if allowed_senders.is_empty() => {
-                if *bind == DEFAULT_VMC_BIND {
-                    format!("vmc:{port}")
-                } else {
-                    format!("vmc:{}", SocketAddr::new(*bind, *port))
-                }
-            }
-            SourceSpec::Serial { config, name: None } => format!("serial:{}", config.display()),
-            SourceSpec::Video {
-                path,
-                person,
-                people: None,
-                name: None,
-            } => format!("video:{}{}", path.display(), person_suffix(*person)),
-            SourceSpec::Webcam {
-                index,
-                person,
-                people: None,
-                name: None,
-            } => format!("webcam:{index}{}", person_suffix(*person)),
-            _ => return None,
-        })
-    }
-}
-
-/// `--source` arguments: `replay:PATH`, `vmc:PORT` (loopback), `vmc:ADDR:PORT`,
-/// `serial:CONFIG.toml`, `video:FILE`, `webcam:INDEX` and `demo`.
-impl FromStr for SourceSpec {
-    type Err = ConfigError;
-
-    fn from_str(s: &str) -> Result<SourceSpec, ConfigError> {
-        if s == "demo" {
-            return Ok(SourceSpec::EmbeddedDemo);
-        }
-        let unknown = || ConfigError::UnknownSource { text: s.into() };
-        let (kind, arg) = s.split_once(':').ok_or_else(unknown)?;
-        let kind = <SourceKind as clap::ValueEnum>::from_str(kind, false).map_err(|_| unknown())?;
-        let bad = |expected| ConfigError::BadSourceArg {
-            text: s.into(),
-            expected,
-        };
-        let file = || {
-            (!arg.is_empty())
-                .then(|| PathBuf::from(arg))
-                .ok_or_else(unknown)
-        };
-        Ok(match kind {
-            SourceKind::Replay => SourceSpec::ReplayFile {
-                path: file()?,
-                name: None,
-                settings: ReplaySettings::default(),
-            },
-            SourceKind::Vmc => {
-                let (bind, port) = match arg.parse::<u16>() {
-                    Ok(port) => (DEFAULT_VMC_BIND, port),
-                    Err(_) => {
-                        let addr: SocketAddr = arg.parse().map_err(|_| bad(VMC_GRAMMAR))?;
-                        (addr.ip(), addr.port())
-                    }
-                };
-                SourceSpec::Vmc {
-                    port,
-                    bind,
-                    allowed_senders: Vec::new(),
-                    lost_after_secs: None,
-                    name: None,
-                }
-            }
-            SourceKind::Serial => SourceSpec::Serial {
-                config: file()?,
-                name: None,
-            },
-            SourceKind::Video => {
-                let (path, person) = split_person(arg).map_err(|_| bad(VIDEO_GRAMMAR))?;
-                if path.is_empty() {
-                    return Err(unknown());
-                }
-                SourceSpec::Video {
-                    path: PathBuf::from(path),
-                    person,
-                    people: None,
-                    name: None,
-                }
-            }
-            SourceKind::Webcam => {
-                let (index, person) = split_person(arg).map_err(|_| bad(WEBCAM_GRAMMAR))?;
-                SourceSpec::Webcam {
-                    index: index.parse().map_err(|_| bad(WEBCAM_GRAMMAR))?,
-                    person,
-                    people: None,
-                    name: None,
-                }
-            }
-            // Skipped by the parser above; other nodes' subjects come from `[cluster]`.
-            SourceKind::Remote => return Err(unknown()),
-        })
-    }
-}
-
-const VMC_GRAMMAR: &str = "vmc:PORT (loopback) or vmc:ADDR:PORT with a UDP port 0..=65535";
-const WEBCAM_GRAMMAR: &str =
-    "webcam:INDEX or webcam:INDEX#PERSON with a camera number and a person number, e.g. webcam:0#1";
-const VIDEO_GRAMMAR: &str =
-    "video:FILE or video:FILE#PERSON with a person number (#0 is the first tracked person)";
-
-/// Splits `FILE#PERSON` at its last `#`. No `#`: no person. A `#` followed by anything but a
-/// number is an error, unless the whole text is an existing file (a name that contains `#`).
-fn split_person(arg: &str) -> Result<(&str, Option<usize>), ()> {
-    let Some((head, tail)) = arg.rsplit_once('#') else {
-        return Ok((arg, None));
-    };
-    match tail.parse::<usize>() {
-        Ok(person) => Ok((head, Some(person))),
-        Err(_) if Path::new(arg).is_file() => Ok((arg, None)),
-        Err(_) => Err(()),
-    }
-}
-
-/// The `#PERSON` of a `--source` argument (nothing for the default person).
-pub(crate) fn person_suffix(person: Option<usize>) -> String {
-    person.map(|p| format!("#{p}")).unwrap_or_default()
-}
-
-/// VMC input listens on loopback unless told otherwise: a performer's skeleton must not be
-/// replaceable by any host on the network.
-pub const DEFAULT_VMC_BIND: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
 
 /// Who may use the HTTP listener (see [`crate::access`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -931,32 +617,7 @@ impl ServerConfig {
             });
         }
         for s in &self.sources {
-            let settings = match s {
-                SourceSpec::ReplayFile { settings, .. }
-                | SourceSpec::ReplayClip { settings, .. } => settings,
-                SourceSpec::Vmc {
-                    lost_after_secs: Some(l),
-                    ..
-                } if !(l.is_finite() && *l > 0.0) => {
-                    return Err(ConfigError::Invalid {
-                        field: "lost_after_secs",
-                        message: format!("{l} must be a positive number of seconds"),
-                    })
-                }
-                _ => continue,
-            };
-            if !(settings.speed.is_finite() && settings.speed > 0.0) {
-                return Err(ConfigError::Invalid {
-                    field: "speed",
-                    message: format!("{} must be a positive number", settings.speed),
-                });
-            }
-            if !(settings.start_offset_secs.is_finite() && settings.start_offset_secs >= 0.0) {
-                return Err(ConfigError::Invalid {
-                    field: "start_offset_secs",
-                    message: format!("{} must be ≥ 0", settings.start_offset_secs),
-                });
-            }
+            s.validate()?;
         }
         Ok(())
     }
@@ -1042,6 +703,8 @@ pub fn parse_listen(s: &str) -> Result<SocketAddr, ConfigError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rigcast_protocol::SourceKind;
+    use std::net::IpAddr;
 
     #[test]
     fn parses_documented_example() {
@@ -1062,11 +725,11 @@ mod tests {
         assert_eq!(cfg.rate_hz, 120.0);
         assert_eq!(cfg.vmc_out, vec![VmcOut::to("127.0.0.1:39539")]);
         match &cfg.sources[0] {
-            SourceSpec::ReplayFile {
+            SourceSpec::ReplayFile(crate::config::ReplayFileSpec {
                 path,
                 name,
                 settings,
-            } => {
+            }) => {
                 assert_eq!(path, Path::new("/x/walk.bvh"));
                 assert_eq!(name.as_deref(), Some("walker"));
                 assert_eq!(settings.speed, 0.5);
@@ -1088,7 +751,7 @@ mod tests {
         .unwrap();
         let cfg = ServerConfig::from_file(FileConfig::load(&path).unwrap()).unwrap();
         match &cfg.sources[0] {
-            SourceSpec::ReplayFile { path, settings, .. } => {
+            SourceSpec::ReplayFile(crate::config::ReplayFileSpec { path, settings, .. }) => {
                 assert_eq!(path, &dir.join("clips/a.bvh"));
                 assert_eq!(*settings, ReplaySettings::default());
             }
@@ -1157,7 +820,7 @@ mod tests {
         assert_eq!(cfg.rate_hz, DEFAULT_RATE_HZ);
         assert_eq!(cfg.vmc_out.len(), 1);
         assert!(
-            matches!(&cfg.sources[0], SourceSpec::ReplayFile { path, .. } if path.ends_with("recordings/demo.rcr"))
+            matches!(&cfg.sources[0], SourceSpec::ReplayFile(crate::config::ReplayFileSpec { path, .. }) if path.ends_with("recordings/demo.rcr"))
         );
         assert_eq!(cfg.performers.len(), 1);
         assert_eq!(cfg.performers[0].sources, vec!["demo".to_string()]);
@@ -1230,19 +893,19 @@ mod tests {
         );
         assert!(matches!(
             cfg.sources[0],
-            SourceSpec::Vmc { port: 39540, .. }
+            SourceSpec::Vmc(crate::config::VmcSpec { port: 39540, .. })
         ));
         assert!(
-            matches!(&cfg.sources[1], SourceSpec::Serial { config, .. } if config == Path::new("/x/suit.toml"))
+            matches!(&cfg.sources[1], SourceSpec::Serial(crate::config::SerialSpec { config, .. }) if config == Path::new("/x/suit.toml"))
         );
         assert!(matches!(
             cfg.sources[2],
-            SourceSpec::Webcam {
+            SourceSpec::Webcam(crate::config::WebcamSpec {
                 index: 1,
                 person: None,
                 name: None,
                 ..
-            }
+            })
         ));
         let p = &cfg.performers[0];
         assert_eq!(p.sources, vec!["face".to_string(), "suit".to_string()]);
@@ -1283,11 +946,11 @@ mod tests {
         // VMC input stays on loopback unless the file says otherwise.
         assert!(matches!(
             &cfg.sources[0],
-            SourceSpec::Vmc { bind, allowed_senders, .. } if bind.is_loopback() && allowed_senders.is_empty()
+            SourceSpec::Vmc(crate::config::VmcSpec { bind, allowed_senders, .. }) if bind.is_loopback() && allowed_senders.is_empty()
         ));
         assert!(matches!(
             &cfg.sources[1],
-            SourceSpec::Vmc { bind, allowed_senders, .. }
+            SourceSpec::Vmc(crate::config::VmcSpec { bind, allowed_senders, .. })
                 if bind.is_unspecified() && allowed_senders == &["192.168.1.20".parse::<IpAddr>().unwrap()]
         ));
         // The library default keeps the token in memory; a file config uses a file.
@@ -1382,10 +1045,10 @@ mod tests {
             toml::from_str("[[sources]]\nkind = \"vmc\"\nport = 39540\n").unwrap();
         let cli: SourceSpec = "vmc:39540".parse().unwrap();
         assert_eq!(format!("{:?}", file.sources[0]), format!("{cli:?}"));
-        let named = SourceSpec::Serial {
+        let named = SourceSpec::Serial(crate::config::SerialSpec {
             config: "suit.toml".into(),
             name: Some("suit".into()),
-        };
+        });
         assert_eq!(named.to_cli(), None, "a name has no command-line spelling");
         for (bad, says) in [
             ("teleport:x", "unknown source"),
@@ -1400,6 +1063,12 @@ mod tests {
             let err = bad.parse::<SourceSpec>().unwrap_err().to_string();
             assert!(err.contains(says), "{bad}: {err}");
         }
+        // `person` in a [[sources]] entry is the same spec as `#PERSON`.
+        let file: FileConfig =
+            toml::from_str("[[sources]]\nkind = \"video\"\npath = \"a.mp4\"\nperson = 1\n")
+                .unwrap();
+        let cli: SourceSpec = "video:a.mp4#1".parse().unwrap();
+        assert_eq!(format!("{:?}", file.sources[0]), format!("{cli:?}"));
         let out: VmcOut = "127.0.0.1:2@hero".parse().unwrap();
         assert_eq!(out.subject.as_deref(), Some("hero"));
         assert_eq!(out.to_string(), "127.0.0.1:2@hero");

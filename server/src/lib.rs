@@ -50,6 +50,7 @@ pub mod model;
 pub mod performer;
 pub mod recorder;
 pub mod skeleton_wire;
+pub mod source_kinds;
 pub mod state;
 pub mod stats;
 pub mod subject;
@@ -61,11 +62,12 @@ pub mod vmc_pose;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-pub use boot::{demo_clip, start, NO_WEBCAM_HINT};
+pub use boot::start;
 pub use config::{
     AccessConfig, LimitsConfig, OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec,
     TargetSpec, VmcBoneNames, VmcOut,
 };
+pub use source_kinds::{demo_clip, NO_WEBCAM_HINT};
 pub use token::{ControlToken, TokenSetting};
 
 use state::ServerState;

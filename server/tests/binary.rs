@@ -2,6 +2,8 @@
 //! client gets hello, skeleton and frames at the configured rate; Ctrl-C stops it cleanly.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -250,12 +252,8 @@ fn binary_rejects_bad_flags_with_clear_errors() {
         let err = refused(&all);
         assert!(err.contains(needle), "rigcast {all:?}: {err}");
     }
-    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(["info", "/no/such/file.bvh"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/file.bvh"));
+    let err = common::rigcast_fails(["info", "/no/such/file.bvh"]);
+    assert!(err.contains("/no/such/file.bvh"), "{err}");
 }
 
 #[test]
@@ -266,36 +264,15 @@ fn info_and_convert_commands() {
     let bvh = dir.join("demo.bvh");
     rigcast_sources::save_clip(&bvh, &clip).unwrap();
 
-    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(["info", bvh.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = common::rigcast_ok(["info", bvh.to_str().unwrap()]);
     assert!(text.contains("LeftUpperArm"), "{text}");
     assert!(text.contains("BVH"), "{text}");
 
     let rcr = dir.join("demo.rcr");
-    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(["convert", bvh.to_str().unwrap(), rcr.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    common::rigcast_ok(["convert", bvh.to_str().unwrap(), rcr.to_str().unwrap()]);
     let back = rigcast_sources::load_clip(&rcr).unwrap();
     assert_eq!(back.num_frames(), 10);
 
-    let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(["convert", "/no/such.bvh", rcr.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such.bvh"));
+    let err = common::rigcast_fails(["convert", "/no/such.bvh", rcr.to_str().unwrap()]);
+    assert!(err.contains("/no/such.bvh"), "{err}");
 }

@@ -11,7 +11,6 @@
 
 use std::io::{Read, Write};
 use std::os::unix::io::RawFd;
-use std::path::PathBuf;
 use std::process::Output;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -28,39 +27,9 @@ use tokio_tungstenite::tungstenite::Message;
 type Ws =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
-/// Angle between rotations, accurate for tiny angles.
-fn angle(a: Quat, b: Quat) -> f32 {
-    let d = a.inverse() * b;
-    2.0 * d.xyz().length().atan2(d.w.abs())
-}
-
-struct Pty {
-    master: RawFd,
-    slave: RawFd,
-    path: PathBuf,
-}
-
-impl Pty {
-    fn new() -> Pty {
-        let r = nix::pty::openpty(None, None).unwrap();
-        let mut t = nix::sys::termios::tcgetattr(r.slave).unwrap();
-        nix::sys::termios::cfmakeraw(&mut t);
-        nix::sys::termios::tcsetattr(r.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
-        let path = nix::unistd::ttyname(r.slave).unwrap();
-        Pty {
-            master: r.master,
-            slave: r.slave,
-            path,
-        }
-    }
-}
-
-impl Drop for Pty {
-    fn drop(&mut self) {
-        let _ = nix::unistd::close(self.master);
-        let _ = nix::unistd::close(self.slave);
-    }
-}
+#[path = "../../sources/tests/common/pty.rs"]
+mod pty;
+use pty::{angle, Pty};
 
 /// The performer: re-sends the current sensor readings (CSV `id,w,x,y,z`) every 20 ms, as a
 /// suit streams continuously.
@@ -115,7 +84,8 @@ impl Drop for Performer {
 const SENSORS: [(u32, &str); 3] = [(0, "Hips"), (1, "LeftUpperArm"), (2, "LeftLowerArm")];
 
 /// Runs `rigcast calibrate ARGS` (blocking, off the runtime's worker).
-async fn calibrate(args: Vec<String>) -> Output {
+async fn calibrate(args: &[&str]) -> Output {
+    let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
     tokio::task::spawn_blocking(move || {
         // An empty config folder: the token comes from the arguments, never the user's file.
         let config_home =
@@ -129,6 +99,20 @@ async fn calibrate(args: Vec<String>) -> Output {
     })
     .await
     .unwrap()
+}
+
+/// Runs `rigcast calibrate ARGS`, which must fail with every one of `needles` in its stderr.
+async fn refused(args: &[&str], needles: &[&str]) {
+    let out = calibrate(args).await;
+    let err = text(&out.stderr);
+    assert!(
+        !out.status.success(),
+        "{args:?} succeeded: {}",
+        text(&out.stdout)
+    );
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: no {n:?} in {err}");
+    }
 }
 
 fn text(b: &[u8]) -> String {
@@ -202,11 +186,11 @@ async fn calibrate_command_removes_mounting_offsets() {
     let handle = rigcast_server::start(ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         sources: vec![
-            SourceSpec::Serial {
+            SourceSpec::Serial(rigcast_server::config::SerialSpec {
                 config: config.clone(),
                 name: None,
-            },
-            SourceSpec::EmbeddedDemo,
+            }),
+            SourceSpec::demo(),
         ],
         ..ServerConfig::default()
     })
@@ -253,65 +237,23 @@ async fn calibrate_command_removes_mounting_offsets() {
     }
 
     // Without the token the request is refused, naming the remedy.
-    let out = calibrate(vec![
-        "--url".into(),
-        handle.stream_url(),
-        "--delay".into(),
-        "0".into(),
-    ])
+    let plain = handle.stream_url();
+    refused(
+        &["--url", &plain, "--delay", "0"],
+        &["unauthorized", "token"],
+    )
     .await;
-    assert!(!out.status.success());
-    let err = text(&out.stderr);
-    assert!(
-        err.contains("unauthorized") && err.contains("token"),
-        "{err}"
-    );
-
     // No sensor data yet: the source is not live, so there is nothing to capture.
-    let out = calibrate(vec![
-        "--url".into(),
-        url.clone(),
-        "--delay".into(),
-        "0".into(),
-    ])
+    refused(
+        &["--url", &url, "--delay", "0"],
+        &["calibration failed", "suit"],
+    )
     .await;
-    assert!(!out.status.success(), "{}", text(&out.stdout));
-    let err = text(&out.stderr);
-    assert!(
-        err.contains("calibration failed") && err.contains("suit"),
-        "{err}"
-    );
-
     // A replay subject is not calibratable: refused at once, non-zero exit.
-    let out = calibrate(vec![
-        "--url".into(),
-        url.clone(),
-        "--subject".into(),
-        "demo".into(),
-        "--delay".into(),
-        "0".into(),
-    ])
-    .await;
-    assert!(!out.status.success());
-    let err = text(&out.stderr);
-    assert!(
-        err.contains("not_calibratable") && err.contains("replay source"),
-        "{err}"
-    );
+    let demo = ["--url", &url, "--subject", "demo", "--delay", "0"];
+    refused(&demo, &["not_calibratable", "replay source"]).await;
     // So is a subject that does not exist (refused by the CLI, naming the choices).
-    let out = calibrate(vec![
-        "--url".into(),
-        url.clone(),
-        "--subject".into(),
-        "9".into(),
-    ])
-    .await;
-    assert!(!out.status.success());
-    assert!(
-        text(&out.stderr).contains("0 \"suit\" (serial)"),
-        "{}",
-        text(&out.stderr)
-    );
+    refused(&["--url", &url, "--subject", "9"], &["0 \"suit\" (serial)"]).await;
 
     // The performer holds the T-pose (the humanoid's rest: identity world rotations) with
     // sensors strapped on at arbitrary angles: they read their mounting offsets.
@@ -340,15 +282,7 @@ async fn calibrate_command_removes_mounting_offsets() {
 
     // The real binary: countdown, request, outcome.
     let started = Instant::now();
-    let out = calibrate(vec![
-        "--url".into(),
-        url.clone(),
-        "--pose".into(),
-        "t".into(),
-        "--delay".into(),
-        "1".into(),
-    ])
-    .await;
+    let out = calibrate(&["--url", &url, "--pose", "t", "--delay", "1"]).await;
     let stdout = text(&out.stdout);
     assert!(
         out.status.success(),
@@ -406,15 +340,15 @@ async fn calibrate_command_removes_mounting_offsets() {
             .map(|((id, bone), m)| (*id, world_of(bone) * m))
             .collect(),
     );
-    let out = calibrate(vec![
-        "--url".into(),
-        url.clone(),
-        "--subject".into(),
-        "suit".into(),
-        "--pose".into(),
-        "n".into(),
-        "--delay".into(),
-        "0.3".into(),
+    let out = calibrate(&[
+        "--url",
+        &url,
+        "--subject",
+        "suit",
+        "--pose",
+        "n",
+        "--delay",
+        "0.3",
     ])
     .await;
     let stdout = text(&out.stdout);

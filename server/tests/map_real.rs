@@ -156,21 +156,11 @@ fn overrides_save_and_cache() {
     .unwrap();
     let cache = dir.join("cache");
     let run = |extra: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-            .args(["map"])
-            .arg(&a)
-            .arg(&b)
-            .args(["--json", "--cache-dir"])
-            .arg(&cache)
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice::<Value>(&out.stdout).unwrap()
+        let mut args: Vec<std::ffi::OsString> =
+            vec!["map".into(), a.clone().into(), b.clone().into()];
+        args.extend(["--json".into(), "--cache-dir".into(), cache.clone().into()]);
+        args.extend(extra.iter().map(|e| e.into()));
+        serde_json::from_str::<Value>(&common::rigcast_ok(args)).unwrap()
     };
     let first = run(&[
         "--overrides",

@@ -144,7 +144,7 @@ async fn vrm_humanoid_map_decides_the_servers_mapping() {
 
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![SourceSpec::EmbeddedDemo],
+        sources: vec![SourceSpec::demo()],
         performers: vec![PerformerSpec::target_file(path.clone())],
         mapping_cache_dir: Some(dir.join("cache")),
         ..ServerConfig::default()

@@ -8,7 +8,6 @@
 
 #![allow(clippy::unwrap_used)]
 
-use std::os::unix::io::RawFd;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -22,48 +21,10 @@ use rigcast_sources::serial::{
     teapot_packet, witmotion_frame, ImuFormat, SensorAssignment, SerialImuConfig, SerialImuSource,
 };
 
-/// Angle between rotations, accurate for tiny angles.
-fn angle(a: Quat, b: Quat) -> f32 {
-    let d = a.inverse() * b;
-    2.0 * d.xyz().length().atan2(d.w.abs())
+mod common {
+    pub mod pty;
 }
-
-struct Pty {
-    master: RawFd,
-    slave: RawFd,
-    path: PathBuf,
-}
-
-impl Pty {
-    fn new() -> Pty {
-        let r = nix::pty::openpty(None, None).unwrap();
-        // Raw mode, so binary frames pass unchanged (no CR/LF translation, no echo).
-        let mut t = nix::sys::termios::tcgetattr(r.slave).unwrap();
-        nix::sys::termios::cfmakeraw(&mut t);
-        nix::sys::termios::tcsetattr(r.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
-        let path = nix::unistd::ttyname(r.slave).unwrap();
-        Pty {
-            master: r.master,
-            slave: r.slave,
-            path,
-        }
-    }
-
-    fn write(&self, bytes: &[u8]) {
-        let mut rest = bytes;
-        while !rest.is_empty() {
-            let n = nix::unistd::write(self.master, rest).unwrap();
-            rest = &rest[n..];
-        }
-    }
-}
-
-impl Drop for Pty {
-    fn drop(&mut self) {
-        let _ = nix::unistd::close(self.master);
-        let _ = nix::unistd::close(self.slave);
-    }
-}
+use common::pty::{angle, Pty};
 
 fn point_link(link: &Path, target: &Path) {
     let _ = std::fs::remove_file(link);

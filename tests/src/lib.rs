@@ -287,13 +287,49 @@ pub async fn http_get(addr: std::net::SocketAddr, path: &str) -> (String, String
     (head.to_string(), body.to_string())
 }
 
+/// A chain of `bones` bones `spacing` apart (up +Y), each turning a little about Z per frame
+/// (`step` × frame × (bone + 1) radians) over `frames` frames at `fps`: a clip of a chosen
+/// frame size (60 + 16 × bones bytes on the wire) for the fan-out and limits tests.
+pub fn chain_clip(bones: usize, frames: usize, spacing: f32, step: f32, fps: f64) -> Clip {
+    let mut raw = RawSkeleton::default();
+    let mut parent = None;
+    for i in 0..bones {
+        parent = Some(raw.add(
+            format!("b{i}"),
+            parent,
+            Transform::from_translation(Vec3::Y * spacing),
+        ));
+    }
+    let skeleton = Arc::new(Skeleton::build(&raw).unwrap());
+    let poses = (0..frames)
+        .map(|f| {
+            let mut p = Pose::from_rest(&skeleton);
+            for (i, q) in p.rotations.iter_mut().enumerate() {
+                *q = Quat::from_rotation_z(step * (f * (i + 1)) as f32);
+            }
+            p
+        })
+        .collect();
+    Clip::new("chain", skeleton, poses, 1.0 / fps).unwrap()
+}
+
+/// A VMC input on a free loopback port, subject "performer", lost after `lost_after_secs`
+/// of silence: the live source of the end-to-end VMC tests.
+pub fn vmc_performer(lost_after_secs: f32) -> rigcast_server::SourceSpec {
+    rigcast_server::SourceSpec::Vmc(rigcast_server::config::VmcSpec {
+        lost_after_secs: Some(lost_after_secs),
+        name: Some("performer".into()),
+        ..rigcast_server::config::VmcSpec::loopback(0)
+    })
+}
+
 /// A replay of an in-memory clip, looping from the start at normal speed.
 pub fn clip_source(clip: Clip) -> rigcast_server::SourceSpec {
-    rigcast_server::SourceSpec::ReplayClip {
+    rigcast_server::SourceSpec::ReplayClip(rigcast_server::config::ReplayClipSpec {
         clip,
         name: None,
         settings: rigcast_server::ReplaySettings::default(),
-    }
+    })
 }
 
 /// A unique temporary path (no tempfile crate: pid + name + counter).

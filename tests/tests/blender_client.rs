@@ -526,12 +526,12 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         sources: vec![
-            SourceSpec::EmbeddedDemo,
-            SourceSpec::ReplayClip {
+            SourceSpec::demo(),
+            SourceSpec::ReplayClip(rigcast_server::config::ReplayClipSpec {
                 clip: twisted(&demo),
                 name: Some("twisted".into()),
                 settings: ReplaySettings::default(),
-            },
+            }),
         ],
         performers: vec![PerformerSpec {
             sources: vec!["demo".into()],
@@ -909,12 +909,18 @@ async fn survives_a_failing_take(blender: Blender) {
         vec![broken],
         "{label}: want exactly the broken take reported: {errors:?}"
     );
+    // Starving shows as a drop against the rate the same armature had a moment before with
+    // every take recording (the bug: 8.6 fps against 60); a busy machine lowers both alike.
+    let before = result["applied_fps_before_break"].as_object().unwrap();
     for (id, fps) in result["applied_fps_after_break"].as_object().unwrap() {
         let fps = fps.as_f64().unwrap();
-        println!("{label}: subject {id} applied {fps:.1} frames/s after the take broke");
+        let was = before[id].as_f64().unwrap();
+        println!(
+            "{label}: subject {id} applied {fps:.1} frames/s after the take broke, {was:.1} before"
+        );
         assert!(
-            fps >= 30.0,
-            "{label}: subject {id} starved to {fps:.1} frames/s"
+            fps >= (0.75 * was).min(30.0),
+            "{label}: subject {id} starved to {fps:.1} frames/s (was {was:.1})"
         );
     }
     // The other armature's take finished with its curves.

@@ -3,13 +3,11 @@
 //! control queue overflowed still ends up with the current skeletons and mapping.
 #![allow(clippy::unwrap_used)]
 
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use futures_util::StreamExt;
-use glam::Vec3;
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
+use rigcast_retarget::Clip;
 use rigcast_server::{LimitsConfig, PerformerSpec, ServerConfig, TargetSpec};
 use rigcast_tests::*;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -22,26 +20,7 @@ const WAIT: Duration = Duration::from_secs(5);
 
 /// A chain of `n` bones with a little motion: frames of 60 + 16n bytes.
 fn chain_clip(n: usize) -> Clip {
-    let mut raw = RawSkeleton::default();
-    let mut parent = None;
-    for i in 0..n {
-        parent = Some(raw.add(
-            format!("b{i}"),
-            parent,
-            Transform::from_translation(Vec3::Y * 0.05),
-        ));
-    }
-    let skeleton = Arc::new(Skeleton::build(&raw).unwrap());
-    let poses = (0..30)
-        .map(|f| {
-            let mut p = Pose::from_rest(&skeleton);
-            for (i, q) in p.rotations.iter_mut().enumerate() {
-                *q = glam::Quat::from_rotation_z(0.002 * (f * (i + 1)) as f32);
-            }
-            p
-        })
-        .collect();
-    Clip::new("chain", skeleton, poses, 1.0 / 30.0).unwrap()
+    rigcast_tests::chain_clip(n, 30, 0.05, 0.002, 30.0)
 }
 
 /// A WebSocket upgrade on a socket with a tiny receive buffer, read up to the end of the 101

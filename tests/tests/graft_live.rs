@@ -70,11 +70,11 @@ fn pearson(a: &[f32], b: &[f32]) -> f32 {
 }
 
 fn replay(path: std::path::PathBuf, name: &str) -> SourceSpec {
-    SourceSpec::ReplayFile {
+    SourceSpec::ReplayFile(rigcast_server::config::ReplayFileSpec {
         path,
         name: Some(name.into()),
         settings: ReplaySettings::default(),
-    }
+    })
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -24,7 +24,7 @@ use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::{GraphSettings, MotionGraph};
 use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
 use rigcast_server::config::OnLost;
-use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
+use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
 const TARGET: u32 = 1;
@@ -185,13 +185,7 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: RATE_HZ,
-        sources: vec![SourceSpec::Vmc {
-            port: 0,
-            bind: rigcast_server::config::DEFAULT_VMC_BIND,
-            allowed_senders: Vec::new(),
-            lost_after_secs: Some(LOST_AFTER_SECS),
-            name: Some("performer".into()),
-        }],
+        sources: vec![rigcast_tests::vmc_performer(LOST_AFTER_SECS)],
         performers: vec![PerformerSpec {
             on_lost: Some(OnLost::Idle),
             idle_graph: Some(graph_file.clone()),

@@ -13,7 +13,7 @@ use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions};
-use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
+use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
 const RATE: f64 = 60.0;
@@ -68,13 +68,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: RATE,
-        sources: vec![SourceSpec::Vmc {
-            port: 0,
-            bind: rigcast_server::config::DEFAULT_VMC_BIND,
-            allowed_senders: Vec::new(),
-            lost_after_secs: Some(0.25),
-            name: Some("performer".into()),
-        }],
+        sources: vec![rigcast_tests::vmc_performer(0.25)],
         // The output is compared with plain `Mapping::apply`: no foot lock on top (it is
         // judged in server/tests/foot_lock.rs).
         performers: vec![PerformerSpec {
@@ -220,7 +214,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     let stopped = Instant::now();
     let mut steps = Vec::new();
     let mut to_rest = Vec::new();
-    let mut prev: Option<Vec<Quat>> = None;
+    let mut prev: Option<(Vec<Quat>, u64)> = None;
     let mut saw_lost = false;
     let mut lost_detail = String::new();
     while stopped.elapsed() < Duration::from_millis(1300) {
@@ -234,11 +228,15 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
                 }
             }
             Incoming::Frame(f, _) if f.header.subject == 1 => {
-                if let Some(p) = &prev {
-                    steps.push(max_angle(p, &f.rotations));
+                // The ease follows the clock, so a tick the loaded machine ran late moves
+                // further: judge each step per tick period actually elapsed (send times).
+                if let Some((p, sent)) = &prev {
+                    let ticks =
+                        (f.header.send_nanos.saturating_sub(*sent) as f64 * 1e-9 * RATE).max(1.0);
+                    steps.push(max_angle(p, &f.rotations) / ticks as f32);
                 }
                 to_rest.push(max_angle(&f.rotations, &rest.rotations));
-                prev = Some(f.rotations);
+                prev = Some((f.rotations, f.header.send_nanos));
             }
             _ => {}
         }
@@ -354,13 +352,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: RATE,
-        sources: vec![SourceSpec::Vmc {
-            port: 0,
-            bind: rigcast_server::config::DEFAULT_VMC_BIND,
-            allowed_senders: Vec::new(),
-            lost_after_secs: Some(0.25),
-            name: Some("performer".into()),
-        }],
+        sources: vec![rigcast_tests::vmc_performer(0.25)],
         performers: vec![PerformerSpec::target_file("builtin:mannequin")],
         on_lost: rigcast_server::config::OnLost::Hold,
         ..ServerConfig::default()

@@ -2,13 +2,11 @@
 //! it is told how many frames it missed, and it is still connected.
 #![allow(clippy::unwrap_used)]
 
-use std::sync::Arc;
 use std::time::Duration;
 
 use futures_util::SinkExt;
-use glam::{Quat, Vec3};
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
+use rigcast_retarget::Clip;
 use rigcast_tests::*;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpSocket;
@@ -20,26 +18,7 @@ const RATE_HZ: f64 = 120.0;
 
 /// A 200-bone chain: ~3.2 kB per frame, so a stalled socket fills its buffers within a second.
 fn big_clip() -> Clip {
-    let mut raw = RawSkeleton::default();
-    let mut parent = None;
-    for i in 0..200 {
-        parent = Some(raw.add(
-            format!("b{i}"),
-            parent,
-            Transform::from_translation(Vec3::Y * 0.01),
-        ));
-    }
-    let skeleton = Arc::new(Skeleton::build(&raw).unwrap());
-    let poses = (0..60)
-        .map(|f| {
-            let mut p = Pose::from_rest(&skeleton);
-            for (i, q) in p.rotations.iter_mut().enumerate() {
-                *q = Quat::from_rotation_z(0.001 * (f * i) as f32);
-            }
-            p
-        })
-        .collect();
-    Clip::new("big", skeleton, poses, 1.0 / 120.0).unwrap()
+    rigcast_tests::chain_clip(200, 60, 0.01, 0.001, 120.0)
 }
 
 struct Measure {

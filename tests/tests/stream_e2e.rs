@@ -22,11 +22,13 @@ async fn check_file_streams_its_rotations(path: &Path) {
     // Bone names as in the file (humanoid role names are the default; see live_vmc/engine tests).
     let server = rigcast_server::start(rigcast_server::ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![SourceSpec::ReplayFile {
-            path: path.to_path_buf(),
-            name: None,
-            settings: ReplaySettings::default(),
-        }],
+        sources: vec![SourceSpec::ReplayFile(
+            rigcast_server::config::ReplayFileSpec {
+                path: path.to_path_buf(),
+                name: None,
+                settings: ReplaySettings::default(),
+            },
+        )],
         vmc_out: vec![rigcast_server::VmcOut::to(vmc_addr)],
         vmc_bone_names: rigcast_server::VmcBoneNames::Skeleton,
         ..rigcast_server::ServerConfig::default()

@@ -45,13 +45,12 @@ async fn status(addr: SocketAddr) -> serde_json::Value {
 }
 
 fn vmc(port: u16, allowed: &[&str], name: &str) -> SourceSpec {
-    SourceSpec::Vmc {
-        port,
-        bind: rigcast_server::config::DEFAULT_VMC_BIND,
+    SourceSpec::Vmc(rigcast_server::config::VmcSpec {
         allowed_senders: allowed.iter().map(|a| a.parse().unwrap()).collect(),
         lost_after_secs: Some(5.0),
         name: Some(name.into()),
-    }
+        ..rigcast_server::config::VmcSpec::loopback(port)
+    })
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

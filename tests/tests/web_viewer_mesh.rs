@@ -37,7 +37,7 @@ async fn serve(targets: &[&Path]) -> rigcast_server::ServerHandle {
     performers.push(PerformerSpec::target_file("builtin:mannequin"));
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![SourceSpec::EmbeddedDemo],
+        sources: vec![SourceSpec::demo()],
         performers,
         ..ServerConfig::default()
     };

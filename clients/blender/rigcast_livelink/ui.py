@@ -141,8 +141,9 @@ class RIGCAST_OT_create_armature(bpy.types.Operator):
     def execute(self, context):
         settings = context.scene.rigcast
         subject_id = self.subject_id
-        if subject_id < 0 and 0 <= settings.subject_index < len(settings.subjects):
-            subject_id = settings.subjects[settings.subject_index].subject_id
+        picked = _selected(settings.subjects, settings.subject_index)
+        if subject_id < 0 and picked is not None:
+            subject_id = picked.subject_id
         skeleton = livelink.runtime.skeletons.get(subject_id)
         if skeleton is None:
             self.report({"ERROR"}, "no skeleton received yet for subject %d" % subject_id)
@@ -164,10 +165,11 @@ class RIGCAST_OT_set_override(bpy.types.Operator):
 
     def execute(self, context):
         settings = context.scene.rigcast
-        if not 0 <= settings.mapping_index < len(settings.mapping_items):
+        row = _selected(settings.mapping_items, settings.mapping_index)
+        if row is None:
             self.report({"ERROR"}, "pick a row of the mapping first")
             return {"CANCELLED"}
-        target = settings.mapping_items[settings.mapping_index].target
+        target = row.target
         source = settings.override_source or None
         session = livelink.runtime.session
         message = {"type": "set_mapping", "subject": settings.mapping_subject, "overrides": {target: source}}
@@ -216,6 +218,11 @@ class RIGCAST_UL_mapping(bpy.types.UIList):
         row.label(text=item.target)
         row.label(text=item.source or "(unmapped)")
         row.label(text="%.2f" % item.score)
+
+
+def _selected(items, index):
+    """The list row at `index`, or None when nothing (valid) is selected."""
+    return items[index] if 0 <= index < len(items) else None
 
 
 def _monotonic():

@@ -153,21 +153,8 @@ def _decode_v1(data, received_nanos):
 def encode_frame(subject, seq, capture_nanos, root_translation, rotations, send_nanos=0, missed=0):
     """Builds a frame; used by tests and the development server, never per frame in Blender."""
     num_bones = len(rotations)
-    out = bytearray(
-        HEADER.pack(
-            FRAME_MAGIC,
-            FRAME_VERSION,
-            0,
-            subject,
-            num_bones,
-            seq,
-            capture_nanos,
-            send_nanos,
-            missed,
-            0,
-            *root_translation,
-        )
-    )
+    fields = (FRAME_MAGIC, FRAME_VERSION, 0, subject, num_bones, seq, capture_nanos, send_nanos, missed, 0)
+    out = bytearray(HEADER.pack(*fields, *root_translation))
     for q in rotations:
         out += struct.pack("<4f", *q)
     return bytes(out)
@@ -176,20 +163,8 @@ def encode_frame(subject, seq, capture_nanos, root_translation, rotations, send_
 def encode_frame_v2(subject, seq, capture_nanos, rotations, translations, send_nanos=0, missed=0):
     """Builds a version 2 frame (``translations``: the marked bones' (x, y, z), in bone order);
     used by tests, never per frame in Blender."""
-    out = bytearray(
-        COMMON.pack(
-            FRAME_MAGIC,
-            FRAME_VERSION_2,
-            0,
-            subject,
-            len(rotations),
-            seq,
-            capture_nanos,
-            send_nanos,
-            missed,
-            len(translations),
-        )
-    )
+    fields = (FRAME_MAGIC, FRAME_VERSION_2, 0, subject, len(rotations), seq, capture_nanos)
+    out = bytearray(COMMON.pack(*fields, send_nanos, missed, len(translations)))
     for q in rotations:
         out += struct.pack("<4f", *q)
     for t in translations:

@@ -26,7 +26,7 @@ use super::spring::Decay;
 use crate::analysis::Analysis;
 use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
 use crate::pose::Pose;
-use crate::retarget::Mapping;
+use crate::retarget::{FloorAt, Mapping};
 use crate::skeleton::{BoneId, Skeleton};
 
 /// How far (radians, ~26°) a planted foot's pinned heading may lag the animation's before it is
@@ -138,7 +138,7 @@ impl FootLock {
         target: &Analysis,
         settings: LockSettings,
     ) -> Option<FootLock> {
-        let (up, floor, floor_bone) = mapping.target_floor()?;
+        let (up, floor, floor_at) = mapping.target_floor()?;
         let src_skel = mapping.source(mapping.root_input()?)?.clone();
         let tgt_skel = mapping.target().clone();
         let source_legs = find_legs(&src_skel, source);
@@ -150,16 +150,19 @@ impl FootLock {
         // Standing clearances from the character's own posture (it is authored standing; the
         // aligned rest shows the source's rest, whose feet need not be flat).
         let height = |b: BoneId| target.positions[b.index()].dot(target.up);
-        // Clearances are measured from the joint the mapping's floor height belongs to (the
-        // lowest foot joint when that one is not mapped).
-        let lowest = floor_bone.map(height).unwrap_or_else(|| {
-            target_legs
+        // Clearances are measured from what the mapping's floor height belongs to: a joint's
+        // standing height, the ground (0 in the character's own posture) under raised
+        // contacts, or, not knowing, the lowest foot joint.
+        let lowest = match floor_at {
+            FloorAt::Joint(b) => height(b),
+            FloorAt::Ground => 0.0,
+            FloorAt::Unknown => target_legs
                 .iter()
                 .flat_map(|l| [Some(l.foot), l.toes])
                 .flatten()
                 .map(height)
-                .fold(f32::INFINITY, f32::min)
-        });
+                .fold(f32::INFINITY, f32::min),
+        };
         let feet = target_legs
             .iter()
             .map(|leg| {

@@ -47,6 +47,7 @@ use history::History;
 use root::RootPlan;
 
 pub use options::{FootContact, RetargetOptions, RootMotion};
+pub use root::FloorAt;
 
 /// Marks a link without a direction fix.
 const NO_END: u16 = u16::MAX;
@@ -319,13 +320,12 @@ impl RetargetPlan {
     }
 
     /// The floor the target stands on in the output's world: the up direction (the source's,
-    /// unit), the floor's height along it, and the target joint that height is the standing
-    /// height of (the lowest mapped foot joint: an ankle when the source has no toes, so the
-    /// ground itself lies below it by that joint's clearance). `None` without root motion.
-    pub fn target_floor(&self) -> Option<(Vec3, f32, Option<BoneId>)> {
+    /// unit), the floor's height along it, and what that height is the standing height of.
+    /// `None` without root motion.
+    pub fn target_floor(&self) -> Option<(Vec3, f32, FloorAt)> {
         let r = self.root.as_ref()?;
         let height = r.target_floor_y.unwrap_or(r.scale * r.source_floor_y);
-        Some((r.up, height, r.floor_bone))
+        Some((r.up, height, r.floor_at))
     }
 
     /// The source input that drives root motion (the one whose legs the target's follow).

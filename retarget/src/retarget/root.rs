@@ -29,9 +29,8 @@ pub(super) struct RootPlan {
     /// `None`: the target's rest does not show where its floor is; it then keeps the source's
     /// floor clearance, scaled.
     pub(super) target_floor_y: Option<f32>,
-    /// The target joint whose reference height the floors are measured at (the lowest
-    /// mapped one below the root), if any.
-    pub(super) floor_bone: Option<BoneId>,
+    /// What the target's floor height is the standing height of.
+    pub(super) floor_at: FloorAt,
     pub(super) reference_position: Vec3,
     /// Source bones (of `input`) at the feet: what [`RetargetPlan::measure_source_floor`] looks at.
     pub(super) contact_bones: Vec<BoneId>,
@@ -43,6 +42,19 @@ pub(super) struct RootPlan {
     /// mapped joints end well above the ground (a hoofed leg mapped down to the hock).
     pub(super) stand: [f32; MAX_LEGS],
     pub(super) foot_contact: FootContact,
+}
+
+/// What the target's floor height is measured at (see [`super::Mapping::target_floor`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FloorAt {
+    /// The standing height of this joint (the lowest mapped foot joint: an ankle when the
+    /// source has no toes, so the ground itself lies below it by that joint's clearance).
+    Joint(BoneId),
+    /// The ground itself, at height 0 of the character's own posture: its lowest mapped joints
+    /// stand well above it (a hoofed leg mapped down to the hock).
+    Ground,
+    /// Not known (no mapped joint below the root).
+    Unknown,
 }
 
 /// One skeleton in its reference posture, for build-time measurements.
@@ -167,6 +179,7 @@ impl RootPlan {
         let mut contacts = Vec::new();
         let (mut floor_t, mut floor_s) = (None, None);
         let mut stand = [0.0; MAX_LEGS];
+        let mut floor_at = FloorAt::Unknown;
         if let Some((tl, _)) = low {
             let first = tgt.leg_height(rt, tl, up);
             // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
@@ -204,6 +217,11 @@ impl RootPlan {
                 &y_t
             };
             floor_t = floor_from_reference(y_floor(tl), first, y_floor(rt));
+            // A floor put at the ground below raised contacts is nobody's standing height.
+            floor_at = match floor_t {
+                Some(f) if y_floor(tl) - f > RAISED_CONTACT * first => FloorAt::Ground,
+                _ => FloorAt::Joint(tl),
+            };
             floor_s = floor_from_reference(lowest_s, first / scale, y_s(rs.bone));
             if let Some(floor) = floor_t {
                 stand = raised_contacts(
@@ -225,7 +243,7 @@ impl RootPlan {
             motion: opts.root_motion,
             source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
             target_floor_y: opts.target_floor_y.or(floor_t),
-            floor_bone: low.map(|(t, _)| t),
+            floor_at,
             reference_position: tgt.worlds[rt.index()].translation,
             contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
             contacts,

@@ -2,38 +2,18 @@
 //! control token. Everything here blocks (files, serial ports, ffmpeg, ONNX Runtime) and
 //! runs on `spawn_blocking`, never on a runtime worker.
 
-use std::net::SocketAddr;
 use std::sync::Arc;
 
 use anyhow::Context;
 use rigcast_protocol::SourceKind;
 use rigcast_retarget::mapping::{parse_mapping_file, MappingFile};
 use rigcast_retarget::{Pose, Skeleton};
-use rigcast_sources::live::LiveSource;
-use rigcast_sources::serial::{CalibrationHandle, SerialImuConfig, SerialImuSource};
-use rigcast_sources::vmc_in::{VmcConfig, VmcSource};
-use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip, Replay, ReplayOptions};
+use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip};
 
-use crate::config::{self, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec, TargetSpec};
-use crate::{character, demo, token};
-
-/// A loaded source, before it becomes a subject.
-pub(crate) enum Loaded {
-    Replay {
-        player: Replay,
-        speed: f64,
-        clip_poses: Arc<Vec<Pose>>,
-        /// A VRM file's humanoid map (ground truth for its roles).
-        truth: Option<Vec<(String, String)>>,
-    },
-    Live {
-        source: Box<dyn LiveSource>,
-        kind: SourceKind,
-        listen: Option<SocketAddr>,
-        /// Set for calibratable sources (serial IMU suits).
-        calibration: Option<CalibrationHandle>,
-    },
-}
+use crate::config::{self, PerformerSpec, ServerConfig, SourceSpec, TargetSpec};
+pub(crate) use crate::source_kinds::Loaded;
+use crate::source_kinds::Opened;
+use crate::{character, token};
 
 /// A source with its subject name and (initial) skeleton.
 pub(crate) struct LoadedSource {
@@ -89,7 +69,7 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
     };
     let defaulted = config.sources.is_empty() && remote.is_empty();
     let specs = if defaulted {
-        vec![SourceSpec::EmbeddedDemo]
+        vec![SourceSpec::demo()]
     } else {
         config.sources.clone()
     };
@@ -103,7 +83,7 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
     }
     let mut sources: Vec<LoadedSource> = Vec::new();
     // Subjects of one video or camera share its pipeline.
-    let vision = super::vision::VisionInputs::default();
+    let vision = crate::source_kinds::VisionInputs::default();
     for spec in specs {
         let vision = vision.clone();
         let (name, loaded, skeleton) =
@@ -261,239 +241,12 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
     }
 }
 
-/// A loaded source's subject name, what runs it and its (initial) skeleton.
-type Opened = (String, Loaded, Arc<Skeleton>);
-
-/// Loads a source: one arm per kind, each kind's opening in a function of its own. Blocks
-/// (files, devices, model loading): call it from `spawn_blocking`.
-fn load_source(spec: SourceSpec, vision: &super::vision::VisionInputs) -> anyhow::Result<Opened> {
-    match spec {
-        SourceSpec::ReplayFile {
-            path,
-            name,
-            settings,
-        } => open_replay_file(&path, name, settings),
-        SourceSpec::ReplayClip {
-            clip,
-            name,
-            settings,
-        } => {
-            let name = name.unwrap_or_else(|| clip.name.clone());
-            replay_of(name, clip, settings, None)
-        }
-        SourceSpec::EmbeddedDemo => {
-            replay_of("demo".into(), demo_clip()?, ReplaySettings::default(), None)
-        }
-        SourceSpec::Vmc {
-            port,
-            bind,
-            allowed_senders,
-            lost_after_secs,
-            name,
-        } => {
-            let mut cfg = VmcConfig::port(port);
-            cfg.bind = bind;
-            cfg.allowed_senders = allowed_senders;
-            if let Some(l) = lost_after_secs {
-                cfg.lost_after_secs = l;
-            }
-            open_vmc(cfg, name)
-        }
-        SourceSpec::Serial { config, name } => open_serial(&config, name),
-        SourceSpec::Webcam {
-            index,
-            person,
-            people,
-            name,
-        } => {
-            let (source, sk) = open_webcam(index, person, people, vision)?;
-            let suffix = config::person_suffix(person);
-            let name = name.unwrap_or_else(|| format!("webcam:{index}{suffix}"));
-            Ok((name, Loaded::live(source, SourceKind::Webcam), sk))
-        }
-        SourceSpec::Video {
-            path,
-            person,
-            people,
-            name,
-        } => {
-            let (source, sk) = open_video(&path, person, people, vision)?;
-            let name = name.unwrap_or_else(|| stem(&path) + &config::person_suffix(person));
-            Ok((name, Loaded::live(source, SourceKind::Video), sk))
-        }
-    }
-}
-
-impl Loaded {
-    /// A live source that neither listens on a port nor calibrates.
-    fn live(source: Box<dyn LiveSource>, kind: SourceKind) -> Loaded {
-        Loaded::Live {
-            source,
-            kind,
-            listen: None,
-            calibration: None,
-        }
-    }
-}
-
-/// A clip played back as subject `name`.
-fn replay_of(
-    name: String,
-    clip: rigcast_retarget::Clip,
-    settings: ReplaySettings,
-    truth: Option<Vec<(String, String)>>,
+/// Loads a source (one arm per kind, in `source_kinds`; video and webcam subjects of one
+/// input share `vision`). Blocks (files, devices, model loading): call it from
+/// `spawn_blocking`.
+fn load_source(
+    spec: SourceSpec,
+    vision: &crate::source_kinds::VisionInputs,
 ) -> anyhow::Result<Opened> {
-    let skeleton = clip.skeleton.clone();
-    let clip_poses = Arc::new(clip.poses.clone());
-    let loaded = Loaded::Replay {
-        player: replay(clip, settings)?,
-        speed: settings.speed,
-        clip_poses,
-        truth,
-    };
-    Ok((name, loaded, skeleton))
-}
-
-/// A file (BVH, glTF/GLB/VRM, .rcr) played back; a VRM's humanoid map comes along.
-fn open_replay_file(
-    path: &std::path::Path,
-    name: Option<String>,
-    settings: ReplaySettings,
-) -> anyhow::Result<Opened> {
-    let LoadedClip {
-        clip,
-        humanoid: truth,
-    } = load_clip_and_humanoid(path, &LoadOptions::default())
-        .with_context(|| format!("cannot load source {}", path.display()))?;
-    let name = name.unwrap_or_else(|| {
-        path.file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| clip.name.clone())
-    });
-    replay_of(name, clip, settings, truth)
-}
-
-/// VMC/OSC input on a UDP port.
-fn open_vmc(cfg: VmcConfig, name: Option<String>) -> anyhow::Result<Opened> {
-    let (bind, port) = (cfg.bind, cfg.port);
-    let source = VmcSource::bind(cfg)
-        .with_context(|| format!("cannot listen for VMC on UDP {bind} port {port}"))?;
-    let listen = source.local_addr();
-    let name = name.unwrap_or_else(|| format!("vmc:{}", listen.map(|a| a.port()).unwrap_or(port)));
-    // Until the sender's own skeleton arrives, the standard humanoid stands in.
-    let sk = match source.skeleton() {
-        Some(s) => s,
-        None => rigcast_sources::live::humanoid::default_humanoid()
-            .context("building the default humanoid")?,
-    };
-    let loaded = Loaded::Live {
-        source: Box::new(source),
-        kind: SourceKind::Vmc,
-        listen,
-        calibration: None,
-    };
-    Ok((name, loaded, sk))
-}
-
-/// A serial IMU suit described by the TOML file `config`.
-fn open_serial(config: &std::path::Path, name: Option<String>) -> anyhow::Result<Opened> {
-    let text = std::fs::read_to_string(config)
-        .with_context(|| format!("cannot read serial config {}", config.display()))?;
-    let cfg = SerialImuConfig::from_toml(&text)
-        .with_context(|| format!("serial config {}", config.display()))?;
-    let humanoid = rigcast_sources::live::humanoid::default_humanoid()
-        .context("building the default humanoid")?;
-    let source = SerialImuSource::open(cfg, humanoid.clone())
-        .with_context(|| format!("cannot open the serial suit of {}", config.display()))?;
-    let sk = source.skeleton().unwrap_or(humanoid);
-    let name = name.unwrap_or_else(|| stem(config));
-    let calibration = Some(source.calibration_handle());
-    let loaded = Loaded::Live {
-        source: Box::new(source),
-        kind: SourceKind::Serial,
-        listen: None,
-        calibration,
-    };
-    Ok((name, loaded, sk))
-}
-
-fn stem(p: &std::path::Path) -> String {
-    p.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| p.display().to_string())
-}
-
-/// Person `person` of a video file, as a live source (frames released in real time); the
-/// file's pipeline is shared with its other people's subjects.
-fn open_video(
-    path: &std::path::Path,
-    person: Option<usize>,
-    people: Option<usize>,
-    vision: &super::vision::VisionInputs,
-) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
-    use super::vision::{open_file, VisionInput};
-    let input = VisionInput::file(path);
-    let (source, sk) = vision.person(input, person, people, || open_file(path), true)?;
-    Ok((Box::new(source), sk))
-}
-
-/// What to tell a user of a build without webcam support.
-pub const NO_WEBCAM_HINT: &str = "this rigcast was built without webcam support; rebuild it with \
-     `cargo build --release -p rigcast-server --features webcam` (which needs libclang: \
-     `sudo apt-get install libclang-dev` on Debian/Ubuntu), or use `--source video:FILE`";
-
-/// Pose estimation on a webcam, as a live source.
-#[cfg(feature = "webcam")]
-fn open_webcam(
-    index: u32,
-    person: Option<usize>,
-    people: Option<usize>,
-    vision: &super::vision::VisionInputs,
-) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
-    use super::vision::VisionInput;
-    let open = || {
-        rigcast_sources::vision::open_webcam(index)
-            .with_context(|| format!("cannot open webcam {index}"))
-    };
-    // A camera delivers frames as they happen; no pacing needed (realtime = false).
-    let input = VisionInput::Webcam(index);
-    let (source, sk) = vision.person(input, person, people, open, false)?;
-    Ok((Box::new(source), sk))
-}
-
-/// Without the `webcam` feature: a clear error saying how to get one.
-#[cfg(not(feature = "webcam"))]
-fn open_webcam(
-    index: u32,
-    _person: Option<usize>,
-    _people: Option<usize>,
-    _vision: &super::vision::VisionInputs,
-) -> anyhow::Result<(Box<dyn LiveSource>, Arc<rigcast_retarget::Skeleton>)> {
-    anyhow::bail!("--source webcam:{index}: {NO_WEBCAM_HINT}")
-}
-
-fn replay(clip: rigcast_retarget::Clip, settings: ReplaySettings) -> anyhow::Result<Replay> {
-    let name = clip.name.clone();
-    Replay::new(
-        clip,
-        ReplayOptions {
-            speed: settings.speed,
-            looping: settings.looping,
-            start_offset_secs: settings.start_offset_secs,
-        },
-    )
-    .with_context(|| format!("cannot replay {name:?}"))
-}
-
-/// The bundled demo recording; if it cannot be decoded (a build without it), the procedural
-/// demo clip, so `rigcast` with no arguments always shows something.
-pub fn demo_clip() -> anyhow::Result<rigcast_retarget::Clip> {
-    match rigcast_sources::embedded_demo() {
-        Ok(clip) if clip.num_frames() > 0 => Ok(clip),
-        Ok(_) => Ok(demo::procedural_clip(120, 30.0)?),
-        Err(e) => {
-            tracing::warn!("bundled demo unavailable ({e}); using the procedural demo");
-            Ok(demo::procedural_clip(120, 30.0)?)
-        }
-    }
+    spec.open_with(vision)
 }

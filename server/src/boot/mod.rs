@@ -11,10 +11,8 @@
 pub(crate) mod assemble;
 pub(crate) mod load;
 pub mod spawn;
-pub(crate) mod vision;
 
 pub(crate) use load::unique_name;
-pub use load::{demo_clip, NO_WEBCAM_HINT};
 pub use spawn::Supervisor;
 
 use crate::config::ServerConfig;

@@ -208,37 +208,31 @@ fn frame_json(time_secs: f64, pipeline: &PosePipeline, out: &mut String) {
 
 /// `"image":[…],"world":[…]` (or both `null`) for one person.
 fn person_json(landmarks: Option<&Landmarks>, out: &mut String) {
-    use std::fmt::Write as _;
     let Some(lm) = landmarks else {
         out.push_str("\"image\":null,\"world\":null");
         return;
     };
-    out.push_str("\"image\":[");
-    for (i, p) in lm.image.iter().take(NUM_LANDMARKS).enumerate() {
+    out.push_str("\"image\":");
+    json_points(out, &lm.image[..NUM_LANDMARKS]);
+    out.push_str(",\"world\":");
+    json_points(out, &lm.world[..NUM_LANDMARKS]);
+}
+
+/// `[[x,y,…],…]`: each point's coordinates as JSON numbers.
+fn json_points<const N: usize, P: AsRef<[f32; N]>>(out: &mut String, points: &[P]) {
+    out.push('[');
+    for (i, p) in points.iter().enumerate() {
         if i > 0 {
             out.push(',');
         }
-        let _ = write!(
-            out,
-            "[{},{},{},{}]",
-            json_number(p.x as f64),
-            json_number(p.y as f64),
-            json_number(p.z as f64),
-            json_number(p.w as f64)
-        );
-    }
-    out.push_str("],\"world\":[");
-    for (i, p) in lm.world.iter().take(NUM_LANDMARKS).enumerate() {
-        if i > 0 {
-            out.push(',');
+        out.push('[');
+        for (j, c) in p.as_ref().iter().enumerate() {
+            if j > 0 {
+                out.push(',');
+            }
+            out.push_str(&json_number(*c as f64));
         }
-        let _ = write!(
-            out,
-            "[{},{},{}]",
-            json_number(p.x as f64),
-            json_number(p.y as f64),
-            json_number(p.z as f64)
-        );
+        out.push(']');
     }
     out.push(']');
 }

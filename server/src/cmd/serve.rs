@@ -178,16 +178,12 @@ pub async fn run(args: ServeArgs) -> anyhow::Result<()> {
         println!("  vmc out: {v}");
     }
     for s in &cfg.sources {
-        if let SourceSpec::Vmc {
-            bind,
-            allowed_senders,
-            ..
-        } = s
-        {
-            if !bind.is_loopback() && allowed_senders.is_empty() {
+        if let SourceSpec::Vmc(vmc) = s {
+            if vmc.open_to_network() {
                 println!(
-                    "  warning: VMC input on {bind} accepts datagrams from any host that can reach it; \
-                     list trusted senders in allowed_senders"
+                    "  warning: VMC input on {} accepts datagrams from any host that can reach it; \
+                     list trusted senders in allowed_senders",
+                    vmc.bind
                 );
             }
         }
@@ -256,30 +252,30 @@ mod tests {
         assert_eq!(cfg.listen.port(), 0);
         assert_eq!(cfg.rate_hz, 30.0);
         assert!(
-            matches!(&cfg.sources[0], SourceSpec::ReplayFile { path, .. } if path == &PathBuf::from("a.bvh"))
+            matches!(&cfg.sources[0], SourceSpec::ReplayFile(crate::config::ReplayFileSpec { path, .. }) if path == &PathBuf::from("a.bvh"))
         );
         assert!(parse_source("webcam").is_err());
         assert!(matches!(
             parse_source("vmc:39540").unwrap(),
-            SourceSpec::Vmc { port: 39540, .. }
+            SourceSpec::Vmc(crate::config::VmcSpec { port: 39540, .. })
         ));
         assert!(parse_source("vmc:x").is_err());
         assert!(matches!(
             parse_source("vmc:39540").unwrap(),
-            SourceSpec::Vmc { bind, .. } if bind.is_loopback()
+            SourceSpec::Vmc(crate::config::VmcSpec { bind, .. }) if bind.is_loopback()
         ));
         assert!(matches!(
             parse_source("vmc:0.0.0.0:39541").unwrap(),
-            SourceSpec::Vmc { bind, port: 39541, .. } if bind.is_unspecified()
+            SourceSpec::Vmc(crate::config::VmcSpec { bind, port: 39541, .. }) if bind.is_unspecified()
         ));
         assert!(matches!(
             parse_source("webcam:2").unwrap(),
-            SourceSpec::Webcam { index: 2, .. }
+            SourceSpec::Webcam(crate::config::WebcamSpec { index: 2, .. })
         ));
         assert!(parse_source("webcam:front").is_err());
         assert!(matches!(
             parse_source("serial:suit.toml").unwrap(),
-            SourceSpec::Serial { .. }
+            SourceSpec::Serial(crate::config::SerialSpec { .. })
         ));
         let bad_rate = ServeArgs {
             rate: Some(0.5),

@@ -2,7 +2,9 @@
 //! `mod common;`; not every file uses every helper).
 #![allow(dead_code)]
 
+use std::ffi::OsStr;
 use std::path::PathBuf;
+use std::process::{Command, Output};
 
 /// Path of a file in the shared test data (`/work/shared/data/<relative>`), or `None` with a
 /// printed reason when it is absent (the data is not committed).
@@ -36,4 +38,37 @@ pub fn retarget(
         false,
     )
     .unwrap()
+}
+
+/// `rigcast ARGS` with a config folder of its own (a control token it creates is not the
+/// user's), run to completion.
+pub fn rigcast<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Output {
+    let config_home = std::env::temp_dir().join(format!("rigcast-test-xdg-{}", std::process::id()));
+    Command::new(env!("CARGO_BIN_EXE_rigcast"))
+        .args(args)
+        .env("XDG_CONFIG_HOME", config_home)
+        .output()
+        .unwrap()
+}
+
+/// [`rigcast`], which must succeed (else panics with its stderr); its stdout.
+pub fn rigcast_ok<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> String {
+    let out = rigcast(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// [`rigcast`], which must fail; its stderr.
+pub fn rigcast_fails<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> String {
+    let out = rigcast(args);
+    assert!(
+        !out.status.success(),
+        "succeeded: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
 }

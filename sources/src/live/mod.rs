@@ -92,6 +92,21 @@ pub trait RawTap: Send {
     fn raw(&mut self, kind: RawKind, capture_nanos: u64, bytes: &[u8]);
 }
 
+/// Stamps a raw input unit as it arrives — a monotonic instant for health, Unix nanoseconds
+/// for the recording — and hands it to the tap, if one is set.
+pub fn stamp_raw(
+    tap: &mut Option<Box<dyn RawTap>>,
+    kind: RawKind,
+    bytes: &[u8],
+) -> (std::time::Instant, u64) {
+    let received = std::time::Instant::now();
+    let capture_nanos = unix_nanos_now();
+    if let Some(tap) = tap.as_mut() {
+        tap.raw(kind, capture_nanos, bytes);
+    }
+    (received, capture_nanos)
+}
+
 /// A tap that writes every raw input into a recording as raw-packet records, tagged with
 /// `source_id`. Several sources can share one writer. Write errors are counted, not raised
 /// (the source thread must keep running); check [`RecordingTap::errors`].

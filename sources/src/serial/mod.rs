@@ -32,7 +32,7 @@ pub use solve::ImuSolver;
 
 use crate::error::SourceError;
 use crate::live::{
-    fit_pose, unix_nanos_now, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket, RawTap,
+    fit_pose, stamp_raw, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket, RawTap,
     SourceState, SourceStatus,
 };
 
@@ -411,16 +411,12 @@ impl LiveSource for SerialImuSource {
                 }
                 continue;
             };
-            let received = Instant::now();
-            let capture_nanos = unix_nanos_now();
             let bytes: &[u8] = match (&chunk, &self.replay) {
                 (Chunk::Buf(n), _) => &self.buf[..*n],
                 (Chunk::Replay(i), Some((packets, _))) => &packets[*i].bytes,
                 (Chunk::Replay(_), None) => &[],
             };
-            if let Some(tap) = self.tap.as_mut() {
-                tap.raw(RawKind::Serial, capture_nanos, bytes);
-            }
+            let (received, capture_nanos) = stamp_raw(&mut self.tap, RawKind::Serial, bytes);
             let solver = &mut self.solver;
             let mut samples = 0u32;
             let mut unassigned = 0u64;

@@ -27,7 +27,7 @@ pub use mapping::{ArgField, CoordSpace, OscMapping, OscRule};
 
 use crate::error::SourceError;
 use crate::live::{
-    fit_pose, unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket,
+    fit_pose, stamp_raw, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket,
     RawTap, SourceState, SourceStatus,
 };
 
@@ -318,16 +318,12 @@ impl LiveSource for VmcSource {
                 }
                 continue;
             }
-            let received = Instant::now();
-            let capture_nanos = unix_nanos_now();
             let bytes: &[u8] = match (&recv, &self.input) {
                 (Recv::Buf(n), _) => &self.buf[..*n],
                 (Recv::Replay(i), Input::Replay { packets, .. }) => &packets[*i].bytes,
                 (Recv::Replay(_) | Recv::Rejected, _) => &[],
             };
-            if let Some(tap) = self.tap.as_mut() {
-                tap.raw(RawKind::Osc, capture_nanos, bytes);
-            }
+            let (received, capture_nanos) = stamp_raw(&mut self.tap, RawKind::Osc, bytes);
             let result = self.decoder.feed(bytes);
             self.health.on_dropped(result.dropped);
             if result.good_input {

@@ -3,7 +3,7 @@
 //! model run once per frame for all of them, not once per subject.
 //!
 //! ```text
-//!  [[sources]] video FILE #0 ─┐
+//!  [[sources]] video FILE #0 ─┐                  (one per configuration, boot/load)
 //!  [[sources]] video FILE #1 ─┴─▶ VisionInputs: FILE → SharedVision ─▶ PersonSource #0, #1
 //! ```
 
