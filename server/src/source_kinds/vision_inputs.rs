@@ -72,7 +72,8 @@ impl VisionInputs {
             .opened
             .lock()
             .map_err(|_| anyhow::anyhow!("vision inputs poisoned"))?;
-        let index = match opened.iter().position(|o| o.input == input) {
+        let existing = opened.iter().position(|o| o.input == input);
+        let tracked = match existing {
             Some(i) => {
                 if let Some(p) = people.filter(|p| *p != opened[i].people) {
                     anyhow::bail!(
@@ -81,33 +82,38 @@ impl VisionInputs {
                         opened[i].people
                     );
                 }
-                i
+                opened[i].people
             }
+            None => people.unwrap_or(TrackerConfig::default().max_people),
+        };
+        let person = person.unwrap_or(0);
+        // Checked before anything is opened: a typo must not cost a model load.
+        if tracked == 0 {
+            anyhow::bail!("{input}: people must be at least 1");
+        }
+        if person >= tracked {
+            anyhow::bail!(
+                "{input}: no person #{person}: only {tracked} people are tracked (#0..#{}); \
+                 set people = {} in its [[sources]] entry to track more",
+                tracked - 1,
+                person + 1
+            );
+        }
+        let index = match existing {
+            Some(i) => i,
             None => {
-                let people = people.unwrap_or(TrackerConfig::default().max_people);
-                if people == 0 {
-                    anyhow::bail!("{input}: people must be at least 1");
-                }
                 let frames = open()?;
-                let shared = SharedVision::new(frames, pipeline(people)?, realtime);
+                let shared = SharedVision::new(frames, pipeline(tracked)?, realtime);
                 opened.push(Opened {
                     input: input.clone(),
-                    people,
+                    people: tracked,
                     shared,
                 });
                 opened.len() - 1
             }
         };
         let shared = &opened[index].shared;
-        let person = person.unwrap_or(0);
-        let name = format!("{input}#{person}");
-        let source = shared.person(person, name).with_context(|| {
-            format!(
-                "{input}: no person #{person} (set people = {} in its [[sources]] entry to \
-                 track more)",
-                person + 1
-            )
-        })?;
+        let source = shared.person(person, format!("{input}#{person}"))?;
         Ok((source, shared.skeleton().clone()))
     }
 }
