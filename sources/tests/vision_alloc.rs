@@ -187,3 +187,44 @@ fn two_person_frames_allocate_nothing_in_steady_state() {
          {num_frames} frames ({inferences} landmark runs, {detections} detector runs)"
     );
 }
+
+/// The fan-out's reading side: a person source waiting for the shared pipeline's next frame
+/// and copying its pose out (what the server's source thread does per frame) allocates
+/// nothing once the first frame has announced the skeleton.
+#[test]
+fn person_sources_read_frames_without_allocating() {
+    use rigcast_sources::live::{LiveSource, SourceState};
+    use rigcast_sources::vision::SharedVision;
+    let Some(assets) = assets_or_skip("person source allocations") else {
+        return;
+    };
+    let config = PipelineConfig {
+        assets: assets.clone(),
+        ..PipelineConfig::default()
+    };
+    let frames =
+        FfmpegSource::open_at(&assets.pose2sim_multi_video(2), DecodeSize::FOR_MODEL, 30.0)
+            .unwrap();
+    let shared = SharedVision::new(Box::new(frames), PosePipeline::new(&config).unwrap(), false);
+    let mut source = shared.person(1, "#1").unwrap();
+    let mut pose = source.skeleton().unwrap().rest_pose();
+    let wait = std::time::Duration::from_millis(200);
+    let mut warm = 0;
+    while warm < WARM_UP_FRAMES {
+        warm += usize::from(source.next_frame(wait, &mut pose).unwrap().is_some());
+    }
+    let (mut produced, mut allocations) = (0, 0);
+    for _ in 0..1000 {
+        let (meta, n, _) = counted(None, || source.next_frame(wait, &mut pose).unwrap());
+        if source.status().state == SourceState::Lost {
+            // The call that reports the end of the file (its detail text is allocated once,
+            // when the input is over) is not steady state.
+            break;
+        }
+        allocations += n;
+        produced += usize::from(meta.is_some());
+    }
+    eprintln!("person #1: {produced} frames read, {allocations} allocations");
+    assert!(produced >= 60, "only {produced} frames after the warm-up");
+    assert_eq!(allocations, 0, "reading {produced} frames allocated");
+}

@@ -1,7 +1,7 @@
 //! Two people from one video drive two characters through the real server: `rigcast serve`
-//! with `[[sources]] kind = "video"` entries for persons `#0` and `#1` of the pose2sim
-//! two-person footage (real model, real decoder), two performers on two different rigs (the
-//! built-in mannequin and Mixamo's X Bot), a real WebSocket client.
+//! with `[[sources]] kind = "video"` entries for persons `#0` (a plain entry) and `#1` of the
+//! pose2sim two-person footage (real model, real decoder), two performers on two different rigs
+//! (the built-in mannequin and Mixamo's X Bot), a real WebSocket client.
 //!
 //! What is known independently of the server: the same footage run through the landmark
 //! pipeline offline, in this process, gives each person's knee bend per video frame straight
@@ -112,9 +112,9 @@ async fn two_people_of_one_video_drive_two_targets_at_the_tick_rate() {
         &config,
         format!(
             "rate_hz = {RATE_HZ}\n\
-             [[sources]]\nkind = \"video\"\npath = {video:?}\nperson = 0\n\
+             [[sources]]\nkind = \"video\"\npath = {video:?}\n\
              [[sources]]\nkind = \"video\"\npath = {video:?}\nperson = 1\n\
-             [[performers]]\nsource = \"multi_cam02#0\"\ntarget = \"builtin:mannequin\"\n\
+             [[performers]]\nsource = \"multi_cam02\"\ntarget = \"builtin:mannequin\"\n\
              foot_lock = false\n\
              [[performers]]\nsource = \"multi_cam02#1\"\ntarget = {xbot:?}\nfoot_lock = false\n"
         ),
@@ -129,7 +129,9 @@ async fn two_people_of_one_video_drive_two_targets_at_the_tick_rate() {
     };
     let names: Vec<&str> = subjects.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names.len(), 4, "{names:?}");
-    assert_eq!(&names[..2], ["multi_cam02#0", "multi_cam02#1"]);
+    // A plain entry is person #0 (named after the file) and shares the file's pipeline with
+    // the `person = 1` entry.
+    assert_eq!(&names[..2], ["multi_cam02", "multi_cam02#1"]);
     let mut targets: Vec<Target> = subjects[2..]
         .iter()
         .map(|s| Target {
