@@ -93,7 +93,10 @@ function applyQuality(level) {
   renderer.setPixelRatio(probe.ratio ?? Math.min(level.pixelRatio, dpr));
   const { clientWidth: w, clientHeight: h } = canvas.parentElement;
   renderer.setSize(w, h, false);
-  for (const view of state.views.values()) view.model?.setDetail(level.detail, level.cull);
+  for (const view of state.views.values()) {
+    view.model?.setDetail(level.detail, level.cull);
+    view.setJointSegments(level.jointSegments);
+  }
   invalidate();
 }
 state.perf = () => ({
@@ -154,8 +157,9 @@ class SubjectView {
     this.anchor = 0;
     for (let i = 0; i < n; i++) if (this.slot[i] >= 0 && (this.parents[i] < 0 || this.slot[this.parents[i]] >= 0)) this.anchor = i;
     this.height = this.computeHeight();
-    const radius = Math.max(this.height * 0.012, 0.004);
-    this.joints = new THREE.InstancedMesh(new THREE.SphereGeometry(radius, 10, 8), new THREE.MeshBasicMaterial({ depthTest: false, transparent: true }), n);
+    this.jointRadius = Math.max(this.height * 0.012, 0.004);
+    this.jointSegments = budget.current.jointSegments;
+    this.joints = new THREE.InstancedMesh(this.jointGeometry(), new THREE.MeshBasicMaterial({ depthTest: false, transparent: true }), n);
     this.joints.renderOrder = 2;
     this.overlay.add(this.joints);
     this.matrix = new THREE.Matrix4();
@@ -175,6 +179,20 @@ class SubjectView {
 
   rest() {
     this.fk(null);
+  }
+
+  /** A joint's sphere at the budget level's tessellation: hundreds of joints on screen make
+   *  them a large share of a software rasteriser's triangles. */
+  jointGeometry() {
+    const [w, h] = this.jointSegments;
+    return new THREE.SphereGeometry(this.jointRadius, w, h);
+  }
+
+  setJointSegments(segments) {
+    if (segments.join() === this.jointSegments.join()) return;
+    this.jointSegments = segments;
+    this.joints.geometry.dispose();
+    this.joints.geometry = this.jointGeometry();
   }
 
   computeHeight() {

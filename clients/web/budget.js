@@ -10,11 +10,12 @@
 /** Quality levels, best first. `detail`: fraction of a skinned mesh's vertices drawn (1: the
  *  file's own mesh); `pixelRatio`: at most this many canvas pixels per CSS pixel; `cull`: skip
  *  back faces even of double-sided materials (a closed body shows none); `labelEvery`: place
- *  the DOM labels at every n-th render. */
+ *  the DOM labels at every n-th render; `jointSegments`: the skeleton overlay's joint spheres'
+ *  tessellation (around, top to bottom). */
 export const LEVELS = [
-  { name: 'full', detail: 1, pixelRatio: 2, cull: false, labelEvery: 1 },
-  { name: 'balanced', detail: 0.25, pixelRatio: 0.75, cull: true, labelEvery: 2 },
-  { name: 'low', detail: 0.08, pixelRatio: 0.5, cull: true, labelEvery: 4 },
+  { name: 'full', detail: 1, pixelRatio: 2, cull: false, labelEvery: 1, jointSegments: [10, 8] },
+  { name: 'balanced', detail: 0.25, pixelRatio: 0.75, cull: true, labelEvery: 2, jointSegments: [8, 5] },
+  { name: 'low', detail: 0.08, pixelRatio: 0.5, cull: true, labelEvery: 4, jointSegments: [6, 3] },
 ];
 
 export function levelIndex(name) {
