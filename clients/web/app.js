@@ -303,6 +303,7 @@ class SubjectView {
   setLost(lost, motion) {
     const idle = lost && motion === 'idle_graph';
     if (lost === this.lost && idle === this.idling) return;
+    invalidate();
     this.lost = lost;
     this.idling = idle;
     this.subjectLabel.classList.toggle('lost', lost);
@@ -560,8 +561,10 @@ function setSubjects(list) {
 }
 
 function onMessage(message) {
-  // Any control message may change what is drawn (skeletons, colours, markers, lost state).
-  invalidate();
+  // Messages that change the picture (skeletons, subjects, colours, markers, a lost source)
+  // invalidate it; the rest (status once a second, acks) leave a still view undrawn.
+  if (['hello', 'subjects_changed', 'skeleton', 'mapping'].includes(message.type)) invalidate();
+  if (message.type === 'footplants' && !state.paused) invalidate();
   switch (message.type) {
     case 'hello':
       state.hello = message;

@@ -124,11 +124,16 @@ export class ModelView {
     this.detail = proxies.size ? detail : 1;
   }
 
-  /** The skinned meshes drawn now (originals or their proxies). */
-  drawnMeshes() {
+  /** The skinned meshes of the current detail (originals or their proxies), shown or not. */
+  levelMeshes() {
     const out = [];
     this.root.traverse((o) => { if (o.isSkinnedMesh && o.visible) out.push(o); });
     return out;
+  }
+
+  /** The skinned meshes drawn now: none while the meshes are hidden (stick figures). */
+  drawnMeshes() {
+    return this.root.visible ? this.levelMeshes() : [];
   }
 
   /** The node's matrix relative to the model root (root at identity). */
@@ -156,7 +161,7 @@ export class ModelView {
   /** First bone-matrix texel values of the first skinned mesh drawn (tests compare two
    *  frames). */
   boneMatrixSample() {
-    const mesh = this.drawnMeshes()[0];
+    const mesh = this.levelMeshes()[0];
     if (!mesh) return null;
     mesh.skeleton.update();
     return Array.from(mesh.skeleton.boneMatrices.slice(0, 16 * Math.min(mesh.skeleton.bones.length, 8)));

@@ -302,6 +302,23 @@ async fn budget_keeps_two_skinned_characters_smooth() {
         low_fps > full_fps,
         "low ({low_fps:.1} frames/s) is not faster than full ({full_fps:.1})"
     );
+
+    // Nothing new to show (paused: frames still arrive, the pose stays): no renders.
+    cdp.eval("document.getElementById('pause').click()").await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let probe = "JSON.stringify([window.rigcast.perf().renders, window.rigcast.framesReceived])";
+    let before = cdp.eval_json(probe).await;
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let after = cdp.eval_json(probe).await;
+    let renders = after[0].as_u64().unwrap() - before[0].as_u64().unwrap();
+    let received = after[1].as_u64().unwrap() - before[1].as_u64().unwrap();
+    println!("viewer budget: paused for 2 s: {renders} renders, {received} frames received");
+    assert!(
+        received > 60,
+        "frames stopped arriving while paused ({received})"
+    );
+    assert!(renders <= 2, "{renders} renders in 2 s of a paused view");
+
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
