@@ -410,6 +410,7 @@ state.meshes = () => {
       drawnVertices: view.model.drawnMeshes().reduce((s, m) => s + m.geometry.attributes.position.count, 0),
       fileVertices: view.model.verticesFull,
       detail: view.model.detail,
+      proxyMs: view.model.proxyMs,
       isVrm: view.model.vrm !== null,
       bound: view.model.numBound,
       bones: view.bones.length,

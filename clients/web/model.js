@@ -83,6 +83,7 @@ export class ModelView {
    *  beside it, bound to the same skeleton with the same bind matrix (so driving the joints
    *  drives both) and sharing its material. A mesh that cannot be clustered keeps itself. */
   makeProxies(details) {
+    const started = performance.now();
     this.proxies = new Map(); // fraction -> Map(original mesh -> proxy mesh)
     const meshes = this.skinnedMeshes.filter(decimatable);
     this.verticesFull = this.skinnedMeshes.reduce((s, m) => s + m.geometry.attributes.position.count, 0);
@@ -105,6 +106,7 @@ export class ModelView {
       this.proxies.set(fraction, proxies);
     }
     this.detail = 1;
+    this.proxyMs = performance.now() - started; // load-time cost, for the report
   }
 
   /** Shows each skinned mesh at `detail` (a fraction given to `makeProxies`, or 1: the file's

@@ -182,6 +182,7 @@ struct Row {
     frame_ms: f64,
     triangles: u64,
     vertices: Vec<u64>,
+    work: String,
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -212,13 +213,30 @@ async fn budget_keeps_two_skinned_characters_smooth() {
 
     // Each level forced, and the stick figures, in the same run.
     let mut by_level = std::collections::HashMap::new();
-    for (mode, query) in [
+    let mut modes = vec![
         ("full", "?quality=full"),
         ("balanced", "?quality=balanced"),
         ("low", "?quality=low"),
         ("stick figures (full)", "?quality=full&meshes=off"),
         ("stick figures (low)", "?quality=low&meshes=off"),
-    ] {
+    ];
+    // Where a full frame's time goes: one cost taken out at a time (the page's switches).
+    if std::env::var("RIGCAST_VIEWER_BREAKDOWN").as_deref() == Ok("1") {
+        modes.extend([
+            ("full, no vertex skinning", "?quality=full&skinning=off"),
+            ("full, pixel ratio 0.1 (no fill)", "?quality=full&ratio=0.1"),
+            ("full, pixel ratio 0.5", "?quality=full&ratio=0.5"),
+            (
+                "full, no labels, no panel",
+                "?quality=full&labels=off&panel=off",
+            ),
+            (
+                "stick figures, no WebGL draw",
+                "?quality=full&meshes=off&render=off",
+            ),
+        ]);
+    }
+    for (mode, query) in modes {
         open(&mut cdp, &base, query).await;
         tokio::time::sleep(Duration::from_secs(2)).await;
         let m = measure(&mut cdp).await;
@@ -230,11 +248,22 @@ async fn budget_keeps_two_skinned_characters_smooth() {
         "viewer budget: two skinned X Bots ({file_vertices} vertices, {file_triangles} triangles each) + stick figures, 60 Hz, \
          headless Chromium (SwiftShader), 1280x800; load average before {load_before}, after {load_after}"
     );
-    println!("| mode | level | frames/s | frame ms | triangles/render | skinned vertices drawn |");
+    println!("| mode | level | frames/s | frame ms | ratio to full's frame | triangles/render | skinned vertices drawn | main thread ms/s (decode, apply, render call, labels, panel) |");
+    let full_ms = rows
+        .iter()
+        .find(|r| r.mode == "full")
+        .map_or(1.0, |r| r.frame_ms);
     for r in &rows {
         println!(
-            "| {} | {} | {:.1} | {:.0} | {} | {:?} |",
-            r.mode, r.level, r.fps, r.frame_ms, r.triangles, r.vertices
+            "| {} | {} | {:.1} | {:.0} | {:.2} | {} | {:?} | {} |",
+            r.mode,
+            r.level,
+            r.fps,
+            r.frame_ms,
+            r.frame_ms / full_ms,
+            r.triangles,
+            r.vertices,
+            r.work
         );
     }
 
@@ -337,6 +366,16 @@ fn row(mode: &'static str, m: &Value) -> Row {
             .values()
             .map(|v| v["drawnVertices"].as_u64().unwrap_or(0))
             .collect(),
+        work: ["decode", "apply", "render", "labels", "panel"]
+            .iter()
+            .map(|k| {
+                format!(
+                    "{:.0}",
+                    m["perf"]["workMsPerSecond"][k].as_f64().unwrap_or(0.0)
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", "),
     }
 }
 
