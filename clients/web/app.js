@@ -788,6 +788,7 @@ setInterval(() => {
     });
   }
   showQuality(now);
+  showFrameCount();
 }, 250);
 
 /** The status line's quality entry: level, how it was chosen, the measured rate. */
@@ -838,35 +839,38 @@ function draw() {
       for (const view of state.views.values()) view.placeLabels(w, h, placed);
     });
   }
+  showFrameCount();
+  budget.rendered(start, performance.now() - start);
+}
+
+/** Frames received, in the header and the title (also while nothing is rendered). */
+function showFrameCount() {
   const counter = $('frame-count');
   counter.textContent = String(state.framesReceived);
   counter.dataset.frames = String(state.framesReceived);
   document.title = `rigcast viewer — ${state.framesReceived} frames`;
-  budget.rendered(start, performance.now() - start);
 }
 
 /** The newest frame of each subject onto its view (older ones were dropped on arrival). */
 function applyLatest(dt) {
-  {
-    for (const [id, frame] of state.latest) {
-      const view = state.views.get(id);
-      if (view && frame.numBones === view.bones.length) {
-        view.fk(frame);
-        view.update();
-        if (view.model && state.showMeshes) view.model.drive(view.worldR, view.worldP, dt);
-        view.placeMarkers();
-        state.framesDrawn++;
-        // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
-        // views out again on each subject's first live pose.
-        if (!view.placedLive) {
-          view.placedLive = true;
-          view.height = view.computeHeight();
-          layout();
-        }
+  for (const [id, frame] of state.latest) {
+    const view = state.views.get(id);
+    if (view && frame.numBones === view.bones.length) {
+      view.fk(frame);
+      view.update();
+      if (view.model && state.showMeshes) view.model.drive(view.worldR, view.worldP, dt);
+      view.placeMarkers();
+      state.framesDrawn++;
+      // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
+      // views out again on each subject's first live pose.
+      if (!view.placedLive) {
+        view.placedLive = true;
+        view.height = view.computeHeight();
+        layout();
       }
     }
-    state.latest.clear();
   }
+  state.latest.clear();
 }
 applyQuality(budget.current);
 resize();
