@@ -804,7 +804,8 @@ function showQuality(now) {
   const el = $('quality');
   el.dataset.quality = report.quality;
   el.dataset.forced = String(report.forced);
-  el.textContent = `quality ${report.quality} (${report.forced ? 'forced' : 'auto'}) · ${report.rendersPerSecond.toFixed(0)} fps`;
+  const rate = state.paused ? 'paused' : `${report.rendersPerSecond.toFixed(0)} fps`;
+  el.textContent = `quality ${report.quality} (${report.forced ? 'forced' : 'auto'}) · ${rate}`;
   el.title = `frame budget ${report.budgetMs} ms; mean frame ${report.frameMs.toFixed(0)} ms; pixel ratio ${renderer.getPixelRatio()}`;
 }
 

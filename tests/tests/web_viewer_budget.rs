@@ -211,7 +211,16 @@ async fn budget_keeps_two_skinned_characters_smooth() {
         bone_matrices_move(&mut cdp, 1).await,
         bone_matrices_move(&mut cdp, 2).await,
     ];
-    println!("viewer budget, settled at {level}: {auto}");
+    let png = cdp.screenshot().await;
+    let shot = rigcast_tests::repo_root()
+        .join("target")
+        .join("viewer-budget.png");
+    std::fs::create_dir_all(shot.parent().unwrap()).unwrap();
+    std::fs::write(&shot, png).unwrap();
+    println!(
+        "viewer budget, settled at {level} ({}): {auto}",
+        shot.display()
+    );
     rows.push(row("budget (auto)", &auto));
 
     // Each level forced, and the stick figures, in the same run.
