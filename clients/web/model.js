@@ -110,20 +110,23 @@ export class ModelView {
   }
 
   /** Shows each skinned mesh at `detail` (a fraction given to `makeProxies`, or 1: the file's
-   *  own mesh); `cull`: draw front faces only, even of double-sided materials. */
+   *  own mesh); `cull`: draw only the front faces of double-sided materials (a closed body
+   *  shows no back faces; single-sided ones, such as a back-face outline, stay as they are). */
   setDetail(detail, cull) {
-    const proxies = this.proxies?.get(detail) ?? new Map();
+    const shown = this.proxies?.get(detail) ?? new Map();
+    for (const mesh of this.skinnedMeshes) mesh.visible = !shown.has(mesh);
+    for (const proxies of this.proxies?.values() ?? []) {
+      for (const proxy of proxies.values()) proxy.visible = proxies === shown;
+    }
     for (const mesh of this.skinnedMeshes) {
-      const proxy = proxies.get(mesh);
-      mesh.visible = !proxy;
-      for (const other of this.proxies?.values() ?? []) if (other.get(mesh)) other.get(mesh).visible = other.get(mesh) === proxy;
       for (const material of [mesh.material].flat()) {
         material.userData.side ??= material.side;
-        const side = cull ? THREE.FrontSide : material.userData.side;
+        if (material.userData.side !== THREE.DoubleSide) continue;
+        const side = cull ? THREE.FrontSide : THREE.DoubleSide;
         if (material.side !== side) { material.side = side; material.needsUpdate = true; }
       }
     }
-    this.detail = proxies.size ? detail : 1;
+    this.detail = shown.size ? detail : 1;
   }
 
   /** The skinned meshes of the current detail (originals or their proxies), shown or not. */
