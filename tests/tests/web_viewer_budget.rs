@@ -10,6 +10,8 @@
 //!   matrices still change.
 //! - `?quality=full` draws the file's own meshes: as many vertices as the file's skinned
 //!   primitives have and at least their triangles per render, both counted from the GLB here.
+//! - The proxies skin like the originals: three.js's CPU skinning puts every proxy vertex where
+//!   it puts the file's vertex it came from, in the live pose.
 //! - Every level and the stick figures are measured in the same run; the table is printed
 //!   (BENCHMARKS.md, "Viewer with skinned characters").
 //! - The budget's stepping on its own (budget.js in the page, fed synthetic frame times): down
@@ -176,6 +178,27 @@ fn load_average() -> String {
         .unwrap_or_else(|_| "?".into())
 }
 
+/// Per proxy of subject 1's meshes: vertex and triangle counts, proxy vertices not found among
+/// the original's (by rest position), the largest distance between a proxy vertex and its
+/// original vertex after skinning, the largest difference of the posed bounding boxes' corners,
+/// and the posed original's height.
+const PROXY_CHECK: &str = "(() => { const m = window.rigcast.views.get(1).model; const out = []; \
+  for (const [fraction, proxies] of m.proxies) for (const [mesh, proxy] of proxies) { \
+    const V = mesh.position.constructor; const a = new V(), b = new V(); \
+    const key = (p, i) => `${p.getX(i)},${p.getY(i)},${p.getZ(i)}`; \
+    const pa = mesh.geometry.attributes.position, qa = proxy.geometry.attributes.position; \
+    const original = new Map(); for (let i = 0; i < pa.count; i++) original.set(key(pa, i), i); \
+    const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity], plo = [...lo], phi = [...hi]; \
+    const grow = (l, h, v) => { v.toArray().forEach((x, k) => { l[k] = Math.min(l[k], x); h[k] = Math.max(h[k], x); }); }; \
+    for (let i = 0; i < pa.count; i++) grow(lo, hi, mesh.getVertexPosition(i, b)); \
+    let worst = 0, unmatched = 0; \
+    for (let i = 0; i < qa.count; i++) { proxy.getVertexPosition(i, a); grow(plo, phi, a); const j = original.get(key(qa, i)); \
+      if (j === undefined) { unmatched++; continue; } worst = Math.max(worst, a.distanceTo(mesh.getVertexPosition(j, b))); } \
+    const boxDiff = Math.max(...[0, 1, 2].map((k) => Math.max(Math.abs(lo[k] - plo[k]), Math.abs(hi[k] - phi[k])))); \
+    out.push({ mesh: mesh.name, fraction, vertices: qa.count, of: pa.count, triangles: proxy.geometry.index.count / 3, \
+      ofTriangles: (mesh.geometry.index ? mesh.geometry.index.count : pa.count) / 3, unmatched, worst, boxDiff, height: hi[1] - lo[1] }); } \
+  return JSON.stringify(out); })()";
+
 /// One row of the printed table.
 struct Row {
     mode: &'static str,
@@ -310,6 +333,33 @@ async fn budget_keeps_two_skinned_characters_smooth() {
             *moved > 1e-3,
             "subject {}: bone matrices did not change ({moved})",
             id + 1
+        );
+    }
+
+    // The proxies skin like the originals: every proxy vertex is a vertex of the file, and
+    // three.js's own CPU skinning (`getVertexPosition`: skin indices, weights, bind matrix and
+    // the live bone matrices) puts both at the same place in the current pose; the posed proxy
+    // spans the same box as the posed original.
+    let proxies = cdp.eval_json(PROXY_CHECK).await;
+    println!("viewer budget: proxies of subject 1: {proxies}");
+    assert!(!proxies.as_array().unwrap().is_empty(), "no proxies");
+    for p in proxies.as_array().unwrap() {
+        assert_eq!(
+            p["unmatched"], 0,
+            "proxy vertices that are no vertex of the file: {p}"
+        );
+        assert!(
+            p["worst"].as_f64().unwrap() < 1e-4 * p["height"].as_f64().unwrap(),
+            "a proxy vertex skins elsewhere than its original: {p}"
+        );
+        assert!(
+            p["boxDiff"].as_f64().unwrap() < 0.1 * p["height"].as_f64().unwrap(),
+            "the posed proxy's box differs from the original's: {p}"
+        );
+        assert!(
+            p["vertices"].as_u64() < p["of"].as_u64()
+                && p["triangles"].as_u64() < p["ofTriangles"].as_u64(),
+            "not lighter: {p}"
         );
     }
 
