@@ -415,6 +415,7 @@ async fn budget_keeps_two_skinned_characters_smooth() {
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
+    // A slow shutdown only delays the end of the test; it has been measured by then.
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
 }
 
@@ -498,5 +499,6 @@ async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
+    // A slow shutdown only delays the end of the test; it has been measured by then.
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
 }
