@@ -105,6 +105,7 @@ state.perf = () => ({
   pixelRatio: renderer.getPixelRatio(),
   workMsPerSecond: workShown,
   renders: renderer.info.render.frame,
+  renderReasons: { ...renderReasons },
   triangles: renderer.info.render.triangles,
 });
 state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
@@ -809,24 +810,31 @@ function showQuality(now) {
   el.title = `frame budget ${report.budgetMs} ms; mean frame ${report.frameMs.toFixed(0)} ms; pixel ratio ${renderer.getPixelRatio()}`;
 }
 
-/** The camera moved since the last render (orbit events miss layout and follow moves). */
+/** The camera moved since the last render (orbit events miss layout and follow moves). Not
+ *  exact equality: OrbitControls.update() recomputes the position from its spherical angles
+ *  every frame, which can wander by a rounding error and would re-render a still view. */
 const lastCamera = new THREE.Matrix4();
 function cameraMoved() {
   camera.updateMatrixWorld();
-  return !lastCamera.equals(camera.matrixWorld);
+  const a = camera.matrixWorld.elements, b = lastCamera.elements;
+  return a.some((v, i) => Math.abs(v - b[i]) > 1e-6 * Math.max(1, Math.abs(b[i])));
 }
 
 // -- draw loop: newest frame per subject, at most once per display frame -------------------
 let lastDraw = performance.now();
 let renderCount = 0;
+const renderReasons = { pose: 0, invalidated: 0, camera: 0 };
 function draw() {
   const start = performance.now();
   requestAnimationFrame(draw);
   budget.frame(start);
   const fresh = !state.paused && state.latest.size > 0;
   rig.update();
-  if (!fresh && !needsRender && !cameraMoved()) return; // nothing new to show
+  const moved = cameraMoved();
+  if (!fresh && !needsRender && !moved) return; // nothing new to show
   if (!budget.due(start)) return; // leave the main thread to the stream (see budget.js)
+  // Why each render happened (tests and devtools: a still view should not render).
+  renderReasons[fresh ? 'pose' : needsRender ? 'invalidated' : 'camera']++;
   const dt = Math.min((start - lastDraw) / 1000, 0.1);
   lastDraw = start;
   needsRender = false;

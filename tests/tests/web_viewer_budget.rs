@@ -399,7 +399,7 @@ async fn budget_keeps_two_skinned_characters_smooth() {
     // Nothing new to show (paused: frames still arrive, the pose stays): no renders.
     cdp.eval("document.getElementById('pause').click()").await;
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let probe = "JSON.stringify([window.rigcast.perf().renders, window.rigcast.framesReceived])";
+    let probe = "JSON.stringify([window.rigcast.perf().renders, window.rigcast.framesReceived, window.rigcast.perf().renderReasons, window.rigcast.paused, window.rigcast.camera()])";
     let before = cdp.eval_json(probe).await;
     tokio::time::sleep(Duration::from_secs(2)).await;
     let after = cdp.eval_json(probe).await;
@@ -410,7 +410,15 @@ async fn budget_keeps_two_skinned_characters_smooth() {
         received > 60,
         "frames stopped arriving while paused ({received})"
     );
-    assert!(renders <= 2, "{renders} renders in 2 s of a paused view");
+    assert!(
+        renders <= 2,
+        "{renders} renders in 2 s of a paused view (why, before and after: {} {}; paused {}, camera {} {})",
+        before[2],
+        after[2],
+        after[3],
+        before[4],
+        after[4]
+    );
 
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
