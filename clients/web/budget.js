@@ -8,8 +8,8 @@
 // decimate.js), plus back-face culling and label thinning.
 
 /** Quality levels, best first. `detail`: fraction of a skinned mesh's vertices drawn (1: the
- *  file's own mesh); `pixelRatio`: at most this many canvas pixels per CSS pixel; `cull`: skip
- *  back faces even of double-sided materials (a closed body shows none); `labelEvery`: place
+ *  file's own mesh); `pixelRatio`: at most this many canvas pixels per CSS pixel; `cull`: draw
+ *  double-sided materials front faces only (a closed body shows no back faces); `labelEvery`: place
  *  the DOM labels at every n-th render; `jointSegments`: the skeleton overlay's joint spheres'
  *  tessellation (around, top to bottom). */
 export const LEVELS = [

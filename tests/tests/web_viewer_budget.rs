@@ -34,6 +34,9 @@ const XBOT: &str = "zoo/gltf/mixamo_gltf__Xbot.glb";
 /// leaves a margin for a busier machine.
 const TARGET_FPS: f64 = 20.0;
 
+/// One browser at a time: the rates must not compete with another browser of this file.
+static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 /// Seconds of each measuring window.
 const WINDOW_SECS: f64 = 5.0;
 
@@ -219,6 +222,7 @@ async fn budget_keeps_two_skinned_characters_smooth() {
     let Some(xbot) = shared_data(XBOT) else {
         return;
     };
+    let _one = ONE_BROWSER.lock().await;
     let (file_vertices, file_triangles) = skinned_size(&std::fs::read(&xbot).unwrap());
     let server = serve(&xbot).await;
     let base = format!("http://{}/", server.local_addr());
@@ -459,6 +463,7 @@ async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
     let Some(chromium) = find_app("chromium") else {
         return;
     };
+    let _one = ONE_BROWSER.lock().await;
     let server = rigcast_tests::start_demo_server().await;
     let (browser, mut cdp) =
         DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
