@@ -73,7 +73,7 @@ fn skinned_size(glb: &[u8]) -> (u64, u64) {
 async fn serve(xbot: &Path) -> rigcast_server::ServerHandle {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![SourceSpec::EmbeddedDemo],
+        sources: vec![SourceSpec::demo()],
         performers: vec![
             PerformerSpec::target_file(xbot),
             PerformerSpec::target_file(xbot),
