@@ -7,7 +7,8 @@ import * as THREE from 'three';
 import { Stream, WANTED_PROTOCOL_VERSION } from './stream.js';
 import { Graph } from './graph.js';
 import { ModelView } from './model.js';
-import { CameraRig, FrameBudget, softwareRendered } from './controls.js';
+import { CameraRig, softwareRendered } from './controls.js';
+import { LEVELS, QualityBudget, levelIndex } from './budget.js';
 
 const KIND_COLORS = { source: 0x4fc3f7, target: 0xff8a65 };
 const $ = (id) => document.getElementById(id);
@@ -37,12 +38,27 @@ const state = {
 };
 window.rigcast = state; // for tests and the curious (devtools)
 
+// URL parameters. `quality=full|balanced|low` fixes the frame budget's level. The others take
+// one cost out at a time, to measure where a frame's time goes (BENCHMARKS.md, issue 15):
+// `ratio=R` a fixed pixel ratio, `skinning=off` meshes drawn in their rest pose (no vertex
+// skinning), `meshes=off` stick figures only, `labels=off`, `panel=off` (no side-panel
+// refresh), `render=off` (everything but the WebGL draw).
+const params = new URLSearchParams(location.search);
+const probe = {
+  ratio: params.has('ratio') ? Number(params.get('ratio')) : null,
+  skinning: params.get('skinning') !== 'off',
+  labels: params.get('labels') !== 'off',
+  panel: params.get('panel') !== 'off',
+  render: params.get('render') !== 'off',
+};
+if (params.get('meshes') === 'off') { state.showMeshes = false; $('show-meshes').checked = false; }
+const forcedQuality = params.has('quality') ? levelIndex(params.get('quality')) : -1;
+
 // -- three.js scene ------------------------------------------------------------------------
 const canvas = $('scene');
 // No MSAA on a CPU rasteriser: it multiplies the per-pixel cost (see controls.js).
 const software = softwareRendered();
 const renderer = new THREE.WebGLRenderer({ canvas, antialias: !software, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio || 1);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x15171c);
 const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
@@ -54,8 +70,44 @@ const keyLight = new THREE.DirectionalLight(0xffffff, 1.5);
 keyLight.position.set(2, 4, 3);
 scene.add(keyLight);
 const rig = new CameraRig(camera, canvas);
-const budget = new FrameBudget(renderer);
-state.perf = () => ({ ...budget.report(), software });
+
+// -- frame-time budget (budget.js) ---------------------------------------------------------
+// Something to draw besides new poses (a toggle, a layout, a model, a message): set by
+// invalidate(); a display frame with no new pose, no camera move and nothing invalidated is
+// not rendered (paused, or a stream slower than the display).
+let needsRender = true;
+function invalidate() { needsRender = true; }
+const budget = new QualityBudget({ forced: forcedQuality, onChange: applyQuality });
+// Where the main thread's time goes: milliseconds per second, per kind of work.
+const work = { decode: 0, apply: 0, render: 0, labels: 0, panel: 0 };
+let workShown = { ...work };
+let workSince = performance.now();
+function timed(kind, fn) {
+  const t = performance.now();
+  const result = fn();
+  work[kind] += performance.now() - t;
+  return result;
+}
+function applyQuality(level) {
+  const dpr = window.devicePixelRatio || 1;
+  renderer.setPixelRatio(probe.ratio ?? Math.min(level.pixelRatio, dpr));
+  const { clientWidth: w, clientHeight: h } = canvas.parentElement;
+  renderer.setSize(w, h, false);
+  for (const view of state.views.values()) {
+    view.model?.setDetail(level.detail, level.cull);
+    view.setJointSegments(level.jointSegments);
+  }
+  invalidate();
+}
+state.perf = () => ({
+  ...budget.report(),
+  software,
+  pixelRatio: renderer.getPixelRatio(),
+  workMsPerSecond: workShown,
+  renders: renderer.info.render.frame,
+  renderReasons: { ...renderReasons },
+  triangles: renderer.info.render.triangles,
+});
 state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
 const labelLayer = $('labels');
 
@@ -106,8 +158,9 @@ class SubjectView {
     this.anchor = 0;
     for (let i = 0; i < n; i++) if (this.slot[i] >= 0 && (this.parents[i] < 0 || this.slot[this.parents[i]] >= 0)) this.anchor = i;
     this.height = this.computeHeight();
-    const radius = Math.max(this.height * 0.012, 0.004);
-    this.joints = new THREE.InstancedMesh(new THREE.SphereGeometry(radius, 10, 8), new THREE.MeshBasicMaterial({ depthTest: false, transparent: true }), n);
+    this.jointRadius = Math.max(this.height * 0.012, 0.004);
+    this.jointSegments = budget.current.jointSegments;
+    this.joints = new THREE.InstancedMesh(this.jointGeometry(), new THREE.MeshBasicMaterial({ depthTest: false, transparent: true }), n);
     this.joints.renderOrder = 2;
     this.overlay.add(this.joints);
     this.matrix = new THREE.Matrix4();
@@ -127,6 +180,20 @@ class SubjectView {
 
   rest() {
     this.fk(null);
+  }
+
+  /** A joint's sphere at the budget level's tessellation: hundreds of joints on screen make
+   *  them a large share of a software rasteriser's triangles. */
+  jointGeometry() {
+    const [w, h] = this.jointSegments;
+    return new THREE.SphereGeometry(this.jointRadius, w, h);
+  }
+
+  setJointSegments(segments) {
+    if (segments.join() === this.jointSegments.join()) return;
+    this.jointSegments = segments;
+    this.joints.geometry.dispose();
+    this.joints.geometry = this.jointGeometry();
   }
 
   computeHeight() {
@@ -237,6 +304,7 @@ class SubjectView {
   setLost(lost, motion) {
     const idle = lost && motion === 'idle_graph';
     if (lost === this.lost && idle === this.idling) return;
+    invalidate();
     this.lost = lost;
     this.idling = idle;
     this.subjectLabel.classList.toggle('lost', lost);
@@ -339,6 +407,11 @@ state.meshes = () => {
     if (!view.model) continue;
     out[id] = {
       skinnedMeshes: view.model.skinnedMeshes.length,
+      drawnSkinned: view.model.drawnMeshes().length,
+      drawnVertices: view.model.drawnMeshes().reduce((s, m) => s + m.geometry.attributes.position.count, 0),
+      fileVertices: view.model.verticesFull,
+      detail: view.model.detail,
+      proxyMs: view.model.proxyMs,
       isVrm: view.model.vrm !== null,
       bound: view.model.numBound,
       bones: view.bones.length,
@@ -439,6 +512,7 @@ function resize() {
   camera.aspect = w / Math.max(h, 1);
   camera.updateProjectionMatrix();
   layout();
+  invalidate();
 }
 window.addEventListener('resize', resize);
 
@@ -460,10 +534,14 @@ function rebuildView(id) {
 /** Fetches a target's model (only offered for targets whose file the server serves). */
 function loadModel(id, view, skeleton) {
   const url = `/v1/subjects/${id}/model.glb${streamQuery}`;
-  ModelView.load(url, skeleton.bones, { cheap: software }).then((model) => {
+  const details = LEVELS.map((l) => l.detail);
+  ModelView.load(url, skeleton.bones, { cheap: software, details }).then((model) => {
     if (view.disposed) return; // a newer skeleton replaced this view meanwhile
     if (model.numBound === 0) throw new Error('no node of the model matches a bone of the skeleton');
+    model.setDetail(budget.current.detail, budget.current.cull);
+    if (!probe.skinning) for (const mesh of model.root.getObjectsByProperty('isSkinnedMesh', true)) mesh.isSkinnedMesh = false;
     view.attachModel(model);
+    invalidate();
     state.modelErrors.delete(id);
     layout();
   }).catch((error) => {
@@ -485,6 +563,10 @@ function setSubjects(list) {
 }
 
 function onMessage(message) {
+  // Messages that change the picture (skeletons, subjects, colours, markers, a lost source)
+  // invalidate it; the rest (status once a second, acks) leave a still view undrawn.
+  if (['hello', 'subjects_changed', 'skeleton', 'mapping'].includes(message.type)) invalidate();
+  if (message.type === 'footplants' && !state.paused) invalidate();
   switch (message.type) {
     case 'hello':
       state.hello = message;
@@ -649,7 +731,6 @@ $('show-meshes').onchange = (event) => {
 };
 $('pause').onclick = () => {
   state.paused = !state.paused;
-  budget.frozen = state.paused; // a paused view keeps its resolution (screenshots compare)
   $('pause').textContent = state.paused ? 'resume' : 'pause';
   $('pause').classList.toggle('on', state.paused);
 };
@@ -689,57 +770,117 @@ function rateOf(stats) {
   return stats.arrivals.length;
 }
 
+// Header and panel changes (toggles, pickers, buttons) are drawn at the next display frame.
+// Capture phase: a `change` dispatched without bubbling still passes the document.
+for (const type of ['change', 'click', 'input']) document.addEventListener(type, invalidate, true);
+rig.orbit.addEventListener('change', invalidate);
+
 const graph = new Graph($('graph'));
 setInterval(() => {
-  const t = performance.now() / 1000;
-  let rate = 0, latency = 0, n = 0;
-  for (const stats of state.stats.values()) { rate = Math.max(rate, rateOf(stats)); latency += stats.latencyMs; n++; }
-  if (n) graph.push(t, rate, latency / n);
-  graph.draw(t);
-  renderSubjects();
+  const now = performance.now();
+  if (probe.panel) {
+    timed('panel', () => {
+      const t = now / 1000;
+      let rate = 0, latency = 0, n = 0;
+      for (const stats of state.stats.values()) { rate = Math.max(rate, rateOf(stats)); latency += stats.latencyMs; n++; }
+      if (n) graph.push(t, rate, latency / n);
+      graph.draw(t);
+      renderSubjects();
+    });
+  }
+  showQuality(now);
+  showFrameCount();
 }, 250);
 
-// -- draw loop: newest frame per subject, once per display frame ---------------------------
+/** The status line's quality entry: level, how it was chosen, the measured rate. */
+function showQuality(now) {
+  if (now - workSince >= 1000) {
+    work.decode = stream.decodeMs - (showQuality.decoded ?? 0);
+    showQuality.decoded = stream.decodeMs;
+    workShown = Object.fromEntries(Object.entries(work).map(([k, v]) => [k, (1000 * v) / (now - workSince)]));
+    for (const k of Object.keys(work)) work[k] = 0;
+    workSince = now;
+  }
+  const report = budget.report();
+  const el = $('quality');
+  el.dataset.quality = report.quality;
+  el.dataset.forced = String(report.forced);
+  const rate = state.paused ? 'paused' : `${report.rendersPerSecond.toFixed(0)} fps`;
+  el.textContent = `quality ${report.quality} (${report.forced ? 'forced' : 'auto'}) · ${rate}`;
+  el.title = `frame budget ${report.budgetMs} ms; mean frame ${report.frameMs.toFixed(0)} ms; pixel ratio ${renderer.getPixelRatio()}`;
+}
+
+/** The camera moved since the last render (orbit events miss layout and follow moves). Not
+ *  exact equality: OrbitControls.update() recomputes the position from its spherical angles
+ *  every frame, which can wander by a rounding error and would re-render a still view. */
+const lastCamera = new THREE.Matrix4();
+function cameraMoved() {
+  camera.updateMatrixWorld();
+  const a = camera.matrixWorld.elements, b = lastCamera.elements;
+  return a.some((v, i) => Math.abs(v - b[i]) > 1e-6 * Math.max(1, Math.abs(b[i])));
+}
+
+// -- draw loop: newest frame per subject, at most once per display frame -------------------
 let lastDraw = performance.now();
+let renderCount = 0;
+const renderReasons = { pose: 0, invalidated: 0, camera: 0 };
 function draw() {
   const start = performance.now();
   requestAnimationFrame(draw);
-  if (!budget.due(start)) return; // leave the main thread to the stream (see FrameBudget)
+  budget.frame(start);
+  const fresh = !state.paused && state.latest.size > 0;
+  rig.update();
+  const moved = cameraMoved();
+  if (!fresh && !needsRender && !moved) return; // nothing new to show
+  if (!budget.due(start)) return; // leave the main thread to the stream (see budget.js)
+  // Why each render happened (tests and devtools: a still view should not render).
+  renderReasons[fresh ? 'pose' : needsRender ? 'invalidated' : 'camera']++;
   const dt = Math.min((start - lastDraw) / 1000, 0.1);
   lastDraw = start;
-  // Paused: frames keep arriving (and are counted) but the pose on screen stays.
-  if (!state.paused) {
-    for (const [id, frame] of state.latest) {
-      const view = state.views.get(id);
-      if (view && frame.numBones === view.bones.length) {
-        view.fk(frame);
-        view.update();
-        if (view.model && state.showMeshes) view.model.drive(view.worldR, view.worldP, dt);
-        view.placeMarkers();
-        state.framesDrawn++;
-        // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
-        // views out again on each subject's first live pose.
-        if (!view.placedLive) {
-          view.placedLive = true;
-          view.height = view.computeHeight();
-          layout();
-        }
-      }
-    }
-    state.latest.clear();
-  }
-  rig.update();
+  needsRender = false;
+  if (fresh) timed('apply', applyLatest.bind(null, dt));
   const { clientWidth: w, clientHeight: h } = canvas.parentElement;
-  renderer.render(scene, camera);
-  if (budget.labelsDue()) {
-    const placed = [];
-    for (const view of state.views.values()) view.placeLabels(w, h, placed);
+  if (probe.render) timed('render', () => renderer.render(scene, camera));
+  lastCamera.copy(camera.matrixWorld);
+  if (probe.labels && renderCount++ % budget.current.labelEvery === 0) {
+    timed('labels', () => {
+      const placed = [];
+      for (const view of state.views.values()) view.placeLabels(w, h, placed);
+    });
   }
+  showFrameCount();
+  budget.rendered(start, performance.now() - start);
+}
+
+/** Frames received, in the header and the title (also while nothing is rendered). */
+function showFrameCount() {
   const counter = $('frame-count');
   counter.textContent = String(state.framesReceived);
   counter.dataset.frames = String(state.framesReceived);
   document.title = `rigcast viewer — ${state.framesReceived} frames`;
-  budget.rendered(start, performance.now() - start);
 }
+
+/** The newest frame of each subject onto its view (older ones were dropped on arrival). */
+function applyLatest(dt) {
+  for (const [id, frame] of state.latest) {
+    const view = state.views.get(id);
+    if (view && frame.numBones === view.bones.length) {
+      view.fk(frame);
+      view.update();
+      if (view.model && state.showMeshes) view.model.drive(view.worldR, view.worldP, dt);
+      view.placeMarkers();
+      state.framesDrawn++;
+      // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
+      // views out again on each subject's first live pose.
+      if (!view.placedLive) {
+        view.placedLive = true;
+        view.height = view.computeHeight();
+        layout();
+      }
+    }
+  }
+  state.latest.clear();
+}
+applyQuality(budget.current);
 resize();
 requestAnimationFrame(draw);

@@ -11,6 +11,7 @@
 import * as THREE from 'three';
 import { GLTFLoader } from './vendor/three/addons/loaders/GLTFLoader.js';
 import { VRMLoaderPlugin } from './vendor/three-vrm/three-vrm.module.min.js';
+import { clusterMeshes, decimatable } from './decimate.js';
 
 const loader = new GLTFLoader();
 // Adds `userData.vrm` to VRM files (VRM 0.x and 1.0); plain GLBs load as before.
@@ -23,9 +24,11 @@ function serverNames(json) {
 
 export class ModelView {
   /** Loads `url`; `bones` is the subject's skeleton message `bones`. Rejects on a bad file. */
-  static async load(url, bones, { cheap = false } = {}) {
+  static async load(url, bones, { cheap = false, details = [] } = {}) {
     const gltf = await loader.loadAsync(url);
-    return new ModelView(gltf, bones, cheap);
+    const view = new ModelView(gltf, bones, cheap);
+    view.makeProxies(details);
+    return view;
   }
 
   /** `cheap`: replace physically based materials by Lambert ones (same colour and texture),
@@ -75,6 +78,69 @@ export class ModelView {
     });
   }
 
+  /** Proxies of the skinned meshes for each fraction of `details` (< 1), built now (load time)
+   *  so a change of level later costs nothing: per original mesh, one lighter `SkinnedMesh`
+   *  beside it, bound to the same skeleton with the same bind matrix (so driving the joints
+   *  drives both) and sharing its material. A mesh that cannot be clustered keeps itself. */
+  makeProxies(details) {
+    const started = performance.now();
+    this.proxies = new Map(); // fraction -> Map(original mesh -> proxy mesh)
+    const meshes = this.skinnedMeshes.filter(decimatable);
+    this.verticesFull = this.skinnedMeshes.reduce((s, m) => s + m.geometry.attributes.position.count, 0);
+    for (const fraction of details.filter((d) => d < 1)) {
+      const geometries = clusterMeshes(meshes, fraction);
+      const proxies = new Map();
+      for (const [mesh, geometry] of geometries) {
+        const proxy = new THREE.SkinnedMesh(geometry, mesh.material);
+        proxy.name = `${mesh.name} (${Math.round(fraction * 100)} %)`;
+        proxy.position.copy(mesh.position);
+        proxy.quaternion.copy(mesh.quaternion);
+        proxy.scale.copy(mesh.scale);
+        proxy.bindMode = mesh.bindMode;
+        proxy.bind(mesh.skeleton, mesh.bindMatrix);
+        proxy.frustumCulled = false;
+        proxy.visible = false;
+        mesh.parent.add(proxy);
+        proxies.set(mesh, proxy);
+      }
+      this.proxies.set(fraction, proxies);
+    }
+    this.detail = 1;
+    this.proxyMs = performance.now() - started; // load-time cost, for the report
+  }
+
+  /** Shows each skinned mesh at `detail` (a fraction given to `makeProxies`, or 1: the file's
+   *  own mesh); `cull`: draw only the front faces of double-sided materials (a closed body
+   *  shows no back faces; single-sided ones, such as a back-face outline, stay as they are). */
+  setDetail(detail, cull) {
+    const shown = this.proxies?.get(detail) ?? new Map();
+    for (const mesh of this.skinnedMeshes) mesh.visible = !shown.has(mesh);
+    for (const proxies of this.proxies?.values() ?? []) {
+      for (const proxy of proxies.values()) proxy.visible = proxies === shown;
+    }
+    for (const mesh of this.skinnedMeshes) {
+      for (const material of [mesh.material].flat()) {
+        material.userData.side ??= material.side;
+        if (material.userData.side !== THREE.DoubleSide) continue;
+        const side = cull ? THREE.FrontSide : THREE.DoubleSide;
+        if (material.side !== side) { material.side = side; material.needsUpdate = true; }
+      }
+    }
+    this.detail = shown.size ? detail : 1;
+  }
+
+  /** The skinned meshes of the current detail (originals or their proxies), shown or not. */
+  levelMeshes() {
+    const out = [];
+    this.root.traverse((o) => { if (o.isSkinnedMesh && o.visible) out.push(o); });
+    return out;
+  }
+
+  /** The skinned meshes drawn now: none while the meshes are hidden (stick figures). */
+  drawnMeshes() {
+    return this.root.visible ? this.levelMeshes() : [];
+  }
+
   /** The node's matrix relative to the model root (root at identity). */
   modelMatrixOf(object) {
     const m = new THREE.Matrix4();
@@ -97,9 +163,10 @@ export class ModelView {
     this.vrm?.update(dt);
   }
 
-  /** First bone-matrix texel values of the first skinned mesh (tests compare two frames). */
+  /** First bone-matrix texel values of the first skinned mesh drawn (tests compare two
+   *  frames). */
   boneMatrixSample() {
-    const mesh = this.skinnedMeshes[0];
+    const mesh = this.levelMeshes()[0];
     if (!mesh) return null;
     mesh.skeleton.update();
     return Array.from(mesh.skeleton.boneMatrices.slice(0, 16 * Math.min(mesh.skeleton.bones.length, 8)));

@@ -45,6 +45,7 @@ export class Stream {
     this.handlers = handlers;
     this.socket = null;
     this.badFrames = 0;
+    this.decodeMs = 0;
     this.connect();
   }
 
@@ -62,7 +63,9 @@ export class Stream {
         try { message = JSON.parse(event.data); } catch { this.badFrames++; return; }
         this.handlers.onMessage?.(message);
       } else {
+        const t = performance.now();
         const frame = decodeFrame(event.data);
+        this.decodeMs += performance.now() - t; // the viewer's time budget report
         if (frame) this.handlers.onFrame?.(frame); else this.badFrames++;
       }
     };

@@ -474,6 +474,8 @@ const VIEWER_FILES: &[(&str, &str, &[u8])] = &[
     viewer_file!("/vendor/three-vrm/LICENSE", "text/plain; charset=utf-8"),
     viewer_file!("/model.js", "text/javascript; charset=utf-8"),
     viewer_file!("/controls.js", "text/javascript; charset=utf-8"),
+    viewer_file!("/budget.js", "text/javascript; charset=utf-8"),
+    viewer_file!("/decimate.js", "text/javascript; charset=utf-8"),
 ];
 
 /// The foot-lock part of a subject's status.

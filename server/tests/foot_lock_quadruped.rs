@@ -7,12 +7,11 @@
 //! its bend axis in the upper bone's frame, against the unlocked output's). Skips with a
 //! printed reason when the shared data is absent.
 //!
-//! On the Horse: four feet found, no flips; the unlocked retarget keeps the hind foot joint
-//! (the hock, 1.3 m up when the horse stands) within 7 cm of its standing height, and the
-//! locked one at it (the lock measures clearances from the ground under raised contacts). Not
-//! met yet (ignored; `--ignored --nocapture` prints the figures): planted hind-foot drift is
-//! 0.056 cm/frame (budget 0.05) — the lock pins the hock, which on a hoofed leg moves during
-//! the stance; the front feet, driven by the walker's arms, hang 0.6–2.8 m up.
+//! On the Horse and the Wolf: four feet found, no flips; the unlocked retarget keeps the
+//! Horse's hind foot joint (the hock, 1.3 m up when it stands) within 7 cm of its standing
+//! height, and the locked one at it (the lock measures clearances from the ground under
+//! raised contacts); planted hind feet hold (0.000 cm/frame on the Horse, ≤ 0.035 on the
+//! Wolf). Not asserted: the front feet, driven by the walker's arms, hang 0.6–2.8 m up.
 #![allow(clippy::unwrap_used)]
 
 mod common;
@@ -209,7 +208,6 @@ fn cmu_walk_on_quadrupeds_keeps_four_feet_above_the_floor_without_flips() {
 
 /// The hind feet the walker's plants drive hold still while planted (≤ 0.05 cm/frame).
 #[test]
-#[ignore = "not met: a pinned hock drifts 0.056 cm/frame on the Horse (the hock is not where a hoofed leg meets the ground)"]
 fn cmu_walk_on_quadrupeds_holds_planted_hind_feet() {
     let Some(figures) = measure_quadrupeds() else {
         return;

@@ -351,11 +351,11 @@ impl FootLock {
         (f.animated_position, f.animated_heading) = (animated, heading_now);
         let was = f.locked;
         if wants && !f.locked {
-            // Pinned where the foot lands; if it is shown elsewhere (an earlier lock still
-            // letting go), the switch offset below glides it there.
+            // Pinned where the foot is shown as it lands (the animation's foot, or where an
+            // earlier lock letting go still holds it): it stops there, without gliding on.
             f.locked = true;
-            f.lock_position = animated;
-            f.lock_heading = heading_now;
+            f.lock_position = f.shown_position;
+            f.lock_heading = f.shown_heading;
         }
         if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
             f.locked = false;
@@ -377,14 +377,16 @@ impl FootLock {
         if f.locked != was {
             // Take up the difference in place and in speed; it decays from here. An unpinned
             // foot is carried down with the hips: measured from where that puts it.
+            // A landing foot stops dead where it is (a release blends in place and speed).
             let carried = if f.locked { 0.0 } else { last_drop };
+            let keep_speed = if f.locked { 0.0 } else { 1.0 };
             f.position_offset = Decay {
                 value: f.shown_position - (target - up * carried),
-                velocity: f.shown_velocity - velocity,
+                velocity: (f.shown_velocity - velocity) * keep_speed,
             };
             f.heading_offset = Decay {
                 value: wrap(f.shown_heading - target_heading),
-                velocity: f.shown_heading_rate - rate,
+                velocity: (f.shown_heading_rate - rate) * keep_speed,
             };
         }
         f.position_offset.step(dt, halflife);
