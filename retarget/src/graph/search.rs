@@ -5,21 +5,25 @@
 //!
 //! 1. **Coarse grid.** Distances are evaluated only between every `stride`-th frame
 //!    (`stride` = frames per 1/30 s: motion barely changes within 1/30 s, which is why Kovar
-//!    et al. worked at that rate), i.e. on 1/stride² of the pairs, against a looser bound
-//!    (threshold × `1 + COARSE_MARGIN`) so a minimum that falls between grid frames is not
-//!    missed.
+//!    et al. worked at that rate), i.e. on 1/stride² of the pairs, and each unordered pair
+//!    once (the upper triangle), against a looser bound (threshold × `1 + COARSE_MARGIN`)
+//!    so a minimum that falls between grid frames is not missed.
 //! 2. **Pruned distances.** Every distance gives up as soon as its partial sum passes the
-//!    bound ([`super::features::distance_sq_bounded`]); most pairs in a database are far
-//!    apart and stop after the first few points.
+//!    bound ([`super::features::distance_sq_bounded`]); pairs far apart stop after the first
+//!    block of points.
 //! 3. **Refinement.** From each surviving grid pair on a valley floor (no larger than its
 //!    neighbours across the diagonal), steepest descent over full-resolution neighbours,
-//!    kept within one grid step of its start, finds the exact local minimum, which is kept when it is a minimum over its
-//!    whole neighbourhood (radius ≈ 1/15 s, Kovar's 5 × 5 at 30 Hz) and below the threshold.
+//!    kept within one grid step of its start, finds the exact local minimum, which is kept
+//!    when it is a minimum over its whole neighbourhood (radius ≈ 1/15 s, Kovar's 5 × 5 at
+//!    30 Hz; nearest ring first, so most candidates are turned down after a few distances)
+//!    and below the threshold. Descents that meet remember each cell's move.
+//! 4. **Two threads.** The grid rows are cut into two bands of equal work, searched apart
+//!    and merged (a minimum found from both is the same pair with the same distance).
 //!
 //! Pairs within one clip closer than `min_gap` frames are never transitions (they are the
 //! clip itself).
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 use super::features::{distance_sq_bounded, rms, squared_bound, ClipFeatures};
 
@@ -53,9 +57,31 @@ pub struct SearchParams {
 struct Db<'a> {
     clips: &'a [ClipFeatures],
     p: SearchParams,
+    /// Offsets of the local-minimum neighbourhood, nearest ring first: a closer pair, when
+    /// there is one, is most often right next to the candidate, so most rejections stop early.
+    /// The first `NEIGHBOURS.len()` are the eight neighbours.
+    around: Vec<(isize, isize)>,
 }
 
+/// A cell of the distance matrix: two (clip, frame) pairs.
+type Cell = ((usize, usize), (usize, usize));
+
+/// Steepest-descent moves already worked out: a cell and its distance → its lowest neighbour
+/// (itself at a local minimum). Neighbouring floor cells of one valley descend through the
+/// same cells; the move from a cell does not depend on where the descent started.
+type Moves = HashMap<Cell, (Cell, f32)>;
+
 impl Db<'_> {
+    fn new(clips: &[ClipFeatures], p: SearchParams) -> Db<'_> {
+        let r = p.radius as isize;
+        let mut around: Vec<(isize, isize)> = (-r..=r)
+            .flat_map(|da| (-r..=r).map(move |db| (da, db)))
+            .filter(|&o| o != (0, 0))
+            .collect();
+        around.sort_by_key(|&(da, db)| da.abs().max(db.abs()));
+        Db { clips, p, around }
+    }
+
     fn allowed(&self, a: (usize, usize), b: (usize, usize)) -> bool {
         a.0 != b.0 || a.1.abs_diff(b.1) >= self.p.min_gap.max(1)
     }
@@ -69,51 +95,59 @@ impl Db<'_> {
         Some(distance_sq_bounded(va, vb, bound))
     }
 
+    /// The lowest of the eight neighbours of `(a, b)` (at distance `d`), or the cell itself
+    /// when none is lower.
+    fn lowest_neighbour(&self, (a, b): Cell, d: f32) -> (Cell, f32) {
+        let mut best = ((a, b), d);
+        for (da, db) in NEIGHBOURS {
+            let (Some(na), Some(nb)) = (shift(a, da), shift(b, db)) else {
+                continue;
+            };
+            if let Some(nd) = self.dist_sq(na, nb, best.1) {
+                if nd < best.1 {
+                    best = ((na, nb), nd);
+                }
+            }
+        }
+        best
+    }
+
     /// Steepest descent to a local minimum at full resolution, staying within `stride` frames
     /// of the start on both axes: a minimum farther away is the business of the grid cell
     /// nearer to it (`None` when the descent would leave).
-    fn descend(&self, start: ((usize, usize), (usize, usize)), d: f32) -> Option<Pair> {
-        let ((mut a, mut b), mut d) = (start, d);
+    fn descend(&self, start: Cell, d: f32, moves: &mut Moves) -> Option<Pair> {
+        let (mut cell, mut d) = (start, d);
         let reach = self.p.stride.max(1);
         loop {
-            let mut best = (a, b, d);
-            for (da, db) in NEIGHBOURS {
-                let (Some(na), Some(nb)) = (shift(a, da), shift(b, db)) else {
-                    continue;
-                };
-                if let Some(nd) = self.dist_sq(na, nb, best.2) {
-                    if nd < best.2 {
-                        best = (na, nb, nd);
-                    }
-                }
+            let (next, nd) = *moves
+                .entry(cell)
+                .or_insert_with(|| self.lowest_neighbour(cell, d));
+            if nd >= d {
+                return Some((cell.0, cell.1, d));
             }
-            if best.2 >= d {
-                return Some((a, b, d));
-            }
-            (a, b, d) = best;
+            (cell, d) = (next, nd);
+            let (a, b) = cell;
             if a.1.abs_diff(start.0 .1) > reach || b.1.abs_diff(start.1 .1) > reach {
                 return None;
             }
         }
     }
 
-    /// True when no pair within the radius is closer.
-    fn is_minimum(&self, a: (usize, usize), b: (usize, usize), d: f32) -> bool {
-        let r = self.p.radius as isize;
-        for da in -r..=r {
-            for db in -r..=r {
+    /// True when no pair within the radius is closer; the first `skip` offsets of
+    /// [`Db::around`] are taken as checked (a descent's end is no larger than its eight
+    /// neighbours).
+    fn is_minimum(&self, a: (usize, usize), b: (usize, usize), d: f32, skip: usize) -> bool {
+        !self
+            .around
+            .get(skip..)
+            .unwrap_or_default()
+            .iter()
+            .any(|&(da, db)| {
                 let (Some(na), Some(nb)) = (shift(a, da), shift(b, db)) else {
-                    continue;
-                };
-                if (da, db) == (0, 0) {
-                    continue;
-                }
-                if self.dist_sq(na, nb, d).is_some_and(|nd| nd < d) {
                     return false;
-                }
-            }
-        }
-        true
+                };
+                self.dist_sq(na, nb, d).is_some_and(|nd| nd < d)
+            })
     }
 }
 
@@ -134,14 +168,22 @@ fn shift((c, f): (usize, usize), d: isize) -> Option<(usize, usize)> {
     Some((c, f.checked_add_signed(d)?))
 }
 
+/// Threads the coarse scan is split over (at most; fewer when the machine has fewer cores).
+const SEARCH_THREADS: usize = 2;
+
 /// Finds all similar pairs (each unordered pair once, `a` before `b` in clip order), calling
 /// `progress` with the fraction done now and then.
+///
+/// The grid rows are split into bands of equal work (row `k` costs `G − k` cells: only the
+/// upper triangle is scanned) searched on [`SEARCH_THREADS`] threads; each band finds the
+/// minima reached from its rows, and the bands' results are merged, so the result does not
+/// depend on the split.
 pub fn find_similar(
     clips: &[ClipFeatures],
     p: SearchParams,
     progress: &mut dyn FnMut(f32),
 ) -> Vec<Similar> {
-    let db = Db { clips, p };
+    let db = Db::new(clips, p);
     let grid: Vec<(usize, usize)> = clips
         .iter()
         .enumerate()
@@ -151,50 +193,117 @@ pub fn find_similar(
                 .map(move |i| (c, i))
         })
         .collect();
-    let coarse = squared_bound(p.threshold * (1.0 + COARSE_MARGIN));
-    let fine = squared_bound(p.threshold);
-    let g = grid.len();
-    // Three coarse rows at a time (k − 1, k, k + 1): enough to tell a coarse local minimum
-    // without holding the G × G matrix.
-    let mut rows = [
-        vec![f32::INFINITY; g],
-        vec![f32::INFINITY; g],
-        vec![f32::INFINITY; g],
-    ];
-    let fill = |k: usize, row: &mut [f32]| {
-        for (b, v) in row.iter_mut().enumerate() {
-            *v = match db.dist_sq(grid[k], grid[b], coarse) {
-                Some(d) if d <= coarse => d,
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let bands = equal_work_bands(grid.len(), SEARCH_THREADS.min(cores));
+    let mut out = std::thread::scope(|s| {
+        let (db, grid) = (&db, &grid[..]);
+        let others: Vec<_> = bands[1..]
+            .iter()
+            .map(|band| {
+                let band = band.clone();
+                s.spawn(move || scan_band(db, grid, band, &mut |_| {}))
+            })
+            .collect();
+        // This thread takes the first band and reports progress (the bands take about as long).
+        let mut out = scan_band(db, grid, bands[0].clone(), progress);
+        for h in others {
+            match h.join() {
+                Ok(found) => out.extend(found),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+        out
+    });
+    progress(1.0);
+    out.sort_by_key(|x| (x.a, x.b));
+    // A minimum reached from rows of two bands is found twice, with the same distance.
+    out.dedup_by_key(|x| (x.a, x.b));
+    out
+}
+
+/// `parts` contiguous ranges of `0..g` with about equal upper-triangle area (row `k` holds
+/// `g − k` cells): boundaries at `g · (1 − √(1 − i / parts))`.
+fn equal_work_bands(g: usize, parts: usize) -> Vec<std::ops::Range<usize>> {
+    let parts = parts.max(1);
+    let edge = |i: usize| {
+        let f = 1.0 - (1.0 - i as f64 / parts as f64).sqrt();
+        ((g as f64 * f).round() as usize).min(g)
+    };
+    (0..parts).map(|i| edge(i)..edge(i + 1)).collect()
+}
+
+/// Three coarse rows of the grid, kept in a ring by row index (row `r` in slot `r % 3`):
+/// rows `k − 1`, `k` and `k + 1` are what tells a coarse valley floor, and the G × G matrix
+/// is never held. Row `r` is only filled from column `r − 1` on: the scan reads row `k` right
+/// of the diagonal and its neighbours one column beyond, never further left.
+struct CoarseRows {
+    slots: [Vec<f32>; 3],
+    held: [usize; 3],
+    bound: f32,
+}
+
+impl CoarseRows {
+    fn new(g: usize, bound: f32) -> CoarseRows {
+        CoarseRows {
+            slots: std::array::from_fn(|_| vec![f32::INFINITY; g]),
+            held: [usize::MAX; 3],
+            bound,
+        }
+    }
+
+    fn ensure(&mut self, db: &Db, grid: &[(usize, usize)], r: usize) {
+        let slot = r % 3;
+        if self.held[slot] == r {
+            return;
+        }
+        let row = &mut self.slots[slot];
+        for b in r.saturating_sub(1)..grid.len() {
+            row[b] = match db.dist_sq(grid[r], grid[b], self.bound) {
+                Some(d) if d <= self.bound => d,
                 _ => f32::INFINITY,
             };
         }
-    };
-    if g > 0 {
-        fill(0, &mut rows[1]);
+        self.held[slot] = r;
     }
+
+    fn row(&self, r: usize) -> &[f32] {
+        &self.slots[r % 3]
+    }
+}
+
+/// The search from grid rows `band`: coarse cells right of the diagonal on a valley floor,
+/// descended to full-resolution minima below the threshold.
+fn scan_band(
+    db: &Db,
+    grid: &[(usize, usize)],
+    band: std::ops::Range<usize>,
+    progress: &mut dyn FnMut(f32),
+) -> Vec<Similar> {
+    let fine = squared_bound(db.p.threshold);
+    let mut rows = CoarseRows::new(
+        grid.len(),
+        squared_bound(db.p.threshold * (1.0 + COARSE_MARGIN)),
+    );
     let mut seen = HashSet::new();
+    let mut moves = Moves::new();
     let mut out = Vec::new();
-    for k in 0..g {
-        rows.rotate_left(1);
-        // rows[0] = k − 1, rows[1] = k, rows[2] = k + 1 (when in the same clip).
-        let next_same = k + 1 < g && grid[k + 1].0 == grid[k].0;
-        if next_same {
-            fill(k + 1, &mut rows[2]);
-        } else {
-            rows[2].fill(f32::INFINITY);
+    for k in band.clone() {
+        // Neighbour rows across a clip boundary do not count.
+        let same = |r: usize| grid.get(r).is_some_and(|x| x.0 == grid[k].0);
+        let prev = k.checked_sub(1).filter(|&r| same(r));
+        let next = Some(k + 1).filter(|&r| same(r));
+        for r in [prev, Some(k), next].into_iter().flatten() {
+            rows.ensure(db, grid, r);
         }
-        if k == 0 || grid[k - 1].0 != grid[k].0 {
-            rows[0].fill(f32::INFINITY);
-        }
-        for b in k + 1..g {
-            let d = rows[1][b];
-            if !d.is_finite() || !coarse_minimum(&rows, &grid, b, d) {
+        let (prev, next) = (prev.map(|r| rows.row(r)), next.map(|r| rows.row(r)));
+        for (b, &d) in rows.row(k).iter().enumerate().skip(k + 1) {
+            if !d.is_finite() || !on_valley_floor(prev, next, grid, b, d) {
                 continue;
             }
-            let Some((ma, mb, md)) = db.descend((grid[k], grid[b]), d) else {
+            let Some((ma, mb, md)) = db.descend((grid[k], grid[b]), d, &mut moves) else {
                 continue;
             };
-            if md > fine || !seen.insert((ma, mb)) || !db.is_minimum(ma, mb, md) {
+            if md > fine || !seen.insert((ma, mb)) || !db.is_minimum(ma, mb, md, NEIGHBOURS.len()) {
                 continue;
             }
             out.push(Similar {
@@ -204,32 +313,36 @@ pub fn find_similar(
             });
         }
         if k % 64 == 0 {
-            progress(k as f32 / g.max(1) as f32);
+            progress((k - band.start) as f32 / band.len().max(1) as f32);
         }
     }
-    progress(1.0);
-    out.sort_by_key(|x| (x.a, x.b));
     out
 }
 
-/// True when coarse cell (k, b) (value `d`, in `rows[1]`) lies on a valley floor: no larger
-/// than its two neighbours across the diagonal ((k − 1, b + 1) and (k + 1, b − 1)). Similar
-/// stretches of motion make valleys along the diagonal; their floor rarely lies on grid
-/// frames, so a full 3 × 3 minimum test on the grid misses minima, while descending from every
-/// floor cell finds each of them (neighbours across a clip boundary do not count).
-fn coarse_minimum(rows: &[Vec<f32>; 3], grid: &[(usize, usize)], b: usize, d: f32) -> bool {
+/// True when coarse cell (k, b) (value `d`) lies on a valley floor: no larger than its two
+/// neighbours across the diagonal ((k − 1, b + 1) in `prev`, (k + 1, b − 1) in `next`).
+/// Similar stretches of motion make valleys along the diagonal; their floor rarely lies on
+/// grid frames, so a full 3 × 3 minimum test on the grid misses minima, while descending from
+/// every floor cell finds each of them (neighbours across a clip boundary do not count).
+fn on_valley_floor(
+    prev: Option<&[f32]>,
+    next: Option<&[f32]>,
+    grid: &[(usize, usize)],
+    b: usize,
+    d: f32,
+) -> bool {
     let clip = grid[b].0;
-    let lower = |row: &[f32], nb: Option<usize>| {
-        nb.filter(|&nb| nb < grid.len() && grid[nb].0 == clip)
-            .is_some_and(|nb| row[nb] < d)
+    let lower = |row: Option<&[f32]>, nb: Option<usize>| match (row, nb) {
+        (Some(row), Some(nb)) if nb < grid.len() && grid[nb].0 == clip => row[nb] < d,
+        _ => false,
     };
-    !(lower(&rows[0], Some(b + 1)) || lower(&rows[2], b.checked_sub(1)))
+    !(lower(prev, Some(b + 1)) || lower(next, b.checked_sub(1)))
 }
 
 /// The exhaustive reference: every pair at full resolution, local minima over the same
 /// neighbourhood. O(N²); for tests that judge [`find_similar`] against it.
 pub fn find_similar_exhaustive(clips: &[ClipFeatures], p: SearchParams) -> Vec<Similar> {
-    let db = Db { clips, p };
+    let db = Db::new(clips, p);
     let all: Vec<(usize, usize)> = clips
         .iter()
         .enumerate()
@@ -242,7 +355,7 @@ pub fn find_similar_exhaustive(clips: &[ClipFeatures], p: SearchParams) -> Vec<S
             let Some(d) = db.dist_sq(a, b, f32::INFINITY) else {
                 continue;
             };
-            if d <= fine && db.is_minimum(a, b, d) {
+            if d <= fine && db.is_minimum(a, b, d, 0) {
                 out.push(Similar {
                     a,
                     b,
