@@ -25,7 +25,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::features::{distance_sq_bounded, rms, squared_bound, ClipFeatures};
+use super::features::{distance_sq_bounded, rms, squared_bound, ClipFeatures, DIM};
 
 /// How much looser the coarse bound is than the threshold (distance ratio).
 const COARSE_MARGIN: f32 = 0.5;
@@ -61,6 +61,27 @@ struct Db<'a> {
     /// there is one, is most often right next to the candidate, so most rejections stop early.
     /// The first `NEIGHBOURS.len()` are the eight neighbours.
     around: Vec<(isize, isize)>,
+    /// Per clip and frame: how far (Euclidean, not squared) the frame's vector is from any
+    /// frame within one grid step of it. A descent never ends more than a grid step from its
+    /// start on either axis, so by the triangle inequality it cannot end below
+    /// √d − reach(a) − reach(b): when that is above the threshold, the descent is not made.
+    reach: Vec<Vec<f32>>,
+}
+
+/// For every frame of `clip`: the largest distance from its vector to the vector of a frame
+/// at most `step` frames away (infinite where the frame has no vector).
+fn reach_of(clip: &ClipFeatures, step: usize) -> Vec<f32> {
+    (0..clip.len)
+        .map(|i| {
+            let Some(v) = clip.get(i) else {
+                return f32::INFINITY;
+            };
+            (i.saturating_sub(step)..=i + step)
+                .filter_map(|j| clip.get(j))
+                .map(|w| distance_sq_bounded(v, w, f32::INFINITY).sqrt())
+                .fold(0.0, f32::max)
+        })
+        .collect()
 }
 
 /// A cell of the distance matrix: two (clip, frame) pairs.
@@ -79,7 +100,20 @@ impl Db<'_> {
             .filter(|&o| o != (0, 0))
             .collect();
         around.sort_by_key(|&(da, db)| da.abs().max(db.abs()));
-        Db { clips, p, around }
+        let reach = clips.iter().map(|c| reach_of(c, p.stride.max(1))).collect();
+        Db {
+            clips,
+            p,
+            around,
+            reach,
+        }
+    }
+
+    /// True when no descent from `(a, b)` at squared distance `d` can end at or below the
+    /// squared distance `fine` (see [`Db::reach`]; the margin covers rounding).
+    fn cannot_descend_below(&self, (a, b): Cell, d: f32, fine: f32) -> bool {
+        let r = |(c, f): (usize, usize)| self.reach[c].get(f).copied().unwrap_or(f32::INFINITY);
+        d.sqrt() - r(a) - r(b) > fine.sqrt() * (1.0 + 1e-3)
     }
 
     fn allowed(&self, a: (usize, usize), b: (usize, usize)) -> bool {
@@ -184,19 +218,11 @@ pub fn find_similar(
     progress: &mut dyn FnMut(f32),
 ) -> Vec<Similar> {
     let db = Db::new(clips, p);
-    let grid: Vec<(usize, usize)> = clips
-        .iter()
-        .enumerate()
-        .flat_map(|(c, f)| {
-            f.valid_range()
-                .step_by(p.stride.max(1))
-                .map(move |i| (c, i))
-        })
-        .collect();
+    let grid = Grid::new(clips, p.stride);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let bands = equal_work_bands(grid.len(), SEARCH_THREADS.min(cores));
+    let bands = equal_work_bands(grid.at.len(), SEARCH_THREADS.min(cores));
     let mut out = std::thread::scope(|s| {
-        let (db, grid) = (&db, &grid[..]);
+        let (db, grid) = (&db, &grid);
         let others: Vec<_> = bands[1..]
             .iter()
             .map(|band| {
@@ -232,6 +258,34 @@ fn equal_work_bands(g: usize, parts: usize) -> Vec<std::ops::Range<usize>> {
     (0..parts).map(|i| edge(i)..edge(i + 1)).collect()
 }
 
+/// The coarse grid: every `stride`-th frame with a vector, and those vectors packed one after
+/// the other, so that a row of the coarse pass streams through memory instead of striding
+/// over the whole database.
+struct Grid {
+    at: Vec<(usize, usize)>,
+    packed: Vec<f32>,
+}
+
+impl Grid {
+    fn new(clips: &[ClipFeatures], stride: usize) -> Grid {
+        let at: Vec<(usize, usize)> = clips
+            .iter()
+            .enumerate()
+            .flat_map(|(c, f)| f.valid_range().step_by(stride.max(1)).map(move |i| (c, i)))
+            .collect();
+        let packed = at
+            .iter()
+            .flat_map(|&(c, i)| clips[c].get(i).unwrap_or_default())
+            .copied()
+            .collect();
+        Grid { at, packed }
+    }
+
+    fn vector(&self, k: usize) -> &[f32] {
+        self.packed.get(k * DIM..(k + 1) * DIM).unwrap_or_default()
+    }
+}
+
 /// Three coarse rows of the grid, kept in a ring by row index (row `r` in slot `r % 3`):
 /// rows `k − 1`, `k` and `k + 1` are what tells a coarse valley floor, and the G × G matrix
 /// is never held. Row `r` is only filled from column `r − 1` on: the scan reads row `k` right
@@ -251,17 +305,20 @@ impl CoarseRows {
         }
     }
 
-    fn ensure(&mut self, db: &Db, grid: &[(usize, usize)], r: usize) {
+    fn ensure(&mut self, db: &Db, grid: &Grid, r: usize) {
         let slot = r % 3;
         if self.held[slot] == r {
             return;
         }
         let row = &mut self.slots[slot];
-        for b in r.saturating_sub(1)..grid.len() {
-            row[b] = match db.dist_sq(grid[r], grid[b], self.bound) {
-                Some(d) if d <= self.bound => d,
-                _ => f32::INFINITY,
+        let (a, va) = (grid.at[r], grid.vector(r));
+        for b in r.saturating_sub(1)..grid.at.len() {
+            let d = if db.allowed(a, grid.at[b]) {
+                distance_sq_bounded(va, grid.vector(b), self.bound)
+            } else {
+                f32::INFINITY
             };
+            row[b] = if d <= self.bound { d } else { f32::INFINITY };
         }
         self.held[slot] = r;
     }
@@ -275,13 +332,13 @@ impl CoarseRows {
 /// descended to full-resolution minima below the threshold.
 fn scan_band(
     db: &Db,
-    grid: &[(usize, usize)],
+    grid: &Grid,
     band: std::ops::Range<usize>,
     progress: &mut dyn FnMut(f32),
 ) -> Vec<Similar> {
     let fine = squared_bound(db.p.threshold);
     let mut rows = CoarseRows::new(
-        grid.len(),
+        grid.at.len(),
         squared_bound(db.p.threshold * (1.0 + COARSE_MARGIN)),
     );
     let mut seen = HashSet::new();
@@ -289,7 +346,8 @@ fn scan_band(
     let mut out = Vec::new();
     for k in band.clone() {
         // Neighbour rows across a clip boundary do not count.
-        let same = |r: usize| grid.get(r).is_some_and(|x| x.0 == grid[k].0);
+        let at = &grid.at;
+        let same = |r: usize| at.get(r).is_some_and(|x| x.0 == at[k].0);
         let prev = k.checked_sub(1).filter(|&r| same(r));
         let next = Some(k + 1).filter(|&r| same(r));
         for r in [prev, Some(k), next].into_iter().flatten() {
@@ -297,10 +355,13 @@ fn scan_band(
         }
         let (prev, next) = (prev.map(|r| rows.row(r)), next.map(|r| rows.row(r)));
         for (b, &d) in rows.row(k).iter().enumerate().skip(k + 1) {
-            if !d.is_finite() || !on_valley_floor(prev, next, grid, b, d) {
+            if !d.is_finite()
+                || !on_valley_floor(prev, next, at, b, d)
+                || db.cannot_descend_below((at[k], at[b]), d, fine)
+            {
                 continue;
             }
-            let Some((ma, mb, md)) = db.descend((grid[k], grid[b]), d, &mut moves) else {
+            let Some((ma, mb, md)) = db.descend((at[k], at[b]), d, &mut moves) else {
                 continue;
             };
             if md > fine || !seen.insert((ma, mb)) || !db.is_minimum(ma, mb, md, NEIGHBOURS.len()) {
