@@ -24,6 +24,7 @@
 //! clip itself).
 
 use std::collections::{HashMap, HashSet};
+use std::hash::{BuildHasherDefault, Hasher};
 
 use super::features::{distance_sq_bounded, rms, squared_bound, ClipFeatures, DIM};
 
@@ -90,7 +91,31 @@ type Cell = ((usize, usize), (usize, usize));
 /// Steepest-descent moves already worked out: a cell and its distance → its lowest neighbour
 /// (itself at a local minimum). Neighbouring floor cells of one valley descend through the
 /// same cells; the move from a cell does not depend on where the descent started.
-type Moves = HashMap<Cell, (Cell, f32)>;
+type Moves = HashMap<Cell, (Cell, f32), BuildHasherDefault<CellHasher>>;
+
+/// Minima already reached (a descent from another floor cell of the same valley ends there
+/// too).
+type Seen = HashSet<Cell, BuildHasherDefault<CellHasher>>;
+
+/// A multiply-rotate hash for cells (four small integers): the maps above are looked up for
+/// every step of every descent, and the standard SipHash (made to resist crafted keys, which
+/// frame indices are not) cost as much as the distances the memo saves.
+#[derive(Default, Clone, Copy)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        bytes.iter().for_each(|&b| self.write_usize(b as usize));
+    }
+
+    fn write_usize(&mut self, n: usize) {
+        self.0 = (self.0.rotate_left(5) ^ n as u64).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+}
 
 impl Db<'_> {
     fn new(clips: &[ClipFeatures], p: SearchParams) -> Db<'_> {
@@ -341,8 +366,8 @@ fn scan_band(
         grid.at.len(),
         squared_bound(db.p.threshold * (1.0 + COARSE_MARGIN)),
     );
-    let mut seen = HashSet::new();
-    let mut moves = Moves::new();
+    let mut seen = Seen::default();
+    let mut moves = Moves::default();
     let mut out = Vec::new();
     for k in band.clone() {
         // Neighbour rows across a clip boundary do not count.

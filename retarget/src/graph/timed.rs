@@ -79,8 +79,8 @@ pub fn timed_walk(
         });
     }
     // Room past the asked length to find the nearest one that works, should it not.
-    let horizon = frames.saturating_add(frames / 4 + 64);
-    let layers = Layers::build(graph, &edges, to, horizon)?;
+    let limit = frames.saturating_add(frames / 4 + 64);
+    let layers = Layers::build(graph, &edges, to, limit)?;
     let arrival = nearest_length(&layers, from, frames, quickest);
     let clip_of: Vec<usize> = (0..graph.num_frames())
         .map(|n| graph.locate(n).map_or(0, |(c, _)| c))
@@ -133,12 +133,12 @@ struct Layers {
 }
 
 impl Layers {
-    /// Layers `0 ..= horizon`, or fewer when one fills up (or empties: then all later do).
+    /// Layers `0 ..= limit`, or fewer when one fills up (or empties: then all later do).
     fn build(
         graph: &MotionGraph,
         edges: &Edges,
         goal: usize,
-        horizon: usize,
+        limit: usize,
     ) -> Result<Layers, GraphError> {
         let n = graph.num_frames();
         let kept: Vec<bool> = (0..n).map(|i| graph.is_kept(i)).collect();
@@ -149,10 +149,10 @@ impl Layers {
             full: graph.num_kept() == 1,
             kept,
         };
-        while layers.costs.len() <= horizon && !layers.full {
+        while layers.costs.len() <= limit && !layers.full {
             if layers.costs.len() * n > MAX_LAYER_VALUES {
                 return Err(GraphError::BadSetting(format!(
-                    "a walk of {horizon} frames is too long to plan on this graph"
+                    "a walk of {limit} frames is too long to plan on this graph"
                 )));
             }
             let next = layers.next_layer(graph, edges);

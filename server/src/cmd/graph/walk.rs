@@ -36,9 +36,9 @@ pub struct WalkArgs {
     /// End pose, as for --from (without it the walk only wanders, for --wander seconds).
     #[arg(long)]
     pub to: Option<String>,
-    /// Arrive at --to exactly this many seconds after the start (to the nearest frame),
-    /// wandering on the way, instead of by the cheapest walk. A time shorter than the
-    /// quickest walk is an error saying by how much.
+    /// Arrive at --to exactly this many seconds after the start (to the nearest frame):
+    /// wander, then take the cheapest way in that lands on time, instead of the cheapest
+    /// walk. A time shorter than the quickest walk is an error saying by how much.
     #[arg(long, value_name = "SECS", requires = "to")]
     pub arrive_secs: Option<f64>,
     /// Output animation (.bvh, .glb or .rcr), on the rig of clip --rig.
@@ -52,7 +52,7 @@ pub struct WalkArgs {
     pub wander: f64,
     /// Wander only into these clips (numbers or names, comma-separated): the walk switches
     /// clips by choice only into them, and leaves them only when a clip ends with no other
-    /// way on (or, with --arrive-secs, when it must to arrive on time).
+    /// way on (with --arrive-secs: not in its last stretch, the cheapest way in on time).
     #[arg(long, value_name = "CLIP[,CLIP…]", value_delimiter = ',')]
     pub stay: Vec<String>,
     /// Seed of the wandering.
