@@ -337,13 +337,14 @@ impl CoarseRows {
         }
         let row = &mut self.slots[slot];
         let (a, va) = (grid.at[r], grid.vector(r));
-        for b in r.saturating_sub(1)..grid.at.len() {
+        let from = r.saturating_sub(1);
+        for (b, cell) in row.iter_mut().enumerate().skip(from) {
             let d = if db.allowed(a, grid.at[b]) {
                 distance_sq_bounded(va, grid.vector(b), self.bound)
             } else {
                 f32::INFINITY
             };
-            row[b] = if d <= self.bound { d } else { f32::INFINITY };
+            *cell = if d <= self.bound { d } else { f32::INFINITY };
         }
         self.held[slot] = r;
     }
