@@ -16,7 +16,7 @@ use rigcast_retarget::{Clip, Mapping, Pose, RetargetOptions};
 use rigcast_sources::RigLayout;
 
 use crate::graph_files::read_graph;
-use crate::graph_files::{clip_spec, load_graph_clips};
+use crate::graph_files::{clip_index, clip_mask, clip_spec, load_graph_clips};
 
 /// Options of `rigcast graph walk`.
 #[derive(Debug, Args)]
@@ -79,7 +79,7 @@ pub fn run(args: &WalkArgs) -> anyhow::Result<()> {
     let graph = read_graph(&args.graph)?;
     let clips = load_graph_clips(&graph)?;
     let from = node(&graph, &args.from).context("--from")?;
-    let stay = stay_mask(&graph, &args.stay).context("--stay")?;
+    let stay = clip_mask(&graph, &args.stay).context("--stay")?;
     let path = walk_path(&graph, args, from, &stay)?;
     let rig_index = match &args.rig {
         Some(r) => clip_index(&graph, r).context("--rig")?,
@@ -146,18 +146,6 @@ fn walk_path(
     Ok(walk.nodes)
 }
 
-/// Per clip: may wandering switch into it (all, when `names` is empty).
-fn stay_mask(graph: &MotionGraph, names: &[String]) -> anyhow::Result<Vec<bool>> {
-    if names.is_empty() {
-        return Ok(vec![true; graph.clips.len()]);
-    }
-    let mut mask = vec![false; graph.clips.len()];
-    for n in names {
-        mask[clip_index(graph, n.trim())?] = true;
-    }
-    Ok(mask)
-}
-
 fn play(
     graph: &MotionGraph,
     pb: &Playback,
@@ -221,24 +209,6 @@ fn save(path: &std::path::Path, clip: &Clip, layout: &RigLayout) -> anyhow::Resu
         rigcast_sources::save_clip(path, clip)
     };
     r.map_err(|e| anyhow!("{e}"))
-}
-
-/// A clip by number or name.
-fn clip_index(graph: &MotionGraph, s: &str) -> anyhow::Result<usize> {
-    if let Ok(i) = s.parse::<usize>() {
-        if i < graph.clips.len() {
-            return Ok(i);
-        }
-        bail!(
-            "clip {i} does not exist (the graph has {})",
-            graph.clips.len()
-        );
-    }
-    graph
-        .clips
-        .iter()
-        .position(|c| c.name == s)
-        .ok_or_else(|| anyhow!("no clip is named {s:?}"))
 }
 
 /// `CLIP:FRAME` → a global node.
