@@ -47,7 +47,8 @@ pub struct WalkArgs {
     /// Which clip's rig plays the walk (number or name; default: the --from clip's).
     #[arg(long)]
     pub rig: Option<String>,
-    /// Keep wandering on the graph for this many seconds after reaching --to.
+    /// Keep wandering on the graph for this many seconds after reaching --to (without --to:
+    /// from --from).
     #[arg(long, default_value_t = 0.0)]
     pub wander: f64,
     /// Wander only into these clips (numbers or names, comma-separated): the walk switches
