@@ -453,3 +453,30 @@ pub fn find_similar_exhaustive(clips: &[ClipFeatures], p: SearchParams) -> Vec<S
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::equal_work_bands;
+
+    /// The bands cover the rows in order, without gaps, and hold about equal shares of the
+    /// upper triangle (row `k` holds `g − k` cells): within one row's cells of each other.
+    #[test]
+    fn bands_split_the_triangle_evenly() {
+        for (g, parts) in [(0, 2), (1, 2), (7, 2), (2540, 2), (2540, 3), (100, 1)] {
+            let bands = equal_work_bands(g, parts);
+            assert_eq!(bands.len(), parts);
+            assert_eq!(bands.first().map(|b| b.start), Some(0));
+            assert_eq!(bands.last().map(|b| b.end), Some(g));
+            assert!(bands.windows(2).all(|w| w[0].end == w[1].start));
+            let work: Vec<usize> = bands
+                .iter()
+                .map(|b| b.clone().map(|k| g - k).sum())
+                .collect();
+            let (lo, hi) = (work.iter().min(), work.iter().max());
+            assert!(
+                hi.zip(lo).is_some_and(|(h, l)| h - l <= g),
+                "{g}/{parts}: {work:?}"
+            );
+        }
+    }
+}
