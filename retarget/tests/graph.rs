@@ -11,7 +11,9 @@ use glam::{Quat, Vec3};
 use retarget_fixtures::Humanoid;
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::graph::walk::shortest_walk;
-use rigcast_retarget::graph::{GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker};
+use rigcast_retarget::graph::{
+    timed_walk, GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker,
+};
 use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
 
 const FPS: f32 = 60.0;
@@ -236,4 +238,84 @@ fn a_rig_without_legs_is_a_clear_error() {
     assert!(e.to_string().contains("rig has no"), "{e}");
     let e = MotionGraph::build(&[], GraphSettings::default(), &mut |_| {}).expect_err("empty");
     assert!(matches!(e, GraphError::NoFrames));
+}
+
+/// Which walk lengths up to `max` lead from `from` to `to`, by a forward search over
+/// (node, frames) — independent of the library's backward layers.
+fn exact_lengths(g: &MotionGraph, from: usize, to: usize, max: usize) -> Vec<bool> {
+    let n = g.num_frames();
+    let mut at = vec![false; n];
+    at[from] = true;
+    let mut out = vec![from == to];
+    for _ in 0..max {
+        let mut next = vec![false; n];
+        for u in (0..n).filter(|&u| at[u]) {
+            if g.has_successor(u) {
+                next[u + 1] = true;
+            }
+        }
+        for t in g.transitions.iter().filter(|t| at[t.from as usize]) {
+            next[t.to as usize] = true;
+        }
+        at = next;
+        out.push(at[to]);
+    }
+    out
+}
+
+#[test]
+fn timed_walks_arrive_on_the_nearest_possible_frame_or_say_how_much_too_soon() {
+    let skel = rig();
+    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
+    let g = graph(&clips);
+    let (from, to) = (g.clips[0].offset + 40, g.clips[1].offset + 250);
+    let cheapest = shortest_walk(&g, from, to).expect("a walk").len() - 1;
+    let possible = exact_lengths(&g, from, to, cheapest + 800);
+    let quickest = possible.iter().position(|&p| p).expect("reachable");
+    let mut exact = 0;
+    for (k, frames) in [cheapest, cheapest + 7, cheapest + 100, cheapest + 333]
+        .into_iter()
+        .enumerate()
+    {
+        let w = timed_walk(&g, from, to, frames, k as u64 + 1, &[]).expect("a timed walk");
+        assert_eq!(w.quickest_frames, quickest);
+        let arrival = w.arrival_frame();
+        assert!(
+            possible[arrival],
+            "{arrival} frames is a length a walk can have"
+        );
+        let off = arrival.abs_diff(frames);
+        // No length closer to the asked one has a walk.
+        let nearer = frames.saturating_sub(off) + 1..frames + off;
+        for (len, _) in possible
+            .iter()
+            .enumerate()
+            .filter(|(l, &p)| p && nearer.contains(l))
+        {
+            assert!(len < quickest, "{len} frames is nearer {frames}");
+        }
+        exact += usize::from(off == 0);
+        assert_eq!((w.nodes[0], w.nodes[arrival]), (from, to));
+        for s in w.nodes.windows(2) {
+            let jump = g
+                .transitions
+                .iter()
+                .any(|t| (t.from as usize, t.to as usize) == (s[0], s[1]));
+            assert!(jump || (s[1] == s[0] + 1 && g.has_successor(s[0])), "{s:?}");
+        }
+    }
+    assert!(exact >= 1, "the cheapest walk's own length is exact");
+    match timed_walk(&g, from, to, quickest - 1, 1, &[]) {
+        Err(GraphError::ArrivalTooSoon {
+            asked_frames,
+            quickest_frames,
+            ..
+        }) => assert_eq!((asked_frames, quickest_frames), (quickest - 1, quickest)),
+        other => panic!("one frame too soon: {other:?}"),
+    }
+    assert!(matches!(
+        timed_walk(&g, 0, to, 100, 1, &[]),
+        Err(GraphError::NotANode { frame: 0, .. })
+    ));
+    assert!(timed_walk(&g, from, usize::MAX, 100, 1, &[]).is_err());
 }

@@ -251,6 +251,9 @@ pub struct FilePerformer {
     /// A motion graph (`.rmg`, from `rigcast graph build`) the character walks on while its
     /// source is lost; implies `on_lost = "idle"`.
     pub idle_graph: Option<PathBuf>,
+    /// The clips of `idle_graph` (names or numbers) the walk may switch into, e.g. only the
+    /// idle ones of a graph that also holds walks (default: all).
+    pub idle_clips: Option<Vec<String>>,
     /// Seconds to blend back to live motion when the source returns (default 0.3 with an
     /// idle graph, else 0.2).
     pub resume_secs: Option<f64>,
@@ -446,6 +449,8 @@ pub struct PerformerSpec {
     pub on_lost: Option<OnLost>,
     /// The motion graph walked while the source is lost (with [`OnLost::Idle`]).
     pub idle_graph: Option<PathBuf>,
+    /// The clips of the idle graph its walk may switch into (empty: all).
+    pub idle_clips: Vec<String>,
     /// Blend back to live over this many seconds when the source returns (`None`: 0.3 s
     /// after an idle graph, 0.2 s otherwise).
     pub resume_secs: Option<f64>,
@@ -467,6 +472,7 @@ impl PerformerSpec {
             in_place: false,
             on_lost: None,
             idle_graph: None,
+            idle_clips: Vec::new(),
             resume_secs: None,
             foot_lock: None,
             graft: None,
@@ -528,6 +534,7 @@ fn performer_spec(p: FilePerformer) -> Result<PerformerSpec, ConfigError> {
         in_place: p.in_place,
         on_lost,
         idle_graph: p.idle_graph,
+        idle_clips: p.idle_clips.unwrap_or_default(),
         resume_secs: p.resume_secs,
         foot_lock: p.foot_lock,
         graft,
@@ -630,6 +637,12 @@ impl ServerConfig {
                 return Err(ConfigError::Invalid {
                     field: "on_lost",
                     message: "\"idle\" needs the performer's idle_graph (a .rmg file)".into(),
+                });
+            }
+            if !p.idle_clips.is_empty() && p.idle_graph.is_none() {
+                return Err(ConfigError::Invalid {
+                    field: "performers.idle_clips",
+                    message: "names clips of the performer's idle_graph, which it has not".into(),
                 });
             }
             if let Some(r) = p.resume_secs {
@@ -852,6 +865,14 @@ mod tests {
             "[[performers]]\ntarget = \"builtin:mannequin\"\nidle_graph = \"/x/i.rmg\"\nresume_secs = -1",
         );
         assert!(bad_time.unwrap_err().to_string().contains("resume_secs"));
+        let clips = parse(
+            "[[performers]]\ntarget = \"builtin:mannequin\"\nidle_graph = \"/x/i.rmg\"\nidle_clips = [\"idle\", \"2\"]",
+        )
+        .unwrap();
+        assert_eq!(clips.performers[0].idle_clips, ["idle", "2"]);
+        let orphan =
+            parse("[[performers]]\ntarget = \"builtin:mannequin\"\nidle_clips = [\"idle\"]");
+        assert!(orphan.unwrap_err().to_string().contains("idle_clips"));
     }
 
     #[test]

@@ -99,3 +99,75 @@ pub fn read_graph(path: &Path) -> anyhow::Result<MotionGraph> {
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     MotionGraph::from_json(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
 }
+
+/// A clip of `graph` by number or name.
+pub fn clip_index(graph: &MotionGraph, s: &str) -> anyhow::Result<usize> {
+    if let Ok(i) = s.parse::<usize>() {
+        if i < graph.clips.len() {
+            return Ok(i);
+        }
+        bail!(
+            "clip {i} does not exist (the graph has {})",
+            graph.clips.len()
+        );
+    }
+    graph
+        .clips
+        .iter()
+        .position(|c| c.name == s)
+        .ok_or_else(|| anyhow!("no clip is named {s:?}"))
+}
+
+/// Per clip of `graph`: may a walk switch into it by choice (every clip when `names` is
+/// empty; else the clips named, by number or name).
+pub fn clip_mask(graph: &MotionGraph, names: &[String]) -> anyhow::Result<Vec<bool>> {
+    if names.is_empty() {
+        return Ok(vec![true; graph.clips.len()]);
+    }
+    let mut mask = vec![false; graph.clips.len()];
+    for n in names {
+        mask[clip_index(graph, n.trim())?] = true;
+    }
+    Ok(mask)
+}
+
+#[cfg(test)]
+mod clip_tests {
+    use super::*;
+    use rigcast_retarget::graph::{GraphClip, GraphSettings};
+
+    fn graph(names: &[&str]) -> MotionGraph {
+        MotionGraph {
+            settings: GraphSettings::default(),
+            frame_time_secs: 1.0 / 30.0,
+            clips: names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| GraphClip {
+                    name: n.to_string(),
+                    path: None,
+                    fingerprint: String::new(),
+                    frames: 10,
+                    offset: 10 * i,
+                })
+                .collect(),
+            transitions: Vec::new(),
+            kept: vec![0..10 * names.len()],
+            similar_pairs: 0,
+            components: 1,
+        }
+    }
+
+    #[test]
+    fn clips_are_named_by_number_or_name_and_unknown_ones_refused() {
+        let g = graph(&["idle", "walk", "idle2"]);
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(clip_mask(&g, &[]).unwrap(), [true, true, true]);
+        let mask = clip_mask(&g, &names(&["idle", " 2"])).unwrap();
+        assert_eq!(mask, [true, false, true]);
+        let e = clip_mask(&g, &names(&["run"])).unwrap_err();
+        assert!(e.to_string().contains("no clip is named \"run\""), "{e}");
+        let e = clip_mask(&g, &names(&["3"])).unwrap_err();
+        assert!(e.to_string().contains("does not exist"), "{e}");
+    }
+}

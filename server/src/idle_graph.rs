@@ -62,17 +62,24 @@ pub struct IdleGraph {
 impl IdleGraph {
     /// Reads the graph file and its clips and prepares them for `target` (blocking; at
     /// start). Errors name the file.
+    /// `stay`: the clips (names or numbers) the walk may switch into; empty: all.
     pub fn load(
         path: &Path,
         target: &Arc<Skeleton>,
         target_reference: Option<&Pose>,
         tick_secs: f32,
+        stay: &[String],
     ) -> anyhow::Result<IdleGraph> {
         let graph = crate::graph_files::read_graph(path)?;
-        let clips = crate::graph_files::load_graph_clips(&graph)
-            .with_context(|| format!("idle graph {}", path.display()))?;
-        IdleGraph::new(&graph, &clips, target, target_reference, tick_secs)
-            .with_context(|| format!("idle graph {}", path.display()))
+        let within = |e: anyhow::Error| e.context(format!("idle graph {}", path.display()));
+        let mask = crate::graph_files::clip_mask(&graph, stay)
+            .context("idle_clips")
+            .map_err(within)?;
+        let clips = crate::graph_files::load_graph_clips(&graph).map_err(within)?;
+        let mut idle =
+            IdleGraph::new(&graph, &clips, target, target_reference, tick_secs).map_err(within)?;
+        idle.walker.set_allowed_clips(&mask);
+        Ok(idle)
     }
 
     /// Prepares `graph` (with its `clips`, as read) for playing on `target`.

@@ -1,7 +1,9 @@
 //! `rigcast graph build|info|walk` end to end on real clips in `../shared/data` (skipped with a
 //! printed reason when absent): the real binary builds a graph of the CMU walk and run and the
 //! PyMO walk, `info` reports its size, `walk` writes a BVH whose frame count is the walk's and
-//! whose root path has no jump; bad input gets a short error and a non-zero exit, not a panic.
+//! whose root path has no jump, `walk --arrive-secs` one exactly that long (and refuses a time
+//! shorter than the quickest walk, saying by how much), `walk --stay` wanders without a goal;
+//! bad input gets a short error and a non-zero exit, not a panic.
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
@@ -86,7 +88,88 @@ fn build_info_and_walk_on_real_clips() {
         assert!(jump < 0.01, "root path jumps {jump} m");
     }
 
+    // On time: the walk holds the start frame plus one frame per 1/120 s up to the arrival.
+    let g = graph.to_str().unwrap();
+    let (from, to) = (
+        "cmu_31joint_example:60",
+        "sparse_spine_head__pymo_meredith:800",
+    );
+    let timed = dir.join("timed.bvh");
+    let args = [
+        "graph",
+        "walk",
+        g,
+        "--from",
+        from,
+        "--to",
+        to,
+        "--arrive-secs",
+        "4",
+    ];
+    let o = rigcast(
+        &[&args[..], &["-o", timed.to_str().unwrap()]].concat(),
+        &dir,
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("arrives at"), "{}", text(&o));
+    let walk = load_clip(&timed).unwrap();
+    let frames = (4.0 / walk.frame_time_secs).round() as usize;
+    assert_eq!(walk.num_frames(), frames + 1, "{}", text(&o));
+    // Wandering inside two clips, no goal.
+    let stay = dir.join("stay.bvh");
+    let o = rigcast(
+        &[
+            "graph",
+            "walk",
+            g,
+            "--from",
+            from,
+            "--stay",
+            "cmu_31joint_example,cmu_run",
+        ]
+        .iter()
+        .chain(&["--wander", "2", "-o", stay.to_str().unwrap()])
+        .copied()
+        .collect::<Vec<_>>(),
+        &dir,
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let walk = load_clip(&stay).unwrap();
+    let frames = (2.0 / walk.frame_time_secs).round() as usize;
+    assert_eq!(
+        walk.num_frames(),
+        frames + 1,
+        "the start and 2 s of wandering"
+    );
+
     for (bad, says) in [
+        (
+            vec![
+                "graph",
+                "walk",
+                g,
+                "--from",
+                from,
+                "--to",
+                to,
+                "--arrive-secs",
+                "0.05",
+                "-o",
+                "x.bvh",
+            ],
+            "the quickest takes",
+        ),
+        (
+            vec![
+                "graph", "walk", g, "--from", from, "--stay", "nobody", "--wander", "1", "-o",
+                "x.bvh",
+            ],
+            "no clip is named",
+        ),
+        (
+            vec!["graph", "walk", g, "--from", from, "-o", "x.bvh"],
+            "nothing to walk to",
+        ),
         (vec!["graph", "info", "/nonexistent.rmg"], "cannot read"),
         (
             vec!["graph", "info", clips[0].to_str().unwrap()],

@@ -3,9 +3,12 @@
 //! search finds what the exhaustive one finds; a walk between two chosen poses exists with
 //! every join under the threshold; played back (through the walker the live fallback uses),
 //! joins keep joint velocities and the root path continuous; looping game idles close on
-//! themselves. Skipped with a printed reason when the data is absent.
+//! themselves; timed walks are at their goal on the asked frame with the same smooth joins, and
+//! a time shorter than the quickest walk is refused with the shortfall. Skipped with a
+//! printed reason when the data is absent.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -15,7 +18,9 @@ use rigcast_retarget::graph::features::{ClipFeatures, ClipTrack};
 use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::search::{find_similar, find_similar_exhaustive, SearchParams};
 use rigcast_retarget::graph::walk::shortest_walk;
-use rigcast_retarget::graph::{GraphSettings, MotionGraph, Planar, Playback, Walker};
+use rigcast_retarget::graph::{
+    timed_walk, GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker,
+};
 use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
 use rigcast_sources::{load_clip_with, LoadOptions};
 
@@ -74,10 +79,32 @@ fn build(clips: &[Clip]) -> MotionGraph {
     g
 }
 
+/// The mocap clips, their graph and its playback on the 31-joint CMU rig, made once for
+/// every test here (a debug build of the graph takes a while).
+struct Mocap {
+    graph: MotionGraph,
+    /// The clips on the playing rig.
+    played: Vec<Clip>,
+    pb: Playback,
+}
+
+fn mocap_graph(dir: &Path) -> &'static Mocap {
+    static MOCAP: OnceLock<Mocap> = OnceLock::new();
+    MOCAP.get_or_init(|| {
+        let clips = mocap(dir);
+        let graph = build(&clips);
+        let rig = &clips[1];
+        let played = clips_onto_rig(&clips, rig).expect("retargets");
+        let analysis = analyze(&SkeletonView::from_clip(&rig.skeleton, &rig.poses));
+        let pb = Playback::new(&graph, &played, &analysis).expect("playback");
+        Mocap { graph, played, pb }
+    })
+}
+
 #[test]
 fn mocap_clips_build_one_graph_keeping_most_frames() {
     let Some(dir) = data_dir() else { return };
-    let g = build(&mocap(&dir));
+    let g = &mocap_graph(&dir).graph;
     assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64);
     for c in &g.clips {
         let kept = (c.offset..c.offset + c.frames).any(|n| g.is_kept(n));
@@ -163,16 +190,14 @@ fn percentile_99(mut v: Vec<f32>) -> f32 {
     v[(v.len() as f64 * 0.99) as usize]
 }
 
-#[test]
-fn a_walk_between_two_poses_has_cheap_smooth_joins() {
-    let Some(dir) = data_dir() else { return };
-    let clips = mocap(&dir);
-    let g = build(&clips);
-    let from = g.clips[1].offset + 60;
-    let to = g.clips[3].offset + 800;
-    let path = shortest_walk(&g, from, to).expect("a walk between the chosen poses");
+/// Every step of `path` is the next frame of a clip or a transition under the threshold;
+/// returns the number of transitions.
+fn assert_steps_are_edges(g: &MotionGraph, path: &[usize]) -> usize {
     let mut jumps = 0;
-    for w in path.windows(2).filter(|w| w[1] != w[0] + 1) {
+    for w in path.windows(2) {
+        if w[1] == w[0] + 1 && g.has_successor(w[0]) {
+            continue;
+        }
         let t = g
             .transitions
             .iter()
@@ -181,36 +206,60 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
         assert!(t.distance <= g.settings.threshold, "{t:?}");
         jumps += 1;
     }
-    println!(
-        "walk {from} → {to}: {} frames, {jumps} transitions",
-        path.len()
-    );
-    assert!(jumps >= 1, "the walk crosses clips");
+    jumps
+}
 
-    // Played on the 31-joint CMU rig, then wandering for 30 s.
-    let rig = &clips[1];
-    let played = clips_onto_rig(&clips, rig).expect("retargets");
-    let analysis = analyze(&SkeletonView::from_clip(&rig.skeleton, &rig.poses));
-    let pb = Playback::new(&g, &played, &analysis).expect("playback");
-    let mut walker = Walker::new(&g, &pb, 11);
-    walker.follow(&path, Planar::IDENTITY);
-    let mut out = rig.skeleton.rest_pose();
-    let mut poses = Vec::new();
-    let mut joins = Vec::new();
-    walker.write(&pb, &mut out);
+/// `path` played by the walker the live fallback uses, then `wander` frames of wandering:
+/// the poses, the frames where a transition was taken, and the node at every frame.
+fn play(
+    m: &Mocap,
+    path: &[usize],
+    wander: usize,
+    seed: u64,
+) -> (Vec<Pose>, Vec<usize>, Vec<usize>) {
+    let mut walker = Walker::new(&m.graph, &m.pb, seed);
+    walker.follow(path, Planar::IDENTITY);
+    let mut out = m.pb.skeleton().rest_pose();
+    let (mut poses, mut joins, mut nodes) = (Vec::new(), Vec::new(), Vec::new());
+    walker.write(&m.pb, &mut out);
     poses.push(out.clone());
-    for _ in 0..path.len() + 3600 {
+    nodes.push(walker.node());
+    for _ in 1..path.len() + wander {
         let before = walker.transitions_taken;
-        walker.step(&pb, &mut out);
+        walker.step(&m.pb, &mut out);
         if walker.transitions_taken > before {
             joins.push(poses.len());
         }
         poses.push(out.clone());
+        nodes.push(walker.node());
     }
-    println!("{} frames played, {} joins", poses.len(), joins.len());
-    assert!(joins.len() >= jumps + 5, "it kept wandering");
-    let skel = &rig.skeleton;
-    let own: Vec<f32> = played
+    (poses, joins, nodes)
+}
+
+/// Per node of the graph: how much the root's per-frame velocity changes there in its own
+/// clip (as played): capture has its own jolts (the CMU run's root changes speed by up to
+/// 2 cm/frame between frames), which a walk through the clip shows whether it joins there or
+/// not.
+fn own_root_changes(m: &Mocap) -> Vec<f32> {
+    let mut out = Vec::new();
+    for c in &m.played {
+        let j = joints(m.pb.skeleton(), &c.poses);
+        let r = |t: usize| j[t][0];
+        out.push(0.0);
+        out.extend((1..j.len() - 1).map(|t| ((r(t + 1) - r(t)) - (r(t) - r(t - 1))).length()));
+        out.push(0.0);
+    }
+    out
+}
+
+/// At every join of `poses` (`nodes`: the node shown at each frame), no joint's per-frame
+/// velocity changes by more than twice the 99th percentile of the clips' own changes, and
+/// the root's by no more than 1 cm beyond what its clips do themselves around both ends of
+/// the join.
+fn assert_smooth_joins(m: &Mocap, poses: &[Pose], joins: &[usize], nodes: &[usize]) {
+    let skel = m.pb.skeleton();
+    let own: Vec<f32> = m
+        .played
         .iter()
         .flat_map(|c| {
             let j = joints(skel, &c.poses);
@@ -218,8 +267,53 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
         })
         .collect();
     let p99 = percentile_99(own);
-    for c in &played {
-        let j = joints(skel, &c.poses);
+    let own_root = own_root_changes(m);
+    let near = |n: usize| {
+        (n.saturating_sub(2)..=n + 4)
+            .filter_map(|i| own_root.get(i))
+            .fold(0.0f32, |a, b| a.max(*b))
+    };
+    let j = joints(skel, poses);
+    let mut worst: f32 = 0.0;
+    let mut worst_root: f32 = 0.0;
+    for &k in joins.iter().filter(|&&k| k + 2 < j.len()) {
+        let clips_own = near(nodes[k - 1]).max(near(nodes[k]));
+        for t in k.saturating_sub(1).max(1)..=k + 1 {
+            worst = worst.max(velocity_jump(&j, t));
+            let r = |t: usize| j[t][0];
+            let change = ((r(t + 1) - r(t)) - (r(t) - r(t - 1))).length();
+            worst_root = worst_root.max(change - clips_own);
+        }
+    }
+    println!(
+        "{} joins: largest velocity change {worst:.4} m/frame (clips' p99 {p99:.4}), root \
+         {worst_root:.4} m beyond the clips' own",
+        joins.len()
+    );
+    assert!(worst <= 2.0 * p99, "{worst} > 2 × {p99}");
+    assert!(worst_root <= 0.01, "root jumps {worst_root} m");
+}
+
+/// The start and goal of the walks below: a CMU frame and a PyMO frame (different clips).
+fn start_and_goal(g: &MotionGraph) -> (usize, usize) {
+    (g.clips[1].offset + 60, g.clips[3].offset + 800)
+}
+
+#[test]
+fn a_walk_between_two_poses_has_cheap_smooth_joins() {
+    let Some(dir) = data_dir() else { return };
+    let m = mocap_graph(&dir);
+    let g = &m.graph;
+    let (from, to) = start_and_goal(g);
+    let path = shortest_walk(g, from, to).expect("a walk between the chosen poses");
+    let jumps = assert_steps_are_edges(g, &path);
+    println!(
+        "walk {from} → {to}: {} frames, {jumps} transitions",
+        path.len()
+    );
+    assert!(jumps >= 1, "the walk crosses clips");
+    for c in &m.played {
+        let j = joints(m.pb.skeleton(), &c.poses);
         let v: Vec<f32> = (1..j.len() - 1).map(|t| velocity_jump(&j, t)).collect();
         println!(
             "  {} p99 {:.4} max {:.4}",
@@ -228,19 +322,53 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
             v.iter().fold(0.0f32, |a, b| a.max(*b))
         );
     }
-    let j = joints(skel, &poses);
-    let mut worst: f32 = 0.0;
-    let mut worst_root: f32 = 0.0;
-    for &k in joins.iter().filter(|&&k| k + 2 < j.len()) {
-        for t in k.saturating_sub(1).max(1)..=k + 1 {
-            worst = worst.max(velocity_jump(&j, t));
-            let r = |t: usize| j[t][0];
-            worst_root = worst_root.max(((r(t + 1) - r(t)) - (r(t) - r(t - 1))).length());
-        }
+    // Played on the 31-joint CMU rig, then wandering for 30 s.
+    let (poses, joins, nodes) = play(m, &path, 3600, 11);
+    println!("{} frames played, {} joins", poses.len(), joins.len());
+    assert!(joins.len() >= jumps + 5, "it kept wandering");
+    assert_smooth_joins(m, &poses, &joins, &nodes);
+}
+
+#[test]
+fn timed_walks_arrive_on_the_asked_frame_with_smooth_joins() {
+    let Some(dir) = data_dir() else { return };
+    let m = mocap_graph(&dir);
+    let g = &m.graph;
+    let (from, to) = start_and_goal(g);
+    let ft = g.frame_time_secs;
+    // The cheapest walk (time plus a cost per transition) is never quicker than the quickest.
+    let cheapest = shortest_walk(g, from, to).expect("a walk").len() - 1;
+    let quickest = match timed_walk(g, from, to, 0, 1, &[]) {
+        Err(GraphError::ArrivalTooSoon {
+            quickest_frames, ..
+        }) => quickest_frames,
+        other => panic!("arriving at once is refused, not {other:?}"),
+    };
+    println!("quickest {quickest} frames, cheapest {cheapest}");
+    assert!(quickest <= cheapest);
+    for (secs, seed) in [(0.0, 1), (2.0, 2), (6.5, 3), (15.0, 4)] {
+        let secs = quickest as f64 * ft + secs;
+        let frames = (secs / ft).round() as usize;
+        let w = timed_walk(g, from, to, frames, seed, &[]).expect("a timed walk");
+        assert_eq!(w.quickest_frames, quickest);
+        assert_eq!((w.nodes[0], *w.nodes.last().expect("nodes")), (from, to));
+        assert!(
+            (w.arrival_frame() as f64 - secs / ft).abs() <= 1.0,
+            "asked {secs} s, arrives at frame {}",
+            w.arrival_frame()
+        );
+        let jumps = assert_steps_are_edges(g, &w.nodes);
+        // Played, the walker is at the goal on the arrival frame (two more frames let the
+        // joins be judged up to it).
+        let (poses, joins, nodes) = play(m, &w.nodes, 2, seed);
+        assert_eq!(nodes[w.arrival_frame()], to, "at the goal at {secs:.3} s");
+        println!("{secs:.3} s: {} frames, {jumps} transitions", w.nodes.len());
+        assert_smooth_joins(m, &poses, &joins, &nodes);
     }
-    println!("joins: largest velocity change {worst:.4} m/frame (clips' p99 {p99:.4}), root {worst_root:.4} m");
-    assert!(worst <= 2.0 * p99, "{worst} > 2 × {p99}");
-    assert!(worst_root <= 0.01, "root jumps {worst_root} m");
+    let e = timed_walk(g, from, to, quickest - 1, 1, &[]).expect_err("one frame too soon");
+    let text = e.to_string();
+    println!("{text}");
+    assert!(text.contains(&format!("{:.3} s more", ft)), "{text}");
 }
 
 #[test]

@@ -16,6 +16,8 @@
 //!                                          (petgraph Tarjan): no walk dead-ends
 //!  MotionGraph ─▶ walk        Dijkstra/A* between two frames (petgraph), or wandering
 //!                             (random, ∝ exp(−d), optionally kept inside chosen clips)
+//!              ─▶ timed       a wandering walk that is at a chosen frame at a chosen time
+//!                             (exact-length reachability layers from the goal)
 //!              ─▶ play        Walker: per frame, root aligned heading-to-heading at each
 //!                             transition, Kovar's cross-fade (α = 2t³ − 3t² + 1) over the
 //!                             blend time; allocates nothing per step (live fallback)
@@ -33,11 +35,13 @@ pub mod features;
 pub mod file;
 pub mod play;
 pub mod search;
+pub mod timed;
 pub mod walk;
 
 pub use body::{BodyPoints, Planar};
 pub use build::{clip_fingerprint, GraphClip, GraphSettings, MotionGraph, Transition};
 pub use play::{Playback, Walker, WalkerMode};
+pub use timed::{timed_walk, TimedWalk};
 
 use thiserror::Error;
 
@@ -78,6 +82,26 @@ pub enum GraphError {
         from: usize,
         /// end
         to: usize,
+    },
+    /// A timed walk asked to arrive sooner than the quickest walk can.
+    #[error(
+        "no walk from frame {from} reaches frame {to} in {:.3} s ({asked_frames} frames): the \
+         quickest takes {:.3} s ({quickest_frames} frames), {:.3} s more",
+        *.asked_frames as f64 * .frame_time_secs,
+        *.quickest_frames as f64 * .frame_time_secs,
+        (*.quickest_frames - *.asked_frames) as f64 * .frame_time_secs
+    )]
+    ArrivalTooSoon {
+        /// start
+        from: usize,
+        /// goal
+        to: usize,
+        /// the arrival asked for, frames after the start
+        asked_frames: usize,
+        /// the quickest walk's frames
+        quickest_frames: usize,
+        /// seconds per frame
+        frame_time_secs: f64,
     },
     /// Settings out of range.
     #[error("bad graph setting: {0}")]

@@ -12,16 +12,13 @@ use glam::Vec3;
 use super::body::{BodyPoints, Planar, NUM_POINTS};
 use super::build::{resampled_clips, MotionGraph};
 use super::features::ClipTrack;
-use super::walk::{blend_frames, Edges};
+use super::walk::{blend_frames, wander_step, Edges, Rng, WanderRule};
 use super::GraphError;
 use crate::analysis::{Analysis, SkeletonView};
 use crate::clip::Clip;
 use crate::fk::WorldTransform;
 use crate::pose::Pose;
 use crate::skeleton::{BoneId, Skeleton};
-
-/// Chance of taking a transition at a node that offers one, when wandering.
-const SWITCH_CHANCE: f32 = 0.5;
 
 /// The frames of a graph on one rig, ready to play.
 #[derive(Debug, Clone)]
@@ -218,7 +215,7 @@ pub struct Walker {
     align: Planar,
     fade: Option<Fade>,
     since_switch: usize,
-    rng: u64,
+    rng: Rng,
     mode: WalkerMode,
     path: Vec<usize>,
     path_pos: usize,
@@ -243,7 +240,7 @@ impl Walker {
             align: Planar::IDENTITY,
             fade: None,
             since_switch: 0,
-            rng: seed.max(1),
+            rng: Rng::new(seed),
             mode: WalkerMode::Wander,
             path: Vec::new(),
             path_pos: 0,
@@ -411,62 +408,14 @@ impl Walker {
             }
             self.mode = WalkerMode::Wander;
         }
-        let edges = &pb.edges;
-        let here = self.cursor;
-        let successor = edges.has_successor(here);
-        let settled = self.fade.is_none() && self.since_switch >= pb.blend;
-        let roll = self.random() < SWITCH_CHANCE;
-        if successor && !(settled && roll) {
-            return here + 1;
-        }
-        if let Some(to) = self.pick(pb, here, true) {
-            return to;
-        }
-        if successor {
-            return here + 1;
-        }
-        // A dead end of the allowed clips: any way on.
-        self.pick(pb, here, false).unwrap_or(here)
-    }
-
-    /// A transition out of `here` at random, weighted towards the closest; only into allowed
-    /// clips when `restricted`.
-    fn pick(&mut self, pb: &Playback, here: usize, restricted: bool) -> Option<usize> {
-        let scale = 0.5 * self.threshold.max(1e-6);
-        let weight = |d: f32| (-d / scale).exp();
-        let allowed = |w: &Walker, to: usize| !restricted || w.allowed[pb.clip_of[to] as usize];
-        let total: f32 = pb
-            .edges
-            .transitions(here)
-            .filter(|&(t, _)| allowed(self, t))
-            .map(|(_, d)| weight(d))
-            .sum();
-        if total <= 0.0 {
-            return None;
-        }
-        let mut r = self.random() * total;
-        let mut last = None;
-        for (t, d) in pb
-            .edges
-            .transitions(here)
-            .filter(|&(t, _)| allowed(self, t))
-        {
-            last = Some(t);
-            r -= weight(d);
-            if r <= 0.0 {
-                return Some(t);
-            }
-        }
-        last
-    }
-
-    /// Uniform in [0, 1) (xorshift64*).
-    fn random(&mut self) -> f32 {
-        self.rng ^= self.rng >> 12;
-        self.rng ^= self.rng << 25;
-        self.rng ^= self.rng >> 27;
-        let x = self.rng.wrapping_mul(0x2545_f491_4f6c_dd1d);
-        (x >> 40) as f32 / (1u64 << 24) as f32
+        let allowed = &self.allowed;
+        let rule = WanderRule {
+            possible: |_| true,
+            preferred: |to: usize| allowed[pb.clip_of[to] as usize],
+            threshold: self.threshold,
+            settled: self.fade.is_none() && self.since_switch >= pb.blend,
+        };
+        wander_step(&pb.edges, self.cursor, &rule, &mut self.rng).unwrap_or(self.cursor)
     }
 }
 

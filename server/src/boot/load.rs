@@ -149,8 +149,10 @@ async fn load_idle_graph(
     let skeleton = target.skeleton.clone();
     let reference = target.reference.clone();
     let tick_secs = (1.0 / rate_hz) as f32;
+    let stay = spec.idle_clips.clone();
     let idle = tokio::task::spawn_blocking(move || {
-        crate::idle_graph::IdleGraph::load(&path, &skeleton, reference.as_ref(), tick_secs)
+        let reference = reference.as_ref();
+        crate::idle_graph::IdleGraph::load(&path, &skeleton, reference, tick_secs, &stay)
     })
     .await??;
     Ok(Some(idle))

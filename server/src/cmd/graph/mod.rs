@@ -1,7 +1,8 @@
 //! `rigcast graph build|walk|info`: motion graphs offline (issue 14). `build` reads clips and
 //! writes a `.rmg` file (format in `retarget/GRAPH.md`), cached by the clips' fingerprints;
-//! `walk` animates the cheapest walk between two frames (then, optionally, wanders) and writes
-//! it as BVH on one clip's rig; `info` prints the graph's size and components.
+//! `walk` animates the cheapest walk between two frames, or one that arrives at a set time
+//! (then, optionally, wanders, optionally inside chosen clips) and writes it as BVH on one
+//! clip's rig; `info` prints the graph's size and components.
 
 mod build;
 mod info;
@@ -24,7 +25,9 @@ pub struct GraphArgs {
 pub enum GraphAction {
     /// Build a graph from clips (`FILE` or `FILE#ANIMATION` for glTF) into a .rmg file.
     Build(build::BuildArgs),
-    /// Animate the cheapest walk between two frames (`CLIP:FRAME`, CLIP a number or name).
+    /// Animate a walk from a frame (`CLIP:FRAME`, CLIP a number or name): the cheapest to
+    /// another frame, one that arrives there at a set time, or wandering (optionally kept in
+    /// chosen clips).
     Walk(walk::WalkArgs),
     /// Print nodes, edges, transitions and components of a .rmg file.
     Info(info::InfoArgs),
