@@ -288,3 +288,54 @@ fn raised_hind_feet_keep_the_body_at_its_standing_height() {
         }
     }
 }
+
+/// Plant detection on a quadruped's motion, through the rig's roles: on the walk locked onto
+/// the Horse and the Wolf, the detector run on the output finds the hind feet planted where
+/// the walker's plants held them (≥ 90 % of frames agree; judged with the two-sided
+/// detector, which looks at the output alone).
+#[test]
+fn plants_are_found_on_a_quadrupeds_hind_feet() {
+    let Some((source, targets)) = walk_and_quadrupeds() else {
+        return;
+    };
+    for (rel, target) in &targets {
+        let plan = plan_mapping(&source, target, None).unwrap();
+        let locked = common::retarget(&source, &plan, target, true);
+        let (source_legs, source_track) = source_plants(&source, &plan);
+        let legs = find_legs(&target.skeleton, &plan.target_analysis);
+        let found = detect_clip(
+            &locked.skeleton,
+            &legs,
+            &locked.poses,
+            locked.frame_time_secs as f32,
+            plan.source_up,
+            &PlantSettings::default(),
+        );
+        let mut compared = 0;
+        for (i, leg) in legs.iter().enumerate() {
+            let Some(s) = source_legs.iter().position(|l| l.key() == leg.key()) else {
+                continue;
+            };
+            let n = found.num_frames();
+            let agree = (0..n)
+                .filter(|&f| found.is_planted(f, i) == source_track.is_planted(f, s))
+                .count() as f64
+                / n as f64;
+            let planted = (0..n).filter(|&f| found.is_planted(f, i)).count();
+            println!(
+                "{rel} {}: {planted} of {n} frames planted, {:.1} % agree with the walker's",
+                target.skeleton.name(leg.foot),
+                100.0 * agree
+            );
+            assert!(
+                agree >= 0.9,
+                "{rel} {}: {agree}",
+                target.skeleton.name(leg.foot)
+            );
+        }
+        assert_eq!(
+            compared, 2,
+            "{rel}: the walker's two feet drive the hind feet"
+        );
+    }
+}
