@@ -334,6 +334,21 @@ impl FootLock {
         let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
         let halflife = 0.5 * self.settings.blend_secs;
         let last_drop = self.last_drop;
+        // How far the foot lands from standing height: its lowest contact above or below its
+        // standing clearance. A plant puts it there (the source's foot is down).
+        let settle = {
+            let f = &self.feet[i];
+            let ball = f
+                .leg
+                .toes
+                .map(|t| self.worlds[t.index()].translation.dot(up));
+            let heel = f.shown_position.dot(up);
+            let (lowest, standing) = match ball {
+                Some(b) if b - f.ball_clearance < heel - f.heel_clearance => (b, f.ball_clearance),
+                _ => (heel, f.heel_clearance),
+            };
+            self.floor + standing - lowest
+        };
         let f = &mut self.feet[i];
         if !f.seen {
             (f.shown_position, f.shown_heading) = (animated, heading_now);
@@ -354,7 +369,7 @@ impl FootLock {
             // Pinned where the foot is shown as it lands (the animation's foot, or where an
             // earlier lock letting go still holds it): it stops there, without gliding on.
             f.locked = true;
-            f.lock_position = f.shown_position;
+            f.lock_position = f.shown_position + up * settle;
             f.lock_heading = f.shown_heading;
         }
         if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
