@@ -172,6 +172,21 @@ impl DevTools {
         let text = self.eval(expression).await;
         serde_json::from_str(text.as_str().expect("a JSON string")).expect("page JSON")
     }
+
+    /// The largest change of subject `id`'s first skinned mesh's bone matrices over 0.7 s
+    /// (the viewer's `rigcast.meshes()`): non-zero while the stream drives the skin.
+    pub async fn bone_matrices_move(&mut self, id: u32) -> f64 {
+        let probe = format!("JSON.stringify(window.rigcast.meshes()[{id}].boneMatrices)");
+        let a = self.eval_json(&probe).await;
+        tokio::time::sleep(std::time::Duration::from_millis(700)).await;
+        let b = self.eval_json(&probe).await;
+        a.as_array()
+            .unwrap()
+            .iter()
+            .zip(b.as_array().unwrap())
+            .map(|(x, y)| (x.as_f64().unwrap() - y.as_f64().unwrap()).abs())
+            .fold(0.0, f64::max)
+    }
 }
 
 impl DevTools {

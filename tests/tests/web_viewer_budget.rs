@@ -161,20 +161,6 @@ async fn measure(cdp: &mut DevTools) -> Value {
     eval_async(cdp, &script).await
 }
 
-/// How much the first drawn skinned mesh's bone matrices of `id` change over 0.7 s.
-async fn bone_matrices_move(cdp: &mut DevTools, id: u32) -> f64 {
-    let probe = format!("JSON.stringify(window.rigcast.meshes()[{id}].boneMatrices)");
-    let a = cdp.eval_json(&probe).await;
-    tokio::time::sleep(Duration::from_millis(700)).await;
-    let b = cdp.eval_json(&probe).await;
-    a.as_array()
-        .unwrap()
-        .iter()
-        .zip(b.as_array().unwrap())
-        .map(|(x, y)| (x.as_f64().unwrap() - y.as_f64().unwrap()).abs())
-        .fold(0.0, f64::max)
-}
-
 fn load_average() -> String {
     std::fs::read_to_string("/proc/loadavg")
         .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
@@ -235,8 +221,8 @@ async fn budget_keeps_two_skinned_characters_smooth() {
     let level = settle(&mut cdp).await;
     let auto = measure(&mut cdp).await;
     let moved = [
-        bone_matrices_move(&mut cdp, 1).await,
-        bone_matrices_move(&mut cdp, 2).await,
+        cdp.bone_matrices_move(1).await,
+        cdp.bone_matrices_move(2).await,
     ];
     let png = cdp.screenshot().await;
     let shot = rigcast_tests::repo_root()

@@ -108,20 +108,6 @@ fn save(name: &str, png: &[u8]) -> PathBuf {
     out
 }
 
-/// Bone matrices twice, a few frames apart: the skin follows the stream.
-async fn bone_matrices_move(cdp: &mut DevTools, id: u32) -> f64 {
-    let probe = format!("JSON.stringify(window.rigcast.meshes()[{id}].boneMatrices)");
-    let a = cdp.eval_json(&probe).await;
-    tokio::time::sleep(Duration::from_millis(700)).await;
-    let b = cdp.eval_json(&probe).await;
-    a.as_array()
-        .unwrap()
-        .iter()
-        .zip(b.as_array().unwrap())
-        .map(|(x, y)| (x.as_f64().unwrap() - y.as_f64().unwrap()).abs())
-        .fold(0.0, f64::max)
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_draws_the_glb_target_skinned() {
     let Some(chromium) = find_app("chromium") else {
@@ -178,7 +164,7 @@ async fn viewer_draws_the_glb_target_skinned() {
         mesh["bound"],
         mesh["bones"]
     );
-    let moved = bone_matrices_move(&mut cdp, target).await;
+    let moved = cdp.bone_matrices_move(target).await;
     assert!(
         moved > 1e-3,
         "bone matrices did not change between frames ({moved})"
@@ -336,7 +322,7 @@ async fn viewer_draws_a_vrm_target_through_three_vrm() {
     assert!(status.contains("\"xbot\""), "{status}");
     let (browser, mut cdp, mesh) = open_viewer(&chromium, &server, 1).await;
     assert_eq!(mesh["isVrm"], true, "not loaded as a VRM: {mesh}");
-    let moved = bone_matrices_move(&mut cdp, 1).await;
+    let moved = cdp.bone_matrices_move(1).await;
     assert!(moved > 1e-3, "VRM bone matrices did not change ({moved})");
     let png = cdp.screenshot().await;
     let path = save("viewer-vrm.png", &png);
