@@ -383,3 +383,76 @@ fn looping_game_idles_close_on_themselves() {
         assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64, "{file}");
     }
 }
+
+/// Which clip global frame `node` belongs to.
+fn clip_of(g: &MotionGraph, node: usize) -> usize {
+    g.clips
+        .iter()
+        .position(|c| (c.offset..c.offset + c.frames).contains(&node))
+        .expect("a clip's frame")
+}
+
+/// "Stay in" (`idle_clips`, `--stay`): a wandering walker kept inside one clip leaves it only
+/// where the clip has no way on of its own (freezing there would stop the character; it
+/// returns by the first transition back), so it spends more of its time there than an
+/// unrestricted walker from the same start and seed, which leaves by choice.
+#[test]
+fn wandering_kept_in_a_clip_stays_in_it() {
+    let Some(dir) = data_dir() else { return };
+    let m = mocap_graph(&dir);
+    let g = &m.graph;
+    let mut restricted_clips = 0;
+    for c in 0..g.clips.len() {
+        let Some(start) =
+            (g.clips[c].offset..g.clips[c].offset + g.clips[c].frames).find(|&n| g.is_kept(n))
+        else {
+            continue;
+        };
+        let walk = |allowed: Option<&[bool]>| {
+            let mut walker = Walker::new(g, &m.pb, 7);
+            if let Some(a) = allowed {
+                walker.set_allowed_clips(a);
+            }
+            walker.start_at(start, Planar::IDENTITY);
+            let mut out = m.pb.skeleton().rest_pose();
+            (0..3000)
+                .map(|_| {
+                    walker.step(&m.pb, &mut out);
+                    walker.node()
+                })
+                .collect::<Vec<_>>()
+        };
+        let only: Vec<bool> = (0..g.clips.len()).map(|i| i == c).collect();
+        let kept = walk(Some(&only));
+        let edges = m.pb.edges();
+        let inside = |n: usize| clip_of(g, n) == c;
+        for w in kept.windows(2) {
+            if inside(w[0]) && !inside(w[1]) {
+                let way_on = (edges.has_successor(w[0]) && inside(w[0] + 1))
+                    || edges.transitions(w[0]).any(|(t, _)| inside(t));
+                assert!(!way_on, "clip {c}: left at {} though it could stay", w[0]);
+            }
+        }
+        let share = |nodes: &[usize]| {
+            nodes.iter().filter(|&&n| inside(n)).count() as f64 / nodes.len() as f64
+        };
+        let free = walk(None);
+        println!(
+            "clip {c}: {:.1} % of frames inside kept, {:.1} % free",
+            100.0 * share(&kept),
+            100.0 * share(&free)
+        );
+        if share(&free) < 1.0 {
+            restricted_clips += 1;
+            assert!(
+                share(&kept) > share(&free),
+                "clip {c}: keeping changed nothing"
+            );
+        }
+    }
+    println!("{restricted_clips} clips where the restriction changed the walk");
+    assert!(
+        restricted_clips > 0,
+        "no unrestricted walk ever left its clip"
+    );
+}
