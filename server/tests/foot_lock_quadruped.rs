@@ -43,15 +43,20 @@ fn source_plants(
     plan: &MappingPlan,
 ) -> (Vec<Leg>, rigcast_retarget::footplant::PlantTrack) {
     let legs = find_legs(&source.skeleton, &plan.source_analysis);
-    let plants = detect_clip(
-        &source.skeleton,
-        &legs,
-        &source.poses,
-        source.frame_time_secs as f32,
-        plan.source_up,
-        &PlantSettings::default(),
-    );
+    let plants = plants_of(source, &legs, plan.source_up);
     (legs, plants)
+}
+
+/// Two-sided plants of `clip` on `legs`, heights along `up`, default thresholds.
+fn plants_of(clip: &Clip, legs: &[Leg], up: Vec3) -> rigcast_retarget::footplant::PlantTrack {
+    detect_clip(
+        &clip.skeleton,
+        legs,
+        &clip.poses,
+        clip.frame_time_secs as f32,
+        up,
+        &PlantSettings::default(),
+    )
 }
 
 fn worlds(c: &Clip) -> Vec<Vec<WorldTransform>> {
@@ -305,14 +310,7 @@ fn plants_are_found_on_a_quadrupeds_hind_feet() {
         let locked = common::retarget(&source, &plan, target, true);
         let (source_legs, source_track) = source_plants(&source, &plan);
         let legs = find_legs(&target.skeleton, &plan.target_analysis);
-        let found = detect_clip(
-            &locked.skeleton,
-            &legs,
-            &locked.poses,
-            locked.frame_time_secs as f32,
-            plan.source_up,
-            &PlantSettings::default(),
-        );
+        let found = plants_of(&locked, &legs, plan.source_up);
         let mut compared = 0;
         let mut worst = 1.0f64;
         for (i, leg) in legs.iter().enumerate() {

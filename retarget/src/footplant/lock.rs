@@ -334,20 +334,10 @@ impl FootLock {
         let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
         let halflife = 0.5 * self.settings.blend_secs;
         let last_drop = self.last_drop;
-        // How far the foot lands from standing height: its lowest contact above or below its
-        // standing clearance. A plant puts it there (the source's foot is down).
-        let settle = {
-            let f = &self.feet[i];
-            let ball = f
-                .leg
-                .toes
-                .map(|t| self.worlds[t.index()].translation.dot(up));
-            let heel = f.shown_position.dot(up);
-            let (lowest, standing) = match ball {
-                Some(b) if b - f.ball_clearance < heel - f.heel_clearance => (b, f.ball_clearance),
-                _ => (heel, f.heel_clearance),
-            };
-            self.floor + standing - lowest
+        let settle = if wants && !self.feet[i].locked {
+            self.landing_settle(i, animated)
+        } else {
+            0.0
         };
         let f = &mut self.feet[i];
         if !f.seen {
@@ -425,6 +415,22 @@ impl FootLock {
             rotation: (yaw * ankle_w.rotation).normalize(),
             ball_offset,
         }
+    }
+
+    /// How far foot `i`, landing, is from its standing height: its lowest contact (heel, or
+    /// ball at the animation's offset from the heel) above or below its standing clearance. A
+    /// plant puts it there: the source's foot is down. `animated` is the animated ankle.
+    fn landing_settle(&self, i: usize, animated: Vec3) -> f32 {
+        let f = &self.feet[i];
+        let up = self.up;
+        let heel = f.shown_position.dot(up);
+        let ball =
+            (f.leg.toes).map(|t| heel + (self.worlds[t.index()].translation - animated).dot(up));
+        let (lowest, standing) = match ball {
+            Some(b) if b - f.ball_clearance < heel - f.heel_clearance => (b, f.ball_clearance),
+            _ => (heel, f.heel_clearance),
+        };
+        self.floor + standing - lowest
     }
 
     /// Records where foot `i` was shown this frame (for the next frame's velocities).
