@@ -61,3 +61,28 @@ pub fn cv(values: &[f32]) -> f32 {
     let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / n;
     var.sqrt() / mean
 }
+
+/// Frames of a file, each changed (or the stream ended) by `edit` as it is read: `edit`
+/// returns false to end the stream there.
+pub struct Edited<F> {
+    pub inner: FfmpegSource,
+    pub edit: F,
+}
+
+impl<F: FnMut(&mut RgbFrame) -> bool + Send> FrameSource for Edited<F> {
+    fn describe(&self) -> &str {
+        self.inner.describe()
+    }
+    fn fps(&self) -> Option<f64> {
+        self.inner.fps()
+    }
+    fn size(&self) -> (u32, u32) {
+        self.inner.size()
+    }
+    fn next_frame(
+        &mut self,
+        out: &mut RgbFrame,
+    ) -> Result<bool, rigcast_sources::vision::VisionError> {
+        Ok(self.inner.next_frame(out)? && (self.edit)(out))
+    }
+}

@@ -23,8 +23,8 @@ use rigcast_sources::recording::{read_recording, Recording, RecordingWriter};
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::source::{decode_landmarks, encode_landmarks};
 use rigcast_sources::vision::{
-    FfmpegSource, FrameSource, LandmarkReplaySource, PipelineConfig, PosePipeline, RgbFrame,
-    VisionError, VisionSource,
+    FfmpegSource, LandmarkReplaySource, PipelineConfig, PosePipeline, RgbFrame, VisionError,
+    VisionSource,
 };
 
 const FRAMES: usize = 60;
@@ -278,31 +278,6 @@ fn realtime_replay_keeps_the_recorded_pace() {
     assert!((0.18..0.6).contains(&secs), "took {secs} s");
 }
 
-/// First `left` frames of another source.
-struct Take {
-    inner: FfmpegSource,
-    left: usize,
-}
-
-impl FrameSource for Take {
-    fn describe(&self) -> &str {
-        self.inner.describe()
-    }
-    fn fps(&self) -> Option<f64> {
-        self.inner.fps()
-    }
-    fn size(&self) -> (u32, u32) {
-        self.inner.size()
-    }
-    fn next_frame(&mut self, out: &mut RgbFrame) -> Result<bool, VisionError> {
-        if self.left == 0 {
-            return Ok(false);
-        }
-        self.left -= 1;
-        self.inner.next_frame(out)
-    }
-}
-
 /// Runs the live source over the first frames of cam01 with a raw tap and writes the tapped
 /// landmark stream plus the poses it produced (times from 0) to `out`. Also checks that
 /// replaying the tap reproduces the live poses.
@@ -310,9 +285,14 @@ fn record_live(out: &Path) {
     let Some(assets) = common::assets_or_skip("make vision recording") else {
         return;
     };
-    let frames = Take {
+    // The first FRAMES frames.
+    let mut read = 0;
+    let frames = common::Edited {
         inner: FfmpegSource::open(&assets.pose2sim_video(1)).unwrap(),
-        left: FRAMES,
+        edit: move |_: &mut RgbFrame| {
+            read += 1;
+            read <= FRAMES
+        },
     };
     let config = PipelineConfig {
         assets,

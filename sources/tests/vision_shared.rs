@@ -17,39 +17,20 @@ use rigcast_sources::vision::{
     VisionError,
 };
 
-/// The footage with person `#0` (the woman in front) taken out of the picture from frame
-/// `from` on: everything left of x = 440 and below y = 660 (source pixels) painted black.
-/// Offline, her visible landmarks stay within x ≤ 428 and y ≥ 669 over the clip; the man
-/// behind her (#1, x 153–835, y 408–1198) keeps most of his body in view.
-struct WithoutPersonZero {
-    inner: FfmpegSource,
-    from: u64,
-}
-
-impl FrameSource for WithoutPersonZero {
-    fn describe(&self) -> &str {
-        self.inner.describe()
-    }
-    fn fps(&self) -> Option<f64> {
-        self.inner.fps()
-    }
-    fn size(&self) -> (u32, u32) {
-        self.inner.size()
-    }
-    fn next_frame(&mut self, out: &mut RgbFrame) -> Result<bool, VisionError> {
-        if !self.inner.next_frame(out)? {
-            return Ok(false);
+/// Takes person `#0` (the woman in front) out of the picture from frame `from` on: everything
+/// left of x = 440 and below y = 660 (source pixels) painted black. Offline, her visible
+/// landmarks stay within x ≤ 428 and y ≥ 669 over the clip; the man behind her (#1, x 153–835,
+/// y 408–1198) keeps most of his body in view.
+fn without_person_zero(out: &mut RgbFrame, from: u64) -> bool {
+    if out.index >= from {
+        let k = out.source_from_frame;
+        let (x_end, y_start) = ((440.0 / k) as usize, (660.0 / k) as usize);
+        let w = out.width as usize;
+        for y in y_start.min(out.height as usize)..out.height as usize {
+            out.data[(y * w) * 3..(y * w + x_end.min(w)) * 3].fill(0);
         }
-        if out.index >= self.from {
-            let k = out.source_from_frame;
-            let (x_end, y_start) = ((440.0 / k) as usize, (660.0 / k) as usize);
-            let w = out.width as usize;
-            for y in y_start.min(out.height as usize)..out.height as usize {
-                out.data[(y * w) * 3..(y * w + x_end.min(w)) * 3].fill(0);
-            }
-        }
-        Ok(true)
     }
+    true
 }
 
 /// Largest bone rotation difference between two poses, radians.
@@ -233,9 +214,9 @@ fn a_person_leaving_the_view_loses_only_their_own_subject() {
     };
     let video = assets.pose2sim_multi_video(2);
     let inner = FfmpegSource::open_at(&video, DecodeSize::FOR_MODEL, 30.0).unwrap();
-    let frames = WithoutPersonZero {
+    let frames = common::Edited {
         inner,
-        from: CUT_FRAME,
+        edit: |f: &mut RgbFrame| without_person_zero(f, CUT_FRAME),
     };
     // Paced: 100 frames at 60 fps take at least 1.7 s, so a second without person #0 is
     // within the clip even if the pipeline keeps up.
