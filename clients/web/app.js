@@ -731,6 +731,7 @@ $('show-meshes').onchange = (event) => {
 };
 $('pause').onclick = () => {
   state.paused = !state.paused;
+  budget.hold(state.paused);
   $('pause').textContent = state.paused ? 'resume' : 'pause';
   $('pause').classList.toggle('on', state.paused);
 };

@@ -58,6 +58,7 @@ export class QualityBudget {
     this.window = { start: null, frames: 0, renders: 0, frameMs: 0 };
     this.goodWindows = 0;
     this.trial = null; // { windows }: a step up being tried
+    this.held = false; // paused: the level stays (a change would re-size the held picture)
     this.rendersPerSecond = 0;
     this.displayFramesPerSecond = 0;
     this.meanFrameMs = 0;
@@ -85,9 +86,17 @@ export class QualityBudget {
     // A window with hardly any renders (paused, nothing moving) says nothing about the cost.
     if (w.renders >= 3) {
       this.meanFrameMs = w.frameMs / w.renders;
-      if (this.forced < 0) this.judge(this.meanFrameMs, now);
+      if (this.forced < 0 && !this.held) this.judge(this.meanFrameMs, now);
     }
     this.window = { start: now, frames: 0, renders: 0, frameMs: 0 };
+  }
+
+  /** Holds the level while the view is paused; the window restarts either way, so frames
+   *  from before a pause or a resume are never judged after it. */
+  hold(on) {
+    this.held = on;
+    this.window = { start: null, frames: 0, renders: 0, frameMs: 0 };
+    this.renderedAt = null;
   }
 
   /** Whether a render may start now (the pacing rule). */

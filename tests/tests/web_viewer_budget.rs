@@ -467,6 +467,7 @@ async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
            const run = (ms, secs) => { for (const end = t + secs * 1000; t < end; t += ms) { b.frame(t); b.rendered(t, 1); } seen.push(b.current.name); }; \
            run(50, 1.5); run(50, 1); run(50, 1); run(10, 2); run(10, 1); \
            run(50, 2); run(10, 4); run(10, 2); run(10, 3); \
+           b.hold(true); run(50, 3); b.hold(false); run(50, 1.5); \
            return JSON.stringify({ seen, changes: b.changes }); })()",
     )
     .await;
@@ -495,6 +496,10 @@ async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
     assert_eq!(seen[7], "balanced", "{steps}");
     // A trial that holds three windows resets the wait: the next level after three more.
     assert_eq!(seen[8], "full", "{steps}");
+    // Paused (held), slow frames change nothing: a level change would re-size the held
+    // picture. Resumed, the first slow window steps down.
+    assert_eq!(seen[9], "full", "a held budget stepped: {steps}");
+    assert_eq!(seen[10], "balanced", "{steps}");
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
