@@ -302,3 +302,52 @@ fn cmu_walk_live_lock_keeps_planted_feet() {
         "{locked:?} vs {free:?}"
     );
 }
+
+/// A target whose rest pose floats (a CMU-style skeleton: hips at the origin, feet 85 cm
+/// below) locked from the first frame of real walks: the lock starts from where the animation
+/// shows the feet, not from the floating rest. (It once measured the first landing from the
+/// rest and pinned both feet about a metre up.) The animated feet stand on the floor there,
+/// so a locked foot stays within a few centimetres of them.
+#[test]
+fn a_floating_rest_target_is_locked_where_its_feet_are_shown() {
+    let Some(cmu) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+        return;
+    };
+    let target = rigcast_sources::load_clip(&cmu).unwrap();
+    for rel in [
+        "zoo/gltf/ue_style_mannequiny__godot_ragdoll.glb",
+        "zoo/bvh/xsens__ammr_S02_Trial01.bvh",
+    ] {
+        let Some(p) = common::shared_data(rel) else {
+            return;
+        };
+        let source = rigcast_sources::load_clip(&p).unwrap();
+        let plan = plan_mapping(&source, &target, None).unwrap();
+        let legs = find_legs(&target.skeleton, &plan.target_analysis);
+        assert_eq!(legs.len(), 2, "{rel}: two target legs");
+        let (free, locked) = (
+            common::retarget(&source, &plan, &target, false),
+            common::retarget(&source, &plan, &target, true),
+        );
+        let up = plan.source_up;
+        let ankle_height = |clip: &Clip, i: usize, leg: &Leg| {
+            world_transforms(&clip.skeleton, &clip.poses[i])[leg.foot.index()]
+                .translation
+                .dot(up)
+        };
+        let mut first_cm: f32 = 0.0;
+        let mut worst_cm: f32 = 0.0;
+        for i in 0..free.num_frames() {
+            for leg in &legs {
+                let d = 100.0 * (ankle_height(&locked, i, leg) - ankle_height(&free, i, leg)).abs();
+                worst_cm = worst_cm.max(d);
+                if i == 0 {
+                    first_cm = first_cm.max(d);
+                }
+            }
+        }
+        println!("{rel} → CMU skeleton: locked ankles off the animated ones by {first_cm:.2} cm on the first frame, {worst_cm:.2} cm at most");
+        assert!(first_cm <= 3.0, "{rel}: first frame {first_cm} cm");
+        assert!(worst_cm <= 10.0, "{rel}: {worst_cm} cm");
+    }
+}

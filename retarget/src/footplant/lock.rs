@@ -334,17 +334,20 @@ impl FootLock {
         let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
         let halflife = 0.5 * self.settings.blend_secs;
         let last_drop = self.last_drop;
-        let settle = if wants && !self.feet[i].locked {
-            self.landing_settle(i, animated)
-        } else {
-            0.0
-        };
+        // A foot not seen yet is shown where the animation has it: before the settle below,
+        // which measures from there (the rest pose it starts at may float far off the floor).
         let f = &mut self.feet[i];
         if !f.seen {
             (f.shown_position, f.shown_heading) = (animated, heading_now);
             (f.animated_position, f.animated_heading) = (animated, heading_now);
             f.seen = true;
         }
+        let settle = if wants && !self.feet[i].locked {
+            self.landing_settle(i, animated)
+        } else {
+            0.0
+        };
+        let f = &mut self.feet[i];
         let (anim_velocity, anim_rate) = if dt > 0.0 {
             (
                 (animated - f.animated_position) / dt,
