@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use rigcast_retarget::{world_transforms, BoneId, Clip, RootMotion, Skeleton};
-use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip};
+use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked};
 use serde_json::Value;
 
 /// Source frames measured per pair (evenly spread over the clip).
@@ -288,9 +288,17 @@ struct Pair {
     wrong: Vec<String>,
 }
 
+/// Whether the target's feet are locked while the source's are planted (`rigcast retarget`'s
+/// default; `--no-foot-lock` turns it off).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Lock {
+    On,
+    Off,
+}
+
 /// Retargets every labelled human with motion onto every other one and measures each pair,
 /// printing the table. `None` when the shared data is absent.
-fn measure_pairs() -> Option<Vec<Pair>> {
+fn measure_pairs(locks: Lock) -> Option<Vec<Pair>> {
     let root =
         common::shared_data("labels.json").and_then(|p| p.parent().map(Path::to_path_buf))?;
     let humans = load_humans(&root);
@@ -298,6 +306,7 @@ fn measure_pairs() -> Option<Vec<Pair>> {
         .iter()
         .filter(|h| h.clip.num_frames() >= 30)
         .collect();
+    println!("foot lock {locks:?}");
     println!(
         "{:<40} {:<40} {:>6} {:>6} {:>8} {:>8}  mapping",
         "source", "target", "mean°", "max°", "travel%", "feet cm"
@@ -307,9 +316,14 @@ fn measure_pairs() -> Option<Vec<Pair>> {
         let clip = subsample(&src.clip);
         for tgt in humans.iter().filter(|t| t.path != src.path) {
             let plan = plan_mapping(&src.clip, &tgt.clip, None).unwrap();
-            let opts = plan.retarget_options(&clip, RootMotion::Scaled);
+            let opts = plan.retarget_options(&src.clip, RootMotion::Scaled);
             let target = Arc::new((*tgt.clip.skeleton).clone());
-            let out = retarget_clip(&clip, &target, &plan.table, &opts, false).unwrap();
+            // The whole clip at its own rate (plants are detected and locks blend in time),
+            // measured on the same frames as the source.
+            let lock = (locks == Lock::On).then_some(&plan);
+            let out =
+                retarget_clip_locked(&src.clip, &target, &plan.table, &opts, lock, false).unwrap();
+            let out = subsample(&out);
             let figures = measure(src, tgt, &clip, &out);
             let wrong = mapping_right(src, tgt, &plan.table);
             let opt =
@@ -350,9 +364,11 @@ fn right_pairs(pairs: &[Pair]) -> Vec<&Pair> {
     right
 }
 
+/// Measured without the foot lock: its leg IK bends the legs away from the source's on
+/// purpose, and these bounds judge the rotations the retarget itself produces.
 #[test]
 fn limb_directions_and_root_travel_on_real_pairs() {
-    let Some(pairs) = measure_pairs() else {
+    let Some(pairs) = measure_pairs(Lock::Off) else {
         return;
     };
     let mut failures = Vec::new();
@@ -376,15 +392,32 @@ fn limb_directions_and_root_travel_on_real_pairs() {
     );
 }
 
-/// Planted feet within 1 cm of the floor. Not met yet on every real pair: one vertical
-/// calibration of the hips cannot keep feet planted when the legs' proportions differ (thigh
-/// vs shin, ankle height); that needs foot locking with leg IK (the footplants work).
+/// Planted feet within 1 cm of the floor, with the foot lock on (the command's default).
+/// Not met on every real pair (last measured: 49 of 122 right pairs within 1 cm, median
+/// 1.33 cm). What remains: the worst frame of a pair is usually a heel strike, where the
+/// source's foot is at its lowest but still moving (not yet a plant, so not locked) and the
+/// hips' one vertical calibration leaves the target's foot a few centimetres up; and rigs
+/// whose foot joints are built differently (a toe joint on the ground against one 5 cm up)
+/// cannot match both the source's foot direction and a flat foot.
 #[test]
-#[ignore = "known gap until foot locking: planted feet are 1-13 cm off on some real pairs"]
+#[ignore = "known gap: planted feet are 1-20 cm off on some real pairs"]
 fn planted_feet_stay_on_the_floor_on_real_pairs() {
-    let Some(pairs) = measure_pairs() else {
+    let Some(pairs) = measure_pairs(Lock::On) else {
         return;
     };
+    let mut cms: Vec<f32> = right_pairs(&pairs)
+        .iter()
+        .filter_map(|p| p.figures.planted_feet_cm)
+        .collect();
+    cms.sort_by(f32::total_cmp);
+    if !cms.is_empty() {
+        println!(
+            "planted feet: {} of {} pairs within 1 cm, median {:.2} cm",
+            cms.iter().filter(|c| **c <= 1.0).count(),
+            cms.len(),
+            cms[cms.len() / 2]
+        );
+    }
     let failures: Vec<String> = right_pairs(&pairs)
         .iter()
         .filter_map(|p| {

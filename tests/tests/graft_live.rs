@@ -235,7 +235,12 @@ async fn run(sources: Vec<SourceSpec>, graft: GraftSpec, min_travel_m: f32) {
     }
     let r = pearson(&s, &t);
     println!("{} paired frames, left elbow correlation {r:.3}", s.len());
-    assert!(s.len() > target.len() * 9 / 10, "{} of {} frames paired", s.len(), target.len());
+    assert!(
+        s.len() > target.len() * 9 / 10,
+        "{} of {} frames paired",
+        s.len(),
+        target.len()
+    );
     assert!(r >= 0.9, "elbow correlation {r:.3}");
 
     // The walk's plants are locked on the character: each foot seen held and free.
