@@ -215,12 +215,7 @@ fn performer_plan(
                     .iter()
                     .position(|m| m == n)
                     .map(|i| i as u32)
-                    .with_context(|| {
-                        format!(
-                            "performer {}: no source named {n:?} (sources: {source_names:?})",
-                            t.name
-                        )
-                    })
+                    .with_context(|| no_source(&t.name, n, source_names, config))
             })
             .collect::<anyhow::Result<_>>()?
     };
@@ -256,6 +251,16 @@ fn performer_plan(
         graft,
     };
     Ok((plan, tx))
+}
+
+/// Why performer `performer`'s source `name` is not there.
+fn no_source(performer: &str, name: &str, sources: &[String], config: &ServerConfig) -> String {
+    let hint = match (name.rsplit_once('@'), &config.cluster) {
+        (Some(_), None) => " (NAME@SITE is another node's subject: run in cluster mode)",
+        (Some((_, site)), Some(c)) if site == c.site => " (SITE is this node)",
+        _ => "",
+    };
+    format!("performer {performer}: no source named {name:?}{hint} (sources: {sources:?})")
 }
 
 /// The VMC output socket and its receivers, resolved; `None` without receivers.

@@ -59,10 +59,15 @@ pub(crate) struct Inputs {
 /// the embedded demo (and, with no performers either, the built-in mannequin driven by it).
 pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
     // Other nodes' subjects are known before the defaults are chosen: a node that relays
-    // them needs no demo of its own.
+    // them needs no demo of its own. Those the performers name are made even when their
+    // node has not published them yet, so the performers wait for them instead of failing.
     let (cluster, remote) = match &config.cluster {
         Some(c) => {
-            let (link, remote) = crate::cluster::join(c, config.sources.len() as u32).await?;
+            let wanted: Vec<String> = (config.performers.iter())
+                .flat_map(|p| p.sources.iter().cloned())
+                .collect();
+            let first_id = config.sources.len() as u32;
+            let (link, remote) = crate::cluster::join(c, first_id, &wanted).await?;
             (Some(link), remote)
         }
         None => (None, Vec::new()),

@@ -9,7 +9,8 @@
 //!                                                                 └──▶ RemoteSource ─▶ B's
 //!                                                                      performers, VMC, status
 //!  subjects ─▶ entry ─▶ JetStream KV "{ns}_subjects", key {site}.{key}: skeleton + mapping
-//!                       (retained and watched: B makes one subject per entry, also later)
+//!                       (retained and watched: B makes one subject per entry, also later;
+//!                        re-put every HEARTBEAT, forgotten after ENTRY_MAX_AGE without one)
 //! ```
 //!
 //! - **Who computes what.** A performer (mapping + retarget) runs on the node that has its
@@ -18,11 +19,17 @@
 //!   its own tick; it re-encodes nothing.
 //! - **Loss.** A remote subject whose frames stop for `lost_after_secs` is a lost source on the
 //!   relaying node (its performers ease, hold or idle as configured); when the frames come
-//!   back (the node restarted) it is live again. Nothing restarts elsewhere.
+//!   back (the node restarted) it is live again. Nothing restarts elsewhere. A node re-puts
+//!   its entries every [`HEARTBEAT`] and the bucket drops an entry older than
+//!   [`ENTRY_MAX_AGE`], so a node killed without deleting its entries is forgotten by the
+//!   bucket, and the nodes relaying it say "its node stopped answering".
 //! - **Names.** Subjects are matched across nodes by site and name, never by id (ids are per
 //!   node). On a relaying node a remote subject is called `NAME@SITE`.
 //! - **Discovery.** A node reads the KV bucket when it starts and watches it while it runs
 //!   (`discover`): subjects published later become relayed subjects here without a restart.
+//!   A performer may name a subject of another node (`NAME@SITE`) that is not published yet:
+//!   the subject is made here at start, waiting (`connecting`), and drives the performer
+//!   once its node publishes it.
 //! - **Control.** A change to a relayed subject is carried out by its owner (`control`),
 //!   with the deployment's control token checked there too.
 //! - **Mappings.** The automatic mapper's tables are shared through a second bucket
@@ -45,7 +52,7 @@ pub use control::{run_control_service, subject_of, Forwarder, Origin};
 pub use discover::{run_discovery, Known, LiveThreads};
 pub use entry::{token, SubjectEntry};
 pub use mappings::{MappingShareCounts, SharedMappings};
-pub use publish::run_publisher;
+pub use publish::{run_entries, run_publisher};
 pub use remote::{run_relay, Change, RemoteFeeds, RemoteSource};
 
 /// `[cluster]` in the config file (or `--nats` / `--site` on the command line).
@@ -169,23 +176,56 @@ pub struct Cluster {
     pub config: ClusterConfig,
 }
 
+/// How often a node re-puts its subject entries, so the bucket (and the nodes watching it)
+/// can tell a live node from one that was killed without deleting them.
+pub const HEARTBEAT: Duration = Duration::from_secs(1);
+
+/// Age at which the bucket drops an entry that was not put again, and a watching node counts
+/// its node as gone: five heartbeats, so a node delayed by a loaded machine is not dropped.
+pub const ENTRY_MAX_AGE: Duration = Duration::from_secs(5);
+
 /// Largest the shared mapping cache's bucket grows (a table is a few KB); beyond it puts are
 /// refused and tables are computed where needed.
 const MAPPINGS_MAX_BYTES: i64 = 64 << 20;
 
-/// Opens bucket `name`, creating it with `config` when it does not exist yet.
+/// Opens bucket `name`, creating it with `config` when it does not exist yet. An existing
+/// bucket gets `config`'s `max_age` (a bucket made by an older rigcast kept entries forever).
 async fn open_bucket(
     js: &jetstream::Context,
     config: kv::Config,
     servers: &str,
 ) -> anyhow::Result<kv::Store> {
     if let Ok(kv) = js.get_key_value(config.bucket.clone()).await {
+        set_max_age(js, &kv, config.max_age)
+            .await
+            .with_context(|| format!("cannot set the entry age of the KV bucket {}", kv.name))?;
         return Ok(kv);
     }
     let name = config.bucket.clone();
     js.create_key_value(config).await.with_context(|| {
         format!("cannot open the KV bucket {name} (is JetStream enabled on {servers}?)")
     })
+}
+
+/// Gives bucket `kv`'s stream `max_age` (zero: kept forever) when it has another one.
+async fn set_max_age(
+    js: &jetstream::Context,
+    kv: &kv::Store,
+    max_age: Duration,
+) -> anyhow::Result<()> {
+    let mut stream = js.get_stream(&kv.stream_name).await?;
+    let mut config = stream.info().await?.config.clone();
+    if config.max_age == max_age {
+        return Ok(());
+    }
+    config.max_age = max_age;
+    // NATS refuses a duplicate window longer than the age (it shortens it itself only when
+    // the stream is made).
+    if !max_age.is_zero() && config.duplicate_window > max_age {
+        config.duplicate_window = max_age;
+    }
+    js.update_stream(&config).await?;
+    Ok(())
 }
 
 /// How long connecting to NATS may take at start-up before the server gives up.
@@ -217,6 +257,7 @@ impl Cluster {
             bucket: config.bucket(),
             description: "rigcast subjects: skeleton and mapping per site and name".into(),
             history: 1,
+            max_age: ENTRY_MAX_AGE,
             num_replicas: config.kv_replicas,
             ..Default::default()
         };
@@ -239,8 +280,8 @@ impl Cluster {
         })
     }
 
-    /// Every other site's subject entries in the bucket now.
-    pub async fn remote_entries(&self) -> anyhow::Result<Vec<SubjectEntry>> {
+    /// Every other site's subject entries in the bucket now, with their revisions.
+    pub async fn remote_entries(&self) -> anyhow::Result<Vec<(SubjectEntry, u64)>> {
         use futures_util::StreamExt;
         let mut keys = self
             .kv
@@ -253,15 +294,18 @@ impl Cluster {
             if key.starts_with(&format!("{}.", self.config.site)) {
                 continue; // our own, from an earlier run
             }
-            let Ok(Some(value)) = self.kv.get(key.clone()).await else {
+            let Ok(Some(entry)) = self.kv.entry(key.clone()).await else {
                 continue;
             };
-            match SubjectEntry::parse(&value) {
-                Ok(e) => out.push(e),
+            if entry.operation != kv::Operation::Put {
+                continue; // deleted by its node
+            }
+            match SubjectEntry::parse(&entry.value) {
+                Ok(e) => out.push((e, entry.revision)),
                 Err(e) => warn(&format!("cluster: entry {key} skipped: {e}")),
             }
         }
-        out.sort_by(|a, b| (&a.site, &a.name).cmp(&(&b.site, &b.name)));
+        out.sort_by(|(a, _), (b, _)| (&a.site, &a.name).cmp(&(&b.site, &b.name)));
         Ok(out)
     }
 }
@@ -288,6 +332,9 @@ pub struct Relay {
     pub key: String,
     /// Where it lives (its control requests go there).
     pub origin: Origin,
+    /// The bucket revision it was made from (`None`: not published yet, a performer waits
+    /// for it).
+    pub revision: Option<u64>,
 }
 
 /// This node's part of the cluster, between loading and spawning.
@@ -299,35 +346,93 @@ pub struct ClusterLink {
 }
 
 /// Connects to the cluster of `config` and makes a subject of every other node's subject; the
-/// first gets id `first_id` (the subjects follow this node's own sources).
+/// first gets id `first_id` (the subjects follow this node's own sources). Of `wanted` (the
+/// source names this node's performers give), each `NAME@SITE` of another site that is not
+/// in the bucket yet becomes a subject too, waiting for its node to publish it.
 pub async fn join(
     config: &ClusterConfig,
     first_id: u32,
+    wanted: &[String],
 ) -> anyhow::Result<(ClusterLink, Vec<RemoteSubject>)> {
     let cluster = std::sync::Arc::new(Cluster::connect(config).await?);
     let mut relays = Vec::new();
     let mut subjects = Vec::new();
-    for (k, e) in cluster.remote_entries().await?.iter().enumerate() {
+    let entries = cluster.remote_entries().await?;
+    for (e, revision) in &entries {
         let (source, feeds) = RemoteSource::new(e, config.lost_after())
             .with_context(|| format!("cluster subject {}", e.relayed_name()))?;
-        let skeleton = source.skeleton_arc();
-        relays.push(Relay {
-            id: first_id + k as u32,
-            subject: config.frame_subject(&e.site, &token(&e.name)),
+        let id = first_id + relays.len() as u32;
+        relays.push(relay_of(
+            config,
+            id,
+            &e.site,
+            &e.name,
             feeds,
-            key: e.key(),
-            origin: Origin {
-                site: e.site.clone(),
-                name: e.name.clone(),
-            },
-        });
-        subjects.push(RemoteSubject {
-            name: e.relayed_name(),
-            source,
-            skeleton,
-        });
+            Some(*revision),
+        ));
+        subjects.push(remote_subject(e.relayed_name(), source));
+    }
+    let published: Vec<String> = entries.iter().map(|(e, _)| e.relayed_name()).collect();
+    for (name, site) in awaited(config, wanted, &published) {
+        let (source, feeds) = RemoteSource::awaiting(&site, &name, config.lost_after())
+            .with_context(|| format!("cluster subject {name}@{site}"))?;
+        eprintln!("cluster: {name}@{site} is not published yet; its performers wait for it");
+        let id = first_id + relays.len() as u32;
+        relays.push(relay_of(config, id, &site, &name, feeds, None));
+        subjects.push(remote_subject(format!("{name}@{site}"), source));
     }
     Ok((ClusterLink { cluster, relays }, subjects))
+}
+
+/// The (name, site) of each `NAME@SITE` in `wanted` of another site than this node's and not
+/// in `published`, once each.
+fn awaited(
+    config: &ClusterConfig,
+    wanted: &[String],
+    published: &[String],
+) -> Vec<(String, String)> {
+    let mut out: Vec<(String, String)> = Vec::new();
+    for w in wanted {
+        let Some((name, site)) = w.rsplit_once('@') else {
+            continue;
+        };
+        let valid_site = !site.is_empty() && token(site) == site && site != config.site;
+        let pair = (name.to_string(), site.to_string());
+        if valid_site && !name.is_empty() && !published.contains(w) && !out.contains(&pair) {
+            out.push(pair);
+        }
+    }
+    out
+}
+
+fn relay_of(
+    config: &ClusterConfig,
+    id: u32,
+    site: &str,
+    name: &str,
+    feeds: RemoteFeeds,
+    revision: Option<u64>,
+) -> Relay {
+    Relay {
+        id,
+        subject: config.frame_subject(site, &token(name)),
+        feeds,
+        key: format!("{site}.{}", token(name)),
+        origin: Origin {
+            site: site.to_string(),
+            name: name.to_string(),
+        },
+        revision,
+    }
+}
+
+fn remote_subject(name: String, source: RemoteSource) -> RemoteSubject {
+    let skeleton = source.skeleton_arc();
+    RemoteSubject {
+        name,
+        source,
+        skeleton,
+    }
 }
 
 impl ClusterLink {
@@ -353,7 +458,7 @@ impl ClusterLink {
         for r in self.relays {
             let client = self.cluster.client.clone();
             let (frames, changes) = (r.feeds.frames, r.feeds.changes);
-            known.insert(r.key, Known { changes });
+            known.insert(r.key, Known::at_start(changes, r.revision));
             tasks.push(tokio::spawn(run_relay(
                 client,
                 r.subject,
@@ -375,6 +480,7 @@ impl ClusterLink {
             c.config.site.clone(),
             state.clone(),
         )));
+        tasks.push(tokio::spawn(run_entries(c.clone(), state.clone())));
         tasks.push(tokio::spawn(run_publisher(self.cluster, state.clone())));
         tasks
     }

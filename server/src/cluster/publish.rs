@@ -1,22 +1,25 @@
 //! Publishing this node's subjects: every frame the tick encodes goes out on core NATS as it
 //! is (both protocol versions in one message), and each subject's entry (skeleton, mapping)
-//! is kept current in the KV bucket. A node that stops cleanly deletes its entries, so the
-//! others show its subjects lost at once and say why.
+//! is kept current in the KV bucket by its own task ([`run_entries`], so a slow JetStream
+//! never holds up the frames). A node that stops cleanly deletes its entries, so the others
+//! show its subjects lost at once and say why; a running node puts them again every
+//! [`HEARTBEAT`], so the entries of a node that was killed age out of the bucket
+//! ([`super::ENTRY_MAX_AGE`]) and the others say it stopped answering.
 
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use rigcast_protocol::ServerMessage;
 use tokio::sync::broadcast::error::RecvError;
+use tokio_tungstenite::tungstenite::Bytes;
 
-use super::{Cluster, SubjectEntry};
+use super::{Cluster, SubjectEntry, HEARTBEAT};
 use crate::state::ServerState;
 use crate::subject::Subject;
 
 /// Publishes every local (not relayed) subject of `state` until shutdown.
 pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
     let mut frames = state.frames.subscribe();
-    let mut events = state.events.subscribe();
     let mut shutdown = state.shutdown.clone();
     // By subject id: the NATS subject its frames go out on (None: relayed, not ours).
     let subjects: Vec<Option<async_nats::Subject>> = state
@@ -32,7 +35,6 @@ pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
             })
         })
         .collect();
-    put_entries(&cluster, &state).await;
     loop {
         tokio::select! {
             biased;
@@ -53,27 +55,46 @@ pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
                 }
                 Err(RecvError::Closed) => break,
             },
+        }
+    }
+}
+
+/// Keeps the entry of every local subject in the bucket until shutdown: put at start, when a
+/// skeleton or mapping changes, and every [`HEARTBEAT`]; deleted on a clean stop.
+pub async fn run_entries(cluster: Arc<Cluster>, state: Arc<ServerState>) {
+    let mut events = state.events.subscribe();
+    let mut shutdown = state.shutdown.clone();
+    let mut entries = entries_of(&cluster, &state);
+    let mut heartbeat = tokio::time::interval(HEARTBEAT);
+    // A late beat (loaded machine) is followed by the next one a whole period later, not
+    // by a burst.
+    heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut failing = false;
+    loop {
+        tokio::select! {
+            biased;
+            _ = shutdown.changed() => break,
             received = events.recv() => match received {
-                Ok(text) if changes_an_entry(&text) => put_entries(&cluster, &state).await,
+                Ok(text) if changes_an_entry(&text) => {
+                    entries = entries_of(&cluster, &state);
+                    failing = put_entries(&cluster, &entries, failing).await;
+                }
                 Ok(_) | Err(RecvError::Lagged(_)) => {}
                 Err(RecvError::Closed) => break,
             },
+            _ = heartbeat.tick() => failing = put_entries(&cluster, &entries, failing).await,
         }
     }
-    remove_entries(&cluster, &state).await;
+    remove_entries(&cluster, &entries).await;
 }
 
 /// How long a stopping node spends on deleting its entries at most.
 const REMOVE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// Deletes the entry of every local subject (on a clean stop).
-async fn remove_entries(cluster: &Cluster, state: &ServerState) {
-    let keys: Vec<String> = (state.subjects().iter())
-        .filter(|s| !s.is_relayed())
-        .filter_map(|s| entry_of(&cluster.config.site, s).map(|e| e.key()))
-        .collect();
+async fn remove_entries(cluster: &Cluster, entries: &[(String, Bytes)]) {
     let delete_all = async {
-        for key in keys {
+        for (key, _) in entries {
             // A failed delete leaves the entry: the others still see the frames stop.
             let _ = cluster.kv.delete(key).await;
         }
@@ -89,23 +110,29 @@ fn changes_an_entry(text: &str) -> bool {
     )
 }
 
-/// Writes the entry of every local subject (rare: at start and when a skeleton or mapping
-/// changes). A failed write is reported and retried at the next change.
-async fn put_entries(cluster: &Cluster, state: &ServerState) {
-    for s in state.subjects().iter().filter(|s| !s.is_relayed()) {
-        let Some(entry) = entry_of(&cluster.config.site, s) else {
-            continue;
-        };
-        let Ok(value) = serde_json::to_vec(&entry) else {
-            continue;
-        };
-        if let Err(e) = cluster.kv.put(entry.key(), value.into()).await {
-            eprintln!(
-                "warning: cluster: cannot publish subject {}: {e}",
-                entry.name
-            );
+/// The bucket key and value of every local subject (at start and when a skeleton or mapping
+/// changes; the heartbeat puts these again).
+fn entries_of(cluster: &Cluster, state: &ServerState) -> Vec<(String, Bytes)> {
+    (state.subjects().iter())
+        .filter(|s| !s.is_relayed())
+        .filter_map(|s| entry_of(&cluster.config.site, s))
+        .filter_map(|e| Some((e.key(), serde_json::to_vec(&e).ok()?.into())))
+        .collect()
+}
+
+/// Puts `entries`; whether a put failed. A failure is reported when it starts (`failing`:
+/// the previous round failed), not once a heartbeat, and retried at the next one.
+async fn put_entries(cluster: &Cluster, entries: &[(String, Bytes)], failing: bool) -> bool {
+    let mut failed = false;
+    for (key, value) in entries {
+        if let Err(e) = cluster.kv.put(key.clone(), value.clone()).await {
+            if !failing && !failed {
+                eprintln!("warning: cluster: cannot publish subject entry {key}: {e}; retrying");
+            }
+            failed = true;
         }
     }
+    failed
 }
 
 fn entry_of(site: &str, s: &Subject) -> Option<SubjectEntry> {

@@ -2,16 +2,19 @@
 //! clients the moment they arrive (only the subject id is rewritten to this node's), and hands
 //! them to a [`RemoteSource`], which makes it an ordinary live source for performers, VMC out
 //! and `source_status`. What the bucket says about the subject later (a new skeleton, the
-//! entry removed) reaches the source as a [`Change`].
+//! entry removed or aged out) reaches the source as a [`Change`]. A subject a performer
+//! names before its node published it starts [`RemoteSource::awaiting`] its entry.
 
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use anyhow::Context;
 use futures_util::StreamExt;
 use glam::{Quat, Vec3};
 use rigcast_protocol::frame::{decode_any_into, decode_header_any, frame_len, FrameHeader};
+use rigcast_protocol::SourceState;
 use rigcast_retarget::{Pose, Skeleton};
 use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, SourceError, SourceStatus};
 use tokio_tungstenite::tungstenite::Bytes;
@@ -39,7 +42,13 @@ pub enum Change {
     Entry(Box<SubjectEntry>),
     /// Its entry was deleted (its node stopped) or purged.
     Removed,
+    /// Its entry was not put again for [`super::ENTRY_MAX_AGE`]: its node stopped answering
+    /// (killed, or cut off from NATS).
+    Expired,
 }
+
+/// Why an expired subject is lost.
+const EXPIRED: &str = "its node stopped answering";
 
 /// The queues that feed a [`RemoteSource`].
 pub struct RemoteFeeds {
@@ -58,8 +67,11 @@ pub struct RemoteSource {
     translated: Vec<usize>,
     rx: Receiver<Bytes>,
     changes: Receiver<Change>,
-    /// Its entry was removed: frames still arriving are not taken as the subject being live.
-    removed: bool,
+    /// Its node.
+    site: String,
+    /// The bucket has no entry of it (removed, or not published yet): frames still arriving
+    /// are not taken as the subject being live.
+    absent: bool,
     health: HealthTracker,
     rotations: Vec<Quat>,
     translations: Vec<Vec3>,
@@ -73,57 +85,100 @@ impl RemoteSource {
         lost_after: Duration,
     ) -> anyhow::Result<(RemoteSource, RemoteFeeds)> {
         let skeleton = Arc::new(crate::skeleton_wire::skeleton_from_bones(&entry.bones)?);
+        let mut made =
+            Self::with_skeleton(&entry.site, &entry.relayed_name(), skeleton, lost_after);
+        made.0.translated = translated_of(&entry.bones);
+        made.0.bones = entry.bones.clone();
+        made.0.absent = false;
+        Ok(made)
+    }
+
+    /// The source of subject `name` of `site`, which its node has not published yet: it waits
+    /// (`connecting`) for the entry, with the standard humanoid standing in for its skeleton
+    /// (as for a VMC sender not heard yet), and takes frames once the entry is there.
+    pub fn awaiting(
+        site: &str,
+        name: &str,
+        lost_after: Duration,
+    ) -> anyhow::Result<(RemoteSource, RemoteFeeds)> {
+        let skeleton = rigcast_sources::live::humanoid::default_humanoid()
+            .context("building the default humanoid")?;
+        let relayed = format!("{name}@{site}");
+        let mut made = Self::with_skeleton(site, &relayed, skeleton, lost_after);
+        made.0
+            .health
+            .set_detail(&format!("waiting for node {site} to publish {name}"));
+        Ok(made)
+    }
+
+    fn with_skeleton(
+        site: &str,
+        name: &str,
+        skeleton: Arc<Skeleton>,
+        lost_after: Duration,
+    ) -> (RemoteSource, RemoteFeeds) {
         let (tx, rx) = sync_channel(QUEUE);
         let (changes_tx, changes) = sync_channel(CHANGES);
         let mut health = HealthTracker::new(lost_after);
-        health.set_detail(&format!("relayed from {}", entry.site));
-        Ok((
-            RemoteSource {
-                name: entry.relayed_name(),
-                bones: entry.bones.clone(),
-                skeleton,
-                translated: translated_of(&entry.bones),
-                rx,
-                changes,
-                removed: false,
-                health,
-                rotations: Vec::new(),
-                translations: Vec::new(),
-                announced: false,
-            },
-            RemoteFeeds {
-                frames: tx,
-                changes: changes_tx,
-            },
-        ))
+        health.set_detail(&format!("relayed from {site}"));
+        let source = RemoteSource {
+            name: name.to_string(),
+            // Empty: no entry yet, so the first one differs and brings its skeleton.
+            bones: Vec::new(),
+            skeleton,
+            translated: Vec::new(),
+            rx,
+            changes,
+            site: site.to_string(),
+            absent: true,
+            health,
+            rotations: Vec::new(),
+            translations: Vec::new(),
+            announced: false,
+        };
+        let feeds = RemoteFeeds {
+            frames: tx,
+            changes: changes_tx,
+        };
+        (source, feeds)
     }
 
     /// Applies the bucket's news: a new skeleton is announced with the next frame on it; a
-    /// removed entry makes the subject lost until it is put again.
+    /// removed entry makes the subject lost until it is put again; an expired one too, unless
+    /// its frames still arrive (then its node answers, only its bucket writes do not).
     fn apply_changes(&mut self) {
         while let Ok(change) = self.changes.try_recv() {
             match change {
-                Change::Entry(entry) => {
-                    self.removed = false;
-                    if entry.bones == self.bones {
-                        continue;
-                    }
-                    match crate::skeleton_wire::skeleton_from_bones(&entry.bones) {
-                        Ok(skeleton) => {
-                            self.skeleton = Arc::new(skeleton);
-                            self.translated = translated_of(&entry.bones);
-                            self.bones = entry.bones;
-                            self.announced = false;
-                        }
-                        Err(e) => self.health.on_device_lost(format!("bad skeleton: {e}")),
-                    }
-                }
+                Change::Entry(entry) => self.on_entry(*entry),
                 Change::Removed => {
-                    self.removed = true;
+                    self.absent = true;
                     self.health
                         .on_device_lost("its node removed it from the cluster");
                 }
+                Change::Expired if self.health.state() == SourceState::Live => {}
+                Change::Expired => self.health.on_gone(EXPIRED),
             }
+        }
+    }
+
+    /// The entry was put (first, again after a removal, or with a new skeleton).
+    fn on_entry(&mut self, entry: SubjectEntry) {
+        if std::mem::take(&mut self.absent) && self.health.state() == SourceState::Connecting {
+            // It was waiting for its node to publish it.
+            self.health
+                .set_detail(&format!("relayed from {}", self.site));
+        }
+        if entry.bones == self.bones {
+            return;
+        }
+        match crate::skeleton_wire::skeleton_from_bones(&entry.bones) {
+            Ok(skeleton) => {
+                self.skeleton = Arc::new(skeleton);
+                self.translated = translated_of(&entry.bones);
+                self.bones = entry.bones;
+                self.announced = false;
+            }
+            Err(e) => self.health.on_device_lost(format!("bad skeleton: {e}")),
         }
     }
 
@@ -171,7 +226,7 @@ impl LiveSource for RemoteSource {
     ) -> Result<Option<FrameMeta>, SourceError> {
         self.apply_changes();
         match self.rx.recv_timeout(timeout) {
-            Ok(_) if self.removed => {}
+            Ok(_) if self.absent => {}
             Ok(bytes) => {
                 let now = Instant::now();
                 if let Some(h) = self.decode(&bytes, out) {
@@ -398,6 +453,51 @@ mod tests {
         feeds.frames.send(published_n(3, 5)).unwrap();
         assert_eq!(source.next_frame(wait, &mut pose).unwrap().unwrap().seq, 5);
         assert_eq!(source.status().state, rigcast_protocol::SourceState::Live);
+    }
+
+    #[test]
+    fn an_awaited_subject_waits_for_its_entry_and_an_expired_one_is_lost() {
+        let (mut source, feeds) =
+            RemoteSource::awaiting("a", "walk", Duration::from_secs(5)).unwrap();
+        let mut pose = source.skeleton_arc().rest_pose();
+        let wait = Duration::from_millis(100);
+        // Frames before the entry do not count: it waits, and says for what.
+        feeds.frames.send(published_n(2, 1)).unwrap();
+        assert!(source.next_frame(wait, &mut pose).unwrap().is_none());
+        let status = source.status();
+        assert_eq!(status.state, SourceState::Connecting);
+        assert_eq!(status.detail, "waiting for node a to publish walk");
+        // The entry arrives: its skeleton replaces the stand-in, announced with the frame.
+        feeds
+            .changes
+            .send(Change::Entry(Box::new(chain(2))))
+            .unwrap();
+        feeds.frames.send(published_n(2, 2)).unwrap();
+        let first = source.next_frame(wait, &mut pose).unwrap().unwrap();
+        assert!(first.skeleton_changed);
+        assert_eq!(source.skeleton().unwrap().num_bones(), 2);
+        assert_eq!(source.status().state, SourceState::Live);
+        // Expired while its frames still arrive: its node answers, so it stays live.
+        feeds.changes.send(Change::Expired).unwrap();
+        feeds.frames.send(published_n(2, 3)).unwrap();
+        assert!(source.next_frame(wait, &mut pose).unwrap().is_some());
+        assert_eq!(source.status().state, SourceState::Live);
+
+        // A subject made from an entry whose node is gone (no frame ever): lost, saying why.
+        let (mut stale, feeds) = RemoteSource::new(&chain(2), Duration::from_secs(5)).unwrap();
+        feeds.changes.send(Change::Expired).unwrap();
+        assert!(stale.next_frame(wait, &mut pose).unwrap().is_none());
+        let status = stale.status();
+        assert_eq!(status.state, SourceState::Lost);
+        assert_eq!(status.detail, EXPIRED);
+        // Its node back: the same entry again, then its frames make it live.
+        feeds
+            .changes
+            .send(Change::Entry(Box::new(chain(2))))
+            .unwrap();
+        feeds.frames.send(published_n(2, 1)).unwrap();
+        assert!(stale.next_frame(wait, &mut pose).unwrap().is_some());
+        assert_eq!(stale.status().state, SourceState::Live);
     }
 
     #[test]

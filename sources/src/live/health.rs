@@ -101,6 +101,13 @@ impl HealthTracker {
         self.detail = detail.into();
     }
 
+    /// The input is known to be gone for good (what feeds it stopped existing): `Lost` even if
+    /// it never arrived, unlike [`HealthTracker::on_device_lost`].
+    pub fn on_gone(&mut self, detail: impl Into<String>) {
+        self.state = SourceState::Lost;
+        self.detail = detail.into();
+    }
+
     /// Sets the detail text (allocates only if it differs).
     pub fn set_detail(&mut self, detail: &str) {
         if self.detail != detail {
