@@ -3,6 +3,8 @@
 # run with its baselines, so the figures can be read as ratios on whatever load the machine has:
 #
 #   - the same binary with the old per-frame path (`--decode-side 0 --finder search --people 1`)
+#   - the same binary on the landmark models as converted (all five outputs: segmentation mask
+#     and heatmaps computed and thrown away), as rigcast ran them before the pruned copies
 #   - RIGCAST_BEFORE=/path/to/rigcast: another build (e.g. of main) run on the same clips
 #   - MediaPipe Python 0.10.14 (its own detector and tracking) on the same decoded frames (installed into a throwaway venv under
 #     ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1 leaves it out)
@@ -15,6 +17,16 @@ BIN="${1:-${CARGO_TARGET_DIR:-target}/release/rigcast}"
 ROOT="${RIGCAST_HOME:-$HOME/.cache/rigcast}/vision"
 # The two-person demo: 4 cameras × 100 frames, 1088×1920, two performers and a bystander.
 CLIPS=("$ROOT"/pose2sim/multi_cam0{1,2,3,4}.mp4)
+
+# A vision home holding only the converted models (no pruned copies), everything else linked.
+CONVERTED_HOME=$(mktemp -d)
+trap 'rm -rf "$CONVERTED_HOME"' EXIT
+mkdir -p "$CONVERTED_HOME/vision/models"
+for entry in lib pose2sim READY; do ln -s "$ROOT/$entry" "$CONVERTED_HOME/vision/$entry"; done
+for m in lite full heavy; do
+    ln -s "$ROOT/models/pose_landmark_$m.onnx" "$CONVERTED_HOME/vision/models/"
+done
+ln -s "$ROOT/models/pose_detection.onnx" "$CONVERTED_HOME/vision/models/"
 
 # Runs `rigcast pose` over every clip; prints total frames / total seconds.
 run() {
@@ -31,12 +43,18 @@ run() {
 }
 
 echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
-for model in lite full; do
+for model in lite full full-int8; do
     two=$(run "$BIN" --model "$model")
     one=$(run "$BIN" --model "$model" --people 1)
-    old_path=$(run "$BIN" --model "$model" --decode-side 0 --finder search --people 1)
     one_thread=$(run "$BIN" --model "$model" --people 1 --threads 1)
-    echo "$model: rigcast 2 people $two fps | 1 person $one | old path in this build (full-size decode, search, 1 person) $old_path | 1 person on 1 thread $one_thread"
+    line="$model: rigcast 2 people $two fps | 1 person $one | 1 person on 1 thread $one_thread"
+    if [[ "$model" != full-int8 ]]; then
+        converted=$(RIGCAST_HOME="$CONVERTED_HOME" run "$BIN" --model "$model" --people 1)
+        old_path=$(run "$BIN" --model "$model" --decode-side 0 --finder search --people 1)
+        line+=" | converted model (not pruned), 1 person $converted"
+        line+=" | old path (full-size decode, search, 1 person) $old_path"
+    fi
+    echo "$line"
     if [[ -n "${RIGCAST_BEFORE:-}" ]]; then
         echo "$model: before build ($RIGCAST_BEFORE) $(run "$RIGCAST_BEFORE" --model "$model") fps"
     fi

@@ -5,6 +5,13 @@
 #     lib/libonnxruntime.so          ONNX Runtime 1.31.1, taken from the PyPI wheel
 #     models/pose_landmark_{lite,full,heavy}.onnx   BlazePose landmark models (npm @mediapipe/pose,
 #                                    converted from TFLite with tf2onnx in a private venv)
+#     models/pose_landmark_{lite,full,heavy}_pruned.onnx   the same models with only the outputs
+#                                    rigcast reads (no segmentation mask or heatmaps: same
+#                                    landmarks, about half the work; scripts/prune_landmark_model.py)
+#     models/pose_landmark_full_int8.onnx   full, pruned and quantised to int8 (static QDQ,
+#                                    calibrated on the single-person pose2sim clips;
+#                                    scripts/quantize_landmark_model.py); only `--model full-int8`
+#                                    loads it
 #     models/pose_detection.onnx     BlazePose person detector (same npm package: its
 #                                    pose_solution_packed_assets.data is pose_detection.tflite;
 #                                    sparse fp16 weights made dense by scripts/densify_tflite.py
@@ -31,6 +38,8 @@ MEDIAPIPE_POSE_VERSION="0.5.1675469404"
 POSE2SIM_VERSION="0.10.49"
 TF2ONNX_VERSION="1.17.0"
 TENSORFLOW_VERSION="2.21.0"
+ONNX_VERSION="1.23.2"
+NUMPY_VERSION="2.4.6"
 
 ROOT="${RIGCAST_HOME:-$HOME/.cache/rigcast}/vision"
 mkdir -p "$ROOT/lib" "$ROOT/models" "$ROOT/pose2sim" "$ROOT/downloads"
@@ -143,6 +152,42 @@ with zipfile.ZipFile(wheel) as z:
             os.replace(tmp, os.path.join(out, f"{prefix}cam0{i}.mp4"))
 EOF
     rm -rf "$ROOT/downloads/pose2sim"
+fi
+
+# --- Derived landmark models: pruned copies, int8 full -------------------------------------------
+# Made from the converted models with onnx and ONNX Runtime's own quantisation tools, in a
+# private venv removed afterwards. The int8 model is calibrated on the single-person clips above.
+need_derived=0
+for m in lite full heavy; do
+    [[ -f "$ROOT/models/pose_landmark_${m}_pruned.onnx" ]] || need_derived=1
+done
+[[ -f "$ROOT/models/pose_landmark_full_int8.onnx" ]] || need_derived=1
+if [[ $need_derived == 1 ]]; then
+    TOOLS="$ROOT/tools-venv"
+    if [[ ! -x "$TOOLS/bin/python" ]] || ! "$TOOLS/bin/python" -c "import onnx, onnxruntime" >/dev/null 2>&1; then
+        log "creating model tools venv (onnx $ONNX_VERSION, onnxruntime $ORT_VERSION)"
+        "$PY" -m venv "$TOOLS"
+        "$TOOLS/bin/python" -m pip install -q "onnx==$ONNX_VERSION" "onnxruntime==$ORT_VERSION" \
+            "numpy==$NUMPY_VERSION"
+    fi
+    for m in lite full heavy; do
+        out="$ROOT/models/pose_landmark_${m}_pruned.onnx"
+        [[ -f "$out" ]] && continue
+        log "pruning pose_landmark_$m.onnx to the outputs rigcast reads"
+        "$TOOLS/bin/python" "$(dirname "$0")/prune_landmark_model.py" \
+            "$ROOT/models/pose_landmark_$m.onnx" "$out.tmp.onnx" >&2
+        mv "$out.tmp.onnx" "$out"
+    done
+    out="$ROOT/models/pose_landmark_full_int8.onnx"
+    if [[ ! -f "$out" ]]; then
+        log "quantising pose_landmark_full to int8 (calibration on the pose2sim clips, ~1-2 min)"
+        "$TOOLS/bin/python" "$(dirname "$0")/quantize_landmark_model.py" \
+            "$ROOT/models/pose_landmark_full_pruned.onnx" "$out.tmp.onnx" \
+            "$ROOT"/pose2sim/cam0{1,2,3,4}.mp4 >"$ROOT/downloads/quantize_full.log" 2>&1 \
+            || { cat "$ROOT/downloads/quantize_full.log" >&2; exit 1; }
+        mv "$out.tmp.onnx" "$out"
+    fi
+    rm -rf "$TOOLS"
 fi
 
 date -u +%Y-%m-%dT%H:%M:%SZ >"$ROOT/READY"

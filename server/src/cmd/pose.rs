@@ -1,5 +1,5 @@
-//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy] [--people N]
-//! [--finder detector|search] [--decode-side PIXELS] [--threads N] [--max-frames N]`:
+//! `rigcast pose VIDEO [--json] [-o OUT.bvh] [--model lite|full|heavy|full-int8]
+//! [--people N] [--finder detector|search] [--decode-side PIXELS] [--threads N] [--max-frames N]`:
 //! offline pose extraction from a video file or image sequence, with progress on standard error
 //! and a last line with the frame rate (decoding included) and the tracker's counters.
 //!
@@ -37,7 +37,8 @@ pub struct PoseArgs {
     /// Write the motion as BVH on the BlazePose source skeleton.
     #[arg(short = 'o', long = "output", value_name = "OUT.bvh")]
     pub output: Option<PathBuf>,
-    /// Landmark model.
+    /// Landmark model: lite, full, heavy, or full-int8 (full quantised to int8 at setup time:
+    /// faster, landmarks close to full's but not identical; see BENCHMARKS.md).
     #[arg(long, default_value = "lite", value_parser = parse_model)]
     pub model: ModelKind,
     /// Frame rate of an image sequence (videos carry their own).
@@ -115,7 +116,9 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     if args.json {
-        write!(out, "{{\"fps\":{},\"frames\":[", json_number(fps))?;
+        let mut fps_text = String::new();
+        push_json_number(&mut fps_text, fps);
+        write!(out, "{{\"fps\":{fps_text},\"frames\":[")?;
     }
     let mut frame = RgbFrame::default();
     let started = Instant::now();
@@ -179,19 +182,21 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// JSON has no NaN/infinity; a non-finite value becomes 0 (never produced by the model in
-/// practice, but the output must stay parseable).
-fn json_number(v: f64) -> String {
+/// Appends `v` rounded to 5 decimals. JSON has no NaN/infinity; a non-finite value becomes 0
+/// (never produced by the model in practice, but the output must stay parseable). Written in
+/// place rather than as one string per number: a frame has about 500 numbers per person.
+fn push_json_number(out: &mut String, v: f64) {
+    use std::fmt::Write as _;
     if v.is_finite() {
-        format!("{}", (v * 1e5).round() / 1e5)
+        let _ = write!(out, "{}", (v * 1e5).round() / 1e5);
     } else {
-        "0".into()
+        out.push('0');
     }
 }
 
 fn frame_json(time_secs: f64, pipeline: &PosePipeline, out: &mut String) {
-    use std::fmt::Write as _;
-    let _ = write!(out, "{{\"time_secs\":{}", json_number(time_secs));
+    out.push_str("{\"time_secs\":");
+    push_json_number(out, time_secs);
     out.push(',');
     person_json(pipeline.person(0), out);
     out.push_str(",\"people\":[");
@@ -230,7 +235,7 @@ fn json_points<const N: usize, P: AsRef<[f32; N]>>(out: &mut String, points: &[P
             if j > 0 {
                 out.push(',');
             }
-            out.push_str(&json_number(*c as f64));
+            push_json_number(out, *c as f64);
         }
         out.push(']');
     }

@@ -1,9 +1,11 @@
 //! Where the vision assets live: the cache directory filled by `scripts/setup-vision.sh`.
 //!
 //! `$RIGCAST_HOME/vision/` (default `~/.cache/rigcast/vision/`) holds `lib/libonnxruntime.so`,
-//! `models/pose_landmark_{lite,full,heavy}.onnx` and `pose2sim/cam0N.mp4`. Nothing here
-//! downloads anything: a missing file is a [`VisionError::NotSetUp`] telling the user which
-//! command to run.
+//! `models/pose_landmark_{lite,full,heavy}.onnx` (as converted) with their pruned copies
+//! `pose_landmark_{lite,full,heavy}_pruned.onnx` (only the outputs rigcast reads: the same
+//! numbers in about half the time), the int8 copy `pose_landmark_full_int8.onnx`, and
+//! `pose2sim/cam0N.mp4`. Nothing here downloads anything: a missing file is a
+//! [`VisionError::NotSetUp`] telling the user which command to run.
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -20,6 +22,10 @@ pub enum ModelKind {
     Full,
     /// Most accurate, slowest.
     Heavy,
+    /// `full` quantised to int8 at setup time (calibrated on real footage): faster, and close
+    /// to `full` but not identical (its landmark deviation is in BENCHMARKS.md). Only ever used
+    /// when asked for by name.
+    FullInt8,
 }
 
 impl ModelKind {
@@ -29,6 +35,17 @@ impl ModelKind {
             ModelKind::Lite => "lite",
             ModelKind::Full => "full",
             ModelKind::Heavy => "heavy",
+            ModelKind::FullInt8 => "full-int8",
+        }
+    }
+
+    /// The file stem under `models/`: `pose_landmark_{stem}`.
+    fn file_stem(self) -> &'static str {
+        match self {
+            ModelKind::Lite => "lite",
+            ModelKind::Full => "full",
+            ModelKind::Heavy => "heavy",
+            ModelKind::FullInt8 => "full_int8",
         }
     }
 }
@@ -40,8 +57,9 @@ impl FromStr for ModelKind {
             "lite" => Ok(ModelKind::Lite),
             "full" => Ok(ModelKind::Full),
             "heavy" => Ok(ModelKind::Heavy),
+            "full-int8" => Ok(ModelKind::FullInt8),
             other => Err(format!(
-                "unknown model {other:?}: expected lite, full or heavy"
+                "unknown model {other:?}: expected lite, full, heavy or full-int8"
             )),
         }
     }
@@ -76,10 +94,31 @@ impl VisionAssets {
         self.root.join("lib/libonnxruntime.so")
     }
 
-    /// A landmark model.
+    /// The file to load for a landmark model: the pruned copy when setup made one (same
+    /// landmarks, about half the work: the converted model also computes a segmentation mask
+    /// and heatmaps, which ONNX Runtime runs even when nobody reads them), else the model as
+    /// converted. The int8 model exists only pruned.
     pub fn landmark_model(&self, kind: ModelKind) -> PathBuf {
+        let pruned = self.pruned_landmark_model(kind);
+        if kind == ModelKind::FullInt8 || pruned.is_file() {
+            return pruned;
+        }
+        self.converted_landmark_model(kind)
+    }
+
+    /// A landmark model as converted from MediaPipe's TFLite (all five outputs).
+    pub fn converted_landmark_model(&self, kind: ModelKind) -> PathBuf {
         self.root
-            .join(format!("models/pose_landmark_{}.onnx", kind.as_str()))
+            .join(format!("models/pose_landmark_{}.onnx", kind.file_stem()))
+    }
+
+    /// The copy of a landmark model with only the landmark, presence and world outputs.
+    pub fn pruned_landmark_model(&self, kind: ModelKind) -> PathBuf {
+        let name = match kind {
+            ModelKind::FullInt8 => "pose_landmark_full_int8.onnx".to_string(),
+            _ => format!("pose_landmark_{}_pruned.onnx", kind.file_stem()),
+        };
+        self.root.join("models").join(name)
     }
 
     /// The person detector.
@@ -124,4 +163,44 @@ pub fn find_setup_script(start: &Path) -> Option<PathBuf> {
         .ancestors()
         .map(|d| d.join("scripts/setup-vision.sh"))
         .find(|p| p.is_file())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn model_names_round_trip() {
+        for kind in [
+            ModelKind::Lite,
+            ModelKind::Full,
+            ModelKind::Heavy,
+            ModelKind::FullInt8,
+        ] {
+            assert_eq!(kind.as_str().parse::<ModelKind>(), Ok(kind));
+        }
+        assert!("int8"
+            .parse::<ModelKind>()
+            .unwrap_err()
+            .contains("full-int8"));
+    }
+
+    #[test]
+    fn the_pruned_copy_is_loaded_when_there_and_int8_only_by_name() {
+        let root = std::env::temp_dir().join(format!("rigcast-assets-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("models")).unwrap();
+        let assets = VisionAssets::at(&root);
+        let converted = root.join("models/pose_landmark_full.onnx");
+        assert_eq!(assets.landmark_model(ModelKind::Full), converted);
+        let pruned = root.join("models/pose_landmark_full_pruned.onnx");
+        std::fs::write(&pruned, b"x").unwrap();
+        assert_eq!(assets.landmark_model(ModelKind::Full), pruned);
+        // The int8 file never stands in for `full`, and `full-int8` never falls back to float.
+        assert_eq!(
+            assets.landmark_model(ModelKind::FullInt8),
+            root.join("models/pose_landmark_full_int8.onnx")
+        );
+        std::fs::remove_dir_all(&root).unwrap();
+    }
 }
