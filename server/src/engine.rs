@@ -7,7 +7,7 @@
 //!                                           ▼
 //!                 tick (interval, MissedTickBehavior::Skip, never awaits a client)
 //!                   ├─ encode frame into scratch Vec → one shared Bytes per subject
-//!                   ├─ broadcast::send(OutFrame)  ──▶ client tasks (lag ⇒ told, stays)
+//!                   ├─ broadcast::send(OutFrame) per subject, all at the end of the tick ──▶ client tasks (lag ⇒ told, stays)
 //!                   └─ VMC: encode bundles (reused buffers) → try_send_to each receiver
 //! ```
 //!
@@ -189,6 +189,9 @@ pub struct Ticker {
     scratch: Vec<u8>,
     vmc_encoder: VmcEncoder,
     worlds: Vec<WorldTransform>,
+    /// This tick's frames, handed to the clients together once every subject is encoded, so
+    /// a client task woken by the first finds the rest queued and writes them in one go.
+    outgoing: Vec<OutFrame>,
     start: Instant,
 }
 
@@ -200,6 +203,7 @@ impl Ticker {
             scratch: Vec::new(),
             vmc_encoder: VmcEncoder::new(),
             worlds: Vec::new(),
+            outgoing: Vec::new(),
             start: Instant::now(),
         }
     }
@@ -307,12 +311,15 @@ impl Ticker {
             // The one allocation per subject per tick: the shared, immutable frame, which must
             // outlive the tick because client tasks send it later.
             let bytes = Bytes::copy_from_slice(&self.scratch);
-            // Err only means "no client connected right now".
-            let _ = ctx.frames.send(OutFrame {
+            self.outgoing.push(OutFrame {
                 subject: subject.id,
                 bytes,
                 v2_at,
             });
+        }
+        for frame in self.outgoing.drain(..) {
+            // Err only means "no client connected right now".
+            let _ = ctx.frames.send(frame);
         }
         ctx.stats.record_tick(tick_start.elapsed());
     }

@@ -54,7 +54,9 @@ impl SharedMappings {
 
     /// The table another node computed for `key`, if any (call off the async runtime).
     pub fn get(&self, key: &CacheKey) -> Option<MappingTable> {
-        let read = tokio::time::timeout(KV_TIMEOUT, self.kv.get(key.file_stem()));
+        // The timeout is made inside `block_on`: its timer needs the runtime's context, which
+        // the mapper's own thread does not have.
+        let read = async { tokio::time::timeout(KV_TIMEOUT, self.kv.get(key.file_stem())).await };
         let bytes = self.runtime.block_on(read).ok()?.ok()??;
         let table = cache::decode(std::str::from_utf8(&bytes).ok()?, key)?;
         self.counts.fetched.fetch_add(1, Ordering::Relaxed);
@@ -64,7 +66,9 @@ impl SharedMappings {
     /// Offers `table`, computed here for `key`, to the other nodes (call off the runtime).
     pub fn put(&self, key: &CacheKey, table: &MappingTable) {
         let value = cache::encode(key, table).into_bytes();
-        let write = tokio::time::timeout(KV_TIMEOUT, self.kv.put(key.file_stem(), value.into()));
+        let write = async {
+            tokio::time::timeout(KV_TIMEOUT, self.kv.put(key.file_stem(), value.into())).await
+        };
         if let Ok(Ok(_)) = self.runtime.block_on(write) {
             self.counts.shared.fetch_add(1, Ordering::Relaxed);
         }
