@@ -543,15 +543,38 @@ const BODY_POINTS: [usize; 8] = [
 
 /// True when two landmark sets are the same body: their joints lie on top of each other
 /// (mean distance under a tenth of the body's height). People crossing overlap as boxes but
-/// not joint by joint.
+/// not joint by joint. Compared under both labellings: the flip guard may have exchanged one
+/// track's left and right (its reference faced the other way), and the same body read with
+/// swapped labels is still one body found twice.
 fn same_body(a: &Landmarks, b: &Landmarks) -> bool {
     let height = body_box(a).1.y.max(body_box(b).1.y).max(1.0);
-    let mean = BODY_POINTS
+    let mean = |mirrored: bool| {
+        BODY_POINTS
+            .iter()
+            .map(|&i| {
+                let j = if mirrored { mirror_index(i) } else { i };
+                Vec2::new(a.image[i].x - b.image[j].x, a.image[i].y - b.image[j].y).length()
+            })
+            .sum::<f32>()
+            / BODY_POINTS.len() as f32
+    };
+    mean(false).min(mean(true)) < 0.1 * height
+}
+
+/// The landmark of the other side for `i` (itself for the centre line).
+fn mirror_index(i: usize) -> usize {
+    LR_PAIRS
         .iter()
-        .map(|&i| Vec2::new(a.image[i].x - b.image[i].x, a.image[i].y - b.image[i].y).length())
-        .sum::<f32>()
-        / BODY_POINTS.len() as f32;
-    mean < 0.1 * height
+        .find_map(|&(l, r)| {
+            if l == i {
+                Some(r)
+            } else if r == i {
+                Some(l)
+            } else {
+                None
+            }
+        })
+        .unwrap_or(i)
 }
 
 /// True when body box `next` can be the same person as `last` one frame later: about the
@@ -667,6 +690,19 @@ mod tests {
             lm.world[r] = Vec3::new(-0.1 + offset_x * 1e-3, y * 1e-3, 0.0);
         }
         lm
+    }
+
+    #[test]
+    fn one_body_read_with_swapped_labels_is_still_one_body() {
+        let a = person(0.0);
+        let mut b = person(4.0);
+        flip_interpretation(&mut b);
+        assert!(same_body(&a, &b), "a relabelled copy is the same body");
+        // Two people side by side (apart by more than their shoulder width) are not.
+        assert!(!same_body(&a, &person(300.0)));
+        let mut far = person(300.0);
+        flip_interpretation(&mut far);
+        assert!(!same_body(&a, &far));
     }
 
     #[test]
