@@ -38,7 +38,8 @@ pub struct PoseArgs {
     #[arg(short = 'o', long = "output", value_name = "OUT.bvh")]
     pub output: Option<PathBuf>,
     /// Landmark model: lite, full, heavy, or full-int8 (full quantised to int8 at setup time:
-    /// faster, landmarks close to full's but not identical; see BENCHMARKS.md).
+    /// as fast as lite but less accurate than either, 14 % of the torso off full's on average;
+    /// see BENCHMARKS.md).
     #[arg(long, default_value = "lite", value_parser = parse_model)]
     pub model: ModelKind,
     /// Frame rate of an image sequence (videos carry their own).

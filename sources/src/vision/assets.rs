@@ -22,9 +22,9 @@ pub enum ModelKind {
     Full,
     /// Most accurate, slowest.
     Heavy,
-    /// `full` quantised to int8 at setup time (calibrated on real footage): faster, and close
-    /// to `full` but not identical (its landmark deviation is in BENCHMARKS.md). Only ever used
-    /// when asked for by name.
+    /// `full` quantised to int8 at setup time (calibrated on real footage): as fast as lite,
+    /// but its landmarks are off `full`'s by 14 % of the torso on average (BENCHMARKS.md), so
+    /// it is only ever used when asked for by name.
     FullInt8,
 }
 
