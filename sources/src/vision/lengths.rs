@@ -4,6 +4,11 @@
 //! in the next (foreshortening, occlusion). Bones do not stretch: this stage keeps a running,
 //! visibility-weighted estimate of each limb segment's length and rebuilds the limb outwards
 //! from the shoulders and hips, keeping every measured direction and replacing only lengths.
+//!
+//! A segment and its mirror twin share one estimate: limbs are the same length on both sides
+//! to within a centimetre or two, and an arm hidden behind the body for most of a clip (its
+//! joints guessed at low visibility) would otherwise keep a poorly measured length that drifts
+//! whenever it is glimpsed, while the other arm is seen well all along.
 
 use glam::Vec3;
 
@@ -32,6 +37,12 @@ const SEGMENTS: [(usize, usize); 18] = [
     (idx::RIGHT_ANKLE, idx::RIGHT_FOOT_INDEX),
 ];
 
+/// The shared estimate of each segment of [`SEGMENTS`]: a left segment and its right twin
+/// (same place in the list of their side) use the same one.
+const ESTIMATE_OF: [usize; SEGMENTS.len()] = [0, 1, 2, 3, 4, 0, 1, 2, 3, 4, 5, 6, 7, 8, 5, 6, 7, 8];
+/// Number of shared estimates.
+const ESTIMATES: usize = 9;
+
 /// Cap on the accumulated weight: the estimate averages over roughly this many well-seen
 /// frames, so it settles within a second or two yet still adapts to a new performer.
 const MAX_WEIGHT: f32 = 90.0;
@@ -39,8 +50,8 @@ const MAX_WEIGHT: f32 = 90.0;
 /// Running limb-length estimates.
 #[derive(Debug, Clone)]
 pub struct LimbLengths {
-    length: [f32; SEGMENTS.len()],
-    weight: [f32; SEGMENTS.len()],
+    length: [f32; ESTIMATES],
+    weight: [f32; ESTIMATES],
     measured: [Vec3; 33],
 }
 
@@ -54,21 +65,21 @@ impl LimbLengths {
     /// No estimates yet.
     pub fn new() -> LimbLengths {
         LimbLengths {
-            length: [0.0; SEGMENTS.len()],
-            weight: [0.0; SEGMENTS.len()],
+            length: [0.0; ESTIMATES],
+            weight: [0.0; ESTIMATES],
             measured: [Vec3::ZERO; 33],
         }
     }
 
     /// Forgets the estimates (a new person may appear after a loss).
     pub fn reset(&mut self) {
-        self.length = [0.0; SEGMENTS.len()];
-        self.weight = [0.0; SEGMENTS.len()];
+        self.length = [0.0; ESTIMATES];
+        self.weight = [0.0; ESTIMATES];
     }
 
     /// Current estimate of segment `i` (metres), 0 before any observation.
     pub fn length(&self, i: usize) -> f32 {
-        self.length[i]
+        ESTIMATE_OF.get(i).map_or(0.0, |&k| self.length[k])
     }
 
     /// Updates the estimates from `lm` and rewrites its limb world landmarks to those lengths.
@@ -79,13 +90,14 @@ impl LimbLengths {
             // Both ends must be seen for the measurement to count; a floor keeps the first
             // frames from being ignored entirely.
             let w = lm.visibility(a).min(lm.visibility(b)).max(0.05);
+            let k = ESTIMATE_OF[i];
             if len.is_finite() && len > 0.0 {
-                self.weight[i] = (self.weight[i] + w).min(MAX_WEIGHT);
-                self.length[i] += (len - self.length[i]) * (w / self.weight[i]);
+                self.weight[k] = (self.weight[k] + w).min(MAX_WEIGHT);
+                self.length[k] += (len - self.length[k]) * (w / self.weight[k]);
             }
             let dir = (self.measured[b] - self.measured[a]).normalize_or_zero();
-            if dir != Vec3::ZERO && self.length[i] > 0.0 {
-                lm.world[b] = lm.world[a] + dir * self.length[i];
+            if dir != Vec3::ZERO && self.length[k] > 0.0 {
+                lm.world[b] = lm.world[a] + dir * self.length[k];
             }
         }
     }
@@ -124,6 +136,32 @@ mod tests {
         // The forearm moved with the elbow and kept its own length and direction.
         let fore = lm.world[idx::LEFT_WRIST] - lm.world[idx::LEFT_ELBOW];
         assert!((fore.length() - 0.25).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_hidden_arm_takes_the_length_of_the_arm_that_is_seen() {
+        let mut f = LimbLengths::new();
+        for i in 0..60 {
+            let mut lm = arm(0.28, 1.0);
+            // The right arm, barely visible, is guessed at lengths that jump about.
+            for v in [idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW] {
+                lm.image[v].w = 0.05;
+            }
+            lm.world[idx::RIGHT_SHOULDER] = Vec3::new(-0.2, -0.5, 0.0);
+            let guess = if i % 2 == 0 { 0.15 } else { 0.40 };
+            lm.world[idx::RIGHT_ELBOW] = Vec3::new(-0.2 - guess, -0.5, 0.0);
+            f.apply(&mut lm);
+            if i >= 10 {
+                let right = lm.world[idx::RIGHT_ELBOW] - lm.world[idx::RIGHT_SHOULDER];
+                assert!((right.length() - 0.28).abs() < 0.02, "frame {i}: {right}");
+                assert!(right.normalize_or_zero().abs_diff_eq(-Vec3::X, 1e-5));
+            }
+        }
+        assert_eq!(
+            f.length(0),
+            f.length(5),
+            "left and right upper arm share one estimate"
+        );
     }
 
     #[test]
