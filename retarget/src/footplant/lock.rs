@@ -33,6 +33,10 @@ use crate::skeleton::{BoneId, Skeleton};
 /// dragged along (a pivot on the spot).
 const PIVOT_RAD: f32 = 0.45;
 
+/// Highest a ball may be pitched up to, as a share of the foot's length (sin of ~64°): past
+/// that the ankle lifts instead.
+const MAX_BALL_RISE: f32 = 0.9;
+
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
@@ -453,16 +457,39 @@ impl FootLock {
         if !g.pinned {
             g.ankle -= self.up * drop;
         }
-        let heel_low = self.floor + f.heel_clearance - g.ankle.dot(self.up);
-        let ball_low = match g.ball_offset {
-            Some(o) => self.floor + f.ball_clearance - (g.ankle + o).dot(self.up),
-            None => f32::NEG_INFINITY,
-        };
-        let lift = heel_low.max(ball_low).max(0.0);
-        if lift > 0.0 {
-            g.ankle += self.up * lift;
+        let up = self.up;
+        let heel_low = self.floor + f.heel_clearance - g.ankle.dot(up);
+        if heel_low > 0.0 {
+            g.ankle += up * heel_low;
             g.active = true;
         }
+        // A ball below the floor pitches the foot up about the ankle (as a foot rolls onto its
+        // heel) rather than lifting the ankle: lifting it would make the knee take up the
+        // whole difference, and a rig whose foot points steeply down (its ankle joint on the
+        // ground when it stands) would have its leg folded over. Only what pitching cannot
+        // give (a ball more than the foot's length too low) lifts the ankle.
+        let Some(o) = g.ball_offset else { return };
+        let need = self.floor + f.ball_clearance - (g.ankle + o).dot(up);
+        if need <= 0.0 {
+            return;
+        }
+        let len = o.length();
+        let rise = o.dot(up);
+        let wanted = (rise + need).min(len * MAX_BALL_RISE);
+        let flat = (o - up * rise)
+            .try_normalize()
+            .unwrap_or(up.any_orthonormal_vector());
+        let pitched = flat * (len * len - wanted * wanted).max(0.0).sqrt() + up * wanted;
+        if let (Some(from), Some(to)) = (o.try_normalize(), pitched.try_normalize()) {
+            let turn = Quat::from_rotation_arc(from, to);
+            g.rotation = (turn * g.rotation).normalize();
+            g.ball_offset = Some(pitched);
+        }
+        let rest = need - (wanted - rise);
+        if rest > 0.0 {
+            g.ankle += up * rest;
+        }
+        g.active = true;
     }
 
     /// Lowers the root so every pinned goal is within its leg's reach; returns by how much.
