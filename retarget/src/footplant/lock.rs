@@ -300,6 +300,9 @@ impl FootLock {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
+        if self.raise_hips(out) {
+            forward_kinematics(&self.target, out, &mut self.worlds);
+        }
         // The floor first (a locked goal lifted above it may need the hips lower), then again
         // after the hips came down: an unlocked foot moves down with them.
         for i in 0..self.feet.len() {
@@ -490,6 +493,46 @@ impl FootLock {
             g.ankle += up * rest;
         }
         g.active = true;
+    }
+
+    /// Raises the root when every foot would otherwise have to be pulled up: each pinned one
+    /// towards its pin, each other one onto the floor. The animation has then sunk the whole
+    /// character (a rig whose legs come out longer than the scaled hips' height allows), and
+    /// bending the knees to take that up folds short leg bones over; lifting the body keeps
+    /// the legs as animated. (With a foot in the air nothing is raised: lifting the body then
+    /// lifts the feet about to land too.) Unpinned goals, carried by the hips, move up with
+    /// them. Returns whether the root moved.
+    fn raise_hips(&mut self, out: &mut Pose) -> bool {
+        let Some(root) = self.root else {
+            return false;
+        };
+        let up = self.up;
+        let mut raise = f32::INFINITY;
+        let mut limit = f32::INFINITY;
+        for (foot, goal) in self.feet.iter().zip(&self.goals) {
+            limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
+            let need = if goal.pinned {
+                (goal.ankle - foot.animated_position).dot(up)
+            } else {
+                self.floor + foot.heel_clearance - goal.ankle.dot(up)
+            };
+            raise = raise.min(need);
+        }
+        let raise = raise.min(limit);
+        if !(raise > 0.0) {
+            return false;
+        }
+        for g in self.goals.iter_mut().take(self.feet.len()) {
+            if !g.pinned {
+                g.ankle += up * raise;
+            }
+        }
+        let parent = match self.target.parent(root) {
+            Some(p) => self.worlds[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.index()] += parent.inverse() * (up * raise);
+        true
     }
 
     /// Lowers the root so every pinned goal is within its leg's reach; returns by how much.

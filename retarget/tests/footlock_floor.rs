@@ -1,0 +1,194 @@
+//! How the foot lock keeps feet out of the floor without folding legs over:
+//! - a planted foot whose animation points its toes into the floor is pitched up about its
+//!   ankle, not lifted: the ankle stays where it was pinned, the ball comes up to the floor and
+//!   the knee keeps its bend (lifting the ankle made the knee take up the whole difference,
+//!   folding the leg over on rigs whose foot points steeply down);
+//! - a character whose animation sinks it on both pinned feet is lifted, legs as animated,
+//!   rather than standing on folded knees.
+
+mod retarget_fixtures;
+
+use glam::Quat;
+use retarget_fixtures::{table_by_canonical, Humanoid};
+use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::footplant::{FootLock, LockSettings};
+use rigcast_retarget::{world_transforms, Mapping, Pose, RetargetOptions, Skeleton};
+
+/// Standing still at 60 Hz; from frame 40 the left foot turns toes-down about the ankle by
+/// `pitch_rad` (held), both feet staying planted (the heel does not move).
+fn toes_down(source: &Skeleton, num_frames: usize, pitch_rad: f32) -> Vec<Pose> {
+    let rest = source.rest_pose();
+    let foot = source.bone("l_foot").expect("left foot");
+    (0..num_frames)
+        .map(|f| {
+            let mut p = rest.clone();
+            let k = ((f as f32 - 40.0) / 10.0).clamp(0.0, 1.0);
+            p.rotations[foot.index()] =
+                rest.rotations[foot.index()] * Quat::from_rotation_x(k * pitch_rad);
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
+    let source = Humanoid::default().build();
+    let target = Humanoid {
+        leg: 0.8,
+        ..Humanoid::default()
+    }
+    .build();
+    let table = table_by_canonical(&source, "", &target, "");
+    let mut mapping =
+        Mapping::build(&[&source], &target, &table, &RetargetOptions::default()).expect("build");
+    let sa = analyze(&SkeletonView::rest(&source));
+    let ta = analyze(&SkeletonView::rest(&target));
+    let mut lock =
+        FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
+    let (foot, toe, shin, thigh) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+        target.bone("l_shin").expect("shin"),
+        target.bone("l_thigh").expect("thigh"),
+    );
+    let (_, floor, _) = mapping.target_floor().expect("a floor");
+    let rest = world_transforms(&target, &target.rest_pose());
+    let toe_standing = rest[toe.index()].translation.y;
+    let dt = 1.0 / 60.0;
+    let mut out = mapping.new_target_pose();
+    let mut free = mapping.new_target_pose();
+    let (mut ankle_at_40, mut checked) = (None, 0);
+    // Both directions of the sign convention: one of them points the toes into the floor.
+    for pitch in [0.6f32, -0.6] {
+        lock.reset();
+        for (f, p) in toes_down(&source, 120, pitch).iter().enumerate() {
+            mapping.apply_one(p, &mut out).expect("apply");
+            free.copy_from(&out);
+            lock.apply_live(p, true, dt, &mut out);
+            let w = world_transforms(&target, &out);
+            let wf = world_transforms(&target, &free);
+            if f == 40 {
+                ankle_at_40 = Some(w[foot.index()].translation);
+            }
+            let free_toe_low = wf[toe.index()].translation.y < toe_standing - 0.03;
+            if f < 60 || !free_toe_low {
+                continue;
+            }
+            checked += 1;
+            let ankle = w[foot.index()].translation;
+            let start = ankle_at_40.expect("frame 40 seen");
+            assert!(
+                (ankle - start).length() < 0.005,
+                "frame {f}: the ankle moved from {start} to {ankle}"
+            );
+            let ball = w[toe.index()].translation.y;
+            assert!(
+                ball >= floor - 0.005,
+                "frame {f}: ball {ball} below the floor {floor}"
+            );
+            // The knee keeps the bend it had (no fold-over): thigh and shin directions stay
+            // within a few degrees of the free retarget's.
+            for (a, b) in [(thigh, shin), (shin, foot)] {
+                let d = |w: &[rigcast_retarget::WorldTransform]| {
+                    (w[b.index()].translation - w[a.index()].translation).normalize()
+                };
+                let deg = d(&w).angle_between(d(&wf)).to_degrees();
+                assert!(deg < 5.0, "frame {f}: leg segment turned {deg:.1}°");
+            }
+        }
+    }
+    assert!(
+        checked > 20,
+        "only {checked} frames had the toes in the floor"
+    );
+}
+
+/// Standing at 60 Hz; from frame 20 the hips sink `sink` metres with the legs straight (the
+/// feet go through the floor, as a capture whose hips track low does).
+fn sinking(source: &Skeleton, num_frames: usize, sink: f32) -> Vec<Pose> {
+    let rest = source.rest_pose();
+    (0..num_frames)
+        .map(|f| {
+            let mut p = rest.clone();
+            let k = ((f as f32 - 20.0) / 10.0).clamp(0.0, 1.0);
+            p.translations[0].y -= k * sink;
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn a_character_sunk_on_both_pinned_feet_is_lifted_not_folded() {
+    let source = Humanoid::default().build();
+    let target = Humanoid {
+        leg: 0.8,
+        ..Humanoid::default()
+    }
+    .build();
+    let table = table_by_canonical(&source, "", &target, "");
+    let mut mapping =
+        Mapping::build(&[&source], &target, &table, &RetargetOptions::default()).expect("build");
+    let sa = analyze(&SkeletonView::rest(&source));
+    let ta = analyze(&SkeletonView::rest(&target));
+    let mut lock =
+        FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
+    let root = mapping.root_bone().expect("root");
+    let legs: Vec<[rigcast_retarget::BoneId; 3]> = ["l", "r"]
+        .iter()
+        .map(|s| {
+            let b = |n: &str| target.bone(&format!("{s}_{n}")).expect("leg bone");
+            [b("thigh"), b("shin"), b("foot")]
+        })
+        .collect();
+    let dt = 1.0 / 60.0;
+    let mut out = mapping.new_target_pose();
+    let mut free = mapping.new_target_pose();
+    let mut pinned_at = Vec::new();
+    let mut standing_root = 0.0;
+    let mut checked = 0;
+    for (f, p) in sinking(&source, 90, 0.05).iter().enumerate() {
+        mapping.apply_one(p, &mut out).expect("apply");
+        free.copy_from(&out);
+        lock.apply_live(p, true, dt, &mut out);
+        let w = world_transforms(&target, &out);
+        let wf = world_transforms(&target, &free);
+        if f == 15 {
+            pinned_at = legs.iter().map(|l| w[l[2].index()].translation).collect();
+            standing_root = wf[root.index()].translation.y;
+        }
+        if f < 45 {
+            continue;
+        }
+        checked += 1;
+        // The free retarget sank by the source's sink scaled to the target; the lock gives
+        // (most of) it back.
+        let sunk = standing_root - wf[root.index()].translation.y;
+        let lifted = w[root.index()].translation.y - wf[root.index()].translation.y;
+        assert!(
+            sunk > 0.03,
+            "frame {f}: the free retarget sank only {sunk} m"
+        );
+        assert!(
+            lifted > 0.8 * sunk,
+            "frame {f}: the hips were lifted {lifted} m of the {sunk} m sunk"
+        );
+        for (leg, at) in legs.iter().zip(&pinned_at) {
+            let ankle = w[leg[2].index()].translation;
+            assert!(
+                (ankle - *at).length() < 0.005,
+                "frame {f}: pinned ankle moved to {ankle}"
+            );
+            let dir = |w: &[rigcast_retarget::WorldTransform], a: usize, b: usize| {
+                (w[leg[b].index()].translation - w[leg[a].index()].translation).normalize()
+            };
+            for (a, b) in [(0, 1), (1, 2)] {
+                let deg = dir(&w, a, b).angle_between(dir(&wf, a, b)).to_degrees();
+                assert!(
+                    deg < 3.0,
+                    "frame {f}: a leg segment turned {deg:.1}° (knee folded)"
+                );
+            }
+        }
+    }
+    assert!(checked > 30);
+}
