@@ -519,7 +519,7 @@ impl FootLock {
             raise = raise.min(need);
         }
         let raise = raise.min(limit);
-        if !(raise > 0.0) {
+        if raise.is_nan() || raise <= 0.0 {
             return false;
         }
         for g in self.goals.iter_mut().take(self.feet.len()) {
