@@ -30,8 +30,8 @@ fn toes_down(source: &Skeleton, num_frames: usize, pitch_rad: f32) -> Vec<Pose> 
         .collect()
 }
 
-#[test]
-fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
+/// The standard humanoid driving a shorter-legged one, and the foot lock between them.
+fn locked_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
     let source = Humanoid::default().build();
     let target = Humanoid {
         leg: 0.8,
@@ -39,12 +39,18 @@ fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
     }
     .build();
     let table = table_by_canonical(&source, "", &target, "");
-    let mut mapping =
+    let mapping =
         Mapping::build(&[&source], &target, &table, &RetargetOptions::default()).expect("build");
     let sa = analyze(&SkeletonView::rest(&source));
     let ta = analyze(&SkeletonView::rest(&target));
-    let mut lock =
+    let lock =
         FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
+    (source, target, mapping, lock)
+}
+
+#[test]
+fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
+    let (source, target, mut mapping, mut lock) = locked_pair();
     let (foot, toe, shin, thigh) = (
         target.bone("l_foot").expect("foot"),
         target.bone("l_toe").expect("toe"),
@@ -119,19 +125,7 @@ fn sinking(source: &Skeleton, num_frames: usize, sink: f32) -> Vec<Pose> {
 
 #[test]
 fn a_character_sunk_on_both_pinned_feet_is_lifted_not_folded() {
-    let source = Humanoid::default().build();
-    let target = Humanoid {
-        leg: 0.8,
-        ..Humanoid::default()
-    }
-    .build();
-    let table = table_by_canonical(&source, "", &target, "");
-    let mut mapping =
-        Mapping::build(&[&source], &target, &table, &RetargetOptions::default()).expect("build");
-    let sa = analyze(&SkeletonView::rest(&source));
-    let ta = analyze(&SkeletonView::rest(&target));
-    let mut lock =
-        FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
+    let (source, target, mut mapping, mut lock) = locked_pair();
     let root = mapping.root_bone().expect("root");
     let legs: Vec<[rigcast_retarget::BoneId; 3]> = ["l", "r"]
         .iter()

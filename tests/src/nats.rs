@@ -7,9 +7,11 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use rigcast_protocol::control::SubjectInfo;
-use rigcast_protocol::ServerMessage;
+use rigcast_protocol::{ServerMessage, SourceState};
 
-use crate::{connect, free_port, handshake, temp_path, ServeProcess, Ws};
+use crate::{
+    connect, free_port, handshake, next, next_json, temp_path, Incoming, ServeProcess, Ws,
+};
 
 /// The `nats-server` binary, or `None` (with a printed reason) when it is absent and
 /// `RIGCAST_SKIP_APPS=1`; absent otherwise is a failure. Debian installs it in /usr/sbin,
@@ -193,4 +195,77 @@ pub async fn client_with(
 /// A client without the token.
 pub async fn client(p: &ServeProcess) -> (Ws, HashMap<String, SubjectInfo>) {
     client_with(p, None).await
+}
+
+/// Waits until a `source_status` shows subject `id` in `state` with a detail containing
+/// `detail_has` (`""`: any); that detail and how long it took.
+pub async fn wait_state(
+    ws: &mut Ws,
+    id: u32,
+    state: SourceState,
+    detail_has: &str,
+    timeout: Duration,
+) -> Option<(String, Duration)> {
+    let start = Instant::now();
+    let end = start + timeout;
+    while let Some(left) = end.checked_duration_since(Instant::now()) {
+        if let ServerMessage::SourceStatus { sources, .. } = next_json(ws, left).await? {
+            let hit = sources
+                .iter()
+                .find(|s| s.subject == id && s.state == state && s.detail.contains(detail_has));
+            if let Some(s) = hit {
+                return Some((s.detail.clone(), start.elapsed()));
+            }
+        }
+    }
+    None
+}
+
+/// Waits for a `subjects_changed` naming `name`; its id.
+pub async fn wait_subject(ws: &mut Ws, name: &str, timeout: Duration) -> Option<u32> {
+    let end = Instant::now() + timeout;
+    while let Some(left) = end.checked_duration_since(Instant::now()) {
+        if let ServerMessage::SubjectsChanged { subjects } = next_json(ws, left).await? {
+            if let Some(s) = subjects.iter().find(|s| s.name == name) {
+                return Some(s.id);
+            }
+        }
+    }
+    None
+}
+
+/// (seq, rotations) of every frame of subject `id` received for `secs`.
+pub async fn frames_of(ws: &mut Ws, id: u32, secs: f64) -> Vec<(u64, Vec<glam::Quat>)> {
+    let mut out = Vec::new();
+    let end = Instant::now() + Duration::from_secs_f64(secs);
+    while let Some(left) = end.checked_duration_since(Instant::now()) {
+        match next(ws, left).await {
+            Some(Incoming::Frame(f, _)) if f.header.subject == id => {
+                out.push((f.header.seq, f.rotations))
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    out
+}
+
+/// Writes `body` as `rigcast.toml` in a fresh folder named after `name`; its path.
+pub fn config_file(name: &str, body: &str) -> PathBuf {
+    let dir = temp_path(&format!("cluster-config-{name}"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("rigcast.toml");
+    std::fs::write(&path, body).unwrap();
+    path
+}
+
+/// One `nats-server` (JetStream on) started off the async runtime; `None` when the binary is
+/// absent and may be (see [`nats_server`]).
+pub async fn one_nats_server() -> Option<NatsCluster> {
+    let bin = nats_server()?;
+    Some(
+        tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
+            .await
+            .unwrap(),
+    )
 }

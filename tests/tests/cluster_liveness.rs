@@ -8,69 +8,17 @@
 //!   saying for what, and starts driving its character when the subject appears.
 #![allow(clippy::unwrap_used)]
 
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use rigcast_protocol::{ServerMessage, SourceState};
-use rigcast_tests::nats::{client, nats_server, spawn_node, NatsCluster};
-use rigcast_tests::{next, next_json, temp_path, Incoming, ServeProcess, Ws};
+use rigcast_protocol::SourceState;
+use rigcast_tests::nats::{
+    client, config_file, frames_of, one_nats_server, spawn_node, wait_state, wait_subject,
+};
+use rigcast_tests::{ServeProcess, Ws};
 
 /// How long an entry lives without a re-put (the server's bucket max age is 5 s), plus slack
 /// for the heartbeat period and scheduling.
 const AGE_OUT: Duration = Duration::from_secs(9);
-
-/// Waits until a `source_status` shows subject `id` in `state`; its detail and how long it
-/// took.
-async fn wait_state(
-    ws: &mut Ws,
-    id: u32,
-    state: SourceState,
-    detail_has: &str,
-    timeout: Duration,
-) -> Option<(String, Duration)> {
-    let start = Instant::now();
-    let end = tokio::time::Instant::now() + timeout;
-    while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
-        if let ServerMessage::SourceStatus { sources, .. } = next_json(ws, left).await? {
-            let hit = sources
-                .iter()
-                .find(|s| s.subject == id && s.state == state && s.detail.contains(detail_has));
-            if let Some(s) = hit {
-                return Some((s.detail.clone(), start.elapsed()));
-            }
-        }
-    }
-    None
-}
-
-/// Waits for a `subjects_changed` naming `name`; its id.
-async fn wait_subject(ws: &mut Ws, name: &str, timeout: Duration) -> Option<u32> {
-    let end = tokio::time::Instant::now() + timeout;
-    while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
-        if let ServerMessage::SubjectsChanged { subjects } = next_json(ws, left).await? {
-            if let Some(s) = subjects.iter().find(|s| s.name == name) {
-                return Some(s.id);
-            }
-        }
-    }
-    None
-}
-
-/// (seq, rotations) of every frame of subject `id` received for `secs`.
-async fn frames_of(ws: &mut Ws, id: u32, secs: f64) -> Vec<(u64, Vec<glam::Quat>)> {
-    let mut out = Vec::new();
-    let end = Instant::now() + Duration::from_secs_f64(secs);
-    while let Some(left) = end.checked_duration_since(Instant::now()) {
-        match next(ws, left).await {
-            Some(Incoming::Frame(f, _)) if f.header.subject == id => {
-                out.push((f.header.seq, f.rotations))
-            }
-            Some(_) => {}
-            None => break,
-        }
-    }
-    out
-}
 
 /// Sequence numbers of subject `id`'s frames received for `secs`.
 async fn seqs_of(ws: &mut Ws, id: u32, secs: f64) -> Vec<u64> {
@@ -120,10 +68,9 @@ fn cluster_args(urls: &str, site: &str, rest: &[&str]) -> Vec<String> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_killed_node_ages_out_and_comes_back() {
-    let Some(bin) = nats_server() else { return };
-    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
-        .await
-        .unwrap();
+    let Some(nats) = one_nats_server().await else {
+        return;
+    };
     let urls = nats.urls();
     let a_args = cluster_args(&urls, "a", &["--source", "demo"]);
     let a = spawn_node(a_args.clone(), "live-a").await;
@@ -177,21 +124,11 @@ async fn a_killed_node_ages_out_and_comes_back() {
     drop(a);
 }
 
-/// Writes `body` as a config file and returns its path.
-fn config_file(name: &str, body: &str) -> PathBuf {
-    let dir = temp_path(&format!("liveness-config-{name}"));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("rigcast.toml");
-    std::fs::write(&path, body).unwrap();
-    path
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_performer_waits_for_a_remote_subject_published_later() {
-    let Some(bin) = nats_server() else { return };
-    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
-        .await
-        .unwrap();
+    let Some(nats) = one_nats_server().await else {
+        return;
+    };
     let urls = nats.urls();
     let servers: Vec<String> = urls.split(',').map(|u| format!("\"{u}\"")).collect();
     let body = format!(
@@ -199,7 +136,7 @@ async fn a_performer_waits_for_a_remote_subject_published_later() {
          [[performers]]\nsource = \"demo@a\"\ntarget = \"builtin:mannequin\"\nname = \"puppet\"\n",
         servers.join(", ")
     );
-    let config = config_file("b", &body);
+    let config = config_file("liveness-b", &body);
     let b_args = vec!["--config".to_string(), config.display().to_string()];
     let b = spawn_node(b_args, "wait-b").await;
 

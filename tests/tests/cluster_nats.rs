@@ -13,15 +13,14 @@
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashMap;
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_protocol::vmc::VmcEncoder;
-use rigcast_protocol::{ServerMessage, SourceState};
-use rigcast_tests::nats::{client, nats_server, spawn_node, NatsCluster};
+use rigcast_protocol::SourceState;
+use rigcast_tests::nats::{client, config_file, nats_server, spawn_node, wait_state, NatsCluster};
 use rigcast_tests::{free_port, next, temp_path, Incoming, Ws};
 
 /// Sends a gently moving humanoid over VMC until stopped.
@@ -89,27 +88,6 @@ fn compare(
         matched += 1;
     }
     matched
-}
-
-/// Waits until a `source_status` says subject `id` is in `state`; how long it took.
-async fn wait_state(
-    ws: &mut Ws,
-    id: u32,
-    state: SourceState,
-    timeout: Duration,
-) -> Option<Duration> {
-    let start = Instant::now();
-    let end = start + timeout;
-    while let Some(left) = end.checked_duration_since(Instant::now()) {
-        if let Some(Incoming::Json(ServerMessage::SourceStatus { sources, .. })) =
-            next(ws, left).await
-        {
-            if sources.iter().any(|s| s.subject == id && s.state == state) {
-                return Some(start.elapsed());
-            }
-        }
-    }
-    None
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
@@ -192,33 +170,65 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     let demo_c = sc["demo@a"].id;
     drop(a);
     let (lost_b, lost_c) = tokio::join!(
-        wait_state(&mut wb, demo_b, SourceState::Lost, Duration::from_secs(3)),
-        wait_state(&mut wc, demo_c, SourceState::Lost, Duration::from_secs(3))
+        wait_state(
+            &mut wb,
+            demo_b,
+            SourceState::Lost,
+            "",
+            Duration::from_secs(3)
+        ),
+        wait_state(
+            &mut wc,
+            demo_c,
+            SourceState::Lost,
+            "",
+            Duration::from_secs(3)
+        )
     );
     println!("A killed: lost on B after {lost_b:?}, on C after {lost_c:?}");
     assert!(
-        lost_b.is_some_and(|d| d <= Duration::from_secs(1)),
+        lost_b
+            .as_ref()
+            .is_some_and(|(_, d)| *d <= Duration::from_secs(1)),
         "B: {lost_b:?}"
     );
     assert!(
-        lost_c.is_some_and(|d| d <= Duration::from_secs(1)),
+        lost_c
+            .as_ref()
+            .is_some_and(|(_, d)| *d <= Duration::from_secs(1)),
         "C: {lost_c:?}"
     );
 
     // A comes back: live again on B and C within 2 s of it serving.
     let a = spawn_node(a_args, "a").await;
     let (live_b, live_c) = tokio::join!(
-        wait_state(&mut wb, demo_b, SourceState::Live, Duration::from_secs(5)),
-        wait_state(&mut wc, demo_c, SourceState::Live, Duration::from_secs(5))
+        wait_state(
+            &mut wb,
+            demo_b,
+            SourceState::Live,
+            "",
+            Duration::from_secs(5)
+        ),
+        wait_state(
+            &mut wc,
+            demo_c,
+            SourceState::Live,
+            "",
+            Duration::from_secs(5)
+        )
     );
     println!("A restarted: live on B after {live_b:?}, on C after {live_c:?}");
 
     assert!(
-        live_b.is_some_and(|d| d <= Duration::from_secs(2)),
+        live_b
+            .as_ref()
+            .is_some_and(|(_, d)| *d <= Duration::from_secs(2)),
         "B: {live_b:?}"
     );
     assert!(
-        live_c.is_some_and(|d| d <= Duration::from_secs(2)),
+        live_c
+            .as_ref()
+            .is_some_and(|(_, d)| *d <= Duration::from_secs(2)),
         "C: {live_c:?}"
     );
 
@@ -241,15 +251,6 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     stop.store(true, Ordering::Relaxed);
     sender.join().unwrap();
     drop(a);
-}
-
-/// Writes a config file with a `[cluster]` table and returns its path.
-fn cluster_config(name: &str, body: &str) -> PathBuf {
-    let dir = temp_path(&format!("cluster-config-{name}"));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("rigcast.toml");
-    std::fs::write(&path, body).unwrap();
-    path
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -277,7 +278,7 @@ async fn credentials_are_required_and_namespaces_keep_deployments_apart() {
     tokio::time::sleep(Duration::from_secs(1)).await;
 
     // Wrong password: a short, clear refusal, not a hang.
-    let bad = cluster_config("bad", &config("one", "a", "wrong"));
+    let bad = config_file("bad", &config("one", "a", "wrong"));
     let rigcast = tokio::task::spawn_blocking(rigcast_tests::rigcast_binary)
         .await
         .unwrap();
@@ -303,8 +304,8 @@ async fn credentials_are_required_and_namespaces_keep_deployments_apart() {
     );
 
     // Right password, two namespaces on one NATS system: B does not see A's subjects.
-    let one = cluster_config("one", &config("one", "a", "s3cret"));
-    let two = cluster_config("two", &config("two", "b", "s3cret"));
+    let one = config_file("one", &config("one", "a", "s3cret"));
+    let two = config_file("two", &config("two", "b", "s3cret"));
     let a_args = vec!["--config".to_string(), one.display().to_string()];
     let a = spawn_node(a_args, "auth-a").await;
     let b_args = vec!["--config".to_string(), two.display().to_string()];
@@ -323,7 +324,7 @@ async fn credentials_are_required_and_namespaces_keep_deployments_apart() {
         sb.keys()
     );
     // The same namespace does.
-    let c_conf = cluster_config("one-c", &config("one", "c", "s3cret"));
+    let c_conf = config_file("one-c", &config("one", "c", "s3cret"));
     let c = spawn_node(
         vec!["--config".into(), c_conf.display().to_string()],
         "auth-c",

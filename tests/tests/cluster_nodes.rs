@@ -15,8 +15,10 @@ use std::time::Duration;
 
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::{ErrorCode, ServerMessage, SourceState};
-use rigcast_tests::nats::{client_with, nats_server, spawn_node_with_token, NatsCluster};
-use rigcast_tests::{next, next_json, send_text, Incoming, Ws};
+use rigcast_tests::nats::{
+    client_with, frames_of, one_nats_server, spawn_node_with_token, wait_state, wait_subject,
+};
+use rigcast_tests::{next_json, send_text, Ws};
 
 const TOKEN: &str = "deployment-token-0123456789abcdef";
 const OTHER_TOKEN: &str = "another-deployment-0123456789abc";
@@ -63,10 +65,9 @@ fn error_code(m: &ServerMessage) -> Option<(ErrorCode, String)> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn control_requests_are_carried_out_by_the_owning_node() {
-    let Some(bin) = nats_server() else { return };
-    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
-        .await
-        .unwrap();
+    let Some(nats) = one_nats_server().await else {
+        return;
+    };
     let args = |site: &str, extra: &[&str]| -> Vec<String> {
         let mut v = vec!["--nats".into(), nats.urls(), "--site".into(), site.into()];
         v.extend(extra.iter().map(|s| s.to_string()));
@@ -172,61 +173,11 @@ async fn control_requests_are_carried_out_by_the_owning_node() {
     assert!(started.elapsed() <= Duration::from_secs(3));
 }
 
-/// Waits for a `subjects_changed` naming `name`; its id.
-async fn wait_subject(ws: &mut Ws, name: &str, timeout: Duration) -> Option<u32> {
-    let end = tokio::time::Instant::now() + timeout;
-    while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
-        if let ServerMessage::SubjectsChanged { subjects } = next_json(ws, left).await? {
-            if let Some(s) = subjects.iter().find(|s| s.name == name) {
-                return Some(s.id);
-            }
-        }
-    }
-    None
-}
-
-/// Waits until a `source_status` shows subject `id` in `state`; its detail and how long it
-/// took.
-async fn wait_state(
-    ws: &mut Ws,
-    id: u32,
-    state: SourceState,
-    timeout: Duration,
-) -> Option<(String, Duration)> {
-    let start = std::time::Instant::now();
-    let end = tokio::time::Instant::now() + timeout;
-    while let Some(left) = end.checked_duration_since(tokio::time::Instant::now()) {
-        if let ServerMessage::SourceStatus { sources, .. } = next_json(ws, left).await? {
-            if let Some(s) = sources.iter().find(|s| s.subject == id && s.state == state) {
-                return Some((s.detail.clone(), start.elapsed()));
-            }
-        }
-    }
-    None
-}
-
-/// (seq, rotations) of every frame of subject `id` received for `secs`.
-async fn frames_of(ws: &mut Ws, id: u32, secs: f64) -> Vec<(u64, Vec<glam::Quat>)> {
-    let mut out = Vec::new();
-    let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
-    while let Some(left) = end.checked_duration_since(std::time::Instant::now()) {
-        match next(ws, left).await {
-            Some(Incoming::Frame(f, _)) if f.header.subject == id => {
-                out.push((f.header.seq, f.rotations))
-            }
-            Some(_) => {}
-            None => break,
-        }
-    }
-    out
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn nodes_that_start_later_are_found_and_a_clean_stop_is_a_loss() {
-    let Some(bin) = nats_server() else { return };
-    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
-        .await
-        .unwrap();
+    let Some(nats) = one_nats_server().await else {
+        return;
+    };
     let args = |site: &str| -> Vec<String> {
         ["--nats", &nats.urls(), "--site", site, "--source", "demo"]
             .map(String::from)
@@ -276,7 +227,7 @@ async fn nodes_that_start_later_are_found_and_a_clean_stop_is_a_loss() {
     // A stops cleanly (Ctrl-C): it removes its entries, and W says so at once.
     // SAFETY: kill(2) on a child process id this test started.
     assert_eq!(unsafe { libc::kill(a.pid() as i32, libc::SIGINT) }, 0);
-    let lost = wait_state(&mut ww, id, SourceState::Lost, Duration::from_secs(3)).await;
+    let lost = wait_state(&mut ww, id, SourceState::Lost, "", Duration::from_secs(3)).await;
     println!("A stopped: {lost:?}");
     let (detail, after) = lost.expect("lost on W");
     assert!(detail.contains("removed"), "{detail}");
@@ -285,7 +236,7 @@ async fn nodes_that_start_later_are_found_and_a_clean_stop_is_a_loss() {
 
     // A again: the same subject on W is live again, not a second one.
     let a = spawn_node_with_token(args("a"), "disc-a", None).await;
-    let live = wait_state(&mut ww, id, SourceState::Live, Duration::from_secs(5)).await;
+    let live = wait_state(&mut ww, id, SourceState::Live, "", Duration::from_secs(5)).await;
     println!("A restarted: {live:?}");
     assert!(live.is_some());
     let (_, sw) = client_with(&w, None).await;
@@ -303,10 +254,9 @@ async fn cluster_status(p: &rigcast_tests::ServeProcess) -> serde_json::Value {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_mapping_computed_on_one_node_is_taken_by_the_next() {
-    let Some(bin) = nats_server() else { return };
-    let nats = tokio::task::spawn_blocking(move || NatsCluster::start_n(&bin, 1))
-        .await
-        .unwrap();
+    let Some(nats) = one_nats_server().await else {
+        return;
+    };
     // Same walk onto the same character on both nodes; no disk cache, so only the
     // cluster's cache can spare B the computation.
     let args = |site: &str| -> Vec<String> {
