@@ -64,41 +64,41 @@ enum End {
 
 type Sink<S> = SplitSink<WebSocketStream<S>, Message>;
 
-/// Sends one message, giving up after `stall`: a client that reads nothing at all must not
-/// hold its task (and its buffers) forever.
+/// Runs one write operation on the sink, giving up after `stall`: a client that reads nothing
+/// at all must not hold its task (and its buffers) forever.
+async fn within<F, E>(stall: Duration, op: F) -> Result<(), End>
+where
+    F: std::future::Future<Output = Result<(), E>>,
+{
+    match tokio::time::timeout(stall, op).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(_)) => Err(End::Transport),
+        Err(_) => Err(End::Stalled),
+    }
+}
+
+/// Sends one message (see [`within`]).
 async fn send<S>(sink: &mut Sink<S>, msg: Message, stall: Duration) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    match tokio::time::timeout(stall, sink.send(msg)).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(_)) => Err(End::Transport),
-        Err(_) => Err(End::Stalled),
-    }
+    within(stall, sink.send(msg)).await
 }
 
-/// Queues one message without writing it yet (see [`flush`]), giving up after `stall`.
+/// Queues one message without writing it yet (see [`flush`]).
 async fn feed<S>(sink: &mut Sink<S>, msg: Message, stall: Duration) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    match tokio::time::timeout(stall, sink.feed(msg)).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(_)) => Err(End::Transport),
-        Err(_) => Err(End::Stalled),
-    }
+    within(stall, sink.feed(msg)).await
 }
 
-/// Writes what [`feed`] queued, giving up after `stall`.
+/// Writes what [`feed`] queued.
 async fn flush<S>(sink: &mut Sink<S>, stall: Duration) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    match tokio::time::timeout(stall, sink.flush()).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(_)) => Err(End::Transport),
-        Err(_) => Err(End::Stalled),
-    }
+    within(stall, sink.flush()).await
 }
 
 /// Requests a session may have waiting for other nodes' answers at once.

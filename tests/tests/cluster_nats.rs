@@ -90,6 +90,23 @@ fn compare(
     matched
 }
 
+/// Waits on two clients at once (5 s at most) for their subject to reach `state`; how long
+/// each took.
+async fn on_both(
+    wb: &mut Ws,
+    b: u32,
+    wc: &mut Ws,
+    c: u32,
+    state: SourceState,
+) -> [Option<Duration>; 2] {
+    let limit = Duration::from_secs(5);
+    let (on_b, on_c) = tokio::join!(
+        wait_state(wb, b, state, "", limit),
+        wait_state(wc, c, state, "", limit)
+    );
+    [on_b.map(|(_, d)| d), on_c.map(|(_, d)| d)]
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn three_nodes_share_subjects_through_a_nats_cluster() {
     let Some(bin) = nats_server() else { return };
@@ -169,68 +186,25 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     let demo_b = sb["demo@a"].id;
     let demo_c = sc["demo@a"].id;
     drop(a);
-    let (lost_b, lost_c) = tokio::join!(
-        wait_state(
-            &mut wb,
-            demo_b,
-            SourceState::Lost,
-            "",
-            Duration::from_secs(3)
-        ),
-        wait_state(
-            &mut wc,
-            demo_c,
-            SourceState::Lost,
-            "",
-            Duration::from_secs(3)
-        )
-    );
-    println!("A killed: lost on B after {lost_b:?}, on C after {lost_c:?}");
-    assert!(
-        lost_b
-            .as_ref()
-            .is_some_and(|(_, d)| *d <= Duration::from_secs(1)),
-        "B: {lost_b:?}"
-    );
-    assert!(
-        lost_c
-            .as_ref()
-            .is_some_and(|(_, d)| *d <= Duration::from_secs(1)),
-        "C: {lost_c:?}"
-    );
+    let lost = on_both(&mut wb, demo_b, &mut wc, demo_c, SourceState::Lost).await;
+    println!("A killed: lost on B and C after {lost:?}");
+    for (node, after) in ["B", "C"].iter().zip(lost) {
+        assert!(
+            after.is_some_and(|d| d <= Duration::from_secs(1)),
+            "{node}: {after:?}"
+        );
+    }
 
     // A comes back: live again on B and C within 2 s of it serving.
     let a = spawn_node(a_args, "a").await;
-    let (live_b, live_c) = tokio::join!(
-        wait_state(
-            &mut wb,
-            demo_b,
-            SourceState::Live,
-            "",
-            Duration::from_secs(5)
-        ),
-        wait_state(
-            &mut wc,
-            demo_c,
-            SourceState::Live,
-            "",
-            Duration::from_secs(5)
-        )
-    );
-    println!("A restarted: live on B after {live_b:?}, on C after {live_c:?}");
-
-    assert!(
-        live_b
-            .as_ref()
-            .is_some_and(|(_, d)| *d <= Duration::from_secs(2)),
-        "B: {live_b:?}"
-    );
-    assert!(
-        live_c
-            .as_ref()
-            .is_some_and(|(_, d)| *d <= Duration::from_secs(2)),
-        "C: {live_c:?}"
-    );
+    let live = on_both(&mut wb, demo_b, &mut wc, demo_c, SourceState::Live).await;
+    println!("A restarted: live on B and C after {live:?}");
+    for (node, after) in ["B", "C"].iter().zip(live) {
+        assert!(
+            after.is_some_and(|d| d <= Duration::from_secs(2)),
+            "{node}: {after:?}"
+        );
+    }
 
     // One NATS server dies: the streams go on (clients fail over to the others).
     nats.kill(0);
