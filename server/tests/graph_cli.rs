@@ -11,14 +11,12 @@ use std::process::{Command, Output};
 
 use rigcast_sources::load_clip;
 
+#[path = "../../sources/tests/common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data_dir;
+
 fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.join("bvh/cmu_31joint_example.bvh").exists() {
-        Some(p)
-    } else {
-        println!("SKIP: real clips not found ({}/bvh)", p.display());
-        None
-    }
+    shared_data_dir("bvh/cmu_31joint_example.bvh", "real clips")
 }
 
 fn rigcast(args: &[&str], cache: &Path) -> Output {

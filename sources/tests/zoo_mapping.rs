@@ -20,6 +20,10 @@ use rigcast_retarget::{BoneId, Clip, Pose, RawBone, RawSkeleton, Skeleton};
 use rigcast_sources::load_clip;
 use serde_json::Value;
 
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data_dir;
+
 /// The humanoid roles the acceptance counts (sided ones get `.L` / `.R` in the labels).
 const CORE: &[&str] = &[
     "hips", "spine", "chest", "neck", "head", "shoulder", "upperArm", "lowerArm", "hand",
@@ -38,13 +42,7 @@ const QUAD_LEGS: &[&str] = &[
 ];
 
 fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.join("labels.json").exists() {
-        Some(p)
-    } else {
-        println!("SKIP: real rigs not found ({}/labels.json)", p.display());
-        None
-    }
+    shared_data_dir("labels.json", "real rigs")
 }
 
 /// One labelled file: its clip and its role → acceptable bone names.

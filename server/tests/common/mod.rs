@@ -6,19 +6,10 @@ use std::ffi::OsStr;
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-/// Path of a file in the shared test data (`/work/shared/data/<relative>`), or `None` with a
-/// printed reason when it is absent (the data is not committed).
-pub fn shared_data(relative: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(relative);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("SKIP: test data {} not found", p.display());
-        None
-    }
-}
+#[path = "../../../sources/tests/common/shared_data.rs"]
+mod shared_data;
+#[allow(unused_imports)] // not every test file uses every helper
+pub use shared_data::{shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
 
 /// `source` retarget onto `target` offline with `plan`'s own options (default root motion),
 /// its feet locked when `lock`: what the foot-lock tests compare, locked against free.
