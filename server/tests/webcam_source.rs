@@ -2,6 +2,8 @@
 //! real binary refuses with an error that says how to rebuild, instead of failing obscurely.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 #[cfg(not(feature = "webcam"))]
 #[test]
 fn webcam_without_the_feature_says_how_to_rebuild() {
@@ -29,8 +31,7 @@ fn webcam_without_the_feature_says_how_to_rebuild() {
         "{err}"
     );
     // A config file names the same source kind and gets the same answer.
-    let dir = std::env::temp_dir().join(format!("rigcast-webcam-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::test_dir("webcam");
     let cfg = dir.join("rigcast.toml");
     std::fs::write(
         &cfg,

@@ -11,6 +11,14 @@ mod shared_data;
 #[allow(unused_imports)] // not every test file uses every helper
 pub use shared_data::{shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
 
+/// A folder of this test run's own under the system's temporary folder
+/// (`rigcast-NAME-PID`), created.
+pub fn test_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rigcast-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("create the test folder");
+    dir
+}
+
 /// `source` retarget onto `target` offline with `plan`'s own options (default root motion),
 /// its feet locked when `lock`: what the foot-lock tests compare, locked against free.
 pub fn retarget(
