@@ -13,8 +13,6 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::graph::body::BodyPoints;
-use rigcast_retarget::graph::features::{ClipFeatures, ClipTrack};
 use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::search::{find_similar, find_similar_exhaustive, SearchParams};
 use rigcast_retarget::graph::walk::shortest_walk;
@@ -24,14 +22,14 @@ use rigcast_retarget::graph::{
 use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
 use rigcast_sources::{load_clip_with, LoadOptions};
 
+#[path = "common/graph_features.rs"]
+mod graph_features;
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data_dir;
+
 fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.join("bvh/cmu_131_01_walk.bvh").exists() {
-        Some(p)
-    } else {
-        println!("SKIP: real clips not found ({}/bvh)", p.display());
-        None
-    }
+    shared_data_dir("bvh/cmu_131_01_walk.bvh", "real clips")
 }
 
 fn load(dir: &Path, file: &str, animation: Option<&str>) -> Clip {
@@ -121,16 +119,7 @@ fn pruned_search_finds_the_exhaustive_transitions() {
     ];
     let s = GraphSettings::default();
     let ft = clips[0].frame_time_secs;
-    let features: Vec<ClipFeatures> = clips
-        .iter()
-        .map(|c| {
-            let a = analyze(&SkeletonView::from_clip(&c.skeleton, &c.poses));
-            let body = BodyPoints::find(&a).expect("humanoid");
-            let track = ClipTrack::measure(&c.skeleton, &body, &c.poses);
-            let half = GraphSettings::frames(s.window_secs / 2.0, ft, 1);
-            ClipFeatures::compute(&track, half, ft as f32, s.velocity_weight_secs)
-        })
-        .collect();
+    let features = graph_features::clip_features(&clips, &s);
     let p = SearchParams {
         stride: GraphSettings::frames(s.coarse_step_secs, ft, 1),
         radius: GraphSettings::frames(s.minimum_radius_secs, ft, 2),
