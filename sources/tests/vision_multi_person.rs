@@ -10,7 +10,7 @@
 #[path = "vision_common.rs"]
 mod common;
 
-use common::{assets_or_skip, cv};
+use common::{assert_sides_never_swap, assets_or_skip, cv};
 use glam::{Vec2, Vec3};
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
@@ -169,22 +169,7 @@ fn check_cameras(test: &str, cameras: &[u32]) {
                     failures.push(format!("cam{cam} #{slot} {name} cv {c:.3}"));
                 }
             }
-            for w in person.frames.windows(2) {
-                let (Some(p), Some(c)) = (&w[0], &w[1]) else {
-                    continue;
-                };
-                for (l, r) in [
-                    (idx::LEFT_HIP, idx::RIGHT_HIP),
-                    (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
-                ] {
-                    let before = p.world[l] - p.world[r];
-                    let after = c.world[l] - c.world[r];
-                    assert!(
-                        before.dot(after) > 0.0,
-                        "{report}: #{slot} sides swapped ({before} → {after})"
-                    );
-                }
-            }
+            assert_sides_never_swap(&person.frames, &format!("{report}: #{slot}"));
         }
         eprintln!("{report}");
     }
