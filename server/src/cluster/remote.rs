@@ -16,7 +16,7 @@ use glam::{Quat, Vec3};
 use rigcast_protocol::frame::{decode_any_into, decode_header_any, frame_len, FrameHeader};
 use rigcast_protocol::SourceState;
 use rigcast_retarget::{Pose, Skeleton};
-use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, SourceError, SourceStatus};
+use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, NextFrame, SourceStatus};
 use tokio_tungstenite::tungstenite::Bytes;
 
 use rigcast_protocol::control::BoneInfo;
@@ -219,11 +219,7 @@ impl LiveSource for RemoteSource {
         Some(self.skeleton.clone())
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         self.apply_changes();
         match self.rx.recv_timeout(timeout) {
             Ok(_) if self.absent => {}
