@@ -235,6 +235,14 @@ impl DevTools {
         png
     }
 
+    /// Page exceptions seen so far.
+    pub fn thrown(&self) -> Vec<&Value> {
+        self.events
+            .iter()
+            .filter(|e| e["method"] == "Runtime.exceptionThrown")
+            .collect()
+    }
+
     /// Page exceptions and error-level log entries seen so far.
     pub fn errors(&self) -> Vec<&Value> {
         self.events
@@ -245,4 +253,15 @@ impl DevTools {
             })
             .collect()
     }
+}
+
+/// One browser at a time in a test binary: the frame rates a test measures must not compete
+/// with another browser of the same file.
+static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
+/// Chromium (or `None`, with a printed reason, when it is not installed) and the test binary's
+/// one-browser lock, held as long as the guard lives.
+pub async fn one_browser() -> Option<(PathBuf, tokio::sync::MutexGuard<'static, ()>)> {
+    let chromium = crate::find_app("chromium")?;
+    Some((chromium, ONE_BROWSER.lock().await))
 }

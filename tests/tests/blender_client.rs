@@ -759,12 +759,7 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
                     name.as_str(),
                     "{name}: curve not grouped by bone"
                 );
-                let frames: Vec<f64> = curve["frames"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|f| f.as_f64().unwrap())
-                    .collect();
+                let frames = rigcast_tests::f64s(&curve["frames"]);
                 assert!(
                     frames.iter().all(|f| f.fract() == 0.0),
                     "{name}: keys off whole frames"
@@ -794,14 +789,7 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             // Keys are unit quaternions.
             let values: Vec<Vec<f64>> = curves
                 .iter()
-                .map(|c| {
-                    c["values"]
-                        .as_array()
-                        .unwrap()
-                        .iter()
-                        .map(|v| v.as_f64().unwrap())
-                        .collect()
-                })
+                .map(|c| rigcast_tests::f64s(&c["values"]))
                 .collect();
             for k in 0..values[0].len() {
                 let norm = values.iter().map(|c| c[k] * c[k]).sum::<f64>().sqrt();

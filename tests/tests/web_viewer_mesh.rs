@@ -19,14 +19,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
-use rigcast_tests::chromium::DevTools;
-use rigcast_tests::{find_app, http_get, repo_root, shared_data};
+use rigcast_tests::chromium::{one_browser, DevTools};
+use rigcast_tests::{http_get, repo_root, shared_data};
 use serde_json::{json, Value};
 
 const XBOT: &str = "zoo/gltf/mixamo_gltf__Xbot.glb";
-
-/// One browser at a time: the frame-rate figures must not compete with another browser.
-static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
 /// The demo driving `targets` (subjects 1, 2, …) and the built-in mannequin (no model).
 async fn serve(targets: &[&Path]) -> rigcast_server::ServerHandle {
@@ -110,10 +107,9 @@ fn save(name: &str, png: &[u8]) -> PathBuf {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_draws_the_glb_target_skinned() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     // X Bot when the shared characters are here, else a skinned GLB of the mannequin made
     // by the tests (tests/src/skinned.rs).
     let fixture_dir = rigcast_tests::temp_path("skinned");
@@ -306,10 +302,9 @@ fn xbot_as_vrm(glb: &[u8]) -> Vec<u8> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_draws_a_vrm_target_through_three_vrm() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let Some(xbot) = shared_data(XBOT) else {
         return;
     };
@@ -385,10 +380,9 @@ async fn model_requests_without_a_model_are_404s_that_say_why() {
 /// subject list says why; the page throws nothing.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let skeleton = rigcast_server::character::builtin("mannequin").unwrap();
     let glb = rigcast_tests::skinned::skinned_glb(&skeleton);
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
@@ -443,11 +437,7 @@ async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
         page["note"].as_str().unwrap().contains("not shown"),
         "{page}"
     );
-    let thrown: Vec<&Value> = cdp
-        .events
-        .iter()
-        .filter(|e| e["method"] == "Runtime.exceptionThrown")
-        .collect();
+    let thrown = cdp.thrown();
     assert!(thrown.is_empty(), "page threw: {thrown:?}");
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);

@@ -14,21 +14,18 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_server::{PerformerSpec, ServerConfig};
-use rigcast_tests::chromium::DevTools;
-use rigcast_tests::{clip_source, find_app, send_vmc_pose, shared_data};
+use rigcast_tests::chromium::{one_browser, DevTools};
+use rigcast_tests::{clip_source, send_vmc_pose, shared_data};
 use serde_json::json;
-
-static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_marks_planted_feet() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
     let Some(walk) = shared_data("bvh/cmu_131_01_walk.bvh") else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let clip = rigcast_sources::load_clip(&walk).unwrap();
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
@@ -68,30 +65,15 @@ async fn viewer_marks_planted_feet() {
             assert_eq!(visible, live && m["planted"].as_bool().unwrap(), "{m}");
             seen.insert((m["bone"].as_str().unwrap().to_string(), visible));
             if visible {
-                let p: Vec<f64> = m["position"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_f64().unwrap())
-                    .collect();
-                let j: Vec<f64> = m["joint"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_f64().unwrap())
-                    .collect();
+                let p = rigcast_tests::f64s(&m["position"]);
+                let j = rigcast_tests::f64s(&m["joint"]);
                 // On the floor, under the foot's drawn joint (the page may have drawn a newer
                 // pose than the message's; a planted foot does not move).
                 assert!(
                     (p[1] - m["floor"].as_f64().unwrap()).abs() < 0.01,
                     "marker off the floor: {m}"
                 );
-                let q: Vec<f64> = m["message"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_f64().unwrap())
-                    .collect();
+                let q = rigcast_tests::f64s(&m["message"]);
                 let horizontal = ((p[0] - j[0]).powi(2) + (p[2] - j[2]).powi(2)).sqrt();
                 // The message's position is where the foot stood when it planted; the lock
                 // eases it onto its pin over ~0.1 s, a few centimetres. Only a pose drawn from
@@ -143,10 +125,9 @@ async fn viewer_marks_planted_feet() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_says_when_a_targets_source_is_lost() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let (server, to) = start_vmc_server(PerformerSpec::target_file("builtin:mannequin")).await;
     let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -238,40 +219,18 @@ fn spawn_sender(
     })
 }
 
-/// Builds an idle graph from the real CMU walk and run into a temporary `.rmg` file.
-fn build_idle_graph() -> Option<std::path::PathBuf> {
-    let paths = [
-        shared_data("bvh/cmu_131_01_walk.bvh")?,
-        shared_data("bvh/cmu_run.bvh")?,
-    ];
-    let clips: Vec<_> = paths
-        .iter()
-        .map(|p| rigcast_sources::load_clip(p).unwrap())
-        .collect();
-    let settings = rigcast_retarget::graph::GraphSettings::default();
-    let mut graph =
-        rigcast_retarget::graph::MotionGraph::build(&clips, settings, &mut |_| {}).unwrap();
-    for (c, p) in graph.clips.iter_mut().zip(&paths) {
-        c.path = Some(std::fs::canonicalize(p).unwrap().display().to_string());
-    }
-    let file = rigcast_tests::temp_path("viewer_idle.rmg");
-    std::fs::write(&file, graph.to_json()).unwrap();
-    Some(file)
-}
-
 /// A performer on an idle graph: each time its source is lost the target's label says so, and
 /// that it is on the idle graph, within 300 ms of saying "source lost" (the motion reaches the
 /// page as soon as the tick changes it, not with the next once-a-second status; polled every
 /// 20 ms here), and drops both when the sender returns.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_says_when_a_target_walks_its_idle_graph() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let Some(graph_file) = build_idle_graph() else {
+    let Some((graph_file, _)) = rigcast_tests::build_idle_graph("viewer_idle.rmg") else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let performer = PerformerSpec {
         on_lost: Some(rigcast_server::config::OnLost::Idle),
         idle_graph: Some(graph_file.clone()),
@@ -334,10 +293,9 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
 /// after which layouts no longer reframe it, until "reset view".
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_controls_pause_pick_follow_and_orbit() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let server = rigcast_tests::start_demo_server().await;
     let (browser, mut cdp) =
         DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
