@@ -380,42 +380,28 @@ mod tests {
             (None, vec!["spine".to_string()], Some(5))
         );
         assert_eq!(normalize("T8").tokens, vec!["spine"]);
-        // 3ds Max Biped, SMPL, Character Creator, RobotExpressive (no separator).
-        let n = normalize("Bip01 L Thigh");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["thigh".to_string()])
-        );
-        let n = normalize("m_avg_R_Knee");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Right), vec!["shin".to_string()])
-        );
-        let n = normalize("CC_Base_L_Upperarm");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["upperarm".to_string()])
-        );
-        let n = normalize("UpperArmL");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["upperarm".to_string()])
-        );
+        // 3ds Max Biped, SMPL, Character Creator, RobotExpressive (no separator), and MMD
+        // (Japanese): 左足 is the left thigh, 右ひじ the right forearm.
+        for (name, side, token) in [
+            ("Bip01 L Thigh", Side::Left, "thigh"),
+            ("m_avg_R_Knee", Side::Right, "shin"),
+            ("CC_Base_L_Upperarm", Side::Left, "upperarm"),
+            ("UpperArmL", Side::Left, "upperarm"),
+            ("左足", Side::Left, "thigh"),
+            ("右ひじ", Side::Right, "forearm"),
+        ] {
+            let n = normalize(name);
+            assert_eq!(
+                (n.side, n.tokens),
+                (Some(side), vec![token.to_string()]),
+                "{name}"
+            );
+        }
         // Kinect: side word at the end, a tip is an end marker.
         let n = normalize("HandTipLeft");
         assert_eq!(n.side, Some(Side::Left));
         assert!(n.helper);
-        // MMD (Japanese): 左足 is the left thigh, 右ひじ the right forearm, 上半身 the chest.
-        let n = normalize("左足");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["thigh".to_string()])
-        );
-        let n = normalize("右ひじ");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Right), vec!["forearm".to_string()])
-        );
+        // MMD: 左足首 is the left foot, 上半身 the chest.
         assert_eq!(normalize("左足首").tokens, vec!["foot"]);
         assert_eq!(normalize("上半身").tokens, vec!["chest"]);
         assert!(normalize("左足ＩＫ").helper);
