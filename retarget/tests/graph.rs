@@ -2,6 +2,8 @@
 //! join frames a whole number of periods apart, walks must reach their goal with joins under
 //! the threshold and a continuous root path, and files must round-trip and refuse damage.
 
+#[path = "common/positions.rs"]
+mod positions;
 mod retarget_fixtures;
 
 use std::f32::consts::TAU;
@@ -14,7 +16,7 @@ use rigcast_retarget::graph::walk::shortest_walk;
 use rigcast_retarget::graph::{
     timed_walk, GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker,
 };
-use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
+use rigcast_retarget::{Clip, Pose, Skeleton};
 
 const FPS: f32 = 60.0;
 /// Period of the generated gait, frames.
@@ -128,15 +130,7 @@ fn shortest_walk_reaches_the_goal_through_cheap_joins() {
 
 /// Largest per-frame move of the root, and of any joint, over `poses`.
 fn largest_steps(skel: &Skeleton, poses: &[Pose]) -> (f32, f32) {
-    let worlds: Vec<Vec<Vec3>> = poses
-        .iter()
-        .map(|p| {
-            world_transforms(skel, p)
-                .iter()
-                .map(|w| w.translation)
-                .collect()
-        })
-        .collect();
+    let worlds = positions::joint_positions(skel, poses);
     let mut root: f32 = 0.0;
     let mut joint: f32 = 0.0;
     for w in worlds.windows(2) {

@@ -19,11 +19,14 @@ use rigcast_retarget::graph::walk::shortest_walk;
 use rigcast_retarget::graph::{
     timed_walk, GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker,
 };
-use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
+use rigcast_retarget::{Clip, Pose};
 use rigcast_sources::{load_clip_with, LoadOptions};
 
 #[path = "common/graph_features.rs"]
 mod graph_features;
+#[path = "../../retarget/tests/common/positions.rs"]
+mod positions;
+use positions::joint_positions as joints;
 #[path = "common/shared_data.rs"]
 mod shared_data;
 use shared_data::shared_data_dir;
@@ -151,19 +154,6 @@ fn pruned_search_finds_the_exhaustive_transitions() {
     for f in &fast {
         assert!(all.iter().any(|e| e.a == f.a && e.b == f.b), "{f:?}");
     }
-}
-
-/// World joint positions of every frame.
-fn joints(skel: &Skeleton, poses: &[Pose]) -> Vec<Vec<Vec3>> {
-    poses
-        .iter()
-        .map(|p| {
-            world_transforms(skel, p)
-                .iter()
-                .map(|w| w.translation)
-                .collect()
-        })
-        .collect()
 }
 
 /// Largest change of any joint's per-frame velocity at frame `t` (between the steps
