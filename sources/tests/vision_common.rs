@@ -10,6 +10,16 @@ use rigcast_sources::vision::{
     FfmpegSource, FrameSource, Landmarks, PipelineConfig, PosePipeline, RgbFrame, VisionAssets,
 };
 
+/// Limb segments whose length must stay constant: (name, joint a, joint b).
+pub const SEGMENTS: [(&str, usize, usize); 6] = [
+    ("left upper arm", idx::LEFT_SHOULDER, idx::LEFT_ELBOW),
+    ("right upper arm", idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW),
+    ("left thigh", idx::LEFT_HIP, idx::LEFT_KNEE),
+    ("right thigh", idx::RIGHT_HIP, idx::RIGHT_KNEE),
+    ("left shin", idx::LEFT_KNEE, idx::LEFT_ANKLE),
+    ("right shin", idx::RIGHT_KNEE, idx::RIGHT_ANKLE),
+];
+
 /// The installed assets, or `None` (with a printed reason) when `RIGCAST_SKIP_VISION=1`.
 /// Without the setup it fails with the command to run.
 pub fn assets_or_skip(test: &str) -> Option<VisionAssets> {

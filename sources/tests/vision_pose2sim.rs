@@ -7,19 +7,9 @@ mod common;
 
 use common::{
     assert_sides_never_swap, assets_or_skip, cv, default_config_or_skip, run_video, run_video_raw,
+    SEGMENTS,
 };
-use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{InputRange, PipelineConfig};
-
-/// Limb segments whose length must stay constant: (name, joint a, joint b).
-const SEGMENTS: [(&str, usize, usize); 6] = [
-    ("left upper arm", idx::LEFT_SHOULDER, idx::LEFT_ELBOW),
-    ("right upper arm", idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW),
-    ("left thigh", idx::LEFT_HIP, idx::LEFT_KNEE),
-    ("right thigh", idx::RIGHT_HIP, idx::RIGHT_KNEE),
-    ("left shin", idx::LEFT_KNEE, idx::LEFT_ANKLE),
-    ("right shin", idx::RIGHT_KNEE, idx::RIGHT_ANKLE),
-];
 
 #[test]
 fn pose2sim_landmarks_are_complete_stable_and_never_swap_sides() {
