@@ -89,6 +89,11 @@ struct Mocap {
     pb: Playback,
 }
 
+/// [`mocap_graph`] of the shared data, or `None` (with a printed reason) when it is absent.
+fn real_mocap() -> Option<&'static Mocap> {
+    Some(mocap_graph(&data_dir()?))
+}
+
 fn mocap_graph(dir: &Path) -> &'static Mocap {
     static MOCAP: OnceLock<Mocap> = OnceLock::new();
     MOCAP.get_or_init(|| {
@@ -104,8 +109,8 @@ fn mocap_graph(dir: &Path) -> &'static Mocap {
 
 #[test]
 fn mocap_clips_build_one_graph_keeping_most_frames() {
-    let Some(dir) = data_dir() else { return };
-    let g = &mocap_graph(&dir).graph;
+    let Some(m) = real_mocap() else { return };
+    let g = &m.graph;
     assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64);
     for c in &g.clips {
         let kept = (c.offset..c.offset + c.frames).any(|n| g.is_kept(n));
@@ -280,8 +285,7 @@ fn start_and_goal(g: &MotionGraph) -> (usize, usize) {
 
 #[test]
 fn a_walk_between_two_poses_has_cheap_smooth_joins() {
-    let Some(dir) = data_dir() else { return };
-    let m = mocap_graph(&dir);
+    let Some(m) = real_mocap() else { return };
     let g = &m.graph;
     let (from, to) = start_and_goal(g);
     let path = shortest_walk(g, from, to).expect("a walk between the chosen poses");
@@ -310,8 +314,7 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
 
 #[test]
 fn timed_walks_arrive_on_the_asked_frame_with_smooth_joins() {
-    let Some(dir) = data_dir() else { return };
-    let m = mocap_graph(&dir);
+    let Some(m) = real_mocap() else { return };
     let g = &m.graph;
     let (from, to) = start_and_goal(g);
     let ft = g.frame_time_secs;
@@ -377,8 +380,7 @@ fn clip_of(g: &MotionGraph, node: usize) -> usize {
 /// unrestricted walker from the same start and seed, which leaves by choice.
 #[test]
 fn wandering_kept_in_a_clip_stays_in_it() {
-    let Some(dir) = data_dir() else { return };
-    let m = mocap_graph(&dir);
+    let Some(m) = real_mocap() else { return };
     let g = &m.graph;
     let mut restricted_clips = 0;
     for c in 0..g.clips.len() {
