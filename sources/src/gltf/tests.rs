@@ -294,22 +294,16 @@ fn malformed_gltf_gives_clear_errors() {
     .unwrap();
     assert!(matches!(e, SourceError::NoSkeleton), "{e}");
     // Accessor that overruns its buffer view.
-    let mut doc: Value = serde_json::from_slice(&hand_made()).unwrap();
-    doc["accessors"][1]["count"] = json!(600);
-    let e = read(&serde_json::to_vec(&doc).unwrap(), None)
-        .err()
-        .unwrap();
+    let e = read_edited(|doc| doc["accessors"][1]["count"] = json!(600));
     assert!(
         matches!(e, SourceError::BadAccessor { accessor: 1, .. }),
         "{e}"
     );
     // Accessor with the wrong type for its target.
-    let mut doc: Value = serde_json::from_slice(&hand_made()).unwrap();
-    doc["accessors"][2]["type"] = json!("VEC3");
-    doc["accessors"][2]["count"] = json!(2);
-    let e = read(&serde_json::to_vec(&doc).unwrap(), None)
-        .err()
-        .unwrap();
+    let e = read_edited(|doc| {
+        doc["accessors"][2]["type"] = json!("VEC3");
+        doc["accessors"][2]["count"] = json!(2);
+    });
     assert!(
         matches!(e, SourceError::BadAccessor { accessor: 2, .. }),
         "{e}"
@@ -460,4 +454,13 @@ fn hundreds_of_bad_accessors_give_a_short_summarised_error() {
     );
     assert!(message.contains("accessors[*].bufferView"), "{message}");
     assert!(message.contains("×300"), "{message}");
+}
+
+/// The error of reading [`hand_made`] with `edit` applied to its JSON.
+fn read_edited(edit: impl FnOnce(&mut Value)) -> SourceError {
+    let mut doc: Value = serde_json::from_slice(&hand_made()).unwrap();
+    edit(&mut doc);
+    read(&serde_json::to_vec(&doc).unwrap(), None)
+        .err()
+        .unwrap()
 }
