@@ -28,10 +28,9 @@ static GLOBAL: counting::Counting = counting::Counting;
 #[test]
 fn a_grafted_performer_ticks_without_allocating() {
     // A walk that travels (the bundled demo walks on the spot: its feet never stand still).
-    let Some(path) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some(walk) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let walk = rigcast_sources::load_clip(&path).unwrap();
     let target = Arc::new(rigcast_server::character::mannequin().unwrap());
     let map = |from: &rigcast_retarget::Skeleton, motion| {
         let table = auto_map(

@@ -30,6 +30,12 @@ pub fn shared_data(relative: &str) -> Option<PathBuf> {
     }
 }
 
+/// A clip of the shared test data, loaded, or `None` (with a printed reason) when absent.
+pub fn shared_clip(relative: &str) -> Option<rigcast_retarget::Clip> {
+    let path = shared_data(relative)?;
+    Some(rigcast_sources::load_clip(&path).expect("a shared clip loads"))
+}
+
 /// Paths of several files in the shared test data, or `None` when any is absent (with a printed
 /// reason for each one absent).
 pub fn shared_data_all<const N: usize>(relative: [&str; N]) -> Option<[PathBuf; N]> {
