@@ -14,16 +14,13 @@ use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions, RootMotion};
-use rigcast_server::config::{OnLost, VmcBoneNames};
+use rigcast_server::config::OnLost;
 use rigcast_server::engine::Subject;
 use rigcast_server::graft_live::LiveGraft;
 use rigcast_server::performer::{BuiltMapping, Performer};
 
 #[path = "common/counting.rs"]
 mod counting;
-
-#[global_allocator]
-static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn a_grafted_performer_ticks_without_allocating() {
@@ -56,15 +53,7 @@ fn a_grafted_performer_ticks_without_allocating() {
     let graft = LiveGraft::new(&upper, lower, &wa, &ta, Some(&walk)).unwrap();
     let stride = graft.gait.as_ref().unwrap().stride_secs();
     let (source, source_tx) = Subject::new(0, "walk".into(), walk.skeleton.clone());
-    let (t, target_tx) = Subject::with_kind(
-        1,
-        "target".into(),
-        target.clone(),
-        None,
-        vec![0],
-        VmcBoneNames::Humanoid,
-    );
-    let t = Arc::new(t);
+    let (t, target_tx) = common::target_subject(1, &target);
     let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
         mapping: upper,
         foot_lock,

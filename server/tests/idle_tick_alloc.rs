@@ -19,9 +19,6 @@ use rigcast_server::performer::{BuiltMapping, Performer};
 #[path = "common/counting.rs"]
 mod counting;
 
-#[global_allocator]
-static GLOBAL: counting::Counting = counting::Counting;
-
 #[test]
 fn walking_the_idle_graph_allocates_nothing() {
     // The graph: the procedural demo (a looping walk cycle), so no data files are needed.

@@ -10,16 +10,15 @@ use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions};
-use rigcast_server::config::{OnLost, VmcBoneNames};
+use rigcast_server::config::OnLost;
 use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
 use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
 
+mod common;
+
 #[path = "common/counting.rs"]
 mod counting;
-
-#[global_allocator]
-static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn tick_allocates_one_buffer_per_subject() {
@@ -51,15 +50,7 @@ fn tick_allocates_one_buffer_per_subject() {
         &RetargetOptions::default(),
     )
     .unwrap();
-    let (t, target_tx) = Subject::with_kind(
-        3,
-        "target".into(),
-        target.clone(),
-        None,
-        vec![0],
-        VmcBoneNames::Humanoid,
-    );
-    let t = Arc::new(t);
+    let (t, target_tx) = common::target_subject(3, &target);
     assert!(!t.shape().vmc.bones.is_empty());
     // With the foot lock, as the server runs a humanoid character by default.
     let foot_lock = FootLock::new(

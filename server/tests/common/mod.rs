@@ -19,6 +19,26 @@ pub fn test_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// Target subject `id` ("target") on `skeleton`, driven by subject 0, with humanoid VMC names;
+/// and the sender of its frames.
+pub fn target_subject(
+    id: u32,
+    skeleton: &std::sync::Arc<rigcast_retarget::Skeleton>,
+) -> (
+    std::sync::Arc<rigcast_server::engine::Subject>,
+    tokio::sync::watch::Sender<rigcast_retarget::Frame>,
+) {
+    let (subject, frames) = rigcast_server::engine::Subject::with_kind(
+        id,
+        "target".into(),
+        skeleton.clone(),
+        None,
+        vec![0],
+        rigcast_server::config::VmcBoneNames::Humanoid,
+    );
+    (std::sync::Arc::new(subject), frames)
+}
+
 /// `source` retarget onto `target` offline with `plan`'s own options (default root motion),
 /// its feet locked when `lock`: what the foot-lock tests compare, locked against free.
 pub fn retarget(
