@@ -225,6 +225,31 @@ impl DevTools {
         (browser, cdp)
     }
 
+    /// [`DevTools::open`] on the viewer that the server at `addr` serves.
+    pub async fn open_viewer(chromium: &Path, addr: std::net::SocketAddr) -> (Browser, DevTools) {
+        DevTools::open(chromium, &format!("http://{addr}/")).await
+    }
+
+    /// Evaluates `expression` every `poll` until it is `true`; false when `timeout` passes
+    /// first.
+    pub async fn wait_true(
+        &mut self,
+        expression: &str,
+        timeout: std::time::Duration,
+        poll: std::time::Duration,
+    ) -> bool {
+        let start = std::time::Instant::now();
+        loop {
+            if self.eval(expression).await == true {
+                return true;
+            }
+            if start.elapsed() >= timeout {
+                return false;
+            }
+            tokio::time::sleep(poll).await;
+        }
+    }
+
     /// A PNG screenshot of the page.
     pub async fn screenshot(&mut self) -> Vec<u8> {
         let shot = self

@@ -446,14 +446,14 @@ async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
         return;
     };
     let server = rigcast_tests::start_demo_server().await;
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     // Wait for the page's modules (budget.js is served with them).
-    let start = Instant::now();
-    while cdp.eval("typeof window.rigcast?.perf === 'function'").await != json!(true) {
-        assert!(start.elapsed() < Duration::from_secs(30), "viewer not up");
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
+    let up = "typeof window.rigcast?.perf === 'function'";
+    assert!(
+        cdp.wait_true(up, Duration::from_secs(30), Duration::from_millis(200))
+            .await,
+        "viewer not up"
+    );
     // A simulated clock: each display frame renders and takes `ms`; returns the level after.
     let steps = eval_async(
         &mut cdp,

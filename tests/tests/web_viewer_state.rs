@@ -34,18 +34,14 @@ async fn viewer_marks_planted_feet() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     // Markers show once the mannequin has drawn live poses.
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(30)
-        && cdp
-            .eval("window.rigcast?.views?.get(1)?.placedLive === true")
-            .await
-            != true
-    {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    cdp.wait_true(
+        "window.rigcast?.views?.get(1)?.placedLive === true",
+        Duration::from_secs(30),
+        Duration::from_millis(100),
+    )
+    .await;
     let mut seen = HashSet::new();
     let mut checked = 0;
     let mut worst = 0.0f64;
@@ -129,11 +125,8 @@ async fn viewer_says_when_a_targets_source_is_lost() {
         return;
     };
     let (server, to) = start_vmc_server(PerformerSpec::target_file("builtin:mannequin")).await;
-    let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sender = spawn_sender(to, sending.clone(), stop.clone());
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let sender = DemoSender::spawn(to);
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     let probe = "JSON.stringify((() => { const v = window.rigcast?.views?.get(1); return v ? { lost: v.lost, label: v.subjectLabel.textContent } : null; })())";
     let wait_for = |lost: bool| {
         let probe = probe.to_string();
@@ -157,16 +150,15 @@ async fn viewer_says_when_a_targets_source_is_lost() {
         }
     };
     let live = wait_for(false)(&mut cdp).await;
-    sending.store(false, std::sync::atomic::Ordering::Relaxed);
+    sender.set_sending(false);
     let lost = wait_for(true)(&mut cdp).await;
-    sending.store(true, std::sync::atomic::Ordering::Relaxed);
+    sender.set_sending(true);
     let back = wait_for(false)(&mut cdp).await;
     println!(
         "viewer: target label live {:?}, lost {:?}, back {:?}",
         live["label"], lost["label"], back["label"]
     );
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    sender.join().unwrap();
+    sender.stop();
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
@@ -196,27 +188,51 @@ async fn start_vmc_server(
     (server, to)
 }
 
-/// The sender: the demo clip, one pose set every 1/30 s while `sending`, until `stop`.
-fn spawn_sender(
-    to: std::net::SocketAddr,
+/// The sender: the demo clip, one pose set every 1/30 s while sending, until stopped.
+struct DemoSender {
     sending: std::sync::Arc<std::sync::atomic::AtomicBool>,
     stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-) -> std::thread::JoinHandle<()> {
-    let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
-    let names: Vec<String> = clip.skeleton.names().to_vec();
-    std::thread::spawn(move || {
-        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-        let mut enc = VmcEncoder::new();
-        let mut k = 0usize;
-        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-            if sending.load(std::sync::atomic::Ordering::Relaxed) {
-                let pose = &clip.poses[k % clip.poses.len()];
-                send_vmc_pose(&socket, to, &mut enc, &names, pose, k as f32 / 30.0);
-                k += 1;
+    thread: std::thread::JoinHandle<()>,
+}
+
+impl DemoSender {
+    /// Starts sending to `to`.
+    fn spawn(to: std::net::SocketAddr) -> DemoSender {
+        let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
+        let names: Vec<String> = clip.skeleton.names().to_vec();
+        let (on, stopped) = (sending.clone(), stop.clone());
+        let thread = std::thread::spawn(move || {
+            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            let mut enc = VmcEncoder::new();
+            let mut k = 0usize;
+            while !stopped.load(std::sync::atomic::Ordering::Relaxed) {
+                if on.load(std::sync::atomic::Ordering::Relaxed) {
+                    let pose = &clip.poses[k % clip.poses.len()];
+                    send_vmc_pose(&socket, to, &mut enc, &names, pose, k as f32 / 30.0);
+                    k += 1;
+                }
+                std::thread::sleep(Duration::from_millis(33));
             }
-            std::thread::sleep(Duration::from_millis(33));
+        });
+        DemoSender {
+            sending,
+            stop,
+            thread,
         }
-    })
+    }
+
+    /// Pauses (`false`) or resumes (`true`) sending.
+    fn set_sending(&self, on: bool) {
+        self.sending.store(on, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Stops the thread and waits for it.
+    fn stop(self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.thread.join().unwrap();
+    }
 }
 
 /// A performer on an idle graph: each time its source is lost the target's label says so, and
@@ -237,11 +253,8 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
         ..PerformerSpec::target_file("builtin:mannequin")
     };
     let (server, to) = start_vmc_server(performer).await;
-    let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sender = spawn_sender(to, sending.clone(), stop.clone());
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let sender = DemoSender::spawn(to);
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     let label = "window.rigcast?.views?.get(1)?.subjectLabel?.textContent ?? ''";
     // The first time the label satisfies `want`, polled every 20 ms for up to 20 s.
     async fn first(cdp: &mut DevTools, label: &str, want: impl Fn(&str) -> bool) -> Instant {
@@ -264,12 +277,12 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
     for i in 0..3 {
         let at = t0 + Duration::from_millis(1000 + 3333 * i);
         tokio::time::sleep_until(at.into()).await;
-        sending.store(false, std::sync::atomic::Ordering::Relaxed);
+        sender.set_sending(false);
         let lost = first(&mut cdp, label, |l| l.contains("source lost")).await;
         let idle = first(&mut cdp, label, |l| l.contains("idle graph")).await;
         let idle_ms = idle.duration_since(lost).as_secs_f64() * 1e3;
         let shown = cdp.eval(label).await;
-        sending.store(true, std::sync::atomic::Ordering::Relaxed);
+        sender.set_sending(true);
         first(&mut cdp, label, |l| {
             !l.is_empty() && !l.contains("source lost")
         })
@@ -278,8 +291,7 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
         worst_ms = worst_ms.max(idle_ms);
     }
     assert!(worst_ms <= 300.0, "idle graph label {worst_ms:.0} ms late");
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    sender.join().unwrap();
+    sender.stop();
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
@@ -297,14 +309,13 @@ async fn viewer_controls_pause_pick_follow_and_orbit() {
         return;
     };
     let server = rigcast_tests::start_demo_server().await;
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(30)
-        && cdp.eval("window.rigcast?.views?.get(1)?.placedLive === true && window.rigcast.views.get(0).placedLive === true").await != true
-    {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    cdp.wait_true(
+        "window.rigcast?.views?.get(1)?.placedLive === true && window.rigcast.views.get(0).placedLive === true",
+        Duration::from_secs(30),
+        Duration::from_millis(100),
+    )
+    .await;
     let pose = "JSON.stringify(window.rigcast.views.get(1).worldP.map(p => p.toArray()))";
     let frames = "window.rigcast.framesReceived";
 
