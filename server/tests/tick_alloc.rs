@@ -8,8 +8,6 @@ use std::sync::Arc;
 
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
-use rigcast_retarget::mapping::{auto_map, MapOptions};
-use rigcast_retarget::{Mapping, RetargetOptions};
 use rigcast_server::config::OnLost;
 use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
 use rigcast_server::performer::{BuiltMapping, Performer};
@@ -37,19 +35,8 @@ fn tick_allocates_one_buffer_per_subject() {
     }
     // A target subject (the built-in mannequin) retargeted from subject 0.
     let target = Arc::new(rigcast_server::character::mannequin().unwrap());
-    let table = auto_map(
-        &SkeletonView::rest(&clip.skeleton),
-        &SkeletonView::rest(&target),
-        &MapOptions::default(),
-    );
+    let (table, mapping) = common::rest_mapping(&clip.skeleton, &target);
     assert!(table.num_mapped() > 10);
-    let mapping = Mapping::build(
-        &[&clip.skeleton],
-        &target,
-        &table,
-        &RetargetOptions::default(),
-    )
-    .unwrap();
     let (t, target_tx) = common::target_subject(3, &target);
     assert!(!t.shape().vmc.bones.is_empty());
     // With the foot lock, as the server runs a humanoid character by default.

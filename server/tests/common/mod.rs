@@ -19,6 +19,31 @@ pub fn test_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// The automatic mapping of `source` onto `target`, both at rest, and the mapping built from it
+/// with the default options.
+pub fn rest_mapping(
+    source: &rigcast_retarget::Skeleton,
+    target: &rigcast_retarget::Skeleton,
+) -> (
+    rigcast_retarget::mapping::MappingTable,
+    rigcast_retarget::Mapping,
+) {
+    use rigcast_retarget::analysis::SkeletonView;
+    let table = rigcast_retarget::mapping::auto_map(
+        &SkeletonView::rest(source),
+        &SkeletonView::rest(target),
+        &rigcast_retarget::mapping::MapOptions::default(),
+    );
+    let mapping = rigcast_retarget::Mapping::build(
+        &[source],
+        target,
+        &table,
+        &rigcast_retarget::RetargetOptions::default(),
+    )
+    .expect("the rest mapping builds");
+    (table, mapping)
+}
+
 /// Target subject `id` ("target") on `skeleton`, driven by subject 0, with humanoid VMC names;
 /// and the sender of its frames.
 pub fn target_subject(
