@@ -1,7 +1,7 @@
 //! Tests against the shared real data set (skipped with a message when it is absent).
 #![allow(clippy::unwrap_used)]
 
-use rigcast_retarget::approx::vec_close;
+use rigcast_retarget::approx::{quat_close_precise as quat_close, vec_close};
 use rigcast_retarget::{world_transforms, Clip};
 use rigcast_sources::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
 
@@ -87,14 +87,6 @@ fn cmu_run_in_centimetres() {
     assert_eq!(r.scale, 0.01);
     assert_eq!(r.num_joints, 19);
     bvh_round_trip("bvh/cmu_run.bvh", 19, r.clip.num_frames(), r.clip.fps());
-}
-
-/// Rotation angle between two quaternions, accurate for tiny angles (acos of the dot is not);
-/// q and -q give the same |xyz|, so no sign handling is needed.
-fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
-    let d = a.conjugate() * b;
-    let angle = 2.0 * d.xyz().length().min(1.0).asin();
-    angle <= tol_rad
 }
 
 #[test]

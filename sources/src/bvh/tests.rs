@@ -1,6 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use glam::{Quat, Vec3};
-use rigcast_retarget::approx::vec_close;
+use rigcast_retarget::approx::{quat_close_precise as quat_close, vec_close};
 
 use super::*;
 use crate::error::SourceError;
@@ -227,14 +227,6 @@ fn every_prefix_fails_cleanly_or_parses() {
             assert_eq!(r.unwrap().clip.num_frames(), 2, "prefix of {cut} bytes");
         }
     }
-}
-
-/// Rotation angle between two quaternions, accurate for tiny angles (acos of the dot is not);
-/// q and -q give the same |xyz|, so no sign handling is needed.
-fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
-    let d = a.conjugate() * b;
-    let angle = 2.0 * d.xyz().length().min(1.0).asin();
-    angle <= tol_rad
 }
 
 #[test]
