@@ -216,13 +216,11 @@ fn refused(args: &[&str]) -> String {
 
 #[test]
 fn binary_rejects_bad_flags_with_clear_errors() {
-    let dir = common::test_dir("badflags");
-    let bad_toml = dir.join("bad.toml");
-    std::fs::write(
-        &bad_toml,
+    let bad_toml = common::test_file(
+        "badflags",
+        "bad.toml",
         "rate_hz = 60\n[[sources]]\nkind = \"teleport\"\n",
-    )
-    .unwrap();
+    );
     let bad_toml = bad_toml.to_str().unwrap();
     // (arguments, what stderr must name)
     let cases: &[(&[&str], &str)] = &[

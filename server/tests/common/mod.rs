@@ -19,6 +19,13 @@ pub fn test_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// `contents` written into the file `file` of [`test_dir`]`(dir)`; its path.
+pub fn test_file(dir: &str, file: &str, contents: &str) -> PathBuf {
+    let path = test_dir(dir).join(file);
+    std::fs::write(&path, contents).expect("write the test file");
+    path
+}
+
 /// The automatic mapping of `source` onto `target`, both at rest, and the mapping built from it
 /// with the default options.
 pub fn rest_mapping(
