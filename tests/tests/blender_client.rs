@@ -622,13 +622,8 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             let world = skeleton.fk(Some(frame));
             for (i, name) in skeleton.names.iter().enumerate() {
                 let got = &obs["heads"][name];
-                let (rest_rotation, rest_position) = rest[i];
-                let (rotation, position) = world[i];
-                // Head, tail and head+Z of each bone: rigid in the joint's frame.
-                for k in 0..3 {
-                    let rest_point = ours_from_blender(vec3(&rest_points[name][k]));
-                    let local = rest_rotation.inverse() * (rest_point - rest_position);
-                    let expected = blender_from_ours(position + rotation * local);
+                let expected = posed_points(&rest_points[name], rest[i], world[i]);
+                for (k, expected) in expected.into_iter().enumerate() {
                     let error = (vec3(&got[k]) - expected).length();
                     if error > worst_m {
                         worst_m = error;
@@ -865,16 +860,25 @@ fn pose_error(
     let world = skeleton.fk(Some(frame));
     let mut worst = 0.0f32;
     for (i, name) in skeleton.names.iter().enumerate() {
-        let (rest_rotation, rest_position) = rest[i];
-        let (rotation, position) = world[i];
-        for k in 0..3 {
-            let rest_point = ours_from_blender(vec3(&rest_points[name][k]));
-            let local = rest_rotation.inverse() * (rest_point - rest_position);
-            let expected = blender_from_ours(position + rotation * local);
+        let expected = posed_points(&rest_points[name], rest[i], world[i]);
+        for (k, expected) in expected.into_iter().enumerate() {
             worst = worst.max((vec3(&heads[name][k]) - expected).length());
         }
     }
     worst
+}
+
+/// Where a bone's three points Blender reports (head, tail and head + Z, at rest in
+/// `rest_points`) are when its joint moves from `rest` to `posed` (rotation, position): rigid
+/// in the joint's frame.
+fn posed_points(rest_points: &Value, rest: (Quat, Vec3), posed: (Quat, Vec3)) -> [Vec3; 3] {
+    let (rest_rotation, rest_position) = rest;
+    let (rotation, position) = posed;
+    std::array::from_fn(|k| {
+        let rest_point = ours_from_blender(vec3(&rest_points[k]));
+        let local = rest_rotation.inverse() * (rest_point - rest_position);
+        blender_from_ours(position + rotation * local)
+    })
 }
 
 /// A take that fails mid-recording stops alone, reported once; the live pose of every
