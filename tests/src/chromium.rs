@@ -230,6 +230,13 @@ impl DevTools {
         DevTools::open(chromium, &format!("http://{addr}/")).await
     }
 
+    /// The demo server (`start_demo_server`) and [`DevTools::open_viewer`] on its viewer.
+    pub async fn open_demo(chromium: &Path) -> (rigcast_server::ServerHandle, Browser, DevTools) {
+        let server = crate::start_demo_server().await;
+        let (browser, cdp) = DevTools::open_viewer(chromium, server.local_addr()).await;
+        (server, browser, cdp)
+    }
+
     /// Evaluates `expression` every `poll` until it is `true`; false when `timeout` passes
     /// first.
     pub async fn wait_true(

@@ -433,6 +433,22 @@ pub fn find_app(name: &str) -> Option<PathBuf> {
 
 /// Starts an in-process server exactly as `rigcast serve` without arguments would (the bundled
 /// walk `demo` and the built-in `mannequin` retargeted from it), but on 127.0.0.1:0.
+/// Starts `config` listening on 127.0.0.1:0 with one VMC source ([`vmc_performer`], lost
+/// after 0.25 s) as subject 0: the server, and the address to send VMC to.
+pub async fn start_vmc_server(
+    config: rigcast_server::ServerConfig,
+) -> (rigcast_server::ServerHandle, std::net::SocketAddr) {
+    let config = rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![vmc_performer(0.25)],
+        ..config
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
+    let to = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    (server, to)
+}
+
 pub async fn start_demo_server() -> rigcast_server::ServerHandle {
     let config = rigcast_server::ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),

@@ -93,10 +93,8 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     // The sender: the procedural humanoid, whose bones carry HumanBodyBones names.
     let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
     let names: Vec<String> = clip.skeleton.names().to_vec();
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
+    let (server, to) = start_vmc_server(ServerConfig {
         rate_hz: RATE,
-        sources: vec![rigcast_tests::vmc_performer(0.25)],
         // The output is compared with plain `Mapping::apply`: no foot lock on top (it is
         // judged in server/tests/foot_lock.rs).
         performers: vec![PerformerSpec {
@@ -104,10 +102,8 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
             ..PerformerSpec::target_file("builtin:mannequin")
         }],
         ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
-    let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    })
+    .await;
     let mut ws = connect(&server.stream_url()).await;
     let (hello, _) = handshake(&mut ws).await;
     let ServerMessage::Hello { subjects, .. } = hello else {
@@ -370,17 +366,13 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
 async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
     let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
     let names: Vec<String> = clip.skeleton.names().to_vec();
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
+    let (server, to) = start_vmc_server(ServerConfig {
         rate_hz: RATE,
-        sources: vec![rigcast_tests::vmc_performer(0.25)],
         performers: vec![PerformerSpec::target_file("builtin:mannequin")],
         on_lost: rigcast_server::config::OnLost::Hold,
         ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
-    let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    })
+    .await;
     let mut ws = connect(&server.stream_url()).await;
     handshake(&mut ws).await;
     let send_for = |millis: u64, moving: bool| {

@@ -445,8 +445,7 @@ async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let server = rigcast_tests::start_demo_server().await;
-    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let (server, browser, mut cdp) = DevTools::open_demo(&chromium).await;
     // Wait for the page's modules (budget.js is served with them).
     let up = "typeof window.rigcast?.perf === 'function'";
     assert!(

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::chromium::{one_browser, DevTools};
-use rigcast_tests::{clip_source, send_vmc_pose, shared_data};
+use rigcast_tests::{clip_source, send_vmc_pose, shared_data, start_vmc_server};
 use serde_json::json;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -124,7 +124,11 @@ async fn viewer_says_when_a_targets_source_is_lost() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let (server, to) = start_vmc_server(PerformerSpec::target_file("builtin:mannequin")).await;
+    let (server, to) = start_vmc_server(ServerConfig {
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    })
+    .await;
     let sender = DemoSender::spawn(to);
     let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     let probe = "JSON.stringify((() => { const v = window.rigcast?.views?.get(1); return v ? { lost: v.lost, label: v.subjectLabel.textContent } : null; })())";
@@ -163,29 +167,6 @@ async fn viewer_says_when_a_targets_source_is_lost() {
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
-}
-
-/// A server with one VMC source (lost after 0.25 s of silence) driving `performer`; the
-/// source's UDP address.
-async fn start_vmc_server(
-    performer: PerformerSpec,
-) -> (rigcast_server::ServerHandle, std::net::SocketAddr) {
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![rigcast_tests::vmc_performer(0.25)],
-        performers: vec![performer],
-        ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let (_, status) = rigcast_tests::http_get(server.local_addr(), "/v1/status").await;
-    let status: serde_json::Value = serde_json::from_str(&status).unwrap();
-    let vmc: std::net::SocketAddr = status["subjects"][0]["listen"]
-        .as_str()
-        .unwrap()
-        .parse()
-        .unwrap();
-    let to = format!("127.0.0.1:{}", vmc.port()).parse().unwrap();
-    (server, to)
 }
 
 /// The sender: the demo clip, one pose set every 1/30 s while sending, until stopped.
@@ -252,7 +233,11 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
         idle_graph: Some(graph_file.clone()),
         ..PerformerSpec::target_file("builtin:mannequin")
     };
-    let (server, to) = start_vmc_server(performer).await;
+    let (server, to) = start_vmc_server(ServerConfig {
+        performers: vec![performer],
+        ..ServerConfig::default()
+    })
+    .await;
     let sender = DemoSender::spawn(to);
     let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     let label = "window.rigcast?.views?.get(1)?.subjectLabel?.textContent ?? ''";
@@ -308,8 +293,7 @@ async fn viewer_controls_pause_pick_follow_and_orbit() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let server = rigcast_tests::start_demo_server().await;
-    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let (server, browser, mut cdp) = DevTools::open_demo(&chromium).await;
     cdp.wait_true(
         "window.rigcast?.views?.get(1)?.placedLive === true && window.rigcast.views.get(0).placedLive === true",
         Duration::from_secs(30),
