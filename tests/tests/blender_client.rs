@@ -47,23 +47,19 @@ fn ours_from_blender(p: Vec3) -> Vec3 {
     Vec3::new(p.x, p.z, -p.y)
 }
 
-fn vec3(v: &Value) -> Vec3 {
-    let a = v.as_array().expect("array");
-    Vec3::new(
-        a[0].as_f64().expect("x") as f32,
-        a[1].as_f64().expect("y") as f32,
-        a[2].as_f64().expect("z") as f32,
-    )
+/// The first `N` numbers of a JSON array.
+fn floats<const N: usize>(v: &Value) -> [f32; N] {
+    let a = rigcast_tests::f64s(v);
+    std::array::from_fn(|i| a[i] as f32)
 }
 
+fn vec3(v: &Value) -> Vec3 {
+    Vec3::from_array(floats(v))
+}
+
+/// `[x, y, z, w]`.
 fn quat(v: &Value) -> Quat {
-    let a = v.as_array().expect("array");
-    Quat::from_xyzw(
-        a[0].as_f64().expect("x") as f32,
-        a[1].as_f64().expect("y") as f32,
-        a[2].as_f64().expect("z") as f32,
-        a[3].as_f64().expect("w") as f32,
-    )
+    Quat::from_array(floats(v))
 }
 
 /// A skeleton as the client sees it on the wire.
