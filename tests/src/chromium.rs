@@ -257,6 +257,27 @@ impl DevTools {
         }
     }
 
+    /// Evaluates `expression` (a `JSON.stringify(...)`) every `poll` until `done` holds for its
+    /// value or `timeout` passes; the last value.
+    pub async fn poll_json(
+        &mut self,
+        expression: &str,
+        timeout: std::time::Duration,
+        poll: std::time::Duration,
+        done: impl Fn(&Value) -> bool,
+    ) -> Value {
+        let start = std::time::Instant::now();
+        let mut value = Value::Null;
+        while start.elapsed() < timeout {
+            value = self.eval_json(expression).await;
+            if done(&value) {
+                break;
+            }
+            tokio::time::sleep(poll).await;
+        }
+        value
+    }
+
     /// A PNG screenshot of the page.
     pub async fn screenshot(&mut self) -> Vec<u8> {
         let shot = self

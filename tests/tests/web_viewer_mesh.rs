@@ -16,7 +16,7 @@
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::chromium::{one_browser, DevTools};
@@ -47,19 +47,15 @@ async fn open_viewer(
     server: &rigcast_server::ServerHandle,
     id: u32,
 ) -> (rigcast_tests::chromium::Browser, DevTools, Value) {
-    let url = format!("http://{}/", server.local_addr());
-    let (browser, mut cdp) = DevTools::open(chromium, &url).await;
-    let start = Instant::now();
-    let mut meshes = Value::Null;
-    while start.elapsed() < Duration::from_secs(60) {
-        meshes = cdp
-            .eval_json("JSON.stringify(window.rigcast?.meshes ? window.rigcast.meshes() : {})")
-            .await;
-        if meshes[id.to_string()]["skinnedMeshes"].as_u64() > Some(0) {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(250)).await;
-    }
+    let (browser, mut cdp) = DevTools::open_viewer(chromium, server.local_addr()).await;
+    let meshes = cdp
+        .poll_json(
+            "JSON.stringify(window.rigcast?.meshes ? window.rigcast.meshes() : {})",
+            Duration::from_secs(60),
+            Duration::from_millis(250),
+            |m| m[id.to_string()]["skinnedMeshes"].as_u64() > Some(0),
+        )
+        .await;
     let errors = cdp
         .eval_json("JSON.stringify(Object.fromEntries(window.rigcast.modelErrors))")
         .await;
@@ -169,16 +165,13 @@ async fn viewer_draws_the_glb_target_skinned() {
     // Both skinned; then a few seconds of streaming: the page keeps up (newest frame wins,
     // renders leave it time to read the socket), so latency stays bounded instead of frames
     // queueing in the browser.
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(30) {
-        let m = cdp
-            .eval_json("JSON.stringify(window.rigcast.meshes())")
-            .await;
-        if m["2"]["skinnedMeshes"].as_u64() > Some(0) {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(250)).await;
-    }
+    cdp.poll_json(
+        "JSON.stringify(window.rigcast.meshes())",
+        Duration::from_secs(30),
+        Duration::from_millis(250),
+        |m| m["2"]["skinnedMeshes"].as_u64() > Some(0),
+    )
+    .await;
     tokio::time::sleep(Duration::from_secs(4)).await;
     let perf = cdp
         .eval_json(
@@ -407,19 +400,15 @@ async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
     std::fs::write(&path, out).unwrap();
 
     let server = serve(&[&path]).await;
-    let url = format!("http://{}/", server.local_addr());
-    let (browser, mut cdp) = DevTools::open(&chromium, &url).await;
-    let start = Instant::now();
-    let mut error = Value::Null;
-    while start.elapsed() < Duration::from_secs(30) {
-        error = cdp
-            .eval_json("JSON.stringify(window.rigcast?.modelErrors?.get(1) ?? null)")
-            .await;
-        if !error.is_null() {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let error = cdp
+        .poll_json(
+            "JSON.stringify(window.rigcast?.modelErrors?.get(1) ?? null)",
+            Duration::from_secs(30),
+            Duration::from_millis(200),
+            |e| !e.is_null(),
+        )
+        .await;
     let message = error
         .as_str()
         .unwrap_or_else(|| panic!("no model error reported: {error}"));
