@@ -1033,6 +1033,23 @@ fn blender_addon_unit_tests_pass() {
     assert!(log.contains(" passed, 0 failed"), "no test summary:\n{log}");
 }
 
+/// The add-on zip, built into `work` with the documented command (`build_zip.py --out`).
+fn build_zip(python3: &Path, work: &Path) -> PathBuf {
+    let zip = work.join("rigcast_livelink.zip");
+    let built = Command::new(python3)
+        .arg(repo_root().join("clients/blender/build_zip.py"))
+        .arg("--out")
+        .arg(&zip)
+        .output()
+        .expect("python3 runs");
+    assert!(
+        built.status.success() && zip.is_file(),
+        "build_zip.py failed: {}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    zip
+}
+
 /// The extensions platform's own validator (`blender_ext.py validate`, shipped inside Blender
 /// 4.2+) accepts the built zip's `blender_manifest.toml`, in 4.2, 4.5 and 5.0.
 #[test]
@@ -1041,18 +1058,7 @@ fn extension_manifest_passes_blenders_validator() {
         return;
     };
     let work = work_dir();
-    let zip = work.join("rigcast_livelink.zip");
-    let built = Command::new(&python3)
-        .arg(repo_root().join("clients/blender/build_zip.py"))
-        .arg("--out")
-        .arg(&zip)
-        .output()
-        .expect("python3 runs");
-    assert!(
-        built.status.success(),
-        "{}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let zip = build_zip(&python3, &work);
     for series in ["4.2", "4.5", "5.0"] {
         let Some(Blender::Module { python, .. }) = Blender::module(series) else {
             continue;
@@ -1286,18 +1292,7 @@ async fn zip_connects_to_the_rigcast_binary(blender: Blender) {
         return;
     };
     let work = work_dir();
-    let zip = work.join("rigcast_livelink.zip");
-    let built = Command::new(python)
-        .arg(repo_root().join("clients/blender/build_zip.py"))
-        .arg("--out")
-        .arg(&zip)
-        .output()
-        .expect("python3 runs");
-    assert!(
-        built.status.success() && zip.is_file(),
-        "build_zip.py failed: {}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let zip = build_zip(&python, &work);
 
     let binary = tokio::task::spawn_blocking(rigcast_binary).await.unwrap();
     let listen = format!("127.0.0.1:{}", free_port());
