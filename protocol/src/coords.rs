@@ -96,6 +96,13 @@ mod tests {
         vec![Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -1.2, 2.5)]
     }
 
+    /// `back(to(p)) == p` for every sample point.
+    fn assert_points_round_trip(to: fn(Vec3) -> Vec3, back: fn(Vec3) -> Vec3) {
+        for p in sample_points() {
+            assert_eq!(back(to(p)), p);
+        }
+    }
+
     #[test]
     fn unity_round_trip() {
         for q in sample_rotations() {
@@ -104,12 +111,7 @@ mod tests {
                 q
             );
         }
-        for p in sample_points() {
-            assert_eq!(
-                internal_from_unity_position(unity_from_internal_position(p)),
-                p
-            );
-        }
+        assert_points_round_trip(unity_from_internal_position, internal_from_unity_position);
     }
 
     #[test]
@@ -118,12 +120,10 @@ mod tests {
             let back = internal_from_blender_rotation(blender_from_internal_rotation(q));
             assert!((back - q).length() < 1e-7);
         }
-        for p in sample_points() {
-            assert_eq!(
-                internal_from_blender_position(blender_from_internal_position(p)),
-                p
-            );
-        }
+        assert_points_round_trip(
+            blender_from_internal_position,
+            internal_from_blender_position,
+        );
     }
 
     /// Rotating in our space then mirroring must equal mirroring then rotating in Unity space.
