@@ -348,11 +348,25 @@ pub fn similarity(a: &NameInfo, b: &NameInfo) -> f32 {
 mod tests {
     use super::*;
 
+    /// `name` normalizes to `side` and the one token `token`.
+    fn assert_side_and_token(name: &str, side: Side, token: &str) {
+        let n = normalize(name);
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(side), vec![token.to_string()]),
+            "{name}"
+        );
+    }
+
     #[test]
     fn sides_and_prefixes() {
-        let n = normalize("mixamorig:LeftUpLeg");
-        assert_eq!(n.side, Some(Side::Left));
-        assert_eq!(n.tokens, vec!["thigh"]);
+        for (name, side, token) in [
+            ("mixamorig:LeftUpLeg", Side::Left, "thigh"),
+            ("lThigh", Side::Left, "thigh"),
+            ("RightForeArm", Side::Right, "forearm"),
+        ] {
+            assert_side_and_token(name, side, token);
+        }
         let n = normalize("DEF-upper_arm.L.001");
         assert_eq!(n.side, Some(Side::Left));
         assert_eq!(n.tokens, vec!["upperarm"]);
@@ -360,12 +374,6 @@ mod tests {
         let n = normalize("upperarm_twist_01_r");
         assert_eq!(n.side, Some(Side::Right));
         assert!(n.helper);
-        let n = normalize("lThigh");
-        assert_eq!(n.side, Some(Side::Left));
-        assert_eq!(n.tokens, vec!["thigh"]);
-        let n = normalize("RightForeArm");
-        assert_eq!(n.side, Some(Side::Right));
-        assert_eq!(n.tokens, vec!["forearm"]);
         assert_eq!(normalize("calf_l").tokens, vec!["shin"]);
         assert_eq!(normalize("Spine").side, None);
         assert_eq!(normalize("j12").tokens, vec!["j"]);
@@ -390,12 +398,7 @@ mod tests {
             ("左足", Side::Left, "thigh"),
             ("右ひじ", Side::Right, "forearm"),
         ] {
-            let n = normalize(name);
-            assert_eq!(
-                (n.side, n.tokens),
-                (Some(side), vec![token.to_string()]),
-                "{name}"
-            );
+            assert_side_and_token(name, side, token);
         }
         // Kinect: side word at the end, a tip is an end marker.
         let n = normalize("HandTipLeft");
