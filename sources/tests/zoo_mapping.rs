@@ -670,7 +670,6 @@ fn folded(clip: &Clip) -> Clip {
         raw.bones[b.index()].rest =
             rigcast_retarget::Transform::from_translation(qp * skel.rest()[b.index()].translation);
     }
-    let new = Skeleton::build(&raw).unwrap();
     let poses = clip
         .poses
         .iter()
@@ -688,13 +687,7 @@ fn folded(clip: &Clip) -> Clip {
                 .collect(),
         })
         .collect();
-    Clip::new(
-        clip.name.clone(),
-        std::sync::Arc::new(new),
-        poses,
-        clip.frame_time_secs,
-    )
-    .unwrap()
+    rebuilt(clip, &raw, poses)
 }
 
 fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
@@ -709,6 +702,18 @@ fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
     }
 }
 
+/// `clip` with the skeleton `raw` and `poses` on it.
+fn rebuilt(clip: &Clip, raw: &RawSkeleton, poses: Vec<Pose>) -> Clip {
+    let skeleton = Skeleton::build(raw).unwrap();
+    Clip::new(
+        clip.name.clone(),
+        std::sync::Arc::new(skeleton),
+        poses,
+        clip.frame_time_secs,
+    )
+    .unwrap()
+}
+
 /// A way of rebuilding a clip (folded, turned).
 type Variant<'a> = &'a dyn Fn(&Clip) -> Clip;
 
@@ -721,7 +726,6 @@ fn turned(clip: &Clip, g: glam::Quat) -> Clip {
         r.translation = g * r.translation;
         r.rotation = g * r.rotation;
     }
-    let new = Skeleton::build(&raw).unwrap();
     let roots: Vec<BoneId> = skel.roots().collect();
     let poses = clip
         .poses
@@ -735,13 +739,7 @@ fn turned(clip: &Clip, g: glam::Quat) -> Clip {
             p
         })
         .collect();
-    Clip::new(
-        clip.name.clone(),
-        std::sync::Arc::new(new),
-        poses,
-        clip.frame_time_secs,
-    )
-    .unwrap()
+    rebuilt(clip, &raw, poses)
 }
 
 /// Every labelled human with animation, folded LaFAN1-style, still maps from every other
