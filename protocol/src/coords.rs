@@ -96,6 +96,29 @@ mod tests {
         vec![Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -1.2, 2.5)]
     }
 
+    /// Rotating a sample point in our space then converting it equals converting it then
+    /// rotating it by the converted rotation, for every sample rotation.
+    fn assert_rotation_commutes(position: fn(Vec3) -> Vec3, rotation: fn(Quat) -> Quat) {
+        for q in sample_rotations() {
+            let converted = rotation(q);
+            for p in sample_points() {
+                let ours_then_converted = position(q * p);
+                let converted_then_rotated = converted * position(p);
+                assert!(
+                    close(ours_then_converted, converted_then_rotated),
+                    "{q:?} {p:?}"
+                );
+            }
+        }
+    }
+
+    /// `back(to(p)) == p` for every sample point.
+    fn assert_points_round_trip(to: fn(Vec3) -> Vec3, back: fn(Vec3) -> Vec3) {
+        for p in sample_points() {
+            assert_eq!(back(to(p)), p);
+        }
+    }
+
     #[test]
     fn unity_round_trip() {
         for q in sample_rotations() {
@@ -104,12 +127,7 @@ mod tests {
                 q
             );
         }
-        for p in sample_points() {
-            assert_eq!(
-                internal_from_unity_position(unity_from_internal_position(p)),
-                p
-            );
-        }
+        assert_points_round_trip(unity_from_internal_position, internal_from_unity_position);
     }
 
     #[test]
@@ -118,12 +136,10 @@ mod tests {
             let back = internal_from_blender_rotation(blender_from_internal_rotation(q));
             assert!((back - q).length() < 1e-7);
         }
-        for p in sample_points() {
-            assert_eq!(
-                internal_from_blender_position(blender_from_internal_position(p)),
-                p
-            );
-        }
+        assert_points_round_trip(
+            blender_from_internal_position,
+            internal_from_blender_position,
+        );
     }
 
     /// Rotating in our space then mirroring must equal mirroring then rotating in Unity space.
@@ -131,14 +147,7 @@ mod tests {
     /// between the engines is only the handedness of the axes the numbers refer to.
     #[test]
     fn unity_rotation_commutes_with_mirror() {
-        for q in sample_rotations() {
-            let qu = unity_from_internal_rotation(q);
-            for p in sample_points() {
-                let ours_then_mirror = unity_from_internal_position(q * p);
-                let mirror_then_unity = qu * unity_from_internal_position(p);
-                assert!(close(ours_then_mirror, mirror_then_unity), "{q:?} {p:?}");
-            }
-        }
+        assert_rotation_commutes(unity_from_internal_position, unity_from_internal_rotation);
     }
 
     /// Known cases worked by hand (Unity applies `q v q*` with the same formula; only the
@@ -164,14 +173,10 @@ mod tests {
         assert_eq!(blender_from_internal_position(Vec3::Z), -Vec3::Y);
         assert_eq!(blender_from_internal_position(Vec3::X), Vec3::X);
         // Rotating then converting equals converting then rotating (a proper rotation of axes).
-        for q in sample_rotations() {
-            let qb = blender_from_internal_rotation(q);
-            for p in sample_points() {
-                let a = blender_from_internal_position(q * p);
-                let b = qb * blender_from_internal_position(p);
-                assert!(close(a, b), "{q:?} {p:?}");
-            }
-        }
+        assert_rotation_commutes(
+            blender_from_internal_position,
+            blender_from_internal_rotation,
+        );
         // +90° about internal +Y (up) is +90° about Blender +Z (up).
         let up = blender_from_internal_rotation(Quat::from_rotation_y(FRAC_PI_2));
         assert!(up.dot(Quat::from_rotation_z(FRAC_PI_2)).abs() > 1.0 - 1e-6);

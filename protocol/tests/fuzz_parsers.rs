@@ -14,23 +14,9 @@ use rigcast_protocol::FrameError;
 
 const CASES: usize = 4000;
 
-/// xorshift64: deterministic, no dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-    fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
-        &items[self.below(items.len())]
-    }
-}
+#[path = "../../retarget/tests/common/xorshift.rs"]
+mod xorshift;
+use xorshift::Rng;
 
 /// One to four random edits of `seed`: flip, overwrite with a boundary byte, cut, duplicate a
 /// span, insert noise.

@@ -18,24 +18,20 @@ fn bench(c: &mut Criterion) {
         hs.num_bones()
     );
     let opts = MapOptions::default();
-    c.bench_function("map creature187 -> humanoid65", |b| {
-        b.iter(|| {
-            auto_map(
-                &SkeletonView::rest(black_box(cs)),
-                &SkeletonView::rest(hs),
-                &opts,
-            )
-        })
-    });
-    c.bench_function("map humanoid65 -> creature187", |b| {
-        b.iter(|| {
-            auto_map(
-                &SkeletonView::rest(black_box(hs)),
-                &SkeletonView::rest(cs),
-                &opts,
-            )
-        })
-    });
+    for (name, from, to) in [
+        ("map creature187 -> humanoid65", cs, hs),
+        ("map humanoid65 -> creature187", hs, cs),
+    ] {
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                auto_map(
+                    &SkeletonView::rest(black_box(from)),
+                    &SkeletonView::rest(to),
+                    &opts,
+                )
+            })
+        });
+    }
     let mut cache = MappingCache::new();
     let key = CacheKey::new(&[hs], cs, &opts);
     cache.insert(

@@ -86,20 +86,11 @@ mod tests {
         raw.add("wrist", Some(elbow), Transform::from_translation(Vec3::X));
         let s = Skeleton::build(&raw).expect("valid");
         let mut pose = s.rest_pose();
-        let rest = world_transforms(&s, &pose);
-        assert!(vec_close(
-            rest[2].translation,
-            Vec3::new(2.0, 1.0, 0.0),
-            1e-6
-        ));
+        let wrist = |pose: &Pose| world_transforms(&s, pose)[2].translation;
+        assert!(vec_close(wrist(&pose), Vec3::new(2.0, 1.0, 0.0), 1e-6));
         // 90° about +Z at the elbow swings the wrist from +X to +Y.
         pose.rotations[1] = Quat::from_rotation_z(FRAC_PI_2);
-        let bent = world_transforms(&s, &pose);
-        assert!(vec_close(
-            bent[2].translation,
-            Vec3::new(1.0, 2.0, 0.0),
-            1e-6
-        ));
+        assert!(vec_close(wrist(&pose), Vec3::new(1.0, 2.0, 0.0), 1e-6));
         // Rotating the root carries everything.
         pose.rotations[0] = Quat::from_rotation_y(FRAC_PI_2);
         pose.translations[0] = Vec3::new(5.0, 1.0, 0.0);

@@ -64,6 +64,14 @@ pub mod approx {
         quat_angle(a, b) <= tol_rad
     }
 
+    /// [`quat_close`] measured from the sine of the half angle, accurate for tiny angles (the
+    /// cosine of [`quat_angle`] is not); q and -q give the same sine, so no sign handling is
+    /// needed.
+    pub fn quat_close_precise(a: Quat, b: Quat, tol_rad: f32) -> bool {
+        let d = a.conjugate() * b;
+        2.0 * d.xyz().length().min(1.0).asin() <= tol_rad
+    }
+
     /// True when the points are within `tol` (same unit as the points).
     pub fn vec_close(a: Vec3, b: Vec3, tol: f32) -> bool {
         (a - b).length() <= tol

@@ -18,20 +18,9 @@ use rigcast_retarget::{BoneId, Mapping, RetargetOptions, Skeleton};
 
 const CASES: usize = 3000;
 
-/// xorshift64: deterministic, no dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
+#[path = "common/xorshift.rs"]
+mod xorshift;
+use xorshift::Rng;
 
 /// One to four random edits of `seed`; the bytes written are ones that matter to TOML/JSON.
 fn mutate(rng: &mut Rng, seed: &[u8]) -> Vec<u8> {

@@ -2,6 +2,8 @@
 //! join frames a whole number of periods apart, walks must reach their goal with joins under
 //! the threshold and a continuous root path, and files must round-trip and refuse damage.
 
+#[path = "common/positions.rs"]
+mod positions;
 mod retarget_fixtures;
 
 use std::f32::consts::TAU;
@@ -14,7 +16,7 @@ use rigcast_retarget::graph::walk::shortest_walk;
 use rigcast_retarget::graph::{
     timed_walk, GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker,
 };
-use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
+use rigcast_retarget::{Clip, Pose, Skeleton};
 
 const FPS: f32 = 60.0;
 /// Period of the generated gait, frames.
@@ -60,11 +62,18 @@ fn graph(clips: &[Clip]) -> MotionGraph {
     MotionGraph::build(clips, GraphSettings::default(), &mut |_| {}).expect("builds")
 }
 
+/// Clip `a` (400 frames) and clip `b` (300 frames, its phase 0.37 periods on) on `skel`, and
+/// their graph.
+fn two_clips(skel: &Arc<Skeleton>) -> ([Clip; 2], MotionGraph) {
+    let clips = [clip(skel, "a", 400, 0.0), clip(skel, "b", 300, 0.37)];
+    let g = graph(&clips);
+    (clips, g)
+}
+
 #[test]
 fn transitions_join_frames_whole_periods_apart() {
     let skel = rig();
-    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
-    let g = graph(&clips);
+    let (_, g) = two_clips(&skel);
     assert!(
         !g.transitions.is_empty(),
         "a periodic motion has transitions"
@@ -102,8 +111,7 @@ fn transitions_join_frames_whole_periods_apart() {
 #[test]
 fn shortest_walk_reaches_the_goal_through_cheap_joins() {
     let skel = rig();
-    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
-    let g = graph(&clips);
+    let (_, g) = two_clips(&skel);
     let (from, to) = (g.clips[0].offset + 40, g.clips[1].offset + 250);
     let path = shortest_walk(&g, from, to).expect("a walk");
     assert_eq!((path[0], *path.last().expect("nodes")), (from, to));
@@ -128,15 +136,7 @@ fn shortest_walk_reaches_the_goal_through_cheap_joins() {
 
 /// Largest per-frame move of the root, and of any joint, over `poses`.
 fn largest_steps(skel: &Skeleton, poses: &[Pose]) -> (f32, f32) {
-    let worlds: Vec<Vec<Vec3>> = poses
-        .iter()
-        .map(|p| {
-            world_transforms(skel, p)
-                .iter()
-                .map(|w| w.translation)
-                .collect()
-        })
-        .collect();
+    let worlds = positions::joint_positions(skel, poses);
     let mut root: f32 = 0.0;
     let mut joint: f32 = 0.0;
     for w in worlds.windows(2) {
@@ -151,8 +151,7 @@ fn largest_steps(skel: &Skeleton, poses: &[Pose]) -> (f32, f32) {
 #[test]
 fn wandering_keeps_root_and_joints_continuous() {
     let skel = rig();
-    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
-    let g = graph(&clips);
+    let (clips, g) = two_clips(&skel);
     let analysis = analyze(&SkeletonView::from_clip(&skel, &clips[0].poses));
     let pb = Playback::new(&g, &clips, &analysis).expect("playback");
     let mut walker = Walker::new(&g, &pb, 7);
@@ -266,8 +265,7 @@ fn exact_lengths(g: &MotionGraph, from: usize, to: usize, max: usize) -> Vec<boo
 #[test]
 fn timed_walks_arrive_on_the_nearest_possible_frame_or_say_how_much_too_soon() {
     let skel = rig();
-    let clips = [clip(&skel, "a", 400, 0.0), clip(&skel, "b", 300, 0.37)];
-    let g = graph(&clips);
+    let (_, g) = two_clips(&skel);
     let (from, to) = (g.clips[0].offset + 40, g.clips[1].offset + 250);
     let cheapest = shortest_walk(&g, from, to).expect("a walk").len() - 1;
     let possible = exact_lengths(&g, from, to, cheapest + 800);

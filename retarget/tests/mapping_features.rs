@@ -17,6 +17,11 @@ fn entry(name: &str) -> CorpusEntry {
 }
 
 /// Primary source label for the target bone labelled `label`.
+/// [`auto_map`] of `src` onto `tgt`, both at rest.
+fn map_at_rest(src: &Skeleton, tgt: &Skeleton, opts: &MapOptions) -> MappingTable {
+    auto_map(&SkeletonView::rest(src), &SkeletonView::rest(tgt), opts)
+}
+
 fn mapped_label(
     src: &CorpusEntry,
     tgt: &CorpusEntry,
@@ -73,11 +78,7 @@ fn z_up_and_sideways_facing_are_inferred() {
             "forward {:?} expected {fwd:?}",
             a.forward
         );
-        let table = auto_map(
-            &SkeletonView::rest(&src.skeleton),
-            &SkeletonView::rest(&tgt.skeleton),
-            &MapOptions::default(),
-        );
+        let table = map_at_rest(&src.skeleton, &tgt.skeleton, &MapOptions::default());
         for l in CORE_LABELS {
             assert_eq!(
                 mapped_label(&src, &tgt, &table, l).as_deref(),
@@ -129,11 +130,7 @@ fn mirror_flips_the_front_legs_of_a_quadruped() {
         mirror: true,
         ..MapOptions::default()
     };
-    let table = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &opts,
-    );
+    let table = map_at_rest(&src.skeleton, &tgt.skeleton, &opts);
     assert_eq!(
         mapped_label(&src, &tgt, &table, "left_upper_arm").as_deref(),
         Some("right_upper_arm")
@@ -147,11 +144,7 @@ fn mirror_flips_the_front_legs_of_a_quadruped() {
         mapped_label(&src, &tgt, &table, "left_upper_leg").as_deref(),
         Some("left_upper_leg")
     );
-    let plain = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &MapOptions::default(),
-    );
+    let plain = map_at_rest(&src.skeleton, &tgt.skeleton, &MapOptions::default());
     assert_eq!(
         mapped_label(&src, &tgt, &plain, "left_upper_arm").as_deref(),
         Some("left_upper_arm")
@@ -211,11 +204,7 @@ fn per_bone_options_and_threshold() {
             weight: 0.5,
         },
     );
-    let table = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &opts,
-    );
+    let table = map_at_rest(&src.skeleton, &tgt.skeleton, &opts);
     let head = table.get(tgt.skeleton.bone("Head").unwrap()).unwrap();
     assert_eq!(
         head.options,
@@ -234,22 +223,14 @@ fn per_bone_options_and_threshold() {
         remove_duplicates: false,
         ..MapOptions::default()
     };
-    let table = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &low,
-    );
+    let table = map_at_rest(&src.skeleton, &tgt.skeleton, &low);
     assert!(table.get(tail).is_some());
     // A threshold nobody reaches maps nothing.
     let high = MapOptions {
         threshold: 1e6,
         ..MapOptions::default()
     };
-    let table = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &high,
-    );
+    let table = map_at_rest(&src.skeleton, &tgt.skeleton, &high);
     assert_eq!(table.num_mapped(), 0);
 }
 
@@ -258,11 +239,7 @@ fn mapping_file_round_trip_and_overrides() {
     let src = entry("cmu_cgspeed");
     let tgt = entry("mixamo");
     let (ss, ts) = (&src.skeleton, &tgt.skeleton);
-    let table = auto_map(
-        &SkeletonView::rest(ss),
-        &SkeletonView::rest(ts),
-        &MapOptions::default(),
-    );
+    let table = map_at_rest(ss, ts, &MapOptions::default());
     let text = file::mapping_file_to_string(&to_mapping_file(&table, &[ss], ts));
     let parsed = parse_mapping_file(&text).unwrap();
     let mut rebuilt = MappingTable::empty(ts.num_bones());
@@ -345,11 +322,7 @@ fn cache_keys_invalidate_on_skeleton_or_option_change() {
         CacheKey::new(&[&src.skeleton], &moved, &opts).file_stem()
     );
 
-    let table = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &opts,
-    );
+    let table = map_at_rest(&src.skeleton, &tgt.skeleton, &opts);
     let text = cache::encode(&key, &table);
     assert_eq!(cache::decode(&text, &key), Some(table.clone()));
     let other = CacheKey::new(&[&src.skeleton], &moved, &opts);
@@ -373,11 +346,7 @@ fn colours_are_stable_and_follow_chains() {
     let src = entry("mixamo");
     let tgt = entry("unreal");
     let ta = analyze(&SkeletonView::rest(&tgt.skeleton));
-    let table = auto_map(
-        &SkeletonView::rest(&src.skeleton),
-        &SkeletonView::rest(&tgt.skeleton),
-        &MapOptions::default(),
-    );
+    let table = map_at_rest(&src.skeleton, &tgt.skeleton, &MapOptions::default());
     let c1 = mapping_colors(&tgt.skeleton, &ta, &table);
     let c2 = mapping_colors(&tgt.skeleton, &ta, &table);
     assert_eq!(c1, c2);
@@ -500,11 +469,7 @@ fn a_plain_chain_maps_onto_itself() {
         ));
     }
     let chain = Skeleton::build(&raw).unwrap();
-    let table = auto_map(
-        &SkeletonView::rest(&chain),
-        &SkeletonView::rest(&chain),
-        &MapOptions::default(),
-    );
+    let table = map_at_rest(&chain, &chain, &MapOptions::default());
     for b in chain.bone_ids() {
         let e = table.entries[b.index()].as_ref();
         assert_eq!(e.map(|e| e.sources[0].bone), Some(b), "{}", chain.name(b));

@@ -175,14 +175,18 @@ fn reverse_weight_and_unmapped() {
     let q = Quat::from_rotation_z(0.8);
     let source = posed(&s, q);
     let mut out = s.rest_pose();
+    // The source retargeted onto its own skeleton with `bone` on the elbow.
+    let apply = |bone: BoneOptions, out: &mut Pose| {
+        let mut m = Mapping::build(&[&s], &s, &arm_table(bone), &RetargetOptions::default())
+            .expect("build");
+        m.apply_one(&source, out).expect("apply");
+    };
 
     let reverse = BoneOptions {
         reverse: true,
         ..BoneOptions::default()
     };
-    let mut m =
-        Mapping::build(&[&s], &s, &arm_table(reverse), &RetargetOptions::default()).expect("build");
-    m.apply_one(&source, &mut out).expect("apply");
+    apply(reverse, &mut out);
     assert!(
         quat_close(out.rotations[1], q.inverse(), 2e-3),
         "reversed: {}",
@@ -193,9 +197,7 @@ fn reverse_weight_and_unmapped() {
         weight: 0.5,
         ..BoneOptions::default()
     };
-    let mut m =
-        Mapping::build(&[&s], &s, &arm_table(half), &RetargetOptions::default()).expect("build");
-    m.apply_one(&source, &mut out).expect("apply");
+    apply(half, &mut out);
     assert!(quat_close(
         out.rotations[1],
         Quat::from_rotation_z(0.4),
@@ -206,9 +208,7 @@ fn reverse_weight_and_unmapped() {
         weight: 0.0,
         ..BoneOptions::default()
     };
-    let mut m =
-        Mapping::build(&[&s], &s, &arm_table(off), &RetargetOptions::default()).expect("build");
-    m.apply_one(&source, &mut out).expect("apply");
+    apply(off, &mut out);
     assert!(quat_close(out.rotations[1], Quat::IDENTITY, 2e-3));
 
     let mut table = arm_table(BoneOptions::default());

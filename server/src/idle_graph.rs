@@ -235,17 +235,7 @@ mod tests {
     use super::*;
     use rigcast_retarget::graph::GraphSettings;
 
-    fn shared(relative: &str) -> Option<std::path::PathBuf> {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../shared/data")
-            .join(relative);
-        if p.exists() {
-            Some(p)
-        } else {
-            eprintln!("SKIP: test data {} not found", p.display());
-            None
-        }
-    }
+    use crate::shared_data::shared_data as shared;
 
     /// On the real CMU clips, played on the mannequin: the walk never freezes and its heading
     /// frame stays where the take-over put it (the floor under the hips, within 1 mm).

@@ -59,6 +59,10 @@ pub mod token;
 pub mod translated;
 pub mod vmc_pose;
 
+#[cfg(test)]
+#[path = "../../sources/tests/common/shared_data.rs"]
+mod shared_data;
+
 use std::net::SocketAddr;
 use std::sync::Arc;
 

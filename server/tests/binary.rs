@@ -27,14 +27,19 @@ impl Drop for Server {
     }
 }
 
-/// Starts the binary and reads the printed stream URL.
-fn spawn(args: &[&str]) -> Server {
-    // Its own config folder, so the control token it creates is not the user's.
+/// The binary with `args` and its own config folder, so the control token it creates is not the
+/// user's.
+fn rigcast(args: &[&str]) -> Command {
     let config_home =
         std::env::temp_dir().join(format!("rigcast-binary-xdg-{}", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(args)
-        .env("XDG_CONFIG_HOME", config_home)
+    let mut command = Command::new(env!("CARGO_BIN_EXE_rigcast"));
+    command.args(args).env("XDG_CONFIG_HOME", config_home);
+    command
+}
+
+/// Starts the binary and reads the printed stream URL.
+fn spawn(args: &[&str]) -> Server {
+    let mut child = rigcast(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
@@ -186,11 +191,7 @@ async fn binary_serve_subcommand_honours_rate() {
 /// Runs the binary with `args`, expecting it to refuse them: it must exit (not start serving)
 /// within 20 s with a failure status. Returns stderr.
 fn refused(args: &[&str]) -> String {
-    let config_home =
-        std::env::temp_dir().join(format!("rigcast-binary-xdg-{}", std::process::id()));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rigcast"))
-        .args(args)
-        .env("XDG_CONFIG_HOME", config_home)
+    let mut child = rigcast(args)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -215,14 +216,11 @@ fn refused(args: &[&str]) -> String {
 
 #[test]
 fn binary_rejects_bad_flags_with_clear_errors() {
-    let dir = std::env::temp_dir().join(format!("rigcast-badflags-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let bad_toml = dir.join("bad.toml");
-    std::fs::write(
-        &bad_toml,
+    let bad_toml = common::test_file(
+        "badflags",
+        "bad.toml",
         "rate_hz = 60\n[[sources]]\nkind = \"teleport\"\n",
-    )
-    .unwrap();
+    );
     let bad_toml = bad_toml.to_str().unwrap();
     // (arguments, what stderr must name)
     let cases: &[(&[&str], &str)] = &[
@@ -258,8 +256,7 @@ fn binary_rejects_bad_flags_with_clear_errors() {
 
 #[test]
 fn info_and_convert_commands() {
-    let dir = std::env::temp_dir().join(format!("rigcast-bin-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::test_dir("bin");
     let clip = rigcast_server::demo::procedural_clip(10, 30.0).unwrap();
     let bvh = dir.join("demo.bvh");
     rigcast_sources::save_clip(&bvh, &clip).unwrap();

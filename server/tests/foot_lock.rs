@@ -126,10 +126,9 @@ fn measure(
 
 #[test]
 fn cmu_walk_feet_stay_planted_on_four_characters() {
-    let Some(walk) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some(source) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let source = rigcast_sources::load_clip(&walk).unwrap();
     let mut targets: Vec<(String, Clip)> = Vec::new();
     let mannequin = Arc::new(rigcast_server::character::mannequin().unwrap());
     targets.push((
@@ -228,10 +227,9 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
 /// tick runs them, on the mannequin; drift is measured over the (two-sided) plants.
 #[test]
 fn cmu_walk_live_lock_keeps_planted_feet() {
-    let Some(walk) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some(source) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let source = rigcast_sources::load_clip(&walk).unwrap();
     let mannequin = Arc::new(rigcast_server::character::mannequin().unwrap());
     let target = Clip::new(
         "mannequin",
@@ -310,10 +308,9 @@ fn cmu_walk_live_lock_keeps_planted_feet() {
 /// so a locked foot stays within a few centimetres of them.
 #[test]
 fn a_floating_rest_target_is_locked_where_its_feet_are_shown() {
-    let Some(cmu) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some(target) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let target = rigcast_sources::load_clip(&cmu).unwrap();
     for rel in [
         "zoo/gltf/ue_style_mannequiny__godot_ragdoll.glb",
         "zoo/bvh/xsens__ammr_S02_Trial01.bvh",

@@ -37,10 +37,7 @@ fn text(b: &[u8]) -> String {
 
 #[test]
 fn graft_writes_the_lower_rig_and_prints_a_summary() {
-    let (Some(up), Some(low)) = (
-        common::shared_data("zoo/bvh/sparse_spine_head__pymo_meredith.bvh"),
-        common::shared_data("bvh/cmu_131_01_walk.bvh"),
-    ) else {
+    let Some([up, low]) = common::shared_data_all([common::MEREDITH, common::CMU_WALK]) else {
         return;
     };
     let out = tmp("grafted.bvh");

@@ -92,10 +92,7 @@ fn analysis(c: &Clip) -> Analysis {
 
 #[test]
 fn expressive_upper_body_on_a_cmu_walk_keeps_the_walks_plants_and_the_arms_motion() {
-    let (Some(up), Some(low)) = (
-        common::shared_data("zoo/bvh/sparse_spine_head__pymo_meredith.bvh"),
-        common::shared_data("bvh/cmu_131_01_walk.bvh"),
-    ) else {
+    let Some([up, low]) = common::shared_data_all([common::MEREDITH, common::CMU_WALK]) else {
         return;
     };
     let upper = rigcast_sources::load_clip(&up).unwrap();

@@ -14,7 +14,7 @@ use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions, RootMotion};
-use rigcast_server::config::{OnLost, VmcBoneNames};
+use rigcast_server::config::OnLost;
 use rigcast_server::engine::Subject;
 use rigcast_server::graft_live::LiveGraft;
 use rigcast_server::performer::{BuiltMapping, Performer};
@@ -22,16 +22,12 @@ use rigcast_server::performer::{BuiltMapping, Performer};
 #[path = "common/counting.rs"]
 mod counting;
 
-#[global_allocator]
-static GLOBAL: counting::Counting = counting::Counting;
-
 #[test]
 fn a_grafted_performer_ticks_without_allocating() {
     // A walk that travels (the bundled demo walks on the spot: its feet never stand still).
-    let Some(path) = common::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some(walk) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let walk = rigcast_sources::load_clip(&path).unwrap();
     let target = Arc::new(rigcast_server::character::mannequin().unwrap());
     let map = |from: &rigcast_retarget::Skeleton, motion| {
         let table = auto_map(
@@ -57,15 +53,7 @@ fn a_grafted_performer_ticks_without_allocating() {
     let graft = LiveGraft::new(&upper, lower, &wa, &ta, Some(&walk)).unwrap();
     let stride = graft.gait.as_ref().unwrap().stride_secs();
     let (source, source_tx) = Subject::new(0, "walk".into(), walk.skeleton.clone());
-    let (t, target_tx) = Subject::with_kind(
-        1,
-        "target".into(),
-        target.clone(),
-        None,
-        vec![0],
-        VmcBoneNames::Humanoid,
-    );
-    let t = Arc::new(t);
+    let (t, target_tx) = common::target_subject(1, &target);
     let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {
         mapping: upper,
         foot_lock,

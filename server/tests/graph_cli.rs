@@ -11,14 +11,34 @@ use std::process::{Command, Output};
 
 use rigcast_sources::load_clip;
 
+#[path = "../../sources/tests/common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data_dir;
+
 fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.join("bvh/cmu_31joint_example.bvh").exists() {
-        Some(p)
-    } else {
-        println!("SKIP: real clips not found ({}/bvh)", p.display());
-        None
-    }
+    shared_data_dir("bvh/cmu_31joint_example.bvh", "real clips")
+}
+
+/// `graph walk` on graph `g` from `from` to `to`, arriving after `arrive_secs`, into `out`.
+fn walk_args<'a>(
+    g: &'a str,
+    (from, to): (&'a str, &'a str),
+    arrive_secs: &'a str,
+    out: &'a str,
+) -> [&'a str; 11] {
+    [
+        "graph",
+        "walk",
+        g,
+        "--from",
+        from,
+        "--to",
+        to,
+        "--arrive-secs",
+        arrive_secs,
+        "-o",
+        out,
+    ]
 }
 
 fn rigcast(args: &[&str], cache: &Path) -> Output {
@@ -95,19 +115,8 @@ fn build_info_and_walk_on_real_clips() {
         "sparse_spine_head__pymo_meredith:800",
     );
     let timed = dir.join("timed.bvh");
-    let args = [
-        "graph",
-        "walk",
-        g,
-        "--from",
-        from,
-        "--to",
-        to,
-        "--arrive-secs",
-        "4",
-    ];
     let o = rigcast(
-        &[&args[..], &["-o", timed.to_str().unwrap()]].concat(),
+        &walk_args(g, (from, to), "4", timed.to_str().unwrap()),
         &dir,
     );
     assert!(o.status.success(), "{}", text(&o));
@@ -144,19 +153,7 @@ fn build_info_and_walk_on_real_clips() {
 
     for (bad, says) in [
         (
-            vec![
-                "graph",
-                "walk",
-                g,
-                "--from",
-                from,
-                "--to",
-                to,
-                "--arrive-secs",
-                "0.05",
-                "-o",
-                "x.bvh",
-            ],
+            walk_args(g, (from, to), "0.05", "x.bvh").to_vec(),
             "the quickest takes",
         ),
         (

@@ -7,20 +7,16 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_protocol::SourceState;
-use rigcast_retarget::analysis::SkeletonView;
 use rigcast_retarget::graph::{GraphSettings, MotionGraph};
-use rigcast_retarget::mapping::{auto_map, MapOptions};
-use rigcast_retarget::{Mapping, RetargetOptions};
 use rigcast_server::config::OnLost;
 use rigcast_server::engine::Subject;
 use rigcast_server::idle_graph::IdleGraph;
 use rigcast_server::performer::{BuiltMapping, Performer};
 
+mod common;
+
 #[path = "common/counting.rs"]
 mod counting;
-
-#[global_allocator]
-static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn walking_the_idle_graph_allocates_nothing() {
@@ -49,18 +45,7 @@ fn walking_the_idle_graph_allocates_nothing() {
         f.capture_nanos = 1;
     });
     let source = Arc::new(source);
-    let table = auto_map(
-        &SkeletonView::rest(&clip.skeleton),
-        &SkeletonView::rest(&target),
-        &MapOptions::default(),
-    );
-    let mapping = Mapping::build(
-        &[&clip.skeleton],
-        &target,
-        &table,
-        &RetargetOptions::default(),
-    )
-    .unwrap();
+    let (_, mapping) = common::rest_mapping(&clip.skeleton, &target);
     let (t, target_tx) = Subject::new(1, "target".into(), target.clone());
     let t = Arc::new(t);
     let mailbox = Arc::new(std::sync::Mutex::new(Some(BuiltMapping {

@@ -10,7 +10,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-use common::shared_data as data;
+use common::{shared_data as data, shared_data_all};
 
 fn map_json(src: &Path, tgt: &Path, extra: &[&str]) -> Value {
     let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
@@ -35,19 +35,22 @@ fn map_json(src: &Path, tgt: &Path, extra: &[&str]) -> Value {
     v
 }
 
+/// `rigcast map --json` of two files of the shared data, or `None` (with a printed reason) when
+/// either is absent.
+fn map_shared(src: &str, tgt: &str) -> Option<Value> {
+    let [src, tgt] = shared_data_all([src, tgt])?;
+    Some(map_json(&src, &tgt, &[]))
+}
+
 fn mapped<'a>(v: &'a Value, target_bone: &str) -> Option<&'a str> {
     v["mapping"][target_bone].as_str()
 }
 
 #[test]
 fn cmu_cgspeed_onto_cmu_max_names() {
-    let (Some(a), Some(b)) = (
-        data("bvh/cmu_31joint_example.bvh"),
-        data("bvh/cmu_131_01_walk.bvh"),
-    ) else {
+    let Some(v) = map_shared("bvh/cmu_31joint_example.bvh", common::CMU_WALK) else {
         return;
     };
-    let v = map_json(&a, &b, &[]);
     for (t, s) in [
         ("Hips", "Hips"),
         ("LeftCollar", "LeftShoulder"),
@@ -79,10 +82,9 @@ fn cmu_cgspeed_onto_cmu_max_names() {
 
 #[test]
 fn daz_names_onto_cmu() {
-    let (Some(a), Some(b)) = (data("bvh/cmu_run.bvh"), data("bvh/cmu_31joint_example.bvh")) else {
+    let Some(v) = map_shared("bvh/cmu_run.bvh", "bvh/cmu_31joint_example.bvh") else {
         return;
     };
-    let v = map_json(&a, &b, &[]);
     for (t, s) in [
         ("LeftArm", "lShldr"),
         ("RightForeArm", "rForeArm"),
@@ -98,7 +100,7 @@ fn daz_names_onto_cmu() {
 
 #[test]
 fn human_onto_fox_front_legs_from_arms() {
-    let (Some(a), Some(b)) = (data("bvh/cmu_31joint_example.bvh"), data("gltf/Fox.glb")) else {
+    let Some([a, b]) = shared_data_all(["bvh/cmu_31joint_example.bvh", "gltf/Fox.glb"]) else {
         return;
     };
     let v = map_json(&a, &b, &[]);
@@ -316,13 +318,9 @@ fn demo_head_top_onto_ue_mannequin_head_from_head() {
 /// robot names its left side `r-*`): the geometry's sides are used and `rigcast map` says so.
 #[test]
 fn mirrored_names_lose_to_geometry_with_a_warning() {
-    let (Some(src), Some(tgt)) = (
-        data("bvh/cmu_31joint_example.bvh"),
-        data("zoo/gltf/godot_robot__platformer_player.glb"),
-    ) else {
+    let Some(v) = map_shared("bvh/cmu_31joint_example.bvh", common::GODOT_ROBOT) else {
         return;
     };
-    let v = map_json(&src, &tgt, &[]);
     let warnings = v["warnings"]["target"].as_array().unwrap();
     assert!(
         warnings

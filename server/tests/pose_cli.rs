@@ -10,26 +10,15 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-use rigcast_sources::vision::{blazepose_skeleton, VisionAssets};
+use rigcast_sources::vision::blazepose_skeleton;
 
 const FRAMES: usize = 20;
 const WIDTH: f64 = 1080.0;
 const HEIGHT: f64 = 1920.0;
 
-fn assets_or_skip(test: &str) -> Option<VisionAssets> {
-    if std::env::var("RIGCAST_SKIP_VISION").as_deref() == Ok("1") {
-        eprintln!("SKIP {test}: RIGCAST_SKIP_VISION=1");
-        return None;
-    }
-    let assets = VisionAssets::from_env();
-    assert!(
-        assets.is_ready(),
-        "{test}: vision assets are not installed in {}; run `scripts/setup-vision.sh` \
-         (or `rigcast setup vision`), or set RIGCAST_SKIP_VISION=1 to skip",
-        assets.root.display()
-    );
-    Some(assets)
-}
+#[path = "../../sources/tests/vision_common.rs"]
+mod vision_common;
+use vision_common::assets_or_skip;
 
 fn rigcast(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rigcast"))

@@ -19,10 +19,8 @@ use rigcast_server::cmd::retarget::plan_mapping;
 
 #[test]
 fn robot_thigh_directions_per_hip_drop_limit() {
-    let (Some(walk), Some(robot)) = (
-        common::shared_data("bvh/cmu_131_01_walk.bvh"),
-        common::shared_data("zoo/gltf/godot_robot__platformer_player.glb"),
-    ) else {
+    let Some([walk, robot]) = common::shared_data_all([common::CMU_WALK, common::GODOT_ROBOT])
+    else {
         return;
     };
     let source = rigcast_sources::load_clip(&walk).unwrap();

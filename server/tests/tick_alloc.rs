@@ -8,18 +8,15 @@ use std::sync::Arc;
 
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
-use rigcast_retarget::mapping::{auto_map, MapOptions};
-use rigcast_retarget::{Mapping, RetargetOptions};
-use rigcast_server::config::{OnLost, VmcBoneNames};
+use rigcast_server::config::OnLost;
 use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
 use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
 
+mod common;
+
 #[path = "common/counting.rs"]
 mod counting;
-
-#[global_allocator]
-static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn tick_allocates_one_buffer_per_subject() {
@@ -38,28 +35,9 @@ fn tick_allocates_one_buffer_per_subject() {
     }
     // A target subject (the built-in mannequin) retargeted from subject 0.
     let target = Arc::new(rigcast_server::character::mannequin().unwrap());
-    let table = auto_map(
-        &SkeletonView::rest(&clip.skeleton),
-        &SkeletonView::rest(&target),
-        &MapOptions::default(),
-    );
+    let (table, mapping) = common::rest_mapping(&clip.skeleton, &target);
     assert!(table.num_mapped() > 10);
-    let mapping = Mapping::build(
-        &[&clip.skeleton],
-        &target,
-        &table,
-        &RetargetOptions::default(),
-    )
-    .unwrap();
-    let (t, target_tx) = Subject::with_kind(
-        3,
-        "target".into(),
-        target.clone(),
-        None,
-        vec![0],
-        VmcBoneNames::Humanoid,
-    );
-    let t = Arc::new(t);
+    let (t, target_tx) = common::target_subject(3, &target);
     assert!(!t.shape().vmc.bones.is_empty());
     // With the foot lock, as the server runs a humanoid character by default.
     let foot_lock = FootLock::new(

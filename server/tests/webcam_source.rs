@@ -2,6 +2,8 @@
 //! real binary refuses with an error that says how to rebuild, instead of failing obscurely.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 #[cfg(not(feature = "webcam"))]
 #[test]
 fn webcam_without_the_feature_says_how_to_rebuild() {
@@ -29,14 +31,11 @@ fn webcam_without_the_feature_says_how_to_rebuild() {
         "{err}"
     );
     // A config file names the same source kind and gets the same answer.
-    let dir = std::env::temp_dir().join(format!("rigcast-webcam-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let cfg = dir.join("rigcast.toml");
-    std::fs::write(
-        &cfg,
+    let cfg = common::test_file(
+        "webcam",
+        "rigcast.toml",
         "listen = \"127.0.0.1:0\"\nmapping_cache = false\n[[sources]]\nkind = \"webcam\"\nindex = 3\n",
-    )
-    .unwrap();
+    );
     let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
         .args(["serve", "--config", cfg.to_str().unwrap()])
         .output()
@@ -61,5 +60,5 @@ fn webcam_without_the_feature_says_how_to_rebuild() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(err.contains("webcam:INDEX"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(cfg.parent().unwrap());
 }

@@ -10,12 +10,10 @@
 //! - `graph_walk_step`: one frame of a wandering walker on the 10k graph, played on the
 //!   31-joint CMU rig (the live fallback's per-tick cost).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::graph::body::BodyPoints;
-use rigcast_retarget::graph::features::{ClipFeatures, ClipTrack};
 use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::search::{find_similar_exhaustive, SearchParams};
 use rigcast_retarget::graph::{GraphSettings, MotionGraph, Playback, Walker};
@@ -29,10 +27,10 @@ const CLIPS: [&str; 4] = [
     "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
 ];
 
-fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    p.join(CLIPS[0]).exists().then_some(p)
-}
+#[path = "../tests/common/graph_features.rs"]
+mod graph_features;
+#[path = "../tests/common/shared_data.rs"]
+mod shared_data;
 
 /// `clip` played at `speed`, resampled back to its frame time.
 fn at_speed(clip: &Clip, speed: f64) -> Clip {
@@ -54,8 +52,7 @@ fn database(dir: &Path) -> (Vec<Clip>, Vec<Clip>) {
 }
 
 fn bench(c: &mut Criterion) {
-    let Some(dir) = data_dir() else {
-        println!("SKIP: real clips not found under ../shared/data");
+    let Some(dir) = shared_data::shared_data_dir(CLIPS[0], "real clips") else {
         return;
     };
     let (base, db) = database(&dir);
@@ -75,16 +72,7 @@ fn bench(c: &mut Criterion) {
     });
 
     let ft = base[0].frame_time_secs;
-    let features: Vec<ClipFeatures> = base
-        .iter()
-        .map(|c| {
-            let a = analyze(&SkeletonView::from_clip(&c.skeleton, &c.poses));
-            let body = BodyPoints::find(&a).expect("humanoid");
-            let track = ClipTrack::measure(&c.skeleton, &body, &c.poses);
-            let half = GraphSettings::frames(s.window_secs / 2.0, ft, 1);
-            ClipFeatures::compute(&track, half, ft as f32, s.velocity_weight_secs)
-        })
-        .collect();
+    let features = graph_features::clip_features(&base, &s);
     let p = SearchParams {
         stride: 1,
         radius: GraphSettings::frames(s.minimum_radius_secs, ft, 2),

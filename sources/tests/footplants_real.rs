@@ -7,13 +7,16 @@
 #![allow(clippy::unwrap_used)]
 
 use std::ops::Range;
-use std::path::PathBuf;
 
 use rigcast_retarget::analysis::{analyze, Side, SkeletonView};
 use rigcast_retarget::footplant::{
     detect_clip, find_legs, PlantDetector, PlantSettings, PlantTrack,
 };
 use rigcast_retarget::Clip;
+
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data;
 
 /// Hand-read plants of cmu_131_01_walk.bvh, half-open frame ranges. Left: stance before the
 /// first step, the shuffle and turn around frames 212–294 (ball pivots 238–264 and 272–284),
@@ -40,18 +43,6 @@ const CMU_RIGHT: [Range<usize>; 7] = [
     641..696,
     792..994,
 ];
-
-fn shared(relative: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(relative);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("SKIP: test data {} not found", p.display());
-        None
-    }
-}
 
 fn in_ranges(ranges: &[Range<usize>], f: usize) -> bool {
     ranges.iter().any(|r| r.contains(&f))
@@ -121,7 +112,7 @@ fn order(
 
 #[test]
 fn cmu_walk_plants_match_the_hand_read_reference() {
-    let Some(path) = shared("bvh/cmu_131_01_walk.bvh") else {
+    let Some(path) = shared_data("bvh/cmu_131_01_walk.bvh") else {
         return;
     };
     let clip = rigcast_sources::load_clip(&path).unwrap();
@@ -153,7 +144,7 @@ fn cmu_walk_plants_match_the_hand_read_reference() {
 
 /// Plants on both feet, at least `min_steps` each, mostly alternating.
 fn check_alternation(relative: &str, min_steps: usize) {
-    let Some(path) = shared(relative) else {
+    let Some(path) = shared_data(relative) else {
         return;
     };
     let clip = rigcast_sources::load_clip(&path).unwrap();
@@ -196,7 +187,7 @@ fn quadrupeds_stand_on_four_feet() {
         "zoo/gltf/quaternius_quadruped__Horse.glb",
         "zoo/gltf/quaternius_quadruped__Wolf.glb",
     ] {
-        let Some(path) = shared(rel) else {
+        let Some(path) = shared_data(rel) else {
             return;
         };
         let (clip, _) = rigcast_sources::load_rig(&path).unwrap();

@@ -31,9 +31,10 @@ fn point_link(link: &Path, target: &Path) {
     std::os::unix::fs::symlink(target, link).unwrap();
 }
 
-fn csv(readings: &[(u32, Quat)]) -> Vec<u8> {
+/// CSV lines `id,w,x,y,z`, one per sensor, the ids in order from 0.
+fn csv(readings: &[Quat]) -> Vec<u8> {
     let mut s = String::new();
-    for (id, q) in readings {
+    for (id, q) in readings.iter().enumerate() {
         s.push_str(&format!("{id},{},{},{},{}\r\n", q.w, q.x, q.y, q.z));
     }
     s.into_bytes()
@@ -120,7 +121,7 @@ fn csv_calibration_unplug_and_reconnect_through_pty() {
         Quat::from_rotation_z(-1.2),
         Quat::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize_or_zero(), 0.7),
     ];
-    let data = csv(&[(0, s[0]), (1, s[1]), (2, s[2])]);
+    let data = csv(&s);
     wait_for(
         &mut source,
         &mut pose,
@@ -136,7 +137,7 @@ fn csv_calibration_unplug_and_reconnect_through_pty() {
         Quat::from_euler(glam::EulerRot::XYZ, 0.3, -0.8, 2.0),
         Quat::from_rotation_z(2.5),
     ];
-    let cal = csv(&[(0, mount[0]), (1, mount[1]), (2, mount[2])]);
+    let cal = csv(&mount);
     wait_for(
         &mut source,
         &mut pose,
@@ -151,11 +152,7 @@ fn csv_calibration_unplug_and_reconnect_through_pty() {
         Quat::from_rotation_x(-0.9),
         Quat::from_rotation_z(1.1),
     ];
-    let moved = csv(&[
-        (0, d[0] * mount[0]),
-        (1, d[1] * mount[1]),
-        (2, d[2] * mount[2]),
-    ]);
+    let moved = csv(&[d[0] * mount[0], d[1] * mount[1], d[2] * mount[2]]);
     wait_for(
         &mut source,
         &mut pose,
@@ -189,11 +186,7 @@ fn csv_calibration_unplug_and_reconnect_through_pty() {
         Quat::from_rotation_x(0.6),
         Quat::from_rotation_y(1.4),
     ];
-    let moved2 = csv(&[
-        (0, d2[0] * mount[0]),
-        (1, d2[1] * mount[1]),
-        (2, d2[2] * mount[2]),
-    ]);
+    let moved2 = csv(&[d2[0] * mount[0], d2[1] * mount[1], d2[2] * mount[2]]);
     wait_for(
         &mut source,
         &mut pose,
@@ -268,7 +261,7 @@ fn serial_cases() -> Vec<(&'static str, SerialImuConfig, Vec<Vec<u8>>)> {
             Quat::from_rotation_z(-1.2 * (t * 3.0).sin()),
             Quat::from_rotation_x(0.8 * (t * 5.0).sin()),
         ];
-        csv_chunks.push(csv(&[(0, q[0]), (1, q[1]), (2, q[2])]));
+        csv_chunks.push(csv(&q));
         wit_chunks.push(witmotion_frame(q[2]).to_vec());
     }
     cases.push((

@@ -13,25 +13,26 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::graph::body::BodyPoints;
-use rigcast_retarget::graph::features::{ClipFeatures, ClipTrack};
 use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::search::{find_similar, find_similar_exhaustive, SearchParams};
 use rigcast_retarget::graph::walk::shortest_walk;
 use rigcast_retarget::graph::{
     timed_walk, GraphError, GraphSettings, MotionGraph, Planar, Playback, Walker,
 };
-use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
+use rigcast_retarget::{Clip, Pose};
 use rigcast_sources::{load_clip_with, LoadOptions};
 
+#[path = "common/graph_features.rs"]
+mod graph_features;
+#[path = "../../retarget/tests/common/positions.rs"]
+mod positions;
+use positions::joint_positions as joints;
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data_dir;
+
 fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.join("bvh/cmu_131_01_walk.bvh").exists() {
-        Some(p)
-    } else {
-        println!("SKIP: real clips not found ({}/bvh)", p.display());
-        None
-    }
+    shared_data_dir("bvh/cmu_131_01_walk.bvh", "real clips")
 }
 
 fn load(dir: &Path, file: &str, animation: Option<&str>) -> Clip {
@@ -88,6 +89,11 @@ struct Mocap {
     pb: Playback,
 }
 
+/// [`mocap_graph`] of the shared data, or `None` (with a printed reason) when it is absent.
+fn real_mocap() -> Option<&'static Mocap> {
+    Some(mocap_graph(&data_dir()?))
+}
+
 fn mocap_graph(dir: &Path) -> &'static Mocap {
     static MOCAP: OnceLock<Mocap> = OnceLock::new();
     MOCAP.get_or_init(|| {
@@ -103,8 +109,8 @@ fn mocap_graph(dir: &Path) -> &'static Mocap {
 
 #[test]
 fn mocap_clips_build_one_graph_keeping_most_frames() {
-    let Some(dir) = data_dir() else { return };
-    let g = &mocap_graph(&dir).graph;
+    let Some(m) = real_mocap() else { return };
+    let g = &m.graph;
     assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64);
     for c in &g.clips {
         let kept = (c.offset..c.offset + c.frames).any(|n| g.is_kept(n));
@@ -121,16 +127,7 @@ fn pruned_search_finds_the_exhaustive_transitions() {
     ];
     let s = GraphSettings::default();
     let ft = clips[0].frame_time_secs;
-    let features: Vec<ClipFeatures> = clips
-        .iter()
-        .map(|c| {
-            let a = analyze(&SkeletonView::from_clip(&c.skeleton, &c.poses));
-            let body = BodyPoints::find(&a).expect("humanoid");
-            let track = ClipTrack::measure(&c.skeleton, &body, &c.poses);
-            let half = GraphSettings::frames(s.window_secs / 2.0, ft, 1);
-            ClipFeatures::compute(&track, half, ft as f32, s.velocity_weight_secs)
-        })
-        .collect();
+    let features = graph_features::clip_features(&clips, &s);
     let p = SearchParams {
         stride: GraphSettings::frames(s.coarse_step_secs, ft, 1),
         radius: GraphSettings::frames(s.minimum_radius_secs, ft, 2),
@@ -162,19 +159,6 @@ fn pruned_search_finds_the_exhaustive_transitions() {
     for f in &fast {
         assert!(all.iter().any(|e| e.a == f.a && e.b == f.b), "{f:?}");
     }
-}
-
-/// World joint positions of every frame.
-fn joints(skel: &Skeleton, poses: &[Pose]) -> Vec<Vec<Vec3>> {
-    poses
-        .iter()
-        .map(|p| {
-            world_transforms(skel, p)
-                .iter()
-                .map(|w| w.translation)
-                .collect()
-        })
-        .collect()
 }
 
 /// Largest change of any joint's per-frame velocity at frame `t` (between the steps
@@ -301,8 +285,7 @@ fn start_and_goal(g: &MotionGraph) -> (usize, usize) {
 
 #[test]
 fn a_walk_between_two_poses_has_cheap_smooth_joins() {
-    let Some(dir) = data_dir() else { return };
-    let m = mocap_graph(&dir);
+    let Some(m) = real_mocap() else { return };
     let g = &m.graph;
     let (from, to) = start_and_goal(g);
     let path = shortest_walk(g, from, to).expect("a walk between the chosen poses");
@@ -331,8 +314,7 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
 
 #[test]
 fn timed_walks_arrive_on_the_asked_frame_with_smooth_joins() {
-    let Some(dir) = data_dir() else { return };
-    let m = mocap_graph(&dir);
+    let Some(m) = real_mocap() else { return };
     let g = &m.graph;
     let (from, to) = start_and_goal(g);
     let ft = g.frame_time_secs;
@@ -398,8 +380,7 @@ fn clip_of(g: &MotionGraph, node: usize) -> usize {
 /// unrestricted walker from the same start and seed, which leaves by choice.
 #[test]
 fn wandering_kept_in_a_clip_stays_in_it() {
-    let Some(dir) = data_dir() else { return };
-    let m = mocap_graph(&dir);
+    let Some(m) = real_mocap() else { return };
     let g = &m.graph;
     let mut restricted_clips = 0;
     for c in 0..g.clips.len() {

@@ -1,23 +1,13 @@
 //! Tests against the shared real data set (skipped with a message when it is absent).
 #![allow(clippy::unwrap_used)]
 
-use std::path::{Path, PathBuf};
-
-use rigcast_retarget::approx::vec_close;
+use rigcast_retarget::approx::{quat_close_precise as quat_close, vec_close};
 use rigcast_retarget::{world_transforms, Clip};
 use rigcast_sources::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions};
 
-fn data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(rel);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("SKIP: {} not found", p.display());
-        None
-    }
-}
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data;
 
 fn height_m(clip: &Clip, frame: usize) -> f32 {
     let w = world_transforms(&clip.skeleton, &clip.poses[frame]);
@@ -52,7 +42,7 @@ fn assert_clips_equal(a: &Clip, b: &Clip) {
 }
 
 fn bvh_round_trip(rel: &str, joints: usize, frames: usize, fps: f64) -> Option<Clip> {
-    let path = data(rel)?;
+    let path = shared_data(rel)?;
     let bytes = std::fs::read(&path).unwrap();
     let r = read_bvh(&bytes, "x", &BvhReadOptions::default()).unwrap();
     assert_eq!(r.num_joints, joints, "{rel}");
@@ -89,7 +79,7 @@ fn cmu_31_joint_reads_and_round_trips() {
 
 #[test]
 fn cmu_run_in_centimetres() {
-    let Some(path) = data("bvh/cmu_run.bvh") else {
+    let Some(path) = shared_data("bvh/cmu_run.bvh") else {
         return;
     };
     let bytes = std::fs::read(&path).unwrap();
@@ -99,18 +89,10 @@ fn cmu_run_in_centimetres() {
     bvh_round_trip("bvh/cmu_run.bvh", 19, r.clip.num_frames(), r.clip.fps());
 }
 
-/// Rotation angle between two quaternions, accurate for tiny angles (acos of the dot is not);
-/// q and -q give the same |xyz|, so no sign handling is needed.
-fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
-    let d = a.conjugate() * b;
-    let angle = 2.0 * d.xyz().length().min(1.0).asin();
-    angle <= tol_rad
-}
-
 #[test]
 fn fox_glb_skin_and_animations() {
     use rigcast_sources::gltf::{read_gltf, GltfReadOptions};
-    let Some(path) = data("gltf/Fox.glb") else {
+    let Some(path) = shared_data("gltf/Fox.glb") else {
         return;
     };
     let bytes = std::fs::read(&path).unwrap();
@@ -158,7 +140,7 @@ fn fox_glb_skin_and_animations() {
 
 #[test]
 fn simple_skin_unnamed_joints() {
-    let Some(path) = data("gltf/SimpleSkin.gltf") else {
+    let Some(path) = shared_data("gltf/SimpleSkin.gltf") else {
         return;
     };
     let clip = rigcast_sources::load_clip(&path).unwrap();
@@ -181,7 +163,7 @@ fn simple_skin_unnamed_joints() {
 
 #[test]
 fn describe_bvh_reports_scale_and_height() {
-    let Some(path) = data("bvh/cmu_131_01_walk.bvh") else {
+    let Some(path) = shared_data("bvh/cmu_131_01_walk.bvh") else {
         return;
     };
     let info = rigcast_sources::describe(&path).unwrap();

@@ -15,7 +15,7 @@ mod common;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use common::assets_or_skip;
+use common::{assets_or_skip, default_config_or_skip};
 use rigcast_sources::vision::{
     DecodeSize, FfmpegSource, FrameSource, PipelineConfig, PosePipeline, RgbFrame,
 };
@@ -197,12 +197,8 @@ fn two_person_frames_allocate_nothing_in_steady_state() {
 fn person_sources_read_frames_without_allocating() {
     use rigcast_sources::live::{LiveSource, SourceState};
     use rigcast_sources::vision::SharedVision;
-    let Some(assets) = assets_or_skip("person source allocations") else {
+    let Some((assets, config)) = default_config_or_skip("person source allocations") else {
         return;
-    };
-    let config = PipelineConfig {
-        assets: assets.clone(),
-        ..PipelineConfig::default()
     };
     let frames =
         FfmpegSource::open_at(&assets.pose2sim_multi_video(2), DecodeSize::FOR_MODEL, 30.0)

@@ -1,12 +1,24 @@
-//! Shared helpers for the vision tests (included with `#[path]`, not a test target itself).
+//! Shared helpers for the vision tests (included with `#[path]`, not a test target itself; also
+//! by `server/tests/pose_cli.rs`).
 #![allow(clippy::unwrap_used)] // tests may unwrap
 #![allow(dead_code)]
 
 use std::path::Path;
 
+use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
     FfmpegSource, FrameSource, Landmarks, PipelineConfig, PosePipeline, RgbFrame, VisionAssets,
 };
+
+/// Limb segments whose length must stay constant: (name, joint a, joint b).
+pub const SEGMENTS: [(&str, usize, usize); 6] = [
+    ("left upper arm", idx::LEFT_SHOULDER, idx::LEFT_ELBOW),
+    ("right upper arm", idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW),
+    ("left thigh", idx::LEFT_HIP, idx::LEFT_KNEE),
+    ("right thigh", idx::RIGHT_HIP, idx::RIGHT_KNEE),
+    ("left shin", idx::LEFT_KNEE, idx::LEFT_ANKLE),
+    ("right shin", idx::RIGHT_KNEE, idx::RIGHT_ANKLE),
+];
 
 /// The installed assets, or `None` (with a printed reason) when `RIGCAST_SKIP_VISION=1`.
 /// Without the setup it fails with the command to run.
@@ -23,6 +35,17 @@ pub fn assets_or_skip(test: &str) -> Option<VisionAssets> {
         assets.root.display()
     );
     Some(assets)
+}
+
+/// The installed assets and the default pipeline configuration on them, or `None` as
+/// [`assets_or_skip`].
+pub fn default_config_or_skip(test: &str) -> Option<(VisionAssets, PipelineConfig)> {
+    let assets = assets_or_skip(test)?;
+    let config = PipelineConfig {
+        assets: assets.clone(),
+        ..PipelineConfig::default()
+    };
+    Some((assets, config))
 }
 
 /// Runs the pipeline over a video; one entry per frame (output landmarks, and in `raw` the
@@ -52,6 +75,28 @@ pub fn run_video(
     config: &PipelineConfig,
 ) -> (f64, Vec<Option<Landmarks>>, PosePipeline) {
     run_video_raw(path, config, &mut Vec::new())
+}
+
+/// Left/right never swap between consecutive frames: the hip and shoulder lines (left minus
+/// right, world space) keep their direction from one frame to the next. `what` starts the
+/// failure message.
+pub fn assert_sides_never_swap(frames: &[Option<Landmarks>], what: &str) {
+    for w in frames.windows(2) {
+        let (Some(p), Some(c)) = (&w[0], &w[1]) else {
+            continue;
+        };
+        for (l, r) in [
+            (idx::LEFT_HIP, idx::RIGHT_HIP),
+            (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
+        ] {
+            let before = p.world[l] - p.world[r];
+            let after = c.world[l] - c.world[r];
+            assert!(
+                before.dot(after) > 0.0,
+                "{what}: sides swapped ({before} → {after})"
+            );
+        }
+    }
 }
 
 /// Coefficient of variation (std / mean).

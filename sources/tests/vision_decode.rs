@@ -83,34 +83,26 @@ fn vp9_mjpeg_and_image_sequences_match_the_same_frames() {
     let webm = dir.join("clip.webm");
     let avi = dir.join("clip.avi");
     let png_in = png.to_str().unwrap();
-    ffmpeg(&[
-        "-framerate",
-        "60",
-        "-i",
-        png_in,
-        "-c:v",
-        "libvpx-vp9",
-        "-b:v",
-        "0",
-        "-crf",
-        "20",
-        "-deadline",
-        "realtime",
-        "-cpu-used",
-        "8",
-        webm.to_str().unwrap(),
-    ]);
-    ffmpeg(&[
-        "-framerate",
-        "60",
-        "-i",
-        png_in,
-        "-c:v",
-        "mjpeg",
-        "-q:v",
-        "2",
-        avi.to_str().unwrap(),
-    ]);
+    // The 60 fps PNG sequence encoded with `codec` (and its options) into `out`.
+    let encode = |codec: &[&str], out: &Path| {
+        let input = ["-framerate", "60", "-i", png_in, "-c:v"];
+        ffmpeg(&[&input[..], codec, &[out.to_str().unwrap()]].concat());
+    };
+    encode(
+        &[
+            "libvpx-vp9",
+            "-b:v",
+            "0",
+            "-crf",
+            "20",
+            "-deadline",
+            "realtime",
+            "-cpu-used",
+            "8",
+        ],
+        &webm,
+    );
+    encode(&["mjpeg", "-q:v", "2"], &avi);
 
     let reference = decode_all(FfmpegSource::open_sequence(&png, 60.0).unwrap());
     assert_eq!(reference.len(), 12);

@@ -10,21 +10,12 @@
 #[path = "vision_common.rs"]
 mod common;
 
-use common::{assets_or_skip, cv};
+use common::{assert_sides_never_swap, assets_or_skip, cv, SEGMENTS};
 use glam::{Vec2, Vec3};
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
     DecodeSize, FfmpegSource, FrameSource, Landmarks, PipelineConfig, PosePipeline, RgbFrame,
 };
-
-const SEGMENTS: [(&str, usize, usize); 6] = [
-    ("left upper arm", idx::LEFT_SHOULDER, idx::LEFT_ELBOW),
-    ("right upper arm", idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW),
-    ("left thigh", idx::LEFT_HIP, idx::LEFT_KNEE),
-    ("right thigh", idx::RIGHT_HIP, idx::RIGHT_KNEE),
-    ("left shin", idx::LEFT_KNEE, idx::LEFT_ANKLE),
-    ("right shin", idx::RIGHT_KNEE, idx::RIGHT_ANKLE),
-];
 
 /// Mean colour of the torso (a 3×5 grid around the spine, the middle third of the
 /// shoulder–hip quad: a torso seen from the side is a thin sliver), from `frame`; landmarks
@@ -173,22 +164,7 @@ fn check_cameras(test: &str, cameras: &[u32]) {
                     failures.push(format!("cam{cam} #{slot} {name} cv {c:.3}"));
                 }
             }
-            for w in person.frames.windows(2) {
-                let (Some(p), Some(c)) = (&w[0], &w[1]) else {
-                    continue;
-                };
-                for (l, r) in [
-                    (idx::LEFT_HIP, idx::RIGHT_HIP),
-                    (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
-                ] {
-                    let before = p.world[l] - p.world[r];
-                    let after = c.world[l] - c.world[r];
-                    assert!(
-                        before.dot(after) > 0.0,
-                        "{report}: #{slot} sides swapped ({before} → {after})"
-                    );
-                }
-            }
+            assert_sides_never_swap(&person.frames, &format!("{report}: #{slot}"));
         }
         eprintln!("{report}");
     }

@@ -5,28 +5,16 @@
 #[path = "vision_common.rs"]
 mod common;
 
-use common::{assets_or_skip, cv, run_video, run_video_raw};
-use rigcast_sources::vision::landmarks::idx;
+use common::{
+    assert_sides_never_swap, assets_or_skip, cv, default_config_or_skip, run_video, run_video_raw,
+    SEGMENTS,
+};
 use rigcast_sources::vision::{InputRange, PipelineConfig};
-
-/// Limb segments whose length must stay constant: (name, joint a, joint b).
-const SEGMENTS: [(&str, usize, usize); 6] = [
-    ("left upper arm", idx::LEFT_SHOULDER, idx::LEFT_ELBOW),
-    ("right upper arm", idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW),
-    ("left thigh", idx::LEFT_HIP, idx::LEFT_KNEE),
-    ("right thigh", idx::RIGHT_HIP, idx::RIGHT_KNEE),
-    ("left shin", idx::LEFT_KNEE, idx::LEFT_ANKLE),
-    ("right shin", idx::RIGHT_KNEE, idx::RIGHT_ANKLE),
-];
 
 #[test]
 fn pose2sim_landmarks_are_complete_stable_and_never_swap_sides() {
-    let Some(assets) = assets_or_skip("pose2sim acceptance") else {
+    let Some((assets, config)) = default_config_or_skip("pose2sim acceptance") else {
         return;
-    };
-    let config = PipelineConfig {
-        assets: assets.clone(),
-        ..PipelineConfig::default()
     };
     for cam in 1..=4 {
         let path = assets.pose2sim_video(cam);
@@ -68,24 +56,7 @@ fn pose2sim_landmarks_are_complete_stable_and_never_swap_sides() {
             );
         }
 
-        // Left/right never swap between consecutive frames: the hip and shoulder lines (left
-        // minus right, world space) keep their direction from one frame to the next.
-        for w in frames.windows(2) {
-            let (Some(p), Some(c)) = (&w[0], &w[1]) else {
-                continue;
-            };
-            for (l, r) in [
-                (idx::LEFT_HIP, idx::RIGHT_HIP),
-                (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
-            ] {
-                let before = p.world[l] - p.world[r];
-                let after = c.world[l] - c.world[r];
-                assert!(
-                    before.dot(after) > 0.0,
-                    "{report}: sides swapped ({before} → {after})"
-                );
-            }
-        }
+        assert_sides_never_swap(&frames, &report);
         eprintln!("{report}");
     }
 }

@@ -8,7 +8,7 @@ mod common;
 
 use std::time::Duration;
 
-use common::assets_or_skip;
+use common::default_config_or_skip;
 use rigcast_retarget::approx::quat_angle;
 use rigcast_retarget::Pose;
 use rigcast_sources::live::{LiveSource, SourceState};
@@ -82,12 +82,8 @@ fn drain(mut source: impl LiveSource) -> (Vec<Pose>, SourceState, String) {
 
 #[test]
 fn each_person_source_carries_its_own_slot_of_one_shared_pipeline() {
-    let Some(assets) = assets_or_skip("shared vision") else {
+    let Some((assets, config)) = default_config_or_skip("shared vision") else {
         return;
-    };
-    let config = PipelineConfig {
-        assets: assets.clone(),
-        ..PipelineConfig::default()
     };
     let video = assets.pose2sim_multi_video(2);
     let expected = offline_poses(&config, &video);
@@ -205,12 +201,8 @@ fn follow(mut source: impl LiveSource, first_capture: &std::sync::Mutex<Option<u
 
 #[test]
 fn a_person_leaving_the_view_loses_only_their_own_subject() {
-    let Some(assets) = assets_or_skip("shared vision, one person leaves") else {
+    let Some((assets, config)) = default_config_or_skip("shared vision, one person leaves") else {
         return;
-    };
-    let config = PipelineConfig {
-        assets: assets.clone(),
-        ..PipelineConfig::default()
     };
     let video = assets.pose2sim_multi_video(2);
     let inner = FfmpegSource::open_at(&video, DecodeSize::FOR_MODEL, 30.0).unwrap();

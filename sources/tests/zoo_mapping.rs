@@ -20,6 +20,10 @@ use rigcast_retarget::{BoneId, Clip, Pose, RawBone, RawSkeleton, Skeleton};
 use rigcast_sources::load_clip;
 use serde_json::Value;
 
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::shared_data_dir;
+
 /// The humanoid roles the acceptance counts (sided ones get `.L` / `.R` in the labels).
 const CORE: &[&str] = &[
     "hips", "spine", "chest", "neck", "head", "shoulder", "upperArm", "lowerArm", "hand",
@@ -38,13 +42,7 @@ const QUAD_LEGS: &[&str] = &[
 ];
 
 fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.join("labels.json").exists() {
-        Some(p)
-    } else {
-        println!("SKIP: real rigs not found ({}/labels.json)", p.display());
-        None
-    }
+    shared_data_dir("labels.json", "real rigs")
 }
 
 /// One labelled file: its clip and its role → acceptable bone names.
@@ -53,6 +51,11 @@ struct Rig {
     kind: String,
     clip: Clip,
     roles: BTreeMap<String, Vec<String>>,
+}
+
+/// [`load_rigs`] of the shared data, or `None` (with a printed reason) when it is absent.
+fn real_rigs() -> Option<Vec<Rig>> {
+    Some(load_rigs(&data_dir()?))
 }
 
 fn load_rigs(dir: &Path) -> Vec<Rig> {
@@ -82,6 +85,11 @@ fn load_rigs(dir: &Path) -> Vec<Rig> {
         });
     }
     out
+}
+
+/// `source -> target`, the rigs' short names, for failure messages.
+fn pair(src: &Rig, tgt: &Rig) -> String {
+    format!("{} -> {}", short(&src.key), short(&tgt.key))
 }
 
 fn short(key: &str) -> &str {
@@ -283,8 +291,7 @@ fn humans(rigs: &[Rig]) -> Vec<&Rig> {
 /// Per-file analysis report: which labelled core bones the analysis gives the right role.
 #[test]
 fn analysis_roles_per_file() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     for rig in &rigs {
         let a = analyze(&view(&rig.clip));
         let skel = &rig.clip.skeleton;
@@ -322,8 +329,7 @@ fn print_table(title: &str, rows: &[(String, Score, Score)]) {
 
 #[test]
 fn human_to_human_core_roles() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let hs = humans(&rigs);
     let (mut all_named, mut all_anon) = (Score::default(), Score::default());
     let mut rows = Vec::new();
@@ -421,8 +427,7 @@ fn quad_sources(role: &str) -> Vec<String> {
 
 #[test]
 fn human_to_quadruped_legs() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let hs = humans(&rigs);
     let quads: Vec<&Rig> = rigs.iter().filter(|r| r.kind == "quadruped").collect();
     let mut all = Score::default();
@@ -462,9 +467,8 @@ fn human_to_quadruped_legs() {
                     sc.swaps += 1;
                 }
                 fails.push(format!(
-                    "{} -> {}: {role} <- {}",
-                    short(&src.key),
-                    short(&tgt.key),
+                    "{}: {role} <- {}",
+                    pair(src, tgt),
                     d.unwrap_or("-")
                 ));
             }
@@ -508,8 +512,7 @@ fn sided_names<'a>(rig: &'a Rig, roles: &[&str], side: &str) -> Vec<&'a String> 
 /// (human sources have no tail).
 #[test]
 fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let hs = humans(&rigs);
     for tgt in rigs.iter().filter(|r| r.kind == "biped_creature") {
         let ts = &tgt.clip.skeleton;
@@ -525,29 +528,17 @@ fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
                         if let Some(d) = driver_of(t) {
                             assert!(
                                 allowed.iter().any(|a| *a == d),
-                                "{} -> {}: {t} <- {d}",
-                                short(&src.key),
-                                short(&tgt.key)
+                                "{}: {t} <- {d}",
+                                pair(src, tgt)
                             );
                             driven += 1;
                         }
                     }
-                    assert!(
-                        driven >= 2,
-                        "{} -> {}: {side} limb barely mapped",
-                        short(&src.key),
-                        short(&tgt.key)
-                    );
+                    assert!(driven >= 2, "{}: {side} limb barely mapped", pair(src, tgt));
                 }
             }
             for t in tgt.roles.get("tail").into_iter().flatten() {
-                assert_eq!(
-                    driver_of(t),
-                    None,
-                    "{} -> {}: tail {t}",
-                    short(&src.key),
-                    short(&tgt.key)
-                );
+                assert_eq!(driver_of(t), None, "{}: tail {t}", pair(src, tgt));
             }
         }
     }
@@ -557,8 +548,7 @@ fn biped_creature_takes_legs_from_legs_and_arms_from_arms() {
 /// bones (bones the analysis puts in ground-reaching limbs), never the body or the head.
 #[test]
 fn multi_legged_rigs_use_legs_for_legs() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let hs = humans(&rigs);
     for tgt in rigs.iter().filter(|r| r.kind == "other") {
         let ta = analyze(&view(&tgt.clip));
@@ -583,9 +573,8 @@ fn multi_legged_rigs_use_legs_for_legs() {
                     .map(|s| &ta.sections[s as usize]);
                 assert!(
                     sec.is_some_and(|s| s.ground),
-                    "{} -> {}: leg bone {d} drives {} ({})",
-                    short(&src.key),
-                    short(&tgt.key),
+                    "{}: leg bone {d} drives {} ({})",
+                    pair(src, tgt),
                     ts.name(t),
                     ta.label(t)
                 );
@@ -593,9 +582,8 @@ fn multi_legged_rigs_use_legs_for_legs() {
             }
             assert!(
                 on_legs >= 4,
-                "{} -> {}: only {on_legs} leg bones used",
-                short(&src.key),
-                short(&tgt.key)
+                "{}: only {on_legs} leg bones used",
+                pair(src, tgt)
             );
         }
     }
@@ -606,8 +594,7 @@ fn multi_legged_rigs_use_legs_for_legs() {
 /// and the human's fingers its fingers.
 #[test]
 fn flat_hand_rig_maps_by_names_and_chirality() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let hs = humans(&rigs);
     for tgt in rigs.iter().filter(|r| r.kind == "hand") {
         let ts = &tgt.clip.skeleton;
@@ -683,7 +670,6 @@ fn folded(clip: &Clip) -> Clip {
         raw.bones[b.index()].rest =
             rigcast_retarget::Transform::from_translation(qp * skel.rest()[b.index()].translation);
     }
-    let new = Skeleton::build(&raw).unwrap();
     let poses = clip
         .poses
         .iter()
@@ -701,13 +687,7 @@ fn folded(clip: &Clip) -> Clip {
                 .collect(),
         })
         .collect();
-    Clip::new(
-        clip.name.clone(),
-        std::sync::Arc::new(new),
-        poses,
-        clip.frame_time_secs,
-    )
-    .unwrap()
+    rebuilt(clip, &raw, poses)
 }
 
 fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
@@ -722,6 +702,18 @@ fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
     }
 }
 
+/// `clip` with the skeleton `raw` and `poses` on it.
+fn rebuilt(clip: &Clip, raw: &RawSkeleton, poses: Vec<Pose>) -> Clip {
+    let skeleton = Skeleton::build(raw).unwrap();
+    Clip::new(
+        clip.name.clone(),
+        std::sync::Arc::new(skeleton),
+        poses,
+        clip.frame_time_secs,
+    )
+    .unwrap()
+}
+
 /// A way of rebuilding a clip (folded, turned).
 type Variant<'a> = &'a dyn Fn(&Clip) -> Clip;
 
@@ -734,7 +726,6 @@ fn turned(clip: &Clip, g: glam::Quat) -> Clip {
         r.translation = g * r.translation;
         r.rotation = g * r.rotation;
     }
-    let new = Skeleton::build(&raw).unwrap();
     let roots: Vec<BoneId> = skel.roots().collect();
     let poses = clip
         .poses
@@ -748,21 +739,14 @@ fn turned(clip: &Clip, g: glam::Quat) -> Clip {
             p
         })
         .collect();
-    Clip::new(
-        clip.name.clone(),
-        std::sync::Arc::new(new),
-        poses,
-        clip.frame_time_secs,
-    )
-    .unwrap()
+    rebuilt(clip, &raw, poses)
 }
 
 /// Every labelled human with animation, folded LaFAN1-style, still maps from every other
 /// human; every labelled human turned Z-up (and turned arbitrarily) maps as before.
 #[test]
 fn folded_rests_and_turned_rigs_map_like_the_originals() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let hs = humans(&rigs);
     let z_up = glam::Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
     let odd = glam::Quat::from_axis_angle(glam::Vec3::new(0.3, 1.0, 0.2).normalize_or_zero(), 2.3)
@@ -813,8 +797,7 @@ fn folded_rests_and_turned_rigs_map_like_the_originals() {
 /// it loads, and maps by its names, as target and as source, from and to every other human.
 #[test]
 fn broken_geometry_maps_by_names() {
-    let Some(dir) = data_dir() else { return };
-    let rigs = load_rigs(&dir);
+    let Some(rigs) = real_rigs() else { return };
     let Some(broken) = rigs.iter().find(|r| r.key.contains("kinect2")) else {
         println!("SKIP: no kinect2 rig in the labels");
         return;

@@ -225,6 +225,59 @@ impl DevTools {
         (browser, cdp)
     }
 
+    /// [`DevTools::open`] on the viewer that the server at `addr` serves.
+    pub async fn open_viewer(chromium: &Path, addr: std::net::SocketAddr) -> (Browser, DevTools) {
+        DevTools::open(chromium, &format!("http://{addr}/")).await
+    }
+
+    /// The demo server (`start_demo_server`) and [`DevTools::open_viewer`] on its viewer.
+    pub async fn open_demo(chromium: &Path) -> (rigcast_server::ServerHandle, Browser, DevTools) {
+        let server = crate::start_demo_server().await;
+        let (browser, cdp) = DevTools::open_viewer(chromium, server.local_addr()).await;
+        (server, browser, cdp)
+    }
+
+    /// Evaluates `expression` every `poll` until it is `true`; false when `timeout` passes
+    /// first.
+    pub async fn wait_true(
+        &mut self,
+        expression: &str,
+        timeout: std::time::Duration,
+        poll: std::time::Duration,
+    ) -> bool {
+        let start = std::time::Instant::now();
+        loop {
+            if self.eval(expression).await == true {
+                return true;
+            }
+            if start.elapsed() >= timeout {
+                return false;
+            }
+            tokio::time::sleep(poll).await;
+        }
+    }
+
+    /// Evaluates `expression` (a `JSON.stringify(...)`) every `poll` until `done` holds for its
+    /// value or `timeout` passes; the last value.
+    pub async fn poll_json(
+        &mut self,
+        expression: &str,
+        timeout: std::time::Duration,
+        poll: std::time::Duration,
+        done: impl Fn(&Value) -> bool,
+    ) -> Value {
+        let start = std::time::Instant::now();
+        let mut value = Value::Null;
+        while start.elapsed() < timeout {
+            value = self.eval_json(expression).await;
+            if done(&value) {
+                break;
+            }
+            tokio::time::sleep(poll).await;
+        }
+        value
+    }
+
     /// A PNG screenshot of the page.
     pub async fn screenshot(&mut self) -> Vec<u8> {
         let shot = self
@@ -233,6 +286,14 @@ impl DevTools {
         let png = base64_decode(shot["data"].as_str().expect("screenshot data"));
         assert!(png.starts_with(b"\x89PNG"), "screenshot is not a PNG");
         png
+    }
+
+    /// Page exceptions seen so far.
+    pub fn thrown(&self) -> Vec<&Value> {
+        self.events
+            .iter()
+            .filter(|e| e["method"] == "Runtime.exceptionThrown")
+            .collect()
     }
 
     /// Page exceptions and error-level log entries seen so far.
@@ -245,4 +306,15 @@ impl DevTools {
             })
             .collect()
     }
+}
+
+/// One browser at a time in a test binary: the frame rates a test measures must not compete
+/// with another browser of the same file.
+static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
+/// Chromium (or `None`, with a printed reason, when it is not installed) and the test binary's
+/// one-browser lock, held as long as the guard lives.
+pub async fn one_browser() -> Option<(PathBuf, tokio::sync::MutexGuard<'static, ()>)> {
+    let chromium = crate::find_app("chromium")?;
+    Some((chromium, ONE_BROWSER.lock().await))
 }

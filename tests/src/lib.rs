@@ -141,18 +141,71 @@ pub async fn collect_frames(ws: &mut Ws, duration: Duration) -> Vec<(DecodedFram
     out
 }
 
-/// Path of a file in the shared test data, or `None` (with a printed reason) when absent.
-pub fn shared_data(relative: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(relative);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("SKIP: test data {} not found", p.display());
-        None
+/// A WebSocket upgrade on a socket with a tiny receive buffer, read up to the end of the 101
+/// head only, so the socket fills as soon as the client stops reading.
+pub async fn stalled_client(addr: std::net::SocketAddr) -> TcpStream {
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let mut raw = socket.connect(addr).await.unwrap();
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    raw.write_all(
+        b"GET /v1/stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+          Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+    )
+    .await
+    .unwrap();
+    let mut head = Vec::new();
+    while !head.ends_with(b"\r\n\r\n") {
+        head.push(raw.read_u8().await.unwrap());
     }
+    assert!(head.starts_with(b"HTTP/1.1 101"));
+    raw
 }
+
+/// An idle graph of the real CMU walk and run (clip paths absolute) written into the temporary
+/// file `file_name` (`.rmg`), and the clips; `None` (with a printed reason) when the clips are
+/// absent.
+pub fn build_idle_graph(file_name: &str) -> Option<(PathBuf, Vec<Clip>)> {
+    let paths = [
+        shared_data("bvh/cmu_131_01_walk.bvh")?,
+        shared_data("bvh/cmu_run.bvh")?,
+    ];
+    let clips: Vec<Clip> = paths
+        .iter()
+        .map(|p| rigcast_sources::load_clip(p).unwrap())
+        .collect();
+    let mut graph = rigcast_retarget::graph::MotionGraph::build(
+        &clips,
+        rigcast_retarget::graph::GraphSettings::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    for (c, p) in graph.clips.iter_mut().zip(&paths) {
+        c.path = Some(std::fs::canonicalize(p).unwrap().display().to_string());
+    }
+    let file = temp_path(file_name);
+    std::fs::write(&file, graph.to_json()).unwrap();
+    println!(
+        "graph: {} nodes, {} kept, {} transitions",
+        graph.num_frames(),
+        graph.num_kept(),
+        graph.transitions.len()
+    );
+    Some((file, clips))
+}
+
+/// The numbers of a JSON array (panics on anything else: a test's expectation).
+pub fn f64s(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .expect("a JSON array")
+        .iter()
+        .map(|x| x.as_f64().expect("a number"))
+        .collect()
+}
+
+#[path = "../../sources/tests/common/shared_data.rs"]
+mod shared_data;
+pub use shared_data::{shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
 
 /// A 6-bone creature with a tail, animated with distinct rotations on every bone: 48 frames at
 /// 30 fps. Built in code so tests do not depend on any file.
@@ -380,6 +433,22 @@ pub fn find_app(name: &str) -> Option<PathBuf> {
 
 /// Starts an in-process server exactly as `rigcast serve` without arguments would (the bundled
 /// walk `demo` and the built-in `mannequin` retargeted from it), but on 127.0.0.1:0.
+/// Starts `config` listening on 127.0.0.1:0 with one VMC source ([`vmc_performer`], lost
+/// after 0.25 s) as subject 0: the server, and the address to send VMC to.
+pub async fn start_vmc_server(
+    config: rigcast_server::ServerConfig,
+) -> (rigcast_server::ServerHandle, std::net::SocketAddr) {
+    let config = rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![vmc_performer(0.25)],
+        ..config
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
+    let to = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    (server, to)
+}
+
 pub async fn start_demo_server() -> rigcast_server::ServerHandle {
     let config = rigcast_server::ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),

@@ -47,23 +47,19 @@ fn ours_from_blender(p: Vec3) -> Vec3 {
     Vec3::new(p.x, p.z, -p.y)
 }
 
-fn vec3(v: &Value) -> Vec3 {
-    let a = v.as_array().expect("array");
-    Vec3::new(
-        a[0].as_f64().expect("x") as f32,
-        a[1].as_f64().expect("y") as f32,
-        a[2].as_f64().expect("z") as f32,
-    )
+/// The first `N` numbers of a JSON array.
+fn floats<const N: usize>(v: &Value) -> [f32; N] {
+    let a = rigcast_tests::f64s(v);
+    std::array::from_fn(|i| a[i] as f32)
 }
 
+fn vec3(v: &Value) -> Vec3 {
+    Vec3::from_array(floats(v))
+}
+
+/// `[x, y, z, w]`.
 fn quat(v: &Value) -> Quat {
-    let a = v.as_array().expect("array");
-    Quat::from_xyzw(
-        a[0].as_f64().expect("x") as f32,
-        a[1].as_f64().expect("y") as f32,
-        a[2].as_f64().expect("z") as f32,
-        a[3].as_f64().expect("w") as f32,
-    )
+    Quat::from_array(floats(v))
 }
 
 /// A skeleton as the client sees it on the wire.
@@ -622,13 +618,8 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             let world = skeleton.fk(Some(frame));
             for (i, name) in skeleton.names.iter().enumerate() {
                 let got = &obs["heads"][name];
-                let (rest_rotation, rest_position) = rest[i];
-                let (rotation, position) = world[i];
-                // Head, tail and head+Z of each bone: rigid in the joint's frame.
-                for k in 0..3 {
-                    let rest_point = ours_from_blender(vec3(&rest_points[name][k]));
-                    let local = rest_rotation.inverse() * (rest_point - rest_position);
-                    let expected = blender_from_ours(position + rotation * local);
+                let expected = posed_points(&rest_points[name], rest[i], world[i]);
+                for (k, expected) in expected.into_iter().enumerate() {
                     let error = (vec3(&got[k]) - expected).length();
                     if error > worst_m {
                         worst_m = error;
@@ -759,12 +750,7 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
                     name.as_str(),
                     "{name}: curve not grouped by bone"
                 );
-                let frames: Vec<f64> = curve["frames"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|f| f.as_f64().unwrap())
-                    .collect();
+                let frames = rigcast_tests::f64s(&curve["frames"]);
                 assert!(
                     frames.iter().all(|f| f.fract() == 0.0),
                     "{name}: keys off whole frames"
@@ -794,14 +780,7 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             // Keys are unit quaternions.
             let values: Vec<Vec<f64>> = curves
                 .iter()
-                .map(|c| {
-                    c["values"]
-                        .as_array()
-                        .unwrap()
-                        .iter()
-                        .map(|v| v.as_f64().unwrap())
-                        .collect()
-                })
+                .map(|c| rigcast_tests::f64s(&c["values"]))
                 .collect();
             for k in 0..values[0].len() {
                 let norm = values.iter().map(|c| c[k] * c[k]).sum::<f64>().sqrt();
@@ -877,16 +856,25 @@ fn pose_error(
     let world = skeleton.fk(Some(frame));
     let mut worst = 0.0f32;
     for (i, name) in skeleton.names.iter().enumerate() {
-        let (rest_rotation, rest_position) = rest[i];
-        let (rotation, position) = world[i];
-        for k in 0..3 {
-            let rest_point = ours_from_blender(vec3(&rest_points[name][k]));
-            let local = rest_rotation.inverse() * (rest_point - rest_position);
-            let expected = blender_from_ours(position + rotation * local);
+        let expected = posed_points(&rest_points[name], rest[i], world[i]);
+        for (k, expected) in expected.into_iter().enumerate() {
             worst = worst.max((vec3(&heads[name][k]) - expected).length());
         }
     }
     worst
+}
+
+/// Where a bone's three points Blender reports (head, tail and head + Z, at rest in
+/// `rest_points`) are when its joint moves from `rest` to `posed` (rotation, position): rigid
+/// in the joint's frame.
+fn posed_points(rest_points: &Value, rest: (Quat, Vec3), posed: (Quat, Vec3)) -> [Vec3; 3] {
+    let (rest_rotation, rest_position) = rest;
+    let (rotation, position) = posed;
+    std::array::from_fn(|k| {
+        let rest_point = ours_from_blender(vec3(&rest_points[k]));
+        let local = rest_rotation.inverse() * (rest_point - rest_position);
+        blender_from_ours(position + rotation * local)
+    })
 }
 
 /// A take that fails mid-recording stops alone, reported once; the live pose of every
@@ -1045,6 +1033,23 @@ fn blender_addon_unit_tests_pass() {
     assert!(log.contains(" passed, 0 failed"), "no test summary:\n{log}");
 }
 
+/// The add-on zip, built into `work` with the documented command (`build_zip.py --out`).
+fn build_zip(python3: &Path, work: &Path) -> PathBuf {
+    let zip = work.join("rigcast_livelink.zip");
+    let built = Command::new(python3)
+        .arg(repo_root().join("clients/blender/build_zip.py"))
+        .arg("--out")
+        .arg(&zip)
+        .output()
+        .expect("python3 runs");
+    assert!(
+        built.status.success() && zip.is_file(),
+        "build_zip.py failed: {}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    zip
+}
+
 /// The extensions platform's own validator (`blender_ext.py validate`, shipped inside Blender
 /// 4.2+) accepts the built zip's `blender_manifest.toml`, in 4.2, 4.5 and 5.0.
 #[test]
@@ -1053,18 +1058,7 @@ fn extension_manifest_passes_blenders_validator() {
         return;
     };
     let work = work_dir();
-    let zip = work.join("rigcast_livelink.zip");
-    let built = Command::new(&python3)
-        .arg(repo_root().join("clients/blender/build_zip.py"))
-        .arg("--out")
-        .arg(&zip)
-        .output()
-        .expect("python3 runs");
-    assert!(
-        built.status.success(),
-        "{}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let zip = build_zip(&python3, &work);
     for series in ["4.2", "4.5", "5.0"] {
         let Some(Blender::Module { python, .. }) = Blender::module(series) else {
             continue;
@@ -1298,18 +1292,7 @@ async fn zip_connects_to_the_rigcast_binary(blender: Blender) {
         return;
     };
     let work = work_dir();
-    let zip = work.join("rigcast_livelink.zip");
-    let built = Command::new(python)
-        .arg(repo_root().join("clients/blender/build_zip.py"))
-        .arg("--out")
-        .arg(&zip)
-        .output()
-        .expect("python3 runs");
-    assert!(
-        built.status.success() && zip.is_file(),
-        "build_zip.py failed: {}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let zip = build_zip(&python, &work);
 
     let binary = tokio::task::spawn_blocking(rigcast_binary).await.unwrap();
     let listen = format!("127.0.0.1:{}", free_port());

@@ -10,8 +10,7 @@ use rigcast_protocol::ServerMessage;
 use rigcast_retarget::Clip;
 use rigcast_server::{LimitsConfig, PerformerSpec, ServerConfig, TargetSpec};
 use rigcast_tests::*;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpSocket, TcpStream};
+use tokio::io::AsyncReadExt;
 use tokio_tungstenite::tungstenite::protocol::Role;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::WebSocketStream;
@@ -21,26 +20,6 @@ const WAIT: Duration = Duration::from_secs(5);
 /// A chain of `n` bones with a little motion: frames of 60 + 16n bytes.
 fn chain_clip(n: usize) -> Clip {
     rigcast_tests::chain_clip(n, 30, 0.05, 0.002, 30.0)
-}
-
-/// A WebSocket upgrade on a socket with a tiny receive buffer, read up to the end of the 101
-/// head only, so the socket fills as soon as the client stops reading.
-async fn stalled_client(addr: std::net::SocketAddr) -> TcpStream {
-    let socket = TcpSocket::new_v4().unwrap();
-    socket.set_recv_buffer_size(4096).unwrap();
-    let mut raw = socket.connect(addr).await.unwrap();
-    raw.write_all(
-        b"GET /v1/stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
-          Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
-    )
-    .await
-    .unwrap();
-    let mut head = Vec::new();
-    while !head.ends_with(b"\r\n\r\n") {
-        head.push(raw.read_u8().await.unwrap());
-    }
-    assert!(head.starts_with(b"HTTP/1.1 101"));
-    raw
 }
 
 async fn status(addr: std::net::SocketAddr) -> serde_json::Value {

@@ -79,10 +79,7 @@ fn replay(path: std::path::PathBuf, name: &str) -> SourceSpec {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replayed_upper_body_on_a_looping_walk_streams_at_the_tick_rate() {
-    let (Some(upper), Some(walk)) = (
-        shared_data("zoo/bvh/sparse_spine_head__pymo_meredith.bvh"),
-        shared_data("bvh/cmu_131_01_walk.bvh"),
-    ) else {
+    let Some([upper, walk]) = shared_data_all([MEREDITH, CMU_WALK]) else {
         return;
     };
     let graft = GraftSpec {
@@ -96,10 +93,7 @@ async fn a_replayed_upper_body_on_a_looping_walk_streams_at_the_tick_rate() {
 /// travels less in the measured 3 s than the looping stride does).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replayed_upper_body_on_a_second_source_streams_at_the_tick_rate() {
-    let (Some(upper), Some(walk)) = (
-        shared_data("zoo/bvh/sparse_spine_head__pymo_meredith.bvh"),
-        shared_data("bvh/cmu_131_01_walk.bvh"),
-    ) else {
+    let Some([upper, walk]) = shared_data_all([MEREDITH, CMU_WALK]) else {
         return;
     };
     let sources = vec![replay(upper, "meredith"), replay(walk, "walk")];

@@ -21,7 +21,7 @@ use rigcast_protocol::frame::DecodedFrame;
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::{ServerMessage, SourceState, TargetMotion};
 use rigcast_retarget::graph::play::clips_onto_rig;
-use rigcast_retarget::graph::{GraphSettings, MotionGraph};
+use rigcast_retarget::graph::GraphSettings;
 use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
 use rigcast_server::config::OnLost;
 use rigcast_server::{PerformerSpec, ServerConfig};
@@ -43,31 +43,6 @@ struct Seen {
     lost_at: Option<u64>,
     back_at: Option<u64>,
     motions: Vec<(u64, TargetMotion)>,
-}
-
-/// Builds the graph from the real clips into a temporary `.rmg` file.
-fn build_graph() -> Option<(std::path::PathBuf, Vec<Clip>)> {
-    let paths = [
-        shared_data("bvh/cmu_131_01_walk.bvh")?,
-        shared_data("bvh/cmu_run.bvh")?,
-    ];
-    let clips: Vec<Clip> = paths
-        .iter()
-        .map(|p| rigcast_sources::load_clip(p).unwrap())
-        .collect();
-    let mut graph = MotionGraph::build(&clips, GraphSettings::default(), &mut |_| {}).unwrap();
-    for (c, p) in graph.clips.iter_mut().zip(&paths) {
-        c.path = Some(std::fs::canonicalize(p).unwrap().display().to_string());
-    }
-    let file = temp_path("idle.rmg");
-    std::fs::write(&file, graph.to_json()).unwrap();
-    println!(
-        "graph: {} nodes, {} kept, {} transitions",
-        graph.num_frames(),
-        graph.num_kept(),
-        graph.transitions.len()
-    );
-    Some((file, clips))
 }
 
 /// The mannequin's pose in a frame.
@@ -177,7 +152,7 @@ async fn watch(ws: &mut Ws, seen: &mut Seen, for_secs: f64) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
-    let Some((graph_file, graph_clips)) = build_graph() else {
+    let Some((graph_file, graph_clips)) = build_idle_graph("idle.rmg") else {
         return;
     };
     let live = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();

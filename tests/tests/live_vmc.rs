@@ -18,6 +18,34 @@ use rigcast_tests::*;
 
 const RATE: f64 = 60.0;
 
+/// Sends poses of `clip` (bones named `names`) to `to` at [`RATE`] while `running(elapsed)`:
+/// the k-th datagram carries frame `frame(k, elapsed)`, stamped with the elapsed seconds.
+fn stream_clip(
+    to: std::net::SocketAddr,
+    clip: &rigcast_retarget::Clip,
+    names: &[String],
+    running: impl Fn(Duration) -> bool,
+    frame: impl Fn(usize, Duration) -> usize,
+) {
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let mut enc = VmcEncoder::new();
+    let t0 = Instant::now();
+    let mut k = 0;
+    while running(t0.elapsed()) {
+        let pose = &clip.poses[frame(k, t0.elapsed())];
+        rigcast_tests::send_vmc_pose(
+            &socket,
+            to,
+            &mut enc,
+            names,
+            pose,
+            t0.elapsed().as_secs_f32(),
+        );
+        k += 1;
+        std::thread::sleep(Duration::from_secs_f64(1.0 / RATE));
+    }
+}
+
 fn max_angle(a: &[Quat], b: &[Quat]) -> f32 {
     a.iter()
         .zip(b)
@@ -65,10 +93,8 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     // The sender: the procedural humanoid, whose bones carry HumanBodyBones names.
     let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
     let names: Vec<String> = clip.skeleton.names().to_vec();
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
+    let (server, to) = start_vmc_server(ServerConfig {
         rate_hz: RATE,
-        sources: vec![rigcast_tests::vmc_performer(0.25)],
         // The output is compared with plain `Mapping::apply`: no foot lock on top (it is
         // judged in server/tests/foot_lock.rs).
         performers: vec![PerformerSpec {
@@ -76,10 +102,8 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
             ..PerformerSpec::target_file("builtin:mannequin")
         }],
         ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
-    let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    })
+    .await;
     let mut ws = connect(&server.stream_url()).await;
     let (hello, _) = handshake(&mut ws).await;
     let ServerMessage::Hello { subjects, .. } = hello else {
@@ -101,28 +125,21 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
         let clip = clip.clone();
         let names = names.clone();
         std::thread::spawn(move || {
-            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-            let mut enc = VmcEncoder::new();
-            let t0 = Instant::now();
-            let mut k = 0;
-            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                let moving = t0.elapsed() < Duration::from_millis(500);
-                let pose = if moving {
-                    &clip.poses[k % clip.poses.len()]
-                } else {
-                    &clip.poses[17]
-                };
-                rigcast_tests::send_vmc_pose(
-                    &socket,
-                    to,
-                    &mut enc,
-                    &names,
-                    pose,
-                    t0.elapsed().as_secs_f32(),
-                );
-                k += 1;
-                std::thread::sleep(Duration::from_secs_f64(1.0 / RATE));
-            }
+            let n = clip.poses.len();
+            stream_clip(
+                to,
+                &clip,
+                &names,
+                |_| !stop.load(std::sync::atomic::Ordering::Relaxed),
+                |k, elapsed| {
+                    let moving = elapsed < Duration::from_millis(500);
+                    if moving {
+                        k % n
+                    } else {
+                        17
+                    }
+                },
+            );
         })
     };
     let held = clip.poses[17].clone();
@@ -349,39 +366,26 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
 async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
     let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
     let names: Vec<String> = clip.skeleton.names().to_vec();
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
+    let (server, to) = start_vmc_server(ServerConfig {
         rate_hz: RATE,
-        sources: vec![rigcast_tests::vmc_performer(0.25)],
         performers: vec![PerformerSpec::target_file("builtin:mannequin")],
         on_lost: rigcast_server::config::OnLost::Hold,
         ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let vmc_port = server.state().subjects()[0].listen_addr.unwrap().port();
-    let to: std::net::SocketAddr = format!("127.0.0.1:{vmc_port}").parse().unwrap();
+    })
+    .await;
     let mut ws = connect(&server.stream_url()).await;
     handshake(&mut ws).await;
     let send_for = |millis: u64, moving: bool| {
         let (clip, names) = (clip.clone(), names.clone());
         tokio::task::spawn_blocking(move || {
-            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-            let mut enc = VmcEncoder::new();
-            let t0 = Instant::now();
-            let mut k = 0;
-            while t0.elapsed() < Duration::from_millis(millis) {
-                let pose = &clip.poses[if moving { k % clip.poses.len() } else { 17 }];
-                rigcast_tests::send_vmc_pose(
-                    &socket,
-                    to,
-                    &mut enc,
-                    &names,
-                    pose,
-                    t0.elapsed().as_secs_f32(),
-                );
-                k += 1;
-                std::thread::sleep(Duration::from_secs_f64(1.0 / RATE));
-            }
+            let n = clip.poses.len();
+            stream_clip(
+                to,
+                &clip,
+                &names,
+                |elapsed| elapsed < Duration::from_millis(millis),
+                |k, _| if moving { k % n } else { 17 },
+            );
         })
     };
     send_for(800, true).await.unwrap();

@@ -8,8 +8,6 @@ use futures_util::SinkExt;
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::Clip;
 use rigcast_tests::*;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::TcpSocket;
 use tokio_tungstenite::tungstenite::protocol::Role;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::WebSocketStream;
@@ -51,21 +49,7 @@ async fn stalled_client_does_not_slow_others_and_is_told_what_it_missed() {
     let baseline = measure(&mut good, 1.5).await;
 
     // The stalled client: a tiny receive buffer, a hand-made upgrade, then no reading.
-    let socket = TcpSocket::new_v4().unwrap();
-    socket.set_recv_buffer_size(4096).unwrap();
-    let mut raw = socket.connect(server.local_addr()).await.unwrap();
-    raw.write_all(
-        b"GET /v1/stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
-          Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
-    )
-    .await
-    .unwrap();
-    // Read the response head byte by byte so no WebSocket bytes are consumed.
-    let mut head = Vec::new();
-    while !head.ends_with(b"\r\n\r\n") {
-        head.push(raw.read_u8().await.unwrap());
-    }
-    assert!(head.starts_with(b"HTTP/1.1 101"));
+    let raw = stalled_client(server.local_addr()).await;
 
     tokio::time::sleep(Duration::from_millis(500)).await;
     let stalled = measure(&mut good, 2.0).await;

@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::control::{MappingEntry, SubjectKind};
 use rigcast_protocol::ServerMessage;
-use rigcast_tests::chromium::{base64_decode, launch_chromium, DevTools};
+use rigcast_tests::chromium::DevTools;
 use rigcast_tests::{connect, find_app, handshake, next_json, repo_root, start_demo_server};
 use serde_json::{json, Value};
 
@@ -205,35 +205,7 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
         server.control_token().reveal()
     );
 
-    let (browser, devtools_url) = launch_chromium(&chromium);
-    let (ws, _) = tokio_tungstenite::connect_async(devtools_url.as_str())
-        .await
-        .expect("connect to DevTools");
-    let mut cdp = DevTools {
-        ws,
-        next_id: 0,
-        session: None,
-        events: Vec::new(),
-    };
-    let page = cdp
-        .call("Target.createTarget", json!({ "url": "about:blank" }))
-        .await;
-    let attached = cdp
-        .call(
-            "Target.attachToTarget",
-            json!({ "targetId": page["targetId"], "flatten": true }),
-        )
-        .await;
-    cdp.session = Some(attached["sessionId"].as_str().expect("session").to_string());
-    cdp.call("Runtime.enable", json!({})).await;
-    cdp.call("Log.enable", json!({})).await;
-    cdp.call("Page.enable", json!({})).await;
-    cdp.call(
-        "Emulation.setDeviceMetricsOverride",
-        json!({ "width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": false }),
-    )
-    .await;
-    cdp.call("Page.navigate", json!({ "url": page_url })).await;
+    let (browser, mut cdp) = DevTools::open(&chromium, &page_url).await;
 
     // Frames arrive for both subjects; the mapping message has been received.
     let start = Instant::now();
@@ -459,11 +431,7 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
         .unwrap_or(0);
     assert!(lit > 500, "the 3D view drew only {lit} bright pixels");
 
-    let exceptions: Vec<&Value> = cdp
-        .events
-        .iter()
-        .filter(|e| e["method"] == "Runtime.exceptionThrown")
-        .collect();
+    let exceptions = cdp.thrown();
     assert!(exceptions.is_empty(), "page threw: {exceptions:?}");
     let failed_loads: Vec<&Value> = cdp
         .events
@@ -475,11 +443,7 @@ async fn viewer_shows_source_and_retargeted_target_in_chromium() {
         "page logged errors: {failed_loads:?}"
     );
 
-    let shot = cdp
-        .call("Page.captureScreenshot", json!({ "format": "png" }))
-        .await;
-    let png = base64_decode(shot["data"].as_str().expect("screenshot data"));
-    assert!(png.starts_with(b"\x89PNG"), "screenshot is not a PNG");
+    let png = cdp.screenshot().await;
     let out = repo_root().join("target").join("viewer.png");
     std::fs::create_dir_all(out.parent().unwrap()).unwrap();
     std::fs::write(&out, &png).unwrap();

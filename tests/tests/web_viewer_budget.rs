@@ -22,8 +22,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
-use rigcast_tests::chromium::DevTools;
-use rigcast_tests::{find_app, shared_data};
+use rigcast_tests::chromium::{one_browser, DevTools};
+use rigcast_tests::shared_data;
 use serde_json::{json, Value};
 
 const XBOT: &str = "zoo/gltf/mixamo_gltf__Xbot.glb";
@@ -33,9 +33,6 @@ const XBOT: &str = "zoo/gltf/mixamo_gltf__Xbot.glb";
 /// 8-10 from other builds, the file's own meshes 9-10; 20 is the smoothness asked for and
 /// leaves a margin for a busier machine.
 const TARGET_FPS: f64 = 20.0;
-
-/// One browser at a time: the rates must not compete with another browser of this file.
-static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
 /// Seconds of each measuring window.
 const WINDOW_SECS: f64 = 5.0;
@@ -202,13 +199,12 @@ struct Row {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn budget_keeps_two_skinned_characters_smooth() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
     let Some(xbot) = shared_data(XBOT) else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let (file_vertices, file_triangles) = skinned_size(&std::fs::read(&xbot).unwrap());
     let server = serve(&xbot).await;
     let base = format!("http://{}/", server.local_addr());
@@ -446,19 +442,17 @@ fn row(mode: &'static str, m: &Value) -> Row {
 /// budget.js alone, fed frame times: the stepping rules, without depending on the machine.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn budget_steps_down_when_slow_and_back_up_with_headroom() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
-    let server = rigcast_tests::start_demo_server().await;
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let (server, browser, mut cdp) = DevTools::open_demo(&chromium).await;
     // Wait for the page's modules (budget.js is served with them).
-    let start = Instant::now();
-    while cdp.eval("typeof window.rigcast?.perf === 'function'").await != json!(true) {
-        assert!(start.elapsed() < Duration::from_secs(30), "viewer not up");
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
+    let up = "typeof window.rigcast?.perf === 'function'";
+    assert!(
+        cdp.wait_true(up, Duration::from_secs(30), Duration::from_millis(200))
+            .await,
+        "viewer not up"
+    );
     // A simulated clock: each display frame renders and takes `ms`; returns the level after.
     let steps = eval_async(
         &mut cdp,

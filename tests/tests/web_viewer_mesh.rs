@@ -16,17 +16,14 @@
 #![allow(clippy::unwrap_used)]
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
-use rigcast_tests::chromium::DevTools;
-use rigcast_tests::{find_app, http_get, repo_root, shared_data};
+use rigcast_tests::chromium::{one_browser, DevTools};
+use rigcast_tests::{http_get, repo_root, shared_data};
 use serde_json::{json, Value};
 
 const XBOT: &str = "zoo/gltf/mixamo_gltf__Xbot.glb";
-
-/// One browser at a time: the frame-rate figures must not compete with another browser.
-static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
 /// The demo driving `targets` (subjects 1, 2, …) and the built-in mannequin (no model).
 async fn serve(targets: &[&Path]) -> rigcast_server::ServerHandle {
@@ -50,19 +47,15 @@ async fn open_viewer(
     server: &rigcast_server::ServerHandle,
     id: u32,
 ) -> (rigcast_tests::chromium::Browser, DevTools, Value) {
-    let url = format!("http://{}/", server.local_addr());
-    let (browser, mut cdp) = DevTools::open(chromium, &url).await;
-    let start = Instant::now();
-    let mut meshes = Value::Null;
-    while start.elapsed() < Duration::from_secs(60) {
-        meshes = cdp
-            .eval_json("JSON.stringify(window.rigcast?.meshes ? window.rigcast.meshes() : {})")
-            .await;
-        if meshes[id.to_string()]["skinnedMeshes"].as_u64() > Some(0) {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(250)).await;
-    }
+    let (browser, mut cdp) = DevTools::open_viewer(chromium, server.local_addr()).await;
+    let meshes = cdp
+        .poll_json(
+            "JSON.stringify(window.rigcast?.meshes ? window.rigcast.meshes() : {})",
+            Duration::from_secs(60),
+            Duration::from_millis(250),
+            |m| m[id.to_string()]["skinnedMeshes"].as_u64() > Some(0),
+        )
+        .await;
     let errors = cdp
         .eval_json("JSON.stringify(Object.fromEntries(window.rigcast.modelErrors))")
         .await;
@@ -110,10 +103,9 @@ fn save(name: &str, png: &[u8]) -> PathBuf {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_draws_the_glb_target_skinned() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     // X Bot when the shared characters are here, else a skinned GLB of the mannequin made
     // by the tests (tests/src/skinned.rs).
     let fixture_dir = rigcast_tests::temp_path("skinned");
@@ -173,16 +165,13 @@ async fn viewer_draws_the_glb_target_skinned() {
     // Both skinned; then a few seconds of streaming: the page keeps up (newest frame wins,
     // renders leave it time to read the socket), so latency stays bounded instead of frames
     // queueing in the browser.
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(30) {
-        let m = cdp
-            .eval_json("JSON.stringify(window.rigcast.meshes())")
-            .await;
-        if m["2"]["skinnedMeshes"].as_u64() > Some(0) {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(250)).await;
-    }
+    cdp.poll_json(
+        "JSON.stringify(window.rigcast.meshes())",
+        Duration::from_secs(30),
+        Duration::from_millis(250),
+        |m| m["2"]["skinnedMeshes"].as_u64() > Some(0),
+    )
+    .await;
     tokio::time::sleep(Duration::from_secs(4)).await;
     let perf = cdp
         .eval_json(
@@ -306,10 +295,9 @@ fn xbot_as_vrm(glb: &[u8]) -> Vec<u8> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_draws_a_vrm_target_through_three_vrm() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let Some(xbot) = shared_data(XBOT) else {
         return;
     };
@@ -385,10 +373,9 @@ async fn model_requests_without_a_model_are_404s_that_say_why() {
 /// subject list says why; the page throws nothing.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let skeleton = rigcast_server::character::builtin("mannequin").unwrap();
     let glb = rigcast_tests::skinned::skinned_glb(&skeleton);
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
@@ -413,19 +400,15 @@ async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
     std::fs::write(&path, out).unwrap();
 
     let server = serve(&[&path]).await;
-    let url = format!("http://{}/", server.local_addr());
-    let (browser, mut cdp) = DevTools::open(&chromium, &url).await;
-    let start = Instant::now();
-    let mut error = Value::Null;
-    while start.elapsed() < Duration::from_secs(30) {
-        error = cdp
-            .eval_json("JSON.stringify(window.rigcast?.modelErrors?.get(1) ?? null)")
-            .await;
-        if !error.is_null() {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let error = cdp
+        .poll_json(
+            "JSON.stringify(window.rigcast?.modelErrors?.get(1) ?? null)",
+            Duration::from_secs(30),
+            Duration::from_millis(200),
+            |e| !e.is_null(),
+        )
+        .await;
     let message = error
         .as_str()
         .unwrap_or_else(|| panic!("no model error reported: {error}"));
@@ -443,11 +426,7 @@ async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
         page["note"].as_str().unwrap().contains("not shown"),
         "{page}"
     );
-    let thrown: Vec<&Value> = cdp
-        .events
-        .iter()
-        .filter(|e| e["method"] == "Runtime.exceptionThrown")
-        .collect();
+    let thrown = cdp.thrown();
     assert!(thrown.is_empty(), "page threw: {thrown:?}");
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);

@@ -14,21 +14,18 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_server::{PerformerSpec, ServerConfig};
-use rigcast_tests::chromium::DevTools;
-use rigcast_tests::{clip_source, find_app, send_vmc_pose, shared_data};
+use rigcast_tests::chromium::{one_browser, DevTools};
+use rigcast_tests::{clip_source, send_vmc_pose, shared_data, start_vmc_server};
 use serde_json::json;
-
-static ONE_BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_marks_planted_feet() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
     let Some(walk) = shared_data("bvh/cmu_131_01_walk.bvh") else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let clip = rigcast_sources::load_clip(&walk).unwrap();
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
@@ -37,18 +34,14 @@ async fn viewer_marks_planted_feet() {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     // Markers show once the mannequin has drawn live poses.
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(30)
-        && cdp
-            .eval("window.rigcast?.views?.get(1)?.placedLive === true")
-            .await
-            != true
-    {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    cdp.wait_true(
+        "window.rigcast?.views?.get(1)?.placedLive === true",
+        Duration::from_secs(30),
+        Duration::from_millis(100),
+    )
+    .await;
     let mut seen = HashSet::new();
     let mut checked = 0;
     let mut worst = 0.0f64;
@@ -68,30 +61,15 @@ async fn viewer_marks_planted_feet() {
             assert_eq!(visible, live && m["planted"].as_bool().unwrap(), "{m}");
             seen.insert((m["bone"].as_str().unwrap().to_string(), visible));
             if visible {
-                let p: Vec<f64> = m["position"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_f64().unwrap())
-                    .collect();
-                let j: Vec<f64> = m["joint"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_f64().unwrap())
-                    .collect();
+                let p = rigcast_tests::f64s(&m["position"]);
+                let j = rigcast_tests::f64s(&m["joint"]);
                 // On the floor, under the foot's drawn joint (the page may have drawn a newer
                 // pose than the message's; a planted foot does not move).
                 assert!(
                     (p[1] - m["floor"].as_f64().unwrap()).abs() < 0.01,
                     "marker off the floor: {m}"
                 );
-                let q: Vec<f64> = m["message"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_f64().unwrap())
-                    .collect();
+                let q = rigcast_tests::f64s(&m["message"]);
                 let horizontal = ((p[0] - j[0]).powi(2) + (p[2] - j[2]).powi(2)).sqrt();
                 // The message's position is where the foot stood when it planted; the lock
                 // eases it onto its pin over ~0.1 s, a few centimetres. Only a pose drawn from
@@ -143,16 +121,16 @@ async fn viewer_marks_planted_feet() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_says_when_a_targets_source_is_lost() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
-    let (server, to) = start_vmc_server(PerformerSpec::target_file("builtin:mannequin")).await;
-    let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sender = spawn_sender(to, sending.clone(), stop.clone());
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let (server, to) = start_vmc_server(ServerConfig {
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    })
+    .await;
+    let sender = DemoSender::spawn(to);
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     let probe = "JSON.stringify((() => { const v = window.rigcast?.views?.get(1); return v ? { lost: v.lost, label: v.subjectLabel.textContent } : null; })())";
     let wait_for = |lost: bool| {
         let probe = probe.to_string();
@@ -176,87 +154,66 @@ async fn viewer_says_when_a_targets_source_is_lost() {
         }
     };
     let live = wait_for(false)(&mut cdp).await;
-    sending.store(false, std::sync::atomic::Ordering::Relaxed);
+    sender.set_sending(false);
     let lost = wait_for(true)(&mut cdp).await;
-    sending.store(true, std::sync::atomic::Ordering::Relaxed);
+    sender.set_sending(true);
     let back = wait_for(false)(&mut cdp).await;
     println!(
         "viewer: target label live {:?}, lost {:?}, back {:?}",
         live["label"], lost["label"], back["label"]
     );
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    sender.join().unwrap();
+    sender.stop();
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
 }
 
-/// A server with one VMC source (lost after 0.25 s of silence) driving `performer`; the
-/// source's UDP address.
-async fn start_vmc_server(
-    performer: PerformerSpec,
-) -> (rigcast_server::ServerHandle, std::net::SocketAddr) {
-    let config = ServerConfig {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        sources: vec![rigcast_tests::vmc_performer(0.25)],
-        performers: vec![performer],
-        ..ServerConfig::default()
-    };
-    let server = rigcast_server::start(config).await.unwrap();
-    let (_, status) = rigcast_tests::http_get(server.local_addr(), "/v1/status").await;
-    let status: serde_json::Value = serde_json::from_str(&status).unwrap();
-    let vmc: std::net::SocketAddr = status["subjects"][0]["listen"]
-        .as_str()
-        .unwrap()
-        .parse()
-        .unwrap();
-    let to = format!("127.0.0.1:{}", vmc.port()).parse().unwrap();
-    (server, to)
-}
-
-/// The sender: the demo clip, one pose set every 1/30 s while `sending`, until `stop`.
-fn spawn_sender(
-    to: std::net::SocketAddr,
+/// The sender: the demo clip, one pose set every 1/30 s while sending, until stopped.
+struct DemoSender {
     sending: std::sync::Arc<std::sync::atomic::AtomicBool>,
     stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-) -> std::thread::JoinHandle<()> {
-    let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
-    let names: Vec<String> = clip.skeleton.names().to_vec();
-    std::thread::spawn(move || {
-        let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-        let mut enc = VmcEncoder::new();
-        let mut k = 0usize;
-        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-            if sending.load(std::sync::atomic::Ordering::Relaxed) {
-                let pose = &clip.poses[k % clip.poses.len()];
-                send_vmc_pose(&socket, to, &mut enc, &names, pose, k as f32 / 30.0);
-                k += 1;
-            }
-            std::thread::sleep(Duration::from_millis(33));
-        }
-    })
+    thread: std::thread::JoinHandle<()>,
 }
 
-/// Builds an idle graph from the real CMU walk and run into a temporary `.rmg` file.
-fn build_idle_graph() -> Option<std::path::PathBuf> {
-    let paths = [
-        shared_data("bvh/cmu_131_01_walk.bvh")?,
-        shared_data("bvh/cmu_run.bvh")?,
-    ];
-    let clips: Vec<_> = paths
-        .iter()
-        .map(|p| rigcast_sources::load_clip(p).unwrap())
-        .collect();
-    let settings = rigcast_retarget::graph::GraphSettings::default();
-    let mut graph =
-        rigcast_retarget::graph::MotionGraph::build(&clips, settings, &mut |_| {}).unwrap();
-    for (c, p) in graph.clips.iter_mut().zip(&paths) {
-        c.path = Some(std::fs::canonicalize(p).unwrap().display().to_string());
+impl DemoSender {
+    /// Starts sending to `to`.
+    fn spawn(to: std::net::SocketAddr) -> DemoSender {
+        let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let clip = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
+        let names: Vec<String> = clip.skeleton.names().to_vec();
+        let (on, stopped) = (sending.clone(), stop.clone());
+        let thread = std::thread::spawn(move || {
+            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            let mut enc = VmcEncoder::new();
+            let mut k = 0usize;
+            while !stopped.load(std::sync::atomic::Ordering::Relaxed) {
+                if on.load(std::sync::atomic::Ordering::Relaxed) {
+                    let pose = &clip.poses[k % clip.poses.len()];
+                    send_vmc_pose(&socket, to, &mut enc, &names, pose, k as f32 / 30.0);
+                    k += 1;
+                }
+                std::thread::sleep(Duration::from_millis(33));
+            }
+        });
+        DemoSender {
+            sending,
+            stop,
+            thread,
+        }
     }
-    let file = rigcast_tests::temp_path("viewer_idle.rmg");
-    std::fs::write(&file, graph.to_json()).unwrap();
-    Some(file)
+
+    /// Pauses (`false`) or resumes (`true`) sending.
+    fn set_sending(&self, on: bool) {
+        self.sending.store(on, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Stops the thread and waits for it.
+    fn stop(self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.thread.join().unwrap();
+    }
 }
 
 /// A performer on an idle graph: each time its source is lost the target's label says so, and
@@ -265,24 +222,24 @@ fn build_idle_graph() -> Option<std::path::PathBuf> {
 /// 20 ms here), and drops both when the sender returns.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_says_when_a_target_walks_its_idle_graph() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let Some(graph_file) = build_idle_graph() else {
+    let Some((graph_file, _)) = rigcast_tests::build_idle_graph("viewer_idle.rmg") else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
     let performer = PerformerSpec {
         on_lost: Some(rigcast_server::config::OnLost::Idle),
         idle_graph: Some(graph_file.clone()),
         ..PerformerSpec::target_file("builtin:mannequin")
     };
-    let (server, to) = start_vmc_server(performer).await;
-    let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let sender = spawn_sender(to, sending.clone(), stop.clone());
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
+    let (server, to) = start_vmc_server(ServerConfig {
+        performers: vec![performer],
+        ..ServerConfig::default()
+    })
+    .await;
+    let sender = DemoSender::spawn(to);
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
     let label = "window.rigcast?.views?.get(1)?.subjectLabel?.textContent ?? ''";
     // The first time the label satisfies `want`, polled every 20 ms for up to 20 s.
     async fn first(cdp: &mut DevTools, label: &str, want: impl Fn(&str) -> bool) -> Instant {
@@ -305,12 +262,12 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
     for i in 0..3 {
         let at = t0 + Duration::from_millis(1000 + 3333 * i);
         tokio::time::sleep_until(at.into()).await;
-        sending.store(false, std::sync::atomic::Ordering::Relaxed);
+        sender.set_sending(false);
         let lost = first(&mut cdp, label, |l| l.contains("source lost")).await;
         let idle = first(&mut cdp, label, |l| l.contains("idle graph")).await;
         let idle_ms = idle.duration_since(lost).as_secs_f64() * 1e3;
         let shown = cdp.eval(label).await;
-        sending.store(true, std::sync::atomic::Ordering::Relaxed);
+        sender.set_sending(true);
         first(&mut cdp, label, |l| {
             !l.is_empty() && !l.contains("source lost")
         })
@@ -319,8 +276,7 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
         worst_ms = worst_ms.max(idle_ms);
     }
     assert!(worst_ms <= 300.0, "idle graph label {worst_ms:.0} ms late");
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    sender.join().unwrap();
+    sender.stop();
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
@@ -334,19 +290,16 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
 /// after which layouts no longer reframe it, until "reset view".
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_controls_pause_pick_follow_and_orbit() {
-    let Some(chromium) = find_app("chromium") else {
+    let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let _one = ONE_BROWSER.lock().await;
-    let server = rigcast_tests::start_demo_server().await;
-    let (browser, mut cdp) =
-        DevTools::open(&chromium, &format!("http://{}/", server.local_addr())).await;
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(30)
-        && cdp.eval("window.rigcast?.views?.get(1)?.placedLive === true && window.rigcast.views.get(0).placedLive === true").await != true
-    {
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    let (server, browser, mut cdp) = DevTools::open_demo(&chromium).await;
+    cdp.wait_true(
+        "window.rigcast?.views?.get(1)?.placedLive === true && window.rigcast.views.get(0).placedLive === true",
+        Duration::from_secs(30),
+        Duration::from_millis(100),
+    )
+    .await;
     let pose = "JSON.stringify(window.rigcast.views.get(1).worldP.map(p => p.toArray()))";
     let frames = "window.rigcast.framesReceived";
 

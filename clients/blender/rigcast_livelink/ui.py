@@ -104,6 +104,12 @@ class RIGCAST_PG_settings(bpy.types.PropertyGroup):
 # -- operators -----------------------------------------------------------------------------
 
 
+def _refused(operator, message):
+    """Reports `message` as the operator's error and cancels it."""
+    operator.report({"ERROR"}, message)
+    return {"CANCELLED"}
+
+
 class RIGCAST_OT_connect(bpy.types.Operator):
     bl_idname = "rigcast.connect"
     bl_label = "Connect"
@@ -116,8 +122,7 @@ class RIGCAST_OT_connect(bpy.types.Operator):
                 parse_address(settings.address)
             livelink.runtime.connect(settings)
         except (ValueError, OSError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+            return _refused(self, str(exc))
         return {"FINISHED"}
 
 
@@ -146,8 +151,7 @@ class RIGCAST_OT_create_armature(bpy.types.Operator):
             subject_id = picked.subject_id
         skeleton = livelink.runtime.skeletons.get(subject_id)
         if skeleton is None:
-            self.report({"ERROR"}, "no skeleton received yet for subject %d" % subject_id)
-            return {"CANCELLED"}
+            return _refused(self, "no skeleton received yet for subject %d" % subject_id)
         name = "rigcast_%s" % skeleton.get("name", subject_id)
         obj = livelink.create_armature(context, skeleton, name)
         for item in settings.subjects:
@@ -167,15 +171,13 @@ class RIGCAST_OT_set_override(bpy.types.Operator):
         settings = context.scene.rigcast
         row = _selected(settings.mapping_items, settings.mapping_index)
         if row is None:
-            self.report({"ERROR"}, "pick a row of the mapping first")
-            return {"CANCELLED"}
+            return _refused(self, "pick a row of the mapping first")
         target = row.target
         source = settings.override_source or None
         session = livelink.runtime.session
         message = {"type": "set_mapping", "subject": settings.mapping_subject, "overrides": {target: source}}
         if session is None or not session.send(message):
-            self.report({"ERROR"}, "not connected to a rigcast server")
-            return {"CANCELLED"}
+            return _refused(self, "not connected to a rigcast server")
         return {"FINISHED"}
 
 

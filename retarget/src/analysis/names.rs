@@ -348,11 +348,25 @@ pub fn similarity(a: &NameInfo, b: &NameInfo) -> f32 {
 mod tests {
     use super::*;
 
+    /// `name` normalizes to `side` and the one token `token`.
+    fn assert_side_and_token(name: &str, side: Side, token: &str) {
+        let n = normalize(name);
+        assert_eq!(
+            (n.side, n.tokens),
+            (Some(side), vec![token.to_string()]),
+            "{name}"
+        );
+    }
+
     #[test]
     fn sides_and_prefixes() {
-        let n = normalize("mixamorig:LeftUpLeg");
-        assert_eq!(n.side, Some(Side::Left));
-        assert_eq!(n.tokens, vec!["thigh"]);
+        for (name, side, token) in [
+            ("mixamorig:LeftUpLeg", Side::Left, "thigh"),
+            ("lThigh", Side::Left, "thigh"),
+            ("RightForeArm", Side::Right, "forearm"),
+        ] {
+            assert_side_and_token(name, side, token);
+        }
         let n = normalize("DEF-upper_arm.L.001");
         assert_eq!(n.side, Some(Side::Left));
         assert_eq!(n.tokens, vec!["upperarm"]);
@@ -360,12 +374,6 @@ mod tests {
         let n = normalize("upperarm_twist_01_r");
         assert_eq!(n.side, Some(Side::Right));
         assert!(n.helper);
-        let n = normalize("lThigh");
-        assert_eq!(n.side, Some(Side::Left));
-        assert_eq!(n.tokens, vec!["thigh"]);
-        let n = normalize("RightForeArm");
-        assert_eq!(n.side, Some(Side::Right));
-        assert_eq!(n.tokens, vec!["forearm"]);
         assert_eq!(normalize("calf_l").tokens, vec!["shin"]);
         assert_eq!(normalize("Spine").side, None);
         assert_eq!(normalize("j12").tokens, vec!["j"]);
@@ -380,42 +388,23 @@ mod tests {
             (None, vec!["spine".to_string()], Some(5))
         );
         assert_eq!(normalize("T8").tokens, vec!["spine"]);
-        // 3ds Max Biped, SMPL, Character Creator, RobotExpressive (no separator).
-        let n = normalize("Bip01 L Thigh");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["thigh".to_string()])
-        );
-        let n = normalize("m_avg_R_Knee");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Right), vec!["shin".to_string()])
-        );
-        let n = normalize("CC_Base_L_Upperarm");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["upperarm".to_string()])
-        );
-        let n = normalize("UpperArmL");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["upperarm".to_string()])
-        );
+        // 3ds Max Biped, SMPL, Character Creator, RobotExpressive (no separator), and MMD
+        // (Japanese): 左足 is the left thigh, 右ひじ the right forearm.
+        for (name, side, token) in [
+            ("Bip01 L Thigh", Side::Left, "thigh"),
+            ("m_avg_R_Knee", Side::Right, "shin"),
+            ("CC_Base_L_Upperarm", Side::Left, "upperarm"),
+            ("UpperArmL", Side::Left, "upperarm"),
+            ("左足", Side::Left, "thigh"),
+            ("右ひじ", Side::Right, "forearm"),
+        ] {
+            assert_side_and_token(name, side, token);
+        }
         // Kinect: side word at the end, a tip is an end marker.
         let n = normalize("HandTipLeft");
         assert_eq!(n.side, Some(Side::Left));
         assert!(n.helper);
-        // MMD (Japanese): 左足 is the left thigh, 右ひじ the right forearm, 上半身 the chest.
-        let n = normalize("左足");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Left), vec!["thigh".to_string()])
-        );
-        let n = normalize("右ひじ");
-        assert_eq!(
-            (n.side, n.tokens),
-            (Some(Side::Right), vec!["forearm".to_string()])
-        );
+        // MMD: 左足首 is the left foot, 上半身 the chest.
         assert_eq!(normalize("左足首").tokens, vec!["foot"]);
         assert_eq!(normalize("上半身").tokens, vec!["chest"]);
         assert!(normalize("左足ＩＫ").helper);

@@ -62,6 +62,38 @@ impl Body {
     fn add(&mut self, name: &str, parent: Option<usize>, pos: Vec3, label: &str) -> usize {
         self.b.add(name, parent, pos, label)
     }
+
+    /// The twist bones `style` gives the limb bone `bone` (named `name`, from `span.0` to
+    /// `span.1`): Rigify's `NAME.001` halfway, in the chain, returned as the next bone's
+    /// parent; Unreal's `unreal.0` beside it, `unreal.1` of the way along. Else none, and
+    /// `bone` is the next bone's parent.
+    fn twist(
+        &mut self,
+        style: Style,
+        left: bool,
+        (bone, name): (usize, &str),
+        span: (Vec3, Vec3),
+        unreal: (&str, f32),
+    ) -> usize {
+        match style {
+            Style::Rigify => self.add(
+                &format!("{name}.001"),
+                Some(bone),
+                (span.0 + span.1) * 0.5,
+                &lab(left, "twist"),
+            ),
+            Style::Unreal => {
+                self.add(
+                    &side_name(style, unreal.0, left),
+                    Some(bone),
+                    span.0.lerp(span.1, unreal.1),
+                    &lab(left, "twist"),
+                );
+                bone
+            }
+            _ => bone,
+        }
+    }
 }
 
 fn mirror(p: Vec3, left: bool) -> Vec3 {
@@ -313,41 +345,21 @@ fn arm(body: &mut Body, style: Style, chest: usize, left: bool, fingers: bool) {
         }
     }
     let up = body.add(&up_name, Some(parent), shoulder, &lab(left, "upper_arm"));
-    let mut lo_parent = up;
-    if style == Style::Rigify {
-        lo_parent = body.add(
-            &format!("{up_name}.001"),
-            Some(up),
-            (shoulder + elbow) * 0.5,
-            &lab(left, "twist"),
-        );
-    }
-    if style == Style::Unreal {
-        body.add(
-            &sn("upperarm_twist_01"),
-            Some(up),
-            shoulder.lerp(elbow, 0.5),
-            &lab(left, "twist"),
-        );
-    }
+    let lo_parent = body.twist(
+        style,
+        left,
+        (up, &up_name),
+        (shoulder, elbow),
+        ("upperarm_twist_01", 0.5),
+    );
     let lo = body.add(&lo_name, Some(lo_parent), elbow, &lab(left, "lower_arm"));
-    let mut hand_parent = lo;
-    if style == Style::Rigify {
-        hand_parent = body.add(
-            &format!("{lo_name}.001"),
-            Some(lo),
-            (elbow + wrist) * 0.5,
-            &lab(left, "twist"),
-        );
-    }
-    if style == Style::Unreal {
-        body.add(
-            &sn("lowerarm_twist_01"),
-            Some(lo),
-            elbow.lerp(wrist, 0.6),
-            &lab(left, "twist"),
-        );
-    }
+    let hand_parent = body.twist(
+        style,
+        left,
+        (lo, &lo_name),
+        (elbow, wrist),
+        ("lowerarm_twist_01", 0.6),
+    );
     let hand = body.add(&hand_name, Some(hand_parent), wrist, &lab(left, "hand"));
     hand_extras(body, style, hand, left, fingers);
 }
@@ -482,41 +494,9 @@ fn leg(body: &mut Body, style: Style, hips: usize, left: bool) {
         );
     }
     let u = body.add(&up, Some(parent), hip, &lab(left, "upper_leg"));
-    let mut lp = u;
-    if style == Style::Rigify {
-        lp = body.add(
-            &format!("{up}.001"),
-            Some(u),
-            (hip + knee) * 0.5,
-            &lab(left, "twist"),
-        );
-    }
-    if style == Style::Unreal {
-        body.add(
-            &sn("thigh_twist_01"),
-            Some(u),
-            hip.lerp(knee, 0.5),
-            &lab(left, "twist"),
-        );
-    }
+    let lp = body.twist(style, left, (u, &up), (hip, knee), ("thigh_twist_01", 0.5));
     let l = body.add(&lo, Some(lp), knee, &lab(left, "lower_leg"));
-    let mut fp = l;
-    if style == Style::Rigify {
-        fp = body.add(
-            &format!("{lo}.001"),
-            Some(l),
-            (knee + ankle) * 0.5,
-            &lab(left, "twist"),
-        );
-    }
-    if style == Style::Unreal {
-        body.add(
-            &sn("calf_twist_01"),
-            Some(l),
-            knee.lerp(ankle, 0.5),
-            &lab(left, "twist"),
-        );
-    }
+    let fp = body.twist(style, left, (l, &lo), (knee, ankle), ("calf_twist_01", 0.5));
     let f = body.add(&foot, Some(fp), ankle, &lab(left, "foot"));
     if style == Style::MediaPipe {
         body.add(

@@ -82,6 +82,16 @@ mod tests {
     use super::*;
     use crate::approx::vec_close;
 
+    /// A leg standing 1 m tall: hip, knee (`knee_z` in front of the line) and ankle at the
+    /// floor.
+    fn leg(knee_z: f32) -> (Vec3, Vec3, Vec3) {
+        (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, knee_z),
+            Vec3::ZERO,
+        )
+    }
+
     fn apply(s: &TwoBoneSolution, hip: Vec3, knee: Vec3, ankle: Vec3) -> (Vec3, Vec3) {
         let k = hip + s.upper * (knee - hip);
         let a = k + s.lower * (s.upper * (ankle - knee));
@@ -90,11 +100,7 @@ mod tests {
 
     #[test]
     fn reaches_a_goal_and_bends_towards_the_pole() {
-        let (hip, knee, ankle) = (
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(0.0, 0.5, 0.02),
-            Vec3::ZERO,
-        );
+        let (hip, knee, ankle) = leg(0.02);
         let goal = Vec3::new(0.1, 0.2, 0.05);
         let s = solve_two_bone(hip, knee, ankle, goal, Vec3::Z);
         let (k, a) = apply(&s, hip, knee, ankle);
@@ -109,11 +115,7 @@ mod tests {
 
     #[test]
     fn an_unreachable_goal_stretches_the_leg_towards_it_without_flipping() {
-        let (hip, knee, ankle) = (
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(0.0, 0.5, 0.05),
-            Vec3::ZERO,
-        );
+        let (hip, knee, ankle) = leg(0.05);
         let goal = Vec3::new(0.0, -1.0, 0.3);
         let s = solve_two_bone(hip, knee, ankle, goal, Vec3::Z);
         let (k, a) = apply(&s, hip, knee, ankle);
@@ -132,11 +134,7 @@ mod tests {
 
     #[test]
     fn the_pole_side_decides_the_bend_even_from_a_straight_leg() {
-        let (hip, knee, ankle) = (
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(0.0, 0.5, 0.0),
-            Vec3::ZERO,
-        );
+        let (hip, knee, ankle) = leg(0.0);
         for pole in [Vec3::Z, -Vec3::Z, Vec3::X] {
             let s = solve_two_bone(hip, knee, ankle, Vec3::new(0.0, 0.3, 0.0), pole);
             assert!(

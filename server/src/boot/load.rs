@@ -163,8 +163,8 @@ async fn load_idle_graph(
     Ok(Some(idle))
 }
 
-/// A performer's mapping overrides file.
-fn read_mapping(path: &std::path::Path) -> anyhow::Result<MappingFile> {
+/// A mapping overrides file (a performer's, or `rigcast retarget --mapping`).
+pub(crate) fn read_mapping(path: &std::path::Path) -> anyhow::Result<MappingFile> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read the mapping file {}", path.display()))?;
     parse_mapping_file(&text).with_context(|| format!("mapping file {}", path.display()))

@@ -16,7 +16,7 @@ use glam::{Quat, Vec3};
 use rigcast_protocol::frame::{decode_any_into, decode_header_any, frame_len, FrameHeader};
 use rigcast_protocol::SourceState;
 use rigcast_retarget::{Pose, Skeleton};
-use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, SourceError, SourceStatus};
+use rigcast_sources::live::{FrameMeta, HealthTracker, LiveSource, NextFrame, SourceStatus};
 use tokio_tungstenite::tungstenite::Bytes;
 
 use rigcast_protocol::control::BoneInfo;
@@ -219,11 +219,7 @@ impl LiveSource for RemoteSource {
         Some(self.skeleton.clone())
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         self.apply_changes();
         match self.rx.recv_timeout(timeout) {
             Ok(_) if self.absent => {}
@@ -392,6 +388,15 @@ mod tests {
     }
 
     /// A published message of `n` bones (bone 0 translated), seq `seq`.
+    /// The node puts an entry of `n` bones, then publishes frame `seq` on it.
+    fn put_and_publish(feeds: &RemoteFeeds, n: usize, seq: u64) {
+        feeds
+            .changes
+            .send(Change::Entry(Box::new(chain(n))))
+            .unwrap();
+        feeds.frames.send(published_n(n, seq)).unwrap();
+    }
+
     fn published_n(n: usize, seq: u64) -> Bytes {
         let header = FrameHeader {
             flags: 0,
@@ -429,11 +434,7 @@ mod tests {
                 .skeleton_changed
         );
         // The node's skeleton grew: frames on it are taken, announced as a new skeleton.
-        feeds
-            .changes
-            .send(Change::Entry(Box::new(chain(3))))
-            .unwrap();
-        feeds.frames.send(published_n(3, 3)).unwrap();
+        put_and_publish(&feeds, 3, 3);
         let grown = source.next_frame(wait, &mut pose).unwrap().unwrap();
         assert!(grown.skeleton_changed);
         assert_eq!(source.skeleton().unwrap().num_bones(), 3);
@@ -446,11 +447,7 @@ mod tests {
         assert_eq!(status.state, rigcast_protocol::SourceState::Lost);
         assert!(status.detail.contains("removed"), "{}", status.detail);
         // Put again: live with the next frame.
-        feeds
-            .changes
-            .send(Change::Entry(Box::new(chain(3))))
-            .unwrap();
-        feeds.frames.send(published_n(3, 5)).unwrap();
+        put_and_publish(&feeds, 3, 5);
         assert_eq!(source.next_frame(wait, &mut pose).unwrap().unwrap().seq, 5);
         assert_eq!(source.status().state, rigcast_protocol::SourceState::Live);
     }
@@ -468,11 +465,7 @@ mod tests {
         assert_eq!(status.state, SourceState::Connecting);
         assert_eq!(status.detail, "waiting for node a to publish walk");
         // The entry arrives: its skeleton replaces the stand-in, announced with the frame.
-        feeds
-            .changes
-            .send(Change::Entry(Box::new(chain(2))))
-            .unwrap();
-        feeds.frames.send(published_n(2, 2)).unwrap();
+        put_and_publish(&feeds, 2, 2);
         let first = source.next_frame(wait, &mut pose).unwrap().unwrap();
         assert!(first.skeleton_changed);
         assert_eq!(source.skeleton().unwrap().num_bones(), 2);
@@ -491,11 +484,7 @@ mod tests {
         assert_eq!(status.state, SourceState::Lost);
         assert_eq!(status.detail, EXPIRED);
         // Its node back: the same entry again, then its frames make it live.
-        feeds
-            .changes
-            .send(Change::Entry(Box::new(chain(2))))
-            .unwrap();
-        feeds.frames.send(published_n(2, 1)).unwrap();
+        put_and_publish(&feeds, 2, 1);
         assert!(stale.next_frame(wait, &mut pose).unwrap().is_some());
         assert_eq!(stale.status().state, SourceState::Live);
     }

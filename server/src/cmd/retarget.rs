@@ -12,9 +12,7 @@ use anyhow::{anyhow, bail, Context};
 use clap::Args;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{detect_clip, FootLock, LockSettings, PlantSettings};
-use rigcast_retarget::mapping::{
-    apply_overrides, map_analyzed, parse_mapping_file, MapOptions, MappingTable,
-};
+use rigcast_retarget::mapping::{apply_overrides, map_analyzed, MapOptions, MappingTable};
 use rigcast_retarget::{Clip, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 
 /// Options of `rigcast retarget`.
@@ -183,17 +181,7 @@ pub fn plan_mapping_with_truth(
     overrides: Option<&Path>,
     truth: (HumanoidTruth<'_>, HumanoidTruth<'_>),
 ) -> anyhow::Result<MappingPlan> {
-    let overrides = match overrides {
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read the mapping file {}", p.display()))?;
-            Some(
-                parse_mapping_file(&text)
-                    .with_context(|| format!("mapping file {}", p.display()))?,
-            )
-        }
-        None => None,
-    };
+    let overrides = overrides.map(crate::boot::load::read_mapping).transpose()?;
     let (ss, ts) = (&*source.skeleton, &*target.skeleton);
     let sa = analyze_with_truth(&SkeletonView::from_clip(ss, &source.poses), truth.0);
     let ta = analyze_with_truth(&SkeletonView::from_clip(ts, &target.poses), truth.1);

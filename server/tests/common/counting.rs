@@ -1,12 +1,16 @@
 //! A global allocator that counts allocations, for the tests that prove a per-frame path
-//! allocates nothing. Each such test file installs it (`#[global_allocator]`) and holds only
-//! that test, so nothing else running in the process adds to the count.
+//! allocates nothing. Including this file installs it as the test binary's
+//! `#[global_allocator]`; each such test file holds only that test, so nothing else running in
+//! the process adds to the count.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Counts every allocation and reallocation, then defers to the system allocator.
 pub struct Counting;
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
 
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 

@@ -6,18 +6,69 @@ use std::ffi::OsStr;
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
-/// Path of a file in the shared test data (`/work/shared/data/<relative>`), or `None` with a
-/// printed reason when it is absent (the data is not committed).
-pub fn shared_data(relative: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(relative);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!("SKIP: test data {} not found", p.display());
-        None
-    }
+#[path = "../../../sources/tests/common/shared_data.rs"]
+mod shared_data;
+#[allow(unused_imports)] // not every test file uses every helper
+pub use shared_data::{shared_clip, shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
+
+/// A folder of this test run's own under the system's temporary folder
+/// (`rigcast-NAME-PID`), created.
+pub fn test_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rigcast-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("create the test folder");
+    dir
+}
+
+/// `contents` written into the file `file` of [`test_dir`]`(dir)`; its path.
+pub fn test_file(dir: &str, file: &str, contents: &str) -> PathBuf {
+    let path = test_dir(dir).join(file);
+    std::fs::write(&path, contents).expect("write the test file");
+    path
+}
+
+/// The automatic mapping of `source` onto `target`, both at rest, and the mapping built from it
+/// with the default options.
+pub fn rest_mapping(
+    source: &rigcast_retarget::Skeleton,
+    target: &rigcast_retarget::Skeleton,
+) -> (
+    rigcast_retarget::mapping::MappingTable,
+    rigcast_retarget::Mapping,
+) {
+    use rigcast_retarget::analysis::SkeletonView;
+    let table = rigcast_retarget::mapping::auto_map(
+        &SkeletonView::rest(source),
+        &SkeletonView::rest(target),
+        &rigcast_retarget::mapping::MapOptions::default(),
+    );
+    let mapping = rigcast_retarget::Mapping::build(
+        &[source],
+        target,
+        &table,
+        &rigcast_retarget::RetargetOptions::default(),
+    )
+    .expect("the rest mapping builds");
+    (table, mapping)
+}
+
+/// Target subject `id` ("target") on `skeleton`, driven by subject 0, with humanoid VMC names;
+/// and the sender of its frames.
+pub fn target_subject(
+    id: u32,
+    skeleton: &std::sync::Arc<rigcast_retarget::Skeleton>,
+) -> (
+    std::sync::Arc<rigcast_server::engine::Subject>,
+    tokio::sync::watch::Sender<rigcast_retarget::Frame>,
+) {
+    let (subject, frames) = rigcast_server::engine::Subject::with_kind(
+        id,
+        "target".into(),
+        skeleton.clone(),
+        None,
+        vec![0],
+        rigcast_server::config::VmcBoneNames::Humanoid,
+    );
+    (std::sync::Arc::new(subject), frames)
 }
 
 /// `source` retarget onto `target` offline with `plan`'s own options (default root motion),

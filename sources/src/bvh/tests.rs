@@ -1,6 +1,6 @@
 #![allow(clippy::unwrap_used)]
 use glam::{Quat, Vec3};
-use rigcast_retarget::approx::vec_close;
+use rigcast_retarget::approx::{quat_close_precise as quat_close, vec_close};
 
 use super::*;
 use crate::error::SourceError;
@@ -117,6 +117,11 @@ fn expect_err(text: &[u8]) -> SourceError {
     }
 }
 
+/// The error of [`SMALL`] with `from` replaced by `to`.
+fn small_err(from: &str, to: &str) -> SourceError {
+    expect_err(SMALL.replace(from, to).as_bytes())
+}
+
 #[test]
 fn malformed_inputs_give_clear_errors() {
     // Truncated inside the hierarchy.
@@ -126,14 +131,10 @@ fn malformed_inputs_give_clear_errors() {
         SourceError::MissingMotion { .. } | SourceError::UnexpectedEof { .. }
     ));
     // Garbled number in OFFSET, reported on line 4.
-    let e = expect_err(SMALL.replace("OFFSET 0 90 0", "OFFSET 0 9x0 0").as_bytes());
+    let e = small_err("OFFSET 0 90 0", "OFFSET 0 9x0 0");
     assert!(matches!(e, SourceError::BadNumber { line: 4, .. }), "{e}");
     // Wrong channel count.
-    let e = expect_err(
-        SMALL
-            .replace("CHANNELS 3 Yrot", "CHANNELS 4 Yrot")
-            .as_bytes(),
-    );
+    let e = small_err("CHANNELS 3 Yrot", "CHANNELS 4 Yrot");
     assert!(
         matches!(
             e,
@@ -146,11 +147,7 @@ fn malformed_inputs_give_clear_errors() {
         "{e}"
     );
     // Unknown channel name.
-    let e = expect_err(
-        SMALL
-            .replace("Xposition Xrotation", "Wposition Xrotation")
-            .as_bytes(),
-    );
+    let e = small_err("Xposition Xrotation", "Wposition Xrotation");
     assert!(
         matches!(e, SourceError::UnknownChannel { line: 9, .. }),
         "{e}"
@@ -159,7 +156,7 @@ fn malformed_inputs_give_clear_errors() {
     let e = expect_err(&SMALL.as_bytes()[..SMALL.find("MOTION").unwrap()]);
     assert!(matches!(e, SourceError::MissingMotion { .. }), "{e}");
     // Frames count mismatch.
-    let e = expect_err(SMALL.replace("Frames: 2", "Frames: 3").as_bytes());
+    let e = small_err("Frames: 2", "Frames: 3");
     assert!(
         matches!(
             e,
@@ -171,11 +168,7 @@ fn malformed_inputs_give_clear_errors() {
         "{e}"
     );
     // A frame line with too few values.
-    let e = expect_err(
-        SMALL
-            .replace("0 100 0 0 0 0 90 15 45", "0 100 0 0 0 0 90 15")
-            .as_bytes(),
-    );
+    let e = small_err("0 100 0 0 0 0 90 15 45", "0 100 0 0 0 0 90 15");
     assert!(
         matches!(
             e,
@@ -188,10 +181,10 @@ fn malformed_inputs_give_clear_errors() {
         "{e}"
     );
     // Garbled number in the motion data.
-    let e = expect_err(SMALL.replace("0 100 0 0", "0 1,0 0 0").as_bytes());
+    let e = small_err("0 100 0 0", "0 1,0 0 0");
     assert!(matches!(e, SourceError::BadNumber { line: 20, .. }), "{e}");
     // NaN is not a number we accept.
-    let e = expect_err(SMALL.replace("0 100 0 0", "0 NaN 0 0").as_bytes());
+    let e = small_err("0 100 0 0", "0 NaN 0 0");
     assert!(matches!(e, SourceError::BadNumber { .. }), "{e}");
     // Non-UTF-8 bytes.
     let mut bytes = SMALL.as_bytes().to_vec();
@@ -207,7 +200,7 @@ fn malformed_inputs_give_clear_errors() {
         SourceError::Syntax { line: 1, .. }
     ));
     // Zero frame time.
-    let e = expect_err(SMALL.replace("Frame Time: 0.5", "Frame Time: 0").as_bytes());
+    let e = small_err("Frame Time: 0.5", "Frame Time: 0");
     assert!(matches!(e, SourceError::BadNumber { line: 18, .. }), "{e}");
     // Duplicate joint names are a skeleton error, not a panic.
     let dup = SMALL.replace("JOINT Upper Arm", "JOINT Hips");
@@ -216,11 +209,7 @@ fn malformed_inputs_give_clear_errors() {
         SourceError::Skeleton(_)
     ));
     // Unbalanced braces.
-    let e = expect_err(
-        SMALL
-            .replace("\t}\r\n}\r\nMOTION", "\t}\r\nMOTION")
-            .as_bytes(),
-    );
+    let e = small_err("\t}\r\n}\r\nMOTION", "\t}\r\nMOTION");
     assert!(matches!(e, SourceError::UnexpectedEof { .. }), "{e}");
 }
 
@@ -238,14 +227,6 @@ fn every_prefix_fails_cleanly_or_parses() {
             assert_eq!(r.unwrap().clip.num_frames(), 2, "prefix of {cut} bytes");
         }
     }
-}
-
-/// Rotation angle between two quaternions, accurate for tiny angles (acos of the dot is not);
-/// q and -q give the same |xyz|, so no sign handling is needed.
-fn quat_close(a: glam::Quat, b: glam::Quat, tol_rad: f32) -> bool {
-    let d = a.conjugate() * b;
-    let angle = 2.0 * d.xyz().length().min(1.0).asin();
-    angle <= tol_rad
 }
 
 #[test]

@@ -294,22 +294,16 @@ fn malformed_gltf_gives_clear_errors() {
     .unwrap();
     assert!(matches!(e, SourceError::NoSkeleton), "{e}");
     // Accessor that overruns its buffer view.
-    let mut doc: Value = serde_json::from_slice(&hand_made()).unwrap();
-    doc["accessors"][1]["count"] = json!(600);
-    let e = read(&serde_json::to_vec(&doc).unwrap(), None)
-        .err()
-        .unwrap();
+    let e = read_edited(|doc| doc["accessors"][1]["count"] = json!(600));
     assert!(
         matches!(e, SourceError::BadAccessor { accessor: 1, .. }),
         "{e}"
     );
     // Accessor with the wrong type for its target.
-    let mut doc: Value = serde_json::from_slice(&hand_made()).unwrap();
-    doc["accessors"][2]["type"] = json!("VEC3");
-    doc["accessors"][2]["count"] = json!(2);
-    let e = read(&serde_json::to_vec(&doc).unwrap(), None)
-        .err()
-        .unwrap();
+    let e = read_edited(|doc| {
+        doc["accessors"][2]["type"] = json!("VEC3");
+        doc["accessors"][2]["count"] = json!(2);
+    });
     assert!(
         matches!(e, SourceError::BadAccessor { accessor: 2, .. }),
         "{e}"
@@ -335,26 +329,11 @@ fn malformed_gltf_gives_clear_errors() {
 
 /// A GLB from a JSON document and a binary chunk (both padded as the spec asks).
 fn glb_from(json: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut j = serde_json::to_vec(json).unwrap();
-    while !j.len().is_multiple_of(4) {
-        j.push(b' ');
-    }
     let mut b = bin.to_vec();
     while !b.len().is_multiple_of(4) {
         b.push(0);
     }
-    let total = 12 + 8 + j.len() + 8 + b.len();
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
-    out
+    super::write::glb_container(json, Some(&b)).unwrap()
 }
 
 /// The demo as GLB, plus a skinned mesh the way Draco exporters write it: 300 attribute
@@ -460,4 +439,13 @@ fn hundreds_of_bad_accessors_give_a_short_summarised_error() {
     );
     assert!(message.contains("accessors[*].bufferView"), "{message}");
     assert!(message.contains("×300"), "{message}");
+}
+
+/// The error of reading [`hand_made`] with `edit` applied to its JSON.
+fn read_edited(edit: impl FnOnce(&mut Value)) -> SourceError {
+    let mut doc: Value = serde_json::from_slice(&hand_made()).unwrap();
+    edit(&mut doc);
+    read(&serde_json::to_vec(&doc).unwrap(), None)
+        .err()
+        .unwrap()
 }

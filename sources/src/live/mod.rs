@@ -60,6 +60,10 @@ pub struct FrameMeta {
     pub skeleton_changed: bool,
 }
 
+/// What [`LiveSource::next_frame`] returns: the new frame's metadata, `None` when nothing new
+/// arrived in time, or the error that ended the input.
+pub type NextFrame = Result<Option<FrameMeta>, SourceError>;
+
 /// A live pose source.
 ///
 /// Driven from its own thread by the server; never panics on bad input.
@@ -70,11 +74,7 @@ pub trait LiveSource: Send {
     fn skeleton(&self) -> Option<Arc<Skeleton>>;
     /// Blocks at most `timeout`; Ok(None) when nothing new arrived. Fills `out` (sized to
     /// skeleton(); a wrongly sized `out` is resized, which allocates only then).
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError>;
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame;
     /// Current health.
     fn status(&self) -> SourceStatus;
     /// Installs a hook that receives every raw input unit (OSC datagram, serial read chunk,
@@ -187,6 +187,21 @@ pub(crate) fn wait_until(due: Instant, deadline: Instant) -> bool {
     let reached = due <= deadline;
     std::thread::sleep(due.min(deadline).saturating_duration_since(Instant::now()));
     reached
+}
+
+/// Plays timestamped input (a file, a recording) at its own pace: the wall clock of input time
+/// 0 is set by the first frame asked about, and each later time is due that much later.
+#[derive(Debug, Default, Clone, Copy)]
+pub(crate) struct Pace {
+    start: Option<Instant>,
+}
+
+impl Pace {
+    /// When input time `time_secs` is due; the first call makes it due at `now`.
+    pub(crate) fn due(&mut self, time_secs: f64, now: Instant) -> Instant {
+        let t = Duration::from_secs_f64(time_secs.max(0.0));
+        *self.start.get_or_insert_with(|| now - t) + t
+    }
 }
 
 /// Resizes `out` to `skeleton` if needed (allocates only when the size changes).

@@ -32,7 +32,7 @@ pub use solve::ImuSolver;
 
 use crate::error::SourceError;
 use crate::live::{
-    fit_pose, stamp_raw, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket, RawTap,
+    fit_pose, stamp_raw, HealthTracker, LiveSource, NextFrame, RawKind, RawPacket, RawTap,
     SourceState, SourceStatus,
 };
 
@@ -384,11 +384,7 @@ impl LiveSource for SerialImuSource {
         Some(self.solver.skeleton().clone())
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(held) = self.calibration.take() {

@@ -21,7 +21,7 @@ use super::bound::BoundRun;
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::sigmoid;
-use super::model::{build_session, model_err, runtime, warp_crop};
+use super::model::{open_model, warp_crop};
 use super::roi::Roi;
 
 /// Side of the detector's square input, pixels.
@@ -151,25 +151,19 @@ impl PersonDetector {
         threads: usize,
         min_score: f32,
     ) -> Result<PersonDetector, VisionError> {
-        let env = runtime(library)?;
-        if !model.is_file() {
-            return Err(VisionError::NotSetUp {
-                path: model.to_path_buf(),
-                what: "person detector model",
-            });
-        }
-        let session = build_session(&env, model, threads)?;
+        let (session, input) = open_model(
+            library,
+            model,
+            "person detector model",
+            threads,
+            DETECTOR_SIZE,
+        )?;
         let run = BoundRun::new(
             &session,
             model,
             [OUT_BOXES, OUT_SCORES],
             [NUM_ANCHORS * NUM_COORDS, NUM_ANCHORS],
         )?;
-        let input = Tensor::from_array((
-            [1usize, DETECTOR_SIZE, DETECTOR_SIZE, 3],
-            vec![0.0f32; DETECTOR_SIZE * DETECTOR_SIZE * 3],
-        ))
-        .map_err(|e| model_err(model, e))?;
         Ok(PersonDetector {
             path: model.to_path_buf(),
             session,

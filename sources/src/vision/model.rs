@@ -102,25 +102,13 @@ impl LandmarkModel {
         model: &Path,
         threads: usize,
     ) -> Result<LandmarkModel, VisionError> {
-        let env = runtime(library)?;
-        if !model.is_file() {
-            return Err(VisionError::NotSetUp {
-                path: model.to_path_buf(),
-                what: "landmark model",
-            });
-        }
-        let session = build_session(&env, model, threads)?;
+        let (session, input) = open_model(library, model, "landmark model", threads, INPUT_SIZE)?;
         let run = BoundRun::new(
             &session,
             model,
             [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD],
             [NUM_MODEL_LANDMARKS * 5, 1, NUM_MODEL_LANDMARKS * 3],
         )?;
-        let input = Tensor::from_array((
-            [1usize, INPUT_SIZE, INPUT_SIZE, 3],
-            vec![0.0f32; INPUT_SIZE * INPUT_SIZE * 3],
-        ))
-        .map_err(|e| model_err(model, e))?;
         Ok(LandmarkModel {
             path: model.to_path_buf(),
             session,
@@ -161,6 +149,29 @@ impl LandmarkModel {
         decode(lm, world, presence[0], roi, out);
         Ok(())
     }
+}
+
+/// The session of `model` (`what` names it when the file is missing) with the runtime in
+/// `library`, on `threads` threads, and its input: one square RGB image of `size` pixels,
+/// zeroed.
+pub(crate) fn open_model(
+    library: &Path,
+    model: &Path,
+    what: &'static str,
+    threads: usize,
+    size: usize,
+) -> Result<(Session, Tensor<f32>), VisionError> {
+    let env = runtime(library)?;
+    if !model.is_file() {
+        return Err(VisionError::NotSetUp {
+            path: model.to_path_buf(),
+            what,
+        });
+    }
+    let session = build_session(&env, model, threads)?;
+    let input = Tensor::from_array(([1usize, size, size, 3], vec![0.0f32; size * size * 3]))
+        .map_err(|e| model_err(model, e))?;
+    Ok((session, input))
 }
 
 /// An optimised session on `threads` intra-op threads (one model of the pipeline).

@@ -16,10 +16,10 @@ use rigcast_retarget::{Pose, Skeleton};
 use super::error::VisionError;
 use super::landmarks::Landmarks;
 use super::pipeline::PipelineConfig;
-use super::source::{decode_landmarks, encode_landmarks, LANDMARK_RECORD_BYTES};
+use super::source::{decode_landmarks, LandmarkTap, LANDMARK_RECORD_BYTES};
 use super::stages::LandmarkStages;
 use crate::live::{
-    unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
+    unix_nanos_now, wait_until, HealthTracker, LiveSource, NextFrame, Pace, RawKind, RawTap,
     SourceStatus,
 };
 use crate::recording::{read_recording, RawPacket};
@@ -38,11 +38,10 @@ pub struct LandmarkReplaySource {
     entries: Vec<Entry>,
     next: usize,
     malformed: u64,
-    realtime: bool,
-    started: Option<Instant>,
+    /// Set when frames are released at their recorded pace.
+    pace: Option<Pace>,
     health: HealthTracker,
-    tap: Option<Box<dyn RawTap>>,
-    record: Vec<u8>,
+    tap: LandmarkTap,
 }
 
 impl std::fmt::Debug for LandmarkReplaySource {
@@ -121,11 +120,9 @@ impl LandmarkReplaySource {
             entries,
             next: 0,
             malformed,
-            realtime,
-            started: None,
+            pace: realtime.then(Pace::default),
             health,
-            tap: None,
-            record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
+            tap: LandmarkTap::new(),
         })
     }
 
@@ -175,11 +172,7 @@ impl LiveSource for LandmarkReplaySource {
         Some(self.stages.skeleton().clone())
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         let call_start = Instant::now();
         let Some(entry) = self.entries.get(self.next).copied() else {
             if self.health.state() != crate::live::SourceState::Lost {
@@ -191,25 +184,16 @@ impl LiveSource for LandmarkReplaySource {
             return Ok(None);
         };
         let t = self.time_secs(self.next);
-        if self.realtime {
-            let start = *self
-                .started
-                .get_or_insert_with(|| call_start - Duration::from_secs_f64(t));
-            let due = start + Duration::from_secs_f64(t);
-            if !wait_until(due, call_start + timeout) {
+        if let Some(pace) = self.pace.as_mut() {
+            if !wait_until(pace.due(t, call_start), call_start + timeout) {
                 return Ok(None);
             }
         }
         self.next += 1;
         let arrived = Instant::now();
         let capture_nanos = unix_nanos_now();
-        if let Some(tap) = self.tap.as_mut() {
-            match &entry.landmarks {
-                Some(lm) => encode_landmarks(lm, &mut self.record),
-                None => self.record.clear(),
-            }
-            tap.raw(RawKind::Landmarks, entry.capture_nanos, &self.record);
-        }
+        self.tap
+            .record(entry.landmarks.as_ref(), entry.capture_nanos);
         self.health.on_input(arrived);
         let Some(lm) = entry.landmarks else {
             // Exactly what the live pipeline does when the tracker loses the person.
@@ -226,6 +210,6 @@ impl LiveSource for LandmarkReplaySource {
     }
 
     fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
-        self.tap = tap;
+        self.tap.set(tap);
     }
 }

@@ -28,9 +28,9 @@ use super::error::VisionError;
 use super::frame::{FrameSource, RgbFrame};
 use super::landmarks::Landmarks;
 use super::pipeline::PosePipeline;
-use super::source::{encode_landmarks, LANDMARK_RECORD_BYTES};
+use super::source::LandmarkTap;
 use crate::live::{
-    unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
+    unix_nanos_now, wait_until, HealthTracker, LiveSource, NextFrame, Pace, RawTap, SourceError,
     SourceStatus,
 };
 
@@ -225,9 +225,7 @@ impl SharedVision {
             last_frame: 0,
             ended_reported: false,
             health,
-            tap: None,
-            record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
-            tap_anchor_nanos: None,
+            tap: LandmarkTap::new(),
         })
     }
 }
@@ -237,7 +235,7 @@ impl SharedVision {
 fn run_pipeline(mut runner: Runner, shared: &Shared) {
     let (w, h) = runner.frames.size();
     let mut frame = RgbFrame::new(w, h);
-    let mut started: Option<Instant> = None;
+    let mut started = Pace::default();
     let mut anchor_nanos: Option<u64> = None;
     let ended = loop {
         if shared.lock().stop {
@@ -274,10 +272,8 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
 
 /// Sleeps until `frame` is due (wall clock from the first frame); false when stopped while
 /// waiting.
-fn pace(frame: &RgbFrame, started: &mut Option<Instant>, shared: &Shared) -> bool {
-    let now = Instant::now();
-    let start = *started.get_or_insert_with(|| now - Duration::from_secs_f64(frame.time_secs));
-    let due = start + Duration::from_secs_f64(frame.time_secs.max(0.0));
+fn pace(frame: &RgbFrame, pace: &mut Pace, shared: &Shared) -> bool {
+    let due = pace.due(frame.time_secs, Instant::now());
     while !wait_until(due, Instant::now() + STOP_POLL) {
         if shared.lock().stop {
             return false;
@@ -322,10 +318,7 @@ pub struct PersonSource {
     last_frame: u64,
     ended_reported: bool,
     health: HealthTracker,
-    tap: Option<Box<dyn RawTap>>,
-    record: Vec<u8>,
-    /// Wall-clock nanoseconds of frame time 0, for tap timestamps (as in VisionSource).
-    tap_anchor_nanos: Option<u64>,
+    tap: LandmarkTap,
 }
 
 impl std::fmt::Debug for PersonSource {
@@ -392,18 +385,8 @@ impl PersonSource {
             crate::live::fit_pose(out, &self.skeleton);
             out.copy_from(&slot.pose);
         }
-        if let Some(tap) = self.tap.as_mut() {
-            let frame_nanos = (s.time_secs.max(0.0) * 1e9).round() as u64;
-            let anchor = *self
-                .tap_anchor_nanos
-                .get_or_insert_with(|| s.capture_nanos.saturating_sub(frame_nanos));
-            if seen {
-                encode_landmarks(&slot.raw, &mut self.record);
-            } else {
-                self.record.clear();
-            }
-            tap.raw(RawKind::Landmarks, anchor + frame_nanos, &self.record);
-        }
+        self.tap
+            .record_frame(seen.then_some(&slot.raw), s.time_secs, s.capture_nanos);
         Read::Frame {
             seen,
             arrived: s.arrived,
@@ -421,11 +404,7 @@ impl LiveSource for PersonSource {
         Some(self.skeleton.clone())
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         if let Err(e) = self.hub.start() {
             self.health.on_device_lost(e.to_string());
             return Err(SourceError::Stream(std::io::Error::other(e)));
@@ -473,6 +452,6 @@ impl LiveSource for PersonSource {
     }
 
     fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
-        self.tap = tap;
+        self.tap.set(tap);
     }
 }

@@ -323,30 +323,24 @@ impl PoseSolver {
             let foot_vis = vis(he).min(vis(t));
             let fallback = |b: usize| prev[b] * z;
             let foot_seen = seen(foot_vis);
-            let fwd = stable_secondary(
-                thigh,
-                trusted(foot_fwd, fallback(tb), foot_seen),
-                fallback(tb),
-            );
-            set(
-                &mut solved,
-                &mut conf,
-                tb,
-                two_axis(self.rest_dir[tb], z, thigh, fwd),
-                vis(h).min(vis(k)),
-            );
-            let fwd = stable_secondary(
-                shin,
-                trusted(foot_fwd, fallback(sb), foot_seen),
-                fallback(sb),
-            );
-            set(
-                &mut solved,
-                &mut conf,
-                sb,
-                two_axis(self.rest_dir[sb], z, shin, fwd),
-                vis(k).min(vis(a)),
-            );
+            // Thigh and shin: along the segment, facing the way the foot points.
+            for (b, along, c) in [
+                (tb, thigh, vis(h).min(vis(k))),
+                (sb, shin, vis(k).min(vis(a))),
+            ] {
+                let fwd = stable_secondary(
+                    along,
+                    trusted(foot_fwd, fallback(b), foot_seen),
+                    fallback(b),
+                );
+                set(
+                    &mut solved,
+                    &mut conf,
+                    b,
+                    two_axis(self.rest_dir[b], z, along, fwd),
+                    c,
+                );
+            }
             let leg_up = stable_secondary(foot, -shin, prev[fb] * y);
             set(
                 &mut solved,

@@ -20,8 +20,8 @@ use super::frame::{FrameSource, RgbFrame};
 use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
 use super::pipeline::PosePipeline;
 use crate::live::{
-    unix_nanos_now, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawTap, SourceError,
-    SourceStatus,
+    unix_nanos_now, wait_until, HealthTracker, LiveSource, NextFrame, Pace, RawKind, RawTap,
+    SourceError, SourceStatus,
 };
 
 /// Bytes of one landmark record: presence, then 39 × (x, y, z, visibility) image values and
@@ -65,6 +65,60 @@ pub fn decode_landmarks(bytes: &[u8]) -> Option<Landmarks> {
     Some(lm)
 }
 
+/// The raw tap of a vision source and the landmark record it is fed (see the module doc).
+pub(crate) struct LandmarkTap {
+    tap: Option<Box<dyn RawTap>>,
+    record: Vec<u8>,
+    /// Wall-clock nanoseconds of frame time 0 (set at the first frame), for frame times.
+    anchor_nanos: Option<u64>,
+}
+
+impl LandmarkTap {
+    /// No tap yet; the record's buffer is allocated here, not per frame.
+    pub(crate) fn new() -> LandmarkTap {
+        LandmarkTap {
+            tap: None,
+            record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
+            anchor_nanos: None,
+        }
+    }
+
+    /// Installs (or removes) the tap.
+    pub(crate) fn set(&mut self, tap: Option<Box<dyn RawTap>>) {
+        self.tap = tap;
+    }
+
+    /// Hands the tap one record at `capture_nanos`: `landmarks`, or an empty record when no
+    /// person was found.
+    pub(crate) fn record(&mut self, landmarks: Option<&Landmarks>, capture_nanos: u64) {
+        if let Some(tap) = self.tap.as_mut() {
+            match landmarks {
+                Some(lm) => encode_landmarks(lm, &mut self.record),
+                None => self.record.clear(),
+            }
+            tap.raw(RawKind::Landmarks, capture_nanos, &self.record);
+        }
+    }
+
+    /// [`LandmarkTap::record`] at frame time `frame_secs`, anchored to the wall clock
+    /// `capture_nanos` of the first frame recorded.
+    pub(crate) fn record_frame(
+        &mut self,
+        landmarks: Option<&Landmarks>,
+        frame_secs: f64,
+        capture_nanos: u64,
+    ) {
+        if self.tap.is_none() {
+            return;
+        }
+        let frame_nanos = (frame_secs.max(0.0) * 1e9).round() as u64;
+        let anchor = *self
+            .anchor_nanos
+            .get_or_insert_with(|| capture_nanos.saturating_sub(frame_nanos));
+        self.record(landmarks, anchor + frame_nanos);
+    }
+}
+
 fn source_error(e: VisionError) -> SourceError {
     SourceError::Stream(std::io::Error::other(e))
 }
@@ -77,13 +131,10 @@ pub struct VisionSource {
     frame: RgbFrame,
     pending: bool,
     ended: bool,
-    realtime: bool,
-    started: Option<Instant>,
+    /// Set when frames are released at their timestamps.
+    pace: Option<Pace>,
     health: HealthTracker,
-    tap: Option<Box<dyn RawTap>>,
-    record: Vec<u8>,
-    /// Wall-clock nanoseconds of frame time 0 (set at the first frame), for tap timestamps.
-    tap_anchor_nanos: Option<u64>,
+    tap: LandmarkTap,
 }
 
 impl std::fmt::Debug for VisionSource {
@@ -111,12 +162,9 @@ impl VisionSource {
             frame: RgbFrame::new(w, h),
             pending: false,
             ended: false,
-            realtime,
-            started: None,
+            pace: realtime.then(Pace::default),
             health: HealthTracker::new(Duration::from_secs(1)),
-            tap: None,
-            record: Vec::with_capacity(LANDMARK_RECORD_BYTES),
-            tap_anchor_nanos: None,
+            tap: LandmarkTap::new(),
         }
     }
 
@@ -135,11 +183,7 @@ impl LiveSource for VisionSource {
         Some(self.pipeline.skeleton().clone())
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         let call_start = Instant::now();
         if self.ended {
             self.health.poll(call_start);
@@ -161,34 +205,24 @@ impl LiveSource for VisionSource {
             }
         }
         let arrived = Instant::now();
-        if self.realtime {
-            let start = *self
-                .started
-                .get_or_insert_with(|| arrived - Duration::from_secs_f64(self.frame.time_secs));
-            let due = start + Duration::from_secs_f64(self.frame.time_secs.max(0.0));
-            if !wait_until(due, call_start + timeout) {
+        if let Some(pace) = self.pace.as_mut() {
+            if !wait_until(
+                pace.due(self.frame.time_secs, arrived),
+                call_start + timeout,
+            ) {
                 return Ok(None);
             }
         }
         self.pending = false;
         let capture_nanos = unix_nanos_now();
-        let frame_nanos = (self.frame.time_secs.max(0.0) * 1e9).round() as u64;
         let found = self
             .pipeline
             .process(&self.frame, out)
             .map_err(source_error)?
             .is_some();
-        if let Some(tap) = self.tap.as_mut() {
-            let anchor = *self
-                .tap_anchor_nanos
-                .get_or_insert_with(|| capture_nanos.saturating_sub(frame_nanos));
-            if found {
-                encode_landmarks(self.pipeline.raw_landmarks(), &mut self.record);
-            } else {
-                self.record.clear();
-            }
-            tap.raw(RawKind::Landmarks, anchor + frame_nanos, &self.record);
-        }
+        let raw = found.then(|| self.pipeline.raw_landmarks());
+        self.tap
+            .record_frame(raw, self.frame.time_secs, capture_nanos);
         self.health.on_input(Instant::now());
         if !found {
             self.health.set_detail("no person in view");
@@ -203,7 +237,7 @@ impl LiveSource for VisionSource {
     }
 
     fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {
-        self.tap = tap;
+        self.tap.set(tap);
     }
 }
 

@@ -27,7 +27,7 @@ pub use mapping::{ArgField, CoordSpace, OscMapping, OscRule};
 
 use crate::error::SourceError;
 use crate::live::{
-    fit_pose, stamp_raw, wait_until, FrameMeta, HealthTracker, LiveSource, RawKind, RawPacket,
+    fit_pose, stamp_raw, wait_until, HealthTracker, LiveSource, NextFrame, RawKind, RawPacket,
     RawTap, SourceState, SourceStatus,
 };
 
@@ -295,11 +295,7 @@ impl LiveSource for VmcSource {
         self.decoder.skeleton().cloned()
     }
 
-    fn next_frame(
-        &mut self,
-        timeout: Duration,
-        out: &mut Pose,
-    ) -> Result<Option<FrameMeta>, SourceError> {
+    fn next_frame(&mut self, timeout: Duration, out: &mut Pose) -> NextFrame {
         let deadline = Instant::now() + timeout;
         loop {
             let Some(recv) = self.receive(deadline) else {
