@@ -12,7 +12,9 @@ use glam::Quat;
 use retarget_fixtures::{table_by_canonical, Humanoid};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
-use rigcast_retarget::{world_transforms, Mapping, Pose, RetargetOptions, Skeleton};
+use rigcast_retarget::{
+    world_transforms, Mapping, Pose, RetargetOptions, Skeleton, WorldTransform,
+};
 
 /// Standing still at 60 Hz; from frame 40 the left foot turns toes-down about the ankle by
 /// `pitch_rad` (held), both feet staying planted (the heel does not move).
@@ -48,6 +50,25 @@ fn locked_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
     (source, target, mapping, lock)
 }
 
+/// One 60 Hz frame: `p` retargeted into `free`, and locked into `out`; the target's world
+/// transforms of each (locked, free).
+fn locked_and_free(
+    mapping: &mut Mapping,
+    lock: &mut FootLock,
+    p: &Pose,
+    out: &mut Pose,
+    free: &mut Pose,
+) -> (Vec<WorldTransform>, Vec<WorldTransform>) {
+    mapping.apply_one(p, out).expect("apply");
+    free.copy_from(out);
+    lock.apply_live(p, true, 1.0 / 60.0, out);
+    let target = mapping.target();
+    (
+        world_transforms(target, out),
+        world_transforms(target, free),
+    )
+}
+
 #[test]
 fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
     let (source, target, mut mapping, mut lock) = locked_pair();
@@ -60,7 +81,6 @@ fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
     let (_, floor, _) = mapping.target_floor().expect("a floor");
     let rest = world_transforms(&target, &target.rest_pose());
     let toe_standing = rest[toe.index()].translation.y;
-    let dt = 1.0 / 60.0;
     let mut out = mapping.new_target_pose();
     let mut free = mapping.new_target_pose();
     let (mut ankle_at_40, mut checked) = (None, 0);
@@ -68,11 +88,7 @@ fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
     for pitch in [0.6f32, -0.6] {
         lock.reset();
         for (f, p) in toes_down(&source, 120, pitch).iter().enumerate() {
-            mapping.apply_one(p, &mut out).expect("apply");
-            free.copy_from(&out);
-            lock.apply_live(p, true, dt, &mut out);
-            let w = world_transforms(&target, &out);
-            let wf = world_transforms(&target, &free);
+            let (w, wf) = locked_and_free(&mut mapping, &mut lock, p, &mut out, &mut free);
             if f == 40 {
                 ankle_at_40 = Some(w[foot.index()].translation);
             }
@@ -95,7 +111,7 @@ fn a_planted_foot_pointing_into_the_floor_is_pitched_up_not_lifted() {
             // The knee keeps the bend it had (no fold-over): thigh and shin directions stay
             // within a few degrees of the free retarget's.
             for (a, b) in [(thigh, shin), (shin, foot)] {
-                let d = |w: &[rigcast_retarget::WorldTransform]| {
+                let d = |w: &[WorldTransform]| {
                     (w[b.index()].translation - w[a.index()].translation).normalize()
                 };
                 let deg = d(&w).angle_between(d(&wf)).to_degrees();
@@ -134,18 +150,13 @@ fn a_character_sunk_on_both_pinned_feet_is_lifted_not_folded() {
             [b("thigh"), b("shin"), b("foot")]
         })
         .collect();
-    let dt = 1.0 / 60.0;
     let mut out = mapping.new_target_pose();
     let mut free = mapping.new_target_pose();
     let mut pinned_at = Vec::new();
     let mut standing_root = 0.0;
     let mut checked = 0;
     for (f, p) in sinking(&source, 90, 0.05).iter().enumerate() {
-        mapping.apply_one(p, &mut out).expect("apply");
-        free.copy_from(&out);
-        lock.apply_live(p, true, dt, &mut out);
-        let w = world_transforms(&target, &out);
-        let wf = world_transforms(&target, &free);
+        let (w, wf) = locked_and_free(&mut mapping, &mut lock, p, &mut out, &mut free);
         if f == 15 {
             pinned_at = legs.iter().map(|l| w[l[2].index()].translation).collect();
             standing_root = wf[root.index()].translation.y;
@@ -172,7 +183,7 @@ fn a_character_sunk_on_both_pinned_feet_is_lifted_not_folded() {
                 (ankle - *at).length() < 0.005,
                 "frame {f}: pinned ankle moved to {ankle}"
             );
-            let dir = |w: &[rigcast_retarget::WorldTransform], a: usize, b: usize| {
+            let dir = |w: &[WorldTransform], a: usize, b: usize| {
                 (w[leg[b].index()].translation - w[leg[a].index()].translation).normalize()
             };
             for (a, b) in [(0, 1), (1, 2)] {

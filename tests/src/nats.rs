@@ -269,3 +269,30 @@ pub async fn one_nats_server() -> Option<NatsCluster> {
             .unwrap(),
     )
 }
+
+/// Compares a relayed subject's frames with the originating node's by seq: the number of
+/// frames matched, after asserting equal rotations and non-decreasing seqs.
+pub fn frames_equal(
+    origin: &[(u64, Vec<glam::Quat>)],
+    relayed: &[(u64, Vec<glam::Quat>)],
+    what: &str,
+) -> usize {
+    assert!(
+        relayed.windows(2).all(|w| w[0].0 <= w[1].0),
+        "{what}: frames out of order"
+    );
+    let by_seq: HashMap<u64, &Vec<glam::Quat>> = origin.iter().map(|(s, r)| (*s, r)).collect();
+    let mut matched = 0;
+    for (seq, rot) in relayed {
+        let Some(o) = by_seq.get(seq) else { continue };
+        assert_eq!(o.len(), rot.len(), "{what}: bone count");
+        for (a, b) in o.iter().zip(rot) {
+            let d = (glam::Vec4::from(*a) - glam::Vec4::from(*b))
+                .abs()
+                .max_element();
+            assert!(d <= 1e-6, "{what}: seq {seq} differs by {d}");
+        }
+        matched += 1;
+    }
+    matched
+}

@@ -20,7 +20,9 @@ use std::time::{Duration, Instant};
 
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::SourceState;
-use rigcast_tests::nats::{client, config_file, nats_server, spawn_node, wait_state, NatsCluster};
+use rigcast_tests::nats::{
+    client, config_file, frames_equal, nats_server, spawn_node, wait_state, NatsCluster,
+};
 use rigcast_tests::{free_port, next, temp_path, Incoming, Ws};
 
 /// Sends a gently moving humanoid over VMC until stopped.
@@ -63,31 +65,11 @@ async fn collect(ws: &mut Ws, secs: f64) -> Frames {
     out
 }
 
-/// Compares a relayed subject's frames with the originating node's by seq: the number of
-/// frames matched, after asserting equal rotations and non-decreasing seqs.
-fn compare(
-    origin: &[(u64, Vec<glam::Quat>)],
-    relayed: &[(u64, Vec<glam::Quat>)],
-    what: &str,
-) -> usize {
-    assert!(
-        relayed.windows(2).all(|w| w[0].0 <= w[1].0),
-        "{what}: frames out of order"
-    );
-    let by_seq: HashMap<u64, &Vec<glam::Quat>> = origin.iter().map(|(s, r)| (*s, r)).collect();
-    let mut matched = 0;
-    for (seq, rot) in relayed {
-        let Some(o) = by_seq.get(seq) else { continue };
-        assert_eq!(o.len(), rot.len(), "{what}: bone count");
-        for (a, b) in o.iter().zip(rot) {
-            let d = (glam::Vec4::from(*a) - glam::Vec4::from(*b))
-                .abs()
-                .max_element();
-            assert!(d <= 1e-6, "{what}: seq {seq} differs by {d}");
-        }
-        matched += 1;
+/// Asserts that B and C (in that order) both got there within `limit`.
+fn all_within(after: [Option<Duration>; 2], limit: Duration) {
+    for (node, after) in ["B", "C"].iter().zip(after) {
+        assert!(after.is_some_and(|d| d <= limit), "{node}: {after:?}");
     }
-    matched
 }
 
 /// Waits on two clients at once (5 s at most) for their subject to reach `state`; how long
@@ -166,7 +148,7 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
         let origin = &fa[&sa[name].id];
         for (label, frames, subjects) in [("B", &fb, &sb), ("C", &fc, &sc)] {
             let got = &frames[&subjects[&relayed].id];
-            let n = compare(origin, got, &format!("{relayed} on {label}"));
+            let n = frames_equal(origin, got, &format!("{relayed} on {label}"));
             println!(
                 "{relayed} on {label}: {n} frames equal to A's (of {})",
                 got.len()
@@ -174,7 +156,7 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
             assert!(n >= 30, "{relayed} on {label}: only {n} frames matched A's");
         }
     }
-    let n = compare(
+    let n = frames_equal(
         &fb[&sb["mannequin"].id],
         &fc[&sc["mannequin@b"].id],
         "mannequin@b on C",
@@ -188,23 +170,13 @@ async fn three_nodes_share_subjects_through_a_nats_cluster() {
     drop(a);
     let lost = on_both(&mut wb, demo_b, &mut wc, demo_c, SourceState::Lost).await;
     println!("A killed: lost on B and C after {lost:?}");
-    for (node, after) in ["B", "C"].iter().zip(lost) {
-        assert!(
-            after.is_some_and(|d| d <= Duration::from_secs(1)),
-            "{node}: {after:?}"
-        );
-    }
+    all_within(lost, Duration::from_secs(1));
 
     // A comes back: live again on B and C within 2 s of it serving.
     let a = spawn_node(a_args, "a").await;
     let live = on_both(&mut wb, demo_b, &mut wc, demo_c, SourceState::Live).await;
     println!("A restarted: live on B and C after {live:?}");
-    for (node, after) in ["B", "C"].iter().zip(live) {
-        assert!(
-            after.is_some_and(|d| d <= Duration::from_secs(2)),
-            "{node}: {after:?}"
-        );
-    }
+    all_within(live, Duration::from_secs(2));
 
     // One NATS server dies: the streams go on (clients fail over to the others).
     nats.kill(0);

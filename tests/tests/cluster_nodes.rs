@@ -16,7 +16,8 @@ use std::time::Duration;
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::{ErrorCode, ServerMessage, SourceState};
 use rigcast_tests::nats::{
-    client_with, frames_of, one_nats_server, spawn_node_with_token, wait_state, wait_subject,
+    client_with, frames_equal, frames_of, one_nats_server, spawn_node_with_token, wait_state,
+    wait_subject,
 };
 use rigcast_tests::{next_json, send_text, Ws};
 
@@ -198,19 +199,7 @@ async fn nodes_that_start_later_are_found_and_a_clean_stop_is_a_loss() {
         frames_of(&mut ww, id, 2.0),
         frames_of(&mut wa, sa["demo"].id, 2.0)
     );
-    let by_seq: std::collections::HashMap<u64, &Vec<glam::Quat>> =
-        on_a.iter().map(|(s, r)| (*s, r)).collect();
-    let mut matched = 0;
-    for (seq, rot) in &on_w {
-        let Some(o) = by_seq.get(seq) else { continue };
-        for (x, y) in o.iter().zip(rot) {
-            let d = (glam::Vec4::from(*x) - glam::Vec4::from(*y))
-                .abs()
-                .max_element();
-            assert!(d <= 1e-6, "seq {seq} differs by {d}");
-        }
-        matched += 1;
-    }
+    let matched = frames_equal(&on_a, &on_w, "demo@a on W");
     println!(
         "demo@a found on W: {matched} of {} frames equal to A's",
         on_w.len()
