@@ -20,7 +20,7 @@
 use glam::{Quat, Vec3};
 
 use super::detect::{PlantDetector, PlantSettings};
-use super::ik::{solve_two_bone, MAX_EXTENSION};
+use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
 use super::rig::{find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
 use crate::analysis::Analysis;
@@ -36,6 +36,40 @@ const PIVOT_RAD: f32 = 0.45;
 /// Highest a ball may be pitched up to, as a share of the foot's length (sin of ~64°): past
 /// that the ankle lifts instead.
 const MAX_BALL_RISE: f32 = 0.9;
+
+/// Most the IK may turn either leg bone away from the animation (radians, 90°). A rig whose
+/// upper bone is very short next to the lower (a Kinect-style hip joint at the pelvis centre)
+/// would otherwise fold the leg right over to lift the foot a few centimetres; past this the
+/// foot reaches its goal only part of the way.
+const MAX_BONE_TURN: f32 = std::f32::consts::FRAC_PI_2;
+
+/// Two-bone IK towards `goal`, going only as far along the way from `ankle` as keeps the
+/// leg's bones within [`MAX_BONE_TURN`] of where they were (by bisection; nothing allocated).
+fn solve_bounded(hip: Vec3, knee: Vec3, ankle: Vec3, goal: Vec3, pole: Vec3) -> TwoBoneSolution {
+    let turn = |s: &TwoBoneSolution| {
+        let upper = (knee - hip).angle_between(s.knee - hip);
+        let lower = (ankle - knee).angle_between(s.ankle - s.knee);
+        upper.max(lower)
+    };
+    let full = solve_two_bone(hip, knee, ankle, goal, pole);
+    let t = turn(&full);
+    if t.is_nan() || t <= MAX_BONE_TURN {
+        return full;
+    }
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    let mut best = solve_two_bone(hip, knee, ankle, ankle, pole);
+    for _ in 0..10 {
+        let mid = 0.5 * (lo + hi);
+        let s = solve_two_bone(hip, knee, ankle, ankle.lerp(goal, mid), pole);
+        if turn(&s) > MAX_BONE_TURN {
+            hi = mid;
+        } else {
+            lo = mid;
+            best = s;
+        }
+    }
+    best
+}
 
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -608,7 +642,7 @@ impl FootLock {
         } else {
             wu.rotation * self.feet[i].pole_local
         };
-        let s = solve_two_bone(hip, knee, ankle, goal.ankle, pole);
+        let s = solve_bounded(hip, knee, ankle, goal.ankle, pole);
         let parent_world = |b: BoneId| match self.target.parent(b) {
             Some(p) => self.worlds[p.index()].rotation,
             None => Quat::IDENTITY,
@@ -623,5 +657,46 @@ impl FootLock {
         let foot_parent = s.lower * s.upper * parent_world(leg.foot);
         out.rotations[leg.foot.index()] = (foot_parent.inverse() * goal.rotation).normalize();
         s.ankle
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_short_upper_bone_is_not_folded_over_to_lift_the_foot() {
+        // A 6 cm upper bone above a 37 cm lower one (a hip joint at the pelvis centre), the
+        // foot to come up 10 cm.
+        let (hip, knee, ankle) = (
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.94, 0.01),
+            Vec3::new(0.0, 0.57, 0.0),
+        );
+        let goal = ankle + Vec3::Y * 0.1;
+        let pole = Vec3::Z;
+        let turn = |s: &TwoBoneSolution| {
+            let upper = (knee - hip).angle_between(s.knee - hip);
+            let lower = (ankle - knee).angle_between(s.ankle - s.knee);
+            upper.max(lower)
+        };
+        let free = solve_two_bone(hip, knee, ankle, goal, pole);
+        assert!(
+            turn(&free) > MAX_BONE_TURN,
+            "the unbounded IK folds: {}",
+            turn(&free)
+        );
+        let bounded = solve_bounded(hip, knee, ankle, goal, pole);
+        assert!(turn(&bounded) <= MAX_BONE_TURN + 1e-4, "{}", turn(&bounded));
+        assert!(
+            bounded.ankle.y > ankle.y + 0.005,
+            "the foot came up {}",
+            bounded.ankle.y - ankle.y
+        );
+        // An ordinary adjustment is left alone.
+        let small = ankle + Vec3::new(0.0, 0.01, 0.02);
+        let plain = solve_two_bone(hip, Vec3::new(0.0, 0.8, 0.02), ankle, small, pole);
+        let same = solve_bounded(hip, Vec3::new(0.0, 0.8, 0.02), ankle, small, pole);
+        assert!((plain.ankle - same.ankle).length() < 1e-6);
     }
 }
