@@ -9,9 +9,13 @@
 //!  target pose ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
-//!                     floor: raise the goal so heel and ball stay above it
+//!               ─▶ hips raised when every foot would have to be pulled up (the animation
+//!                  sank the whole character)
+//!                     floor: raise the goal so the heel stays above it; pitch the foot up
+//!                     about the ankle so the ball does
 //!               ─▶ hips lowered by what the farthest pinned goal lacks (back up smoothly)
-//!               ─FK─▶ two-bone IK per foot (skipped where the goal is the animated foot)
+//!               ─FK─▶ two-bone IK per foot (skipped where the goal is the animated foot),
+//!                     only as far as keeps each leg bone within 90° of the animation
 //! ```
 //! A lock is released when the source lifts the foot, or when the animated foot has left it
 //! farther than `max_drift_ratio` leg lengths (a turn on the spot, a slide): the foot then
@@ -79,7 +83,8 @@ pub struct LockSettings {
     pub blend_secs: f32,
     /// A lock lets go when the animated foot is this many leg lengths away horizontally.
     pub max_drift_ratio: f32,
-    /// The hips never come down by more than this many leg lengths.
+    /// The hips never come down (or, when every foot has sunk, go up) by more than this many
+    /// leg lengths.
     pub max_drop_ratio: f32,
     /// The live detector's thresholds.
     pub plants: PlantSettings,

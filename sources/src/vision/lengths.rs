@@ -139,6 +139,31 @@ mod tests {
     }
 
     #[test]
+    fn each_shared_estimate_pairs_a_segment_with_its_mirror_twin() {
+        // BlazePose numbers a body landmark's left twin odd and its right twin the next even
+        // one (11/12 shoulders … 31/32 feet).
+        let mirror = |i: usize| if i % 2 == 1 { i + 1 } else { i - 1 };
+        for (i, &(a, b)) in SEGMENTS.iter().enumerate() {
+            let twins: Vec<usize> = (0..SEGMENTS.len())
+                .filter(|&j| j != i && ESTIMATE_OF[j] == ESTIMATE_OF[i])
+                .collect();
+            assert_eq!(
+                twins.len(),
+                1,
+                "segment {i} shares its estimate with {twins:?}"
+            );
+            let (c, d) = SEGMENTS[twins[0]];
+            assert_eq!(
+                (mirror(a), mirror(b)),
+                (c, d),
+                "segment {i} and {}",
+                twins[0]
+            );
+        }
+        assert_eq!(ESTIMATE_OF.iter().max().map(|m| m + 1), Some(ESTIMATES));
+    }
+
+    #[test]
     fn a_hidden_arm_takes_the_length_of_the_arm_that_is_seen() {
         let mut f = LimbLengths::new();
         for i in 0..60 {
