@@ -197,10 +197,38 @@ pub(crate) struct Pace {
 }
 
 impl Pace {
-    /// When input time `time_secs` is due; the first call makes it due at `now`.
+    /// When input time `time_secs` is due; the first call makes it due at `now`. Times are
+    /// clamped to 0..=1 year (a corrupt or NaN stamp must not panic the source's thread).
     pub(crate) fn due(&mut self, time_secs: f64, now: Instant) -> Instant {
-        let t = Duration::from_secs_f64(time_secs.max(0.0));
-        *self.start.get_or_insert_with(|| now - t) + t
+        const YEAR_SECS: f64 = 365.0 * 86_400.0;
+        let secs = if time_secs.is_finite() {
+            time_secs.clamp(0.0, YEAR_SECS)
+        } else {
+            0.0
+        };
+        let t = Duration::from_secs_f64(secs);
+        let start = *self
+            .start
+            .get_or_insert_with(|| now.checked_sub(t).unwrap_or(now));
+        start.checked_add(t).unwrap_or(now)
+    }
+}
+
+#[cfg(test)]
+mod pace_tests {
+    use super::*;
+
+    #[test]
+    fn corrupt_times_do_not_panic_and_good_ones_keep_their_spacing() {
+        let now = Instant::now();
+        let mut p = Pace::default();
+        let first = p.due(2.0, now);
+        assert_eq!(first, now);
+        assert_eq!(p.due(2.5, now), now + Duration::from_millis(500));
+        for bad in [f64::NAN, f64::INFINITY, -1.0, 1e300] {
+            let _ = Pace::default().due(bad, now);
+            let _ = p.due(bad, now);
+        }
     }
 }
 
