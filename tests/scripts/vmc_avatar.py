@@ -46,15 +46,15 @@ AVATAR = {
 ORDER = list(AVATAR)  # parents before children
 
 
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 def qmul(a, b):
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return (
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    )
+    """Hamilton product in vector form: (wa vb + wb va + va x vb, wa wb - va . vb)."""
+    va, wa, vb, wb = a[:3], a[3], b[:3], b[3]
+    v = add(add(tuple(wa * c for c in vb), tuple(wb * c for c in va)), cross(va, vb))
+    return v + (wa * wb - dot(va, vb),)
 
 
 def rotate(q, v):

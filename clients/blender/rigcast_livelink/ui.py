@@ -111,24 +111,26 @@ def _refused(operator, message):
 
 
 class RIGCAST_OT_connect(bpy.types.Operator):
-    bl_idname = "rigcast.connect"
-    bl_label = "Connect"
-    bl_description = "Connect to the rigcast server (or start listening for VMC)"
+    """Connect to the rigcast server (or start listening for VMC)"""
+    bl_idname, bl_label = "rigcast.connect", "Connect"
 
     def execute(self, context):
-        settings = context.scene.rigcast
         try:
-            if settings.transport == "WEBSOCKET":
-                parse_address(settings.address)
-            livelink.runtime.connect(settings)
+            _connect(context.scene.rigcast)
         except (ValueError, OSError) as exc:
             return _refused(self, str(exc))
         return {"FINISHED"}
 
 
+def _connect(settings):
+    """Connects as `settings` say; a malformed server address raises before anything opens."""
+    if settings.transport == "WEBSOCKET":
+        parse_address(settings.address)
+    livelink.runtime.connect(settings)
+
+
 class RIGCAST_OT_disconnect(bpy.types.Operator):
-    bl_idname = "rigcast.disconnect"
-    bl_label = "Disconnect"
+    bl_idname, bl_label = "rigcast.disconnect", "Disconnect"
 
     def execute(self, context):
         livelink.runtime.disconnect()
@@ -136,9 +138,8 @@ class RIGCAST_OT_disconnect(bpy.types.Operator):
 
 
 class RIGCAST_OT_create_armature(bpy.types.Operator):
-    bl_idname = "rigcast.create_armature"
-    bl_label = "Create armature from subject"
-    bl_description = "Build an armature whose rest pose is the subject's skeleton and assign it"
+    """Build an armature whose rest pose is the subject's skeleton and assign it"""
+    bl_idname, bl_label = "rigcast.create_armature", "Create armature from subject"
     bl_options = {"REGISTER", "UNDO"}
 
     subject_id: IntProperty(name="Subject", default=-1)
@@ -163,9 +164,8 @@ class RIGCAST_OT_create_armature(bpy.types.Operator):
 
 
 class RIGCAST_OT_set_override(bpy.types.Operator):
-    bl_idname = "rigcast.set_override"
-    bl_label = "Send override"
-    bl_description = "Map the selected target bone to the chosen source bone (empty = unmapped) on the server"
+    """Map the selected target bone to the chosen source bone (empty = unmapped) on the server"""
+    bl_idname, bl_label = "rigcast.set_override", "Send override"
 
     def execute(self, context):
         settings = context.scene.rigcast
@@ -182,9 +182,8 @@ class RIGCAST_OT_set_override(bpy.types.Operator):
 
 
 class RIGCAST_OT_record(bpy.types.Operator):
-    bl_idname = "rigcast.record"
-    bl_label = "Record"
-    bl_description = "Start/stop recording incoming poses to Actions at the scene frame rate"
+    """Start/stop recording incoming poses to Actions at the scene frame rate"""
+    bl_idname, bl_label = "rigcast.record", "Record"
 
     def execute(self, context):
         runtime = livelink.runtime

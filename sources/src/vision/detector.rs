@@ -133,14 +133,7 @@ pub struct PersonDetector {
     candidates: Vec<Detection>,
 }
 
-impl std::fmt::Debug for PersonDetector {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PersonDetector")
-            .field("path", &self.path)
-            .field("min_score", &self.min_score)
-            .finish()
-    }
-}
+debug_fields!(PersonDetector { path, min_score });
 
 impl PersonDetector {
     /// Loads the detector `model` with the runtime in `library` on `threads` threads;

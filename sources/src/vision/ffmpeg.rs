@@ -65,16 +65,7 @@ pub struct FfmpegSource {
     next_index: u64,
 }
 
-impl std::fmt::Debug for FfmpegSource {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FfmpegSource")
-            .field("input", &self.input)
-            .field("width", &self.width)
-            .field("height", &self.height)
-            .field("fps", &self.fps)
-            .finish()
-    }
-}
+debug_fields!(FfmpegSource { input, width, height, fps });
 
 /// What `ffprobe` reports about the first video stream.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -24,6 +24,21 @@
 //! The runtime library and models are installed by `scripts/setup-vision.sh` (`rigcast setup
 //! vision`) under [`VisionAssets`]; nothing is downloaded at run time.
 
+/// `Debug` showing only the named fields (`field` or `field.method()`): these types hold model
+/// sessions, tensors, frame buffers and threads whose contents are of no use in a log line
+/// (several are not `Debug` at all), so deriving is not an option.
+macro_rules! debug_fields {
+    ($ty:ident { $($field:ident $(. $method:ident ())?),* $(,)? }) => {
+        impl std::fmt::Debug for $ty {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.debug_struct(stringify!($ty))
+                    $(.field(stringify!($field), &self.$field $(.$method())?))*
+                    .finish()
+            }
+        }
+    };
+}
+
 pub mod assets;
 pub mod body;
 mod bound;

@@ -79,14 +79,7 @@ pub struct LandmarkModel {
     range: InputRange,
 }
 
-impl std::fmt::Debug for LandmarkModel {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LandmarkModel")
-            .field("path", &self.path)
-            .field("range", &self.range)
-            .finish()
-    }
-}
+debug_fields!(LandmarkModel { path, range });
 
 pub(crate) fn model_err(path: &Path, e: impl std::fmt::Display) -> VisionError {
     VisionError::Model {

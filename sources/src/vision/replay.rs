@@ -44,15 +44,7 @@ pub struct LandmarkReplaySource {
     tap: LandmarkTap,
 }
 
-impl std::fmt::Debug for LandmarkReplaySource {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LandmarkReplaySource")
-            .field("name", &self.name)
-            .field("entries", &self.entries.len())
-            .field("next", &self.next)
-            .finish()
-    }
-}
+debug_fields!(LandmarkReplaySource { name, entries.len(), next });
 
 impl LandmarkReplaySource {
     /// Reads the landmark records of `path` (only those of `source_id`, when given). The

@@ -144,13 +144,7 @@ pub struct SharedVision {
     num_people: usize,
 }
 
-impl std::fmt::Debug for SharedVision {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SharedVision")
-            .field("num_people", &self.num_people)
-            .finish()
-    }
-}
+debug_fields!(SharedVision { num_people });
 
 impl SharedVision {
     /// Serves `frames` through `pipeline` for [`PosePipeline::num_people`] people. With
@@ -321,14 +315,7 @@ pub struct PersonSource {
     tap: LandmarkTap,
 }
 
-impl std::fmt::Debug for PersonSource {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PersonSource")
-            .field("name", &self.name)
-            .field("person", &self.person)
-            .finish()
-    }
-}
+debug_fields!(PersonSource { name, person });
 
 /// What one read of the shared slots found.
 enum Read {

@@ -137,13 +137,7 @@ pub struct VisionSource {
     tap: LandmarkTap,
 }
 
-impl std::fmt::Debug for VisionSource {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("VisionSource")
-            .field("name", &self.name)
-            .finish()
-    }
-}
+debug_fields!(VisionSource { name });
 
 impl VisionSource {
     /// Serves `frames` through `pipeline`. With `realtime`, frames are released at their

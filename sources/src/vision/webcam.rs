@@ -23,11 +23,7 @@ pub struct Webcam {
     index: u64,
 }
 
-impl std::fmt::Debug for Webcam {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Webcam").field("name", &self.name).finish()
-    }
-}
+debug_fields!(Webcam { name });
 
 impl Webcam {
     /// Opens camera number `index` at its highest frame rate.

@@ -25,10 +25,6 @@ use crate::error::SourceError;
 use crate::live::humanoid::{build_humanoid, default_offsets, NUM_HUMAN_BONES};
 
 use rigcast_protocol::vmc::MAX_BUNDLE_DEPTH;
-/// An offset change larger than this means the sender switched avatars: relearn.
-const OFFSET_CHANGE_METRES: f32 = 0.005;
-/// A sender time going back by more than this is a restart, not a reordered datagram.
-const RESTART_BACKSTEP_SECS: f32 = 1.0;
 
 /// Counters of what the decoder saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -71,6 +67,11 @@ pub struct FeedResult {
     /// of dropped messages).
     pub dropped: u64,
 }
+
+/// An offset change larger than this means the sender switched avatars: relearn.
+const OFFSET_CHANGE_METRES: f32 = 0.005;
+/// A sender time going back by more than this is a restart, not a reordered datagram.
+const RESTART_BACKSTEP_SECS: f32 = 1.0;
 
 /// Decodes VMC (or mapped OSC) datagrams into poses.
 #[derive(Debug)]

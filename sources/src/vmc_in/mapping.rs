@@ -305,13 +305,13 @@ mod tests {
     fn toml_mapping_with_captures_and_renames() {
         let m = OscMapping::from_toml(
             r#"
-[[rules]]
-address = "/tracker/{bone}/quat"
-args = ["qw", "qx", "qy", "qz"]
-space = "internal"
-
 [bone_names]
 pelvis = "Hips"
+
+[[rules]]
+space = "internal"
+address = "/tracker/{bone}/quat"
+args = ["qw", "qx", "qy", "qz"]
 "#,
         )
         .unwrap();
