@@ -24,20 +24,20 @@ use std::collections::HashMap;
 use glam::{Quat, Vec3};
 use rigcast_retarget::{world_transforms, Skeleton, WorldTransform};
 
-/// Limb roles whose rest direction is compared with the T-pose's: (role, T-pose direction on the
-/// character's left (+X internally) or down, role whose joint ends the segment).
-const LIMBS: [(&str, Vec3, &str); 10] = [
-    ("LeftUpperArm", Vec3::X, "LeftLowerArm"),
-    ("LeftLowerArm", Vec3::X, "LeftHand"),
-    ("RightUpperArm", Vec3::NEG_X, "RightLowerArm"),
-    ("RightLowerArm", Vec3::NEG_X, "RightHand"),
-    ("LeftUpperLeg", Vec3::NEG_Y, "LeftLowerLeg"),
-    ("LeftLowerLeg", Vec3::NEG_Y, "LeftFoot"),
-    ("RightUpperLeg", Vec3::NEG_Y, "RightLowerLeg"),
-    ("RightLowerLeg", Vec3::NEG_Y, "RightFoot"),
+/// Limb roles whose rest direction is compared with the T-pose's: (role, role whose joint ends
+/// the segment, T-pose direction on the character's left (+X internally) or down).
+const LIMBS: [(&str, &str, Vec3); 10] = [
+    ("LeftUpperArm", "LeftLowerArm", Vec3::X),
+    ("LeftLowerArm", "LeftHand", Vec3::X),
+    ("RightUpperArm", "RightLowerArm", Vec3::NEG_X),
+    ("RightLowerArm", "RightHand", Vec3::NEG_X),
+    ("LeftUpperLeg", "LeftLowerLeg", Vec3::NEG_Y),
+    ("LeftLowerLeg", "LeftFoot", Vec3::NEG_Y),
+    ("RightUpperLeg", "RightLowerLeg", Vec3::NEG_Y),
+    ("RightLowerLeg", "RightFoot", Vec3::NEG_Y),
     // Hands continue their forearm: measured along the forearm.
-    ("LeftHand", Vec3::X, ""),
-    ("RightHand", Vec3::NEG_X, ""),
+    ("LeftHand", "", Vec3::X),
+    ("RightHand", "", Vec3::NEG_X),
 ];
 
 /// Normalisers per skeleton bone (identity for bones not sent), from the sent bones' role names,
@@ -66,7 +66,7 @@ fn limb_swing(
     rest: &[WorldTransform],
     yaw: Quat,
 ) -> Option<Quat> {
-    let &(_, tpose, end) = LIMBS.iter().find(|(r, _, _)| *r == role)?;
+    let &(_, end, tpose) = LIMBS.iter().find(|(r, _, _)| *r == role)?;
     let (from, to) = if end.is_empty() {
         // A hand: along its forearm.
         let forearm = if role.starts_with("Left") {

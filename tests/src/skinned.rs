@@ -18,22 +18,25 @@ pub fn skinned_glb(skeleton: &Skeleton) -> Vec<u8> {
     let n = skeleton.num_bones();
     let rest = skeleton.rest();
     let worlds = world_transforms(skeleton, &skeleton.rest_pose());
-    let mut nodes: Vec<Value> = skeleton
-        .bone_ids()
-        .map(|b| {
-            let r = rest[b.index()];
-            let mut node = json!({
-                "name": skeleton.name(b),
+    let mut nodes: Vec<Value> = rest
+        .iter()
+        .zip(skeleton.names())
+        .map(|(r, name)| {
+            json!({
+                "name": name,
                 "translation": r.translation.to_array(),
                 "rotation": r.rotation.to_array(),
-            });
-            let children: Vec<usize> = skeleton.children(b).iter().map(|c| c.index()).collect();
-            if !children.is_empty() {
-                node["children"] = json!(children);
-            }
-            node
+            })
         })
         .collect();
+    // Children from the parent links (the project's writer goes the other way round).
+    for b in skeleton.bone_ids() {
+        if let Some(p) = skeleton.parent(b) {
+            let node = nodes[p.index()].as_object_mut().unwrap();
+            let children = node.entry("children").or_insert_with(|| json!([]));
+            children.as_array_mut().unwrap().push(json!(b.index()));
+        }
+    }
     nodes.push(json!({ "name": "body", "mesh": 0, "skin": 0 }));
     let mut roots: Vec<usize> = skeleton.roots().map(|b| b.index()).collect();
     roots.push(n);

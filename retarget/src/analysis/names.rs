@@ -235,16 +235,13 @@ fn side_markers(mut rest: &str, mut side: Option<Side>) -> (&str, Option<Side>) 
         }
     }
     let lower = rest.to_lowercase();
-    for (suf, s) in [
-        (".l", Side::Left),
-        ("_l", Side::Left),
-        (" l", Side::Left),
-        ("-l", Side::Left),
-        (".r", Side::Right),
-        ("_r", Side::Right),
-        (" r", Side::Right),
-        ("-r", Side::Right),
-    ] {
+    // A separator then the side letter: `.L`, `_r`, ` L`, `-R`.
+    let suffixes = ['.', '_', ' ', '-']
+        .into_iter()
+        .flat_map(|sep| [([sep, 'l'], Side::Left), ([sep, 'r'], Side::Right)]);
+    for (pair, s) in suffixes {
+        let suf: String = pair.iter().collect();
+        let suf = suf.as_str();
         if lower.ends_with(suf) {
             return (&rest[..rest.len() - 2], side.or(Some(s)));
         }
