@@ -574,11 +574,7 @@ pub struct ServerConfig {
 /// The default on-disk mapping cache: `$XDG_CACHE_HOME/rigcast/mappings`, else
 /// `~/.cache/rigcast/mappings`.
 pub fn default_mapping_cache_dir() -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_CACHE_HOME")
-        .filter(|v| !v.is_empty())
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("rigcast").join("mappings"))
+    crate::dirs::rigcast_dir(crate::dirs::UserBase::Cache, "mappings")
 }
 
 impl Default for ServerConfig {

@@ -36,6 +36,7 @@ pub mod cluster;
 pub mod cmd;
 pub mod config;
 pub mod demo;
+pub mod dirs;
 pub mod engine;
 pub mod footplants;
 pub mod graft_live;

@@ -82,11 +82,7 @@ pub enum TokenSetting {
 
 /// `$XDG_CONFIG_HOME/rigcast/token`, else `~/.config/rigcast/token`.
 pub fn default_token_path() -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_CONFIG_HOME")
-        .filter(|v| !v.is_empty())
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))?;
-    Some(base.join("rigcast").join("token"))
+    crate::dirs::rigcast_dir(crate::dirs::UserBase::Config, "token")
 }
 
 /// A token and whether it was created just now (so it is printed once).

@@ -188,6 +188,17 @@ pub const ENTRY_MAX_AGE: Duration = Duration::from_secs(5);
 /// refused and tables are computed where needed.
 const MAPPINGS_MAX_BYTES: i64 = 64 << 20;
 
+/// A bucket keeping only each key's latest value, replicated as `config` asks.
+fn latest_only(bucket: String, description: &str, config: &ClusterConfig) -> kv::Config {
+    kv::Config {
+        bucket,
+        description: description.into(),
+        history: 1,
+        num_replicas: config.kv_replicas,
+        ..Default::default()
+    }
+}
+
 /// Opens bucket `name`, creating it with `config` when it does not exist yet. An existing
 /// bucket gets `config`'s `max_age` (a bucket made by an older rigcast kept entries forever).
 async fn open_bucket(
@@ -254,21 +265,21 @@ impl Cluster {
                 .with_context(|| format!("cannot connect to NATS at {servers}"))?;
         let js = jetstream::new(client.clone());
         let subjects = kv::Config {
-            bucket: config.bucket(),
-            description: "rigcast subjects: skeleton and mapping per site and name".into(),
-            history: 1,
             max_age: ENTRY_MAX_AGE,
-            num_replicas: config.kv_replicas,
-            ..Default::default()
+            ..latest_only(
+                config.bucket(),
+                "rigcast subjects: skeleton and mapping per site and name",
+                config,
+            )
         };
         let kv = open_bucket(&js, subjects, &servers).await?;
         let shared = kv::Config {
-            bucket: config.mappings_bucket(),
-            description: "rigcast mapping cache shared by the nodes".into(),
-            history: 1,
             max_bytes: MAPPINGS_MAX_BYTES,
-            num_replicas: config.kv_replicas,
-            ..Default::default()
+            ..latest_only(
+                config.mappings_bucket(),
+                "rigcast mapping cache shared by the nodes",
+                config,
+            )
         };
         let mappings = open_bucket(&js, shared, &servers).await?;
         Ok(Cluster {

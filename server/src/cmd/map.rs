@@ -68,10 +68,7 @@ fn cache_dir(args: &MapArgs) -> Option<PathBuf> {
     if let Some(d) = std::env::var_os("RIGCAST_CACHE_DIR") {
         return Some(PathBuf::from(d));
     }
-    if let Some(d) = std::env::var_os("XDG_CACHE_HOME") {
-        return Some(PathBuf::from(d).join("rigcast").join("mappings"));
-    }
-    std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/rigcast/mappings"))
+    crate::config::default_mapping_cache_dir()
 }
 
 /// The skeleton with its animation: the analysis takes its posture from the motion when the

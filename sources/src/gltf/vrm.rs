@@ -44,9 +44,7 @@ pub(crate) fn vrm_human_bones(
         Ok(n)
     };
     if let Some(v1) = ext.get("VRMC_vrm") {
-        let bones = v1
-            .get("humanoid")
-            .and_then(|h| h.get("humanBones"))
+        let bones = human_bones(v1)
             .and_then(Value::as_object)
             .ok_or_else(|| bad("VRMC_vrm.humanoid.humanBones is missing".into()))?;
         let mut out = BTreeMap::new();
@@ -56,9 +54,8 @@ pub(crate) fn vrm_human_bones(
         return Ok(Some((VrmVersion::V1, out)));
     }
     if let Some(v0) = ext.get("VRM") {
-        let bones = v0
-            .get("humanoid")
-            .and_then(|h| h.get("humanBones"))
+        // VRM 0.x lists the bones as an array of `{bone, node}`.
+        let bones = human_bones(v0)
             .and_then(Value::as_array)
             .ok_or_else(|| bad("VRM.humanoid.humanBones is missing".into()))?;
         let mut out = BTreeMap::new();
@@ -72,4 +69,9 @@ pub(crate) fn vrm_human_bones(
         return Ok(Some((VrmVersion::V0, out)));
     }
     Ok(None)
+}
+
+/// `humanoid.humanBones` of a VRM extension object (an object in 1.0, an array in 0.x).
+fn human_bones(extension: &Value) -> Option<&Value> {
+    extension.get("humanoid")?.get("humanBones")
 }

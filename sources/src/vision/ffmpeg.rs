@@ -65,7 +65,12 @@ pub struct FfmpegSource {
     next_index: u64,
 }
 
-debug_fields!(FfmpegSource { input, width, height, fps });
+debug_fields!(FfmpegSource {
+    input,
+    width,
+    height,
+    fps
+});
 
 /// What `ffprobe` reports about the first video stream.
 #[derive(Debug, Clone, Copy, PartialEq)]

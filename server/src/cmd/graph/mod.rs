@@ -44,9 +44,5 @@ pub fn run(args: &GraphArgs) -> anyhow::Result<()> {
 
 /// The graph cache: `$XDG_CACHE_HOME/rigcast/graphs`, else `~/.cache/rigcast/graphs`.
 fn default_cache_dir() -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_CACHE_HOME")
-        .filter(|v| !v.is_empty())
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("rigcast").join("graphs"))
+    crate::dirs::rigcast_dir(crate::dirs::UserBase::Cache, "graphs")
 }
