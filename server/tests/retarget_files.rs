@@ -235,16 +235,23 @@ fn check(clip: &Clip, case: Case) {
     );
 
     // Feet at frame 0: each foot's lowest joint (toe or toe tip) stands as high above the
-    // target's floor as the source's stands above the source's floor, scaled. Source floor: the
-    // lowest any of those joints gets in the clip; target floor: its rest (a character authored
-    // on the ground), or for a rest floating at the origin, the source's floor scaled.
-    let mut src_floor = f32::INFINITY;
-    for p in &clip.poses {
-        let ps = positions(src, p);
-        for (_, n) in case.feet.iter().flatten() {
-            src_floor = src_floor.min(ps[src.bone(n).expect("toe").index()].y);
-        }
-    }
+    // target's floor as the source's stands above the source's floor, scaled. Source floor:
+    // how low those joints get over the clip, as the 5th percentile of the frames' lowest (a
+    // toe dipping lower for a frame or two is not the floor); target floor: its rest (a
+    // character authored on the ground), or for a rest floating at the origin, the source's
+    // floor scaled.
+    let mut lows: Vec<f32> = clip
+        .poses
+        .iter()
+        .map(|p| {
+            let ps = positions(src, p);
+            (case.feet.iter().flatten())
+                .map(|(_, n)| ps[src.bone(n).expect("toe").index()].y)
+                .fold(f32::INFINITY, f32::min)
+        })
+        .collect();
+    lows.sort_by(f32::total_cmp);
+    let src_floor = lows[lows.len() / 20];
     let rest = positions(&case.target, &case.target.rest_pose());
     let first = positions(&case.target, &out.poses[0]);
     let src_first = positions(src, &clip.poses[0]);

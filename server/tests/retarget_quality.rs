@@ -3,7 +3,10 @@
 //! (not rigcast's own analysis) naming the joints on both sides:
 //! - limb directions: upper/lower arm, upper/lower leg, foot→toes of the output vs the source;
 //! - horizontal root travel, scaled by the leg-length ratio;
-//! - feet on the floor where the source's are.
+//! - feet on the floor where the source's are: on every frame at the clip's own rate, each
+//!   rig's up the coordinate axis nearest its hips-over-feet, a foot planted when it is within
+//!   1 cm of its floor and slower than 0.15 m/s (REFERENCE §7's toe-speed rule), each foot's
+//!   floor the 5th percentile of its lowest points while still.
 //!
 //! A table of every pair is printed. The bounds (≤ 2° mean, ≤ 5° max per pair; travel within
 //! 5 %; planted feet within 1 cm of the floor) are asserted on the pairs whose automatic mapping
@@ -155,7 +158,139 @@ struct Figures {
     max_deg: f32,
     worst_segment: String,
     travel_error: Option<f32>,
-    planted_feet_cm: Option<f32>,
+    feet: Option<FeetFigures>,
+}
+
+/// How high the target's feet are where the source's stand, each above its own floor.
+#[derive(Debug, Clone, Copy, Default)]
+struct FeetFigures {
+    /// Source frames (both sides) with a planted foot.
+    planted: usize,
+    /// 95th percentile and largest |target height − scaled source height|, cm.
+    p95_cm: f32,
+    max_cm: f32,
+}
+
+/// A foot stands still below this speed (REFERENCE §7: toe speed < 0.15 m/s).
+const STILL_SPEED: f32 = 0.15;
+/// Speeds are taken over at least this long (REFERENCE §7: at least 1/30 s).
+const SPEED_WINDOW_SECS: f64 = 1.0 / 30.0;
+
+/// Per side: each frame's lowest foot point (ankle or toes, along the rig's up) and whether the
+/// foot's joints stand still (all slower than [`STILL_SPEED`]). Up is the coordinate axis
+/// nearest to hips over feet, averaged.
+fn foot_tracks(l: &Labelled, other: &Labelled, clip: &Clip) -> Option<Vec<Vec<(f32, bool)>>> {
+    let s = &clip.skeleton;
+    let hips = l.bone("hips")?;
+    let worlds: Vec<Vec<Vec3>> = clip
+        .poses
+        .iter()
+        .map(|p| {
+            world_transforms(s, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
+        .collect();
+    let sides: Vec<Vec<BoneId>> = ["L", "R"]
+        .iter()
+        .map(|side| {
+            [sided("foot", side), sided("toes", side)]
+                .iter()
+                .filter(|r| other.bone(r).is_some())
+                .filter_map(|r| l.bone(r))
+                .collect()
+        })
+        .collect();
+    let mut up = Vec3::ZERO;
+    for w in &worlds {
+        let feet: Vec<Vec3> = sides
+            .iter()
+            .filter_map(|b| b.first())
+            .map(|b| w[b.index()])
+            .collect();
+        if !feet.is_empty() {
+            up += w[hips.index()] - feet.iter().sum::<Vec3>() / feet.len() as f32;
+        }
+    }
+    // Mocap floors are level with a coordinate axis: hips-over-feet averaged leans (people
+    // walk leaning forward, sit with their feet ahead), so it only picks which axis is up.
+    let axis = up.abs().max_position();
+    let up = Vec3::AXES[axis] * up[axis].signum();
+    let lag = ((SPEED_WINDOW_SECS / clip.frame_time_secs).ceil() as usize).max(1);
+    let secs = (lag as f64 * clip.frame_time_secs) as f32;
+    let flat = |v: Vec3| v - up * v.dot(up);
+    let track = |bones: &[BoneId]| -> Vec<(f32, bool)> {
+        (0..worlds.len())
+            .map(|i| {
+                let w = &worlds[i];
+                let low = bones
+                    .iter()
+                    .map(|b| w[b.index()].dot(up))
+                    .fold(f32::MAX, f32::min);
+                let (a, b) = (
+                    i.saturating_sub(lag / 2),
+                    (i + lag - lag / 2).min(worlds.len() - 1),
+                );
+                let still = b > a
+                    && bones.iter().all(|j| {
+                        let d = flat(worlds[b][j.index()] - worlds[a][j.index()]).length();
+                        d / (secs * (b - a) as f32 / lag as f32) < STILL_SPEED
+                    });
+                (low, still)
+            })
+            .collect()
+    };
+    let tracks: Vec<_> = sides
+        .iter()
+        .filter(|b| !b.is_empty())
+        .map(|b| track(b))
+        .collect();
+    (!tracks.is_empty()).then_some(tracks)
+}
+
+/// A rig's floor: the 5th percentile of its feet's lowest points while they stand still (one
+/// frame dipping lower does not move it).
+fn floor_of(tracks: &[Vec<(f32, bool)>]) -> Option<f32> {
+    let mut h: Vec<f32> = tracks
+        .iter()
+        .flatten()
+        .filter(|(_, still)| *still)
+        .map(|(h, _)| *h)
+        .collect();
+    h.sort_by(f32::total_cmp);
+    h.get(h.len() / 20).copied()
+}
+
+/// Where the source's foot is planted (still, within 1 cm of its floor), the target's lowest
+/// foot point must be as high above the target's floor, scaled by the leg-length ratio.
+fn planted_feet(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Option<FeetFigures> {
+    let ratio = leg_length(&out.skeleton, tgt)? / leg_length(&clip.skeleton, src)?;
+    let (ts, tt) = (foot_tracks(src, tgt, clip)?, foot_tracks(tgt, src, out)?);
+    // Each foot's own floor: a rig's two feet may stand at different heights (mocap markers
+    // placed differently on each foot, an asymmetric rest), and each stands on its own level.
+    let mut errors: Vec<f32> = Vec::new();
+    for (a, b) in ts.iter().zip(&tt) {
+        let (Some(fs), Some(ft)) = (
+            floor_of(std::slice::from_ref(a)),
+            floor_of(std::slice::from_ref(b)),
+        ) else {
+            continue;
+        };
+        errors.extend(
+            a.iter()
+                .zip(b)
+                .filter(|((hs, still), _)| *still && hs - fs < 0.01)
+                .map(|((hs, _), (ht, _))| ((ht - ft) - ratio * (hs - fs)).abs() * 100.0),
+        );
+    }
+    errors.sort_by(f32::total_cmp);
+    let planted = errors.len();
+    Some(FeetFigures {
+        planted,
+        p95_cm: *errors.get(planted * 95 / 100)?,
+        max_cm: *errors.last()?,
+    })
 }
 
 fn measure(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Figures {
@@ -197,9 +332,7 @@ fn measure(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Figures {
     };
     let (mut src_hips, mut tgt_hips) = (Vec::new(), Vec::new());
     let mut ups = Vec3::ZERO;
-    let mut feet: Vec<(f32, f32)> = Vec::new(); // (source height, target height) along up
     let (sh, th) = (src.bone("hips"), tgt.bone("hips"));
-    let mut samples: Vec<(Vec<Vec3>, Vec<Vec3>)> = Vec::new();
     for (sp, tp) in clip.poses.iter().zip(&out.poses) {
         let (fs, ft) = (world_transforms(ss, sp), world_transforms(ts, tp));
         let ws: Vec<Vec3> = fs.iter().map(|w| w.translation).collect();
@@ -229,7 +362,6 @@ fn measure(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Figures {
                 ups += ws[sh.index()] - feet_mid.iter().sum::<Vec3>() / feet_mid.len() as f32;
             }
         }
-        samples.push((ws, wt));
     }
     f.mean_deg = if n > 0 { sum / n as f32 } else { f32::NAN };
     let up = ups.normalize_or_zero();
@@ -243,39 +375,6 @@ fn measure(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Figures {
         let dt = flat(*tgt_hips.last().unwrap() - *first_t);
         if ds.length() > 0.2 {
             f.travel_error = Some((dt - ds).length() / ds.length());
-        }
-        // Feet: each side's lowest foot point (ankle or toes) per frame; each rig's floor is
-        // where its feet get lowest over the clip. Where the source's foot is planted (within
-        // 1 cm of its floor), the target's must be as high above its own floor (scaled).
-        for side in ["L", "R"] {
-            // The joints both rigs have, so like is compared with like.
-            let roles: Vec<String> = [sided("foot", side), sided("toes", side)]
-                .into_iter()
-                .filter(|r| src.bone(r).is_some() && tgt.bone(r).is_some())
-                .collect();
-            let sb: Vec<BoneId> = roles.iter().filter_map(|r| src.bone(r)).collect();
-            let tb: Vec<BoneId> = roles.iter().filter_map(|r| tgt.bone(r)).collect();
-            if sb.is_empty() || tb.is_empty() {
-                continue;
-            }
-            for (ws, wt) in &samples {
-                let low = |w: &[Vec3], b: &[BoneId]| {
-                    b.iter()
-                        .map(|b| w[b.index()].dot(up))
-                        .fold(f32::MAX, f32::min)
-                };
-                feet.push((low(ws, &sb), low(wt, &tb)));
-            }
-        }
-        if !feet.is_empty() {
-            let floor_s = feet.iter().map(|f| f.0).fold(f32::MAX, f32::min);
-            let floor_t = feet.iter().map(|f| f.1).fold(f32::MAX, f32::min);
-            let worst = feet
-                .iter()
-                .filter(|(hs, _)| hs - floor_s < 0.01)
-                .map(|(hs, ht)| ((ht - floor_t) - ratio * (hs - floor_s)).abs())
-                .fold(0.0f32, f32::max);
-            f.planted_feet_cm = Some(worst * 100.0);
         }
     }
     f
@@ -308,8 +407,8 @@ fn measure_pairs(locks: Lock) -> Option<Vec<Pair>> {
         .collect();
     println!("foot lock {locks:?}");
     println!(
-        "{:<40} {:<40} {:>6} {:>6} {:>8} {:>8}  mapping",
-        "source", "target", "mean°", "max°", "travel%", "feet cm"
+        "{:<40} {:<40} {:>6} {:>6} {:>8} {:>16}  mapping",
+        "source", "target", "mean°", "max°", "travel%", "feet p95/max cm"
     );
     let mut pairs = Vec::new();
     for src in &sources {
@@ -323,19 +422,22 @@ fn measure_pairs(locks: Lock) -> Option<Vec<Pair>> {
             let lock = (locks == Lock::On).then_some(&plan);
             let out =
                 retarget_clip_locked(&src.clip, &target, &plan.table, &opts, lock, false).unwrap();
-            let out = subsample(&out);
-            let figures = measure(src, tgt, &clip, &out);
+            let mut figures = measure(src, tgt, &clip, &subsample(&out));
+            figures.feet = planted_feet(src, tgt, &src.clip, &out);
             let wrong = mapping_right(src, tgt, &plan.table);
             let opt =
                 |v: Option<f32>, k: f32| v.map_or("-".to_string(), |v| format!("{:.1}", v * k));
+            let feet = figures.feet.map_or("-".to_string(), |f| {
+                format!("{:.1}/{:.1} ({})", f.p95_cm, f.max_cm, f.planted)
+            });
             println!(
-                "{:<40} {:<40} {:>6.2} {:>6.2} {:>8} {:>8}  {}",
+                "{:<40} {:<40} {:>6.2} {:>6.2} {:>8} {:>16}  {}",
                 src.name(),
                 tgt.name(),
                 figures.mean_deg,
                 figures.max_deg,
                 opt(figures.travel_error, 100.0),
-                opt(figures.planted_feet_cm, 1.0),
+                feet,
                 if wrong.is_empty() {
                     "right".to_string()
                 } else {
@@ -392,43 +494,41 @@ fn limb_directions_and_root_travel_on_real_pairs() {
     );
 }
 
-/// Planted feet within 1 cm of the floor, with the foot lock on (the command's default).
-/// Not met on every real pair (last measured: 52 of 122 right pairs within 1 cm, median
-/// 1.28 cm). What remains: the worst frame of a pair is usually a heel strike, where the
-/// source's foot is at its lowest but still moving (not yet a plant, so not locked) and the
-/// hips' one vertical calibration leaves the target's foot a few centimetres up; rigs whose
-/// foot joints are built differently (a toe joint on the ground against one 5 cm up) cannot
-/// match both the source's foot direction and a flat foot; and this measure's own limits:
-/// each rig's floor is its single lowest contact over the clip (several pairs are judged on
-/// 1–4 samples), and heights are taken along the source's hips-over-feet direction, which
-/// leans when the feet are not under the hips (the seated Kinect clip) and is not a Z-up
-/// target's up.
+/// Planted feet within 1 cm of the floor, with the foot lock on (the command's default): per
+/// pair, the 95th percentile over every source frame with a planted foot (a few frames of a
+/// landing blend may exceed it; the largest is printed too). Not met on every real pair (last
+/// measured: 77 of 122 right pairs, median 0.8 cm). What remains is mostly the CMU sources
+/// (their stance feet stand 2-3 cm above where their lowest frames put the floor, the lock
+/// engages at the detector's plant, a few frames after the measure's) and rigs whose foot
+/// joints are built differently (an ankle 2 cm above the toes against one 8 cm up).
 #[test]
 #[ignore = "known gap: planted feet are 1-20 cm off on some real pairs"]
 fn planted_feet_stay_on_the_floor_on_real_pairs() {
     let Some(pairs) = measure_pairs(Lock::On) else {
         return;
     };
-    let mut cms: Vec<f32> = right_pairs(&pairs)
+    let right = right_pairs(&pairs);
+    let mut cms: Vec<f32> = right
         .iter()
-        .filter_map(|p| p.figures.planted_feet_cm)
+        .filter_map(|p| p.figures.feet.map(|f| f.p95_cm))
         .collect();
     cms.sort_by(f32::total_cmp);
     if !cms.is_empty() {
         println!(
-            "planted feet: {} of {} pairs within 1 cm, median {:.2} cm",
+            "planted feet: {} of {} pairs within 1 cm (95th percentile), median {:.2} cm",
             cms.iter().filter(|c| **c <= 1.0).count(),
             cms.len(),
             cms[cms.len() / 2]
         );
     }
-    let failures: Vec<String> = right_pairs(&pairs)
+    let failures: Vec<String> = right
         .iter()
         .filter_map(|p| {
-            p.figures
-                .planted_feet_cm
-                .filter(|cm| *cm > 1.0)
-                .map(|cm| format!("{}: planted feet {cm:.2} cm off the floor", p.name))
+            let f = p.figures.feet.filter(|f| f.p95_cm > 1.0)?;
+            Some(format!(
+                "{}: planted feet {:.2} cm off the floor (95th percentile; largest {:.2})",
+                p.name, f.p95_cm, f.max_cm
+            ))
         })
         .collect();
     assert!(

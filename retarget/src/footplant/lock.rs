@@ -1,5 +1,6 @@
 //! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
-//! the target's foot stays where it landed (position and heading), its leg solved with the
+//! the target's foot stays where it landed (position and heading), flat on the floor at its
+//! standing height (the first frame of a clip pinned at once), its leg solved with the
 //! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
 //! `spring`); no foot joint goes below the target's floor.
 //!
@@ -9,6 +10,8 @@
 //!  target pose ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
+//!                     pinned: the foot stood flat (ball pitched to its standing height beside
+//!                     the heel's), blended in and out the same way
 //!               ─▶ hips raised when every foot would have to be pulled up (the animation
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
@@ -75,6 +78,27 @@ fn solve_bounded(hip: Vec3, knee: Vec3, ankle: Vec3, goal: Vec3, pole: Vec3) -> 
     best
 }
 
+/// Pitches `g`'s foot about the ankle so that its ball is `wanted` above the ankle along `up`
+/// (at most [`MAX_BALL_RISE`] of the foot's length either way); returns the height reached.
+fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
+    let Some(o) = g.ball_offset else { return 0.0 };
+    let (len, rise) = (o.length(), o.dot(up));
+    // A foot already pitched past the limit (pointing down at a toe-off) is not snapped back
+    // to it: the limit bounds only how far this pitch goes.
+    let limit = len * MAX_BALL_RISE;
+    let wanted = wanted.clamp((-limit).min(rise), limit.max(rise));
+    let flat = (o - up * rise)
+        .try_normalize()
+        .unwrap_or(up.any_orthonormal_vector());
+    let pitched = flat * (len * len - wanted * wanted).max(0.0).sqrt() + up * wanted;
+    let (Some(from), Some(to)) = (o.try_normalize(), pitched.try_normalize()) else {
+        return rise;
+    };
+    g.rotation = (Quat::from_rotation_arc(from, to) * g.rotation).normalize();
+    g.ball_offset = Some(pitched);
+    wanted
+}
+
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
@@ -122,6 +146,10 @@ struct Foot {
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
     position_offset: Decay<Vec3>,
     heading_offset: Decay<f32>,
+    /// How far the ball is pitched up (+) or down about the ankle to stand flat, metres along
+    /// up: what is wanted minus what was shown at the last switch, decaying; and what was shown.
+    flat_offset: Decay<f32>,
+    shown_flat: f32,
     /// Last frame: where the ankle was shown and the animated ankle, for velocities.
     shown_position: Vec3,
     shown_velocity: Vec3,
@@ -245,6 +273,8 @@ impl FootLock {
                     lock_heading: 0.0,
                     position_offset: Decay::default(),
                     heading_offset: Decay::default(),
+                    flat_offset: Decay::default(),
+                    shown_flat: 0.0,
                     shown_position: ankle,
                     shown_velocity: Vec3::ZERO,
                     shown_heading: 0.0,
@@ -300,6 +330,8 @@ impl FootLock {
             f.seen = false;
             f.position_offset = Decay::default();
             f.heading_offset = Decay::default();
+            f.flat_offset = Decay::default();
+            f.shown_flat = 0.0;
         }
         self.last_drop = 0.0;
         self.drop_offset = Decay::default();
@@ -383,7 +415,8 @@ impl FootLock {
         // A foot not seen yet is shown where the animation has it: before the settle below,
         // which measures from there (the rest pose it starts at may float far off the floor).
         let f = &mut self.feet[i];
-        if !f.seen {
+        let fresh = !f.seen;
+        if fresh {
             (f.shown_position, f.shown_heading) = (animated, heading_now);
             (f.animated_position, f.animated_heading) = (animated, heading_now);
             f.seen = true;
@@ -434,9 +467,14 @@ impl FootLock {
             // A landing foot stops dead where it is (a release blends in place and speed).
             let carried = if f.locked { 0.0 } else { last_drop };
             let keep_speed = if f.locked { 0.0 } else { 1.0 };
-            f.position_offset = Decay {
-                value: f.shown_position - (target - up * carried),
-                velocity: (f.shown_velocity - velocity) * keep_speed,
+            // A foot seen for the first time has shown nothing yet: nothing to blend from.
+            f.position_offset = if fresh {
+                Decay::default()
+            } else {
+                Decay {
+                    value: f.shown_position - (target - up * carried),
+                    velocity: (f.shown_velocity - velocity) * keep_speed,
+                }
             };
             f.heading_offset = Decay {
                 value: wrap(f.shown_heading - target_heading),
@@ -457,12 +495,54 @@ impl FootLock {
         let toes = f.leg.toes;
         let yaw = Quat::from_axis_angle(up, turn);
         let ball_offset = toes.map(|t| yaw * (self.worlds[t.index()].translation - animated));
-        Goal {
+        let mut goal = Goal {
             active,
             pinned,
             ankle,
             rotation: (yaw * ankle_w.rotation).normalize(),
             ball_offset,
+        };
+        self.flatten(i, pinned != was, fresh, dt, &mut goal);
+        goal
+    }
+
+    /// A pinned foot stands flat: its ball is pitched about the ankle to its standing height
+    /// (the rest's, beside the heel's), as a planted foot is on the floor whatever pitch the
+    /// source's foot joints give it (rigs build feet differently: a toe joint on the ground, or
+    /// level with the ankle). The pitch blends in and out like the position: an offset taking
+    /// up the difference at each switch, decaying.
+    fn flatten(&mut self, i: usize, switched: bool, fresh: bool, dt: f32, goal: &mut Goal) {
+        let (up, floor) = (self.up, self.floor);
+        let halflife = 0.5 * self.settings.blend_secs;
+        let f = &mut self.feet[i];
+        let Some(o) = goal.ball_offset else { return };
+        let wanted = if goal.pinned {
+            floor + f.ball_clearance - (goal.ankle + o).dot(up)
+        } else {
+            0.0
+        };
+        if fresh {
+            f.shown_flat = wanted;
+        }
+        if switched {
+            f.flat_offset = Decay {
+                value: f.shown_flat - wanted,
+                velocity: 0.0,
+            };
+        }
+        f.flat_offset.step(dt, halflife);
+        let lift = wanted + f.flat_offset.value;
+        f.shown_flat = lift;
+        // A foot pointing (nearly) straight down has no pitch direction to speak of: its
+        // horizontal part turns quickly, and pitching along it would swing the toes about. The
+        // flattening fades out as the foot steepens.
+        let len = o.length();
+        let level = (o - up * o.dot(up)).length() / len.max(1e-6);
+        let k = ((level - 0.2) / 0.3).clamp(0.0, 1.0);
+        let lift = lift * k * k * (3.0 - 2.0 * k);
+        if lift.abs() > 1e-6 {
+            pitch_ball(goal, up, o.dot(up) + lift);
+            goal.active = true;
         }
     }
 
@@ -515,19 +595,9 @@ impl FootLock {
         if need <= 0.0 {
             return;
         }
-        let len = o.length();
         let rise = o.dot(up);
-        let wanted = (rise + need).min(len * MAX_BALL_RISE);
-        let flat = (o - up * rise)
-            .try_normalize()
-            .unwrap_or(up.any_orthonormal_vector());
-        let pitched = flat * (len * len - wanted * wanted).max(0.0).sqrt() + up * wanted;
-        if let (Some(from), Some(to)) = (o.try_normalize(), pitched.try_normalize()) {
-            let turn = Quat::from_rotation_arc(from, to);
-            g.rotation = (turn * g.rotation).normalize();
-            g.ball_offset = Some(pitched);
-        }
-        let rest = need - (wanted - rise);
+        let reached = pitch_ball(g, up, rise + need);
+        let rest = need - (reached - rise);
         if rest > 0.0 {
             g.ankle += up * rest;
         }

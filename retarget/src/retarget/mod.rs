@@ -46,6 +46,10 @@ use crate::skeleton::{BoneId, Skeleton};
 use history::History;
 use root::RootPlan;
 
+/// Which percentile of the frames' lowest foot heights is a clip's floor: low enough that a
+/// foot stands there in most clips, high enough that a few frames dipping lower do not count.
+pub const FLOOR_PERCENTILE: usize = 5;
+
 pub use options::{FootContact, RetargetOptions, RootMotion};
 pub use root::FloorAt;
 
@@ -291,24 +295,31 @@ impl RetargetPlan {
         self.root.as_ref().map(|r| r.scale)
     }
 
-    /// The source's floor over a clip of the root input: the lowest height its foot joints
-    /// reach (where they stand when planted). `None` without root motion or frames. Offline
+    /// The source's floor over a clip of the root input: how low its foot joints get, as the
+    /// [`FLOOR_PERCENTILE`]th percentile of each frame's lowest (where they stand when planted). `None` without root motion or frames. Offline
     /// helper (allocates); pass the result to [`Mapping::set_source_floor_y`].
     pub fn measure_source_floor(&self, poses: &[Pose]) -> Option<f32> {
         let root = self.root.as_ref()?;
         let skel = self.sources.get(root.input as usize)?;
         let mut worlds = vec![WorldTransform::IDENTITY; skel.num_bones()];
-        let mut lowest = f32::INFINITY;
+        let mut lows: Vec<f32> = Vec::with_capacity(poses.len());
         for p in poses {
             if p.check(skel).is_err() {
                 continue;
             }
             crate::fk::forward_kinematics(skel, p, &mut worlds);
-            for b in &root.contact_bones {
-                lowest = lowest.min(worlds[b.index()].translation.dot(root.up));
+            let low = (root.contact_bones.iter())
+                .map(|b| worlds[b.index()].translation.dot(root.up))
+                .fold(f32::INFINITY, f32::min);
+            if low.is_finite() {
+                lows.push(low);
             }
         }
-        lowest.is_finite().then_some(lowest)
+        // Not the single lowest frame: a toe dipping through the floor for a frame or two (a
+        // toe-off, a marker glitch) would put the floor there and every stance above it, so
+        // the whole target would float. Most frames have a foot on the floor.
+        lows.sort_by(f32::total_cmp);
+        lows.get(lows.len() * FLOOR_PERCENTILE / 100).copied()
     }
 
     /// Sets the source floor height (see [`RetargetOptions::source_floor_y`]); contexts
