@@ -4,7 +4,10 @@
 //!   the knee keeps its bend (lifting the ankle made the knee take up the whole difference,
 //!   folding the leg over on rigs whose foot points steeply down);
 //! - a character whose animation sinks it on both pinned feet is lifted, legs as animated,
-//!   rather than standing on folded knees.
+//!   rather than standing on folded knees;
+//! - a planted foot with its toes up is stood flat (ball at its standing height);
+//! - a foot planted on a clip's first frame is pinned at its standing height at once;
+//! - a clip's floor ignores a few frames dipping through it.
 
 mod retarget_fixtures;
 
@@ -196,4 +199,105 @@ fn a_character_sunk_on_both_pinned_feet_is_lifted_not_folded() {
         }
     }
     assert!(checked > 30);
+}
+
+/// A planted foot whose animation lifts its toes (heel down, toes up: the source's foot joints
+/// pitch it) is stood flat: the ball comes down to its standing height, the ankle stays pinned.
+#[test]
+fn a_planted_foot_with_its_toes_up_is_stood_flat() {
+    let (source, target, mut mapping, mut lock) = locked_pair();
+    let (foot, toe) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+    );
+    let rest = world_transforms(&target, &target.rest_pose());
+    let toe_standing = rest[toe.index()].translation.y;
+    let mut out = mapping.new_target_pose();
+    let mut free = mapping.new_target_pose();
+    let mut checked = 0;
+    // Both directions of the sign convention: one of them lifts the toes.
+    for pitch in [0.4f32, -0.4] {
+        lock.reset();
+        let mut ankle_at_40 = None;
+        for (f, p) in toes_down(&source, 150, pitch).iter().enumerate() {
+            let (w, wf) = locked_and_free(&mut mapping, &mut lock, p, &mut out, &mut free);
+            if f == 40 {
+                ankle_at_40 = Some(w[foot.index()].translation);
+            }
+            let free_toe_up = wf[toe.index()].translation.y > toe_standing + 0.03;
+            // After the pitch (frame 50) and the blend.
+            if f < 100 || !free_toe_up {
+                continue;
+            }
+            checked += 1;
+            let ball = w[toe.index()].translation.y;
+            assert!(
+                (ball - toe_standing).abs() < 0.005,
+                "frame {f}: ball at {ball}, standing height {toe_standing} (free {})",
+                wf[toe.index()].translation.y
+            );
+            let ankle = w[foot.index()].translation;
+            let start = ankle_at_40.expect("frame 40 seen");
+            assert!(
+                (ankle - start).length() < 0.005,
+                "frame {f}: the ankle moved from {start} to {ankle}"
+            );
+        }
+    }
+    assert!(checked > 20, "only {checked} frames had the toes up");
+}
+
+/// A foot planted on the very first frame is pinned at its standing height at once: nothing was
+/// shown before it, so there is nothing to blend from. Here the source stands 3 cm above its
+/// floor throughout (a capture whose floor sits lower).
+#[test]
+fn a_foot_planted_on_the_first_frame_is_pinned_at_once() {
+    let (source, target, mapping, _) = locked_pair();
+    let foot = target.bone("l_foot").expect("foot");
+    let rest = world_transforms(&target, &target.rest_pose());
+    let ankle_standing = rest[foot.index()].translation.y;
+    let mut raised = source.rest_pose();
+    raised.translations[0].y += 0.03;
+    let frames = vec![raised; 30];
+    let planted = [true; 4];
+    let mut mapping = mapping;
+    let sa = analyze(&SkeletonView::rest(&source));
+    let ta = analyze(&SkeletonView::rest(&target));
+    let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("lock");
+    let mut out = mapping.new_target_pose();
+    for (f, p) in frames.iter().enumerate() {
+        mapping.apply_one(p, &mut out).expect("apply");
+        let animated = world_transforms(&target, &out)[foot.index()].translation.y;
+        lock.apply_planted(&planted[..lock.source_legs().len()], 1.0 / 60.0, &mut out);
+        let ankle = world_transforms(&target, &out)[foot.index()].translation.y;
+        assert!(
+            animated > ankle_standing + 0.02,
+            "the animated ankle {animated} stands above its height {ankle_standing}"
+        );
+        assert!(
+            (ankle - ankle_standing).abs() < 0.002,
+            "frame {f}: the pinned ankle is at {ankle}, its standing height {ankle_standing}"
+        );
+    }
+}
+
+/// A clip's floor is where its feet usually get lowest: a standing clip whose hips drop 10 cm
+/// on two frames of 60 (the feet going through the floor, as a glitch or a toe-off dip does)
+/// keeps the standing floor, so the target is not floated above it on every other frame.
+#[test]
+fn a_clip_floor_ignores_frames_that_dip_through_it() {
+    let (source, _, mapping, _) = locked_pair();
+    let rest = source.rest_pose();
+    let standing = mapping
+        .measure_source_floor(std::slice::from_ref(&rest))
+        .expect("a floor");
+    let mut frames = vec![rest.clone(); 60];
+    for f in [20, 41] {
+        frames[f].translations[0].y -= 0.10;
+    }
+    let floor = mapping.measure_source_floor(&frames).expect("a floor");
+    assert!(
+        (floor - standing).abs() < 0.001,
+        "floor {floor} m, the feet stand at {standing} m"
+    );
 }
