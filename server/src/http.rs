@@ -314,13 +314,20 @@ async fn upgrade(
 /// should cost little (tungstenite allocates this eagerly; its default is 128 KiB).
 const CLIENT_READ_BUFFER_BYTES: usize = 4 * 1024;
 
+/// Bytes of a batch of messages held before they are written: a session feeds a tick's
+/// frames and then flushes them, so one write carries them all. With no buffer (0) each
+/// frame was its own write, and each write on loopback also wakes the reader once more.
+/// Only what one batch adds is held; a client that does not read still stalls its own
+/// flush, so the kernel buffer remains the queue.
+const CLIENT_WRITE_BATCH_BYTES: usize = 64 * 1024;
+
 /// Limits for client connections. The frame limit is checked on the frame header, so a
 /// client announcing a 16 MB frame is refused before a byte of it is buffered; frames are
-/// written out as they are sent (no write buffering: the kernel buffer is the queue).
+/// written out at the end of each batch ([`CLIENT_WRITE_BATCH_BYTES`]).
 fn websocket_config() -> WebSocketConfig {
     WebSocketConfig::default()
         .read_buffer_size(CLIENT_READ_BUFFER_BYTES)
-        .write_buffer_size(0)
+        .write_buffer_size(CLIENT_WRITE_BATCH_BYTES)
         .max_message_size(Some(MAX_TRANSPORT_MESSAGE_BYTES))
         .max_frame_size(Some(MAX_TRANSPORT_MESSAGE_BYTES))
 }
