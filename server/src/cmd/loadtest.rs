@@ -30,7 +30,7 @@ const CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
 /// Read buffer per client. tungstenite zero-fills the free part of its read buffer before
 /// every read; at its 128 KiB default that memset was most of this tool's own time, and the
 /// tool shares the cores with the server it measures. A tick's frames are a few KiB.
-const READ_BUFFER_BYTES: usize = 16 * 1024;
+const READ_BUFFER_BYTES: usize = 4 * 1024;
 
 /// Options of `rigcast loadtest`.
 #[derive(Debug, Args)]
