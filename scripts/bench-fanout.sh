@@ -5,7 +5,7 @@
 #                   measured at the same time as a direct client on A
 #   3. 100 / 1000 clients on node A
 # Needs nats-server (scripts/install-apps.sh) and builds rigcast in release mode.
-# Usage: scripts/bench-fanout.sh [SECS]   (default 10 s per measurement)
+# Usage: [RIGCAST_BIN=path] scripts/bench-fanout.sh [SECS]   (default 10 s per measurement)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs="${1:-10}"
@@ -13,8 +13,14 @@ rate=120
 
 nats_bin="$(command -v nats-server || echo /usr/sbin/nats-server)"
 [[ -x "$nats_bin" ]] || { echo "bench-fanout: nats-server not found (scripts/install-apps.sh)"; exit 1; }
-cargo build --release --quiet --bin rigcast
-bin=target/release/rigcast
+# RIGCAST_BIN: measure that binary instead of building this checkout (to compare two builds
+# back to back in the same conditions).
+if [[ -n "${RIGCAST_BIN:-}" ]]; then
+    bin="$RIGCAST_BIN"
+else
+    cargo build --release --quiet --bin rigcast
+    bin="${CARGO_TARGET_DIR:-target}/release/rigcast"
+fi
 
 work="$(mktemp -d)"
 pids=()
@@ -48,19 +54,23 @@ serve c; port_c="$port"   # relays A's two subjects
 url() { echo "ws://127.0.0.1:$1/v1/stream"; }
 load() { "$bin" loadtest --url "$(url "$1")" --clients "$2" --secs "$secs" --json; }
 
+echo "load average: $(cut -d" " -f1-3 /proc/loadavg)"
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 echo "tick: $rate Hz, 2 subjects, $secs s per measurement"
 cat >"$work/summary.py" <<'PY'
 import json, sys
-label, path = sys.argv[1], sys.argv[2]
-r = json.load(open(path))
+label, path, base_path = sys.argv[1], sys.argv[2], sys.argv[3]
+r, base = json.load(open(path)), json.load(open(base_path))["latency_us"]
 lat, rate = r["latency_us"], r["client_rate_hz"]
+ratio = lambda q: lat[q] / max(base[q], 1)
 print(f"{label:<26} {r['connected']:>5}/{r['clients']:<5} "
       f"per subject {r['subject_rate_hz']:6.1f} Hz (slowest client {rate['min'] / 2:6.1f})  "
       f"p50 {lat['p50'] / 1000:6.2f} ms  p99 {lat['p99'] / 1000:6.2f} ms  "
-      f"max {lat['max'] / 1000:7.2f} ms  lagged {r['lagged']}  missed {r['missed_frames']}")
+      f"max {lat['max'] / 1000:7.2f} ms  lagged {r['lagged']}  missed {r['missed_frames']}  "
+      f"x baseline: p50 {ratio('p50'):.2f} p99 {ratio('p99'):.2f}")
 PY
-summary() { python3 "$work/summary.py" "$1" "$2"; }
+# summary LABEL REPORT: one line, with its latencies as ratios to the baseline's of this run.
+summary() { python3 "$work/summary.py" "$1" "$2" "$work/base.json"; }
 
 load "$port_a" 1 >"$work/base.json"
 summary "baseline (1 client, A)" "$work/base.json"

@@ -27,6 +27,7 @@
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
 pub mod access;
+pub mod batched_writes;
 pub mod boot;
 pub mod calibration;
 pub mod character;

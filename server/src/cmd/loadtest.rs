@@ -18,6 +18,7 @@ use futures_util::StreamExt;
 use rigcast_protocol::frame::decode_header_any;
 use serde::Serialize;
 use tokio::sync::{Barrier, Semaphore};
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::tungstenite::Message;
 
 /// Connections opened at once (a burst of thousands overflows the listen backlog).
@@ -26,6 +27,10 @@ const CONNECTS_IN_FLIGHT: usize = 64;
 const WARM_UP: Duration = Duration::from_millis(500);
 /// How long a client may take to connect before it counts as failed.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
+/// Read buffer per client. tungstenite zero-fills the free part of its read buffer before
+/// every read; at its 128 KiB default that memset was most of this tool's own time, and the
+/// tool shares the cores with the server it measures. A tick's frames are a few KiB.
+const READ_BUFFER_BYTES: usize = 4 * 1024;
 
 /// Options of `rigcast loadtest`.
 #[derive(Debug, Args)]
@@ -173,7 +178,9 @@ async fn client(url: &str, connects: &Semaphore, ready: &Barrier, secs: Duration
     let mut log = ClientLog::default();
     let ws = {
         let _permit = connects.acquire().await;
-        tokio::time::timeout(CONNECT_TIMEOUT, tokio_tungstenite::connect_async(url)).await
+        let config = WebSocketConfig::default().read_buffer_size(READ_BUFFER_BYTES);
+        let connect = tokio_tungstenite::connect_async_with_config(url, Some(config), true);
+        tokio::time::timeout(CONNECT_TIMEOUT, connect).await
     };
     let ws = match ws {
         Ok(Ok((ws, _))) => Some(ws),
