@@ -6,7 +6,8 @@
 //! - a character whose animation sinks it on both pinned feet is lifted, legs as animated,
 //!   rather than standing on folded knees;
 //! - a planted foot with its toes up is stood flat (ball at its standing height);
-//! - a foot planted on a clip's first frame is pinned at its standing height at once;
+//! - a foot planted on a clip's first frame is pinned at its standing height at once (after a
+//!   reset it blends in again);
 //! - a clip's floor ignores a few frames dipping through it.
 
 mod retarget_fixtures;
@@ -279,6 +280,17 @@ fn a_foot_planted_on_the_first_frame_is_pinned_at_once() {
             "frame {f}: the pinned ankle is at {ankle}, its standing height {ankle_standing}"
         );
     }
+    // After a reset (a source restarted) the character has been shown: a plant blends in from
+    // the animation again, it does not jump.
+    lock.reset();
+    mapping.apply_one(&frames[0], &mut out).expect("apply");
+    let animated = world_transforms(&target, &out)[foot.index()].translation.y;
+    lock.apply_planted(&planted[..lock.source_legs().len()], 1.0 / 60.0, &mut out);
+    let ankle = world_transforms(&target, &out)[foot.index()].translation.y;
+    assert!(
+        (ankle - animated).abs() < 0.002,
+        "after a reset the ankle starts at the animation's {animated}, not at {ankle}"
+    );
 }
 
 /// A clip's floor is where its feet usually get lowest: a standing clip whose hips drop 10 cm

@@ -191,6 +191,9 @@ pub struct FootLock {
     last_drop: f32,
     /// How much higher than needed the hips still are on their way back up.
     drop_offset: Decay<f32>,
+    /// A frame has been locked since the lock was built ([`FootLock::reset`] keeps it: the
+    /// character was shown, so later plants blend from it).
+    shown_once: bool,
 }
 
 /// The angle in (−π, π] equal to `a` modulo a turn.
@@ -298,6 +301,7 @@ impl FootLock {
             settings,
             last_drop: 0.0,
             drop_offset: Decay::default(),
+            shown_once: false,
         })
     }
 
@@ -393,6 +397,7 @@ impl FootLock {
             };
             self.shown_at(i, shown, dt);
         }
+        self.shown_once = true;
     }
 
     fn heading(&self, foot: &Foot, rotation: Quat) -> f32 {
@@ -412,11 +417,13 @@ impl FootLock {
         let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
         let halflife = 0.5 * self.settings.blend_secs;
         let last_drop = self.last_drop;
+        let shown_once = self.shown_once;
         // A foot not seen yet is shown where the animation has it: before the settle below,
         // which measures from there (the rest pose it starts at may float far off the floor).
         let f = &mut self.feet[i];
-        let fresh = !f.seen;
-        if fresh {
+        // Nothing shown yet at all (not after a reset): a plant pins without a blend.
+        let fresh = !f.seen && !shown_once;
+        if !f.seen {
             (f.shown_position, f.shown_heading) = (animated, heading_now);
             (f.animated_position, f.animated_heading) = (animated, heading_now);
             f.seen = true;
