@@ -8,16 +8,18 @@
 //! - a planted foot with its toes up is stood flat (ball at its standing height);
 //! - a foot planted on a clip's first frame is pinned at its standing height at once (after a
 //!   reset it blends in again);
-//! - a clip's floor ignores a few frames dipping through it.
+//! - a clip's floor ignores a few frames dipping through it;
+//! - offline, the animation is fitted to the standing posture first (a landing foot arrives
+//!   flat at its standing height).
 
 mod retarget_fixtures;
 
 use glam::Quat;
 use retarget_fixtures::{table_by_canonical, Humanoid};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::footplant::{FootLock, LockSettings};
+use rigcast_retarget::footplant::{FootLock, LockSettings, PlantTrack};
 use rigcast_retarget::{
-    world_transforms, Mapping, Pose, RetargetOptions, Skeleton, WorldTransform,
+    world_transforms, Clip, Mapping, Pose, RetargetOptions, Skeleton, WorldTransform,
 };
 
 /// Standing still at 60 Hz; from frame 40 the left foot turns toes-down about the ankle by
@@ -311,5 +313,114 @@ fn a_clip_floor_ignores_frames_that_dip_through_it() {
     assert!(
         (floor - standing).abs() < 0.001,
         "floor {floor} m, the feet stand at {standing} m"
+    );
+}
+
+/// A clip whose feet stand with their toes 0.3 rad up and the body 3 cm high (as a retarget
+/// copying the source's foot direction gives a rig whose foot is built differently), the left
+/// foot lifted (hip flexed, foot pitch kept) over frames 40..70; the plants of that clip.
+fn toes_up_steps(source: &Skeleton) -> (Vec<Pose>, Vec<bool>) {
+    let rest = source.rest_pose();
+    let bone = |n: &str| source.bone(n).expect(n).index();
+    let (root, l_thigh, l_foot, r_foot) = (0, bone("l_thigh"), bone("l_foot"), bone("r_foot"));
+    let mut poses = Vec::new();
+    let mut planted = Vec::new();
+    for f in 0..120 {
+        let mut p = rest.clone();
+        p.translations[root].y += 0.03;
+        let lift = if (40..70).contains(&f) { 0.4 } else { 0.0 };
+        p.rotations[l_thigh] = rest.rotations[l_thigh] * Quat::from_rotation_x(-lift);
+        p.rotations[l_foot] = rest.rotations[l_foot] * Quat::from_rotation_x(lift - 0.3);
+        p.rotations[r_foot] = rest.rotations[r_foot] * Quat::from_rotation_x(-0.3);
+        poses.push(p);
+        planted.extend([lift == 0.0, true]);
+    }
+    (poses, planted)
+}
+
+/// Offline, the lock first fits the animation to the character's standing posture: planted
+/// feet stand flat at their own heights, a landing foot arrives already flat (no blend across
+/// the toes-up gap), and a lifted foot keeps its posture's pitch. Without the fit the landing
+/// shows the gap.
+#[test]
+fn offline_the_animation_is_fitted_to_the_standing_posture() {
+    let (source, target, mut mapping, lock) = locked_pair();
+    let (poses, flags) = toes_up_steps(&source);
+    let legs = lock.source_legs().to_vec();
+    let order: Vec<usize> = legs
+        .iter()
+        .map(|l| usize::from(source.name(l.foot).starts_with("r_")))
+        .collect();
+    let flags: Vec<bool> = flags
+        .chunks(2)
+        .flat_map(|f| order.iter().map(move |&i| f[i]))
+        .collect();
+    let plants = PlantTrack::from_flags(legs, flags);
+    let clip = Clip::new(
+        "steps",
+        std::sync::Arc::new(source.clone()),
+        poses,
+        1.0 / 60.0,
+    )
+    .expect("clip");
+    let animated = mapping.apply_clip(&clip).expect("retarget");
+    let (foot, toe) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+    );
+    let rest = world_transforms(&target, &target.rest_pose());
+    let (ankle_rest, ball_rest) = (
+        rest[foot.index()].translation,
+        rest[toe.index()].translation,
+    );
+    let pitch = |w: &[WorldTransform]| {
+        let o = w[toe.index()].translation - w[foot.index()].translation;
+        (o.y / o.length()).asin()
+    };
+    let run = |fit: bool| {
+        let mut lock = lock.clone();
+        if fit {
+            lock.fit_to_standing(&animated.poses, &plants);
+        }
+        let mut mapping = mapping.clone();
+        let mut out = mapping.new_target_pose();
+        let mut worlds = Vec::new();
+        for (f, p) in clip.poses.iter().enumerate() {
+            mapping.apply_one(p, &mut out).expect("apply");
+            lock.apply_planted(plants.frame(f), 1.0 / 60.0, &mut out);
+            worlds.push(world_transforms(&target, &out));
+        }
+        worlds
+    };
+    let fitted = run(true);
+    let off_standing = |w: &[WorldTransform]| {
+        let a = (w[foot.index()].translation.y - ankle_rest.y).abs();
+        let b = (w[toe.index()].translation.y - ball_rest.y).abs();
+        a.max(b)
+    };
+    for (f, w) in fitted.iter().enumerate() {
+        if plants.is_planted(f, 0) && plants.is_planted(f, 1) {
+            assert!(
+                off_standing(w) < 0.005,
+                "frame {f}: {} m off",
+                off_standing(w)
+            );
+        }
+        if (45..65).contains(&f) {
+            let d = (pitch(w) - pitch(&rest)).abs().to_degrees();
+            assert!(
+                d < 1.0,
+                "frame {f}: the lifted foot pitched {d}° off its posture"
+            );
+        }
+    }
+    // The plain lock lands the foot with its toes up and flattens it over the blend.
+    let plain = run(false);
+    let landing = |w: &[Vec<WorldTransform>]| off_standing(&w[70]);
+    assert!(
+        landing(&plain) > 0.01 && landing(&fitted) < 0.005,
+        "landing off standing: {} m plain, {} m fitted",
+        landing(&plain),
+        landing(&fitted)
     );
 }

@@ -26,7 +26,7 @@
 
 use glam::{Quat, Vec3};
 
-use super::detect::{PlantDetector, PlantSettings};
+use super::detect::{PlantDetector, PlantSettings, PlantTrack};
 use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
 use super::rig::{find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
@@ -135,6 +135,12 @@ struct Foot {
     /// for a ball below an ankle the floor is measured at).
     heel_clearance: f32,
     ball_clearance: f32,
+    /// The posture's foot pitch (radians, ball above the ankle positive) and the pitch added
+    /// to the animation's ([`FootLock::fit_to_standing`]).
+    standing_pitch: f32,
+    pitch_fix: f32,
+    /// The foot's left-to-right axis, fixed in the foot bone's frame: what it pitches about.
+    side_local: Vec3,
     /// A horizontal direction fixed in the foot bone's frame (its heading).
     heading_local: Vec3,
     /// The knee's side of the hip–ankle line, in the upper bone's frame (kept for straight
@@ -191,6 +197,10 @@ pub struct FootLock {
     last_drop: f32,
     /// How much higher than needed the hips still are on their way back up.
     drop_offset: Decay<f32>,
+    /// Height added to the root on every frame ([`FootLock::fit_to_standing`]).
+    root_fix: f32,
+    /// The target's own posture stands on its floor (its standing heights can be trusted).
+    posture_stands: bool,
     /// A frame has been locked since the lock was built ([`FootLock::reset`] keeps it: the
     /// character was shown, so later plants blend from it).
     shown_once: bool,
@@ -269,6 +279,14 @@ impl FootLock {
                     source: source_legs.iter().position(|s| s.key() == leg.key()),
                     heel_clearance: height(leg.foot) - lowest,
                     ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
+                    standing_pitch: leg.toes.map_or(0.0, |t| {
+                        let o = target.positions[t.index()] - target.positions[leg.foot.index()];
+                        (o.dot(target.up) / o.length().max(1e-6))
+                            .clamp(-1.0, 1.0)
+                            .asin()
+                    }),
+                    pitch_fix: 0.0,
+                    side_local: w(leg.foot).rotation.inverse() * heading_dir.cross(up),
                     heading_local: w(leg.foot).rotation.inverse() * heading_dir,
                     pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
                     locked: false,
@@ -301,8 +319,102 @@ impl FootLock {
             settings,
             last_drop: 0.0,
             drop_offset: Decay::default(),
+            root_fix: 0.0,
+            posture_stands: mapping.target_posture_stands(),
             shown_once: false,
         })
+    }
+
+    /// Offline: fits the animation to the character's standing posture before locking. The
+    /// retarget gives each foot the source's foot direction, so on a rig whose foot is built
+    /// differently (its toe joint higher or lower against the ankle) a planted foot is pitched
+    /// off the posture's flat foot, and the whole character may stand high or low. The lock
+    /// then stands each planted foot flat at its posture's heights, and every landing and
+    /// lift-off blends across that gap. Here the typical gap is measured on the frames whose
+    /// source foot is planted (medians) and taken out of every frame: each foot pitched about
+    /// its ankle by its own angle, the hips moved by the feet's mean height error. `animated`
+    /// is the clip retargeted without the lock, `plants` its source's plants (from
+    /// [`super::detect_clip`]). Nothing is fitted to a target whose rest does not stand on a
+    /// floor (a CMU-style rest floating at the origin is no standing posture). Allocates
+    /// (height lists).
+    pub fn fit_to_standing(&mut self, animated: &[Pose], plants: &PlantTrack) {
+        if !self.posture_stands {
+            return;
+        }
+        let mut worlds = vec![WorldTransform::IDENTITY; self.target.num_bones()];
+        let mut seen: Vec<Vec<(f32, f32)>> = vec![Vec::new(); self.feet.len()];
+        for (frame, pose) in animated.iter().enumerate() {
+            if pose.check(&self.target).is_err() {
+                continue;
+            }
+            forward_kinematics(&self.target, pose, &mut worlds);
+            for (foot, h) in self.feet.iter().zip(&mut seen) {
+                if foot.source.is_some_and(|s| plants.is_planted(frame, s)) {
+                    h.push(self.stance_of(foot, &worlds));
+                }
+            }
+        }
+        let median = |v: &mut Vec<f32>| {
+            v.sort_by(f32::total_cmp);
+            v.get(v.len() / 2).copied()
+        };
+        let (mut rise_sum, mut n) = (0.0, 0);
+        for (foot, h) in self.feet.iter_mut().zip(&seen) {
+            let mut pitch: Vec<f32> = h.iter().map(|x| x.1).collect();
+            let mut ankle: Vec<f32> = h.iter().map(|x| x.0).collect();
+            if let (Some(p), Some(a)) = (median(&mut pitch), median(&mut ankle)) {
+                foot.pitch_fix = foot.standing_pitch - p;
+                rise_sum += foot.heel_clearance - a;
+                n += 1;
+            }
+        }
+        self.root_fix = if n > 0 { rise_sum / n as f32 } else { 0.0 };
+    }
+
+    /// A foot's ankle height above the floor and its pitch (radians, ball above the ankle
+    /// positive) in `worlds`.
+    fn stance_of(&self, foot: &Foot, worlds: &[WorldTransform]) -> (f32, f32) {
+        let ankle = worlds[foot.leg.foot.index()].translation;
+        let pitch = foot.leg.toes.map_or(0.0, |t| {
+            let o = worlds[t.index()].translation - ankle;
+            (o.dot(self.up) / o.length().max(1e-6))
+                .clamp(-1.0, 1.0)
+                .asin()
+        });
+        (ankle.dot(self.up) - self.floor, pitch)
+    }
+
+    /// Applies [`FootLock::fit_to_standing`]'s corrections to `out`; `worlds` is its FK and is
+    /// brought up to date. Returns whether anything moved.
+    fn apply_fit(&mut self, out: &mut Pose) -> bool {
+        let moved = self.root_fix != 0.0 || self.feet.iter().any(|f| f.pitch_fix != 0.0);
+        if !moved {
+            return false;
+        }
+        if let Some(root) = self.root {
+            let parent = match self.target.parent(root) {
+                Some(p) => self.worlds[p.index()].rotation,
+                None => Quat::IDENTITY,
+            };
+            out.translations[root.index()] += parent.inverse() * (self.up * self.root_fix);
+        }
+        for foot in &self.feet {
+            if foot.pitch_fix == 0.0 {
+                continue;
+            }
+            // About the foot's own side axis (not one taken from its heading, which swings
+            // about as the foot points down at a toe-off): ahead × up, so a positive angle
+            // turns the ball up.
+            let w = self.worlds[foot.leg.foot.index()].rotation;
+            let turned = Quat::from_axis_angle(w * foot.side_local, foot.pitch_fix) * w;
+            let parent = match self.target.parent(foot.leg.foot) {
+                Some(p) => self.worlds[p.index()].rotation,
+                None => Quat::IDENTITY,
+            };
+            out.rotations[foot.leg.foot.index()] = (parent.inverse() * turned).normalize();
+        }
+        forward_kinematics(&self.target, out, &mut self.worlds);
+        true
     }
 
     /// The source legs whose plants drive the lock (the order of [`FootLock::apply_planted`]'s
@@ -370,6 +482,7 @@ impl FootLock {
             return;
         }
         forward_kinematics(&self.target, out, &mut self.worlds);
+        self.apply_fit(out);
         let dt = dt_secs.max(0.0);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);

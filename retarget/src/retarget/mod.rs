@@ -339,6 +339,15 @@ impl RetargetPlan {
         Some((r.up, height, r.floor_at))
     }
 
+    /// Whether the target's floor is known from its own reference posture (a character
+    /// authored standing on the ground, or a floor given in the options), rather than carried
+    /// over from the source's (a rest floating at the origin, like CMU's).
+    pub fn target_posture_stands(&self) -> bool {
+        self.root
+            .as_ref()
+            .is_some_and(|r| r.target_floor_y.is_some())
+    }
+
     /// The source input that drives root motion (the one whose legs the target's follow).
     pub fn root_input(&self) -> Option<usize> {
         self.root.as_ref().map(|r| r.input as usize)

@@ -231,7 +231,7 @@ pub fn retarget_clip_locked(
     }
     let dt = clip.frame_time_secs as f32;
     let mut foot_lock = lock.and_then(|plan| {
-        let lock = FootLock::new(
+        let mut lock = FootLock::new(
             &mapping,
             &plan.source_analysis,
             &plan.target_analysis,
@@ -245,6 +245,9 @@ pub fn retarget_clip_locked(
             plan.source_analysis.up,
             &PlantSettings::default(),
         );
+        if let Ok(animated) = mapping.clone().apply_clip(clip) {
+            lock.fit_to_standing(&animated.poses, &plants);
+        }
         Some((lock, plants))
     });
     if progress {
