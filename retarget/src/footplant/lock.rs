@@ -7,7 +7,10 @@
 //! ```text
 //!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
 //!                                         ▼
-//!  target pose ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
+//!  target pose ─FK─▶ fit to the standing posture: each foot pitched, the hips moved, by the
+//!                     animation's typical stance gap (offline: medians over the clip;
+//!                     live: a running average of the frames held so far)
+//!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
 //!                     pinned: the foot stood flat (ball pitched to its standing height beside
@@ -99,12 +102,22 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
     wanted
 }
 
+/// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
+/// (the time constant of its running average).
+const FIT_LEARN_SECS: f32 = 1.0;
+
+/// Largest pitch (radians, ~40°) the live fit gives a foot: past that the gap is no foot
+/// built differently but a pose the detector took for a stance.
+const MAX_FIT_PITCH: f32 = 0.7;
+
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
     /// Time a lock takes to blend in or out, seconds (the blend offset's half-life is half of
     /// it: after this long a quarter of the offset is left, after twice as long 3 %).
     pub blend_secs: f32,
+    /// The same for a released foot catching up with the animation.
+    pub release_secs: f32,
     /// A lock lets go when the animated foot is this many leg lengths away horizontally.
     pub max_drift_ratio: f32,
     /// The hips never come down (or, when every foot has sunk, go up) by more than this many
@@ -118,6 +131,7 @@ impl Default for LockSettings {
     fn default() -> Self {
         LockSettings {
             blend_secs: 0.1,
+            release_secs: 0.15,
             max_drift_ratio: 0.35,
             max_drop_ratio: 0.3,
             plants: PlantSettings::default(),
@@ -384,6 +398,35 @@ impl FootLock {
         (ankle.dot(self.up) - self.floor, pitch)
     }
 
+    /// Live: moves the fit of [`FootLock::fit_to_standing`] towards this frame's stance gap
+    /// (`worlds` hold the animation): an average over the last [`FIT_LEARN_SECS`] or so of the
+    /// frames with a foot held by a lock since the frame before (a landing foot is still on its
+    /// way down). Slow enough that the correction never shows as a movement of its own.
+    fn learn_fit(&mut self, planted: &[bool; MAX_FEET], dt: f32) {
+        if !self.posture_stands || dt <= 0.0 {
+            return;
+        }
+        let k = 1.0 - (-dt / FIT_LEARN_SECS).exp();
+        let (mut rise, mut n) = (0.0, 0);
+        for i in 0..self.feet.len() {
+            let foot = &self.feet[i];
+            if !(foot.locked && foot.source.is_some_and(|s| planted[s])) {
+                continue;
+            }
+            let (ankle, pitch) = self.stance_of(foot, &self.worlds);
+            let (gap, clearance) = (foot.standing_pitch - pitch, foot.heel_clearance);
+            let foot = &mut self.feet[i];
+            foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
+            rise += clearance - ankle;
+            n += 1;
+        }
+        if n > 0 {
+            let limit = self.settings.max_drop_ratio * self.feet[0].leg.length;
+            let wanted = (rise / n as f32).clamp(-limit, limit);
+            self.root_fix += k * (wanted - self.root_fix);
+        }
+    }
+
     /// Applies [`FootLock::fit_to_standing`]'s corrections to `out`; `worlds` is its FK and is
     /// brought up to date. Returns whether anything moved.
     fn apply_fit(&mut self, out: &mut Pose) -> bool {
@@ -464,7 +507,7 @@ impl FootLock {
         for (p, s) in planted.iter_mut().zip(self.detector.planted()) {
             *p = *s;
         }
-        self.lock(&planted, dt_secs, out);
+        self.lock(&planted, dt_secs, true, out);
     }
 
     /// Offline: locks `out` with known plant flags per source leg (from [`super::detect_clip`]
@@ -474,16 +517,21 @@ impl FootLock {
         for (p, s) in flags.iter_mut().zip(planted) {
             *p = *s;
         }
-        self.lock(&flags, dt_secs, out);
+        self.lock(&flags, dt_secs, false, out);
     }
 
-    fn lock(&mut self, planted: &[bool; MAX_FEET], dt_secs: f32, out: &mut Pose) {
+    /// Locks `out`; `learn`: the fit to the standing posture is learnt from this frame (live,
+    /// where no clip is known in advance).
+    fn lock(&mut self, planted: &[bool; MAX_FEET], dt_secs: f32, learn: bool, out: &mut Pose) {
         if out.check(&self.target).is_err() {
             return;
         }
         forward_kinematics(&self.target, out, &mut self.worlds);
-        self.apply_fit(out);
         let dt = dt_secs.max(0.0);
+        if learn {
+            self.learn_fit(planted, dt);
+        }
+        self.apply_fit(out);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             self.goals[i] = self.foot_goal(i, wants, dt);
@@ -529,6 +577,7 @@ impl FootLock {
         let flat = |v: Vec3| v - up * v.dot(up);
         let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
         let halflife = 0.5 * self.settings.blend_secs;
+        let release_secs = self.settings.release_secs;
         let last_drop = self.last_drop;
         let shown_once = self.shown_once;
         // A foot not seen yet is shown where the animation has it: before the settle below,
@@ -601,6 +650,14 @@ impl FootLock {
                 velocity: (f.shown_heading_rate - rate) * keep_speed,
             };
         }
+        // A released foot catches up with the animation, which has lifted it already (the
+        // live detector lets go a frame or two late): more slowly than a landing settles, or
+        // the catching up shows as a kick.
+        let halflife = if f.locked {
+            halflife
+        } else {
+            0.5 * release_secs
+        };
         f.position_offset.step(dt, halflife);
         f.heading_offset.step(dt, halflife);
         let ankle = target + f.position_offset.value;
