@@ -181,6 +181,15 @@ struct Foot {
     seen: bool,
 }
 
+/// How a foot stands on one frame: ankle and ball heights above the floor (metres), and its
+/// pitch (radians, ball above the ankle positive).
+#[derive(Debug, Clone, Copy)]
+struct Stance {
+    ankle: f32,
+    ball: f32,
+    pitch: f32,
+}
+
 /// The per-frame goal of one foot.
 #[derive(Debug, Clone, Copy, Default)]
 struct Goal {
@@ -346,17 +355,14 @@ impl FootLock {
     /// then stands each planted foot flat at its posture's heights, and every landing and
     /// lift-off blends across that gap. Here the typical gap is measured on the frames whose
     /// source foot is planted (medians) and taken out of every frame: each foot pitched about
-    /// its ankle by its own angle, the hips moved by the feet's mean height error. `animated`
-    /// is the clip retargeted without the lock, `plants` its source's plants (from
-    /// [`super::detect_clip`]). Nothing is fitted to a target whose rest does not stand on a
-    /// floor (a CMU-style rest floating at the origin is no standing posture). Allocates
-    /// (height lists).
+    /// its ankle by its own angle, the hips moved by the feet's mean height error. A target
+    /// whose rest does not stand on a floor (a CMU-style rest floating at the origin) has no
+    /// standing posture to fit to: its standing heights are taken from the animation instead.
+    /// `animated` is the clip retargeted without the lock, `plants` its source's plants (from
+    /// [`super::detect_clip`]). Allocates (height lists).
     pub fn fit_to_standing(&mut self, animated: &[Pose], plants: &PlantTrack) {
-        if !self.posture_stands {
-            return;
-        }
         let mut worlds = vec![WorldTransform::IDENTITY; self.target.num_bones()];
-        let mut seen: Vec<Vec<(f32, f32)>> = vec![Vec::new(); self.feet.len()];
+        let mut seen: Vec<Vec<Stance>> = vec![Vec::new(); self.feet.len()];
         for (frame, pose) in animated.iter().enumerate() {
             if pose.check(&self.target).is_err() {
                 continue;
@@ -368,34 +374,51 @@ impl FootLock {
                 }
             }
         }
-        let median = |v: &mut Vec<f32>| {
+        let median = |h: &[Stance], key: fn(&Stance) -> f32| {
+            let mut v: Vec<f32> = h.iter().map(key).collect();
             v.sort_by(f32::total_cmp);
             v.get(v.len() / 2).copied()
         };
         let (mut rise_sum, mut n) = (0.0, 0);
         for (foot, h) in self.feet.iter_mut().zip(&seen) {
-            let mut pitch: Vec<f32> = h.iter().map(|x| x.1).collect();
-            let mut ankle: Vec<f32> = h.iter().map(|x| x.0).collect();
-            if let (Some(p), Some(a)) = (median(&mut pitch), median(&mut ankle)) {
-                foot.pitch_fix = foot.standing_pitch - p;
-                rise_sum += foot.heel_clearance - a;
+            let Some(ankle) = median(h, |s| s.ankle) else {
+                continue;
+            };
+            if self.posture_stands {
+                foot.pitch_fix = foot.standing_pitch - median(h, |s| s.pitch).unwrap_or(0.0);
+                rise_sum += foot.heel_clearance - ankle;
                 n += 1;
+            } else {
+                // A rest that does not stand (hips at the origin, feet hanging below) says
+                // nothing about how the rig stands: the animation is the best guess.
+                foot.heel_clearance = ankle;
+                foot.ball_clearance = median(h, |s| s.ball).unwrap_or(0.0);
             }
         }
         self.root_fix = if n > 0 { rise_sum / n as f32 } else { 0.0 };
     }
 
-    /// A foot's ankle height above the floor and its pitch (radians, ball above the ankle
-    /// positive) in `worlds`.
-    fn stance_of(&self, foot: &Foot, worlds: &[WorldTransform]) -> (f32, f32) {
+    /// A foot's ankle and ball heights above the floor and its pitch in `worlds`.
+    fn stance_of(&self, foot: &Foot, worlds: &[WorldTransform]) -> Stance {
         let ankle = worlds[foot.leg.foot.index()].translation;
-        let pitch = foot.leg.toes.map_or(0.0, |t| {
-            let o = worlds[t.index()].translation - ankle;
-            (o.dot(self.up) / o.length().max(1e-6))
+        let height = |p: Vec3| p.dot(self.up) - self.floor;
+        let Some(toes) = foot.leg.toes else {
+            let h = height(ankle);
+            return Stance {
+                ankle: h,
+                ball: h,
+                pitch: 0.0,
+            };
+        };
+        let ball = worlds[toes.index()].translation;
+        let o = ball - ankle;
+        Stance {
+            ankle: height(ankle),
+            ball: height(ball),
+            pitch: (o.dot(self.up) / o.length().max(1e-6))
                 .clamp(-1.0, 1.0)
-                .asin()
-        });
-        (ankle.dot(self.up) - self.floor, pitch)
+                .asin(),
+        }
     }
 
     /// Live: moves the fit of [`FootLock::fit_to_standing`] towards this frame's stance gap
@@ -413,11 +436,11 @@ impl FootLock {
             if !(foot.locked && foot.source.is_some_and(|s| planted[s])) {
                 continue;
             }
-            let (ankle, pitch) = self.stance_of(foot, &self.worlds);
-            let (gap, clearance) = (foot.standing_pitch - pitch, foot.heel_clearance);
+            let stance = self.stance_of(foot, &self.worlds);
+            let (gap, clearance) = (foot.standing_pitch - stance.pitch, foot.heel_clearance);
             let foot = &mut self.feet[i];
             foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
-            rise += clearance - ankle;
+            rise += clearance - stance.ankle;
             n += 1;
         }
         if n > 0 {
