@@ -52,19 +52,26 @@ fn two_performers_keep_their_identities_sides_and_limb_lengths() {
     check_cameras("two-person acceptance", &[2, 4]);
 }
 
-/// The camera where the acceptance bounds are not met yet (with camera 1, now met: its
-/// woman's right arm, hidden behind her body for most of the clip, varied in length by a cv
-/// of 0.110 until limb lengths were shared between the two sides; now 0.058), kept as a test
-/// so the gap stays visible and is checked when fixed: camera 3 films the man crossing in
-/// front of the woman (frame 82 on); the landmark model run on his crop returns her body, so
-/// his track shows her for 3 frames until it is found to duplicate hers and dropped, and the
-/// detector does not find him again for most of the rest (87 % coverage; before duplicates
-/// were compared under both left/right labellings, his track showed her for the last 18
-/// frames).
+/// The two cameras that met the acceptance bounds last, with the narrowest margins.
+///
+/// Camera 1: its woman's right arm, hidden behind her body for most of the clip, varied in
+/// length by a cv of 0.110 until limb lengths were shared between the two sides (now 0.058).
+///
+/// Camera 3 films the man crossing in front of the woman with his back to the camera (frame
+/// 82 on). The person detector finds faces, so there it finds only her; the landmark model run
+/// on his crop puts his face on hers (the only face in it) from about frame 37 on, and from
+/// frame 82 drew her body or a blend of the two: his track showed her for 3 frames until it
+/// was found to duplicate hers and dropped, and nothing found him again (87 % coverage). Now a
+/// result lying on another tracked person's body is not taken and crops moved away from them
+/// are tried (`tracker.rs`, `ON_OTHER_BODY`): #0 (the man) is seen in 99 % of the frames, none
+/// showing her; his limb lengths vary more than the woman's (upper arms cv 0.091, shins 0.060)
+/// because his landmarks during the crossing are rough (his face still drawn on hers, his
+/// feet off his own). The margin is narrow: with the threshold at 0.15 his track shows her in
+/// 2 frames, at 0.19 it covers 94 %; decoded at a short side of 480 it covers 98 % with 1
+/// frame showing her (544 and 640 pass).
 #[test]
-#[ignore = "known gap: camera 3's crossing (3 frames show the other person, 87 % coverage)"]
 fn two_performers_in_cameras_1_and_3() {
-    check_cameras("two-person known gaps", &[1, 3]);
+    check_cameras("two-person, cameras 1 and 3", &[1, 3]);
 }
 
 fn check_cameras(test: &str, cameras: &[u32]) {

@@ -10,7 +10,11 @@
 //! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
 //! back the slot whose last position is nearest (within half its ROI) rather than any free
 //! one, so two performers crossing do not trade names; two tracks that converge on one body
-//! (joint by joint) are one person twice, and the one that jumped further is dropped.
+//! (joint by joint) are one person twice, and the one that jumped further is dropped. Before
+//! that, a result that lies on (or near) another tracked person's body is not taken: the
+//! crop is moved away from that person, a step at a time, until the model shows a body of the
+//! tracked person's own (someone crossing in front of another with their back to the camera
+//! otherwise slides onto the other's face).
 //!
 //! [`Finder::Search`] is the fallback without the detector model: the landmark model itself
 //! reports a pose presence, so running it over a handful of crops (the whole frame
@@ -112,6 +116,20 @@ const REFERENCE_RATE: f32 = 0.3;
 /// person's hips is that person.
 const TRACKED_HIPS: f32 = 0.25;
 
+/// A tracking result whose body points lie within this many body heights of another tracked
+/// person's (mean distance, see [`body_distance`]) has slid onto that person: with one face
+/// in the crop (the other person's; this one turned away from the camera) the landmark model
+/// draws the body that face belongs to, or a blend of the two. A blend is not the other body
+/// exactly, so this is wider than [`same_body`]'s tenth: in the pose2sim two-person crossing
+/// (camera 3) blends lay 0.05–0.15 from the other person, the person themself mostly 0.17 and
+/// further.
+const ON_OTHER_BODY: f32 = 0.17;
+
+/// Crops tried beside a person whose result slid onto someone else, in this order: shifted
+/// away from the other person's hips by these fractions of the crop's size. Further from the
+/// other person's face, the model reads the person the crop is for.
+const SIDE_STEPS: [f32; 3] = [0.1, 0.2, 0.3];
+
 /// While a person lost this recently is not found again, the finder runs every frame.
 const EAGER_FIND_FRAMES: u32 = 30;
 
@@ -132,6 +150,8 @@ pub struct TrackerStats {
     pub tracks_lost: u64,
     /// Tracks dropped because they converged on someone already tracked.
     pub duplicates_dropped: u64,
+    /// Tracking results that lay on another tracked person (crops beside them were tried).
+    pub slides_caught: u64,
 }
 
 /// One identity slot.
@@ -268,13 +288,7 @@ impl PoseTracker {
             let Some(roi) = self.tracks[slot].roi else {
                 continue;
             };
-            self.model.infer(frame, &roi, &mut self.scratch)?;
-            self.stats.inferences += 1;
-            let kept = self.scratch.presence >= self.config.keep_presence_threshold
-                && self.tracks[slot]
-                    .place
-                    .is_none_or(|p| continues(p, body_box(&self.scratch)));
-            if kept {
+            if self.follow(frame, slot, roi)? {
                 let found = self.scratch;
                 self.accept(slot, &found);
             } else {
@@ -319,6 +333,75 @@ impl PoseTracker {
             }
             None => Ok(false),
         }
+    }
+
+    /// Runs the landmark model for tracked person `slot` on `roi` into `self.scratch` and says
+    /// whether the result continues the track. A result that lies on another tracked person's
+    /// body (see [`ON_OTHER_BODY`]) is not this person: crops shifted away from the other
+    /// person ([`SIDE_STEPS`]) are tried instead, and the first that shows a body of its own
+    /// continues the track.
+    fn follow(&mut self, frame: &RgbFrame, slot: usize, roi: Roi) -> Result<bool, VisionError> {
+        let keep = self.config.keep_presence_threshold;
+        self.model.infer(frame, &roi, &mut self.scratch)?;
+        self.stats.inferences += 1;
+        if self.shows_own_body(slot, keep) {
+            return Ok(true);
+        }
+        self.look_beside(frame, slot, roi, keep)
+    }
+
+    /// When `self.scratch` (the result on `roi`) lies on another tracked person's body, runs
+    /// the crops shifted away from that person ([`SIDE_STEPS`]) until one shows a body of
+    /// `slot`'s own (presence at least `presence`); returns whether one did (its result in
+    /// `self.scratch`).
+    fn look_beside(
+        &mut self,
+        frame: &RgbFrame,
+        slot: usize,
+        roi: Roi,
+        presence: f32,
+    ) -> Result<bool, VisionError> {
+        let Some(other) = self.other_body_under(slot) else {
+            return Ok(false);
+        };
+        self.stats.slides_caught += 1;
+        let away = (roi.center - hip_centre(&self.tracks[other].landmarks)).normalize_or_zero();
+        for step in SIDE_STEPS {
+            let crop = Roi {
+                center: roi.center + away * step * roi.size,
+                ..roi
+            };
+            self.model.infer(frame, &crop, &mut self.scratch)?;
+            self.stats.inferences += 1;
+            if self.shows_own_body(slot, presence) {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    /// True when `self.scratch` can be person `slot` this frame: it continues their track
+    /// and lies on nobody else's body.
+    fn shows_own_body(&self, slot: usize, presence: f32) -> bool {
+        self.continues_track(slot, presence) && self.other_body_under(slot).is_none()
+    }
+
+    /// True when `self.scratch` can be person `slot` this frame: present enough, and a body
+    /// box that continues theirs.
+    fn continues_track(&self, slot: usize, presence: f32) -> bool {
+        self.scratch.presence >= presence
+            && self.tracks[slot]
+                .place
+                .is_none_or(|p| continues(p, body_box(&self.scratch)))
+    }
+
+    /// Another tracked person whose body `self.scratch` lies on (their landmarks of this
+    /// frame when already processed, else of the last).
+    fn other_body_under(&self, slot: usize) -> Option<usize> {
+        (0..self.tracks.len()).find(|&b| {
+            let t = &self.tracks[b];
+            b != slot && t.tracked() && body_distance(&self.scratch, &t.landmarks) < ON_OTHER_BODY
+        })
     }
 
     /// Takes `lm` as person `slot`'s landmarks this frame.
@@ -405,10 +488,9 @@ impl PoseTracker {
             let Some(roi) = t.last_roi else { continue };
             self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
-            let place = self.tracks[slot].place;
-            if self.scratch.presence >= self.config.presence_threshold
-                && !self.is_tracked_body(&self.scratch)
-                && place.is_none_or(|p| continues(p, body_box(&self.scratch)))
+            let presence = self.config.presence_threshold;
+            if self.shows_own_body(slot, presence)
+                || self.look_beside(frame, slot, roi, presence)?
             {
                 let found = self.scratch;
                 self.tracks[slot].reference = None;
@@ -547,6 +629,12 @@ const BODY_POINTS: [usize; 8] = [
 /// track's left and right (its reference faced the other way), and the same body read with
 /// swapped labels is still one body found twice.
 fn same_body(a: &Landmarks, b: &Landmarks) -> bool {
+    body_distance(a, b) < 0.1
+}
+
+/// How far apart two landmark sets' bodies are: the mean distance of their [`BODY_POINTS`],
+/// under the closer of the two labellings, in the taller body's heights.
+fn body_distance(a: &Landmarks, b: &Landmarks) -> f32 {
     let height = body_box(a).1.y.max(body_box(b).1.y).max(1.0);
     let mean = |mirrored: bool| {
         BODY_POINTS
@@ -558,7 +646,7 @@ fn same_body(a: &Landmarks, b: &Landmarks) -> bool {
             .sum::<f32>()
             / BODY_POINTS.len() as f32
     };
-    mean(false).min(mean(true)) < 0.1 * height
+    mean(false).min(mean(true)) / height
 }
 
 /// The landmark of the other side for `i` (itself for the centre line).
