@@ -8,6 +8,9 @@ segmentation mask (Identity_2, 256x256), heatmaps (Identity_3, 64x64x39) and wor
 the mask and heatmap decoders (upsampling convolutions at high resolution) are about half the
 model's work. Keeping only the subgraph behind the three outputs rigcast uses gives the same
 numbers (the kept nodes and weights are untouched) in about half the time.
+
+The copy's batch dimension is left open (the converted model fixes it at 1, but its reshapes
+already take any batch), so rigcast can run the crops of every tracked person in one call.
 """
 import sys
 
@@ -24,6 +27,10 @@ if missing:
     sys.exit(f"{src}: no output(s) {missing} (has {names}); not a BlazePose landmark model?")
 inputs = [i.name for i in model.graph.input]
 pruned = onnx.utils.Extractor(model).extract_model(inputs, KEEP)
+for value in list(pruned.graph.input) + list(pruned.graph.output):
+    value.type.tensor_type.shape.dim[0].dim_param = "batch"
+# Inferred intermediate shapes still say batch 1; the runtime infers them again.
+del pruned.graph.value_info[:]
 onnx.checker.check_model(pruned)
 onnx.save(pruned, dst)
 print(f"{src}: {len(model.graph.node)} -> {len(pruned.graph.node)} nodes")

@@ -157,7 +157,14 @@ fi
 # --- Derived landmark models: pruned copies, int8 full -------------------------------------------
 # Made from the converted models with onnx and ONNX Runtime's own quantisation tools, in a
 # private venv removed afterwards. The int8 model is calibrated on the single-person clips above.
+# DERIVED names the version of the derivation: models derived by an older one are made again
+# (2: pruned models take a batch of crops).
+DERIVED_VERSION=2
 need_derived=0
+if [[ "$(cat "$ROOT/models/DERIVED" 2>/dev/null)" != "$DERIVED_VERSION" ]]; then
+    rm -f "$ROOT"/models/pose_landmark_{lite,full,heavy}_pruned.onnx \
+        "$ROOT/models/pose_landmark_full_int8.onnx"
+fi
 for m in lite full heavy; do
     [[ -f "$ROOT/models/pose_landmark_${m}_pruned.onnx" ]] || need_derived=1
 done
@@ -189,6 +196,7 @@ if [[ $need_derived == 1 ]]; then
     fi
     rm -rf "$TOOLS"
 fi
+echo "$DERIVED_VERSION" >"$ROOT/models/DERIVED"
 
 date -u +%Y-%m-%dT%H:%M:%SZ >"$ROOT/READY"
 log "ready in $ROOT"

@@ -36,14 +36,16 @@ impl<const N: usize> std::fmt::Debug for BoundRun<N> {
 }
 
 impl<const N: usize> BoundRun<N> {
-    /// Binds `session`'s first input and the outputs `names`, each of which must hold
-    /// `lengths[i]` values (a model whose outputs differ is refused here, not at the first
-    /// frame). Output shapes come from the model, dynamic dimensions taken as 1.
+    /// Binds `session`'s first input and the outputs `names` for runs on `batch` inputs at
+    /// once; each output must hold `lengths[i]` values per input (a model whose outputs differ
+    /// is refused here, not at the first frame). Output shapes come from the model: a dynamic
+    /// first dimension is the batch, other dynamic dimensions are taken as 1.
     pub(crate) fn new(
         session: &Session,
         path: &Path,
         names: [&'static str; N],
         lengths: [usize; N],
+        batch: usize,
     ) -> Result<Self, VisionError> {
         let input = session
             .inputs()
@@ -52,8 +54,9 @@ impl<const N: usize> BoundRun<N> {
         let input_name = CString::new(input.name()).map_err(|e| model_err(path, e))?;
         let mut outputs = Vec::with_capacity(N);
         let mut output_names = Vec::with_capacity(N);
-        for (name, expected) in names.into_iter().zip(lengths) {
-            let shape = output_shape(session, name)
+        for (name, per_input) in names.into_iter().zip(lengths) {
+            let expected = per_input * batch;
+            let shape = output_shape(session, name, batch)
                 .ok_or_else(|| model_err(path, format!("no float tensor output {name}")))?;
             let actual = shape.iter().product::<i64>() as usize;
             super::model::check_len(name, actual, expected)?;
@@ -129,13 +132,35 @@ impl<const N: usize> BoundRun<N> {
     }
 }
 
-/// The shape of float output `name`, dynamic dimensions as 1.
-fn output_shape(session: &Session, name: &str) -> Option<Vec<i64>> {
+/// The shape of float output `name` for `batch` inputs: a dynamic first dimension is the
+/// batch, other dynamic dimensions 1.
+fn output_shape(session: &Session, name: &str, batch: usize) -> Option<Vec<i64>> {
     let outlet = session.outputs().iter().find(|o| o.name() == name)?;
     match outlet.dtype() {
         ValueType::Tensor { ty, shape, .. } if *ty == ort::value::TensorElementType::Float32 => {
-            Some(shape.iter().map(|d| (*d).max(1)).collect())
+            Some(
+                shape
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &d)| match (i, d < 0) {
+                        (0, true) => batch as i64,
+                        _ => d.max(1),
+                    })
+                    .collect(),
+            )
         }
         _ => None,
     }
+}
+
+/// Whether `session`'s first input takes a batch of any size (its first dimension is
+/// dynamic), so several crops can run in one call.
+pub(crate) fn takes_batches(session: &Session) -> bool {
+    session
+        .inputs()
+        .first()
+        .is_some_and(|input| match input.dtype() {
+            ValueType::Tensor { shape, .. } => shape.first().is_some_and(|&d| d < 0),
+            _ => false,
+        })
 }

@@ -156,6 +156,7 @@ impl PersonDetector {
             model,
             [OUT_BOXES, OUT_SCORES],
             [NUM_ANCHORS * NUM_COORDS, NUM_ANCHORS],
+            1,
         )?;
         Ok(PersonDetector {
             path: model.to_path_buf(),

@@ -85,7 +85,12 @@ impl PosePipeline {
         let assets = &config.assets;
         let library = assets.require(assets.runtime_library(), "ONNX Runtime shared library")?;
         let model_path = assets.require(assets.landmark_model(config.model), "landmark model")?;
-        let mut model = LandmarkModel::load(&library, &model_path, config.threads)?;
+        let mut model = LandmarkModel::load(
+            &library,
+            &model_path,
+            config.threads,
+            config.tracker.max_people,
+        )?;
         model.set_input_range(config.input_range);
         let detector = match config.tracker.finder {
             Finder::Detector => {

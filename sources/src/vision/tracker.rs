@@ -3,7 +3,7 @@
 //! previous frame, stable identities, and a guard against left/right label swaps.
 //!
 //! Per frame the landmark model runs once per tracked person, on the ROI its own last
-//! landmarks gave: no search while tracking holds. The finder runs only when someone was
+//! landmarks gave (all tracked people's crops in one batch): no search while tracking holds. The finder runs only when someone was
 //! lost this frame, when nobody is tracked, or every `find_every_frames` frames while fewer
 //! than `max_people` are tracked.
 //!
@@ -129,6 +129,9 @@ const ON_OTHER_BODY: f32 = 0.17;
 /// away from the other person's hips by these fractions of the crop's size. Further from the
 /// other person's face, the model reads the person the crop is for.
 const SIDE_STEPS: [f32; 3] = [0.1, 0.2, 0.3];
+/// Beside crops also go straight sideways when the way away from the other person is more
+/// than this far from horizontal (the sine of ~12°).
+const SIDEWAYS_ALSO: f32 = 0.2;
 
 /// While a person lost this recently is not found again, the finder runs every frame.
 const EAGER_FIND_FRAMES: u32 = 30;
@@ -136,7 +139,7 @@ const EAGER_FIND_FRAMES: u32 = 30;
 /// Counters for diagnostics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TrackerStats {
-    /// Landmark model runs.
+    /// Crops the landmark model ran on (a batch of two counts two).
     pub inferences: u64,
     /// Candidate-crop searches started.
     pub searches: u64,
@@ -207,6 +210,10 @@ pub struct PoseTracker {
     candidates: Vec<Roi>,
     detections: Vec<Detection>,
     scratch: Landmarks,
+    /// This frame's first landmark run of every tracked person, made in one batch: their
+    /// crops, and the results by slot.
+    batch_rois: Vec<Roi>,
+    batch_results: Vec<Landmarks>,
     frames_since_find: u32,
     stats: TrackerStats,
 }
@@ -236,6 +243,8 @@ impl PoseTracker {
             candidates: Vec::with_capacity(16),
             detections: Vec::with_capacity(super::detector::MAX_DETECTIONS),
             scratch: Landmarks::default(),
+            batch_rois: Vec::with_capacity(config.max_people),
+            batch_results: vec![Landmarks::default(); config.max_people],
             frames_since_find: 0,
             stats: TrackerStats::default(),
         }
@@ -282,12 +291,16 @@ impl PoseTracker {
     /// Processes one frame: every tracked person once, then the finder when it is due.
     /// Afterwards [`Self::person`] tells who was seen.
     pub fn process_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        self.run_tracked_crops(frame)?;
         let mut lost_now = false;
+        let mut batched = 0;
         for slot in 0..self.tracks.len() {
             self.tracks[slot].seen = false;
             let Some(roi) = self.tracks[slot].roi else {
                 continue;
             };
+            self.scratch = self.batch_results[batched];
+            batched += 1;
             if self.follow(frame, slot, roi)? {
                 let found = self.scratch;
                 self.accept(slot, &found);
@@ -335,15 +348,31 @@ impl PoseTracker {
         }
     }
 
-    /// Runs the landmark model for tracked person `slot` on `roi` into `self.scratch` and says
-    /// whether the result continues the track. A result that lies on another tracked person's
-    /// body (see [`ON_OTHER_BODY`]) is not this person: crops shifted away from the other
-    /// person ([`SIDE_STEPS`]) are tried instead, and the first that shows a body of its own
+    /// Runs the landmark model once on every tracked person's crop, in one batch, into
+    /// `self.batch_results` (in slot order). The crops come from the last frame, so no result
+    /// depends on another: what the checks after it compare is unchanged by running them
+    /// together.
+    fn run_tracked_crops(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        self.batch_rois.clear();
+        self.batch_rois
+            .extend(self.tracks.iter().filter_map(|t| t.roi));
+        let n = self.batch_rois.len();
+        if n == 0 {
+            return Ok(());
+        }
+        self.model
+            .infer_batch(frame, &self.batch_rois, &mut self.batch_results[..n])?;
+        self.stats.inferences += n as u64;
+        Ok(())
+    }
+
+    /// Says whether `self.scratch`, the landmark run for tracked person `slot` on `roi`,
+    /// continues the track. A result that lies on another tracked person's body (see
+    /// [`ON_OTHER_BODY`]) is not this person: crops shifted away from the other person
+    /// ([`SIDE_STEPS`]) are tried instead, and the first that shows a body of its own
     /// continues the track.
     fn follow(&mut self, frame: &RgbFrame, slot: usize, roi: Roi) -> Result<bool, VisionError> {
         let keep = self.config.keep_presence_threshold;
-        self.model.infer(frame, &roi, &mut self.scratch)?;
-        self.stats.inferences += 1;
         if self.shows_own_body(slot, keep) {
             return Ok(true);
         }
@@ -366,15 +395,25 @@ impl PoseTracker {
         };
         self.stats.slides_caught += 1;
         let away = (roi.center - hip_centre(&self.tracks[other].landmarks)).normalize_or_zero();
-        for step in SIDE_STEPS {
-            let crop = Roi {
-                center: roi.center + away * step * roi.size,
-                ..roi
-            };
-            self.model.infer(frame, &crop, &mut self.scratch)?;
-            self.stats.inferences += 1;
-            if self.shows_own_body(slot, presence) {
-                return Ok(true);
+        // People stand on one floor, so two bodies overlapping in the picture are side by
+        // side: when `away` also points up or down (one stands nearer the camera, or jumps),
+        // its sideways part is tried too.
+        let sideways = Vec2::new(away.x, 0.0).normalize_or_zero();
+        let directions = [
+            Some(away),
+            (away.y.abs() > SIDEWAYS_ALSO).then_some(sideways),
+        ];
+        for dir in directions.into_iter().flatten() {
+            for step in SIDE_STEPS {
+                let crop = Roi {
+                    center: roi.center + dir * step * roi.size,
+                    ..roi
+                };
+                self.model.infer(frame, &crop, &mut self.scratch)?;
+                self.stats.inferences += 1;
+                if self.shows_own_body(slot, presence) {
+                    return Ok(true);
+                }
             }
         }
         Ok(false)
