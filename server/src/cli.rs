@@ -57,6 +57,15 @@ pub enum Command {
 }
 
 impl Command {
+    /// True for the subcommands that open no socket: they read files and write to stdout and
+    /// files only (the live ones — serve, record, calibrate, loadtest — talk to servers).
+    pub fn is_offline(&self) -> bool {
+        !matches!(
+            self,
+            Command::Serve(_) | Command::Record(_) | Command::Calibrate(_) | Command::Loadtest(_)
+        )
+    }
+
     /// Runs the subcommand.
     pub async fn run(self) -> anyhow::Result<()> {
         match self {

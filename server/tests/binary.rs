@@ -254,6 +254,34 @@ fn binary_rejects_bad_flags_with_clear_errors() {
     assert!(err.contains("/no/such/file.bvh"), "{err}");
 }
 
+/// A reader that stops early (`rigcast info walk.bvh | head -1`) ends an offline command
+/// quietly, as it ends any Unix tool: no panic message, killed by SIGPIPE. The pipe's read end
+/// is closed before the command writes anything, so every write meets the closed pipe.
+#[cfg(unix)]
+#[test]
+fn an_offline_command_whose_reader_went_away_ends_without_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = common::test_dir("bin-pipe");
+    let clip = rigcast_server::demo::procedural_clip(10, 30.0).unwrap();
+    let bvh = dir.join("demo.bvh");
+    rigcast_sources::save_clip(&bvh, &clip).unwrap();
+    let mut child = rigcast(&["info", bvh.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(
+        out.status.signal(),
+        Some(libc::SIGPIPE),
+        "{:?}: {stderr}",
+        out.status
+    );
+}
+
 #[test]
 fn info_and_convert_commands() {
     let dir = common::test_dir("bin");
