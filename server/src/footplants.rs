@@ -68,6 +68,7 @@ pub async fn run(
                 feet,
                 sent: true,
             };
+            // Sending fails only while no client listens; the state is also kept in the stats slot above.
             let _ = events.send(json);
         }
     }

@@ -228,6 +228,7 @@ async fn handle_connection(
                 Ok(id) => model_response(&state, id).await,
                 Err(message) => (404, "text/plain", format!("{message}\n").into_bytes()),
             };
+            // A client gone before its answer was written has nobody left to tell.
             let _ = respond(&mut stream, status, mime, &body).await;
         }
         Route::ViewerFile => match static_asset(&req.path) {

@@ -173,6 +173,8 @@ impl IdleGraph {
         self.pending_secs = 0.0;
         let at_loss = self.heading(shown);
         self.walker.write(&self.playback, &mut self.rig_pose);
+        // Both plans were built for these very skeletons, so `apply` cannot meet a foreign pose;
+        // if it ever failed, `out` would keep the pose shown at the loss, a safe fallback.
         let _ = self.to_target.apply(&[&self.rig_pose], out);
         self.facing = at_loss.yaw;
         self.spot = at_loss.offset;

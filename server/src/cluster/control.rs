@@ -295,7 +295,7 @@ pub async fn run_control_service(
     let mut sub = match client.subscribe(subject.clone()).await {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("warning: cluster: cannot take control requests on {subject}: {e}");
+            tracing::warn!("cluster: cannot take control requests on {subject}: {e}");
             return;
         }
     };

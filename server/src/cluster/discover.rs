@@ -125,7 +125,7 @@ pub async fn run_discovery(
         let mut watch = match cluster.kv.watch_with_history(">").await {
             Ok(w) => w,
             Err(e) => {
-                eprintln!("warning: cluster: cannot watch the subject bucket: {e}; retrying");
+                tracing::warn!("cluster: cannot watch the subject bucket: {e}; retrying");
                 tokio::select! {
                     _ = shutdown.changed() => return,
                     _ = tokio::time::sleep(REWATCH_AFTER) => continue,
@@ -152,7 +152,7 @@ pub async fn run_discovery(
             match entry.operation {
                 Operation::Put => match SubjectEntry::parse(&entry.value) {
                     Ok(e) => on_put(&cluster, &mut known, e, entry.revision, &state, &live),
-                    Err(err) => eprintln!("warning: cluster: entry {} skipped: {err}", entry.key),
+                    Err(err) => tracing::warn!("cluster: entry {} skipped: {err}", entry.key),
                 },
                 Operation::Delete | Operation::Purge => {
                     if let Some(k) = known.get_mut(&entry.key) {
@@ -221,10 +221,7 @@ fn on_put(
             };
             known.insert(key, found);
         }
-        Err(e) => eprintln!(
-            "warning: cluster: cannot relay {}: {e:#}",
-            entry.relayed_name()
-        ),
+        Err(e) => tracing::warn!("cluster: cannot relay {}: {e:#}", entry.relayed_name()),
     }
 }
 
@@ -302,6 +299,7 @@ fn add_subject(
         }
         .to_json(),
     );
+    // Fails only while no client listens; newcomers get every skeleton on connecting.
     let _ = state.events.send(subject.shape().skeleton_json.clone());
     Ok(feeds.changes)
 }

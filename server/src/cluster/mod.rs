@@ -387,7 +387,7 @@ pub async fn join(
     for (name, site) in awaited(config, wanted, &published) {
         let (source, feeds) = RemoteSource::awaiting(&site, &name, config.lost_after())
             .with_context(|| format!("cluster subject {name}@{site}"))?;
-        eprintln!("cluster: {name}@{site} is not published yet; its performers wait for it");
+        tracing::info!("cluster: {name}@{site} is not published yet; its performers wait for it");
         let id = first_id + relays.len() as u32;
         relays.push(relay_of(config, id, &site, &name, feeds, None));
         subjects.push(remote_subject(format!("{name}@{site}"), source));
@@ -497,7 +497,7 @@ impl ClusterLink {
     }
 }
 
-/// Start-up warnings go to stderr like the server's other start-up reports.
+/// Start-up warnings go through `tracing` like the server's other reports.
 fn warn(text: &str) {
-    eprintln!("warning: {text}");
+    tracing::warn!("{text}");
 }

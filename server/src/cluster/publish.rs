@@ -99,6 +99,8 @@ async fn remove_entries(cluster: &Cluster, entries: &[(String, Bytes)]) {
             let _ = cluster.kv.delete(key).await;
         }
     };
+    // A NATS server that does not answer must not hold up shutdown; the other nodes take an
+    // entry left behind as lost once it goes unrefreshed for `ENTRY_MAX_AGE`.
     let _ = tokio::time::timeout(REMOVE_TIMEOUT, delete_all).await;
 }
 
@@ -127,7 +129,7 @@ async fn put_entries(cluster: &Cluster, entries: &[(String, Bytes)], failing: bo
     for (key, value) in entries {
         if let Err(e) = cluster.kv.put(key.clone(), value.clone()).await {
             if !failing && !failed {
-                eprintln!("warning: cluster: cannot publish subject entry {key}: {e}; retrying");
+                tracing::warn!("cluster: cannot publish subject entry {key}: {e}; retrying");
             }
             failed = true;
         }

@@ -303,7 +303,7 @@ pub async fn run_relay(
     let mut sub = match client.subscribe(subject.clone()).await {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("warning: cluster: cannot subscribe to {subject}: {e}");
+            tracing::warn!("cluster: cannot subscribe to {subject}: {e}");
             return;
         }
     };

@@ -135,6 +135,7 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
                 if next_count == 1 {
                     println!();
                 }
+                // Progress only: the capture goes on if stdout is closed.
                 let _ = std::io::stdout().flush();
                 next_count -= 1;
                 next_tick += Duration::from_secs(1);
@@ -155,6 +156,7 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
                     println!("calibrating {name} (subject {id}): {what}; capturing now");
                 } else {
                     print!("calibrating {name} (subject {id}): {what}…");
+                    // Progress only, as above.
                     let _ = std::io::stdout().flush();
                 }
             }

@@ -212,6 +212,7 @@ impl Bar {
         } else {
             eprintln!("{line}");
         }
+        // Progress only: a closed stderr must not stop the graft.
         let _ = std::io::stderr().flush();
     }
 

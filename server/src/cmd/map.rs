@@ -284,6 +284,7 @@ pub fn render_table(
             .clamp(6, 40)
     };
     let (w, ws) = (width(ts), width(ss));
+    // Writing to a String cannot fail.
     let _ = writeln!(
         out,
         "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  evidence",
@@ -299,6 +300,7 @@ pub fn render_table(
             ),
             _ => ("-".into(), String::new(), String::new(), String::new()),
         };
+        // Writing to a String cannot fail.
         let _ = writeln!(
             out,
             "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  {}",

@@ -189,6 +189,7 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
 fn push_json_number(out: &mut String, v: f64) {
     use std::fmt::Write as _;
     if v.is_finite() {
+        // Writing to a String cannot fail.
         let _ = write!(out, "{}", (v * 1e5).round() / 1e5);
     } else {
         out.push('0');

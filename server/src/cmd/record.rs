@@ -54,6 +54,8 @@ pub async fn run(args: RecordArgs) -> anyhow::Result<()> {
         match args.duration {
             Some(secs) => tokio::time::sleep(Duration::from_secs_f64(secs)).await,
             None => {
+                // This fails only when no Ctrl-C handler can be installed; the recording then ends at
+                // once, its file complete, rather than run with no clean way to stop it.
                 let _ = tokio::signal::ctrl_c().await;
             }
         }
@@ -158,6 +160,7 @@ pub async fn record(
         }
     }
     writer.finish()?;
+    // The file is finished; a server already gone needs no close frame.
     let _ = ws.close(None).await;
     Ok(summary)
 }

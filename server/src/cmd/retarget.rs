@@ -280,6 +280,7 @@ pub fn retarget_clip_locked(
             let percent = (i + 1) * 100 / n;
             if percent >= next_percent {
                 eprint!("\rretargeting: {percent:3}% ({}/{n} frames)", i + 1);
+                // Progress only: a closed stderr must not stop the retarget.
                 let _ = std::io::stderr().flush();
                 next_percent = percent + 5;
             }

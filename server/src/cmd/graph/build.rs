@@ -91,6 +91,7 @@ fn progress_bar(done: f32) {
         " ".repeat(WIDTH - filled),
         done * 100.0
     );
+    // Progress only: a closed stderr must not stop the build.
     let _ = std::io::stderr().flush();
 }
 
