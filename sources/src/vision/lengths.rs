@@ -9,6 +9,10 @@
 //! to within a centimetre or two, and an arm hidden behind the body for most of a clip (its
 //! joints guessed at low visibility) would otherwise keep a poorly measured length that drifts
 //! whenever it is glimpsed, while the other arm is seen well all along.
+//!
+//! A settled estimate doubts lengths far from it: the model can misread a limb for dozens of
+//! frames in a row at full visibility (a foreshortened arm behind another body), and a plain
+//! running mean would follow it there.
 
 use glam::Vec3;
 
@@ -47,6 +51,12 @@ const ESTIMATES: usize = 9;
 /// frames, so it settles within a second or two yet still adapts to a new performer.
 const MAX_WEIGHT: f32 = 90.0;
 
+/// Accumulated weight from which an estimate is trusted enough to doubt measurements far
+/// from it (about ten well-seen frames of both twins).
+const SETTLED_WEIGHT: f32 = 20.0;
+/// Relative length error at which a measurement counts half.
+const LENGTH_SPREAD: f32 = 0.15;
+
 /// Running limb-length estimates.
 #[derive(Debug, Clone)]
 pub struct LimbLengths {
@@ -82,6 +92,20 @@ impl LimbLengths {
         ESTIMATE_OF.get(i).map_or(0.0, |&k| self.length[k])
     }
 
+    /// How much a measurement `len` of estimate `k` is believed, 1 for one near the estimate:
+    /// once the estimate rests on enough frames ([`SETTLED_WEIGHT`]), a length far from it
+    /// counts less the farther it is (a Cauchy weight of the relative error, scale
+    /// [`LENGTH_SPREAD`]). The model can be confidently wrong for many frames in a row — an
+    /// upper arm pointing at the camera from behind a body read at half its length at full
+    /// visibility — and a plain running mean would follow it.
+    fn plausibility(&self, k: usize, len: f32) -> f32 {
+        if self.weight[k] < SETTLED_WEIGHT || self.length[k] <= 0.0 {
+            return 1.0;
+        }
+        let relative = (len - self.length[k]) / (self.length[k] * LENGTH_SPREAD);
+        1.0 / (1.0 + relative * relative)
+    }
+
     /// Updates the estimates from `lm` and rewrites its limb world landmarks to those lengths.
     pub fn apply(&mut self, lm: &mut Landmarks) {
         self.measured.copy_from_slice(&lm.world[..33]);
@@ -89,8 +113,8 @@ impl LimbLengths {
             let len = self.measured[a].distance(self.measured[b]);
             // Both ends must be seen for the measurement to count; a floor keeps the first
             // frames from being ignored entirely.
-            let w = lm.visibility(a).min(lm.visibility(b)).max(0.05);
             let k = ESTIMATE_OF[i];
+            let w = lm.visibility(a).min(lm.visibility(b)).max(0.05) * self.plausibility(k, len);
             if len.is_finite() && len > 0.0 {
                 self.weight[k] = (self.weight[k] + w).min(MAX_WEIGHT);
                 self.length[k] += (len - self.length[k]) * (w / self.weight[k]);
@@ -187,6 +211,25 @@ mod tests {
             f.length(5),
             "left and right upper arm share one estimate"
         );
+    }
+
+    #[test]
+    fn a_long_run_of_confidently_wrong_lengths_barely_moves_a_settled_estimate() {
+        let mut f = LimbLengths::new();
+        for _ in 0..30 {
+            f.apply(&mut arm(0.28, 1.0));
+        }
+        // Camera 3 of the pose2sim clip: the man's upper arm, pointing at the camera from
+        // behind his body, read at 0.05–0.2 m with visibility above 0.9 for 40 frames.
+        for _ in 0..40 {
+            f.apply(&mut arm(0.12, 1.0));
+        }
+        assert!((f.length(0) - 0.28).abs() < 0.02, "{}", f.length(0));
+        // Lengths near the estimate still move it, at the running mean's pace.
+        for _ in 0..200 {
+            f.apply(&mut arm(0.30, 1.0));
+        }
+        assert!((f.length(0) - 0.30).abs() < 0.005, "{}", f.length(0));
     }
 
     #[test]
