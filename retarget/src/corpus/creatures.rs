@@ -26,11 +26,32 @@ fn lab(left: bool, role: &str) -> String {
     format!("{}_{role}", if left { "left" } else { "right" })
 }
 
-/// Adds a chain of bones at the given points; returns the last index.
-fn chain(b: &mut Builder, parent: usize, pts: &[(String, Vec3, String)]) -> usize {
+/// Adds a chain of bones at the given points (name, position, label); returns the last index.
+fn chain(
+    b: &mut Builder,
+    parent: usize,
+    pts: &[(impl AsRef<str>, Vec3, impl AsRef<str>)],
+) -> usize {
     let mut p = parent;
     for (name, pos, label) in pts {
-        p = b.add(name, Some(p), *pos, label);
+        p = b.add(name.as_ref(), Some(p), *pos, label.as_ref());
+    }
+    p
+}
+
+/// Adds a chain of one side's bones given as (name, left-side position, role), like
+/// [`chain`]: each name gets the side's suffix (`hip.L`), each position is mirrored for the
+/// right side and each label says the side (`left_upper_leg`). Returns the last index.
+fn side_chain(b: &mut Builder, parent: usize, left: bool, pts: &[(&str, Vec3, &str)]) -> usize {
+    let s = sfx(left);
+    let mut p = parent;
+    for (name, pos, role) in pts {
+        p = b.add(
+            &format!("{name}.{s}"),
+            Some(p),
+            m(*pos, left),
+            &lab(left, role),
+        );
     }
     p
 }
@@ -44,21 +65,14 @@ pub fn horse() -> Builder {
         ("spine2", vec3(0.0, 1.38, 0.20), "spine_mid"),
         ("chest", vec3(0.0, 1.35, 0.55), "chest"),
     ];
-    let mut p = pelvis;
-    for (n, v, l) in spine_pts {
-        p = b.add(n, Some(p), v, l);
-    }
-    let chest = p;
+    let chest = chain(&mut b, pelvis, &spine_pts);
     let neck = [
         ("neck1", vec3(0.0, 1.55, 0.80), "neck"),
         ("neck2", vec3(0.0, 1.80, 0.95), "neck_2"),
         ("head", vec3(0.0, 1.95, 1.05), "head"),
         ("nose", vec3(0.0, 1.70, 1.50), "head_end"),
     ];
-    let mut p = chest;
-    for (n, v, l) in neck {
-        p = b.add(n, Some(p), v, l);
-    }
+    chain(&mut b, chest, &neck);
     let tail: Vec<(String, Vec3, String)> = (0..4)
         .map(|i| {
             let t = i as f32;
@@ -71,78 +85,25 @@ pub fn horse() -> Builder {
         .collect();
     chain(&mut b, pelvis, &tail);
     for left in [true, false] {
-        let s = sfx(left);
-        let hind = vec![
-            (
-                format!("hip.{s}"),
-                m(vec3(0.2, 1.2, -0.6), left),
-                lab(left, "upper_leg"),
-            ),
-            (
-                format!("stifle.{s}"),
-                m(vec3(0.2, 0.85, -0.45), left),
-                lab(left, "lower_leg"),
-            ),
-            (
-                format!("hock.{s}"),
-                m(vec3(0.2, 0.50, -0.68), left),
-                lab(left, "foot"),
-            ),
-            (
-                format!("hind_fetlock.{s}"),
-                m(vec3(0.2, 0.18, -0.60), left),
-                lab(left, "toes"),
-            ),
-            (
-                format!("hind_hoof.{s}"),
-                m(vec3(0.2, 0.02, -0.55), left),
-                lab(left, "toe_end"),
-            ),
-            (
-                format!("hind_tip.{s}"),
-                m(vec3(0.2, 0.0, -0.45), left),
-                lab(left, "toe_end"),
-            ),
+        let hind = [
+            ("hip", vec3(0.2, 1.2, -0.6), "upper_leg"),
+            ("stifle", vec3(0.2, 0.85, -0.45), "lower_leg"),
+            ("hock", vec3(0.2, 0.50, -0.68), "foot"),
+            ("hind_fetlock", vec3(0.2, 0.18, -0.60), "toes"),
+            ("hind_hoof", vec3(0.2, 0.02, -0.55), "toe_end"),
+            ("hind_tip", vec3(0.2, 0.0, -0.45), "toe_end"),
         ];
-        chain(&mut b, pelvis, &hind);
-        let front = vec![
-            (
-                format!("scapula.{s}"),
-                m(vec3(0.16, 1.32, 0.55), left),
-                lab(left, "clavicle"),
-            ),
-            (
-                format!("humerus.{s}"),
-                m(vec3(0.2, 1.10, 0.62), left),
-                lab(left, "upper_arm"),
-            ),
-            (
-                format!("radius.{s}"),
-                m(vec3(0.2, 0.82, 0.50), left),
-                lab(left, "lower_arm"),
-            ),
-            (
-                format!("cannon.{s}"),
-                m(vec3(0.2, 0.48, 0.52), left),
-                lab(left, "hand"),
-            ),
-            (
-                format!("front_fetlock.{s}"),
-                m(vec3(0.2, 0.22, 0.52), left),
-                lab(left, "index_1"),
-            ),
-            (
-                format!("front_hoof.{s}"),
-                m(vec3(0.2, 0.03, 0.57), left),
-                lab(left, "index_2"),
-            ),
-            (
-                format!("front_tip.{s}"),
-                m(vec3(0.2, 0.0, 0.66), left),
-                lab(left, "index_3"),
-            ),
+        side_chain(&mut b, pelvis, left, &hind);
+        let front = [
+            ("scapula", vec3(0.16, 1.32, 0.55), "clavicle"),
+            ("humerus", vec3(0.2, 1.10, 0.62), "upper_arm"),
+            ("radius", vec3(0.2, 0.82, 0.50), "lower_arm"),
+            ("cannon", vec3(0.2, 0.48, 0.52), "hand"),
+            ("front_fetlock", vec3(0.2, 0.22, 0.52), "index_1"),
+            ("front_hoof", vec3(0.2, 0.03, 0.57), "index_2"),
+            ("front_tip", vec3(0.2, 0.0, 0.66), "index_3"),
         ];
-        chain(&mut b, chest, &front);
+        side_chain(&mut b, chest, left, &front);
     }
     b
 }
@@ -158,29 +119,25 @@ fn wing(
     joints: usize,
 ) {
     let s = sfx(left);
-    let pts = vec![
+    let pts = [
+        ("wing_root", base, "wing_clavicle"),
         (
-            format!("wing_root.{s}"),
-            m(base, left),
-            lab(left, "wing_clavicle"),
+            "wing_upper",
+            base + vec3(0.1 * span, 0.05 * span, -0.03 * span),
+            "wing_upper_arm",
         ),
         (
-            format!("wing_upper.{s}"),
-            m(base + vec3(0.1 * span, 0.05 * span, -0.03 * span), left),
-            lab(left, "wing_upper_arm"),
+            "wing_fore",
+            base + vec3(0.42 * span, 0.12 * span, -0.05 * span),
+            "wing_lower_arm",
         ),
         (
-            format!("wing_fore.{s}"),
-            m(base + vec3(0.42 * span, 0.12 * span, -0.05 * span), left),
-            lab(left, "wing_lower_arm"),
-        ),
-        (
-            format!("wing_hand.{s}"),
-            m(base + vec3(0.72 * span, 0.1 * span, -0.05 * span), left),
-            lab(left, "wing_hand"),
+            "wing_hand",
+            base + vec3(0.72 * span, 0.1 * span, -0.05 * span),
+            "wing_hand",
         ),
     ];
-    let hand = chain(b, parent, &pts);
+    let hand = side_chain(b, parent, left, &pts);
     let hp = b.world_pos[hand];
     for f in 0..fingers {
         let ang = -0.2 - 1.1 * f as f32 / fingers.max(1) as f32;
@@ -216,33 +173,21 @@ pub fn four_armed() -> Builder {
     for left in [true, false] {
         let s = if left { "Left" } else { "Right" };
         let y = 1.20;
-        let pts = vec![
+        // (name after `Lower{Side}`, distance out along the arm, role)
+        let pts = [
+            ("Shoulder", 0.03, "limb2_clavicle"),
+            ("Arm", 0.17, "limb2_upper_arm"),
+            ("ForeArm", 0.44, "limb2_lower_arm"),
+            ("Hand", 0.69, "limb2_hand"),
+            ("HandEnd", 0.78, "limb2_index_1"),
+        ]
+        .map(|(name, x, role)| {
             (
-                format!("Lower{s}Shoulder"),
-                m(vec3(0.03, y, 0.0), left),
-                lab(left, "limb2_clavicle"),
-            ),
-            (
-                format!("Lower{s}Arm"),
-                m(vec3(0.17, y, 0.0), left),
-                lab(left, "limb2_upper_arm"),
-            ),
-            (
-                format!("Lower{s}ForeArm"),
-                m(vec3(0.44, y, 0.0), left),
-                lab(left, "limb2_lower_arm"),
-            ),
-            (
-                format!("Lower{s}Hand"),
-                m(vec3(0.69, y, 0.0), left),
-                lab(left, "limb2_hand"),
-            ),
-            (
-                format!("Lower{s}HandEnd"),
-                m(vec3(0.78, y, 0.0), left),
-                lab(left, "limb2_index_1"),
-            ),
-        ];
+                format!("Lower{s}{name}"),
+                m(vec3(x, y, 0.0), left),
+                lab(left, role),
+            )
+        });
         chain(&mut b, mid, &pts);
     }
     b
@@ -339,53 +284,21 @@ pub fn dragon() -> Builder {
 fn dragon_limbs(b: &mut Builder, pelvis: usize, chest: usize, left: bool) {
     let s = sfx(left);
     // Hind leg: thigh, shin, foot (+ helper ankle), 4 toes × 3.
-    let hind = vec![
-        (
-            format!("thigh.{s}"),
-            m(vec3(0.35, 1.5, -1.0), left),
-            lab(left, "upper_leg"),
-        ),
-        (
-            format!("shin.{s}"),
-            m(vec3(0.4, 0.9, -0.8), left),
-            lab(left, "lower_leg"),
-        ),
-        (
-            format!("ankle.{s}"),
-            m(vec3(0.4, 0.35, -1.0), left),
-            lab(left, "foot"),
-        ),
-        (
-            format!("hind_foot.{s}"),
-            m(vec3(0.4, 0.08, -0.9), left),
-            lab(left, "toes"),
-        ),
+    let hind = [
+        ("thigh", vec3(0.35, 1.5, -1.0), "upper_leg"),
+        ("shin", vec3(0.4, 0.9, -0.8), "lower_leg"),
+        ("ankle", vec3(0.4, 0.35, -1.0), "foot"),
+        ("hind_foot", vec3(0.4, 0.08, -0.9), "toes"),
     ];
-    let foot = chain(b, pelvis, &hind);
+    let foot = side_chain(b, pelvis, left, &hind);
     claws(b, foot, left, "hind", 3);
-    let front = vec![
-        (
-            format!("shoulder.{s}"),
-            m(vec3(0.2, 1.75, 1.0), left),
-            lab(left, "clavicle"),
-        ),
-        (
-            format!("upper_arm.{s}"),
-            m(vec3(0.4, 1.55, 1.05), left),
-            lab(left, "upper_arm"),
-        ),
-        (
-            format!("forearm.{s}"),
-            m(vec3(0.42, 0.95, 1.15), left),
-            lab(left, "lower_arm"),
-        ),
-        (
-            format!("hand.{s}"),
-            m(vec3(0.42, 0.42, 1.05), left),
-            lab(left, "hand"),
-        ),
+    let front = [
+        ("shoulder", vec3(0.2, 1.75, 1.0), "clavicle"),
+        ("upper_arm", vec3(0.4, 1.55, 1.05), "upper_arm"),
+        ("forearm", vec3(0.42, 0.95, 1.15), "lower_arm"),
+        ("hand", vec3(0.42, 0.42, 1.05), "hand"),
     ];
-    let hand = chain(b, chest, &front);
+    let hand = side_chain(b, chest, left, &front);
     claws(b, hand, left, "front", 3);
     // Wings: 4 fingers of 9 joints plus a one-joint thumb.
     let before = b.names.len();

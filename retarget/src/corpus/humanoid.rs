@@ -274,18 +274,17 @@ fn face(body: &mut Body, style: Style, head: usize) {
         Style::MediaPipe => {
             body.add("nose", Some(head), vec3(0.0, 1.62, 0.11), "head_end");
             for left in [true, false] {
-                body.add(
-                    &side_name(style, "eye", left),
-                    Some(head),
-                    mirror(vec3(0.03, 1.64, 0.09), left),
-                    &lab(left, "eye"),
-                );
-                body.add(
-                    &side_name(style, "ear", left),
-                    Some(head),
-                    mirror(vec3(0.075, 1.62, 0.0), left),
-                    &lab(left, "appendage"),
-                );
+                for (key, pos, role) in [
+                    ("eye", vec3(0.03, 1.64, 0.09), "eye"),
+                    ("ear", vec3(0.075, 1.62, 0.0), "appendage"),
+                ] {
+                    body.add(
+                        &side_name(style, key, left),
+                        Some(head),
+                        mirror(pos, left),
+                        &lab(left, role),
+                    );
+                }
             }
         }
         Style::Vrm => {
@@ -400,24 +399,13 @@ fn hand_extras(body: &mut Body, style: Style, hand: usize, left: bool, fingers: 
             );
         }
         Style::MediaPipe => {
-            body.add(
-                &sn("thumb"),
-                Some(hand),
-                m(vec3(0.76, y - 0.01, 0.05)),
-                &lab(left, "thumb_1"),
-            );
-            body.add(
-                &sn("index"),
-                Some(hand),
-                m(vec3(0.81, y, 0.02)),
-                &lab(left, "index_1"),
-            );
-            body.add(
-                &sn("pinky"),
-                Some(hand),
-                m(vec3(0.80, y, -0.04)),
-                &lab(left, "little_1"),
-            );
+            for (key, pos, role) in [
+                ("thumb", vec3(0.76, y - 0.01, 0.05), "thumb_1"),
+                ("index", vec3(0.81, y, 0.02), "index_1"),
+                ("pinky", vec3(0.80, y, -0.04), "little_1"),
+            ] {
+                body.add(&sn(key), Some(hand), m(pos), &lab(left, role));
+            }
         }
         _ if fingers => add_fingers(body, style, hand, left, wrist),
         _ => {}

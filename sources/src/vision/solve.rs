@@ -425,7 +425,7 @@ mod tests {
     use super::*;
     use crate::vision::body::blazepose_skeleton;
     use crate::vision::landmarks::{world_to_internal, NUM_MODEL_LANDMARKS};
-    use glam::Vec4;
+    use glam::{vec3, Vec4};
     use rigcast_retarget::approx::quat_close;
     use rigcast_retarget::forward_kinematics;
     use rigcast_retarget::WorldTransform;
@@ -449,52 +449,41 @@ mod tests {
             presence: 1.0,
         };
         let mut put = |i: usize, v: Vec3| lm.world[i] = to_model(v - hip_c);
-        put(idx::LEFT_HIP, at(bone::LEFT_UPPER_LEG));
-        put(idx::RIGHT_HIP, at(bone::RIGHT_UPPER_LEG));
-        put(idx::LEFT_SHOULDER, at(bone::LEFT_UPPER_ARM));
-        put(idx::RIGHT_SHOULDER, at(bone::RIGHT_UPPER_ARM));
-        put(idx::LEFT_ELBOW, at(bone::LEFT_LOWER_ARM));
-        put(idx::RIGHT_ELBOW, at(bone::RIGHT_LOWER_ARM));
-        put(idx::LEFT_WRIST, at(bone::LEFT_HAND));
-        put(idx::RIGHT_WRIST, at(bone::RIGHT_HAND));
-        // Hand points in the hand's frame: forward (+Z) is the index side.
-        put(
-            idx::LEFT_INDEX,
-            local(bone::LEFT_HAND, Vec3::new(0.08, 0.0, 0.03)),
-        );
-        put(
-            idx::LEFT_PINKY,
-            local(bone::LEFT_HAND, Vec3::new(0.08, 0.0, -0.03)),
-        );
-        put(
-            idx::RIGHT_INDEX,
-            local(bone::RIGHT_HAND, Vec3::new(-0.08, 0.0, 0.03)),
-        );
-        put(
-            idx::RIGHT_PINKY,
-            local(bone::RIGHT_HAND, Vec3::new(-0.08, 0.0, -0.03)),
-        );
-        put(idx::LEFT_KNEE, at(bone::LEFT_LOWER_LEG));
-        put(idx::RIGHT_KNEE, at(bone::RIGHT_LOWER_LEG));
-        put(idx::LEFT_ANKLE, at(bone::LEFT_FOOT));
-        put(idx::RIGHT_ANKLE, at(bone::RIGHT_FOOT));
-        put(idx::LEFT_FOOT_INDEX, at(bone::LEFT_TOES));
-        put(idx::RIGHT_FOOT_INDEX, at(bone::RIGHT_TOES));
-        put(
-            idx::LEFT_HEEL,
-            local(bone::LEFT_FOOT, Vec3::new(0.0, -0.07, -0.05)),
-        );
-        put(
-            idx::RIGHT_HEEL,
-            local(bone::RIGHT_FOOT, Vec3::new(0.0, -0.07, -0.05)),
-        );
-        // Ears on either side of the head bone's origin, nose in front.
-        put(idx::LEFT_EAR, local(bone::HEAD, Vec3::new(0.07, 0.0, 0.0)));
-        put(
-            idx::RIGHT_EAR,
-            local(bone::HEAD, Vec3::new(-0.07, 0.0, 0.0)),
-        );
-        put(idx::NOSE, local(bone::HEAD, Vec3::new(0.0, 0.0, 0.1)));
+        // Joints at a bone's origin.
+        for (landmark, b) in [
+            (idx::LEFT_HIP, bone::LEFT_UPPER_LEG),
+            (idx::RIGHT_HIP, bone::RIGHT_UPPER_LEG),
+            (idx::LEFT_SHOULDER, bone::LEFT_UPPER_ARM),
+            (idx::RIGHT_SHOULDER, bone::RIGHT_UPPER_ARM),
+            (idx::LEFT_ELBOW, bone::LEFT_LOWER_ARM),
+            (idx::RIGHT_ELBOW, bone::RIGHT_LOWER_ARM),
+            (idx::LEFT_WRIST, bone::LEFT_HAND),
+            (idx::RIGHT_WRIST, bone::RIGHT_HAND),
+            (idx::LEFT_KNEE, bone::LEFT_LOWER_LEG),
+            (idx::RIGHT_KNEE, bone::RIGHT_LOWER_LEG),
+            (idx::LEFT_ANKLE, bone::LEFT_FOOT),
+            (idx::RIGHT_ANKLE, bone::RIGHT_FOOT),
+            (idx::LEFT_FOOT_INDEX, bone::LEFT_TOES),
+            (idx::RIGHT_FOOT_INDEX, bone::RIGHT_TOES),
+        ] {
+            put(landmark, at(b));
+        }
+        // Points in a bone's frame.
+        for (landmark, b, offset) in [
+            // Hand points: forward (+Z) is the index side.
+            (idx::LEFT_INDEX, bone::LEFT_HAND, vec3(0.08, 0.0, 0.03)),
+            (idx::LEFT_PINKY, bone::LEFT_HAND, vec3(0.08, 0.0, -0.03)),
+            (idx::RIGHT_INDEX, bone::RIGHT_HAND, vec3(-0.08, 0.0, 0.03)),
+            (idx::RIGHT_PINKY, bone::RIGHT_HAND, vec3(-0.08, 0.0, -0.03)),
+            (idx::LEFT_HEEL, bone::LEFT_FOOT, vec3(0.0, -0.07, -0.05)),
+            (idx::RIGHT_HEEL, bone::RIGHT_FOOT, vec3(0.0, -0.07, -0.05)),
+            // Ears on either side of the head bone's origin, nose in front.
+            (idx::LEFT_EAR, bone::HEAD, vec3(0.07, 0.0, 0.0)),
+            (idx::RIGHT_EAR, bone::HEAD, vec3(-0.07, 0.0, 0.0)),
+            (idx::NOSE, bone::HEAD, vec3(0.0, 0.0, 0.1)),
+        ] {
+            put(landmark, local(b, offset));
+        }
         lm
     }
 
