@@ -146,8 +146,8 @@ fn measure_quadrupeds() -> Option<Vec<FootFigures>> {
             mapping.target_floor().map(|f| f.1)
         );
         let (free, locked) = (
-            common::retarget(&source, &plan, &target, false),
-            common::retarget(&source, &plan, &target, true),
+            common::retarget(&source, &plan, target, false),
+            common::retarget(&source, &plan, target, true),
         );
         let (wf, wl) = (worlds(&free), worlds(&locked));
         let rest = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
@@ -244,7 +244,7 @@ fn raised_hind_feet_keep_the_body_at_its_standing_height() {
     for (rel, target) in &targets {
         let plan = plan_mapping(&source, target, None).unwrap();
         let legs = find_legs(&target.skeleton, &plan.target_analysis);
-        let free = worlds(&common::retarget(&source, &plan, &target, false));
+        let free = worlds(&common::retarget(&source, &plan, target, false));
         let standing_pose = plan
             .target_reference
             .clone()

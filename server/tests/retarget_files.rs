@@ -5,6 +5,8 @@
 //! source's displacement scaled by the hip-height ratio within 1%; the feet stand on the
 //! target's floor at frame 0 within 1 cm. Also runs the `rigcast retarget` command end to end.
 
+#![allow(clippy::unwrap_used)]
+
 mod common;
 #[path = "../../retarget/tests/retarget_fixtures/mod.rs"]
 mod retarget_fixtures;

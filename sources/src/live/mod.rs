@@ -214,6 +214,13 @@ impl Pace {
     }
 }
 
+/// Resizes `out` to `skeleton` if needed (allocates only when the size changes).
+pub(crate) fn fit_pose(out: &mut Pose, skeleton: &Skeleton) {
+    if out.num_bones() != skeleton.num_bones() || out.translations.len() != skeleton.num_bones() {
+        *out = skeleton.rest_pose();
+    }
+}
+
 #[cfg(test)]
 mod pace_tests {
     use super::*;
@@ -230,12 +237,5 @@ mod pace_tests {
             let _ = Pace::default().due(bad, now);
             let _ = p.due(bad, now);
         }
-    }
-}
-
-/// Resizes `out` to `skeleton` if needed (allocates only when the size changes).
-pub(crate) fn fit_pose(out: &mut Pose, skeleton: &Skeleton) {
-    if out.num_bones() != skeleton.num_bones() || out.translations.len() != skeleton.num_bones() {
-        *out = skeleton.rest_pose();
     }
 }

@@ -132,8 +132,11 @@ struct CalibrationShared {
     /// The held pose of the pending request (`None`: the rest pose).
     pose: Mutex<Option<Pose>>,
     /// Attempts finished so far and the last one's result.
-    outcome: Mutex<(u64, Option<Result<(), Arc<SourceError>>>)>,
+    outcome: Mutex<CalibrationOutcome>,
 }
+
+/// Attempts finished so far and the last one's result (`None` before the first).
+type CalibrationOutcome = (u64, Option<Result<(), Arc<SourceError>>>);
 
 impl CalibrationHandle {
     /// Requests a calibration against the rest pose; the result shows in the status detail.
