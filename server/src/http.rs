@@ -224,9 +224,11 @@ async fn handle_connection(
             let _ = respond(&mut stream, 200, "application/json", &body).await;
         }
         Route::Model => {
-            let (status, mime, body) = match model.unwrap_or_else(|| Err("no subject".into())) {
-                Ok(id) => model_response(&state, id).await,
-                Err(message) => (404, "text/plain", format!("{message}\n").into_bytes()),
+            // `Route::Model` is chosen only when the path is a model request.
+            let (status, mime, body) = match model {
+                Some(Ok(id)) => model_response(&state, id).await,
+                Some(Err(e)) => (404, "text/plain", format!("{e}\n").into_bytes()),
+                None => (404, "text/plain", b"no subject\n".to_vec()),
             };
             // A client gone before its answer was written has nobody left to tell.
             let _ = respond(&mut stream, status, mime, &body).await;
@@ -260,7 +262,7 @@ async fn model_response(state: &Arc<ServerState>, id: u32) -> (u16, &'static str
     // File reads block: not on a runtime worker.
     match tokio::task::spawn_blocking(move || model.read()).await {
         Ok(Ok(bytes)) => (200, "model/gltf-binary", bytes),
-        Ok(Err(message)) => not_found(message),
+        Ok(Err(e)) => not_found(e.to_string()),
         Err(_) => (500, "text/plain", b"model read failed\n".to_vec()),
     }
 }

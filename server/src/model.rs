@@ -47,36 +47,66 @@ impl ModelFile {
     }
 
     /// The file's bytes now (it may have been replaced or removed since the server started).
-    pub fn read(&self) -> Result<Vec<u8>, String> {
-        let meta = std::fs::metadata(&self.path)
-            .map_err(|e| format!("model file {}: {e}", self.path.display()))?;
+    pub fn read(&self) -> Result<Vec<u8>, ModelError> {
+        let unreadable = |e: std::io::Error| ModelError::Unreadable {
+            path: self.path.clone(),
+            reason: e.to_string(),
+        };
+        let meta = std::fs::metadata(&self.path).map_err(unreadable)?;
         if meta.len() > MAX_MODEL_BYTES {
-            return Err(format!(
-                "model file {} is {} bytes, more than the {MAX_MODEL_BYTES} served",
-                self.path.display(),
-                meta.len()
-            ));
+            return Err(ModelError::TooLarge {
+                path: self.path.clone(),
+                bytes: meta.len(),
+            });
         }
-        let bytes = std::fs::read(&self.path)
-            .map_err(|e| format!("model file {}: {e}", self.path.display()))?;
+        let bytes = std::fs::read(&self.path).map_err(unreadable)?;
         if !bytes.starts_with(GLB_MAGIC) {
-            return Err(format!(
-                "model file {} is no longer a binary glTF file",
-                self.path.display()
-            ));
+            return Err(ModelError::NoLongerGlb {
+                path: self.path.clone(),
+            });
         }
         Ok(bytes)
     }
 }
 
+/// Why a model request gets no model (answered 404 with this text).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ModelError {
+    /// The request path's subject id is not a number.
+    #[error("subject id {0:?} is not a number")]
+    BadSubjectId(String),
+    /// The configured file cannot be read now.
+    #[error("model file {}: {reason}", path.display())]
+    Unreadable {
+        /// The configured path.
+        path: PathBuf,
+        /// What the file system said.
+        reason: String,
+    },
+    /// The file grew beyond [`MAX_MODEL_BYTES`].
+    #[error("model file {} is {bytes} bytes, more than the {MAX_MODEL_BYTES} served", path.display())]
+    TooLarge {
+        /// The configured path.
+        path: PathBuf,
+        /// Its size now.
+        bytes: u64,
+    },
+    /// The file was replaced by something that is not a binary glTF container.
+    #[error("model file {} is no longer a binary glTF file", path.display())]
+    NoLongerGlb {
+        /// The configured path.
+        path: PathBuf,
+    },
+}
+
 /// The subject id in a model request path (`/v1/subjects/{id}/model.glb`), or None when the
 /// path is not one.
-pub fn model_request(path: &str) -> Option<Result<u32, String>> {
+pub fn model_request(path: &str) -> Option<Result<u32, ModelError>> {
     let rest = path.strip_prefix("/v1/subjects/")?;
     let id = rest.strip_suffix("/model.glb")?;
     Some(
         id.parse::<u32>()
-            .map_err(|_| format!("subject id {id:?} is not a number")),
+            .map_err(|_| ModelError::BadSubjectId(id.to_string())),
     )
 }
 
@@ -119,7 +149,7 @@ mod tests {
         let model = ModelFile::for_target(&glb).unwrap();
         assert!(model.read().unwrap().starts_with(b"glTF"));
         std::fs::remove_file(&glb).unwrap();
-        assert!(model.read().unwrap_err().contains("a.glb"));
+        assert!(model.read().unwrap_err().to_string().contains("a.glb"));
         // Cleanup only: a leftover temp directory does not change what the test proved.
         let _ = std::fs::remove_dir_all(&dir);
     }

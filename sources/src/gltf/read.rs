@@ -599,12 +599,10 @@ fn read_track(
             reason: "contains NaN or infinite values".into(),
         });
     }
-    track
-        .validate()
-        .map_err(|reason| SourceError::BadAccessor {
-            accessor: sampler.output().index(),
-            reason,
-        })?;
+    track.validate().map_err(|e| SourceError::BadAccessor {
+        accessor: sampler.output().index(),
+        reason: e.to_string(),
+    })?;
     Ok(Some((property, track)))
 }
 

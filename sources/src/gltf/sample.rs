@@ -14,6 +14,27 @@ pub enum Interpolation {
     CubicSpline,
 }
 
+/// How a [`Track`] is malformed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TrackError {
+    /// No key at all.
+    #[error("animation sampler has no keys")]
+    NoKeys,
+    /// The output accessor does not hold one value (three for cubic splines) per key.
+    #[error("sampler has {keys} keys but {values} output values (expected {expected})")]
+    ValueCount {
+        /// keys in the input accessor
+        keys: usize,
+        /// values in the output accessor
+        values: usize,
+        /// values the keys need
+        expected: usize,
+    },
+    /// Key times that are not finite or go backwards.
+    #[error("key times are not finite and non-decreasing")]
+    TimeOrder,
+}
+
 /// One animated property: key times and values (`[in, value, out]` triples for cubic splines).
 /// Values are stored as `Vec4` (translations use x, y, z).
 #[derive(Debug, Clone, PartialEq)]
@@ -27,25 +48,24 @@ pub struct Track {
 }
 
 impl Track {
-    /// Checks the value count and time order; returns a reason when malformed.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks the value count and time order.
+    pub fn validate(&self) -> Result<(), TrackError> {
         let per_key = match self.interpolation {
             Interpolation::CubicSpline => 3,
             _ => 1,
         };
         if self.times.is_empty() {
-            return Err("animation sampler has no keys".into());
+            return Err(TrackError::NoKeys);
         }
         if self.values.len() != self.times.len() * per_key {
-            return Err(format!(
-                "sampler has {} keys but {} output values (expected {})",
-                self.times.len(),
-                self.values.len(),
-                self.times.len() * per_key
-            ));
+            return Err(TrackError::ValueCount {
+                keys: self.times.len(),
+                values: self.values.len(),
+                expected: self.times.len() * per_key,
+            });
         }
         if self.times.iter().any(|t| !t.is_finite()) || self.times.windows(2).any(|w| w[1] < w[0]) {
-            return Err("key times are not finite and non-decreasing".into());
+            return Err(TrackError::TimeOrder);
         }
         Ok(())
     }
