@@ -1,6 +1,8 @@
 //! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
 //! the target's foot stays where it landed (position and heading), flat on the floor at its
-//! standing height (the first frame of a clip pinned at once), its leg solved with the
+//! standing height (the first frame of a clip pinned at once; offline, given the plants'
+//! heights, as far above it as the source's foot stands above its ground, scaled, up to
+//! `MAX_LIFT_RATIO` of the leg), its leg solved with the
 //! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
 //! `spring`); no foot joint goes below the target's floor.
 //!
@@ -102,6 +104,11 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
     wanted
 }
 
+/// Highest a pinned foot follows the source's above its standing height, in leg lengths (1 cm
+/// on a 1 m leg): a source foot standing a few millimetres up is followed; one farther up is
+/// still landing, or stands on ground of its own, and the foot stands on the floor.
+const MAX_LIFT_RATIO: f32 = 0.01;
+
 /// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
 /// (the time constant of its running average).
 const FIT_LEARN_SECS: f32 = 1.0;
@@ -161,6 +168,9 @@ struct Foot {
     /// legs, where the animation does not show it).
     pole_local: Vec3,
     locked: bool,
+    /// How far above its standing height the source holds its foot this frame (its lowest
+    /// contact above its ground, scaled to the target): a pinned foot follows it.
+    lift: f32,
     lock_position: Vec3,
     lock_heading: f32,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -224,6 +234,9 @@ pub struct FootLock {
     root_fix: f32,
     /// The target's own posture stands on its floor (its standing heights can be trusted).
     posture_stands: bool,
+    /// Source lengths to the target's (the mapping's root scale): what a source foot's lift is
+    /// multiplied by.
+    lift_scale: f32,
     /// A frame has been locked since the lock was built ([`FootLock::reset`] keeps it: the
     /// character was shown, so later plants blend from it).
     shown_once: bool,
@@ -313,6 +326,7 @@ impl FootLock {
                     heading_local: w(leg.foot).rotation.inverse() * heading_dir,
                     pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
                     locked: false,
+                    lift: 0.0,
                     lock_position: ankle,
                     lock_heading: 0.0,
                     position_offset: Decay::default(),
@@ -344,6 +358,7 @@ impl FootLock {
             drop_offset: Decay::default(),
             root_fix: 0.0,
             posture_stands: mapping.target_posture_stands(),
+            lift_scale: mapping.root_scale().unwrap_or(1.0),
             shown_once: false,
         })
     }
@@ -530,7 +545,7 @@ impl FootLock {
         for (p, s) in planted.iter_mut().zip(self.detector.planted()) {
             *p = *s;
         }
-        self.lock(&planted, dt_secs, true, out);
+        self.lock(&planted, &[0.0; MAX_FEET], dt_secs, true, out);
     }
 
     /// Offline: locks `out` with known plant flags per source leg (from [`super::detect_clip`]
@@ -540,12 +555,36 @@ impl FootLock {
         for (p, s) in flags.iter_mut().zip(planted) {
             *p = *s;
         }
-        self.lock(&flags, dt_secs, false, out);
+        self.lock(&flags, &[0.0; MAX_FEET], dt_secs, false, out);
+    }
+
+    /// Offline: [`FootLock::apply_planted`] with the flags of `frame` of `plants` (from
+    /// [`super::detect_clip`] on the source clip), a pinned foot held as far above its
+    /// standing height as the source's foot is above its ground (scaled): a source foot still
+    /// settling or standing a few millimetres up is followed, not pressed onto the floor.
+    /// Allocates nothing.
+    pub fn apply_track(&mut self, plants: &PlantTrack, frame: usize, dt_secs: f32, out: &mut Pose) {
+        let mut flags = [false; MAX_FEET];
+        for (p, s) in flags.iter_mut().zip(plants.frame(frame)) {
+            *p = *s;
+        }
+        let mut lifts = [0.0; MAX_FEET];
+        for (l, s) in lifts.iter_mut().zip(plants.lifts(frame)) {
+            *l = *s;
+        }
+        self.lock(&flags, &lifts, dt_secs, false, out);
     }
 
     /// Locks `out`; `learn`: the fit to the standing posture is learnt from this frame (live,
     /// where no clip is known in advance).
-    fn lock(&mut self, planted: &[bool; MAX_FEET], dt_secs: f32, learn: bool, out: &mut Pose) {
+    fn lock(
+        &mut self,
+        planted: &[bool; MAX_FEET],
+        lifts: &[f32; MAX_FEET],
+        dt_secs: f32,
+        learn: bool,
+        out: &mut Pose,
+    ) {
         if out.check(&self.target).is_err() {
             return;
         }
@@ -557,6 +596,9 @@ impl FootLock {
         self.apply_fit(out);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
+            let lift = self.feet[i].source.map_or(0.0, |s| lifts[s]);
+            let most = MAX_LIFT_RATIO * self.feet[i].leg.length;
+            self.feet[i].lift = (self.lift_scale * lift).clamp(0.0, most);
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
         if self.raise_hips(out) {
@@ -649,7 +691,12 @@ impl FootLock {
             }
         }
         let (target, target_heading, velocity, rate) = if f.locked {
-            (f.lock_position, f.lock_heading, Vec3::ZERO, 0.0)
+            (
+                f.lock_position + up * f.lift,
+                f.lock_heading,
+                Vec3::ZERO,
+                0.0,
+            )
         } else {
             (animated, heading_now, anim_velocity, anim_rate)
         };
@@ -717,7 +764,7 @@ impl FootLock {
         let f = &mut self.feet[i];
         let Some(o) = goal.ball_offset else { return };
         let wanted = if goal.pinned {
-            floor + f.ball_clearance - (goal.ankle + o).dot(up)
+            floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up)
         } else {
             0.0
         };

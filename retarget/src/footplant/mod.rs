@@ -6,7 +6,8 @@
 //!                                        quadruped's front legs, by side and pair
 //!  source motion ─▶ detect               heel or ball near its ground AND slow, relative
 //!                                        to the leg's length; hysteresis; causal
-//!                                        (PlantDetector) or two-sided (detect_clip)
+//!                                        (PlantDetector) or two-sided (detect_clip,
+//!                                        with each foot's height above its ground)
 //!  target pose   ─▶ lock (FootLock)      pin planted feet (position + heading), lower the
 //!                                        hips when out of reach, ik::solve_two_bone,
 //!                                        blend switches, keep feet above the floor
