@@ -1,7 +1,6 @@
 //! A planted foot's clearance: the plants of a clip say how high each foot stands above its
-//! ground (from the lowest that ground is under the plant when the whole plant stands higher,
-//! on a step or a drifting capture), and offline the lock holds a pinned target foot as far
-//! above its standing height as that, scaled, up to a limit (a foot farther up is landing).
+//! ground, and offline the lock holds a pinned target foot as far above its standing height as
+//! that, scaled, up to a limit (a foot farther up is landing, or on ground of its own).
 
 mod retarget_fixtures;
 
@@ -71,20 +70,6 @@ fn plants_say_how_high_a_foot_stands_above_its_ground() {
             up.lifts(110)[leg]
         );
     }
-    // A hop onto ground 4 cm higher (a step): the second plant stands on its own ground.
-    let step = 0.04 * legs[0].length;
-    let hop = plants(&standing(&source, 120, |f| if f < 60 { 0.0 } else { step }));
-    for (leg, _) in legs.iter().enumerate() {
-        let plants = hop.intervals(leg);
-        assert_eq!(plants.len(), 2, "{plants:?}");
-        for f in plants[1].clone() {
-            assert!(
-                hop.lifts(f)[leg].abs() < 1e-4,
-                "frame {f}: {}",
-                hop.lifts(f)[leg]
-            );
-        }
-    }
 }
 
 #[test]
@@ -130,11 +115,11 @@ fn a_pinned_foot_follows_the_source_clearance_up_to_a_limit() {
     // Given flags only, it stands at its standing height.
     let flat = last_ankle(0.004, false);
     assert!(flat.abs() < 5e-4, "the ankle is {flat} m up");
-    // 3 cm up: held at the limit, 1 % of the leg.
+    // 3 cm up: held at the limit, 0.8 % of the leg.
     let limited = last_ankle(0.03, true);
     assert!(
-        (limited - 0.01 * target_leg).abs() < 5e-4,
+        (limited - 0.008 * target_leg).abs() < 5e-4,
         "the ankle is {limited} m up, the limit {}",
-        0.01 * target_leg
+        0.008 * target_leg
     );
 }

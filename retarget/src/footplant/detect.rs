@@ -26,9 +26,6 @@ use crate::skeleton::{BoneId, Skeleton};
 
 /// Heel and ball.
 const JOINTS_PER_FOOT: usize = 2;
-/// A plant whose contact joint stays this many leg lengths above the joint's ground throughout
-/// stands on raised ground ([`PlantTrack::lifts`] measures from that plant's own lowest).
-const RAISED_RATIO: f32 = 0.03;
 /// Samples the causal detector keeps (enough for a 1/30 s window up to 900 Hz input).
 const RING: usize = 32;
 
@@ -218,9 +215,8 @@ pub struct PlantTrack {
     /// Frame-major: `planted[frame * legs.len() + leg]`.
     planted: Vec<bool>,
     /// The same layout: how high the foot stands above its ground, the least of its contact
-    /// joints' heights above their grounds (within a plant on raised ground, above the lowest
-    /// that joint stands at in the plant); source units, negative where the foot dips below.
-    /// Zero in a track built from flags.
+    /// joints' heights above their grounds (source units, negative where the foot dips
+    /// below). Zero in a track built from flags.
     lifts: Vec<f32>,
 }
 
@@ -361,28 +357,11 @@ pub fn detect_clip(
         for (i, &p) in column.iter().enumerate() {
             planted[i * legs.len() + f] = p;
         }
-        // The lowest of the contacts' heights above their grounds; over a plant in which a
-        // contact never comes within `RAISED_RATIO` leg lengths of its ground, that contact's
-        // height above the lowest it stands at in that plant instead (the foot is on raised
-        // ground: a step, a slope, a drifting capture; or stands on its ball throughout).
-        let raised = RAISED_RATIO * leg.length;
-        let above = |j: usize, i: usize| pos[j * n + i].dot(up) - grounds[j];
-        let mut base = [0.0f32; JOINTS_PER_FOOT];
+        // How high the foot stands: the least of its contacts' heights above their grounds.
         for i in 0..n {
-            if column[i] && (i == 0 || !column[i - 1]) {
-                let end = (i..n).find(|&k| !column[k]).unwrap_or(n);
-                for (b, &j) in base.iter_mut().zip(&mine) {
-                    let low = (i..end).map(|k| above(j, k)).fold(f32::INFINITY, f32::min);
-                    *b = if low > raised { low } else { 0.0 };
-                }
-            }
-            if !column[i] {
-                base = [0.0; JOINTS_PER_FOOT];
-            }
             let lift = mine
                 .iter()
-                .zip(&base)
-                .map(|(&j, b)| above(j, i) - b)
+                .map(|&j| pos[j * n + i].dot(up) - grounds[j])
                 .fold(f32::INFINITY, f32::min);
             lifts[i * legs.len() + f] = if lift.is_finite() { lift } else { 0.0 };
         }

@@ -104,10 +104,10 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
     wanted
 }
 
-/// Highest a pinned foot follows the source's above its standing height, in leg lengths (1 cm
+/// Highest a pinned foot follows the source's above its standing height, in leg lengths (8 mm
 /// on a 1 m leg): a source foot standing a few millimetres up is followed; one farther up is
-/// still landing, or stands on ground of its own, and the foot stands on the floor.
-const MAX_LIFT_RATIO: f32 = 0.01;
+/// still landing, or stands on ground of its own, and the foot stays that close to the floor.
+const MAX_LIFT_RATIO: f32 = 0.008;
 
 /// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
 /// (the time constant of its running average).
