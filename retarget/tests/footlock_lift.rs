@@ -123,3 +123,91 @@ fn a_pinned_foot_follows_the_source_clearance_up_to_a_limit() {
         0.008 * target_leg
     );
 }
+
+/// Standing at 60 Hz; from frame 60 the left foot pitches toes-down about the ankle by up to
+/// `pitch_rad` over 20 frames while the body rises so the left toe stays where it stood (the
+/// heel coming up off the ground, as it is after a toe-first landing).
+fn heel_up(source: &Skeleton, n: usize, pitch_rad: f32) -> Vec<Pose> {
+    let rest = source.rest_pose();
+    let (foot, toe) = (
+        source.bone("l_foot").expect("foot"),
+        source.bone("l_toe").expect("toe"),
+    );
+    let toe_rest = world_transforms(source, &rest)[toe.index()].translation.y;
+    (0..n)
+        .map(|f| {
+            let mut p = rest.clone();
+            let k = ((f as f32 - 60.0) / 20.0).clamp(0.0, 1.0);
+            p.rotations[foot.index()] =
+                rest.rotations[foot.index()] * glam::Quat::from_rotation_x(k * pitch_rad);
+            let toe_now = world_transforms(source, &p)[toe.index()].translation.y;
+            p.translations[0].y += toe_rest - toe_now;
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn a_pinned_ankle_follows_the_source_heel_off_the_ground() {
+    let (source, target, mapping, lock) = locked_pair();
+    let (foot, toe) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+    );
+    let rest = world_transforms(&target, &target.rest_pose());
+    let (ankle_rest, ball_rest) = (
+        rest[foot.index()].translation.y,
+        rest[toe.index()].translation.y,
+    );
+    let scale = mapping.root_scale().expect("a root");
+    let target_leg = lock.target_legs().next().expect("a leg").length;
+    let legs = lock.source_legs().to_vec();
+    let left = legs
+        .iter()
+        .position(|l| source.name(l.foot).starts_with("l_"))
+        .expect("a left leg");
+    let poses = heel_up(&source, 120, 0.15);
+    let plants = detect_clip(
+        &source,
+        &legs,
+        &poses,
+        1.0 / 60.0,
+        glam::Vec3::Y,
+        &PlantSettings::default(),
+    );
+    assert_eq!(plants.intervals(left), vec![0..120]);
+    let heel = plants.heel_lifts(119)[left];
+    assert!(heel > 0.01, "the source's heel is {heel} m up");
+    assert!(plants.lifts(119)[left].abs() < 1e-3, "the toe stays down");
+    let run = |track: bool| {
+        let (mut mapping, mut lock) = (mapping.clone(), lock.clone());
+        let mut out = mapping.new_target_pose();
+        for (f, p) in poses.iter().enumerate() {
+            mapping.apply_one(p, &mut out).expect("apply");
+            if track {
+                lock.apply_track(&plants, f, 1.0 / 60.0, &mut out);
+            } else {
+                lock.apply_planted(plants.frame(f), 1.0 / 60.0, &mut out);
+            }
+        }
+        let w = world_transforms(&target, &out);
+        (
+            w[foot.index()].translation.y - ankle_rest,
+            w[toe.index()].translation.y - ball_rest,
+        )
+    };
+    // The ankle comes up with the source's heel above its toe (scaled, at most 2 % of the
+    // leg), the ball stays on the floor.
+    let foot_lift = plants.lifts(119)[left];
+    let lift = (foot_lift * scale).clamp(0.0, 0.008 * target_leg);
+    let wanted = lift + ((heel - foot_lift) * scale).min(0.02 * target_leg);
+    let (ankle, ball) = run(true);
+    assert!(
+        (ankle - wanted).abs() < 1e-3,
+        "the ankle is {ankle} m up, the source's heel scaled {wanted}"
+    );
+    assert!(ball.abs() < 1.5e-3, "the ball is {ball} m up");
+    // Given flags only, the foot stays flat where it was pinned.
+    let (ankle, _) = run(false);
+    assert!(ankle.abs() < 1e-3, "the ankle is {ankle} m up");
+}

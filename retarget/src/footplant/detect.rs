@@ -218,6 +218,8 @@ pub struct PlantTrack {
     /// joints' heights above their grounds (source units, negative where the foot dips
     /// below). Zero in a track built from flags.
     lifts: Vec<f32>,
+    /// The same for the heel (foot joint) alone.
+    heel_lifts: Vec<f32>,
 }
 
 impl PlantTrack {
@@ -228,6 +230,7 @@ impl PlantTrack {
         PlantTrack {
             legs,
             planted,
+            heel_lifts: lifts.clone(),
             lifts,
         }
     }
@@ -247,6 +250,14 @@ impl PlantTrack {
     pub fn lifts(&self, frame: usize) -> &[f32] {
         let n = self.legs.len();
         self.lifts.get(frame * n..(frame + 1) * n).unwrap_or(&[])
+    }
+
+    /// How high every leg's heel (foot joint) is above its ground at `frame`.
+    pub fn heel_lifts(&self, frame: usize) -> &[f32] {
+        let n = self.legs.len();
+        self.heel_lifts
+            .get(frame * n..(frame + 1) * n)
+            .unwrap_or(&[])
     }
 
     /// Whether `leg` is planted at `frame`.
@@ -332,6 +343,7 @@ pub fn detect_clip(
         .collect();
     let mut planted = vec![false; legs.len() * n];
     let mut lifts = vec![0.0; legs.len() * n];
+    let mut heel_lifts = vec![0.0; legs.len() * n];
     for (f, leg) in legs.iter().enumerate() {
         let (h, v) = (
             settings.height_ratio * leg.length,
@@ -364,12 +376,16 @@ pub fn detect_clip(
                 .map(|&j| pos[j * n + i].dot(up) - grounds[j])
                 .fold(f32::INFINITY, f32::min);
             lifts[i * legs.len() + f] = if lift.is_finite() { lift } else { 0.0 };
+            // The heel is the leg's first contact.
+            let j = mine[0];
+            heel_lifts[i * legs.len() + f] = pos[j * n + i].dot(up) - grounds[j];
         }
     }
     PlantTrack {
         legs,
         planted,
         lifts,
+        heel_lifts,
     }
 }
 

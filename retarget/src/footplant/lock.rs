@@ -2,7 +2,8 @@
 //! the target's foot stays where it landed (position and heading), flat on the floor at its
 //! standing height (the first frame of a clip pinned at once; offline, given the plants'
 //! heights, as far above it as the source's foot stands above its ground, scaled, up to
-//! `MAX_LIFT_RATIO` of the leg), its leg solved with the
+//! `MAX_LIFT_RATIO` of the leg, and its heel as far above its ball as the source's heel is
+//! above its toe, up to `MAX_HEEL_LIFT_RATIO`), its leg solved with the
 //! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
 //! `spring`); no foot joint goes below the target's floor.
 //!
@@ -109,6 +110,18 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
 /// still landing, or stands on ground of its own, and the foot stays that close to the floor.
 const MAX_LIFT_RATIO: f32 = 0.008;
 
+/// Highest a pinned ankle follows the source's heel above the foot's lowest contact (a foot
+/// pitched toes-down), in leg lengths.
+const MAX_HEEL_LIFT_RATIO: f32 = 0.02;
+
+/// Per source leg, how high its foot (its lowest contact) and its heel stand above their
+/// grounds this frame (source units).
+#[derive(Debug, Clone, Copy, Default)]
+struct Lifts {
+    foot: [f32; MAX_FEET],
+    heel: [f32; MAX_FEET],
+}
+
 /// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
 /// (the time constant of its running average).
 const FIT_LEARN_SECS: f32 = 1.0;
@@ -171,6 +184,10 @@ struct Foot {
     /// How far above its standing height the source holds its foot this frame (its lowest
     /// contact above its ground, scaled to the target): a pinned foot follows it.
     lift: f32,
+    /// When the source's heel is known: how far above its standing height a pinned ankle
+    /// stands, the foot's lift plus how much higher the source's heel stands than its lowest
+    /// contact (a heel still coming down after a toe-first landing is followed).
+    heel_lift: Option<f32>,
     lock_position: Vec3,
     lock_heading: f32,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -327,6 +344,7 @@ impl FootLock {
                     pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
                     locked: false,
                     lift: 0.0,
+                    heel_lift: None,
                     lock_position: ankle,
                     lock_heading: 0.0,
                     position_offset: Decay::default(),
@@ -545,7 +563,7 @@ impl FootLock {
         for (p, s) in planted.iter_mut().zip(self.detector.planted()) {
             *p = *s;
         }
-        self.lock(&planted, &[0.0; MAX_FEET], dt_secs, true, out);
+        self.lock(&planted, None, dt_secs, true, out);
     }
 
     /// Offline: locks `out` with known plant flags per source leg (from [`super::detect_clip`]
@@ -555,7 +573,7 @@ impl FootLock {
         for (p, s) in flags.iter_mut().zip(planted) {
             *p = *s;
         }
-        self.lock(&flags, &[0.0; MAX_FEET], dt_secs, false, out);
+        self.lock(&flags, None, dt_secs, false, out);
     }
 
     /// Offline: [`FootLock::apply_planted`] with the flags of `frame` of `plants` (from
@@ -568,11 +586,14 @@ impl FootLock {
         for (p, s) in flags.iter_mut().zip(plants.frame(frame)) {
             *p = *s;
         }
-        let mut lifts = [0.0; MAX_FEET];
-        for (l, s) in lifts.iter_mut().zip(plants.lifts(frame)) {
+        let mut lifts = Lifts::default();
+        for (l, s) in lifts.foot.iter_mut().zip(plants.lifts(frame)) {
             *l = *s;
         }
-        self.lock(&flags, &lifts, dt_secs, false, out);
+        for (l, s) in lifts.heel.iter_mut().zip(plants.heel_lifts(frame)) {
+            *l = *s;
+        }
+        self.lock(&flags, Some(&lifts), dt_secs, false, out);
     }
 
     /// Locks `out`; `learn`: the fit to the standing posture is learnt from this frame (live,
@@ -580,7 +601,7 @@ impl FootLock {
     fn lock(
         &mut self,
         planted: &[bool; MAX_FEET],
-        lifts: &[f32; MAX_FEET],
+        lifts: Option<&Lifts>,
         dt_secs: f32,
         learn: bool,
         out: &mut Pose,
@@ -596,9 +617,19 @@ impl FootLock {
         self.apply_fit(out);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
-            let lift = self.feet[i].source.map_or(0.0, |s| lifts[s]);
-            let most = MAX_LIFT_RATIO * self.feet[i].leg.length;
-            self.feet[i].lift = (self.lift_scale * lift).clamp(0.0, most);
+            let length = self.feet[i].leg.length;
+            let (foot, heel) = match (self.feet[i].source, lifts) {
+                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s])),
+                _ => (0.0, None),
+            };
+            let lift = (self.lift_scale * foot).clamp(0.0, MAX_LIFT_RATIO * length);
+            self.feet[i].lift = lift;
+            // The heel follows how much higher than the foot's lowest contact the source's is
+            // (a foot pitched toes-down); a foot without a ball stands on its ankle.
+            let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
+            self.feet[i].heel_lift = heel.map(|h| {
+                lift + (self.lift_scale * (h - foot)).clamp(0.0, MAX_HEEL_LIFT_RATIO * length)
+            });
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
         if self.raise_hips(out) {
@@ -690,13 +721,17 @@ impl FootLock {
                 f.lock_heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
             }
         }
+        let floor = self.floor;
         let (target, target_heading, velocity, rate) = if f.locked {
-            (
-                f.lock_position + up * f.lift,
-                f.lock_heading,
-                Vec3::ZERO,
-                0.0,
-            )
+            let pinned = match f.heel_lift {
+                // The ankle at its standing height plus the source heel's lift.
+                Some(h) => {
+                    let p = f.lock_position;
+                    p - up * p.dot(up) + up * (floor + f.heel_clearance + h)
+                }
+                None => f.lock_position + up * f.lift,
+            };
+            (pinned, f.lock_heading, Vec3::ZERO, 0.0)
         } else {
             (animated, heading_now, anim_velocity, anim_rate)
         };
