@@ -1,13 +1,16 @@
 //! A planted foot's clearance: the plants of a clip say how high each foot stands above its
 //! ground, and offline the lock holds a pinned target foot as far above its standing height as
-//! that, scaled, up to a limit (a foot farther up is landing, or on ground of its own).
+//! that, scaled, up to a limit (a foot farther up is landing, or on ground of its own); a
+//! source whose feet hang from its root has its plants watched all the same.
 
 mod retarget_fixtures;
 
 use retarget_fixtures::{table_by_canonical, Humanoid};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::footplant::{detect_clip, FootLock, LockSettings, PlantSettings};
-use rigcast_retarget::{world_transforms, Mapping, Pose, RetargetOptions, Skeleton};
+use rigcast_retarget::footplant::{
+    detect_clip, find_contact_legs, find_legs, FootLock, LockSettings, PlantSettings,
+};
+use rigcast_retarget::{world_transforms, Mapping, Pose, RetargetOptions, Skeleton, Transform};
 
 /// The standard humanoid driving a shorter-legged one, and the foot lock between them.
 fn locked_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
@@ -210,4 +213,56 @@ fn a_pinned_ankle_follows_the_source_heel_off_the_ground() {
     // Given flags only, the foot stays flat where it was pinned.
     let (ankle, _) = run(false);
     assert!(ankle.abs() < 1e-3, "the ankle is {ankle} m up");
+}
+
+/// The standard humanoid with its feet hanging from the root (as IK-style game rigs have
+/// them), in the same places.
+fn detached_feet() -> Skeleton {
+    let skel = Humanoid::default().build();
+    let rest = world_transforms(&skel, &skel.rest_pose());
+    let mut raw = skel.to_raw();
+    let root = skel.roots().next().expect("a root");
+    let root_raw = raw.bones.iter().position(|b| b.name == skel.name(root));
+    for name in ["l_foot", "r_foot"] {
+        let b = skel.bone(name).expect(name);
+        let (r, f) = (rest[root.index()], rest[b.index()]);
+        let bone = raw
+            .bones
+            .iter_mut()
+            .find(|x| x.name == name)
+            .expect("a raw foot");
+        bone.parent = root_raw;
+        bone.rest = Transform {
+            translation: r.rotation.inverse() * (f.translation - r.translation),
+            rotation: (r.rotation.inverse() * f.rotation).normalize(),
+        };
+    }
+    Skeleton::build(&raw).expect("a skeleton")
+}
+
+#[test]
+fn a_source_whose_feet_hang_from_the_root_has_its_plants_watched() {
+    let skel = detached_feet();
+    let analysis = analyze(&SkeletonView::rest(&skel));
+    // The IK cannot reach such a foot by bending the leg: not a leg to lock.
+    assert!(find_legs(&skel, &analysis).is_empty());
+    let legs = find_contact_legs(&skel, &analysis);
+    assert_eq!(legs.len(), 2, "{legs:?}");
+    let feet: Vec<&str> = legs.iter().map(|l| skel.name(l.foot)).collect();
+    assert!(
+        feet.contains(&"l_foot") && feet.contains(&"r_foot"),
+        "{feet:?}"
+    );
+    let plants = detect_clip(
+        &skel,
+        &legs,
+        &vec![skel.rest_pose(); 60],
+        1.0 / 60.0,
+        glam::Vec3::Y,
+        &PlantSettings::default(),
+    );
+    for leg in 0..legs.len() {
+        let plants = plants.intervals(leg);
+        assert!(plants.len() == 1 && plants[0] == (0..60), "{plants:?}");
+    }
 }

@@ -34,7 +34,7 @@ use glam::{Quat, Vec3};
 
 use super::detect::{PlantDetector, PlantSettings, PlantTrack};
 use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
-use super::rig::{find_legs, Leg, MAX_FEET};
+use super::rig::{find_contact_legs, find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
 use crate::analysis::Analysis;
 use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
@@ -278,7 +278,8 @@ impl FootLock {
         let (up, floor, floor_at) = mapping.target_floor()?;
         let src_skel = mapping.source(mapping.root_input()?)?.clone();
         let tgt_skel = mapping.target().clone();
-        let source_legs = find_legs(&src_skel, source);
+        // The source's feet are only watched: one hanging from elsewhere than its shin counts.
+        let source_legs = find_contact_legs(&src_skel, source);
         let target_legs = find_legs(&tgt_skel, target);
         if target_legs.is_empty() {
             return None;
