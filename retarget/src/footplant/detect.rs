@@ -214,13 +214,25 @@ pub struct PlantTrack {
     pub legs: Vec<Leg>,
     /// Frame-major: `planted[frame * legs.len() + leg]`.
     planted: Vec<bool>,
+    /// The same layout: how high the foot stands above its ground, the least of its contact
+    /// joints' heights above their grounds (source units, negative where the foot dips
+    /// below). Zero in a track built from flags.
+    lifts: Vec<f32>,
+    /// The same for the heel (foot joint) alone.
+    heel_lifts: Vec<f32>,
 }
 
 impl PlantTrack {
     /// A track from per-frame flags (frame-major, `legs.len()` per frame), e.g. the causal
     /// detector's outputs collected over a clip.
     pub fn from_flags(legs: Vec<Leg>, planted: Vec<bool>) -> PlantTrack {
-        PlantTrack { legs, planted }
+        let lifts = vec![0.0; planted.len()];
+        PlantTrack {
+            legs,
+            planted,
+            heel_lifts: lifts.clone(),
+            lifts,
+        }
     }
 
     /// Number of frames.
@@ -232,6 +244,20 @@ impl PlantTrack {
     pub fn frame(&self, frame: usize) -> &[bool] {
         let n = self.legs.len();
         self.planted.get(frame * n..(frame + 1) * n).unwrap_or(&[])
+    }
+
+    /// How high every leg's foot is above its ground at `frame` (empty past the end).
+    pub fn lifts(&self, frame: usize) -> &[f32] {
+        let n = self.legs.len();
+        self.lifts.get(frame * n..(frame + 1) * n).unwrap_or(&[])
+    }
+
+    /// How high every leg's heel (foot joint) is above its ground at `frame`.
+    pub fn heel_lifts(&self, frame: usize) -> &[f32] {
+        let n = self.legs.len();
+        self.heel_lifts
+            .get(frame * n..(frame + 1) * n)
+            .unwrap_or(&[])
     }
 
     /// Whether `leg` is planted at `frame`.
@@ -316,6 +342,8 @@ pub fn detect_clip(
         })
         .collect();
     let mut planted = vec![false; legs.len() * n];
+    let mut lifts = vec![0.0; legs.len() * n];
+    let mut heel_lifts = vec![0.0; legs.len() * n];
     for (f, leg) in legs.iter().enumerate() {
         let (h, v) = (
             settings.height_ratio * leg.length,
@@ -341,8 +369,24 @@ pub fn detect_clip(
         for (i, &p) in column.iter().enumerate() {
             planted[i * legs.len() + f] = p;
         }
+        // How high the foot stands: the least of its contacts' heights above their grounds.
+        for i in 0..n {
+            let lift = mine
+                .iter()
+                .map(|&j| pos[j * n + i].dot(up) - grounds[j])
+                .fold(f32::INFINITY, f32::min);
+            lifts[i * legs.len() + f] = if lift.is_finite() { lift } else { 0.0 };
+            // The heel is the leg's first contact.
+            let j = mine[0];
+            heel_lifts[i * legs.len() + f] = pos[j * n + i].dot(up) - grounds[j];
+        }
     }
-    PlantTrack { legs, planted }
+    PlantTrack {
+        legs,
+        planted,
+        lifts,
+        heel_lifts,
+    }
 }
 
 /// A joint's ground over a clip: a low percentile of its heights on slow frames (where it

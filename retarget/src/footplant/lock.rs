@@ -1,6 +1,9 @@
 //! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
 //! the target's foot stays where it landed (position and heading), flat on the floor at its
-//! standing height (the first frame of a clip pinned at once), its leg solved with the
+//! standing height (the first frame of a clip pinned at once; offline, given the plants'
+//! heights, as far above it as the source's foot stands above its ground, scaled, up to
+//! `MAX_LIFT_RATIO` of the leg, and its heel as far above its ball as the source's heel is
+//! above its toe, up to `MAX_HEEL_LIFT_RATIO`), its leg solved with the
 //! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
 //! `spring`); no foot joint goes below the target's floor.
 //!
@@ -31,7 +34,7 @@ use glam::{Quat, Vec3};
 
 use super::detect::{PlantDetector, PlantSettings, PlantTrack};
 use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
-use super::rig::{find_legs, Leg, MAX_FEET};
+use super::rig::{find_contact_legs, find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
 use crate::analysis::Analysis;
 use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
@@ -102,6 +105,23 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
     wanted
 }
 
+/// Highest a pinned foot follows the source's above its standing height, in leg lengths (8 mm
+/// on a 1 m leg): a source foot standing a few millimetres up is followed; one farther up is
+/// still landing, or stands on ground of its own, and the foot stays that close to the floor.
+const MAX_LIFT_RATIO: f32 = 0.008;
+
+/// Highest a pinned ankle follows the source's heel above the foot's lowest contact (a foot
+/// pitched toes-down), in leg lengths.
+const MAX_HEEL_LIFT_RATIO: f32 = 0.02;
+
+/// Per source leg, how high its foot (its lowest contact) and its heel stand above their
+/// grounds this frame (source units).
+#[derive(Debug, Clone, Copy, Default)]
+struct Lifts {
+    foot: [f32; MAX_FEET],
+    heel: [f32; MAX_FEET],
+}
+
 /// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
 /// (the time constant of its running average).
 const FIT_LEARN_SECS: f32 = 1.0;
@@ -161,6 +181,13 @@ struct Foot {
     /// legs, where the animation does not show it).
     pole_local: Vec3,
     locked: bool,
+    /// How far above its standing height the source holds its foot this frame (its lowest
+    /// contact above its ground, scaled to the target): a pinned foot follows it.
+    lift: f32,
+    /// When the source's heel is known: how far above its standing height a pinned ankle
+    /// stands, the foot's lift plus how much higher the source's heel stands than its lowest
+    /// contact (a heel still coming down after a toe-first landing is followed).
+    heel_lift: Option<f32>,
     lock_position: Vec3,
     lock_heading: f32,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -224,6 +251,9 @@ pub struct FootLock {
     root_fix: f32,
     /// The target's own posture stands on its floor (its standing heights can be trusted).
     posture_stands: bool,
+    /// Source lengths to the target's (the mapping's root scale): what a source foot's lift is
+    /// multiplied by.
+    lift_scale: f32,
     /// A frame has been locked since the lock was built ([`FootLock::reset`] keeps it: the
     /// character was shown, so later plants blend from it).
     shown_once: bool,
@@ -248,7 +278,8 @@ impl FootLock {
         let (up, floor, floor_at) = mapping.target_floor()?;
         let src_skel = mapping.source(mapping.root_input()?)?.clone();
         let tgt_skel = mapping.target().clone();
-        let source_legs = find_legs(&src_skel, source);
+        // The source's feet are only watched: one hanging from elsewhere than its shin counts.
+        let source_legs = find_contact_legs(&src_skel, source);
         let target_legs = find_legs(&tgt_skel, target);
         if target_legs.is_empty() {
             return None;
@@ -313,6 +344,8 @@ impl FootLock {
                     heading_local: w(leg.foot).rotation.inverse() * heading_dir,
                     pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
                     locked: false,
+                    lift: 0.0,
+                    heel_lift: None,
                     lock_position: ankle,
                     lock_heading: 0.0,
                     position_offset: Decay::default(),
@@ -344,6 +377,7 @@ impl FootLock {
             drop_offset: Decay::default(),
             root_fix: 0.0,
             posture_stands: mapping.target_posture_stands(),
+            lift_scale: mapping.root_scale().unwrap_or(1.0),
             shown_once: false,
         })
     }
@@ -530,7 +564,7 @@ impl FootLock {
         for (p, s) in planted.iter_mut().zip(self.detector.planted()) {
             *p = *s;
         }
-        self.lock(&planted, dt_secs, true, out);
+        self.lock(&planted, None, dt_secs, true, out);
     }
 
     /// Offline: locks `out` with known plant flags per source leg (from [`super::detect_clip`]
@@ -540,12 +574,39 @@ impl FootLock {
         for (p, s) in flags.iter_mut().zip(planted) {
             *p = *s;
         }
-        self.lock(&flags, dt_secs, false, out);
+        self.lock(&flags, None, dt_secs, false, out);
+    }
+
+    /// Offline: [`FootLock::apply_planted`] with the flags of `frame` of `plants` (from
+    /// [`super::detect_clip`] on the source clip), a pinned foot held as far above its
+    /// standing height as the source's foot is above its ground (scaled): a source foot still
+    /// settling or standing a few millimetres up is followed, not pressed onto the floor.
+    /// Allocates nothing.
+    pub fn apply_track(&mut self, plants: &PlantTrack, frame: usize, dt_secs: f32, out: &mut Pose) {
+        let mut flags = [false; MAX_FEET];
+        for (p, s) in flags.iter_mut().zip(plants.frame(frame)) {
+            *p = *s;
+        }
+        let mut lifts = Lifts::default();
+        for (l, s) in lifts.foot.iter_mut().zip(plants.lifts(frame)) {
+            *l = *s;
+        }
+        for (l, s) in lifts.heel.iter_mut().zip(plants.heel_lifts(frame)) {
+            *l = *s;
+        }
+        self.lock(&flags, Some(&lifts), dt_secs, false, out);
     }
 
     /// Locks `out`; `learn`: the fit to the standing posture is learnt from this frame (live,
     /// where no clip is known in advance).
-    fn lock(&mut self, planted: &[bool; MAX_FEET], dt_secs: f32, learn: bool, out: &mut Pose) {
+    fn lock(
+        &mut self,
+        planted: &[bool; MAX_FEET],
+        lifts: Option<&Lifts>,
+        dt_secs: f32,
+        learn: bool,
+        out: &mut Pose,
+    ) {
         if out.check(&self.target).is_err() {
             return;
         }
@@ -557,6 +618,19 @@ impl FootLock {
         self.apply_fit(out);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
+            let length = self.feet[i].leg.length;
+            let (foot, heel) = match (self.feet[i].source, lifts) {
+                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s])),
+                _ => (0.0, None),
+            };
+            let lift = (self.lift_scale * foot).clamp(0.0, MAX_LIFT_RATIO * length);
+            self.feet[i].lift = lift;
+            // The heel follows how much higher than the foot's lowest contact the source's is
+            // (a foot pitched toes-down); a foot without a ball stands on its ankle.
+            let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
+            self.feet[i].heel_lift = heel.map(|h| {
+                lift + (self.lift_scale * (h - foot)).clamp(0.0, MAX_HEEL_LIFT_RATIO * length)
+            });
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
         if self.raise_hips(out) {
@@ -648,8 +722,17 @@ impl FootLock {
                 f.lock_heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
             }
         }
+        let floor = self.floor;
         let (target, target_heading, velocity, rate) = if f.locked {
-            (f.lock_position, f.lock_heading, Vec3::ZERO, 0.0)
+            let pinned = match f.heel_lift {
+                // The ankle at its standing height plus the source heel's lift.
+                Some(h) => {
+                    let p = f.lock_position;
+                    p - up * p.dot(up) + up * (floor + f.heel_clearance + h)
+                }
+                None => f.lock_position + up * f.lift,
+            };
+            (pinned, f.lock_heading, Vec3::ZERO, 0.0)
         } else {
             (animated, heading_now, anim_velocity, anim_rate)
         };
@@ -717,7 +800,7 @@ impl FootLock {
         let f = &mut self.feet[i];
         let Some(o) = goal.ball_offset else { return };
         let wanted = if goal.pinned {
-            floor + f.ball_clearance - (goal.ankle + o).dot(up)
+            floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up)
         } else {
             0.0
         };

@@ -3,10 +3,13 @@
 //!
 //! ```text
 //!  Analysis roles ─▶ rig::find_legs      hind legs (thigh, shin, foot, toes) and a
-//!                                        quadruped's front legs, by side and pair
+//!                                        quadruped's front legs, by side and pair (a
+//!                                        source's: find_contact_legs, feet hanging from
+//!                                        anywhere)
 //!  source motion ─▶ detect               heel or ball near its ground AND slow, relative
 //!                                        to the leg's length; hysteresis; causal
-//!                                        (PlantDetector) or two-sided (detect_clip)
+//!                                        (PlantDetector) or two-sided (detect_clip,
+//!                                        with each foot's height above its ground)
 //!  target pose   ─▶ lock (FootLock)      pin planted feet (position + heading), lower the
 //!                                        hips when out of reach, ik::solve_two_bone,
 //!                                        blend switches, keep feet above the floor
@@ -21,4 +24,4 @@ pub mod spring;
 pub use detect::{detect_clip, PlantDetector, PlantSettings, PlantTrack};
 pub use ik::{solve_two_bone, TwoBoneSolution};
 pub use lock::{FootLock, LockSettings};
-pub use rig::{find_legs, Leg, LegKind, MAX_FEET};
+pub use rig::{find_contact_legs, find_legs, Leg, LegKind, MAX_FEET};

@@ -73,6 +73,17 @@ fn is_below(skel: &Skeleton, ancestor: BoneId, mut bone: BoneId) -> bool {
 /// Every standing leg of `skel` (at most [`MAX_FEET`]), in bone order. Empty for a rig without
 /// legs (an upper body, a hand, a snake).
 pub fn find_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
+    legs_of(skel, analysis, false)
+}
+
+/// [`find_legs`] for a rig whose plants are only watched (a source's): a foot that does not
+/// hang below its shin (an IK-style rig whose feet hang from the root) still stands on the
+/// ground, so its leg is found with it.
+pub fn find_contact_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
+    legs_of(skel, analysis, true)
+}
+
+fn legs_of(skel: &Skeleton, analysis: &Analysis, detached_feet: bool) -> Vec<Leg> {
     let mut legs = Vec::new();
     if analysis.roles.len() != skel.num_bones() {
         return legs;
@@ -93,7 +104,16 @@ pub fn find_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
         };
         // A foot that does not hang below its shin (a rig whose feet sit beside the legs)
         // cannot be reached by bending the leg: such a leg is not locked.
-        let found = find_below(skel, analysis, foot_role, r.side, r.limb, lower);
+        let found = find_below(skel, analysis, foot_role, r.side, r.limb, lower).or_else(|| {
+            let (side, limb) = (r.side, r.limb);
+            let detached = |f: &BoneId| {
+                let fr = &analysis.roles[f.index()];
+                fr.role == foot_role && fr.side == side && fr.limb == limb
+            };
+            (detached_feet && kind == LegKind::Hind)
+                .then(|| skel.bone_ids().find(detached))
+                .flatten()
+        });
         let (b, lower, foot) = match (found, kind) {
             (Some(foot), _) => (b, lower, foot),
             // A front leg that ends at its forearm (the hoof is the forearm's far end, with

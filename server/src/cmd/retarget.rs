@@ -273,7 +273,7 @@ pub fn retarget_clip_locked(
             .apply_one(p, &mut out)
             .with_context(|| format!("frame {i} does not fit the source skeleton"))?;
         if let Some((lock, plants)) = foot_lock.as_mut() {
-            lock.apply_planted(plants.frame(i), dt, &mut out);
+            lock.apply_track(plants, i, dt, &mut out);
         }
         poses.push(out.clone());
         if report {
