@@ -395,7 +395,8 @@ fn measure_bodies() -> Option<Vec<BodyFigures>> {
         let hips = ta.find(Role::Hips, Side::Center).unwrap();
         let chest = ta.find(Role::Chest, Side::Center).unwrap();
         let pitch = |w: &[WorldTransform]| {
-            let d = (w[chest.index()].translation - w[hips.index()].translation).normalize();
+            let d =
+                (w[chest.index()].translation - w[hips.index()].translation).normalize_or_zero();
             d.y.clamp(-1.0, 1.0).asin().to_degrees()
         };
         let stand_pitch = pitch(&standing);
