@@ -43,7 +43,7 @@ pub use error::RetargetError;
 pub use fk::{forward_kinematics, world_transforms, WorldTransform};
 pub use pose::{Frame, Pose};
 pub use retarget::{
-    FootContact, Mapping, RetargetContext, RetargetOptions, RetargetPlan, RootMotion,
+    Follow, FootContact, Mapping, RetargetContext, RetargetOptions, RetargetPlan, RootMotion,
 };
 pub use rotation::RotationOrder;
 pub use skeleton::{BoneId, RawBone, RawSkeleton, Skeleton, Transform};

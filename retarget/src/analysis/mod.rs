@@ -282,6 +282,13 @@ impl Analysis {
     }
 }
 
+/// The standing posture of a skeleton's motion, even when its rest pose is a posture: the
+/// motion's mean posture (per bone, the average local rotation, headings taken out about `up`),
+/// for a walk standing with the arms hanging, not its T-pose. `None` without valid frames.
+pub fn standing_posture(skeleton: &Skeleton, motion: &[Pose], up: Vec3) -> Option<Pose> {
+    posture::mean_posture(skeleton, motion, up)
+}
+
 /// Analyses a skeleton. Never fails: an unusual skeleton just gets more `Unknown` roles and
 /// lower confidences.
 pub fn analyze(view: &SkeletonView<'_>) -> Analysis {

@@ -158,6 +158,43 @@ fn folded_rest(skel: &crate::skeleton::Skeleton) -> bool {
     total >= 4 && top as f32 >= FOLDED_SHARE * total as f32
 }
 
+/// The motion's mean posture: per bone, the normalised average of its local rotations over the
+/// valid frames (sign-aligned), the roots' headings (their turn about `up`) taken out first, so
+/// a walk averages to standing with the arms hanging and each leg between its forward and its
+/// backward swing. Translations are the first valid frame's. `None` without valid frames.
+pub(crate) fn mean_posture(
+    skel: &crate::skeleton::Skeleton,
+    motion: &[Pose],
+    up: Vec3,
+) -> Option<Pose> {
+    let up = up.try_normalize().unwrap_or(Vec3::Y);
+    let valid: Vec<&Pose> = motion.iter().filter(|p| p.check(skel).is_ok()).collect();
+    let first = *valid.first()?;
+    let n = skel.num_bones();
+    let mut sums = vec![glam::Vec4::ZERO; n];
+    for p in &valid {
+        for (b, sum) in sums.iter_mut().enumerate() {
+            let mut q = p.rotations[b];
+            if skel.parents()[b].is_none() {
+                let along = up * Vec3::new(q.x, q.y, q.z).dot(up);
+                let twist = glam::Quat::from_xyzw(along.x, along.y, along.z, q.w);
+                if twist.length_squared() > 1e-12 {
+                    q = twist.normalize().inverse() * q;
+                }
+            }
+            let v = glam::Vec4::from(q);
+            *sum += if v.dot(*sum) < 0.0 { -v } else { v };
+        }
+    }
+    let mut pose = first.clone();
+    for (r, sum) in pose.rotations.iter_mut().zip(&sums) {
+        if let Some(v) = sum.try_normalize() {
+            *r = glam::Quat::from_vec4(v);
+        }
+    }
+    Some(pose)
+}
+
 /// The sampled frame closest (sum of joint distances, root-relative) to the per-joint median.
 fn medoid(view: &SkeletonView<'_>, valid: &[usize]) -> Option<usize> {
     if valid.is_empty() {

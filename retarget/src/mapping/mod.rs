@@ -15,6 +15,7 @@ mod auto;
 pub mod cache;
 mod colors;
 pub mod file;
+mod posture;
 mod table;
 
 pub use auto::{auto_map, auto_map_many, map_analyzed, MapOptions, Weights};
@@ -23,4 +24,5 @@ pub use colors::{mapping_colors, BoneColors, UNMAPPED};
 pub use file::{
     apply_overrides, parse_mapping_file, to_mapping_file, MappingFile, MappingFileError,
 };
+pub use posture::posture_relative;
 pub use table::{BoneOptions, MappingTable, SourceRef, TargetEntry};

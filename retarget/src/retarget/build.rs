@@ -4,7 +4,7 @@
 use glam::{Quat, Vec3};
 
 use super::root::{RootPlan, Side};
-use super::{align, BonePlan, Link, Mapping, RetargetOptions, RetargetPlan, NO_END};
+use super::{align, BonePlan, Follow, Link, Mapping, RetargetOptions, RetargetPlan, NO_END};
 use crate::error::RetargetError;
 use crate::fk::{world_transforms, WorldTransform};
 use crate::mapping::{BoneOptions, MappingTable, SourceRef};
@@ -72,6 +72,9 @@ struct Setup<'a> {
     opts: &'a RetargetOptions,
     src_ref: Vec<Pose>,
     src_w: Vec<Vec<WorldTransform>>,
+    /// Per input, its standing posture (`RetargetOptions::source_standing`) turned to face
+    /// like its reference: what `posture_relative` bones measure the motion from.
+    stand_w: Vec<Vec<WorldTransform>>,
     src_eps: Vec<f32>,
     tgt_w: Vec<WorldTransform>,
     tgt_eps: f32,
@@ -110,6 +113,19 @@ impl<'a> Setup<'a> {
             .map(|(s, p)| world_transforms(s, p))
             .collect();
         let tgt_w = world_transforms(target, &tgt_ref);
+        let up = (opts.source_up)
+            .and_then(|u| u.try_normalize())
+            .unwrap_or(Vec3::Y);
+        let mut stand_w = Vec::with_capacity(sources.len());
+        for (i, s) in sources.iter().enumerate() {
+            stand_w.push(match opts.source_standing.get(i).and_then(Option::as_ref) {
+                Some(p) => {
+                    p.check(s)?;
+                    facing_like(s, world_transforms(s, p), &src_w[i], up)
+                }
+                None => src_w[i].clone(),
+            });
+        }
         let mut setup = Setup {
             sources,
             target,
@@ -119,6 +135,7 @@ impl<'a> Setup<'a> {
             tgt_eps: 1e-4 * align::extent(&tgt_w),
             src_ref,
             src_w,
+            stand_w,
             tgt_w,
             yaw: Quat::IDENTITY,
             // Capped so an absurd option (even infinity) cannot size a gigabyte history ring.
@@ -219,6 +236,31 @@ impl<'a> Setup<'a> {
         let input = sref.input as usize;
         let (skel, w, eps) = (self.sources[input], &self.src_w[input], self.src_eps[input]);
         let s = sref.bone;
+        let delay_frames = ((options.delay_secs.max(0.0) / self.opts.frame_time_secs).round()
+            as u32)
+            .min(self.max_delay_frames);
+        let wt0 = self.tgt_w[t.index()].rotation;
+        let follow = (self.opts.posture_relative.iter()).find_map(|&(b, f)| (b == t).then_some(f));
+        if let Some(follow) = follow {
+            // The target keeps its own posture (turned to the source's facing) while the
+            // source stands; the source's world rotation from its standing posture moves it.
+            let standing = self.stand_w[input][s.index()].rotation;
+            let a = if self.opts.align_rest {
+                self.yaw
+            } else {
+                Quat::IDENTITY
+            };
+            return Link {
+                input: sref.input,
+                bone: s.0,
+                end: NO_END,
+                weight: sref.weight / total,
+                offset: (standing.inverse() * a * wt0).normalize(),
+                standing: Some(standing),
+                heading_only: follow == Follow::Heading,
+                delay_frames,
+            };
+        }
         // The source joint a mapped target joint corresponds to, if it lies below `from`.
         // A leaf's end may hang elsewhere: an IK foot under the root is where the shin points.
         let corresponding = |tb: Option<BoneId>, from: BoneId| {
@@ -253,10 +295,6 @@ impl<'a> Setup<'a> {
             Quat::IDENTITY
         };
         let ws0 = w[s.index()].rotation;
-        let wt0 = self.tgt_w[t.index()].rotation;
-        let delay_frames = ((options.delay_secs.max(0.0) / self.opts.frame_time_secs).round()
-            as u32)
-            .min(self.max_delay_frames);
         Link {
             input: sref.input,
             bone: s.0,
@@ -266,6 +304,8 @@ impl<'a> Setup<'a> {
             },
             weight: sref.weight / total,
             offset: (ws0.inverse() * a * wt0).normalize(),
+            standing: None,
+            heading_only: false,
             delay_frames,
         }
     }
@@ -315,6 +355,46 @@ impl<'a> Setup<'a> {
         plan
     }
 
+    /// The plan, without root motion yet.
+    fn plan(&self) -> RetargetPlan {
+        let mut links = Vec::new();
+        let mut chain_bones = Vec::new();
+        let mut bones: Vec<BonePlan> = (self.target.bone_ids())
+            .map(|t| self.plan_bone(t, &mut links, &mut chain_bones))
+            .collect();
+        // Interior bones learn which chain they belong to and their frame within it.
+        for t in 0..bones.len() {
+            let (first, len) = (bones[t].chain_first as usize, bones[t].chain_len as usize);
+            let mut frame = Quat::IDENTITY;
+            for &c in &chain_bones[first..first + len] {
+                let c = c as usize;
+                frame *= bones[c].rest_local;
+                bones[c].curl_root = t as u16;
+                bones[c].curl_frame = frame;
+            }
+        }
+        RetargetPlan {
+            sources: self.sources.iter().map(|s| (*s).clone()).collect(),
+            target: self.target.clone(),
+            bones,
+            links,
+            root: None,
+            chain_bones,
+            up: (self.opts.source_up)
+                .and_then(|u| u.try_normalize())
+                .unwrap_or(Vec3::Y),
+        }
+    }
+
+    /// What `plan` (without root motion) shows while every source holds its reference.
+    fn aligned_rest(&self, plan: &RetargetPlan) -> Pose {
+        let mut context = plan.new_context();
+        let refs: Vec<&Pose> = self.src_ref.iter().collect();
+        let mut aligned = self.target.rest_pose();
+        plan.solve(&mut context, &refs, &mut aligned, false);
+        aligned
+    }
+
     /// Bones strictly between `t` and its descendant `end`, from `t` down; empty when one of
     /// them is mapped (then the chain is not `t`'s alone to bend).
     fn interior(&self, t: BoneId, end: BoneId) -> Vec<BoneId> {
@@ -335,6 +415,26 @@ impl<'a> Setup<'a> {
     }
 }
 
+/// `worlds` (a posture of `skel`) turned about `up` so its root faces as in `reference`.
+fn facing_like(
+    skel: &Skeleton,
+    mut worlds: Vec<WorldTransform>,
+    reference: &[WorldTransform],
+    up: Vec3,
+) -> Vec<WorldTransform> {
+    let Some(root) = skel.bone_ids().next() else {
+        return worlds;
+    };
+    let turn = reference[root.index()].rotation * worlds[root.index()].rotation.inverse();
+    let yaw = super::heading(turn, up);
+    let pivot = worlds[root.index()].translation;
+    for w in &mut worlds {
+        w.rotation = (yaw * w.rotation).normalize();
+        w.translation = pivot + yaw * (w.translation - pivot);
+    }
+    worlds
+}
+
 impl Mapping {
     /// Precomputes a retargeting job. `sources[i]` is the skeleton of input `i` (the `input` of
     /// a [`SourceRef`]); `table` has one entry per target bone. Fails when the table or a
@@ -347,37 +447,9 @@ impl Mapping {
     ) -> Result<Mapping, RetargetError> {
         validate(sources, target, table, opts)?;
         let setup = Setup::new(sources, target, table, opts)?;
-        let mut links = Vec::new();
-        let mut chain_bones = Vec::new();
-        let mut bones: Vec<BonePlan> = target
-            .bone_ids()
-            .map(|t| setup.plan_bone(t, &mut links, &mut chain_bones))
-            .collect();
-        // Interior bones learn which chain they belong to and their frame within it.
-        for t in 0..bones.len() {
-            let (first, len) = (bones[t].chain_first as usize, bones[t].chain_len as usize);
-            let mut frame = Quat::IDENTITY;
-            for &c in &chain_bones[first..first + len] {
-                let c = c as usize;
-                frame *= bones[c].rest_local;
-                bones[c].curl_root = t as u16;
-                bones[c].curl_frame = frame;
-            }
-        }
-
-        let mut plan = RetargetPlan {
-            sources: sources.iter().map(|s| (*s).clone()).collect(),
-            target: target.clone(),
-            bones,
-            links,
-            root: None,
-            chain_bones,
-        };
-        let mut context = plan.new_context();
+        let mut plan = setup.plan();
         // The aligned rest: what the target shows while every source holds its reference.
-        let refs: Vec<&Pose> = setup.src_ref.iter().collect();
-        let mut aligned = target.rest_pose();
-        plan.solve(&mut context, &refs, &mut aligned, false);
+        let aligned = setup.aligned_rest(&plan);
         for (bone, q) in plan.bones.iter_mut().zip(&aligned.rotations) {
             bone.aligned_local = *q;
         }
@@ -406,10 +478,6 @@ impl Mapping {
                 opts,
             )
         });
-        context.reset();
-        Ok(Mapping {
-            plan: std::sync::Arc::new(plan),
-            context,
-        })
+        Ok(Mapping::from_plan(std::sync::Arc::new(plan)))
     }
 }

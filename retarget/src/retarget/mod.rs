@@ -11,6 +11,10 @@
 //!                                               segment between the mapped end joints
 //!        (several sources: sign-aligned, normalised weighted quaternion average)
 //!        local = parent_world⁻¹ · world     then reverse / weight options
+//!        posture-relative bones (a walker driving a quadruped, `RetargetOptions::
+//!        posture_relative`): world = D · yaw · Wt0, D = Ws(t) · Ws_stand⁻¹ (the source's
+//!        motion from its standing posture), or only D's turn about up (a level trunk);
+//!        no A, no C: the target keeps its own posture
 //!     root: hips = floor_t + ratio · (source hips − floor_s) along the source's up,
 //!           horizontal travel × ratio, ratio = leg lengths between mapped joints (measured on
 //!           the target's aligned reference, in the source's world); feet calibrated onto the
@@ -50,7 +54,7 @@ use root::RootPlan;
 /// foot stands there in most clips, high enough that a few frames dipping lower do not count.
 pub const FLOOR_PERCENTILE: usize = 5;
 
-pub use options::{FootContact, RetargetOptions, RootMotion};
+pub use options::{Follow, FootContact, RetargetOptions, RootMotion};
 pub use root::FloorAt;
 
 /// Marks a link without a direction fix.
@@ -67,6 +71,13 @@ struct Link {
     weight: f32,
     /// `Ws0⁻¹ · A · Wt0`: source world rotation → target world rotation.
     offset: Quat,
+    /// For a posture-relative link, the source bone's standing world rotation (`Ws0` of its
+    /// offset): what the aligned rest evaluates instead of the source's reference, so the
+    /// target shows its own posture there.
+    standing: Option<Quat>,
+    /// A posture-relative link that takes only the heading of the source's rotation from its
+    /// standing posture ([`Follow::Heading`]).
+    heading_only: bool,
     delay_frames: u32,
 }
 
@@ -106,6 +117,8 @@ pub struct RetargetPlan {
     root: Option<RootPlan>,
     /// Interior chains (see `BonePlan::chain_first`).
     chain_bones: Vec<u16>,
+    /// The sources' up (unit): what [`Follow::Heading`] links turn about.
+    up: Vec3,
 }
 
 /// The per-performer state of a retargeting job: source history (for per-bone delays),
@@ -358,7 +371,8 @@ impl RetargetPlan {
         self.bones.iter().filter(|b| b.num_links > 0).count()
     }
 
-    /// The per-frame work, shared by `apply` and by `build` (which computes the aligned rest).
+    /// The per-frame work, shared by `apply` and by `build` (which computes the aligned rest:
+    /// `with_options` off, posture-relative links then show their standing posture).
     fn solve(
         &self,
         ctx: &mut RetargetContext,
@@ -396,7 +410,12 @@ impl RetargetPlan {
                 {
                     let worlds = ctx.history[link.input as usize].get(link.delay_frames as usize);
                     let ws = worlds[link.bone as usize];
-                    let mut q = ws.rotation * link.offset;
+                    let held = link.standing.filter(|_| !with_options);
+                    let mut q = held.unwrap_or(ws.rotation) * link.offset;
+                    if let (Some(standing), true, None) = (link.standing, link.heading_only, held) {
+                        let turn = ws.rotation * standing.inverse();
+                        q = heading(turn, self.up) * standing * link.offset;
+                    }
                     if link.end != NO_END {
                         let to_end = worlds[link.end as usize].translation - ws.translation;
                         if let Some(d) = to_end.try_normalize() {
@@ -491,6 +510,18 @@ impl RetargetPlan {
             _ => curled,
         };
         ((parent.inverse() * world).normalize(), world, share)
+    }
+}
+
+/// The twist of `q` about the unit axis `up` (its heading); identity when undefined.
+#[inline]
+pub(super) fn heading(q: Quat, up: Vec3) -> Quat {
+    let along = up * Vec3::new(q.x, q.y, q.z).dot(up);
+    let twist = Quat::from_xyzw(along.x, along.y, along.z, q.w);
+    if twist.length_squared() > 1e-12 {
+        twist.normalize()
+    } else {
+        Quat::IDENTITY
     }
 }
 

@@ -3,6 +3,7 @@
 use glam::Vec3;
 
 use crate::pose::Pose;
+use crate::skeleton::BoneId;
 
 /// What the target's root (the shallowest mapped target bone, normally the hips) does with the
 /// source's translation.
@@ -35,6 +36,17 @@ pub enum FootContact {
     EveryFrame,
 }
 
+/// What a posture-relative bone ([`RetargetOptions::posture_relative`]) takes of its source
+/// bone's world rotation relative to the source's standing posture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Follow {
+    /// All of it.
+    Rotation,
+    /// Only its turn about the source's up: a quadruped's trunk stays level while the walker
+    /// driving it leans, and still turns with it.
+    Heading,
+}
+
 /// Options for [`super::Mapping::build`]. `Default` suits a live source at 60 Hz.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RetargetOptions {
@@ -45,6 +57,17 @@ pub struct RetargetOptions {
     pub source_reference: Vec<Option<Pose>>,
     /// Reference posture of the target, instead of its rest pose.
     pub target_reference: Option<Pose>,
+    /// Target bones that keep their own reference posture and take their source bone's world
+    /// rotation relative to the source's standing posture (`source_standing`), without rest
+    /// alignment or direction fix, whole or only its turn about up ([`Follow`]): bones whose
+    /// reference posture means something else on the source, like a walker's hanging arms
+    /// driving a quadruped's front legs, or its upright trunk a level one (see
+    /// `mapping::posture_relative`). Empty: every bone is aligned.
+    pub posture_relative: Vec<(BoneId, Follow)>,
+    /// Per source input, the standing posture the motion of `posture_relative` bones is
+    /// measured from (a frame of the source's motion); `None` or a missing entry uses that
+    /// input's reference posture. Its facing is turned onto the reference's.
+    pub source_standing: Vec<Option<Pose>>,
     /// Align rest postures (T-pose vs A-pose vs any posture). Turning it off gives the plain
     /// rest-normalised transfer, which assumes both rests show the same posture.
     pub align_rest: bool,
@@ -84,6 +107,8 @@ impl Default for RetargetOptions {
         RetargetOptions {
             source_reference: Vec::new(),
             target_reference: None,
+            posture_relative: Vec::new(),
+            source_standing: Vec::new(),
             align_rest: true,
             match_directions: true,
             distribute_chains: false,

@@ -152,7 +152,7 @@ impl RootPlan {
         opts: &RetargetOptions,
     ) -> RootPlan {
         // Pairs below the root on both sides: the legs (and whatever else hangs from the hips).
-        let below: Vec<(BoneId, BoneId)> = tgt
+        let mut below: Vec<(BoneId, BoneId)> = tgt
             .skel
             .bone_ids()
             .filter(|&t| t != rt && align::is_descendant(tgt.skel, rt, t))
@@ -171,6 +171,15 @@ impl RootPlan {
             .unwrap_or(Vec3::Y);
         let y_t = |b: BoneId| tgt.worlds[b.index()].translation.dot(up);
         let y_s = |b: BoneId| src.worlds[b.index()].translation.dot(up);
+        let keeps_own = |t: BoneId| opts.posture_relative.iter().any(|&(b, _)| b == t);
+        // A bone keeping its own posture stands where the target's posture puts it, whatever
+        // its source does: it is a leg only when its source joint is one (near the source's
+        // lowest joints), not a quadruped's front leg driven by a walker's arm.
+        let lowest_src = (below.iter())
+            .map(|&(_, s)| y_s(s))
+            .fold(f32::INFINITY, f32::min);
+        let near_src_feet = lowest_src + 0.25 * (y_s(rs.bone) - lowest_src).abs();
+        below.retain(|&(t, s)| !keeps_own(t) || y_s(s) <= near_src_feet);
         let low = below
             .iter()
             .copied()
@@ -189,6 +198,9 @@ impl RootPlan {
                 .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
             {
                 let (ht, hs) = match top_pair(src, tgt, table, rt, rs, t, s) {
+                    // A leg keeping its own posture (`posture_relative`) moves the body by its
+                    // standing height, however its bones zig-zag.
+                    Some((tt, st)) if keeps_own(t) => (y_t(tt) - y_t(t), src.leg_height(st, s, up)),
                     Some((tt, st)) => (tgt.leg_length(tt, t, up), src.leg_length(st, s, up)),
                     None => (tgt.leg_height(rt, t, up), src.leg_height(rs.bone, s, up)),
                 };
@@ -211,11 +223,14 @@ impl RootPlan {
             // axis has no floor in this world, and keeps the source's clearance instead.
             let own_y = |b: BoneId| tgt_own[b.index()].translation.dot(up);
             let standing = |y: &dyn Fn(BoneId) -> f32| y(rt) - y(tl);
-            let y_floor: &dyn Fn(BoneId) -> f32 = if standing(&own_y) > 0.8 * standing(&y_t) {
-                &own_y
-            } else {
-                &y_t
-            };
+            // A leg keeping its own posture stands as in it, whatever the source's would make
+            // of it.
+            let y_floor: &dyn Fn(BoneId) -> f32 =
+                if keeps_own(tl) || standing(&own_y) > 0.8 * standing(&y_t) {
+                    &own_y
+                } else {
+                    &y_t
+                };
             floor_t = floor_from_reference(y_floor(tl), first, y_floor(rt));
             // A floor put at the ground below raised contacts is nobody's standing height.
             floor_at = match floor_t {

@@ -10,10 +10,14 @@ use std::sync::Arc;
 
 use anyhow::{anyhow, bail, Context};
 use clap::Args;
-use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, standing_posture, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{detect_clip, FootLock, LockSettings, PlantSettings};
-use rigcast_retarget::mapping::{apply_overrides, map_analyzed, MapOptions, MappingTable};
-use rigcast_retarget::{Clip, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
+use rigcast_retarget::mapping::{
+    apply_overrides, map_analyzed, posture_relative, MapOptions, MappingTable,
+};
+use rigcast_retarget::{
+    BoneId, Clip, Follow, Mapping, Pose, RetargetOptions, RootMotion, Skeleton,
+};
 
 /// Options of `rigcast retarget`.
 #[derive(Debug, Clone, Args)]
@@ -142,6 +146,12 @@ pub struct MappingPlan {
     pub source_analysis: Analysis,
     /// The target skeleton's analysis.
     pub target_analysis: Analysis,
+    /// Target bones that keep their own posture and follow the source's motion from its
+    /// standing posture (`mapping::posture_relative`: a walker driving a quadruped).
+    pub posture_relative: Vec<(BoneId, Follow)>,
+    /// The source's standing posture those bones' motion is measured from (its clip's mean
+    /// posture), when there are such bones.
+    pub source_standing: Option<Pose>,
 }
 
 impl MappingPlan {
@@ -153,6 +163,8 @@ impl MappingPlan {
             root_motion,
             source_reference: vec![self.source_reference.clone()],
             target_reference: self.target_reference.clone(),
+            posture_relative: self.posture_relative.clone(),
+            source_standing: vec![self.source_standing.clone()],
             source_up: Some(self.source_up),
             ..RetargetOptions::default()
         }
@@ -189,7 +201,13 @@ pub fn plan_mapping_with_truth(
     if let Some(file) = &overrides {
         apply_overrides(&mut table, file, &[ss], ts).context("mapping file")?;
     }
+    let relative = posture_relative(&table, &[&sa], &ta);
+    let source_standing = (!relative.is_empty())
+        .then(|| standing_posture(ss, &source.poses, sa.up))
+        .flatten();
     Ok(MappingPlan {
+        posture_relative: relative,
+        source_standing,
         table,
         source_up: sa.up,
         source_reference: sa.posture_pose(&source.poses),
