@@ -24,13 +24,13 @@ use std::sync::Arc;
 use anyhow::Context;
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, standing_posture, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::mapping::{
-    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
-    SourceRef, TargetEntry, UNMAPPED,
+    apply_overrides, map_analyzed, mapping_colors, posture_relative, CacheKey, MapOptions,
+    MappingFile, MappingTable, SourceRef, TargetEntry, UNMAPPED,
 };
-use rigcast_retarget::{Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
+use rigcast_retarget::{BoneId, Follow, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
 
 use crate::engine::EngineCommand;
@@ -197,9 +197,13 @@ impl Mapper {
         if use_cache {
             self.store.put(key, table.clone());
         }
+        let (relative, source_standing) =
+            self.posture_plan(&p.target.inputs, &src_refs, &analyses, &table, &ta);
         let opts = RetargetOptions {
             frame_time_secs: self.frame_time_secs,
             root_motion: p.root_motion,
+            posture_relative: relative,
+            source_standing,
             source_reference: references
                 .iter()
                 .zip(&analyses)
@@ -241,6 +245,28 @@ impl Mapper {
             json,
         );
         Ok(())
+    }
+
+    /// A walker driving a quadruped: the target's extra ground limbs keep their own posture
+    /// and follow the source's motion from the source clip's standing posture
+    /// (`mapping::posture_relative`); a live source without a clip measures from its reference.
+    fn posture_plan(
+        &self,
+        inputs: &[u32],
+        sources: &[&Skeleton],
+        analyses: &[Analysis],
+        table: &MappingTable,
+        ta: &Analysis,
+    ) -> (Vec<(BoneId, Follow)>, Vec<Option<Pose>>) {
+        let refs: Vec<&Analysis> = analyses.iter().collect();
+        let relative = posture_relative(table, &refs, ta);
+        if relative.is_empty() {
+            return (relative, Vec::new());
+        }
+        let standing = (inputs.iter().zip(sources).zip(analyses))
+            .map(|((id, s), a)| standing_posture(s, &self.extras.get(id)?.poses, a.up))
+            .collect();
+        (relative, standing)
     }
 
     /// Publishes performer `i`'s built mapping: the locked feet for the status, the mailbox,

@@ -625,3 +625,31 @@ impl ServeProcess {
             .expect("VmRSS in /proc/PID/status")
     }
 }
+
+/// World positions of every bone of a version 2 frame, by forward kinematics of the wire
+/// skeleton: the client's own computation, independent of the server's.
+pub fn wire_fk(
+    bones: &[rigcast_protocol::control::BoneInfo],
+    frame: &rigcast_protocol::frame::DecodedFrame,
+) -> Vec<glam::Vec3> {
+    use glam::{Quat, Vec3};
+    let mut slot = 0;
+    let mut world: Vec<(Quat, Vec3)> = Vec::with_capacity(bones.len());
+    for (i, bone) in bones.iter().enumerate() {
+        let translation = if bone.translated {
+            slot += 1;
+            frame.translations[slot - 1]
+        } else {
+            Vec3::from(bone.rest_translation)
+        };
+        let rotation = frame.rotations[i];
+        world.push(match bone.parent {
+            None => (rotation, translation),
+            Some(p) => {
+                let (pr, pp) = world[p as usize];
+                (pr * rotation, pp + pr * translation)
+            }
+        });
+    }
+    world.into_iter().map(|(_, p)| p).collect()
+}

@@ -1,0 +1,138 @@
+//! A walker driving a quadruped live (issue 13): the real server replays the CMU 131_01 walk
+//! onto the Quaternius Horse and the Wolf, and a version 2 client rebuilds the character by its
+//! own forward kinematics of the wire skeleton. A horse or a wolf walks with its trunk level:
+//! the hips→chest line (bones named by `labels.json`, the zoo's ground truth) stays within a
+//! few degrees of its rest elevation, and the front legs' lower joints stay below the hips.
+//! Before the live mapper kept the quadruped's own posture, the trunk took the walker's
+//! upright one (pitched ~90° off its rest, the front legs lifted over the hips).
+//! Skips when the shared data is absent.
+#![allow(clippy::unwrap_used)]
+
+use std::time::{Duration, Instant};
+
+use glam::{Quat, Vec3};
+use rigcast_protocol::control::BoneInfo;
+use rigcast_protocol::ServerMessage;
+use rigcast_server::{PerformerSpec, ServerConfig};
+use rigcast_tests::*;
+
+/// The first labelled bone name of `role` in `labels.json` for the file `rel`.
+fn labelled(labels: &serde_json::Value, rel: &str, role: &str) -> String {
+    labels[rel][role][0].as_str().unwrap().to_string()
+}
+
+/// Rest world positions of the wire skeleton.
+fn rest_positions(bones: &[BoneInfo]) -> Vec<Vec3> {
+    let mut world: Vec<(Quat, Vec3)> = Vec::with_capacity(bones.len());
+    for b in bones {
+        let (r, t) = (
+            Quat::from_array(b.rest_rotation),
+            Vec3::from(b.rest_translation),
+        );
+        world.push(match b.parent {
+            None => (r, t),
+            Some(p) => {
+                let (pr, pp) = world[p as usize];
+                (pr * r, pp + pr * t)
+            }
+        });
+    }
+    world.into_iter().map(|(_, p)| p).collect()
+}
+
+/// Elevation of `to − from` above the horizontal, degrees.
+fn elevation(from: Vec3, to: Vec3) -> f32 {
+    let d = (to - from).normalize_or_zero();
+    d.y.clamp(-1.0, 1.0).asin().to_degrees()
+}
+
+struct Streamed {
+    bones: Vec<BoneInfo>,
+    frames: Vec<(rigcast_protocol::frame::DecodedFrame, u64)>,
+}
+
+/// Streams 2.5 s of the walk on `rel` as version 2 frames of the target subject.
+async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
+    let walk = shared_data("bvh/cmu_131_01_walk.bvh")?;
+    let target = shared_data(rel)?;
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        rate_hz: 60.0,
+        sources: vec![clip_source(rigcast_sources::load_clip(&walk).unwrap())],
+        performers: vec![PerformerSpec::target_file(target)],
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
+    send_text(&mut ws, r#"{"type":"set_protocol","version":2}"#).await;
+    let (mut bones, mut frames) = (None, Vec::new());
+    let t0 = Instant::now();
+    while let Some(left) = Duration::from_millis(2500).checked_sub(t0.elapsed()) {
+        match next(&mut ws, left).await {
+            Some(Incoming::Json(ServerMessage::Skeleton {
+                subject: 1,
+                bones: b,
+                ..
+            })) => bones = Some(b),
+            Some(Incoming::Frame(f, at)) if f.header.subject == 1 && f.version == 2 => {
+                frames.push((f, at));
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    server.shutdown().await;
+    Some(Streamed {
+        bones: bones.expect("the target's skeleton"),
+        frames,
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
+    let Some(labels) = shared_data("labels.json") else {
+        return;
+    };
+    let labels: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(labels).unwrap()).unwrap();
+    for rel in [
+        "zoo/gltf/quaternius_quadruped__Horse.glb",
+        "zoo/gltf/quaternius_quadruped__Wolf.glb",
+    ] {
+        let Some(s) = stream_walk_onto(rel).await else {
+            return;
+        };
+        let index = |role: &str| {
+            let name = labelled(&labels, rel, role);
+            s.bones.iter().position(|b| b.name == name).unwrap()
+        };
+        let (hips, chest) = (index("hips"), index("chest"));
+        let front = [index("frontLower.L"), index("frontLower.R")];
+        let rest = rest_positions(&s.bones);
+        let rest_pitch = elevation(rest[hips], rest[chest]);
+        let mut off: Vec<f32> = Vec::new();
+        let mut front_over_hips = 0;
+        for (f, _) in &s.frames {
+            let w = wire_fk(&s.bones, f);
+            off.push((elevation(w[hips], w[chest]) - rest_pitch).abs());
+            front_over_hips += front.iter().filter(|&&j| w[j].y > w[hips].y).count();
+        }
+        off.sort_by(f32::total_cmp);
+        let p90 = off[off.len() * 9 / 10];
+        let rate = measured_rate(&s.frames);
+        println!(
+            "{rel}: {} frames at {rate:.1} Hz; trunk pitch off rest ({rest_pitch:.1}°) {:.1}° median, {p90:.1}° p90, {:.1}° worst; front lower legs over the hips in {front_over_hips} joint-frames",
+            s.frames.len(),
+            off[off.len() / 2],
+            off[off.len() - 1]
+        );
+        assert!(
+            s.frames.len() > 100,
+            "{rel}: only {} frames",
+            s.frames.len()
+        );
+        assert!(rate_plausible(rate, 60.0), "{rel}: {rate} Hz");
+        assert!(p90 <= 10.0, "{rel}: trunk pitch {p90}° off rest (p90)");
+        assert_eq!(front_over_hips, 0, "{rel}: front legs over the hips");
+    }
+}
