@@ -20,6 +20,7 @@
 use glam::Vec3;
 
 use super::rig::{Leg, MAX_FEET};
+use super::treadmill::{belt_velocity, stance_band, Contacts};
 use crate::fk::{forward_kinematics, WorldTransform};
 use crate::pose::Pose;
 use crate::skeleton::{BoneId, Skeleton};
@@ -220,6 +221,9 @@ pub struct PlantTrack {
     lifts: Vec<f32>,
     /// The same for the heel (foot joint) alone.
     heel_lifts: Vec<f32>,
+    /// An in-place clip's ground velocity under the body (source units per second): its
+    /// standing feet slide back with it (`treadmill`). `None` for a clip that travels.
+    belt: Option<Vec3>,
 }
 
 impl PlantTrack {
@@ -232,7 +236,14 @@ impl PlantTrack {
             planted,
             heel_lifts: lifts.clone(),
             lifts,
+            belt: None,
         }
+    }
+
+    /// The ground's velocity under an in-place clip (its standing feet slide back with it, as
+    /// on a treadmill), source units per second; `None` for a clip that travels.
+    pub fn belt(&self) -> Option<Vec3> {
+        self.belt
     }
 
     /// Number of frames.
@@ -298,14 +309,147 @@ pub fn detect_clip(
 ) -> PlantTrack {
     let legs: Vec<Leg> = legs.iter().copied().take(MAX_FEET).collect();
     let up = up.try_normalize().unwrap_or(Vec3::Y);
-    let n = poses.len();
     let dt = frame_time_secs.max(1e-6);
-    // Contact joint positions per frame, joint-major.
-    let joints: Vec<(usize, BoneId)> = legs
-        .iter()
-        .enumerate()
-        .flat_map(|(f, l)| contacts(l).into_iter().flatten().map(move |b| (f, b)))
-        .collect();
+    let c = ClipContacts::measure(skeleton, &legs, poses, up, dt, settings);
+    let (nl, n) = (legs.len(), poses.len());
+    let mut track = PlantTrack {
+        planted: vec![false; nl * n],
+        lifts: vec![0.0; nl * n],
+        heel_lifts: vec![0.0; nl * n],
+        belt: c.belt,
+        legs,
+    };
+    for f in 0..nl {
+        let column = c.plants_of(f, &track.legs[f], settings);
+        let mine: Vec<usize> = (0..c.joints.len())
+            .filter(|&j| c.joints[j].0 == f)
+            .collect();
+        for i in 0..n {
+            track.planted[i * nl + f] = column[i];
+            // How high the foot stands: the least of its contacts' heights above their grounds.
+            let lift = (mine.iter().map(|&j| c.height(j, i))).fold(f32::INFINITY, f32::min);
+            track.lifts[i * nl + f] = if lift.is_finite() { lift } else { 0.0 };
+            // The heel is the leg's first contact.
+            track.heel_lifts[i * nl + f] = c.height(mine[0], i);
+        }
+    }
+    track
+}
+
+/// The contact joints of a clip's legs measured over the whole clip: positions, two-sided
+/// speeds, grounds, and (in place) the belt and how high a standing joint rides.
+struct ClipContacts {
+    /// (leg, bone) per contact joint.
+    joints: Vec<(usize, BoneId)>,
+    /// Joint-major: `pos[j * frames + i]`.
+    pos: Vec<Vec3>,
+    speeds: Vec<f32>,
+    grounds: Vec<f32>,
+    /// Per joint, the height above its ground a standing joint may ride at (0: the leg's
+    /// `height_ratio` alone).
+    stance_band: Vec<f32>,
+    belt: Option<Vec3>,
+    frames: usize,
+    up: Vec3,
+    dt: f32,
+}
+
+impl ClipContacts {
+    fn measure(
+        skeleton: &Skeleton,
+        legs: &[Leg],
+        poses: &[Pose],
+        up: Vec3,
+        dt: f32,
+        settings: &PlantSettings,
+    ) -> ClipContacts {
+        let n = poses.len();
+        let joints: Vec<(usize, BoneId)> = (legs.iter().enumerate())
+            .flat_map(|(f, l)| contacts(l).into_iter().flatten().map(move |b| (f, b)))
+            .collect();
+        let pos = contact_positions(skeleton, poses, &joints);
+        // Centred speeds over at least the window.
+        let half = ((settings.window_secs / dt) / 2.0).ceil().max(1.0) as usize;
+        // An in-place clip: judge the feet against the belt they stand on (`treadmill`).
+        let mean_leg = legs.iter().map(|l| l.length).sum::<f32>() / legs.len().max(1) as f32;
+        let view = Contacts {
+            pos: &pos,
+            frames: n,
+            dt,
+            half,
+            up,
+        };
+        let belt = belt_velocity(&view, settings.speed_ratio * mean_leg);
+        let speeds: Vec<f32> = (0..joints.len() * n)
+            .map(|k| view.speed(k / n.max(1), k % n.max(1), belt))
+            .collect();
+        let grounds: Vec<f32> = (joints.iter().enumerate())
+            .map(|(j, &(f, _))| {
+                let v = settings.speed_ratio * legs[f].length;
+                let heights = (0..n).map(|i| (pos[j * n + i].dot(up), speeds[j * n + i]));
+                clip_ground(heights, v)
+            })
+            .collect();
+        let stance_band = (0..joints.len())
+            .map(|j| match belt {
+                Some(_) => stance_band(&view, j, grounds[j]),
+                None => 0.0,
+            })
+            .collect();
+        ClipContacts {
+            joints,
+            pos,
+            speeds,
+            grounds,
+            stance_band,
+            belt,
+            frames: n,
+            up,
+            dt,
+        }
+    }
+
+    /// Height of joint `j` above its ground at frame `i`.
+    fn height(&self, j: usize, i: usize) -> f32 {
+        self.pos[j * self.frames + i].dot(self.up) - self.grounds[j]
+    }
+
+    /// Leg `f`'s plants, frame by frame: the hysteresis rule, then short gaps closed and
+    /// short plants dropped.
+    fn plants_of(&self, f: usize, leg: &Leg, settings: &PlantSettings) -> Vec<bool> {
+        let (h, v) = (
+            settings.height_ratio * leg.length,
+            settings.speed_ratio * leg.length,
+        );
+        let mine: Vec<usize> = (0..self.joints.len())
+            .filter(|&j| self.joints[j].0 == f)
+            .collect();
+        let mut state = false;
+        let mut column = vec![false; self.frames];
+        for (i, slot) in column.iter_mut().enumerate() {
+            let mut readings = [None; JOINTS_PER_FOOT];
+            for (r, &j) in readings.iter_mut().zip(&mine) {
+                // A joint riding higher while it stands (in place) is judged within its band.
+                let scale = h / h.max(self.stance_band[j]);
+                *r = Some(Reading {
+                    height_above_ground: self.height(j, i) * scale,
+                    speed: self.speeds[j * self.frames + i],
+                });
+            }
+            state = next_state(state, &readings, h, v, settings.release_factor);
+            *slot = state;
+        }
+        let frames = |secs: f32| (secs / self.dt).round() as usize;
+        close_gaps(&mut column, frames(settings.min_gap_secs));
+        drop_short(&mut column, frames(settings.min_plant_secs));
+        column
+    }
+}
+
+/// World positions of `joints` over `poses`, joint-major (`[j * frames + i]`); a pose that
+/// does not fit the skeleton leaves zeros.
+fn contact_positions(skeleton: &Skeleton, poses: &[Pose], joints: &[(usize, BoneId)]) -> Vec<Vec3> {
+    let n = poses.len();
     let mut pos = vec![Vec3::ZERO; joints.len() * n];
     let mut worlds = vec![WorldTransform::IDENTITY; skeleton.num_bones()];
     for (i, p) in poses.iter().enumerate() {
@@ -317,76 +461,7 @@ pub fn detect_clip(
             pos[j * n + i] = worlds[b.index()].translation;
         }
     }
-    // Centred speeds over at least the window.
-    let half = ((settings.window_secs / dt) / 2.0).ceil().max(1.0) as usize;
-    let speed = |j: usize, i: usize| {
-        let (a, b) = (i.saturating_sub(half), (i + half).min(n.saturating_sub(1)));
-        if b <= a {
-            return f32::INFINITY;
-        }
-        (pos[j * n + b] - pos[j * n + a]).length() / ((b - a) as f32 * dt)
-    };
-    let mut speeds = vec![0.0; joints.len() * n];
-    for j in 0..joints.len() {
-        for i in 0..n {
-            speeds[j * n + i] = speed(j, i);
-        }
-    }
-    let grounds: Vec<f32> = joints
-        .iter()
-        .enumerate()
-        .map(|(j, &(f, _))| {
-            let v = settings.speed_ratio * legs[f].length;
-            let heights = (0..n).map(|i| (pos[j * n + i].dot(up), speeds[j * n + i]));
-            clip_ground(heights, v)
-        })
-        .collect();
-    let mut planted = vec![false; legs.len() * n];
-    let mut lifts = vec![0.0; legs.len() * n];
-    let mut heel_lifts = vec![0.0; legs.len() * n];
-    for (f, leg) in legs.iter().enumerate() {
-        let (h, v) = (
-            settings.height_ratio * leg.length,
-            settings.speed_ratio * leg.length,
-        );
-        let mine: Vec<usize> = (0..joints.len()).filter(|&j| joints[j].0 == f).collect();
-        let mut state = false;
-        let mut column = vec![false; n];
-        for (i, slot) in column.iter_mut().enumerate() {
-            let mut readings = [None; JOINTS_PER_FOOT];
-            for (r, &j) in readings.iter_mut().zip(&mine) {
-                *r = Some(Reading {
-                    height_above_ground: pos[j * n + i].dot(up) - grounds[j],
-                    speed: speeds[j * n + i],
-                });
-            }
-            state = next_state(state, &readings, h, v, settings.release_factor);
-            *slot = state;
-        }
-        let frames = |secs: f32| (secs / dt).round() as usize;
-        close_gaps(&mut column, frames(settings.min_gap_secs));
-        drop_short(&mut column, frames(settings.min_plant_secs));
-        for (i, &p) in column.iter().enumerate() {
-            planted[i * legs.len() + f] = p;
-        }
-        // How high the foot stands: the least of its contacts' heights above their grounds.
-        for i in 0..n {
-            let lift = mine
-                .iter()
-                .map(|&j| pos[j * n + i].dot(up) - grounds[j])
-                .fold(f32::INFINITY, f32::min);
-            lifts[i * legs.len() + f] = if lift.is_finite() { lift } else { 0.0 };
-            // The heel is the leg's first contact.
-            let j = mine[0];
-            heel_lifts[i * legs.len() + f] = pos[j * n + i].dot(up) - grounds[j];
-        }
-    }
-    PlantTrack {
-        legs,
-        planted,
-        lifts,
-        heel_lifts,
-    }
+    pos
 }
 
 /// A joint's ground over a clip: a low percentile of its heights on slow frames (where it

@@ -582,7 +582,14 @@ impl FootLock {
     /// standing height as the source's foot is above its ground (scaled): a source foot still
     /// settling or standing a few millimetres up is followed, not pressed onto the floor.
     /// Allocates nothing.
+    ///
+    /// An in-place source ([`PlantTrack::belt`]) is left alone: its standing feet slide back
+    /// with the belt by design, and pinning them would drag the legs back under a body that
+    /// never travels.
     pub fn apply_track(&mut self, plants: &PlantTrack, frame: usize, dt_secs: f32, out: &mut Pose) {
+        if plants.belt().is_some() {
+            return;
+        }
         let mut flags = [false; MAX_FEET];
         for (p, s) in flags.iter_mut().zip(plants.frame(frame)) {
             *p = *s;

@@ -9,7 +9,9 @@
 //!  source motion ─▶ detect               heel or ball near its ground AND slow, relative
 //!                                        to the leg's length; hysteresis; causal
 //!                                        (PlantDetector) or two-sided (detect_clip,
-//!                                        with each foot's height above its ground)
+//!                                        with each foot's height above its ground;
+//!                                        an in-place clip's feet judged against the
+//!                                        belt they slide on: treadmill)
 //!  target pose   ─▶ lock (FootLock)      pin planted feet (position + heading), lower the
 //!                                        hips when out of reach, ik::solve_two_bone,
 //!                                        blend switches, keep feet above the floor
@@ -20,6 +22,7 @@ pub mod ik;
 pub mod lock;
 pub mod rig;
 pub mod spring;
+mod treadmill;
 
 pub use detect::{detect_clip, PlantDetector, PlantSettings, PlantTrack};
 pub use ik::{solve_two_bone, TwoBoneSolution};
