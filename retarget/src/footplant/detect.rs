@@ -324,8 +324,8 @@ pub fn detect_clip(
         let mine: Vec<usize> = (0..c.joints.len())
             .filter(|&j| c.joints[j].0 == f)
             .collect();
-        for i in 0..n {
-            track.planted[i * nl + f] = column[i];
+        for (i, &planted) in column.iter().enumerate() {
+            track.planted[i * nl + f] = planted;
             // How high the foot stands: the least of its contacts' heights above their grounds.
             let lift = (mine.iter().map(|&j| c.height(j, i))).fold(f32::INFINITY, f32::min);
             track.lifts[i * nl + f] = if lift.is_finite() { lift } else { 0.0 };
