@@ -632,17 +632,37 @@ pub fn wire_fk(
     bones: &[rigcast_protocol::control::BoneInfo],
     frame: &rigcast_protocol::frame::DecodedFrame,
 ) -> Vec<glam::Vec3> {
-    use glam::{Quat, Vec3};
     let mut slot = 0;
-    let mut world: Vec<(Quat, Vec3)> = Vec::with_capacity(bones.len());
-    for (i, bone) in bones.iter().enumerate() {
+    chain_positions(bones, |i, bone| {
         let translation = if bone.translated {
             slot += 1;
             frame.translations[slot - 1]
         } else {
-            Vec3::from(bone.rest_translation)
+            glam::Vec3::from(bone.rest_translation)
         };
-        let rotation = frame.rotations[i];
+        (frame.rotations[i], translation)
+    })
+}
+
+/// Rest world positions of the wire skeleton (its rest rotations and translations).
+pub fn wire_rest_positions(bones: &[rigcast_protocol::control::BoneInfo]) -> Vec<glam::Vec3> {
+    chain_positions(bones, |_, b| {
+        (
+            glam::Quat::from_array(b.rest_rotation),
+            glam::Vec3::from(b.rest_translation),
+        )
+    })
+}
+
+/// World positions down the wire skeleton's parent chain, given each bone's local rotation
+/// and translation (parents come before children in the list).
+fn chain_positions(
+    bones: &[rigcast_protocol::control::BoneInfo],
+    mut local: impl FnMut(usize, &rigcast_protocol::control::BoneInfo) -> (glam::Quat, glam::Vec3),
+) -> Vec<glam::Vec3> {
+    let mut world: Vec<(glam::Quat, glam::Vec3)> = Vec::with_capacity(bones.len());
+    for (i, bone) in bones.iter().enumerate() {
+        let (rotation, translation) = local(i, bone);
         world.push(match bone.parent {
             None => (rotation, translation),
             Some(p) => {
@@ -652,4 +672,38 @@ pub fn wire_fk(
         });
     }
     world.into_iter().map(|(_, p)| p).collect()
+}
+
+/// What a version 2 client of one subject saw: its skeleton, its frames in arrival order
+/// (with receive times), and the other JSON messages.
+pub struct SubjectStream {
+    pub bones: Option<Vec<rigcast_protocol::control::BoneInfo>>,
+    pub frames: Vec<(DecodedFrame, u64)>,
+    pub messages: Vec<ServerMessage>,
+}
+
+/// Asks `ws` for version 2 frames and watches `subject` for `span` (or until the stream
+/// closes).
+pub async fn watch_v2(ws: &mut Ws, subject: u32, span: Duration) -> SubjectStream {
+    send_text(ws, r#"{"type":"set_protocol","version":2}"#).await;
+    let mut seen = SubjectStream {
+        bones: None,
+        frames: Vec::new(),
+        messages: Vec::new(),
+    };
+    let t0 = Instant::now();
+    while let Some(left) = span.checked_sub(t0.elapsed()) {
+        match next(ws, left).await {
+            Some(Incoming::Json(ServerMessage::Skeleton {
+                subject: s, bones, ..
+            })) if s == subject => seen.bones = Some(bones),
+            Some(Incoming::Json(m)) => seen.messages.push(m),
+            Some(Incoming::Frame(f, at)) if f.header.subject == subject && f.version == 2 => {
+                seen.frames.push((f, at));
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    seen
 }

@@ -162,28 +162,15 @@ async fn footplants_message_follows_the_feet() {
         return;
     };
     let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
-    send_text(&mut ws, r#"{"type":"set_protocol","version":2}"#).await;
-    let mut bones = None;
-    let mut frames = std::collections::HashMap::new();
-    let mut order: Vec<u64> = Vec::new();
-    let mut messages = Vec::new();
-    let t0 = Instant::now();
-    while let Some(left) = Duration::from_millis(2500).checked_sub(t0.elapsed()) {
-        match next(&mut ws, left).await {
-            Some(Incoming::Json(ServerMessage::Skeleton {
-                subject: 1,
-                bones: b,
-                ..
-            })) => bones = Some(b),
-            Some(Incoming::Json(m @ ServerMessage::Footplants { .. })) => messages.push(m),
-            Some(Incoming::Frame(f, _)) if f.header.subject == 1 && f.version == 2 => {
-                order.push(f.header.seq);
-                frames.insert(f.header.seq, f);
-            }
-            Some(_) => {}
-            None => break,
-        }
-    }
+    let seen = watch_v2(&mut ws, 1, Duration::from_millis(2500)).await;
+    let order: Vec<u64> = seen.frames.iter().map(|(f, _)| f.header.seq).collect();
+    let frames: std::collections::HashMap<u64, _> = (seen.frames.into_iter())
+        .map(|(f, _)| (f.header.seq, f))
+        .collect();
+    let messages: Vec<ServerMessage> = (seen.messages.into_iter())
+        .filter(|m| matches!(m, ServerMessage::Footplants { .. }))
+        .collect();
+    let bones = seen.bones;
     let bones = bones.expect("the mannequin's skeleton");
     let index = |name: &str| bones.iter().position(|b| b.name == name).unwrap();
     assert!(

@@ -8,36 +8,16 @@
 //! Skips when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use glam::{Quat, Vec3};
+use glam::Vec3;
 use rigcast_protocol::control::BoneInfo;
-use rigcast_protocol::ServerMessage;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
 /// The first labelled bone name of `role` in `labels.json` for the file `rel`.
 fn labelled(labels: &serde_json::Value, rel: &str, role: &str) -> String {
     labels[rel][role][0].as_str().unwrap().to_string()
-}
-
-/// Rest world positions of the wire skeleton.
-fn rest_positions(bones: &[BoneInfo]) -> Vec<Vec3> {
-    let mut world: Vec<(Quat, Vec3)> = Vec::with_capacity(bones.len());
-    for b in bones {
-        let (r, t) = (
-            Quat::from_array(b.rest_rotation),
-            Vec3::from(b.rest_translation),
-        );
-        world.push(match b.parent {
-            None => (r, t),
-            Some(p) => {
-                let (pr, pp) = world[p as usize];
-                (pr * r, pp + pr * t)
-            }
-        });
-    }
-    world.into_iter().map(|(_, p)| p).collect()
 }
 
 /// Elevation of `to − from` above the horizontal, degrees.
@@ -64,27 +44,11 @@ async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
     };
     let server = rigcast_server::start(config).await.unwrap();
     let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
-    send_text(&mut ws, r#"{"type":"set_protocol","version":2}"#).await;
-    let (mut bones, mut frames) = (None, Vec::new());
-    let t0 = Instant::now();
-    while let Some(left) = Duration::from_millis(2500).checked_sub(t0.elapsed()) {
-        match next(&mut ws, left).await {
-            Some(Incoming::Json(ServerMessage::Skeleton {
-                subject: 1,
-                bones: b,
-                ..
-            })) => bones = Some(b),
-            Some(Incoming::Frame(f, at)) if f.header.subject == 1 && f.version == 2 => {
-                frames.push((f, at));
-            }
-            Some(_) => {}
-            None => break,
-        }
-    }
+    let seen = watch_v2(&mut ws, 1, Duration::from_millis(2500)).await;
     server.shutdown().await;
     Some(Streamed {
-        bones: bones.expect("the target's skeleton"),
-        frames,
+        bones: seen.bones.expect("the target's skeleton"),
+        frames: seen.frames,
     })
 }
 
@@ -108,7 +72,7 @@ async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
         };
         let (hips, chest) = (index("hips"), index("chest"));
         let front = [index("frontLower.L"), index("frontLower.R")];
-        let rest = rest_positions(&s.bones);
+        let rest = wire_rest_positions(&s.bones);
         let rest_pitch = elevation(rest[hips], rest[chest]);
         let mut off: Vec<f32> = Vec::new();
         let mut front_over_hips = 0;
