@@ -190,3 +190,51 @@ fn the_foot_lock_leaves_an_in_place_walk_alone() {
     let moved = free.poses.windows(2).any(|w| w[0] != w[1]);
     assert!(moved, "the output does not move");
 }
+
+/// A live graft's locomotion loop from an in-place walk raises no plant flags for the lock
+/// (its standing feet slide with the belt), while one from a travelling walk does. MakeHuman's
+/// walk cycle, played three times over so a foot lands twice, loops; the CMU walk too.
+#[test]
+fn a_gait_loop_of_an_in_place_walk_gives_the_lock_nothing_to_pin() {
+    use rigcast_retarget::graft::GaitLoop;
+    let (Some((cycle, _)), Some((walk, walk_plants))) = (
+        plants("zoo/bvh/makehuman__walk1.bvh", None),
+        plants("bvh/cmu_131_01_walk.bvh", None),
+    ) else {
+        return;
+    };
+    let mut looped = cycle.clone();
+    looped.poses = (0..3).flat_map(|_| cycle.poses.iter().cloned()).collect();
+    let a = analyze_with_truth(
+        &SkeletonView::from_clip(&looped.skeleton, &looped.poses),
+        None,
+    );
+    let track = detect_clip(
+        &looped.skeleton,
+        &find_legs(&looped.skeleton, &a),
+        &looped.poses,
+        looped.frame_time_secs as f32,
+        a.up,
+        &PlantSettings::default(),
+    );
+    assert!(track.belt().is_some());
+    let flags_over_a_stride = |clip: &Clip, track: &PlantTrack, up| {
+        let mut g = GaitLoop::new(clip, track, up).unwrap();
+        let mut pose = clip.skeleton.rest_pose();
+        let steps = (g.stride_secs() / clip.frame_time_secs).ceil() as usize;
+        (0..steps)
+            .map(|_| {
+                g.advance(clip.frame_time_secs, &mut pose)
+                    .iter()
+                    .filter(|&&p| p)
+                    .count()
+            })
+            .sum::<usize>()
+    };
+    let in_place = flags_over_a_stride(&looped, &track, a.up);
+    let wa = analyze_with_truth(&SkeletonView::from_clip(&walk.skeleton, &walk.poses), None);
+    let travelling = flags_over_a_stride(&walk, &walk_plants, wa.up);
+    println!("planted flags over a stride: in place {in_place}, travelling {travelling}");
+    assert_eq!(in_place, 0);
+    assert!(travelling > 0);
+}

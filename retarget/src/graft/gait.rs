@@ -3,7 +3,7 @@
 //! is its first, played on a continuous clock. Each time the stride wraps, the walker carries
 //! on from where the stride ended (its travel and turn accumulate) instead of jumping back,
 //! so the phase and the root's path are continuous; the stride's plant flags come with every
-//! sample for the foot lock.
+//! sample for the foot lock (none for an in-place clip: `footplant::treadmill`).
 //!
 //! Closing the loop: the difference between the stride's end and start pose (each bone's
 //! local rotation, the root's height) is spread linearly over the stride, so the seam has no
@@ -73,9 +73,12 @@ impl GaitLoop {
         let stride_travel = flat(end.translations[m], up) - yaw * flat(start.translations[m], up);
         let poses = close(&clip.poses[a..=b], m, up, yaw);
         let num_legs = plants.legs.len().min(MAX_FEET);
+        // An in-place clip's standing feet slide with its belt under a body that never
+        // travels: nothing for the lock to pin, so its flags stay down.
+        let in_place = plants.belt().is_some();
         let plants = (a..=b)
             .flat_map(|f| (0..num_legs).map(move |l| (f, l)))
-            .map(|(f, l)| plants.is_planted(f, l))
+            .map(|(f, l)| plants.is_planted(f, l) && !in_place)
             .collect();
         Ok(GaitLoop {
             skeleton: (**skel).clone(),
