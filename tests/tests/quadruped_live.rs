@@ -4,7 +4,8 @@
 //! the hips→chest line (bones named by `labels.json`, the zoo's ground truth) stays within a
 //! few degrees of its rest elevation, and the front legs' lower joints stay below the hips.
 //! Before the live mapper kept the quadruped's own posture, the trunk took the walker's
-//! upright one (pitched ~90° off its rest, the front legs lifted over the hips).
+//! upright one (pitched ~90° off its rest, the front legs lifted over the hips). The foot
+//! lock is on by default: `/v1/status` lists the hind feet as held.
 //! Skips when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
@@ -29,6 +30,8 @@ fn elevation(from: Vec3, to: Vec3) -> f32 {
 struct Streamed {
     bones: Vec<BoneInfo>,
     frames: Vec<(rigcast_protocol::frame::DecodedFrame, u64)>,
+    /// The feet `/v1/status` lists under the foot lock (`None`: no lock).
+    locked_feet: Option<Vec<String>>,
 }
 
 /// Streams 2.5 s of the walk on `rel` as version 2 frames of the target subject.
@@ -45,10 +48,18 @@ async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
     let server = rigcast_server::start(config).await.unwrap();
     let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
     let seen = watch_v2(&mut ws, 1, Duration::from_millis(2500)).await;
+    let (_, status) = http_get(server.local_addr(), "/v1/status").await;
+    let status: serde_json::Value = serde_json::from_str(&status).unwrap();
     server.shutdown().await;
+    let locked_feet = (status["subjects"][1]["footplants"].as_array()).map(|f| {
+        f.iter()
+            .map(|x| x["bone"].as_str().unwrap().to_string())
+            .collect()
+    });
     Some(Streamed {
         bones: seen.bones.expect("the target's skeleton"),
         frames: seen.frames,
+        locked_feet,
     })
 }
 
@@ -98,5 +109,16 @@ async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
         assert!(rate_plausible(rate, 60.0), "{rel}: {rate} Hz");
         assert!(p90 <= 10.0, "{rel}: trunk pitch {p90}° off rest (p90)");
         assert_eq!(front_over_hips, 0, "{rel}: front legs over the hips");
+        // The foot lock is on by default for a quadruped: its feet are held (all four are
+        // listed; the labelled hind ones, which the walker's feet drive, checked by name).
+        let locked = s.locked_feet.clone().unwrap_or_default();
+        println!("{rel}: locked feet {locked:?}");
+        for role in ["foot.L", "foot.R"] {
+            let name = labelled(&labels, rel, role);
+            assert!(
+                locked.contains(&name),
+                "{rel}: {name} not locked: {locked:?}"
+            );
+        }
     }
 }
