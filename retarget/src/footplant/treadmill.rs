@@ -9,7 +9,9 @@
 //! travels (its standing feet are still), the belt for an in-place one. Animated belts are
 //! not steady (a Quaternius horse's standing hoof slides back at 0.6–2.9 m/s through one
 //! stance), so a clip counts as in place when the belt is clear (faster than the detector's
-//! "slow") and most frames' lowest joint moves its way; the detector then reads a foot low
+//! "slow"), most frames' lowest joint moves its way, and no foot ends the clip far from where
+//! it began (a travelling run's lowest foot is often a swinging one, but its feet go with the
+//! body); the detector then reads a foot low
 //! in its range ([`stance_band`]) and not moving against the belt as standing
 //! ([`Contacts::speed`]).
 
