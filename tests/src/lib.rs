@@ -707,3 +707,98 @@ pub async fn watch_v2(ws: &mut Ws, subject: u32, span: Duration) -> SubjectStrea
     }
     seen
 }
+
+/// What a subject's `footplants` messages show against its version 2 frames (judged with the
+/// client's own FK; see [`judge_footplants`]).
+pub struct PlantWatch {
+    /// `footplants` messages of the subject.
+    pub messages: usize,
+    /// Messages whose frame was received (each foot's position checked against FK).
+    pub checked: usize,
+    /// (bone, planted) states seen.
+    pub seen: std::collections::HashSet<(String, bool)>,
+    /// Farthest a planted foot moved horizontally over one plant (m), and per frame (m).
+    pub planted_travel: f32,
+    pub planted_drift: f32,
+    /// Plants long enough to be judged.
+    pub planted_judged: usize,
+    /// Farthest a lifted foot moved over one message's span (m).
+    pub lifted_travel: f32,
+}
+
+/// Judges `subject`'s `footplants` messages against its frames (`frames` in arrival order):
+/// each foot's position must be FK of the frame the message names (within 0.1 mm, asserted),
+/// and between one message and the next a planted foot should stay put while a lifted one
+/// travels. The lock eases a landing foot onto its pin (and off it) with a spring that leaves
+/// a quarter of the landing offset after 0.1 s and a few percent after 0.2 s: a plant is
+/// judged after its first 0.2 s (12 frames at 60 Hz). A message names the frame the server
+/// saw the change in, sampled at 30 Hz: a release can reach the message up to one check period
+/// (two frames at 60 Hz) after the lock let go, so a span's last three frames are not judged.
+pub fn judge_footplants(
+    subject: u32,
+    bones: &[rigcast_protocol::control::BoneInfo],
+    frames: &[(DecodedFrame, u64)],
+    messages: &[ServerMessage],
+) -> PlantWatch {
+    let (settle, tail) = (12, 3);
+    let by_seq: std::collections::HashMap<u64, &DecodedFrame> =
+        frames.iter().map(|(f, _)| (f.header.seq, f)).collect();
+    let index = |name: &str| bones.iter().position(|b| b.name == name).unwrap();
+    let plants: Vec<(u64, &Vec<rigcast_protocol::control::FootState>)> = (messages.iter())
+        .filter_map(|m| match m {
+            ServerMessage::Footplants {
+                subject: s,
+                seq,
+                feet,
+            } if *s == subject => Some((*seq, feet)),
+            _ => None,
+        })
+        .collect();
+    let mut w = PlantWatch {
+        messages: plants.len(),
+        checked: 0,
+        seen: Default::default(),
+        planted_travel: 0.0,
+        planted_drift: 0.0,
+        planted_judged: 0,
+        lifted_travel: 0.0,
+    };
+    for (k, (seq, feet)) in plants.iter().enumerate() {
+        let Some(frame) = by_seq.get(seq) else {
+            continue; // before the client's set_protocol took effect
+        };
+        let world = wire_fk(bones, frame);
+        // Frames until the next message: the state holds over them.
+        let next_seq = plants.get(k + 1).map(|n| n.0);
+        let span: Vec<u64> = (frames.iter().map(|(f, _)| f.header.seq))
+            .filter(|s| *s >= *seq && next_seq.is_some_and(|n| *s < n))
+            .collect();
+        for foot in feet.iter() {
+            w.seen.insert((foot.bone.clone(), foot.planted));
+            let error = (world[index(&foot.bone)] - Vec3::from(foot.position)).length();
+            assert!(
+                error < 1e-4,
+                "{}: position off FK of frame {seq} by {error} m",
+                foot.bone
+            );
+            if span.len() < settle + tail + 3 {
+                continue;
+            }
+            let judged = &span[settle..span.len() - tail];
+            let at = |s: u64| wire_fk(bones, by_seq[&s])[index(&foot.bone)];
+            let from = at(judged[0]);
+            let travel = (judged.iter().map(|s| at(*s) - from))
+                .map(|p| (p.x * p.x + p.z * p.z).sqrt())
+                .fold(0.0, f32::max);
+            if foot.planted {
+                w.planted_travel = w.planted_travel.max(travel);
+                w.planted_drift = w.planted_drift.max(travel / judged.len() as f32);
+                w.planted_judged += 1;
+            } else {
+                w.lifted_travel = w.lifted_travel.max(travel);
+            }
+        }
+        w.checked += 1;
+    }
+    w
+}

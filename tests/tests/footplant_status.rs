@@ -163,88 +163,22 @@ async fn footplants_message_follows_the_feet() {
     };
     let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
     let seen = watch_v2(&mut ws, 1, Duration::from_millis(2500)).await;
-    let order: Vec<u64> = seen.frames.iter().map(|(f, _)| f.header.seq).collect();
-    let frames: std::collections::HashMap<u64, _> = (seen.frames.into_iter())
-        .map(|(f, _)| (f.header.seq, f))
-        .collect();
-    let messages: Vec<ServerMessage> = (seen.messages.into_iter())
-        .filter(|m| matches!(m, ServerMessage::Footplants { .. }))
-        .collect();
-    let bones = seen.bones;
-    let bones = bones.expect("the mannequin's skeleton");
-    let index = |name: &str| bones.iter().position(|b| b.name == name).unwrap();
-    assert!(
-        messages.len() >= 3,
-        "only {} footplants messages",
-        messages.len()
-    );
-    let mut seen = HashSet::new();
-    let mut checked = 0;
-    let (mut planted_travel, mut lifted_travel) = (0.0f32, 0.0f32);
-    // Worst drift of a planted foot per frame over one plant (issue 13's bound: 0.05 cm).
-    let mut planted_drift = 0.0f32;
-    for (k, m) in messages.iter().enumerate() {
-        let ServerMessage::Footplants { subject, seq, feet } = m else {
-            unreachable!()
-        };
-        assert_eq!(*subject, 1);
-        assert_eq!(feet.len(), 2, "{m:?}");
-        let Some(frame) = frames.get(seq) else {
-            continue; // before our set_protocol took effect
-        };
-        let world = wire_fk(&bones, frame);
-        // Frames until the next message: the state holds over them.
-        let next_seq = messages.get(k + 1).map(|n| match n {
-            ServerMessage::Footplants { seq, .. } => *seq,
-            _ => u64::MAX,
-        });
-        let span: Vec<&u64> = order
-            .iter()
-            .filter(|s| **s >= *seq && next_seq.is_some_and(|n| **s < n))
-            .collect();
-        for foot in feet {
-            seen.insert((foot.bone.clone(), foot.planted));
-            let at = world[index(&foot.bone)];
-            let error = (at - glam::Vec3::from(foot.position)).length();
-            assert!(
-                error < 1e-4,
-                "{}: position off FK of frame {seq} by {error} m",
-                foot.bone
-            );
-            // The lock eases a landing foot onto its pin (and off it) with a spring that leaves a
-            // quarter of the landing offset after 0.1 s and a few percent after 0.2 s: judge a
-            // plant after its first 0.2 s (12 frames at 60 Hz). The message names the frame the
-            // server saw the change in, sampled at `footplants::CHECK_HZ` (30 Hz): a release
-            // can reach the message up to one check period (two frames at 60 Hz) after the
-            // lock let go, so the span's last three frames may show the foot lifting.
-            let (settle, tail) = (12, 3);
-            if span.len() < settle + tail + 3 {
-                continue;
-            }
-            let judged = &span[settle..span.len() - tail];
-            let from = wire_fk(&bones, &frames[judged[0]])[index(&foot.bone)];
-            let travel = judged
-                .iter()
-                .map(|s| {
-                    let p = wire_fk(&bones, &frames[*s])[index(&foot.bone)] - from;
-                    (p.x * p.x + p.z * p.z).sqrt()
-                })
-                .fold(0.0, f32::max);
-            if foot.planted {
-                planted_travel = planted_travel.max(travel);
-                planted_drift = planted_drift.max(travel / judged.len() as f32);
-            } else {
-                lifted_travel = lifted_travel.max(travel);
-            }
-        }
-        checked += 1;
-    }
+    let bones = seen.bones.clone().expect("the mannequin's skeleton");
+    let w = judge_footplants(1, &bones, &seen.frames, &seen.messages);
     println!(
-        "{} footplants messages over 2.5 s, {checked} checked against FK; planted feet moved ≤ {planted_travel:.3} m ({:.3} cm per frame at most), lifted ones up to {lifted_travel:.3} m",
-        messages.len(),
-        100.0 * planted_drift
+        "{} footplants messages over 2.5 s, {} checked against FK; planted feet moved ≤ {:.3} m ({:.3} cm per frame at most), lifted ones up to {:.3} m",
+        w.messages,
+        w.checked,
+        w.planted_travel,
+        100.0 * w.planted_drift,
+        w.lifted_travel
     );
+    assert!(w.messages >= 3, "only {} footplants messages", w.messages);
+    let (checked, seen) = (w.checked, w.seen.clone());
+    let (planted_travel, planted_drift, lifted_travel) =
+        (w.planted_travel, w.planted_drift, w.lifted_travel);
     assert!(checked >= 3, "only {checked} messages matched a frame");
+    assert!(w.planted_judged >= 2, "{} plants judged", w.planted_judged);
     for bone in ["foot_l", "foot_r"] {
         for planted in [true, false] {
             assert!(

@@ -5,7 +5,8 @@
 //! few degrees of its rest elevation, and the front legs' lower joints stay below the hips.
 //! Before the live mapper kept the quadruped's own posture, the trunk took the walker's
 //! upright one (pitched ~90° off its rest, the front legs lifted over the hips). The foot
-//! lock is on by default: `/v1/status` lists the hind feet as held.
+//! lock is on by default: `/v1/status` lists the feet as locked, and the `footplants`
+//! messages show the hind feet (driven by the walker's) held still while planted.
 //! Skips when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
@@ -32,9 +33,10 @@ struct Streamed {
     frames: Vec<(rigcast_protocol::frame::DecodedFrame, u64)>,
     /// The feet `/v1/status` lists under the foot lock (`None`: no lock).
     locked_feet: Option<Vec<String>>,
+    messages: Vec<rigcast_protocol::ServerMessage>,
 }
 
-/// Streams 2.5 s of the walk on `rel` as version 2 frames of the target subject.
+/// Streams 5 s of the walk on `rel` as version 2 frames of the target subject.
 async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
     let walk = shared_data("bvh/cmu_131_01_walk.bvh")?;
     let target = shared_data(rel)?;
@@ -47,7 +49,7 @@ async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
     };
     let server = rigcast_server::start(config).await.unwrap();
     let mut ws = connect(&format!("ws://{}/v1/stream", server.local_addr())).await;
-    let seen = watch_v2(&mut ws, 1, Duration::from_millis(2500)).await;
+    let seen = watch_v2(&mut ws, 1, Duration::from_millis(5000)).await;
     let (_, status) = http_get(server.local_addr(), "/v1/status").await;
     let status: serde_json::Value = serde_json::from_str(&status).unwrap();
     server.shutdown().await;
@@ -60,6 +62,7 @@ async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
         bones: seen.bones.expect("the target's skeleton"),
         frames: seen.frames,
         locked_feet,
+        messages: seen.messages,
     })
 }
 
@@ -120,5 +123,41 @@ async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
                 "{rel}: {name} not locked: {locked:?}"
             );
         }
+        // ... and held: the `footplants` messages show each hind foot planted and lifted, a
+        // planted one still (≤ 0.05 cm per frame, issue 13's bound), a lifted one travelling.
+        let w = judge_footplants(1, &s.bones, &s.frames, &s.messages);
+        println!(
+            "{rel}: {} footplants messages ({} checked against FK), {} plants judged; planted feet moved ≤ {:.2} cm ({:.4} cm per frame), lifted ones up to {:.1} cm",
+            w.messages,
+            w.checked,
+            w.planted_judged,
+            100.0 * w.planted_travel,
+            100.0 * w.planted_drift,
+            100.0 * w.lifted_travel
+        );
+        for role in ["foot.L", "foot.R"] {
+            let name = labelled(&labels, rel, role);
+            for planted in [true, false] {
+                assert!(
+                    w.seen.contains(&(name.clone(), planted)),
+                    "{rel}: {name} never {planted}"
+                );
+            }
+        }
+        assert!(
+            w.planted_judged >= 2,
+            "{rel}: {} plants judged",
+            w.planted_judged
+        );
+        assert!(
+            w.planted_drift <= 0.0005,
+            "{rel}: planted feet slid {} m/frame",
+            w.planted_drift
+        );
+        assert!(
+            w.lifted_travel > 0.1,
+            "{rel}: lifted feet moved {} m",
+            w.lifted_travel
+        );
     }
 }
