@@ -15,12 +15,10 @@
 mod retarget_fixtures;
 
 use glam::Quat;
-use retarget_fixtures::{table_by_canonical, Humanoid};
+use retarget_fixtures::locked_pair;
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings, PlantTrack};
-use rigcast_retarget::{
-    world_transforms, Clip, Mapping, Pose, RetargetOptions, Skeleton, WorldTransform,
-};
+use rigcast_retarget::{world_transforms, Clip, Mapping, Pose, Skeleton, WorldTransform};
 
 /// Standing still at 60 Hz; from frame 40 the left foot turns toes-down about the ankle by
 /// `pitch_rad` (held), both feet staying planted (the heel does not move).
@@ -36,24 +34,6 @@ fn toes_down(source: &Skeleton, num_frames: usize, pitch_rad: f32) -> Vec<Pose> 
             p
         })
         .collect()
-}
-
-/// The standard humanoid driving a shorter-legged one, and the foot lock between them.
-fn locked_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
-    let source = Humanoid::default().build();
-    let target = Humanoid {
-        leg: 0.8,
-        ..Humanoid::default()
-    }
-    .build();
-    let table = table_by_canonical(&source, "", &target, "");
-    let mapping =
-        Mapping::build(&[&source], &target, &table, &RetargetOptions::default()).expect("build");
-    let sa = analyze(&SkeletonView::rest(&source));
-    let ta = analyze(&SkeletonView::rest(&target));
-    let lock =
-        FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
-    (source, target, mapping, lock)
 }
 
 /// One 60 Hz frame: `p` retargeted into `free`, and locked into `out`; the target's world

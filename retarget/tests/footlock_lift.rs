@@ -5,30 +5,10 @@
 
 mod retarget_fixtures;
 
-use retarget_fixtures::{table_by_canonical, Humanoid};
+use retarget_fixtures::{locked_pair, Humanoid};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
-use rigcast_retarget::footplant::{
-    detect_clip, find_contact_legs, find_legs, FootLock, LockSettings, PlantSettings,
-};
-use rigcast_retarget::{world_transforms, Mapping, Pose, RetargetOptions, Skeleton, Transform};
-
-/// The standard humanoid driving a shorter-legged one, and the foot lock between them.
-fn locked_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
-    let source = Humanoid::default().build();
-    let target = Humanoid {
-        leg: 0.8,
-        ..Humanoid::default()
-    }
-    .build();
-    let table = table_by_canonical(&source, "", &target, "");
-    let mapping =
-        Mapping::build(&[&source], &target, &table, &RetargetOptions::default()).expect("build");
-    let sa = analyze(&SkeletonView::rest(&source));
-    let ta = analyze(&SkeletonView::rest(&target));
-    let lock =
-        FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
-    (source, target, mapping, lock)
-}
+use rigcast_retarget::footplant::{detect_clip, find_contact_legs, find_legs, PlantSettings};
+use rigcast_retarget::{world_transforms, Pose, Skeleton, Transform};
 
 /// Standing still at 60 Hz for `n` frames, the whole body `rise(f)` metres up on frame `f`.
 fn standing(source: &Skeleton, n: usize, rise: impl Fn(usize) -> f32) -> Vec<Pose> {

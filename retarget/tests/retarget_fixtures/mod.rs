@@ -319,3 +319,30 @@ pub fn angle_deg(a: Vec3, b: Vec3) -> f32 {
         .acos()
         .to_degrees()
 }
+
+/// The standard humanoid driving a shorter-legged one (legs 0.8 ×), mapped by canonical
+/// names, and the foot lock between them: the foot-lock tests' pair.
+pub fn locked_pair() -> (
+    Skeleton,
+    Skeleton,
+    rigcast_retarget::Mapping,
+    rigcast_retarget::footplant::FootLock,
+) {
+    use rigcast_retarget::analysis::{analyze, SkeletonView};
+    use rigcast_retarget::footplant::{FootLock, LockSettings};
+    let source = Humanoid::default().build();
+    let target = Humanoid {
+        leg: 0.8,
+        ..Humanoid::default()
+    }
+    .build();
+    let table = table_by_canonical(&source, "", &target, "");
+    let opts = rigcast_retarget::RetargetOptions::default();
+    let mapping =
+        rigcast_retarget::Mapping::build(&[&source], &target, &table, &opts).expect("build");
+    let sa = analyze(&SkeletonView::rest(&source));
+    let ta = analyze(&SkeletonView::rest(&target));
+    let lock =
+        FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock for a humanoid");
+    (source, target, mapping, lock)
+}
