@@ -143,10 +143,12 @@ fn median(v: &[Vec3]) -> Option<Vec3> {
     if v.is_empty() {
         return None;
     }
-    let mid = |f: fn(&Vec3) -> f32| {
-        let mut c: Vec<f32> = v.iter().map(f).collect();
-        c.sort_by(f32::total_cmp);
-        c[c.len() / 2]
+    let mut c = vec![0.0f32; v.len()];
+    let mut mid = |f: fn(&Vec3) -> f32| {
+        for (x, p) in c.iter_mut().zip(v) {
+            *x = f(p);
+        }
+        *c.select_nth_unstable_by(v.len() / 2, f32::total_cmp).1
     };
     Some(Vec3::new(mid(|p| p.x), mid(|p| p.y), mid(|p| p.z)))
 }
