@@ -869,7 +869,6 @@ function applyLatest(dt) {
       view.fk(frame);
       view.update();
       if (view.model && state.showMeshes) view.model.drive(view.worldR, view.worldP, dt);
-      view.placeMarkers();
       state.framesDrawn++;
       // Rest poses can sit anywhere (BVH roots at the origin, feet below the floor): lay the
       // views out again on each subject's first live pose.
@@ -878,6 +877,9 @@ function applyLatest(dt) {
         view.height = view.computeHeight();
         layout();
       }
+      // After the first live pose is marked as such: a foot already planted shows its marker
+      // from this frame, not the next one.
+      view.placeMarkers();
     }
   }
   state.latest.clear();
