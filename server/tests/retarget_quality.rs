@@ -497,7 +497,8 @@ fn limb_directions_and_root_travel_on_real_pairs() {
 /// Planted feet within 1 cm of the floor, with the foot lock on (the command's default): per
 /// pair, the 95th percentile over every source frame with a planted foot (a few frames of a
 /// landing blend may exceed it; the largest is printed too). Not met on every real pair (last
-/// measured: 101 of 122 right pairs, median 0.21 cm; 81, median 0.63, before a pinned foot
+/// measured: 101 of 122 right pairs, median 0.17 cm (0.21 before a landing foot kept coming
+/// down onto its pin); 81, median 0.63, before a pinned foot
 /// followed the source's clearance above its ground and its heel's above its toe, and before
 /// a source's feet hanging from its root (RobotExpressive) were watched for plants; 78 with
 /// the lock off). What remains:

@@ -746,16 +746,26 @@ impl FootLock {
         if f.locked != was {
             // Take up the difference in place and in speed; it decays from here. An unpinned
             // foot is carried down with the hips: measured from where that puts it.
-            // A landing foot stops dead where it is (a release blends in place and speed).
+            // A landing foot stops where it is shown (a release blends in place and speed),
+            // except that a foot still coming down onto its pin keeps that downward speed:
+            // stopping it would leave it hanging over the pin for the blend's length.
             let carried = if f.locked { 0.0 } else { last_drop };
             let keep_speed = if f.locked { 0.0 } else { 1.0 };
             // A foot seen for the first time has shown nothing yet: nothing to blend from.
             f.position_offset = if fresh {
                 Decay::default()
             } else {
+                let value = f.shown_position - (target - up * carried);
+                let relative = f.shown_velocity - velocity;
+                let down = up * relative.dot(up);
+                let settling = if down.dot(value) < 0.0 {
+                    down
+                } else {
+                    Vec3::ZERO
+                };
                 Decay {
-                    value: f.shown_position - (target - up * carried),
-                    velocity: (f.shown_velocity - velocity) * keep_speed,
+                    value,
+                    velocity: relative * keep_speed + settling * (1.0 - keep_speed),
                 }
             };
             f.heading_offset = Decay {
