@@ -6,8 +6,10 @@
 #   - the same binary on the landmark models as converted (all five outputs: segmentation mask
 #     and heatmaps computed and thrown away), as rigcast ran them before the pruned copies
 #   - RIGCAST_BEFORE=/path/to/rigcast: another build (e.g. of main) run on the same clips
-#   - MediaPipe Python 0.10.14 (its own detector and tracking) on the same decoded frames (installed into a throwaway venv under
-#     ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1 leaves it out)
+#   - MediaPipe Python 0.10.14 (its own detector and tracking) on the same decoded frames, one
+#     person (`solutions.pose`) and two (the Tasks API's PoseLandmarker, num_poses=2); installed
+#     into a throwaway venv under ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1
+#     leaves it out
 #
 # Usage: scripts/bench-vision.sh [path/to/rigcast]   (default: target/release/rigcast; build it
 # with `cargo build --release -p rigcast-server`). Needs scripts/setup-vision.sh to have run.
@@ -77,17 +79,23 @@ if [[ "${RIGCAST_SKIP_MEDIAPIPE:-0}" != "1" ]]; then
         cp "$tmp/package/pose_landmark_lite.tflite" "$LITE"
         rm -rf "$tmp"
     fi
+    # One person with `solutions.pose`, two with the Tasks API's PoseLandmarker (num_poses=2).
     for model in lite full; do
-        for clip in "${CLIPS[@]}"; do
-            "$VENV/bin/python" scripts/bench_mediapipe.py "$clip" "$model" 2>/dev/null | grep '^mediapipe'
-        done | python3 -c "
+        for people in 1 2; do
+            for clip in "${CLIPS[@]}"; do
+                "$VENV/bin/python" scripts/bench_mediapipe.py "$clip" "$model" "$people" 2>/dev/null \
+                    | grep '^mediapipe'
+            done | python3 -c "
 import sys, re
-f = s = m = 0
+f = s = m = w = 0
 for line in sys.stdin:
     n = int(re.search(r'frames=(\d+)', line).group(1))
     f += n
+    w += int(re.search(r'with_person=(\d+)', line).group(1))
     s += n / float(re.search(r'fps_with_decoding=([\d.]+)', line).group(1))
     m += n / float(re.search(r'fps_model_only=([\d.]+)', line).group(1))
-print(f'$model: mediapipe {f / s:.1f} fps with decoding, {f / m:.1f} fps model only ({f} frames)')"
+print(f'$model: mediapipe, people=$people: {f / s:.1f} fps with decoding, {f / m:.1f} fps model only '
+      f'({f} frames, all $people found in {w})')"
+        done
     done
 fi

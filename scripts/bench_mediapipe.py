@@ -1,12 +1,22 @@
 """MediaPipe Pose (Python) on the frames ffmpeg decodes from a video: the baseline that
 scripts/bench-vision.sh compares `rigcast pose` with.
 
-Usage: bench_mediapipe.py VIDEO lite|full
-Prints one line: `mediapipe MODEL VIDEO frames=N with_person=N fps_with_decoding=X fps_model_only=Y`.
-Frames come from an ffmpeg pipe as RGB at the video's own size (what MediaPipe is given in its
-own examples); decoding time is counted in the first figure and left out of the second.
+Usage: bench_mediapipe.py VIDEO lite|full [PEOPLE]
+Prints one line: `mediapipe MODEL VIDEO people=P frames=N with_person=N fps_with_decoding=X
+fps_model_only=Y`. Frames come from an ffmpeg pipe as RGB at the video's own size (what MediaPipe
+is given in its own examples); decoding time is counted in the first figure and left out of the
+second.
+
+PEOPLE 1 (the default) runs `solutions.pose`, MediaPipe's single-person tracker. PEOPLE 2 or more
+runs the Tasks API's `PoseLandmarker` in video mode with `num_poses=PEOPLE`, MediaPipe's own way
+to follow several people; `with_person` then counts frames where all of them were found. Its
+model bundle is not in the wheel (MediaPipe downloads it), so it is built from the same two
+models the wheel ships for `solutions.pose` (the detector and the landmark model), given the
+input normalisation `solutions.pose` applies to them ([-1, 1] and [0, 1]), and cached next to
+the wheel.
 """
 import json
+import os
 import subprocess
 import sys
 import time
@@ -14,17 +24,65 @@ import time
 import mediapipe as mp
 import numpy as np
 
+
+def landmark_model(model):
+    return os.path.join(os.path.dirname(mp.__file__), "modules", "pose_landmark",
+                        f"pose_landmark_{model}.tflite")
+
+
+def with_image_metadata(path, mean, std):
+    """The model with metadata saying how its float input is normalised (the Tasks API
+    refuses a float image input without it); every output is a plain feature tensor."""
+    from mediapipe.tasks.python.metadata.metadata_writers import metadata_writer, writer_utils
+    buf = bytearray(open(path, "rb").read())
+    writer = metadata_writer.MetadataWriter.create(buf).add_general_info(os.path.basename(path), "")
+    writer.add_image_input(norm_mean=[mean], norm_std=[std])
+    for _ in range(writer_utils.get_subgraph(buf).OutputsLength()):
+        writer.add_feature_output()
+    return writer.populate()[0]
+
+
+def task_bundle(model):
+    from mediapipe.tasks.python.metadata.metadata_writers import model_asset_bundle_utils
+    bundle = os.path.join(os.path.dirname(mp.__file__), f"rigcast_pose_landmarker_{model}.task")
+    if not os.path.exists(bundle):
+        detector = os.path.join(os.path.dirname(mp.__file__), "modules", "pose_detection",
+                                "pose_detection.tflite")
+        model_asset_bundle_utils.create_model_asset_bundle({
+            "pose_detector.tflite": with_image_metadata(detector, 127.5, 127.5),
+            "pose_landmarks_detector.tflite": with_image_metadata(landmark_model(model), 0.0, 255.0),
+        }, bundle)
+    return bundle
+
+
+def tracker(model, people):
+    """A function from (RGB frame, frame index) to the number of people found."""
+    if people == 1:
+        pose = mp.solutions.pose.Pose(static_image_mode=False,
+                                      model_complexity={"lite": 0, "full": 1}[model])
+        return lambda img, _: int(pose.process(img).pose_landmarks is not None)
+    from mediapipe.tasks import python as tasks
+    from mediapipe.tasks.python import vision
+    landmarker = vision.PoseLandmarker.create_from_options(vision.PoseLandmarkerOptions(
+        base_options=tasks.BaseOptions(model_asset_path=task_bundle(model)),
+        running_mode=vision.RunningMode.VIDEO, num_poses=people))
+    # Video mode wants increasing timestamps; their spacing does not change the work done.
+    return lambda img, i: len(landmarker.detect_for_video(
+        mp.Image(image_format=mp.ImageFormat.SRGB, data=img), i * 33).pose_landmarks)
+
+
 video, model = sys.argv[1], sys.argv[2]
+people = int(sys.argv[3]) if len(sys.argv) > 3 else 1
 probe = json.loads(subprocess.check_output(
     ["ffprobe", "-v", "error", "-select_streams", "v:0", "-show_entries",
      "stream=width,height", "-of", "json", video]))["streams"][0]
 w, h = probe["width"], probe["height"]
-pose = mp.solutions.pose.Pose(static_image_mode=False, model_complexity={"lite": 0, "full": 1}[model])
+track = tracker(model, people)
 # First frame outside the timing: MediaPipe builds its graph lazily.
 ff = subprocess.Popen(["ffmpeg", "-nostdin", "-v", "error", "-i", video, "-f", "rawvideo",
                        "-pix_fmt", "rgb24", "-"], stdout=subprocess.PIPE)
 frame_bytes = w * h * 3
-frames = found = 0
+index = frames = found = 0
 model_secs = 0.0
 start = None
 while True:
@@ -33,14 +91,15 @@ while True:
         break
     img = np.frombuffer(buf, np.uint8).reshape(h, w, 3)
     t = time.perf_counter()
-    result = pose.process(img)
+    n = track(img, index)
+    index += 1
     if start is None:
         start = time.perf_counter()  # the clock starts after the first (warm-up) frame
         continue
     model_secs += time.perf_counter() - t
     frames += 1
-    found += result.pose_landmarks is not None
+    found += n >= people
 total = time.perf_counter() - start
 ff.wait()
-print(f"mediapipe {model} {video} frames={frames} with_person={found} "
+print(f"mediapipe {model} {video} people={people} frames={frames} with_person={found} "
       f"fps_with_decoding={frames / total:.1f} fps_model_only={frames / model_secs:.1f}")
