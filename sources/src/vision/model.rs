@@ -168,35 +168,96 @@ impl LandmarkModel {
         outs: &mut [Landmarks],
     ) -> Result<(), VisionError> {
         debug_assert_eq!(rois.len(), outs.len());
-        let (scale, offset) = match self.range {
-            InputRange::ZeroOne => (1.0 / 255.0, 0.0),
-            InputRange::MinusOneOne => (1.0 / 127.5, -1.0),
-        };
+        let (scale, offset) = self.range.scale_offset();
         let max = self.batches.len();
         for (rois, outs) in rois.chunks(max).zip(outs.chunks_mut(max)) {
             let batch = &mut self.batches[rois.len() - 1];
-            {
-                let (_, data) = batch.input.extract_tensor_mut();
-                let per_crop = INPUT_SIZE * INPUT_SIZE * 3;
-                for (roi, crop) in rois.iter().zip(data.chunks_exact_mut(per_crop)) {
-                    warp_crop(frame, roi, INPUT_SIZE, scale, offset, crop);
-                }
+            let (_, data) = batch.input.extract_tensor_mut();
+            let per_crop = INPUT_SIZE * INPUT_SIZE * 3;
+            for (roi, crop) in rois.iter().zip(data.chunks_exact_mut(per_crop)) {
+                warp_crop(frame, roi, INPUT_SIZE, scale, offset, crop);
             }
-            batch.run.run(&mut self.session, &batch.input)?;
-            // Lengths were checked against the model when the outputs were bound.
-            let (lm, presence, world) = (
-                batch.run.output(0),
-                batch.run.output(1),
-                batch.run.output(2),
-            );
-            let (n_lm, n_world) = (NUM_MODEL_LANDMARKS * 5, NUM_MODEL_LANDMARKS * 3);
-            for (i, (roi, out)) in rois.iter().zip(outs.iter_mut()).enumerate() {
-                let lm = &lm[i * n_lm..(i + 1) * n_lm];
-                let world = &world[i * n_world..(i + 1) * n_world];
-                decode(lm, world, presence[i], roi, out);
-            }
+            self.run_filled(rois, outs)?;
         }
         Ok(())
+    }
+
+    /// [`Self::infer`] with `disc` (frame pixels) painted mid-grey in the crop: someone
+    /// else's face hidden, so that a model drawn to the one face in a crop reads the person
+    /// the crop is for (a person seen from behind has no face of their own to offer).
+    pub fn infer_masked(
+        &mut self,
+        frame: &RgbFrame,
+        roi: &Roi,
+        disc: Disc,
+        out: &mut Landmarks,
+    ) -> Result<(), VisionError> {
+        let (scale, offset) = self.range.scale_offset();
+        let (_, data) = self.batches[0].input.extract_tensor_mut();
+        warp_crop(frame, roi, INPUT_SIZE, scale, offset, data);
+        fill_disc(roi, disc, INPUT_SIZE, 127.5 * scale + offset, data);
+        self.run_filled(std::slice::from_ref(roi), std::slice::from_mut(out))
+    }
+
+    /// Runs the batch of `rois.len()` crops whose input is already filled and decodes result
+    /// `i` into `outs[i]`.
+    fn run_filled(&mut self, rois: &[Roi], outs: &mut [Landmarks]) -> Result<(), VisionError> {
+        let batch = &mut self.batches[rois.len() - 1];
+        batch.run.run(&mut self.session, &batch.input)?;
+        // Lengths were checked against the model when the outputs were bound.
+        let (lm, presence, world) = (
+            batch.run.output(0),
+            batch.run.output(1),
+            batch.run.output(2),
+        );
+        let (n_lm, n_world) = (NUM_MODEL_LANDMARKS * 5, NUM_MODEL_LANDMARKS * 3);
+        for (i, (roi, out)) in rois.iter().zip(outs.iter_mut()).enumerate() {
+            let lm = &lm[i * n_lm..(i + 1) * n_lm];
+            let world = &world[i * n_world..(i + 1) * n_world];
+            decode(lm, world, presence[i], roi, out);
+        }
+        Ok(())
+    }
+}
+
+impl InputRange {
+    /// The `(scale, offset)` taking a byte `v` to the model's input, `v · scale + offset`.
+    fn scale_offset(self) -> (f32, f32) {
+        match self {
+            InputRange::ZeroOne => (1.0 / 255.0, 0.0),
+            InputRange::MinusOneOne => (1.0 / 127.5, -1.0),
+        }
+    }
+}
+
+/// A disc in frame pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Disc {
+    /// Centre, pixels.
+    pub center: Vec2,
+    /// Radius, pixels.
+    pub radius: f32,
+}
+
+/// Sets every value of the pixels of the `side²` crop of `roi` (as [`warp_crop`] made it)
+/// whose centre lies in `disc` to `value`.
+fn fill_disc(roi: &Roi, disc: Disc, side: usize, value: f32, out: &mut [f32]) {
+    let n = side as f32;
+    let (s, c) = roi.rotation.sin_cos();
+    // Frame → crop: undo the rotation, then scale to crop pixels.
+    let d = disc.center - roi.center;
+    let centre = Vec2::new(c * d.x + s * d.y, -s * d.x + c * d.y) * (n / roi.size) + n * 0.5;
+    let r = disc.radius * n / roi.size;
+    let lo = |v: f32| ((v - r).floor().max(0.0) as usize).min(side);
+    let hi = |v: f32| ((v + r).ceil().max(0.0) as usize).min(side);
+    for v in lo(centre.y)..hi(centre.y) {
+        for u in lo(centre.x)..hi(centre.x) {
+            let p = Vec2::new(u as f32 + 0.5, v as f32 + 0.5);
+            if p.distance_squared(centre) <= r * r {
+                let i = (v * side + u) * 3;
+                out[i..i + 3].fill(value);
+            }
+        }
     }
 }
 
@@ -392,6 +453,55 @@ mod tests {
             }
         }
         f
+    }
+
+    /// Painted exactly the crop pixels whose centres `Roi::to_frame` puts inside the disc
+    /// (a band of half a pixel at its edge left out), upright and turned.
+    #[test]
+    fn a_hidden_disc_covers_the_crop_pixels_inside_it() {
+        let side = 32;
+        let disc = Disc {
+            center: Vec2::new(110.0, 95.0),
+            radius: 12.0,
+        };
+        for rotation in [0.0f32, 0.5, -2.0] {
+            let roi = Roi {
+                center: Vec2::new(100.0, 100.0),
+                size: 64.0,
+                rotation,
+            };
+            let mut out = vec![0.25f32; side * side * 3];
+            fill_disc(&roi, disc, side, -1.0, &mut out);
+            let pixel = roi.size / side as f32;
+            let mut painted = 0;
+            for v in 0..side {
+                for u in 0..side {
+                    let n = (Vec2::new(u as f32, v as f32) + 0.5) / side as f32 - 0.5;
+                    let d = roi.to_frame(n).distance(disc.center);
+                    let value = out[(v * side + u) * 3];
+                    if d < disc.radius - 0.5 * pixel {
+                        assert_eq!(value, -1.0, "({u}, {v}) at {d:.1} px, turned {rotation}");
+                        painted += 1;
+                    } else if d > disc.radius + 0.5 * pixel {
+                        assert_eq!(value, 0.25, "({u}, {v}) at {d:.1} px, turned {rotation}");
+                    }
+                }
+            }
+            // About the disc's area in crop pixels (π·6²).
+            assert!((90..=125).contains(&painted), "{painted}");
+        }
+    }
+
+    #[test]
+    fn a_disc_outside_the_crop_paints_nothing() {
+        let roi = Roi::square(Vec2::new(50.0, 50.0), 40.0);
+        let mut out = vec![0.5f32; 16 * 16 * 3];
+        let far = Disc {
+            center: Vec2::new(500.0, -300.0),
+            radius: 30.0,
+        };
+        fill_disc(&roi, far, 16, 0.0, &mut out);
+        assert!(out.iter().all(|&v| v == 0.5));
     }
 
     #[test]

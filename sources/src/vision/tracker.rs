@@ -28,7 +28,7 @@ use super::detector::{Detection, PersonDetector};
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
-use super::model::LandmarkModel;
+use super::model::{Disc, LandmarkModel};
 use super::roi::Roi;
 /// How the tracker finds people it does not track yet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -121,9 +121,11 @@ const TRACKED_HIPS: f32 = 0.25;
 /// in the crop (the other person's; this one turned away from the camera) the landmark model
 /// draws the body that face belongs to, or a blend of the two. A blend is not the other body
 /// exactly, so this is wider than [`same_body`]'s tenth: in the pose2sim two-person crossing
-/// (camera 3) blends lay 0.05–0.15 from the other person, the person themself mostly 0.17 and
-/// further.
-const ON_OTHER_BODY: f32 = 0.17;
+/// (camera 3) blends lay 0.05–0.17 from the other person, the person themself mostly 0.2 and
+/// further. At 0.17 a blend at 0.171 was taken (full model); camera 3 passes from 0.18 to 0.20
+/// with either model, since a person whose beside crops all slide is looked for once more with
+/// the other's face hidden (`look_with_face_hidden`).
+const ON_OTHER_BODY: f32 = 0.19;
 
 /// Crops tried beside a person whose result slid onto someone else, in this order: shifted
 /// away from the other person's hips by these fractions of the crop's size. Further from the
@@ -132,6 +134,9 @@ const SIDE_STEPS: [f32; 3] = [0.1, 0.2, 0.3];
 /// Beside crops also go straight sideways when the way away from the other person is more
 /// than this far from horizontal (the sine of ~12°).
 const SIDEWAYS_ALSO: f32 = 0.2;
+/// Shifts of the upright crops with the other person's face hidden, tried when every beside
+/// crop still slid (see `look_with_face_hidden`), in crop sizes away from them.
+const MASKED_STEPS: [f32; 4] = [0.0, 0.1, 0.2, 0.3];
 
 /// While a person lost this recently is not found again, the finder runs every frame.
 const EAGER_FIND_FRAMES: u32 = 30;
@@ -416,6 +421,41 @@ impl PoseTracker {
                 }
             }
         }
+        self.look_with_face_hidden(frame, slot, roi, other, presence)
+    }
+
+    /// The last resort of [`Self::look_beside`]: upright crops at `roi` and shifted away
+    /// from `other` ([`MASKED_STEPS`]), `other`'s face painted over
+    /// ([`LandmarkModel::infer_masked`]). Returns whether one showed `slot`'s own body.
+    ///
+    /// Upright because `roi`'s rotation came from a reading that slid: tilted towards the
+    /// other person, it puts more of them in the crop.
+    fn look_with_face_hidden(
+        &mut self,
+        frame: &RgbFrame,
+        slot: usize,
+        roi: Roi,
+        other: usize,
+        presence: f32,
+    ) -> Result<bool, VisionError> {
+        let theirs = &self.tracks[other].landmarks;
+        let Some(face) = face_disc(theirs) else {
+            return Ok(false);
+        };
+        let away = (roi.center - hip_centre(theirs)).normalize_or_zero();
+        for step in MASKED_STEPS {
+            let crop = Roi {
+                center: roi.center + away * step * roi.size,
+                rotation: 0.0,
+                ..roi
+            };
+            self.model
+                .infer_masked(frame, &crop, face, &mut self.scratch)?;
+            self.stats.inferences += 1;
+            if self.shows_own_body(slot, presence) {
+                return Ok(true);
+            }
+        }
         Ok(false)
     }
 
@@ -649,6 +689,22 @@ impl PoseTracker {
         self.stats.tracks_started += 1;
     }
 }
+
+/// The disc covering `lm`'s head: around the nose, out past the ears (at least half the
+/// shoulder width, for a head seen from the side); None when no head is seen.
+fn face_disc(lm: &Landmarks) -> Option<Disc> {
+    let point = |i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+    let ears = point(idx::LEFT_EAR).distance(point(idx::RIGHT_EAR));
+    let shoulders = point(idx::LEFT_SHOULDER).distance(point(idx::RIGHT_SHOULDER));
+    let radius = (0.75 * ears).max(FACE_RADIUS * shoulders);
+    (radius > 1.0).then_some(Disc {
+        center: point(idx::NOSE),
+        radius,
+    })
+}
+
+/// Least radius of a hidden face, in shoulder widths.
+const FACE_RADIUS: f32 = 0.5;
 
 /// Landmarks compared to tell one body found twice from two bodies that overlap on screen.
 const BODY_POINTS: [usize; 8] = [
