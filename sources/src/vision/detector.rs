@@ -158,7 +158,7 @@ impl PersonDetector {
             [NUM_ANCHORS * NUM_COORDS, NUM_ANCHORS],
             1,
         )?;
-        Ok(PersonDetector {
+        let mut detector = PersonDetector {
             path: model.to_path_buf(),
             session,
             run,
@@ -166,7 +166,10 @@ impl PersonDetector {
             anchors: anchors(),
             min_score,
             candidates: Vec::with_capacity(NUM_ANCHORS),
-        })
+        };
+        // The first run sizes the session's arena (see `LandmarkModel::load`).
+        detector.run.run(&mut detector.session, &detector.input)?;
+        Ok(detector)
     }
 
     /// Finds the people in `frame`, best first, into `out` (cleared first; at most

@@ -50,6 +50,19 @@ impl DecodeSize {
     }
 }
 
+/// ffmpeg's decoding threads (`-threads`; "0" lets ffmpeg choose). On two cores or fewer the
+/// decoder shares them with two inference threads: frame-threaded decoding then adds only
+/// hand-over work and a frame of latency per extra thread, and one thread gives about 5 %
+/// more frames per second through the whole pipeline (BENCHMARKS.md, "Decoder settings").
+fn decoder_threads() -> &'static str {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if cores <= 2 {
+        "1"
+    } else {
+        "0"
+    }
+}
+
 /// Frame rate assumed for image sequences unless told otherwise.
 pub const DEFAULT_SEQUENCE_FPS: f64 = 30.0;
 
@@ -255,14 +268,19 @@ impl FfmpegSource {
         command
             .args(["-nostdin", "-v", "error"])
             .args(pre_args)
+            .args(["-threads", decoder_threads()])
             .arg("-i")
             .arg(&input)
             .args(["-map", "0:v:0"]);
         if (width, height) != (info.width, info.height) {
-            // Scaling and the RGB conversion happen in one swscale pass.
+            // Scaling and the RGB conversion happen in one swscale pass. `fast_bilinear` (two
+            // taps) costs about 0.75 of `bilinear` (which widens its taps by the scale factor):
+            // the crop the model sees is itself a two-tap bilinear resample of this frame, and
+            // the landmarks move no more between the two than between `bilinear` and `area`
+            // or the video's own size (BENCHMARKS.md, "Decoder settings").
             command
                 .arg("-vf")
-                .arg(format!("scale={width}:{height}:flags=bilinear"));
+                .arg(format!("scale={width}:{height}:flags=fast_bilinear"));
         }
         let mut child = command
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])

@@ -124,12 +124,24 @@ impl LandmarkModel {
                 input: input_tensor(model, k, INPUT_SIZE)?,
             });
         }
-        Ok(LandmarkModel {
+        let mut model = LandmarkModel {
             path: model.to_path_buf(),
             session,
             batches,
             range: InputRange::default(),
-        })
+        };
+        model.warm_up()?;
+        Ok(model)
+    }
+
+    /// One run of every batch size on the zeroed inputs. A session's first run of a shape
+    /// sizes its memory arena and caches its kernels' plans, several times a later run's
+    /// cost; done here it overlaps the decoder's start instead of delaying the first frame.
+    fn warm_up(&mut self) -> Result<(), VisionError> {
+        for batch in &mut self.batches {
+            batch.run.run(&mut self.session, &batch.input)?;
+        }
+        Ok(())
     }
 
     /// Most crops one [`Self::infer_batch`] call runs together: 1 for a model whose batch
