@@ -5,7 +5,8 @@
 #   - the same binary with the old per-frame path (`--decode-side 0 --finder search --people 1`)
 #   - the same binary on the landmark models as converted (all five outputs: segmentation mask
 #     and heatmaps computed and thrown away), as rigcast ran them before the pruned copies
-#   - RIGCAST_BEFORE=/path/to/rigcast: another build (e.g. of main) run on the same clips
+#   - RIGCAST_BEFORE=/path/to/rigcast: another build (e.g. of main) run on the same clips;
+#     with RIGCAST_PAIRED=N also N rounds of the two in turn (two people), medians and ratio
 #   - MediaPipe Python 0.10.14 (its own detector and tracking) on the same decoded frames, one
 #     person (`solutions.pose`) and two (the Tasks API's PoseLandmarker, num_poses=2); installed
 #     into a throwaway venv under ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1
@@ -61,6 +62,24 @@ for model in lite full full-int8; do
         echo "$model: before build ($RIGCAST_BEFORE) $(run "$RIGCAST_BEFORE" --model "$model") fps"
     fi
 done
+
+# RIGCAST_PAIRED=N (with RIGCAST_BEFORE): N rounds of this build and the other in turn, two
+# people with each model, so that a machine whose speed drifts moves both sides of a round alike.
+if [[ -n "${RIGCAST_BEFORE:-}" && "${RIGCAST_PAIRED:-0}" -gt 0 ]]; then
+    for model in lite full; do
+        rounds=()
+        for ((i = 0; i < RIGCAST_PAIRED; i++)); do
+            rounds+=("$(run "$BIN" --model "$model") $(run "$RIGCAST_BEFORE" --model "$model")")
+        done
+        printf '%s\n' "${rounds[@]}" | python3 -c "
+import statistics, sys
+pairs = [tuple(map(float, l.split())) for l in sys.stdin if l.strip()]
+this, before = zip(*pairs)
+print(f'$model, 2 people, {len(pairs)} paired rounds: this build median {statistics.median(this):.1f} fps '
+      f'({min(this):.1f}-{max(this):.1f}), before {statistics.median(before):.1f} '
+      f'({min(before):.1f}-{max(before):.1f}), median ratio {statistics.median(a / b for a, b in pairs):.2f}')"
+    done
+fi
 
 if [[ "${RIGCAST_SKIP_MEDIAPIPE:-0}" != "1" ]]; then
     VENV="$HOME/.cache/rigcast/mediapipe-0.10.14"

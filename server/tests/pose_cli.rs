@@ -78,6 +78,28 @@ fn pose_json_and_bvh_on_real_footage() {
     assert!(out.status.success(), "rigcast pose failed: {stderr}");
     // Progress goes to standard error, never into the JSON.
     assert!(stderr.contains("pose: 20 frames"), "{stderr}");
+    // The summary tells how long the first pose took, within the run's own time.
+    let summary = stderr
+        .lines()
+        .find(|l| l.starts_with("pose: 20 frames"))
+        .unwrap();
+    let number_after = |key: &str| -> f64 {
+        let rest = &summary[summary.find(key).unwrap_or_else(|| panic!("{summary}")) + key.len()..];
+        let end = rest
+            .find(|c: char| !c.is_ascii_digit() && c != '.')
+            .unwrap();
+        rest[..end].parse().unwrap()
+    };
+    let first_ms = number_after("first pose after ");
+    let before_secs = &summary[..summary.find(" s (").unwrap()];
+    let total_ms: f64 = before_secs
+        .rsplit(' ')
+        .next()
+        .unwrap()
+        .parse::<f64>()
+        .unwrap()
+        * 1e3;
+    assert!(first_ms > 0.0 && first_ms <= total_ms + 50.0, "{summary}");
 
     // Exactly one JSON object on standard output.
     let stdout = String::from_utf8(out.stdout).unwrap();

@@ -124,9 +124,13 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     let mut frame = RgbFrame::default();
     let started = Instant::now();
     let (mut num_frames, mut num_found) = (0u64, 0u64);
+    // Time to the first pose: decoder start-up plus the first frame's work (what a performer
+    // waits for before anything moves).
+    let mut first_pose_ms = None;
     let mut line = String::new();
     while args.max_frames.is_none_or(|max| num_frames < max) && source.next_frame(&mut frame)? {
         pipeline.process_frame(&frame)?;
+        first_pose_ms.get_or_insert_with(|| started.elapsed().as_secs_f64() * 1e3);
         if pipeline.person(0).is_some() {
             num_found += 1;
             if let Some(p) = pipeline.pose(0) {
@@ -158,9 +162,11 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     }
     out.flush()?;
     eprintln!(
-        "pose: {num_frames} frames, person #0 in {num_found}, {:.1} s ({:.1} fps), {:?}",
+        "pose: {num_frames} frames, person #0 in {num_found}, {:.1} s ({:.1} fps), first pose \
+         after {:.0} ms, {:?}",
         started.elapsed().as_secs_f64(),
         num_frames as f64 / started.elapsed().as_secs_f64().max(1e-9),
+        first_pose_ms.unwrap_or(0.0),
         pipeline.stats()
     );
     if let Some(path) = &args.output {
