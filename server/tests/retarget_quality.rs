@@ -6,7 +6,10 @@
 //! - feet on the floor where the source's are: on every frame at the clip's own rate, each
 //!   rig's up the coordinate axis nearest its hips-over-feet, a foot planted when it is within
 //!   1 cm of its floor and slower than 0.15 m/s (REFERENCE §7's toe-speed rule), each foot's
-//!   floor the 5th percentile of its lowest points while still.
+//!   floor the 5th percentile of its lowest points while still. The target's foot stands as
+//!   high above its floor as the source's above its own (scaled), or on it where the source's
+//!   dips below (the lock never puts a foot under the floor); rigs whose labelled feet are not
+//!   their feet are left out of this measure and named.
 //!
 //! A table of every pair is printed. The bounds (≤ 2° mean, ≤ 5° max per pair; travel within
 //! 5 %; planted feet within 1 cm of the floor) are asserted on the pairs whose automatic mapping
@@ -171,6 +174,51 @@ struct FeetFigures {
     max_cm: f32,
 }
 
+/// Highest share of its hips' height a rig's labelled ankles may stand at in its own rest for
+/// its feet to be judged against a floor (a person's ankle: about 0.1 of the hip joint's height).
+const MAX_REST_ANKLE_SHARE: f32 = 0.25;
+
+/// How high a rig's labelled ankles stand in its own rest, as a share of its labelled thighs'
+/// roots' height, both above its lowest labelled foot joint. A rig whose offsets are shifted one
+/// level (its joint labelled ankle at the knee, REFERENCE §14) stands far higher: its labelled
+/// joints do not say where its feet are, and no height of theirs above a floor can be judged.
+fn rest_ankle_share(l: &Labelled) -> Option<f32> {
+    let s = &l.clip.skeleton;
+    let rest = world_transforms(s, &s.rest_pose());
+    let p = |r: String| l.bone(&r).map(|b| rest[b.index()].translation);
+    let mut worst: Option<f32> = None;
+    for side in ["L", "R"] {
+        let (hip, ankle) = (p(sided("upperLeg", side))?, p(sided("foot", side))?);
+        let d = hip - ankle;
+        let axis = d.abs().max_position();
+        let up = Vec3::AXES[axis] * d[axis].signum();
+        let lowest = [Some(ankle), p(sided("toes", side))]
+            .into_iter()
+            .flatten()
+            .map(|v| v.dot(up))
+            .fold(f32::MAX, f32::min);
+        let share = (ankle.dot(up) - lowest) / (hip.dot(up) - lowest).max(1e-6);
+        worst = Some(worst.map_or(share, |w| w.max(share)));
+    }
+    worst
+}
+
+/// Whether a rig's feet can be judged against a floor ([`rest_ankle_share`]); prints why not.
+fn feet_judged(l: &Labelled) -> bool {
+    match rest_ankle_share(l) {
+        Some(share) if share <= MAX_REST_ANKLE_SHARE => true,
+        share => {
+            println!(
+                "feet not judged on {}: its labelled ankles stand at {} of its hip joints' height \
+                 in its rest (bound {MAX_REST_ANKLE_SHARE})",
+                l.name(),
+                share.map_or("?".to_string(), |s| format!("{s:.2}"))
+            );
+            false
+        }
+    }
+}
+
 /// A foot stands still below this speed (REFERENCE §7: toe speed < 0.15 m/s).
 const STILL_SPEED: f32 = 0.15;
 /// Speeds are taken over at least this long (REFERENCE §7: at least 1/30 s).
@@ -263,7 +311,9 @@ fn floor_of(tracks: &[Vec<(f32, bool)>]) -> Option<f32> {
 }
 
 /// Where the source's foot is planted (still, within 1 cm of its floor), the target's lowest
-/// foot point must be as high above the target's floor, scaled by the leg-length ratio.
+/// foot point must be as high above the target's floor, scaled by the leg-length ratio; a
+/// source foot below its floor (a capture dipping into the ground) asks for the target's on
+/// its floor, where the foot lock keeps every foot.
 fn planted_feet(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Option<FeetFigures> {
     let ratio = leg_length(&out.skeleton, tgt)? / leg_length(&clip.skeleton, src)?;
     let (ts, tt) = (foot_tracks(src, tgt, clip)?, foot_tracks(tgt, src, out)?);
@@ -281,7 +331,7 @@ fn planted_feet(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
             a.iter()
                 .zip(b)
                 .filter(|((hs, still), _)| *still && hs - fs < 0.01)
-                .map(|((hs, _), (ht, _))| ((ht - ft) - ratio * (hs - fs)).abs() * 100.0),
+                .map(|((hs, _), (ht, _))| ((ht - ft) - ratio * (hs - fs).max(0.0)).abs() * 100.0),
         );
     }
     errors.sort_by(f32::total_cmp);
@@ -401,6 +451,7 @@ fn measure_pairs(locks: Lock) -> Option<Vec<Pair>> {
     let root =
         common::shared_data("labels.json").and_then(|p| p.parent().map(Path::to_path_buf))?;
     let humans = load_humans(&root);
+    let judged: Vec<bool> = humans.iter().map(feet_judged).collect();
     let sources: Vec<&Labelled> = humans
         .iter()
         .filter(|h| h.clip.num_frames() >= 30)
@@ -423,7 +474,15 @@ fn measure_pairs(locks: Lock) -> Option<Vec<Pair>> {
             let out =
                 retarget_clip_locked(&src.clip, &target, &plan.table, &opts, lock, false).unwrap();
             let mut figures = measure(src, tgt, &clip, &subsample(&out));
-            figures.feet = planted_feet(src, tgt, &src.clip, &out);
+            let judge = |l: &Labelled| {
+                humans
+                    .iter()
+                    .zip(&judged)
+                    .any(|(h, j)| *j && h.path == l.path)
+            };
+            if judge(src) && judge(tgt) {
+                figures.feet = planted_feet(src, tgt, &src.clip, &out);
+            }
             let wrong = mapping_right(src, tgt, &plan.table);
             let opt =
                 |v: Option<f32>, k: f32| v.map_or("-".to_string(), |v| format!("{:.1}", v * k));
@@ -496,23 +555,19 @@ fn limb_directions_and_root_travel_on_real_pairs() {
 
 /// Planted feet within 1 cm of the floor, with the foot lock on (the command's default): per
 /// pair, the 95th percentile over every source frame with a planted foot (a few frames of a
-/// landing blend may exceed it; the largest is printed too). Not met on every real pair (last
-/// measured: 101 of 122 right pairs, median 0.17 cm (0.21 before a landing foot kept coming
-/// down onto its pin); 81, median 0.63, before a pinned foot
-/// followed the source's clearance above its ground and its heel's above its toe, and before
-/// a source's feet hanging from its root (RobotExpressive) were watched for plants; 78 with
-/// the lock off). What remains:
-/// - the source's own foot dips below its floor for a stance (cmu_131_01_walk: 16 of its 270
-///   planted frames 2–4 cm below, its toes pitched into the floor), where the lock keeps the
-///   target's foot on its floor (1.2–4 cm);
-/// - sources whose stances stand at different levels (cmu_31joint_example's feet land 2–4 cm
-///   higher from stance to stance, its first stance sliding): the test reads one floor per
-///   foot, the lock holds each stance near the target's floor (1.0–2.7 cm);
-/// - the Kinect rig as a target (its joints sit one level off their names: its "ankle" is at
-///   the knee; 1.1–14 cm);
-/// - sparse_spine_head → xsens (1.5 cm).
+/// landing blend may exceed it; the largest is printed too). Last measured: 100 of 100 judged
+/// pairs, median 0.18 cm. Before, 101 of 122 (the Kinect rig's pairs then included): the target's
+/// foot and ball only came down onto their pins once the source's foot had landed, settling for
+/// the blend's length while the source's already stood (1.0–2.7 cm on cmu_31joint_example as
+/// the source, 1.5 cm sparse_spine_head → xsens); and a source foot dipping below its own floor
+/// (cmu_131_01_walk, 2–4 cm) asked the target's to dip as far, where the lock keeps every foot
+/// on its floor. 81 before a pinned foot followed the source's clearance above its ground; 78
+/// with the lock off.
+///
+/// Rigs whose labelled ankles stand far off the floor in their own rest
+/// ([`rest_ankle_share`]: kinect2__test's offsets are shifted one level, its "ankle" at the
+/// knee) are left out and named: their labelled joints are not their feet.
 #[test]
-#[ignore = "known gap: planted feet are 1-20 cm off on some real pairs"]
 fn planted_feet_stay_on_the_floor_on_real_pairs() {
     let Some(pairs) = measure_pairs(Lock::On) else {
         return;
@@ -523,9 +578,16 @@ fn planted_feet_stay_on_the_floor_on_real_pairs() {
         .filter_map(|p| p.figures.feet.map(|f| f.p95_cm))
         .collect();
     cms.sort_by(f32::total_cmp);
+    // Most pairs are judged: leaving rigs out must not empty the check.
+    assert!(
+        cms.len() * 2 >= right.len(),
+        "only {} of {} right pairs judged",
+        cms.len(),
+        right.len()
+    );
     if !cms.is_empty() {
         println!(
-            "planted feet: {} of {} pairs within 1 cm (95th percentile), median {:.2} cm",
+            "planted feet: {} of {} judged pairs within 1 cm (95th percentile), median {:.2} cm",
             cms.iter().filter(|c| **c <= 1.0).count(),
             cms.len(),
             cms[cms.len() / 2]

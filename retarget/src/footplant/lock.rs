@@ -115,11 +115,36 @@ const MAX_LIFT_RATIO: f32 = 0.008;
 const MAX_HEEL_LIFT_RATIO: f32 = 0.02;
 
 /// Per source leg, how high its foot (its lowest contact) and its heel stand above their
-/// grounds this frame (source units).
+/// grounds this frame (source units), and how near its next plant is ([`landing_weight`]).
 #[derive(Debug, Clone, Copy, Default)]
 struct Lifts {
     foot: [f32; MAX_FEET],
     heel: [f32; MAX_FEET],
+    landing: [f32; MAX_FEET],
+}
+
+/// Offline, where the plants ahead are known: how far a foot not planted on `frame` is brought
+/// down to the height its pin will have, 0 (no plant within `lead` frames) rising smoothly to 1
+/// on the frame before the plant. A lock that only starts blending when the source's foot lands
+/// leaves the target's foot settling onto the floor for the blend's length while the source's
+/// already stands (a rig whose legs are built differently holds its feet higher in the swing).
+/// Only after a swing at least twice the lead: a foot released a moment ago is still blending
+/// back to the animation, and bending its path down again at once kicks it.
+fn landing_weight(plants: &PlantTrack, frame: usize, leg: usize, lead: usize) -> f32 {
+    if lead == 0 || plants.is_planted(frame, leg) {
+        return 0.0;
+    }
+    let last = plants.num_frames();
+    let Some(k) = (1..=lead).find(|k| frame + k < last && plants.is_planted(frame + k, leg)) else {
+        return 0.0;
+    };
+    // The swing runs from after the previous plant to frame + k.
+    let swing_start = (frame + k).saturating_sub(2 * lead);
+    if (swing_start..frame).any(|f| plants.is_planted(f, leg)) {
+        return 0.0;
+    }
+    let t = (lead + 1 - k) as f32 / lead as f32;
+    t * t * (3.0 - 2.0 * t)
 }
 
 /// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
@@ -188,6 +213,9 @@ struct Foot {
     /// stands, the foot's lift plus how much higher the source's heel stands than its lowest
     /// contact (a heel still coming down after a toe-first landing is followed).
     heel_lift: Option<f32>,
+    /// Offline, how far the unpinned foot is brought to its pin's height ahead of a plant
+    /// ([`landing_weight`]).
+    landing: f32,
     lock_position: Vec3,
     lock_heading: f32,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -346,6 +374,7 @@ impl FootLock {
                     locked: false,
                     lift: 0.0,
                     heel_lift: None,
+                    landing: 0.0,
                     lock_position: ankle,
                     lock_heading: 0.0,
                     position_offset: Decay::default(),
@@ -601,6 +630,15 @@ impl FootLock {
         for (l, s) in lifts.heel.iter_mut().zip(plants.heel_lifts(frame)) {
             *l = *s;
         }
+        // The approach takes as long as a lock's blend would after the landing.
+        let lead = if dt_secs > 0.0 {
+            (self.settings.blend_secs / dt_secs).round() as usize
+        } else {
+            0
+        };
+        for (leg, l) in lifts.landing.iter_mut().enumerate().take(plants.legs.len()) {
+            *l = landing_weight(plants, frame, leg, lead);
+        }
         self.lock(&flags, Some(&lifts), dt_secs, false, out);
     }
 
@@ -626,10 +664,11 @@ impl FootLock {
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             let length = self.feet[i].leg.length;
-            let (foot, heel) = match (self.feet[i].source, lifts) {
-                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s])),
-                _ => (0.0, None),
+            let (foot, heel, landing) = match (self.feet[i].source, lifts) {
+                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s]),
+                _ => (0.0, None, 0.0),
             };
+            self.feet[i].landing = landing;
             let lift = (self.lift_scale * foot).clamp(0.0, MAX_LIFT_RATIO * length);
             self.feet[i].lift = lift;
             // The heel follows how much higher than the foot's lowest contact the source's is
@@ -695,7 +734,15 @@ impl FootLock {
             f.seen = true;
         }
         let settle = if wants && !self.feet[i].locked {
-            self.landing_settle(i, animated)
+            self.landing_settle(i, self.feet[i].shown_position, animated)
+        } else {
+            0.0
+        };
+        // Ahead of a known plant the free foot is brought towards the height it will be
+        // pinned at, so it stands when the source's does.
+        let landing = self.feet[i].landing;
+        let approach = if !wants && !self.feet[i].locked && landing > 0.0 {
+            landing * (self.pin_height(i, animated, animated) - animated.dot(up))
         } else {
             0.0
         };
@@ -741,7 +788,12 @@ impl FootLock {
             };
             (pinned, f.lock_heading, Vec3::ZERO, 0.0)
         } else {
-            (animated, heading_now, anim_velocity, anim_rate)
+            (
+                animated + up * approach,
+                heading_now,
+                anim_velocity,
+                anim_rate,
+            )
         };
         if f.locked != was {
             // Take up the difference in place and in speed; it decays from here. An unpinned
@@ -790,7 +842,10 @@ impl FootLock {
             f.shown_heading_rate = wrap(heading - f.shown_heading) / dt;
         }
         f.shown_heading = heading;
-        let active = f.locked || f.position_offset.is_active() || f.heading_offset.is_active();
+        let active = f.locked
+            || approach != 0.0
+            || f.position_offset.is_active()
+            || f.heading_offset.is_active();
         let pinned = f.locked;
         let toes = f.leg.toes;
         let yaw = Quat::from_axis_angle(up, turn);
@@ -816,11 +871,9 @@ impl FootLock {
         let halflife = 0.5 * self.settings.blend_secs;
         let f = &mut self.feet[i];
         let Some(o) = goal.ball_offset else { return };
-        let wanted = if goal.pinned {
-            floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up)
-        } else {
-            0.0
-        };
+        // Ahead of a known plant the ball comes down as the ankle does (`landing`).
+        let weight = if goal.pinned { 1.0 } else { f.landing };
+        let wanted = weight * (floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up));
         if fresh {
             f.shown_flat = wanted;
         }
@@ -846,13 +899,14 @@ impl FootLock {
         }
     }
 
-    /// How far foot `i`, landing, is from its standing height: its lowest contact (heel, or
-    /// ball at the animation's offset from the heel) above or below its standing clearance. A
-    /// plant puts it there: the source's foot is down. `animated` is the animated ankle.
-    fn landing_settle(&self, i: usize, animated: Vec3) -> f32 {
+    /// How far foot `i`, landing with its ankle at `ankle`, is from its standing height: its
+    /// lowest contact (heel, or ball at the animation's offset from the heel) above or below its
+    /// standing clearance. A plant puts it there: the source's foot is down. `animated` is the
+    /// animated ankle.
+    fn landing_settle(&self, i: usize, ankle: Vec3, animated: Vec3) -> f32 {
         let f = &self.feet[i];
         let up = self.up;
-        let heel = f.shown_position.dot(up);
+        let heel = ankle.dot(up);
         let ball =
             (f.leg.toes).map(|t| heel + (self.worlds[t.index()].translation - animated).dot(up));
         let (lowest, standing) = match ball {
@@ -860,6 +914,17 @@ impl FootLock {
             _ => (heel, f.heel_clearance),
         };
         self.floor + standing - lowest
+    }
+
+    /// The height along up at which foot `i`'s ankle is pinned when it lands with its ankle at
+    /// `ankle`: where the source's heel is known, its standing height plus the heel's lift;
+    /// else its lowest contact settled onto its standing height, plus the foot's lift.
+    fn pin_height(&self, i: usize, ankle: Vec3, animated: Vec3) -> f32 {
+        let f = &self.feet[i];
+        match f.heel_lift {
+            Some(h) => self.floor + f.heel_clearance + h,
+            None => ankle.dot(self.up) + self.landing_settle(i, ankle, animated) + f.lift,
+        }
     }
 
     /// Records where foot `i` was shown this frame (for the next frame's velocities).
@@ -1038,6 +1103,41 @@ impl FootLock {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analysis::Side;
+    use crate::footplant::rig::LegKind;
+
+    #[test]
+    fn a_landing_is_approached_only_after_a_swing() {
+        let leg = Leg {
+            kind: LegKind::Hind,
+            side: Side::Left,
+            limb: 0,
+            upper: BoneId(0),
+            lower: BoneId(1),
+            foot: BoneId(2),
+            toes: None,
+            length: 1.0,
+        };
+        // Planted 0-3, a 2-frame gap, 6-9, a 10-frame swing, 20-24.
+        let flags: Vec<bool> = (0..25)
+            .map(|f| f < 4 || (6..10).contains(&f) || f >= 20)
+            .collect();
+        let plants = PlantTrack::from_flags(vec![leg], flags);
+        let w = |f: usize| landing_weight(&plants, f, 0, 4);
+        // After the swing: nothing until four frames ahead, then rising to 1 the frame before.
+        assert_eq!(w(15), 0.0);
+        let ramp: Vec<f32> = (16..20).map(w).collect();
+        assert!(ramp[0] > 0.0 && ramp[3] == 1.0, "{ramp:?}");
+        assert!(ramp.windows(2).all(|p| p[0] < p[1]), "{ramp:?}");
+        // Planted frames, and a gap shorter than twice the lead, are left alone.
+        assert_eq!(w(2), 0.0);
+        assert_eq!(w(20), 0.0);
+        assert_eq!(w(4), 0.0);
+        assert_eq!(w(5), 0.0);
+        // No plant ahead within the clip.
+        assert_eq!(landing_weight(&plants, 24, 0, 4), 0.0);
+        assert_eq!(landing_weight(&plants, 17, 0, 0), 0.0);
+    }
 
     #[test]
     fn a_short_upper_bone_is_not_folded_over_to_lift_the_foot() {
