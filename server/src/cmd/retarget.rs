@@ -100,6 +100,16 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         args.mapping.as_deref(),
         (truth_s.as_deref(), truth_t.as_deref()),
     )?;
+    // What the analysis could not read as usual (a rig whose geometry disagrees with its
+    // names, sides named the other way round) explains an odd result before it is seen.
+    for (which, a) in [
+        ("source", &plan.source_analysis),
+        ("target", &plan.target_analysis),
+    ] {
+        for w in &a.warnings {
+            eprintln!("warning: {which}: {w}");
+        }
+    }
     let table = &plan.table;
     if table.num_mapped() == 0 {
         bail!(
