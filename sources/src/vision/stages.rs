@@ -17,6 +17,13 @@ use super::lengths::LimbLengths;
 use super::one_euro::{OneEuro, OneEuroParams};
 use super::solve::{PoseSolver, SolverConfig};
 
+/// A person back in their slot within this long (seconds) keeps their limb-length estimates:
+/// the tracker lost them for a frame or two (a crossing, a detector miss) and re-found the
+/// same person. Starting the estimates afresh there would settle them on whatever the model
+/// reads at that moment, often the very misreading that lost the track (camera 3 of the
+/// two-person demo decoded at 480: the man's upper arm from 0.27 m to 0.18 m).
+const KEEP_LENGTHS_SECS: f64 = 0.5;
+
 /// Smoothing, constant lengths and solving for one tracked person. Allocates only in `new`.
 #[derive(Debug)]
 pub struct LandmarkStages {
@@ -27,6 +34,8 @@ pub struct LandmarkStages {
     smoothing: bool,
     lengths: Option<LimbLengths>,
     tracking: bool,
+    /// When the person was last processed (the lengths are kept across a short loss).
+    last_seen_secs: Option<f64>,
 }
 
 impl LandmarkStages {
@@ -45,6 +54,7 @@ impl LandmarkStages {
             smoothing,
             lengths: constant_lengths.then(LimbLengths::new),
             tracking: false,
+            last_seen_secs: None,
         })
     }
 
@@ -68,6 +78,15 @@ impl LandmarkStages {
     pub fn process(&mut self, raw: &Landmarks, time_secs: f64, pose: &mut Pose) -> &Landmarks {
         self.tracking = true;
         let t = time_secs;
+        // Back after longer than a short loss (or time went back: a replay restarted): maybe
+        // someone else, so the length estimates start afresh.
+        let gap = self.last_seen_secs.map(|last| t - last);
+        if gap.is_some_and(|g| !(0.0..=KEEP_LENGTHS_SECS).contains(&g)) {
+            if let Some(lengths) = self.lengths.as_mut() {
+                lengths.reset();
+            }
+        }
+        self.last_seen_secs = Some(t);
         self.smoothed = *raw;
         if self.smoothing {
             for i in 0..NUM_MODEL_LANDMARKS {
@@ -93,16 +112,14 @@ impl LandmarkStages {
         &self.smoothed
     }
 
-    /// The person left the view: the next person starts fresh filters and length estimates
-    /// (the solver keeps its output, so the caller holds the last pose).
+    /// The person left the view: the next frame starts fresh filters, and fresh length
+    /// estimates unless the person is back within [`KEEP_LENGTHS_SECS`] (the solver keeps its
+    /// output, so the caller holds the last pose).
     pub fn lost(&mut self) {
         if !self.tracking {
             return;
         }
         self.tracking = false;
-        if let Some(lengths) = self.lengths.as_mut() {
-            lengths.reset();
-        }
         for f in self
             .image_filters
             .iter_mut()
@@ -112,5 +129,61 @@ impl LandmarkStages {
                 c.reset();
             }
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::vision::landmarks::idx;
+    use glam::{Vec3, Vec4};
+
+    /// A fully visible body whose upper arms are `upper` metres long.
+    fn body(upper: f32) -> Landmarks {
+        let mut lm = Landmarks::default();
+        for v in lm.image.iter_mut() {
+            *v = Vec4::new(0.0, 0.0, 0.0, 1.0);
+        }
+        for (i, w) in lm.world.iter_mut().enumerate() {
+            *w = Vec3::new(0.01 * i as f32, -0.02 * i as f32, 0.0);
+        }
+        lm.world[idx::LEFT_SHOULDER] = Vec3::new(0.2, -0.5, 0.0);
+        lm.world[idx::LEFT_ELBOW] = Vec3::new(0.2 + upper, -0.5, 0.0);
+        // Its twin, which shares the estimate, alike.
+        lm.world[idx::RIGHT_SHOULDER] = Vec3::new(-0.2, -0.5, 0.0);
+        lm.world[idx::RIGHT_ELBOW] = Vec3::new(-0.2 - upper, -0.5, 0.0);
+        lm
+    }
+
+    fn upper_arm(lm: &Landmarks) -> f32 {
+        lm.world[idx::LEFT_SHOULDER].distance(lm.world[idx::LEFT_ELBOW])
+    }
+
+    /// Forty frames at 30 fps with 0.27 m upper arms, lost, back `gap` seconds after the last
+    /// one reading them at 0.18 m: the upper arm shown on the first frame back.
+    fn back_after(gap: f64) -> f32 {
+        let mut stages = LandmarkStages::new(SolverConfig::default(), false, true).unwrap();
+        let mut pose = stages.skeleton().rest_pose();
+        let dt = 1.0 / 30.0;
+        for i in 0..40 {
+            stages.process(&body(0.27), i as f64 * dt, &mut pose);
+        }
+        stages.lost();
+        let back = stages.process(&body(0.18), 39.0 * dt + gap, &mut pose);
+        upper_arm(back)
+    }
+
+    #[test]
+    fn a_person_back_after_a_short_loss_keeps_their_limb_lengths() {
+        // Lost for one frame: the same person, misread as they are found again.
+        let kept = back_after(2.0 / 30.0);
+        assert!((kept - 0.27).abs() < 0.01, "{kept}");
+        // Lost for two seconds: maybe someone else, measured afresh.
+        let fresh = back_after(2.0);
+        assert!((fresh - 0.18).abs() < 1e-4, "{fresh}");
+        // Time going back (a replay restarted) starts afresh too.
+        let restarted = back_after(-1.0);
+        assert!((restarted - 0.18).abs() < 1e-4, "{restarted}");
     }
 }
