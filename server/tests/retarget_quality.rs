@@ -67,9 +67,33 @@ impl Labelled {
 }
 
 fn load_humans(root: &Path) -> Vec<Labelled> {
-    let labels: Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("labels.json")).unwrap()).unwrap();
+    load_humans_from(root, &[root.join("labels.json")])
+}
+
+/// Every labels file of the shared data: its own `labels.json` and each folder's (keys are
+/// paths relative to the data folder in all of them; they are judged together).
+fn label_files(root: &Path) -> Vec<PathBuf> {
+    let mut files = vec![root.join("labels.json")];
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(root)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("labels.json").is_file())
+        .collect();
+    dirs.sort();
+    files.extend(dirs.into_iter().map(|d| d.join("labels.json")));
+    files
+}
+
+fn load_humans_from(root: &Path, files: &[PathBuf]) -> Vec<Labelled> {
     let mut out = Vec::new();
+    for file in files {
+        let labels: Value = serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+        load_labelled(root, &labels, &mut out);
+    }
+    out
+}
+
+fn load_labelled(root: &Path, labels: &Value, out: &mut Vec<Labelled>) {
     for (key, v) in labels.as_object().unwrap() {
         if v["kind"] != "human" {
             continue;
@@ -82,7 +106,6 @@ fn load_humans(root: &Path) -> Vec<Labelled> {
             clip,
         });
     }
-    out
 }
 
 fn sided(role: &str, side: &str) -> String {
@@ -228,6 +251,13 @@ const SPEED_WINDOW_SECS: f64 = 1.0 / 30.0;
 /// foot's joints stand still (all slower than [`STILL_SPEED`]). Up is the coordinate axis
 /// nearest to hips over feet, averaged.
 fn foot_tracks(l: &Labelled, other: &Labelled, clip: &Clip) -> Option<Vec<Vec<(f32, bool)>>> {
+    foot_tracks_up(l, other, clip).map(|(t, _)| t)
+}
+
+/// [`foot_tracks`] and the up axis they were measured along.
+type Tracks = (Vec<Vec<(f32, bool)>>, Vec3);
+
+fn foot_tracks_up(l: &Labelled, other: &Labelled, clip: &Clip) -> Option<Tracks> {
     let s = &clip.skeleton;
     let hips = l.bone("hips")?;
     let worlds: Vec<Vec<Vec3>> = clip
@@ -294,7 +324,7 @@ fn foot_tracks(l: &Labelled, other: &Labelled, clip: &Clip) -> Option<Vec<Vec<(f
         .filter(|b| !b.is_empty())
         .map(|b| track(b))
         .collect();
-    (!tracks.is_empty()).then_some(tracks)
+    (!tracks.is_empty()).then_some((tracks, up))
 }
 
 /// A rig's floor: the 5th percentile of its feet's lowest points while they stand still (one
@@ -313,9 +343,12 @@ fn floor_of(tracks: &[Vec<(f32, bool)>]) -> Option<f32> {
 /// Where the source's foot is planted (still, within 1 cm of its floor), the target's lowest
 /// foot point must be as high above the target's floor, scaled by the leg-length ratio; a
 /// source foot below its floor (a capture dipping into the ground) asks for the target's on
-/// its floor, where the foot lock keeps every foot.
+/// its floor, where the foot lock keeps every foot. In cm of a 1.75 m body (the target's
+/// legs scaled to [`LEG_OF_175_CM_BODY`]): rigs in other units (inches, CMU's) are judged
+/// alike.
 fn planted_feet(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Option<FeetFigures> {
     let ratio = leg_length(&out.skeleton, tgt)? / leg_length(&clip.skeleton, src)?;
+    let body = LEG_OF_175_CM_BODY / leg_length(&out.skeleton, tgt)?;
     let (ts, tt) = (foot_tracks(src, tgt, clip)?, foot_tracks(tgt, src, out)?);
     // Each foot's own floor: a rig's two feet may stand at different heights (mocap markers
     // placed differently on each foot, an asymmetric rest), and each stands on its own level.
@@ -331,7 +364,9 @@ fn planted_feet(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
             a.iter()
                 .zip(b)
                 .filter(|((hs, still), _)| *still && hs - fs < 0.01)
-                .map(|((hs, _), (ht, _))| ((ht - ft) - ratio * (hs - fs).max(0.0)).abs() * 100.0),
+                .map(|((hs, _), (ht, _))| {
+                    ((ht - ft) - ratio * (hs - fs).max(0.0)).abs() * 100.0 * body
+                }),
         );
     }
     errors.sort_by(f32::total_cmp);
@@ -621,4 +656,315 @@ fn is_below(skel: &Skeleton, b: BoneId, a: BoneId) -> bool {
         x = skel.parent(p);
     }
     false
+}
+
+/// Half the standing height of the 1.75 m body drift is normalised to: a person's hip joint
+/// stands about as far above the ankle as half their height.
+const LEG_OF_175_CM_BODY: f32 = 0.875;
+
+/// How well the legs of a locked output follow the source's, per pair.
+#[derive(Debug, Clone, Default)]
+struct LegFigures {
+    /// Mean and 95th percentile (degrees) of the thigh, shin and foot direction errors.
+    thigh: (f32, f32),
+    shin: (f32, f32),
+    foot: (f32, f32),
+    /// Horizontal move of the target's foot joints per frame while the source's foot stands
+    /// (cm/frame, scaled to a 1.75 m body), mean over both sides.
+    drift: f32,
+    /// Planted feet's height error (95th percentile, cm), as [`planted_feet`].
+    floor_p95: Option<f32>,
+}
+
+fn mean_p95(v: &mut [f32]) -> (f32, f32) {
+    if v.is_empty() {
+        return (f32::NAN, f32::NAN);
+    }
+    v.sort_by(f32::total_cmp);
+    let mean = v.iter().sum::<f32>() / v.len() as f32;
+    (mean, v[(v.len() * 95 / 100).min(v.len() - 1)])
+}
+
+/// Each side's frames on which the foot stands (still, within 1 cm of its floor), with the rig's up.
+fn standing_frames(l: &Labelled, other: &Labelled, clip: &Clip) -> Option<(Vec<Vec<bool>>, Vec3)> {
+    let (tracks, up) = foot_tracks_up(l, other, clip)?;
+    let sides = tracks
+        .iter()
+        .map(|t| {
+            let floor = floor_of(std::slice::from_ref(t));
+            t.iter()
+                .map(|(h, still)| *still && floor.is_some_and(|f| h - f < 0.01))
+                .collect()
+        })
+        .collect();
+    Some((sides, up))
+}
+
+/// A walk or a run: both feet stand at least once, three stances or more in all, and the hips
+/// travel at least one leg length over the ground.
+fn is_gait(l: &Labelled) -> bool {
+    let clip = &l.clip;
+    if clip.num_frames() < 2 {
+        return false;
+    }
+    let (Some((sides, up)), Some(hips), Some(leg)) = (
+        standing_frames(l, l, clip),
+        l.bone("hips"),
+        leg_length(&clip.skeleton, l),
+    ) else {
+        return false;
+    };
+    let stances: Vec<usize> = sides
+        .iter()
+        .map(|s| {
+            s.windows(2).filter(|w| w[1] && !w[0]).count() + usize::from(s.first() == Some(&true))
+        })
+        .collect();
+    let s = &clip.skeleton;
+    let hip = |p| world_transforms(s, p)[hips.index()].translation;
+    let start = hip(&clip.poses[0]);
+    let travel = clip
+        .poses
+        .iter()
+        .map(|p| {
+            let d = hip(p) - start;
+            (d - up * d.dot(up)).length()
+        })
+        .fold(0.0, f32::max);
+    stances.len() == 2
+        && stances.iter().all(|n| *n >= 1)
+        && stances.iter().sum::<usize>() >= 3
+        && travel >= leg
+}
+
+/// The legs of `out` (the whole clip, locked) against the source's.
+fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Option<LegFigures> {
+    let (ss, ts) = (&clip.skeleton, &out.skeleton);
+    let (rest_s, rest_t) = (
+        world_transforms(ss, &ss.rest_pose()),
+        world_transforms(ts, &ts.rest_pose()),
+    );
+    let segments = [
+        ("upperLeg", "lowerLeg"),
+        ("lowerLeg", "foot"),
+        ("foot", "toes"),
+    ];
+    let mut errors: [Vec<f32>; 3] = Default::default();
+    let step = (clip.num_frames() / 400).max(1);
+    for (sp, tp) in clip.poses.iter().zip(&out.poses).step_by(step) {
+        let (fs, ft) = (world_transforms(ss, sp), world_transforms(ts, tp));
+        for side in ["L", "R"] {
+            for (k, (a, b)) in segments.iter().enumerate() {
+                let (a, b) = (sided(a, side), sided(b, side));
+                let (Some(sa), Some(sb), Some(ta), Some(tb)) =
+                    (src.bone(&a), src.bone(&b), tgt.bone(&a), tgt.bone(&b))
+                else {
+                    continue;
+                };
+                let ds = segment_direction(ss, &rest_s, &fs, sa, sb);
+                let dt = segment_direction(ts, &rest_t, &ft, ta, tb);
+                if ds.length() > 1e-4 && dt.length() > 1e-4 {
+                    errors[k].push(ds.angle_between(dt).to_degrees());
+                }
+            }
+        }
+    }
+    let [thigh, shin, foot] = errors.map(|mut e| mean_p95(&mut e));
+    let (stands, _) = standing_frames(src, tgt, clip)?;
+    let (_, up) = foot_tracks_up(tgt, src, out)?;
+    let scale = LEG_OF_175_CM_BODY / leg_length(ts, tgt)?;
+    let worlds: Vec<Vec<Vec3>> = out
+        .poses
+        .iter()
+        .map(|p| {
+            world_transforms(ts, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
+        .collect();
+    let (mut sum, mut n) = (0.0f32, 0usize);
+    for (side, stand) in ["L", "R"].iter().zip(&stands) {
+        let joints: Vec<BoneId> = [sided("foot", side), sided("toes", side)]
+            .iter()
+            .filter(|r| src.bone(r).is_some())
+            .filter_map(|r| tgt.bone(r))
+            .collect();
+        for f in 1..worlds.len().min(stand.len()) {
+            if !(stand[f] && stand[f - 1]) {
+                continue;
+            }
+            for j in &joints {
+                let d = worlds[f][j.index()] - worlds[f - 1][j.index()];
+                sum += (d - up * d.dot(up)).length() * 100.0 * scale;
+                n += 1;
+            }
+        }
+    }
+    Some(LegFigures {
+        thigh,
+        shin,
+        foot,
+        drift: if n > 0 { sum / n as f32 } else { f32::NAN },
+        floor_p95: planted_feet(src, tgt, clip, out).map(|f| f.p95_cm),
+    })
+}
+
+/// A segment's world direction; one whose end is not below its joint (an IK foot under the
+/// root) by the joint's own orientation, its rest direction turned with it.
+fn segment_direction(
+    skel: &Skeleton,
+    rest: &[rigcast_retarget::WorldTransform],
+    w: &[rigcast_retarget::WorldTransform],
+    a: BoneId,
+    b: BoneId,
+) -> Vec3 {
+    if is_below(skel, b, a) {
+        w[b.index()].translation - w[a.index()].translation
+    } else {
+        let d0 = rest[b.index()].translation - rest[a.index()].translation;
+        w[a.index()].rotation * rest[a.index()].rotation.inverse() * d0
+    }
+}
+
+/// Issue 35: with the foot lock on, the legs stay the performer's. On every right pair of
+/// labelled humans (every labels file) whose source walks or runs ([`is_gait`]): thigh and shin
+/// within 3° mean, 8° p95 of the source's direction, the foot (ankle to toes) within 5° / 15°,
+/// planted feet drifting ≤ 0.05 cm/frame (scaled to a 1.75 m body) and standing within 1 cm of
+/// where the source's stand ([`planted_feet`], on rigs whose feet can be judged).
+///
+/// Not met yet (run it with `--ignored` for the table): the lock holds planted feet by bending
+/// the legs and pitching the feet away from the source's. Baseline in the closing note of the
+/// change that added this test.
+#[test]
+#[ignore = "issue 35's bounds are not met yet; the test prints the table per pair"]
+fn locked_legs_follow_the_source_on_walks_and_runs() {
+    let Some(root) =
+        common::shared_data("labels.json").and_then(|p| p.parent().map(Path::to_path_buf))
+    else {
+        return;
+    };
+    let humans = load_humans_from(&root, &label_files(&root));
+    let judged: Vec<bool> = humans.iter().map(feet_judged).collect();
+    let gaits: Vec<&Labelled> = humans.iter().filter(|h| is_gait(h)).collect();
+    println!(
+        "walk or run sources: {}",
+        gaits
+            .iter()
+            .map(|g| g.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    assert!(
+        !gaits.is_empty(),
+        "no walk or run among the labelled humans"
+    );
+    println!(
+        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7} {:>6}",
+        "source", "target", "thigh°", "shin°", "foot°", "drift", "floor"
+    );
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    // Pairs within the bounds: thigh and shin, foot, drift, floor.
+    let mut tally = [0usize; 4];
+    for src in &gaits {
+        for (tgt, judge_t) in humans
+            .iter()
+            .zip(&judged)
+            .filter(|(t, _)| t.path != src.path)
+        {
+            let plan = plan_mapping(&src.clip, &tgt.clip, None).unwrap();
+            if !mapping_right(src, tgt, &plan.table).is_empty() {
+                continue;
+            }
+            let opts = plan.retarget_options(&src.clip, RootMotion::Scaled);
+            let target = Arc::new((*tgt.clip.skeleton).clone());
+            let out =
+                retarget_clip_locked(&src.clip, &target, &plan.table, &opts, Some(&plan), false)
+                    .unwrap();
+            if !*judge_t {
+                println!(
+                    "{} → {}: the target's labelled legs are not its legs, not judged",
+                    src.name(),
+                    tgt.name()
+                );
+                continue;
+            }
+            let Some(mut f) = measure_legs(src, tgt, &src.clip, &out) else {
+                println!(
+                    "{} → {}: legs not labelled on both, not measured",
+                    src.name(),
+                    tgt.name()
+                );
+                continue;
+            };
+            let judge_s = humans
+                .iter()
+                .zip(&judged)
+                .any(|(h, j)| *j && h.path == src.path);
+            if !(judge_s && *judge_t) {
+                f.floor_p95 = None;
+            }
+            checked += 1;
+            let pair = |(m, p): (f32, f32)| {
+                if m.is_nan() {
+                    "-".to_string()
+                } else {
+                    format!("{m:.1}/{p:.1}")
+                }
+            };
+            println!(
+                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7.3} {:>6}",
+                src.name(),
+                tgt.name(),
+                pair(f.thigh),
+                pair(f.shin),
+                pair(f.foot),
+                f.drift,
+                f.floor_p95.map_or("-".into(), |c| format!("{c:.2}"))
+            );
+            let name = format!("{} → {}", src.name(), tgt.name());
+            let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;
+            if !(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0)) {
+                failures.push(format!(
+                    "{name}: thigh {} shin {}",
+                    pair(f.thigh),
+                    pair(f.shin)
+                ));
+            }
+            // A rig without toes has no foot direction to judge.
+            if !f.foot.0.is_nan() && !within(f.foot, 5.0, 15.0) {
+                failures.push(format!("{name}: foot {}", pair(f.foot)));
+            }
+            tally[0] += usize::from(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0));
+            tally[1] += usize::from(f.foot.0.is_nan() || within(f.foot, 5.0, 15.0));
+            tally[2] += usize::from(f.drift <= 0.05);
+            tally[3] += usize::from(f.floor_p95.is_none_or(|c| c <= 1.0));
+            if !(f.drift <= 0.05) {
+                failures.push(format!("{name}: drift {:.3} cm/frame", f.drift));
+            }
+            if f.floor_p95.is_some_and(|c| c > 1.0) {
+                failures.push(format!(
+                    "{name}: planted feet {:.2} cm off",
+                    f.floor_p95.unwrap()
+                ));
+            }
+        }
+    }
+    println!(
+        "{checked} right walk/run pairs measured; within the bounds: thigh and shin {}, foot {}, \
+         drift {}, floor {}; {} failures",
+        tally[0],
+        tally[1],
+        tally[2],
+        tally[3],
+        failures.len()
+    );
+    assert!(checked > 0, "no right pair with a walk or run source");
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
