@@ -21,9 +21,8 @@
 #     READY                          written last; the Rust side checks it
 #
 # It also installs the Debian package ffmpeg (video decoding runs through an ffmpeg child process).
-# Live webcam capture is a separate, opt-in cargo feature (`--features webcam`, nokhwa/V4L2) whose
-# build needs libclang (`apt-get install -y libclang-dev`); this script does not install it because
-# the default build and the video/replay paths do not need it.
+# Live webcam capture (nokhwa/V4L2, in the default build) needs libclang to build; that is
+# scripts/install-build-deps.sh's job, not this script's.
 # Idempotent: every step is skipped when its output already exists, so the test command runs it
 # every time. `rigcast setup vision` runs this script. Set RIGCAST_SKIP_VISION=1 to skip entirely.
 set -euo pipefail

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The one test command (README; CI's .ci/run calls it). On a fresh Debian 12 machine it first
-# installs what the real-program tests need, then runs every test of the workspace:
+# installs what the build and the real-program tests need, then runs every test of the workspace:
+#   0. scripts/install-build-deps.sh — libclang-dev, nasm, gcc (the webcam source's build)
 #   1. scripts/install-apps.sh  — Blender, Chromium, nats-server from Debian (end-to-end tests)
 #   2. scripts/setup-vision.sh  — ffmpeg, ONNX Runtime (PyPI wheel), BlazePose ONNX models
 #                                 (npm @mediapipe/pose, converted), real footage (PyPI pose2sim)
@@ -14,6 +15,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 step() { printf '\n=== %s ===\n' "$*"; }
+
+step "installing the build's own needs (if missing)"
+./scripts/install-build-deps.sh
 
 step "installing Blender, Chromium and nats-server (if missing)"
 ./scripts/install-apps.sh

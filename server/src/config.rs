@@ -1051,6 +1051,7 @@ mod tests {
             "video:/x/two people.mp4#0",
             "webcam:2",
             "webcam:0#1",
+            "webcam:1#1?width=1280&height=720&fps=60&format=mjpeg",
         ] {
             let spec: SourceSpec = arg.parse().unwrap();
             assert_eq!(spec.to_cli().as_deref(), Some(arg), "{spec:?}");

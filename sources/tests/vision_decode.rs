@@ -170,7 +170,7 @@ fn missing_setup_is_reported_with_the_command_to_run() {
 fn webcam_without_camera_or_support_is_an_error_not_a_panic() {
     // Either this build lacks the `webcam` feature or there is no camera here: both must be
     // a clear error.
-    match rigcast_sources::vision::open_webcam(0) {
+    match rigcast_sources::vision::open_webcam(0, Default::default()) {
         Err(VisionError::Webcam(msg)) => assert!(!msg.is_empty()),
         Err(other) => panic!("unexpected error kind: {other}"),
         Ok(_) => eprintln!("a camera is attached; nothing to check"),

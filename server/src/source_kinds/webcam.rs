@@ -1,20 +1,25 @@
-//! Pose estimation on a webcam (`kind = "webcam"`, `--source webcam:INDEX` or
-//! `webcam:INDEX#PERSON`; needs `rigcast setup vision` and a build with `--features webcam`).
+//! Pose estimation on a webcam (`kind = "webcam"`, `--source webcam:INDEX`,
+//! `webcam:INDEX#PERSON`, `webcam:INDEX?width=1280&height=720&fps=60&format=mjpeg`; needs
+//! `rigcast setup vision`; the default build has webcam support).
 
 use rigcast_protocol::SourceKind;
+use rigcast_sources::vision::{camera_modes, PixelFormat, WebcamOptions};
 use serde::Deserialize;
+
+use crate::config::ConfigError;
 
 use super::video::{person_suffix, split_person};
 use super::vision_inputs::VisionInputs;
 use super::{CliError, KindSpec, Opened};
 
 /// What to tell a user of a build without webcam support.
-pub const NO_WEBCAM_HINT: &str = "this rigcast was built without webcam support; rebuild it with \
-     `cargo build --release -p rigcast-server --features webcam` (which needs libclang: \
-     `sudo apt-get install libclang-dev` on Debian/Ubuntu), or use `--source video:FILE`";
+pub const NO_WEBCAM_HINT: &str = "this rigcast was built without webcam support \
+     (`--no-default-features`); rebuild it with the default features (which need libclang: \
+     scripts/install-apps.sh installs it on Debian/Ubuntu), or use `--source video:FILE`";
 
-const WEBCAM_GRAMMAR: &str =
-    "webcam:INDEX or webcam:INDEX#PERSON with a camera number and a person number, e.g. webcam:0#1";
+const WEBCAM_GRAMMAR: &str = "webcam:INDEX or webcam:INDEX#PERSON with a camera number (see \
+     `rigcast devices`) and a person number, optionally followed by \
+     ?width=W&height=H&fps=F&format=yuyv|mjpeg, e.g. webcam:0#1 or webcam:0?width=1280&fps=60";
 
 /// One tracked person of a camera by index.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -29,6 +34,26 @@ pub struct WebcamSpec {
     pub people: Option<usize>,
     /// Subject name (default `webcam:INDEX`, plus `#PERSON` when a person is given).
     pub name: Option<String>,
+    /// Wanted width in pixels (default: the camera's nearest to 640×480).
+    pub width: Option<u32>,
+    /// Wanted height in pixels.
+    pub height: Option<u32>,
+    /// Wanted frames per second (default: the highest at the chosen size).
+    pub fps: Option<u32>,
+    /// Wanted pixel format, `yuyv` or `mjpeg` (default: YUYV when it offers the rate).
+    pub format: Option<String>,
+}
+
+impl WebcamSpec {
+    /// The camera options of this spec (formats already checked by `validate`).
+    pub fn options(&self) -> WebcamOptions {
+        WebcamOptions {
+            width: self.width,
+            height: self.height,
+            fps: self.fps,
+            format: self.format.as_deref().and_then(PixelFormat::parse),
+        }
+    }
 }
 
 impl KindSpec for WebcamSpec {
@@ -37,18 +62,46 @@ impl KindSpec for WebcamSpec {
 
     fn parse_cli(arg: &str) -> Result<Self, CliError> {
         let bad = CliError::Expected(WEBCAM_GRAMMAR);
-        let (index, person) = split_person(arg).map_err(|_| bad)?;
+        let (camera, query) = arg.split_once('?').unwrap_or((arg, ""));
+        let (index, person) = split_person(camera).map_err(|_| bad)?;
+        let o = WebcamOptions::parse_query(query).map_err(|_| bad)?;
         Ok(WebcamSpec {
             index: index.parse().map_err(|_| bad)?,
             person,
             people: None,
             name: None,
+            width: o.width,
+            height: o.height,
+            fps: o.fps,
+            format: o.format.map(|f| f.name().to_string()),
         })
     }
 
     fn to_cli(&self) -> Option<String> {
+        let query = self.options().to_query();
+        let query = if query.is_empty() { query } else { format!("?{query}") };
         (self.name.is_none() && self.people.is_none())
-            .then(|| format!("webcam:{}{}", self.index, person_suffix(self.person)))
+            .then(|| format!("webcam:{}{}{query}", self.index, person_suffix(self.person)))
+    }
+
+    fn validate(&self) -> Result<(), ConfigError> {
+        let bounded = |field, v: Option<u32>, max| match v {
+            Some(v) if !(1..=max).contains(&v) => Err(ConfigError::Invalid {
+                field,
+                message: format!("{v} must be 1..={max}"),
+            }),
+            _ => Ok(()),
+        };
+        bounded("width", self.width, camera_modes::MAX_SIDE)?;
+        bounded("height", self.height, camera_modes::MAX_SIDE)?;
+        bounded("fps", self.fps, camera_modes::MAX_FPS)?;
+        match self.format.as_deref() {
+            Some(f) if PixelFormat::parse(f).is_none() => Err(ConfigError::Invalid {
+                field: "format",
+                message: format!("{f:?}: expected yuyv or mjpeg"),
+            }),
+            _ => Ok(()),
+        }
     }
 
     fn open(self) -> anyhow::Result<Opened> {
@@ -64,8 +117,9 @@ impl WebcamSpec {
     pub(crate) fn open_shared(self, vision: &VisionInputs) -> anyhow::Result<Opened> {
         use anyhow::Context;
         let index = self.index;
+        let options = self.options();
         let open = || {
-            rigcast_sources::vision::open_webcam(index)
+            rigcast_sources::vision::open_webcam(index, options)
                 .with_context(|| format!("cannot open webcam {index}"))
         };
         let input = super::vision_inputs::VisionInput::Webcam(index);

@@ -73,6 +73,9 @@ pub enum VisionError {
     /// No camera, or the camera could not be opened / read.
     #[error("webcam: {0}")]
     Webcam(String),
+    /// The camera stopped delivering (unplugged); the source keeps looking for it.
+    #[error("webcam: {0}")]
+    CameraLost(String),
     /// The built-in BlazePose skeleton failed to build (a programming error, reported anyway).
     #[error("BlazePose skeleton: {0}")]
     Skeleton(String),

@@ -19,6 +19,19 @@ pub struct RgbFrame {
     /// the model's resolution. Landmarks leave the pipeline in source pixels, so what a
     /// caller sees does not depend on the decode size.
     pub source_from_frame: f32,
+    /// When a camera captured, handed over and decoded this frame (zero for files).
+    pub clock: FrameClock,
+}
+
+/// A camera frame's times, Unix nanoseconds (all zero when the source is not a camera).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FrameClock {
+    /// The driver's capture timestamp, mapped to the wall clock ("glass").
+    pub captured_unix_nanos: u64,
+    /// When the driver handed the frame over.
+    pub dequeued_unix_nanos: u64,
+    /// When it was decoded to RGB.
+    pub decoded_unix_nanos: u64,
 }
 
 impl Default for RgbFrame {
@@ -37,6 +50,7 @@ impl RgbFrame {
             time_secs: 0.0,
             index: 0,
             source_from_frame: 1.0,
+            clock: FrameClock::default(),
         }
     }
 
@@ -66,7 +80,13 @@ pub trait FrameSource: Send {
     fn fps(&self) -> Option<f64>;
     /// Frame size in pixels.
     fn size(&self) -> (u32, u32);
+    /// The camera mode in use, for a camera.
+    fn camera_mode(&self) -> Option<super::camera_modes::CameraMode> {
+        None
+    }
     /// Reads the next frame into `out` (reusing its buffer). `Ok(false)` at the end of the input.
+    /// [`VisionError::CameraLost`] is not the end: the source looks for its device again at
+    /// the next call.
     fn next_frame(&mut self, out: &mut RgbFrame) -> Result<bool, VisionError>;
 }
 

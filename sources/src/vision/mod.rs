@@ -41,6 +41,7 @@ macro_rules! debug_fields {
 
 pub mod assets;
 pub mod body;
+pub mod camera_modes;
 mod bound;
 pub mod detector;
 pub mod error;
@@ -66,7 +67,8 @@ pub use assets::{ModelKind, VisionAssets};
 pub use body::blazepose_skeleton;
 pub use error::VisionError;
 pub use ffmpeg::{DecodeSize, FfmpegSource};
-pub use frame::{FrameSource, MemorySource, RgbFrame};
+pub use camera_modes::{CameraMode, PixelFormat, WebcamOptions};
+pub use frame::{FrameClock, FrameSource, MemorySource, RgbFrame};
 pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
 pub use model::{InputRange, LandmarkModel};
 pub use pipeline::{PipelineConfig, PosePipeline};
@@ -77,22 +79,26 @@ pub use source::VisionSource;
 pub use stages::LandmarkStages;
 pub use tracker::{Finder, PoseTracker, TrackerConfig};
 #[cfg(feature = "webcam")]
-pub use webcam::Webcam;
+pub use webcam::{describe_cameras, list_cameras, CameraInfo, Webcam};
 
-/// Opens the default webcam. Without the `webcam` cargo feature this is always an error that
-/// says how to enable it.
-pub fn open_webcam(index: u32) -> Result<Box<dyn FrameSource>, VisionError> {
+/// Opens camera `index` (see [`Webcam::open`]). Without the `webcam` cargo feature this is
+/// always an error that says how to get it.
+pub fn open_webcam(
+    index: u32,
+    options: WebcamOptions,
+) -> Result<Box<dyn FrameSource>, VisionError> {
     #[cfg(feature = "webcam")]
     {
-        Ok(Box::new(Webcam::open(index)?))
+        Ok(Box::new(Webcam::open(index, options)?))
     }
     #[cfg(not(feature = "webcam"))]
     {
-        let _ = index;
-        Err(VisionError::Webcam(
-            "this build has no webcam support; rebuild with `--features webcam` \
-             (needs libclang-dev)"
-                .into(),
-        ))
+        let _ = (index, options);
+        Err(VisionError::Webcam(NO_WEBCAM_SUPPORT.into()))
     }
 }
+
+/// What a build without the `webcam` feature says when asked for a camera.
+pub const NO_WEBCAM_SUPPORT: &str = "this build has no webcam support (it was built with \
+     `--no-default-features`); build it with the default features, which need libclang-dev \
+     (installed by scripts/install-apps.sh)";

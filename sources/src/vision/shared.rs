@@ -73,6 +73,8 @@ struct Slots {
     time_secs: f64,
     slots: Vec<Slot>,
     ended: Option<Ended>,
+    /// Counts the times the camera was lost, with why the last time (cleared by a frame).
+    lost: (u64, Option<String>),
     /// Set when the last person source is dropped.
     stop: bool,
 }
@@ -167,6 +169,7 @@ impl SharedVision {
                 time_secs: 0.0,
                 slots,
                 ended: None,
+                lost: (0, None),
                 stop: false,
             }),
             changed: Condvar::new(),
@@ -217,6 +220,7 @@ impl SharedVision {
             skeleton: self.skeleton.clone(),
             person,
             last_frame: 0,
+            last_lost: 0,
             ended_reported: false,
             health,
             tap: LandmarkTap::new(),
@@ -238,6 +242,14 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
         match runner.frames.next_frame(&mut frame) {
             Ok(true) => {}
             Ok(false) => break Ended::EndOfInput,
+            Err(VisionError::CameraLost(why)) => {
+                // Not the end: the camera is looked for again at the next read.
+                let mut s = shared.lock();
+                s.lost = (s.lost.0 + 1, Some(why));
+                drop(s);
+                shared.changed.notify_all();
+                continue;
+            }
             Err(e) => break Ended::Failed(e.to_string()),
         }
         if runner.realtime && !pace(&frame, &mut started, shared) {
@@ -252,6 +264,9 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
             let anchor =
                 *anchor_nanos.get_or_insert_with(|| unix_nanos_now().saturating_sub(frame_nanos));
             anchor + frame_nanos
+        } else if frame.clock.captured_unix_nanos > 0 {
+            // A camera's frame was captured when its driver says.
+            frame.clock.captured_unix_nanos
         } else {
             unix_nanos_now()
         };
@@ -295,6 +310,7 @@ fn publish(
         }
     }
     s.frames += 1;
+    s.lost.1 = None;
     s.capture_nanos = capture_nanos;
     s.arrived = arrived;
     s.time_secs = frame.time_secs;
@@ -310,6 +326,8 @@ pub struct PersonSource {
     person: usize,
     /// The pipeline's frame counter when this source last read.
     last_frame: u64,
+    /// The pipeline's camera-lost counter when this source last reported a loss.
+    last_lost: u64,
     ended_reported: bool,
     health: HealthTracker,
     tap: LandmarkTap,
@@ -327,6 +345,8 @@ enum Read {
     },
     /// Nothing newer within the timeout.
     Nothing,
+    /// The camera went away (reported once per loss); the pipeline keeps looking for it.
+    Lost(String),
     /// The input is over (reported once).
     Ended(Ended),
 }
@@ -346,6 +366,12 @@ impl PersonSource {
         loop {
             if s.frames > self.last_frame {
                 break;
+            }
+            if s.lost.0 > self.last_lost {
+                self.last_lost = s.lost.0;
+                if let Some(why) = &s.lost.1 {
+                    return Read::Lost(why.clone());
+                }
             }
             let left = deadline.saturating_duration_since(Instant::now());
             match &s.ended {
@@ -416,6 +442,10 @@ impl LiveSource for PersonSource {
             }
             Read::Nothing => {
                 self.health.poll(Instant::now());
+                Ok(None)
+            }
+            Read::Lost(why) => {
+                self.health.on_device_lost(why);
                 Ok(None)
             }
             Read::Ended(ended) => {
