@@ -9,7 +9,9 @@
 #                                 receiver the VMC output is judged with
 #   4. scripts/setup-bpy.sh     — the official `bpy` wheels (Blender 4.2, 4.5 LTS, 5.0) from PyPI,
 #                                 one cached venv each: the add-on's Blender test matrix
-#   5. cargo test --workspace   — unit, integration, end-to-end tests
+#   5. scripts/check_layers.py  — dependencies point down (ARCHITECTURE.md, Layers), and its
+#                                 own tests (scripts/test_check_layers.py)
+#   6. cargo test --workspace   — unit, integration, end-to-end tests
 # The setup steps are idempotent and skip work already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +32,10 @@ step "preparing the independent VMC receiver (if missing)"
 
 step "preparing Blender 4.2, 4.5 and 5.0 as Python modules (if missing)"
 ./scripts/setup-bpy.sh
+
+step "checking that dependencies point down (ARCHITECTURE.md, Layers)"
+python3 scripts/test_check_layers.py
+python3 scripts/check_layers.py
 
 step "cargo test --workspace"
 cargo test --workspace --no-fail-fast

@@ -5,6 +5,14 @@ use glam::{Quat, Vec3};
 use crate::error::RetargetError;
 use crate::skeleton::{BoneId, Skeleton};
 
+// Here rather than in skeleton.rs, so that the skeleton (the lower module) does not know poses.
+impl Skeleton {
+    /// The pose in which every bone sits at its rest transform.
+    pub fn rest_pose(&self) -> Pose {
+        Pose::from_rest(self)
+    }
+}
+
 /// Local transforms of every bone of one skeleton, as a struct of arrays.
 ///
 /// `rotations[i]` is bone `i`'s full local rotation relative to its parent (not a delta from

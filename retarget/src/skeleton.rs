@@ -10,7 +10,6 @@ use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::RetargetError;
-use crate::pose::Pose;
 
 /// Index of a bone inside one [`Skeleton`]. Names are resolved to ids once; per-frame code uses
 /// ids only.
@@ -277,11 +276,6 @@ impl Skeleton {
             b = p;
         }
         d
-    }
-
-    /// The pose in which every bone sits at its rest transform.
-    pub fn rest_pose(&self) -> Pose {
-        Pose::from_rest(self)
     }
 
     /// Stable 64-bit fingerprint of topology, names and rest transforms (rest values quantised to

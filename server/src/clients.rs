@@ -43,7 +43,8 @@ use tokio_tungstenite::tungstenite::{Bytes, Message};
 use tokio_tungstenite::WebSocketStream;
 
 use crate::access::Access;
-use crate::engine::{unix_nanos, EngineCommand};
+use crate::changes::type_name;
+use crate::clock::unix_nanos;
 use crate::state::ServerState;
 use crate::stats::ClientStats;
 
@@ -175,7 +176,7 @@ fn state_messages(state: &ServerState) -> Vec<String> {
             .iter()
             .filter_map(|s| s.stats.footplants_json.lock().ok().and_then(|m| m.clone())),
     );
-    out.push(crate::source_status_json(&state.subjects()));
+    out.push(crate::subject::source_status_json(&state.subjects()));
     out
 }
 
@@ -192,7 +193,7 @@ where
 {
     // Bounded: the queue holds at most its capacity, newer messages are dropped for a lag
     // that the next recv reports (and resyncs) again.
-    for _ in 0..crate::EVENTS_CAPACITY * 2 {
+    for _ in 0..crate::state::EVENTS_CAPACITY * 2 {
         match events.try_recv() {
             Ok(_) | Err(TryRecvError::Lagged(_)) => {}
             Err(TryRecvError::Empty | TryRecvError::Closed) => break,
@@ -349,18 +350,6 @@ fn required_access(msg: &ClientMessage) -> Access {
     }
 }
 
-/// The `type` of a message, for error texts.
-fn type_name(msg: &ClientMessage) -> &'static str {
-    match msg {
-        ClientMessage::Subscribe { .. } => "subscribe",
-        ClientMessage::Ping { .. } => "ping",
-        ClientMessage::SetProtocol { .. } => "set_protocol",
-        ClientMessage::SetMapping { .. } => "set_mapping",
-        ClientMessage::Calibrate { .. } => "calibrate",
-        ClientMessage::SetPerformer { .. } => "set_performer",
-    }
-}
-
 /// A session's own settings that its messages change, and its reply queue.
 struct Session<'a> {
     access: Access,
@@ -430,7 +419,7 @@ fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<
         } => subscribe(state, ids, subscribed),
         change @ (ClientMessage::Calibrate { .. }
         | ClientMessage::SetPerformer { .. }
-        | ClientMessage::SetMapping { .. }) => Some(apply_change(state, change)),
+        | ClientMessage::SetMapping { .. }) => Some(crate::changes::apply_change(state, change)),
     }
 }
 
@@ -444,7 +433,9 @@ fn forward_if_relayed(
 ) -> Option<Option<ServerMessage>> {
     let forwarder = state.forwarder.as_ref()?;
     let id = crate::cluster::subject_of(msg)?;
-    let origin = forwarder.origin(id)?;
+    if !forwarder.is_relayed(id) {
+        return None;
+    }
     let Ok(permit) = replies.clone().try_reserve_owned() else {
         return Some(Some(ServerMessage::error(
             ErrorCode::Internal,
@@ -455,43 +446,11 @@ fn forward_if_relayed(
         .stats
         .cluster_control_forwarded
         .fetch_add(1, Ordering::Relaxed);
-    let (forwarder, msg) = (forwarder.clone(), msg.clone());
+    let answer = forwarder.clone().forward_change(id, msg.clone());
     tokio::spawn(async move {
-        permit.send(forwarder.forward(id, &origin, msg).await);
+        permit.send(answer.await);
     });
     Some(None)
-}
-
-/// Carries out a request that changes the server (the connection's right to it already
-/// checked, here or by the node that forwarded it).
-pub(crate) fn apply_change(state: &ServerState, msg: ClientMessage) -> ServerMessage {
-    match msg {
-        ClientMessage::Calibrate {
-            subject,
-            pose,
-            delay_secs,
-        } => match crate::calibration::start(
-            &state.subjects(),
-            &state.events,
-            subject,
-            pose,
-            delay_secs,
-        ) {
-            Ok(()) => ServerMessage::Ack {
-                request: "calibrate".into(),
-                subject,
-            },
-            Err(refusal) => ServerMessage::error(refusal.code(), refusal.to_string()),
-        },
-        ClientMessage::SetPerformer { subject, foot_lock } => {
-            set_performer(state, subject, foot_lock)
-        }
-        ClientMessage::SetMapping { subject, overrides } => set_mapping(state, subject, overrides),
-        other => ServerMessage::error(
-            ErrorCode::Unsupported,
-            format!("{} does not change the server", type_name(&other)),
-        ),
-    }
 }
 
 /// `subscribe` to some subjects: all must exist, else nothing changes.
@@ -513,98 +472,4 @@ fn subscribe(
     }
     *subscribed = Some(ids.into_iter().collect());
     None
-}
-
-/// `set_performer`: switches a target's foot lock (a re-map, off the tick).
-fn set_performer(state: &ServerState, subject: u32, foot_lock: Option<bool>) -> ServerMessage {
-    let Some(target) = state.subject(subject) else {
-        return ServerMessage::error(
-            ErrorCode::UnknownSubject,
-            format!("unknown subject id {subject}"),
-        );
-    };
-    if !target.is_target() {
-        return ServerMessage::error(
-            ErrorCode::Unsupported,
-            format!("subject {subject} is a source; set_performer applies to target subjects"),
-        );
-    }
-    let cmd = EngineCommand::SetPerformer { subject, foot_lock };
-    send_command(state, cmd, "set_performer", subject)
-}
-
-/// `set_mapping`: overrides checked against the skeletons now, applied by the mapper.
-fn set_mapping(
-    state: &ServerState,
-    subject: u32,
-    overrides: std::collections::BTreeMap<String, Option<String>>,
-) -> ServerMessage {
-    let Some(target) = state.subject(subject) else {
-        return ServerMessage::error(
-            ErrorCode::UnknownSubject,
-            format!("unknown subject id {subject}"),
-        );
-    };
-    if let Err(message) = check_overrides(state, &target, &overrides) {
-        return ServerMessage::error(ErrorCode::Unsupported, message);
-    }
-    let cmd = EngineCommand::SetMapping { subject, overrides };
-    send_command(state, cmd, "set_mapping", subject)
-}
-
-/// Hands a command to the engine and answers `ack`, or an error when it cannot take it now.
-fn send_command(
-    state: &ServerState,
-    cmd: EngineCommand,
-    request: &str,
-    subject: u32,
-) -> ServerMessage {
-    match state.commands.try_send(cmd) {
-        Ok(()) => ServerMessage::Ack {
-            request: request.into(),
-            subject,
-        },
-        Err(mpsc::error::TrySendError::Full(_)) => {
-            ServerMessage::error(ErrorCode::Internal, "engine is busy; retry")
-        }
-        Err(mpsc::error::TrySendError::Closed(_)) => {
-            ServerMessage::error(ErrorCode::Internal, "engine is shutting down")
-        }
-    }
-}
-
-/// Checks `set_mapping` overrides against the target's and its sources' skeletons, so a typo
-/// is answered at once instead of failing later in the mapper.
-fn check_overrides(
-    state: &ServerState,
-    target: &crate::engine::Subject,
-    overrides: &std::collections::BTreeMap<String, Option<String>>,
-) -> Result<(), String> {
-    if !target.is_target() {
-        return Err(format!(
-            "subject {} is a source; set_mapping applies to target subjects",
-            target.id
-        ));
-    }
-    let tsk = target.skeleton();
-    let sources: Vec<_> = target
-        .inputs
-        .iter()
-        .filter_map(|id| state.subject(*id).map(|s| s.skeleton()))
-        .collect();
-    let refs: Vec<&rigcast_retarget::Skeleton> = sources.iter().map(|s| &**s).collect();
-    for (t, s) in overrides {
-        if tsk.bone(t).is_none() {
-            return Err(format!("target subject {} has no bone {t:?}", target.id));
-        }
-        if let Some(s) = s {
-            if crate::mapper::find_source_bone(&refs, s).is_none() {
-                return Err(format!(
-                    "no source of target subject {} has a bone {s:?}",
-                    target.id
-                ));
-            }
-        }
-    }
-    Ok(())
 }

@@ -22,8 +22,9 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use serde::Deserialize;
-use thiserror::Error;
 
+pub use crate::cluster_config::ClusterConfig;
+pub use crate::config_error::ConfigError;
 pub use crate::source_kinds::{
     DemoSpec, ReplayClipSpec, ReplayFileSpec, ReplaySettings, SerialSpec, SourceSpec, VideoSpec,
     VmcSpec, WebcamSpec, DEFAULT_VMC_BIND,
@@ -38,51 +39,6 @@ pub const DEFAULT_LISTEN: &str = "127.0.0.1:8717";
 pub const DEFAULT_RATE_HZ: f64 = 60.0;
 /// Accepted output rates.
 pub const RATE_RANGE_HZ: std::ops::RangeInclusive<f64> = 1.0..=240.0;
-
-/// Errors in the configuration file or flags.
-#[derive(Debug, Error)]
-pub enum ConfigError {
-    /// The file could not be read.
-    #[error("cannot read config {path}: {source}")]
-    Read {
-        /// the file
-        path: PathBuf,
-        /// the IO error
-        source: std::io::Error,
-    },
-    /// The file is not valid TOML for this schema.
-    #[error("invalid config {path}: {source}")]
-    Parse {
-        /// the file
-        path: PathBuf,
-        /// the TOML error (with line and column)
-        source: toml::de::Error,
-    },
-    /// A `--source` argument of no known kind.
-    #[error(
-        "unknown source {text:?}; expected replay:FILE, vmc:PORT, serial:CONFIG.toml, video:FILE, webcam:INDEX or demo"
-    )]
-    UnknownSource {
-        /// the argument
-        text: String,
-    },
-    /// A `--source` argument of a known kind whose argument is malformed.
-    #[error("--source {text:?}: expected {expected}")]
-    BadSourceArg {
-        /// the argument
-        text: String,
-        /// the grammar of its kind
-        expected: &'static str,
-    },
-    /// A value is out of range or malformed.
-    #[error("invalid {field}: {message}")]
-    Invalid {
-        /// which setting
-        field: &'static str,
-        /// what is wrong
-        message: String,
-    },
-}
 
 /// `rigcast.toml` as written by users. Every field is optional.
 #[derive(Debug, Clone, Default, Deserialize)]
@@ -125,7 +81,7 @@ pub struct FileConfig {
     /// A client whose socket accepts nothing for this long is disconnected (default 10 s).
     pub stalled_client_timeout_secs: Option<f64>,
     /// Cluster mode: share subjects with other nodes over NATS.
-    pub cluster: Option<crate::cluster::ClusterConfig>,
+    pub cluster: Option<ClusterConfig>,
 }
 
 /// A VMC receiver and the subject it receives: `vmc_out = ["host:port", { address =
@@ -568,7 +524,7 @@ pub struct ServerConfig {
     /// Connection, client and cache bounds.
     pub limits: LimitsConfig,
     /// Cluster mode (NATS), off when `None`.
-    pub cluster: Option<crate::cluster::ClusterConfig>,
+    pub cluster: Option<ClusterConfig>,
 }
 
 /// The default on-disk mapping cache: `$XDG_CACHE_HOME/rigcast/mappings`, else
@@ -621,6 +577,9 @@ impl ServerConfig {
         }
         for s in &self.sources {
             s.validate()?;
+        }
+        if let Some(cluster) = &self.cluster {
+            cluster.validate()?;
         }
         Ok(())
     }

@@ -17,7 +17,7 @@
 use std::net::SocketAddr;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use rigcast_protocol::frame::{append_frame_v2, encode_frame, FrameHeader};
 use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
@@ -26,18 +26,11 @@ use tokio::sync::{broadcast, watch};
 use tokio::time::MissedTickBehavior;
 use tokio_tungstenite::tungstenite::Bytes;
 
+use crate::clock::unix_nanos;
 use crate::performer::Performer;
 use crate::stats::Stats;
 use rigcast_protocol::SourceState;
 use rigcast_sources::Replay;
-
-/// Wall clock as Unix epoch nanoseconds.
-pub fn unix_nanos() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(0)
-}
 
 /// One subject's pose of one tick on its way to clients, encoded once per protocol version.
 #[derive(Debug, Clone)]

@@ -578,7 +578,7 @@ pub fn status(state: &ServerState) -> Status {
 
 fn cluster_status(state: &ServerState) -> Option<rigcast_protocol::status::ClusterStatus> {
     let cluster = state.cluster.as_ref()?;
-    let site = cluster.config.site.clone();
+    let site = cluster.site.clone();
     let (s, m) = (&state.stats, &cluster.mapping_counts);
     let n = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
     Some(rigcast_protocol::status::ClusterStatus {

@@ -30,12 +30,16 @@ pub mod access;
 pub mod batched_writes;
 pub mod boot;
 pub mod calibration;
+pub mod changes;
 pub mod character;
 pub mod cli;
 pub mod clients;
+pub mod clock;
 pub mod cluster;
+pub mod cluster_config;
 pub mod cmd;
 pub mod config;
+pub mod config_error;
 pub mod demo;
 pub mod dirs;
 pub mod engine;
@@ -65,81 +69,11 @@ pub mod vmc_pose;
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
 
-use std::net::SocketAddr;
-use std::sync::Arc;
-
-pub use boot::start;
+pub use boot::{start, ServerHandle};
 pub use config::{
     AccessConfig, LimitsConfig, OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec,
     TargetSpec, VmcBoneNames, VmcOut,
 };
 pub use source_kinds::{demo_clip, NO_WEBCAM_HINT};
+pub use subject::source_status_json;
 pub use token::{ControlToken, TokenSetting};
-
-use state::ServerState;
-use subject::Subject;
-
-/// A running server.
-pub struct ServerHandle {
-    local_addr: SocketAddr,
-    state: Arc<ServerState>,
-    token: token::ResolvedToken,
-    supervisor: boot::Supervisor,
-}
-
-impl ServerHandle {
-    /// The bound address (useful with port 0).
-    pub fn local_addr(&self) -> SocketAddr {
-        self.local_addr
-    }
-
-    /// `ws://…/v1/stream` for this server.
-    pub fn stream_url(&self) -> String {
-        format!("ws://{}/v1/stream", self.local_addr)
-    }
-
-    /// Shared state (subjects, counters).
-    pub fn state(&self) -> &Arc<ServerState> {
-        &self.state
-    }
-
-    /// The control token clients present to change the server.
-    pub fn control_token(&self) -> &ControlToken {
-        &self.token.token
-    }
-
-    /// The token, whether this start created it, and its file.
-    pub fn token_info(&self) -> &token::ResolvedToken {
-        &self.token
-    }
-
-    /// `ws://…/v1/stream?token=…`: a stream URL with control access.
-    pub fn control_stream_url(&self) -> String {
-        format!("{}?token={}", self.stream_url(), self.token.token.reveal())
-    }
-
-    /// Stops every task and thread in order and waits for them (see [`boot::spawn`]): client
-    /// connections close first, the recording is finished last.
-    pub async fn shutdown(self) {
-        self.supervisor.shutdown().await;
-    }
-}
-
-/// Control messages queued per client (mapping updates, skeleton changes, source status).
-pub(crate) const EVENTS_CAPACITY: usize = 256;
-
-/// The `source_status` message for `subjects`.
-pub fn source_status_json(subjects: &[Arc<Subject>]) -> String {
-    rigcast_protocol::ServerMessage::SourceStatus {
-        sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
-        targets: subjects
-            .iter()
-            .filter(|s| s.is_target())
-            .map(|s| rigcast_protocol::TargetHealth {
-                subject: s.id,
-                motion: s.stats.motion.load(),
-            })
-            .collect(),
-    }
-    .to_json()
-}

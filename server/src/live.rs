@@ -22,7 +22,8 @@ use rigcast_retarget::{Frame, Pose};
 use rigcast_sources::live::LiveSource;
 use tokio::sync::{broadcast, mpsc, watch};
 
-use crate::engine::{unix_nanos, EngineCommand};
+use crate::clock::unix_nanos;
+use crate::engine::EngineCommand;
 use crate::recorder::Recorder;
 use crate::subject::Subject;
 
@@ -73,7 +74,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                 // Err only means no client is connected.
                 let _ = ctx
                     .events
-                    .send(crate::source_status_json(&ctx.subjects.snapshot()));
+                    .send(crate::subject::source_status_json(&ctx.subjects.snapshot()));
             }
         }
         match source.next_frame(POLL, &mut pose) {

@@ -33,6 +33,7 @@ use rigcast_retarget::mapping::{
 use rigcast_retarget::{BoneId, Follow, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
 
+use crate::changes::find_source_bone;
 use crate::engine::EngineCommand;
 use crate::graft_live::{LiveGraft, LowerInput};
 use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
@@ -502,17 +503,6 @@ pub fn apply_session(
         });
     }
     Ok(())
-}
-
-/// The first source skeleton (in input order) with a bone of that name.
-pub fn find_source_bone(
-    sources: &[&Skeleton],
-    name: &str,
-) -> Option<(u16, rigcast_retarget::BoneId)> {
-    sources
-        .iter()
-        .enumerate()
-        .find_map(|(i, s)| s.bone(name).map(|b| (i as u16, b)))
 }
 
 /// The `mapping` message of a target.

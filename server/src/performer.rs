@@ -22,8 +22,8 @@ use rigcast_retarget::footplant::FootLock;
 use rigcast_retarget::{Frame, Mapping, Pose};
 use tokio::sync::watch;
 
+use crate::clock::unix_nanos;
 use crate::config::OnLost;
-use crate::engine::unix_nanos;
 use crate::graft_live::{LiveGraft, LockTiming};
 use crate::idle_graph::IdleGraph;
 use crate::subject::Subject;

@@ -1,9 +1,11 @@
 //! State shared by the listener, the client tasks and the status handler.
 
+use std::future::Future;
+use std::pin::Pin;
 use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 
-use rigcast_protocol::control::SubjectInfo;
+use rigcast_protocol::control::{ClientMessage, SubjectInfo};
 use rigcast_protocol::{ServerMessage, PROTOCOL_VERSION};
 use tokio::sync::{broadcast, mpsc, watch};
 
@@ -11,7 +13,10 @@ use crate::access::AccessPolicy;
 use crate::engine::{EngineCommand, OutFrame, Subject};
 use crate::limits::{ConnectionLimiter, FdLimit};
 use crate::recorder::RecorderHealth;
-use crate::stats::Stats;
+use crate::stats::{MappingShareCounts, Stats};
+
+/// Control messages queued per client (mapping updates, skeleton changes, source status).
+pub const EVENTS_CAPACITY: usize = 256;
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
 pub struct ServerState {
@@ -42,10 +47,18 @@ pub struct ServerState {
     pub stalled_client_timeout: std::time::Duration,
     /// The recording's health, if recording (its errors show in the status).
     pub recorder: Option<Arc<RecorderHealth>>,
-    /// Cluster mode: the connection (its settings and counters, for the status).
-    pub cluster: Option<Arc<crate::cluster::Cluster>>,
-    /// Cluster mode: where relayed subjects' control requests go.
-    pub forwarder: Option<Arc<crate::cluster::Forwarder>>,
+    /// Cluster mode: this node's site and counters, for the status.
+    pub cluster: Option<ClusterView>,
+    /// Cluster mode: where changes to relayed subjects go.
+    pub forwarder: Option<Arc<dyn ChangeForwarder>>,
+}
+
+/// Cluster mode as the status shows it (the connection itself stays in `cluster`).
+pub struct ClusterView {
+    /// This node's name in the deployment.
+    pub site: String,
+    /// How often the shared mapping cache was used.
+    pub mapping_counts: Arc<MappingShareCounts>,
 }
 
 impl ServerState {
@@ -78,4 +91,18 @@ impl ServerState {
         }
         .to_json()
     }
+}
+
+/// Where changes to subjects relayed from other nodes go (cluster mode: `cluster::Forwarder`).
+/// A trait so that the state and the client sessions need no NATS.
+pub trait ChangeForwarder: Send + Sync {
+    /// Whether local subject `id` is relayed from another node.
+    fn is_relayed(&self, id: u32) -> bool;
+
+    /// Sends `msg` about relayed subject `id` to its owner; resolves to the owner's answer.
+    fn forward_change(
+        self: Arc<Self>,
+        id: u32,
+        msg: ClientMessage,
+    ) -> Pin<Box<dyn Future<Output = ServerMessage> + Send>>;
 }

@@ -253,3 +253,12 @@ mod tests {
         assert_eq!(s.tick_percentiles().max, 7);
     }
 }
+
+/// How often the cluster's shared mapping cache served or took a table.
+#[derive(Debug, Default)]
+pub struct MappingShareCounts {
+    /// Tables taken from the bucket instead of computed.
+    pub fetched: AtomicU64,
+    /// Tables computed here and put in the bucket.
+    pub shared: AtomicU64,
+}

@@ -617,3 +617,19 @@ mod tests {
         assert!(raw.direct);
     }
 }
+
+/// The `source_status` message for `subjects`.
+pub fn source_status_json(subjects: &[Arc<Subject>]) -> String {
+    rigcast_protocol::ServerMessage::SourceStatus {
+        sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
+        targets: subjects
+            .iter()
+            .filter(|s| s.is_target())
+            .map(|s| rigcast_protocol::TargetHealth {
+                subject: s.id,
+                motion: s.stats.motion.load(),
+            })
+            .collect(),
+    }
+    .to_json()
+}

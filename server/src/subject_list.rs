@@ -44,3 +44,14 @@ impl SubjectList {
         subject
     }
 }
+
+/// `name`, or `name-2`, `name-3`… when taken.
+pub fn unique_name(taken: &[String], name: String) -> String {
+    if !taken.contains(&name) {
+        return name;
+    }
+    (2..)
+        .map(|i| format!("{name}-{i}"))
+        .find(|n| !taken.contains(n))
+        .unwrap_or(name)
+}

@@ -24,5 +24,5 @@ pub use colors::{mapping_colors, BoneColors, UNMAPPED};
 pub use file::{
     apply_overrides, parse_mapping_file, to_mapping_file, MappingFile, MappingFileError,
 };
-pub use posture::posture_relative;
+pub use posture::{posture_relative, Follow};
 pub use table::{BoneOptions, MappingTable, SourceRef, TargetEntry};

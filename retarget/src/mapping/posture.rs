@@ -8,7 +8,17 @@
 use super::MappingTable;
 use crate::analysis::{Analysis, Role, SectionKind};
 use crate::skeleton::BoneId;
-use crate::Follow;
+
+/// What a posture-relative bone ([`crate::RetargetOptions::posture_relative`]) takes of its source
+/// bone's world rotation relative to the source's standing posture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Follow {
+    /// All of it.
+    Rotation,
+    /// Only its turn about the source's up: a quadruped's trunk stays level while the walker
+    /// driving it leans, and still turns with it.
+    Heading,
+}
 
 /// Number of limbs (arms and legs) reaching the ground.
 fn ground_limbs(a: &Analysis) -> usize {

@@ -4,7 +4,9 @@
 use glam::{Quat, Vec3};
 
 use super::root::{RootPlan, Side};
-use super::{align, BonePlan, Follow, Link, Mapping, RetargetOptions, RetargetPlan, NO_END};
+use super::{
+    align, primary, BonePlan, Follow, Link, Mapping, RetargetOptions, RetargetPlan, NO_END,
+};
 use crate::error::RetargetError;
 use crate::fk::{world_transforms, WorldTransform};
 use crate::mapping::{BoneOptions, MappingTable, SourceRef};
@@ -22,13 +24,6 @@ fn reference_pose(skel: &Skeleton, given: Option<&Pose>) -> Result<Pose, Retarge
         }
         None => Ok(skel.rest_pose()),
     }
-}
-
-/// The first source with a positive weight.
-pub(super) fn primary(table: &MappingTable, t: BoneId) -> Option<SourceRef> {
-    table
-        .get(t)
-        .and_then(|e| e.sources.iter().find(|s| s.weight > 0.0).copied())
 }
 
 /// Checks what `build` cannot work without.

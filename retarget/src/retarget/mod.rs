@@ -44,7 +44,7 @@ use glam::{Quat, Vec3};
 use crate::clip::Clip;
 use crate::error::RetargetError;
 use crate::fk::WorldTransform;
-use crate::mapping::BoneOptions;
+use crate::mapping::{BoneOptions, MappingTable, SourceRef};
 use crate::pose::Pose;
 use crate::skeleton::{BoneId, Skeleton};
 use history::History;
@@ -542,4 +542,12 @@ fn apply_options(opts: &BoneOptions, rest_local: Quat, aligned_local: Quat, loca
         q = rest_local.slerp(target, opts.weight.max(0.0)).normalize();
     }
     q
+}
+
+// Here rather than in build.rs: root.rs needs it too, and build.rs uses root.rs.
+/// The first source with a positive weight.
+fn primary(table: &MappingTable, t: BoneId) -> Option<SourceRef> {
+    table
+        .get(t)
+        .and_then(|e| e.sources.iter().find(|s| s.weight > 0.0).copied())
 }

@@ -1,5 +1,6 @@
 //! Options for building a [`super::Mapping`].
 
+pub use crate::mapping::Follow;
 use glam::Vec3;
 
 use crate::pose::Pose;
@@ -34,17 +35,6 @@ pub enum FootContact {
     /// Correct every frame (feet heights follow the source's exactly, hips height follows the
     /// target's own leg geometry).
     EveryFrame,
-}
-
-/// What a posture-relative bone ([`RetargetOptions::posture_relative`]) takes of its source
-/// bone's world rotation relative to the source's standing posture.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Follow {
-    /// All of it.
-    Rotation,
-    /// Only its turn about the source's up: a quadruped's trunk stays level while the walker
-    /// driving it leans, and still turns with it.
-    Heading,
 }
 
 /// Options for [`super::Mapping::build`]. `Default` suits a live source at 60 Hz.

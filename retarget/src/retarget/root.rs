@@ -3,8 +3,9 @@
 
 use glam::{Quat, Vec3};
 
-use super::build::primary;
-use super::{align, FootContact, RetargetContext, RetargetOptions, RetargetPlan, RootMotion};
+use super::{
+    align, primary, FootContact, RetargetContext, RetargetOptions, RetargetPlan, RootMotion,
+};
 use crate::fk::WorldTransform;
 use crate::mapping::{MappingTable, SourceRef};
 use crate::pose::Pose;

@@ -44,7 +44,7 @@ pub(crate) struct Assembly {
 
 /// Builds the subjects, performers and mapper of `inputs`, and resolves the VMC receivers.
 pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::Result<Assembly> {
-    let (events, _) = broadcast::channel::<String>(crate::EVENTS_CAPACITY);
+    let (events, _) = broadcast::channel::<String>(crate::state::EVENTS_CAPACITY);
     let names: Vec<String> = inputs.sources.iter().map(|s| s.name.clone()).collect();
     let mut subjects = Vec::new();
     let mut sources = Vec::new();
@@ -227,7 +227,7 @@ fn performer_plan(
         );
     }
     let all_names: Vec<String> = subjects.iter().map(|s| s.info().name).collect();
-    let name = super::load::unique_name(&all_names, spec.name.clone().unwrap_or(t.name));
+    let name = crate::subject_list::unique_name(&all_names, spec.name.clone().unwrap_or(t.name));
     let (subject, tx) = Subject::with_kind(
         subjects.len() as u32,
         name,

@@ -13,6 +13,7 @@ use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip};
 use crate::config::{self, PerformerSpec, ServerConfig, SourceSpec, TargetSpec};
 pub(crate) use crate::source_kinds::Loaded;
 use crate::source_kinds::Opened;
+use crate::subject_list::unique_name;
 use crate::{character, token};
 
 /// A source with its subject name and (initial) skeleton.
@@ -168,17 +169,6 @@ pub(crate) fn read_mapping(path: &std::path::Path) -> anyhow::Result<MappingFile
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read the mapping file {}", path.display()))?;
     parse_mapping_file(&text).with_context(|| format!("mapping file {}", path.display()))
-}
-
-/// `name`, or `name-2`, `name-3`… when taken.
-pub(crate) fn unique_name(taken: &[String], name: String) -> String {
-    if !taken.contains(&name) {
-        return name;
-    }
-    (2..)
-        .map(|i| format!("{name}-{i}"))
-        .find(|n| !taken.contains(n))
-        .unwrap_or(name)
 }
 
 /// Loads a character: a file (its animation only serves as a reference posture) or a

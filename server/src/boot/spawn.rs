@@ -27,7 +27,7 @@ use crate::engine::{self, EngineCommand, TickContext};
 use crate::limits::ConnectionLimiter;
 use crate::live::{self, LiveContext};
 use crate::recorder::Recorder;
-use crate::state::ServerState;
+use crate::state::{ClusterView, ServerState};
 use crate::{access, footplants, http, limits, stats, token};
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
@@ -85,6 +85,8 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     let (commands, commands_rx) = mpsc::channel(64);
     let stats = Arc::new(stats::Stats::default());
     let subject_list = Arc::new(crate::subject_list::SubjectList::new(subjects.clone()));
+    let forwarder =
+        (parts.cluster.as_ref()).map(|link| Arc::new(link.forwarder(parts.token.token.clone())));
     let state = Arc::new(ServerState {
         subject_list: subject_list.clone(),
         frames: frames.clone(),
@@ -104,9 +106,13 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         fd_limit: limits::fd_limit(),
         stalled_client_timeout: Duration::from_secs_f64(config.limits.stalled_client_timeout_secs),
         recorder: recorder.as_ref().map(|r| r.health()),
-        cluster: parts.cluster.as_ref().map(|link| link.cluster.clone()),
-        forwarder: (parts.cluster.as_ref())
-            .map(|link| Arc::new(link.forwarder(parts.token.token.clone()))),
+        cluster: parts.cluster.as_ref().map(|link| ClusterView {
+            site: link.cluster.config.site.clone(),
+            mapping_counts: link.cluster.mapping_counts.clone(),
+        }),
+        forwarder: forwarder
+            .clone()
+            .map(|f| f as Arc<dyn crate::state::ChangeForwarder>),
     });
     let mut supervisor = Supervisor {
         connections_stop,
@@ -158,12 +164,14 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     )));
     let status = run_source_status(subject_list, events, engine_rx);
     supervisor.engine_tasks.push(tokio::spawn(status));
-    if let Some(link) = parts.cluster {
+    if let (Some(link), Some(forwarder)) = (parts.cluster, forwarder) {
         let live = crate::cluster::LiveThreads {
             stop: supervisor.stop_threads.clone(),
             threads: supervisor.late_threads.clone(),
         };
-        supervisor.engine_tasks.extend(link.spawn(&state, live));
+        supervisor
+            .engine_tasks
+            .extend(link.spawn(&state, live, forwarder));
     }
     supervisor.listener = tokio::spawn(http::run_listener(listener, state.clone()));
     Ok(Started {
@@ -314,7 +322,7 @@ async fn run_source_status(
             continue;
         }
         // No receiver between the check and the send: nobody to tell.
-        let _ = events.send(crate::source_status_json(&now));
+        let _ = events.send(crate::subject::source_status_json(&now));
     }
 }
 

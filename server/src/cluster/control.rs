@@ -17,6 +17,8 @@
 //! seen, so a recorded request cannot be played again.
 
 use std::collections::{HashMap, VecDeque};
+use std::future::Future;
+use std::pin::Pin;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, RwLock};
 use std::time::Duration;
@@ -27,7 +29,8 @@ use rigcast_protocol::ServerMessage;
 use ring::hmac;
 use serde::{Deserialize, Serialize};
 
-use crate::engine::unix_nanos;
+use crate::clock::unix_nanos;
+use crate::state::ChangeForwarder;
 use crate::state::ServerState;
 use crate::token::ControlToken;
 
@@ -272,6 +275,28 @@ impl Forwarder {
     }
 }
 
+impl ChangeForwarder for Forwarder {
+    fn is_relayed(&self, id: u32) -> bool {
+        self.origin(id).is_some()
+    }
+
+    fn forward_change(
+        self: Arc<Self>,
+        id: u32,
+        msg: ClientMessage,
+    ) -> Pin<Box<dyn Future<Output = ServerMessage> + Send>> {
+        Box::pin(async move {
+            match self.origin(id) {
+                Some(origin) => self.forward(id, &origin, msg).await,
+                None => ServerMessage::error(
+                    ErrorCode::Internal,
+                    format!("subject {id} is not relayed from another node"),
+                ),
+            }
+        })
+    }
+}
+
 fn unreachable_owner(site: &str, why: &str) -> ServerMessage {
     ServerMessage::error(
         ErrorCode::Internal,
@@ -343,7 +368,7 @@ fn serve(checker: &mut Checker, payload: &[u8], state: &ServerState) -> ServerMe
             format!("node {} has no subject {:?}", checker.site, body.name),
         );
     };
-    crate::clients::apply_change(state, readdressed(body.message, own.id))
+    crate::changes::apply_change(state, readdressed(body.message, own.id))
 }
 
 #[cfg(test)]

@@ -30,7 +30,9 @@ use async_nats::jetstream::kv::Operation;
 use futures_util::StreamExt;
 use rigcast_protocol::{ServerMessage, SourceKind};
 
-use super::{run_relay, Change, Cluster, Origin, RemoteSource, SubjectEntry, ENTRY_MAX_AGE};
+use super::{
+    run_relay, Change, Cluster, Forwarder, Origin, RemoteSource, SubjectEntry, ENTRY_MAX_AGE,
+};
 use crate::config::VmcBoneNames;
 use crate::live::LiveContext;
 use crate::state::ServerState;
@@ -116,6 +118,7 @@ pub async fn run_discovery(
     mut known: HashMap<String, Known>,
     state: Arc<ServerState>,
     live: LiveThreads,
+    forwarder: Arc<Forwarder>,
 ) {
     let mut shutdown = state.shutdown.clone();
     let own = format!("{}.", cluster.config.site);
@@ -151,7 +154,14 @@ pub async fn run_discovery(
             }
             match entry.operation {
                 Operation::Put => match SubjectEntry::parse(&entry.value) {
-                    Ok(e) => on_put(&cluster, &mut known, e, entry.revision, &state, &live),
+                    Ok(e) => on_put(
+                        &cluster,
+                        &mut known,
+                        e,
+                        entry.revision,
+                        &state,
+                        (&live, &forwarder),
+                    ),
                     Err(err) => tracing::warn!("cluster: entry {} skipped: {err}", entry.key),
                 },
                 Operation::Delete | Operation::Purge => {
@@ -196,7 +206,7 @@ fn on_put(
     entry: SubjectEntry,
     revision: u64,
     state: &Arc<ServerState>,
-    live: &LiveThreads,
+    late: (&LiveThreads, &Forwarder),
 ) {
     let key = entry.key();
     let now = Instant::now();
@@ -210,7 +220,7 @@ fn on_put(
         }
         return;
     }
-    match add_subject(cluster, &entry, state, live) {
+    match add_subject(cluster, &entry, state, late) {
         Ok(changes) => {
             count_discovered(state);
             let found = Known {
@@ -238,12 +248,12 @@ fn add_subject(
     cluster: &Cluster,
     entry: &SubjectEntry,
     state: &Arc<ServerState>,
-    live: &LiveThreads,
+    (live, forwarder): (&LiveThreads, &Forwarder),
 ) -> anyhow::Result<std::sync::mpsc::SyncSender<Change>> {
     let (source, feeds) = RemoteSource::new(entry, cluster.config.lost_after())?;
     let skeleton = source.skeleton_arc();
     let taken: Vec<String> = state.subjects().iter().map(|s| s.info().name).collect();
-    let name = crate::boot::unique_name(&taken, entry.relayed_name());
+    let name = crate::subject_list::unique_name(&taken, entry.relayed_name());
     let mut watch_tx = None;
     let subject = state.subject_list.push(|id| {
         let (s, tx) = Subject::with_kind(
@@ -258,15 +268,13 @@ fn add_subject(
         Arc::new(s)
     });
     let tx = watch_tx.ok_or_else(|| anyhow::anyhow!("subject not made"))?;
-    if let Some(f) = &state.forwarder {
-        f.add(
-            subject.id,
-            Origin {
-                site: entry.site.clone(),
-                name: entry.name.clone(),
-            },
-        );
-    }
+    forwarder.add(
+        subject.id,
+        Origin {
+            site: entry.site.clone(),
+            name: entry.name.clone(),
+        },
+    );
     let frames = cluster
         .config
         .frame_subject(&entry.site, &super::token(&entry.name));

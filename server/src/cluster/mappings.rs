@@ -12,7 +12,8 @@
 //! Only automatic tables are shared: mapping files and `set_mapping` overrides stay with the
 //! node whose performer they belong to.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use crate::stats::MappingShareCounts;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -21,15 +22,6 @@ use rigcast_retarget::mapping::{cache, CacheKey, MappingTable};
 
 /// Longest one bucket read or write may hold the mapper.
 pub const KV_TIMEOUT: Duration = Duration::from_secs(1);
-
-/// How often the shared cache served or took a table.
-#[derive(Debug, Default)]
-pub struct MappingShareCounts {
-    /// Tables taken from the bucket instead of computed.
-    pub fetched: AtomicU64,
-    /// Tables computed here and put in the bucket.
-    pub shared: AtomicU64,
-}
 
 /// The mapper's handle on the shared cache.
 pub struct SharedMappings {

@@ -44,123 +44,17 @@ mod remote;
 
 use std::time::Duration;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use async_nats::jetstream::{self, kv};
-use serde::Deserialize;
 
+pub use crate::cluster_config::ClusterConfig;
+pub use crate::stats::MappingShareCounts;
 pub use control::{run_control_service, subject_of, Forwarder, Origin};
 pub use discover::{run_discovery, Known, LiveThreads};
 pub use entry::{token, SubjectEntry};
-pub use mappings::{MappingShareCounts, SharedMappings};
+pub use mappings::SharedMappings;
 pub use publish::{run_entries, run_publisher};
 pub use remote::{run_relay, Change, RemoteFeeds, RemoteSource};
-
-/// `[cluster]` in the config file (or `--nats` / `--site` on the command line).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ClusterConfig {
-    /// NATS servers, `nats://HOST:PORT`; the client fails over between them.
-    pub servers: Vec<String>,
-    /// This node's name in the deployment (letters, digits, `-`, `_`).
-    pub site: String,
-    /// Prefix of every NATS subject and of the KV bucket, so deployments sharing a NATS
-    /// system stay apart (default `rigcast`).
-    #[serde(default = "default_namespace")]
-    pub namespace: String,
-    /// NATS user name (with `password`).
-    #[serde(default)]
-    pub user: Option<String>,
-    /// NATS password.
-    #[serde(default)]
-    pub password: Option<String>,
-    /// NATS nkey seed (`SU…`), instead of a user and password.
-    #[serde(default)]
-    pub nkey_seed: Option<String>,
-    /// Replicas of the KV bucket when this node creates it (3 on a 3-server cluster keeps the
-    /// retained state through the loss of one server).
-    #[serde(default = "default_replicas")]
-    pub kv_replicas: usize,
-    /// Silence after which a remote subject counts as lost, seconds.
-    #[serde(default = "default_lost_after")]
-    pub lost_after_secs: f32,
-}
-
-fn default_namespace() -> String {
-    "rigcast".into()
-}
-
-fn default_replicas() -> usize {
-    1
-}
-
-fn default_lost_after() -> f32 {
-    0.5
-}
-
-impl ClusterConfig {
-    /// A cluster config for `servers` (comma-separated list allowed) as `site`.
-    pub fn new(servers: &str, site: &str) -> ClusterConfig {
-        ClusterConfig {
-            servers: servers
-                .split(',')
-                .map(|s| s.trim().to_string())
-                .filter(|s| !s.is_empty())
-                .collect(),
-            site: site.to_string(),
-            namespace: default_namespace(),
-            user: None,
-            password: None,
-            nkey_seed: None,
-            kv_replicas: default_replicas(),
-            lost_after_secs: default_lost_after(),
-        }
-    }
-
-    /// Checks names and credentials before anything connects.
-    pub fn validate(&self) -> anyhow::Result<()> {
-        if self.servers.is_empty() {
-            bail!("cluster: no NATS server given (servers = [\"nats://HOST:PORT\"])");
-        }
-        for (what, value) in [("site", &self.site), ("namespace", &self.namespace)] {
-            if value.is_empty() || token(value) != *value {
-                bail!("cluster: {what} {value:?} may only hold letters, digits, '-' and '_'");
-            }
-        }
-        if self.password.is_some() != self.user.is_some() {
-            bail!("cluster: user and password go together");
-        }
-        if self.nkey_seed.is_some() && self.user.is_some() {
-            bail!("cluster: give either an nkey seed or a user and password, not both");
-        }
-        if !(1..=5).contains(&self.kv_replicas) {
-            bail!("cluster: kv_replicas must be 1 to 5");
-        }
-        if !(self.lost_after_secs.is_finite() && self.lost_after_secs > 0.0) {
-            bail!("cluster: lost_after_secs must be a positive number of seconds");
-        }
-        Ok(())
-    }
-
-    /// The KV bucket holding every node's subject entries.
-    pub fn bucket(&self) -> String {
-        format!("{}_subjects", self.namespace)
-    }
-
-    /// The KV bucket of the shared mapping cache.
-    pub fn mappings_bucket(&self) -> String {
-        format!("{}_mappings", self.namespace)
-    }
-
-    /// The core NATS subject carrying the frames of subject `key` of `site`.
-    pub fn frame_subject(&self, site: &str, key: &str) -> String {
-        format!("{}.frame.{site}.{key}", self.namespace)
-    }
-
-    /// How long a remote subject may be silent before it counts as lost.
-    pub fn lost_after(&self) -> Duration {
-        Duration::from_secs_f32(self.lost_after_secs)
-    }
-}
 
 /// A connection to the deployment's NATS system and its subject bucket.
 pub struct Cluster {
@@ -458,11 +352,13 @@ impl ClusterLink {
     }
 
     /// Starts the relays, the bucket watch, the publisher and the control service; they stop
-    /// when `state` shuts down. Subjects found later get their source threads from `live`.
+    /// when `state` shuts down. Subjects found later get their source threads from `live`
+    /// and their origin recorded in `forwarder`.
     pub fn spawn(
         self,
         state: &std::sync::Arc<crate::state::ServerState>,
         live: LiveThreads,
+        forwarder: std::sync::Arc<Forwarder>,
     ) -> Vec<tokio::task::JoinHandle<()>> {
         let mut known = std::collections::HashMap::new();
         let mut tasks = Vec::new();
@@ -484,6 +380,7 @@ impl ClusterLink {
             known,
             state.clone(),
             live,
+            forwarder,
         )));
         tasks.push(tokio::spawn(run_control_service(
             c.client.clone(),

@@ -22,7 +22,8 @@ use tokio_tungstenite::tungstenite::Bytes;
 use rigcast_protocol::control::BoneInfo;
 
 use super::SubjectEntry;
-use crate::engine::{unix_nanos, OutFrame};
+use crate::clock::unix_nanos;
+use crate::engine::OutFrame;
 use crate::state::ServerState;
 
 /// Frames waiting for the source thread; it only ever needs the newest, so a full queue

@@ -30,7 +30,7 @@ use rigcast_sources::serial::CalibrationHandle;
 use rigcast_sources::Replay;
 use serde::Deserialize;
 
-use crate::config::ConfigError;
+use crate::config_error::ConfigError;
 
 pub use replay::{demo_clip, DemoSpec, ReplayClipSpec, ReplayFileSpec, ReplaySettings};
 pub use serial::SerialSpec;

@@ -10,7 +10,7 @@ use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip, Replay, R
 use serde::Deserialize;
 
 use super::{file_arg, CliError, KindSpec, Loaded, Opened};
-use crate::config::ConfigError;
+use crate::config_error::ConfigError;
 
 /// Playback settings of a replayed clip.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -9,7 +9,7 @@ use rigcast_sources::vmc_in::{VmcConfig, VmcSource, DEFAULT_VMC_PORT};
 use serde::Deserialize;
 
 use super::{CliError, KindSpec, Loaded, Opened};
-use crate::config::ConfigError;
+use crate::config_error::ConfigError;
 
 /// VMC input listens on loopback unless told otherwise: a performer's skeleton must not be
 /// replaceable by any host on the network.

@@ -17,7 +17,6 @@ use ort::value::{Tensor, ValueType};
 use ort::AsPointer;
 
 use super::error::VisionError;
-use super::model::model_err;
 
 /// `N` bound outputs of `f32`, read back in place after each run.
 pub(crate) struct BoundRun<const N: usize> {
@@ -59,7 +58,7 @@ impl<const N: usize> BoundRun<N> {
             let shape = output_shape(session, name, batch)
                 .ok_or_else(|| model_err(path, format!("no float tensor output {name}")))?;
             let actual = shape.iter().product::<i64>() as usize;
-            super::model::check_len(name, actual, expected)?;
+            check_len(name, actual, expected)?;
             let tensor = Tensor::from_array((shape, vec![0.0f32; expected]))
                 .map_err(|e| model_err(path, e))?;
             outputs.push(tensor);
@@ -163,4 +162,29 @@ pub(crate) fn takes_batches(session: &Session) -> bool {
             ValueType::Tensor { shape, .. } => shape.first().is_some_and(|&d| d < 0),
             _ => false,
         })
+}
+
+/// A model file's error, naming the file.
+pub(crate) fn model_err(path: &Path, e: impl std::fmt::Display) -> VisionError {
+    VisionError::Model {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// An output's length against the shape the model declared.
+pub(crate) fn check_len(
+    name: &'static str,
+    actual: usize,
+    expected: usize,
+) -> Result<(), VisionError> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(VisionError::OutputShape {
+            name,
+            expected,
+            actual,
+        })
+    }
 }

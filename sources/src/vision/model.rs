@@ -17,7 +17,7 @@ use ort::session::builder::GraphOptimizationLevel;
 use ort::session::Session;
 use ort::value::Tensor;
 
-use super::bound::{takes_batches, BoundRun};
+use super::bound::{model_err, takes_batches, BoundRun};
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{sigmoid, Landmarks, NUM_MODEL_LANDMARKS};
@@ -89,13 +89,6 @@ struct Batch {
 }
 
 debug_fields!(LandmarkModel { path, range });
-
-pub(crate) fn model_err(path: &Path, e: impl std::fmt::Display) -> VisionError {
-    VisionError::Model {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    }
-}
 
 impl LandmarkModel {
     /// Loads `model` with the runtime in `library`, running inference on `threads` threads,
@@ -337,22 +330,6 @@ pub(crate) fn build_session(
         .map_err(|e| model_err(model, e))?
         .commit_from_file(model)
         .map_err(|e| model_err(model, e))
-}
-
-pub(crate) fn check_len(
-    name: &'static str,
-    actual: usize,
-    expected: usize,
-) -> Result<(), VisionError> {
-    if actual == expected {
-        Ok(())
-    } else {
-        Err(VisionError::OutputShape {
-            name,
-            expected,
-            actual,
-        })
-    }
 }
 
 /// Maps raw model outputs to frame pixels / metres.

@@ -111,16 +111,21 @@ fn cache_key(clips: &[rigcast_retarget::Clip], settings: &GraphSettings) -> Stri
 }
 
 fn read_cached(key: &str) -> Option<MotionGraph> {
-    let path = super::default_cache_dir()?.join(format!("{key}.rmg"));
+    let path = default_cache_dir()?.join(format!("{key}.rmg"));
     MotionGraph::from_json(&std::fs::read_to_string(path).ok()?).ok()
 }
 
 fn write_cached(key: &str, graph: &MotionGraph) {
-    let Some(dir) = super::default_cache_dir() else {
+    let Some(dir) = default_cache_dir() else {
         return;
     };
     // A cache that cannot be written only costs the next build its time.
     if std::fs::create_dir_all(&dir).is_ok() {
         let _ = std::fs::write(dir.join(format!("{key}.rmg")), graph.to_json());
     }
+}
+
+/// The graph cache: `$XDG_CACHE_HOME/rigcast/graphs`, else `~/.cache/rigcast/graphs`.
+fn default_cache_dir() -> Option<PathBuf> {
+    crate::dirs::rigcast_dir(crate::dirs::UserBase::Cache, "graphs")
 }

@@ -8,8 +8,6 @@ mod build;
 mod info;
 mod walk;
 
-use std::path::PathBuf;
-
 use clap::{Args, Subcommand};
 
 /// Options of `rigcast graph`.
@@ -40,9 +38,4 @@ pub fn run(args: &GraphArgs) -> anyhow::Result<()> {
         GraphAction::Walk(a) => walk::run(a),
         GraphAction::Info(a) => info::run(a),
     }
-}
-
-/// The graph cache: `$XDG_CACHE_HOME/rigcast/graphs`, else `~/.cache/rigcast/graphs`.
-fn default_cache_dir() -> Option<PathBuf> {
-    crate::dirs::rigcast_dir(crate::dirs::UserBase::Cache, "graphs")
 }
