@@ -124,6 +124,9 @@ pub enum SourceState {
     Lost,
     /// A replay reached its end (not looping).
     Finished,
+    /// The source's task or thread stopped on an internal error; it produces nothing until
+    /// the server restarts (`detail` says why).
+    Failed,
 }
 
 impl std::fmt::Display for SourceState {
@@ -185,6 +188,10 @@ pub struct TargetHealth {
     pub subject: u32,
     /// What drives it.
     pub motion: TargetMotion,
+    /// Why its processing is stopped, while it is (a fault in its mapping or foot lock; it is
+    /// retried and clears when the input is sane again). Absent when healthy.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fault: Option<String>,
 }
 
 /// One foot in a `footplants` message.
@@ -227,6 +234,9 @@ pub enum ErrorCode {
     Unauthorized,
     /// Something went wrong on the server.
     Internal,
+    /// A subject's processing failed (the message says why); the other subjects go on and
+    /// this one is retried. Sent to every client, with `subject`.
+    SubjectFaulted,
 }
 
 impl ErrorCode {
@@ -244,6 +254,7 @@ impl ErrorCode {
             ErrorCode::NotCalibratable => "not_calibratable",
             ErrorCode::Unauthorized => "unauthorized",
             ErrorCode::Internal => "internal",
+            ErrorCode::SubjectFaulted => "subject_faulted",
         }
     }
 }
@@ -310,6 +321,9 @@ pub enum ServerMessage {
         code: ErrorCode,
         /// Human-readable details.
         message: String,
+        /// The subject it is about, when it is about one (`subject_faulted`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        subject: Option<u32>,
     },
     /// The subject list changed; same payload as `hello.subjects`.
     SubjectsChanged {
@@ -489,6 +503,7 @@ impl ServerMessage {
         ServerMessage::Error {
             code,
             message: message.into(),
+            subject: None,
         }
     }
 }
@@ -513,6 +528,7 @@ mod tests {
             SourceState::Live,
             SourceState::Lost,
             SourceState::Finished,
+            SourceState::Failed,
         ] {
             assert_eq!(serde_json::to_value(state).unwrap(), state.to_string());
         }
@@ -633,10 +649,23 @@ mod tests {
                     dropped: 3,
                     detail: "calibrated (T-pose)".into(),
                 }],
-                targets: vec![TargetHealth {
-                    subject: 1,
-                    motion: TargetMotion::IdleGraph,
-                }],
+                targets: vec![
+                    TargetHealth {
+                        subject: 1,
+                        motion: TargetMotion::IdleGraph,
+                        fault: None,
+                    },
+                    TargetHealth {
+                        subject: 2,
+                        motion: TargetMotion::Live,
+                        fault: Some("foot lock: a value is not finite".into()),
+                    },
+                ],
+            },
+            ServerMessage::Error {
+                code: ErrorCode::SubjectFaulted,
+                message: "stopped: boom".into(),
+                subject: Some(3),
             },
         ]
     }

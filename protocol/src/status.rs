@@ -112,6 +112,20 @@ pub struct SubjectStatus {
     pub skeleton_changes: u64,
     /// Frames held back because skeleton changes came faster than the rate limit.
     pub skeleton_frames_limited: u64,
+    /// Poses refused where they enter the engine (not finite, a translation beyond 10 km, a
+    /// quaternion that is not a rotation), total. Older servers omit it.
+    #[serde(default)]
+    pub rejected_poses: u64,
+    /// Why the latest pose was refused (`null` when none has been).
+    #[serde(default)]
+    pub last_rejection: Option<String>,
+    /// Why this subject's processing is stopped now (`null` when it is healthy): a fault in
+    /// its mapping or foot lock, retried until the input is sane again.
+    #[serde(default)]
+    pub fault: Option<String>,
+    /// Faults caught in this subject's processing since start.
+    #[serde(default)]
+    pub faults_total: u64,
     /// A target's feet under its foot lock and whether each is held now (`null` without a
     /// foot lock).
     pub footplants: Option<Vec<FootStatus>>,
@@ -211,6 +225,10 @@ mod tests {
                 listen: None,
                 skeleton_changes: 0,
                 skeleton_frames_limited: 0,
+                rejected_poses: 2,
+                last_rejection: Some("bone 0: a translation is beyond 10 km".into()),
+                fault: None,
+                faults_total: 1,
                 footplants: Some(vec![FootStatus {
                     bone: "foot_l".into(),
                     planted: true,

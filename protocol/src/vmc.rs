@@ -299,9 +299,15 @@ pub fn decode_packet(bytes: &[u8]) -> Result<Vec<Result<VmcMessage, VmcError>>, 
 /// recursion, so one datagram of a few thousand nested bundles would overflow the stack.
 pub const MAX_BUNDLE_DEPTH: usize = 8;
 
+/// Arrays (`[` … `]` in a message's type tags) nest at most this deep. VMC uses none; rosc
+/// builds nested arrays as nested vectors, whose drop recurses once per level, so a message of
+/// tens of thousands of `[` would overflow the stack when it is freed.
+pub const MAX_ARRAY_DEPTH: usize = 8;
+
 /// Checks an OSC datagram's bundle framing before it reaches a recursive decoder: every bundle's
-/// size-prefixed elements exactly fill it and bundles nest at most [`MAX_BUNDLE_DEPTH`] deep.
-/// Plain messages pass (the decoder validates them). Shared by every OSC input in rigcast.
+/// size-prefixed elements exactly fill it, bundles nest at most [`MAX_BUNDLE_DEPTH`] deep and
+/// each message's arrays at most [`MAX_ARRAY_DEPTH`] deep (the rest of a message is validated
+/// by the decoder). Shared by every OSC input in rigcast.
 pub fn check_osc_framing(datagram: &[u8]) -> Result<(), VmcError> {
     check_framing(datagram, 0, 0).map_err(|reason| VmcError::Osc {
         len: datagram.len(),
@@ -313,7 +319,8 @@ pub fn check_osc_framing(datagram: &[u8]) -> Result<(), VmcError> {
 /// [`MAX_BUNDLE_DEPTH`] deep. `base` is `bytes`' offset in the datagram (for the messages).
 fn check_framing(bytes: &[u8], depth: usize, base: usize) -> Result<(), String> {
     if !bytes.starts_with(b"#bundle\0") {
-        return Ok(()); // a plain message: rosc validates it fully
+        // A plain message: rosc validates the rest of it.
+        return check_array_depth(bytes, base);
     }
     if depth >= MAX_BUNDLE_DEPTH {
         return Err(format!(
@@ -349,6 +356,34 @@ fn check_framing(bytes: &[u8], depth: usize, base: usize) -> Result<(), String> 
             })?;
         check_framing(&bytes[start..end], depth + 1, base + start)?;
         offset = end;
+    }
+    Ok(())
+}
+
+/// Checks that the arrays in a message's type tags nest at most [`MAX_ARRAY_DEPTH`] deep: one
+/// pass over the tags, no recursion. A message too short to hold tags is left to the decoder.
+fn check_array_depth(message: &[u8], base: usize) -> Result<(), String> {
+    // The address: a NUL-terminated string padded to 4 bytes; the type tags follow.
+    let Some(end) = message.iter().position(|&b| b == 0) else {
+        return Ok(());
+    };
+    let tags_at = (end + 4) & !3;
+    let tags = message.get(tags_at..).unwrap_or_default();
+    let tags = tags.split(|&b| b == 0).next().unwrap_or_default();
+    let mut depth = 0usize;
+    for &t in tags {
+        match t {
+            b'[' => {
+                depth += 1;
+                if depth > MAX_ARRAY_DEPTH {
+                    return Err(format!(
+                        "message at offset {base} nests arrays deeper than {MAX_ARRAY_DEPTH} levels"
+                    ));
+                }
+            }
+            b']' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
     }
     Ok(())
 }
@@ -714,5 +749,31 @@ mod tests {
                 other => panic!("case {i}: expected an OSC error, got {other:?}"),
             }
         }
+    }
+
+    #[test]
+    fn arrays_nested_deeper_than_the_limit_are_refused_before_decoding() {
+        let message = |depth: usize| {
+            let mut m = b"/VMC/Ext/T\0\0,".to_vec();
+            m.extend(std::iter::repeat_n(b'[', depth));
+            m.extend(std::iter::repeat_n(b']', depth));
+            m.push(0);
+            while !m.len().is_multiple_of(4) {
+                m.push(0);
+            }
+            m
+        };
+        // 32,700 levels fit one datagram; decoded and dropped recursively they overflow.
+        for depth in [MAX_ARRAY_DEPTH + 1, 32_700] {
+            let plain = message(depth);
+            assert!(matches!(decode_packet(&plain), Err(VmcError::Osc { .. })));
+            let mut bundle = b"#bundle\0\0\0\0\0\0\0\0\x01".to_vec();
+            bundle.extend_from_slice(&(plain.len() as i32).to_be_bytes());
+            bundle.extend_from_slice(&plain);
+            let err = check_osc_framing(&bundle).unwrap_err().to_string();
+            assert!(err.contains("nests arrays"), "{err}");
+        }
+        // At the limit the framing passes (the decoder judges the rest).
+        assert!(check_osc_framing(&message(MAX_ARRAY_DEPTH)).is_ok());
     }
 }

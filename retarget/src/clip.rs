@@ -25,14 +25,19 @@ impl Clip {
     pub fn new(
         name: impl Into<String>,
         skeleton: Arc<Skeleton>,
-        poses: Vec<Pose>,
+        mut poses: Vec<Pose>,
         frame_time_secs: f64,
     ) -> Result<Clip, RetargetError> {
         if !(frame_time_secs.is_finite() && frame_time_secs > 0.0) {
             return Err(RetargetError::BadFrameTime { frame_time_secs });
         }
-        for p in &poses {
+        for (frame, p) in poses.iter_mut().enumerate() {
             p.check(&skeleton)?;
+            crate::bounds::check_pose(p).map_err(|r| RetargetError::BadPose {
+                frame,
+                bone: r.bone,
+                fault: r.fault,
+            })?;
         }
         Ok(Clip {
             name: name.into(),
@@ -92,7 +97,16 @@ impl Clip {
             );
         }
         let last_time = (self.poses.len() - 1) as f64 * self.frame_time_secs;
-        let count = (last_time / frame_time_secs + 1e-9).floor() as usize + 1;
+        let wanted = (last_time / frame_time_secs + 1e-9).floor() + 1.0;
+        let num_bones = self.skeleton.num_bones();
+        let input_samples = (self.poses.len() * num_bones) as u64;
+        let count = crate::bounds::frames_within_budget(wanted, num_bones, input_samples).ok_or(
+            RetargetError::TooManyFrames {
+                num_frames: wanted,
+                num_bones,
+                max_samples: crate::bounds::sample_budget(input_samples),
+            },
+        )?;
         let mut poses = Vec::with_capacity(count);
         let mut scratch = self.poses[0].clone();
         for k in 0..count {

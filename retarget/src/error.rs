@@ -60,6 +60,36 @@ pub enum RetargetError {
         /// its name
         name: String,
     },
+    /// A rest translation beyond [`crate::bounds::MAX_TRANSLATION_M`] (finite values that
+    /// overflow once summed along a chain).
+    #[error("bone {bone} ({name:?}) has a rest offset beyond 10 km")]
+    RestOutOfRange {
+        /// index of the bone
+        bone: usize,
+        /// its name
+        name: String,
+    },
+    /// A frame of a clip holds a pose that is not one (see [`crate::bounds::check_pose`]).
+    #[error("frame {frame}, bone {bone}: {fault}")]
+    BadPose {
+        /// index of the frame
+        frame: usize,
+        /// index of the bone
+        bone: usize,
+        /// what is wrong
+        fault: crate::bounds::PoseFault,
+    },
+    /// A derived clip would hold more bone samples than its input allows (see
+    /// [`crate::bounds::sample_budget`]).
+    #[error("{num_frames} frames of {num_bones} bones is beyond the limit of {max_samples} bone samples for this input")]
+    TooManyFrames {
+        /// frames asked for
+        num_frames: f64,
+        /// bones per frame
+        num_bones: usize,
+        /// the budget
+        max_samples: u64,
+    },
     /// A pose or clip does not match its skeleton.
     #[error("pose has {got} bones but the skeleton has {expected}")]
     PoseSizeMismatch {

@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod analysis;
+pub mod bounds;
 pub mod clip;
 #[cfg(any(test, feature = "corpus"))]
 pub mod corpus;

@@ -138,6 +138,12 @@ impl Skeleton {
                     name: b.name.clone(),
                 });
             }
+            if !crate::bounds::translation_in_bounds(b.rest.translation) {
+                return Err(RetargetError::RestOutOfRange {
+                    bone: i,
+                    name: b.name.clone(),
+                });
+            }
             match b.parent {
                 Some(p) if p >= n => {
                     return Err(RetargetError::ParentOutOfRange {

@@ -97,8 +97,10 @@ pub async fn run_replay_source(
     subject: Arc<Subject>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    // A floor on the period keeps a very fast speed setting from spinning the runtime.
-    let period = (player.frame_time_secs() / speed).max(1e-3);
+    // A floor on the period keeps a very fast speed setting from spinning the runtime; a
+    // ceiling keeps a huge frame time (or a tiny speed) from overflowing the timer.
+    let period = (player.frame_time_secs() / speed).clamp(1e-3, 3600.0);
+    let period = if period.is_nan() { 1e-3 } else { period };
     let mut interval = tokio::time::interval(Duration::from_secs_f64(period));
     interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let start = Instant::now();

@@ -526,6 +526,10 @@ pub fn status(state: &ServerState) -> Status {
                 listen: s.listen_addr.map(|a| a.to_string()),
                 skeleton_changes: s.stats.skeleton_changes.load(Ordering::Relaxed),
                 skeleton_frames_limited: s.stats.skeleton_frames_limited.load(Ordering::Relaxed),
+                rejected_poses: s.stats.rejected_poses.load(Ordering::Relaxed),
+                last_rejection: s.stats.last_rejection.lock().ok().and_then(|r| r.clone()),
+                fault: s.stats.fault(),
+                faults_total: s.stats.faults_total.load(Ordering::Relaxed),
                 footplants: footplants(&s.stats),
             }
         })

@@ -43,6 +43,7 @@ pub mod config_error;
 pub mod demo;
 pub mod dirs;
 pub mod engine;
+pub mod fault;
 pub mod footplants;
 pub mod graft_live;
 pub mod graph_files;

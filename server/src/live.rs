@@ -103,6 +103,15 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                         }
                     }
                 }
+                // Checked as a whole where it enters the engine: each value may be finite
+                // while their sums (root + hips, a chain in FK) are not.
+                if let Err(refusal) = rigcast_retarget::bounds::check_pose(&mut pose) {
+                    let shape = ctx.subject.shape();
+                    let names = shape.skeleton.names();
+                    let name = names.get(refusal.bone).map_or("?", |n| n.as_str());
+                    ctx.subject.stats.reject_pose(refusal, name);
+                    continue;
+                }
                 let capture = if meta.capture_nanos == 0 {
                     unix_nanos()
                 } else {

@@ -99,6 +99,10 @@ pub struct Performer {
     published: bool,
     /// The eased-to pose has been published (nothing changes until the source returns).
     settled: bool,
+    /// A fault is being reported on the target (see [`crate::fault`]).
+    faulted: bool,
+    /// While faulted, when to try again.
+    retry_at: Option<Instant>,
 }
 
 /// The character's own rest pose (not the source's rest retargeted, which for a T-pose source
@@ -208,6 +212,8 @@ impl Performer {
             seq: 0,
             published: false,
             settled: false,
+            faulted: false,
+            retry_at: None,
         }
     }
 
@@ -250,9 +256,14 @@ impl Performer {
     }
 
     /// Runs one tick: read the sources, follow them (or fall back while they are lost), publish.
-    /// Allocates nothing in steady state.
+    /// Allocates nothing in steady state. A panic in its processing, or a pose that comes out
+    /// not finite, is caught here and faults this performer alone (see [`Performer::fault`]):
+    /// the tick and the other performers go on.
     pub fn tick(&mut self, now: Instant) {
         self.take_new_mapping();
+        if self.retry_at.is_some_and(|t| now < t) {
+            return;
+        }
         let tick_secs = self
             .last_tick
             .map(|t| now.saturating_duration_since(t).as_secs_f64())
@@ -263,10 +274,74 @@ impl Performer {
         let Some(mut built) = self.current.take() else {
             return;
         };
-        let shown = self.step(&mut built, now, tick_secs);
+        let shown = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            self.step(&mut built, now, tick_secs)
+        }));
+        match shown {
+            Ok(Some((moving, capture))) => {
+                match rigcast_retarget::bounds::check_pose(&mut self.display) {
+                    Ok(_) => {
+                        self.publish(moving, capture);
+                        self.clear_fault();
+                    }
+                    Err(r) => {
+                        let why =
+                            format!("its pose came out wrong at bone {}: {}", r.bone, r.fault);
+                        self.fault(&mut built, now, why);
+                    }
+                }
+            }
+            Ok(None) => {}
+            Err(payload) => {
+                let why = format!("stopped: {}", crate::fault::panic_text(&*payload));
+                self.fault(&mut built, now, why);
+            }
+        }
         self.current = Some(built);
-        if let Some((moving, capture)) = shown {
-            self.publish(moving, capture);
+    }
+
+    /// Records a fault on the target (once per episode), starts the performer afresh from its
+    /// character's rest (its blends and the mapping's and foot lock's state may hold the bad
+    /// values) and waits [`crate::fault::FAULT_RETRY`] before trying again. The last good
+    /// pose stays published meanwhile.
+    fn fault(&mut self, built: &mut BuiltMapping, now: Instant, why: String) {
+        built.mapping.reset();
+        if let Some(lock) = built.foot_lock.as_mut() {
+            lock.reset();
+        }
+        for pose in [
+            &mut self.live,
+            &mut self.from,
+            &mut self.display,
+            &mut self.turns,
+        ] {
+            pose.copy_from(&self.rest);
+        }
+        self.phase = Phase::Live;
+        self.blend_fresh = true;
+        self.retry_at = Some(now + crate::fault::FAULT_RETRY);
+        if !self.faulted {
+            self.faulted = true;
+            let stats = &self.target.stats;
+            stats
+                .faults_total
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            tracing::error!("target {}: {why}", self.target.info().name);
+            if let Ok(mut f) = stats.fault.lock() {
+                *f = Some(why);
+            }
+        }
+    }
+
+    /// Ends a fault episode once a tick ran through and published a sane pose.
+    fn clear_fault(&mut self) {
+        self.retry_at = None;
+        if self.faulted {
+            self.faulted = false;
+            tracing::info!("target {}: running again", self.target.info().name);
+            if let Ok(mut f) = self.target.stats.fault.lock() {
+                *f = None;
+            }
         }
     }
 

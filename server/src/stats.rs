@@ -76,6 +76,45 @@ pub struct SubjectStats {
     pub footplants_json: std::sync::Mutex<Option<String>>,
     /// What drives a target now (written by the tick, read by `source_status`).
     pub motion: MotionCell,
+    /// Poses refused where they entered the engine (see `rigcast_retarget::bounds`).
+    pub rejected_poses: AtomicU64,
+    /// Why the latest was refused (written off the tick, by the source's thread), and when.
+    pub last_rejection: Mutex<Option<String>>,
+    /// When the latest pose was refused (`None`: never).
+    pub last_rejection_at: Mutex<Option<Instant>>,
+    /// Why the subject's processing is stopped now (`None`: healthy). Written by the tick only
+    /// when a fault starts or clears.
+    pub fault: Mutex<Option<String>>,
+    /// Faults caught in the subject's processing.
+    pub faults_total: AtomicU64,
+}
+
+impl SubjectStats {
+    /// Counts a refused pose and keeps why.
+    pub fn reject_pose(&self, refusal: rigcast_retarget::bounds::PoseRefusal, bone_name: &str) {
+        self.rejected_poses.fetch_add(1, Ordering::Relaxed);
+        if let Ok(mut last) = self.last_rejection.lock() {
+            *last = Some(format!("bone {bone_name}: {}", refusal.fault));
+        }
+        if let Ok(mut at) = self.last_rejection_at.lock() {
+            *at = Some(Instant::now());
+        }
+    }
+
+    /// Why poses are being refused, while one was in the last `within`.
+    pub fn recent_rejection(&self, within: Duration) -> Option<String> {
+        let at = (*self.last_rejection_at.lock().ok()?)?;
+        if at.elapsed() > within {
+            return None;
+        }
+        let why = self.last_rejection.lock().ok()?.clone()?;
+        Some(format!("poses refused ({why})"))
+    }
+
+    /// The current fault, if any.
+    pub fn fault(&self) -> Option<String> {
+        self.fault.lock().ok().and_then(|f| f.clone())
+    }
 }
 
 /// A [`TargetMotion`] the tick stores without locking or allocating.

@@ -167,6 +167,7 @@ fn state_from_u8(v: u8) -> SourceState {
         0 => SourceState::Connecting,
         2 => SourceState::Lost,
         3 => SourceState::Finished,
+        4 => SourceState::Failed,
         _ => SourceState::Live,
     }
 }
@@ -177,6 +178,7 @@ fn state_to_u8(s: SourceState) -> u8 {
         SourceState::Live => 1,
         SourceState::Lost => 2,
         SourceState::Finished => 3,
+        SourceState::Failed => 4,
     }
 }
 
@@ -186,6 +188,8 @@ pub struct Health {
     state: AtomicU8,
     /// Last status of a live source (`None` for replays: their counters are in the stats).
     pub live: Mutex<Option<SourceStatus>>,
+    /// Why the source's task or thread stopped (see [`Health::fail`]).
+    failure: Mutex<Option<String>>,
 }
 
 impl Health {
@@ -193,6 +197,7 @@ impl Health {
         Health {
             state: AtomicU8::new(state_to_u8(state)),
             live: Mutex::new(None),
+            failure: Mutex::new(None),
         }
     }
 
@@ -205,6 +210,19 @@ impl Health {
     /// Sets the state.
     pub fn set_state(&self, s: SourceState) {
         self.state.store(state_to_u8(s), Ordering::Relaxed);
+    }
+
+    /// Marks the source failed for good (its task or thread stopped), keeping why.
+    pub fn fail(&self, why: String) {
+        if let Ok(mut f) = self.failure.lock() {
+            *f = Some(why);
+        }
+        self.set_state(SourceState::Failed);
+    }
+
+    /// Why the source failed, once it has.
+    pub fn failure(&self) -> Option<String> {
+        self.failure.lock().ok().and_then(|f| f.clone())
     }
 }
 
@@ -416,6 +434,12 @@ impl Subject {
     /// supersedes the source's own `calibrated`/`not calibrated` note) and, while the device
     /// is not live, the source's detail (why it is lost).
     fn detail(&self, live_detail: String) -> String {
+        if let Some(why) = self.health.failure() {
+            return why;
+        }
+        if let Some(why) = (self.stats).recent_rejection(std::time::Duration::from_secs(1)) {
+            return why;
+        }
         let cal = self
             .calibration
             .as_ref()
@@ -628,6 +652,7 @@ pub fn source_status_json(subjects: &[Arc<Subject>]) -> String {
             .map(|s| rigcast_protocol::TargetHealth {
                 subject: s.id,
                 motion: s.stats.motion.load(),
+                fault: s.stats.fault(),
             })
             .collect(),
     }

@@ -195,12 +195,36 @@ pub enum SourceError {
         /// what is wrong
         reason: String,
     },
+    /// The input goes beyond one of the readers' bounds (nesting depth, counts, sizes, times;
+    /// see `ARCHITECTURE.md`'s threat model). Refused before the work or memory it would take.
+    #[error("{what} {found} is beyond the limit of {limit}")]
+    Limit {
+        /// what was measured, with its place (`"line 12: joint depth"`)
+        what: String,
+        /// the value found
+        found: String,
+        /// the bound
+        limit: String,
+    },
     /// The decoded skeleton or clip failed validation.
     #[error(transparent)]
     Skeleton(#[from] RetargetError),
 }
 
 impl SourceError {
+    /// A [`SourceError::Limit`].
+    pub fn limit(
+        what: impl Into<String>,
+        found: impl std::fmt::Display,
+        limit: impl std::fmt::Display,
+    ) -> SourceError {
+        SourceError::Limit {
+            what: what.into(),
+            found: found.to_string(),
+            limit: limit.to_string(),
+        }
+    }
+
     /// Wraps this error with the file it came from (IO errors already carry it).
     pub fn in_file(self, path: impl Into<PathBuf>) -> SourceError {
         match self {

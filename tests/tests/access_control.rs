@@ -96,7 +96,7 @@ async fn current_mapping(url: &str) -> ServerMessage {
 async fn expect_error(ws: &mut Ws, want: ErrorCode) -> String {
     loop {
         match next_json(ws, WAIT).await {
-            Some(ServerMessage::Error { code, message }) => {
+            Some(ServerMessage::Error { code, message, .. }) => {
                 assert_eq!(code, want, "{message}");
                 return message;
             }
@@ -224,7 +224,7 @@ async fn foreign_origins_hosts_and_tokenless_changes_are_refused() {
             .expect("ack and mapping")
         {
             ServerMessage::Ack { subject: 1, .. } => acked = true,
-            ServerMessage::Error { code, message } => panic!("{code:?}: {message}"),
+            ServerMessage::Error { code, message, .. } => panic!("{code:?}: {message}"),
             ServerMessage::Mapping { entries, .. } if acked => break entries,
             _ => {}
         }

@@ -198,7 +198,7 @@ async fn a_client_whose_control_queue_overflowed_ends_with_the_current_state() {
                     tokio::time::sleep(Duration::from_millis(5)).await;
                     break;
                 }
-                ServerMessage::Error { code, message } => panic!("{code:?}: {message}"),
+                ServerMessage::Error { code, message, .. } => panic!("{code:?}: {message}"),
                 _ => {}
             }
         }

@@ -59,7 +59,7 @@ fn set_mapping(subject: u32, bone: &str) -> String {
 
 fn error_code(m: &ServerMessage) -> Option<(ErrorCode, String)> {
     match m {
-        ServerMessage::Error { code, message } => Some((*code, message.clone())),
+        ServerMessage::Error { code, message, .. } => Some((*code, message.clone())),
         _ => None,
     }
 }

@@ -112,7 +112,7 @@ async fn set_performer_switches_the_foot_lock() {
                     assert_eq!(request, "set_performer");
                     break;
                 }
-                rigcast_protocol::ServerMessage::Error { code, message } => {
+                rigcast_protocol::ServerMessage::Error { code, message, .. } => {
                     panic!("{code:?}: {message}")
                 }
                 _ => {}

@@ -15,7 +15,9 @@ const WAIT: Duration = Duration::from_secs(5);
 async fn expect_error(ws: &mut Ws, code: ErrorCode) {
     loop {
         match next_json(ws, WAIT).await {
-            Some(ServerMessage::Error { code: got, message }) => {
+            Some(ServerMessage::Error {
+                code: got, message, ..
+            }) => {
                 assert_eq!(got, code, "{message}");
                 assert!(!message.is_empty());
                 return;

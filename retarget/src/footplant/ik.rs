@@ -48,9 +48,7 @@ pub fn solve_two_bone(
     }
     // A leg the animation already holds straighter than MAX_EXTENSION may stay that straight.
     let longest = ((a + b) * MAX_EXTENSION).max((ankle - hip).length().min(a + b));
-    let d = to_goal
-        .length()
-        .clamp((a - b).abs() * 1.0005 + 1e-6, longest);
+    let d = crate::bounds::clamp_safe(to_goal.length(), (a - b).abs() * 1.0005 + 1e-6, longest);
     // The pole, made perpendicular to the hip–goal line.
     let v = (pole - u * pole.dot(u))
         .try_normalize()

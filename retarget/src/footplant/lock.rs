@@ -37,6 +37,7 @@ use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
 use super::rig::{find_contact_legs, find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
 use crate::analysis::Analysis;
+use crate::bounds::clamp_safe;
 use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
 use crate::pose::Pose;
 use crate::retarget::{FloorAt, Mapping};
@@ -92,7 +93,7 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
     // A foot already pitched past the limit (pointing down at a toe-off) is not snapped back
     // to it: the limit bounds only how far this pitch goes.
     let limit = len * MAX_BALL_RISE;
-    let wanted = wanted.clamp((-limit).min(rise), limit.max(rise));
+    let wanted = clamp_safe(wanted, (-limit).min(rise), limit.max(rise));
     let flat = (o - up * rise)
         .try_normalize()
         .unwrap_or(up.any_orthonormal_vector());
@@ -508,7 +509,7 @@ impl FootLock {
         }
         if n > 0 {
             let limit = self.settings.max_drop_ratio * self.feet[0].leg.length;
-            let wanted = (rise / n as f32).clamp(-limit, limit);
+            let wanted = clamp_safe(rise / n as f32, -limit, limit);
             self.root_fix += k * (wanted - self.root_fix);
         }
     }
@@ -669,13 +670,17 @@ impl FootLock {
                 _ => (0.0, None, 0.0),
             };
             self.feet[i].landing = landing;
-            let lift = (self.lift_scale * foot).clamp(0.0, MAX_LIFT_RATIO * length);
+            let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
             self.feet[i].lift = lift;
             // The heel follows how much higher than the foot's lowest contact the source's is
             // (a foot pitched toes-down); a foot without a ball stands on its ankle.
             let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
             self.feet[i].heel_lift = heel.map(|h| {
-                lift + (self.lift_scale * (h - foot)).clamp(0.0, MAX_HEEL_LIFT_RATIO * length)
+                lift + clamp_safe(
+                    self.lift_scale * (h - foot),
+                    0.0,
+                    MAX_HEEL_LIFT_RATIO * length,
+                )
             });
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
@@ -1039,7 +1044,7 @@ impl FootLock {
                 drop = drop.max(need);
             }
         }
-        let required = drop.clamp(0.0, limit);
+        let required = clamp_safe(drop, 0.0, limit);
         let above = self.last_drop - required;
         let drop = if above > 0.0 {
             self.drop_offset.value = above;

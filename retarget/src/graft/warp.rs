@@ -182,7 +182,7 @@ impl TimeWarp {
 
     /// The graft time shown at locomotion time `t`, within the graft.
     pub fn at(&self, t: f64) -> f64 {
-        self.raw(t).clamp(0.0, self.graft_end_secs)
+        self.raw(t).max(0.0).min(self.graft_end_secs)
     }
 
     /// Whether locomotion time `t` falls outside the graft (the graft's end frame is held).

@@ -213,7 +213,14 @@ impl Supervisor {
         } = source;
         match loaded {
             Loaded::Replay { player, speed, .. } => {
-                let task = engine::run_replay_source(player, speed, tx, subject, engine_rx.clone());
+                let task = engine::run_replay_source(
+                    player,
+                    speed,
+                    tx,
+                    subject.clone(),
+                    engine_rx.clone(),
+                );
+                let task = crate::fault::guard_source_task(task, subject);
                 self.engine_tasks.push(tokio::spawn(task));
             }
             Loaded::Live { mut source, .. } => {
@@ -221,6 +228,7 @@ impl Supervisor {
                     source.set_raw_tap(Some(Box::new(rec.tap(subject.id))));
                 }
                 let name = format!("rigcast-live-{}", subject.id);
+                let guarded = subject.clone();
                 let ctx = LiveContext {
                     subject,
                     tx,
@@ -230,7 +238,9 @@ impl Supervisor {
                     recorder: recorder.cloned(),
                     stop: self.stop_threads.clone(),
                 };
-                self.spawn_thread(name, move || live::run_live(source, ctx))?;
+                self.spawn_thread(name, move || {
+                    crate::fault::guard_source_thread(|| live::run_live(source, ctx), guarded)
+                })?;
             }
         }
         Ok(())
@@ -306,13 +316,15 @@ async fn run_source_status(
     poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut last_sent: Option<std::time::Instant> = None;
     let mut motions = Vec::new();
+    let mut faults = crate::fault::SeenFaults::new();
     loop {
         tokio::select! {
             _ = poll.tick() => {}
             _ = shutdown.changed() => break,
         }
         let now = subjects.snapshot();
-        let changed = motions_changed(&now, &mut motions);
+        let changed = motions_changed(&now, &mut motions)
+            | crate::fault::announce(&now, &mut faults, &events);
         let due = last_sent.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
         if !(changed || due) {
             continue;

@@ -260,7 +260,7 @@ impl Forwarder {
                 subject: id,
             },
             // The owner's ids in its text are its own: say whose they are.
-            Ok(ServerMessage::Error { code, message }) if !message.starts_with("node ") => {
+            Ok(ServerMessage::Error { code, message, .. }) if !message.starts_with("node ") => {
                 ServerMessage::error(code, format!("node {}: {message}", origin.site))
             }
             Ok(other @ ServerMessage::Error { .. }) => other,

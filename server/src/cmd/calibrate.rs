@@ -143,7 +143,7 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             }
         };
         match msg {
-            ServerMessage::Error { code, message } if !acked => {
+            ServerMessage::Error { code, message, .. } if !acked => {
                 bail!(
                     "the server refused to calibrate subject {id} ({name}): {message} [{}]",
                     code.as_str()

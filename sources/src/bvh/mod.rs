@@ -19,7 +19,9 @@ mod write;
 
 pub use layout::{write_bvh_onto, BvhLayout, LayoutJoint};
 pub(crate) use parse::extent_of;
-pub use parse::{guess_scale, read_bvh, BvhRead, BvhReadOptions};
+pub use parse::{
+    guess_scale, read_bvh, BvhRead, BvhReadOptions, FRAME_TIME_RANGE_SECS, MAX_JOINT_DEPTH,
+};
 pub use write::{write_bvh, BvhWriteOptions};
 
 /// One BVH channel.

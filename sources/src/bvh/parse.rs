@@ -121,9 +121,18 @@ impl<'a> Tokens<'a> {
     }
 }
 
+/// Deepest joint nesting read (real rigs are tens of joints deep; the parser keeps its own
+/// stack, so this bounds memory and FK depth, not the thread's stack).
+pub const MAX_JOINT_DEPTH: usize = 1024;
+
+/// Longest and shortest frame time accepted, seconds: frames further apart than a second are
+/// not motion capture, and a replay or a resample at the output rate must stay bounded.
+pub const FRAME_TIME_RANGE_SECS: (f64, f64) = (1e-5, 1.0);
+
 fn parse_number(text: &str, line: usize) -> Result<f32, SourceError> {
-    match text.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v as f32),
+    // Checked after the conversion: 1e300 is a finite f64 but an infinite f32.
+    match text.parse::<f64>().map(|v| v as f32) {
+        Ok(v) if v.is_finite() => Ok(v),
         _ => Err(SourceError::BadNumber {
             line,
             token: text.to_string(),
@@ -156,7 +165,7 @@ pub fn read_bvh(bytes: &[u8], name: &str, opts: &BvhReadOptions) -> Result<BvhRe
     while let Some(t) = tokens.peek() {
         if t.text.eq_ignore_ascii_case("ROOT") {
             tokens.pos += 1;
-            parse_joint(&mut tokens, &mut joints, None, t.line)?;
+            parse_tree(&mut tokens, &mut joints, t.line)?;
         } else {
             return Err(SourceError::Syntax {
                 line: t.line,
@@ -179,12 +188,20 @@ pub fn read_bvh(bytes: &[u8], name: &str, opts: &BvhReadOptions) -> Result<BvhRe
     build(name, joints, frame_time, &frames, opts)
 }
 
-fn parse_joint(
+/// Reads one joint's header (name, `{`) after its ROOT or JOINT keyword and adds it.
+fn open_joint(
     tokens: &mut Tokens<'_>,
     joints: &mut Vec<RawJoint>,
     parent: Option<usize>,
     keyword_line: usize,
-) -> Result<(), SourceError> {
+) -> Result<usize, SourceError> {
+    if joints.len() >= rigcast_retarget::skeleton::MAX_BONES {
+        return Err(SourceError::limit(
+            format!("line {keyword_line}: joint count"),
+            joints.len() + 1,
+            rigcast_retarget::skeleton::MAX_BONES,
+        ));
+    }
     // The name is the rest of the keyword's line (names may contain spaces); a trailing "{" on
     // the same line opens the block.
     let mut name_toks = tokens.rest_of_line(keyword_line);
@@ -208,7 +225,6 @@ fn parse_joint(
     if !brace_open {
         tokens.expect("{")?;
     }
-    let index = joints.len();
     joints.push(RawJoint {
         name,
         parent,
@@ -216,20 +232,50 @@ fn parse_joint(
         channels: Vec::new(),
         is_end_site: false,
     });
-    let mut has_offset = false;
-    loop {
+    Ok(joints.len() - 1)
+}
+
+/// Reads one ROOT's tree. Iterative, with its own stack of open joints (index, OFFSET seen),
+/// so nesting depth is bounded by [`MAX_JOINT_DEPTH`], not by the thread's stack.
+fn parse_tree(
+    tokens: &mut Tokens<'_>,
+    joints: &mut Vec<RawJoint>,
+    keyword_line: usize,
+) -> Result<(), SourceError> {
+    let root = open_joint(tokens, joints, None, keyword_line)?;
+    let mut open: Vec<(usize, bool)> = vec![(root, false)];
+    while let Some(&(index, has_offset)) = open.last() {
         let t = tokens.next("OFFSET, CHANNELS, JOINT, End Site or \"}\"")?;
         match t.text {
-            "}" => break,
+            "}" => {
+                if !has_offset {
+                    return Err(SourceError::Syntax {
+                        line: t.line,
+                        expected: format!("an OFFSET for joint {:?}", joints[index].name),
+                        found: "none".into(),
+                    });
+                }
+                open.pop();
+            }
             w if w.eq_ignore_ascii_case("OFFSET") => {
                 joints[index].offset = read_offset(tokens)?;
-                has_offset = true;
+                if let Some(top) = open.last_mut() {
+                    top.1 = true;
+                }
             }
             w if w.eq_ignore_ascii_case("CHANNELS") => {
                 joints[index].channels = read_channels(tokens, t.line)?;
             }
             w if w.eq_ignore_ascii_case("JOINT") => {
-                parse_joint(tokens, joints, Some(index), t.line)?;
+                if open.len() >= MAX_JOINT_DEPTH {
+                    return Err(SourceError::limit(
+                        format!("line {}: joint depth", t.line),
+                        open.len() + 1,
+                        MAX_JOINT_DEPTH,
+                    ));
+                }
+                let child = open_joint(tokens, joints, Some(index), t.line)?;
+                open.push((child, false));
             }
             w if w.eq_ignore_ascii_case("End") => {
                 tokens.expect("Site")?;
@@ -254,13 +300,6 @@ fn parse_joint(
                 })
             }
         }
-    }
-    if !has_offset {
-        return Err(SourceError::Syntax {
-            line: tokens.last_line,
-            expected: format!("an OFFSET for joint {:?}", joints[index].name),
-            found: "none".into(),
-        });
     }
     Ok(())
 }
@@ -344,7 +383,17 @@ fn parse_motion(
     let time_line = lines[at].trim();
     let frame_time = match time_line.strip_prefix("Frame Time:") {
         Some(v) => match v.trim().parse::<f64>() {
-            Ok(t) if t.is_finite() && t > 0.0 => t,
+            Ok(t) if t.is_finite() && t > 0.0 => {
+                let (shortest, longest) = FRAME_TIME_RANGE_SECS;
+                if !(shortest..=longest).contains(&t) {
+                    return Err(SourceError::limit(
+                        format!("line {}: Frame Time", at + 1),
+                        v.trim(),
+                        format!("{shortest}..={longest} s"),
+                    ));
+                }
+                t
+            }
             _ => {
                 return Err(SourceError::BadNumber {
                     line: at + 1,

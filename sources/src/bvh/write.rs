@@ -80,8 +80,13 @@ pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceEr
     let u = opts.units_per_metre;
     let mut out = String::with_capacity(64 * n + clip.num_frames() * n * 40);
     out.push_str("HIERARCHY\n");
+    let joints = Joints {
+        end_site: &end_site,
+        has_position: &has_position,
+        names: readable_names(s),
+    };
     for root in s.roots() {
-        write_joint(&mut out, clip, root, 0, &end_site, &has_position, opts);
+        write_joint(&mut out, clip, root, 0, &joints, opts);
     }
     // Writing to a String cannot fail.
     let _ = writeln!(out, "MOTION\nFrames: {}", clip.num_frames());
@@ -111,15 +116,48 @@ pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceEr
     Ok(out)
 }
 
+/// Per bone: written as an End Site, with position channels, under which name.
+struct Joints<'a> {
+    end_site: &'a [bool],
+    has_position: &'a [bool],
+    names: Vec<String>,
+}
+
+/// The bones' names as a BVH reader reads them back: a name is the rest of its line, its
+/// words joined by one space, so a name holding a newline or a tab (legal in glTF) is written
+/// with its words joined by one space; an empty one, or one ending in `{` (which opens the
+/// block), gets a stand-in; names that became equal get their bone index appended.
+fn readable_names(s: &rigcast_retarget::Skeleton) -> Vec<String> {
+    let mut used = std::collections::HashSet::new();
+    s.names()
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let mut n = name.split_whitespace().collect::<Vec<_>>().join(" ");
+            if n.is_empty() {
+                n = format!("bone{i}");
+            }
+            if n.ends_with('{') {
+                n.push('_');
+            }
+            if !used.insert(n.clone()) {
+                n = format!("{n}_{i}");
+                used.insert(n.clone());
+            }
+            n
+        })
+        .collect()
+}
+
 fn write_joint(
     out: &mut String,
     clip: &Clip,
     bone: BoneId,
     depth: usize,
-    end_site: &[bool],
-    has_position: &[bool],
+    joints: &Joints<'_>,
     opts: &BvhWriteOptions,
 ) {
+    let (end_site, has_position) = (joints.end_site, joints.has_position);
     let s = &clip.skeleton;
     let i = bone.index();
     let pad = "\t".repeat(depth);
@@ -137,7 +175,7 @@ fn write_joint(
         "JOINT"
     };
     // Writing to a String cannot fail.
-    let _ = writeln!(out, "{pad}{keyword} {}\n{pad}{{", s.name(bone));
+    let _ = writeln!(out, "{pad}{keyword} {}\n{pad}{{", joints.names[i]);
     let _ = writeln!(out, "{pad}\tOFFSET {} {} {}", offset.x, offset.y, offset.z);
     let rot: Vec<String> = opts
         .order
@@ -157,7 +195,7 @@ fn write_joint(
         let _ = writeln!(out, "{pad}\tCHANNELS 3 {}", rot.join(" "));
     }
     for &c in s.children(bone) {
-        write_joint(out, clip, c, depth + 1, end_site, has_position, opts);
+        write_joint(out, clip, c, depth + 1, joints, opts);
     }
     // Writing to a String cannot fail.
     let _ = writeln!(out, "{pad}}}");

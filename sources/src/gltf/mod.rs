@@ -8,6 +8,7 @@
 //!  Clip + GltfTemplate ──write_glb_onto──▶ the character's own document, new animation
 //! ```
 
+mod buffers;
 mod onto;
 mod read;
 mod sample;
@@ -15,6 +16,7 @@ mod tolerate;
 mod vrm;
 mod write;
 
+pub use buffers::MAX_BUFFER_BYTES;
 pub use onto::write_glb_onto;
 pub use read::{
     read_gltf, AnimationInfo, GltfRead, GltfReadOptions, GltfTemplate, SkeletonOrigin,

@@ -181,6 +181,7 @@ pub fn read_gltf(
     opts: &GltfReadOptions,
 ) -> Result<GltfRead, SourceError> {
     let (document, blob, warning, json) = parse_tolerantly(bytes)?;
+    super::buffers::check_buffer_sources(&document, base_dir)?;
     let data = ::gltf::import_buffers(&document, base_dir, blob).map_err(gltf_err)?;
     let buffers: Vec<&[u8]> = data.iter().map(|b| &b.0[..]).collect();
     let mut read = read_document(&document, &buffers, name, opts)?;
@@ -225,12 +226,7 @@ fn read_document(
 ) -> Result<GltfRead, SourceError> {
     check_channel_targets(doc)?;
     let num_nodes = doc.nodes().len();
-    let mut parent: Vec<Option<usize>> = vec![None; num_nodes];
-    for n in doc.nodes() {
-        for c in n.children() {
-            parent[c.index()] = Some(n.index());
-        }
-    }
+    let parent = node_parents(doc)?;
     let vrm = vrm_human_bones(doc, num_nodes)?;
     let (joints, origin): (Vec<usize>, SkeletonOrigin) = match doc.skins().next() {
         Some(skin) => (
@@ -401,6 +397,66 @@ fn animation_name(a: &::gltf::Animation<'_>) -> String {
         .map(str::to_string)
         .unwrap_or_else(|| format!("animation_{}", a.index()))
 }
+
+/// Each node's parent, after checking that the nodes form a forest no deeper than
+/// [`crate::bvh::MAX_JOINT_DEPTH`]: every node the child of at most one node, none its own
+/// ancestor (a node listed as its own child, or two nodes each other's, would make every walk
+/// up the tree loop forever). One pass, no recursion.
+pub(crate) fn node_parents(doc: &Document) -> Result<Vec<Option<usize>>, SourceError> {
+    let num_nodes = doc.nodes().len();
+    let mut parent: Vec<Option<usize>> = vec![None; num_nodes];
+    for n in doc.nodes() {
+        for c in n.children() {
+            if let Some(first) = parent[c.index()].replace(n.index()) {
+                return Err(SourceError::Gltf {
+                    message: format!(
+                        "node {} is a child of both node {first} and node {}",
+                        c.index(),
+                        n.index()
+                    ),
+                });
+            }
+        }
+    }
+    // Depth of each node once known; walks stop at a known node, so the whole check is linear.
+    let mut depth: Vec<Option<usize>> = vec![None; num_nodes];
+    let mut path = Vec::new();
+    for start in 0..num_nodes {
+        path.clear();
+        let mut at = Some(start);
+        let mut base = 0;
+        while let Some(n) = at {
+            if let Some(d) = depth[n] {
+                base = d + 1;
+                break;
+            }
+            if path.contains(&n) {
+                return Err(SourceError::Gltf {
+                    message: format!("node {n} is its own ancestor (a cycle in `children`)"),
+                });
+            }
+            if path.len() >= MAX_NODE_DEPTH {
+                break; // reported just below
+            }
+            path.push(n);
+            at = parent[n];
+        }
+        if base + path.len() > MAX_NODE_DEPTH {
+            return Err(SourceError::limit(
+                format!("node {start}: nesting depth"),
+                format!("over {}", base + path.len() - 1),
+                MAX_NODE_DEPTH,
+            ));
+        }
+        for (k, &n) in path.iter().rev().enumerate() {
+            depth[n] = Some(base + k);
+        }
+    }
+    Ok(parent)
+}
+
+/// Deepest node nesting read (see [`node_parents`]).
+const MAX_NODE_DEPTH: usize = crate::bvh::MAX_JOINT_DEPTH;
 
 /// Joints plus every node on a path from a joint up to another joint.
 fn needed_nodes(joints: &[usize], parent: &[Option<usize>]) -> HashSet<usize> {
@@ -677,11 +733,35 @@ fn sample_animation(
     // writers often store a truncated frame time (BVH's 0.008333 for 120 fps), which puts the
     // last key a fraction of a frame short of `n / fps` and would drop it under `floor`.
     let on_keys = opts.sample_fps.is_none() && keyed_fps.is_some();
-    let num_frames = if on_keys {
-        (end_secs as f64 * fps).round() as usize + 1
+    let wanted = if on_keys {
+        (end_secs as f64 * fps).round() + 1.0
     } else {
-        (end_secs as f64 * fps + 1e-3).floor() as usize + 1
+        (end_secs as f64 * fps + 1e-3).floor() + 1.0
     };
+    // Bounded by what the file holds: its keys (times and values) across the sampled tracks.
+    let input_samples = rotation_tracks
+        .iter()
+        .chain(&translation_tracks)
+        .flatten()
+        .map(|t| t.times.len() as u64)
+        .sum::<u64>();
+    let num_frames =
+        rigcast_retarget::bounds::frames_within_budget(wanted, skeleton.num_bones(), input_samples)
+            .ok_or_else(|| {
+                SourceError::limit(
+                    format!(
+                        "animation {:?}: {} s at {fps} fps makes {wanted} frames of {} bones;",
+                        animation_name(anim),
+                        end_secs,
+                        skeleton.num_bones()
+                    ),
+                    format!("{} bone samples", wanted * skeleton.num_bones() as f64),
+                    format!(
+                        "{} for this file",
+                        rigcast_retarget::bounds::sample_budget(input_samples)
+                    ),
+                )
+            })?;
     // On keys, sample at the keys themselves: a truncated frame time drifts from k / fps by
     // a fraction of a frame over a long clip, which would interpolate between keys.
     let key_times = first_times
