@@ -6,8 +6,6 @@
 //! only when each of its translations is small enough that any sum along a chain of
 //! [`crate::skeleton::MAX_BONES`] bones stays finite (and far from where `f32` loses metres).
 
-use crate::pose::Pose;
-
 /// Largest magnitude of any component of a local translation (pose or rest), metres. Ten
 /// kilometres: far beyond any capture volume, and 65,535 of them chained stay below 1e9 m,
 /// where squares (distances) are still finite in `f32`.
@@ -15,10 +13,10 @@ pub const MAX_TRANSLATION_M: f32 = 1.0e4;
 
 /// How far a rotation's quaternion may be from unit length and still be taken as a rotation
 /// (then normalised); beyond this it is not one.
-const ROTATION_LENGTH_RANGE: (f32, f32) = (0.5, 2.0);
+pub const ROTATION_LENGTH_RANGE: (f32, f32) = (0.5, 2.0);
 
 /// A rotation this close to unit length is left as it is.
-const UNIT_TOLERANCE: f32 = 1e-4;
+pub const UNIT_TOLERANCE: f32 = 1e-4;
 
 /// Why a pose was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -71,47 +69,6 @@ pub fn translation_in_bounds(t: glam::Vec3) -> bool {
     t.abs().cmple(glam::Vec3::splat(MAX_TRANSLATION_M)).all()
 }
 
-/// Checks a whole pose and repairs what can be repaired in place: rotations close to unit
-/// length are normalised. Returns how many rotations were normalised, or why the pose cannot
-/// be used (then it may be partly normalised and must be dropped). Allocates nothing.
-pub fn check_pose(pose: &mut Pose) -> Result<usize, PoseRefusal> {
-    for (bone, t) in pose.translations.iter().enumerate() {
-        if !t.is_finite() {
-            return Err(PoseRefusal {
-                fault: PoseFault::NonFinite,
-                bone,
-            });
-        }
-        if !translation_in_bounds(*t) {
-            return Err(PoseRefusal {
-                fault: PoseFault::TooFar,
-                bone,
-            });
-        }
-    }
-    let mut normalised = 0;
-    for (bone, q) in pose.rotations.iter_mut().enumerate() {
-        if !q.is_finite() {
-            return Err(PoseRefusal {
-                fault: PoseFault::NonFinite,
-                bone,
-            });
-        }
-        let len = q.length();
-        if !(ROTATION_LENGTH_RANGE.0..=ROTATION_LENGTH_RANGE.1).contains(&len) {
-            return Err(PoseRefusal {
-                fault: PoseFault::NotARotation,
-                bone,
-            });
-        }
-        if (len - 1.0).abs() > UNIT_TOLERANCE {
-            *q /= len;
-            normalised += 1;
-        }
-    }
-    Ok(normalised)
-}
-
 /// Bone samples (frames × bones) any reader or resampler may make from an input however small:
 /// about 60 MB of poses.
 pub const MIN_SAMPLE_BUDGET: u64 = 1 << 21;
@@ -151,43 +108,6 @@ pub fn clamp_safe(x: f32, lo: f32, hi: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{Quat, Vec3};
-
-    fn pose(t: Vec3, q: Quat) -> Pose {
-        Pose {
-            rotations: vec![Quat::IDENTITY, q],
-            translations: vec![Vec3::ZERO, t],
-        }
-    }
-
-    #[test]
-    fn refuses_values_that_overflow_when_combined() {
-        // Each finite; their sum along the chain is not.
-        let mut p = pose(Vec3::splat(3e38), Quat::IDENTITY);
-        let r = check_pose(&mut p).unwrap_err();
-        assert_eq!(r.fault, PoseFault::TooFar);
-        assert_eq!(r.bone, 1);
-        let mut p = pose(Vec3::new(0.0, f32::NAN, 0.0), Quat::IDENTITY);
-        assert_eq!(check_pose(&mut p).unwrap_err().fault, PoseFault::NonFinite);
-        let mut p = pose(Vec3::ZERO, Quat::from_xyzw(0.0, 0.0, 0.0, 0.0));
-        assert_eq!(
-            check_pose(&mut p).unwrap_err().fault,
-            PoseFault::NotARotation
-        );
-        let mut p = pose(Vec3::ZERO, Quat::from_xyzw(f32::INFINITY, 0.0, 0.0, 1.0));
-        assert_eq!(check_pose(&mut p).unwrap_err().fault, PoseFault::NonFinite);
-    }
-
-    #[test]
-    fn normalises_nearly_unit_rotations_and_keeps_good_poses() {
-        let mut p = pose(
-            Vec3::new(9_999.0, -1.0, 0.5),
-            Quat::from_xyzw(0.0, 0.0, 0.0, 1.5),
-        );
-        assert_eq!(check_pose(&mut p), Ok(1));
-        assert!((p.rotations[1].length() - 1.0).abs() < 1e-6);
-        assert_eq!(check_pose(&mut p), Ok(0));
-    }
 
     #[test]
     fn clamp_safe_never_panics() {

@@ -33,7 +33,7 @@ impl Clip {
         }
         for (frame, p) in poses.iter_mut().enumerate() {
             p.check(&skeleton)?;
-            crate::bounds::check_pose(p).map_err(|r| RetargetError::BadPose {
+            p.check_values().map_err(|r| RetargetError::BadPose {
                 frame,
                 bone: r.bone,
                 fault: r.fault,

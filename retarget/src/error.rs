@@ -69,7 +69,7 @@ pub enum RetargetError {
         /// its name
         name: String,
     },
-    /// A frame of a clip holds a pose that is not one (see [`crate::bounds::check_pose`]).
+    /// A frame of a clip holds a pose that is not one (see [`crate::pose::Pose::check_values`]).
     #[error("frame {frame}, bone {bone}: {fault}")]
     BadPose {
         /// index of the frame

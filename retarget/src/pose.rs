@@ -2,6 +2,7 @@
 
 use glam::{Quat, Vec3};
 
+use crate::bounds::{PoseFault, PoseRefusal};
 use crate::error::RetargetError;
 use crate::skeleton::{BoneId, Skeleton};
 
@@ -73,6 +74,50 @@ impl Pose {
             });
         }
         Ok(())
+    }
+
+    /// Checks a whole pose and repairs what can be repaired in place: rotations close to unit
+    /// length are normalised. Returns how many rotations were normalised, or why the pose cannot
+    /// be used (then it may be partly normalised and must be dropped). Allocates nothing.
+    pub fn check_values(&mut self) -> Result<usize, PoseRefusal> {
+        let pose = self;
+        for (bone, t) in pose.translations.iter().enumerate() {
+            if !t.is_finite() {
+                return Err(PoseRefusal {
+                    fault: PoseFault::NonFinite,
+                    bone,
+                });
+            }
+            if !crate::bounds::translation_in_bounds(*t) {
+                return Err(PoseRefusal {
+                    fault: PoseFault::TooFar,
+                    bone,
+                });
+            }
+        }
+        let mut normalised = 0;
+        for (bone, q) in pose.rotations.iter_mut().enumerate() {
+            if !q.is_finite() {
+                return Err(PoseRefusal {
+                    fault: PoseFault::NonFinite,
+                    bone,
+                });
+            }
+            let len = q.length();
+            if !(crate::bounds::ROTATION_LENGTH_RANGE.0..=crate::bounds::ROTATION_LENGTH_RANGE.1)
+                .contains(&len)
+            {
+                return Err(PoseRefusal {
+                    fault: PoseFault::NotARotation,
+                    bone,
+                });
+            }
+            if (len - 1.0).abs() > crate::bounds::UNIT_TOLERANCE {
+                *q /= len;
+                normalised += 1;
+            }
+        }
+        Ok(normalised)
     }
 
     /// Copies `other` into `self` without allocating. Sizes must match (a caller bug otherwise:
@@ -165,5 +210,37 @@ mod tests {
         let mut q = pose(Quat::IDENTITY, Vec3::Y);
         q.set_root_translation(Vec3::X);
         assert_eq!(q.root_translation(), Vec3::X);
+    }
+    fn two_bones(t: Vec3, q: Quat) -> Pose {
+        Pose {
+            rotations: vec![Quat::IDENTITY, q],
+            translations: vec![Vec3::ZERO, t],
+        }
+    }
+
+    #[test]
+    fn refuses_values_that_overflow_when_combined() {
+        // Each finite; their sum along the chain is not.
+        let mut p = two_bones(Vec3::splat(3e38), Quat::IDENTITY);
+        let r = p.check_values().unwrap_err();
+        assert_eq!(r.fault, PoseFault::TooFar);
+        assert_eq!(r.bone, 1);
+        let mut p = two_bones(Vec3::new(0.0, f32::NAN, 0.0), Quat::IDENTITY);
+        assert_eq!(p.check_values().unwrap_err().fault, PoseFault::NonFinite);
+        let mut p = two_bones(Vec3::ZERO, Quat::from_xyzw(0.0, 0.0, 0.0, 0.0));
+        assert_eq!(p.check_values().unwrap_err().fault, PoseFault::NotARotation);
+        let mut p = two_bones(Vec3::ZERO, Quat::from_xyzw(f32::INFINITY, 0.0, 0.0, 1.0));
+        assert_eq!(p.check_values().unwrap_err().fault, PoseFault::NonFinite);
+    }
+
+    #[test]
+    fn normalises_nearly_unit_rotations_and_keeps_good_poses() {
+        let mut p = two_bones(
+            Vec3::new(9_999.0, -1.0, 0.5),
+            Quat::from_xyzw(0.0, 0.0, 0.0, 1.5),
+        );
+        assert_eq!(p.check_values(), Ok(1));
+        assert!((p.rotations[1].length() - 1.0).abs() < 1e-6);
+        assert_eq!(p.check_values(), Ok(0));
     }
 }

@@ -105,7 +105,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                 }
                 // Checked as a whole where it enters the engine: each value may be finite
                 // while their sums (root + hips, a chain in FK) are not.
-                if let Err(refusal) = rigcast_retarget::bounds::check_pose(&mut pose) {
+                if let Err(refusal) = pose.check_values() {
                     let shape = ctx.subject.shape();
                     let names = shape.skeleton.names();
                     let name = names.get(refusal.bone).map_or("?", |n| n.as_str());

@@ -278,19 +278,16 @@ impl Performer {
             self.step(&mut built, now, tick_secs)
         }));
         match shown {
-            Ok(Some((moving, capture))) => {
-                match rigcast_retarget::bounds::check_pose(&mut self.display) {
-                    Ok(_) => {
-                        self.publish(moving, capture);
-                        self.clear_fault();
-                    }
-                    Err(r) => {
-                        let why =
-                            format!("its pose came out wrong at bone {}: {}", r.bone, r.fault);
-                        self.fault(&mut built, now, why);
-                    }
+            Ok(Some((moving, capture))) => match self.display.check_values() {
+                Ok(_) => {
+                    self.publish(moving, capture);
+                    self.clear_fault();
                 }
-            }
+                Err(r) => {
+                    let why = format!("its pose came out wrong at bone {}: {}", r.bone, r.fault);
+                    self.fault(&mut built, now, why);
+                }
+            },
             Ok(None) => {}
             Err(payload) => {
                 let why = format!("stopped: {}", crate::fault::panic_text(&*payload));

@@ -79,7 +79,11 @@ impl KindSpec for WebcamSpec {
 
     fn to_cli(&self) -> Option<String> {
         let query = self.options().to_query();
-        let query = if query.is_empty() { query } else { format!("?{query}") };
+        let query = if query.is_empty() {
+            query
+        } else {
+            format!("?{query}")
+        };
         (self.name.is_none() && self.people.is_none())
             .then(|| format!("webcam:{}{}{query}", self.index, person_suffix(self.person)))
     }
