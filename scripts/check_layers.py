@@ -144,6 +144,35 @@ def parse_use_tree(toks, i):
     return [(prefix, None)], i
 
 
+class Scope:
+    """The module the token at hand belongs to, as braces and inline `mod NAME {` open and
+    close around it."""
+
+    def __init__(self, module):
+        self.stack = [(module, -1)]  # (module, brace depth its body opened at)
+        self.depth = 0
+
+    def current(self):
+        return self.stack[-1][0]
+
+    def brace(self, t):
+        """Follows `{` and `}`; whether `t` was one."""
+        if t == "{":
+            self.depth += 1
+        elif t == "}":
+            self.depth -= 1
+            if len(self.stack) > 1 and self.depth == self.stack[-1][1]:
+                self.stack.pop()
+        else:
+            return False
+        return True
+
+    def enter(self, inner):
+        """An inline module's body opens (its `{` read)."""
+        self.stack.append((inner, self.depth))
+        self.depth += 1
+
+
 class Crate:
     def __init__(self, name, root_file):
         self.name = name
@@ -163,18 +192,13 @@ class Crate:
         self._walk_items(toks, text, module, child_dir)
 
     def _walk_items(self, toks, text, module, child_dir):
-        stack = [(module, -1)]  # (module, brace depth its body opened at)
-        depth, i = 0, 0
-        mod_decl_count = 0
+        scope = Scope(module)
+        i, mod_decl_count = 0, 0
         while i < len(toks):
             t = toks[i]
-            cur = stack[-1][0]
-            if t == "{":
-                depth += 1
-            elif t == "}":
-                depth -= 1
-                if len(stack) > 1 and depth == stack[-1][1]:
-                    stack.pop()
+            cur = scope.current()
+            if scope.brace(t):
+                pass
             elif t == "mod" and i + 2 < len(toks) and toks[i + 2] in (";", "{") and _is_ident(toks[i + 1]):
                 name = toks[i + 1]
                 cur.children.add(name)
@@ -182,8 +206,7 @@ class Crate:
                 if toks[i + 2] == "{":
                     inner = Module(cur.path + (name,), cur.file)
                     self.modules[inner.path] = inner
-                    stack.append((inner, depth))
-                    depth += 1
+                    scope.enter(inner)
                     i += 3
                     continue
                 mod_decl_count += 1
@@ -285,22 +308,15 @@ class Crate:
             return  # an inline module: scanned with its file's module below
         text = open(module.file, encoding="utf-8").read()
         toks = tokens(text)
-        stack = [(module, -1)]
-        depth, i = 0, 0
+        scope = Scope(module)
+        i = 0
         while i < len(toks):
             t = toks[i]
-            cur = stack[-1][0]
-            if t == "{":
-                depth += 1
-            elif t == "}":
-                depth -= 1
-                if len(stack) > 1 and depth == stack[-1][1]:
-                    stack.pop()
+            cur = scope.current()
+            if scope.brace(t):
+                pass
             elif t == "mod" and i + 2 < len(toks) and toks[i + 2] == "{":
-                inner = self.modules.get(cur.path + (toks[i + 1],))
-                if inner is not None:
-                    stack.append((inner, depth))
-                depth += 1
+                scope.enter(self.modules.get(cur.path + (toks[i + 1],), cur))
                 i += 3
                 continue
             elif t == "use":

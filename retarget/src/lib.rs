@@ -35,6 +35,7 @@ pub mod graft;
 pub mod graph;
 pub mod mapping;
 pub mod pose;
+pub mod procedural;
 pub mod retarget;
 pub mod rotation;
 pub mod skeleton;

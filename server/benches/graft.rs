@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use criterion::{criterion_group, criterion_main, Criterion};
 use rigcast_retarget::graft::{self, BodySplit, GraftSettings};
 use rigcast_retarget::RootMotion;
-use rigcast_server::cmd::graft::{graft_clips, plants};
-use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip};
+use rigcast_server::offline::{graft_clips, plants};
+use rigcast_server::offline::{plan_mapping, retarget_clip};
 
 fn data(relative: &str) -> Option<PathBuf> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -33,16 +33,17 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("graft_meredith_on_cmu131_994_frames");
     group.sample_size(10);
     group.bench_function("graft_build_end_to_end", |b| {
-        b.iter(|| graft_clips(&upper, &lower, None, &settings, false).expect("graft"))
+        b.iter(|| graft_clips(&upper, &lower, None, &settings, &mut |_, _| {}).expect("graft"))
     });
     let plan = plan_mapping(&upper, &lower, None).expect("plan");
     let opts = plan.retarget_options(&upper, RootMotion::InPlace);
     group.bench_function("baseline_plain_retarget_of_the_upper_clip", |b| {
         b.iter(|| {
-            retarget_clip(&upper, &lower.skeleton, &plan.table, &opts, false).expect("retarget")
+            retarget_clip(&upper, &lower.skeleton, &plan.table, &opts, &mut |_| {})
+                .expect("retarget")
         })
     });
-    let g = graft_clips(&upper, &lower, None, &settings, false).expect("graft");
+    let g = graft_clips(&upper, &lower, None, &settings, &mut |_, _| {}).expect("graft");
     let split = BodySplit::new(&lower.skeleton, &plan.target_analysis, settings.blend_bones)
         .expect("split");
     let (pu, pl) = (

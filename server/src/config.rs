@@ -23,6 +23,7 @@ use std::str::FromStr;
 
 use serde::Deserialize;
 
+pub use crate::character::BUILTIN_PREFIX;
 pub use crate::cluster_config::ClusterConfig;
 pub use crate::config_error::ConfigError;
 pub use crate::source_kinds::{
@@ -343,9 +344,6 @@ impl Default for LimitsConfig {
         }
     }
 }
-
-/// Prefix of built-in characters in target paths (`builtin:mannequin`).
-pub const BUILTIN_PREFIX: &str = "builtin:";
 
 /// What a target character does while its source is lost.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]

@@ -24,11 +24,11 @@ use std::sync::Arc;
 use anyhow::Context;
 use rigcast_protocol::control::MappingEntry;
 use rigcast_protocol::ServerMessage;
-use rigcast_retarget::analysis::{analyze_with_truth, standing_posture, Analysis, SkeletonView};
+use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::mapping::{
-    apply_overrides, map_analyzed, mapping_colors, posture_relative, CacheKey, MapOptions,
-    MappingFile, MappingTable, SourceRef, TargetEntry, UNMAPPED,
+    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
+    SourceRef, TargetEntry, UNMAPPED,
 };
 use rigcast_retarget::{BoneId, Follow, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::{broadcast, mpsc};
@@ -250,7 +250,7 @@ impl Mapper {
 
     /// A walker driving a quadruped: the target's extra ground limbs keep their own posture
     /// and follow the source's motion from the source clip's standing posture
-    /// (`mapping::posture_relative`); a live source without a clip measures from its reference.
+    /// (`offline::posture_plan`); a live source without a clip measures from its reference.
     fn posture_plan(
         &self,
         inputs: &[u32],
@@ -259,15 +259,12 @@ impl Mapper {
         table: &MappingTable,
         ta: &Analysis,
     ) -> (Vec<(BoneId, Follow)>, Vec<Option<Pose>>) {
-        let refs: Vec<&Analysis> = analyses.iter().collect();
-        let relative = posture_relative(table, &refs, ta);
-        if relative.is_empty() {
-            return (relative, Vec::new());
-        }
-        let standing = (inputs.iter().zip(sources).zip(analyses))
-            .map(|((id, s), a)| standing_posture(s, &self.extras.get(id)?.poses, a.up))
+        let with_clips: Vec<(&Skeleton, &Analysis, Option<&[Pose]>)> = (inputs.iter())
+            .zip(sources)
+            .zip(analyses)
+            .map(|((id, s), a)| (*s, a, self.extras.get(id).map(|e| &e.poses[..])))
             .collect();
-        (relative, standing)
+        crate::offline::posture_plan(table, &with_clips, ta)
     }
 
     /// Publishes performer `i`'s built mapping: the locked feet for the status, the mailbox,

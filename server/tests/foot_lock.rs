@@ -22,7 +22,7 @@ use rigcast_retarget::footplant::{
     detect_clip, find_legs, FootLock, Leg, LockSettings, PlantSettings, PlantTrack,
 };
 use rigcast_retarget::{world_transforms, Clip, Mapping, RetargetOptions, WorldTransform};
-use rigcast_server::cmd::retarget::plan_mapping;
+use rigcast_server::offline::plan_mapping;
 
 /// Figures of one output.
 #[derive(Debug, Clone, Copy)]

@@ -21,7 +21,7 @@ mod common;
 use glam::Vec3;
 use rigcast_retarget::footplant::{detect_clip, find_legs, Leg, LegKind, PlantSettings};
 use rigcast_retarget::{world_transforms, Clip, RetargetOptions, WorldTransform};
-use rigcast_server::cmd::retarget::{plan_mapping, MappingPlan};
+use rigcast_server::offline::{plan_mapping, MappingPlan};
 
 /// The CMU walk and the zoo's labelled quadrupeds (name, rig); `None` (printed) without the
 /// shared data.

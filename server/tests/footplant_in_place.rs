@@ -179,7 +179,7 @@ fn the_foot_lock_leaves_an_in_place_walk_alone() {
     };
     assert!(track.belt().is_some());
     let target = rigcast_sources::load_rig(&wolf).unwrap().0;
-    let plan = rigcast_server::cmd::retarget::plan_mapping(&source, &target, None).unwrap();
+    let plan = rigcast_server::offline::plan_mapping(&source, &target, None).unwrap();
     let free = common::retarget(&source, &plan, &target, false);
     let locked = common::retarget(&source, &plan, &target, true);
     // Compared whole, printed short: a pose list is long.

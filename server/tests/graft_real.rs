@@ -21,7 +21,7 @@ use glam::Vec3;
 use rigcast_retarget::analysis::{analyze, Analysis, Role, Side, SkeletonView};
 use rigcast_retarget::graft::GraftSettings;
 use rigcast_retarget::{world_transforms, BoneId, Clip, Pose, Skeleton};
-use rigcast_server::cmd::graft::{graft_clips, plants};
+use rigcast_server::offline::{graft_clips, plants};
 
 /// Joints of one arm and the trunk: shoulder, elbow, wrist, chest, head, waist.
 struct ArmJoints {
@@ -97,7 +97,14 @@ fn expressive_upper_body_on_a_cmu_walk_keeps_the_walks_plants_and_the_arms_motio
     };
     let upper = rigcast_sources::load_clip(&up).unwrap();
     let lower = rigcast_sources::load_clip(&low).unwrap();
-    let g = graft_clips(&upper, &lower, None, &GraftSettings::default(), false).unwrap();
+    let g = graft_clips(
+        &upper,
+        &lower,
+        None,
+        &GraftSettings::default(),
+        &mut |_, _| {},
+    )
+    .unwrap();
     let out = &g.clip;
     assert_eq!(out.num_frames(), lower.num_frames());
     println!(

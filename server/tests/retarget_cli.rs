@@ -60,3 +60,28 @@ fn a_target_read_by_its_names_is_announced_and_an_ordinary_one_is_not() {
     assert!(run.status.success(), "{stderr}");
     assert!(!stderr.contains("warning"), "{stderr}");
 }
+
+/// A target is loaded one way everywhere: `builtin:mannequin` is a character for `rigcast
+/// retarget` as it is for `serve --target`, and an unknown built-in names those that exist.
+#[test]
+fn the_built_in_mannequin_is_a_target_as_for_serve() {
+    let demo = rigcast_sources::embedded_demo().unwrap();
+    let anim = tmp("demo_walk.bvh");
+    rigcast_sources::save_clip(&anim, &demo).unwrap();
+    let out = tmp("onto_mannequin.rcr");
+    let run = retarget(&anim, Path::new("builtin:mannequin"), &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    let written = rigcast_sources::load_clip(&out).unwrap();
+    let mannequin = rigcast_server::character::mannequin().unwrap();
+    assert_eq!(written.skeleton.names(), mannequin.names());
+    assert_eq!(written.num_frames(), demo.num_frames());
+
+    let run = retarget(&anim, Path::new("builtin:robot"), &tmp("onto_robot.bvh"));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(
+        stderr.contains("unknown built-in character \"robot\"") && stderr.contains("mannequin"),
+        "{stderr}"
+    );
+}

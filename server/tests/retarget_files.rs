@@ -11,15 +11,19 @@ mod common;
 #[path = "../../retarget/tests/retarget_fixtures/mod.rs"]
 mod retarget_fixtures;
 
+#[path = "common/retarget_cli.rs"]
+mod retarget_cli;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
+use retarget_cli::{run, RetargetArgs};
 use retarget_fixtures::{angle_deg, hip_height, positions, Axes, Humanoid};
 use rigcast_retarget::corpus;
 use rigcast_retarget::mapping::{BoneOptions, MappingTable, SourceRef, TargetEntry};
 use rigcast_retarget::{Clip, Pose, RawSkeleton, RetargetOptions, Skeleton, Transform};
-use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip, run, RetargetArgs};
+use rigcast_server::offline::{plan_mapping, retarget_clip};
 
 /// A file of the shared BVH data.
 fn data(name: &str) -> Option<PathBuf> {
@@ -158,7 +162,7 @@ fn check(clip: &Clip, case: Case) {
         &case.target,
         &case.table,
         &RetargetOptions::default(),
-        false,
+        &mut |_| {},
     )
     .expect("retarget");
     assert_eq!(out.num_frames(), clip.num_frames());
@@ -504,7 +508,7 @@ fn check_scaled(clip: &Clip, case: Case, units: f32) {
         &case.target,
         &case.table,
         &RetargetOptions::default(),
-        false,
+        &mut |_| {},
     )
     .expect("retarget");
     let out_m = retarget_clip(
@@ -512,7 +516,7 @@ fn check_scaled(clip: &Clip, case: Case, units: f32) {
         &metres,
         &case.table,
         &RetargetOptions::default(),
-        false,
+        &mut |_| {},
     )
     .expect("retarget");
     for (pu, pm) in out_units.poses.iter().zip(&out_m.poses).step_by(50) {
@@ -751,15 +755,14 @@ fn cmu_walk_onto_other_files_with_the_automatic_mapper() {
     for (file, segments) in targets {
         let Some(path) = data(file) else { continue };
         let target_clip = rigcast_sources::load_clip(&path).expect("target loads");
-        let plan =
-            rigcast_server::cmd::retarget::plan_mapping(&clip, &target_clip, None).expect("plan");
+        let plan = rigcast_server::offline::plan_mapping(&clip, &target_clip, None).expect("plan");
         let target = &*target_clip.skeleton;
         let opts = RetargetOptions {
             source_reference: vec![plan.source_reference.clone()],
             target_reference: plan.target_reference.clone(),
             ..RetargetOptions::default()
         };
-        let out = retarget_clip(&clip, target, &plan.table, &opts, false).expect("retarget");
+        let out = retarget_clip(&clip, target, &plan.table, &opts, &mut |_| {}).expect("retarget");
         let src = &clip.skeleton;
         let mapped = |n: &str| {
             let t = target

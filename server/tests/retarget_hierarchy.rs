@@ -9,9 +9,12 @@
 
 mod common;
 
+#[path = "common/retarget_cli.rs"]
+mod retarget_cli;
+
 use std::path::{Path, PathBuf};
 
-use rigcast_server::cmd::retarget::{run, RetargetArgs};
+use retarget_cli::{run, RetargetArgs};
 use serde_json::Value;
 
 /// One line of a BVH hierarchy as this test reads it.

@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use rigcast_retarget::{world_transforms, BoneId, Clip, RootMotion, Skeleton};
-use rigcast_server::cmd::retarget::{plan_mapping, retarget_clip_locked};
+use rigcast_server::offline::{plan_mapping, retarget_clip_locked};
 use serde_json::Value;
 
 /// Source frames measured per pair (evenly spread over the clip).
@@ -507,7 +507,8 @@ fn measure_pairs(locks: Lock) -> Option<Vec<Pair>> {
             // measured on the same frames as the source.
             let lock = (locks == Lock::On).then_some(&plan);
             let out =
-                retarget_clip_locked(&src.clip, &target, &plan.table, &opts, lock, false).unwrap();
+                retarget_clip_locked(&src.clip, &target, &plan.table, &opts, lock, &mut |_| {})
+                    .unwrap();
             let mut figures = measure(src, tgt, &clip, &subsample(&out));
             let judge = |l: &Labelled| {
                 humans
@@ -879,9 +880,15 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
             }
             let opts = plan.retarget_options(&src.clip, RootMotion::Scaled);
             let target = Arc::new((*tgt.clip.skeleton).clone());
-            let out =
-                retarget_clip_locked(&src.clip, &target, &plan.table, &opts, Some(&plan), false)
-                    .unwrap();
+            let out = retarget_clip_locked(
+                &src.clip,
+                &target,
+                &plan.table,
+                &opts,
+                Some(&plan),
+                &mut |_| {},
+            )
+            .unwrap();
             if !*judge_t {
                 println!(
                     "{} → {}: the target's labelled legs are not its legs, not judged",

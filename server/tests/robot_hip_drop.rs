@@ -15,7 +15,7 @@ mod common;
 
 use rigcast_retarget::footplant::{detect_clip, find_legs, FootLock, LockSettings, PlantSettings};
 use rigcast_retarget::{world_transforms, Mapping, RootMotion};
-use rigcast_server::cmd::retarget::plan_mapping;
+use rigcast_server::offline::plan_mapping;
 
 #[test]
 fn robot_thigh_directions_per_hip_drop_limit() {

@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use rigcast_server::cmd::record::record;
+use rigcast_server::stream_record::record;
 use rigcast_tests::*;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -60,7 +60,7 @@ async fn vmc_input_listens_on_loopback_by_default() {
     let mut config = ServerConfig::from_file(file).unwrap();
     config
         .sources
-        .push(rigcast_server::cmd::serve::parse_source("vmc:0").unwrap());
+        .push("vmc:0".parse::<rigcast_server::SourceSpec>().unwrap());
     config.listen = "127.0.0.1:0".parse().unwrap();
     config.mapping_cache_dir = None;
     let server = rigcast_server::start(config).await.unwrap();

@@ -3,8 +3,7 @@
 
 use glam::{vec3, Vec3};
 
-use super::builder::Builder;
-use super::humanoid::{humanoid, Style};
+use crate::procedural::{humanoid, Builder, Style};
 
 fn m(v: Vec3, left: bool) -> Vec3 {
     if left {

@@ -7,14 +7,11 @@
 //!
 //! Bodies face +Z with the character's left at +X, in metres, standing on y = 0.
 
-mod builder;
 mod creatures;
-mod humanoid;
 
 use glam::{Quat, Vec3};
 
-pub use builder::Builder;
-pub use humanoid::{humanoid, Style};
+pub use crate::procedural::{humanoid, Builder, Style};
 
 use crate::skeleton::Skeleton;
 

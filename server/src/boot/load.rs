@@ -8,7 +8,6 @@ use anyhow::Context;
 use rigcast_protocol::SourceKind;
 use rigcast_retarget::mapping::{parse_mapping_file, MappingFile};
 use rigcast_retarget::{Pose, Skeleton};
-use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip};
 
 use crate::config::{self, PerformerSpec, ServerConfig, SourceSpec, TargetSpec};
 pub(crate) use crate::source_kinds::Loaded;
@@ -202,37 +201,24 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
             model: None,
         }),
         TargetSpec::File(path) => {
-            let text = path.to_string_lossy();
-            if let Some(builtin) = text.strip_prefix(config::BUILTIN_PREFIX) {
-                let skeleton = character::builtin(builtin).with_context(|| {
-                    format!(
-                        "unknown built-in character {builtin:?}; expected one of {:?}",
-                        character::BUILTIN_NAMES
-                    )
-                })?;
-                return Ok(LoadedTarget {
-                    name: builtin.to_string(),
-                    skeleton: Arc::new(skeleton),
-                    reference: None,
-                    truth: None,
-                    model: None,
-                });
-            }
-            let LoadedClip {
-                clip,
-                humanoid: truth,
-            } = load_clip_and_humanoid(path, &LoadOptions::default())
-                .with_context(|| format!("cannot load target character {}", path.display()))?;
-            let name = path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| clip.name.clone());
+            let c = match character::load_character(path) {
+                Ok(c) => c,
+                Err(e @ character::CharacterError::UnknownBuiltin { .. }) => return Err(e.into()),
+                Err(e) => {
+                    return Err(anyhow::Error::new(e)
+                        .context(format!("cannot load target character {}", path.display())))
+                }
+            };
+            let clip = c.clip;
             Ok(LoadedTarget {
-                name,
+                name: c.name,
                 reference: clip.poses.get(clip.poses.len() / 2).cloned(),
                 skeleton: clip.skeleton,
-                truth,
-                model: crate::model::ModelFile::for_target(path),
+                truth: c.truth,
+                model: c
+                    .file
+                    .as_deref()
+                    .and_then(crate::model::ModelFile::for_target),
             })
         }
     }

@@ -7,14 +7,11 @@
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
-use anyhow::{anyhow, bail, Context};
+use anyhow::{anyhow, bail};
 use clap::Args;
-use rigcast_retarget::analysis::Analysis;
-use rigcast_retarget::footplant::{detect_clip, find_legs, PlantSettings, PlantTrack};
-use rigcast_retarget::graft::{self, BodySplit, GraftPlan, GraftSettings};
-use rigcast_retarget::{Clip, RootMotion};
+use rigcast_retarget::graft::GraftSettings;
 
-use super::retarget::{plan_mapping, retarget_clip};
+use crate::offline::{graft_clips, Grafted};
 
 /// Options of `rigcast graft`.
 #[derive(Debug, Clone, Args)]
@@ -39,19 +36,6 @@ pub struct GraftArgs {
     pub clusters: usize,
 }
 
-/// A finished graft and how it was made.
-#[derive(Debug, Clone)]
-pub struct Grafted {
-    /// The output clip, on the lower clip's rig.
-    pub clip: Clip,
-    /// The upper clip retarget onto the lower clip's rig (its own timeline).
-    pub upper_on_lower: Clip,
-    /// Plants, pairing, warp and shared clusters.
-    pub plan: GraftPlan,
-    /// The cut.
-    pub split: BodySplit,
-}
-
 /// Runs the command.
 pub fn run(args: &GraftArgs) -> anyhow::Result<()> {
     super::retarget::output_extension(&args.output)?;
@@ -74,7 +58,20 @@ pub fn run(args: &GraftArgs) -> anyhow::Result<()> {
         clusters: args.clusters,
         blend_bones: args.blend_bones.max(1),
     };
-    let g = graft_clips(&upper, &lower, args.mapping.as_deref(), &settings, true)?;
+    let overrides = args
+        .mapping
+        .as_deref()
+        .map(crate::boot::load::read_mapping)
+        .transpose()?;
+    let mut bar = Bar::new(true);
+    let g = graft_clips(
+        &upper,
+        &lower,
+        overrides.as_ref(),
+        &settings,
+        &mut |d, n| bar.show(d, n),
+    )?;
+    bar.finish();
     rigcast_sources::save_clip_onto(&args.output, &g.clip, &layout)
         .map_err(|e| anyhow!("cannot write: {e}"))?;
     print_summary(args, &g);
@@ -120,57 +117,6 @@ fn print_summary(args: &GraftArgs, g: &Grafted) {
         g.split.blend.len(),
         n = args.clusters
     );
-}
-
-/// Grafts `upper`'s upper body onto `lower` (see the module doc); draws a progress bar on
-/// stderr when `progress` is set.
-pub fn graft_clips(
-    upper: &Clip,
-    lower: &Clip,
-    overrides: Option<&std::path::Path>,
-    settings: &GraftSettings,
-    progress: bool,
-) -> anyhow::Result<Grafted> {
-    let plan = plan_mapping(upper, lower, overrides)?;
-    if plan.table.num_mapped() == 0 {
-        bail!("no bone of the lower clip's rig could be mapped to the upper clip's");
-    }
-    let opts = plan.retarget_options(upper, RootMotion::InPlace);
-    let upper_on_lower = retarget_clip(upper, &lower.skeleton, &plan.table, &opts, false)
-        .context("cannot retarget the upper clip onto the lower clip's rig")?;
-    let upper_plants = plants(upper, &plan.source_analysis);
-    let lower_plants = plants(lower, &plan.target_analysis);
-    let split = BodySplit::new(&lower.skeleton, &plan.target_analysis, settings.blend_bones)
-        .context("the lower clip's rig")?;
-    let gplan = graft::plan(
-        (&upper_on_lower, &upper_plants),
-        (lower, &lower_plants),
-        &split,
-        settings,
-    )?;
-    let mut bar = Bar::new(progress);
-    let clip = graft::synthesize(&gplan, &upper_on_lower, lower, &split, &mut |d, n| {
-        bar.show(d, n)
-    })?;
-    bar.finish();
-    Ok(Grafted {
-        clip,
-        upper_on_lower,
-        plan: gplan,
-        split,
-    })
-}
-
-/// Two-sided plants of a clip on its own rig.
-pub fn plants(clip: &Clip, analysis: &Analysis) -> PlantTrack {
-    detect_clip(
-        &clip.skeleton,
-        &find_legs(&clip.skeleton, analysis),
-        &clip.poses,
-        clip.frame_time_secs as f32,
-        analysis.up,
-        &PlantSettings::default(),
-    )
 }
 
 /// A progress bar on stderr: redrawn in place on a terminal, at 25 % steps otherwise.

@@ -14,13 +14,16 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::Args;
-use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
+use rigcast_retarget::analysis::{humanoid_roles, Analysis};
 use rigcast_retarget::mapping::{
-    apply_overrides, cache, file, map_analyzed, mapping_colors, parse_mapping_file,
-    to_mapping_file, BoneColors, CacheKey, MapOptions, MappingTable,
+    cache, file, mapping_colors, parse_mapping_file, to_mapping_file, BoneColors, CacheKey,
+    MapOptions, MappingTable,
 };
 use rigcast_retarget::{Clip, Skeleton};
 use serde_json::{json, Map, Value};
+
+use crate::character::vrm_truth;
+use crate::offline::{map_pair, TableCache};
 
 /// Options of `rigcast map`.
 #[derive(Debug, Clone, Args)]
@@ -71,21 +74,32 @@ fn cache_dir(args: &MapArgs) -> Option<PathBuf> {
     crate::config::default_mapping_cache_dir()
 }
 
-/// The skeleton with its animation: the analysis takes its posture from the motion when the
-/// rest pose is not one.
-fn view(clip: &Clip) -> SkeletonView<'_> {
-    SkeletonView::from_clip(&clip.skeleton, &clip.poses)
+/// Automatic tables as `<dir>/<key>.json` files.
+struct DiskCache {
+    dir: PathBuf,
 }
 
-/// A VRM file's humanoid map (human bone name → bone name): ground truth for its roles.
-pub fn vrm_truth(path: &Path) -> Option<Vec<(String, String)>> {
-    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
-    if ext != "vrm" {
-        return None;
+impl DiskCache {
+    fn path(&self, key: &CacheKey) -> PathBuf {
+        self.dir.join(format!("{}.json", key.file_stem()))
     }
-    let info = rigcast_sources::describe(path).ok()?;
-    info.vrm_roles
-        .map(|m| m.into_iter().collect::<Vec<(String, String)>>())
+}
+
+impl TableCache for DiskCache {
+    fn get(&mut self, key: &CacheKey) -> Option<MappingTable> {
+        let text = std::fs::read_to_string(self.path(key)).ok()?;
+        cache::decode(&text, key)
+    }
+
+    fn put(&mut self, key: &CacheKey, table: &MappingTable) {
+        let path = self.path(key);
+        // A cache that cannot be written is not an error: the mapping is still right.
+        let written = std::fs::create_dir_all(&self.dir)
+            .and_then(|_| std::fs::write(&path, cache::encode(key, table)));
+        if let Err(e) = written {
+            eprintln!("note: mapping cache not written to {}: {e}", path.display());
+        }
+    }
 }
 
 fn roles_json(skel: &Skeleton, a: &Analysis) -> Value {
@@ -135,47 +149,24 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     opts.mirror = args.mirror;
 
     let t_map = Instant::now();
-    let (ss, ts) = (&*src.skeleton, &*tgt.skeleton);
     let truth_s = vrm_truth(&args.source);
     let truth_t = vrm_truth(&args.target);
-    let sa = analyze_with_truth(&view(&src), truth_s.as_deref());
-    let ta = analyze_with_truth(&view(&tgt), truth_t.as_deref());
-    let key = CacheKey::new(&[ss], ts, &opts);
-    // The cache key knows skeletons and options, not a file's humanoid map: VRM mappings are
-    // recomputed (milliseconds) rather than risk an entry made without the truth.
-    let dir = if truth_s.is_some() || truth_t.is_some() {
-        None
-    } else {
-        cache_dir(args)
-    };
-    let cache_path = dir
-        .as_ref()
-        .map(|d| d.join(format!("{}.json", key.file_stem())));
-    let cached: Option<MappingTable> = cache_path
-        .as_ref()
-        .and_then(|p| std::fs::read_to_string(p).ok())
-        .and_then(|text| cache::decode(&text, &key))
-        .filter(|t| t.validate(&[ss], ts).is_ok());
-    let from_cache = cached.is_some();
-    let mut table = match cached {
-        Some(t) => t,
-        None => {
-            let t = map_analyzed(&[(ss, &sa)], (ts, &ta), &opts);
-            if let (Some(d), Some(p)) = (&dir, &cache_path) {
-                // A cache that cannot be written is not an error: the mapping is still right.
-                let written = std::fs::create_dir_all(d)
-                    .and_then(|_| std::fs::write(p, cache::encode(&key, &t)));
-                if let Err(e) = written {
-                    eprintln!("note: mapping cache not written to {}: {e}", p.display());
-                }
-            }
-            t
-        }
-    };
-    if let (Some(o), Some(p)) = (&overrides, &args.overrides) {
-        apply_overrides(&mut table, o, &[ss], ts)
-            .with_context(|| format!("overrides file {}", p.display()))?;
-    }
+    let mut cache = cache_dir(args).map(|dir| DiskCache { dir });
+    let pair = map_pair(
+        &src,
+        &tgt,
+        (truth_s.as_deref(), truth_t.as_deref()),
+        &opts,
+        cache.as_mut().map(|c| c as &mut dyn TableCache),
+        overrides.as_ref(),
+    )
+    .with_context(|| match &args.overrides {
+        Some(p) => format!("overrides file {}", p.display()),
+        None => "mapping".into(),
+    })?;
+    let (ss, ts) = (&*src.skeleton, &*tgt.skeleton);
+    let (table, sa, ta) = (pair.table, pair.source_analysis, pair.target_analysis);
+    let from_cache = pair.from_cache;
     let elapsed_ms = t_map.elapsed().as_secs_f64() * 1e3;
 
     if let Some(p) = &args.save {

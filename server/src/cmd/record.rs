@@ -1,24 +1,13 @@
 //! `rigcast record --url ws://… -o FILE.rcr [--duration SECS]`: connect to a server as an
-//! ordinary client and save what it streams as a recording: each subject's skeleton record
-//! (from its `skeleton` message), then one frame record per binary frame.
-//!
-//! Binary frames carry rotations and the root translation only, so recorded non-root
-//! translations are the rest offsets.
+//! ordinary client and save what it streams as a recording (`stream_record`).
 
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::Args;
-use futures_util::StreamExt;
-use glam::Quat;
-use rigcast_protocol::frame::decode_frame_into;
-use rigcast_protocol::ServerMessage;
-use rigcast_retarget::{Pose, Skeleton};
-use rigcast_sources::recording::RecordingWriter;
-use tokio_tungstenite::tungstenite::Message;
+
+use crate::stream_record::record;
 
 /// Options of `rigcast record`.
 #[derive(Debug, Args)]
@@ -32,15 +21,6 @@ pub struct RecordArgs {
     /// Stop after this many seconds (default: until Ctrl-C or the server closes).
     #[arg(long)]
     pub duration: Option<f64>,
-}
-
-/// What a recording session wrote.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct RecordSummary {
-    /// Skeleton records.
-    pub skeletons: usize,
-    /// Frame records.
-    pub frames: usize,
 }
 
 /// Records until Ctrl-C, the duration, or the server closing.
@@ -69,100 +49,3 @@ pub async fn run(args: RecordArgs) -> anyhow::Result<()> {
     );
     Ok(())
 }
-
-struct SubjectTrack {
-    skeleton: Arc<Skeleton>,
-    pose: Pose,
-}
-
-/// Connects to `url` and writes the stream to `output` until `stop` completes or the server
-/// closes the connection.
-pub async fn record(
-    url: &str,
-    output: &Path,
-    stop: impl std::future::Future<Output = ()>,
-) -> anyhow::Result<RecordSummary> {
-    let (mut ws, _) = tokio_tungstenite::connect_async(url)
-        .await
-        .with_context(|| format!("cannot connect to {url}"))?;
-    let file = std::fs::File::create(output)
-        .with_context(|| format!("cannot create {}", output.display()))?;
-    let mut writer = RecordingWriter::new(file)?;
-    let mut tracks: HashMap<u32, SubjectTrack> = HashMap::new();
-    let mut rotations: Vec<Quat> = Vec::new();
-    let mut summary = RecordSummary::default();
-    tokio::pin!(stop);
-    loop {
-        let msg = tokio::select! {
-            _ = &mut stop => break,
-            msg = ws.next() => msg,
-        };
-        let Some(msg) = msg else { break };
-        match msg.context("stream error")? {
-            Message::Text(text) => {
-                let parsed: ServerMessage = serde_json::from_str(text.as_str())
-                    .with_context(|| format!("server sent undecodable JSON: {text}"))?;
-                if let ServerMessage::Skeleton {
-                    subject,
-                    name,
-                    fingerprint,
-                    bones,
-                } = parsed
-                {
-                    let skeleton = Arc::new(skeleton_from_bones(&bones).with_context(|| {
-                        format!("skeleton of subject {subject} ({name}) is invalid")
-                    })?);
-                    if skeleton.fingerprint_hex() != fingerprint {
-                        // f32 → JSON → f32 is exact for serde_json, so a mismatch means a bug
-                        // somewhere; warn, but keep the data.
-                        eprintln!(
-                            "rigcast record: subject {subject}: fingerprint {} differs from the server's {fingerprint}",
-                            skeleton.fingerprint_hex()
-                        );
-                    }
-                    writer.write_skeleton(subject, &name, &skeleton)?;
-                    summary.skeletons += 1;
-                    tracks.insert(
-                        subject,
-                        SubjectTrack {
-                            pose: Pose::from_rest(&skeleton),
-                            skeleton,
-                        },
-                    );
-                }
-            }
-            Message::Binary(bytes) => {
-                let (header, root) = decode_frame_into(&bytes, &mut rotations)
-                    .context("server sent an invalid frame")?;
-                let Some(track) = tracks.get_mut(&header.subject) else {
-                    continue; // frame before its skeleton: nothing to attach it to
-                };
-                if rotations.len() != track.skeleton.num_bones() {
-                    bail!(
-                        "frame of subject {} has {} bones, its skeleton {}",
-                        header.subject,
-                        rotations.len(),
-                        track.skeleton.num_bones()
-                    );
-                }
-                track.pose.rotations.copy_from_slice(&rotations);
-                track.pose.set_root_translation(root);
-                writer.write_frame(
-                    header.subject,
-                    header.seq,
-                    header.capture_nanos,
-                    &track.pose,
-                )?;
-                summary.frames += 1;
-            }
-            Message::Close(_) => break,
-            _ => {}
-        }
-    }
-    writer.finish()?;
-    // The file is finished; a server already gone needs no close frame.
-    let _ = ws.close(None).await;
-    Ok(summary)
-}
-
-pub use crate::skeleton_wire::skeleton_from_bones;

@@ -75,18 +75,18 @@ pub fn target_subject(
 /// its feet locked when `lock`: what the foot-lock tests compare, locked against free.
 pub fn retarget(
     source: &rigcast_retarget::Clip,
-    plan: &rigcast_server::cmd::retarget::MappingPlan,
+    plan: &rigcast_server::offline::MappingPlan,
     target: &rigcast_retarget::Clip,
     lock: bool,
 ) -> rigcast_retarget::Clip {
     let opts = plan.retarget_options(source, rigcast_retarget::RootMotion::default());
-    rigcast_server::cmd::retarget::retarget_clip_locked(
+    rigcast_server::offline::retarget_clip_locked(
         source,
         &target.skeleton,
         &plan.table,
         &opts,
         lock.then_some(plan),
-        false,
+        &mut |_| {},
     )
     .unwrap()
 }

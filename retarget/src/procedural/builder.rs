@@ -1,4 +1,4 @@
-//! A tiny world-space skeleton builder for fixtures: bones are placed by world position (and
+//! A tiny world-space skeleton builder (built-in characters, fixtures): bones are placed by world position (and
 //! optionally a world rotation), locals are derived at the end.
 
 use glam::{Quat, Vec3};
