@@ -461,11 +461,33 @@ pub struct ParseError {
     pub message: String,
 }
 
+/// Most characters of untrusted input an error message quotes.
+pub const MAX_QUOTED_CHARS: usize = 64;
+
+/// At most the first [`MAX_QUOTED_CHARS`] characters of untrusted `text` (with `…` when cut),
+/// for error messages: an error never echoes more than a short prefix of what it refuses.
+pub fn short_prefix(text: &str) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(MAX_QUOTED_CHARS) {
+        Some((at, _)) => format!("{}…", &text[..at]).into(),
+        None => text.into(),
+    }
+}
+
+/// A message built from serde's or the parser's text, which may quote the input: cut to a few
+/// times [`MAX_QUOTED_CHARS`].
+fn bounded_message(message: String) -> String {
+    let limit = 4 * MAX_QUOTED_CHARS;
+    match message.char_indices().nth(limit) {
+        Some((at, _)) => format!("{}…", &message[..at]),
+        None => message,
+    }
+}
+
 /// Parses a client text message, classifying failures (see [`ErrorCode`]).
 pub fn parse_client_message(text: &str) -> Result<ClientMessage, ParseError> {
     let value: serde_json::Value = serde_json::from_str(text).map_err(|e| ParseError {
         code: ErrorCode::BadJson,
-        message: format!("not valid JSON: {e}"),
+        message: bounded_message(format!("not valid JSON: {e}")),
     })?;
     let Some(kind) = value.get("type").and_then(|t| t.as_str()) else {
         return Err(ParseError {
@@ -477,7 +499,8 @@ pub fn parse_client_message(text: &str) -> Result<ClientMessage, ParseError> {
         return Err(ParseError {
             code: ErrorCode::UnknownType,
             message: format!(
-                "unknown message type {kind:?}; expected one of {}",
+                "unknown message type {:?}; expected one of {}",
+                short_prefix(kind),
                 CLIENT_MESSAGE_TYPES.join(", ")
             ),
         });
@@ -485,7 +508,7 @@ pub fn parse_client_message(text: &str) -> Result<ClientMessage, ParseError> {
     let kind = kind.to_string();
     serde_json::from_value(value).map_err(|e| ParseError {
         code: ErrorCode::InvalidFields,
-        message: format!("bad fields in {kind:?} message: {e}"),
+        message: bounded_message(format!("bad fields in {kind:?} message: {e}")),
     })
 }
 

@@ -89,10 +89,12 @@ impl Refusal {
     pub fn message(&self) -> String {
         match self {
             Refusal::ForeignHost(h) => format!(
-                "forbidden: Host {h:?} is not localhost, an IP address or in allowed_hosts\n"
+                "forbidden: Host {:?} is not localhost, an IP address or in allowed_hosts\n",
+                rigcast_protocol::control::short_prefix(h)
             ),
             Refusal::ForeignOrigin(o) => format!(
-                "forbidden: requests from pages of origin {o:?} are not allowed (same origin or allowed_origins)\n"
+                "forbidden: requests from pages of origin {:?} are not allowed (same origin or allowed_origins)\n",
+                rigcast_protocol::control::short_prefix(o)
             ),
             Refusal::WrongToken => "unauthorized: wrong control token\n".into(),
             Refusal::TokenRequired => "unauthorized: this server listens beyond loopback; \

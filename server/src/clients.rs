@@ -291,6 +291,16 @@ where
                         close_with(&mut sink, CloseCode::Size, "frame over 64 KiB").await;
                         return Ok(());
                     }
+                    // A violation is answered with its close code (RFC 6455 7.4.1) before
+                    // the connection closes, so the client learns why.
+                    Err(tokio_tungstenite::tungstenite::Error::Protocol(_)) => {
+                        close_with(&mut sink, CloseCode::Protocol, "protocol violation").await;
+                        return Ok(());
+                    }
+                    Err(tokio_tungstenite::tungstenite::Error::Utf8(_)) => {
+                        close_with(&mut sink, CloseCode::Invalid, "text is not UTF-8").await;
+                        return Ok(());
+                    }
                     Err(_) => return Err(End::Transport),
                 };
                 if let Some(reply) = reply {

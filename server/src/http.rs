@@ -92,6 +92,8 @@ struct Request {
     path: String,
     upgrade_websocket: bool,
     websocket_key: Option<String>,
+    /// `Sec-WebSocket-Version` (only 13 is spoken).
+    websocket_version: Option<String>,
     host: Option<String>,
     origin: Option<String>,
     /// From `Authorization: Bearer` or, failing that, `?token=`.
@@ -108,11 +110,38 @@ impl Request {
     }
 }
 
-fn parse_head(head: &str) -> Option<Request> {
+/// Why a request head is refused with 400.
+#[derive(Debug, PartialEq)]
+enum BadHead {
+    /// No method and target on the first line.
+    RequestLine,
+    /// A header that decides access or the upgrade appears twice (which one counts would be
+    /// up to each parser on the way: a proxy could check one and rigcast use the other).
+    Repeated(&'static str),
+}
+
+impl BadHead {
+    fn message(&self) -> String {
+        match self {
+            BadHead::RequestLine => "bad request: no method and target\n".into(),
+            BadHead::Repeated(name) => format!("bad request: more than one {name} header\n"),
+        }
+    }
+}
+
+/// Sets `slot` once; a second value of the same header is refused.
+fn once(slot: &mut Option<String>, value: &str, name: &'static str) -> Result<(), BadHead> {
+    if slot.replace(value.to_string()).is_some() {
+        return Err(BadHead::Repeated(name));
+    }
+    Ok(())
+}
+
+fn parse_head(head: &str) -> Result<Request, BadHead> {
     let mut lines = head.split("\r\n");
-    let mut first = lines.next()?.split(' ');
-    let method = first.next()?.to_string();
-    let target = first.next()?;
+    let mut first = lines.next().ok_or(BadHead::RequestLine)?.split(' ');
+    let method = first.next().ok_or(BadHead::RequestLine)?.to_string();
+    let target = first.next().ok_or(BadHead::RequestLine)?;
     let path = target.split('?').next().unwrap_or(target).to_string();
     let mut req = Request {
         method,
@@ -120,6 +149,7 @@ fn parse_head(head: &str) -> Option<Request> {
         token: query_token(target).map(str::to_string),
         ..Request::default()
     };
+    let mut authorization = None;
     for line in lines {
         let Some((name, value)) = line.split_once(':') else {
             continue;
@@ -127,10 +157,14 @@ fn parse_head(head: &str) -> Option<Request> {
         let value = value.trim();
         match name.trim().to_ascii_lowercase().as_str() {
             "upgrade" => req.upgrade_websocket = value.eq_ignore_ascii_case("websocket"),
-            "sec-websocket-key" => req.websocket_key = Some(value.to_string()),
-            "host" => req.host = Some(value.to_string()),
-            "origin" => req.origin = Some(value.to_string()),
+            "sec-websocket-key" => once(&mut req.websocket_key, value, "Sec-WebSocket-Key")?,
+            "sec-websocket-version" => {
+                once(&mut req.websocket_version, value, "Sec-WebSocket-Version")?
+            }
+            "host" => once(&mut req.host, value, "Host")?,
+            "origin" => once(&mut req.origin, value, "Origin")?,
             "authorization" => {
+                once(&mut authorization, value, "Authorization")?;
                 if let Some(t) = bearer_token(value) {
                     req.token = Some(t.to_string());
                 }
@@ -138,7 +172,7 @@ fn parse_head(head: &str) -> Option<Request> {
             _ => {}
         }
     }
-    Some(req)
+    Ok(req)
 }
 
 async fn handle_connection(
@@ -184,10 +218,13 @@ async fn handle_connection(
     };
     let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
     let leftover = buf[head_end..].to_vec();
-    let Some(req) = parse_head(&head) else {
-        // The client may be gone already: there is nobody left to answer.
-        let _ = respond(&mut stream, 400, "text/plain", b"bad request\n").await;
-        return;
+    let req = match parse_head(&head) {
+        Ok(req) => req,
+        Err(bad) => {
+            // The client may be gone already: there is nobody left to answer.
+            let _ = respond(&mut stream, 400, "text/plain", bad.message().as_bytes()).await;
+            return;
+        }
     };
     if req.method != "GET" {
         // The client may be gone already: there is nobody left to answer.
@@ -224,14 +261,15 @@ async fn handle_connection(
             let _ = respond(&mut stream, 200, "application/json", &body).await;
         }
         Route::Model => {
-            // `Route::Model` is chosen only when the path is a model request.
-            let (status, mime, body) = match model {
-                Some(Ok(id)) => model_response(&state, id).await,
-                Some(Err(e)) => (404, "text/plain", format!("{e}\n").into_bytes()),
-                None => (404, "text/plain", b"no subject\n".to_vec()),
+            // `Route::Model` is chosen only when the path is a model request. A client gone
+            // before its answer was written has nobody left to tell.
+            let _ = match model {
+                Some(Ok(id)) => serve_model(&mut stream, &state, id).await,
+                Some(Err(e)) => {
+                    respond(&mut stream, 404, "text/plain", format!("{e}\n").as_bytes()).await
+                }
+                None => respond(&mut stream, 404, "text/plain", b"no subject\n").await,
             };
-            // A client gone before its answer was written has nobody left to tell.
-            let _ = respond(&mut stream, status, mime, &body).await;
         }
         Route::ViewerFile => match static_asset(&req.path) {
             Some((mime, body)) => {
@@ -246,26 +284,52 @@ async fn handle_connection(
     }
 }
 
-/// The answer to `GET /v1/subjects/{id}/model.glb`: the target's configured model file, or a
-/// 404 saying why there is none.
-async fn model_response(state: &Arc<ServerState>, id: u32) -> (u16, &'static str, Vec<u8>) {
-    let not_found = |message: String| (404, "text/plain", format!("{message}\n").into_bytes());
+/// The answer to `GET /v1/subjects/{id}/model.glb`: the target's configured model file,
+/// streamed from disk in [`crate::model::MODEL_CHUNK_BYTES`] pieces (a client that does not
+/// read holds one piece, not the file), or a 404 saying why there is none.
+async fn serve_model(
+    stream: &mut TcpStream,
+    state: &Arc<ServerState>,
+    id: u32,
+) -> std::io::Result<()> {
+    let not_found = |message: String| format!("{message}\n").into_bytes();
     let Some(subject) = state.subject(id) else {
-        return not_found(format!("no subject {id}"));
+        return respond(
+            stream,
+            404,
+            "text/plain",
+            &not_found(format!("no subject {id}")),
+        )
+        .await;
     };
     let Some(model) = subject.model.clone() else {
-        return not_found(format!(
+        let why = format!(
             "subject {id} ({}) has no model file (only .glb/.vrm targets have one)",
             subject.info().name
-        ));
+        );
+        return respond(stream, 404, "text/plain", &not_found(why)).await;
     };
-    // File reads block: not on a runtime worker.
-    match tokio::task::spawn_blocking(move || model.read()).await {
-        Ok(Ok(bytes)) => (200, "model/gltf-binary", bytes),
-        Ok(Err(e)) => not_found(e.to_string()),
-        Err(_) => (500, "text/plain", b"model read failed\n".to_vec()),
-    }
+    let (file, len) = match model.open().await {
+        Ok(opened) => opened,
+        Err(e) => return respond(stream, 404, "text/plain", &not_found(e.to_string())).await,
+    };
+    let write = async {
+        use tokio::io::AsyncReadExt;
+        stream
+            .write_all(head(200, "model/gltf-binary", len as usize).as_bytes())
+            .await?;
+        let mut chunks =
+            tokio::io::BufReader::with_capacity(crate::model::MODEL_CHUNK_BYTES, file.take(len));
+        tokio::io::copy_buf(&mut chunks, stream).await?;
+        stream.shutdown().await
+    };
+    tokio::time::timeout(MODEL_TIMEOUT, write)
+        .await
+        .unwrap_or_else(|_| Err(std::io::ErrorKind::TimedOut.into()))
 }
+
+/// Longest a model download may take (a client that stops reading is dropped then).
+const MODEL_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// `GET /v1/stream`: answers the WebSocket upgrade and runs the client session; the
 /// connection's slot (`permit`) is held until the session ends.
@@ -289,6 +353,19 @@ async fn upgrade(
         .await;
         return;
     };
+    if req.websocket_version.as_deref() != Some("13") {
+        // RFC 6455 4.2.2: refuse, naming the version spoken.
+        let body = b"this server speaks WebSocket version 13 only\n";
+        let response = format!(
+            "HTTP/1.1 426 Upgrade Required\r\nSec-WebSocket-Version: 13\r\nContent-Type: text/plain\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+            body.len()
+        );
+        // The client may be gone already: there is nobody left to answer.
+        let _ = stream
+            .write_all(&[response.as_bytes(), body].concat())
+            .await;
+        return;
+    }
     let accept = derive_accept_key(key.as_bytes());
     let Ok(mut stream) = limit_send_buffer(stream, CLIENT_SEND_BUFFER_BYTES) else {
         return;
@@ -615,14 +692,33 @@ mod tests {
             derive_accept_key(b"dGhlIHNhbXBsZSBub25jZQ=="),
             "s3pPLMBiTxaQ9kYGzzhZRbK+xOo="
         );
-        assert!(parse_head("").is_none());
+        assert!(parse_head("").is_err());
         // A request line without a target, and a bare blank line.
-        assert!(parse_head("GET\r\n\r\n").is_none());
-        assert!(parse_head("\r\n\r\n").is_none());
+        assert!(parse_head("GET\r\n\r\n").is_err());
+        assert!(parse_head("\r\n\r\n").is_err());
         // Header lines without a colon are skipped, not fatal; HTTP/1.0 and no Host are fine.
         let r = parse_head("GET /v1/status HTTP/1.0\r\ngarbage\r\n\r\n").unwrap();
         assert_eq!((r.method.as_str(), r.path.as_str()), ("GET", "/v1/status"));
         assert!(!r.upgrade_websocket && r.websocket_key.is_none());
+    }
+
+    #[test]
+    fn repeated_deciding_headers_are_refused() {
+        for name in [
+            "Host",
+            "Origin",
+            "Authorization",
+            "Sec-WebSocket-Key",
+            "Sec-WebSocket-Version",
+        ] {
+            let head = format!(
+                "GET / HTTP/1.1\r\n{name}: a\r\n{}: b\r\n\r\n",
+                name.to_lowercase()
+            );
+            assert_eq!(parse_head(&head), Err(BadHead::Repeated(name)), "{name}");
+        }
+        // Other headers may repeat.
+        assert!(parse_head("GET / HTTP/1.1\r\nAccept: a\r\nAccept: b\r\n\r\n").is_ok());
     }
 
     #[test]

@@ -12,8 +12,12 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every binary glTF file.
 const GLB_MAGIC: &[u8; 4] = b"glTF";
 
-/// Largest model the server reads into memory for one request.
+/// Largest model the server serves.
 pub const MAX_MODEL_BYTES: u64 = 512 * 1024 * 1024;
+
+/// Bytes of a model held in memory per request while it streams (the rest stays on disk), so
+/// clients that ask for a model and do not read cost this each, not the file's size.
+pub const MODEL_CHUNK_BYTES: usize = 64 * 1024;
 
 /// A target's servable model file.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -46,26 +50,34 @@ impl ModelFile {
         })
     }
 
-    /// The file's bytes now (it may have been replaced or removed since the server started).
-    pub fn read(&self) -> Result<Vec<u8>, ModelError> {
+    /// The file opened now (it may have been replaced or removed since the server started),
+    /// checked to be a GLB within [`MAX_MODEL_BYTES`], at its start, with its length: to be
+    /// streamed in [`MODEL_CHUNK_BYTES`] pieces rather than read whole.
+    pub async fn open(&self) -> Result<(tokio::fs::File, u64), ModelError> {
+        use tokio::io::{AsyncReadExt, AsyncSeekExt};
         let unreadable = |e: std::io::Error| ModelError::Unreadable {
             path: self.path.clone(),
             reason: e.to_string(),
         };
-        let meta = std::fs::metadata(&self.path).map_err(unreadable)?;
-        if meta.len() > MAX_MODEL_BYTES {
+        let mut file = tokio::fs::File::open(&self.path)
+            .await
+            .map_err(unreadable)?;
+        let len = file.metadata().await.map_err(unreadable)?.len();
+        if len > MAX_MODEL_BYTES {
             return Err(ModelError::TooLarge {
                 path: self.path.clone(),
-                bytes: meta.len(),
+                bytes: len,
             });
         }
-        let bytes = std::fs::read(&self.path).map_err(unreadable)?;
-        if !bytes.starts_with(GLB_MAGIC) {
+        let mut magic = [0u8; 4];
+        let is_glb = file.read_exact(&mut magic).await.is_ok() && &magic == GLB_MAGIC;
+        if !is_glb {
             return Err(ModelError::NoLongerGlb {
                 path: self.path.clone(),
             });
         }
-        Ok(bytes)
+        file.rewind().await.map_err(unreadable)?;
+        Ok((file, len))
     }
 }
 
@@ -104,15 +116,22 @@ pub enum ModelError {
 pub fn model_request(path: &str) -> Option<Result<u32, ModelError>> {
     let rest = path.strip_prefix("/v1/subjects/")?;
     let id = rest.strip_suffix("/model.glb")?;
-    Some(
-        id.parse::<u32>()
-            .map_err(|_| ModelError::BadSubjectId(id.to_string())),
-    )
+    Some(id.parse::<u32>().map_err(|_| {
+        ModelError::BadSubjectId(rigcast_protocol::control::short_prefix(id).into_owned())
+    }))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn block_on<F: std::future::Future>(f: F) -> F::Output {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap()
+            .block_on(f)
+    }
 
     #[test]
     fn request_paths() {
@@ -147,9 +166,12 @@ mod tests {
         assert_eq!(ModelFile::for_target(&gltf), None);
         assert_eq!(ModelFile::for_target(&dir.join("missing.glb")), None);
         let model = ModelFile::for_target(&glb).unwrap();
-        assert!(model.read().unwrap().starts_with(b"glTF"));
+        assert!(block_on(model.open()).is_ok());
         std::fs::remove_file(&glb).unwrap();
-        assert!(model.read().unwrap_err().to_string().contains("a.glb"));
+        assert!(block_on(model.open())
+            .unwrap_err()
+            .to_string()
+            .contains("a.glb"));
         // Cleanup only: a leftover temp directory does not change what the test proved.
         let _ = std::fs::remove_dir_all(&dir);
     }

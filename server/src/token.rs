@@ -145,9 +145,12 @@ pub fn authorized_request(
 ) -> anyhow::Result<tokio_tungstenite::tungstenite::handshake::client::Request> {
     use tokio_tungstenite::tungstenite::client::IntoClientRequest;
     use tokio_tungstenite::tungstenite::http::HeaderValue;
-    let mut request = url
-        .into_client_request()
-        .with_context(|| format!("not a WebSocket URL: {url}"))?;
+    let mut request = url.into_client_request().with_context(|| {
+        format!(
+            "not a WebSocket URL: {}",
+            rigcast_protocol::control::short_prefix(url)
+        )
+    })?;
     if let Some(t) = token {
         let value = HeaderValue::from_str(&format!("Bearer {}", t.reveal()))
             .context("the control token is not a valid header value")?;
