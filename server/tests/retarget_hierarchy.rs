@@ -182,11 +182,7 @@ fn angle(a: glam::Quat, b: glam::Quat) -> f32 {
 }
 
 fn labelled_humans(root: &Path) -> Vec<PathBuf> {
-    let labels: Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("labels.json")).unwrap()).unwrap();
-    labels
-        .as_object()
-        .unwrap()
+    common::all_labels(root)
         .iter()
         .filter(|(_, v)| v["kind"] == "human")
         .map(|(k, _)| root.join(k))

@@ -1,5 +1,6 @@
 //! Skeleton analysis and automatic mapping judged on real rigs: every labelled file in
-//! `../shared/data` (ground truth in `labels.json`, provenance in `zoo/SOURCES.md`), skipped
+//! `../shared/data` (ground truth in `labels.json` and every `*/labels.json`, provenance in
+//! each folder's `SOURCES.md`), skipped
 //! with a printed reason when the data is absent.
 //!
 //! Scoring (per ordered pair source → target, on the core roles): a target role counts when
@@ -18,11 +19,10 @@ use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{BoneId, Clip, Pose, RawBone, RawSkeleton, Skeleton};
 use rigcast_sources::load_clip;
-use serde_json::Value;
 
 #[path = "common/shared_data.rs"]
 mod shared_data;
-use shared_data::shared_data_dir;
+use shared_data::{all_labels, shared_data_dir};
 
 /// The humanoid roles the acceptance counts (sided ones get `.L` / `.R` in the labels).
 const CORE: &[&str] = &[
@@ -58,14 +58,11 @@ fn real_rigs() -> Option<Vec<Rig>> {
     Some(load_rigs(&data_dir()?))
 }
 
+/// Every labelled file of every label file (`labels.json`, `*/labels.json`).
 fn load_rigs(dir: &Path) -> Vec<Rig> {
-    let labels: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("labels.json")).unwrap()).unwrap();
+    let labels = all_labels(dir);
     let mut out = Vec::new();
-    for (key, v) in labels.as_object().unwrap() {
-        if key.starts_with('_') {
-            continue;
-        }
+    for (key, v) in &labels {
         let clip = load_clip(&dir.join(key)).unwrap_or_else(|e| panic!("{key}: {e}"));
         let mut roles = BTreeMap::new();
         for (role, names) in v.as_object().unwrap() {
@@ -373,7 +370,8 @@ fn human_to_human_core_roles() {
 }
 
 /// Prints the posture positions and roles of the file named by `RIGCAST_ZOO_DUMP` (a key
-/// substring): a tool for reading a rig, not a check.
+/// substring; `RIGCAST_ZOO_FOLD` folds it, `RIGCAST_ZOO_ANON` renames and shuffles it as the
+/// scoring does): a tool for reading a rig, not a check.
 #[test]
 #[ignore]
 fn dump_rig() {
@@ -382,11 +380,14 @@ fn dump_rig() {
         return;
     };
     for rig in load_rigs(&dir).iter().filter(|r| r.key.contains(&want)) {
-        let clip = if std::env::var("RIGCAST_ZOO_FOLD").is_ok() {
+        let mut clip = if std::env::var("RIGCAST_ZOO_FOLD").is_ok() {
             folded(&rig.clip)
         } else {
             rig.clip.clone()
         };
+        if std::env::var("RIGCAST_ZOO_ANON").is_ok() {
+            clip = anonymise(&clip, 0x5eed ^ rig.key.len() as u64).0;
+        }
         let a = analyze(&view(&clip));
         let s = &clip.skeleton;
         println!(
@@ -397,12 +398,13 @@ fn dump_rig() {
             let p = a.positions[b.index()];
             let d = "  ".repeat(s.depth(b));
             println!(
-                "{d}{:<24} {:>7.3} {:>7.3} {:>7.3}  {}",
+                "{d}{:<24} {:>7.3} {:>7.3} {:>7.3}  {} ({:.2})",
                 s.name(b),
                 p.x,
                 p.y,
                 p.z,
-                a.label(b)
+                a.label(b),
+                a.roles[b.index()].confidence
             );
         }
     }

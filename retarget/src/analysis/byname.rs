@@ -69,10 +69,7 @@ pub(crate) fn humanoid_from_names(
     skel: &Skeleton,
     names: &[NameInfo],
 ) -> Option<Vec<(String, String)>> {
-    let mut parts: Vec<Option<Part>> = names.iter().map(part).collect();
-    for side in [Side::Left, Side::Right] {
-        joint_naming(skel, names, &mut parts, side);
-    }
+    let parts = parts(skel, names);
     let mut map: Vec<(HumanBone, BoneId)> = Vec::new();
     for side in [Side::Left, Side::Right] {
         for (p, h) in limb_bones(side) {
@@ -129,6 +126,30 @@ pub(crate) fn humanoid_from_names(
             .map(|(h, b)| (h.unity_name().to_string(), skel.name(b).to_string()))
             .collect()
     })
+}
+
+/// The part each bone's name says, joint naming resolved.
+fn parts(skel: &Skeleton, names: &[NameInfo]) -> Vec<Option<Part>> {
+    let mut parts: Vec<Option<Part>> = names.iter().map(part).collect();
+    for side in [Side::Left, Side::Right] {
+        joint_naming(skel, names, &mut parts, side);
+    }
+    parts
+}
+
+/// Per bone: its name says a part that no other bone with the same side marker also says
+/// (CMU's `LHipJoint` and `LeftHip` both say "hip": neither is clear evidence).
+pub(crate) fn unambiguous(skel: &Skeleton, names: &[NameInfo]) -> Vec<bool> {
+    let parts = parts(skel, names);
+    skel.bone_ids()
+        .map(|b| {
+            let i = b.index();
+            parts[i].is_some()
+                && !skel.bone_ids().any(|o| {
+                    o != b && parts[o.index()] == parts[i] && names[o.index()].side == names[i].side
+                })
+        })
+        .collect()
 }
 
 fn limb_bones(side: Side) -> [(Part, HumanBone); 8] {

@@ -293,27 +293,44 @@ pub fn standing_posture(skeleton: &Skeleton, motion: &[Pose], up: Vec3) -> Optio
 /// lower confidences.
 pub fn analyze(view: &SkeletonView<'_>) -> Analysis {
     let mut a = roles::analyze_impl(view);
-    names_over_broken_geometry(view.skeleton, &mut a);
+    names_as_evidence(view.skeleton, &mut a);
     a
 }
 
-/// When the names describe a complete humanoid and the geometry's reading disagrees with them
-/// on most of its bones (offsets shifted a level, joints stacked: geometry that cannot be
-/// trusted), the names' roles are taken as the truth, and the analysis says so.
-fn names_over_broken_geometry(skeleton: &Skeleton, a: &mut Analysis) {
+/// Names that describe a complete humanoid are strong evidence. When the geometry's reading
+/// disagrees with them on most of their bones (offsets shifted a level, joints stacked:
+/// geometry that cannot be trusted), the names' roles replace it and the analysis says so.
+/// When it agrees on most, the few bones it reads otherwise take their names' roles (a
+/// cartoon's big head read as neck + head, an upper arm too short for the length fit): a
+/// name that says what a bone is, and that no other bone on its side also says, outweighs a
+/// proportion that merely suggests otherwise. The
+/// sides stay the analysis' (where clear geometry and names disagree on sides, the geometry
+/// has already won in `forward`).
+fn names_as_evidence(skeleton: &Skeleton, a: &mut Analysis) {
     let Some(map) = byname::humanoid_from_names(skeleton, &a.names) else {
         return;
     };
-    let agree = map
+    let parsed = truth::parse_truth(skeleton, &map);
+    let upper = parsed.iter().any(|(h, _)| *h == HumanBone::UpperChest);
+    let wanted: Vec<(BoneId, Role, Side)> = parsed
         .iter()
-        .filter(|(h, b)| {
-            let (Some(h), Some(b)) = (HumanBone::parse(h), skeleton.bone(b)) else {
-                return false;
-            };
-            truth::human_bone_role(h, false).0 == a.roles[b.index()].role
+        .map(|&(h, b)| {
+            let (role, side) = truth::human_bone_role(h, upper);
+            let have = a.roles[b.index()].side;
+            (b, role, if have == Side::Center { side } else { have })
         })
+        .collect();
+    let agree = wanted
+        .iter()
+        .filter(|(b, role, _)| a.roles[b.index()].role == *role)
         .count();
-    if 2 * agree >= map.len() {
+    if 2 * agree >= wanted.len() {
+        let clear = byname::unambiguous(skeleton, &a.names);
+        let differ: Vec<(BoneId, Role, Side)> = wanted
+            .into_iter()
+            .filter(|(b, role, _)| clear[b.index()] && a.roles[b.index()].role != *role)
+            .collect();
+        truth::set_roles(a, &differ, NAMED_ROLE_CONFIDENCE);
         return;
     }
     truth::apply_truth(skeleton, a, &map);
@@ -325,6 +342,9 @@ fn names_over_broken_geometry(skeleton: &Skeleton, a: &mut Analysis) {
         map.len()
     ));
 }
+
+/// Confidence of a role a bone's name gave it over the geometry's reading.
+const NAMED_ROLE_CONFIDENCE: f32 = 0.8;
 
 /// [`analyze`], then the file's own humanoid map (VRM: human bone name → bone name) as ground
 /// truth over the inferred roles and sides (see [`truth::apply_truth`]). `None` or an empty

@@ -38,7 +38,7 @@ pub(crate) struct Posture {
 pub(crate) fn candidates(view: &SkeletonView<'_>) -> Vec<Posture> {
     let first = choose(view);
     let Some(medoid) = first.frame else {
-        return vec![first];
+        return with_medoid(view, first);
     };
     // A folded rest: besides the medoid, a few frames spread over the motion, so a clip that
     // is mostly a fall or a crouch still offers the analysis a body it can read.
@@ -61,6 +61,27 @@ pub(crate) fn candidates(view: &SkeletonView<'_>) -> Vec<Posture> {
         });
     }
     out
+}
+
+/// A rest that looks like a posture by its shape, and, when the view has motion, the motion's
+/// medoid frame beside it: the shape test cannot see every folded rest (one whose mirrored
+/// halves lie along opposite signs of the axis, with names that say nothing), so the analysis
+/// reads both and keeps the more complete body (the rest on ties).
+fn with_medoid(view: &SkeletonView<'_>, rest: Posture) -> Vec<Posture> {
+    let skel = view.skeleton;
+    let valid: Vec<usize> = (0..view.motion.len())
+        .filter(|&i| view.motion[i].check(skel).is_ok())
+        .collect();
+    let Some(m) = medoid(view, &valid).filter(|_| !rest.used_pose) else {
+        return vec![rest];
+    };
+    let frame = Posture {
+        positions: joint_positions(skel, Some(&view.motion[m])),
+        frame: Some(m),
+        used_pose: true,
+        samples: rest.samples.clone(),
+    };
+    vec![rest, frame]
 }
 
 /// Frames tried besides the medoid when the rest is not a posture.

@@ -122,9 +122,27 @@ pub fn apply_truth(skeleton: &Skeleton, a: &mut Analysis, truth: &[(String, Stri
             s.side = s.side.flipped();
         }
     }
+    set_roles(a, &wanted, 1.0);
+    // VRM requires the body's core; a map with hips, arms and legs is a humanoid.
+    let has = |h: HumanBone| parsed.iter().any(|(x, _)| *x == h);
+    if has(HumanBone::Hips)
+        && has(HumanBone::LeftUpperArm)
+        && has(HumanBone::RightUpperArm)
+        && has(HumanBone::LeftUpperLeg)
+        && has(HumanBone::RightUpperLeg)
+    {
+        a.humanoid = true;
+    }
+    wanted.len()
+}
+
+/// Gives each bone of `wanted` its role and side at `confidence`; a role one of them takes
+/// is no longer another (first-limb) bone's, which becomes a helper, so no role is claimed
+/// twice.
+pub(crate) fn set_roles(a: &mut Analysis, wanted: &[(BoneId, Role, Side)], confidence: f32) {
     let named: Vec<bool> = {
         let mut v = vec![false; a.roles.len()];
-        for (b, _, _) in &wanted {
+        for (b, _, _) in wanted {
             v[b.index()] = true;
         }
         v
@@ -141,22 +159,11 @@ pub fn apply_truth(skeleton: &Skeleton, a: &mut Analysis, truth: &[(String, Stri
             r.role = Role::Helper;
         }
     }
-    for (b, role, side) in &wanted {
+    for (b, role, side) in wanted {
         let r = &mut a.roles[b.index()];
         r.role = *role;
         r.side = *side;
         r.limb = 0;
-        r.confidence = 1.0;
+        r.confidence = confidence;
     }
-    // VRM requires the body's core; a map with hips, arms and legs is a humanoid.
-    let has = |h: HumanBone| parsed.iter().any(|(x, _)| *x == h);
-    if has(HumanBone::Hips)
-        && has(HumanBone::LeftUpperArm)
-        && has(HumanBone::RightUpperArm)
-        && has(HumanBone::LeftUpperLeg)
-        && has(HumanBone::RightUpperLeg)
-    {
-        a.humanoid = true;
-    }
-    wanted.len()
 }

@@ -9,7 +9,9 @@ use std::process::{Command, Output};
 #[path = "../../../sources/tests/common/shared_data.rs"]
 mod shared_data;
 #[allow(unused_imports)] // not every test file uses every helper
-pub use shared_data::{shared_clip, shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
+pub use shared_data::{
+    all_labels, shared_clip, shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH,
+};
 
 /// A folder of this test run's own under the system's temporary folder
 /// (`rigcast-NAME-PID`), created.

@@ -54,3 +54,41 @@ pub fn shared_data_dir(probe: &str, what: &str) -> Option<PathBuf> {
         None
     }
 }
+
+/// Every label file of the shared data: `labels.json` at its root and `*/labels.json` in each
+/// folder below it (later batches such as `zoo2/`), in a stable order. Keys in each are paths
+/// relative to the root.
+pub fn label_files(root: &std::path::Path) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(root)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path().join("labels.json"))
+        .filter(|p| p.is_file())
+        .collect();
+    out.sort();
+    let top = root.join("labels.json");
+    if top.is_file() {
+        out.insert(0, top);
+    }
+    out
+}
+
+/// The labelled files of every label file ([`label_files`]) merged into one map: relative path
+/// → its labels (`kind` and role → acceptable bone names). Keys starting with `_` (docs) are
+/// left out; a file labelled twice keeps its first entry.
+pub fn all_labels(root: &std::path::Path) -> serde_json::Map<String, serde_json::Value> {
+    let mut out = serde_json::Map::new();
+    for file in label_files(root) {
+        let text = std::fs::read_to_string(&file)
+            .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let value: serde_json::Value = serde_json::from_str(&text)
+            .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        for (key, v) in value.as_object().into_iter().flatten() {
+            if !key.starts_with('_') && !out.contains_key(key) {
+                out.insert(key.clone(), v.clone());
+            }
+        }
+    }
+    out
+}
