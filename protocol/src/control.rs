@@ -67,12 +67,24 @@ pub struct MappingEntry {
     pub target: String,
     /// Source bone it follows, or `null` when unmapped.
     pub source: Option<String>,
-    /// Match confidence, 0..1.
+    /// Match score normalised to 0..1 (0 for overrides).
     pub score: f32,
     /// Display colour (RGB 0..1) from a gradient along the skeleton, shared by both sides.
     pub color_gradient: [f32; 3],
     /// Display colour (RGB 0..1), random but stable per pair, easier to tell apart.
     pub color_random: [f32; 3],
+    /// How sure the automatic mapper is of this bone, 0..1 (its margin over the best
+    /// alternative; 1 for overrides, 0 when unmapped). Absent (older servers) reads as 1.
+    #[serde(default = "full_confidence")]
+    pub confidence: f32,
+    /// Why a person should check this bone (low confidence, a runner-up close behind, a core
+    /// bone left without a source), or absent when it is not flagged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flagged: Option<String>,
+}
+
+fn full_confidence() -> f32 {
+    1.0
 }
 
 /// What kind of input a source subject is (`kind` in `source_status`, `[[sources]]` and
@@ -621,6 +633,8 @@ mod tests {
                         score: 0.9,
                         color_gradient: [1.0, 0.0, 0.0],
                         color_random: [0.2, 0.4, 0.6],
+                        confidence: 0.95,
+                        flagged: None,
                     },
                     MappingEntry {
                         target: "antenna".into(),
@@ -628,6 +642,8 @@ mod tests {
                         score: 0.0,
                         color_gradient: [0.5, 0.5, 0.5],
                         color_random: [0.5, 0.5, 0.5],
+                        confidence: 0.0,
+                        flagged: Some("no source bone drives its role (head)".into()),
                     },
                 ],
             },

@@ -41,6 +41,7 @@ fn entry(sources: Vec<SourceRef>, options: BoneOptions) -> Option<TargetEntry> {
         options,
         score: 0.0,
         evidence: vec![],
+        confidence: 1.0,
     })
 }
 

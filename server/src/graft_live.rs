@@ -182,5 +182,13 @@ pub fn merged_table(upper: &MappingTable, lower: &MappingTable, split: &BodySpli
             });
         }
     }
+    // Each half's flags come from the mapping that drives it.
+    let lower_half =
+        |b: rigcast_retarget::BoneId| split.halves.get(b.index()) == Some(&Half::Lower);
+    merged.flagged.retain(|f| !lower_half(f.bone));
+    merged
+        .flagged
+        .extend(lower.flagged.iter().filter(|f| lower_half(f.bone)).cloned());
+    merged.flagged.sort_by_key(|f| f.bone);
     merged
 }

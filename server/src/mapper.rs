@@ -478,6 +478,8 @@ pub fn apply_session(
         let t = target
             .bone(tname)
             .with_context(|| format!("unknown target bone {tname:?}"))?;
+        // The user has decided this bone: it is no longer flagged.
+        table.flagged.retain(|f| f.bone != t);
         let Some(sname) = sname else {
             table.entries[t.index()] = None;
             continue;
@@ -497,6 +499,7 @@ pub fn apply_session(
             options,
             score: 0.0,
             evidence: vec!["set_mapping".into()],
+            confidence: 1.0,
         });
     }
     Ok(())
@@ -532,6 +535,8 @@ fn mapping_message(
                 source,
                 color_gradient: c.map(|c| c.gradient).unwrap_or(UNMAPPED),
                 color_random: c.map(|c| c.random).unwrap_or(UNMAPPED),
+                confidence: entry.map_or(0.0, |e| e.confidence),
+                flagged: table.flag(t).map(|f| f.reason.clone()),
             }
         })
         .collect();

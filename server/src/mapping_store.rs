@@ -172,9 +172,7 @@ mod tests {
         let keys: Vec<CacheKey> = (1..=6)
             .map(|n| CacheKey::new(&[&skeleton(n)], &target, &MapOptions::default()))
             .collect();
-        let table = |n: usize| MappingTable {
-            entries: vec![None; n],
-        };
+        let table = MappingTable::empty;
         for (i, k) in keys.iter().enumerate() {
             store.put(k.clone(), table(i + 1));
             // Distinct modification times for the pruning order.

@@ -88,6 +88,7 @@ fn entry(bone: rigcast_retarget::BoneId) -> Option<TargetEntry> {
         options: BoneOptions::default(),
         score: 0.0,
         evidence: vec![],
+        confidence: 1.0,
     })
 }
 

@@ -37,6 +37,11 @@ pub(super) struct Ctx<'a> {
     pub(super) pos: &'a [Vec3],
     pub(super) topo: &'a Topology,
     pub(super) names: &'a [NameInfo],
+    /// Per bone, whether its local rotation changes over the view's motion; `None` without a
+    /// motion of at least two frames (no evidence either way).
+    pub(super) moving: Option<&'a [bool]>,
+    /// World joint positions of frames sampled from the motion (empty without one).
+    pub(super) samples: &'a [Vec<Vec3>],
     pub(super) up: Vec3,
     pub(super) forward: Vec3,
     pub(super) size: f32,

@@ -90,11 +90,21 @@ fn fit_member(
     member: LimbMember,
 ) -> Option<super::limbs::ChainSplit> {
     let lengths: Vec<f32> = chain.iter().map(|b| ctx.topo.length[b.index()]).collect();
-    let dirs: Vec<Vec3> = chain
-        .iter()
-        .map(|b| match ctx.topo.main[b.index()] {
-            Some(c) => (ctx.pos[c.index()] - ctx.pos[b.index()]).normalize_or_zero(),
-            None => Vec3::ZERO,
+    // A joint bends where two consecutive bones stop being collinear. Segments of one
+    // anatomical bone stay in line however it moves; a clavicle and an upper arm in line in
+    // a T-pose do not once the arm swings. A bend at rest costs a group 1; one measured over
+    // the motion's frames outweighs any proportion (whose cost saturates at 2).
+    let bent: Vec<f32> = (0..chain.len())
+        .map(|i| {
+            if i == 0 {
+                0.0
+            } else if ctx.samples.iter().any(|s| bends_at(ctx, s, chain, i)) {
+                MOTION_BEND_COST
+            } else if bends_at(ctx, ctx.pos, chain, i) {
+                1.0
+            } else {
+                0.0
+            }
         })
         .collect();
     let is_leg = member.kind == LimbKind::Leg;
@@ -110,9 +120,23 @@ fn fit_member(
     // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
     // the foot anywhere up to the branch.
     match fixed {
-        Some(f) if is_leg => fit_chain(&lengths[..=f], &dirs[..=f], None, ratio),
-        _ => fit_chain(&lengths, &dirs, fixed, ratio),
+        Some(f) if is_leg => fit_chain(&lengths[..=f], &bent[..=f], None, ratio),
+        _ => fit_chain(&lengths, &bent, fixed, ratio),
     }
+}
+
+/// What grouping two bones across a joint that bends in the motion costs a chain split.
+const MOTION_BEND_COST: f32 = 3.0;
+
+/// Whether chain bones `i - 1` and `i` (towards their main children) are more than ~20°
+/// apart in the joint positions `pos`; a zero-length bone bends nothing.
+fn bends_at(ctx: &Ctx<'_>, pos: &[Vec3], chain: &[BoneId], i: usize) -> bool {
+    let dir = |b: BoneId| match ctx.topo.main[b.index()] {
+        Some(c) => (pos[c.index()] - pos[b.index()]).normalize_or_zero(),
+        None => Vec3::ZERO,
+    };
+    let (x, y) = (dir(chain[i - 1]), dir(chain[i]));
+    x != Vec3::ZERO && y != Vec3::ZERO && x.dot(y) < 0.94
 }
 
 /// Clavicle (or pelvis side) and helpers, upper and lower segment with their twist bones.

@@ -20,12 +20,13 @@ pub(crate) struct ChainSplit {
     pub cost: f32,
 }
 
-/// `lengths[i]` is the length of chain bone `i`; `fixed_extremity` is set when a branch point
-/// (fingers, toes) already tells where the hand / foot is; `ratio` is the expected
+/// `lengths[i]` is the length of chain bone `i`; `bent[i]` is what grouping bones `i - 1` and
+/// `i` into one segment costs because the joint between them bends (missing entries: 0); `fixed_extremity` is set when a branch
+/// point (fingers, toes) already tells where the hand / foot is; `ratio` is the expected
 /// upper / lower length ratio.
 pub(crate) fn fit_chain(
     lengths: &[f32],
-    dirs: &[glam::Vec3],
+    bent: &[f32],
     fixed_extremity: Option<usize>,
     ratio: f32,
 ) -> Option<ChainSplit> {
@@ -69,16 +70,8 @@ pub(crate) fn fit_chain(
                 // of the forearm), so a hand is not folded into the forearm to shorten it.
                 cost += 0.2 * ((b - a - 1) + (e - b - 1)) as f32;
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
-                let bent = |i: usize| {
-                    let (d0, d1) = (dirs.get(i - 1), dirs.get(i));
-                    match (d0, d1) {
-                        (Some(x), Some(y)) if *x != glam::Vec3::ZERO && *y != glam::Vec3::ZERO => {
-                            x.dot(*y) < 0.94
-                        }
-                        _ => false,
-                    }
-                };
-                cost += (a + 1..b).chain(b + 1..e).filter(|&i| bent(i)).count() as f32;
+                let bent = |i: usize| bent.get(i).copied().unwrap_or(0.0);
+                cost += (a + 1..b).chain(b + 1..e).map(bent).sum::<f32>();
                 if a > 0 {
                     // The clavicle is the last bone before the upper arm; helpers before it
                     // (MakeHuman's `__Clavicle`) do not make it longer.

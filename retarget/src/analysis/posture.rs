@@ -313,3 +313,31 @@ mod tests {
         assert!(!is_posture(&folded, &joint_positions(&folded, None)));
     }
 }
+
+/// Smallest change of a bone's local rotation over the motion (radians) that counts as moving:
+/// well above float noise in a file's written angles, well below any animated joint's swing.
+const MOVING_ANGLE: f32 = 0.01;
+
+/// Per bone, whether its local rotation changes over the view's motion (evidence of what a
+/// bone is: a BVH End Site or an exporter's end joint never rotates, a head does). `None`
+/// when the motion has fewer than two valid frames.
+pub(crate) fn moving_bones(view: &SkeletonView<'_>) -> Option<Vec<bool>> {
+    let skel = view.skeleton;
+    let valid: Vec<&Pose> = view
+        .motion
+        .iter()
+        .filter(|p| p.check(skel).is_ok())
+        .collect();
+    if valid.len() < 2 {
+        return None;
+    }
+    let step = valid.len().div_ceil(MAX_SAMPLES * 2).max(1);
+    let first = valid[0];
+    let mut moving = vec![false; skel.num_bones()];
+    for p in valid.iter().step_by(step).skip(1) {
+        for (b, m) in moving.iter_mut().enumerate() {
+            *m = *m || first.rotations[b].angle_between(p.rotations[b]) > MOVING_ANGLE;
+        }
+    }
+    Some(moving)
+}

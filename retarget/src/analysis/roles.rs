@@ -65,6 +65,7 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
     let size = extent(&pos);
     let (up, lat) = frame::up_and_lateral(skel, &topo, &pos, &body, size);
     let extension = detached::extensions(skel, &pos, &body, up);
+    let moving = posture::moving_bones(view);
     let ctx = Ctx {
         skel,
         extension: &extension,
@@ -72,6 +73,8 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
         pos: &pos,
         topo: &topo,
         names: &names,
+        moving: moving.as_deref(),
+        samples: &posture.samples,
         up,
         forward: Vec3::Z,
         size,

@@ -318,6 +318,14 @@ fn head_index(
     if nm.tokens.iter().any(|t| t == "head") {
         return last;
     }
+    // Motion: the head is the last bone of the chain that rotates; bones after it that never
+    // do are end markers (a BVH End Site, an exporter's `HeadTop_End` joint). Measured, so it
+    // outweighs proportions, which cartoon heads and robots break.
+    if let Some(m) = ctx.moving {
+        if let Some(k) = head.iter().rposition(|b| m[b.index()]) {
+            return k;
+        }
+    }
     // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
     // the names (anonymised skeletons included).
     if let Some(top) = leaf_is_skull_top(ctx, head, limbs, kinds) {

@@ -220,10 +220,11 @@ fn family(r: Role) -> u8 {
     }
 }
 
-struct Candidate {
-    input: u16,
-    bone: BoneId,
-    score: f32,
+/// One source bone scored for one target bone.
+pub(super) struct Candidate {
+    pub(super) input: u16,
+    pub(super) bone: BoneId,
+    pub(super) score: f32,
     evidence: Vec<String>,
 }
 
@@ -249,6 +250,7 @@ pub fn map_analyzed(
     }
     let picked = assign(&per_target, opts.remove_duplicates);
     fill_table(&mut table, tskel, &per_target, &picked, opts);
+    super::confidence::assess(&mut table, &per_target, &picked, sources, target);
     table
 }
 
@@ -546,6 +548,7 @@ fn fill_table(
                 .unwrap_or_default(),
             score: top.score,
             evidence: top.evidence.clone(),
+            confidence: 1.0,
         });
     }
 }

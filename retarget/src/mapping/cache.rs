@@ -16,7 +16,8 @@ use crate::skeleton::Skeleton;
 
 /// Bumped whenever the mapper's behaviour changes, so old cache entries miss.
 /// 2: a skull-top leaf (`head_top`) is the head's end marker, not the head (issue 3).
-pub const CACHE_FORMAT: u32 = 2;
+/// 3: names as evidence, the facing vote's strength, confidences and flags (issue 31).
+pub const CACHE_FORMAT: u32 = 3;
 
 /// Identity of one mapping computation.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]

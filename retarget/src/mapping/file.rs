@@ -226,6 +226,8 @@ pub fn apply_overrides(
             .ok_or_else(|| MappingFileError::UnknownTargetBone {
                 name: tname.clone(),
             })?;
+        // The person has decided this bone: nothing left to check.
+        out.flagged.retain(|f| f.bone != t);
         if fb.unmapped {
             out.entries[t.index()] = None;
             continue;
@@ -275,6 +277,7 @@ pub fn apply_overrides(
                 e.sources = refs;
                 e.score = 0.0;
                 e.evidence = vec!["override".into()];
+                e.confidence = 1.0;
                 e
             }
             (Some(e), true) => e,
@@ -283,6 +286,7 @@ pub fn apply_overrides(
                 options: BoneOptions::default(),
                 score: 0.0,
                 evidence: vec!["override".into()],
+                confidence: 1.0,
             },
             (None, true) => {
                 // Options for a bone with no source: nothing to drive.

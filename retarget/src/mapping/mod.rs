@@ -14,6 +14,7 @@
 mod auto;
 pub mod cache;
 mod colors;
+mod confidence;
 pub mod file;
 mod posture;
 mod table;
@@ -25,4 +26,4 @@ pub use file::{
     apply_overrides, parse_mapping_file, to_mapping_file, MappingFile, MappingFileError,
 };
 pub use posture::{posture_relative, Follow};
-pub use table::{BoneOptions, MappingTable, SourceRef, TargetEntry};
+pub use table::{BoneOptions, Flag, MappingTable, SourceRef, TargetEntry};

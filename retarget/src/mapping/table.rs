@@ -48,6 +48,26 @@ pub struct TargetEntry {
     pub score: f32,
     /// Short human-readable reasons that decided the match, e.g. `"side=left"`, `"name:forearm"`.
     pub evidence: Vec<String>,
+    /// 0..=1, how sure the automatic mapper is (its margin over the best alternative and
+    /// the analyses' confidence in both bones' roles); 1 for user overrides.
+    #[serde(default = "full_confidence")]
+    pub confidence: f32,
+}
+
+fn full_confidence() -> f32 {
+    1.0
+}
+
+/// A target bone a person should check: low confidence, a runner-up close behind, or a core
+/// bone left without a source.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Flag {
+    /// The target bone.
+    pub bone: BoneId,
+    /// Its entry's confidence (0 when unmapped).
+    pub confidence: f32,
+    /// Why, for a person: e.g. `"the runner-up is 1.5 points behind"`.
+    pub reason: String,
 }
 
 impl TargetEntry {
@@ -62,6 +82,10 @@ impl TargetEntry {
 pub struct MappingTable {
     /// Indexed by target [`BoneId`].
     pub entries: Vec<Option<TargetEntry>>,
+    /// Bones to check, in target bone order (the automatic mapper fills it; overrides remove
+    /// the bones they set).
+    #[serde(default)]
+    pub flagged: Vec<Flag>,
 }
 
 impl MappingTable {
@@ -69,6 +93,7 @@ impl MappingTable {
     pub fn empty(num_target_bones: usize) -> Self {
         MappingTable {
             entries: vec![None; num_target_bones],
+            flagged: Vec::new(),
         }
     }
 
@@ -86,6 +111,7 @@ impl MappingTable {
                     options: BoneOptions::default(),
                     score: 0.0,
                     evidence: vec!["name:exact".into()],
+                    confidence: 1.0,
                 });
             }
         }
@@ -95,6 +121,11 @@ impl MappingTable {
     /// Entry of one target bone.
     pub fn get(&self, target: BoneId) -> Option<&TargetEntry> {
         self.entries.get(target.index()).and_then(|e| e.as_ref())
+    }
+
+    /// The flag of one target bone, if it is flagged.
+    pub fn flag(&self, target: BoneId) -> Option<&Flag> {
+        self.flagged.iter().find(|f| f.bone == target)
     }
 
     /// Number of mapped target bones.

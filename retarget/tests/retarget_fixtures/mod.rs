@@ -238,6 +238,7 @@ pub fn table_by_canonical(
                 options: BoneOptions::default(),
                 score: 0.0,
                 evidence: vec![],
+                confidence: 1.0,
             });
         }
     }

@@ -177,6 +177,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     let colors = mapping_colors(ts, &ta, &table);
     if args.json {
         let (mapping, scores, evidence, color_map) = per_bone_json(ss, ts, &table, &colors);
+        let (confidence, flagged) = confidence_json(ts, &table);
         let out = json!({
             "source": args.source.display().to_string(),
             "target": args.target.display().to_string(),
@@ -190,6 +191,8 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
             "colors": color_map,
             "scores": scores,
             "evidence": evidence,
+            "confidence": confidence,
+            "flagged": flagged,
             "max_score": opts.max_score(),
             "threshold": opts.threshold,
             "cached": from_cache,
@@ -204,6 +207,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
             }
         }
         print!("{}", render_table(ss, &sa, ts, &ta, &table));
+        print!("{}", render_flags(ss, ts, &table));
         println!(
             "{} of {} target bones mapped in {:.2} ms{} (files read in {:.1} ms)",
             table.num_mapped(),
@@ -255,6 +259,54 @@ fn per_bone_json(
     (mapping, scores, evidence, color_map)
 }
 
+/// Per mapped target bone its confidence (0..1), and the flagged bones in target order:
+/// `[{"bone", "confidence", "reason"}]`.
+fn confidence_json(ts: &Skeleton, table: &MappingTable) -> (Map<String, Value>, Vec<Value>) {
+    let confidence = ts
+        .bone_ids()
+        .filter_map(|t| Some((ts.name(t).to_string(), json!(table.get(t)?.confidence))))
+        .collect();
+    let flagged = table
+        .flagged
+        .iter()
+        .filter(|f| f.bone.index() < ts.num_bones())
+        .map(|f| json!({"bone": ts.name(f.bone), "confidence": f.confidence, "reason": f.reason}))
+        .collect();
+    (confidence, flagged)
+}
+
+/// The flagged bones, last, each with why: what a person should check before trusting the
+/// mapping (empty when nothing is flagged).
+pub fn render_flags(ss: &Skeleton, ts: &Skeleton, table: &MappingTable) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    if table.flagged.is_empty() {
+        return out;
+    }
+    let _ = writeln!(out, "\ncheck these {} bones:", table.flagged.len());
+    for f in table
+        .flagged
+        .iter()
+        .filter(|f| f.bone.index() < ts.num_bones())
+    {
+        let src = table
+            .get(f.bone)
+            .and_then(|e| e.primary())
+            .filter(|p| p.bone.index() < ss.num_bones())
+            .map_or("-", |p| ss.name(p.bone));
+        // Writing to a String cannot fail.
+        let _ = writeln!(
+            out,
+            "  {} <- {}  confidence {:.2}: {}",
+            ts.name(f.bone),
+            src,
+            f.confidence,
+            f.reason
+        );
+    }
+    out
+}
+
 /// The readable table: target bone, its role, source bone, its role, score, evidence.
 pub fn render_table(
     ss: &Skeleton,
@@ -278,15 +330,15 @@ pub fn render_table(
     // Writing to a String cannot fail.
     let _ = writeln!(
         out,
-        "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  evidence",
-        "target", "target role", "source", "source role", "score"
+        "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  {:>4}  evidence",
+        "target", "target role", "source", "source role", "score", "conf"
     );
     for t in ts.bone_ids() {
         let (sname, srole, score, ev) = match table.get(t).and_then(|e| Some((e, e.primary()?))) {
             Some((e, p)) if p.bone.index() < ss.num_bones() => (
                 ss.name(p.bone).to_string(),
                 sa.label(p.bone),
-                format!("{:.1}", e.score),
+                format!("{:.1}  {:>4.2}", e.score, e.confidence),
                 e.evidence.join(" "),
             ),
             _ => ("-".into(), String::new(), String::new(), String::new()),
@@ -294,7 +346,7 @@ pub fn render_table(
         // Writing to a String cannot fail.
         let _ = writeln!(
             out,
-            "{:w$}  {:22}  {:ws$}  {:22}  {:>6}  {}",
+            "{:w$}  {:22}  {:ws$}  {:22}  {:>12}  {}",
             ts.name(t),
             ta.label(t),
             sname,

@@ -80,10 +80,10 @@ pub fn label_files(root: &std::path::Path) -> Vec<PathBuf> {
 pub fn all_labels(root: &std::path::Path) -> serde_json::Map<String, serde_json::Value> {
     let mut out = serde_json::Map::new();
     for file in label_files(root) {
-        let text = std::fs::read_to_string(&file)
-            .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
-        let value: serde_json::Value = serde_json::from_str(&text)
-            .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let text =
+            std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let value: serde_json::Value =
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
         for (key, v) in value.as_object().into_iter().flatten() {
             if !key.starts_with('_') && !out.contains_key(key) {
                 out.insert(key.clone(), v.clone());
