@@ -23,6 +23,7 @@ use petgraph::graph::{DiGraph, NodeIndex};
 use petgraph::visit::Dfs;
 use serde::{Deserialize, Serialize};
 
+use super::candidate::Candidate;
 use super::table::{BoneOptions, MappingTable, SourceRef, TargetEntry};
 use crate::analysis::{analyze, names, Analysis, Role, SectionKind, Side, SkeletonView};
 use crate::skeleton::{BoneId, Skeleton};
@@ -220,13 +221,7 @@ fn family(r: Role) -> u8 {
     }
 }
 
-/// One source bone scored for one target bone.
-pub(super) struct Candidate {
-    pub(super) input: u16,
-    pub(super) bone: BoneId,
-    pub(super) score: f32,
-    evidence: Vec<String>,
-}
+
 
 /// Maps already-analysed skeletons (lets callers reuse analyses).
 pub fn map_analyzed(

@@ -23,7 +23,7 @@
 
 use std::collections::HashMap;
 
-use super::auto::Candidate;
+use super::candidate::Candidate;
 use super::table::{Flag, MappingTable};
 use crate::analysis::{Analysis, Role, SectionKind};
 use crate::skeleton::{BoneId, Skeleton};

@@ -12,6 +12,7 @@
 //! (rest alignment precomputed) is the retargeting stage's job.
 
 mod auto;
+mod candidate;
 pub mod cache;
 mod colors;
 mod confidence;
