@@ -333,6 +333,9 @@ class Crate:
                     cur.refs.append(tuple(absolute))
                 i = j
                 continue
+            elif t in cur.reexports and (i == 0 or toks[i - 1] not in ("::", ".", "$")):
+                # A name the module re-exports (`pub use`) and also uses itself.
+                cur.refs.append(cur.reexports[t])
             i += 1
 
     # -- resolving a path to the module whose own code holds it

@@ -117,6 +117,14 @@ class CheckLayers(unittest.TestCase):
         }, extra_layers="  inner\n")
         self.assert_fails(root, "circle among the modules of inner: (own) <-> a")
 
+    def test_a_parent_calling_a_child_through_its_re_export_is_a_circle(self):
+        root = workspace({
+            "app/src/lib.rs": "pub mod top;\npub mod middle;\npub mod bottom;\npub mod inner;\n",
+            "app/src/inner/mod.rs": "mod a;\npub use a::run;\npub struct Shared;\npub fn go() { run() }\n",
+            "app/src/inner/a.rs": "use super::Shared;\npub fn run() { let _ = Shared; }\n",
+        }, extra_layers="  inner\n")
+        self.assert_fails(root, "circle among the modules of inner: (own) <-> a")
+
     def test_a_known_exception_allows_an_arrow_and_a_stale_one_fails(self):
         upward = {"app/src/bottom.rs": "use crate::top::make;\npub struct Bottom;\n"}
         allowed = "\nexceptions app:\n  bottom -> top\n"

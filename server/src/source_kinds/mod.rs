@@ -24,7 +24,7 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 use rigcast_protocol::SourceKind;
-use rigcast_retarget::{Clip, Pose, Skeleton};
+use rigcast_retarget::{Pose, Skeleton};
 use rigcast_sources::live::LiveSource;
 use rigcast_sources::serial::CalibrationHandle;
 use rigcast_sources::Replay;
@@ -192,24 +192,6 @@ impl SourceSpec {
     /// The bundled demo.
     pub fn demo() -> SourceSpec {
         SourceSpec::EmbeddedDemo(DemoSpec)
-    }
-
-    /// A file replayed with default settings, named after the file.
-    pub fn replay_file(path: impl Into<PathBuf>) -> SourceSpec {
-        SourceSpec::ReplayFile(ReplayFileSpec {
-            path: path.into(),
-            name: None,
-            settings: ReplaySettings::default(),
-        })
-    }
-
-    /// A clip in memory replayed with default settings, named after the clip.
-    pub fn replay_clip(clip: Clip) -> SourceSpec {
-        SourceSpec::ReplayClip(ReplayClipSpec {
-            clip,
-            name: None,
-            settings: ReplaySettings::default(),
-        })
     }
 }
 

@@ -9,7 +9,7 @@ use rigcast_retarget::Clip;
 use rigcast_sources::{load_clip_and_humanoid, LoadOptions, LoadedClip, Replay, ReplayOptions};
 use serde::Deserialize;
 
-use super::{file_arg, CliError, KindSpec, Loaded, Opened};
+use super::{file_arg, CliError, KindSpec, Loaded, Opened, SourceSpec};
 use crate::config_error::ConfigError;
 
 /// Playback settings of a replayed clip.
@@ -30,6 +30,27 @@ impl Default for ReplaySettings {
             looping: true,
             start_offset_secs: 0.0,
         }
+    }
+}
+
+// The replay constructors live with the replay specs they make.
+impl SourceSpec {
+    /// A file replayed with default settings, named after the file.
+    pub fn replay_file(path: impl Into<PathBuf>) -> SourceSpec {
+        SourceSpec::ReplayFile(ReplayFileSpec {
+            path: path.into(),
+            name: None,
+            settings: ReplaySettings::default(),
+        })
+    }
+
+    /// A clip in memory replayed with default settings, named after the clip.
+    pub fn replay_clip(clip: Clip) -> SourceSpec {
+        SourceSpec::ReplayClip(ReplayClipSpec {
+            clip,
+            name: None,
+            settings: ReplaySettings::default(),
+        })
     }
 }
 
