@@ -686,22 +686,35 @@ function renderMapping() {
   const mapping = state.mappings.get(state.mappingSubject);
   const body = $('mapping').querySelector('tbody');
   body.replaceChildren();
-  if (!mapping) { $('mapping-title').textContent = 'no retargeted subject'; return; }
+  if (!mapping) { $('mapping-title').textContent = 'no retargeted subject'; $('mapping-flags').textContent = ''; return; }
   const target = state.subjects.get(mapping.subject)?.name ?? mapping.subject;
   const source = state.subjects.get(mapping.source_subject)?.name ?? mapping.source_subject;
   $('mapping-title').textContent = `${target} ← ${source}`;
   for (const entry of mapping.entries ?? []) {
     const tr = document.createElement('tr');
-    if (!entry.source) tr.className = 'unmapped';
+    if (!entry.source) tr.classList.add('unmapped');
     tr.dataset.target = entry.target;
     const c = mappingColor(entry) ?? [0.5, 0.5, 0.5];
-    tr.innerHTML = '<td class="swatch"><span></span></td><td></td><td></td><td></td>';
+    tr.innerHTML = '<td class="swatch"><span></span></td><td></td><td></td><td></td><td class="check"></td>';
     tr.children[0].firstChild.style.background = `rgb(${c.map((v) => Math.round(v * 255)).join(',')})`;
     tr.children[1].textContent = entry.target;
     tr.children[2].textContent = entry.source ?? '—';
-    tr.children[3].textContent = typeof entry.score === 'number' ? entry.score.toFixed(2) : '';
+    // Confidence (absent from older servers: the score).
+    const sure = typeof entry.confidence === 'number' ? entry.confidence : entry.score;
+    tr.children[3].textContent = typeof sure === 'number' ? sure.toFixed(2) : '';
+    if (entry.flagged) {
+      // A bone the mapper is unsure of: marked, with why, for the user to check and fix
+      // with an override (set_mapping, a mapping file, or the Blender add-on's list).
+      tr.classList.add('flagged');
+      tr.children[4].textContent = '⚠';
+      tr.title = `check this bone: ${entry.flagged}`;
+    }
     body.appendChild(tr);
   }
+  const flagged = (mapping.entries ?? []).filter((entry) => entry.flagged).length;
+  $('mapping-flags').textContent = flagged
+    ? `${flagged} bone${flagged === 1 ? '' : 's'} to check (⚠, reason on hover); fix with overrides`
+    : 'no bones flagged';
 }
 
 function applyMappingColors() {

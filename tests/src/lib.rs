@@ -205,7 +205,7 @@ pub fn f64s(v: &serde_json::Value) -> Vec<f64> {
 
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
-pub use shared_data::{shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
+pub use shared_data::{shared_clip, shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
 
 /// A 6-bone creature with a tail, animated with distinct rotations on every bone: 48 frames at
 /// 30 fps. Built in code so tests do not depend on any file.

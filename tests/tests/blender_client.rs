@@ -12,7 +12,9 @@
 //!   recorded Action are checked too.
 //! - mapping: the default demo (`demo` + retargeted `mannequin`); the add-on's mapping list and
 //!   bone colours must equal the server's `mapping` message, and an override picked in the list
-//!   must come back from the server as a new `mapping` that the list then shows.
+//!   must come back from the server as a new `mapping` that the list then shows. With the
+//!   shared data, a mapping with flagged bones (Meredith onto the mannequin): the list marks
+//!   exactly the flagged rows.
 //! - binary: the `rigcast` binary started with only `--listen`, the zip built by the documented
 //!   command, the add-on's default settings apart from the address.
 //!
@@ -506,6 +508,12 @@ matrix!(shows_and_overrides_the_server_mapping:
     blender_4_2_shows_and_overrides_the_server_mapping => Blender::module("4.2"),
     blender_4_5_shows_and_overrides_the_server_mapping => Blender::module("4.5"),
     blender_5_0_shows_and_overrides_the_server_mapping => Blender::module("5.0"),
+);
+matrix!(marks_the_bones_the_mapper_flagged:
+    blender_3_4_marks_the_bones_the_mapper_flagged => Blender::app(),
+    blender_4_2_marks_the_bones_the_mapper_flagged => Blender::module("4.2"),
+    blender_4_5_marks_the_bones_the_mapper_flagged => Blender::module("4.5"),
+    blender_5_0_marks_the_bones_the_mapper_flagged => Blender::module("5.0"),
 );
 matrix!(zip_connects_to_the_rigcast_binary:
     blender_3_4_zip_connects_to_the_rigcast_binary => Blender::app(),
@@ -1119,6 +1127,7 @@ fn assert_list_equals_message(list: &Value, message: &Value, what: &str) {
             entry["target"],
             entry["score"]
         );
+        check_flag_shown(row, entry, what);
         for key in ["color_gradient", "color_random"] {
             let distance = (vec3(&row[key]) - vec3(&entry[key])).length();
             assert!(
@@ -1130,6 +1139,27 @@ fn assert_list_equals_message(list: &Value, message: &Value, what: &str) {
             );
         }
     }
+}
+
+/// A row shows the entry's confidence, and the warning icon exactly when the entry is flagged
+/// (with the reason kept for the panel).
+fn check_flag_shown(row: &Value, entry: &Value, what: &str) {
+    let target = &entry["target"];
+    let flagged = entry.get("flagged").cloned().unwrap_or(Value::Null);
+    assert_eq!(row["flagged"], flagged, "{what}: flag of {target}");
+    let icon = if flagged.is_null() { "NONE" } else { "ERROR" };
+    assert_eq!(row["icon"], icon, "{what}: icon of {target}");
+    let want = entry["confidence"].as_f64().unwrap_or(1.0);
+    let got = row["confidence"].as_f64().unwrap();
+    assert!(
+        (got - want).abs() < 1e-5,
+        "{what}: confidence of {target}: {got} vs {want}"
+    );
+    assert_eq!(
+        row["confidence_text"],
+        format!("{want:.2}"),
+        "{what}: {target}"
+    );
 }
 
 /// Checks the armatures' bone colours against a mapping message: every target bone with an
@@ -1275,11 +1305,89 @@ async fn shows_and_overrides_the_server_mapping(blender: Blender) {
         .find(|e| e["target"] == target.as_str())
         .unwrap();
     assert_eq!(entry["score"].as_f64(), Some(0.0), "overrides score 0");
+    // The user has decided the bone: full confidence, no flag (a flagged row is the one picked
+    // when the mapping has one).
+    assert_eq!(
+        entry["confidence"].as_f64(),
+        Some(1.0),
+        "overrides are sure"
+    );
+    assert!(
+        entry.get("flagged").is_none(),
+        "an override stays flagged: {entry}"
+    );
+    let flagged_before = before["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e.get("flagged").is_some())
+        .count();
+    if flagged_before > 0 {
+        assert!(
+            !result["picked_row"]["flagged"].is_null(),
+            "{flagged_before} flagged rows, but an unflagged one was picked"
+        );
+    }
+    println!("mapping: {flagged_before} flagged bones before the override");
     assert_list_equals_message(&result["list_after"], after, "after the override");
     assert_bone_colors(&result["colors_after"], after, "color_gradient");
     println!(
         "mapping: {rows} rows equal the server's; override {target} ← {new_source} (was {}) came back from the server and is shown",
         source_of(before)
+    );
+    let _ = std::fs::remove_dir_all(&work);
+}
+
+/// A mapping with flagged bones (the shared data's sparse-spined Meredith onto the built-in
+/// mannequin, whose chest and neck no source bone can drive; skipped without the data): the
+/// add-on's list equals the server's message with its flags, marks exactly the flagged rows
+/// with the warning icon and shows each row's confidence.
+async fn marks_the_bones_the_mapper_flagged(blender: Blender) {
+    let Some(clip) = rigcast_tests::shared_clip(rigcast_tests::MEREDITH) else {
+        return;
+    };
+    let config = ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![rigcast_tests::clip_source(clip)],
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let addr = server.local_addr();
+    let observed = Arc::new(Mutex::new(Observed::default()));
+    let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
+    let work = work_dir();
+    let token = server.control_token().reveal().to_string();
+    let result =
+        run_blender_with_token(blender, addr, &work, "mapping", Zip::Build, Some(token)).await;
+    watcher.abort();
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let observed = observed.lock().unwrap();
+    let before = observed
+        .mappings
+        .first()
+        .expect("the server's first mapping");
+    let flagged: Vec<&Value> = before["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e.get("flagged").is_some())
+        .collect();
+    assert!(
+        !flagged.is_empty(),
+        "a sparse spine onto the mannequin flags nothing"
+    );
+    assert_list_equals_message(&result["list_before"], before, "flagged mapping");
+    let marked = result["list_before"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|row| row["icon"] == "ERROR")
+        .count();
+    assert_eq!(marked, flagged.len(), "marked rows");
+    println!(
+        "mapping: {marked} flagged rows marked in the add-on's list: {:?}",
+        flagged.iter().map(|e| &e["target"]).collect::<Vec<_>>()
     );
     let _ = std::fs::remove_dir_all(&work);
 }

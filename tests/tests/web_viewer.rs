@@ -82,7 +82,9 @@ async fn check_table(cdp: &mut DevTools, entries: &[MappingEntry], random: bool)
         .eval_json(
             "JSON.stringify([...document.querySelectorAll('#mapping tbody tr')].map(tr => ({ \
                target: tr.children[1].textContent, source: tr.children[2].textContent, \
-               color: getComputedStyle(tr.querySelector('.swatch span')).backgroundColor })))",
+               color: getComputedStyle(tr.querySelector('.swatch span')).backgroundColor, \
+               flagged: tr.classList.contains('flagged'), mark: tr.children[4].textContent, \
+               why: tr.title })))",
         )
         .await;
     let rows = rows.as_array().unwrap();
@@ -92,6 +94,7 @@ async fn check_table(cdp: &mut DevTools, entries: &[MappingEntry], random: bool)
     for (row, entry) in rows.iter().zip(entries) {
         assert_eq!(row["target"], entry.target.as_str());
         assert_eq!(row["source"], entry.source.as_deref().unwrap_or("—"));
+        check_flag(row, entry);
         let want = if random {
             entry.color_random
         } else {
@@ -110,6 +113,89 @@ async fn check_table(cdp: &mut DevTools, entries: &[MappingEntry], random: bool)
         distinct.len() >= 10,
         "only {} distinct colours",
         distinct.len()
+    );
+}
+
+/// A row is marked (class, ⚠, the reason on hover) exactly when its entry is flagged.
+fn check_flag(row: &Value, entry: &MappingEntry) {
+    match &entry.flagged {
+        Some(why) => {
+            assert_eq!(
+                row["flagged"], true,
+                "row {} not marked: {row}",
+                entry.target
+            );
+            assert_eq!(row["mark"], "⚠", "row {}: {row}", entry.target);
+            assert!(
+                row["why"].as_str().unwrap().contains(why.as_str()),
+                "row {}: hover text {} lacks {why:?}",
+                entry.target,
+                row["why"]
+            );
+        }
+        None => {
+            assert_eq!(row["flagged"], false, "row {} marked: {row}", entry.target);
+            assert_eq!(row["mark"], "", "row {}: {row}", entry.target);
+        }
+    }
+}
+
+/// A mapping with flagged bones (a source whose sparse spine has no chest or neck for the
+/// mannequin's, from the shared data; skipped without it): the viewer marks exactly the
+/// flagged rows, gives their count, and the message's other rows stay unmarked.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn viewer_marks_the_bones_the_mapper_flagged() {
+    let Some(chromium) = find_app("chromium") else {
+        return;
+    };
+    let Some(clip) = rigcast_tests::shared_clip(rigcast_tests::MEREDITH) else {
+        return;
+    };
+    let config = rigcast_server::ServerConfig {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        sources: vec![rigcast_tests::clip_source(clip)],
+        performers: vec![rigcast_server::PerformerSpec::target_file(
+            "builtin:mannequin",
+        )],
+        ..rigcast_server::ServerConfig::default()
+    };
+    let server = rigcast_server::start(config).await.unwrap();
+    let (_, _, _, entries) = server_mapping(&server.stream_url()).await;
+    let flagged: Vec<&MappingEntry> = entries.iter().filter(|e| e.flagged.is_some()).collect();
+    println!(
+        "flagged: {:?}",
+        flagged
+            .iter()
+            .map(|e| (&e.target, &e.flagged))
+            .collect::<Vec<_>>()
+    );
+    assert!(
+        !flagged.is_empty(),
+        "a sparse spine onto the mannequin flags nothing"
+    );
+    assert!(
+        flagged.len() < entries.len() / 2,
+        "nearly everything flagged"
+    );
+    let (_browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let shown = cdp
+        .poll_json(
+            "JSON.stringify(document.querySelectorAll('#mapping tbody tr').length)",
+            Duration::from_secs(20),
+            Duration::from_millis(200),
+            |n| n.as_u64() == Some(entries.len() as u64),
+        )
+        .await;
+    assert_eq!(shown, entries.len() as u64, "mapping table never filled");
+    check_table(&mut cdp, &entries, false).await;
+    let count = cdp
+        .eval("document.getElementById('mapping-flags').textContent")
+        .await;
+    assert!(
+        count
+            .as_str()
+            .is_some_and(|c| c.starts_with(&format!("{} bone", flagged.len()))),
+        "flag count: {count}"
     );
 }
 

@@ -534,6 +534,11 @@ def refresh_mapping_ui(settings, runtime):
         item.source = source if isinstance(source, str) else ""
         score = entry.get("score")
         item.score = float(score) if isinstance(score, (int, float)) else 0.0
+        # Older servers send no confidence: full, as the protocol reads it.
+        confidence = entry.get("confidence", 1.0)
+        item.confidence = float(confidence) if isinstance(confidence, (int, float)) else 1.0
+        flagged = entry.get("flagged")
+        item.flagged = flagged if isinstance(flagged, str) else ""
         item.color_gradient = _color(entry.get("color_gradient"))
         item.color_random = _color(entry.get("color_random"))
     skeleton = runtime.skeletons.get(mapping.get("source_subject"))

@@ -50,6 +50,8 @@ class RIGCAST_PG_mapping(bpy.types.PropertyGroup):
     target: StringProperty(name="Target bone")
     source: StringProperty(name="Source bone")
     score: FloatProperty(name="Score")
+    confidence: FloatProperty(name="Confidence", default=1.0)
+    flagged: StringProperty(name="Check", description="Why the mapper asks to check this bone; empty when it does not")
     color_gradient: FloatVectorProperty(name="Gradient colour", subtype="COLOR", size=3, min=0, max=1)
     color_random: FloatVectorProperty(name="Random colour", subtype="COLOR", size=3, min=0, max=1)
 
@@ -216,9 +218,16 @@ class RIGCAST_UL_mapping(bpy.types.UIList):
         sub = row.row()
         sub.ui_units_x = 1
         sub.prop(item, "color_random" if settings.color_mode == "RANDOM" else "color_gradient", text="")
-        row.label(text=item.target)
+        icon, confidence = mapping_row_marks(item)
+        row.label(text=item.target, icon=icon)
         row.label(text=item.source or "(unmapped)")
-        row.label(text="%.2f" % item.score)
+        row.label(text=confidence)
+
+
+def mapping_row_marks(item):
+    """(icon, confidence text) of a mapping row: a flagged bone wears the warning icon, for the
+    user to check and fix with an override (pick the row, pick a bone, Send)."""
+    return ("ERROR" if item.flagged else "NONE", "%.2f" % item.confidence)
 
 
 def _selected(items, index):
@@ -289,6 +298,13 @@ class RIGCAST_PT_panel(bpy.types.Panel):
                     layout.label(text="feet: " + feet, icon="INFO")
 
             layout.label(text="Mapping (pick a row, pick a bone)")
+            flagged = [item for item in settings.mapping_items if item.flagged]
+            if flagged:
+                layout.label(text="%d bone(s) to check (marked); pick one to see why" % len(flagged), icon="ERROR")
+                if 0 <= settings.mapping_index < len(settings.mapping_items):
+                    picked = settings.mapping_items[settings.mapping_index]
+                    if picked.flagged:
+                        layout.label(text="%s: %s" % (picked.target, picked.flagged))
             layout.template_list("RIGCAST_UL_mapping", "", settings, "mapping_items", settings, "mapping_index", rows=5)
             row = layout.row(align=True)
             row.prop_search(settings, "override_source", settings, "source_bones", text="")

@@ -51,11 +51,11 @@ def parse_args():
     return args
 
 
-def find_addon_module():
+def find_addon_module(part="livelink"):
     for name, module in list(sys.modules.items()):
-        if name.endswith("rigcast_livelink.livelink"):
+        if name.endswith("rigcast_livelink." + part):
             return module
-    raise RuntimeError("add-on module rigcast_livelink.livelink not loaded")
+    raise RuntimeError("add-on module rigcast_livelink.%s not loaded" % part)
 
 
 CLIENT_DIR = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
@@ -399,12 +399,18 @@ def run_connect(out, runtime, settings, pump):
 
 
 def mapping_list(settings):
-    """The add-on's mapping list as the panel shows it."""
+    """The add-on's mapping list as the panel shows it (with each row's icon and confidence
+    text, from the same function its list draws with)."""
+    marks = find_addon_module("ui").mapping_row_marks
     return [
         {
             "target": item.target,
             "source": item.source or None,
             "score": item.score,
+            "confidence": item.confidence,
+            "flagged": item.flagged or None,
+            "icon": marks(item)[0],
+            "confidence_text": marks(item)[1],
             "color_gradient": list(item.color_gradient),
             "color_random": list(item.color_random),
         }
@@ -445,12 +451,19 @@ def run_mapping(out, runtime, settings, pump):
             "source": bone_colors(by_id[source_id]),
         }
 
-    # Pick a mapped row, pick another source bone for it, send.
+    # Pick a mapped row (a flagged one, as a user checking the marked bones would, when there
+    # is one), pick another source bone for it, send.
     items = list(settings.mapping_items)
     mapped = [i for i, item in enumerate(items) if item.source]
-    row = mapped[len(mapped) // 2]
+    flagged = [i for i in mapped if items[i].flagged]
+    row = flagged[0] if flagged else mapped[len(mapped) // 2]
     settings.mapping_index = row
-    out["picked_row"] = {"index": row, "target": items[row].target, "shown_source": settings.override_source}
+    out["picked_row"] = {
+        "index": row,
+        "target": items[row].target,
+        "shown_source": settings.override_source,
+        "flagged": items[row].flagged or None,
+    }
     others = [b.name for b in settings.source_bones if b.name != items[row].source]
     new_source = others[len(others) // 3]
     settings.override_source = new_source
