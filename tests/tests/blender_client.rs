@@ -1204,23 +1204,35 @@ fn assert_bone_colors(colors: &Value, message: &Value, key: &str) {
     }
 }
 
-async fn shows_and_overrides_the_server_mapping(blender: Blender) {
-    let server = start_demo_server().await;
+/// The add-on's mapping scenario against `server` (its control token typed into the Token
+/// field: overriding a mapping changes the server), our own client watching the stream until
+/// it has seen `mappings` mapping messages (at most 5 s after Blender finished); the server is
+/// shut down after. The script's result and what the watcher saw.
+async fn mapping_scenario(
+    blender: Blender,
+    server: rigcast_server::ServerHandle,
+    work: &Path,
+    mappings: usize,
+) -> (Value, Arc<Mutex<Observed>>) {
     let addr = server.local_addr();
     let observed = Arc::new(Mutex::new(Observed::default()));
     let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
-    let work = work_dir();
-    // Overriding a mapping changes the server: the add-on's Token field holds the token.
     let token = server.control_token().reveal().to_string();
     let result =
-        run_blender_with_token(blender, addr, &work, "mapping", Zip::Build, Some(token)).await;
-    // Give the broadcast of the rebuilt mapping a moment to reach our client too.
+        run_blender_with_token(blender, addr, work, "mapping", Zip::Build, Some(token)).await;
     let deadline = Instant::now() + Duration::from_secs(5);
-    while observed.lock().unwrap().mappings.len() < 2 && Instant::now() < deadline {
+    while observed.lock().unwrap().mappings.len() < mappings && Instant::now() < deadline {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     watcher.abort();
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    (result, observed)
+}
+
+async fn shows_and_overrides_the_server_mapping(blender: Blender) {
+    let work = work_dir();
+    // The override's rebuilt mapping is the second message our client sees.
+    let (result, observed) = mapping_scenario(blender, start_demo_server().await, &work, 2).await;
     let observed = observed.lock().unwrap();
 
     let target = result["override"]["target"].as_str().unwrap().to_string();
@@ -1353,15 +1365,8 @@ async fn marks_the_bones_the_mapper_flagged(blender: Blender) {
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
-    let addr = server.local_addr();
-    let observed = Arc::new(Mutex::new(Observed::default()));
-    let watcher = tokio::spawn(watch_stream(addr, observed.clone()));
     let work = work_dir();
-    let token = server.control_token().reveal().to_string();
-    let result =
-        run_blender_with_token(blender, addr, &work, "mapping", Zip::Build, Some(token)).await;
-    watcher.abort();
-    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    let (result, observed) = mapping_scenario(blender, server, &work, 1).await;
     let observed = observed.lock().unwrap();
     let before = observed
         .mappings
