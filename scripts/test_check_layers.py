@@ -110,20 +110,16 @@ class CheckLayers(unittest.TestCase):
         self.assert_fails(root, "`bottom` uses `top`, a higher layer")
 
     def test_a_parent_calling_a_child_that_uses_the_parent_is_a_circle(self):
-        root = workspace({
-            "app/src/lib.rs": "pub mod top;\npub mod middle;\npub mod bottom;\npub mod inner;\n",
-            "app/src/inner/mod.rs": "mod a;\npub struct Shared;\npub fn go() { a::run() }\n",
-            "app/src/inner/a.rs": "use super::Shared;\npub fn run() { let _ = Shared; }\n",
-        }, extra_layers="  inner\n")
-        self.assert_fails(root, "circle among the modules of inner: (own) <-> a")
-
-    def test_a_parent_calling_a_child_through_its_re_export_is_a_circle(self):
-        root = workspace({
-            "app/src/lib.rs": "pub mod top;\npub mod middle;\npub mod bottom;\npub mod inner;\n",
-            "app/src/inner/mod.rs": "mod a;\npub use a::run;\npub struct Shared;\npub fn go() { run() }\n",
-            "app/src/inner/a.rs": "use super::Shared;\npub fn run() { let _ = Shared; }\n",
-        }, extra_layers="  inner\n")
-        self.assert_fails(root, "circle among the modules of inner: (own) <-> a")
+        # Called by path, or through a name the parent re-exports.
+        for parent in ("mod a;\npub struct Shared;\npub fn go() { a::run() }\n",
+                       "mod a;\npub use a::run;\npub struct Shared;\npub fn go() { run() }\n"):
+            with self.subTest(parent=parent):
+                root = workspace({
+                    "app/src/lib.rs": "pub mod top;\npub mod middle;\npub mod bottom;\npub mod inner;\n",
+                    "app/src/inner/mod.rs": parent,
+                    "app/src/inner/a.rs": "use super::Shared;\npub fn run() { let _ = Shared; }\n",
+                }, extra_layers="  inner\n")
+                self.assert_fails(root, "circle among the modules of inner: (own) <-> a")
 
     def test_a_known_exception_allows_an_arrow_and_a_stale_one_fails(self):
         upward = {"app/src/bottom.rs": "use crate::top::make;\npub struct Bottom;\n"}
