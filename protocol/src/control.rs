@@ -147,6 +147,37 @@ impl std::fmt::Display for SourceState {
     }
 }
 
+/// A camera source's mode and where its frames' time goes (`camera` of [`SourceHealth`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraStatus {
+    /// Frame width in pixels.
+    pub width: u32,
+    /// Frame height in pixels.
+    pub height: u32,
+    /// Frames per second asked of the driver.
+    pub fps: u32,
+    /// Pixel format (`YUYV`, `MJPG`).
+    pub format: String,
+    /// Per stage over the last frames (at most 256), in order: `capture` (the driver's
+    /// timestamp to the frame handed over), `decode` (to RGB), `detect` (finding people),
+    /// `landmarks` (the landmark model on tracked people), `solve` (smoothing, lengths,
+    /// rotations), `glass_to_pose` (timestamp to pose published, all of the above).
+    pub stages: Vec<StageLatency>,
+}
+
+/// Percentiles of one stage's time, milliseconds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageLatency {
+    /// The stage.
+    pub stage: String,
+    /// Median.
+    pub p50_ms: f32,
+    /// 99th percentile.
+    pub p99_ms: f32,
+    /// Frames measured.
+    pub samples: u32,
+}
+
 /// Health of one source subject in a `source_status` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceHealth {
@@ -169,6 +200,9 @@ pub struct SourceHealth {
     /// `calibration failed: REASON`). Empty when there is nothing to say.
     #[serde(default)]
     pub detail: String,
+    /// A camera's mode and stage latencies (absent for other sources).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraStatus>,
 }
 
 /// What drives a target character at the moment (`motion` in `source_status.targets`).
@@ -687,6 +721,7 @@ mod tests {
                     frames: 1200,
                     dropped: 3,
                     detail: "calibrated (T-pose)".into(),
+                    camera: None,
                 }],
                 targets: vec![
                     TargetHealth {

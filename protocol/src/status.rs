@@ -221,6 +221,7 @@ mod tests {
                     frames: 312,
                     dropped: 0,
                     detail: String::new(),
+                    camera: None,
                 }),
                 listen: None,
                 skeleton_changes: 0,

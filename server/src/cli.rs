@@ -28,6 +28,8 @@ pub struct Cli {
 pub enum Command {
     /// Stream poses over WebSocket (and VMC) — the default.
     Serve(cmd::serve::ServeArgs),
+    /// List cameras (index, name, modes), serial ports and the VMC ports in use.
+    Devices(cmd::devices::DevicesArgs),
     /// Describe an animation file: bone tree, height, frame rate, duration.
     Info(cmd::info::InfoArgs),
     /// Convert between animation formats (chosen by extension).
@@ -71,6 +73,7 @@ impl Command {
         match self {
             Command::Serve(a) => cmd::serve::run(a).await,
             Command::Info(a) => cmd::info::run(a),
+            Command::Devices(a) => cmd::devices::run(&a),
             Command::Convert(a) => cmd::convert::run(a),
             Command::Record(a) => cmd::record::run(a).await,
             Command::Retarget(a) => cmd::retarget::run(&a),

@@ -529,6 +529,7 @@ impl Subject {
                 frames: s.frames,
                 dropped: s.dropped,
                 detail: self.detail(s.detail),
+                camera: s.camera,
             },
             None => SourceHealth {
                 subject: self.id,
@@ -539,6 +540,7 @@ impl Subject {
                 frames: self.stats.input.total(),
                 dropped: 0,
                 detail: self.detail(String::new()),
+                camera: None,
             },
         })
     }
@@ -569,6 +571,7 @@ mod tests {
                 frames: 0,
                 dropped: 0,
                 detail: detail.into(),
+                camera: None,
             });
             s.source_health().unwrap().detail
         };

@@ -294,6 +294,7 @@ mod tests {
             frames: 0,
             dropped: 0,
             detail: String::new(),
+            camera: None,
         }
     }
 

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod calibrate;
 pub mod convert;
+pub mod devices;
 pub mod graft;
 pub mod graph;
 pub mod info;

@@ -150,6 +150,7 @@ impl HealthTracker {
             frames: self.frames,
             dropped: self.dropped,
             detail: self.detail.clone(),
+            camera: None,
         }
     }
 

@@ -46,6 +46,9 @@ pub struct SourceStatus {
     pub dropped: u64,
     /// Human-readable detail (last error, port name, calibration state).
     pub detail: String,
+    /// A camera's mode and stage latencies (cameras only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<rigcast_protocol::control::CameraStatus>,
 }
 
 /// Provenance of one frame written by [`LiveSource::next_frame`].

@@ -15,6 +15,7 @@
 //! back by itself.
 
 pub mod parse;
+pub mod ports;
 pub mod solve;
 
 use std::io::Read;

@@ -66,6 +66,8 @@ impl Default for PipelineConfig {
 pub struct PosePipeline {
     tracker: PoseTracker,
     people: Vec<Person>,
+    /// Time the last frame spent in the model-free stages (smoothing, lengths, solving).
+    solve_time: std::time::Duration,
 }
 
 /// One identity slot's stages and outputs.
@@ -116,7 +118,11 @@ impl PosePipeline {
                 seen: false,
             });
         }
-        Ok(PosePipeline { tracker, people })
+        Ok(PosePipeline {
+            tracker,
+            people,
+            solve_time: std::time::Duration::ZERO,
+        })
     }
 
     /// The BlazePose source skeleton poses are written for.
@@ -149,6 +155,7 @@ impl PosePipeline {
     /// last pose (the caller holds it).
     pub fn process_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         self.tracker.process_frame(frame)?;
+        let solving = std::time::Instant::now();
         for (slot, person) in self.people.iter_mut().enumerate() {
             match self.tracker.person(slot) {
                 Some(tracked) => {
@@ -165,7 +172,13 @@ impl PosePipeline {
                 }
             }
         }
+        self.solve_time = solving.elapsed();
         Ok(())
+    }
+
+    /// Time the last frame spent after the model: smoothing, limb lengths, solving.
+    pub fn solve_time(&self) -> std::time::Duration {
+        self.solve_time
     }
 
     /// Smoothed landmarks (source pixels) of person `slot` in the last frame, if seen.

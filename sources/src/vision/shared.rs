@@ -24,11 +24,13 @@ use std::time::{Duration, Instant};
 
 use rigcast_retarget::{Pose, Skeleton};
 
+use super::camera_modes::CameraMode;
 use super::error::VisionError;
 use super::frame::{FrameSource, RgbFrame};
 use super::landmarks::Landmarks;
 use super::pipeline::PosePipeline;
 use super::source::LandmarkTap;
+use super::stage_times::StageTimes;
 use crate::live::{
     unix_nanos_now, wait_until, HealthTracker, LiveSource, NextFrame, Pace, RawTap, SourceError,
     SourceStatus,
@@ -75,6 +77,9 @@ struct Slots {
     ended: Option<Ended>,
     /// Counts the times the camera was lost, with why the last time (cleared by a frame).
     lost: (u64, Option<String>),
+    /// A camera's mode (as of its last frame) and where its frames' time went.
+    camera: Option<CameraMode>,
+    stages: StageTimes,
     /// Set when the last person source is dropped.
     stop: bool,
 }
@@ -170,6 +175,8 @@ impl SharedVision {
                 slots,
                 ended: None,
                 lost: (0, None),
+                camera: None,
+                stages: StageTimes::default(),
                 stop: false,
             }),
             changed: Condvar::new(),
@@ -270,10 +277,27 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
         } else {
             unix_nanos_now()
         };
+        let found_before = runner.pipeline.stats().find_nanos;
         if let Err(e) = runner.pipeline.process_frame(&frame) {
             break Ended::Failed(e.to_string());
         }
+        let model = arrived.elapsed().saturating_sub(runner.pipeline.solve_time());
         publish(&runner.pipeline, &frame, arrived, capture_nanos, shared);
+        if frame.clock.captured_unix_nanos > 0 {
+            let detect = runner.pipeline.stats().find_nanos - found_before;
+            let c = frame.clock;
+            let times = [
+                c.dequeued_unix_nanos.saturating_sub(c.captured_unix_nanos),
+                c.decoded_unix_nanos.saturating_sub(c.dequeued_unix_nanos),
+                detect,
+                (model.as_nanos() as u64).saturating_sub(detect),
+                runner.pipeline.solve_time().as_nanos() as u64,
+                unix_nanos_now().saturating_sub(c.captured_unix_nanos),
+            ];
+            let mut s = shared.lock();
+            s.camera = runner.frames.camera_mode();
+            s.stages.record(times);
+        }
     };
     shared.lock().ended = Some(ended);
     shared.changed.notify_all();
@@ -465,7 +489,16 @@ impl LiveSource for PersonSource {
     }
 
     fn status(&self) -> SourceStatus {
-        self.health.status()
+        let mut status = self.health.status();
+        let s = self.hub.shared.lock();
+        status.camera = s.camera.map(|m| rigcast_protocol::control::CameraStatus {
+            width: m.width,
+            height: m.height,
+            fps: m.fps,
+            format: m.format.fourcc().to_string(),
+            stages: s.stages.report(),
+        });
+        status
     }
 
     fn set_raw_tap(&mut self, tap: Option<Box<dyn RawTap>>) {

@@ -160,6 +160,9 @@ pub struct TrackerStats {
     pub duplicates_dropped: u64,
     /// Tracking results that lay on another tracked person (crops beside them were tried).
     pub slides_caught: u64,
+    /// Time spent finding people (detector or search, with its landmark runs), nanoseconds:
+    /// the "detect" stage of the latency figures.
+    pub find_nanos: u64,
 }
 
 /// One identity slot.
@@ -328,11 +331,13 @@ impl PoseTracker {
             || self.frames_since_find >= self.config.find_every_frames;
         if num_tracked < self.tracks.len() && due {
             self.frames_since_find = 0;
+            let started = std::time::Instant::now();
             self.look_where_lost(frame)?;
             match self.config.finder {
                 Finder::Detector => self.find_by_detector(frame)?,
                 Finder::Search => self.find_by_search(frame)?,
             }
+            self.stats.find_nanos += started.elapsed().as_nanos() as u64;
         }
         for t in self.tracks.iter_mut().filter(|t| !t.tracked()) {
             t.lost_frames = t.lost_frames.saturating_add(1);

@@ -1,0 +1,176 @@
+//! `rigcast serve --source webcam:0?...` and `rigcast devices` through the real binary and the
+//! real nokhwa -> V4L2 path, against the emulated camera (`sources/tests/v4l2_emu`, preloaded)
+//! serving real footage: the chosen mode and stage latencies in `/v1/status`, a second server
+//! told the camera is busy, the camera unplugged mid-stream (the subject goes `lost`) and
+//! plugged back (it comes back `live`), and `rigcast devices` listing it. Skipped with a printed
+//! reason without the vision models, gcc, ffmpeg or the footage.
+#![cfg(feature = "webcam")]
+#![allow(clippy::unwrap_used)]
+
+#[path = "../../sources/tests/v4l2_emu/mod.rs"]
+mod v4l2_emu;
+
+use std::io::{Read, Write};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use rigcast_sources::vision::VisionAssets;
+use serde_json::Value;
+use v4l2_emu::{mode, EmuCamera};
+
+struct Server {
+    child: Child,
+    port: u16,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn rigcast(cam: &EmuCamera, home: &std::path::Path) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_rigcast"));
+    cmd.env("XDG_CONFIG_HOME", home)
+        .env("XDG_CACHE_HOME", home.join("cache"));
+    for (k, v) in cam.env() {
+        cmd.env(k, v);
+    }
+    cmd
+}
+
+fn serve(cam: &EmuCamera, home: &std::path::Path, source: &str) -> Server {
+    let port = free_port();
+    let child = rigcast(cam, home)
+        .args(["serve", "--no-mapping-cache", "--listen"])
+        .arg(format!("127.0.0.1:{port}"))
+        .args(["--source", source])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    Server { child, port }
+}
+
+/// `GET /v1/status`, or None while the server is not answering yet.
+fn status(port: u16) -> Option<Value> {
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).ok()?;
+    s.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    write!(s, "GET /v1/status HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n").ok()?;
+    let mut body = String::new();
+    s.read_to_string(&mut body).ok()?;
+    let json = body.split_once("\r\n\r\n")?.1;
+    serde_json::from_str(json).ok()
+}
+
+/// The source health of subject `name`.
+fn health(port: u16, name: &str) -> Option<Value> {
+    let st = status(port)?;
+    st["subjects"]
+        .as_array()?
+        .iter()
+        .find(|s| s["name"] == name)
+        .map(|s| s["source"].clone())
+}
+
+/// Waits up to `secs` for `pred` on the subject's health; returns the last health seen.
+fn wait_for(port: u16, name: &str, secs: u64, what: &str, pred: impl Fn(&Value) -> bool) -> Value {
+    let start = Instant::now();
+    let mut last = Value::Null;
+    while start.elapsed() < Duration::from_secs(secs) {
+        if let Some(h) = health(port, name) {
+            if pred(&h) {
+                return h;
+            }
+            last = h;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    panic!("{name} never became {what} within {secs} s; last: {last}");
+}
+
+#[test]
+fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
+    if !VisionAssets::from_env().is_ready() {
+        println!("SKIP: vision models not installed (scripts/setup-vision.sh)");
+        return;
+    }
+    let Some(video) = v4l2_emu::footage().into_iter().next() else {
+        return;
+    };
+    let modes = [
+        mode("YUYV", 640, 480, 30),
+        mode("MJPG", 640, 480, 60),
+        mode("MJPG", 1280, 720, 30),
+    ];
+    let Some(cam) = v4l2_emu::camera(0, "Emulated Cam", &modes, &video, 60) else {
+        return;
+    };
+    let home = cam.state.join("home");
+    std::fs::create_dir_all(&home).unwrap();
+
+    // `rigcast devices` lists the camera, its modes, and the VMC ports in use.
+    let out = rigcast(&cam, &home).arg("devices").output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("0: Emulated Cam"), "{text}");
+    assert!(text.contains("MJPG 1280x720 @ 30 fps"), "{text}");
+    assert!(text.contains("YUYV 640x480 @ 30 fps"), "{text}");
+    assert!(text.contains("VMC ports in use"), "{text}");
+
+    let server = serve(&cam, &home, "webcam:0?width=1280&height=720&fps=30");
+    let h = wait_for(server.port, "webcam:0", 120, "live with stage times", |h| {
+        h["state"] == "live" && h["camera"]["stages"].as_array().is_some_and(|s| !s.is_empty())
+    });
+    let c = &h["camera"];
+    assert_eq!(
+        (&c["width"], &c["height"], &c["fps"], &c["format"]),
+        (&Value::from(1280), &Value::from(720), &Value::from(30), &Value::from("MJPG")),
+        "{h}"
+    );
+    let stages: Vec<&str> = c["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        stages,
+        ["capture", "decode", "detect", "landmarks", "solve", "glass_to_pose"]
+    );
+    println!("live: {h}");
+
+    // A second server on the same camera is told it is busy.
+    let out = rigcast(&cam, &home)
+        .args(["serve", "--no-mapping-cache", "--listen", "127.0.0.1:0"])
+        .args(["--source", "webcam:0?width=640&height=480&fps=30"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "a second server streamed a busy camera");
+    assert!(err.contains("busy") && err.contains("Emulated Cam"), "{err}");
+
+    // Unplugged mid-stream: lost, with a reason; then back when the camera returns.
+    cam.unplug();
+    let h = wait_for(server.port, "webcam:0", 10, "lost", |h| h["state"] == "lost");
+    assert!(
+        h["detail"].as_str().is_some_and(|d| d.contains("camera 0")),
+        "{h}"
+    );
+    let frames_lost = h["frames"].as_u64().unwrap();
+    std::thread::sleep(Duration::from_secs(1));
+    cam.replug();
+    let h = wait_for(server.port, "webcam:0", 30, "live again", |h| {
+        h["state"] == "live" && h["frames"].as_u64().unwrap() > frames_lost
+    });
+    println!("back: {h}");
+}
