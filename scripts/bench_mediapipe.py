@@ -1,9 +1,12 @@
 """MediaPipe Pose (Python) on the frames ffmpeg decodes from a video: the baseline that
 scripts/bench-vision.sh compares `rigcast pose` with.
 
-Usage: bench_mediapipe.py VIDEO lite|full [PEOPLE]
+Usage: bench_mediapipe.py VIDEO lite|full [PEOPLE] [--max-frames N] [--landmarks OUT.json]
 Prints one line: `mediapipe MODEL VIDEO people=P frames=N with_person=N fps_with_decoding=X
-fps_model_only=Y`. Frames come from an ffmpeg pipe as RGB at the video's own size (what MediaPipe
+fps_model_only=Y`. `--max-frames` stops after N frames (the warm-up frame included);
+`--landmarks` (one person only) writes `{"width", "height", "frames": [...]}` with, per frame
+(the warm-up frame included), `null` or the 33 landmarks as `[x, y, visibility]` in pixels:
+the independent reference the vision tests judge coverage and left/right labels against. Frames come from an ffmpeg pipe as RGB at the video's own size (what MediaPipe
 is given in its own examples); decoding time is counted in the first figure and left out of the
 second.
 
@@ -60,19 +63,37 @@ def tracker(model, people):
     if people == 1:
         pose = mp.solutions.pose.Pose(static_image_mode=False,
                                       model_complexity={"lite": 0, "full": 1}[model])
-        return lambda img, _: int(pose.process(img).pose_landmarks is not None)
+        def one(img, _):
+            found = pose.process(img).pose_landmarks
+            h, w = img.shape[:2]
+            return (int(found is not None),
+                    found and [[p.x * w, p.y * h, p.visibility] for p in found.landmark])
+        return one
     from mediapipe.tasks import python as tasks
     from mediapipe.tasks.python import vision
     landmarker = vision.PoseLandmarker.create_from_options(vision.PoseLandmarkerOptions(
         base_options=tasks.BaseOptions(model_asset_path=task_bundle(model)),
         running_mode=vision.RunningMode.VIDEO, num_poses=people))
     # Video mode wants increasing timestamps; their spacing does not change the work done.
-    return lambda img, i: len(landmarker.detect_for_video(
-        mp.Image(image_format=mp.ImageFormat.SRGB, data=img), i * 33).pose_landmarks)
+    return lambda img, i: (len(landmarker.detect_for_video(
+        mp.Image(image_format=mp.ImageFormat.SRGB, data=img), i * 33).pose_landmarks), None)
 
 
+def option(name, default=None):
+    if name in sys.argv:
+        at = sys.argv.index(name)
+        value = sys.argv[at + 1]
+        del sys.argv[at:at + 2]
+        return value
+    return default
+
+
+max_frames = int(option("--max-frames", 0)) or None
+landmarks_out = option("--landmarks")
 video, model = sys.argv[1], sys.argv[2]
 people = int(sys.argv[3]) if len(sys.argv) > 3 else 1
+if landmarks_out and people != 1:
+    sys.exit("--landmarks needs PEOPLE 1")
 probe = json.loads(subprocess.check_output(
     ["ffprobe", "-v", "error", "-select_streams", "v:0", "-show_entries",
      "stream=width,height", "-of", "json", video]))["streams"][0]
@@ -85,13 +106,15 @@ frame_bytes = w * h * 3
 index = frames = found = 0
 model_secs = 0.0
 start = None
-while True:
+per_frame = []
+while max_frames is None or index < max_frames:
     buf = ff.stdout.read(frame_bytes)
     if len(buf) < frame_bytes:
         break
     img = np.frombuffer(buf, np.uint8).reshape(h, w, 3)
     t = time.perf_counter()
-    n = track(img, index)
+    n, points = track(img, index)
+    per_frame.append(points)
     index += 1
     if start is None:
         start = time.perf_counter()  # the clock starts after the first (warm-up) frame
@@ -100,6 +123,10 @@ while True:
     frames += 1
     found += n >= people
 total = time.perf_counter() - start
+ff.kill()
 ff.wait()
+if landmarks_out:
+    with open(landmarks_out, "w") as out:
+        json.dump({"width": w, "height": h, "frames": per_frame}, out)
 print(f"mediapipe {model} {video} people={people} frames={frames} with_person={found} "
       f"fps_with_decoding={frames / total:.1f} fps_model_only={frames / model_secs:.1f}")

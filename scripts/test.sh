@@ -7,11 +7,13 @@
 #                                 (npm @mediapipe/pose, converted), real footage (PyPI pose2sim)
 #   3. scripts/setup-vmc-check.sh — python-osc (PyPI) in a private venv: the independent VMC
 #                                 receiver the VMC output is judged with
-#   4. scripts/setup-bpy.sh     — the official `bpy` wheels (Blender 4.2, 4.5 LTS, 5.0) from PyPI,
+#   4. scripts/setup-mediapipe.sh — MediaPipe Pose 0.10.14 (PyPI) in a private venv: the anchor
+#                                 the vision judge on real footage compares rigcast with
+#   5. scripts/setup-bpy.sh     — the official `bpy` wheels (Blender 4.2, 4.5 LTS, 5.0) from PyPI,
 #                                 one cached venv each: the add-on's Blender test matrix
-#   5. scripts/check_layers.py  — dependencies point down (ARCHITECTURE.md, Layers), and its
+#   6. scripts/check_layers.py  — dependencies point down (ARCHITECTURE.md, Layers), and its
 #                                 own tests (scripts/test_check_layers.py)
-#   6. cargo test --workspace   — unit, integration, end-to-end tests
+#   7. cargo test --workspace   — unit, integration, end-to-end tests
 # The setup steps are idempotent and skip work already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,6 +31,9 @@ step "preparing the vision models and runtime (if missing)"
 
 step "preparing the independent VMC receiver (if missing)"
 ./scripts/setup-vmc-check.sh
+
+step "preparing MediaPipe, the vision anchor (if missing)"
+./scripts/setup-mediapipe.sh
 
 step "preparing Blender 4.2, 4.5 and 5.0 as Python modules (if missing)"
 ./scripts/setup-bpy.sh

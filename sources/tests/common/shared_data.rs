@@ -14,9 +14,13 @@ pub const MEREDITH: &str = "zoo/bvh/sparse_spine_head__pymo_meredith.bvh";
 /// Godot's platformer robot, which names its left side `r-*`.
 pub const GODOT_ROBOT: &str = "zoo/gltf/godot_robot__platformer_player.glb";
 
-/// The shared data folder, whether or not it exists.
+/// The shared data folder, whether or not it exists: `RIGCAST_SHARED_DATA` when set (a checkout
+/// elsewhere than beside the data), else `../shared/data` beside the workspace.
 pub fn shared_data_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+    match std::env::var_os("RIGCAST_SHARED_DATA") {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
+    }
 }
 
 /// Path of a file in the shared test data, or `None` (with a printed reason) when absent.
