@@ -17,7 +17,7 @@ status=0
 for model in lite full; do
     RIGCAST_TEST_MODEL=$model RIGCAST_FOOTAGE_FRAMES="${RIGCAST_FOOTAGE_FRAMES:-0}" \
         RIGCAST_FOOTAGE_ACCEPTANCE=1 cargo test --release -q -p rigcast-sources \
-        --test vision_footage -- --nocapture 2>&1 | grep -E '^\||^model|^load|^SKIP|identity|MediaPipe|left/right|detector' \
+        --test vision_footage -- --include-ignored --nocapture 2>&1 | grep -E '^\||^model|^load|^SKIP|identity|MediaPipe|left/right|detector' \
         || status=1
 done
 
