@@ -14,6 +14,8 @@
 #   6. scripts/check_layers.py  — dependencies point down (ARCHITECTURE.md, Layers), and its
 #                                 own tests (scripts/test_check_layers.py)
 #   7. cargo test --workspace   — unit, integration, end-to-end tests
+#                                 (incl. tests/tests/fuzz_targets.rs: each reader and decoder
+#                                 under mutation for RIGCAST_FUZZ_SECS, default 10 s each)
 # The setup steps are idempotent and skip work already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."

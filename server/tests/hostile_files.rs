@@ -443,3 +443,29 @@ fn node_names_with_newlines_make_a_bvh_that_reads_back() {
         "{text}"
     );
 }
+
+#[test]
+fn a_fan_of_four_thousand_sibling_joints_maps_without_cubic_work() {
+    // 4,000 joints of one shape under the hips (each with an End Site): the mirror-pair search
+    // once compared every pair of siblings against every sibling (32 s in a release build).
+    let mut s = String::from("HIERARCHY\nROOT Hips\n{\nOFFSET 0 90 0\nCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n");
+    for i in 0..4000 {
+        s.push_str(&format!(
+            "JOINT j{i}\n{{\nOFFSET {} {} 1\nCHANNELS 3 Zrotation Xrotation Yrotation\nEnd Site\n{{\nOFFSET 0 1 0\n}}\n}}\n",
+            i % 50,
+            i / 50
+        ));
+    }
+    s.push_str(&format!(
+        "}}\nMOTION\nFrames: 1\nFrame Time: 0.0333\n{}\n",
+        vec!["0"; 6 + 3 * 4000].join(" ")
+    ));
+    let fan = write("fan4000.bvh", &s);
+    let target = write("fan_target.bvh", &small_bvh("0.0333", &[STILL]));
+    let start = Instant::now();
+    common::rigcast_ok(["map", path_str(&fan), path_str(&target)]);
+    common::rigcast_ok(["map", path_str(&target), path_str(&fan)]);
+    // A guard against the cubic search's return (minutes in this debug build), not a speed
+    // target: the figure is in BENCHMARKS.md.
+    assert!(start.elapsed() < Duration::from_secs(30), "{:?}", start.elapsed());
+}

@@ -80,36 +80,41 @@ fn lateral_from_twins(
 ) -> (Vec3, Option<(BoneId, BoneId, BoneId)>) {
     let size = topo.reach.iter().copied().fold(0.0f32, f32::max).max(1e-6);
     let mut pairs: Vec<(f32, Vec3, usize, BoneId, BoneId, BoneId)> = Vec::new();
+    // Per shape among one bone's children: how many, and the first two (in child order).
+    let mut shapes: std::collections::HashMap<u64, (usize, BoneId, BoneId)> =
+        std::collections::HashMap::new();
     for p in skel.bone_ids() {
         let ch = skel.children(p);
-        for (i, &a) in ch.iter().enumerate() {
-            for &b in &ch[i + 1..] {
-                if topo.hash[a.index()] != topo.hash[b.index()] {
-                    continue;
-                }
-                // Exactly two siblings of this shape: a mirror pair, not a row of fingers.
-                let same = ch
-                    .iter()
-                    .filter(|c| topo.hash[c.index()] == topo.hash[a.index()])
-                    .count();
-                if same != 2 {
-                    continue;
-                }
-                if detached[a.index()] || detached[b.index()] {
-                    continue;
-                }
-                // The twins' own joints are mirror images even when the rest pose is not
-                // (one arm raised): use them, unless they coincide (CMU's hip helpers).
-                let joints = pos[a.index()] - pos[b.index()];
-                let v = if joints.length() > 0.02 * size {
-                    joints
-                } else {
-                    topo.centroid[a.index()] - topo.centroid[b.index()]
-                };
-                let w = v.length() * topo.size[a.index()] as f32;
-                if w > 0.0 {
-                    pairs.push((w, v, skel.depth(p), p, a, b));
-                }
+        // Counted once per parent, so a fan of thousands of siblings stays linear.
+        shapes.clear();
+        for &c in ch {
+            let e = shapes.entry(topo.hash[c.index()]).or_insert((0, c, c));
+            e.0 += 1;
+            if e.0 == 2 {
+                e.2 = c;
+            }
+        }
+        for &a in ch {
+            // Exactly two siblings of this shape: a mirror pair, not a row of fingers; taken
+            // at its first twin, as the pairs are ordered by their first child.
+            let (same, first, b) = shapes[&topo.hash[a.index()]];
+            if same != 2 || first != a {
+                continue;
+            }
+            if detached[a.index()] || detached[b.index()] {
+                continue;
+            }
+            // The twins' own joints are mirror images even when the rest pose is not
+            // (one arm raised): use them, unless they coincide (CMU's hip helpers).
+            let joints = pos[a.index()] - pos[b.index()];
+            let v = if joints.length() > 0.02 * size {
+                joints
+            } else {
+                topo.centroid[a.index()] - topo.centroid[b.index()]
+            };
+            let w = v.length() * topo.size[a.index()] as f32;
+            if w > 0.0 {
+                pairs.push((w, v, skel.depth(p), p, a, b));
             }
         }
     }
