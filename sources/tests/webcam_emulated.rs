@@ -41,7 +41,12 @@ fn child_capture() {
         Ok(mut cam) => {
             report.push_str(&format!("mode {}\n", cam.mode()));
             let mut frame = RgbFrame::default();
+            let slow = std::env::var("RIGCAST_EMU_SLOW_MS").ok().and_then(|v| v.parse().ok());
             for k in 0..n {
+                if let Some(ms) = slow {
+                    // A reader slower than the camera (a long model run).
+                    std::thread::sleep(std::time::Duration::from_millis(ms));
+                }
                 assert!(cam.next_frame(&mut frame).unwrap());
                 if k == 0 {
                     std::fs::write(format!("{out}.rgb"), &frame.data).unwrap();
@@ -68,6 +73,17 @@ fn child_capture() {
 
 /// Runs `child_capture` in a child of this test binary with the camera's shim preloaded.
 fn capture(cam: &EmuCamera, index: u32, opts: &str, frames: usize, hold: bool) -> (String, Vec<u8>, std::process::Child) {
+    capture_with(cam, index, opts, frames, hold, &[])
+}
+
+fn capture_with(
+    cam: &EmuCamera,
+    index: u32,
+    opts: &str,
+    frames: usize,
+    hold: bool,
+    extra: &[(&str, &str)],
+) -> (String, Vec<u8>, std::process::Child) {
     let out = cam.state.join(format!("capture-{}-{}", opts.replace(['&', '='], "_"), hold));
     let mut cmd = Command::new(std::env::current_exe().unwrap());
     cmd.args(["--exact", "child_entry", "--nocapture", "--test-threads", "1"])
@@ -79,6 +95,7 @@ fn capture(cam: &EmuCamera, index: u32, opts: &str, frames: usize, hold: bool) -
     if hold {
         cmd.env("RIGCAST_EMU_HOLD", "1");
     }
+    cmd.envs(extra.iter().copied());
     for (k, v) in cam.env() {
         cmd.env(k, v);
     }
@@ -249,4 +266,27 @@ fn a_missing_camera_names_the_cameras_there_and_a_busy_one_says_busy() {
     // Once the first user is gone, it opens.
     let (report, _, _) = capture(&cam, 2, "width=640&height=480&fps=30", 1, false);
     assert!(report.starts_with("mode 640x480@30"), "{report}");
+}
+
+#[test]
+fn a_slow_reader_gets_the_newest_frame_not_the_oldest_queued() {
+    if std::env::var(CHILD).is_ok() {
+        return;
+    }
+    let Some(cam) = emulated(0) else { return };
+    // 200 ms between reads at 30 fps: the driver's four buffers fill with frames up to
+    // 130 ms old; the source must skip them (capture -> dequeue within 1.5 intervals + a frame).
+    let (report, _, _) = capture_with(
+        &cam,
+        0,
+        "width=640&height=480&fps=30&format=yuyv",
+        8,
+        false,
+        &[("RIGCAST_EMU_SLOW_MS", "200")],
+    );
+    for line in report.lines().filter(|l| l.starts_with("frame ")).skip(1) {
+        let f: Vec<u64> = line.split(' ').skip(3).map(|x| x.parse().unwrap()).collect();
+        let age_ms = (f[1] - f[0]) as f64 / 1e6;
+        assert!(age_ms < 85.0, "a stale frame was served ({age_ms:.1} ms old): {report}");
+    }
 }

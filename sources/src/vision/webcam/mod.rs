@@ -26,6 +26,9 @@ use super::camera_modes::{choose_mode, CameraMode, PixelFormat, WebcamOptions};
 use super::error::VisionError;
 use super::frame::{FrameSource, RgbFrame};
 
+/// Stale frames skipped at most per read (V4L2 drivers queue about four buffers).
+const MAX_SKIPPED: u32 = 4;
+
 /// How often a lost camera is looked for again.
 pub const RETRY: Duration = Duration::from_millis(500);
 
@@ -155,17 +158,33 @@ impl FrameSource for Webcam {
         let Some(camera) = self.camera.as_mut() else {
             return Err(VisionError::CameraLost(format!("camera {} is gone", self.index)));
         };
-        let buffer = match camera.frame() {
-            Ok(b) => b,
-            Err(e) => {
-                // Dropping the camera closes the device so that it can come back.
-                self.camera = None;
-                self.last_attempt = Instant::now();
-                return Err(VisionError::CameraLost(format!(
-                    "camera {} stopped: {e}",
-                    self.index
-                )));
+        // The driver hands over its oldest filled buffer: after a slow frame (a model run
+        // longer than the frame interval) that one is old. Frames older than 1.5 intervals are
+        // skipped, at most one per driver buffer, so the newest frame wins (only dequeues are
+        // spent on them, no decoding).
+        let stale_after = 1_500_000_000 / u64::from(self.mode.fps.max(1));
+        let mut skipped = 0;
+        let buffer = loop {
+            let b = match camera.frame() {
+                Ok(b) => b,
+                Err(e) => {
+                    // Dropping the camera closes the device so that it can come back.
+                    self.camera = None;
+                    self.last_attempt = Instant::now();
+                    return Err(VisionError::CameraLost(format!(
+                        "camera {} stopped: {e}",
+                        self.index
+                    )));
+                }
+            };
+            let age = b
+                .capture_timestamp()
+                .and_then(|d| u64::try_from(d.as_nanos()).ok())
+                .map_or(0, |t| crate::live::unix_nanos_now().saturating_sub(t));
+            if age <= stale_after || skipped >= MAX_SKIPPED {
+                break b;
             }
+            skipped += 1;
         };
         let dequeued = crate::live::unix_nanos_now();
         let r = buffer.resolution();
