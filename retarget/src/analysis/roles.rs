@@ -44,10 +44,11 @@ pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     }
 }
 
-/// How completely an analysis reads as a body: core roles found, and a humanoid counts extra.
+/// How completely an analysis reads as a body: the core roles found. Being read as a humanoid
+/// earns nothing by itself: one frame of a quadruped's run can read as a standing biped with no
+/// more roles than its rest reads as four legs, and the rest must then win the tie.
 fn coherence(a: &Analysis) -> usize {
-    let core = a.roles.iter().filter(|r| r.role.is_core()).count();
-    core + if a.humanoid { 10 } else { 0 }
+    a.roles.iter().filter(|r| r.role.is_core()).count()
 }
 
 /// The pipeline on one posture.
