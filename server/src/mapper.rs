@@ -47,6 +47,9 @@ pub struct PerformerPlan {
     /// A representative pose of the character (its file's animation), for alignment when its
     /// rest pose has no posture.
     pub target_reference: Option<Pose>,
+    /// The character file's own animation (empty without one): the analysis reads its sides
+    /// from the knees' and elbows' bends there, evidence one pose cannot give.
+    pub target_motion: Arc<[Pose]>,
     /// Overrides from the performer's mapping file.
     pub overrides_file: Option<MappingFile>,
     /// Overrides received with `set_mapping` this session (target bone → source bone).
@@ -165,10 +168,7 @@ impl Mapper {
             .map(|((s, r), t)| analyze_with_truth(&SkeletonView::with_pose(s, *r), *t))
             .collect();
         let target_truth = p.target.truth();
-        let ta = analyze_with_truth(
-            &SkeletonView::with_pose(&target, p.target_reference.as_ref()),
-            target_truth,
-        );
+        let ta = analyze_with_truth(&target_view(&target, p), target_truth);
         // The cache key knows the skeletons, not the truth: a truth-driven table must neither
         // come from nor go into the cache.
         let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
@@ -300,10 +300,7 @@ impl Mapper {
     fn build_graft(&mut self, i: usize) -> anyhow::Result<()> {
         let p = &self.performers[i];
         let target = p.target.skeleton();
-        let ta = analyze_with_truth(
-            &SkeletonView::with_pose(&target, p.target_reference.as_ref()),
-            p.target.truth(),
-        );
+        let ta = analyze_with_truth(&target_view(&target, p), p.target.truth());
         let side = |id: u32| {
             let s = &self.subjects[id as usize];
             let extra = self.extras.get(&id);
@@ -567,3 +564,13 @@ fn build_foot_lock(
     let source = sources.get(mapping.root_input()?)?;
     FootLock::new(mapping, source, target, LockSettings::default())
 }
+
+/// The character as the analysis reads it: its representative pose and its own animation.
+fn target_view<'a>(target: &'a Skeleton, p: &'a PerformerPlan) -> SkeletonView<'a> {
+    SkeletonView {
+        skeleton: target,
+        pose: p.target_reference.as_ref(),
+        motion: &p.target_motion,
+    }
+}
+

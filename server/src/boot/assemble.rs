@@ -239,6 +239,7 @@ fn performer_plan(
     let plan = PerformerPlan {
         target: Arc::new(subject.with_truth(t.truth).with_model(t.model)),
         target_reference: t.reference,
+        target_motion: t.motion,
         overrides_file,
         session: Default::default(),
         root_motion: if spec.in_place {

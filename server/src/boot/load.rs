@@ -27,6 +27,8 @@ pub(crate) struct LoadedTarget {
     pub name: String,
     pub skeleton: Arc<Skeleton>,
     pub reference: Option<Pose>,
+    /// The character file's own animation (empty without one): motion evidence for its mapping.
+    pub motion: Arc<[Pose]>,
     /// A VRM file's humanoid map (ground truth for its roles).
     pub truth: Option<Vec<(String, String)>>,
     /// The character file the viewer may fetch (binary glTF targets only).
@@ -197,6 +199,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
             name: name.clone(),
             skeleton: skeleton.clone(),
             reference: None,
+            motion: Arc::from(Vec::new()),
             truth: None,
             model: None,
         }),
@@ -213,6 +216,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
             Ok(LoadedTarget {
                 name: c.name,
                 reference: clip.poses.get(clip.poses.len() / 2).cloned(),
+                motion: Arc::from(clip.poses.clone()),
                 skeleton: clip.skeleton,
                 truth: c.truth,
                 model: c
