@@ -573,4 +573,3 @@ fn target_view<'a>(target: &'a Skeleton, p: &'a PerformerPlan) -> SkeletonView<'
         motion: &p.target_motion,
     }
 }
-

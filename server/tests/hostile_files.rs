@@ -467,5 +467,9 @@ fn a_fan_of_four_thousand_sibling_joints_maps_without_cubic_work() {
     common::rigcast_ok(["map", path_str(&target), path_str(&fan)]);
     // A guard against the cubic search's return (minutes in this debug build), not a speed
     // target: the figure is in BENCHMARKS.md.
-    assert!(start.elapsed() < Duration::from_secs(30), "{:?}", start.elapsed());
+    assert!(
+        start.elapsed() < Duration::from_secs(30),
+        "{:?}",
+        start.elapsed()
+    );
 }

@@ -129,12 +129,20 @@ fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
 
     let server = serve(&cam, &home, "webcam:0?width=1280&height=720&fps=30");
     let h = wait_for(server.port, "webcam:0", 120, "live with stage times", |h| {
-        h["state"] == "live" && h["camera"]["stages"].as_array().is_some_and(|s| !s.is_empty())
+        h["state"] == "live"
+            && h["camera"]["stages"]
+                .as_array()
+                .is_some_and(|s| !s.is_empty())
     });
     let c = &h["camera"];
     assert_eq!(
         (&c["width"], &c["height"], &c["fps"], &c["format"]),
-        (&Value::from(1280), &Value::from(720), &Value::from(30), &Value::from("MJPG")),
+        (
+            &Value::from(1280),
+            &Value::from(720),
+            &Value::from(30),
+            &Value::from("MJPG")
+        ),
         "{h}"
     );
     let stages: Vec<&str> = c["stages"]
@@ -145,7 +153,14 @@ fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
         .collect();
     assert_eq!(
         stages,
-        ["capture", "decode", "detect", "landmarks", "solve", "glass_to_pose"]
+        [
+            "capture",
+            "decode",
+            "detect",
+            "landmarks",
+            "solve",
+            "glass_to_pose"
+        ]
     );
     println!("live: {h}");
 
@@ -156,12 +171,20 @@ fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "a second server streamed a busy camera");
-    assert!(err.contains("busy") && err.contains("Emulated Cam"), "{err}");
+    assert!(
+        !out.status.success(),
+        "a second server streamed a busy camera"
+    );
+    assert!(
+        err.contains("busy") && err.contains("Emulated Cam"),
+        "{err}"
+    );
 
     // Unplugged mid-stream: lost, with a reason; then back when the camera returns.
     cam.unplug();
-    let h = wait_for(server.port, "webcam:0", 10, "lost", |h| h["state"] == "lost");
+    let h = wait_for(server.port, "webcam:0", 10, "lost", |h| {
+        h["state"] == "lost"
+    });
     assert!(
         h["detail"].as_str().is_some_and(|d| d.contains("camera 0")),
         "{h}"

@@ -41,7 +41,10 @@ fn webcam_without_a_camera_is_a_clear_error_naming_the_cameras() {
         if cfg!(feature = "webcam") {
             assert!(err.contains("the cameras here are: none"), "{err}");
         } else {
-            assert!(err.contains("--no-default-features") && err.contains("libclang"), "{err}");
+            assert!(
+                err.contains("--no-default-features") && err.contains("libclang"),
+                "{err}"
+            );
         }
     };
     let common = ["--listen", "127.0.0.1:0", "--no-mapping-cache"];
@@ -66,7 +69,12 @@ fn webcam_without_a_camera_is_a_clear_error_naming_the_cameras() {
 
 #[test]
 fn malformed_webcam_arguments_name_the_expected_form() {
-    for bad in ["webcam:front", "webcam:0?zoom=2", "webcam:0?width=0", "webcam:0?format=h264"] {
+    for bad in [
+        "webcam:front",
+        "webcam:0?zoom=2",
+        "webcam:0?width=0",
+        "webcam:0?format=h264",
+    ] {
         let (ok, err) = serve(&["--listen", "127.0.0.1:0", "--source", bad]);
         assert!(!ok, "{bad} accepted");
         assert!(err.contains("webcam:INDEX"), "{bad}: {err}");

@@ -164,7 +164,10 @@ fn run_theirs(python: &Path, path: &Path, max: Option<usize>) -> Theirs {
     ));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
     let mut cmd = Command::new(python);
-    cmd.arg(&script).arg(path).args(["full", "1", "--landmarks"]).arg(&out);
+    cmd.arg(&script)
+        .arg(path)
+        .args(["full", "1", "--landmarks"])
+        .arg(&out);
     if let Some(m) = max {
         cmd.args(["--max-frames", &m.to_string()]);
     }
@@ -315,7 +318,9 @@ fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
         "model {}, {} frames per clip at most, load {}",
         config.model.as_str(),
         max.map_or("all".into(), |m| m.to_string()),
-        std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim()
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
     );
     println!("| clip | frames | coverage per slot % | MediaPipe % | jumps | left/right % (frames) | detector runs | fps | MediaPipe fps | ratio |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
@@ -333,7 +338,10 @@ fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
             failures.push(format!("{name}: {jumps} identity jumps"));
         }
         if ours.detections > n as u64 {
-            failures.push(format!("{name}: {} detector runs over {n} frames", ours.detections));
+            failures.push(format!(
+                "{name}: {} detector runs over {n} frames",
+                ours.detections
+            ));
         }
         let coverage_text = coverage
             .iter()
@@ -380,7 +388,12 @@ fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
         }
         println!("{row}");
     }
-    println!("load at the end {}", std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim());
+    println!(
+        "load at the end {}",
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
     if std::env::var("RIGCAST_FOOTAGE_ACCEPTANCE").as_deref() == Ok("1") {
         assert!(failures.is_empty(), "{}", failures.join("\n"));
     } else if !failures.is_empty() {

@@ -34,14 +34,19 @@ fn child_capture() {
     let out = std::env::var("RIGCAST_EMU_OUT").unwrap();
     let index: u32 = std::env::var("RIGCAST_EMU_INDEX").unwrap().parse().unwrap();
     let opts = WebcamOptions::parse_query(&std::env::var("RIGCAST_EMU_OPTS").unwrap()).unwrap();
-    let n: usize = std::env::var("RIGCAST_EMU_FRAMES").unwrap().parse().unwrap();
+    let n: usize = std::env::var("RIGCAST_EMU_FRAMES")
+        .unwrap()
+        .parse()
+        .unwrap();
     let mut report = String::new();
     match Webcam::open(index, opts) {
         Err(e) => report.push_str(&format!("error {e}\n")),
         Ok(mut cam) => {
             report.push_str(&format!("mode {}\n", cam.mode()));
             let mut frame = RgbFrame::default();
-            let slow = std::env::var("RIGCAST_EMU_SLOW_MS").ok().and_then(|v| v.parse().ok());
+            let slow = std::env::var("RIGCAST_EMU_SLOW_MS")
+                .ok()
+                .and_then(|v| v.parse().ok());
             for k in 0..n {
                 if let Some(ms) = slow {
                     // A reader slower than the camera (a long model run).
@@ -54,7 +59,11 @@ fn child_capture() {
                 let c = frame.clock;
                 report.push_str(&format!(
                     "frame {} {}x{} {} {} {}\n",
-                    k, frame.width, frame.height, c.captured_unix_nanos, c.dequeued_unix_nanos,
+                    k,
+                    frame.width,
+                    frame.height,
+                    c.captured_unix_nanos,
+                    c.dequeued_unix_nanos,
                     c.decoded_unix_nanos
                 ));
             }
@@ -72,7 +81,13 @@ fn child_capture() {
 }
 
 /// Runs `child_capture` in a child of this test binary with the camera's shim preloaded.
-fn capture(cam: &EmuCamera, index: u32, opts: &str, frames: usize, hold: bool) -> (String, Vec<u8>, std::process::Child) {
+fn capture(
+    cam: &EmuCamera,
+    index: u32,
+    opts: &str,
+    frames: usize,
+    hold: bool,
+) -> (String, Vec<u8>, std::process::Child) {
     capture_with(cam, index, opts, frames, hold, &[])
 }
 
@@ -84,14 +99,24 @@ fn capture_with(
     hold: bool,
     extra: &[(&str, &str)],
 ) -> (String, Vec<u8>, std::process::Child) {
-    let out = cam.state.join(format!("capture-{}-{}", opts.replace(['&', '='], "_"), hold));
+    let out = cam.state.join(format!(
+        "capture-{}-{}",
+        opts.replace(['&', '='], "_"),
+        hold
+    ));
     let mut cmd = Command::new(std::env::current_exe().unwrap());
-    cmd.args(["--exact", "child_entry", "--nocapture", "--test-threads", "1"])
-        .env(CHILD, "1")
-        .env("RIGCAST_EMU_OUT", &out)
-        .env("RIGCAST_EMU_INDEX", index.to_string())
-        .env("RIGCAST_EMU_OPTS", opts)
-        .env("RIGCAST_EMU_FRAMES", frames.to_string());
+    cmd.args([
+        "--exact",
+        "child_entry",
+        "--nocapture",
+        "--test-threads",
+        "1",
+    ])
+    .env(CHILD, "1")
+    .env("RIGCAST_EMU_OUT", &out)
+    .env("RIGCAST_EMU_INDEX", index.to_string())
+    .env("RIGCAST_EMU_OPTS", opts)
+    .env("RIGCAST_EMU_FRAMES", frames.to_string());
     if hold {
         cmd.env("RIGCAST_EMU_HOLD", "1");
     }
@@ -104,7 +129,10 @@ fn capture_with(
         let streaming = out.with_extension("streaming");
         let start = std::time::Instant::now();
         while !Path::new(&format!("{}.streaming", out.display())).exists() {
-            assert!(start.elapsed().as_secs() < 60, "the first user never streamed");
+            assert!(
+                start.elapsed().as_secs() < 60,
+                "the first user never streamed"
+            );
             if let Some(status) = child.try_wait().unwrap() {
                 panic!("the first user exited: {status}");
             }
@@ -161,7 +189,10 @@ fn asked_modes_are_met_or_the_nearest_is_chosen() {
     // A format the camera lacks is an error naming what it has.
     let yuyv_only = v4l2_emu::camera(1, "YUYV Only", &[YUYV_VGA], &cam.footage, FRAMES).unwrap();
     let (report, _, _) = capture(&yuyv_only, 1, "format=mjpeg", 1, false);
-    assert!(report.contains("no MJPG") && report.contains("YUYV"), "{report}");
+    assert!(
+        report.contains("no MJPG") && report.contains("YUYV"),
+        "{report}"
+    );
 }
 
 /// Mean and 99th percentile of the absolute channel differences of two RGB images.
@@ -224,7 +255,13 @@ fn driver_timestamps_reach_the_frames() {
         return;
     }
     let Some(cam) = emulated(0) else { return };
-    let (report, _, _) = capture(&cam, 0, "width=640&height=480&fps=30&format=yuyv", 20, false);
+    let (report, _, _) = capture(
+        &cam,
+        0,
+        "width=640&height=480&fps=30&format=yuyv",
+        20,
+        false,
+    );
     let times: Vec<(u64, u64)> = report
         .lines()
         .filter(|l| l.starts_with("frame "))
@@ -241,7 +278,10 @@ fn driver_timestamps_reach_the_frames() {
     for w in times.windows(2) {
         let gap = w[1].0 as f64 - w[0].0 as f64;
         let frames = (gap / 33_333_333.0).round().max(1.0);
-        assert!((gap / frames - 33_333_333.0).abs() < 2e6, "gap {gap} ns: {report}");
+        assert!(
+            (gap / frames - 33_333_333.0).abs() < 2e6,
+            "gap {gap} ns: {report}"
+        );
     }
 }
 
@@ -259,7 +299,9 @@ fn a_missing_camera_names_the_cameras_there_and_a_busy_one_says_busy() {
     // Camera 2 streamed by another process: a second user is told it is busy.
     let (_, _, mut first) = capture(&cam, 2, "width=1280&height=720&fps=30", 1, true);
     let (report, _, _) = capture(&cam, 2, "width=640&height=480&fps=30", 1, false);
-    let stop = cam.state.join("capture-width_1280_height_720_fps_30-true.stop");
+    let stop = cam
+        .state
+        .join("capture-width_1280_height_720_fps_30-true.stop");
     std::fs::write(stop, b"").unwrap();
     assert!(first.wait().unwrap().success());
     assert!(report.contains("busy"), "{report}");
@@ -285,8 +327,15 @@ fn a_slow_reader_gets_the_newest_frame_not_the_oldest_queued() {
         &[("RIGCAST_EMU_SLOW_MS", "200")],
     );
     for line in report.lines().filter(|l| l.starts_with("frame ")).skip(1) {
-        let f: Vec<u64> = line.split(' ').skip(3).map(|x| x.parse().unwrap()).collect();
+        let f: Vec<u64> = line
+            .split(' ')
+            .skip(3)
+            .map(|x| x.parse().unwrap())
+            .collect();
         let age_ms = (f[1] - f[0]) as f64 / 1e6;
-        assert!(age_ms < 85.0, "a stale frame was served ({age_ms:.1} ms old): {report}");
+        assert!(
+            age_ms < 85.0,
+            "a stale frame was served ({age_ms:.1} ms old): {report}"
+        );
     }
 }

@@ -221,8 +221,6 @@ fn family(r: Role) -> u8 {
     }
 }
 
-
-
 /// Maps already-analysed skeletons (lets callers reuse analyses).
 pub fn map_analyzed(
     sources: &[(&Skeleton, &Analysis)],

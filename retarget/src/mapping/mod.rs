@@ -12,8 +12,8 @@
 //! (rest alignment precomputed) is the retargeting stage's job.
 
 mod auto;
-mod candidate;
 pub mod cache;
+mod candidate;
 mod colors;
 mod confidence;
 pub mod file;

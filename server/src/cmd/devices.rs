@@ -80,7 +80,10 @@ fn print_text(cameras: &[Camera], serial: &[PortInfo], udp: &[UdpPort]) {
             println!("     {line}");
         }
         if !c.other_formats.is_empty() {
-            println!("     also {} (not decoded by rigcast)", c.other_formats.join(", "));
+            println!(
+                "     also {} (not decoded by rigcast)",
+                c.other_formats.join(", ")
+            );
         }
     }
     println!("serial ports (port = \"...\" in a suit's config, --source serial:CONFIG.toml):");
@@ -269,7 +272,9 @@ mod tests {
             .expect("the bound port is listed");
         let pid = std::process::id();
         assert!(
-            me.program.as_deref().is_some_and(|p| p.contains(&format!("pid {pid}"))),
+            me.program
+                .as_deref()
+                .is_some_and(|p| p.contains(&format!("pid {pid}"))),
             "{:?}",
             me.program
         );

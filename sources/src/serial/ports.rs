@@ -22,7 +22,9 @@ pub fn list_serial_ports() -> Vec<PortInfo> {
                     u.vid,
                     u.pid,
                     u.product.map(|s| format!(" {s}")).unwrap_or_default(),
-                    u.serial_number.map(|s| format!(" (serial {s})")).unwrap_or_default()
+                    u.serial_number
+                        .map(|s| format!(" (serial {s})"))
+                        .unwrap_or_default()
                 ),
                 serialport::SerialPortType::PciPort => "PCI".into(),
                 serialport::SerialPortType::BluetoothPort => "Bluetooth".into(),

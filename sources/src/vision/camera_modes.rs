@@ -63,7 +63,11 @@ pub struct CameraMode {
 
 impl fmt::Display for CameraMode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}x{}@{} {}", self.width, self.height, self.fps, self.format)
+        write!(
+            f,
+            "{}x{}@{} {}",
+            self.width, self.height, self.fps, self.format
+        )
     }
 }
 
@@ -139,7 +143,9 @@ impl WebcamOptions {
 fn parse_bounded(key: &str, value: &str, max: u32) -> Result<u32, String> {
     match value.parse::<u32>() {
         Ok(v) if (1..=max).contains(&v) => Ok(v),
-        _ => Err(format!("camera option {key}={value:?}: expected a number 1..={max}")),
+        _ => Err(format!(
+            "camera option {key}={value:?}: expected a number 1..={max}"
+        )),
     }
 }
 
@@ -343,7 +349,14 @@ mod tests {
         assert_eq!(o.fps, Some(60));
         assert_eq!(o.format, Some(PixelFormat::Mjpeg));
         assert_eq!(WebcamOptions::parse_query(&o.to_query()).unwrap(), o);
-        for bad in ["width", "width=0", "fps=99999", "height=-1", "zoom=2", "format=h264"] {
+        for bad in [
+            "width",
+            "width=0",
+            "fps=99999",
+            "height=-1",
+            "zoom=2",
+            "format=h264",
+        ] {
             assert!(WebcamOptions::parse_query(bad).is_err(), "{bad}");
         }
     }

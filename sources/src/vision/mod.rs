@@ -41,8 +41,8 @@ macro_rules! debug_fields {
 
 pub mod assets;
 pub mod body;
-pub mod camera_modes;
 mod bound;
+pub mod camera_modes;
 pub mod detector;
 pub mod error;
 pub mod ffmpeg;
@@ -66,9 +66,9 @@ pub mod webcam;
 
 pub use assets::{ModelKind, VisionAssets};
 pub use body::blazepose_skeleton;
+pub use camera_modes::{CameraMode, PixelFormat, WebcamOptions};
 pub use error::VisionError;
 pub use ffmpeg::{DecodeSize, FfmpegSource};
-pub use camera_modes::{CameraMode, PixelFormat, WebcamOptions};
 pub use frame::{FrameClock, FrameSource, MemorySource, RgbFrame};
 pub use landmarks::{Landmarks, LANDMARK_NAMES, NUM_LANDMARKS};
 pub use model::{InputRange, LandmarkModel};

@@ -281,7 +281,9 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
         if let Err(e) = runner.pipeline.process_frame(&frame) {
             break Ended::Failed(e.to_string());
         }
-        let model = arrived.elapsed().saturating_sub(runner.pipeline.solve_time());
+        let model = arrived
+            .elapsed()
+            .saturating_sub(runner.pipeline.solve_time());
         publish(&runner.pipeline, &frame, arrived, capture_nanos, shared);
         if frame.clock.captured_unix_nanos > 0 {
             let detect = runner.pipeline.stats().find_nanos - found_before;

@@ -65,9 +65,9 @@ pub fn build_shim() -> Option<PathBuf> {
     }
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../sources/tests/v4l2_emu/v4l2_emu.c");
     let text = std::fs::read(&src).expect("the shim's source");
-    let sum = text
-        .iter()
-        .fold(0xcbf29ce484222325u64, |h, b| (h ^ *b as u64).wrapping_mul(0x100000001b3));
+    let sum = text.iter().fold(0xcbf29ce484222325u64, |h, b| {
+        (h ^ *b as u64).wrapping_mul(0x100000001b3)
+    });
     let out = work_dir().join(format!("v4l2_emu-{sum:016x}.so"));
     if out.exists() {
         return Some(out);
@@ -75,7 +75,14 @@ pub fn build_shim() -> Option<PathBuf> {
     std::fs::create_dir_all(work_dir()).expect("work dir");
     let tmp = out.with_extension(format!("{}.tmp", std::process::id()));
     let status = Command::new("gcc")
-        .args(["-O2", "-Wall", "-Wno-format-truncation", "-shared", "-fPIC", "-o"])
+        .args([
+            "-O2",
+            "-Wall",
+            "-Wno-format-truncation",
+            "-shared",
+            "-fPIC",
+            "-o",
+        ])
         .arg(&tmp)
         .arg(&src)
         .args(["-ldl", "-lpthread"])
@@ -116,8 +123,10 @@ fn decode(video: &Path, m: Mode, start_secs: f64, frames: usize, out: &Path) {
         cmd.args(["-f", "rawvideo", "-pix_fmt", "yuyv422"]).arg(out);
     } else {
         std::fs::create_dir_all(out).expect("mjpeg dir");
-        cmd.args(["-f", "image2", "-c:v", "mjpeg", "-pix_fmt", "yuvj422p", "-q:v", "3"])
-            .arg(out.join("%05d.jpg"));
+        cmd.args([
+            "-f", "image2", "-c:v", "mjpeg", "-pix_fmt", "yuvj422p", "-q:v", "3",
+        ])
+        .arg(out.join("%05d.jpg"));
     }
     let o = cmd.output().expect("run ffmpeg");
     assert!(
@@ -130,7 +139,13 @@ fn decode(video: &Path, m: Mode, start_secs: f64, frames: usize, out: &Path) {
 
 /// Camera `index` named `name` offering `modes`, fed `frames` frames of `video`. Returns None
 /// (printed reason) when gcc or ffmpeg is missing.
-pub fn camera(index: u32, name: &str, modes: &[Mode], video: &Path, frames: usize) -> Option<EmuCamera> {
+pub fn camera(
+    index: u32,
+    name: &str,
+    modes: &[Mode],
+    video: &Path,
+    frames: usize,
+) -> Option<EmuCamera> {
     let shim = build_shim()?;
     if !have("ffmpeg") {
         println!("SKIP: ffmpeg not found (scripts/setup-vision.sh installs it)");
@@ -143,11 +158,13 @@ pub fn camera(index: u32, name: &str, modes: &[Mode], video: &Path, frames: usiz
     let mut lines = format!("device {index} {} {name}\n", state.display());
     let mut made = Vec::new();
     for m in modes {
-        let path = base.join(format!("{}x{}", m.width, m.height)).join(if m.fourcc == "YUYV" {
-            "raw.yuyv"
-        } else {
-            "mjpeg"
-        });
+        let path = base
+            .join(format!("{}x{}", m.width, m.height))
+            .join(if m.fourcc == "YUYV" {
+                "raw.yuyv"
+            } else {
+                "mjpeg"
+            });
         let ready = path.with_extension("ready");
         if !ready.exists() {
             std::fs::create_dir_all(path.parent().expect("parent")).expect("frames dir");
@@ -204,7 +221,11 @@ impl EmuCamera {
 
     /// Frame `k` of `mode` as RGB, decoded by ffmpeg from the very bytes the camera serves.
     pub fn reference_rgb(&self, m: Mode, k: usize) -> Vec<u8> {
-        let (_, path) = self.frames.iter().find(|(x, _)| *x == m).expect("mode emulated");
+        let (_, path) = self
+            .frames
+            .iter()
+            .find(|(x, _)| *x == m)
+            .expect("mode emulated");
         let mut cmd = Command::new("ffmpeg");
         cmd.args(["-v", "error"]);
         if m.fourcc == "YUYV" {

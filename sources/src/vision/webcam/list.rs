@@ -100,7 +100,12 @@ pub(super) fn pixel_format(fourcc: FourCC) -> Option<PixelFormat> {
 /// Frame sizes of `fourcc`; a stepwise range contributes its ends.
 fn sizes(dev: &Device, fourcc: FourCC) -> Vec<(u32, u32)> {
     let mut out = Vec::new();
-    for size in dev.enum_framesizes(fourcc).unwrap_or_default().into_iter().take(MAX_ENUM) {
+    for size in dev
+        .enum_framesizes(fourcc)
+        .unwrap_or_default()
+        .into_iter()
+        .take(MAX_ENUM)
+    {
         match size.size {
             FrameSizeEnum::Discrete(d) => out.push((d.width, d.height)),
             FrameSizeEnum::Stepwise(s) => {

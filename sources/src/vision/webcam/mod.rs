@@ -126,10 +126,14 @@ fn open_camera(
                 info.name
             ))
         } else {
-            VisionError::Webcam(format!("cannot {what} camera {index} ({}) in {mode}: {text}", info.name))
+            VisionError::Webcam(format!(
+                "cannot {what} camera {index} ({}) in {mode}: {text}",
+                info.name
+            ))
         }
     };
-    let mut camera = Camera::new(CameraIndex::Index(index), requested).map_err(|e| fail("open", e))?;
+    let mut camera =
+        Camera::new(CameraIndex::Index(index), requested).map_err(|e| fail("open", e))?;
     camera.open_stream().map_err(|e| fail("start", e))?;
     let name = format!("webcam:{index} ({})", info.name);
     Ok((camera, mode, name))
@@ -156,7 +160,10 @@ impl FrameSource for Webcam {
             self.reopen()?;
         }
         let Some(camera) = self.camera.as_mut() else {
-            return Err(VisionError::CameraLost(format!("camera {} is gone", self.index)));
+            return Err(VisionError::CameraLost(format!(
+                "camera {} is gone",
+                self.index
+            )));
         };
         // The driver hands over its oldest filled buffer: after a slow frame (a model run
         // longer than the frame interval) that one is old. Frames older than 1.5 intervals are
