@@ -42,7 +42,17 @@ pub fn send_vmc_pose(
     pose: &Pose,
     t: f32,
 ) {
-    let bones = names
+    for bundle in enc.encode(t, vmc_bones(names, pose)) {
+        socket.send_to(bundle, to).unwrap();
+    }
+}
+
+/// `pose`'s bones as VMC bones named `names` (in order), for an encoder.
+pub fn vmc_bones<'a>(
+    names: &'a [String],
+    pose: &'a Pose,
+) -> impl Iterator<Item = rigcast_protocol::vmc::VmcBone<'a>> {
+    names
         .iter()
         .zip(&pose.translations)
         .zip(&pose.rotations)
@@ -52,10 +62,7 @@ pub fn send_vmc_pose(
                 translation,
                 rotation,
             },
-        );
-    for bundle in enc.encode(t, bones) {
-        socket.send_to(bundle, to).unwrap();
-    }
+        )
 }
 
 /// Unix epoch nanoseconds.

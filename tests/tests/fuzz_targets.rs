@@ -90,17 +90,7 @@ fn fuzz_vmc_decoder() {
     let mut enc = rigcast_protocol::vmc::VmcEncoder::new();
     let mut seeds = Vec::new();
     for (k, pose) in clip.poses.iter().enumerate() {
-        let bones = names
-            .iter()
-            .zip(&pose.translations)
-            .zip(&pose.rotations)
-            .map(
-                |((name, &translation), &rotation)| rigcast_protocol::vmc::VmcBone {
-                    name,
-                    translation,
-                    rotation,
-                },
-            );
+        let bones = rigcast_tests::vmc_bones(&names, pose);
         seeds.extend(enc.encode(k as f32 / 30.0, bones).iter().cloned());
     }
     // One decoder for the whole run: its learnt skeleton and state are part of what is fuzzed.
