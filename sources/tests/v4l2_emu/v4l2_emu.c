@@ -683,29 +683,21 @@ OPEN_WRAPPER(open64, const char *path, int flags, ...)
     return real_open64(path, flags, mode);
 }
 
-int openat(int dirfd, const char *path, int flags, ...) {
-    va_list ap;
-    va_start(ap, flags);
-    mode_t mode = (flags & (O_CREAT | O_TMPFILE)) ? va_arg(ap, mode_t) : 0;
-    va_end(ap);
-    int handled;
-    int fd = path[0] == '/' ? emu_open(path, &handled) : (handled = 0, -1);
-    if (handled) return fd;
-    REAL(int, openat, int, const char *, int, ...);
-    return real_openat(dirfd, path, flags, mode);
-}
-
-int openat64(int dirfd, const char *path, int flags, ...) {
-    va_list ap;
-    va_start(ap, flags);
-    mode_t mode = (flags & (O_CREAT | O_TMPFILE)) ? va_arg(ap, mode_t) : 0;
-    va_end(ap);
-    int handled;
-    int fd = path[0] == '/' ? emu_open(path, &handled) : (handled = 0, -1);
-    if (handled) return fd;
-    REAL(int, openat64, int, const char *, int, ...);
-    return real_openat64(dirfd, path, flags, mode);
-}
+/* openat and openat64: only absolute paths can name the emulated device. */
+#define OPENAT_WRAPPER(name)                                                   \
+    int name(int dirfd, const char *path, int flags, ...) {                    \
+        va_list ap;                                                            \
+        va_start(ap, flags);                                                   \
+        mode_t mode = (flags & (O_CREAT | O_TMPFILE)) ? va_arg(ap, mode_t) : 0; \
+        va_end(ap);                                                            \
+        int handled;                                                           \
+        int fd = path[0] == '/' ? emu_open(path, &handled) : (handled = 0, -1); \
+        if (handled) return fd;                                                \
+        REAL(int, name, int, const char *, int, ...);                          \
+        return real_##name(dirfd, path, flags, mode);                          \
+    }
+OPENAT_WRAPPER(openat)
+OPENAT_WRAPPER(openat64)
 
 int close(int fd) {
     pthread_mutex_lock(&lock);
