@@ -77,7 +77,7 @@ impl CalibrateRefusal {
 /// Validates a `calibrate` request and starts it; `Err` is the `error` reply.
 pub fn start(
     subjects: &Arc<Vec<Arc<Subject>>>,
-    events: &broadcast::Sender<String>,
+    events: &broadcast::Sender<crate::events::Event>,
     subject: u32,
     pose: CalibrationPose,
     delay_secs: f32,
@@ -106,7 +106,7 @@ pub fn start(
         pose.label()
     ));
     // Err only means no client is listening right now.
-    let _ = events.send(crate::subject::source_status_json(subjects));
+    let _ = events.send(crate::events::Event::source_status(subjects));
     let subjects = subjects.clone();
     let events = events.clone();
     tokio::spawn(async move {
@@ -120,7 +120,7 @@ pub fn start(
             if cal.generation.load(Ordering::Acquire) == generation {
                 cal.set_text(text);
                 // Err only means no client is listening right now.
-                let _ = events.send(crate::subject::source_status_json(&subjects));
+                let _ = events.send(crate::events::Event::source_status(&subjects));
             }
         }
     });

@@ -45,8 +45,10 @@ use tokio_tungstenite::WebSocketStream;
 use crate::access::Access;
 use crate::changes::type_name;
 use crate::clock::unix_nanos;
+use crate::events::Event;
 use crate::state::ServerState;
 use crate::stats::ClientStats;
+use crate::wire;
 
 /// Largest client message the server interprets (control messages are small JSON). Larger
 /// ones up to the transport limit are answered with `message_too_large`.
@@ -158,33 +160,11 @@ pub async fn serve_client<S>(
     }
 }
 
-/// The state that control messages describe, as those messages: every subject's skeleton,
-/// every built mapping, the sources' health. Sent on connect and after a control-queue lag.
-fn state_messages(state: &ServerState) -> Vec<String> {
-    let subjects = state.subjects();
-    let mut out: Vec<String> = subjects
-        .iter()
-        .map(|s| s.shape().skeleton_json.clone())
-        .collect();
-    out.extend(
-        subjects
-            .iter()
-            .filter_map(|s| s.mapping_json.read().ok().and_then(|m| m.clone())),
-    );
-    out.extend(
-        subjects
-            .iter()
-            .filter_map(|s| s.stats.footplants_json.lock().ok().and_then(|m| m.clone())),
-    );
-    out.push(crate::subject::source_status_json(&state.subjects()));
-    out
-}
-
 /// After the control queue overflowed: drops what is left of it (all older than what is
 /// about to be read from the state) and sends the current state instead.
 async fn resync<S>(
     sink: &mut Sink<S>,
-    events: &mut broadcast::Receiver<String>,
+    events: &mut broadcast::Receiver<Event>,
     state: &ServerState,
     stats: &ClientStats,
 ) -> Result<(), End>
@@ -193,7 +173,7 @@ where
 {
     // Bounded: the queue holds at most its capacity, newer messages are dropped for a lag
     // that the next recv reports (and resyncs) again.
-    for _ in 0..crate::state::EVENTS_CAPACITY * 2 {
+    for _ in 0..crate::events::EVENTS_CAPACITY * 2 {
         match events.try_recv() {
             Ok(_) | Err(TryRecvError::Lagged(_)) => {}
             Err(TryRecvError::Empty | TryRecvError::Closed) => break,
@@ -207,8 +187,8 @@ where
     .to_json();
     let stall = state.stalled_client_timeout;
     send(sink, Message::text(subjects), stall).await?;
-    for text in state_messages(state) {
-        send(sink, Message::text(text), stall).await?;
+    for message in wire::state_messages(state) {
+        send(sink, Message::text(message.to_json()), stall).await?;
     }
     Ok(())
 }
@@ -235,16 +215,21 @@ async fn run<S>(
     state: &ServerState,
     stats: &ClientStats,
     frames: &mut broadcast::Receiver<crate::engine::OutFrame>,
-    events: &mut broadcast::Receiver<String>,
+    events: &mut broadcast::Receiver<Event>,
 ) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
     let stall = state.stalled_client_timeout;
     let (mut sink, mut stream) = ws.split();
-    send(&mut sink, Message::text(state.hello_json()), stall).await?;
-    for text in state_messages(state) {
-        send(&mut sink, Message::text(text), stall).await?;
+    send(
+        &mut sink,
+        Message::text(wire::hello(state).to_json()),
+        stall,
+    )
+    .await?;
+    for message in wire::state_messages(state) {
+        send(&mut sink, Message::text(message.to_json()), stall).await?;
     }
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
@@ -264,7 +249,10 @@ where
             // Before frames, so a new skeleton arrives before frames that use it.
             event = events.recv() => {
                 match event {
-                    Ok(text) => send(&mut sink, Message::text(text), stall).await?,
+                    Ok(event) => {
+                        let text = wire::message(&event).to_json();
+                        send(&mut sink, Message::text(text), stall).await?;
+                    }
                     Err(RecvError::Lagged(_)) => resync(&mut sink, events, state, stats).await?,
                     Err(RecvError::Closed) => return Ok(()),
                 }

@@ -15,8 +15,6 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use futures_util::FutureExt;
-use rigcast_protocol::control::ErrorCode;
-use rigcast_protocol::ServerMessage;
 use tokio::sync::broadcast;
 
 use crate::subject::Subject;
@@ -68,7 +66,7 @@ pub type SeenFaults = Vec<(u32, u64, bool)>;
 pub fn announce(
     subjects: &[Arc<Subject>],
     seen: &mut SeenFaults,
-    events: &broadcast::Sender<String>,
+    events: &broadcast::Sender<crate::events::Event>,
 ) -> bool {
     let mut changed = false;
     for s in subjects {
@@ -90,13 +88,13 @@ pub fn announce(
         }
         changed = true;
         if let Some(why) = fault {
-            let message = ServerMessage::Error {
-                code: ErrorCode::SubjectFaulted,
-                message: format!("subject {} ({}): {why}", s.id, s.info().name),
-                subject: Some(s.id),
+            let event = crate::events::Event::SubjectFaulted {
+                subject: s.id,
+                name: s.info().name,
+                why,
             };
             // Err only means no client is connected.
-            let _ = events.send(message.to_json());
+            let _ = events.send(event);
         }
     }
     changed

@@ -5,16 +5,19 @@
 //! The tick only stores a bitmask per target (`SubjectStats::feet_locked`, no allocation);
 //! this task samples it at [`CHECK_HZ`], off the tick, and on a change takes the feet's
 //! positions from forward kinematics of the target's latest published frame. The latest
-//! message per target is kept for clients that connect later (see `clients::state_messages`).
+//! report per target is kept on the subject for clients that connect later
+//! (see `wire::state_messages`).
 
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
-use rigcast_protocol::{FootState, ServerMessage};
+use rigcast_protocol::FootState;
 use rigcast_retarget::{forward_kinematics, WorldTransform};
 use tokio::sync::{broadcast, watch};
 
+use crate::events::Event;
+use crate::reports::FootplantReport;
 use crate::subject::Subject;
 
 /// How often the planted flags are compared with the last message (plants change a few times
@@ -32,7 +35,7 @@ struct Sent {
 /// Broadcasts `footplants` for every target subject whose foot-lock state changed.
 pub async fn run(
     subjects: Arc<Vec<Arc<Subject>>>,
-    events: broadcast::Sender<String>,
+    events: broadcast::Sender<Event>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     let targets: Vec<Arc<Subject>> = subjects.iter().filter(|s| s.is_target()).cloned().collect();
@@ -59,28 +62,26 @@ pub async fn run(
                 }
                 Err(_) => continue,
             };
-            let json = message(target, &feet, bits, &mut worlds).to_json();
-            if let Ok(mut slot) = target.stats.footplants_json.lock() {
-                *slot = Some(json.clone());
-            }
+            let report = Arc::new(report(target, &feet, bits, &mut worlds));
+            target.set_footplants(report.clone());
             *last = Sent {
                 bits,
                 feet,
                 sent: true,
             };
-            // Sending fails only while no client listens; the state is also kept in the stats slot above.
-            let _ = events.send(json);
+            // Sending fails only while no client listens; the subject keeps the report too.
+            let _ = events.send(Event::Footplants(report));
         }
     }
 }
 
-/// The `footplants` message of `target` for the foot bones `feet` (bit `i` = foot `i` planted).
-fn message(
+/// The foot-plant report of `target` for the foot bones `feet` (bit `i` = foot `i` planted).
+fn report(
     target: &Subject,
     feet: &[String],
     bits: u32,
     worlds: &mut Vec<WorldTransform>,
-) -> ServerMessage {
+) -> FootplantReport {
     let skeleton = target.skeleton();
     let frame = target.latest.borrow().clone();
     worlds.resize(skeleton.num_bones(), WorldTransform::IDENTITY);
@@ -106,7 +107,7 @@ fn message(
             })
         })
         .collect();
-    ServerMessage::Footplants {
+    FootplantReport {
         subject: target.id,
         seq: frame.seq,
         feet,

@@ -43,6 +43,7 @@ pub mod config_error;
 pub mod demo;
 pub mod dirs;
 pub mod engine;
+pub mod events;
 pub mod fault;
 pub mod footplants;
 pub mod graft_live;
@@ -57,6 +58,8 @@ pub mod model;
 pub mod offline;
 pub mod performer;
 pub mod recorder;
+pub mod replay_task;
+pub mod reports;
 pub mod skeleton_wire;
 pub mod source_kinds;
 pub mod state;
@@ -64,9 +67,11 @@ pub mod stats;
 pub mod stream_record;
 pub mod subject;
 pub mod subject_list;
+pub mod tick_task;
 pub mod token;
 pub mod translated;
 pub mod vmc_pose;
+pub mod wire;
 
 #[cfg(test)]
 #[path = "../../sources/tests/common/shared_data.rs"]
@@ -78,5 +83,4 @@ pub use config::{
     TargetSpec, VmcBoneNames, VmcOut,
 };
 pub use source_kinds::{demo_clip, NO_WEBCAM_HINT};
-pub use subject::source_status_json;
 pub use token::{ControlToken, TokenSetting};

@@ -17,13 +17,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use rigcast_protocol::ServerMessage;
 use rigcast_retarget::{Frame, Pose};
 use rigcast_sources::live::LiveSource;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use crate::clock::unix_nanos;
 use crate::engine::EngineCommand;
+use crate::events::Event;
 use crate::recorder::Recorder;
 use crate::subject::Subject;
 
@@ -43,7 +43,7 @@ pub struct LiveContext {
     /// All subjects (for `subjects_changed`).
     pub subjects: Arc<crate::subject_list::SubjectList>,
     /// Control messages to clients.
-    pub events: broadcast::Sender<String>,
+    pub events: broadcast::Sender<Event>,
     /// Requests to the mapper.
     pub commands: mpsc::Sender<EngineCommand>,
     /// Recording of skeleton changes, if any.
@@ -74,7 +74,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                 // Err only means no client is connected.
                 let _ = ctx
                     .events
-                    .send(crate::subject::source_status_json(&ctx.subjects.snapshot()));
+                    .send(Event::source_status(&ctx.subjects.snapshot()));
             }
         }
         match source.next_frame(POLL, &mut pose) {
@@ -151,13 +151,12 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
 /// Tells clients, the recorder and the mapper about a new skeleton.
 fn announce_skeleton(ctx: &LiveContext) {
     let shape = ctx.subject.shape();
-    let infos = ctx.subjects.snapshot().iter().map(|s| s.info()).collect();
     // Err only means no client is listening right now.
     let _ = ctx
         .events
-        .send(ServerMessage::SubjectsChanged { subjects: infos }.to_json());
+        .send(Event::subjects_changed(&ctx.subjects.snapshot()));
     // Err only means no client is listening right now.
-    let _ = ctx.events.send(shape.skeleton_json.clone());
+    let _ = ctx.events.send(Event::Skeleton(shape.clone()));
     if let Some(r) = &ctx.recorder {
         r.skeleton(ctx.subject.id, &shape.info.name, &shape.skeleton);
     }

@@ -23,7 +23,6 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use rigcast_protocol::control::MappingEntry;
-use rigcast_protocol::ServerMessage;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::mapping::{
@@ -38,6 +37,7 @@ use crate::engine::EngineCommand;
 use crate::graft_live::{LiveGraft, LowerInput};
 use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
 use crate::performer::{BuiltMapping, Mailbox};
+use crate::reports::MappingReport;
 use crate::subject::Subject;
 
 /// What the mapper knows about one performer.
@@ -84,7 +84,7 @@ pub struct Mapper {
     /// Cluster mode: automatic tables shared with the other nodes.
     shared: Option<crate::cluster::SharedMappings>,
     frame_time_secs: f32,
-    events: broadcast::Sender<String>,
+    events: broadcast::Sender<crate::events::Event>,
     options: MapOptions,
 }
 
@@ -96,7 +96,7 @@ impl Mapper {
         extras: HashMap<u32, SourceExtra>,
         disk: Option<PathBuf>,
         rate_hz: f64,
-        events: broadcast::Sender<String>,
+        events: broadcast::Sender<crate::events::Event>,
     ) -> Mapper {
         Mapper {
             subjects,
@@ -226,7 +226,7 @@ impl Mapper {
             .flat_map(|a| a.warnings.iter().map(|w| format!("source: {w}")))
             .chain(ta.warnings.iter().map(|w| format!("target: {w}")))
             .collect();
-        let json = mapping_message(
+        let report = mapping_report(
             &p.target,
             &sources,
             &target,
@@ -243,7 +243,7 @@ impl Mapper {
                 foot_lock,
                 graft: None,
             },
-            json,
+            report,
         );
         Ok(())
     }
@@ -269,7 +269,7 @@ impl Mapper {
 
     /// Publishes performer `i`'s built mapping: the locked feet for the status, the mailbox,
     /// the `mapping` message.
-    fn hand_over(&self, i: usize, built: BuiltMapping, json: String) {
+    fn hand_over(&self, i: usize, built: BuiltMapping, report: MappingReport) {
         let p = &self.performers[i];
         let target = p.target.skeleton();
         if let Ok(mut feet) = p.target.stats.locked_feet.lock() {
@@ -287,11 +287,10 @@ impl Mapper {
         if let Ok(mut slot) = p.mailbox.lock() {
             *slot = Some(built);
         }
-        if let Ok(mut m) = p.target.mapping_json.write() {
-            *m = Some(json.clone());
-        }
+        let report = Arc::new(report);
+        p.target.set_mapping(report.clone());
         // Err only means no client is listening right now.
-        let _ = self.events.send(json);
+        let _ = self.events.send(crate::events::Event::Mapping(report));
     }
 
     /// A grafted performer: the upper source mapped onto the character, the lower body (a
@@ -393,7 +392,7 @@ impl Mapper {
         .iter()
         .flat_map(|(who, a)| a.warnings.iter().map(move |w| format!("{who}: {w}")))
         .collect();
-        let json = mapping_message(
+        let report = mapping_report(
             &p.target,
             &[upper.0.clone(), lower.0.clone()],
             &target,
@@ -409,7 +408,7 @@ impl Mapper {
                 foot_lock,
                 graft: Some(graft),
             },
-            json,
+            report,
         );
         Ok(())
     }
@@ -502,8 +501,8 @@ pub fn apply_session(
     Ok(())
 }
 
-/// The `mapping` message of a target.
-fn mapping_message(
+/// A target's mapping as clients are told of it.
+fn mapping_report(
     subject: &Subject,
     sources: &[Arc<Skeleton>],
     target: &Skeleton,
@@ -511,7 +510,7 @@ fn mapping_message(
     table: &MappingTable,
     opts: &MapOptions,
     warnings: Vec<String>,
-) -> String {
+) -> MappingReport {
     let colors = mapping_colors(target, analysis, table);
     let max = opts.max_score().max(1e-6);
     let entries = target
@@ -537,13 +536,12 @@ fn mapping_message(
             }
         })
         .collect();
-    ServerMessage::Mapping {
+    MappingReport {
         subject: subject.id,
         source_subject: subject.inputs.first().copied().unwrap_or(0),
         entries,
         warnings,
     }
-    .to_json()
 }
 
 /// The performer's foot lock, when configured on (or, unconfigured, when the character stands

@@ -22,7 +22,7 @@ use rigcast_retarget::footplant::FootLock;
 use rigcast_retarget::{Frame, Mapping, Pose};
 use tokio::sync::watch;
 
-use crate::clock::unix_nanos;
+use crate::clock::TickTime;
 use crate::config::OnLost;
 use crate::graft_live::{LiveGraft, LockTiming};
 use crate::idle_graph::IdleGraph;
@@ -258,8 +258,9 @@ impl Performer {
     /// Runs one tick: read the sources, follow them (or fall back while they are lost), publish.
     /// Allocates nothing in steady state. A panic in its processing, or a pose that comes out
     /// not finite, is caught here and faults this performer alone (see [`Performer::fault`]):
-    /// the tick and the other performers go on.
-    pub fn tick(&mut self, now: Instant) {
+    /// the tick and the other performers go on. Reads no clock: `time` is the tick's.
+    pub fn tick(&mut self, time: TickTime) {
+        let now = time.instant;
         self.take_new_mapping();
         if self.retry_at.is_some_and(|t| now < t) {
             return;
@@ -275,7 +276,7 @@ impl Performer {
             return;
         };
         let shown = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            self.step(&mut built, now, tick_secs)
+            self.step(&mut built, time, tick_secs)
         }));
         match shown {
             Ok(Some((moving, capture))) => match self.display.check_values() {
@@ -347,9 +348,10 @@ impl Performer {
     fn step(
         &mut self,
         built: &mut BuiltMapping,
-        now: Instant,
+        time: TickTime,
         tick_secs: f64,
     ) -> Option<(bool, u64)> {
+        let now = time.instant;
         let read = self.read_inputs()?;
         self.change_phase(built, read.lost, now);
         let moving = match self.phase {
@@ -363,7 +365,8 @@ impl Performer {
         };
         self.target.stats.motion.store(self.motion());
         let capture = match self.phase {
-            Phase::Lost(_) => unix_nanos(),
+            // Nothing captured it: the fallback's pose is made now.
+            Phase::Lost(_) => time.unix_nanos,
             _ => read.newest_capture,
         };
         Some((moving, capture))

@@ -6,17 +6,15 @@ use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 
 use rigcast_protocol::control::{ClientMessage, SubjectInfo};
-use rigcast_protocol::{ServerMessage, PROTOCOL_VERSION};
+use rigcast_protocol::ServerMessage;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use crate::access::AccessPolicy;
 use crate::engine::{EngineCommand, OutFrame, Subject};
+use crate::events::Event;
 use crate::limits::{ConnectionLimiter, FdLimit};
 use crate::recorder::RecorderHealth;
 use crate::stats::{MappingShareCounts, Stats};
-
-/// Control messages queued per client (mapping updates, skeleton changes, source status).
-pub const EVENTS_CAPACITY: usize = 256;
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
 pub struct ServerState {
@@ -24,9 +22,9 @@ pub struct ServerState {
     pub subject_list: Arc<crate::subject_list::SubjectList>,
     /// Frame fan-out; client tasks call `subscribe`.
     pub frames: broadcast::Sender<OutFrame>,
-    /// Control messages for every client (`mapping`, `skeleton`, `subjects_changed`,
-    /// `source_status`), as JSON text.
-    pub events: broadcast::Sender<String>,
+    /// What every client is told about (`mapping`, `skeleton`, `subjects_changed`,
+    /// `source_status`, `footplants`, faults), typed; `wire` makes them messages.
+    pub events: broadcast::Sender<Event>,
     /// Counters.
     pub stats: Arc<Stats>,
     /// Output rate.
@@ -78,18 +76,6 @@ impl ServerState {
     /// The subjects as listed in `hello`.
     pub fn subject_infos(&self) -> Vec<SubjectInfo> {
         self.subjects().iter().map(|s| s.info()).collect()
-    }
-
-    /// The `hello` message.
-    pub fn hello_json(&self) -> String {
-        ServerMessage::Hello {
-            protocol_version: PROTOCOL_VERSION,
-            protocol_versions: rigcast_protocol::PROTOCOL_VERSIONS.to_vec(),
-            server_version: env!("CARGO_PKG_VERSION").to_string(),
-            tick_hz: self.rate_hz,
-            subjects: self.subject_infos(),
-        }
-        .to_json()
     }
 }
 

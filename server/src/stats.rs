@@ -72,8 +72,6 @@ pub struct SubjectStats {
     /// The foot bones its foot lock holds, in bit order (empty: no foot lock). Written when a
     /// mapping is built.
     pub locked_feet: std::sync::Mutex<Vec<String>>,
-    /// The latest `footplants` message of a target (see `footplants`), for new clients.
-    pub footplants_json: std::sync::Mutex<Option<String>>,
     /// What drives a target now (written by the tick, read by `source_status`).
     pub motion: MotionCell,
     /// Poses refused where they entered the engine (see `rigcast_retarget::bounds`).

@@ -7,8 +7,8 @@ use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
-use rigcast_protocol::control::{BoneInfo, SourceHealth, SubjectInfo, SubjectKind};
-use rigcast_protocol::{ServerMessage, SourceKind, SourceState};
+use rigcast_protocol::control::{SourceHealth, SubjectInfo, SubjectKind};
+use rigcast_protocol::{SourceKind, SourceState};
 use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 use rigcast_sources::live::SourceStatus;
@@ -16,6 +16,7 @@ use rigcast_sources::serial::CalibrationHandle;
 use tokio::sync::watch;
 
 use crate::config::VmcBoneNames;
+use crate::reports::{FootplantReport, HealthReport, MappingReport};
 use crate::stats::SubjectStats;
 use crate::translated::{translated_bones, MovingBones};
 
@@ -112,8 +113,6 @@ pub struct SubjectShape {
     pub info: SubjectInfo,
     /// Skeleton of the poses.
     pub skeleton: Arc<Skeleton>,
-    /// The `skeleton` message, serialised once.
-    pub skeleton_json: String,
     /// VMC output names.
     pub vmc: VmcPlan,
     /// Ascending indices of the bones whose translations version 2 frames carry (marked
@@ -131,31 +130,10 @@ impl SubjectShape {
     ) -> SubjectShape {
         let analysis = analyze_with_truth(&SkeletonView::rest(&skeleton), truth);
         let translated = translated_bones(&skeleton, &analysis, moving);
-        let bones = skeleton
-            .bone_ids()
-            .map(|b| {
-                let rest = skeleton.rest()[b.index()];
-                BoneInfo {
-                    name: skeleton.name(b).to_string(),
-                    parent: skeleton.parent(b).map(|p| p.0 as u32),
-                    rest_translation: rest.translation.to_array(),
-                    rest_rotation: rest.rotation.to_array(),
-                    translated: translated.binary_search(&(b.0)).is_ok(),
-                }
-            })
-            .collect();
-        let skeleton_json = ServerMessage::Skeleton {
-            subject: info.id,
-            name: info.name.clone(),
-            fingerprint: info.fingerprint.clone(),
-            bones,
-        }
-        .to_json();
         SubjectShape {
             vmc: VmcPlan::from_analysis(&skeleton, names, &analysis, truth),
             info,
             skeleton,
-            skeleton_json,
             translated,
         }
     }
@@ -242,8 +220,10 @@ pub struct Subject {
     pub health: Health,
     /// Source subjects of a target (input order of its mapping); empty for sources.
     pub inputs: Vec<u32>,
-    /// The `mapping` message of a target, once built.
-    pub mapping_json: RwLock<Option<String>>,
+    /// A target's mapping, once built.
+    mapping: RwLock<Option<Arc<MappingReport>>>,
+    /// A target's planted feet as last reported.
+    footplants: Mutex<Option<Arc<FootplantReport>>>,
     /// The UDP address a VMC source listens on.
     pub listen_addr: Option<SocketAddr>,
     /// Calibration of a serial IMU source (see [`crate::calibration`]).
@@ -353,7 +333,8 @@ impl Subject {
                 stats: SubjectStats::default(),
                 health: Health::new(initial),
                 inputs,
-                mapping_json: RwLock::new(None),
+                mapping: RwLock::new(None),
+                footplants: Mutex::new(None),
                 listen_addr: None,
                 calibration: None,
                 vmc_names,
@@ -501,6 +482,38 @@ impl Subject {
         true
     }
 
+    /// A target's mapping, once built.
+    pub fn mapping(&self) -> Option<Arc<MappingReport>> {
+        match self.mapping.read() {
+            Ok(m) => m.clone(),
+            Err(poisoned) => poisoned.into_inner().clone(),
+        }
+    }
+
+    /// Keeps a target's newly built mapping (for clients that connect later).
+    pub fn set_mapping(&self, report: Arc<MappingReport>) {
+        match self.mapping.write() {
+            Ok(mut m) => *m = Some(report),
+            Err(poisoned) => *poisoned.into_inner() = Some(report),
+        }
+    }
+
+    /// A target's planted feet as last reported.
+    pub fn footplants(&self) -> Option<Arc<FootplantReport>> {
+        match self.footplants.lock() {
+            Ok(f) => f.clone(),
+            Err(poisoned) => poisoned.into_inner().clone(),
+        }
+    }
+
+    /// Keeps a target's latest foot-plant report (for clients that connect later).
+    pub fn set_footplants(&self, report: Arc<FootplantReport>) {
+        match self.footplants.lock() {
+            Ok(mut f) => *f = Some(report),
+            Err(poisoned) => *poisoned.into_inner() = Some(report),
+        }
+    }
+
     /// Whether this subject is another node's, relayed from the cluster (its frames are
     /// forwarded as received instead of being encoded by this node's tick).
     pub fn is_relayed(&self) -> bool {
@@ -543,6 +556,23 @@ impl Subject {
                 camera: None,
             },
         })
+    }
+}
+
+/// The sources' health and the targets' motion and faults now (the `source_status` message's
+/// content).
+pub fn health_report(subjects: &[Arc<Subject>]) -> HealthReport {
+    HealthReport {
+        sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
+        targets: subjects
+            .iter()
+            .filter(|s| s.is_target())
+            .map(|s| rigcast_protocol::TargetHealth {
+                subject: s.id,
+                motion: s.stats.motion.load(),
+                fault: s.stats.fault(),
+            })
+            .collect(),
     }
 }
 
@@ -643,21 +673,4 @@ mod tests {
         assert_eq!(raw.bones.len(), m.num_bones());
         assert!(raw.direct);
     }
-}
-
-/// The `source_status` message for `subjects`.
-pub fn source_status_json(subjects: &[Arc<Subject>]) -> String {
-    rigcast_protocol::ServerMessage::SourceStatus {
-        sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
-        targets: subjects
-            .iter()
-            .filter(|s| s.is_target())
-            .map(|s| rigcast_protocol::TargetHealth {
-                subject: s.id,
-                motion: s.stats.motion.load(),
-                fault: s.stats.fault(),
-            })
-            .collect(),
-    }
-    .to_json()
 }

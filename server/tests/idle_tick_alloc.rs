@@ -4,10 +4,11 @@
 #![allow(clippy::unwrap_used)]
 
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rigcast_protocol::SourceState;
 use rigcast_retarget::graph::{GraphSettings, MotionGraph};
+use rigcast_server::clock::TickTime;
 use rigcast_server::config::OnLost;
 use rigcast_server::engine::Subject;
 use rigcast_server::idle_graph::IdleGraph;
@@ -61,9 +62,9 @@ fn walking_the_idle_graph_allocates_nothing() {
         OnLost::Idle,
     )
     .with_idle_graph(idle, None);
-    let mut now = Instant::now();
+    let mut now = TickTime::now();
     let mut tick = |p: &mut Performer| {
-        now += Duration::from_millis(16);
+        now = now.after(Duration::from_millis(16));
         p.tick(now);
     };
     for _ in 0..3 {

@@ -8,10 +8,12 @@ use std::sync::Arc;
 
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
+use rigcast_server::clock::TickTime;
 use rigcast_server::config::OnLost;
 use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
 use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
+use rigcast_server::tick_task::HostOutput;
 
 mod common;
 
@@ -65,24 +67,23 @@ fn tick_allocates_one_buffer_per_subject() {
     let receiver = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     socket.set_nonblocking(true).unwrap();
+    let mut out = HostOutput {
+        frames,
+        vmc_socket: Some(socket),
+        stats: Arc::new(Stats::default()),
+    };
     let mut ticker = Ticker::new(TickContext {
         subjects: Arc::new(subjects),
-        frames,
-        stats: Arc::new(Stats::default()),
-        rate_hz: 60.0,
-        vmc: Some((
-            socket,
-            vec![
-                VmcTarget {
-                    addr: receiver.local_addr().unwrap(),
-                    subject_index: 0,
-                },
-                VmcTarget {
-                    addr: receiver.local_addr().unwrap(),
-                    subject_index: 3,
-                },
-            ],
-        )),
+        vmc: vec![
+            VmcTarget {
+                addr: receiver.local_addr().unwrap(),
+                subject_index: 0,
+            },
+            VmcTarget {
+                addr: receiver.local_addr().unwrap(),
+                subject_index: 3,
+            },
+        ],
         performers: vec![performer],
     });
     // The source moves every tick, so the target is retargeted every tick.
@@ -95,14 +96,14 @@ fn tick_allocates_one_buffer_per_subject() {
     // Warm up: buffers grow to size, the performer takes its mapping.
     for k in 0..3 {
         advance(k);
-        ticker.tick();
+        ticker.tick(TickTime::now(), &mut out);
     }
     let target_seq = target_subject.latest.borrow().seq;
     let before = counting::allocations();
     const TICKS: usize = 100;
     for k in 0..TICKS {
         advance(k + 3);
-        ticker.tick();
+        ticker.tick(TickTime::now(), &mut out);
     }
     let allocations = counting::allocations() - before;
     assert_eq!(

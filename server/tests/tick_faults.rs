@@ -10,10 +10,12 @@ use std::time::Duration;
 use glam::Vec3;
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
+use rigcast_server::clock::TickTime;
 use rigcast_server::config::OnLost;
 use rigcast_server::engine::{Subject, TickContext, Ticker};
 use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
+use rigcast_server::tick_task::HostOutput;
 
 mod common;
 
@@ -55,12 +57,14 @@ fn a_performer_fed_overflowing_values_faults_alone_and_recovers() {
         subjects.push(t);
     }
     let (frames, _rx) = tokio::sync::broadcast::channel(4096);
+    let mut out = HostOutput {
+        frames,
+        vmc_socket: None,
+        stats: Arc::new(Stats::default()),
+    };
     let mut ticker = Ticker::new(TickContext {
         subjects: Arc::new(subjects),
-        frames,
-        stats: Arc::new(Stats::default()),
-        rate_hz: 60.0,
-        vmc: None,
+        vmc: Vec::new(),
         performers,
     });
     let mut k = 0usize;
@@ -85,14 +89,14 @@ fn a_performer_fed_overflowing_values_faults_alone_and_recovers() {
     };
     for _ in 0..20 {
         feed(None);
-        ticker.tick();
+        ticker.tick(TickTime::now(), &mut out);
     }
     let good_before = seqs(&targets);
     assert!(good_before.iter().all(|&s| s > 0), "{good_before:?}");
     for bad in [3e38, f32::NAN, f32::INFINITY] {
         for _ in 0..10 {
             feed(Some(bad));
-            ticker.tick();
+            ticker.tick(TickTime::now(), &mut out);
         }
     }
     let during = seqs(&targets);
@@ -117,7 +121,7 @@ fn a_performer_fed_overflowing_values_faults_alone_and_recovers() {
     std::thread::sleep(rigcast_server::fault::FAULT_RETRY + Duration::from_millis(50));
     for _ in 0..10 {
         feed(None);
-        ticker.tick();
+        ticker.tick(TickTime::now(), &mut out);
     }
     assert!(targets[0].stats.fault().is_none(), "the fault cleared");
     assert!(seqs(&targets)[0] > during[0], "it publishes again");

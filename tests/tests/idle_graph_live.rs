@@ -1,16 +1,12 @@
-//! The idle fallback through the real server: a VMC performer drives the built-in mannequin,
-//! whose `idle_graph` is a motion graph built here from the real CMU walk and run (a different
-//! rig: the server retargets it). The sender stops; once the server declares the source lost
-//! the mannequin moves on within 100 ms, neither frozen nor at rest, and its limbs take the
-//! graph's poses, not the performer's; `source_status` says `idle_graph` within 200 ms. The
-//! sender resumes and after the resume blend (0.3 s) the upper body is the live motion again.
-//!
-//! The jump bound, derived from the motions themselves in this run: no published frame moves
-//! any joint further per tick than twice the larger of the two motions' own 99th-percentile
-//! per-tick joint displacement (live frames before the loss, graph frames once the take-over
-//! blend is over) — twice the clip's own p99 frame-to-frame change, applied to both sides of
-//! both hand-overs (the take-over and the hand-back). Per tick: a frame after a stalled tick
-//! may cover the ticks it missed. Skips when the shared data is absent.
+//! The idle fallback end to end, through the real server and real sockets: a VMC performer
+//! drives the built-in mannequin, whose `idle_graph` is a motion graph built here from the
+//! real CMU walk and run (another rig: the server retargets it). The sender stops; once the
+//! server declares the source lost the mannequin moves on within 100 ms and `source_status`
+//! says `idle_graph` within 200 ms; the sender resumes and `live` is said within the resume
+//! blend (0.3 s) and 200 ms. What the target shows on the graph and across both hand-overs
+//! (the graph's poses, never frozen or at rest, no jump, back on the live motion) is checked
+//! on the engine itself, on a simulated clock: `server/tests/engine_idle_graph.rs`. Skips
+//! when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,9 +16,6 @@ use std::time::Duration;
 use rigcast_protocol::frame::DecodedFrame;
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::{ServerMessage, SourceState, TargetMotion};
-use rigcast_retarget::graph::play::clips_onto_rig;
-use rigcast_retarget::graph::GraphSettings;
-use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
 use rigcast_server::config::OnLost;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
@@ -43,83 +36,6 @@ struct Seen {
     lost_at: Option<u64>,
     back_at: Option<u64>,
     motions: Vec<(u64, TargetMotion)>,
-}
-
-/// The mannequin's pose in a frame.
-fn pose_of(skel: &Skeleton, f: &DecodedFrame) -> Pose {
-    let mut p = skel.rest_pose();
-    p.rotations.copy_from_slice(&f.rotations);
-    if f.translations.len() == p.translations.len() {
-        p.translations.copy_from_slice(&f.translations);
-    } else {
-        p.translations[0] = f.root;
-    }
-    p
-}
-
-/// Largest joint displacement between consecutive frames, metres, per frame (from the second).
-fn joint_steps(skel: &Skeleton, frames: &[&(DecodedFrame, u64)]) -> Vec<f32> {
-    let worlds: Vec<Vec<glam::Vec3>> = frames
-        .iter()
-        .map(|(f, _)| {
-            world_transforms(skel, &pose_of(skel, f))
-                .iter()
-                .map(|w| w.translation)
-                .collect()
-        })
-        .collect();
-    worlds
-        .windows(2)
-        .map(|w| {
-            w[0].iter()
-                .zip(&w[1])
-                .map(|(a, b)| a.distance(*b))
-                .fold(0.0, f32::max)
-        })
-        .collect()
-}
-
-/// [`joint_steps`] per tick period: a frame published after the server's tick stalled (the
-/// machine is shared) covers the ticks it missed, at the motion's own speed. A snap covers
-/// its distance in one tick and is still caught.
-fn joint_steps_per_tick(skel: &Skeleton, frames: &[&(DecodedFrame, u64)]) -> Vec<f32> {
-    let tick_nanos = 1e9 / RATE_HZ;
-    joint_steps(skel, frames)
-        .into_iter()
-        .zip(frames.windows(2))
-        .map(|(step, w)| {
-            let nanos = w[1]
-                .0
-                .header
-                .send_nanos
-                .saturating_sub(w[0].0.header.send_nanos);
-            step / (nanos as f64 / tick_nanos).round().max(1.0) as f32
-        })
-        .collect()
-}
-
-fn p99(mut v: Vec<f32>) -> f32 {
-    v.sort_by(f32::total_cmp);
-    v[((v.len() - 1) as f32 * 0.99) as usize]
-}
-
-/// Worst angle (degrees) over `bones` between `f` and the pose of `clip` that matches best.
-fn best_match_degrees(clip: &[Pose], bones: &[usize], f: &DecodedFrame) -> f32 {
-    clip.iter()
-        .map(|p| {
-            bones
-                .iter()
-                .map(|&b| rotation_angle(p.rotations[b], f.rotations[b]))
-                .fold(0.0f32, f32::max)
-        })
-        .fold(f32::MAX, f32::min)
-        .to_degrees()
-}
-
-fn bones_named(skel: &Skeleton, prefixes: &[&str]) -> Vec<usize> {
-    (0..skel.num_bones())
-        .filter(|&i| prefixes.iter().any(|p| skel.names()[i].starts_with(p)))
-        .collect()
 }
 
 async fn watch(ws: &mut Ws, seen: &mut Seen, for_secs: f64) {
@@ -152,7 +68,7 @@ async fn watch(ws: &mut Ws, seen: &mut Seen, for_secs: f64) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
-    let Some((graph_file, graph_clips)) = build_idle_graph("idle.rmg") else {
+    let Some((graph_file, _)) = build_idle_graph("idle.rmg") else {
         return;
     };
     let live = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
@@ -213,7 +129,6 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     sender.join().unwrap();
     server.shutdown().await;
 
-    let skel = rigcast_server::character::mannequin().unwrap();
     let lost_at = seen
         .lost_at
         .expect("the server never declared the source lost");
@@ -223,18 +138,7 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
         ms(lost_at, stopped_at),
         seen.frames.len()
     );
-    let between = |a: u64, b: u64| -> Vec<&(DecodedFrame, u64)> {
-        seen.frames
-            .iter()
-            .filter(|(_, t)| *t >= a && *t < b)
-            .collect()
-    };
     let ms_ns = |m: f64| (m * 1e6) as u64;
-    let live_before = between(stopped_at - ms_ns(2000.0), stopped_at);
-    assert!(
-        live_before.len() > 30,
-        "too few live frames before the loss"
-    );
     // The last live frame: the target publishes nothing during the silence before the loss
     // is declared (its source does not change), so it is older than that silence.
     let last_live = seen
@@ -262,68 +166,6 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
         "moved {reaction_ms:.0} ms after the loss"
     );
 
-    // On the graph: the limbs take poses of the graph's clips (retargeted onto the mannequin
-    // here, with the library's defaults), not the performer's, and never stand still or rest.
-    let blend = GraphSettings::default().blend_secs as f64 * 1000.0;
-    let on_graph = between(lost_at + ms_ns(blend + 100.0), resumed_at);
-    assert!(
-        on_graph.len() > 60,
-        "only {} frames on the graph",
-        on_graph.len()
-    );
-    let limbs = bones_named(&skel, &["upperarm", "lowerarm", "thigh", "calf"]);
-    let upper = bones_named(&skel, &["spine", "neck", "head", "upperarm", "lowerarm"]);
-    let rig = Clip::new(
-        "mannequin",
-        Arc::new(skel.clone()),
-        vec![skel.rest_pose()],
-        1.0 / 60.0,
-    )
-    .unwrap();
-    let graph_on_target: Vec<Pose> = clips_onto_rig(&graph_clips, &rig)
-        .unwrap()
-        .into_iter()
-        .flat_map(|c| c.poses)
-        .collect();
-    // Every live frame before the loss (a 2 s window at 30 fps may miss a phase of the cycle).
-    let live_on_target: Vec<Pose> = between(0, last_live.1 + 1)
-        .iter()
-        .map(|(f, _)| pose_of(&skel, f))
-        .collect();
-    let median = |mut v: Vec<f32>| {
-        v.sort_by(f32::total_cmp);
-        v[v.len() / 2]
-    };
-    let to_graph = median(
-        on_graph
-            .iter()
-            .map(|(f, _)| best_match_degrees(&graph_on_target, &limbs, f))
-            .collect(),
-    );
-    let to_live = median(
-        on_graph
-            .iter()
-            .map(|(f, _)| best_match_degrees(&live_on_target, &upper, f))
-            .collect(),
-    );
-    let rest = skel.rest_pose();
-    let off_rest = on_graph
-        .iter()
-        .map(|(f, _)| best_match_degrees(std::slice::from_ref(&rest), &limbs, f))
-        .fold(f32::MAX, f32::min);
-    println!(
-        "on the graph: median limb match to the graph's clips {to_graph:.1}°, upper-body match to the live motion {to_live:.1}°, least limb angle off rest {off_rest:.1}°"
-    );
-    assert!(off_rest > 10.0, "the target went to rest");
-    assert!(to_live > 5.0, "the target kept the live motion");
-    assert!(
-        to_graph < to_live / 2.0,
-        "the target's limbs are not on the graph"
-    );
-    for w in on_graph.windows(6) {
-        let steps = joint_steps(&skel, w);
-        assert!(steps.iter().sum::<f32>() > 0.005, "frozen on the graph");
-    }
     // The label follows the tick's change at once, not at the next once-a-second report.
     let idle_label = seen
         .motions
@@ -338,9 +180,7 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     );
 
     // Back on live after the resume blend: said within the blend's time (and the label's
-    // delay) of the return, and from then on the upper body (the foot lock only moves legs)
-    // matches the live motion seen before the loss. From the label, not a fixed time: a tick
-    // stalled on the shared machine can end the blend late.
+    // delay) of the return.
     let back_at = seen.back_at.expect("the source never came back");
     let live_again = seen
         .motions
@@ -352,68 +192,6 @@ async fn a_lost_source_walks_the_idle_graph_and_hands_back_to_live() {
     assert!(
         live_again_ms <= RESUME_SECS * 1000.0 + LABEL_WITHIN_MS,
         "live said {live_again_ms:.0} ms after the return"
-    );
-    let settled = between(live_again.0, u64::MAX);
-    assert!(settled.len() > 20, "too few frames after the resume");
-    let back_err = settled
-        .iter()
-        .map(|(f, _)| best_match_degrees(&live_on_target, &upper, f))
-        .fold(0.0f32, f32::max);
-    // A live pose the client did not see before the loss (a tick on the loaded machine that
-    // took two source frames at once) is at most one live step from one it saw.
-    let live_step = live_before
-        .windows(2)
-        .map(|w| best_match_degrees(&[pose_of(&skel, &w[0].0)], &upper, &w[1].0))
-        .fold(1.0f32, f32::max);
-    println!(
-        "after the resume blend: worst upper-body match to live {back_err:.2}° (largest live step {live_step:.2}°)"
-    );
-    let off_graph = seen
-        .motions
-        .iter()
-        .find(|&&(t, m)| t >= back_at && m != TargetMotion::IdleGraph)
-        .unwrap_or_else(|| panic!("source_status stayed on idle_graph: {:?}", seen.motions));
-    let off_graph_ms = ms(off_graph.0, back_at);
-    println!("{} said {off_graph_ms:.0} ms after the return", off_graph.1);
-    assert!(
-        off_graph_ms <= LABEL_WITHIN_MS,
-        "{} said {off_graph_ms:.0} ms after the return",
-        off_graph.1
-    );
-    assert!(
-        back_err <= live_step,
-        "not back on live motion ({back_err:.2}°, live step {live_step:.2}°)"
-    );
-
-    // No frame of the take-over or the hand-back jumps further than twice the larger motion's
-    // own p99 step.
-    let live_p99 = p99(joint_steps_per_tick(&skel, &live_before));
-    let graph_p99 = p99(joint_steps_per_tick(&skel, &on_graph));
-    let bound = 2.0 * live_p99.max(graph_p99);
-    let worst_in = |a: u64, b: u64| {
-        joint_steps_per_tick(&skel, &between(a, b))
-            .into_iter()
-            .fold(0.0f32, f32::max)
-    };
-    let take_over = worst_in(last_live.1, lost_at + ms_ns(blend + 100.0));
-    // From the sender's restart (before the server can see it), so the window holds the
-    // whole resume blend however late the status message came.
-    let hand_back = worst_in(resumed_at, u64::MAX);
-    println!(
-        "joint steps: live p99 {:.1} mm, graph p99 {:.1} mm, bound {:.1} mm; worst over the take-over {:.1} mm, over the hand-back {:.1} mm",
-        live_p99 * 1e3,
-        graph_p99 * 1e3,
-        bound * 1e3,
-        take_over * 1e3,
-        hand_back * 1e3
-    );
-    assert!(
-        take_over <= bound,
-        "a frame of the take-over jumped {take_over} m (bound {bound} m)"
-    );
-    assert!(
-        hand_back <= bound,
-        "a frame of the hand-back jumped {hand_back} m (bound {bound} m)"
     );
     let _ = std::fs::remove_file(graph_file);
 }

@@ -36,7 +36,7 @@ pub(crate) struct Assembly {
     pub mapper: Mapper,
     /// The VMC output socket and its receivers (`None` without receivers).
     pub vmc: Option<(std::net::UdpSocket, Vec<VmcTarget>)>,
-    pub events: broadcast::Sender<String>,
+    pub events: broadcast::Sender<crate::events::Event>,
     pub token: token::ResolvedToken,
     /// Cluster mode: relays and publisher to start.
     pub cluster: Option<crate::cluster::ClusterLink>,
@@ -44,7 +44,7 @@ pub(crate) struct Assembly {
 
 /// Builds the subjects, performers and mapper of `inputs`, and resolves the VMC receivers.
 pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::Result<Assembly> {
-    let (events, _) = broadcast::channel::<String>(crate::state::EVENTS_CAPACITY);
+    let (events, _) = broadcast::channel(crate::events::EVENTS_CAPACITY);
     let names: Vec<String> = inputs.sources.iter().map(|s| s.name.clone()).collect();
     let mut subjects = Vec::new();
     let mut sources = Vec::new();

@@ -23,12 +23,12 @@ use tokio::task::JoinHandle;
 use super::assemble::{Assembly, SourceRunner};
 use super::load::Loaded;
 use crate::config::ServerConfig;
-use crate::engine::{self, EngineCommand, TickContext};
+use crate::engine::{EngineCommand, TickContext};
 use crate::limits::ConnectionLimiter;
 use crate::live::{self, LiveContext};
 use crate::recorder::Recorder;
 use crate::state::{ClusterView, ServerState};
-use crate::{access, footplants, http, limits, stats, token};
+use crate::{access, footplants, http, limits, stats, tick_task, token};
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
 /// with one subject.
@@ -146,17 +146,19 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
             .context("cannot start the recorder thread")?;
         supervisor.recorder = Some((rec, thread));
     }
+    let (vmc_socket, vmc) = parts.vmc.unzip();
     let tick = TickContext {
         subjects: subjects.clone(),
-        frames,
-        stats,
-        rate_hz: config.rate_hz,
-        vmc: parts.vmc,
+        vmc: vmc.unwrap_or_default(),
         performers: parts.performers,
     };
-    supervisor
-        .engine_tasks
-        .push(tokio::spawn(engine::run_tick(tick, engine_rx.clone())));
+    let out = tick_task::HostOutput {
+        frames,
+        vmc_socket,
+        stats,
+    };
+    let run = tick_task::run_tick(tick, out, config.rate_hz, engine_rx.clone());
+    supervisor.engine_tasks.push(tokio::spawn(run));
     supervisor.engine_tasks.push(tokio::spawn(footplants::run(
         subjects.clone(),
         events.clone(),
@@ -213,7 +215,7 @@ impl Supervisor {
         } = source;
         match loaded {
             Loaded::Replay { player, speed, .. } => {
-                let task = engine::run_replay_source(
+                let task = crate::replay_task::run_replay_source(
                     player,
                     speed,
                     tx,
@@ -309,7 +311,7 @@ const MOTION_POLL: Duration = Duration::from_millis(50);
 /// Broadcasts `source_status` about once per second, and as soon as a target's motion changes.
 async fn run_source_status(
     subjects: Arc<crate::subject_list::SubjectList>,
-    events: broadcast::Sender<String>,
+    events: broadcast::Sender<crate::events::Event>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     let mut poll = tokio::time::interval(MOTION_POLL);
@@ -334,7 +336,7 @@ async fn run_source_status(
             continue;
         }
         // No receiver between the check and the send: nobody to tell.
-        let _ = events.send(crate::subject::source_status_json(&now));
+        let _ = events.send(crate::events::Event::source_status(&now));
     }
 }
 

@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 
 use async_nats::jetstream::kv::Operation;
 use futures_util::StreamExt;
-use rigcast_protocol::{ServerMessage, SourceKind};
+use rigcast_protocol::SourceKind;
 
 use super::{
     run_relay, Change, Cluster, Forwarder, Origin, RemoteSource, SubjectEntry, ENTRY_MAX_AGE,
@@ -301,14 +301,11 @@ fn add_subject(
         t.push(thread);
     }
     // Err only means no client is connected.
-    let _ = state.events.send(
-        ServerMessage::SubjectsChanged {
-            subjects: state.subject_infos(),
-        }
-        .to_json(),
-    );
+    let _ = state
+        .events
+        .send(crate::events::Event::subjects_changed(&state.subjects()));
     // Fails only while no client listens; newcomers get every skeleton on connecting.
-    let _ = state.events.send(subject.shape().skeleton_json.clone());
+    let _ = state.events.send(crate::events::Event::skeleton(&subject));
     Ok(feeds.changes)
 }
 

@@ -3,7 +3,6 @@
 
 use anyhow::Context;
 use rigcast_protocol::control::BoneInfo;
-use rigcast_protocol::ServerMessage;
 use serde::{Deserialize, Serialize};
 
 /// The bucket value of one subject (JSON).
@@ -21,24 +20,20 @@ pub struct SubjectEntry {
 }
 
 impl SubjectEntry {
-    /// The entry of a subject from its `skeleton` message JSON and its `mapping` message JSON.
-    pub fn from_messages(
+    /// The entry of a subject: its bones as its `skeleton` message lists them and its
+    /// `mapping` message (characters only).
+    pub fn new(
         site: &str,
         name: &str,
-        skeleton_json: &str,
-        mapping_json: Option<&str>,
-    ) -> anyhow::Result<SubjectEntry> {
-        let bones = match serde_json::from_str(skeleton_json)? {
-            ServerMessage::Skeleton { bones, .. } => bones,
-            _ => anyhow::bail!("not a skeleton message"),
-        };
-        let mapping = mapping_json.map(serde_json::from_str).transpose()?;
-        Ok(SubjectEntry {
+        bones: Vec<BoneInfo>,
+        mapping: Option<serde_json::Value>,
+    ) -> SubjectEntry {
+        SubjectEntry {
             site: site.to_string(),
             name: name.to_string(),
             bones,
             mapping,
-        })
+        }
     }
 
     /// Reads a bucket value.
@@ -84,20 +79,14 @@ mod tests {
 
     #[test]
     fn an_entry_round_trips_through_the_bucket_format() {
-        let skeleton = ServerMessage::Skeleton {
-            subject: 3,
-            name: "walk".into(),
-            fingerprint: "0123456789abcdef".into(),
-            bones: vec![BoneInfo {
-                name: "Hips".into(),
-                parent: None,
-                rest_translation: [0.0, 1.0, 0.0],
-                rest_rotation: [0.0, 0.0, 0.0, 1.0],
-                translated: true,
-            }],
-        }
-        .to_json();
-        let e = SubjectEntry::from_messages("a", "walk.1", &skeleton, None).unwrap();
+        let bones = vec![BoneInfo {
+            name: "Hips".into(),
+            parent: None,
+            rest_translation: [0.0, 1.0, 0.0],
+            rest_rotation: [0.0, 0.0, 0.0, 1.0],
+            translated: true,
+        }];
+        let e = SubjectEntry::new("a", "walk.1", bones, None);
         assert_eq!(e.key(), "a.walk_1");
         assert_eq!(e.relayed_name(), "walk.1@a");
         let back = SubjectEntry::parse(&serde_json::to_vec(&e).unwrap()).unwrap();

@@ -9,7 +9,6 @@
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-use rigcast_protocol::ServerMessage;
 use tokio::sync::broadcast::error::RecvError;
 use tokio_tungstenite::tungstenite::Bytes;
 
@@ -75,7 +74,7 @@ pub async fn run_entries(cluster: Arc<Cluster>, state: Arc<ServerState>) {
             biased;
             _ = shutdown.changed() => break,
             received = events.recv() => match received {
-                Ok(text) if changes_an_entry(&text) => {
+                Ok(event) if event.changes_an_entry() => {
                     entries = entries_of(&cluster, &state);
                     failing = put_entries(&cluster, &entries, failing).await;
                 }
@@ -104,14 +103,6 @@ async fn remove_entries(cluster: &Cluster, entries: &[(String, Bytes)]) {
     let _ = tokio::time::timeout(REMOVE_TIMEOUT, delete_all).await;
 }
 
-/// Whether a control message changes what the bucket holds (a skeleton or a mapping).
-fn changes_an_entry(text: &str) -> bool {
-    matches!(
-        serde_json::from_str::<ServerMessage>(text),
-        Ok(ServerMessage::Skeleton { .. } | ServerMessage::Mapping { .. })
-    )
-}
-
 /// The bucket key and value of every local subject (at start and when a skeleton or mapping
 /// changes; the heartbeat puts these again).
 fn entries_of(cluster: &Cluster, state: &ServerState) -> Vec<(String, Bytes)> {
@@ -138,12 +129,14 @@ async fn put_entries(cluster: &Cluster, entries: &[(String, Bytes)], failing: bo
 }
 
 fn entry_of(site: &str, s: &Subject) -> Option<SubjectEntry> {
-    let mapping = s.mapping_json.read().ok().and_then(|m| m.clone());
-    SubjectEntry::from_messages(
+    let mapping = match s.mapping() {
+        Some(report) => Some(serde_json::to_value(crate::wire::mapping(&report)).ok()?),
+        None => None,
+    };
+    Some(SubjectEntry::new(
         site,
         &s.info().name,
-        &s.shape().skeleton_json,
-        mapping.as_deref(),
-    )
-    .ok()
+        crate::wire::bones(&s.shape()),
+        mapping,
+    ))
 }

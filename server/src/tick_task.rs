@@ -1,0 +1,67 @@
+//! The host side of the tick: a tokio interval drives [`Ticker`] at the output rate with the
+//! clocks read here, and [`HostOutput`] broadcasts its frames to the client sessions and sends
+//! its VMC bundles on a UDP socket. Never awaits anything but its interval and the shutdown
+//! signal; never blocks on a client.
+
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::sync::{broadcast, watch};
+use tokio::time::MissedTickBehavior;
+
+use crate::clock::{unix_nanos, TickTime};
+use crate::engine::{OutFrame, TickContext, TickOutput, Ticker};
+use crate::stats::Stats;
+
+/// Where the server's tick puts what it produces: frames on the clients' broadcast, VMC
+/// bundles on the output socket.
+pub struct HostOutput {
+    /// Fan-out to clients.
+    pub frames: broadcast::Sender<OutFrame>,
+    /// The VMC output socket (non-blocking), when there are receivers.
+    pub vmc_socket: Option<UdpSocket>,
+    /// Counters.
+    pub stats: Arc<Stats>,
+}
+
+impl TickOutput for HostOutput {
+    fn frame(&mut self, frame: OutFrame) {
+        // Err only means "no client connected right now".
+        let _ = self.frames.send(frame);
+    }
+
+    fn datagram(&mut self, to: SocketAddr, bundle: &[u8]) {
+        // Non-blocking: a full socket buffer drops the datagram (counted) instead of stalling
+        // the tick.
+        let sent = (self.vmc_socket.as_ref()).is_some_and(|s| s.send_to(bundle, to).is_ok());
+        if !sent {
+            self.stats.vmc_send_errors.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Runs the tick at `rate_hz` until shutdown (`MissedTickBehavior::Skip`: a late tick is not
+/// followed by a burst).
+pub async fn run_tick(
+    ctx: TickContext,
+    mut out: HostOutput,
+    rate_hz: f64,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    let mut interval = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
+    interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let mut ticker = Ticker::new(ctx);
+    loop {
+        tokio::select! {
+            _ = interval.tick() => {}
+            _ = shutdown.changed() => break,
+        }
+        let time = TickTime::now();
+        ticker.perform(time);
+        // Stamped when encoded (after the performers ran), as `send_nanos` is defined.
+        ticker.publish(time, unix_nanos(), &mut out);
+        out.stats.record_tick(time.instant.elapsed());
+    }
+}
