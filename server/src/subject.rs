@@ -221,7 +221,7 @@ pub struct Subject {
     /// Source subjects of a target (input order of its mapping); empty for sources.
     pub inputs: Vec<u32>,
     /// A target's mapping, once built.
-    mapping: RwLock<Option<Arc<MappingReport>>>,
+    mapping: Mutex<Option<Arc<MappingReport>>>,
     /// A target's planted feet as last reported.
     footplants: Mutex<Option<Arc<FootplantReport>>>,
     /// The UDP address a VMC source listens on.
@@ -333,7 +333,7 @@ impl Subject {
                 stats: SubjectStats::default(),
                 health: Health::new(initial),
                 inputs,
-                mapping: RwLock::new(None),
+                mapping: Mutex::new(None),
                 footplants: Mutex::new(None),
                 listen_addr: None,
                 calibration: None,
@@ -484,34 +484,22 @@ impl Subject {
 
     /// A target's mapping, once built.
     pub fn mapping(&self) -> Option<Arc<MappingReport>> {
-        match self.mapping.read() {
-            Ok(m) => m.clone(),
-            Err(poisoned) => poisoned.into_inner().clone(),
-        }
+        latest(&self.mapping)
     }
 
     /// Keeps a target's newly built mapping (for clients that connect later).
     pub fn set_mapping(&self, report: Arc<MappingReport>) {
-        match self.mapping.write() {
-            Ok(mut m) => *m = Some(report),
-            Err(poisoned) => *poisoned.into_inner() = Some(report),
-        }
+        keep(&self.mapping, report);
     }
 
     /// A target's planted feet as last reported.
     pub fn footplants(&self) -> Option<Arc<FootplantReport>> {
-        match self.footplants.lock() {
-            Ok(f) => f.clone(),
-            Err(poisoned) => poisoned.into_inner().clone(),
-        }
+        latest(&self.footplants)
     }
 
     /// Keeps a target's latest foot-plant report (for clients that connect later).
     pub fn set_footplants(&self, report: Arc<FootplantReport>) {
-        match self.footplants.lock() {
-            Ok(mut f) => *f = Some(report),
-            Err(poisoned) => *poisoned.into_inner() = Some(report),
-        }
+        keep(&self.footplants, report);
     }
 
     /// Whether this subject is another node's, relayed from the cluster (its frames are
@@ -556,6 +544,22 @@ impl Subject {
                 camera: None,
             },
         })
+    }
+}
+
+/// What a report slot holds now (a panic elsewhere while it was held leaves a whole value).
+fn latest<T>(slot: &Mutex<Option<Arc<T>>>) -> Option<Arc<T>> {
+    match slot.lock() {
+        Ok(s) => s.clone(),
+        Err(poisoned) => poisoned.into_inner().clone(),
+    }
+}
+
+/// Replaces what a report slot holds.
+fn keep<T>(slot: &Mutex<Option<Arc<T>>>, report: Arc<T>) {
+    match slot.lock() {
+        Ok(mut s) => *s = Some(report),
+        Err(poisoned) => *poisoned.into_inner() = Some(report),
     }
 }
 
