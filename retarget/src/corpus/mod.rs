@@ -7,11 +7,10 @@
 //!
 //! Bodies face +Z with the character's left at +X, in metres, standing on y = 0.
 
-mod creatures;
 
 use glam::{Quat, Vec3};
 
-pub use crate::procedural::{humanoid, Builder, Style};
+pub use crate::procedural::{creatures, humanoid, Builder, Style};
 
 use crate::skeleton::Skeleton;
 

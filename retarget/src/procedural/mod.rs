@@ -4,6 +4,7 @@
 //! test corpus (`corpus`, behind its feature) builds on it too.
 
 mod builder;
+pub mod creatures;
 mod humanoid;
 
 pub use builder::Builder;

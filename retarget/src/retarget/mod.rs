@@ -34,7 +34,6 @@ mod build;
 mod history;
 mod options;
 mod root;
-#[cfg(feature = "corpus")]
 pub mod workloads;
 
 use std::sync::Arc;

@@ -1,9 +1,9 @@
 //! Fixed, documented benchmark workloads (used by `retarget/benches/retarget.rs` and
 //! `rigcast bench`), built in code so every machine measures the same thing:
 //!
-//! - [`humanoid_from_cmu`]: the corpus's 65-bone Mixamo-style humanoid (with fingers) driven by
-//!   its 31-bone CMU (cgspeed) skeleton;
-//! - [`creature_from_humanoid`]: the corpus's 187-bone dragon-like creature driven by the
+//! - [`humanoid_from_cmu`]: the procedural 65-bone Mixamo-style humanoid (with fingers) driven
+//!   by its 31-bone CMU (cgspeed) convention;
+//! - [`creature_from_humanoid`]: the procedural 187-bone dragon-like creature driven by the
 //!   65-bone humanoid;
 //!
 //! both mapped by the automatic mapper (at setup, not timed), fed [`walk`]: a deterministic
@@ -12,7 +12,7 @@
 use glam::{Quat, Vec3};
 
 use crate::analysis::SkeletonView;
-use crate::corpus;
+use crate::procedural::{creatures, humanoid, Style};
 use crate::mapping::{auto_map, MapOptions, MappingTable};
 use crate::pose::Pose;
 use crate::skeleton::Skeleton;
@@ -89,17 +89,17 @@ fn workload(source: Skeleton, target: Skeleton) -> Workload {
     }
 }
 
-/// 65-bone humanoid ← 31-bone CMU skeleton. `None` only if the corpus fails to build.
+/// 65-bone humanoid ← 31-bone CMU skeleton. `None` only if a skeleton fails to build.
 pub fn humanoid_from_cmu() -> Option<Workload> {
-    let source = corpus::get("cmu_cgspeed")?.skeleton;
-    let target = corpus::humanoid_65()?.skeleton;
+    let (source, _) = humanoid(Style::CmuCgspeed, false).build()?;
+    let (target, _) = humanoid(Style::Mixamo, true).build()?;
     Some(workload(source, target))
 }
 
-/// 187-bone creature ← 65-bone humanoid. `None` only if the corpus fails to build.
+/// 187-bone creature ← 65-bone humanoid. `None` only if a skeleton fails to build.
 pub fn creature_from_humanoid() -> Option<Workload> {
-    let source = corpus::humanoid_65()?.skeleton;
-    let target = corpus::creature_187()?.skeleton;
+    let (source, _) = humanoid(Style::Mixamo, true).build()?;
+    let (target, _) = creatures::dragon().build()?;
     Some(workload(source, target))
 }
 

@@ -1,7 +1,7 @@
 //! `rigcast bench [--json]`: measures the realtime path on this machine in a few seconds.
 //!
 //! Fixed workloads (`rigcast_retarget::retarget::workloads`, the same as the criterion
-//! benches in `retarget/benches/retarget.rs`; skeletons from `rigcast_retarget::corpus`, mapped
+//! benches in `retarget/benches/retarget.rs`; skeletons from `rigcast_retarget::procedural`, mapped
 //! by the automatic mapper before timing starts):
 //!
 //! | name | what one iteration does |
@@ -99,9 +99,9 @@ fn apply_bench(name: &'static str, w: &Workload, budget: Duration) -> anyhow::Re
 pub fn measure_all() -> anyhow::Result<Vec<Measurement>> {
     let budget = Duration::from_millis(600);
     let humanoid =
-        humanoid_from_cmu().ok_or_else(|| anyhow!("the benchmark corpus did not build"))?;
+        humanoid_from_cmu().ok_or_else(|| anyhow!("the benchmark skeletons did not build"))?;
     let creature =
-        creature_from_humanoid().ok_or_else(|| anyhow!("the benchmark corpus did not build"))?;
+        creature_from_humanoid().ok_or_else(|| anyhow!("the benchmark skeletons did not build"))?;
     let mut results = vec![
         apply_bench("retarget_humanoid65_from_cmu31", &humanoid, budget)?,
         apply_bench("retarget_creature187_from_humanoid65", &creature, budget)?,

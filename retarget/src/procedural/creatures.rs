@@ -1,9 +1,10 @@
-//! Non-humanoid fixtures: a horse-like quadruped, a winged biped, a four-armed biped, a
-//! long-tailed biped and a ~187-bone dragon. Metres, rest pose standing, facing +Z.
+//! Non-humanoid bodies built from code: a horse-like quadruped, a winged biped, a four-armed
+//! biped, a long-tailed biped and a ~187-bone dragon (the benchmark workloads' creature).
+//! Metres, rest pose standing, facing +Z; every bone labelled with its role.
 
 use glam::{vec3, Vec3};
 
-use crate::procedural::{humanoid, Builder, Style};
+use super::{humanoid, Builder, Style};
 
 fn m(v: Vec3, left: bool) -> Vec3 {
     if left {
