@@ -3,9 +3,14 @@
 //! previous frame, stable identities, and a guard against left/right label swaps.
 //!
 //! Per frame the landmark model runs once per tracked person, on the ROI its own last
-//! landmarks gave (all tracked people's crops in one batch): no search while tracking holds. The finder runs only when someone was
-//! lost this frame, when nobody is tracked, or every `find_every_frames` frames while fewer
-//! than `max_people` are tracked.
+//! landmarks gave (all tracked people's crops in one batch): no search while tracking holds.
+//! The finder runs every frame while nobody is tracked or someone established was lost within
+//! the last second, else every `find_every_frames` frames while fewer than `max_people` are
+//! tracked; looking for more people while nobody was lost is one detector pass (see
+//! `DETECTOR_REGIONS`), so one person in view costs about what `max_people: 1` costs whatever
+//! `max_people` is. With nobody tracked, the person found takes the lowest free slot once
+//! nobody was lost for a few frames (`ALONE_WAIT_FRAMES`): the one person in the picture is the
+//! performer, not a bystander while they are hidden.
 //!
 //! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
 //! back the slot whose last position is nearest (within half its ROI) rather than any free
@@ -141,6 +146,22 @@ const MASKED_STEPS: [f32; 4] = [0.0, 0.1, 0.2, 0.3];
 /// While a person lost this recently is not found again, the finder runs every frame.
 const EAGER_FIND_FRAMES: u32 = 30;
 
+/// A track held this many frames is someone: losing them makes the finder eager and keeps their
+/// slot for them. A track lost sooner was a passing misreading (a poster, a reflection, the
+/// same person read twice) and frees its slot at once.
+const ESTABLISHED_FRAMES: u32 = 5;
+
+/// With nobody tracked, someone found away from where a person was lost waits this many
+/// frames for the slot (they may be someone else: a cut, a second person walking in), then
+/// takes the lowest free slot: with nobody else in view the one person in the picture is the
+/// performer. Longer than the identity judge's span, shorter than anyone notices.
+const ALONE_WAIT_FRAMES: u32 = 5;
+
+/// Detector regions, taking turns: the whole frame, then the three squares of the short side
+/// along the long one (a small or far person the whole-frame pass misses appears up to twice
+/// as large there).
+const DETECTOR_REGIONS: usize = 4;
+
 /// Counters for diagnostics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TrackerStats {
@@ -182,6 +203,9 @@ struct Track {
     previous_place: Option<(Vec2, Vec2)>,
     /// Frames since the person was lost (0 while tracked).
     lost_frames: u32,
+    /// Frames the person in this slot has been tracked (kept after losing them and counted on
+    /// when they are taken back; a new person in the slot starts at 0).
+    held_frames: u32,
 }
 
 impl Track {
@@ -194,10 +218,20 @@ impl Track {
         place: None,
         previous_place: None,
         lost_frames: 0,
+        held_frames: 0,
     };
 
     fn tracked(&self) -> bool {
         self.roi.is_some()
+    }
+
+    /// True for a person lost within `frames` frames after being held long enough to be
+    /// someone (see [`ESTABLISHED_FRAMES`]), not a passing misreading.
+    fn recently_lost(&self, frames: u32) -> bool {
+        !self.tracked()
+            && self.place.is_some()
+            && self.lost_frames <= frames
+            && self.held_frames >= ESTABLISHED_FRAMES
     }
 
     fn lose(&mut self) {
@@ -223,6 +257,8 @@ pub struct PoseTracker {
     batch_rois: Vec<Roi>,
     batch_results: Vec<Landmarks>,
     frames_since_find: u32,
+    /// The detector region the next finder pass looks at (see [`DETECTOR_REGIONS`]).
+    next_region: usize,
     stats: TrackerStats,
 }
 
@@ -254,6 +290,7 @@ impl PoseTracker {
             batch_rois: Vec::with_capacity(config.max_people),
             batch_results: vec![Landmarks::default(); config.max_people],
             frames_since_find: 0,
+            next_region: 0,
             stats: TrackerStats::default(),
         }
     }
@@ -324,7 +361,7 @@ impl PoseTracker {
         let recently_lost = self
             .tracks
             .iter()
-            .any(|t| !t.tracked() && t.place.is_some() && t.lost_frames <= EAGER_FIND_FRAMES);
+            .any(|t| t.recently_lost(EAGER_FIND_FRAMES));
         let due = lost_now
             || recently_lost
             || num_tracked == 0
@@ -339,8 +376,12 @@ impl PoseTracker {
             }
             self.stats.find_nanos += started.elapsed().as_nanos() as u64;
         }
-        for t in self.tracks.iter_mut().filter(|t| !t.tracked()) {
-            t.lost_frames = t.lost_frames.saturating_add(1);
+        for t in self.tracks.iter_mut() {
+            if t.tracked() {
+                t.held_frames = t.held_frames.saturating_add(1);
+            } else {
+                t.lost_frames = t.lost_frames.saturating_add(1);
+            }
         }
         Ok(())
     }
@@ -510,8 +551,9 @@ impl PoseTracker {
         update_reference(&mut t.reference, &t.landmarks);
     }
 
-    /// Drops one of every two tracks that now cover the same body: the one whose box jumped
-    /// further from its previous frame (it is the one that slid onto the other person).
+    /// Drops one of every two tracks that now cover the same body: the one not yet
+    /// established, else the one whose box jumped further from its previous frame (it is the
+    /// one that slid onto the other person).
     /// Returns whether any was dropped.
     fn drop_duplicates(&mut self) -> bool {
         let mut dropped = false;
@@ -531,7 +573,15 @@ impl PoseTracker {
                             p.0.distance(c.0) / p.1.max_element().max(1.0)
                         })
                 };
-                let loser = if jump(ta) > jump(tb) { a } else { b };
+                // A track not yet established is the same person found twice; else the one
+                // that jumped further slid onto the other person.
+                let young = |t: &Track| t.held_frames < ESTABLISHED_FRAMES;
+                let loser = match (young(ta), young(tb)) {
+                    (true, false) => a,
+                    (false, true) => b,
+                    _ if jump(ta) > jump(tb) => a,
+                    _ => b,
+                };
                 let t = &mut self.tracks[loser];
                 t.lose();
                 // Remember where it was before it slid, for taking the slot back.
@@ -566,7 +616,7 @@ impl PoseTracker {
     fn look_where_lost(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         for slot in 0..self.tracks.len() {
             let t = &self.tracks[slot];
-            if t.tracked() || t.lost_frames > EAGER_FIND_FRAMES {
+            if !t.recently_lost(EAGER_FIND_FRAMES) {
                 continue;
             }
             let Some(roi) = t.last_roi else { continue };
@@ -584,13 +634,26 @@ impl PoseTracker {
         Ok(())
     }
 
-    /// The detector over the whole frame, then, while someone is still missing, over the
-    /// squares of the short side along the long one: a small or far person the whole-frame
-    /// pass misses appears up to twice as large there.
+    /// The detector while someone is missing. Looking for more people while nobody was lost
+    /// is one pass over the next of the [`DETECTOR_REGIONS`] (they take turns), so it costs one
+    /// pass however long nobody else comes. While nobody is tracked or someone established was
+    /// lost within [`EAGER_FIND_FRAMES`], every region in order, as a tracker of one person
+    /// does to find them again.
     fn find_by_detector(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        let searching = !self.tracks.iter().any(Track::tracked)
+            || self
+                .tracks
+                .iter()
+                .any(|t| t.recently_lost(EAGER_FIND_FRAMES));
+        let regions = if searching {
+            0..DETECTOR_REGIONS
+        } else {
+            self.next_region = (self.next_region + 1) % DETECTOR_REGIONS;
+            self.next_region..self.next_region + 1
+        };
         Roi::search_candidates(frame.width, frame.height, &mut self.candidates);
-        for region in 0..4 {
-            if self.tracks.iter().all(|t| t.tracked()) {
+        for region in regions {
+            if self.tracks.iter().all(Track::tracked) {
                 break;
             }
             let Some(detector) = self.detector.as_mut() else {
@@ -619,7 +682,9 @@ impl PoseTracker {
             let Some(roi) = d.roi() else { continue };
             self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
-            if self.scratch.presence >= self.config.presence_threshold {
+            if self.scratch.presence >= self.config.presence_threshold
+                && upright_as_detected(&self.scratch, &d)
+            {
                 let found = self.scratch;
                 self.start_track(&found);
             }
@@ -661,22 +726,39 @@ impl PoseTracker {
         Ok(())
     }
 
-    /// Gives a newly found person a slot: the recently lost slot they are nearest to, else a
-    /// slot nobody held recently. Someone found far from every recently lost person while
-    /// only such slots are free is left alone (most likely a bystander, while the performer
-    /// is hidden).
+    /// Gives a newly found person a slot (see [`Self::slot_for`]) and starts their track.
     fn start_track(&mut self, lm: &Landmarks) {
         if self.is_tracked_body(lm) {
             return;
         }
+        let Some((slot, same_person)) = self.slot_for(lm) else {
+            return;
+        };
+        let t = &mut self.tracks[slot];
+        t.place = None;
+        t.previous_place = None;
+        if !same_person {
+            t.held_frames = 0;
+            t.reference = None;
+        }
+        self.accept(slot, lm);
+        self.stats.tracks_started += 1;
+    }
+
+    /// The slot for a newly found person `lm`, and whether it is someone the slot held: the
+    /// recently lost slot they are nearest to, else a slot nobody held recently. While someone else is tracked, a person found
+    /// away from everyone recently lost is left alone for
+    /// [`TrackerConfig::reacquire_frames`] (most likely a bystander while the performer is
+    /// hidden); while nobody is, only for [`ALONE_WAIT_FRAMES`], and then they take the
+    /// lowest free slot.
+    fn slot_for(&self, lm: &Landmarks) -> Option<(usize, bool)> {
         let center = body_box(lm).0;
         let window = self.config.reacquire_frames;
-        let recent = |t: &Track| t.place.is_some() && t.lost_frames <= window;
         let nearest = self
             .tracks
             .iter()
             .enumerate()
-            .filter(|(_, t)| !t.tracked() && recent(t))
+            .filter(|(_, t)| t.recently_lost(window))
             .filter_map(|(i, t)| {
                 let (c, s) = t.place?;
                 let d = c.distance(center) / s.max_element().max(1.0);
@@ -684,14 +766,24 @@ impl PoseTracker {
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(i, _)| i);
-        let slot = nearest.or_else(|| self.tracks.iter().position(|t| !t.tracked() && !recent(t)));
-        let Some(slot) = slot else { return };
-        let t = &mut self.tracks[slot];
-        t.reference = None;
-        t.place = None;
-        t.previous_place = None;
-        self.accept(slot, lm);
-        self.stats.tracks_started += 1;
+        if let Some(slot) = nearest {
+            return Some((slot, true));
+        }
+        let anyone_tracked = self.tracks.iter().any(Track::tracked);
+        let free = if anyone_tracked {
+            self.tracks
+                .iter()
+                .position(|t| !t.tracked() && !t.recently_lost(window))
+        } else if self
+            .tracks
+            .iter()
+            .any(|t| t.recently_lost(ALONE_WAIT_FRAMES))
+        {
+            None
+        } else {
+            Some(0)
+        };
+        free.map(|slot| (slot, false))
     }
 }
 
@@ -795,6 +887,16 @@ fn body_box(lm: &Landmarks) -> (Vec2, Vec2) {
         return (Vec2::ZERO, Vec2::ZERO);
     }
     ((lo + hi) * 0.5, hi - lo)
+}
+
+/// True when the reading `lm` of detection `d`'s crop stands the way the detector saw the
+/// person (hips towards head within a quarter turn of the detection's): a reading upside down
+/// against its own detection (a crop the model filled with the body's mirror image, the head
+/// read at the feet) is nobody the two models agree on.
+fn upright_as_detected(lm: &Landmarks, d: &Detection) -> bool {
+    let point = |i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+    let read = point(idx::AUX_SCALE) - point(idx::AUX_CENTER);
+    read.dot(d.body_scale - d.hip_center) > 0.0
 }
 
 fn next_roi(lm: &Landmarks) -> Option<Roi> {
@@ -915,5 +1017,22 @@ mod tests {
         let after = lm.world[idx::RIGHT_SHOULDER].distance(lm.world[idx::RIGHT_ELBOW]);
         assert!((before - after).abs() < 1e-6);
         assert_eq!(lm.world[idx::RIGHT_ELBOW].z, -0.2);
+    }
+
+    #[test]
+    fn a_reading_upside_down_against_its_detection_is_refused() {
+        let mut lm = person(0.0);
+        lm.image[idx::AUX_CENTER] = Vec4::new(0.0, 200.0, 0.0, 1.0);
+        lm.image[idx::AUX_SCALE] = Vec4::new(0.0, 50.0, 0.0, 1.0);
+        let mut d = Detection {
+            score: 0.9,
+            center: Vec2::new(0.0, 40.0),
+            size: Vec2::splat(40.0),
+            hip_center: Vec2::new(10.0, 190.0),
+            body_scale: Vec2::new(30.0, 60.0),
+        };
+        assert!(upright_as_detected(&lm, &d));
+        d.body_scale = Vec2::new(0.0, 330.0);
+        assert!(!upright_as_detected(&lm, &d));
     }
 }
