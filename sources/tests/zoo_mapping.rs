@@ -485,7 +485,8 @@ fn flags_catch_wrong_core_roles() {
 }
 
 /// Prints the posture positions and roles of the file named by `RIGCAST_ZOO_DUMP` (a key
-/// substring; `RIGCAST_ZOO_FOLD` folds it, `RIGCAST_ZOO_ANON` renames and shuffles it as the
+/// substring; `RIGCAST_ZOO_FOLD` folds it, `RIGCAST_ZOO_PERTURB` perturbs it as
+/// [`PERTURBATIONS`] names, `RIGCAST_ZOO_ANON` renames and shuffles it as the
 /// scoring does): a tool for reading a rig, not a check.
 #[test]
 #[ignore]
@@ -500,6 +501,16 @@ fn dump_rig() {
         } else {
             rig.clip.clone()
         };
+        if let Ok(what) = std::env::var("RIGCAST_ZOO_PERTURB") {
+            let f = frame_of(rig);
+            let mut ed = Editable::from_clip(&clip);
+            for (name, make) in PERTURBATIONS {
+                if *name == what {
+                    make(&mut ed, rig, &f);
+                }
+            }
+            clip = ed.to_clip();
+        }
         if std::env::var("RIGCAST_ZOO_ANON").is_ok() {
             clip = anonymise(&clip, 0x5eed ^ rig.key.len() as u64).0;
         }
@@ -943,4 +954,276 @@ fn broken_geometry_maps_by_names() {
     }
     assert_eq!(into.swaps + from.swaps, 0);
     assert!(into.pct() >= 97.0 && from.pct() >= 97.0);
+}
+
+#[path = "common/perturb.rs"]
+mod perturb;
+use perturb::Editable;
+
+/// What a perturbation needs to know of a labelled rig: its axes and height as the analysis
+/// reads its named original (names intact: 0 swaps there), and the frame it read.
+struct Frame {
+    up: glam::Vec3,
+    forward: glam::Vec3,
+    left: glam::Vec3,
+    height: f32,
+    frame: Option<usize>,
+}
+
+fn frame_of(rig: &Rig) -> Frame {
+    let a = analyze(&view(&rig.clip));
+    let hs: Vec<f32> = a.positions.iter().map(|p| p.dot(a.up)).collect();
+    let lo = hs.iter().copied().fold(f32::MAX, f32::min);
+    let hi = hs.iter().copied().fold(f32::MIN, f32::max);
+    Frame {
+        up: a.up,
+        forward: a.forward,
+        left: a.left,
+        height: (hi - lo).max(1e-3),
+        frame: a.posture_frame,
+    }
+}
+
+/// The editable index of the first bone labelled `role`.
+fn labelled(ed: &Editable, rig: &Rig, role: &str) -> Option<usize> {
+    ed.index(rig.roles.get(role)?.first()?)
+}
+
+/// A backpack chain hanging behind the chest and two ribbons behind the head.
+fn add_backpack(ed: &mut Editable, rig: &Rig, f: &Frame) {
+    let h = f.height;
+    if let Some(chest) = labelled(ed, rig, "chest").or_else(|| labelled(ed, rig, "spine")) {
+        let mut p = ed.add_world(chest, "x_pack", -f.forward * 0.12 * h, f.frame);
+        for i in 0..2 {
+            p = ed.add_world(p, &format!("x_pack{i}"), -f.up * 0.12 * h, f.frame);
+        }
+    }
+    if let Some(head) = labelled(ed, rig, "head") {
+        for s in [-1.0f32, 1.0] {
+            let off = -f.forward * 0.06 * h + f.left * s * 0.04 * h;
+            let mut p = ed.add_world(head, &format!("x_ribbon{s}"), off, f.frame);
+            for i in 0..3 {
+                p = ed.add_world(p, &format!("x_ribbon{s}_{i}"), -f.up * 0.07 * h, f.frame);
+            }
+        }
+    }
+}
+
+/// Limb segments and the bone that ends each (whose offset is the segment).
+const SEGMENTS: &[(&str, &str)] = &[
+    ("upperArm", "lowerArm"),
+    ("lowerArm", "hand"),
+    ("upperLeg", "lowerLeg"),
+    ("lowerLeg", "foot"),
+];
+
+/// UE-style twist leaves halfway along every limb segment.
+fn add_twist_leaves(ed: &mut Editable, rig: &Rig) {
+    for s in [".L", ".R"] {
+        for (seg, end) in SEGMENTS {
+            let (Some(b), Some(e)) = (
+                labelled(ed, rig, &format!("{seg}{s}")),
+                labelled(ed, rig, &format!("{end}{s}")),
+            ) else {
+                continue;
+            };
+            let off = ed.raw.bones[e].rest.translation * 0.5;
+            ed.add_child(b, &format!("x_twist_{seg}{s}"), off);
+        }
+    }
+}
+
+/// Daz-style twist bones in the chain: each arm segment split in two.
+fn add_twist_chain(ed: &mut Editable, rig: &Rig) {
+    for s in [".L", ".R"] {
+        for end in ["lowerArm", "hand"] {
+            if let Some(e) = labelled(ed, rig, &format!("{end}{s}")) {
+                ed.insert_above(e, &format!("x_tw_{end}{s}"), 0.5);
+            }
+        }
+    }
+}
+
+/// Zero-length helpers: a pelvis on the hips' joint above it, thigh helpers on the hips'
+/// joint, a one-sided deltoid helper on the left upper arm, a zero-length leaf on the head.
+fn add_helpers(ed: &mut Editable, rig: &Rig) {
+    if let Some(h) = labelled(ed, rig, "hips") {
+        ed.insert_above(h, "x_pelvis", 1.0);
+    }
+    for s in [".L", ".R"] {
+        if let Some(t) = labelled(ed, rig, &format!("upperLeg{s}")) {
+            ed.insert_above(t, &format!("x_thighroot{s}"), 0.0);
+        }
+    }
+    if let (Some(u), Some(l)) = (
+        labelled(ed, rig, "upperArm.L"),
+        labelled(ed, rig, "lowerArm.L"),
+    ) {
+        let off = ed.raw.bones[l].rest.translation * 0.15;
+        ed.add_child(u, "x_deltoid", off);
+    }
+    if let Some(h) = labelled(ed, rig, "head") {
+        ed.add_child(h, "x_headhelper", glam::Vec3::ZERO);
+    }
+}
+
+/// A scapula bone halfway between each clavicle (or whatever the arm hangs from) and the arm.
+fn add_scapulae(ed: &mut Editable, rig: &Rig) {
+    for s in [".L", ".R"] {
+        if let Some(u) = labelled(ed, rig, &format!("upperArm{s}")) {
+            ed.insert_above(u, &format!("x_scapula{s}"), 0.5);
+        }
+    }
+}
+
+/// A cartoon: the head grown (neck 1.4×, everything above the head 2.5×), the legs shortened
+/// (thighs and shins 0.55×) with the hips lowered as much, so the feet still stand where they
+/// stood (a rig whose root sits on the floor keeps it there).
+fn make_cartoon(ed: &mut Editable, rig: &Rig, f: &Frame) {
+    if let Some(h) = labelled(ed, rig, "head") {
+        ed.scale_offset(h, 1.4);
+        for b in ed.below(h) {
+            ed.scale_offset(b, 2.5);
+        }
+    }
+    let mut drop = 0.0f32;
+    for s in [".L", ".R"] {
+        let mut lost = 0.0;
+        for role in ["lowerLeg", "foot"] {
+            if let Some(b) = labelled(ed, rig, &format!("{role}{s}")) {
+                lost += 0.45 * ed.raw.bones[b].rest.translation.length();
+                ed.scale_offset(b, 0.55);
+            }
+        }
+        drop = drop.max(lost);
+    }
+    if let Some(h) = labelled(ed, rig, "hips") {
+        ed.shift(h, -f.up * drop, f.frame);
+    }
+}
+
+/// The rig facing the other way: turned half a turn about its up axis.
+fn face_back(ed: &mut Editable, f: &Frame) {
+    ed.turn(glam::Quat::from_axis_angle(f.up, std::f32::consts::PI));
+}
+
+/// A perturbation of a labelled rig: its name and how to make it.
+type Perturbation = (&'static str, fn(&mut Editable, &Rig, &Frame));
+
+const PERTURBATIONS: &[Perturbation] = &[
+    ("backpack", |ed, rig, f| add_backpack(ed, rig, f)),
+    ("twist", |ed, rig, _| add_twist_leaves(ed, rig)),
+    ("twist-chain", |ed, rig, _| add_twist_chain(ed, rig)),
+    ("helpers", |ed, rig, _| add_helpers(ed, rig)),
+    ("scapula", |ed, rig, _| add_scapulae(ed, rig)),
+    ("cartoon", |ed, rig, f| make_cartoon(ed, rig, f)),
+    ("static", |ed, _, f| ed.make_static(f.frame)),
+    ("faces-back", |ed, _, f| face_back(ed, f)),
+    ("avatar", |ed, rig, f| {
+        add_backpack(ed, rig, f);
+        add_helpers(ed, rig);
+        ed.make_static(f.frame);
+        face_back(ed, f);
+    }),
+];
+
+/// The sources the perturbed targets are mapped from: every human, or every `k`-th with
+/// `RIGCAST_ZOO_SOURCE_STEP=k` (a quicker look).
+fn perturbation_sources<'a>(hs: &[&'a Rig]) -> Vec<&'a Rig> {
+    let step = std::env::var("RIGCAST_ZOO_SOURCE_STEP")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1usize)
+        .max(1);
+    hs.iter().step_by(step).copied().collect()
+}
+
+/// Every labelled human, perturbed as unseen families differ (backpack and ribbons, twist
+/// bones, zero-length helpers, scapulae, cartoon proportions, no animation, facing the other
+/// way, and all of a static avatar's at once), with meaningless names and shuffled children,
+/// mapped from every other human: the same core roles, no swaps, and the flags catch the wrong
+/// ones. Prints the table per perturbation and rig, and the confidence rates over them.
+#[test]
+fn perturbed_rigs_keep_their_core_roles() {
+    let Some(rigs) = real_rigs() else { return };
+    let hs = humans(&rigs);
+    let sources = perturbation_sources(&hs);
+    let mut log = Log::default();
+    let mut totals = Vec::new();
+    let mut fails = Vec::new();
+    print!(
+        "\nperturbed targets, meaningless names, core roles right (swaps)\n{:<24}",
+        "target"
+    );
+    for (what, _) in PERTURBATIONS {
+        print!(" {what:>12}");
+    }
+    println!();
+    let mut sums = vec![Score::default(); PERTURBATIONS.len()];
+    for tgt in &hs {
+        let f = frame_of(tgt);
+        print!("{:<24}", short(&tgt.key));
+        for (k, (what, make)) in PERTURBATIONS.iter().enumerate() {
+            let mut ed = Editable::from_clip(&tgt.clip);
+            make(&mut ed, tgt, &f);
+            let changed = Rig {
+                key: tgt.key.clone(),
+                kind: tgt.kind.clone(),
+                clip: ed.to_clip(),
+                roles: tgt.roles.clone(),
+            };
+            let mut row = Score::default();
+            let mut plog = Log::default();
+            for src in sources.iter().filter(|s| !std::ptr::eq(**s, *tgt)) {
+                row.add(score_pair(src, &changed, CORE, true, &mut plog));
+            }
+            print!(" {:>8.1}% {:>2}", row.pct(), row.swaps);
+            fails.extend(plog.fails.into_iter().map(|l| format!("{what}: {l}")));
+            log.judged.extend(plog.judged);
+            sums[k].add(row);
+        }
+        println!();
+    }
+    print!("{:<24}", "ALL");
+    for (k, (what, _)) in PERTURBATIONS.iter().enumerate() {
+        print!(" {:>8.1}% {:>2}", sums[k].pct(), sums[k].swaps);
+        totals.push((*what, sums[k]));
+    }
+    println!();
+    let (wrong, right, wrong_flagged, right_flagged) = flag_rates(&log.judged);
+    let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
+    println!(
+        "perturbed core roles judged {}: wrong {wrong}, flagged {wrong_flagged} ({:.1}%); right \
+         {right}, flagged {right_flagged} ({:.1}%); AUROC of confidence {:.3}",
+        log.judged.len(),
+        pct(wrong_flagged, wrong),
+        pct(right_flagged, right),
+        auroc(&log.judged)
+    );
+    for l in &fails {
+        println!("  {l}");
+    }
+    for (what, sc) in &totals {
+        if HELD.contains(what) {
+            assert_eq!(sc.swaps, 0, "{what}: left/right swaps");
+            assert!(sc.pct() >= 98.0, "{what}: {:.1}%", sc.pct());
+        } else {
+            println!("not yet held: {what} {:.1}% ({} swaps)", sc.pct(), sc.swaps);
+        }
+    }
+}
+
+/// The perturbations held to the issue's bound for meaningless names (≥ 98 % of core roles,
+/// no swaps); the others are printed as the gaps they still are.
+const HELD: &[&str] = &["twist-chain", "scapula", "faces-back"];
+
+/// (wrong, right, wrong flagged, right flagged) over judged roles.
+fn flag_rates(j: &[Judged]) -> (usize, usize, usize, usize) {
+    let count = |f: &dyn Fn(&Judged) -> bool| j.iter().filter(|x| f(x)).count();
+    (
+        count(&|x| !x.right),
+        count(&|x| x.right),
+        count(&|x| !x.right && x.flagged),
+        count(&|x| x.right && x.flagged),
+    )
 }

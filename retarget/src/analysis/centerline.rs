@@ -164,58 +164,76 @@ fn make_limb(
     }
 }
 
-/// Longest path (by length) through the central tree, as a bone list.
-pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool]) -> Vec<BoneId> {
+/// The body's line through the central tree: the path that holds the most body, scored by its
+/// length plus the reach of every mirrored limb pair hanging from a bone on it. The body is what
+/// joins its limbs, so a chain longer than the spine that joins none (a backpack, a cape, hair)
+/// loses to the path through the hips the legs hang from; on an ordinary rig the longest path
+/// already holds every pair and wins as before.
+pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool], limbs: &[Limb]) -> Vec<BoneId> {
     let n = central.len();
+    let mut weight = vec![0.0f32; n];
+    for l in limbs.iter().filter(|l| l.members.len() == 2) {
+        weight[l.parent.index()] += l.reach;
+    }
+    // The central tree parents first (an explicit stack: no recursion on the file's depth);
+    // one pass back from its leaves gives each bone its best downward path: `down` its value,
+    // `next` its child. A tiny per-edge term lets zero-length helpers still extend a path.
     let Some(root) = (0..n).find(|&i| central[i]) else {
         return Vec::new();
     };
-    // Undirected adjacency among central bones.
-    let neighbours = |b: usize| {
-        let mut v: Vec<usize> = ctx
-            .skel
-            .children(BoneId(b as u16))
-            .iter()
-            .map(|c| c.index())
-            .filter(|&c| central[c])
-            .collect();
-        if let Some(p) = ctx.skel.parent(BoneId(b as u16)) {
-            if central[p.index()] {
-                v.push(p.index());
+    let mut order = Vec::new();
+    let mut stack = vec![root];
+    while let Some(b) = stack.pop() {
+        order.push(b);
+        stack.extend(
+            ctx.skel
+                .children(BoneId(b as u16))
+                .iter()
+                .map(|c| c.index())
+                .filter(|&c| central[c]),
+        );
+    }
+    let edge = |p: usize, c: usize| (ctx.pos[c] - ctx.pos[p]).length() + 1e-4 * ctx.size;
+    let mut down = vec![0.0f32; n];
+    let mut next: Vec<Option<usize>> = vec![None; n];
+    let mut best: Option<(f32, usize, Option<usize>)> = None;
+    for &b in order.iter().rev() {
+        let mut top: [Option<(f32, usize)>; 2] = [None, None];
+        for c in ctx.skel.children(BoneId(b as u16)) {
+            let c = c.index();
+            if !central[c] {
+                continue;
+            }
+            let v = edge(b, c) + down[c];
+            if top[0].is_none_or(|(t, _)| v > t + 1e-6) {
+                top[1] = top[0];
+                top[0] = Some((v, c));
+            } else if top[1].is_none_or(|(t, _)| v > t + 1e-6) {
+                top[1] = Some((v, c));
             }
         }
-        v
+        down[b] = weight[b] + top[0].map_or(0.0, |t| t.0);
+        next[b] = top[0].map(|t| t.1);
+        let through = down[b] + top[1].map_or(0.0, |t| t.0);
+        if best.is_none_or(|(v, ..)| through > v + 1e-6) {
+            best = Some((through, b, top[1].map(|t| t.1)));
+        }
+    }
+    let Some((_, apex, second)) = best else {
+        return Vec::new();
     };
-    let far = |start: usize| -> (usize, Vec<Option<usize>>) {
-        let mut dist = vec![f32::NAN; n];
-        let mut prev = vec![None; n];
-        dist[start] = 0.0;
-        let mut stack = vec![start];
-        while let Some(b) = stack.pop() {
-            for c in neighbours(b) {
-                if dist[c].is_nan() {
-                    // A tiny per-edge term lets zero-length helpers still extend a path.
-                    dist[c] = dist[b] + (ctx.pos[c] - ctx.pos[b]).length() + 1e-4 * ctx.size;
-                    prev[c] = Some(b);
-                    stack.push(c);
-                }
-            }
+    let walk = |mut b: usize| {
+        let mut out = vec![BoneId(b as u16)];
+        while let Some(c) = next[b] {
+            out.push(BoneId(c as u16));
+            b = c;
         }
-        let mut best = start;
-        for i in 0..n {
-            if !dist[i].is_nan() && dist[i] > dist[best] + 1e-6 {
-                best = i;
-            }
-        }
-        (best, prev)
+        out
     };
-    let (a, _) = far(root);
-    let (b, prev) = far(a);
-    let mut path = vec![BoneId(b as u16)];
-    let mut cur = b;
-    while let Some(p) = prev[cur] {
-        path.push(BoneId(p as u16));
-        cur = p;
+    // One branch from its far end up to the apex, then down the other branch.
+    let mut path: Vec<BoneId> = walk(apex).into_iter().rev().collect();
+    if let Some(s) = second {
+        path.extend(walk(s));
     }
     path
 }

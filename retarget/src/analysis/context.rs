@@ -133,7 +133,7 @@ impl Ctx<'_> {
 pub(super) struct Builder {
     pub(super) roles: Vec<BoneRole>,
     pub(super) sections: Vec<Section>,
-    lengths: Vec<f32>,
+    pub(super) lengths: Vec<f32>,
 }
 
 impl Builder {

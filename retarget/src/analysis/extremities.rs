@@ -148,8 +148,16 @@ fn segment_roles(
     conf: f32,
 ) {
     let e = split.extremity.min(chain.len());
+    // Of several bones before the upper segment, the clavicle is the one that spans the
+    // girdle: the longest, the first on near-ties (a scapula splitting it, a zero-length helper
+    // before it at the spine's joint).
+    let pre_len = |j: usize| out.lengths[chain[j].index()];
+    let girdle = (0..split.upper).fold(None, |best: Option<usize>, j| match best {
+        Some(g) if pre_len(j) <= 1.05 * pre_len(g) => Some(g),
+        _ => Some(j),
+    });
     for (j, &b) in chain.iter().enumerate().take(split.upper) {
-        let role = match (j + 1 == split.upper, is_leg) {
+        let role = match (Some(j) == girdle, is_leg) {
             (true, true) => Role::PelvisSide,
             (true, false) => Role::Clavicle,
             (false, _) => Role::Helper,

@@ -164,8 +164,9 @@ fn bend_cue(inp: &ForwardInput<'_>) -> f32 {
 
 /// A frame's `lat × up` from its own hips (lateral) and legs (hanging down).
 fn frame_forward(inp: &ForwardInput<'_>, p: &[Vec3], legs: &[BoneId; 2]) -> Option<Vec3> {
-    let [a, b] = *legs;
     let end = |m: BoneId| p[inp.topo.chain(m).last().copied().unwrap_or(m).index()];
+    // Zero-length thigh helpers on one joint say nothing of the lateral: the hip joints below.
+    let (a, b) = inp.topo.parted(p, legs[0], legs[1], 0.02 * inp.size);
     let lat = (p[a.index()] - p[b.index()]).try_normalize()?;
     let hips = (p[a.index()] + p[b.index()]) * 0.5;
     let up = (hips - (end(a) + end(b)) * 0.5).try_normalize()?;

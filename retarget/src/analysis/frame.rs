@@ -105,8 +105,11 @@ fn lateral_from_twins(
                 continue;
             }
             // The twins' own joints are mirror images even when the rest pose is not
-            // (one arm raised): use them, unless they coincide (CMU's hip helpers).
-            let joints = pos[a.index()] - pos[b.index()];
+            // (one arm raised, a leg mid-stride): use them, or, where they coincide (CMU's hip
+            // helpers, zero-length thigh roots), the first joints down their chains that do
+            // not; the subtrees' centroids only when the chains never part.
+            let (x, y) = topo.parted(pos, a, b, 0.02 * size);
+            let joints = pos[x.index()] - pos[y.index()];
             let v = if joints.length() > 0.02 * size {
                 joints
             } else {

@@ -84,7 +84,7 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
     let top = pos.iter().map(|p| p.dot(up)).fold(f32::MIN, f32::max);
     let hext = (top - ground).max(1e-3);
     let (central, mut limbs) = central_and_limbs(&ctx, body.root, lat, ground, hext);
-    let path = centerline(&ctx, &central);
+    let path = centerline(&ctx, &central, &limbs);
     let facing = forward::facing(&ctx, &limbs, &path, &posture.samples, lat, (ground, hext));
     if facing.flipped {
         for m in limbs.iter_mut().flat_map(|l| l.members.iter_mut()) {

@@ -71,18 +71,16 @@ pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout
         .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
         .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
         .collect();
-    // A quadruped's front legs reach the ground; smaller pairs ahead of them (ears, antlers,
-    // horns) are head appendages, not a second pair of arms.
-    let front_legs: Vec<usize> = arm_cands
+    // Arms hang from the body, not from the head: a pair attached ahead of a clearly bigger one
+    // (ears, antlers and horns ahead of a quadruped's front legs; ribbons, hair and ears on a
+    // head ahead of the arms) is a head appendage, not a second pair of arms. Ground limbs are
+    // legs whatever their size.
+    let arm_cands: Vec<usize> = arm_cands
         .iter()
         .copied()
-        .filter(|&i| limbs[i].ground)
-        .collect();
-    let arm_cands: Vec<usize> = arm_cands
-        .into_iter()
         .filter(|&i| {
             limbs[i].ground
-                || !front_legs.iter().any(|&f| {
+                || !arm_cands.iter().any(|&f| {
                     k_of(limbs[i].parent) > k_of(limbs[f].parent)
                         && limbs[i].reach < 0.6 * limbs[f].reach
                 })

@@ -123,6 +123,24 @@ impl Topology {
     }
 
     /// Follows main children from `start` to a leaf.
+    /// The first joints down the main chains of twins `a` and `b` that lie more than `tol`
+    /// apart in `pos`: the twins themselves unless they coincide (zero-length hip or thigh
+    /// helpers on one joint). The last pair reached when the chains never part.
+    pub(crate) fn parted(&self, pos: &[Vec3], a: BoneId, b: BoneId, tol: f32) -> (BoneId, BoneId) {
+        let (mut x, mut y) = (a, b);
+        // Each step goes one bone deeper, so the chains end within the bone count.
+        for _ in 0..self.main.len() {
+            if (pos[x.index()] - pos[y.index()]).length() > tol {
+                break;
+            }
+            match (self.main[x.index()], self.main[y.index()]) {
+                (Some(cx), Some(cy)) => (x, y) = (cx, cy),
+                _ => break,
+            }
+        }
+        (x, y)
+    }
+
     pub(crate) fn chain(&self, start: BoneId) -> Vec<BoneId> {
         let mut out = vec![start];
         let mut b = start;
