@@ -1,44 +1,85 @@
 #!/usr/bin/env bash
-# Glass-to-pose latency of `rigcast serve --source webcam:0` through the real nokhwa/V4L2 path,
-# against the emulated camera of the tests (sources/tests/v4l2_emu, preloaded) serving real
-# footage: per stage p50/p99 as /v1/status reports them (capture, decode, detect, landmarks,
-# solve, glass_to_pose), at 30 and 60 fps (640x480 YUYV), for SECS seconds each.
-#   scripts/bench-webcam.sh [SECS]        (needs gcc, ffmpeg, a release build, the vision models)
-# Footage: the first video of ../shared/data/video (or $RIGCAST_BENCH_VIDEO).
+# Glass-to-wire latency of `rigcast serve --source webcam:0 --target builtin:mannequin` through
+# the real nokhwa/V4L2 path, against the emulated camera of the tests (sources/tests/v4l2_emu,
+# preloaded) serving real footage (640x480 YUYV), with the lite and full models at 30 and 60 fps.
+# For each: a WebSocket client (`rigcast loadtest`, its own process, on a real socket) reads the
+# stream for SECS seconds; then /v1/status gives the camera's stages (capture, decode, detect,
+# landmarks, solve) on the webcam subject and the target's (handoff, retarget, send,
+# glass_to_wire), and the client gives capture to arrival of the camera subject's frames (all
+# camera frames; the target's also carry its fallback poses while nobody is in view). p50/p99 ms.
+#   scripts/bench-webcam.sh [SECS]     (needs gcc, ffmpeg, a release build, the vision models)
+# Footage: the first video of ../shared/data/video (or $RIGCAST_BENCH_VIDEO); the server's tick
+# rate: $RIGCAST_BENCH_RATE (default: the server's, 60 Hz). RIGCAST_BEFORE=<binary> runs that
+# build too, interleaved with this one at every setting (A/B in one run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS=${1:-20}
 BIN=${RIGCAST_BIN:-${CARGO_TARGET_DIR:-target}/release/rigcast}
-[[ -x "$BIN" ]] || { echo "build first: cargo build --release -p rigcast-server" >&2; exit 1; }
+[[ -x "$BIN" ]] || { echo "build first: cargo build --release --bin rigcast" >&2; exit 1; }
 WORK=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$WORK"' EXIT
+SERVER=
+trap '[[ -n "$SERVER" ]] && kill "$SERVER" 2>/dev/null; rm -rf "$WORK"' EXIT
 VIDEO=${RIGCAST_BENCH_VIDEO:-$(ls ../shared/data/video/*.mp4 | head -1)}
+RATE=()
+[[ -n "${RIGCAST_BENCH_RATE:-}" ]] && RATE=(--rate "$RIGCAST_BENCH_RATE")
 gcc -O2 -Wno-format-truncation -shared -fPIC -o "$WORK/emu.so" sources/tests/v4l2_emu/v4l2_emu.c -ldl -lpthread
-ffmpeg -v error -ss 1 -i "$VIDEO" -frames:v 150 -vf scale=640:480 -an -f rawvideo -pix_fmt yuyv422 "$WORK/vga.yuyv"
+ffmpeg -v error -ss 1 -i "$VIDEO" -frames:v 300 -vf scale=640:480 -an -f rawvideo -pix_fmt yuyv422 "$WORK/vga.yuyv"
 mkdir -p "$WORK/state"
 cat > "$WORK/cams.conf" <<CONF
 device 0 $WORK/state Bench Cam
 mode YUYV 640 480 30 $WORK/vga.yuyv
 mode YUYV 640 480 60 $WORK/vga.yuyv
 CONF
-echo "footage: $(basename "$VIDEO"); machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
-for fps in 30 60; do
-    port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-    LD_PRELOAD="$WORK/emu.so" RIGCAST_V4L2_EMU="$WORK/cams.conf" XDG_CONFIG_HOME="$WORK/home" \
-        "$BIN" serve --no-mapping-cache --listen "127.0.0.1:$port" \
-        --source "webcam:0?width=640&height=480&fps=$fps" --target builtin:mannequin >/dev/null 2>&1 &
-    sleep "$SECS"
-    curl -s "http://127.0.0.1:$port/v1/status" | python3 -c '
+echo "footage: $(basename "$VIDEO"); machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
+BUILDS=("$BIN")
+[[ -n "${RIGCAST_BEFORE:-}" ]] && BUILDS=("$RIGCAST_BEFORE" "$BIN")
+echo "| build | model | fps | capture | decode | detect | landmarks | solve | handoff | retarget | send | glass_to_wire | client: capture to arrival | frames | load |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+for model in lite full; do
+    for fps in 30 60; do
+      for build in "${BUILDS[@]}"; do
+        port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+        LD_PRELOAD="$WORK/emu.so" RIGCAST_V4L2_EMU="$WORK/cams.conf" XDG_CONFIG_HOME="$WORK/home" \
+            "$build" serve --no-mapping-cache --listen "127.0.0.1:$port" "${RATE[@]}" \
+            --source "webcam:0?width=640&height=480&fps=$fps&model=$model" \
+            --target builtin:mannequin >"$WORK/serve.log" 2>&1 &
+        SERVER=$!
+        # Until the camera is live and has timed frames (model loading takes a few seconds).
+        for _ in $(seq 240); do
+            curl -sf "http://127.0.0.1:$port/v1/status" 2>/dev/null | grep -q '"glass_to_pose"' && break
+            sleep 0.5
+        done
+        sleep 2
+        load0=$(cut -d' ' -f1 /proc/loadavg)
+        "$build" loadtest --url "ws://127.0.0.1:$port/v1/stream" --clients 1 --secs "$SECS" --json >"$WORK/client.json"
+        load1=$(cut -d' ' -f1 /proc/loadavg)
+        curl -sf "http://127.0.0.1:$port/v1/status" >"$WORK/status.json"
+        kill "$SERVER" 2>/dev/null || true
+        wait "$SERVER" 2>/dev/null || true
+        SERVER=
+        python3 - "$(basename "$build")" "$model" "$fps" "$load0" "$load1" "$WORK/status.json" "$WORK/client.json" <<'PY'
 import json, sys
-fps = sys.argv[1]
-for s in json.load(sys.stdin)["subjects"]:
+build, model, fps, load0, load1, status_path, client_path = sys.argv[1:]
+status = json.load(open(status_path))
+client = json.load(open(client_path))
+stages = {}
+camera = None
+for s in status["subjects"]:
     cam = (s.get("source") or {}).get("camera")
     if cam:
-        stages = ", ".join("%s %.1f/%.1f" % (x["stage"], x["p50_ms"], x["p99_ms"]) for x in cam["stages"])
-        n = cam["stages"][0]["samples"] if cam["stages"] else 0
-        print("%s fps %dx%d %s, lite: %s (p50/p99 ms over %d frames)"
-              % (fps, cam["width"], cam["height"], cam["format"], stages, n))
-' "$fps"
-    kill %1 2>/dev/null || true
-    wait 2>/dev/null || true
+        camera = s
+        stages.update({x["stage"]: x for x in cam["stages"]})
+        assert cam["model"] == model, cam
+    if s["kind"] == "target":
+        stages.update({x["stage"]: x for x in s.get("latency", [])})
+cell = lambda n: "%.1f / %.1f" % (stages[n]["p50_ms"], stages[n]["p99_ms"]) if n in stages else "—"
+glass = next((g for g in client["glass_us"] if camera and g["subject"] == camera["id"]), None)
+arrival = "%.1f / %.1f" % (glass["latency"]["p50"] / 1000, glass["latency"]["p99"] / 1000) if glass else "—"
+names = ["capture", "decode", "detect", "landmarks", "solve", "handoff", "retarget", "send", "glass_to_wire"]
+frames = stages.get("glass_to_wire", {}).get("samples", 0)
+print("| %s | %s | %s | %s | **%s** | %s | %d | %s–%s |" % (build, model, fps, " | ".join(cell(n) for n in names[:-1]),
+      cell("glass_to_wire"), arrival, frames, load0, load1))
+PY
+      done
+    done
 done

@@ -158,6 +158,9 @@ pub struct CameraStatus {
     pub fps: u32,
     /// Pixel format (`YUYV`, `MJPG`).
     pub format: String,
+    /// The landmark model run on its frames (`lite`, `full`, `heavy`, `full-int8`).
+    #[serde(default)]
+    pub model: String,
     /// Per stage over the last frames (at most 256), in order: `capture` (the driver's
     /// timestamp to the frame handed over), `decode` (to RGB), `detect` (finding people),
     /// `landmarks` (the landmark model on tracked people), `solve` (smoothing, lengths,

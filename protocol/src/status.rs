@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::control::{SourceHealth, SubjectKind};
+use crate::control::{SourceHealth, StageLatency, SubjectKind};
 
 /// What a client may do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -129,6 +129,15 @@ pub struct SubjectStatus {
     /// A target's feet under its foot lock and whether each is held now (`null` without a
     /// foot lock).
     pub footplants: Option<Vec<FootStatus>>,
+    /// Where its frames' time went between the source and the WebSocket, over its last
+    /// frames (at most 256; each frame once, at its first tick and its first write), in order:
+    /// `handoff` (the source's pose handed to the engine → the tick that takes it starts),
+    /// `retarget` (that tick's performers), `send` (encoded →
+    /// written to a client's socket), `glass_to_wire` (the frame's capture time → written).
+    /// Live sources and the targets following them only (replays and fallback poses are not
+    /// timed); stages not measured yet are left out; absent before the first frame is sent.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub latency: Vec<StageLatency>,
 }
 
 /// One foot of a target's foot lock.
@@ -234,6 +243,12 @@ mod tests {
                     bone: "foot_l".into(),
                     planted: true,
                 }]),
+                latency: vec![StageLatency {
+                    stage: "glass_to_wire".into(),
+                    p50_ms: 31.5,
+                    p99_ms: 40.25,
+                    samples: 256,
+                }],
             }],
             clients: ClientsStatus {
                 count: 1,

@@ -301,6 +301,9 @@ where
                 // keeps fan-out cheap. The batch is bounded so control messages still get in.
                 let mut next = Some(received);
                 let mut batch = 0;
+                // This write's frames (subject, capture, encoded), timed once it is written.
+                let mut timed = [(0u32, 0u64, 0u64); MAX_FRAMES_PER_WRITE];
+                let mut n_timed = 0;
                 while let Some(received) = next.take() {
                     match received {
                         Ok(frame) => {
@@ -310,6 +313,10 @@ where
                                 let bytes = personalise(bytes, &mut pending_missed);
                                 feed(&mut sink, Message::Binary(bytes), stall).await?;
                                 stats.frames_sent.fetch_add(1, Ordering::Relaxed);
+                                if let Some(t) = timed.get_mut(n_timed) {
+                                    *t = (frame.subject, frame.capture_nanos, frame.send_nanos);
+                                    n_timed += 1;
+                                }
                             }
                         }
                         Err(RecvError::Lagged(n)) => {
@@ -330,6 +337,20 @@ where
                     }
                 }
                 flush(&mut sink, stall).await?;
+                record_written(state, &timed[..n_timed]);
+            }
+        }
+    }
+}
+
+/// Counts the frames of a write just taken by the client's socket into their subjects'
+/// latency figures (each frame counts at its first write only; see `WireTimes`).
+fn record_written(state: &ServerState, frames: &[(u32, u64, u64)]) {
+    let written = unix_nanos();
+    for &(id, capture, encoded) in frames {
+        if let Some(subject) = state.subject(id) {
+            if let Ok(mut wire) = subject.stats.wire.lock() {
+                wire.sent(capture, encoded, written);
             }
         }
     }

@@ -1009,6 +1009,8 @@ mod tests {
             "webcam:2",
             "webcam:0#1",
             "webcam:1#1?width=1280&height=720&fps=60&format=mjpeg",
+            "webcam:0?fps=30&model=full",
+            "webcam:0?model=lite",
         ] {
             let spec: SourceSpec = arg.parse().unwrap();
             assert_eq!(spec.to_cli().as_deref(), Some(arg), "{spec:?}");
@@ -1031,6 +1033,7 @@ mod tests {
             ("vmc:nope", "vmc:PORT"),
             ("webcam:front", "webcam:INDEX"),
             ("webcam:0#one", "webcam:INDEX#PERSON"),
+            ("webcam:0?model=huge", "model=lite|full"),
             ("video:clip.mp4#one", "video:FILE#PERSON"),
             ("video:clip.mp4#-1", "video:FILE#PERSON"),
             ("video:#1", "unknown source"),
@@ -1044,6 +1047,26 @@ mod tests {
                 .unwrap();
         let cli: SourceSpec = "video:a.mp4#1".parse().unwrap();
         assert_eq!(format!("{:?}", file.sources[0]), format!("{cli:?}"));
+        // The model is a key of both vision kinds, checked before anything opens.
+        for (text, ok) in [
+            ("kind = \"webcam\"\nmodel = \"full\"", true),
+            (
+                "kind = \"video\"\npath = \"a.mp4\"\nmodel = \"heavy\"",
+                true,
+            ),
+            ("kind = \"webcam\"\nmodel = \"huge\"", false),
+            (
+                "kind = \"video\"\npath = \"a.mp4\"\nmodel = \"Lite\"",
+                false,
+            ),
+        ] {
+            let file: FileConfig = toml::from_str(&format!("[[sources]]\n{text}\n")).unwrap();
+            let checked = file.sources[0].validate();
+            assert_eq!(checked.is_ok(), ok, "{text}: {checked:?}");
+            if let Err(e) = checked {
+                assert!(e.to_string().contains("model"), "{e}");
+            }
+        }
         let out: VmcOut = "127.0.0.1:2@hero".parse().unwrap();
         assert_eq!(out.subject.as_deref(), Some("hero"));
         assert_eq!(out.to_string(), "127.0.0.1:2@hero");

@@ -18,6 +18,7 @@
 //! outlive the tick because clients send it later); everything else reuses buffers.
 
 use std::net::SocketAddr;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -41,6 +42,11 @@ pub struct OutFrame {
     pub bytes: Bytes,
     /// Where the version 2 frame starts in `bytes`.
     pub v2_at: usize,
+    /// The frame's capture time and when it was encoded, Unix ns, as in its header (0 for
+    /// frames this node did not encode): for the latency figures of its first write.
+    pub capture_nanos: u64,
+    /// See `capture_nanos`.
+    pub send_nanos: u64,
 }
 
 impl OutFrame {
@@ -175,9 +181,17 @@ impl Ticker {
             if self.ctx.vmc.iter().any(|t| t.subject_index == index) {
                 self.send_vmc(index, &frame, &shape, vmc_secs, out);
             }
+            let capture = frame.capture_nanos;
             drop(frame);
             if relayed {
                 continue;
+            }
+            // Timed only when a live source's pose is behind the frame (not a replay's, not a
+            // fallback the tick made): `capture_nanos` 0 tells the clients' writes so too.
+            let published = subject.stats.published_nanos.load(Ordering::Relaxed);
+            let timed_capture = if published == 0 { 0 } else { capture };
+            if let Ok(mut wire) = subject.stats.wire.lock() {
+                wire.ticked(timed_capture, published, time.unix_nanos, send_nanos);
             }
             // The one allocation per subject per tick: the shared, immutable frame, which must
             // outlive the tick because client tasks send it later.
@@ -186,6 +200,8 @@ impl Ticker {
                 subject: subject.id,
                 bytes,
                 v2_at,
+                capture_nanos: timed_capture,
+                send_nanos,
             });
         }
         for frame in self.outgoing.drain(..) {

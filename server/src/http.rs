@@ -608,6 +608,7 @@ pub fn status(state: &ServerState) -> Status {
                 fault: s.stats.fault(),
                 faults_total: s.stats.faults_total.load(Ordering::Relaxed),
                 footplants: footplants(&s.stats),
+                latency: s.stats.wire.lock().map(|w| w.report()).unwrap_or_default(),
             }
         })
         .collect();

@@ -50,6 +50,9 @@ pub struct LiveContext {
     pub recorder: Option<Arc<Recorder>>,
     /// Set on shutdown.
     pub stop: Arc<AtomicBool>,
+    /// Notified after each new pose when the tick should take it at once (cameras: see
+    /// [`crate::engine::run_tick`]); `None` for sources the tick samples at its own rate.
+    pub wake: Option<Arc<tokio::sync::Notify>>,
 }
 
 /// Runs a live source until `stop` is set.
@@ -117,6 +120,11 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                 } else {
                     meta.capture_nanos
                 };
+                // Before the frame: a tick that sees the new frame sees when it was handed over.
+                ctx.subject
+                    .stats
+                    .published_nanos
+                    .store(unix_nanos(), Ordering::Relaxed);
                 ctx.tx.send_modify(|f| {
                     if f.pose.num_bones() == pose.num_bones() {
                         f.pose.copy_from(&pose);
@@ -127,6 +135,9 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                     f.seq = meta.seq.max(f.seq + 1);
                     f.capture_nanos = capture;
                 });
+                if let Some(wake) = &ctx.wake {
+                    wake.notify_one();
+                }
                 ctx.subject.stats.input.tick();
                 ctx.subject
                     .stats

@@ -588,6 +588,24 @@ impl Performer {
             .stats
             .last_capture_nanos
             .store(capture, std::sync::atomic::Ordering::Relaxed);
+        // When the newest input pose was handed to the engine (the `handoff` latency of this
+        // frame; a source publishing again during this tick makes it read as no wait). A
+        // fallback pose (source lost) is made by the tick itself: not timed (0).
+        let published = match self.phase {
+            Phase::Lost(_) => 0,
+            _ => (self.sources.iter())
+                .map(|s| {
+                    s.stats
+                        .published_nanos
+                        .load(std::sync::atomic::Ordering::Relaxed)
+                })
+                .max()
+                .unwrap_or(0),
+        };
+        self.target
+            .stats
+            .published_nanos
+            .store(published, std::sync::atomic::Ordering::Relaxed);
     }
 }
 

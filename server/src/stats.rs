@@ -1,7 +1,9 @@
 //! Counters behind `GET /v1/status`. Written by the hot paths with atomics (and one
 //! uncontended mutex for the tick-duration window), read by the status handler.
 
+use rigcast_protocol::control::StageLatency;
 use rigcast_protocol::TargetMotion;
+use rigcast_sources::live::StageTimes;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -85,6 +87,63 @@ pub struct SubjectStats {
     pub fault: Mutex<Option<String>>,
     /// Faults caught in the subject's processing.
     pub faults_total: AtomicU64,
+    /// When the pose behind the latest frame was handed to the engine, Unix ns (0: not
+    /// measured): a live source's thread published it, or, for a target, its source's pose
+    /// it was made from was.
+    pub published_nanos: AtomicU64,
+    /// Where its frames' time goes between the source and the wire (`latency` in
+    /// `/v1/status`).
+    pub wire: Mutex<WireTimes>,
+}
+
+/// The stages of [`WireTimes`], as `/v1/status` names them.
+pub const WIRE_STAGES: [&str; 4] = ["handoff", "retarget", "send", "glass_to_wire"];
+
+/// Where a subject's frames' time goes between its source and the wire, over the last
+/// frames: `handoff` (the source's pose handed to the engine → the tick that takes it
+/// starts), `retarget` (that tick's performers: mapping, foot lock), `send` (encoded → written
+/// to a client's socket) and `glass_to_wire` (the frame's capture time → written). Each frame
+/// (a new capture time) counts once: at the first tick that encodes it and at the first write
+/// that carries it, so the ticks that repeat a frame and the slower of several clients do
+/// not count. Fixed-size rings: recording allocates nothing.
+#[derive(Debug, Default)]
+pub struct WireTimes {
+    times: StageTimes<{ WIRE_STAGES.len() }>,
+    /// Capture time of the last frame counted at a tick, and at a write.
+    ticked: u64,
+    sent: u64,
+}
+
+impl WireTimes {
+    /// The tick that started at `tick_start` encoded, at `encoded`, the frame captured at
+    /// `capture` whose pose was handed over at `published` (0: not timed). Unix ns.
+    pub fn ticked(&mut self, capture: u64, published: u64, tick_start: u64, encoded: u64) {
+        if capture == 0 || published == 0 || capture <= self.ticked {
+            return;
+        }
+        self.ticked = capture;
+        // A pose handed over during the tick, after it started, waited for nothing.
+        self.times
+            .record_stage(0, tick_start.saturating_sub(published));
+        self.times
+            .record_stage(1, encoded.saturating_sub(tick_start));
+    }
+
+    /// A client's socket took, at `written`, the frame captured at `capture` and encoded at
+    /// `encoded`. Unix ns.
+    pub fn sent(&mut self, capture: u64, encoded: u64, written: u64) {
+        if capture == 0 || capture <= self.sent {
+            return;
+        }
+        self.sent = capture;
+        self.times.record_stage(2, written.saturating_sub(encoded));
+        self.times.record_stage(3, written.saturating_sub(capture));
+    }
+
+    /// p50/p99 of every stage measured so far.
+    pub fn report(&self) -> Vec<StageLatency> {
+        self.times.report(&WIRE_STAGES)
+    }
 }
 
 impl SubjectStats {
@@ -288,6 +347,39 @@ mod tests {
             s.record_tick(Duration::from_micros(7));
         }
         assert_eq!(s.tick_percentiles().max, 7);
+    }
+
+    #[test]
+    fn each_frame_counts_once_at_its_first_tick_and_first_write() {
+        const MS: u64 = 1_000_000;
+        let mut w = WireTimes::default();
+        assert!(w.report().is_empty());
+        // Frame captured at 100 ms, handed over at 130, taken by the tick of 135 (performers
+        // done at 137), written at 138 and, to a slower client, at 150.
+        w.ticked(100 * MS, 130 * MS, 135 * MS, 137 * MS);
+        w.sent(100 * MS, 137 * MS, 138 * MS);
+        w.sent(100 * MS, 137 * MS, 150 * MS);
+        // The next tick repeats the same frame: not counted again.
+        w.ticked(100 * MS, 130 * MS, 152 * MS, 153 * MS);
+        w.sent(100 * MS, 153 * MS, 154 * MS);
+        // A frame handed over while the tick that takes it was running waited for nothing.
+        w.ticked(133 * MS, 170 * MS, 169 * MS, 171 * MS);
+        // A frame no live source handed over (a replay, a fallback pose) is not timed, and
+        // neither is one without a capture time.
+        w.ticked(166 * MS, 0, 185 * MS, 186 * MS);
+        w.ticked(0, 1, 2, 3);
+        w.sent(0, 1, 2);
+        let r = w.report();
+        let get = |name: &str| r.iter().find(|s| s.stage == name).unwrap();
+        assert_eq!(get("handoff").samples, 2);
+        assert_eq!(get("handoff").p99_ms, 5.0);
+        let mut late = WireTimes::default();
+        late.ticked(133 * MS, 170 * MS, 169 * MS, 171 * MS);
+        assert_eq!(late.report()[0].p99_ms, 0.0);
+        assert_eq!(get("retarget").samples, 2);
+        assert_eq!(get("retarget").p99_ms, 2.0);
+        assert_eq!((get("send").samples, get("send").p50_ms), (1, 1.0));
+        assert_eq!(get("glass_to_wire").p50_ms, 38.0);
     }
 }
 

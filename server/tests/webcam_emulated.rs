@@ -1,6 +1,8 @@
 //! `rigcast serve --source webcam:0?...` and `rigcast devices` through the real binary and the
 //! real nokhwa -> V4L2 path, against the emulated camera (`sources/tests/v4l2_emu`, preloaded)
-//! serving real footage: the chosen mode and stage latencies in `/v1/status`, a second server
+//! serving real footage: the chosen mode, model and stage latencies in `/v1/status` (the
+//! camera's stages on its subject, the target's from the tick to the wire, consistent with
+//! what a WebSocket client measures from the frames it receives), a second server
 //! told the camera is busy, the camera unplugged mid-stream (the subject goes `lost`) and
 //! plugged back (it comes back `live`), and `rigcast devices` listing it. Skipped with a printed
 //! reason without the vision models, gcc, ffmpeg or the footage.
@@ -53,7 +55,7 @@ fn serve(cam: &EmuCamera, home: &std::path::Path, source: &str) -> Server {
     let child = rigcast(cam, home)
         .args(["serve", "--no-mapping-cache", "--listen"])
         .arg(format!("127.0.0.1:{port}"))
-        .args(["--source", source])
+        .args(["--source", source, "--target", "builtin:mannequin"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -98,6 +100,77 @@ fn wait_for(port: u16, name: &str, secs: u64, what: &str, pred: impl Fn(&Value) 
     panic!("{name} never became {what} within {secs} s; last: {last}");
 }
 
+/// A WebSocket client (`rigcast loadtest`, its own process) reads the stream for a few
+/// seconds; the target's `latency` in `/v1/status` then has every stage, and the camera
+/// subject's `glass_to_wire` (capture to the server's write) agrees with the client's capture
+/// to arrival of the same frames: a write comes before its arrival, so the server's median
+/// cannot be later than the client's slowest. (The camera subject's frames are all camera
+/// frames; a target's include the poses it falls back to while the person is out of view,
+/// stamped when made, which a client cannot tell apart.)
+fn wire_latency_matches_a_client(cam: &EmuCamera, home: &std::path::Path, port: u16) {
+    let out = rigcast(cam, home)
+        .args([
+            "loadtest",
+            "--clients",
+            "1",
+            "--secs",
+            "3",
+            "--json",
+            "--url",
+        ])
+        .arg(format!("ws://127.0.0.1:{port}/v1/stream"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let st = status(port).unwrap();
+    let subject = |kind: &str| {
+        st["subjects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["kind"] == kind)
+            .unwrap_or_else(|| panic!("no {kind} in {st}"))
+            .clone()
+    };
+    let stage = |s: &Value, name: &str| {
+        s["latency"]
+            .as_array()
+            .and_then(|l| l.iter().find(|x| x["stage"] == name))
+            .unwrap_or_else(|| panic!("no {name} stage in {s}"))
+            .clone()
+    };
+    let target = subject("target");
+    for name in ["handoff", "retarget", "send", "glass_to_wire"] {
+        assert!(
+            stage(&target, name)["samples"].as_u64().unwrap() > 0,
+            "{target}"
+        );
+    }
+    let camera = subject("source");
+    let client = report["glass_us"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|g| g["subject"] == camera["id"])
+        .unwrap_or_else(|| panic!("the client saw no camera frame: {report}"));
+    assert!(client["frames"].as_u64().unwrap() > 0, "{report}");
+    let client_p99_ms = client["latency"]["p99"].as_f64().unwrap() / 1000.0;
+    let server_p50_ms = stage(&camera, "glass_to_wire")["p50_ms"].as_f64().unwrap();
+    assert!(
+        server_p50_ms <= client_p99_ms + 5.0,
+        "server glass_to_wire p50 {server_p50_ms} ms, client capture to arrival p99 {client_p99_ms} ms"
+    );
+    println!(
+        "target latency: {}; camera glass_to_wire p50 {server_p50_ms} ms, client capture to arrival {}",
+        target["latency"], client["latency"]
+    );
+}
+
 #[test]
 fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
     if !VisionAssets::from_env().is_ready() {
@@ -127,7 +200,11 @@ fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
     assert!(text.contains("YUYV 640x480 @ 30 fps"), "{text}");
     assert!(text.contains("VMC ports in use"), "{text}");
 
-    let server = serve(&cam, &home, "webcam:0?width=1280&height=720&fps=30");
+    let server = serve(
+        &cam,
+        &home,
+        "webcam:0?width=1280&height=720&fps=30&model=full",
+    );
     let h = wait_for(server.port, "webcam:0", 120, "live with stage times", |h| {
         h["state"] == "live"
             && h["camera"]["stages"]
@@ -145,6 +222,7 @@ fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
         ),
         "{h}"
     );
+    assert_eq!(c["model"], "full", "{h}");
     let stages: Vec<&str> = c["stages"]
         .as_array()
         .unwrap()
@@ -163,6 +241,7 @@ fn webcam_serves_reports_its_mode_and_survives_unplug_and_busy() {
         ]
     );
     println!("live: {h}");
+    wire_latency_matches_a_client(&cam, &home, server.port);
 
     // A second server on the same camera is told it is busy.
     let out = rigcast(&cam, &home)

@@ -126,8 +126,10 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         late_threads: Arc::default(),
         recorder: None,
     };
+    // Cameras' new poses bring the tick forward (see engine::run_tick).
+    let wake = Arc::new(tokio::sync::Notify::new());
     for source in parts.sources {
-        supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx)?;
+        supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx, &wake)?;
     }
     supervisor.spawn_thread("rigcast-mapper".into(), {
         let mapper = parts.mapper;
@@ -157,7 +159,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         vmc_socket,
         stats,
     };
-    let run = tick_task::run_tick(tick, out, config.rate_hz, engine_rx.clone());
+    let run = tick_task::run_tick(tick, out, config.rate_hz, wake, engine_rx.clone());
     supervisor.engine_tasks.push(tokio::spawn(run));
     supervisor.engine_tasks.push(tokio::spawn(footplants::run(
         subjects.clone(),
@@ -207,6 +209,7 @@ impl Supervisor {
         state: &ServerState,
         recorder: Option<&Arc<Recorder>>,
         engine_rx: &watch::Receiver<bool>,
+        wake: &Arc<tokio::sync::Notify>,
     ) -> anyhow::Result<()> {
         let SourceRunner {
             subject,
@@ -225,7 +228,9 @@ impl Supervisor {
                 let task = crate::fault::guard_source_task(task, subject);
                 self.engine_tasks.push(tokio::spawn(task));
             }
-            Loaded::Live { mut source, .. } => {
+            Loaded::Live {
+                mut source, kind, ..
+            } => {
                 if let Some(rec) = recorder {
                     source.set_raw_tap(Some(Box::new(rec.tap(subject.id))));
                 }
@@ -239,6 +244,7 @@ impl Supervisor {
                     commands: state.commands.clone(),
                     recorder: recorder.cloned(),
                     stop: self.stop_threads.clone(),
+                    wake: (kind == rigcast_protocol::SourceKind::Webcam).then(|| wake.clone()),
                 };
                 self.spawn_thread(name, move || {
                     crate::fault::guard_source_thread(|| live::run_live(source, ctx), guarded)

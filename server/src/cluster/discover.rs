@@ -293,6 +293,7 @@ fn add_subject(
         commands: state.commands.clone(),
         recorder: None,
         stop: live.stop.clone(),
+        wake: None,
     };
     let thread = std::thread::Builder::new()
         .name(format!("rigcast-live-{}", subject.id))

@@ -289,6 +289,9 @@ pub fn relabel(bytes: &[u8], id: u32) -> Option<OutFrame> {
         subject: id,
         bytes: Bytes::from(own),
         v2_at,
+        // Timed by the node that encoded it, on its own clock.
+        capture_nanos: 0,
+        send_nanos: 0,
     })
 }
 

@@ -2,13 +2,14 @@
 //! clients against a running server, reads every frame for S seconds and reports what each
 //! client got: frames per second (per client, and per subject), latency from the frame's
 //! `send_nanos` (stamped when the server encoded it) to its arrival here, `lagged` notices and
-//! the frames the server reports a client missed.
+//! the frames the server reports a client missed; and per subject, from each new frame's
+//! `capture_nanos` (a camera frame's driver timestamp: glass) to its arrival here.
 //!
 //! Latency is measured against this machine's clock, so it is meaningful on loopback or
 //! between clock-synchronised machines. Frames that arrive before every client is connected
 //! (plus a short warm-up) are not counted, so slow connects do not skew the rates.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -58,6 +59,9 @@ struct ClientLog {
     /// Arrival minus `send_nanos`, microseconds, one per frame.
     latencies_us: Vec<u32>,
     subjects: BTreeSet<u32>,
+    /// Per subject: the last capture time seen and arrival minus capture of every frame with
+    /// a new one (ticks repeat a frame until its source produces the next), microseconds.
+    glass: BTreeMap<u32, (u64, Vec<u32>)>,
     error: Option<String>,
 }
 
@@ -80,6 +84,9 @@ pub struct LoadReport {
     pub subject_rate_hz: f64,
     /// Arrival minus `send_nanos` over every frame of every client, microseconds.
     pub latency_us: Percentiles,
+    /// Per subject, arrival minus `capture_nanos` of every frame with a new capture time
+    /// (glass to arrival for a camera), over every client, microseconds.
+    pub glass_us: Vec<SubjectGlass>,
     /// `lagged` notices received (the server dropped frames for a slow client).
     pub lagged: u64,
     /// Frames the server reported missed in frame headers.
@@ -97,6 +104,17 @@ pub struct Spread {
     pub mean: f64,
     /// Highest.
     pub max: f64,
+}
+
+/// One subject's capture-to-arrival latency.
+#[derive(Debug, Serialize, PartialEq, Default)]
+pub struct SubjectGlass {
+    /// Subject id.
+    pub subject: u32,
+    /// Frames with a new capture time, over every client.
+    pub frames: usize,
+    /// Arrival minus capture time, microseconds.
+    pub latency: Percentiles,
 }
 
 /// Latency percentiles.
@@ -244,6 +262,12 @@ fn record(log: &mut ClientLog, msg: &Message) {
             log.frames += 1;
             log.missed += u64::from(header.missed_frames);
             log.subjects.insert(header.subject);
+            let (last, glass) = log.glass.entry(header.subject).or_default();
+            if header.capture_nanos > *last {
+                *last = header.capture_nanos;
+                let us = now.saturating_sub(header.capture_nanos) / 1_000;
+                glass.push(us.min(u64::from(u32::MAX)) as u32);
+            }
         }
         Message::Text(text) if text.contains("\"lagged\"") => log.lagged += 1,
         _ => {}
@@ -302,6 +326,7 @@ fn summarise(url: &str, secs: f64, logs: &[ClientLog]) -> LoadReport {
             client_rate_hz
         },
         latency_us: percentiles(&latencies),
+        glass_us: glass_by_subject(logs),
         lagged: logs.iter().map(|l| l.lagged).sum(),
         missed_frames: logs.iter().map(|l| l.missed).sum(),
         errors: logs
@@ -310,6 +335,24 @@ fn summarise(url: &str, secs: f64, logs: &[ClientLog]) -> LoadReport {
             .take(5)
             .collect(),
     }
+}
+
+/// Capture-to-arrival percentiles of each subject over every client.
+fn glass_by_subject(logs: &[ClientLog]) -> Vec<SubjectGlass> {
+    let mut all: BTreeMap<u32, Vec<u32>> = BTreeMap::new();
+    for (subject, (_, v)) in logs.iter().flat_map(|l| l.glass.iter()) {
+        all.entry(*subject).or_default().extend_from_slice(v);
+    }
+    all.into_iter()
+        .map(|(subject, mut v)| {
+            v.sort_unstable();
+            SubjectGlass {
+                subject,
+                frames: v.len(),
+                latency: percentiles(&v),
+            }
+        })
+        .collect()
 }
 
 /// Percentiles of sorted samples (zeros when empty).
@@ -348,6 +391,15 @@ fn print_report(r: &LoadReport) {
         ms(r.latency_us.p999),
         ms(r.latency_us.max)
     );
+    for g in &r.glass_us {
+        println!(
+            "subject {}: capture to arrival p50 {:.2} ms, p99 {:.2} ms over {} new frames",
+            g.subject,
+            ms(g.latency.p50),
+            ms(g.latency.p99),
+            g.frames
+        );
+    }
     println!(
         "lagged notices: {}, missed frames: {}",
         r.lagged, r.missed_frames

@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 use rigcast_protocol::SourceKind;
 use serde::Deserialize;
 
-use super::vision_inputs::{open_file, VisionInput, VisionInputs};
+use crate::config::ConfigError;
+
+use super::vision_inputs::{open_file, parse_model, VisionInput, VisionInputs, VisionOptions};
 use super::{stem, CliError, KindSpec, Loaded, Opened};
 
 const VIDEO_GRAMMAR: &str =
@@ -25,6 +27,9 @@ pub struct VideoSpec {
     pub people: Option<usize>,
     /// Subject name (default: the file stem, plus `#PERSON` when a person is given).
     pub name: Option<String>,
+    /// Landmark model: `lite` (default), `full`, `heavy` or `full-int8`; entries of one file
+    /// share it.
+    pub model: Option<String>,
 }
 
 impl KindSpec for VideoSpec {
@@ -41,11 +46,12 @@ impl KindSpec for VideoSpec {
             person,
             people: None,
             name: None,
+            model: None,
         })
     }
 
     fn to_cli(&self) -> Option<String> {
-        (self.name.is_none() && self.people.is_none()).then(|| {
+        (self.name.is_none() && self.people.is_none() && self.model.is_none()).then(|| {
             format!(
                 "video:{}{}",
                 self.path.display(),
@@ -56,6 +62,15 @@ impl KindSpec for VideoSpec {
 
     fn file_mut(&mut self) -> Option<&mut PathBuf> {
         Some(&mut self.path)
+    }
+
+    fn validate(&self) -> Result<(), ConfigError> {
+        parse_model(self.model.as_deref())
+            .map(|_| ())
+            .map_err(|message| ConfigError::Invalid {
+                field: "model",
+                message,
+            })
     }
 
     fn open(self) -> anyhow::Result<Opened> {
@@ -69,8 +84,11 @@ impl VideoSpec {
     pub(crate) fn open_shared(self, vision: &VisionInputs) -> anyhow::Result<Opened> {
         let path = &self.path;
         let input = VisionInput::file(path);
-        let (source, sk) =
-            vision.person(input, self.person, self.people, || open_file(path), true)?;
+        let options = VisionOptions {
+            people: self.people,
+            model: parse_model(self.model.as_deref()).map_err(anyhow::Error::msg)?,
+        };
+        let (source, sk) = vision.person(input, self.person, options, || open_file(path), true)?;
         let name = self
             .name
             .unwrap_or_else(|| stem(path) + &person_suffix(self.person));

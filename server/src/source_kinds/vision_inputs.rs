@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 use anyhow::Context;
 use rigcast_retarget::Skeleton;
 use rigcast_sources::vision::{
-    ffmpeg::DEFAULT_SEQUENCE_FPS, DecodeSize, FfmpegSource, FrameSource, PersonSource,
+    ffmpeg::DEFAULT_SEQUENCE_FPS, DecodeSize, FfmpegSource, FrameSource, ModelKind, PersonSource,
     PipelineConfig, PosePipeline, SharedVision, TrackerConfig,
 };
 
@@ -43,11 +43,25 @@ impl std::fmt::Display for VisionInput {
     }
 }
 
-/// One opened input and the people count it was opened for.
+/// One opened input and the people count and model it was opened with.
 struct Opened {
     input: VisionInput,
     people: usize,
+    model: ModelKind,
     shared: SharedVision,
+}
+
+/// How a vision input is processed: the people tracked and the landmark model (`None`: the
+/// default, or what an earlier spec of the same input chose).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct VisionOptions {
+    pub(crate) people: Option<usize>,
+    pub(crate) model: Option<ModelKind>,
+}
+
+/// `model = "lite"` and the like, checked (`None` when absent).
+pub(crate) fn parse_model(model: Option<&str>) -> Result<Option<ModelKind>, String> {
+    model.map(str::parse::<ModelKind>).transpose()
 }
 
 /// The inputs opened so far while loading one configuration (shared by its source specs).
@@ -58,13 +72,13 @@ pub(crate) struct VisionInputs {
 
 impl VisionInputs {
     /// Person `person` (default 0) of `input`, opening the input with `open` if no earlier
-    /// spec did. `people` (default: the tracker's) must agree with earlier specs of the input.
-    /// Blocks (decoder, model loading).
+    /// spec did. The options' people (default: the tracker's) and model (default: lite) must
+    /// agree with earlier specs of the input. Blocks (decoder, model loading).
     pub(crate) fn person(
         &self,
         input: VisionInput,
         person: Option<usize>,
-        people: Option<usize>,
+        options: VisionOptions,
         open: impl FnOnce() -> anyhow::Result<Box<dyn FrameSource>>,
         realtime: bool,
     ) -> anyhow::Result<(PersonSource, Arc<Skeleton>)> {
@@ -73,6 +87,17 @@ impl VisionInputs {
             .lock()
             .map_err(|_| anyhow::anyhow!("vision inputs poisoned"))?;
         let existing = opened.iter().position(|o| o.input == input);
+        let people = options.people;
+        if let Some(i) = existing {
+            if let Some(m) = options.model.filter(|m| *m != opened[i].model) {
+                anyhow::bail!(
+                    "{input}: model = {} here, but an earlier source of the same input runs {}; \
+                     give them all the same model",
+                    m.as_str(),
+                    opened[i].model.as_str()
+                );
+            }
+        }
         let tracked = match existing {
             Some(i) => {
                 if let Some(p) = people.filter(|p| *p != opened[i].people) {
@@ -102,11 +127,13 @@ impl VisionInputs {
         let index = match existing {
             Some(i) => i,
             None => {
+                let model = options.model.unwrap_or_default();
                 let frames = open()?;
-                let shared = SharedVision::new(frames, pipeline(tracked)?, realtime);
+                let shared = SharedVision::new(frames, pipeline(tracked, model)?, realtime);
                 opened.push(Opened {
                     input: input.clone(),
                     people: tracked,
+                    model,
                     shared,
                 });
                 opened.len() - 1
@@ -118,10 +145,11 @@ impl VisionInputs {
     }
 }
 
-/// The landmark pipeline for `people` people.
-fn pipeline(people: usize) -> anyhow::Result<PosePipeline> {
+/// The landmark pipeline for `people` people with `model`.
+fn pipeline(people: usize, model: ModelKind) -> anyhow::Result<PosePipeline> {
     let defaults = PipelineConfig::default();
     let config = PipelineConfig {
+        model,
         tracker: TrackerConfig {
             max_people: people,
             ..defaults.tracker

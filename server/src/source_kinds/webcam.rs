@@ -9,7 +9,7 @@ use serde::Deserialize;
 use crate::config::ConfigError;
 
 use super::video::{person_suffix, split_person};
-use super::vision_inputs::VisionInputs;
+use super::vision_inputs::{parse_model, VisionInputs};
 use super::{CliError, KindSpec, Opened};
 
 /// What to tell a user of a build without webcam support.
@@ -19,7 +19,8 @@ pub const NO_WEBCAM_HINT: &str = "this rigcast was built without webcam support 
 
 const WEBCAM_GRAMMAR: &str = "webcam:INDEX or webcam:INDEX#PERSON with a camera number (see \
      `rigcast devices`) and a person number, optionally followed by \
-     ?width=W&height=H&fps=F&format=yuyv|mjpeg, e.g. webcam:0#1 or webcam:0?width=1280&fps=60";
+     ?width=W&height=H&fps=F&format=yuyv|mjpeg&model=lite|full, e.g. webcam:0#1 or \
+     webcam:0?width=1280&fps=60&model=full";
 
 /// One tracked person of a camera by index.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -42,6 +43,8 @@ pub struct WebcamSpec {
     pub fps: Option<u32>,
     /// Wanted pixel format, `yuyv` or `mjpeg` (default: YUYV when it offers the rate).
     pub format: Option<String>,
+    /// Landmark model: `lite` (default: the fastest), `full`, `heavy` or `full-int8`.
+    pub model: Option<String>,
 }
 
 impl WebcamSpec {
@@ -64,7 +67,22 @@ impl KindSpec for WebcamSpec {
         let bad = CliError::Expected(WEBCAM_GRAMMAR);
         let (camera, query) = arg.split_once('?').unwrap_or((arg, ""));
         let (index, person) = split_person(camera).map_err(|_| bad)?;
-        let o = WebcamOptions::parse_query(query).map_err(|_| bad)?;
+        // `model` is the pipeline's; the rest are the camera's.
+        let mut model = None;
+        let mut camera_query = String::new();
+        for pair in query.split('&').filter(|p| !p.is_empty()) {
+            match pair.strip_prefix("model=") {
+                Some(m) => model = Some(m.to_string()),
+                None => {
+                    if !camera_query.is_empty() {
+                        camera_query.push('&');
+                    }
+                    camera_query.push_str(pair);
+                }
+            }
+        }
+        parse_model(model.as_deref()).map_err(|_| bad)?;
+        let o = WebcamOptions::parse_query(&camera_query).map_err(|_| bad)?;
         Ok(WebcamSpec {
             index: index.parse().map_err(|_| bad)?,
             person,
@@ -74,11 +92,18 @@ impl KindSpec for WebcamSpec {
             height: o.height,
             fps: o.fps,
             format: o.format.map(|f| f.name().to_string()),
+            model,
         })
     }
 
     fn to_cli(&self) -> Option<String> {
-        let query = self.options().to_query();
+        let mut query = self.options().to_query();
+        if let Some(m) = &self.model {
+            if !query.is_empty() {
+                query.push('&');
+            }
+            query.push_str(&format!("model={m}"));
+        }
         let query = if query.is_empty() {
             query
         } else {
@@ -99,6 +124,12 @@ impl KindSpec for WebcamSpec {
         bounded("width", self.width, camera_modes::MAX_SIDE)?;
         bounded("height", self.height, camera_modes::MAX_SIDE)?;
         bounded("fps", self.fps, camera_modes::MAX_FPS)?;
+        if let Err(message) = parse_model(self.model.as_deref()) {
+            return Err(ConfigError::Invalid {
+                field: "model",
+                message,
+            });
+        }
         match self.format.as_deref() {
             Some(f) if PixelFormat::parse(f).is_none() => Err(ConfigError::Invalid {
                 field: "format",
@@ -127,7 +158,11 @@ impl WebcamSpec {
                 .with_context(|| format!("cannot open webcam {index}"))
         };
         let input = super::vision_inputs::VisionInput::Webcam(index);
-        let (source, sk) = vision.person(input, self.person, self.people, open, false)?;
+        let options = super::vision_inputs::VisionOptions {
+            people: self.people,
+            model: parse_model(self.model.as_deref()).map_err(anyhow::Error::msg)?,
+        };
+        let (source, sk) = vision.person(input, self.person, options, open, false)?;
         let loaded = super::Loaded::live(Box::new(source), SourceKind::Webcam);
         let name = self
             .name

@@ -16,6 +16,7 @@
 
 mod health;
 pub mod humanoid;
+pub mod stage_times;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -26,6 +27,7 @@ use serde::{Deserialize, Serialize};
 pub use crate::error::SourceError;
 pub use crate::recording::{RawKind, RawPacket};
 pub use health::HealthTracker;
+pub use stage_times::StageTimes;
 
 /// Connection state of a live source (live sources never report `Finished`).
 pub use rigcast_protocol::control::SourceState;

@@ -58,7 +58,6 @@ pub mod roi;
 pub mod shared;
 pub mod solve;
 pub mod source;
-pub mod stage_times;
 pub mod stages;
 pub mod tracker;
 #[cfg(feature = "webcam")]

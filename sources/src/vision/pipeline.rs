@@ -68,6 +68,8 @@ pub struct PosePipeline {
     people: Vec<Person>,
     /// Time the last frame spent in the model-free stages (smoothing, lengths, solving).
     solve_time: std::time::Duration,
+    /// The landmark model it runs.
+    model: ModelKind,
 }
 
 /// One identity slot's stages and outputs.
@@ -122,12 +124,18 @@ impl PosePipeline {
             tracker,
             people,
             solve_time: std::time::Duration::ZERO,
+            model: config.model,
         })
     }
 
     /// The BlazePose source skeleton poses are written for.
     pub fn skeleton(&self) -> &Arc<Skeleton> {
         self.people[0].stages.skeleton()
+    }
+
+    /// The landmark model it runs.
+    pub fn model(&self) -> ModelKind {
+        self.model
     }
 
     /// Tracker counters.

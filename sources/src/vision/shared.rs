@@ -30,11 +30,21 @@ use super::frame::{FrameSource, RgbFrame};
 use super::landmarks::Landmarks;
 use super::pipeline::PosePipeline;
 use super::source::LandmarkTap;
-use super::stage_times::StageTimes;
 use crate::live::{
     unix_nanos_now, wait_until, HealthTracker, LiveSource, NextFrame, Pace, RawTap, SourceError,
-    SourceStatus,
+    SourceStatus, StageTimes,
 };
+
+/// A camera's stages, in the order its pipeline thread records them (`camera.stages` in
+/// `/v1/status`).
+pub const CAMERA_STAGES: [&str; 6] = [
+    "capture",
+    "decode",
+    "detect",
+    "landmarks",
+    "solve",
+    "glass_to_pose",
+];
 
 /// A person not seen for this long is reported lost (their performer falls back); shorter
 /// gaps (someone briefly hidden behind another) only show as "no person in view".
@@ -79,7 +89,9 @@ struct Slots {
     lost: (u64, Option<String>),
     /// A camera's mode (as of its last frame) and where its frames' time went.
     camera: Option<CameraMode>,
-    stages: StageTimes,
+    /// The landmark model (`lite`, `full`, …).
+    model: &'static str,
+    stages: StageTimes<{ CAMERA_STAGES.len() }>,
     /// Set when the last person source is dropped.
     stop: bool,
 }
@@ -176,6 +188,7 @@ impl SharedVision {
                 ended: None,
                 lost: (0, None),
                 camera: None,
+                model: pipeline.model().as_str(),
                 stages: StageTimes::default(),
                 stop: false,
             }),
@@ -498,7 +511,8 @@ impl LiveSource for PersonSource {
             height: m.height,
             fps: m.fps,
             format: m.format.fourcc().to_string(),
-            stages: s.stages.report(),
+            model: s.model.to_string(),
+            stages: s.stages.report(&CAMERA_STAGES),
         });
         status
     }

@@ -73,7 +73,8 @@ pub fn build_shim() -> Option<PathBuf> {
         return Some(out);
     }
     std::fs::create_dir_all(work_dir()).expect("work dir");
-    let tmp = out.with_extension(format!("{}.tmp", std::process::id()));
+    // Tests of one binary build it at the same time: each writes its own file.
+    let tmp = out.with_extension(format!("{}-{}.tmp", std::process::id(), unique()));
     let status = Command::new("gcc")
         .args([
             "-O2",

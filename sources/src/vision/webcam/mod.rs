@@ -171,6 +171,10 @@ impl FrameSource for Webcam {
         // spent on them, no decoding).
         let stale_after = 1_500_000_000 / u64::from(self.mode.fps.max(1));
         let mut skipped = 0;
+        // `frame` copies the driver's mapped buffer into a new one, the one allocation per
+        // frame of this path (`tests/webcam_emulated.rs` counts it). It is nokhwa's: its
+        // `frame_raw` borrows the mapped buffer but drops the driver's timestamp, which the
+        // latency figures are measured from.
         let buffer = loop {
             let b = match camera.frame() {
                 Ok(b) => b,
