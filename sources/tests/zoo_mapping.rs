@@ -966,20 +966,28 @@ struct Frame {
     up: glam::Vec3,
     forward: glam::Vec3,
     left: glam::Vec3,
-    height: f32,
+    /// Hips to head joint: the scale of what is added (a cartoon's head top or a tall hat
+    /// would make the whole height a poor one).
+    torso: f32,
     frame: Option<usize>,
 }
 
 fn frame_of(rig: &Rig) -> Frame {
     let a = analyze(&view(&rig.clip));
-    let hs: Vec<f32> = a.positions.iter().map(|p| p.dot(a.up)).collect();
-    let lo = hs.iter().copied().fold(f32::MAX, f32::min);
-    let hi = hs.iter().copied().fold(f32::MIN, f32::max);
+    let skel = &rig.clip.skeleton;
+    let at = |role: &str| {
+        let b = skel.bone(rig.roles.get(role)?.first()?)?;
+        Some(a.positions[b.index()])
+    };
+    let torso = match (at("hips"), at("head")) {
+        (Some(h), Some(t)) => (t - h).length(),
+        _ => 0.3 * a.size,
+    };
     Frame {
         up: a.up,
         forward: a.forward,
         left: a.left,
-        height: (hi - lo).max(1e-3),
+        torso: torso.max(1e-3),
         frame: a.posture_frame,
     }
 }
@@ -989,21 +997,22 @@ fn labelled(ed: &Editable, rig: &Rig, role: &str) -> Option<usize> {
     ed.index(rig.roles.get(role)?.first()?)
 }
 
-/// A backpack chain hanging behind the chest and two ribbons behind the head.
+/// A backpack chain hanging behind the chest and two ribbons behind the head, sized by the
+/// torso (`t`: the pack 0.3 t behind and 0.8 t tall, ribbons of 0.66 t).
 fn add_backpack(ed: &mut Editable, rig: &Rig, f: &Frame) {
-    let h = f.height;
+    let t = f.torso;
     if let Some(chest) = labelled(ed, rig, "chest").or_else(|| labelled(ed, rig, "spine")) {
-        let mut p = ed.add_world(chest, "x_pack", -f.forward * 0.12 * h, f.frame);
+        let mut p = ed.add_world(chest, "x_pack", -f.forward * 0.3 * t, f.frame);
         for i in 0..2 {
-            p = ed.add_world(p, &format!("x_pack{i}"), -f.up * 0.12 * h, f.frame);
+            p = ed.add_world(p, &format!("x_pack{i}"), -f.up * 0.4 * t, f.frame);
         }
     }
     if let Some(head) = labelled(ed, rig, "head") {
         for s in [-1.0f32, 1.0] {
-            let off = -f.forward * 0.06 * h + f.left * s * 0.04 * h;
+            let off = -f.forward * 0.2 * t + f.left * s * 0.13 * t;
             let mut p = ed.add_world(head, &format!("x_ribbon{s}"), off, f.frame);
             for i in 0..3 {
-                p = ed.add_world(p, &format!("x_ribbon{s}_{i}"), -f.up * 0.07 * h, f.frame);
+                p = ed.add_world(p, &format!("x_ribbon{s}_{i}"), -f.up * 0.22 * t, f.frame);
             }
         }
     }
