@@ -19,6 +19,7 @@ const state = {
   skeletons: new Map(), // id -> skeleton message
   mappings: new Map(), // target id -> mapping message
   sourceStatus: new Map(), // source id -> newest source_status record
+  targetStatus: new Map(), // target id -> its record in the newest source_status (motion, fault)
   views: new Map(), // id -> SubjectView
   latest: new Map(), // id -> newest frame not yet drawn
   stats: new Map(), // id -> { arrivals: [], latencyMs }
@@ -299,18 +300,29 @@ class SubjectView {
     }
   }
 
-  /** A target whose source is lost eases to rest (or walks its idle graph, `motion` from
-   *  `source_status.targets`): say so on the label and grey the bones. */
-  setLost(lost, motion) {
+  /** A subject that does not follow its performer says why on its label and greys its bones:
+   *  its source is lost (a target eases to rest, or walks its idle graph: `motion` from
+   *  `source_status.targets`), its source failed (stopped on an internal error), or its own
+   *  processing faulted (`fault` of `source_status.targets`, the server retries it). */
+  setHealth(health, motion, fault) {
+    const lost = health === 'lost';
     const idle = lost && motion === 'idle_graph';
-    if (lost === this.lost && idle === this.idling) return;
+    const why = fault ? `faulted: ${shortText(fault)}`
+      : health === 'failed' ? 'source failed'
+        : idle ? 'source lost, on idle graph' : lost ? 'source lost' : '';
+    if (why === (this.why ?? '')) return;
     invalidate();
+    this.why = why;
     this.lost = lost;
     this.idling = idle;
-    this.subjectLabel.classList.toggle('lost', lost);
-    this.subjectLabel.textContent = this.labelText + (idle ? ' — source lost, on idle graph' : lost ? ' — source lost' : '');
-    this.lineMaterial.opacity = lost ? 0.35 : 1;
-    this.joints.material.opacity = lost ? 0.35 : 1;
+    this.failed = health === 'failed';
+    this.faulted = Boolean(fault);
+    const dim = why !== '';
+    this.subjectLabel.classList.toggle('lost', dim);
+    this.subjectLabel.title = fault ?? '';
+    this.subjectLabel.textContent = this.labelText + (dim ? ` — ${why}` : '');
+    this.lineMaterial.opacity = dim ? 0.35 : 1;
+    this.joints.material.opacity = dim ? 0.35 : 1;
   }
 
   update() {
@@ -461,6 +473,12 @@ state.screenBounds = () => {
   return out;
 };
 
+/** At most the first 80 characters of a server's text (a fault's reason) for a label. */
+function shortText(text) {
+  const t = String(text);
+  return t.length > 80 ? `${t.slice(0, 80)}…` : t;
+}
+
 function makeLabel(text, kind) {
   const div = document.createElement('div');
   div.className = `label ${kind}`;
@@ -595,10 +613,11 @@ function onMessage(message) {
       break;
     case 'source_status':
       for (const record of message.sources ?? []) state.sourceStatus.set(record.subject, record);
+      state.targetStatus = new Map((message.targets ?? []).map((t) => [t.subject, t]));
       for (const view of state.views.values()) {
         const health = state.sourceStatus.get(view.info.kind === 'target' ? view.info.source : view.info.id);
         const target = (message.targets ?? []).find((t) => t.subject === view.info.id);
-        view.setLost(health?.state === 'lost', target?.motion);
+        view.setHealth(health?.state, target?.motion, target?.fault);
       }
       renderSubjects();
       break;
@@ -665,6 +684,14 @@ function renderSubjects() {
         : ` ${health.kind} · in ${Number(health.input_fps ?? 0).toFixed(0)} fps · ${Number(health.latency_ms ?? 0).toFixed(1)} ms · dropped ${health.dropped ?? 0}`);
     } else {
       healthDiv.textContent = 'no source status yet';
+    }
+    const fault = state.targetStatus.get(info.id)?.fault;
+    if (fault) {
+      const badge = document.createElement('div');
+      badge.className = 'state faulted';
+      badge.textContent = `faulted: ${shortText(fault)}`;
+      badge.title = fault;
+      healthDiv.append(badge);
     }
     const modelError = state.modelErrors.get(info.id);
     if (info.model) {

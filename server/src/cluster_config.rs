@@ -7,6 +7,9 @@ use serde::Deserialize;
 
 use crate::config_error::ConfigError;
 
+/// Longest `lost_after_secs` (a day): a finite 1e30 would be no `Duration`.
+const MAX_LOST_AFTER_SECS: f64 = 86_400.0;
+
 /// Whether `c` may stand in a site or namespace name (and so in a NATS subject token).
 fn is_name_char(c: char) -> bool {
     c.is_ascii_alphanumeric() || c == '-' || c == '_'
@@ -95,8 +98,11 @@ impl ClusterConfig {
         if !(1..=5).contains(&self.kv_replicas) {
             return fail("kv_replicas must be 1 to 5".into());
         }
-        if !(self.lost_after_secs.is_finite() && self.lost_after_secs > 0.0) {
-            return fail("lost_after_secs must be a positive number of seconds".into());
+        let lost_after = f64::from(self.lost_after_secs);
+        if !(lost_after.is_finite() && lost_after > 0.0 && lost_after <= MAX_LOST_AFTER_SECS) {
+            return fail(format!(
+                "lost_after_secs must be a positive number of seconds up to {MAX_LOST_AFTER_SECS}"
+            ));
         }
         Ok(())
     }

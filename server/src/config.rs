@@ -321,6 +321,9 @@ impl Default for AccessConfig {
     }
 }
 
+/// Longest timeout a config may set (a day): far beyond any use, and a `Duration` for sure.
+pub const MAX_TIMEOUT_SECS: f64 = 86_400.0;
+
 /// Default for [`LimitsConfig::stalled_client_timeout_secs`].
 pub const DEFAULT_STALLED_CLIENT_TIMEOUT_SECS: f64 = 10.0;
 
@@ -555,10 +558,13 @@ impl ServerConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.validate_performers()?;
         let stall = self.limits.stalled_client_timeout_secs;
-        if !(stall.is_finite() && stall > 0.0) {
+        // Bounded above too: a timeout of 1e300 s is finite but no `Duration`.
+        if !(stall.is_finite() && stall > 0.0 && stall <= MAX_TIMEOUT_SECS) {
             return Err(ConfigError::Invalid {
                 field: "stalled_client_timeout_secs",
-                message: format!("{stall} must be a positive number of seconds"),
+                message: format!(
+                    "{stall:?} must be a positive number of seconds up to {MAX_TIMEOUT_SECS}"
+                ),
             });
         }
         if self.limits.max_connections == Some(0) || self.limits.mapping_cache_max_entries == 0 {
@@ -570,7 +576,7 @@ impl ServerConfig {
         if !RATE_RANGE_HZ.contains(&self.rate_hz) {
             return Err(ConfigError::Invalid {
                 field: "rate_hz",
-                message: format!("{} is outside 1..=240", self.rate_hz),
+                message: format!("{:?} is outside 1..=240", self.rate_hz),
             });
         }
         for s in &self.sources {
@@ -602,7 +608,7 @@ impl ServerConfig {
                 if !(r.is_finite() && (0.0..=10.0).contains(&r)) {
                     return Err(ConfigError::Invalid {
                         field: "performers.resume_secs",
-                        message: format!("{r} must be between 0 and 10 seconds"),
+                        message: format!("{r:?} must be between 0 and 10 seconds"),
                     });
                 }
             }

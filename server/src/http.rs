@@ -23,7 +23,7 @@ use tokio_tungstenite::tungstenite::handshake::derive_accept_key;
 use tokio_tungstenite::tungstenite::protocol::{Role, WebSocketConfig};
 use tokio_tungstenite::WebSocketStream;
 
-use crate::access::{bearer_token, query_token, Credentials, Route};
+use crate::access::{bearer_token, query_token, AccessPolicy, Credentials, Route};
 use crate::batched_writes::BatchedWrites;
 use crate::clients::{serve_client, MAX_TRANSPORT_MESSAGE_BYTES};
 use crate::limits::Admission;
@@ -118,6 +118,10 @@ enum BadHead {
     /// A header that decides access or the upgrade appears twice (which one counts would be
     /// up to each parser on the way: a proxy could check one and rigcast use the other).
     Repeated(&'static str),
+    /// A header line another parser could read differently (RFC 9112 5): folded onto the
+    /// previous line, without a colon, with white space before its colon, or holding a bare
+    /// CR, LF or NUL (where a proxy might see a second header, rigcast would see one value).
+    HeaderLine,
 }
 
 impl BadHead {
@@ -125,6 +129,9 @@ impl BadHead {
         match self {
             BadHead::RequestLine => "bad request: no method and target\n".into(),
             BadHead::Repeated(name) => format!("bad request: more than one {name} header\n"),
+            BadHead::HeaderLine => "bad request: a header line that is folded, has no colon, \
+                 has white space before its colon or holds a bare CR, LF or NUL\n"
+                .into(),
         }
     }
 }
@@ -139,9 +146,18 @@ fn once(slot: &mut Option<String>, value: &str, name: &'static str) -> Result<()
 
 fn parse_head(head: &str) -> Result<Request, BadHead> {
     let mut lines = head.split("\r\n");
-    let mut first = lines.next().ok_or(BadHead::RequestLine)?.split(' ');
-    let method = first.next().ok_or(BadHead::RequestLine)?.to_string();
-    let target = first.next().ok_or(BadHead::RequestLine)?;
+    let first = lines.next().ok_or(BadHead::RequestLine)?;
+    // `METHOD SP target SP HTTP/1.x`, nothing else.
+    let mut parts = first.split(' ');
+    let (Some(method), Some(target), Some(version), None) =
+        (parts.next(), parts.next(), parts.next(), parts.next())
+    else {
+        return Err(BadHead::RequestLine);
+    };
+    if method.is_empty() || target.is_empty() || !version.starts_with("HTTP/1.") {
+        return Err(BadHead::RequestLine);
+    }
+    let method = method.to_string();
     let path = target.split('?').next().unwrap_or(target).to_string();
     let mut req = Request {
         method,
@@ -150,10 +166,14 @@ fn parse_head(head: &str) -> Result<Request, BadHead> {
         ..Request::default()
     };
     let mut authorization = None;
-    for line in lines {
+    for line in lines.filter(|l| !l.is_empty()) {
         let Some((name, value)) = line.split_once(':') else {
-            continue;
+            return Err(BadHead::HeaderLine);
         };
+        let folded_or_spaced = name.is_empty() || name.trim() != name;
+        if folded_or_spaced || line.contains(['\r', '\n', '\0']) {
+            return Err(BadHead::HeaderLine);
+        }
         let value = value.trim();
         match name.trim().to_ascii_lowercase().as_str() {
             "upgrade" => req.upgrade_websocket = value.eq_ignore_ascii_case("websocket"),
@@ -173,6 +193,46 @@ fn parse_head(head: &str) -> Result<Request, BadHead> {
         }
     }
     Ok(req)
+}
+
+/// A request head the listener will answer: where it goes and with what access.
+#[derive(Debug)]
+pub struct RoutedHead {
+    /// The route asked for.
+    pub route: Route,
+    request: Request,
+    /// What the request may do there.
+    pub access: crate::access::Access,
+    /// For [`Route::Model`]: the subject id, or why the path names none.
+    model: Option<Result<u32, crate::model::ModelError>>,
+}
+
+/// What the listener makes of a complete request head (up to and including its blank line)
+/// before any route runs: the route and the access it gets, or the refusal (status, body).
+/// No IO, so the head parser and the access rules can be fuzzed without a socket.
+pub fn route_head(head: &[u8], policy: &AccessPolicy) -> Result<RoutedHead, (u16, String)> {
+    let head = String::from_utf8_lossy(head);
+    let request = parse_head(&head).map_err(|bad| (400, bad.message()))?;
+    if request.method != "GET" {
+        return Err((405, "only GET is supported\n".into()));
+    }
+    let path = request.path.split(['?', '#']).next().unwrap_or("");
+    let model = crate::model::model_request(path);
+    let route = match path {
+        "/v1/stream" => Route::Stream,
+        "/v1/status" => Route::Status,
+        _ if model.is_some() => Route::Model,
+        _ => Route::ViewerFile,
+    };
+    let access = policy
+        .decide(route, &request.credentials())
+        .map_err(|refusal| (refusal.status(), refusal.message()))?;
+    Ok(RoutedHead {
+        route,
+        request,
+        access,
+        model,
+    })
 }
 
 async fn handle_connection(
@@ -216,40 +276,17 @@ async fn handle_connection(
         }
         Ok(HeadRead::Closed) | Err(_) => return,
     };
-    let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
     let leftover = buf[head_end..].to_vec();
-    let req = match parse_head(&head) {
-        Ok(req) => req,
-        Err(bad) => {
+    let RoutedHead {
+        route,
+        request: req,
+        access,
+        model,
+    } = match route_head(&buf[..head_end], &state.policy) {
+        Ok(routed) => routed,
+        Err((status, body)) => {
             // The client may be gone already: there is nobody left to answer.
-            let _ = respond(&mut stream, 400, "text/plain", bad.message().as_bytes()).await;
-            return;
-        }
-    };
-    if req.method != "GET" {
-        // The client may be gone already: there is nobody left to answer.
-        let _ = respond(&mut stream, 405, "text/plain", b"only GET is supported\n").await;
-        return;
-    }
-    let path = req.path.split(['?', '#']).next().unwrap_or("");
-    let model = crate::model::model_request(path);
-    let route = match path {
-        "/v1/stream" => Route::Stream,
-        "/v1/status" => Route::Status,
-        _ if model.is_some() => Route::Model,
-        _ => Route::ViewerFile,
-    };
-    let access = match state.policy.decide(route, &req.credentials()) {
-        Ok(a) => a,
-        Err(refusal) => {
-            // The client may be gone already: there is nobody left to answer.
-            let _ = respond(
-                &mut stream,
-                refusal.status(),
-                "text/plain",
-                refusal.message().as_bytes(),
-            )
-            .await;
+            let _ = respond(&mut stream, status, "text/plain", body.as_bytes()).await;
             return;
         }
     };
@@ -403,7 +440,7 @@ const CLIENT_WRITE_BATCH_BYTES: usize = 4 * 1024;
 /// client announcing a 16 MB frame is refused before a byte of it is buffered; frames are
 /// passed to the socket as they are sent (no write buffering in tungstenite: its buffer grows
 /// with a lagging batch; [`BatchedWrites`] holds a tick's frames instead).
-fn websocket_config() -> WebSocketConfig {
+pub fn websocket_config() -> WebSocketConfig {
     WebSocketConfig::default()
         .read_buffer_size(CLIENT_READ_BUFFER_BYTES)
         .write_buffer_size(0)
@@ -697,10 +734,36 @@ mod tests {
         // A request line without a target, and a bare blank line.
         assert!(parse_head("GET\r\n\r\n").is_err());
         assert!(parse_head("\r\n\r\n").is_err());
-        // Header lines without a colon are skipped, not fatal; HTTP/1.0 and no Host are fine.
-        let r = parse_head("GET /v1/status HTTP/1.0\r\ngarbage\r\n\r\n").unwrap();
+        // HTTP/1.0 and no Host are fine.
+        let r = parse_head("GET /v1/status HTTP/1.0\r\nAccept: */*\r\n\r\n").unwrap();
         assert_eq!((r.method.as_str(), r.path.as_str()), ("GET", "/v1/status"));
         assert!(!r.upgrade_websocket && r.websocket_key.is_none());
+    }
+
+    #[test]
+    fn header_lines_other_parsers_could_read_differently_are_refused() {
+        for line in [
+            "garbage",
+            " Host: evil.example",
+            "\tX-Folded: on",
+            "Host : evil.example",
+            ": empty name",
+            "X: a\nHost: evil.example",
+            "X: a\rHost: evil.example",
+            "X: a\0b",
+        ] {
+            let head = format!("GET /v1/status HTTP/1.1\r\nHost: localhost\r\n{line}\r\n\r\n");
+            assert_eq!(parse_head(&head), Err(BadHead::HeaderLine), "{line:?}");
+        }
+        for first in [
+            "GET /v1/status",
+            "GET  /v1/status HTTP/1.1",
+            "GET /v1/status HTTP/2",
+            "GET /a b HTTP/1.1",
+        ] {
+            let head = format!("{first}\r\nHost: localhost\r\n\r\n");
+            assert_eq!(parse_head(&head), Err(BadHead::RequestLine), "{first:?}");
+        }
     }
 
     #[test]

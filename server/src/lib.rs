@@ -56,6 +56,7 @@ pub mod mapper;
 pub mod mapping_store;
 pub mod model;
 pub mod offline;
+pub mod panic_reports;
 pub mod performer;
 pub mod recorder;
 pub mod replay_task;

@@ -13,6 +13,8 @@ async fn main() -> std::process::ExitCode {
         .with_target(false)
         .without_time()
         .init();
+    // A fault that repeats (a target retried every 250 ms) prints one report a minute, not four a second.
+    rigcast_server::panic_reports::install();
     let command = rigcast_server::cli::Cli::parse().command_or_default();
     if command.is_offline() {
         end_quietly_when_stdout_closes();

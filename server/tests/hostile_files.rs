@@ -24,12 +24,24 @@ struct Run {
     secs: f64,
 }
 
-/// Runs `rigcast ARGS` to completion under [`MAX_DATA_BYTES`] (killed after 20 s).
+/// Runs `rigcast ARGS` to completion under [`MAX_DATA_BYTES`] (killed after 20 s). With
+/// `RIGCAST_HOSTILE_TIME=1` it runs under `/usr/bin/time` and prints the command's peak RSS and
+/// wall time (the figures in BENCHMARKS.md).
 fn run(args: &[&str]) -> Run {
     use std::os::unix::process::CommandExt;
     let dir = common::test_dir("hostile_files_home");
+    let timed = std::env::var_os("RIGCAST_HOSTILE_TIME").is_some();
+    let time_file = dir.join(format!("time-{}.txt", std::process::id()));
     let start = Instant::now();
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_rigcast"));
+    let mut cmd = if timed {
+        let mut c = Command::new("/usr/bin/time");
+        c.args(["-f", "%M %e", "-o"])
+            .arg(&time_file)
+            .arg(env!("CARGO_BIN_EXE_rigcast"));
+        c
+    } else {
+        Command::new(env!("CARGO_BIN_EXE_rigcast"))
+    };
     cmd.args(args)
         .env("XDG_CONFIG_HOME", &dir)
         .env("XDG_CACHE_HOME", dir.join("cache"))
@@ -76,11 +88,33 @@ fn run(args: &[&str]) -> Run {
     let secs = start.elapsed().as_secs_f64();
     done.store(true, std::sync::atomic::Ordering::Relaxed);
     watchdog.join().unwrap();
+    if timed {
+        report_time(args, &time_file);
+    }
     Run {
         code: status.code(),
         stderr: reader.join().unwrap(),
         secs,
     }
+}
+
+/// Prints what `/usr/bin/time` measured of one run: peak RSS and wall time.
+fn report_time(args: &[&str], time_file: &Path) {
+    let measured = std::fs::read_to_string(time_file).unwrap_or_default();
+    let figures: Vec<&str> = measured.lines().last().unwrap_or("").split(' ').collect();
+    let [rss_kb, wall] = figures[..] else {
+        panic!("/usr/bin/time wrote {measured:?}");
+    };
+    // File names only: the test folders' paths say nothing.
+    let shown: Vec<&str> = args
+        .iter()
+        .map(|a| a.rsplit('/').next().unwrap_or(a))
+        .collect();
+    println!(
+        "hostile: rigcast {}: peak RSS {:.1} MB, {wall} s",
+        shown.join(" "),
+        rss_kb.parse::<f64>().unwrap_or(f64::NAN) / 1000.0
+    );
 }
 
 /// `rigcast ARGS` must refuse: exit status 1 (not a signal, not a panic's 101), one line on
@@ -420,6 +454,112 @@ fn gltf_buffers_come_only_from_the_file_or_beside_it() {
     );
     // The file beside it is read (the document itself is fine without animation).
     common::rigcast_ok(["info", path_str(&with_buffer("ok.gltf", "beside.bin", 8))]);
+}
+
+#[test]
+fn clip_paths_that_name_no_regular_file_are_refused_before_reading() {
+    let dir = common::test_dir("hostile_files_special");
+    // A device, a FIFO (whose open would block until a writer came) and a folder, each named
+    // like a clip; and a sparse file past the size bound (nothing of it is read).
+    let zero = dir.join("zero.bvh");
+    let _ = std::fs::remove_file(&zero);
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let fifo = dir.join("fifo.glb");
+    let _ = std::fs::remove_file(&fifo);
+    let c = std::ffi::CString::new(path_str(&fifo)).unwrap();
+    // SAFETY: mkfifo(3) with a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let folder = dir.join("folder.bvh");
+    std::fs::create_dir_all(&folder).unwrap();
+    for p in [&zero, &fifo, &folder] {
+        refused(&["info", path_str(p)], "not a regular file");
+        refused(
+            &["map", path_str(p), "builtin:mannequin"],
+            "not a regular file",
+        );
+    }
+    let huge = dir.join("huge.bvh");
+    std::fs::File::create(&huge)
+        .unwrap()
+        .set_len((1 << 30) + 1)
+        .unwrap();
+    refused(&["info", path_str(&huge)], "limit");
+    let _ = std::fs::remove_file(&huge);
+    // Buffers that each declare a byte of one large file beside it: the file would be read
+    // once per buffer, so the files' sizes count together.
+    let big = dir.join("big.bin");
+    std::fs::File::create(&big)
+        .unwrap()
+        .set_len(600 << 20)
+        .unwrap();
+    let text = gltf(
+        r#"{"name":"a"}"#,
+        "0",
+        r#","buffers":[{"byteLength":1,"uri":"big.bin"},{"byteLength":1,"uri":"big.bin"}]"#,
+    );
+    let twice = dir.join("twice.gltf");
+    std::fs::write(&twice, text).unwrap();
+    refused(&["info", path_str(&twice)], "buffer files");
+    let _ = std::fs::remove_file(&big);
+}
+
+#[test]
+fn durations_that_are_finite_but_no_duration_are_refused() {
+    // 1e300 s passes a finite, positive check and still panics `Duration::from_secs_f64`.
+    let listen = "--listen=127.0.0.1:0";
+    for (name, text, expect) in [
+        (
+            "stall.toml",
+            "stalled_client_timeout_secs = 1e300\n",
+            "stalled_client_timeout_secs",
+        ),
+        (
+            "lost.toml",
+            "[cluster]\nservers = [\"nats://127.0.0.1:1\"]\nsite = \"a\"\nlost_after_secs = 1e30\n",
+            "lost_after_secs",
+        ),
+    ] {
+        let config = write(name, text);
+        refused(
+            &[
+                "serve",
+                listen,
+                "--source",
+                "demo",
+                "--config",
+                path_str(&config),
+            ],
+            expect,
+        );
+    }
+    refused(
+        &[
+            "record",
+            "--url",
+            "ws://127.0.0.1:1/v1/stream",
+            "-o",
+            "/dev/null",
+            "--duration",
+            "1e300",
+        ],
+        "--duration",
+    );
+}
+
+#[test]
+fn a_glb_whose_header_declares_less_than_itself_is_refused() {
+    // Found by the fuzzer (tests/tests/fuzz_targets.rs): a total length under the 12-byte
+    // header made the glTF crate subtract past zero (a panic in a debug build).
+    let dir = common::test_dir("hostile_files_glb");
+    let mut bytes = b"glTF".to_vec();
+    bytes.extend_from_slice(&2u32.to_le_bytes());
+    bytes.extend_from_slice(&2u32.to_le_bytes());
+    bytes.extend_from_slice(&8u32.to_le_bytes());
+    bytes.extend_from_slice(b"JSON{}  ");
+    let p = dir.join("short_header.glb");
+    std::fs::write(&p, &bytes).unwrap();
+    refused(&["info", path_str(&p)], "GLB header declares 2 bytes");
+    refused(&["map", path_str(&p), "builtin:mannequin"], "GLB header");
 }
 
 #[test]

@@ -27,11 +27,43 @@ pub(crate) fn extension(path: &Path) -> String {
         .to_ascii_lowercase()
 }
 
+/// Largest clip or character file read whole (the bound of a glTF's buffers, too): far above
+/// any real file, far below what would exhaust memory.
+pub const MAX_FILE_BYTES: u64 = crate::gltf::MAX_BUFFER_BYTES;
+
+/// Reads a whole file that is a regular file of at most [`MAX_FILE_BYTES`]: a path naming a
+/// device (`/dev/zero`), a FIFO (which would block its reader) or a folder is refused before it
+/// is opened, and a file that grows past the bound while it is read is refused too.
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, SourceError> {
-    std::fs::read(path).map_err(|source| SourceError::Io {
+    use std::io::Read;
+    let io = |source| SourceError::Io {
         path: path.to_path_buf(),
         source,
-    })
+    };
+    let refuse = |why: String| io(std::io::Error::new(std::io::ErrorKind::InvalidInput, why));
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(refuse(
+            "not a regular file (a folder, device or FIFO is never read as a clip)".into(),
+        ));
+    }
+    let too_large = |len: u64| {
+        refuse(format!(
+            "{len} bytes or more, above the {MAX_FILE_BYTES}-byte limit for a clip or character file"
+        ))
+    };
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(too_large(meta.len()));
+    }
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
 }
 
 pub(crate) fn stem(path: &Path) -> String {

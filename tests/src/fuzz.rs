@@ -1,14 +1,29 @@
-//! A small coverage-free mutation fuzzer for the readers and decoders (stable Rust, no
-//! dependency): seeds (real files, recordings, valid messages) are mutated by bit flips, byte
-//! replacement, hostile tokens, truncation, and duplicated, deleted or spliced spans, for a
-//! time budget per target. A panic is a failure: the input is written to a file and named.
-//! Without coverage feedback, "distinct outcomes" (the first words of each error, or `ok`)
-//! stands in for how much of a reader the run reached.
+//! A small mutation fuzzer for the readers and decoders (stable Rust, no dependency): seeds
+//! (real files, recordings, valid messages) are mutated by bit flips, byte replacement, hostile
+//! tokens, truncation, and duplicated, deleted or spliced spans, for a time budget per target.
+//! A panic is a failure: the input is written to a file and named.
+//!
+//! Built with SanitizerCoverage (`scripts/fuzz-coverage.sh`), it is coverage-guided: an input
+//! that reaches a new edge (or a new hit-count bucket of one) joins the corpus, and the run
+//! reports the edges it reached ([`crate::coverage`]). Built plainly (CI), it runs blind, and
+//! "distinct outcomes" (the first words of each error, or `ok`) tells how far it got.
 
 use std::collections::BTreeSet;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
+
+use crate::coverage;
+
+/// Most inputs a coverage-guided run keeps (seeds included).
+const MAX_CORPUS: usize = 4096;
+
+/// Largest input a mutation may grow to: the biggest seed's size doubled, at least this.
+const MIN_INPUT_CAP: usize = 64 * 1024;
+
+/// Coverage counters are process-wide: instrumented runs take turns.
+static INSTRUMENTED_RUN: Mutex<()> = Mutex::new(());
 
 /// Seconds per target: `RIGCAST_FUZZ_SECS`, else 10 (CI's bounded run).
 pub fn budget() -> Duration {
@@ -121,12 +136,18 @@ pub struct Report {
     pub executions: u64,
     /// Distinct outcomes seen (`ok`, or the first words of each error).
     pub outcomes: usize,
+    /// In an instrumented build: edges reached (by seeds and mutations), of all instrumented.
+    pub edges: Option<(usize, usize)>,
+    /// Inputs in the corpus at the end (seeds, plus those that reached something new).
+    pub corpus: usize,
 }
 
 /// Runs `decode` on mutations of `seeds` for `budget`. `decode` returns its outcome (`"ok"`
 /// or the error's text, of which the first four words are kept). Every seed must decode
 /// unmutated (`seeds_ok`), so the run is known to reach the real reader. A panic writes the
-/// input under the target folder and fails the calling test.
+/// input under the target folder and fails the calling test. In an instrumented build, inputs
+/// that reach new edges join the corpus, and with `RIGCAST_FUZZ_COVERAGE_DIR` set the edges
+/// reached are written to `NAME.edges` there ([`coverage::write_edges`]).
 pub fn run(
     name: &str,
     seeds: &[Vec<u8>],
@@ -135,20 +156,39 @@ pub fn run(
     mut decode: impl FnMut(&[u8]) -> String,
 ) -> Report {
     assert!(!seeds.is_empty(), "{name}: no seeds");
+    let guided = coverage::instrumented();
+    // A test that panicked while holding the turn poisons nothing this run relies on.
+    let _turn = guided.then(|| INSTRUMENTED_RUN.lock().unwrap_or_else(|e| e.into_inner()));
+    let mut seen = coverage::Seen::default();
+    coverage::reset();
     if seeds_ok {
         for (i, s) in seeds.iter().enumerate() {
             let outcome = decode(s);
             assert_eq!(outcome, "ok", "{name}: seed {i} does not decode: {outcome}");
         }
+    } else {
+        for s in seeds {
+            decode(s);
+        }
     }
+    seen.absorb();
+    let cap = seeds
+        .iter()
+        .map(Vec::len)
+        .max()
+        .unwrap_or(0)
+        .saturating_mul(2)
+        .max(MIN_INPUT_CAP);
+    let mut corpus = seeds.to_vec();
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ name.len() as u64);
     let mut outcomes = BTreeSet::new();
     let mut executions = 0u64;
     let start = Instant::now();
     while start.elapsed() < budget {
-        let base = &seeds[rng.below(seeds.len())];
-        let other = &seeds[rng.below(seeds.len())];
-        let input = mutate(&mut rng, base, other);
+        let base = &corpus[rng.below(corpus.len())];
+        let other = &corpus[rng.below(corpus.len())];
+        let mut input = mutate(&mut rng, base, other);
+        input.truncate(cap);
         match catch_unwind(AssertUnwindSafe(|| decode(&input))) {
             Ok(outcome) => {
                 let class: String = outcome
@@ -172,21 +212,49 @@ pub fn run(
                 );
             }
         }
+        if guided && seen.absorb() && corpus.len() < MAX_CORPUS {
+            corpus.push(input);
+        }
         executions += 1;
     }
     let report = Report {
         name: name.to_string(),
         executions,
         outcomes: outcomes.len(),
+        edges: guided.then(|| (seen.hit(), coverage::edges())),
+        corpus: corpus.len(),
     };
+    if guided {
+        write_coverage(name, &seen);
+    }
+    let edges = report
+        .edges
+        .map(|(hit, all)| {
+            format!(
+                ", {hit} of {all} instrumented edges reached, corpus {}",
+                report.corpus
+            )
+        })
+        .unwrap_or_default();
     println!(
-        "fuzz {}: {} executions in {:.0} s, {} distinct outcomes",
+        "fuzz {}: {} executions in {:.0} s, {} distinct outcomes{edges}",
         report.name,
         report.executions,
         start.elapsed().as_secs_f64(),
         report.outcomes
     );
     report
+}
+
+/// Writes the edges a run reached where `RIGCAST_FUZZ_COVERAGE_DIR` says, if it says.
+fn write_coverage(name: &str, seen: &coverage::Seen) {
+    let Some(dir) = std::env::var_os("RIGCAST_FUZZ_COVERAGE_DIR") else {
+        return;
+    };
+    let path = PathBuf::from(dir).join(format!("{name}.edges"));
+    if let Err(e) = coverage::write_edges(&path, seen) {
+        panic!("cannot write {}: {e}", path.display());
+    }
 }
 
 fn crash_path(name: &str, case: u64) -> PathBuf {

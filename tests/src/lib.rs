@@ -3,6 +3,7 @@
 #![allow(clippy::unwrap_used)]
 
 pub mod chromium;
+pub mod coverage;
 pub mod fuzz;
 pub mod nats;
 pub mod skinned;

@@ -1,5 +1,5 @@
 //! Hostile HTTP and WebSocket input to the real `rigcast serve` binary: repeated deciding
-//! headers, foreign WebSocket versions, protocol violations (answered with their close codes),
+//! headers, header lines other parsers read differently, foreign WebSocket versions, protocol violations (answered with their close codes),
 //! oversized text quoted back in errors, and clients that request a model file and never read.
 #![allow(clippy::unwrap_used)]
 
@@ -128,6 +128,53 @@ async fn repeated_hosts_and_foreign_websocket_versions_are_refused() {
         assert!(got.starts_with("HTTP/1.1 426"), "{version:?}: {got}");
         assert!(got.contains("Sec-WebSocket-Version: 13"), "{got}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn header_lines_a_proxy_could_read_differently_are_refused() {
+    let server = serve("hostile_http_lines", &[]);
+    let addr = server.addr;
+    // Each hides a second Host from one reader or the other: folded onto the previous line,
+    // space before the colon, a bare LF or CR inside a line; and a request line with extra parts.
+    for (what, head) in [
+        (
+            "folded",
+            format!(
+                "GET /v1/status HTTP/1.1\r\nHost: {addr}\r\nX-A: 1\r\n Host: evil.example\r\n\r\n"
+            ),
+        ),
+        (
+            "space before colon",
+            format!("GET /v1/status HTTP/1.1\r\nHost : evil.example\r\nHost: {addr}\r\n\r\n"),
+        ),
+        (
+            "bare LF",
+            format!(
+                "GET /v1/status HTTP/1.1\r\nX-A: 1\nHost: evil.example\r\nHost: {addr}\r\n\r\n"
+            ),
+        ),
+        (
+            "bare CR",
+            format!(
+                "GET /v1/status HTTP/1.1\r\nX-A: 1\rHost: evil.example\r\nHost: {addr}\r\n\r\n"
+            ),
+        ),
+        (
+            "no colon",
+            format!("GET /v1/status HTTP/1.1\r\nHost: {addr}\r\nHost evil.example\r\n\r\n"),
+        ),
+        (
+            "request line",
+            format!("GET /v1/status HTTP/1.1 extra\r\nHost: {addr}\r\n\r\n"),
+        ),
+    ] {
+        let got = http_raw(addr, head.as_bytes(), PROMPT).await.unwrap();
+        assert!(got.starts_with("HTTP/1.1 400"), "{what}: {got}");
+    }
+    // The same request, well formed, is served.
+    let plain = format!("GET /v1/status HTTP/1.1\r\nHost: {addr}\r\nX-A: 1\r\n\r\n");
+    let got = http_raw(addr, plain.as_bytes(), PROMPT).await.unwrap();
+    assert!(got.starts_with("HTTP/1.1 200"), "{got}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

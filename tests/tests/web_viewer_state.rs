@@ -6,6 +6,8 @@
 //! - source lost: a VMC source whose sender stops turns `lost`, and the target's label says
 //!   "source lost" (and its bones dim) until the sender returns; with an idle graph (shared
 //!   data) it also says "on idle graph", promptly;
+//! - faults: a faulted target and a failed source are marked on their labels (bones dimmed)
+//!   and in the subject list;
 //! - controls: pause, the subject picker, follow and orbit (see the last test).
 #![allow(clippy::unwrap_used)]
 
@@ -167,6 +169,97 @@ async fn viewer_says_when_a_targets_source_is_lost() {
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);
     let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+}
+
+/// A faulted target and a failed source are marked: the label says so and the bones dim, and
+/// the subject list says it too. The fault and the failure are set on the server's subjects
+/// as its own fault handling sets them (a caught panic; real input no longer reaches one), and
+/// everything after that (status task, `source_status`, the page) is the real path.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn viewer_marks_faulted_targets_and_failed_sources() {
+    let Some((chromium, _one)) = one_browser().await else {
+        return;
+    };
+    let (server, to) = start_vmc_server(ServerConfig {
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    })
+    .await;
+    let sender = DemoSender::spawn(to);
+    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let healthy = |v: &serde_json::Value| {
+        v["label"].as_str().is_some_and(|l| !l.contains(" — ")) && v["dim"] == false
+    };
+    wait_for_view(&mut cdp, 1, "the target healthy", healthy).await;
+    let target = server.state().subject(1).unwrap();
+    *target.stats.fault.lock().unwrap() = Some("stopped: a test fault".into());
+    target
+        .stats
+        .faults_total
+        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    wait_for_view(&mut cdp, 1, "the target faulted", |v| {
+        v["faulted"] == true
+            && v["dim"] == true
+            && v["label"]
+                .as_str()
+                .is_some_and(|l| l.contains("faulted: stopped: a test fault"))
+            && v["list"].as_str().is_some_and(|l| l.contains("faulted"))
+    })
+    .await;
+    *target.stats.fault.lock().unwrap() = None;
+    wait_for_view(&mut cdp, 1, "the target healthy again", |v| {
+        healthy(v) && v["faulted"] == false && !v["list"].as_str().unwrap_or("").contains("faulted")
+    })
+    .await;
+    let source = server.state().subject(0).unwrap();
+    source
+        .health
+        .fail("stopped on an internal error: a test panic".into());
+    for id in [0, 1] {
+        wait_for_view(&mut cdp, id, "its source failed", |v| {
+            v["failed"] == true
+                && v["dim"] == true
+                && v["label"]
+                    .as_str()
+                    .is_some_and(|l| l.contains("source failed"))
+                && v["list"].as_str().is_some_and(|l| l.contains("failed"))
+        })
+        .await;
+    }
+    sender.stop();
+    assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
+    let _ = cdp.call("Browser.close", json!({})).await;
+    drop(browser);
+    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+}
+
+/// Waits (20 s at most) until view `id` and its row in the subject list satisfy `ok`.
+async fn wait_for_view(
+    cdp: &mut DevTools,
+    id: u32,
+    what: &str,
+    ok: impl Fn(&serde_json::Value) -> bool,
+) {
+    let probe = format!(
+        "JSON.stringify((() => {{ const v = window.rigcast?.views?.get({id}); \
+         const li = document.querySelector('#subjects li[data-subject=\"{id}\"]'); \
+         return v ? {{ faulted: v.faulted === true, failed: v.failed === true, \
+         dim: v.lineMaterial.opacity < 1, label: v.subjectLabel.textContent, \
+         list: li?.textContent ?? '' }} : null; }})())"
+    );
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(20) {
+        let v = cdp.eval_json(&probe).await;
+        if ok(&v) {
+            println!("viewer: {what}: {v}");
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(150)).await;
+    }
+    panic!(
+        "the page never showed {what}: {}",
+        cdp.eval_json(&probe).await
+    );
 }
 
 /// The sender: the demo clip, one pose set every 1/30 s while sending, until stopped.

@@ -283,8 +283,13 @@ fn attach_detached(ctx: &Ctx<'_>, body: &BodyRoot, out: &mut Builder) {
             ground,
         });
     }
+    // Which bones some limb extends to, marked once (a search per bone is quadratic in wide rigs).
+    let mut extended = vec![false; ctx.skel.num_bones()];
+    for e in ctx.extension.iter().flatten() {
+        extended[e.index()] = true;
+    }
     for b in ctx.skel.bone_ids() {
-        let attached = ctx.extension.contains(&Some(b)) && roles[b.index()].role == Role::Foot;
+        let attached = extended[b.index()] && roles[b.index()].role == Role::Foot;
         if ctx.detached[b.index()] && !attached {
             roles[b.index()].role = Role::Control;
             roles[b.index()].confidence = 0.5;

@@ -89,11 +89,12 @@ pub(super) fn assess(
 ) {
     let rivals = rivals(per_target);
     let unused = unused_core_kinds(picked, per_target, sources);
+    let below = driven_below(table, tskel, ta);
     table.flagged.clear();
     for t in tskel.bone_ids() {
         let tr = ta.roles[t.index()];
         let Some(k) = picked[t.index()] else {
-            if let Some(reason) = unmapped_reason(table, tskel, ta, &unused, t) {
+            if let Some(reason) = unmapped_reason(table, tskel, ta, &unused, &below, t) {
                 table.flagged.push(Flag {
                     bone: t,
                     confidence: 0.0,
@@ -157,12 +158,28 @@ fn unused_core_kinds(
     kinds
 }
 
-/// Why an unmapped target bone should be checked, if it should.
+/// Per target bone: whether a driven body part (not a helper or end marker) lies anywhere
+/// below it. One pass from the leaves up (parents come before their children), so a rig of
+/// thousands of bones costs a walk, not a search per bone.
+fn driven_below(table: &MappingTable, tskel: &Skeleton, ta: &Analysis) -> Vec<bool> {
+    let mut below = vec![false; tskel.num_bones()];
+    let ids: Vec<BoneId> = tskel.bone_ids().collect();
+    for &d in ids.iter().rev() {
+        let here = table.entries[d.index()].is_some() && !ta.roles[d.index()].role.is_helper();
+        if let Some(p) = tskel.parent(d) {
+            below[p.index()] |= here || below[d.index()];
+        }
+    }
+    below
+}
+
+/// Why an unmapped target bone should be checked, if it should (`below`: [`driven_below`]).
 fn unmapped_reason(
     table: &MappingTable,
     tskel: &Skeleton,
     ta: &Analysis,
     unused: &[SectionKind],
+    below: &[bool],
     t: BoneId,
 ) -> Option<String> {
     let tr = ta.roles[t.index()];
@@ -178,11 +195,7 @@ fn unmapped_reason(
     let driven = |b: BoneId| table.entries[b.index()].is_some();
     let parent_driven = tskel.parent(t).is_some_and(driven);
     // A driven body part below (end markers and helpers below do not count).
-    let below = tskel.bone_ids().any(|d| {
-        let role = ta.roles[d.index()].role;
-        driven(d) && !role.is_helper() && is_below(tskel, d, t)
-    });
-    if parent_driven && below {
+    if parent_driven && below[t.index()] {
         return Some("undriven between driven bones".into());
     }
     let kind = tr.section.map(|s| ta.sections[s as usize].kind);
@@ -193,14 +206,4 @@ fn unmapped_reason(
             kind.map_or("", |k| k.name())
         )
     })
-}
-
-fn is_below(skel: &Skeleton, mut b: BoneId, ancestor: BoneId) -> bool {
-    while let Some(p) = skel.parent(b) {
-        if p == ancestor {
-            return true;
-        }
-        b = p;
-    }
-    false
 }

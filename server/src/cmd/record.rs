@@ -26,8 +26,9 @@ pub struct RecordArgs {
 /// Records until Ctrl-C, the duration, or the server closing.
 pub async fn run(args: RecordArgs) -> anyhow::Result<()> {
     if let Some(d) = args.duration {
-        if !(d.is_finite() && d > 0.0) {
-            bail!("--duration must be a positive number of seconds, got {d}");
+        // A finite 1e300 is still no `Duration`.
+        if !(d > 0.0 && Duration::try_from_secs_f64(d).is_ok()) {
+            bail!("--duration must be a positive number of seconds (under 5e11 years), got {d:?}");
         }
     }
     let stop = async {

@@ -17,6 +17,9 @@ pub const MAX_BUFFER_BYTES: u64 = 1 << 30;
 /// glTF file's folder (`None`: the file has no location, so only embedded buffers work).
 pub fn check_buffer_sources(doc: &Document, base_dir: Option<&Path>) -> Result<(), SourceError> {
     let mut total: u64 = 0;
+    // Each buffer's file is read whole whatever it declares, so the files count together too
+    // (a hundred buffers naming one large file declaring a byte each are read a hundred times).
+    let mut file_bytes: u64 = 0;
     for buffer in doc.buffers() {
         let declared = buffer.length() as u64;
         total = total.saturating_add(declared);
@@ -58,10 +61,14 @@ pub fn check_buffer_sources(doc: &Document, base_dir: Option<&Path>) -> Result<(
         if !meta.is_file() {
             return Err(bad("is not a regular file"));
         }
-        if meta.len() > MAX_BUFFER_BYTES {
+        file_bytes = file_bytes.saturating_add(meta.len());
+        if file_bytes > MAX_BUFFER_BYTES {
             return Err(SourceError::limit(
-                format!("buffers[{}]: file size", buffer.index()),
-                meta.len(),
+                format!(
+                    "buffers[{}]: bytes of the buffer files read up to here",
+                    buffer.index()
+                ),
+                file_bytes,
                 MAX_BUFFER_BYTES,
             ));
         }

@@ -90,8 +90,24 @@ fn gltf_err(e: ::gltf::Error) -> SourceError {
 /// skipped (see [`super::tolerate`]); the warning says what was skipped.
 type Parsed = (Document, Option<Vec<u8>>, Option<String>, serde_json::Value);
 
+/// A GLB file's header: magic, version, total length.
+const GLB_HEADER_BYTES: u32 = 12;
+
 fn parse_tolerantly(bytes: &[u8]) -> Result<Parsed, SourceError> {
     let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
+        // The header's total length (bytes 8..12) must cover the 12-byte header itself: gltf
+        // 1.4 subtracts the header from it unchecked (found by fuzzing: a debug build panics,
+        // a release build wraps). Shorter input is refused by gltf's own header read.
+        if let Some(len) = bytes.get(8..12) {
+            let len = u32::from_le_bytes([len[0], len[1], len[2], len[3]]);
+            if len < GLB_HEADER_BYTES {
+                return Err(SourceError::Gltf {
+                    message: format!(
+                        "GLB header declares {len} bytes in all, fewer than the header's {GLB_HEADER_BYTES}"
+                    ),
+                });
+            }
+        }
         let glb = ::gltf::binary::Glb::from_slice(bytes).map_err(gltf_err)?;
         (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
     } else {
