@@ -185,9 +185,16 @@ impl Health {
         state_from_u8(self.state.load(Ordering::Relaxed))
     }
 
-    /// Sets the state.
+    /// Sets the state; `Failed` stays (a source that failed is failed for good, whatever a
+    /// part of it still running reports).
     pub fn set_state(&self, s: SourceState) {
-        self.state.store(state_to_u8(s), Ordering::Relaxed);
+        let failed = state_to_u8(SourceState::Failed);
+        // Err only means the state is `Failed` already, which stays.
+        let _ = self
+            .state
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |now| {
+                (now != failed).then_some(state_to_u8(s))
+            });
     }
 
     /// Marks the source failed for good (its task or thread stopped), keeping why.
