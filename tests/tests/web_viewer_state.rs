@@ -126,13 +126,7 @@ async fn viewer_says_when_a_targets_source_is_lost() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let (server, to) = start_vmc_server(ServerConfig {
-        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
-        ..ServerConfig::default()
-    })
-    .await;
-    let sender = DemoSender::spawn(to);
-    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let (server, sender, browser, mut cdp) = mannequin_on_vmc_in_viewer(&chromium).await;
     let probe = "JSON.stringify((() => { const v = window.rigcast?.views?.get(1); return v ? { lost: v.lost, label: v.subjectLabel.textContent } : null; })())";
     let wait_for = |lost: bool| {
         let probe = probe.to_string();
@@ -165,10 +159,7 @@ async fn viewer_says_when_a_targets_source_is_lost() {
         live["label"], lost["label"], back["label"]
     );
     sender.stop();
-    assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
-    let _ = cdp.call("Browser.close", json!({})).await;
-    drop(browser);
-    let _ = tokio::time::timeout(Duration::from_secs(5), server.shutdown()).await;
+    close(server, browser, cdp).await;
 }
 
 /// A faulted target and a failed source are marked: the label says so and the bones dim, and
@@ -180,13 +171,7 @@ async fn viewer_marks_faulted_targets_and_failed_sources() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let (server, to) = start_vmc_server(ServerConfig {
-        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
-        ..ServerConfig::default()
-    })
-    .await;
-    let sender = DemoSender::spawn(to);
-    let (browser, mut cdp) = DevTools::open_viewer(&chromium, server.local_addr()).await;
+    let (server, sender, browser, mut cdp) = mannequin_on_vmc_in_viewer(&chromium).await;
     let healthy = |v: &serde_json::Value| {
         v["label"].as_str().is_some_and(|l| !l.contains(" — ")) && v["dim"] == false
     };
@@ -227,6 +212,35 @@ async fn viewer_marks_faulted_targets_and_failed_sources() {
         .await;
     }
     sender.stop();
+    close(server, browser, cdp).await;
+}
+
+/// A server whose VMC source drives the mannequin, the demo clip sent to it, and the viewer
+/// open on it.
+async fn mannequin_on_vmc_in_viewer(
+    chromium: &std::path::Path,
+) -> (
+    rigcast_server::ServerHandle,
+    DemoSender,
+    rigcast_tests::chromium::Browser,
+    DevTools,
+) {
+    let (server, to) = start_vmc_server(ServerConfig {
+        performers: vec![PerformerSpec::target_file("builtin:mannequin")],
+        ..ServerConfig::default()
+    })
+    .await;
+    let sender = DemoSender::spawn(to);
+    let (browser, cdp) = DevTools::open_viewer(chromium, server.local_addr()).await;
+    (server, sender, browser, cdp)
+}
+
+/// Checks the page made no errors, closes it and shuts the server down.
+async fn close(
+    server: rigcast_server::ServerHandle,
+    browser: rigcast_tests::chromium::Browser,
+    mut cdp: DevTools,
+) {
     assert!(cdp.errors().is_empty(), "page errors: {:?}", cdp.errors());
     let _ = cdp.call("Browser.close", json!({})).await;
     drop(browser);

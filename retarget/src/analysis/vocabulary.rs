@@ -194,7 +194,8 @@ impl Role {
             SpineMid => "spine_mid".into(),
             Chest => "chest".into(),
             Neck(0) => "neck".into(),
-            Neck(k) => format!("neck_{}", k + 1),
+            // Widened: the 256th bone of a long neck or tail is `255`, and 255 + 1 overflows u8.
+            Neck(k) => format!("neck_{}", u16::from(k) + 1),
             Head => "head".into(),
             HeadEnd => "head_end".into(),
             Jaw => "jaw".into(),
@@ -214,7 +215,7 @@ impl Role {
             Foot => "foot".into(),
             Toes => "toes".into(),
             ToeEnd => "toe_end".into(),
-            Tail(k) => format!("tail_{}", k + 1),
+            Tail(k) => format!("tail_{}", u16::from(k) + 1),
             Twist => "twist".into(),
             Helper => "helper".into(),
             Control => "control".into(),
