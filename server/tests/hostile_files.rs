@@ -547,8 +547,8 @@ fn durations_that_are_finite_but_no_duration_are_refused() {
 }
 
 #[test]
-fn a_glb_whose_header_declares_less_than_itself_is_refused() {
-    // Found by the fuzzer (tests/tests/fuzz_targets.rs): a total length under the 12-byte
+fn gltf_files_that_broke_the_gltf_crate_are_refused() {
+    // Found by the fuzzer (tests/tests/fuzz_targets.rs): a GLB total length under the 12-byte
     // header made the glTF crate subtract past zero (a panic in a debug build).
     let dir = common::test_dir("hostile_files_glb");
     let mut bytes = b"glTF".to_vec();
@@ -560,6 +560,16 @@ fn a_glb_whose_header_declares_less_than_itself_is_refused() {
     std::fs::write(&p, &bytes).unwrap();
     refused(&["info", path_str(&p)], "GLB header declares 2 bytes");
     refused(&["map", path_str(&p), "builtin:mannequin"], "GLB header");
+    // Also found by the fuzzer: a mesh whose POSITION names an accessor that does not exist
+    // made the glTF crate's validation index past its list (a panic in release builds too).
+    let mesh = gltf(
+        r#"{"name":"a","mesh":0}"#,
+        "0",
+        r#","meshes":[{"primitives":[{"attributes":{"POSITION":5}}]}]"#,
+    );
+    let p = dir.join("position_past_accessors.gltf");
+    std::fs::write(&p, mesh).unwrap();
+    refused(&["info", path_str(&p)], "POSITION names accessor 5 of");
 }
 
 #[test]

@@ -123,8 +123,32 @@ fn parse_tolerantly(bytes: &[u8]) -> Result<Parsed, SourceError> {
         serde_json::from_value(value).map_err(|e| SourceError::Gltf {
             message: format!("invalid glTF JSON: {e}"),
         })?;
+    check_position_accessors(&root)?;
     let document = Document::from_json(root).map_err(gltf_err)?;
     Ok((document, blob, warning, original))
+}
+
+/// gltf-json 1.4's validation reads a primitive's `POSITION` accessor before it checks that
+/// the index exists (found by fuzzing: an index past the accessors panics, in release builds
+/// too), so that one index is checked here first; every other index its validation checks.
+fn check_position_accessors(root: &::gltf::json::Root) -> Result<(), SourceError> {
+    use ::gltf::json::mesh::Semantic;
+    use ::gltf::json::validation::Checked;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = primitive.attributes.get(&Checked::Valid(Semantic::Positions));
+            if let Some(index) = position.filter(|i| i.value() >= root.accessors.len()) {
+                return Err(SourceError::Gltf {
+                    message: format!(
+                        "meshes[{m}].primitives[{p}]: POSITION names accessor {} of {}",
+                        index.value(),
+                        root.accessors.len()
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A node's local transform as (translation, rotation, uniform scale).
