@@ -152,19 +152,7 @@ impl RootPlan {
         rs: SourceRef,
         opts: &RetargetOptions,
     ) -> RootPlan {
-        // Pairs below the root on both sides: the legs (and whatever else hangs from the hips).
-        let mut below: Vec<(BoneId, BoneId)> = tgt
-            .skel
-            .bone_ids()
-            .filter(|&t| t != rt && align::is_descendant(tgt.skel, rt, t))
-            .filter_map(|t| {
-                let s = primary(table, t)?;
-                (s.input == rs.input
-                    && s.bone != rs.bone
-                    && align::is_descendant(src.skel, rs.bone, s.bone))
-                .then_some((t, s.bone))
-            })
-            .collect();
+        let mut below = pairs_below(src, tgt, table, rt, rs);
         // Both postures are in the source's world (the target's is its aligned reference).
         let up = opts
             .source_up
@@ -267,6 +255,27 @@ impl RootPlan {
             foot_contact: opts.foot_contact,
         }
     }
+}
+
+/// The mapped (target, source) pairs below the root on both sides: the legs (and whatever
+/// else hangs from the hips).
+fn pairs_below(
+    src: Side<'_>,
+    tgt: Side<'_>,
+    table: &MappingTable,
+    rt: BoneId,
+    rs: SourceRef,
+) -> Vec<(BoneId, BoneId)> {
+    (tgt.skel.bone_ids())
+        .filter(|&t| t != rt && align::is_descendant(tgt.skel, rt, t))
+        .filter_map(|t| {
+            let s = primary(table, t)?;
+            (s.input == rs.input
+                && s.bone != rs.bone
+                && align::is_descendant(src.skel, rs.bone, s.bone))
+            .then_some((t, s.bone))
+        })
+        .collect()
 }
 
 /// The (target, source, leg) foot pairs: mapped joints below the root no higher than `near`,
