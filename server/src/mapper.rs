@@ -36,6 +36,7 @@ use crate::changes::find_source_bone;
 use crate::engine::EngineCommand;
 use crate::graft_live::{LiveGraft, LowerInput};
 use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
+use crate::offline::TableCache;
 use crate::performer::{BuiltMapping, Mailbox};
 use crate::reports::MappingReport;
 use crate::subject::Subject;
@@ -172,30 +173,22 @@ impl Mapper {
         // The cache key knows the skeletons, not the truth: a truth-driven table must neither
         // come from nor go into the cache.
         let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
-        let key = CacheKey::new(&src_refs, &target, &self.options);
-        let shared = self.shared.as_ref().filter(|_| use_cache);
-        let cached = if use_cache {
-            (self.store.get(&key)).or_else(|| shared.and_then(|s| s.get(&key)))
-        } else {
-            None
+        let mut caches = Caches {
+            store: &mut self.store,
+            shared: self.shared.as_ref(),
         };
-        let mut table = match cached {
-            Some(t) if t.entries.len() == target.num_bones() => t,
-            _ => {
-                let pairs: Vec<(&Skeleton, &Analysis)> =
-                    src_refs.iter().copied().zip(&analyses).collect();
-                let computed = map_analyzed(&pairs, (&target, &ta), &self.options);
-                if let Some(s) = shared {
-                    s.put(&key, &computed);
-                }
-                computed
-            }
-        };
+        let pairs: Vec<(&Skeleton, &Analysis)> = src_refs.iter().copied().zip(&analyses).collect();
+        let cache = use_cache.then_some(&mut caches as &mut dyn TableCache);
+        let (mut table, _) =
+            crate::offline::table_for(&pairs, (&target, &ta), &self.options, cache);
         if let Some(file) = &p.overrides_file {
             apply_overrides(&mut table, file, &src_refs, &target).context("mapping file")?;
         }
         apply_session(&mut table, &p.session, &src_refs, &target)?;
         if use_cache {
+            // The store keeps the table as used (file and session overrides applied), so a
+            // restart starts where the session left it; the cluster shares only automatic ones.
+            let key = CacheKey::new(&src_refs, &target, &self.options);
             self.store.put(key, table.clone());
         }
         let (relative, source_standing) =
@@ -499,6 +492,26 @@ pub fn apply_session(
         });
     }
     Ok(())
+}
+
+/// The mapper's caches as the offline pipeline looks tables up: its own store (memory, then
+/// disk), then the cluster's shared cache; a computed table goes to the shared cache only
+/// (the store gets the table as used, overrides applied, once it is made).
+struct Caches<'a> {
+    store: &'a mut MappingStore,
+    shared: Option<&'a crate::cluster::SharedMappings>,
+}
+
+impl TableCache for Caches<'_> {
+    fn get(&mut self, key: &CacheKey) -> Option<MappingTable> {
+        (self.store.get(key)).or_else(|| self.shared.and_then(|s| s.get(key)))
+    }
+
+    fn put(&mut self, key: &CacheKey, table: &MappingTable) {
+        if let Some(s) = self.shared {
+            s.put(key, table);
+        }
+    }
 }
 
 /// A target's mapping as clients are told of it.

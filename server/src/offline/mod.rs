@@ -17,8 +17,8 @@ mod plan;
 pub use clip::{retarget_clip, retarget_clip_locked, Progress};
 pub use graft::{graft_clips, plants, Grafted};
 pub use plan::{
-    map_pair, plan_mapping, plan_mapping_with_truth, posture_plan, HumanoidTruth, MappedPair,
-    MappingPlan, TableCache,
+    map_pair, plan_mapping, plan_mapping_with_truth, posture_plan, table_for, HumanoidTruth,
+    MappedPair, MappingPlan, TableCache,
 };
 
 use rigcast_retarget::graft::GraftError;

@@ -90,20 +90,7 @@ pub fn map_pair(
     let sa = analyze_with_truth(&SkeletonView::from_clip(ss, &source.poses), truth.0);
     let ta = analyze_with_truth(&SkeletonView::from_clip(ts, &target.poses), truth.1);
     let cache = cache.filter(|_| truth.0.is_none() && truth.1.is_none());
-    let (mut table, from_cache) = match cache {
-        Some(cache) => {
-            let key = CacheKey::new(&[ss], ts, opts);
-            match cache.get(&key).filter(|t| t.validate(&[ss], ts).is_ok()) {
-                Some(t) => (t, true),
-                None => {
-                    let t = map_analyzed(&[(ss, &sa)], (ts, &ta), opts);
-                    cache.put(&key, &t);
-                    (t, false)
-                }
-            }
-        }
-        None => (map_analyzed(&[(ss, &sa)], (ts, &ta), opts), false),
-    };
+    let (mut table, from_cache) = table_for(&[(ss, &sa)], (ts, &ta), opts, cache);
     if let Some(file) = overrides {
         apply_overrides(&mut table, file, &[ss], ts).map_err(OfflineError::Overrides)?;
     }
@@ -113,6 +100,34 @@ pub fn map_pair(
         target_analysis: ta,
         from_cache,
     })
+}
+
+/// The automatic table for analysed sources and target: the cache's, when it holds one that
+/// fits these skeletons (keyed by the skeletons and `opts`), else the automatic mapper's,
+/// which is then offered to the cache. Whether it came from the cache. A table made with
+/// ground truth must not be looked up here: the key does not know the truth.
+pub fn table_for(
+    sources: &[(&Skeleton, &Analysis)],
+    target: (&Skeleton, &Analysis),
+    opts: &MapOptions,
+    cache: Option<&mut dyn TableCache>,
+) -> (MappingTable, bool) {
+    let Some(cache) = cache else {
+        return (map_analyzed(sources, target, opts), false);
+    };
+    let skeletons: Vec<&Skeleton> = sources.iter().map(|s| s.0).collect();
+    let key = CacheKey::new(&skeletons, target.0, opts);
+    match cache
+        .get(&key)
+        .filter(|t| t.validate(&skeletons, target.0).is_ok())
+    {
+        Some(t) => (t, true),
+        None => {
+            let t = map_analyzed(sources, target, opts);
+            cache.put(&key, &t);
+            (t, false)
+        }
+    }
 }
 
 /// Which target bones keep their own posture (`mapping::posture_relative`: a walker driving
