@@ -185,10 +185,41 @@ where
         subjects: state.subject_infos(),
     }
     .to_json();
-    let stall = state.stalled_client_timeout;
-    send(sink, Message::text(subjects), stall).await?;
+    send(sink, Message::text(subjects), state.stalled_client_timeout).await?;
+    send_state(sink, state).await
+}
+
+/// Sends a control event as its protocol message, or the state after the queue overflowed;
+/// `false` once the queue is closed (shutdown).
+async fn on_event<S>(
+    sink: &mut Sink<S>,
+    event: Result<Event, RecvError>,
+    events: &mut broadcast::Receiver<Event>,
+    state: &ServerState,
+    stats: &ClientStats,
+) -> Result<bool, End>
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    match event {
+        Ok(event) => {
+            let text = wire::message(&event).to_json();
+            send(sink, Message::text(text), state.stalled_client_timeout).await?;
+        }
+        Err(RecvError::Lagged(_)) => resync(sink, events, state, stats).await?,
+        Err(RecvError::Closed) => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// Sends the state that control messages describe (see [`wire::state_messages`]).
+async fn send_state<S>(sink: &mut Sink<S>, state: &ServerState) -> Result<(), End>
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
     for message in wire::state_messages(state) {
-        send(sink, Message::text(message.to_json()), stall).await?;
+        let text = Message::text(message.to_json());
+        send(sink, text, state.stalled_client_timeout).await?;
     }
     Ok(())
 }
@@ -222,15 +253,9 @@ where
 {
     let stall = state.stalled_client_timeout;
     let (mut sink, mut stream) = ws.split();
-    send(
-        &mut sink,
-        Message::text(wire::hello(state).to_json()),
-        stall,
-    )
-    .await?;
-    for message in wire::state_messages(state) {
-        send(&mut sink, Message::text(message.to_json()), stall).await?;
-    }
+    let hello = wire::hello(state).to_json();
+    send(&mut sink, Message::text(hello), stall).await?;
+    send_state(&mut sink, state).await?;
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
     // Frame version; version 1 until the client asks for another (`set_protocol`).
@@ -248,19 +273,12 @@ where
             }
             // Before frames, so a new skeleton arrives before frames that use it.
             event = events.recv() => {
-                match event {
-                    Ok(event) => {
-                        let text = wire::message(&event).to_json();
-                        send(&mut sink, Message::text(text), stall).await?;
-                    }
-                    Err(RecvError::Lagged(_)) => resync(&mut sink, events, state, stats).await?,
-                    Err(RecvError::Closed) => return Ok(()),
+                if !on_event(&mut sink, event, events, state, stats).await? {
+                    return Ok(());
                 }
             }
             // `replies` lives as long as this loop, so this never yields `None`.
-            Some(answer) = forwarded.recv() => {
-                send(&mut sink, Message::text(answer.to_json()), stall).await?;
-            }
+            Some(answer) = forwarded.recv() => send(&mut sink, Message::text(answer.to_json()), stall).await?,
             incoming = stream.next() => {
                 let Some(incoming) = incoming else { return Ok(()) };
                 let reply = match incoming {
