@@ -7,7 +7,6 @@
 //!
 //! Bodies face +Z with the character's left at +X, in metres, standing on y = 0.
 
-
 use glam::{Quat, Vec3};
 
 pub use crate::procedural::{creatures, humanoid, Builder, Style};

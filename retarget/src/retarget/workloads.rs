@@ -12,9 +12,9 @@
 use glam::{Quat, Vec3};
 
 use crate::analysis::SkeletonView;
-use crate::procedural::{creatures, humanoid, Style};
 use crate::mapping::{auto_map, MapOptions, MappingTable};
 use crate::pose::Pose;
+use crate::procedural::{creatures, humanoid, Style};
 use crate::skeleton::Skeleton;
 use crate::{Mapping, RetargetError, RetargetOptions};
 

@@ -136,7 +136,9 @@ fn check_position_accessors(root: &::gltf::json::Root) -> Result<(), SourceError
     use ::gltf::json::validation::Checked;
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
-            let position = primitive.attributes.get(&Checked::Valid(Semantic::Positions));
+            let position = primitive
+                .attributes
+                .get(&Checked::Valid(Semantic::Positions));
             if let Some(index) = position.filter(|i| i.value() >= root.accessors.len()) {
                 return Err(SourceError::Gltf {
                     message: format!(
