@@ -26,6 +26,7 @@
 pub mod control;
 pub mod coords;
 pub mod frame;
+pub mod stage_times;
 pub mod status;
 pub mod vmc;
 

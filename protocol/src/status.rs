@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::control::{SourceHealth, StageLatency, SubjectKind};
+use crate::control::{CameraStatus, SourceHealth, SourceState, StageLatency, SubjectKind};
 
 /// What a client may do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -199,6 +199,28 @@ pub struct RecordingStatus {
     pub errors: u64,
     /// The latest failure (`null` when none).
     pub last_error: Option<String>,
+}
+
+/// A live source's own report of its health (the sources crate's live sources write it; the
+/// server folds it into [`SourceHealth`] for `/v1/status` and `source_status`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceStatus {
+    /// Connection state.
+    pub state: SourceState,
+    /// Frames produced per second, measured over the last half second or so.
+    pub input_fps: f32,
+    /// Time from input arrival (or capture, when the device stamps it) to the frame being
+    /// returned, milliseconds, smoothed.
+    pub latency_ms: f32,
+    /// Frames produced since the source was created.
+    pub frames: u64,
+    /// Packets, lines or messages that were malformed, reordered or unusable and were dropped.
+    pub dropped: u64,
+    /// Human-readable detail (last error, port name, calibration state).
+    pub detail: String,
+    /// A camera's mode and stage latencies (cameras only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraStatus>,
 }
 
 #[cfg(test)]

@@ -16,42 +16,23 @@
 
 mod health;
 pub mod humanoid;
-pub mod stage_times;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_retarget::{Pose, Skeleton};
-use serde::{Deserialize, Serialize};
 
 pub use crate::error::SourceError;
 pub use crate::recording::{RawKind, RawPacket};
 pub use health::HealthTracker;
-pub use stage_times::StageTimes;
+/// Per-stage latency rings (plain data the server's engine keeps too).
+pub use rigcast_protocol::stage_times::{self, StageTimes};
 
 /// Connection state of a live source (live sources never report `Finished`).
 pub use rigcast_protocol::control::SourceState;
 
-/// Health of a live source, as reported in `/v1/status` and the protocol.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SourceStatus {
-    /// Connection state.
-    pub state: SourceState,
-    /// Frames produced per second, measured over the last half second or so.
-    pub input_fps: f32,
-    /// Time from input arrival (or capture, when the device stamps it) to the frame being
-    /// returned, milliseconds, smoothed.
-    pub latency_ms: f32,
-    /// Frames produced since the source was created.
-    pub frames: u64,
-    /// Packets, lines or messages that were malformed, reordered or unusable and were dropped.
-    pub dropped: u64,
-    /// Human-readable detail (last error, port name, calibration state).
-    pub detail: String,
-    /// A camera's mode and stage latencies (cameras only).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub camera: Option<rigcast_protocol::control::CameraStatus>,
-}
+/// Health of a live source (plain data, shared with the engine through the protocol crate).
+pub use rigcast_protocol::status::SourceStatus;
 
 /// Provenance of one frame written by [`LiveSource::next_frame`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -2,7 +2,7 @@
 //! figures of `/v1/status` (a camera's `camera.stages`, a subject's `latency`). Recording is a
 //! fixed-size ring per stage (no allocation per frame); the report sorts copies (status only).
 
-use rigcast_protocol::control::StageLatency;
+use crate::control::StageLatency;
 
 /// Frames kept per stage.
 pub const WINDOW: usize = 256;
