@@ -19,7 +19,7 @@ use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
 
 use super::sample::{Interpolation, Track};
 use super::tolerate::{skip_undecodable_mesh_data, summarise_validation};
-use super::vrm::{vrm_human_bones, VrmVersion};
+use super::vrm::{vrm_human_bones, HumanBones, VrmVersion};
 use crate::error::SourceError;
 
 /// Default sampling rate when the keyframes are not evenly spaced.
@@ -270,24 +270,7 @@ fn read_document(
     let num_nodes = doc.nodes().len();
     let parent = node_parents(doc)?;
     let vrm = vrm_human_bones(doc, num_nodes)?;
-    let (joints, origin): (Vec<usize>, SkeletonOrigin) = match doc.skins().next() {
-        Some(skin) => (
-            skin.joints().map(|j| j.index()).collect(),
-            SkeletonOrigin::Skin,
-        ),
-        None => match &vrm {
-            Some((version, bones)) if !bones.is_empty() => {
-                let mut nodes: Vec<usize> = bones.values().copied().collect();
-                nodes.sort_unstable();
-                nodes.dedup();
-                (nodes, SkeletonOrigin::VrmHumanoid(*version))
-            }
-            _ => return Err(SourceError::NoSkeleton),
-        },
-    };
-    if joints.is_empty() {
-        return Err(SourceError::NoSkeleton);
-    }
+    let (joints, origin) = skeleton_joints(doc, vrm.as_ref())?;
     let included = needed_nodes(&joints, &parent);
     let nodes: Vec<::gltf::Node<'_>> = doc.nodes().collect();
     let trs: Vec<(Vec3, Quat, f32)> = nodes.iter().map(node_trs).collect();
@@ -296,39 +279,7 @@ fn read_document(
     let bone_nodes: Vec<usize> = (0..num_nodes).filter(|i| included.contains(i)).collect();
     let mut frames = Vec::with_capacity(bone_nodes.len());
     for &n in &bone_nodes {
-        let mut scale = 1.0;
-        let mut p = parent[n];
-        let mut above_chain = Vec::new();
-        let mut in_skeleton_parent = false;
-        while let Some(pi) = p {
-            scale *= trs[pi].2;
-            if included.contains(&pi) {
-                in_skeleton_parent = true;
-            } else if !in_skeleton_parent {
-                above_chain.push(pi);
-            }
-            p = parent[pi];
-        }
-        let above = if in_skeleton_parent || above_chain.is_empty() {
-            None
-        } else {
-            // World transform of the chain above, composed root-first.
-            let mut t = Vec3::ZERO;
-            let mut r = Quat::IDENTITY;
-            let mut s = 1.0;
-            for &a in above_chain.iter().rev() {
-                let (at, ar, as_) = trs[a];
-                t += r * (at * s);
-                r = (r * ar).normalize();
-                s *= as_;
-            }
-            Some((t, r))
-        };
-        frames.push(BoneFrame {
-            node: n,
-            translation_scale: scale,
-            above,
-        });
+        frames.push(bone_frame(n, &parent, &included, &trs));
     }
     let mut names = unique_names(&bone_nodes, &nodes);
     let mut raw = RawSkeleton::default();
@@ -366,30 +317,8 @@ fn read_document(
             message: "bone lost while ordering the skeleton".into(),
         })?;
 
-    let animations: Vec<AnimationInfo> = doc
-        .animations()
-        .map(|a| AnimationInfo {
-            name: animation_name(&a),
-            duration_secs: a
-                .channels()
-                .map(|c| channel_end_secs(&c, buffers))
-                .fold(0.0f64, |m, t| m.max(t as f64)),
-        })
-        .collect();
-    let selected = select_animation(doc, &animations, opts)?;
-    let (poses, frame_time) = match selected {
-        Some(index) => {
-            let anim =
-                doc.animations()
-                    .nth(index)
-                    .ok_or_else(|| SourceError::AnimationNotFound {
-                        requested: index.to_string(),
-                        available: animations.iter().map(|a| a.name.clone()).collect(),
-                    })?;
-            sample_animation(&anim, buffers, &skeleton, &bone_frames, &trs, opts)?
-        }
-        None => (Vec::new(), 1.0 / DEFAULT_SAMPLE_FPS),
-    };
+    let (animations, selected, poses, frame_time) =
+        read_animation(doc, buffers, opts, &skeleton, &bone_frames, &trs)?;
     let clip_name = match selected {
         Some(i) => animations[i].name.clone(),
         None => name.to_string(),
@@ -416,6 +345,116 @@ fn read_document(
             ..GltfTemplate::default()
         },
     })
+}
+
+/// The nodes the skeleton is made of: the first skin's joints, else (a VRM without a skin)
+/// its humanoid bones' nodes.
+fn skeleton_joints(
+    doc: &Document,
+    vrm: Option<&HumanBones>,
+) -> Result<(Vec<usize>, SkeletonOrigin), SourceError> {
+    let (joints, origin) = match doc.skins().next() {
+        Some(skin) => (
+            skin.joints().map(|j| j.index()).collect(),
+            SkeletonOrigin::Skin,
+        ),
+        None => match vrm {
+            Some((version, bones)) if !bones.is_empty() => {
+                let mut nodes: Vec<usize> = bones.values().copied().collect();
+                nodes.sort_unstable();
+                nodes.dedup();
+                (nodes, SkeletonOrigin::VrmHumanoid(*version))
+            }
+            _ => return Err(SourceError::NoSkeleton),
+        },
+    };
+    if joints.is_empty() {
+        return Err(SourceError::NoSkeleton);
+    }
+    Ok((joints, origin))
+}
+
+/// How bone node `n` sits in the skeleton: the scale of every ancestor, and for a top bone
+/// (no ancestor in the skeleton) the world transform of the nodes above it.
+fn bone_frame(
+    n: usize,
+    parent: &[Option<usize>],
+    included: &HashSet<usize>,
+    trs: &[(Vec3, Quat, f32)],
+) -> BoneFrame {
+    let mut scale = 1.0;
+    let mut p = parent[n];
+    let mut above_chain = Vec::new();
+    let mut in_skeleton_parent = false;
+    while let Some(pi) = p {
+        scale *= trs[pi].2;
+        if included.contains(&pi) {
+            in_skeleton_parent = true;
+        } else if !in_skeleton_parent {
+            above_chain.push(pi);
+        }
+        p = parent[pi];
+    }
+    let above = if in_skeleton_parent || above_chain.is_empty() {
+        None
+    } else {
+        // World transform of the chain above, composed root-first.
+        let mut t = Vec3::ZERO;
+        let mut r = Quat::IDENTITY;
+        let mut s = 1.0;
+        for &a in above_chain.iter().rev() {
+            let (at, ar, as_) = trs[a];
+            t += r * (at * s);
+            r = (r * ar).normalize();
+            s *= as_;
+        }
+        Some((t, r))
+    };
+    BoneFrame {
+        node: n,
+        translation_scale: scale,
+        above,
+    }
+}
+
+/// The file's animations, the one chosen by `opts` and its poses sampled onto `skeleton`
+/// (none, at the default rate, when the file has no animation).
+type ReadAnimation = (Vec<AnimationInfo>, Option<usize>, Vec<Pose>, f64);
+
+/// See [`ReadAnimation`].
+fn read_animation(
+    doc: &Document,
+    buffers: &[&[u8]],
+    opts: &GltfReadOptions,
+    skeleton: &Skeleton,
+    bone_frames: &[BoneFrame],
+    trs: &[(Vec3, Quat, f32)],
+) -> Result<ReadAnimation, SourceError> {
+    let animations: Vec<AnimationInfo> = doc
+        .animations()
+        .map(|a| AnimationInfo {
+            name: animation_name(&a),
+            duration_secs: a
+                .channels()
+                .map(|c| channel_end_secs(&c, buffers))
+                .fold(0.0f64, |m, t| m.max(t as f64)),
+        })
+        .collect();
+    let selected = select_animation(doc, &animations, opts)?;
+    let (poses, frame_time) = match selected {
+        Some(index) => {
+            let anim =
+                doc.animations()
+                    .nth(index)
+                    .ok_or_else(|| SourceError::AnimationNotFound {
+                        requested: index.to_string(),
+                        available: animations.iter().map(|a| a.name.clone()).collect(),
+                    })?;
+            sample_animation(&anim, buffers, skeleton, bone_frames, trs, opts)?
+        }
+        None => (Vec::new(), 1.0 / DEFAULT_SAMPLE_FPS),
+    };
+    Ok((animations, selected, poses, frame_time))
 }
 
 /// Time of a channel's last key: read from the data when the accessor is sound, else from the

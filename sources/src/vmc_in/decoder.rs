@@ -283,39 +283,8 @@ impl VmcDecoder {
             Some(OscType::String(s)) => Some(s.as_str()),
             _ => None,
         };
-        if let Some(i) = rule.time_arg {
-            if float(i).is_none() {
-                return Applied::Dropped;
-            }
-        }
-        let position = match rule.position {
-            Some([x, y, z]) => match (float(x), float(y), float(z)) {
-                (Some(x), Some(y), Some(z)) => Some(Vec3::new(x, y, z)),
-                _ => return Applied::Dropped,
-            },
-            None => None,
-        };
-        let rotation = match rule.rotation {
-            Some([x, y, z, w]) => match (float(x), float(y), float(z), float(w)) {
-                (Some(x), Some(y), Some(z), Some(w)) => {
-                    let q = Quat::from_xyzw(x, y, z, w);
-                    // A zero or wildly unnormalised quaternion is not a rotation.
-                    let len = q.length();
-                    if !(0.5..=2.0).contains(&len) {
-                        return Applied::Dropped;
-                    }
-                    Some(q / len)
-                }
-                _ => return Applied::Dropped,
-            },
-            None => None,
-        };
-        let (position, rotation) = match rule.space {
-            CoordSpace::Unity => (
-                position.map(internal_from_unity_position),
-                rotation.map(internal_from_unity_rotation),
-            ),
-            CoordSpace::Internal => (position, rotation),
+        let Some((position, rotation)) = read_transform(rule, m) else {
+            return Applied::Dropped;
         };
         if let Some((n, v)) = rule.blend {
             let (Some(name), Some(value)) = (string(n), float(v)) else {
@@ -347,9 +316,29 @@ impl VmcDecoder {
             self.mapping.resolve(captured)
         };
         let frame_end = rule.frame_end;
-        let outcome = match target {
-            None => return Applied::Dropped,
-            Some(BoneTarget::Root) => {
+        let Some(target) = target else {
+            return Applied::Dropped;
+        };
+        self.apply_transform(target, position, rotation, result);
+        self.stats.applied_messages += 1;
+        if frame_end {
+            Applied::FrameEnd
+        } else {
+            Applied::Transform
+        }
+    }
+
+    /// Writes one message's transform onto the root or a human bone; a bone updated twice
+    /// means the sender started its next frame, which completes the current one first.
+    fn apply_transform(
+        &mut self,
+        target: BoneTarget,
+        position: Option<Vec3>,
+        rotation: Option<Quat>,
+        result: &mut FeedResult,
+    ) {
+        match target {
+            BoneTarget::Root => {
                 if self.root_dirty {
                     // Updated twice: the sender started its next frame.
                     self.complete_frame(result);
@@ -361,9 +350,8 @@ impl VmcDecoder {
                     self.root_rotation = q;
                 }
                 self.root_dirty = true;
-                Applied::Transform
             }
-            Some(BoneTarget::Human(h)) => {
+            BoneTarget::Human(h) => {
                 if self.dirty[h] {
                     self.complete_frame(result);
                 }
@@ -374,14 +362,7 @@ impl VmcDecoder {
                 if all_updated {
                     self.complete_frame(result);
                 }
-                Applied::Transform
             }
-        };
-        self.stats.applied_messages += 1;
-        if frame_end {
-            Applied::FrameEnd
-        } else {
-            outcome
         }
     }
 
@@ -481,4 +462,40 @@ impl VmcDecoder {
         self.num_dirty_in_skeleton = 0;
         self.root_dirty = false;
     }
+}
+
+/// The time, position and rotation arguments `rule` reads from `m`, checked (finite floats,
+/// a rotation of sane length, normalised) and in internal coordinates; `None` when any is
+/// missing or wrong (the message is dropped).
+fn read_transform(rule: &CompiledRule, m: &OscMessage) -> Option<(Option<Vec3>, Option<Quat>)> {
+    let float = |i: usize| match m.args.get(i) {
+        Some(OscType::Float(v)) if v.is_finite() => Some(*v),
+        _ => None,
+    };
+    if let Some(i) = rule.time_arg {
+        float(i)?;
+    }
+    let position = match rule.position {
+        Some([x, y, z]) => Some(Vec3::new(float(x)?, float(y)?, float(z)?)),
+        None => None,
+    };
+    let rotation = match rule.rotation {
+        Some([x, y, z, w]) => {
+            let q = Quat::from_xyzw(float(x)?, float(y)?, float(z)?, float(w)?);
+            // A zero or wildly unnormalised quaternion is not a rotation.
+            let len = q.length();
+            if !(0.5..=2.0).contains(&len) {
+                return None;
+            }
+            Some(q / len)
+        }
+        None => None,
+    };
+    Some(match rule.space {
+        CoordSpace::Unity => (
+            position.map(internal_from_unity_position),
+            rotation.map(internal_from_unity_rotation),
+        ),
+        CoordSpace::Internal => (position, rotation),
+    })
 }
