@@ -18,7 +18,10 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use rigcast_engine::subject::{CalibrationOutcome, Calibrator};
 use rigcast_protocol::control::{CalibrationPose, ErrorCode, MAX_CALIBRATION_DELAY_SECS};
+use rigcast_retarget::Pose;
+use rigcast_sources::serial::CalibrationHandle;
 use tokio::sync::broadcast;
 
 use crate::subject::Subject;
@@ -34,6 +37,25 @@ pub const PENDING_PREFIX: &str = "calibrating";
 pub const SUCCESS_PREFIX: &str = "calibrated";
 /// Prefix of the failure text.
 pub const FAILURE_PREFIX: &str = "calibration failed";
+
+/// A serial suit's calibration handle, as the engine carries it with the subject.
+#[derive(Debug)]
+pub struct SerialCalibration(pub CalibrationHandle);
+
+impl Calibrator for SerialCalibration {
+    fn request(&self) {
+        self.0.request();
+    }
+
+    fn request_pose(&self, pose: Pose) {
+        self.0.request_pose(pose);
+    }
+
+    fn outcome(&self) -> CalibrationOutcome {
+        let (count, result) = self.0.outcome();
+        (count, result.map(|r| r.map_err(|e| e.to_string())))
+    }
+}
 
 /// Why a `calibrate` request was refused; [`CalibrateRefusal::code`] and the text make the
 /// `error` reply.

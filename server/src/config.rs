@@ -31,6 +31,7 @@ pub use crate::source_kinds::{
     VmcSpec, WebcamSpec, DEFAULT_VMC_BIND,
 };
 pub use crate::token::TokenSetting;
+pub use rigcast_engine::settings::{OnLost, VmcBoneNames};
 
 /// Default listen address: loopback only (nothing is exposed to the network unless asked) on
 /// port 8717 (unassigned by IANA, mnemonic: "RiGcast" is not a number, so we simply picked one
@@ -346,33 +347,6 @@ impl Default for LimitsConfig {
             mapping_cache_max_entries: crate::mapping_store::DEFAULT_MAX_ENTRIES,
         }
     }
-}
-
-/// What a target character does while its source is lost.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum OnLost {
-    /// Ease to the character's own rest pose over about half a second, standing where it was
-    /// (`"ease"`, or `"rest"`).
-    #[default]
-    #[serde(alias = "rest")]
-    #[value(alias = "rest")]
-    Ease,
-    /// Hold the last pose.
-    Hold,
-    /// Walk on the performer's `idle_graph` from the nearest pose (`"idle"`).
-    Idle,
-}
-
-/// Bone names in VMC output.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum VmcBoneNames {
-    /// Unity `HumanBodyBones` names for humanoid subjects (others pass through).
-    #[default]
-    Humanoid,
-    /// The subject's own bone names.
-    Skeleton,
 }
 
 /// The character a performer drives.

@@ -27,6 +27,7 @@ use crate::access::{bearer_token, query_token, AccessPolicy, Credentials, Route}
 use crate::batched_writes::BatchedWrites;
 use crate::clients::{serve_client, MAX_TRANSPORT_MESSAGE_BYTES};
 use crate::limits::Admission;
+use crate::model::ServedModel;
 use crate::state::ServerState;
 use rigcast_protocol::status::{
     ClientAccess, ClientStatus, ClientsStatus, ConnectionsStatus, FootStatus, Status, SubjectStatus,

@@ -34,7 +34,6 @@ pub mod changes;
 pub mod character;
 pub mod cli;
 pub mod clients;
-pub mod clock;
 pub mod cluster;
 pub mod cluster_config;
 pub mod cmd;
@@ -42,11 +41,8 @@ pub mod config;
 pub mod config_error;
 pub mod demo;
 pub mod dirs;
-pub mod engine;
-pub mod events;
 pub mod fault;
 pub mod footplants;
-pub mod graft_live;
 pub mod graph_files;
 pub mod http;
 pub mod idle_graph;
@@ -57,26 +53,27 @@ pub mod mapping_store;
 pub mod model;
 pub mod offline;
 pub mod panic_reports;
-pub mod performer;
 pub mod recorder;
 pub mod replay_task;
-pub mod reports;
 pub mod skeleton_wire;
 pub mod source_kinds;
 pub mod state;
 pub mod stats;
 pub mod stream_record;
-pub mod subject;
-pub mod subject_list;
 pub mod tick_task;
 pub mod token;
-pub mod translated;
-pub mod vmc_pose;
 pub mod wire;
 
 #[cfg(test)]
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
+
+// The engine's modules, at the paths they had in this crate.
+pub use rigcast_engine::tick as engine;
+pub use rigcast_engine::{
+    clock, events, graft_live, performer, reports, slot, subject, subject_list, translated,
+    vmc_pose,
+};
 
 pub use boot::{start, ServerHandle};
 pub use config::{

@@ -1,10 +1,10 @@
 //! Live sources (VMC, serial IMU suits, video): one std thread each, blocking in
-//! `LiveSource::next_frame` and publishing into the subject's `watch` slot.
+//! `LiveSource::next_frame` and publishing into the subject's frame slot.
 //!
 //! ```text
 //!  thread: next_frame(50 ms, &mut pose) ─▶ skeleton changed? ─▶ subject shape, `subjects_changed`
 //!            │                                                  + `skeleton` to clients, re-map
-//!            └─▶ watch<Frame>.send_modify (copy, no allocation)
+//!            └─▶ FrameWriter::send_modify (copy, no allocation)
 //!          every ~100 ms: status() ─▶ subject health (state, fps, latency, frames, dropped)
 //! ```
 //!
@@ -17,14 +17,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use rigcast_retarget::{Frame, Pose};
+use rigcast_retarget::Pose;
 use rigcast_sources::live::LiveSource;
-use tokio::sync::{broadcast, mpsc, watch};
+use tokio::sync::{broadcast, mpsc};
 
 use crate::clock::unix_nanos;
 use crate::engine::EngineCommand;
 use crate::events::Event;
 use crate::recorder::Recorder;
+use crate::slot::FrameWriter;
 use crate::subject::Subject;
 
 /// How long one `next_frame` call may block (bounds shutdown latency).
@@ -39,7 +40,7 @@ pub struct LiveContext {
     /// The subject it feeds.
     pub subject: Arc<Subject>,
     /// Its slot.
-    pub tx: watch::Sender<Frame>,
+    pub tx: FrameWriter,
     /// All subjects (for `subjects_changed`).
     pub subjects: Arc<crate::subject_list::SubjectList>,
     /// Control messages to clients.

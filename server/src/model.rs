@@ -19,18 +19,22 @@ pub const MAX_MODEL_BYTES: u64 = 512 * 1024 * 1024;
 /// clients that ask for a model and do not read cost this each, not the file's size.
 pub const MODEL_CHUNK_BYTES: usize = 64 * 1024;
 
-/// A target's servable model file.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ModelFile {
-    /// The configured path.
-    pub path: PathBuf,
-    /// `glb` or `vrm` (announced in the subject list as `model`).
-    pub format: &'static str,
+/// A target's servable model file (plain data the engine keeps with the subject).
+pub use rigcast_engine::subject::ModelFile;
+
+/// Finding and opening a target's model file (the host's side of [`ModelFile`]).
+#[allow(async_fn_in_trait)] // only called within this crate, on a tokio runtime
+pub trait ServedModel: Sized {
+    /// The model of a target loaded from `path`, when it is a binary glTF container.
+    fn for_target(path: &Path) -> Option<Self>;
+    /// The file opened now (it may have been replaced or removed since the server started),
+    /// checked to be a GLB within [`MAX_MODEL_BYTES`], at its start, with its length: to be
+    /// streamed in [`MODEL_CHUNK_BYTES`] pieces rather than read whole.
+    async fn open(&self) -> Result<(tokio::fs::File, u64), ModelError>;
 }
 
-impl ModelFile {
-    /// The model of a target loaded from `path`, when it is a binary glTF container.
-    pub fn for_target(path: &Path) -> Option<ModelFile> {
+impl ServedModel for ModelFile {
+    fn for_target(path: &Path) -> Option<ModelFile> {
         let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
         let format = match ext.as_str() {
             "glb" => "glb",
@@ -50,10 +54,7 @@ impl ModelFile {
         })
     }
 
-    /// The file opened now (it may have been replaced or removed since the server started),
-    /// checked to be a GLB within [`MAX_MODEL_BYTES`], at its start, with its length: to be
-    /// streamed in [`MODEL_CHUNK_BYTES`] pieces rather than read whole.
-    pub async fn open(&self) -> Result<(tokio::fs::File, u64), ModelError> {
+    async fn open(&self) -> Result<(tokio::fs::File, u64), ModelError> {
         use tokio::io::{AsyncReadExt, AsyncSeekExt};
         let unreadable = |e: std::io::Error| ModelError::Unreadable {
             path: self.path.clone(),

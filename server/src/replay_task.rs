@@ -6,12 +6,12 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_protocol::SourceState;
-use rigcast_retarget::Frame;
 use rigcast_sources::Replay;
 use tokio::sync::watch;
 use tokio::time::MissedTickBehavior;
 
 use crate::clock::unix_nanos;
+use crate::slot::FrameWriter;
 use crate::subject::Subject;
 
 /// Runs one replay source until shutdown or (non-looping) end of clip.
@@ -21,7 +21,7 @@ use crate::subject::Subject;
 pub async fn run_replay_source(
     player: Replay,
     speed: f64,
-    tx: watch::Sender<Frame>,
+    tx: FrameWriter,
     subject: Arc<Subject>,
     mut shutdown: watch::Receiver<bool>,
 ) {

@@ -8,21 +8,21 @@ use std::sync::Arc;
 use anyhow::Context;
 use rigcast_protocol::SourceKind;
 use rigcast_retarget::RootMotion;
-use tokio::sync::{broadcast, watch};
+use tokio::sync::broadcast;
 
 use super::load::{Inputs, Loaded, LoadedPerformer, LoadedSource};
 use crate::config::ServerConfig;
 use crate::engine::VmcTarget;
 use crate::mapper::{Mapper, PerformerPlan, SourceExtra};
 use crate::performer::{self, Performer};
-use crate::subject::Subject;
+use crate::slot::FrameWriter;
+use crate::subject::{Calibrator, Subject};
 use crate::token;
-use rigcast_retarget::Frame;
 
 /// A source subject with what feeds it.
 pub(crate) struct SourceRunner {
     pub subject: Arc<Subject>,
-    pub tx: watch::Sender<Frame>,
+    pub tx: FrameWriter,
     pub loaded: Loaded,
 }
 
@@ -177,7 +177,10 @@ fn source_subject(
     );
     let subject = subject
         .with_listen_addr(listen)
-        .with_calibration(calibration)
+        .with_calibration(
+            calibration
+                .map(|h| Box::new(crate::calibration::SerialCalibration(h)) as Box<dyn Calibrator>),
+        )
         .with_truth(truth);
     let subject = match &replay_poses {
         Some(poses) => subject.with_moving_bones(poses),
@@ -197,7 +200,7 @@ fn performer_plan(
     source_names: &[String],
     subjects: &[Arc<Subject>],
     config: &ServerConfig,
-) -> anyhow::Result<(PerformerPlan, watch::Sender<Frame>)> {
+) -> anyhow::Result<(PerformerPlan, FrameWriter)> {
     let LoadedPerformer {
         spec,
         target: t,

@@ -10,6 +10,7 @@ use rigcast_retarget::mapping::{parse_mapping_file, MappingFile};
 use rigcast_retarget::{Pose, Skeleton};
 
 use crate::config::{self, PerformerSpec, ServerConfig, SourceSpec, TargetSpec};
+use crate::model::ServedModel;
 pub(crate) use crate::source_kinds::Loaded;
 use crate::source_kinds::Opened;
 use crate::subject_list::unique_name;
@@ -159,7 +160,7 @@ async fn load_idle_graph(
     let stay = spec.idle_clips.clone();
     let idle = tokio::task::spawn_blocking(move || {
         let reference = reference.as_ref();
-        crate::idle_graph::IdleGraph::load(&path, &skeleton, reference, tick_secs, &stay)
+        crate::idle_graph::load(&path, &skeleton, reference, tick_secs, &stay)
     })
     .await??;
     Ok(Some(idle))

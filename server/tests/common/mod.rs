@@ -60,7 +60,7 @@ pub fn target_subject(
     skeleton: &std::sync::Arc<rigcast_retarget::Skeleton>,
 ) -> (
     std::sync::Arc<rigcast_server::engine::Subject>,
-    tokio::sync::watch::Sender<rigcast_retarget::Frame>,
+    rigcast_server::slot::FrameWriter,
 ) {
     let (subject, frames) = rigcast_server::engine::Subject::with_kind(
         id,

@@ -1,7 +1,7 @@
 //! What every client hears about as it happens, besides frames: typed events. Producers (live
 //! sources, the mapper, calibration, the foot-plant sampler, the status task, cluster
 //! discovery) say what happened in the server's own terms and know nothing of the protocol;
-//! [`crate::wire`] turns an event into its protocol message at the transport's edge (the
+//! the host's `wire` module turns an event into its protocol message at the transport's edge (the
 //! client sessions, the cluster's bucket entries).
 
 use std::sync::Arc;

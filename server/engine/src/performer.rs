@@ -3,7 +3,7 @@
 //!
 //! ```text
 //!  sources' latest poses ─copy─▶ inputs (preallocated) ─apply─▶ foot lock ─▶ live ─┐
-//!                                                                     ├─ blend ─▶ display ─▶ target watch
+//!                                                                     ├─ blend ─▶ display ─▶ target slot
 //!  source lost:  from = display at loss ──slerp (0.5 s)──▶ the character's own rest, where it
 //!                stands; or hold `from`; or (idle graph) from ──blend (the graph's
 //!                cross-fade time) onto a walk on the graph from the nearest node (`idle_graph`)
@@ -11,23 +11,23 @@
 //!                turning one way (0.2 s; 0.3 s after an idle graph; `resume_secs`)──▶ live
 //! ```
 //!
-//! Mappings are built off the tick (see `mapper`) and handed over through a mailbox the tick
+//! Mappings are built off the tick (by the host's mapper) and handed over through a mailbox the tick
 //! polls with `try_lock`, so a rebuild never stalls a tick. Every buffer is sized when a
 //! mapping arrives; steady-state ticks allocate nothing.
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use rigcast_protocol::{SourceState, TargetMotion};
 use rigcast_retarget::footplant::FootLock;
-use rigcast_retarget::{Frame, Mapping, Pose};
-use tokio::sync::watch;
+use rigcast_retarget::{Mapping, Pose};
 
 use crate::clock::TickTime;
-use crate::config::OnLost;
 use crate::graft_live::{LiveGraft, LockTiming};
 use crate::idle_graph::IdleGraph;
+use crate::settings::OnLost;
+use crate::slot::FrameWriter;
 use crate::subject::Subject;
-use rigcast_protocol::{SourceState, TargetMotion};
 
 /// Time to ease to rest after a loss.
 pub const EASE_OUT: Duration = Duration::from_millis(500);
@@ -68,7 +68,7 @@ enum Phase {
 pub struct Performer {
     /// The target subject.
     pub target: Arc<Subject>,
-    tx: watch::Sender<Frame>,
+    tx: FrameWriter,
     sources: Vec<Arc<Subject>>,
     mailbox: Mailbox,
     current: Option<BuiltMapping>,
@@ -182,7 +182,7 @@ impl Performer {
     /// A performer writing into `tx` (the target subject's slot).
     pub fn new(
         target: Arc<Subject>,
-        tx: watch::Sender<Frame>,
+        tx: FrameWriter,
         sources: Vec<Arc<Subject>>,
         mailbox: Mailbox,
         on_lost: OnLost,

@@ -11,8 +11,8 @@
 //!     └─ TickOutput::frame(OutFrame) per subject, all at the end of the tick
 //! ```
 //!
-//! The tick does no IO: what it produces goes to a [`TickOutput`]. The server's tick task
-//! (`tick_task`) drives it at a fixed rate and broadcasts the frames to the client sessions
+//! The tick does no IO: what it produces goes to a [`TickOutput`]. The host's tick task
+//! (`tick_task` in the server) drives it at a fixed rate and broadcasts the frames to the client sessions
 //! and sends the datagrams on its UDP socket; a test drives it on a simulated clock and keeps
 //! what came out. Per tick the only allocation is the shared `Bytes` per subject (it must
 //! outlive the tick because clients send it later); everything else reuses buffers.
@@ -22,10 +22,10 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 
+use bytes::Bytes;
 use rigcast_protocol::frame::{append_frame_v2, encode_frame, FrameHeader};
 use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
 use rigcast_retarget::{forward_kinematics, Frame, WorldTransform};
-use tokio_tungstenite::tungstenite::Bytes;
 
 use crate::clock::TickTime;
 use crate::performer::Performer;

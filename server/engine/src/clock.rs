@@ -1,5 +1,8 @@
-//! The wall clock as the protocol stamps it (`capture_nanos`, `send_nanos`): its own module so
-//! that every layer reading it depends on nothing above it.
+//! The time a tick runs at, and the clocks a host reads it from. The engine's own code reads
+//! no clock: [`TickTime::now`] and [`unix_nanos`] are for the host (its tick task, its source
+//! threads), which passes each tick its time, so a test can drive the engine on a simulated
+//! clock. `unix_nanos` is the wall clock as the protocol stamps it (`capture_nanos`,
+//! `send_nanos`).
 
 use std::time::{SystemTime, UNIX_EPOCH};
 

@@ -113,7 +113,7 @@ mod tests {
     /// the same VMC rotations as the plain rig: normalisation removes axis conventions.
     #[test]
     fn bone_axis_conventions_do_not_reach_the_wire() {
-        let plain = crate::character::mannequin().unwrap();
+        let plain = crate::builtin::mannequin().unwrap();
         let mut raw = rigcast_retarget::RawSkeleton::default();
         let offsets: Vec<Quat> = (0..plain.num_bones())
             .map(|i| {

@@ -102,7 +102,7 @@ mod tests {
 
     #[test]
     fn mannequin_carries_its_ground_root_and_pelvis() {
-        let m = crate::character::mannequin().unwrap();
+        let m = crate::builtin::mannequin().unwrap();
         let a = analyze(&SkeletonView::rest(&m));
         let t = translated_bones(&m, &a, &MovingBones::Structural);
         assert_eq!(names_of(&m, &t), ["root", "pelvis"]);
@@ -114,7 +114,7 @@ mod tests {
 
     #[test]
     fn measured_adds_bones_that_move_in_the_clip() {
-        let m = crate::character::mannequin().unwrap();
+        let m = crate::builtin::mannequin().unwrap();
         let a = analyze(&SkeletonView::rest(&m));
         let mut pose = m.rest_pose();
         let hand = m.bone("hand_l").unwrap().index();

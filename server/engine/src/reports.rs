@@ -1,7 +1,7 @@
 //! What the server reports about its subjects besides frames, as plain data: a target's
 //! mapping, its planted feet, the sources' health. The subjects keep the latest of each for
-//! clients that connect later; [`crate::events::Event`] carries them as they happen; only
-//! [`crate::wire`] turns them into protocol messages.
+//! clients that connect later; the engine's events (`events::Event`) carry them as they happen; only
+//! the host's transport edge (`wire`) turns them into protocol messages.
 
 use rigcast_protocol::control::{MappingEntry, SourceHealth};
 use rigcast_protocol::{FootState, TargetHealth};

@@ -16,12 +16,13 @@
 
 use std::sync::Arc;
 
-use anyhow::Context;
 use rigcast_retarget::analysis::Analysis;
 use rigcast_retarget::footplant::{detect_clip, find_legs, FootLock, PlantSettings, MAX_FEET};
 use rigcast_retarget::graft::{BodySplit, GaitLoop, GraftSettings, Half, Splice};
 use rigcast_retarget::mapping::MappingTable;
 use rigcast_retarget::{Clip, Mapping, Pose};
+
+use crate::error::{failed, PrepareError, PrepareResult};
 
 /// Where a graft's lower body comes from.
 #[derive(Debug, Clone)]
@@ -65,10 +66,10 @@ impl LiveGraft {
         lower_analysis: &Analysis,
         target: &Analysis,
         clip: Option<&Clip>,
-    ) -> anyhow::Result<LiveGraft> {
+    ) -> PrepareResult<LiveGraft> {
         let skel = upper.target();
         let split = BodySplit::new(skel, target, GraftSettings::default().blend_bones)
-            .context("the character cannot be grafted")?;
+            .map_err(failed("the character cannot be grafted"))?;
         let gait = match clip {
             Some(c) => {
                 let legs = find_legs(&c.skeleton, lower_analysis);
@@ -82,7 +83,7 @@ impl LiveGraft {
                 );
                 Some(
                     GaitLoop::new(c, &plants, lower_analysis.up)
-                        .with_context(|| format!("cannot loop {}", c.name))?,
+                        .map_err(|e| PrepareError::new(format!("cannot loop {}: {e}", c.name)))?,
                 )
             }
             None => None,

@@ -4,19 +4,19 @@
 //! immutable [`SubjectShape`] that is swapped as a whole.
 
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
 use rigcast_protocol::control::{SourceHealth, SubjectInfo, SubjectKind};
+use rigcast_protocol::status::SourceStatus;
 use rigcast_protocol::{SourceKind, SourceState};
 use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
-use rigcast_sources::live::SourceStatus;
-use rigcast_sources::serial::CalibrationHandle;
-use tokio::sync::watch;
 
-use crate::config::VmcBoneNames;
 use crate::reports::{FootplantReport, HealthReport, MappingReport};
+use crate::settings::VmcBoneNames;
+use crate::slot::{frame_slot, FrameReader, FrameWriter};
 use crate::stats::SubjectStats;
 use crate::translated::{translated_bones, MovingBones};
 
@@ -220,7 +220,7 @@ pub struct Subject {
     pub source_kind: Option<SourceKind>,
     shape: RwLock<Arc<SubjectShape>>,
     /// Latest frame (from the source, or the tick for targets).
-    pub latest: watch::Receiver<Frame>,
+    pub latest: FrameReader,
     /// Input counters.
     pub stats: SubjectStats,
     /// Source health (targets stay `Live`).
@@ -233,7 +233,7 @@ pub struct Subject {
     footplants: Mutex<Option<Arc<FootplantReport>>>,
     /// The UDP address a VMC source listens on.
     pub listen_addr: Option<SocketAddr>,
-    /// Calibration of a serial IMU source (see [`crate::calibration`]).
+    /// Calibration of a serial IMU source (the host carries out requests through it).
     pub calibration: Option<Calibration>,
     vmc_names: VmcBoneNames,
     /// What moves besides the structural bones (see [`crate::translated`]).
@@ -241,15 +241,41 @@ pub struct Subject {
     /// The file's own humanoid map (VRM: human bone name → bone name), ground truth for the
     /// roles of its bones in mapping and VMC output.
     truth: Option<Arc<[(String, String)]>>,
-    /// A target's character file the viewer may fetch (see [`crate::model`]).
-    pub model: Option<crate::model::ModelFile>,
+    /// A target's character file the viewer may fetch (the host serves it).
+    pub model: Option<ModelFile>,
+}
+
+/// A target's character file the viewer may fetch: a binary glTF container the host has
+/// checked (the host's `model` module finds and serves it).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ModelFile {
+    /// The configured path.
+    pub path: PathBuf,
+    /// `glb` or `vrm` (announced in the subject list as `model`).
+    pub format: &'static str,
+}
+
+/// What outcome a calibration request had: attempts finished so far and the last one's
+/// result (`None` before the first; `Err` says why it failed).
+pub type CalibrationOutcome = (u64, Option<Result<(), String>>);
+
+/// A live source that can be calibrated (a serial IMU suit), as the host reaches its thread.
+/// The engine only carries it with the subject; the host implements it over the source's own
+/// handle and makes the requests.
+pub trait Calibrator: Send + Sync + std::fmt::Debug {
+    /// Asks for a calibration against the rest pose (a T-pose).
+    fn request(&self);
+    /// Asks for a calibration against `pose`, held by the performer.
+    fn request_pose(&self, pose: Pose);
+    /// Attempts finished so far and the last one's result.
+    fn outcome(&self) -> CalibrationOutcome;
 }
 
 /// A calibratable source's handle and the server's account of its calibration.
 #[derive(Debug)]
 pub struct Calibration {
     /// Reaches the source's thread.
-    pub handle: CalibrationHandle,
+    pub handle: Box<dyn Calibrator>,
     /// `calibrating …`, `calibrated (T-pose)`, `calibration failed: …`; empty before the
     /// first request.
     pub text: Mutex<String>,
@@ -276,8 +302,8 @@ impl Calibration {
 }
 
 impl Subject {
-    /// Builds a source subject and the sender its source writes to.
-    pub fn new(id: u32, name: String, skeleton: Arc<Skeleton>) -> (Subject, watch::Sender<Frame>) {
+    /// Builds a source subject and the writer its source writes its frames to.
+    pub fn new(id: u32, name: String, skeleton: Arc<Skeleton>) -> (Subject, FrameWriter) {
         Self::with_kind(
             id,
             name,
@@ -297,7 +323,7 @@ impl Subject {
         source_kind: Option<SourceKind>,
         inputs: Vec<u32>,
         vmc_names: VmcBoneNames,
-    ) -> (Subject, watch::Sender<Frame>) {
+    ) -> (Subject, FrameWriter) {
         let info = SubjectInfo {
             id,
             name,
@@ -311,7 +337,7 @@ impl Subject {
             fingerprint: skeleton.fingerprint_hex(),
             model: None,
         };
-        let (tx, rx) = watch::channel(Frame {
+        let (tx, rx) = frame_slot(Frame {
             seq: 0,
             capture_nanos: 0,
             source_id: id,
@@ -368,7 +394,7 @@ impl Subject {
     }
 
     /// Serves `model` as this target's mesh (announced as `model` in the subject list).
-    pub fn with_model(mut self, model: Option<crate::model::ModelFile>) -> Subject {
+    pub fn with_model(mut self, model: Option<ModelFile>) -> Subject {
         let old = self.shape();
         let mut info = old.info.clone();
         info.model = model.as_ref().map(|m| m.format.to_string());
@@ -409,7 +435,7 @@ impl Subject {
     }
 
     /// Makes a live source calibratable through `handle`.
-    pub fn with_calibration(mut self, handle: Option<CalibrationHandle>) -> Subject {
+    pub fn with_calibration(mut self, handle: Option<Box<dyn Calibrator>>) -> Subject {
         self.calibration = handle.map(|handle| Calibration {
             handle,
             text: Mutex::new(String::new()),
@@ -591,9 +617,21 @@ pub fn health_report(subjects: &[Arc<Subject>]) -> HealthReport {
 mod tests {
     use super::*;
 
+    /// A calibratable source that never answers (the test only reads the subject's account).
+    #[derive(Debug)]
+    struct NoDevice;
+
+    impl Calibrator for NoDevice {
+        fn request(&self) {}
+        fn request_pose(&self, _: Pose) {}
+        fn outcome(&self) -> CalibrationOutcome {
+            (0, None)
+        }
+    }
+
     #[test]
     fn detail_shows_calibration_and_why_a_device_is_lost() {
-        let sk = Arc::new(crate::character::mannequin().unwrap());
+        let sk = Arc::new(crate::builtin::mannequin().unwrap());
         let (s, _tx) = Subject::with_kind(
             0,
             "suit".into(),
@@ -602,7 +640,7 @@ mod tests {
             Vec::new(),
             VmcBoneNames::default(),
         );
-        let s = s.with_calibration(Some(CalibrationHandle::default()));
+        let s = s.with_calibration(Some(Box::new(NoDevice)));
         let report = |state: SourceState, detail: &str| {
             s.health.set_state(state);
             *s.health.live.lock().unwrap() = Some(SourceStatus {
@@ -649,7 +687,7 @@ mod tests {
 
     #[test]
     fn vmc_plan_sends_humanoid_roles_relative_to_sent_ancestors() {
-        let m = crate::character::mannequin().unwrap();
+        let m = crate::builtin::mannequin().unwrap();
         let plan = VmcPlan::new(&m, VmcBoneNames::Humanoid);
         let find = |n: &str| plan.bones.iter().find(|(name, ..)| name == n).unwrap();
         assert_eq!(

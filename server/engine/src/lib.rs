@@ -1,0 +1,43 @@
+//! # rigcast-engine — the realtime engine, with no IO
+//!
+//! Subjects (the streamed poses and what is derived from their skeletons), performers
+//! (sources' poses → mapping → foot lock / fallback → a target's pose), live grafts, idle
+//! graphs, and the tick that encodes every subject's frame and VMC bundles. The engine reads
+//! no clock (the host passes each tick its [`clock::TickTime`]), opens no socket or file and
+//! runs no async runtime: the host crate (`rigcast-server`) owns the threads, tasks, channels
+//! and sockets and hands the engine plain values.
+//!
+//! ```text
+//!  host: source tasks/threads ─FrameWriter─▶ subject slots ◀─FrameReader─ Ticker::tick(TickTime)
+//!        mapper thread ─Mailbox─▶ performers           │  performers: map, lock, fall back
+//!                                                      ▼  encode every subject once
+//!        TickOutput::frame / ::datagram ◀──────────────┘  (the host broadcasts / sends UDP)
+//! ```
+//!
+//! Entry points: [`Ticker`] (one tick at a given time, its outputs to a [`TickOutput`]),
+//! [`subject::Subject`], [`performer::Performer`], [`footplants::FootplantSampler`],
+//! [`fault::announce`]. `server/tests/engine_idle_graph.rs` drives it on a simulated clock.
+#![warn(missing_docs)]
+#![cfg_attr(test, allow(clippy::unwrap_used))]
+
+pub mod builtin;
+pub mod clock;
+pub mod error;
+pub mod events;
+pub mod fault;
+pub mod footplants;
+pub mod graft_live;
+pub mod idle_graph;
+pub mod performer;
+pub mod reports;
+pub mod settings;
+pub mod slot;
+pub mod stats;
+pub mod subject;
+pub mod subject_list;
+pub mod tick;
+pub mod translated;
+pub mod vmc_pose;
+
+pub use clock::TickTime;
+pub use tick::{OutFrame, TickContext, TickOutput, Ticker};
