@@ -36,6 +36,8 @@ struct Quality {
     /// Largest change of a heel or ball joint's per-frame move (its second difference): a
     /// pop shows here as a spike, a smooth swing does not.
     largest_kick_cm: f32,
+    /// The frame of the largest kick.
+    largest_kick_frame: usize,
 }
 
 /// Each leg's knee bend axis in its thigh's frame, averaged over the strongly bent frames of
@@ -74,6 +76,7 @@ fn measure(
     let mut deepest = f32::NEG_INFINITY;
     let mut flips = 0;
     let mut largest_kick: f32 = 0.0;
+    let mut largest_kick_frame = 0;
     let mut hover = Vec::new();
     for &(leg, src) in legs {
         let joints: Vec<_> = [Some(leg.foot), leg.toes].into_iter().flatten().collect();
@@ -87,8 +90,10 @@ fn measure(
                         worlds[f - 1][j.index()].translation,
                         worlds[f - 2][j.index()].translation,
                     );
-                    let kick = (p(j) - 2.0 * a + b).length();
-                    largest_kick = largest_kick.max(kick * 100.0);
+                    let kick = (p(j) - 2.0 * a + b).length() * 100.0;
+                    if kick > largest_kick {
+                        (largest_kick, largest_kick_frame) = (kick, f);
+                    }
                 }
                 if f > 0 && plants.is_planted(f, src) && plants.is_planted(f - 1, src) {
                     let before = worlds[f - 1][j.index()].translation;
@@ -121,6 +126,7 @@ fn measure(
         deepest_below_floor_cm: deepest * 100.0,
         knee_flips: flips,
         largest_kick_cm: largest_kick,
+        largest_kick_frame,
     }
 }
 
@@ -182,7 +188,7 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
         println!(
             "{name}: leg {:.3} m; drift {:.4} cm/frame locked, {:.4} free; lowest below floor \
              {:.2} cm locked, {:.2} free; knee flips {} locked, {} free; largest foot kick \
-             {:.2} cm/frame² locked, {:.2} free",
+             {:.2} cm/frame² locked (frame {}, plants around it {}), {:.2} free",
             legs[0].0.length,
             locked.drift_cm_per_frame,
             free.drift_cm_per_frame,
@@ -191,6 +197,16 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
             locked.knee_flips,
             free.knee_flips,
             locked.largest_kick_cm,
+            locked.largest_kick_frame,
+            (locked.largest_kick_frame.saturating_sub(12)..locked.largest_kick_frame + 3)
+                .filter(|f| *f < plants.num_frames())
+                .map(|f| {
+                    (0..plants.legs.len())
+                        .map(|l| if plants.is_planted(f, l) { 'P' } else { '.' })
+                        .collect::<String>()
+                })
+                .collect::<Vec<_>>()
+                .join(" "),
             free.largest_kick_cm,
         );
         lengths.push(legs[0].0.length);

@@ -13,6 +13,9 @@
 //!  target pose ─FK─▶ fit to the standing posture: each foot pitched, the hips moved, by the
 //!                     animation's typical stance gap (offline: medians over the clip;
 //!                     live: a running average of the frames held so far)
+//!               ─FK─▶ root carried over the ground by the held feet's slide in the animation
+//!                     (stride warping, `stride`; two feet down: their mean), so a held leg
+//!                     stays as retargeted
 //!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
@@ -36,6 +39,7 @@ use super::detect::{PlantDetector, PlantSettings, PlantTrack};
 use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
 use super::rig::{find_contact_legs, find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
+use super::stride::{FootStand, RootShift};
 use crate::analysis::Analysis;
 use crate::bounds::clamp_safe;
 use crate::fk::{forward_kinematics, world_transforms, WorldTransform};
@@ -235,6 +239,9 @@ struct Foot {
     animated_heading: f32,
     /// The foot has been seen (velocities are known).
     seen: bool,
+    /// Last frame's animated ankle before the root's move onto the standing feet (the foot's
+    /// slide over the ground, [`FootLock::carry_root`]).
+    raw_ankle: Vec3,
 }
 
 /// How a foot stands on one frame: ankle and ball heights above the floor (metres), and its
@@ -276,6 +283,8 @@ pub struct FootLock {
     last_drop: f32,
     /// How much higher than needed the hips still are on their way back up.
     drop_offset: Decay<f32>,
+    /// The root's move over the ground onto the standing feet ([`FootLock::carry_root`]).
+    shift: RootShift,
     /// Height added to the root on every frame ([`FootLock::fit_to_standing`]).
     root_fix: f32,
     /// The target's own posture stands on its floor (its standing heights can be trusted).
@@ -389,6 +398,7 @@ impl FootLock {
                     animated_position: ankle,
                     animated_heading: 0.0,
                     seen: false,
+                    raw_ankle: ankle,
                 }
             })
             .collect();
@@ -405,6 +415,7 @@ impl FootLock {
             settings,
             last_drop: 0.0,
             drop_offset: Decay::default(),
+            shift: RootShift::default(),
             root_fix: 0.0,
             posture_stands: mapping.target_posture_stands(),
             lift_scale: mapping.root_scale().unwrap_or(1.0),
@@ -579,6 +590,7 @@ impl FootLock {
             f.flat_offset = Decay::default();
             f.shown_flat = 0.0;
         }
+        self.shift = RootShift::default();
         self.last_drop = 0.0;
         self.drop_offset = Decay::default();
     }
@@ -663,7 +675,6 @@ impl FootLock {
         }
         self.apply_fit(out);
         for i in 0..self.feet.len() {
-            let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             let length = self.feet[i].leg.length;
             let (foot, heel, landing) = match (self.feet[i].source, lifts) {
                 (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s]),
@@ -682,6 +693,10 @@ impl FootLock {
                     MAX_HEEL_LIFT_RATIO * length,
                 )
             });
+        }
+        self.carry_root(planted, dt, out);
+        for i in 0..self.feet.len() {
+            let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
         if self.raise_hips(out) {
@@ -707,6 +722,48 @@ impl FootLock {
             self.shown_at(i, shown, dt);
         }
         self.shown_once = true;
+    }
+
+    /// Stride warping: moves the root over the ground by what the feet held since the last
+    /// frame slid in the animation (their mean with two down, each leg's IK taking up its share
+    /// of their disagreement; see [`super::stride`]), so a held foot's leg stays as retargeted
+    /// instead of being bent back to its pin. The retarget scales the root's travel by the
+    /// legs' ratio, and a rig whose legs are proportioned differently slides a standing foot:
+    /// the body, not the leg, takes that up. Only over the ground: heights are the fit's and
+    /// the hips' ([`FootLock::raise_hips`], [`FootLock::lower_hips`]). `worlds` hold the
+    /// animation and are brought up to date.
+    fn carry_root(&mut self, planted: &[bool; MAX_FEET], dt: f32, out: &mut Pose) {
+        let Some(root) = self.root else {
+            return;
+        };
+        let up = self.up;
+        let mut stands = [FootStand::default(); MAX_FEET];
+        for (f, stand) in self.feet.iter_mut().zip(&mut stands) {
+            let ankle = self.worlds[f.leg.foot.index()].translation;
+            // Held since the last frame and still planted: the slide is the animation's.
+            let held = f.source.is_some_and(|s| planted[s]) && f.locked && f.seen;
+            *stand = FootStand {
+                stands: held,
+                slide: held.then(|| ankle - f.raw_ankle),
+                height_gap: 0.0,
+            };
+            f.raw_ankle = ankle;
+        }
+        let halflife = 0.5 * self.settings.blend_secs;
+        let fresh = !self.shown_once;
+        let n = self.feet.len();
+        self.shift
+            .update(&stands[..n], up, fresh, dt, halflife, 0.0);
+        let shift = self.shift.ground;
+        if shift == Vec3::ZERO {
+            return;
+        }
+        let parent = match self.target.parent(root) {
+            Some(p) => self.worlds[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.index()] += parent.inverse() * shift;
+        forward_kinematics(&self.target, out, &mut self.worlds);
     }
 
     fn heading(&self, foot: &Foot, rotation: Quat) -> f32 {

@@ -12,7 +12,9 @@
 //!                                        with each foot's height above its ground;
 //!                                        an in-place clip's feet judged against the
 //!                                        belt they slide on: treadmill)
-//!  target pose   ─▶ lock (FootLock)      pin planted feet (position + heading), lower the
+//!  target pose   ─▶ lock (FootLock)      carry the root over the ground onto the held
+//!                                        feet (stride: stride warping), pin planted feet
+//!                                        (position + heading), lower the
 //!                                        hips when out of reach, ik::solve_two_bone,
 //!                                        blend switches, keep feet above the floor
 //! ```
@@ -22,6 +24,7 @@ pub mod ik;
 pub mod lock;
 pub mod rig;
 pub mod spring;
+mod stride;
 mod treadmill;
 
 pub use detect::{detect_clip, PlantDetector, PlantSettings, PlantTrack};

@@ -1,0 +1,201 @@
+//! Stride warping and pelvis height: the root's move that carries the retargeted feet where the
+//! source's stand, so the legs can stay exactly as retargeted.
+//!
+//! The retarget copies every limb's direction and scales the root's travel by the legs' ratio.
+//! A rig whose legs are proportioned differently (thigh against shin, hip width, ankle height)
+//! then slides a standing foot over the ground and holds it above or below the floor: bending
+//! the leg to hold it bends it away from the performer's. Moving the whole body instead keeps
+//! every leg the performer's:
+//! - over the ground, the root takes up the standing feet's slide (each held foot's ankle
+//!   moving since the frame before), so one standing foot holds still exactly; with two
+//!   down, it takes up their mean and each leg keeps only half their disagreement (the IK's);
+//!   with none down it holds where it is;
+//! - along up, the root stands the feet at their standing heights (their mean gap when two
+//!   are down), held while none is; a change of which feet stand blends with a decaying
+//!   offset, so the body never jumps. A caller that leaves heights to others passes a height
+//!   limit of 0.
+
+use glam::Vec3;
+
+use super::spring::Decay;
+
+/// One foot's part this frame.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct FootStand {
+    /// The source's foot stands.
+    pub stands: bool,
+    /// It stood on the frame before as well, and its contact moved by this much since then
+    /// (over the ground).
+    pub slide: Option<Vec3>,
+    /// How far its contact must move up to stand where it should.
+    pub height_gap: f32,
+}
+
+/// The root's move onto the standing feet.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct RootShift {
+    /// Over the ground: what the standing feet ask for (accumulated: the character's stride as
+    /// its own legs make it); shown last frame, and its rate; shown minus wanted at the last
+    /// change of the standing feet, decaying (the body's speed over the ground does not jump
+    /// when a foot lands or lifts: the pinned feet's IK takes up the difference meanwhile).
+    ground_wanted: Vec3,
+    pub ground: Vec3,
+    ground_rate: Vec3,
+    ground_offset: Decay<Vec3>,
+    /// Along up: what the standing feet ask for (held while none stands).
+    wanted: f32,
+    /// Along up: shown last frame, and its rate.
+    pub height: f32,
+    rate: f32,
+    /// Shown minus wanted at the last change of the standing feet, decaying.
+    offset: Decay<f32>,
+    /// Which feet stood last frame (a bit each).
+    standing: u32,
+}
+
+impl RootShift {
+    /// Takes this frame's feet (their gaps measured on the animation before any shift; `up` the
+    /// floor's normal), `dt` after the last; `fresh`: nothing was shown before (the height is
+    /// taken at once). `limit` bounds the height's move either way. Returns the standing feet's
+    /// mean slide (what the root took up).
+    pub fn update(
+        &mut self,
+        feet: &[FootStand],
+        up: Vec3,
+        fresh: bool,
+        dt: f32,
+        halflife: f32,
+        limit: f32,
+    ) -> Vec3 {
+        let (mut slide, mut sliding) = (Vec3::ZERO, 0u32);
+        let (mut gap, mut standing_count) = (0.0f32, 0u32);
+        let mut standing = 0u32;
+        for (i, f) in feet.iter().enumerate().filter(|(_, f)| f.stands) {
+            standing |= 1 << i;
+            gap += f.height_gap;
+            standing_count += 1;
+            if let Some(s) = f.slide {
+                slide += s - up * s.dot(up);
+                sliding += 1;
+            }
+        }
+        let mean_slide = if sliding > 0 {
+            slide / sliding as f32
+        } else {
+            Vec3::ZERO
+        };
+        self.ground_wanted -= mean_slide;
+        if standing_count > 0 {
+            self.wanted = crate::bounds::clamp_safe(gap / standing_count as f32, -limit, limit);
+        }
+        if fresh {
+            self.offset = Decay::default();
+            self.ground_offset = Decay::default();
+        } else if standing != self.standing {
+            self.offset = Decay {
+                value: self.height - self.wanted,
+                velocity: self.rate,
+            };
+            let wanted_rate = if dt > 0.0 {
+                -mean_slide / dt
+            } else {
+                Vec3::ZERO
+            };
+            self.ground_offset = Decay {
+                value: self.ground - self.ground_wanted,
+                velocity: self.ground_rate - wanted_rate,
+            };
+        }
+        self.standing = standing;
+        self.ground_offset.step(dt, halflife);
+        let ground = self.ground_wanted + self.ground_offset.value;
+        if dt > 0.0 {
+            self.ground_rate = (ground - self.ground) / dt;
+        }
+        self.ground = ground;
+        self.offset.step(dt, halflife);
+        let height = self.wanted + self.offset.value;
+        if dt > 0.0 {
+            self.rate = (height - self.height) / dt;
+        }
+        self.height = height;
+        mean_slide
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stand(slide: Option<Vec3>, gap: f32) -> FootStand {
+        FootStand {
+            stands: true,
+            slide,
+            height_gap: gap,
+        }
+    }
+
+    #[test]
+    fn one_standing_foot_is_held_exactly_two_share_their_disagreement() {
+        let mut s = RootShift::default();
+        let up = Vec3::Y;
+        let free = FootStand::default();
+        s.update(&[stand(None, 0.0), free], up, true, 0.01, 0.05, 1.0);
+        // One foot slides 1 cm forward (and 1 mm up, which is no slide over the ground).
+        let m = s.update(
+            &[stand(Some(Vec3::new(0.0, 0.001, 0.01)), 0.0), free],
+            up,
+            false,
+            0.01,
+            0.05,
+            1.0,
+        );
+        assert!((s.ground - Vec3::new(0.0, 0.0, -0.01)).length() < 1e-6);
+        assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
+        // Two feet sliding apart: the root takes up their mean.
+        let m = s.update(
+            &[
+                stand(Some(Vec3::new(0.0, 0.0, 0.02)), 0.0),
+                stand(Some(Vec3::ZERO), 0.0),
+            ],
+            up,
+            false,
+            0.01,
+            0.05,
+            1.0,
+        );
+        assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
+        assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
+        // None standing: held.
+        s.update(&[free, free], up, false, 0.01, 0.05, 1.0);
+        assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
+    }
+
+    #[test]
+    fn the_height_is_taken_at_once_first_then_blended_and_held() {
+        let mut s = RootShift::default();
+        let up = Vec3::Y;
+        s.update(&[stand(None, 0.03)], up, true, 0.01, 0.05, 0.2);
+        assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
+        s.update(&[stand(None, 0.03)], up, false, 0.01, 0.05, 0.2);
+        assert!((s.height - 0.03).abs() < 1e-6);
+        // It lifts: held.
+        s.update(&[FootStand::default()], up, false, 0.01, 0.05, 0.2);
+        assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
+        // Another lands wanting 5 cm: blended towards it, no jump.
+        let mut last = s.height;
+        for _ in 0..60 {
+            s.update(&[stand(None, 0.05)], up, false, 0.01, 0.05, 0.2);
+            assert!(
+                s.height >= last - 1e-6 && s.height - last < 0.006,
+                "{}",
+                s.height
+            );
+            last = s.height;
+        }
+        assert!((s.height - 0.05).abs() < 1e-3, "{}", s.height);
+        // Bounded.
+        s.update(&[stand(None, 5.0)], up, true, 0.01, 0.05, 0.2);
+        assert!((s.height - 0.2).abs() < 1e-6);
+    }
+}
