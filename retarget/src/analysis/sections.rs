@@ -71,18 +71,20 @@ pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout
         .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
         .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
         .collect();
-    // Arms hang from the body, not from the head: a pair attached ahead of a clearly bigger one
-    // (ears, antlers and horns ahead of a quadruped's front legs; ribbons, hair and ears on a
-    // head ahead of the arms) is a head appendage, not a second pair of arms. Ground limbs are
-    // legs whatever their size.
+    // Arms hang from the upper torso, not from the head: of two pairs, the one attached further
+    // along the body is a head appendage (ribbons, hair, ears, antlers) when it reaches clearly
+    // less for the body below it than the other does. An arm reaches about twice the torso
+    // under it; hair on a head reaches about the torso under it, though it may be as long as a
+    // short arm. Ground limbs are legs whatever their size.
+    let legs_k = leg_k.map(|(k, _)| k);
+    let for_body = |i: usize| reach_for_body(ctx, path, legs_k, &limbs[i]);
     let arm_cands: Vec<usize> = arm_cands
         .iter()
         .copied()
         .filter(|&i| {
             limbs[i].ground
                 || !arm_cands.iter().any(|&f| {
-                    k_of(limbs[i].parent) > k_of(limbs[f].parent)
-                        && limbs[i].reach < 0.6 * limbs[f].reach
+                    k_of(limbs[i].parent) > k_of(limbs[f].parent) && for_body(i) < 0.6 * for_body(f)
                 })
         })
         .collect();
@@ -123,6 +125,20 @@ pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout
         r,
         f,
     }
+}
+
+/// How far a limb pair reaches for the body below it: its reach over the centerline's length
+/// from the legs' bone (else the centerline's start) to the bone it hangs from, at least a
+/// twentieth of the skeleton's size (arms hanging from the legs' own bone).
+fn reach_for_body(ctx: &Ctx<'_>, path: &[BoneId], legs_k: Option<usize>, l: &Limb) -> f32 {
+    let k = path.iter().position(|&x| x == l.parent).unwrap_or(0);
+    let r = legs_k.unwrap_or(0);
+    let (a, b) = (k.min(r), k.max(r));
+    let body: f32 = path[a..=b]
+        .windows(2)
+        .map(|w| (ctx.pos[w[1].index()] - ctx.pos[w[0].index()]).length())
+        .sum();
+    l.reach / body.max(0.05 * ctx.size)
 }
 
 /// Spine, tail and head sections along the centerline, with their roles. Returns the head
