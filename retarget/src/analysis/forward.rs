@@ -143,20 +143,23 @@ fn bend_cue(inp: &ForwardInput<'_>) -> f32 {
     };
     let mut frames: Vec<&[Vec3]> = inp.samples.iter().map(|s| s.as_slice()).collect();
     frames.push(inp.pos);
+    // (chain, middle joint, sign): knees bend forward, elbows backward at half the weight.
+    let chains: Vec<(Vec<BoneId>, usize, f32)> = [(&inp.legs, true, 1.0), (&inp.arms, false, -0.5)]
+        .into_iter()
+        .flat_map(|(pairs, leg, w)| pairs.iter().flatten().map(move |&m| (m, leg, w)))
+        .filter_map(|(m, leg, w)| {
+            let chain = inp.topo.chain(m);
+            let k = middle_joint(inp, &chain, leg)?;
+            Some((chain, k, w))
+        })
+        .collect();
     let mut sum = 0.0;
     for p in &frames {
         let Some(fwd) = frame_forward(inp, p, legs) else {
             continue;
         };
-        for pair in &inp.legs {
-            for &m in pair {
-                sum += bend(inp, p, m, fwd);
-            }
-        }
-        for pair in &inp.arms {
-            for &m in pair {
-                sum -= 0.5 * bend(inp, p, m, fwd);
-            }
+        for (chain, k, w) in &chains {
+            sum += w * bend(p, chain, *k, fwd);
         }
     }
     3.0 * sum / frames.len() as f32
@@ -173,27 +176,44 @@ fn frame_forward(inp: &ForwardInput<'_>, p: &[Vec3], legs: &[BoneId; 2]) -> Opti
     lat.cross(up).try_normalize()
 }
 
-/// Signed offset (over the segment length) of a limb chain's middle joint from the line
-/// through the joints around it, along `fwd`.
-fn bend(inp: &ForwardInput<'_>, p: &[Vec3], m: BoneId, fwd: Vec3) -> f32 {
-    let chain = inp.topo.chain(m);
-    if chain.len() < 3 {
-        return 0.0;
-    }
+/// The middle joint of a limb chain (its index in the chain), where the knee or elbow bends:
+/// the joint 0.42 of the way from the chain's first joint to its end, down a leg that hangs in
+/// the posture (its lowest joint at least half its length below its first), else along the
+/// chain's length. Height, not length, for a hanging leg: the foot and toes run along the
+/// ground and add length but no height, so a cartoon's short legs on full-size feet put 0.42
+/// of the length at the ankle, whose bend points the other way, while the knee still sits
+/// about halfway down. Chosen once from the posture, since a running frame folds the leg.
+fn middle_joint(inp: &ForwardInput<'_>, chain: &[BoneId], leg: bool) -> Option<usize> {
+    let p = inp.pos;
     let mut cum = vec![0.0f32; chain.len()];
     for i in 1..chain.len() {
         cum[i] = cum[i - 1] + (p[chain[i].index()] - p[chain[i - 1].index()]).length();
     }
     let total = cum[chain.len() - 1];
+    if chain.len() < 3 || total < 1e-6 {
+        return None;
+    }
+    let top = h(inp, chain[0]);
+    let drop = top - chain.iter().map(|&b| h(inp, b)).fold(f32::MAX, f32::min);
+    let along: Vec<f32> = if leg && drop >= 0.5 * total {
+        chain.iter().map(|&b| (top - h(inp, b)) / drop).collect()
+    } else {
+        cum.iter().map(|c| c / total).collect()
+    };
+    (1..chain.len() - 1)
+        .min_by(|&x, &y| (along[x] - 0.42).abs().total_cmp(&(along[y] - 0.42).abs()))
+}
+
+/// Signed offset (over the segment length) of a limb chain's middle joint `k` from the line
+/// through the joints around it, along `fwd`.
+fn bend(p: &[Vec3], chain: &[BoneId], k: usize, fwd: Vec3) -> f32 {
+    let total: f32 = chain
+        .windows(2)
+        .map(|w| (p[w[1].index()] - p[w[0].index()]).length())
+        .sum();
     if total < 1e-6 {
         return 0.0;
     }
-    let k = (1..chain.len() - 1).min_by(|&x, &y| {
-        (cum[x] - 0.42 * total)
-            .abs()
-            .total_cmp(&(cum[y] - 0.42 * total).abs())
-    });
-    let Some(k) = k else { return 0.0 };
     let pk = p[chain[k].index()];
     // The segment before the middle joint: walk back over short helpers.
     let mut s = k - 1;
