@@ -51,6 +51,31 @@ pub struct ServerState {
     pub forwarder: Option<Arc<dyn ChangeForwarder>>,
 }
 
+/// What a task that carries the server's output elsewhere sees of it, and nothing more: the
+/// subjects, the frame and event broadcasts, the shutdown signal and the counters (the
+/// cluster's publisher and relays take this instead of the whole [`ServerState`]: no access
+/// policy, connection cap or client bookkeeping).
+#[derive(Clone)]
+pub struct Feeds {
+    /// Subjects in id order (id = index).
+    pub subject_list: Arc<crate::subject_list::SubjectList>,
+    /// Frame fan-out.
+    pub frames: broadcast::Sender<OutFrame>,
+    /// What every client is told about, typed.
+    pub events: broadcast::Sender<Event>,
+    /// Becomes `true` on shutdown.
+    pub shutdown: watch::Receiver<bool>,
+    /// Counters.
+    pub stats: Arc<Stats>,
+}
+
+impl Feeds {
+    /// The subjects now.
+    pub fn subjects(&self) -> Arc<Vec<Arc<Subject>>> {
+        self.subject_list.snapshot()
+    }
+}
+
 /// Cluster mode as the status shows it (the connection itself stays in `cluster`).
 pub struct ClusterView {
     /// This node's name in the deployment.
@@ -60,6 +85,17 @@ pub struct ClusterView {
 }
 
 impl ServerState {
+    /// The part of the state a task carrying the output elsewhere sees.
+    pub fn feeds(&self) -> Feeds {
+        Feeds {
+            subject_list: self.subject_list.clone(),
+            frames: self.frames.clone(),
+            events: self.events.clone(),
+            shutdown: self.shutdown.clone(),
+            stats: self.stats.clone(),
+        }
+    }
+
     /// The subjects now.
     pub fn subjects(&self) -> Arc<Vec<Arc<Subject>>> {
         self.subject_list.snapshot()

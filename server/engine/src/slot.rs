@@ -31,18 +31,21 @@ pub type FrameRef<'a> = RwLockReadGuard<'a, Frame>;
 
 /// A guard whatever a panicking holder left (a frame is whole between writes: `modify`
 /// changes it field by field, and a reader only ever sees it between writes).
+#[inline]
 fn read(slot: &RwLock<Frame>) -> FrameRef<'_> {
     slot.read().unwrap_or_else(|p| p.into_inner())
 }
 
 impl FrameWriter {
     /// Changes the frame in place (no allocation when `modify` makes none).
+    #[inline]
     pub fn send_modify(&self, modify: impl FnOnce(&mut Frame)) {
         let mut frame = self.slot.write().unwrap_or_else(|p| p.into_inner());
         modify(&mut frame);
     }
 
     /// The frame now.
+    #[inline]
     pub fn borrow(&self) -> FrameRef<'_> {
         read(&self.slot)
     }
@@ -57,6 +60,7 @@ impl FrameWriter {
 
 impl FrameReader {
     /// The frame now.
+    #[inline]
     pub fn borrow(&self) -> FrameRef<'_> {
         read(&self.slot)
     }

@@ -283,7 +283,7 @@ fn add_subject(
         frames,
         subject.id,
         feeds.frames,
-        state.clone(),
+        state.feeds(),
     ));
     let ctx = LiveContext {
         subject: subject.clone(),

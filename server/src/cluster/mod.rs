@@ -371,7 +371,7 @@ impl ClusterLink {
                 r.subject,
                 r.id,
                 frames,
-                state.clone(),
+                state.feeds(),
             )));
         }
         let c = &self.cluster;
@@ -388,8 +388,8 @@ impl ClusterLink {
             c.config.site.clone(),
             state.clone(),
         )));
-        tasks.push(tokio::spawn(run_entries(c.clone(), state.clone())));
-        tasks.push(tokio::spawn(run_publisher(self.cluster, state.clone())));
+        tasks.push(tokio::spawn(run_entries(c.clone(), state.feeds())));
+        tasks.push(tokio::spawn(run_publisher(self.cluster, state.feeds())));
         tasks
     }
 }

@@ -13,15 +13,15 @@ use tokio::sync::broadcast::error::RecvError;
 use tokio_tungstenite::tungstenite::Bytes;
 
 use super::{Cluster, SubjectEntry, HEARTBEAT};
-use crate::state::ServerState;
+use crate::state::Feeds;
 use crate::subject::Subject;
 
-/// Publishes every local (not relayed) subject of `state` until shutdown.
-pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
-    let mut frames = state.frames.subscribe();
-    let mut shutdown = state.shutdown.clone();
+/// Publishes every local (not relayed) subject of `feeds` until shutdown.
+pub async fn run_publisher(cluster: Arc<Cluster>, feeds: Feeds) {
+    let mut frames = feeds.frames.subscribe();
+    let mut shutdown = feeds.shutdown.clone();
     // By subject id: the NATS subject its frames go out on (None: relayed, not ours).
-    let subjects: Vec<Option<async_nats::Subject>> = state
+    let subjects: Vec<Option<async_nats::Subject>> = feeds
         .subjects()
         .iter()
         .map(|s| {
@@ -46,11 +46,11 @@ pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
                     // Queued in the client's buffer, written by its own task: never waits on
                     // the network here.
                     if cluster.client.publish(subject.clone(), frame.bytes.clone()).await.is_err() {
-                        state.stats.cluster_publish_errors.fetch_add(1, Ordering::Relaxed);
+                        feeds.stats.cluster_publish_errors.fetch_add(1, Ordering::Relaxed);
                     }
                 }
                 Err(RecvError::Lagged(n)) => {
-                    state.stats.cluster_publish_errors.fetch_add(n, Ordering::Relaxed);
+                    feeds.stats.cluster_publish_errors.fetch_add(n, Ordering::Relaxed);
                 }
                 Err(RecvError::Closed) => break,
             },
@@ -60,10 +60,10 @@ pub async fn run_publisher(cluster: Arc<Cluster>, state: Arc<ServerState>) {
 
 /// Keeps the entry of every local subject in the bucket until shutdown: put at start, when a
 /// skeleton or mapping changes, and every [`HEARTBEAT`]; deleted on a clean stop.
-pub async fn run_entries(cluster: Arc<Cluster>, state: Arc<ServerState>) {
-    let mut events = state.events.subscribe();
-    let mut shutdown = state.shutdown.clone();
-    let mut entries = entries_of(&cluster, &state);
+pub async fn run_entries(cluster: Arc<Cluster>, feeds: Feeds) {
+    let mut events = feeds.events.subscribe();
+    let mut shutdown = feeds.shutdown.clone();
+    let mut entries = entries_of(&cluster, &feeds);
     let mut heartbeat = tokio::time::interval(HEARTBEAT);
     // A late beat (loaded machine) is followed by the next one a whole period later, not
     // by a burst.
@@ -75,7 +75,7 @@ pub async fn run_entries(cluster: Arc<Cluster>, state: Arc<ServerState>) {
             _ = shutdown.changed() => break,
             received = events.recv() => match received {
                 Ok(event) if event.changes_an_entry() => {
-                    entries = entries_of(&cluster, &state);
+                    entries = entries_of(&cluster, &feeds);
                     failing = put_entries(&cluster, &entries, failing).await;
                 }
                 Ok(_) | Err(RecvError::Lagged(_)) => {}
@@ -105,8 +105,8 @@ async fn remove_entries(cluster: &Cluster, entries: &[(String, Bytes)]) {
 
 /// The bucket key and value of every local subject (at start and when a skeleton or mapping
 /// changes; the heartbeat puts these again).
-fn entries_of(cluster: &Cluster, state: &ServerState) -> Vec<(String, Bytes)> {
-    (state.subjects().iter())
+fn entries_of(cluster: &Cluster, feeds: &Feeds) -> Vec<(String, Bytes)> {
+    (feeds.subjects().iter())
         .filter(|s| !s.is_relayed())
         .filter_map(|s| entry_of(&cluster.config.site, s))
         .filter_map(|e| Some((e.key(), serde_json::to_vec(&e).ok()?.into())))

@@ -24,7 +24,7 @@ use rigcast_protocol::control::BoneInfo;
 use super::SubjectEntry;
 use crate::clock::unix_nanos;
 use crate::engine::OutFrame;
-use crate::state::ServerState;
+use crate::state::Feeds;
 
 /// Frames waiting for the source thread; it only ever needs the newest, so a full queue
 /// drops (the relay to clients is not affected).
@@ -302,7 +302,7 @@ pub async fn run_relay(
     subject: String,
     id: u32,
     to_source: SyncSender<Bytes>,
-    state: Arc<ServerState>,
+    feeds: Feeds,
 ) {
     let mut sub = match client.subscribe(subject.clone()).await {
         Ok(s) => s,
@@ -311,7 +311,7 @@ pub async fn run_relay(
             return;
         }
     };
-    let mut shutdown = state.shutdown.clone();
+    let mut shutdown = feeds.shutdown.clone();
     loop {
         tokio::select! {
             biased;
@@ -319,11 +319,11 @@ pub async fn run_relay(
             msg = sub.next() => {
                 let Some(msg) = msg else { break };
                 let Some(frame) = relabel(&msg.payload, id) else {
-                    state.stats.cluster_bad_frames.fetch_add(1, Ordering::Relaxed);
+                    feeds.stats.cluster_bad_frames.fetch_add(1, Ordering::Relaxed);
                     continue;
                 };
                 // Err only means "no client connected right now".
-                let _ = state.frames.send(frame);
+                let _ = feeds.frames.send(frame);
                 match to_source.try_send(msg.payload) {
                     Ok(()) | Err(TrySendError::Full(_)) => {}
                     Err(TrySendError::Disconnected(_)) => break,
