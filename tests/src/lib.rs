@@ -171,14 +171,32 @@ pub async fn stalled_client(addr: std::net::SocketAddr) -> TcpStream {
     raw
 }
 
-/// An idle graph of the real CMU walk and run (clip paths absolute) written into the temporary
-/// file `file_name` (`.rmg`), and the clips; `None` (with a printed reason) when the clips are
-/// absent.
+/// An idle graph of every labelled human clip in the shared data's `bvh/` folder (found by
+/// listing it and reading the label files; clip paths absolute) written into the temporary
+/// file `file_name` (`.rmg`), and the clips; `None` (with a printed reason) when fewer than two
+/// are there.
 pub fn build_idle_graph(file_name: &str) -> Option<(PathBuf, Vec<Clip>)> {
-    let paths = [
-        shared_data("bvh/cmu_131_01_walk.bvh")?,
-        shared_data("bvh/cmu_run.bvh")?,
-    ];
+    let root = shared_data_dir("bvh", "the shared BVH clips")?;
+    let labels = all_labels(&root);
+    let human = |p: &std::path::Path| {
+        let key = p.strip_prefix(&root).ok()?.to_str()?.replace('\\', "/");
+        Some(labels.get(&key)?.get("kind")?.as_str()? == "human")
+    };
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(root.join("bvh"))
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("bvh")))
+        .filter(|p| human(p) == Some(true))
+        .collect();
+    paths.sort();
+    if paths.len() < 2 {
+        println!(
+            "SKIP: fewer than two labelled human clips in {}",
+            root.join("bvh").display()
+        );
+        return None;
+    }
     let clips: Vec<Clip> = paths
         .iter()
         .map(|p| rigcast_sources::load_clip(p).unwrap())
@@ -214,7 +232,10 @@ pub fn f64s(v: &serde_json::Value) -> Vec<f64> {
 
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
-pub use shared_data::{shared_clip, shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH};
+pub use shared_data::{
+    all_labels, shared_clip, shared_data, shared_data_all, shared_data_dir, CMU_WALK, GODOT_ROBOT,
+    MEREDITH,
+};
 
 /// A 6-bone creature with a tail, animated with distinct rotations on every bone: 48 frames at
 /// 30 fps. Built in code so tests do not depend on any file.
