@@ -449,7 +449,7 @@ def read_rules(architecture):
     m = re.search(r"```layers\n(.*?)```", text, re.S)
     if not m:
         sys.exit(f"{architecture}: no ```layers block (see scripts/check_layers.py)")
-    crates, layers, exceptions, section = [], defaultdict(list), set(), None
+    crates, layers, exceptions, never, section = [], defaultdict(list), set(), defaultdict(set), None
     for raw in m.group(1).splitlines():
         line = raw.split("#", 1)[0].strip()
         if not line:
@@ -461,6 +461,8 @@ def read_rules(architecture):
             crates.append(line.split())
         elif section and section[0] == "modules":
             layers[section[1]].append(line.split())
+        elif section and section[0] == "never":
+            never[section[1]].update(line.split())
         elif section and section[0] == "exceptions":
             m = re.match(r"(?:(\S+):\s+)?(\S+)\s*->\s*(\S+)$", line)
             if not m:
@@ -469,7 +471,7 @@ def read_rules(architecture):
             exceptions.add((section[1], parent, m.group(2), m.group(3)))
         else:
             sys.exit(f"{architecture}: line outside a section in the layers block: {raw}")
-    return crates, layers, exceptions
+    return crates, layers, exceptions, never
 
 
 # ---------------------------------------------------------------- the checks
@@ -501,6 +503,45 @@ def crate_checks(root, crate_order):
     for comp in circles(edges):
         problems.append("crate circle: " + " -> ".join(comp))
     return members, problems
+
+
+def never_checks(root, never):
+    """Outside crates a workspace crate must not reach through its normal dependencies, directly
+    or through others (`never CRATE:` sections), each found with the path that reaches it."""
+    if not never:
+        return []
+    args = ["cargo", "metadata", "--format-version", "1"]
+    try:  # the registry's cache when it has everything; else (a fresh machine) the network
+        out = subprocess.check_output(args + ["--offline"], cwd=root, stderr=subprocess.DEVNULL)
+    except subprocess.CalledProcessError:
+        out = subprocess.check_output(args, cwd=root)
+    meta = json.loads(out)
+    names = {p["id"]: p["name"] for p in meta["packages"]}
+    deps = {n["id"]: [d["pkg"] for d in n["deps"]
+                      if any(k.get("kind") is None for k in d.get("dep_kinds", []))]
+            for n in meta["resolve"]["nodes"]}
+    members = {names[i]: i for i in meta["workspace_members"]}
+    problems = []
+    for crate, banned in sorted(never.items()):
+        if crate not in members:
+            problems.append(f"never {crate}: no such workspace crate")
+            continue
+        reached, queue = {members[crate]: None}, [members[crate]]
+        while queue:
+            at = queue.pop(0)
+            for d in deps.get(at, []):
+                if d not in reached:
+                    reached[d] = at
+                    queue.append(d)
+        for pid in sorted(reached, key=lambda i: names[i]):
+            if names[pid] in banned:
+                path, at = [], pid
+                while at is not None:
+                    path.append(names[at])
+                    at = reached[at]
+                problems.append(f"crate {crate} must never depend on {names[pid]}, but does: "
+                                + " -> ".join(reversed(path)))
+    return problems
 
 
 def crate_uses(pkg, other):
@@ -592,8 +633,9 @@ def main():
     args = ap.parse_args()
     root = os.path.abspath(args.root)
     os.chdir(root)
-    crate_order, layers, exceptions = read_rules(args.architecture or os.path.join(root, "ARCHITECTURE.md"))
+    crate_order, layers, exceptions, never = read_rules(args.architecture or os.path.join(root, "ARCHITECTURE.md"))
     members, problems = crate_checks(root, crate_order)
+    problems += never_checks(root, never)
     problems += module_checks(members, layers, exceptions, args.graph)
     for p in problems:
         print(p)

@@ -150,6 +150,23 @@ class CheckLayers(unittest.TestCase):
                          app_deps="", base_deps='app = { path = "../app" }')
         self.assert_fails(root, "crate base depends on app, which is not in a layer below it")
 
+    def test_a_crate_reaching_a_never_crate_fails_naming_the_path(self):
+        netio = {
+            "netio/Cargo.toml": '[package]\nname = "netio"\nversion = "0.1.0"\nedition = "2021"\n',
+            "netio/src/lib.rs": "pub fn send() {}\n",
+            "base/src/lib.rs": "pub fn one() -> u32 { netio::send(); 1 }\n",
+        }
+        deps = 'netio = { path = "../netio" }'
+        root = workspace(netio, "never app:\n  netio\n", base_deps=deps)
+        with open(os.path.join(root, "Cargo.toml"), "a", encoding="utf-8") as f:
+            f.write('exclude = ["netio"]\n')
+        self.assert_fails(root, "crate app must never depend on netio, but does: app -> base -> netio")
+        root = workspace(netio, "never base:\n  other\n", base_deps=deps)
+        with open(os.path.join(root, "Cargo.toml"), "a", encoding="utf-8") as f:
+            f.write('exclude = ["netio"]\n')
+        code, out = run(root)
+        self.assertEqual(code, 0, out)
+
     def test_a_declared_but_unused_crate_fails(self):
         root = workspace({"app/src/lib.rs": "pub mod top;\npub mod middle;\npub mod bottom;\n"})
         self.assert_fails(root, "crate app declares base but its code never uses it")
