@@ -8,11 +8,11 @@ use rigcast_retarget::Skeleton;
 use tokio::sync::mpsc;
 
 use crate::engine::EngineCommand;
-use crate::state::ServerState;
+use crate::state::Changes;
 
 /// Carries out a request that changes the server (the connection's right to it already
 /// checked, here or by the node that forwarded it).
-pub fn apply_change(state: &ServerState, msg: ClientMessage) -> ServerMessage {
+pub fn apply_change(state: &Changes, msg: ClientMessage) -> ServerMessage {
     match msg {
         ClientMessage::Calibrate {
             subject,
@@ -43,7 +43,7 @@ pub fn apply_change(state: &ServerState, msg: ClientMessage) -> ServerMessage {
 }
 
 /// `set_performer`: switches a target's foot lock (a re-map, off the tick).
-fn set_performer(state: &ServerState, subject: u32, foot_lock: Option<bool>) -> ServerMessage {
+fn set_performer(state: &Changes, subject: u32, foot_lock: Option<bool>) -> ServerMessage {
     let Some(target) = state.subject(subject) else {
         return ServerMessage::error(
             ErrorCode::UnknownSubject,
@@ -62,7 +62,7 @@ fn set_performer(state: &ServerState, subject: u32, foot_lock: Option<bool>) -> 
 
 /// `set_mapping`: overrides checked against the skeletons now, applied by the mapper.
 fn set_mapping(
-    state: &ServerState,
+    state: &Changes,
     subject: u32,
     overrides: std::collections::BTreeMap<String, Option<String>>,
 ) -> ServerMessage {
@@ -80,12 +80,7 @@ fn set_mapping(
 }
 
 /// Hands a command to the engine and answers `ack`, or an error when it cannot take it now.
-fn send_command(
-    state: &ServerState,
-    cmd: EngineCommand,
-    request: &str,
-    subject: u32,
-) -> ServerMessage {
+fn send_command(state: &Changes, cmd: EngineCommand, request: &str, subject: u32) -> ServerMessage {
     match state.commands.try_send(cmd) {
         Ok(()) => ServerMessage::Ack {
             request: request.into(),
@@ -103,7 +98,7 @@ fn send_command(
 /// Checks `set_mapping` overrides against the target's and its sources' skeletons, so a typo
 /// is answered at once instead of failing later in the mapper.
 fn check_overrides(
-    state: &ServerState,
+    state: &Changes,
     target: &crate::engine::Subject,
     overrides: &std::collections::BTreeMap<String, Option<String>>,
 ) -> Result<(), String> {

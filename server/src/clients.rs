@@ -456,7 +456,9 @@ fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<
         } => subscribe(state, ids, subscribed),
         change @ (ClientMessage::Calibrate { .. }
         | ClientMessage::SetPerformer { .. }
-        | ClientMessage::SetMapping { .. }) => Some(crate::changes::apply_change(state, change)),
+        | ClientMessage::SetMapping { .. }) => {
+            Some(crate::changes::apply_change(&state.changes(), change))
+        }
     }
 }
 

@@ -76,6 +76,33 @@ impl Feeds {
     }
 }
 
+/// What the requests that change the server (`changes`) see: the subjects, the events to tell
+/// clients of a change and the mapper's command queue.
+#[derive(Clone)]
+pub struct Changes {
+    /// Subjects in id order (id = index).
+    pub subject_list: Arc<crate::subject_list::SubjectList>,
+    /// What every client is told about, typed.
+    pub events: broadcast::Sender<Event>,
+    /// Requests to the mapper.
+    pub commands: mpsc::Sender<EngineCommand>,
+}
+
+impl Changes {
+    /// The subjects now.
+    pub fn subjects(&self) -> Arc<Vec<Arc<Subject>>> {
+        self.subject_list.snapshot()
+    }
+
+    /// A subject by id.
+    pub fn subject(&self, id: u32) -> Option<Arc<Subject>> {
+        self.subjects()
+            .get(id as usize)
+            .filter(|s| s.id == id)
+            .cloned()
+    }
+}
+
 /// Cluster mode as the status shows it (the connection itself stays in `cluster`).
 pub struct ClusterView {
     /// This node's name in the deployment.
@@ -93,6 +120,15 @@ impl ServerState {
             events: self.events.clone(),
             shutdown: self.shutdown.clone(),
             stats: self.stats.clone(),
+        }
+    }
+
+    /// The part of the state the requests that change the server see.
+    pub fn changes(&self) -> Changes {
+        Changes {
+            subject_list: self.subject_list.clone(),
+            events: self.events.clone(),
+            commands: self.commands.clone(),
         }
     }
 

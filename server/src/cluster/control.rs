@@ -368,7 +368,7 @@ fn serve(checker: &mut Checker, payload: &[u8], state: &ServerState) -> ServerMe
             format!("node {} has no subject {:?}", checker.site, body.name),
         );
     };
-    crate::changes::apply_change(state, readdressed(body.message, own.id))
+    crate::changes::apply_change(&state.changes(), readdressed(body.message, own.id))
 }
 
 #[cfg(test)]
