@@ -1,12 +1,13 @@
 //! # rigcast-server — the `rigcast` binary's library
 //!
-//! Runs the engine and its outputs inside a tokio runtime:
+//! Hosts the engine (`rigcast-engine`, which does no IO) inside a tokio runtime:
 //!
 //! ```text
 //!  SourceSpec ─load─▶ Replay task ─┐
-//!  live source thread (VMC, serial, video) ─┴─▶ watch<Frame> (latest wins, one per source)
+//!  live source thread (VMC, serial, video) ─┴─▶ FrameWriter (latest wins, one slot per source)
 //!                                                   │
-//!                 tick: tokio interval @ rate_hz, MissedTickBehavior::Skip
+//!                 tick task: tokio interval @ rate_hz, MissedTickBehavior::Skip, reads the
+//!                 clocks ─▶ engine::Ticker::tick(TickTime, &mut HostOutput)
 //!                   │ performers: Mapping::apply into preallocated target poses
 //!                   │   (mappings built by the mapper thread, never awaited by the tick)
 //!                   │ encode each subject once → Bytes (shared)      VMC bundles → UDP
@@ -22,7 +23,8 @@
 //! ```
 //!
 //! [`start`] (in [`boot`]: load, assemble, spawn) runs all of it in-process (tests use `127.0.0.1:0`); the binary's subcommands live
-//! in [`cmd`] and are listed in [`cli::Command`].
+//! in [`cmd`] and are listed in [`cli::Command`]. The engine's modules are re-exported at the
+//! paths they had here ([`engine`] is its `tick`).
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
