@@ -4,9 +4,11 @@ scripts/bench-vision.sh compares `rigcast pose` with.
 Usage: bench_mediapipe.py VIDEO lite|full [PEOPLE] [--max-frames N] [--landmarks OUT.json]
 Prints one line: `mediapipe MODEL VIDEO people=P frames=N with_person=N fps_with_decoding=X
 fps_model_only=Y`. `--max-frames` stops after N frames (the warm-up frame included);
-`--landmarks` (one person only) writes `{"width", "height", "frames": [...]}` with, per frame
-(the warm-up frame included), `null` or the 33 landmarks as `[x, y, visibility]` in pixels:
-the independent reference the vision tests judge coverage and left/right labels against. Frames come from an ffmpeg pipe as RGB at the video's own size (what MediaPipe
+`--landmarks` (one person only) writes `{"width", "height", "frames": [...], "world": [...]}`
+with, per frame (the warm-up frame included), `null` or the 33 landmarks: in `frames` as
+`[x, y, visibility]` in pixels, in `world` as `[x, y, z]` in metres (MediaPipe's world
+landmarks: hip-centred, x right and y down in the picture, z away from the camera). The
+independent reference the vision tests judge coverage, left/right labels and 3D against. Frames come from an ffmpeg pipe as RGB at the video's own size (what MediaPipe
 is given in its own examples); decoding time is counted in the first figure and left out of the
 second.
 
@@ -64,10 +66,12 @@ def tracker(model, people):
         pose = mp.solutions.pose.Pose(static_image_mode=False,
                                       model_complexity={"lite": 0, "full": 1}[model])
         def one(img, _):
-            found = pose.process(img).pose_landmarks
+            result = pose.process(img)
+            found, world = result.pose_landmarks, result.pose_world_landmarks
             h, w = img.shape[:2]
             return (int(found is not None),
-                    found and [[p.x * w, p.y * h, p.visibility] for p in found.landmark])
+                    found and ([[p.x * w, p.y * h, p.visibility] for p in found.landmark],
+                               world and [[p.x, p.y, p.z] for p in world.landmark]))
         return one
     from mediapipe.tasks import python as tasks
     from mediapipe.tasks.python import vision
@@ -127,6 +131,7 @@ ff.kill()
 ff.wait()
 if landmarks_out:
     with open(landmarks_out, "w") as out:
-        json.dump({"width": w, "height": h, "frames": per_frame}, out)
+        json.dump({"width": w, "height": h, "frames": [p and p[0] for p in per_frame],
+                   "world": [p and p[1] for p in per_frame]}, out)
 print(f"mediapipe {model} {video} people={people} frames={frames} with_person={found} "
       f"fps_with_decoding={frames / total:.1f} fps_model_only={frames / model_secs:.1f}")

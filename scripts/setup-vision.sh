@@ -18,6 +18,8 @@
 #                                    first, which tf2onnx cannot read as they are)
 #     pose2sim/cam01..cam04.mp4      real footage for the acceptance tests (PyPI wheel pose2sim),
 #     pose2sim/multi_cam01..04.mp4   and its two-person demo
+#     pose2sim/Calib.qca.txt         the single-person demo's four-camera calibration (Qualisys
+#                                    export): the 3D reference the vision tests triangulate
 #     READY                          written last; the Rust side checks it
 #
 # It also installs the Debian package ffmpeg (video decoding runs through an ffmpeg child process).
@@ -132,8 +134,10 @@ fi
 
 # --- Real footage: pose2sim demo videos ---------------------------------------------------------
 # Demo_SinglePerson (cam01..cam04.mp4) and Demo_MultiPerson (multi_cam01..multi_cam04.mp4: two
-# people on a platform, a third one in the background; 1088×1920, 60 fps, 100 frames).
-if [[ ! -f "$ROOT/pose2sim/cam04.mp4" || ! -f "$ROOT/pose2sim/multi_cam04.mp4" ]]; then
+# people on a platform, a third one in the background; 1088×1920, 60 fps, 100 frames), and the
+# single-person demo's calibration of its four cameras.
+if [[ ! -f "$ROOT/pose2sim/cam04.mp4" || ! -f "$ROOT/pose2sim/multi_cam04.mp4" \
+    || ! -f "$ROOT/pose2sim/Calib.qca.txt" ]]; then
     log "fetching pose2sim==$POSE2SIM_VERSION wheel (demo videos)"
     rm -rf "$ROOT/downloads/pose2sim"
     "$PY" -m pip download -q --no-deps "pose2sim==$POSE2SIM_VERSION" -d "$ROOT/downloads/pose2sim"
@@ -149,6 +153,10 @@ with zipfile.ZipFile(wheel) as z:
             with z.open(name) as src, open(tmp, "wb") as dst:
                 dst.write(src.read())
             os.replace(tmp, os.path.join(out, f"{prefix}cam0{i}.mp4"))
+    tmp = os.path.join(out, "Calib.qca.txt.tmp")
+    with z.open("Pose2Sim/Demo_SinglePerson/calibration/Calib.qca.txt") as src, open(tmp, "wb") as dst:
+        dst.write(src.read())
+    os.replace(tmp, os.path.join(out, "Calib.qca.txt"))
 EOF
     rm -rf "$ROOT/downloads/pose2sim"
 fi

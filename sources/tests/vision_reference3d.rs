@@ -1,0 +1,431 @@
+//! The 3D reference (issue 32, item 4): the pose2sim single-person demo's four calibrated
+//! cameras (`scripts/setup-vision.sh` installs the videos and `Calib.qca.txt`, found by
+//! listing: a camera of the calibration is judged when a video named after it is beside it)
+//! triangulated from MediaPipe Pose 0.10.14's 2D landmarks (full model, run on every camera in
+//! this run) into a reference, then rigcast lite (the default), rigcast full and MediaPipe full
+//! judged against it per camera on the same frames: 3D bone directions (the model's world
+//! landmarks against the reference turned into the camera's axes), PA-MPJPE (after the best
+//! similarity), jitter (the mean joint acceleration of the hip-centred 3D, mm per frame²) and
+//! left/right labelling (the model's 2D labels against the reference projected into the
+//! camera).
+//!
+//! The reference a camera is judged against is triangulated from the *other* three cameras
+//! only, so no detector's reading of the judged view is in it; MediaPipe shares the landmark
+//! network's lineage with rigcast (rigcast runs BlazePose's converted models) but not its
+//! runtime, crops, tracker or smoothing, and the robust triangulation (`common/reference3d.rs`)
+//! takes neither its left/right labels nor a single view's outliers on trust.
+//!
+//! Asserted (what the reference must be to judge anything; these hold today): every camera has
+//! a reference on at least 80 % of its frames, the left-out camera's own MediaPipe landmarks
+//! land within 15 % of the torso of the reference's projection (median: calibration, frame
+//! offsets and the padded frames of cameras 1 and 2 all right), bone lengths steady (upper
+//! arms, thighs, shins: coefficient of variation < 0.1), and every model gave figures on every
+//! camera. Issue 32's bounds (rigcast's default at least as accurate as MediaPipe full on every
+//! camera, less jittery, left/right right on 99 % of frames) are listed, and asserted with
+//! `RIGCAST_FOOTAGE_ACCEPTANCE=1`. Needs MediaPipe (`scripts/setup-mediapipe.sh`); skips with
+//! the reason without it.
+#![allow(clippy::unwrap_used)] // tests may unwrap
+
+#[path = "vision_common.rs"]
+mod common;
+#[path = "common/mediapipe.rs"]
+mod mediapipe;
+#[path = "common/multiview.rs"]
+mod multiview;
+#[path = "common/reference3d.rs"]
+mod reference3d;
+
+use std::path::Path;
+
+use glam::{DVec2, DVec3};
+use mediapipe::{mediapipe_python, MediaPipeRun, Points};
+use multiview::{similarity_aligned, Camera};
+use reference3d::{Frame3d, Rig, View};
+use rigcast_sources::vision::landmarks::idx;
+use rigcast_sources::vision::{
+    DecodeSize, FfmpegSource, FrameSource, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
+};
+
+/// Bones whose directions are judged: upper arms, forearms, thighs, shins, and the shoulder
+/// and hip lines (which say which way the body faces).
+const BONES: [(usize, usize); 10] = [
+    (idx::LEFT_SHOULDER, idx::LEFT_ELBOW),
+    (idx::RIGHT_SHOULDER, idx::RIGHT_ELBOW),
+    (idx::LEFT_ELBOW, idx::LEFT_WRIST),
+    (idx::RIGHT_ELBOW, idx::RIGHT_WRIST),
+    (idx::LEFT_HIP, idx::LEFT_KNEE),
+    (idx::RIGHT_HIP, idx::RIGHT_KNEE),
+    (idx::LEFT_KNEE, idx::LEFT_ANKLE),
+    (idx::RIGHT_KNEE, idx::RIGHT_ANKLE),
+    (idx::RIGHT_SHOULDER, idx::LEFT_SHOULDER),
+    (idx::RIGHT_HIP, idx::LEFT_HIP),
+];
+
+/// Joints of PA-MPJPE and jitter.
+const JOINTS: [usize; 12] = reference3d::LIMBS;
+
+/// One model's reading of one frame: image points (source pixels, with visibility) and world
+/// points (metres, camera axes: x right, y down, z away).
+#[derive(Clone)]
+struct Reading {
+    image: Points,
+    world: Vec<DVec3>,
+}
+
+fn readings_of_mediapipe(run: &MediaPipeRun) -> Vec<Option<Reading>> {
+    run.frames
+        .iter()
+        .zip(&run.world)
+        .map(|(image, world)| {
+            Some(Reading {
+                image: image.clone()?,
+                world: world
+                    .as_ref()?
+                    .iter()
+                    .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
+/// rigcast's person `#0` over every frame of `path` with the default settings but `model`.
+fn readings_of_rigcast(
+    path: &Path,
+    config: &PipelineConfig,
+    model: ModelKind,
+) -> Vec<Option<Reading>> {
+    let config = PipelineConfig {
+        model,
+        ..config.clone()
+    };
+    let mut pipeline = PosePipeline::new(&config).unwrap();
+    let mut source = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, 30.0).unwrap();
+    let mut frame = RgbFrame::default();
+    let mut out = Vec::new();
+    while source.next_frame(&mut frame).unwrap() {
+        pipeline.process_frame(&frame).unwrap();
+        out.push(pipeline.person(0).map(|lm| Reading {
+            image: lm.image[..33].iter().map(|p| [p.x, p.y, p.w]).collect(),
+            world: lm.world[..33].iter().map(|p| p.as_dvec3()).collect(),
+        }));
+    }
+    out
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+/// One row of the table: a model on a camera against the reference.
+#[derive(Default)]
+struct Scores {
+    frames: usize,
+    bone_deg: f64,
+    pa_mpjpe_mm: f64,
+    jitter_mm: f64,
+    left_right: f64,
+}
+
+/// A model's readings of one camera against that camera's reference (timeline frame `f` is
+/// the camera's frame `f + offset`).
+fn score(
+    readings: &[Option<Reading>],
+    reference: &[Option<Frame3d>],
+    cam: &Camera,
+    video: DVec2,
+    offset: i64,
+) -> Scores {
+    let mut s = Scores::default();
+    let (mut bones, mut pa, mut lr) = (Vec::new(), Vec::new(), 0usize);
+    let mut judged: Vec<Option<&Reading>> = Vec::new();
+    for (f, r) in reference.iter().enumerate() {
+        let g = f as i64 + offset;
+        let reading = usize::try_from(g)
+            .ok()
+            .and_then(|g| readings.get(g)?.as_ref());
+        let (Some(r), Some(m)) = (r, reading) else {
+            judged.push(None);
+            continue;
+        };
+        judged.push(Some(m));
+        s.frames += 1;
+        let in_cam: Vec<DVec3> = r.joints.iter().map(|&p| cam.rot * p).collect();
+        for &(a, b) in &BONES {
+            let want = (in_cam[b] - in_cam[a]).normalize_or_zero();
+            let got = (m.world[b] - m.world[a]).normalize_or_zero();
+            bones.push(want.dot(got).clamp(-1.0, 1.0).acos().to_degrees());
+        }
+        let from: Vec<DVec3> = JOINTS.iter().map(|&j| m.world[j]).collect();
+        let to: Vec<DVec3> = JOINTS.iter().map(|&j| in_cam[j]).collect();
+        let aligned = similarity_aligned(&from, &to);
+        pa.push(mean(
+            &aligned
+                .iter()
+                .zip(&to)
+                .map(|(a, b)| a.distance(*b) * 1000.0)
+                .collect::<Vec<_>>(),
+        ));
+        let projected: Vec<DVec2> = r
+            .joints
+            .iter()
+            .map(|&p| cam.project(video, p).unwrap_or(DVec2::splat(f64::NAN)))
+            .collect();
+        lr += usize::from(reference3d::labels_agree(&m.image, &projected));
+    }
+    s.bone_deg = mean(&bones);
+    s.pa_mpjpe_mm = mean(&pa);
+    s.jitter_mm = jitter(judged.iter().map(|r| r.map(|r| r.world.clone())));
+    s.left_right = 100.0 * lr as f64 / s.frames.max(1) as f64;
+    s
+}
+
+/// Mean joint acceleration of the hip-centred points (mm per frame²) over runs of three
+/// consecutive frames.
+fn jitter(frames: impl Iterator<Item = Option<Vec<DVec3>>>) -> f64 {
+    let centred: Vec<Option<Vec<DVec3>>> = frames
+        .map(|f| {
+            f.map(|p| {
+                let hip = (p[idx::LEFT_HIP] + p[idx::RIGHT_HIP]) * 0.5;
+                JOINTS.iter().map(|&j| p[j] - hip).collect()
+            })
+        })
+        .collect();
+    let mut acc = Vec::new();
+    for w in centred.windows(3) {
+        if let [Some(a), Some(b), Some(c)] = w {
+            for j in 0..a.len() {
+                acc.push((a[j] - 2.0 * b[j] + c[j]).length() * 1000.0);
+            }
+        }
+    }
+    mean(&acc)
+}
+
+/// Coefficient of variation of a bone's length over the reference's frames.
+fn length_cv(reference: &[Option<Frame3d>], a: usize, b: usize) -> f64 {
+    let l: Vec<f64> = reference
+        .iter()
+        .flatten()
+        .map(|r| r.joints[a].distance(r.joints[b]))
+        .collect();
+    let m = mean(&l);
+    (mean(&l.iter().map(|x| (x - m) * (x - m)).collect::<Vec<_>>())).sqrt() / m.max(1e-9)
+}
+
+#[test]
+fn similarity_alignment_recovers_a_known_pose() {
+    let from: Vec<DVec3> = (0..12)
+        .map(|i| {
+            let t = i as f64;
+            DVec3::new(t.sin(), (t * 0.7).cos(), t * 0.1)
+        })
+        .collect();
+    let rot = glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.4, -1.1, 2.5);
+    let to: Vec<DVec3> = from
+        .iter()
+        .map(|p| rot * *p * 1.7 + DVec3::new(0.3, -2.0, 5.0))
+        .collect();
+    let aligned = similarity_aligned(&from, &to);
+    for (a, b) in aligned.iter().zip(&to) {
+        assert!(a.distance(*b) < 1e-9, "{a} against {b}");
+    }
+}
+
+/// The reference's own checks on camera `c` (left out of it): how far MediaPipe's landmarks
+/// in that camera land from the reference's projection (median, fraction of the torso; each
+/// frame read with whichever labelling fits, since this checks the geometry, not the labels).
+fn left_out_error(reference: &[Option<Frame3d>], view: &View) -> f64 {
+    let mut errors = Vec::new();
+    for (f, r) in reference.iter().enumerate() {
+        let g = f as i64 + view.offset;
+        let p = usize::try_from(g)
+            .ok()
+            .and_then(|g| view.frames.get(g)?.as_ref());
+        let (Some(r), Some(p)) = (r, p) else { continue };
+        let at = |i: usize| DVec2::new(p[i][0].into(), p[i][1].into());
+        let torso = ((at(11) + at(12)) - (at(23) + at(24))).length() * 0.5;
+        let projected: Vec<DVec2> = r
+            .joints
+            .iter()
+            .map(|&q| view.cam.project(view.video, q).unwrap_or(DVec2::splat(1e9)))
+            .collect();
+        let cost = |m: fn(usize) -> usize| -> Vec<f64> {
+            JOINTS
+                .iter()
+                .map(|&j| at(j).distance(projected[m(j)]) / torso.max(1.0))
+                .collect()
+        };
+        let (same, swapped) = (cost(|j| j), cost(reference3d::mirror));
+        errors.extend(if mean(&same) <= mean(&swapped) {
+            same
+        } else {
+            swapped
+        });
+    }
+    errors.sort_by(f64::total_cmp);
+    errors
+        .get(errors.len() / 2)
+        .copied()
+        .unwrap_or(f64::INFINITY)
+}
+
+fn row(camera: &str, model: &str, s: &Scores) -> String {
+    format!(
+        "| {camera} | {model} | {} | {:.1} | {:.0} | {:.2} | {:.1} |",
+        s.frames, s.bone_deg, s.pa_mpjpe_mm, s.jitter_mm, s.left_right
+    )
+}
+
+/// Issue 32's bounds on one camera: rigcast's default (lite) at least as accurate as MediaPipe
+/// and less jittery; left/right right on 99 % of frames with lite and full.
+fn misses(camera: &str, lite: &Scores, full: &Scores, theirs: &Scores) -> Vec<String> {
+    let mut out = Vec::new();
+    if lite.bone_deg > theirs.bone_deg {
+        out.push(format!(
+            "{camera}: lite's bone directions {:.1}° against MediaPipe's {:.1}°",
+            lite.bone_deg, theirs.bone_deg
+        ));
+    }
+    if lite.pa_mpjpe_mm > theirs.pa_mpjpe_mm {
+        out.push(format!(
+            "{camera}: lite's PA-MPJPE {:.0} mm against MediaPipe's {:.0} mm",
+            lite.pa_mpjpe_mm, theirs.pa_mpjpe_mm
+        ));
+    }
+    if lite.jitter_mm >= theirs.jitter_mm {
+        out.push(format!(
+            "{camera}: lite's jitter {:.2} against MediaPipe's {:.2} mm/frame²",
+            lite.jitter_mm, theirs.jitter_mm
+        ));
+    }
+    for (model, s) in [("lite", lite), ("full", full)] {
+        if s.left_right < 99.0 {
+            out.push(format!(
+                "{camera}: {model} labels left/right right on {:.1} % of frames",
+                s.left_right
+            ));
+        }
+    }
+    out
+}
+
+/// The reference's summary over every camera.
+fn print_reference(rig: &Rig) {
+    let all = rig.reference(None);
+    let kept: Vec<&Frame3d> = all.iter().flatten().collect();
+    let mut residual: Vec<f64> = kept.iter().map(|r| r.residual_px).collect();
+    residual.sort_by(f64::total_cmp);
+    let at = |q: usize| {
+        residual
+            .get(residual.len() * q / 10)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    println!(
+        "reference from MediaPipe full on {} cameras: frame offsets {:?} at {} fps; {} of {} \
+         frames; reprojection error median {:.1} px (p90 {:.1}); frames where MediaPipe's \
+         labels were mirrored, per camera: {:?}",
+        rig.cameras.len(),
+        rig.offsets,
+        rig.fps,
+        kept.len(),
+        rig.frames,
+        at(5),
+        at(9),
+        (0..rig.cameras.len())
+            .map(|k| kept.iter().filter(|r| r.mirrored >> k & 1 == 1).count())
+            .collect::<Vec<_>>()
+    );
+}
+
+/// Camera `c`'s reference from the other cameras, its row, and what is wrong with it.
+fn reference_row(rig: &Rig, c: usize) -> (Vec<Option<Frame3d>>, Option<String>) {
+    let cam = &rig.cameras[c].0;
+    let reference = rig.reference(Some(c));
+    let covered = reference.iter().flatten().count();
+    let left_out = left_out_error(&reference, &rig.view(c));
+    let cv = [(11, 13), (12, 14), (23, 25), (24, 26), (25, 27), (26, 28)]
+        .iter()
+        .map(|&(a, b)| length_cv(&reference, a, b))
+        .fold(0.0, f64::max);
+    let ref_jitter = jitter(reference.iter().map(|r| {
+        r.as_ref()
+            .map(|r| r.joints.iter().map(|&p| cam.rot * p).collect())
+    }));
+    println!(
+        "| {} | reference (the other cameras) | {covered} | MediaPipe's 2D here {:.1} % of the \
+         torso off it | bone lengths cv <= {cv:.3} | {ref_jitter:.2} | - |",
+        cam.name,
+        left_out * 100.0
+    );
+    let broken =
+        ((covered as f64) < 0.8 * rig.frames as f64 || left_out > 0.15 || cv > 0.15).then(|| {
+            format!(
+                "{}: reference on {covered} of {} frames, MediaPipe {:.1} % of the torso off \
+                 it, bone length cv {cv:.3}",
+                cam.name,
+                rig.frames,
+                left_out * 100.0
+            )
+        });
+    (reference, broken)
+}
+
+#[test]
+fn pose2sim_3d_reference_judges_each_camera_and_model() {
+    let Some((assets, config)) = common::default_config_or_skip("vision_reference3d") else {
+        return;
+    };
+    let python = match mediapipe_python() {
+        Ok(p) => p,
+        Err(reason) => {
+            println!("SKIP vision_reference3d: {reason}");
+            return;
+        }
+    };
+    let dir = assets.root.join("pose2sim");
+    let Some(rig) = Rig::new(&python, &dir) else {
+        println!(
+            "SKIP vision_reference3d: no calibration with 3+ cameras' videos in {}",
+            dir.display()
+        );
+        return;
+    };
+    print_reference(&rig);
+    println!(
+        "| camera | model | frames | bone direction ° | PA-MPJPE mm | jitter mm/frame² | left/right % |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    let (mut broken, mut missed) = (Vec::new(), Vec::new());
+    for (c, (cam, video)) in rig.cameras.iter().enumerate() {
+        let (reference, wrong) = reference_row(&rig, c);
+        broken.extend(wrong);
+        let size = rig.view(c).video;
+        let judge =
+            |readings: &[Option<Reading>]| score(readings, &reference, cam, size, rig.offsets[c]);
+        let lite = judge(&readings_of_rigcast(video, &config, ModelKind::Lite));
+        let full = judge(&readings_of_rigcast(video, &config, ModelKind::Full));
+        let theirs = judge(&readings_of_mediapipe(&rig.runs[c]));
+        for (model, s) in [
+            ("rigcast lite (default)", &lite),
+            ("rigcast full", &full),
+            ("MediaPipe full", &theirs),
+        ] {
+            println!("{}", row(&cam.name, model, s));
+            if s.frames == 0 {
+                broken.push(format!("{}: no frames judged for {model}", cam.name));
+            }
+        }
+        missed.extend(misses(&cam.name, &lite, &full, &theirs));
+    }
+    assert!(broken.is_empty(), "{}", broken.join("\n"));
+    if std::env::var("RIGCAST_FOOTAGE_ACCEPTANCE").as_deref() == Ok("1") {
+        assert!(missed.is_empty(), "{}", missed.join("\n"));
+    } else if !missed.is_empty() {
+        println!(
+            "outside issue 32's bounds (asserted with RIGCAST_FOOTAGE_ACCEPTANCE=1):\n{}",
+            missed.join("\n")
+        );
+    }
+}
