@@ -2,7 +2,8 @@
 # The judge on real footage (sources/tests/vision_footage.rs) in a release build, every frame of
 # every clip, lite and full, with issue 32's acceptance bounds asserted: per clip coverage of each
 # identity slot, identity jumps, left/right agreement and frame rate with decoding, against
-# MediaPipe Pose 0.10.14 (full, one person) on the same frames, clip by clip in turn. Then the
+# MediaPipe Pose 0.10.14 (full, one person) on the same frames, clip by clip in turn; the 3D
+# table of the pose2sim cameras (sources/tests/vision_reference3d.rs) with its bounds. Then the
 # frame rate of `rigcast pose` with the defaults against `--people 1` on every clip, the two
 # runs alternating clip by clip (the machine's load moves both alike).
 #
@@ -16,10 +17,14 @@ echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 status=0
 for model in lite full; do
     RIGCAST_TEST_MODEL=$model RIGCAST_FOOTAGE_FRAMES="${RIGCAST_FOOTAGE_FRAMES:-0}" \
-        RIGCAST_FOOTAGE_ACCEPTANCE=1 cargo test --release -q -p rigcast-sources \
-        --test vision_footage -- --include-ignored --nocapture 2>&1 | grep -E '^\||^model|^load|^SKIP|identity|MediaPipe|left/right|detector' \
-        || status=1
+        cargo test --release -q -p rigcast-sources --test vision_footage -- --ignored --exact \
+        default_settings_keep_the_person_against_mediapipe_on_real_footage --nocapture 2>&1 \
+        | grep -E '^\||^model|^load|^SKIP|identity|MediaPipe|left/right|detector' || status=1
 done
+# The 3D table (issue 32, item 4): lite, full and MediaPipe per pose2sim camera against the
+# triangulated reference, its bounds asserted.
+RIGCAST_FOOTAGE_ACCEPTANCE=1 cargo test --release -q -p rigcast-sources --test vision_reference3d \
+    -- --nocapture 2>&1 | grep -E '^\||^reference|^SKIP|^cam|panicked' || status=1
 
 cargo build --release -q -p rigcast-server
 BIN="${CARGO_TARGET_DIR:-target}/release/rigcast"

@@ -8,7 +8,10 @@
 #   3. scripts/setup-vmc-check.sh — python-osc (PyPI) in a private venv: the independent VMC
 #                                 receiver the VMC output is judged with
 #   4. scripts/setup-mediapipe.sh — MediaPipe Pose 0.10.14 (PyPI) in a private venv: the anchor
-#                                 the vision judge on real footage compares rigcast with
+#                                 the vision judge on real footage compares rigcast with (step 7
+#                                 runs the judge as a report, 60 frames a clip, and the 3D table
+#                                 of the pose2sim cameras: sources/tests/vision_footage.rs,
+#                                 vision_reference3d.rs)
 #   5. scripts/setup-bpy.sh     — the official `bpy` wheels (Blender 4.2, 4.5 LTS, 5.0) from PyPI,
 #                                 one cached venv each: the add-on's Blender test matrix
 #   6. scripts/check_layers.py  — dependencies point down (ARCHITECTURE.md, Layers), and its

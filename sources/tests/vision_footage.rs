@@ -4,36 +4,48 @@
 //! the same frames in the same run, clip by clip in turn.
 //!
 //! Per clip: coverage of every identity slot, identity jumps (a slot's hips moving more than
-//! 15 % of the frame between frames at most 2 apart; MediaPipe's by the same measure beside
-//! them; both sides' output landmarks, smoothed as each gives them by default), left/right agreement with MediaPipe where
-//! its reading is decisive and steady and both show the same person, the detector runs per frame, and the
-//! frame rate with decoding on both sides. Bounds (issue 32): person `#0`'s coverage within one
-//! point of MediaPipe's or above, no identity jumps, left/right right on at least 99 % of the
-//! frames with a reference, the detector at most once per frame, and (release builds only: a
-//! debug build's frame rate says nothing) at least twice MediaPipe's frame rate.
+//! 15 % of the source frame's longer side between frames at most 2 apart; MediaPipe's by the
+//! same measure beside them; both sides' output landmarks, smoothed as each gives them by
+//! default), left/right agreement, the detector runs per frame, and the frame rate with
+//! decoding on both sides. Left/right is judged against the 3D reference where the clip is a
+//! camera of a calibrated rig (the pose2sim single-person demo: `common/reference3d.rs`,
+//! triangulated from the rig's other cameras), elsewhere against MediaPipe where its reading is
+//! decisive and steady and both show the same person. Bounds (issue 32): person `#0`'s coverage
+//! within one point of MediaPipe's or above, no identity jumps, left/right right on at least
+//! 99 % of the frames with a reference, the detector at most once per frame, and (release
+//! builds only: a debug build's frame rate says nothing) at least twice MediaPipe's frame rate.
 //!
-//! MediaPipe comes from `scripts/setup-mediapipe.sh` (a private venv); without it the test
-//! prints rigcast's figures and skips the comparison with the reason. Ignored until today's
-//! tracker meets the bounds (BENCHMARKS.md: it does not on every clip);
-//! `scripts/bench-vision-footage.sh` runs it with them asserted (`RIGCAST_FOOTAGE_ACCEPTANCE=1`;
-//! without it the clips outside them are listed). Settings:
-//! `RIGCAST_TEST_MODEL` (lite, the default, or full), `RIGCAST_FOOTAGE_FRAMES` (frames per
-//! clip, 60 by default, 0 for all), `RIGCAST_FOOTAGE_CLIPS` (only clips whose names hold one
-//! of these comma-separated parts), `RIGCAST_MEDIAPIPE_PYTHON` (the venv's python),
-//! `RIGCAST_MEDIAPIPE_CACHE` (a folder keeping MediaPipe's landmarks between runs while
-//! iterating; its frame rate is then not compared).
+//! Two tests run the judge: `footage_judge_reports_every_clip` (every test run, CI's included:
+//! the table in the log and the clips outside the bounds listed; asserted: both programs ran on
+//! every clip and read the same frames) and the acceptance test, ignored until today's tracker
+//! meets the bounds (BENCHMARKS.md: it does not on every clip), which asserts them;
+//! `scripts/bench-vision-footage.sh` runs it in a release build over every frame. MediaPipe
+//! comes from `scripts/setup-mediapipe.sh` (a private venv); without it the tests print
+//! rigcast's figures and skip the comparison with the reason. Settings: `RIGCAST_TEST_MODEL`
+//! (lite, the default, or full), `RIGCAST_FOOTAGE_FRAMES` (frames per clip, 60 by default, 0
+//! for all), `RIGCAST_FOOTAGE_CLIPS` (only clips whose names hold one of these comma-separated
+//! parts), `RIGCAST_MEDIAPIPE_PYTHON` (the venv's python), `RIGCAST_MEDIAPIPE_CACHE` (a folder
+//! keeping MediaPipe's landmarks between runs while iterating; its frame rate is then not
+//! compared).
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
 mod common;
+#[path = "common/mediapipe.rs"]
+mod mediapipe;
+#[path = "common/multiview.rs"]
+mod multiview;
+#[path = "common/reference3d.rs"]
+mod reference3d;
 #[path = "common/shared_data.rs"]
 mod shared_data;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
-use glam::Vec2;
+use glam::{DVec2, Vec2};
+use mediapipe::{mediapipe_python, run_mediapipe, MediaPipeRun, Points};
+use reference3d::Rig;
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
     DecodeSize, FfmpegSource, FrameSource, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
@@ -48,9 +60,6 @@ const VIDEO_ENDINGS: [&str; 5] = ["mp4", "avi", "mkv", "mov", "webm"];
 const JUMP_FRACTION: f32 = 0.15;
 const JUMP_SPAN: usize = 2;
 
-/// Image points of one person in one frame (source pixels) with visibilities.
-type Points = Vec<[f32; 3]>;
-
 /// rigcast's run over one clip.
 struct Ours {
     width: f32,
@@ -62,12 +71,6 @@ struct Ours {
     detections: u64,
     /// Landmark model runs (crops).
     inferences: u64,
-}
-
-/// MediaPipe's run over the same frames.
-struct Theirs {
-    frames: Vec<Option<Points>>,
-    fps: f64,
 }
 
 fn frames_per_clip() -> Option<usize> {
@@ -122,10 +125,13 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
     let mut pipeline = PosePipeline::new(config).unwrap();
     let started = Instant::now();
     let mut source = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, 30.0).unwrap();
-    let (width, height) = source.size();
+    // Landmarks come in the source's pixels; the frames are decoded smaller.
+    let (decoded_width, decoded_height) = source.size();
     let mut frame = RgbFrame::default();
     let mut slots = Vec::new();
+    let mut to_source = 1.0;
     while max.is_none_or(|m| slots.len() < m) && source.next_frame(&mut frame).unwrap() {
+        to_source = frame.source_from_frame;
         pipeline.process_frame(&frame).unwrap();
         slots.push(
             (0..pipeline.num_people())
@@ -135,118 +141,13 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
     }
     let secs = started.elapsed().as_secs_f64();
     Ours {
-        width: width as f32,
-        height: height as f32,
+        width: decoded_width as f32 * to_source,
+        height: decoded_height as f32 * to_source,
         fps: slots.len() as f64 / secs,
         slots,
         detections: pipeline.stats().detections,
         inferences: pipeline.stats().inferences,
     }
-}
-
-/// The venv's python with MediaPipe 0.10.14, or the reason there is none.
-fn mediapipe_python() -> Result<PathBuf, String> {
-    let python = std::env::var_os("RIGCAST_MEDIAPIPE_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            let home = std::env::var_os("RIGCAST_HOME")
-                .map(PathBuf::from)
-                .unwrap_or_else(|| {
-                    PathBuf::from(std::env::var_os("HOME").unwrap_or_default())
-                        .join(".cache/rigcast")
-                });
-            home.join("mediapipe-0.10.14/bin/python")
-        });
-    let ok = Command::new(&python)
-        .args(["-c", "import mediapipe"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if ok {
-        Ok(python)
-    } else {
-        Err(format!(
-            "MediaPipe 0.10.14 is not installed at {} (scripts/setup-mediapipe.sh installs it)",
-            python.display()
-        ))
-    }
-}
-
-/// MediaPipe's run over `path` (its first `max` frames): in this run, or read back from
-/// `RIGCAST_MEDIAPIPE_CACHE` (a folder: `CLIP.json`, its landmarks over every frame, and
-/// `CLIP.txt`, its summary line, written there by the first run) while iterating on the
-/// tracker. A cached frame rate is from another run, so the speed ratio is not judged then.
-fn run_theirs(python: &Path, path: &Path, max: Option<usize>) -> (Theirs, bool) {
-    let name = path.file_name().unwrap().to_string_lossy().into_owned();
-    let cache = std::env::var_os("RIGCAST_MEDIAPIPE_CACHE").map(PathBuf::from);
-    let (json_path, text_path, cached) = match &cache {
-        Some(dir) => {
-            let (j, t) = (
-                dir.join(format!("{name}.json")),
-                dir.join(format!("{name}.txt")),
-            );
-            let cached = j.is_file() && t.is_file();
-            (j, t, cached)
-        }
-        None => {
-            let temp =
-                std::env::temp_dir().join(format!("rigcast-footage-{}-{name}", std::process::id()));
-            (
-                temp.with_extension("json"),
-                temp.with_extension("txt"),
-                false,
-            )
-        }
-    };
-    if !cached {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
-        let mut cmd = Command::new(python);
-        cmd.arg(&script)
-            .arg(path)
-            .args(["full", "1", "--landmarks"])
-            .arg(&json_path);
-        // A cache holds every frame, so that any bound reads it.
-        if let Some(m) = max.filter(|_| cache.is_none()) {
-            cmd.args(["--max-frames", &m.to_string()]);
-        }
-        let output = cmd.output().unwrap();
-        assert!(
-            output.status.success(),
-            "MediaPipe on {}: {}",
-            path.display(),
-            String::from_utf8_lossy(&output.stderr)
-        );
-        std::fs::write(&text_path, &output.stdout).unwrap();
-    }
-    let stdout = std::fs::read_to_string(&text_path).unwrap();
-    let fps = stdout
-        .split_whitespace()
-        .find_map(|w| w.strip_prefix("fps_with_decoding="))
-        .unwrap()
-        .parse()
-        .unwrap();
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
-    if cache.is_none() {
-        let _ = std::fs::remove_file(&json_path);
-        let _ = std::fs::remove_file(&text_path);
-    }
-    let frames = json["frames"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .take(max.unwrap_or(usize::MAX))
-        .map(|f| {
-            f.as_array().map(|pts| {
-                pts.iter()
-                    .map(|p| {
-                        let v = |i: usize| p[i].as_f64().unwrap() as f32;
-                        [v(0), v(1), v(2)]
-                    })
-                    .collect()
-            })
-        })
-        .collect();
-    (Theirs { frames, fps }, cached)
 }
 
 fn at(p: &Points, i: usize) -> Vec2 {
@@ -298,7 +199,7 @@ const STEADY: usize = 2;
 /// Frames where MediaPipe's left/right reading is a reference (see [`DECISIVE`], [`STEADY`])
 /// and rigcast's `#0` is the same person (hips within half a torso): (such frames, rigcast's
 /// labels the same way round).
-fn left_right(ours: &Ours, theirs: &Theirs) -> (usize, usize) {
+fn left_right(ours: &Ours, theirs: &MediaPipeRun) -> (usize, usize) {
     let way: Vec<Option<f32>> = theirs
         .frames
         .iter()
@@ -330,11 +231,145 @@ fn percent(n: usize, of: usize) -> f64 {
     100.0 * n as f64 / of.max(1) as f64
 }
 
-#[test]
-#[ignore = "issue 32: the default tracker does not meet these bounds on every clip yet; scripts/bench-vision-footage.sh runs it"]
-fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
+/// Frames where the 3D reference (from the rig's other cameras) sees the person and rigcast's
+/// `#0` is that person (hips within half a torso of the reference's projected hips): (such
+/// frames, rigcast's labels the same way round as the reference's projection).
+fn left_right_3d(ours: &Ours, rig: &Rig, camera: usize) -> (usize, usize) {
+    let reference = rig.reference(Some(camera));
+    let view = rig.view(camera);
+    let (mut frames, mut agree) = (0, 0);
+    for (i, slots) in ours.slots.iter().enumerate() {
+        let f = usize::try_from(i as i64 - view.offset).ok();
+        let (Some(us), Some(r)) = (&slots[0], f.and_then(|f| reference.get(f)?.as_ref())) else {
+            continue;
+        };
+        let Some(projected) = r
+            .joints
+            .iter()
+            .map(|&p| view.cam.project(view.video, p))
+            .collect::<Option<Vec<DVec2>>>()
+        else {
+            continue;
+        };
+        let mid = |a: usize, b: usize| (projected[a] + projected[b]) * 0.5;
+        let hips_at = mid(idx::LEFT_HIP, idx::RIGHT_HIP);
+        let torso = mid(idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER).distance(hips_at);
+        if hips(us).as_dvec2().distance(hips_at) > 0.5 * torso {
+            continue;
+        }
+        frames += 1;
+        agree += usize::from(reference3d::labels_agree(us, &projected));
+    }
+    (frames, agree)
+}
+
+/// What one clip's row compares rigcast with: MediaPipe on the same frames, and the 3D
+/// reference where the clip is a camera of a calibrated rig.
+struct Anchors<'a> {
+    mediapipe: Result<PathBuf, String>,
+    rig: Option<&'a Rig>,
+}
+
+/// One clip: its table row, and the bounds it misses. Panics if either program fails on it.
+fn judge_clip(
+    clip: &Path,
+    config: &PipelineConfig,
+    max: Option<usize>,
+    anchors: &Anchors,
+) -> (String, Vec<String>) {
+    let name = clip.file_name().unwrap().to_string_lossy().into_owned();
+    let ours = run_ours(clip, config, max);
+    let n = ours.slots.len();
+    assert!(n > 0, "{name}: no frame decoded");
+    let slots = ours.slots.first().map_or(0, Vec::len);
+    let coverage: Vec<f64> = (0..slots)
+        .map(|s| percent(ours.slots.iter().filter(|f| f[s].is_some()).count(), n))
+        .collect();
+    let side = ours.width.max(ours.height);
+    let our_jumps: usize = (0..slots)
+        .map(|s| jumps(ours.slots.iter().map(|f| f[s].as_ref()), side))
+        .sum();
+    let mut failures = Vec::new();
+    if our_jumps > 0 {
+        failures.push(format!("{name}: {our_jumps} identity jumps"));
+    }
+    if ours.detections > n as u64 {
+        failures.push(format!(
+            "{name}: {} detector runs over {n} frames",
+            ours.detections
+        ));
+    }
+    let coverage_text = coverage
+        .iter()
+        .map(|c| format!("{c:.1}"))
+        .collect::<Vec<_>>()
+        .join(" / ");
+    let ours_text = format!("| {name} | {n} | {coverage_text} |",);
+    let tail = format!(
+        "{} | {:.2} | {:.1} |",
+        ours.detections,
+        ours.inferences as f64 / n.max(1) as f64,
+        ours.fps
+    );
+    let Ok(python) = &anchors.mediapipe else {
+        return (
+            format!("{ours_text} - | {our_jumps} (-) | - | {tail} - | - |"),
+            failures,
+        );
+    };
+    let theirs = run_mediapipe(python, clip, max);
+    assert_eq!(
+        theirs.frames.len(),
+        n,
+        "{name}: MediaPipe and rigcast read different frame counts"
+    );
+    let theirs_cov = percent(theirs.frames.iter().filter(|f| f.is_some()).count(), n);
+    let camera = anchors
+        .rig
+        .and_then(|rig| Some((rig, rig.camera_of(clip)?)));
+    let (reference, agree, against) = match camera {
+        Some((rig, c)) => {
+            let (r, a) = left_right_3d(&ours, rig, c);
+            (r, a, "3D")
+        }
+        None => {
+            let (r, a) = left_right(&ours, &theirs);
+            (r, a, "MediaPipe")
+        }
+    };
+    let ratio = ours.fps / theirs.fps;
+    let agreement = if reference > 0 {
+        format!("{:.1}", percent(agree, reference))
+    } else {
+        "-".into()
+    };
+    let row = format!(
+        "{ours_text} {theirs_cov:.1} | {our_jumps} ({}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} |",
+        jumps(theirs.frames.iter().map(Option::as_ref), side),
+        theirs.fps,
+        if theirs.cached { "- (cached)".into() } else { format!("{ratio:.2}") },
+    );
+    if coverage.first().copied().unwrap_or(0.0) < theirs_cov - 1.0 {
+        failures.push(format!(
+            "{name}: person #0 in {:.1} % of frames, MediaPipe {theirs_cov:.1} %",
+            coverage[0]
+        ));
+    }
+    if reference > 0 && percent(agree, reference) < 99.0 {
+        failures.push(format!(
+            "{name}: left/right as the {against} reference in {agree} of {reference} frames"
+        ));
+    }
+    if !cfg!(debug_assertions) && !theirs.cached && ratio < 2.0 {
+        failures.push(format!("{name}: {ratio:.2}× MediaPipe's frame rate"));
+    }
+    (row, failures)
+}
+
+/// The judge over every clip found: the table printed, the bounds missed returned.
+fn judge() -> Vec<String> {
     let Some((assets, config)) = common::default_config_or_skip("vision_footage") else {
-        return;
+        return Vec::new();
     };
     let config = PipelineConfig {
         model: model(),
@@ -343,15 +378,21 @@ fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
     let clips = clips(&assets);
     if clips.is_empty() {
         println!("SKIP vision_footage: no clips found");
-        return;
+        return Vec::new();
     }
     let mediapipe = mediapipe_python();
     if let Err(reason) = &mediapipe {
         println!("SKIP the comparison with MediaPipe: {reason}");
     }
+    // The 3D reference is built only when a clip judged is one of its cameras.
+    let pose2sim = assets.root.join("pose2sim");
+    let rig = mediapipe.as_ref().ok().filter(|_| {
+        reference3d::calibrated_cameras(&pose2sim)
+            .is_some_and(|cams| cams.iter().any(|(_, v)| clips.contains(v)))
+    });
+    let rig = rig.and_then(|python| Rig::new(python, &pose2sim));
     let max = frames_per_clip();
-    let speed_judged = !cfg!(debug_assertions);
-    if !speed_judged {
+    if cfg!(debug_assertions) {
         println!("frame rates not judged: a debug build");
     }
     println!(
@@ -362,88 +403,17 @@ fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
             .unwrap_or_default()
             .trim()
     );
-    println!("| clip | frames | coverage per slot % | MediaPipe % | jumps (MediaPipe) | left/right % (frames) | detector runs | model runs / frame | fps | MediaPipe fps | ratio |");
+    println!("| clip | frames | coverage per slot % | MediaPipe % | jumps (MediaPipe) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps | ratio |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    let anchors = Anchors {
+        mediapipe,
+        rig: rig.as_ref(),
+    };
     let mut failures = Vec::new();
     for clip in &clips {
-        let name = clip.file_name().unwrap().to_string_lossy().into_owned();
-        let ours = run_ours(clip, &config, max);
-        let n = ours.slots.len();
-        let slots = ours.slots.first().map_or(0, Vec::len);
-        let coverage: Vec<f64> = (0..slots)
-            .map(|s| percent(ours.slots.iter().filter(|f| f[s].is_some()).count(), n))
-            .collect();
-        let side = ours.width.max(ours.height);
-        let our_jumps: usize = (0..slots)
-            .map(|s| jumps(ours.slots.iter().map(|f| f[s].as_ref()), side))
-            .sum();
-        if our_jumps > 0 {
-            failures.push(format!("{name}: {our_jumps} identity jumps"));
-        }
-        if ours.detections > n as u64 {
-            failures.push(format!(
-                "{name}: {} detector runs over {n} frames",
-                ours.detections
-            ));
-        }
-        let coverage_text = coverage
-            .iter()
-            .map(|c| format!("{c:.1}"))
-            .collect::<Vec<_>>()
-            .join(" / ");
-        let mut row = format!(
-            "| {name} | {n} | {coverage_text} | {{mp}} | {our_jumps} ({{mpjumps}}) | {{lr}} | {} | {:.2} | {:.1} | {{mpfps}} | {{ratio}} |",
-            ours.detections,
-            ours.inferences as f64 / n.max(1) as f64,
-            ours.fps
-        );
-        if let Ok(python) = &mediapipe {
-            let (theirs, cached) = run_theirs(python, clip, max);
-            let theirs_cov = percent(theirs.frames.iter().filter(|f| f.is_some()).count(), n);
-            let (reference, agree) = left_right(&ours, &theirs);
-            let ratio = ours.fps / theirs.fps;
-            row = row
-                .replace("{mp}", &format!("{theirs_cov:.1}"))
-                .replace(
-                    "{mpjumps}",
-                    &jumps(theirs.frames.iter().map(Option::as_ref), side).to_string(),
-                )
-                .replace(
-                    "{lr}",
-                    &format!("{:.1} ({reference})", percent(agree, reference)),
-                )
-                .replace("{mpfps}", &format!("{:.1}", theirs.fps))
-                .replace(
-                    "{ratio}",
-                    &if cached {
-                        "- (cached)".into()
-                    } else {
-                        format!("{ratio:.2}")
-                    },
-                );
-            if coverage.first().copied().unwrap_or(0.0) < theirs_cov - 1.0 {
-                failures.push(format!(
-                    "{name}: person #0 in {:.1} % of frames, MediaPipe {theirs_cov:.1} %",
-                    coverage[0]
-                ));
-            }
-            if reference > 0 && percent(agree, reference) < 99.0 {
-                failures.push(format!(
-                    "{name}: left/right as MediaPipe in {agree} of {reference} frames"
-                ));
-            }
-            if speed_judged && !cached && ratio < 2.0 {
-                failures.push(format!("{name}: {ratio:.2}× MediaPipe's frame rate"));
-            }
-        } else {
-            row = row
-                .replace("{mp}", "-")
-                .replace("{mpjumps}", "-")
-                .replace("{lr}", "-")
-                .replace("{mpfps}", "-")
-                .replace("{ratio}", "-");
-        }
+        let (row, missed) = judge_clip(clip, &config, max, &anchors);
         println!("{row}");
+        failures.extend(missed);
     }
     println!(
         "load at the end {}",
@@ -451,12 +421,28 @@ fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
             .unwrap_or_default()
             .trim()
     );
-    if std::env::var("RIGCAST_FOOTAGE_ACCEPTANCE").as_deref() == Ok("1") {
-        assert!(failures.is_empty(), "{}", failures.join("\n"));
-    } else if !failures.is_empty() {
+    failures
+}
+
+/// The judge as a report (CI runs it, 60 frames per clip by default): the table in the log and
+/// the clips outside issue 32's bounds listed. Asserted: both programs ran on every clip, read
+/// the same frames and gave figures (a failure in either panics).
+#[test]
+fn footage_judge_reports_every_clip() {
+    let failures = judge();
+    if !failures.is_empty() {
         println!(
-            "outside issue 32's bounds (asserted with RIGCAST_FOOTAGE_ACCEPTANCE=1):\n{}",
+            "outside issue 32's bounds (asserted by the ignored acceptance test):\n{}",
             failures.join("\n")
         );
     }
+}
+
+/// Issue 32's bounds asserted on every clip (`scripts/bench-vision-footage.sh` runs it: release,
+/// every frame, lite and full).
+#[test]
+#[ignore = "issue 32: the default tracker does not meet these bounds on every clip yet; scripts/bench-vision-footage.sh runs it"]
+fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
+    let failures = judge();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
