@@ -23,7 +23,10 @@
 //! camera. Issue 32's bounds (rigcast's default at least as accurate as MediaPipe full on every
 //! camera, less jittery, left/right right on 99 % of frames) are listed, and asserted with
 //! `RIGCAST_FOOTAGE_ACCEPTANCE=1`. Needs MediaPipe (`scripts/setup-mediapipe.sh`); skips with
-//! the reason without it.
+//! the reason without it. The geometry itself is proven on a synthetic rig written in the
+//! calibration's own format (no footage needed): a known body comes back through padded,
+//! distorted views, with a view read mirrored, with every view mirrored, and with one view's
+//! wrist far off.
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
@@ -428,4 +431,165 @@ fn pose2sim_3d_reference_judges_each_camera_and_model() {
             missed.join("\n")
         );
     }
+}
+
+/// A Qualisys export of cameras at `positions` (metres) looking at `target`, world z up, a
+/// 1088×1920 portrait picture with mild distortion: the file's own conventions (rows of the
+/// camera's axes with y up and z backwards, mm, 1/64 pixel), written from known geometry.
+fn synthetic_qca(positions: &[DVec3], target: DVec3) -> String {
+    let mut text = String::from("<calibration><cameras>\n");
+    for (k, &pos) in positions.iter().enumerate() {
+        // OpenCV axes: z forward, y down, x = y × z; the file keeps y up and z backwards.
+        let z = (target - pos).normalize();
+        let y = (DVec3::NEG_Z - z * DVec3::NEG_Z.dot(z)).normalize();
+        let x = y.cross(z);
+        let rows = [x, -y, -z];
+        let r = |i: usize, j: usize| rows[i - 1][j - 1];
+        text += &format!(
+            "<camera active=\"1\" serial=\"c{k}\"><fov_video bottom=\"1919\" left=\"0\" right=\"1087\" top=\"0\"/>\
+             <transform r11=\"{}\" r12=\"{}\" r13=\"{}\" r21=\"{}\" r22=\"{}\" r23=\"{}\" r31=\"{}\" r32=\"{}\" r33=\"{}\" x=\"{}\" y=\"{}\" z=\"{}\"/>\
+             <intrinsic centerPointU=\"{}\" centerPointV=\"{}\" focalLengthU=\"{}\" focalLengthV=\"{}\" radialDistortion1=\"-0.05\" radialDistortion2=\"0.14\" tangentalDistortion1=\"0.0006\" tangentalDistortion2=\"0.0007\"/></camera>\n",
+            r(1, 1), r(1, 2), r(1, 3), r(2, 1), r(2, 2), r(2, 3), r(3, 1), r(3, 2), r(3, 3),
+            pos.x * 1000.0, pos.y * 1000.0, pos.z * 1000.0,
+            540.0 * 64.0, 965.0 * 64.0, 1680.0 * 64.0, 1681.0 * 64.0,
+        );
+    }
+    text + "</cameras></calibration>\n"
+}
+
+/// A standing body facing +y (its left towards -x), z up: the reference's landmarks, metres.
+fn synthetic_body() -> Vec<DVec3> {
+    let mut p = vec![DVec3::new(0.0, 0.1, 1.65); 33]; // the face: in front of the shoulders
+    for (left, right, at) in [
+        (11, 12, DVec3::new(0.2, 0.0, 1.5)),
+        (13, 14, DVec3::new(0.25, 0.0, 1.2)),
+        (15, 16, DVec3::new(0.25, 0.1, 0.95)),
+        (23, 24, DVec3::new(0.1, 0.0, 1.0)),
+        (25, 26, DVec3::new(0.1, 0.05, 0.55)),
+        (27, 28, DVec3::new(0.1, 0.0, 0.1)),
+    ] {
+        p[left] = DVec3::new(-at.x, at.y, at.z);
+        p[right] = at;
+    }
+    p
+}
+
+/// Four cameras around the synthetic body, their videos (1080 wide for the first two: the
+/// calibrated picture padded), and each view's landmarks of `body` in one frame, the views
+/// in `mirrored` with left and right exchanged.
+fn synthetic_views(
+    body: &[DVec3],
+    mirrored: u32,
+) -> (Vec<Camera>, Vec<DVec2>, Vec<Vec<Option<Points>>>) {
+    let positions: Vec<DVec3> = (0..4)
+        .map(|k| {
+            let a = 0.6 + f64::from(k) * 1.3;
+            DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 1.8)
+        })
+        .collect();
+    let cameras =
+        multiview::read_qca(&synthetic_qca(&positions, DVec3::new(0.0, 0.0, 1.0))).unwrap();
+    let videos: Vec<DVec2> = (0..4)
+        .map(|k| {
+            if k < 2 {
+                DVec2::new(1080.0, 1920.0)
+            } else {
+                DVec2::new(1088.0, 1920.0)
+            }
+        })
+        .collect();
+    let frames = cameras
+        .iter()
+        .zip(&videos)
+        .enumerate()
+        .map(|(k, (cam, &video))| {
+            let label = |j: usize| {
+                if mirrored >> k & 1 == 1 {
+                    reference3d::mirror(j)
+                } else {
+                    j
+                }
+            };
+            let points = (0..33)
+                .map(|j| {
+                    let px = cam.project(video, body[label(j)]).unwrap();
+                    [px.x as f32, px.y as f32, 1.0]
+                })
+                .collect();
+            vec![Some(points)]
+        })
+        .collect();
+    (cameras, videos, frames)
+}
+
+fn views<'a>(
+    cameras: &'a [Camera],
+    videos: &[DVec2],
+    frames: &'a [Vec<Option<Points>>],
+) -> Vec<View<'a>> {
+    cameras
+        .iter()
+        .zip(videos)
+        .zip(frames)
+        .map(|((cam, &video), frames)| View {
+            cam,
+            video,
+            frames,
+            offset: 0,
+        })
+        .collect()
+}
+
+#[test]
+fn triangulation_recovers_a_known_body_through_padded_and_distorted_views() {
+    let body = synthetic_body();
+    let (cameras, videos, frames) = synthetic_views(&body, 0);
+    // Projection and its inverse agree through the padding and the distortion.
+    for (cam, &video) in cameras.iter().zip(&videos) {
+        let px = cam.project(video, body[15]).unwrap();
+        let ray = cam.ray(video, px);
+        let c = cam.to_camera(body[15]);
+        assert!(
+            ray.distance(c.truncate() / c.z) < 1e-9,
+            "{}: {ray}",
+            cam.name
+        );
+    }
+    let r = reference3d::frame(&views(&cameras, &videos, &frames), 0).unwrap();
+    for &j in &reference3d::BODY {
+        assert!(
+            r.joints[j].distance(body[j]) < 1e-6,
+            "joint {j}: {} against {}",
+            r.joints[j],
+            body[j]
+        );
+    }
+    assert!(r.residual_px < 1e-3 && r.mirrored == 0, "{r:?}");
+}
+
+#[test]
+fn the_reference_takes_sides_from_the_body_not_from_the_views_labels() {
+    let body = synthetic_body();
+    // One view mirrored: found and read the other way round. Every view mirrored: the
+    // triangulation is the mirror image's, and the face puts the sides back.
+    for mirrored in [0b0100, 0b1111] {
+        let (cameras, videos, frames) = synthetic_views(&body, mirrored);
+        let r = reference3d::frame(&views(&cameras, &videos, &frames), 0).unwrap();
+        assert_eq!(r.mirrored, mirrored, "views read mirrored");
+        for &j in &reference3d::BODY {
+            assert!(
+                r.joints[j].distance(body[j]) < 1e-6,
+                "mirrored {mirrored:b}, joint {j}"
+            );
+        }
+    }
+    // One view's left wrist 150 px off: that view is left out of the wrist.
+    let (cameras, videos, mut frames) = synthetic_views(&body, 0);
+    frames[1][0].as_mut().unwrap()[15][0] += 150.0;
+    let r = reference3d::frame(&views(&cameras, &videos, &frames), 0).unwrap();
+    assert!(
+        r.joints[15].distance(body[15]) < 1e-6,
+        "wrist at {}",
+        r.joints[15]
+    );
 }

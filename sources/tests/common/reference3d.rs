@@ -46,6 +46,8 @@ pub const REJECT: f64 = 0.2;
 /// A frame is a reference when its median reprojection error is within this fraction of the
 /// torso.
 pub const ACCEPT: f64 = 0.1;
+/// At most this many views make a frame.
+pub const MAX_VIEWS: usize = 8;
 /// Camera offsets are searched within this many seconds either way.
 pub const MAX_SHIFT_SECS: f64 = 0.2;
 
@@ -164,7 +166,12 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// The reference at frame `f` from the views that see it (at least two), or `None`.
 pub fn frame(views: &[View], f: i64) -> Option<Frame3d> {
-    let seen: Vec<Seen> = views.iter().filter_map(|v| seen(v, f)).collect();
+    // Every labelling is tried: 2^(views - 1) of them, so a larger rig counts its first ones.
+    let seen: Vec<Seen> = views
+        .iter()
+        .filter_map(|v| seen(v, f))
+        .take(MAX_VIEWS)
+        .collect();
     if seen.len() < 2 {
         return None;
     }
