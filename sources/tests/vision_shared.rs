@@ -269,3 +269,80 @@ fn a_person_leaving_the_view_loses_only_their_own_subject() {
         "end of input makes everyone lost"
     );
 }
+
+/// Publishing the tracked people before the finder runs (what the pipeline thread does, so a
+/// detector pass never holds up their poses) changes nobody's result: on real footage with
+/// one and two people, [`PosePipeline::track_frame`] then [`PosePipeline::find_people`] give
+/// every slot the poses [`PosePipeline::process_frame`] gives, and the finder never changes a
+/// pose already published by `track_frame`. Checked on frames where the finder did run with
+/// someone tracked, so the property is exercised.
+#[test]
+fn the_finder_never_changes_a_tracked_persons_published_pose() {
+    let Some((assets, config)) = default_config_or_skip("publish before the finder") else {
+        return;
+    };
+    let (mut exercised, mut found_later) = (0, 0);
+    for video in [assets.pose2sim_video(1), assets.pose2sim_multi_video(2)] {
+        let mut frames = FfmpegSource::open_at(&video, DecodeSize::FOR_MODEL, 30.0).unwrap();
+        let mut whole = PosePipeline::new(&config).unwrap();
+        let mut halves = PosePipeline::new(&config).unwrap();
+        let mut frame = RgbFrame::default();
+        let mut published: Vec<Option<Pose>> = vec![None; halves.num_people()];
+        let mut seen = 0;
+        while frames.next_frame(&mut frame).unwrap() {
+            whole.process_frame(&frame).unwrap();
+            halves.track_frame(&frame).unwrap();
+            for (slot, p) in published.iter_mut().enumerate() {
+                *p = halves
+                    .person(slot)
+                    .map(|_| halves.pose(slot).unwrap().clone());
+            }
+            let detections = halves.stats().detections;
+            found_later += usize::from(halves.find_people(&frame).unwrap());
+            let finder_ran = halves.stats().detections > detections;
+            exercised += usize::from(finder_ran && published.iter().any(Option::is_some));
+            for (slot, p) in published.iter().enumerate() {
+                if let Some(p) = p {
+                    assert!(
+                        halves.person(slot).is_some(),
+                        "#{slot} unseen after the finder"
+                    );
+                    let now = &halves.pose(slot).unwrap().rotations;
+                    assert!(
+                        p.rotations == *now,
+                        "the finder changed #{slot}'s published pose"
+                    );
+                }
+                let (a, b) = (whole.person(slot).is_some(), halves.person(slot).is_some());
+                assert_eq!(
+                    a, b,
+                    "frame {}: #{slot} seen {a} whole, {b} in halves",
+                    frame.index
+                );
+                if a {
+                    seen += 1;
+                    let d = pose_distance(whole.pose(slot).unwrap(), halves.pose(slot).unwrap());
+                    // ONNX Runtime's threads make two runs of one pipeline differ by ~1e-3 rad.
+                    assert!(
+                        d < 0.01,
+                        "frame {}: #{slot} differs by {d} rad",
+                        frame.index
+                    );
+                }
+            }
+        }
+        eprintln!(
+            "{}: {seen} poses alike; so far the finder ran on {exercised} frames with \
+             someone published before it and found someone on {found_later}",
+            video.display()
+        );
+    }
+    assert!(
+        exercised >= 5,
+        "the finder ran after a publication on {exercised} frames"
+    );
+    assert!(
+        found_later >= 2,
+        "the finder found someone on {found_later} frames"
+    );
+}

@@ -162,29 +162,60 @@ impl PosePipeline {
     /// [`Self::raw_person`] tell each slot's result. A slot not seen in this frame keeps its
     /// last pose (the caller holds it).
     pub fn process_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
-        self.tracker.process_frame(frame)?;
-        let solving = std::time::Instant::now();
-        for (slot, person) in self.people.iter_mut().enumerate() {
-            match self.tracker.person(slot) {
-                Some(tracked) => {
-                    person.raw = *tracked;
-                    person.raw.scale_image(frame.source_from_frame);
-                    person
-                        .stages
-                        .process(&person.raw, frame.time_secs, &mut person.pose);
-                    person.seen = true;
-                }
-                None => {
-                    person.stages.lost();
-                    person.seen = false;
-                }
-            }
-        }
-        self.solve_time = solving.elapsed();
+        self.track_frame(frame)?;
+        self.find_people(frame)?;
         Ok(())
     }
 
-    /// Time the last frame spent after the model: smoothing, limb lengths, solving.
+    /// The first half of [`Self::process_frame`]: the people already tracked, landmarks to
+    /// poses. Afterwards [`Self::person`] and [`Self::pose`] tell their results, ready to be
+    /// published before [`Self::find_people`] (which must follow on the same frame) runs the
+    /// finder.
+    pub fn track_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        self.tracker.track(frame)?;
+        self.solve_time = std::time::Duration::ZERO;
+        for person in self.people.iter_mut() {
+            person.seen = false;
+        }
+        self.solve_seen(frame);
+        Ok(())
+    }
+
+    /// The second half of [`Self::process_frame`]: the finder when it is due. Returns whether
+    /// it found anyone (they are seen in this frame, their poses solved); every slot still
+    /// unseen is then lost for this frame.
+    pub fn find_people(&mut self, frame: &RgbFrame) -> Result<bool, VisionError> {
+        self.tracker.find(frame)?;
+        let found = self.solve_seen(frame);
+        for person in self.people.iter_mut().filter(|p| !p.seen) {
+            person.stages.lost();
+        }
+        Ok(found)
+    }
+
+    /// Solves every slot the tracker saw in this frame that is not solved yet; returns whether
+    /// there was any.
+    fn solve_seen(&mut self, frame: &RgbFrame) -> bool {
+        let solving = std::time::Instant::now();
+        let mut any = false;
+        for (slot, person) in self.people.iter_mut().enumerate() {
+            let Some(tracked) = self.tracker.person(slot).filter(|_| !person.seen) else {
+                continue;
+            };
+            person.raw = *tracked;
+            person.raw.scale_image(frame.source_from_frame);
+            person
+                .stages
+                .process(&person.raw, frame.time_secs, &mut person.pose);
+            person.seen = true;
+            any = true;
+        }
+        self.solve_time += solving.elapsed();
+        any
+    }
+
+    /// Time the last frame spent after the model: smoothing, limb lengths, solving (both
+    /// halves).
     pub fn solve_time(&self) -> std::time::Duration {
         self.solve_time
     }

@@ -2,13 +2,19 @@
 //! person.
 //!
 //! ```text
-//!  pipeline thread: FrameSource ─▶ PosePipeline::process_frame (decode + model once for all)
+//!  pipeline thread: FrameSource ─▶ PosePipeline::track_frame (the people tracked: one batch)
 //!      │  per slot #k: pose, raw landmarks, seen ──▶ Mutex<Slots> (copied, no allocation)
-//!      └─ frame counter += 1, Condvar::notify_all
+//!      ├─ the slots seen: publication stamps, Condvar::notify_all
+//!      └─ PosePipeline::find_people (the finder, when due) ─▶ every other slot published alike
 //!                  │
-//!   PersonSource #0 ◀─┤ next_frame: wait for a newer frame, copy slot #0's pose
-//!   PersonSource #1 ◀─┘ next_frame: wait for a newer frame, copy slot #1's pose
+//!   PersonSource #0 ◀─┤ next_frame: wait for a newer publication of slot #0, copy its pose
+//!   PersonSource #1 ◀─┘ next_frame: wait for a newer publication of slot #1, copy its pose
 //! ```
+//!
+//! The finder runs after the tracked people's poses are out: a detector pass (several while
+//! someone is missing) costs as much as a landmark run or more, and must not stand between a
+//! tracked performer's frame and the wire (`glass_to_pose` is measured to the first
+//! publication with someone in it).
 //!
 //! Each [`PersonSource`] is a [`LiveSource`] of its own, so each person is a subject of its
 //! own with its own health: a person who leaves the view makes only their subject report
@@ -69,13 +75,18 @@ struct Slot {
     pose: Pose,
     raw: Landmarks,
     seen: bool,
+    /// The publication that last wrote this slot; its person source waits for a newer one.
+    publication: u64,
 }
 
 /// What the pipeline thread and the person sources share (under one mutex).
 #[derive(Debug)]
 struct Slots {
-    /// Frames processed so far; a person source waits for this to pass what it last read.
-    frames: u64,
+    /// Publications so far: two per frame, the tracked people's and then everyone else's
+    /// (see [`publish`]).
+    publications: u64,
+    /// The first publication of the frame being published.
+    frame_start: u64,
     /// When the last frame was captured (Unix nanoseconds): for a paced file, when it was
     /// due; for a camera, when its processing started.
     capture_nanos: u64,
@@ -176,11 +187,13 @@ impl SharedVision {
                 pose: skeleton.rest_pose(),
                 raw: Landmarks::default(),
                 seen: false,
+                publication: 0,
             })
             .collect();
         let shared = Arc::new(Shared {
             slots: Mutex::new(Slots {
-                frames: 0,
+                publications: 0,
+                frame_start: 0,
                 capture_nanos: 0,
                 arrived: Instant::now(),
                 time_secs: 0.0,
@@ -239,7 +252,7 @@ impl SharedVision {
             hub: self.hub.clone(),
             skeleton: self.skeleton.clone(),
             person,
-            last_frame: 0,
+            last_publication: 0,
             last_lost: 0,
             ended_reported: false,
             health,
@@ -291,15 +304,29 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
             unix_nanos_now()
         };
         let found_before = runner.pipeline.stats().find_nanos;
-        if let Err(e) = runner.pipeline.process_frame(&frame) {
+        // The people already tracked go out first: the finder (a detector pass, several
+        // while someone is missing) runs after their poses are published, so it never holds
+        // up this frame's poses. Whoever it finds goes out as soon as it is done.
+        if let Err(e) = runner.pipeline.track_frame(&frame) {
             break Ended::Failed(e.to_string());
         }
-        let model = arrived
-            .elapsed()
-            .saturating_sub(runner.pipeline.solve_time());
-        publish(&runner.pipeline, &frame, arrived, capture_nanos, shared);
+        let stamp = Stamp {
+            arrived,
+            capture_nanos,
+            time_secs: frame.time_secs,
+        };
+        let mut posed = publish(&runner.pipeline, &stamp, shared, true).then(unix_nanos_now);
+        if let Err(e) = runner.pipeline.find_people(&frame) {
+            break Ended::Failed(e.to_string());
+        }
+        if publish(&runner.pipeline, &stamp, shared, false) {
+            posed.get_or_insert_with(unix_nanos_now);
+        }
         if frame.clock.captured_unix_nanos > 0 {
             let detect = runner.pipeline.stats().find_nanos - found_before;
+            let model = arrived
+                .elapsed()
+                .saturating_sub(runner.pipeline.solve_time());
             let c = frame.clock;
             let times = [
                 c.dequeued_unix_nanos.saturating_sub(c.captured_unix_nanos),
@@ -307,7 +334,9 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
                 detect,
                 (model.as_nanos() as u64).saturating_sub(detect),
                 runner.pipeline.solve_time().as_nanos() as u64,
-                unix_nanos_now().saturating_sub(c.captured_unix_nanos),
+                posed
+                    .unwrap_or_else(unix_nanos_now)
+                    .saturating_sub(c.captured_unix_nanos),
             ];
             let mut s = shared.lock();
             s.camera = runner.frames.camera_mode();
@@ -330,31 +359,51 @@ fn pace(frame: &RgbFrame, pace: &mut Pace, shared: &Shared) -> bool {
     true
 }
 
-/// Copies every slot's result out of the pipeline and wakes the person sources.
-fn publish(
-    pipeline: &PosePipeline,
-    frame: &RgbFrame,
+/// When a frame was captured and its processing started, and its time in the input.
+struct Stamp {
     arrived: Instant,
     capture_nanos: u64,
-    shared: &Shared,
-) {
+    time_secs: f64,
+}
+
+/// Copies slots' results out of the pipeline and wakes the person sources, each slot once
+/// per frame: `tracked` publishes the people the tracker followed (before the finder runs),
+/// then the rest publishes every other slot, seen by the finder or not (so nobody is reported
+/// out of view before the finder had its look). Returns whether anyone published was seen.
+fn publish(pipeline: &PosePipeline, stamp: &Stamp, shared: &Shared, tracked: bool) -> bool {
     let mut s = shared.lock();
+    let publication = s.publications + 1;
+    let this_frame = if tracked { publication } else { s.frame_start };
+    let (mut written, mut anyone) = (false, false);
     for (k, slot) in s.slots.iter_mut().enumerate() {
-        slot.seen = pipeline.person(k).is_some();
-        if let (true, Some(pose)) = (slot.seen, pipeline.pose(k)) {
+        let seen = pipeline.person(k).is_some();
+        if (tracked && !seen) || slot.publication >= this_frame {
+            continue;
+        }
+        slot.seen = seen;
+        slot.publication = publication;
+        (written, anyone) = (true, anyone || seen);
+        if let (true, Some(pose)) = (seen, pipeline.pose(k)) {
             slot.pose.copy_from(pose);
         }
         if let Some(raw) = pipeline.raw_person(k) {
             slot.raw = *raw;
         }
     }
-    s.frames += 1;
+    s.publications = publication;
+    if tracked {
+        s.frame_start = publication;
+    }
+    if !written {
+        return false;
+    }
     s.lost.1 = None;
-    s.capture_nanos = capture_nanos;
-    s.arrived = arrived;
-    s.time_secs = frame.time_secs;
+    s.capture_nanos = stamp.capture_nanos;
+    s.arrived = stamp.arrived;
+    s.time_secs = stamp.time_secs;
     drop(s);
     shared.changed.notify_all();
+    anyone
 }
 
 /// One tracked person of a [`SharedVision`], as a live source on the BlazePose skeleton.
@@ -363,8 +412,8 @@ pub struct PersonSource {
     hub: Arc<Hub>,
     skeleton: Arc<Skeleton>,
     person: usize,
-    /// The pipeline's frame counter when this source last read.
-    last_frame: u64,
+    /// The publication of this person's slot this source last read.
+    last_publication: u64,
     /// The pipeline's camera-lost counter when this source last reported a loss.
     last_lost: u64,
     ended_reported: bool,
@@ -403,7 +452,7 @@ impl PersonSource {
         let deadline = Instant::now() + timeout;
         let mut s = shared.lock();
         loop {
-            if s.frames > self.last_frame {
+            if s.slots[self.person].publication > self.last_publication {
                 break;
             }
             if s.lost.0 > self.last_lost {
@@ -430,8 +479,8 @@ impl PersonSource {
                 Err(e) => e.into_inner().0,
             };
         }
-        self.last_frame = s.frames;
         let slot = &s.slots[self.person];
+        self.last_publication = slot.publication;
         let seen = slot.seen;
         if seen {
             crate::live::fit_pose(out, &self.skeleton);

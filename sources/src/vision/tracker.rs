@@ -257,6 +257,8 @@ pub struct PoseTracker {
     batch_rois: Vec<Roi>,
     batch_results: Vec<Landmarks>,
     frames_since_find: u32,
+    /// Someone was lost in this frame's [`Self::track`] (the finder is due in its `find`).
+    lost_now: bool,
     /// The detector region the next finder pass looks at (see [`DETECTOR_REGIONS`]).
     next_region: usize,
     stats: TrackerStats,
@@ -290,6 +292,7 @@ impl PoseTracker {
             batch_rois: Vec::with_capacity(config.max_people),
             batch_results: vec![Landmarks::default(); config.max_people],
             frames_since_find: 0,
+            lost_now: false,
             next_region: 0,
             stats: TrackerStats::default(),
         }
@@ -333,9 +336,18 @@ impl PoseTracker {
         self.tracks.fill(Track::EMPTY);
     }
 
-    /// Processes one frame: every tracked person once, then the finder when it is due.
-    /// Afterwards [`Self::person`] tells who was seen.
+    /// Processes one frame: every tracked person once ([`Self::track`]), then the finder when
+    /// it is due ([`Self::find`]). Afterwards [`Self::person`] tells who was seen.
     pub fn process_frame(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
+        self.track(frame)?;
+        self.find(frame)
+    }
+
+    /// The first half of [`Self::process_frame`]: every tracked person once. Afterwards
+    /// [`Self::person`] tells who was followed; [`Self::find`] must run next on the same frame
+    /// (it may add people and keeps the frame counts). A live camera publishes these people's
+    /// poses in between, so that a finder pass never holds them up.
+    pub fn track(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         self.run_tracked_crops(frame)?;
         let mut lost_now = false;
         let mut batched = 0;
@@ -356,13 +368,20 @@ impl PoseTracker {
             }
         }
         lost_now |= self.drop_duplicates();
+        self.lost_now = lost_now;
+        Ok(())
+    }
+
+    /// The second half of [`Self::process_frame`], after [`Self::track`] on the same frame:
+    /// looks for people when the finder is due (those found are seen in this frame too).
+    pub fn find(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         let num_tracked = self.tracks.iter().filter(|t| t.tracked()).count();
         self.frames_since_find = self.frames_since_find.saturating_add(1);
         let recently_lost = self
             .tracks
             .iter()
             .any(|t| t.recently_lost(EAGER_FIND_FRAMES));
-        let due = lost_now
+        let due = std::mem::take(&mut self.lost_now)
             || recently_lost
             || num_tracked == 0
             || self.frames_since_find >= self.config.find_every_frames;
