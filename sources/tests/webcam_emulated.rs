@@ -1,6 +1,7 @@
 //! The webcam source through the real nokhwa -> v4l -> V4L2 code against an emulated camera
 //! (`v4l2_emu/v4l2_emu.c`, preloaded into a child run of this test binary) serving real
-//! footage from `../shared/data/video` as YUYV and MJPEG:
+//! footage (`../shared/data/video`, else the pose2sim clips setup fetched: a clean clone in CI
+//! runs these tests too) as YUYV and MJPEG:
 //! - format negotiation: asked size and rate met exactly when offered, the nearest otherwise;
 //! - both pixel formats decoded right: the first frame the camera serves, decoded by nokhwa,
 //!   against ffmpeg's decode of the very same bytes;

@@ -1,5 +1,5 @@
 //! The emulated V4L2 camera of the tests (`v4l2_emu.c`, preloaded): builds the shim with gcc,
-//! decodes real footage from `../shared/data/video` with ffmpeg into the camera's modes (raw
+//! decodes real footage ([`footage`]) with ffmpeg into the camera's modes (raw
 //! YUYV and MJPEG frames) and writes its configuration. Included by path from the tests of
 //! `sources` and `server`. Everything is skipped with a printed reason when gcc, ffmpeg or the
 //! footage is missing.
@@ -94,10 +94,36 @@ pub fn build_shim() -> Option<PathBuf> {
     Some(out)
 }
 
-/// Real footage with people: the video files of `../shared/data/video`, sorted by name.
+/// Real footage with people, sorted by name: the video files of the shared data's `video`
+/// folder (`$RIGCAST_SHARED_DATA`, else `../shared/data` beside the workspace), else, on a
+/// machine without it (a clean clone in CI), the pose2sim clips `scripts/setup-vision.sh`
+/// fetched beside the vision models.
 pub fn footage() -> Vec<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/video");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+    let shared = match std::env::var_os("RIGCAST_SHARED_DATA") {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
+    }
+    .join("video");
+    let fetched = rigcast_sources::vision::VisionAssets::from_env()
+        .root
+        .join("pose2sim");
+    let mut files = videos_in(&shared);
+    if files.is_empty() {
+        files = videos_in(&fetched);
+    }
+    if files.is_empty() {
+        println!(
+            "SKIP: no footage in {} nor {} (scripts/setup-vision.sh fetches the latter)",
+            shared.display(),
+            fetched.display()
+        );
+    }
+    files
+}
+
+/// The video files in `dir`, sorted by name.
+fn videos_in(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .map(|d| d.flatten().map(|e| e.path()).collect())
         .unwrap_or_default();
     files.retain(|p| {
@@ -105,15 +131,16 @@ pub fn footage() -> Vec<PathBuf> {
         matches!(ext, "mp4" | "avi" | "mkv" | "mov" | "webm")
     });
     files.sort();
-    if files.is_empty() {
-        println!("SKIP: no footage in {}", dir.display());
-    }
     files
 }
 
-/// Decodes `frames` frames of `video` (from `start_secs`) scaled to `m` with ffmpeg.
+/// Decodes `frames` frames of `video` (from `start_secs`) fitted into `m` with ffmpeg.
 fn decode(video: &Path, m: Mode, start_secs: f64, frames: usize, out: &Path) {
-    let scale = format!("scale={}:{}", m.width, m.height);
+    // Fitted, not stretched (a portrait clip is pillarboxed): people keep their proportions.
+    let (w, h) = (m.width, m.height);
+    let scale = format!(
+        "scale={w}:{h}:force_original_aspect_ratio=decrease,pad={w}:{h}:(ow-iw)/2:(oh-ih)/2,setsar=1"
+    );
     let mut cmd = Command::new("ffmpeg");
     cmd.args(["-v", "error", "-y", "-ss"])
         .arg(format!("{start_secs}"))
