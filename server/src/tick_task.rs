@@ -47,9 +47,11 @@ impl TickOutput for HostOutput {
 ///
 /// `wake` is notified when a camera's new pose is handed over: the tick runs at once instead
 /// of up to a period later (that wait was the largest server stage of glass-to-wire at 60 Hz),
-/// and its period restarts from there, so ticks follow the camera's frames. The output rate
-/// then stays under `rate_hz` plus the camera's frame rate, and ticks are never closer than
-/// [`MIN_TICK_GAP`].
+/// and its period restarts from there, so ticks follow the camera's frames. Two woken ticks
+/// are never closer than [`MIN_TICK_GAP`]; a woken tick right after a periodic one does not
+/// wait for it (a camera at the tick rate, or half of it, hands its pose over about when the
+/// restarted period ends, and waiting the gap there was the handoff's p99). The output rate
+/// stays under `rate_hz` plus the camera's frame rate.
 pub async fn run_tick(
     ctx: TickContext,
     mut out: HostOutput,
@@ -60,18 +62,18 @@ pub async fn run_tick(
     let mut interval = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
     interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut ticker = Ticker::new(ctx);
-    let mut last = tokio::time::Instant::now();
+    let mut last_woken = tokio::time::Instant::now();
     loop {
         tokio::select! {
             _ = interval.tick() => {}
             _ = wake.notified() => {
                 // Bounded rate: a burst of poses cannot spin the tick.
-                tokio::time::sleep_until(last + MIN_TICK_GAP).await;
+                tokio::time::sleep_until(last_woken + MIN_TICK_GAP).await;
                 interval.reset();
+                last_woken = tokio::time::Instant::now();
             }
             _ = shutdown.changed() => break,
         }
-        last = tokio::time::Instant::now();
         let time = TickTime::now();
         ticker.perform(time);
         // Stamped when encoded (after the performers ran), as `send_nanos` is defined.
