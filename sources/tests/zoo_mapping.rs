@@ -1026,14 +1026,18 @@ const SEGMENTS: &[(&str, &str)] = &[
     ("lowerLeg", "foot"),
 ];
 
+/// The labelled bone `end` and the segment bone it ends, when `end` hangs from that bone (an
+/// IK foot under the root, as RobotExpressive's, ends no segment: its offset is not the shin).
+fn segment(ed: &Editable, rig: &Rig, seg: &str, end: &str) -> Option<(usize, usize)> {
+    let (b, e) = (labelled(ed, rig, seg)?, labelled(ed, rig, end)?);
+    (ed.raw.bones[e].parent == Some(b)).then_some((b, e))
+}
+
 /// UE-style twist leaves halfway along every limb segment.
 fn add_twist_leaves(ed: &mut Editable, rig: &Rig) {
     for s in [".L", ".R"] {
         for (seg, end) in SEGMENTS {
-            let (Some(b), Some(e)) = (
-                labelled(ed, rig, &format!("{seg}{s}")),
-                labelled(ed, rig, &format!("{end}{s}")),
-            ) else {
+            let Some((b, e)) = segment(ed, rig, &format!("{seg}{s}"), &format!("{end}{s}")) else {
                 continue;
             };
             let off = ed.raw.bones[e].rest.translation * 0.5;
@@ -1087,7 +1091,8 @@ fn add_scapulae(ed: &mut Editable, rig: &Rig) {
 
 /// A cartoon: the head grown (neck 1.4×, everything above the head 2.5×), the legs shortened
 /// (thighs and shins 0.55×) with the hips lowered as much, so the feet still stand where they
-/// stood (a rig whose root sits on the floor keeps it there).
+/// stood (a rig whose root sits on the floor keeps it there; a leg ending in an IK foot under
+/// the root, whose shin is no bone, keeps its length).
 fn make_cartoon(ed: &mut Editable, rig: &Rig, f: &Frame) {
     if let Some(h) = labelled(ed, rig, "head") {
         ed.scale_offset(h, 1.4);
@@ -1097,12 +1102,14 @@ fn make_cartoon(ed: &mut Editable, rig: &Rig, f: &Frame) {
     }
     let mut drop = 0.0f32;
     for s in [".L", ".R"] {
+        let segs: Option<Vec<(usize, usize)>> = [("upperLeg", "lowerLeg"), ("lowerLeg", "foot")]
+            .iter()
+            .map(|(seg, end)| segment(ed, rig, &format!("{seg}{s}"), &format!("{end}{s}")))
+            .collect();
         let mut lost = 0.0;
-        for role in ["lowerLeg", "foot"] {
-            if let Some(b) = labelled(ed, rig, &format!("{role}{s}")) {
-                lost += 0.45 * ed.raw.bones[b].rest.translation.length();
-                ed.scale_offset(b, 0.55);
-            }
+        for (_, b) in segs.unwrap_or_default() {
+            lost += 0.45 * ed.raw.bones[b].rest.translation.length();
+            ed.scale_offset(b, 0.55);
         }
         drop = drop.max(lost);
     }
@@ -1212,19 +1219,36 @@ fn perturbed_rigs_keep_their_core_roles() {
     for l in &fails {
         println!("  {l}");
     }
-    for (what, sc) in &totals {
-        if HELD.contains(what) {
-            assert_eq!(sc.swaps, 0, "{what}: left/right swaps");
-            assert!(sc.pct() >= 98.0, "{what}: {:.1}%", sc.pct());
-        } else {
-            println!("not yet held: {what} {:.1}% ({} swaps)", sc.pct(), sc.swaps);
-        }
+    if sources.len() < hs.len() {
+        println!("bounds not checked: RIGCAST_ZOO_SOURCE_STEP maps from some sources only");
+        return;
     }
+    for (what, sc) in &totals {
+        let bound = HELD.iter().find(|(w, _)| w == what).map_or(98.0, |(_, b)| *b);
+        assert_eq!(sc.swaps, 0, "{what}: left/right swaps");
+        assert!(sc.pct() >= bound, "{what}: {:.1}% < {bound}%", sc.pct());
+    }
+    // The flags: no more right roles flagged than the issue allows, and no fewer wrong ones
+    // than today (the issue's 90 % is not reached on these rigs yet).
+    assert!(pct(right_flagged, right) <= 5.0);
+    assert!(pct(wrong_flagged, wrong) >= FLAGGED_WRONG_AT_LEAST);
 }
 
-/// The perturbations held to the issue's bound for meaningless names (≥ 98 % of core roles,
-/// no swaps); the others are printed as the gaps they still are.
-const HELD: &[&str] = &["twist-chain", "scapula", "faces-back"];
+/// Per perturbation, the share of core roles held, a little under today's figure where it is
+/// below the issue's 98 % for meaningless names (the others are held to 98 %); every one with
+/// no left/right swaps. Today: helpers 95.9 % (zero-length thigh helpers on Mousey and
+/// RobotExpressive's short thighs read as the thigh), cartoon 97.9 % (Mousey's short legs on
+/// big feet), static 97.7 %, avatar 94.9 % (these at once, static).
+const HELD: &[(&str, f64)] = &[
+    ("helpers", 95.0),
+    ("cartoon", 97.0),
+    ("static", 97.0),
+    ("avatar", 94.0),
+];
+
+/// Wrong core roles of the perturbed rigs that the flags must catch, percent (a little under
+/// today's figure).
+const FLAGGED_WRONG_AT_LEAST: f64 = 35.0;
 
 /// (wrong, right, wrong flagged, right flagged) over judged roles.
 fn flag_rates(j: &[Judged]) -> (usize, usize, usize, usize) {

@@ -79,6 +79,18 @@ pub(super) fn central_and_limbs(
             limbs.push(make_limb(ctx, p, vec![(c, s)], ground, hext));
         }
     }
+    // Limbs on the ground stand on it together: one whose lowest joint stays clearly above the
+    // lowest standing limb's is not on the ground (a long arm hanging to the knees, which a
+    // cartoon's big head, raising the body's height, brought within the ground band, read as
+    // a second pair of legs).
+    let lowest = limbs
+        .iter()
+        .filter(|l| l.ground)
+        .map(|l| l.low)
+        .fold(f32::MAX, f32::min);
+    for l in &mut limbs {
+        l.ground &= l.low < lowest + 0.12 * hext;
+    }
     (central, limbs)
 }
 
@@ -160,6 +172,7 @@ fn make_limb(
         members,
         reach: reach / k,
         ground: low < ground + 0.2 * hext,
+        low,
         height: height / k,
     }
 }

@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::names::NameInfo;
 use super::topology::Topology;
 use super::vocabulary::{Role, SectionKind};
-use super::{BoneRole, Section, Side};
+use super::{BoneRole, Doubt, Section, Side};
 use crate::skeleton::{BoneId, Skeleton};
 
 /// One pair of limbs (or a lone side chain) hanging off a central bone.
@@ -17,6 +17,8 @@ pub(super) struct Limb {
     pub(super) members: Vec<(BoneId, Side)>,
     pub(super) reach: f32,
     pub(super) ground: bool,
+    /// Height of its lowest joint (a detached foot continuing it included).
+    pub(super) low: f32,
     pub(super) height: f32,
 }
 
@@ -134,6 +136,8 @@ pub(super) struct Builder {
     pub(super) roles: Vec<BoneRole>,
     pub(super) sections: Vec<Section>,
     pub(super) lengths: Vec<f32>,
+    /// Readings nearly made instead (see [`Doubt`]).
+    pub(super) doubts: Vec<Doubt>,
 }
 
 impl Builder {
@@ -143,6 +147,7 @@ impl Builder {
             roles: vec![BoneRole::unknown(); lengths.len()],
             sections: Vec::new(),
             lengths,
+            doubts: Vec::new(),
         }
     }
 

@@ -111,15 +111,17 @@ fn continuation_cost(skel: &Skeleton, pos: &[Vec3], bone: BoneId, l: BoneId) -> 
 }
 
 /// Per bone: the top-level detached bone that continues it downwards, for the body's leaves.
-/// Each leaf takes its best continuation (smallest bend), so a stray control bone that also
-/// lies ahead of a leaf cannot take the place of the one that carries the foot.
+/// Leaves and detached bones pair off best first (smallest bend): each leaf takes at most one
+/// continuation, so a stray control bone that also lies ahead of a leaf cannot take the place
+/// of the one that carries the foot, and each detached bone continues at most one leaf, so an
+/// IK foot below a shin does not also continue a twist leaf of the arm hanging above it.
 pub(crate) fn extensions(
     skel: &Skeleton,
     pos: &[Vec3],
     body: &BodyRoot,
     up: Vec3,
 ) -> Vec<Option<BoneId>> {
-    let mut best: Vec<Option<(f32, BoneId)>> = vec![None; skel.num_bones()];
+    let mut pairs: Vec<(f32, BoneId, BoneId)> = Vec::new();
     let leaves: Vec<BoneId> = skel
         .bone_ids()
         .filter(|&b| !body.detached[b.index()] && skel.children(b).is_empty())
@@ -140,12 +142,19 @@ pub(crate) fn extensions(
             if drop < 0.3 * (pos[b.index()] - pos[l.index()]).length() {
                 continue;
             }
-            if best[l.index()].is_none_or(|(c, _)| cost < c) {
-                best[l.index()] = Some((cost, b));
-            }
+            pairs.push((cost, l, b));
         }
     }
-    best.into_iter().map(|x| x.map(|(_, b)| b)).collect()
+    pairs.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    let mut out: Vec<Option<BoneId>> = vec![None; skel.num_bones()];
+    let mut used = vec![false; skel.num_bones()];
+    for (_, l, b) in pairs {
+        if out[l.index()].is_none() && !used[b.index()] {
+            out[l.index()] = Some(b);
+            used[b.index()] = true;
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -45,6 +45,18 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
         return;
     };
     let conf = (0.95 * (-split.cost).exp()).clamp(0.2, 0.95);
+    // How badly the best split fits is how likely another reading of the limb is: the
+    // confidence the split gives its roles, as a doubt the mapper carries.
+    if split.cost > 0.0 {
+        out.doubts.push(super::Doubt {
+            reason: format!(
+                "its limb's proportions fit no anatomical split well (fit cost {:.2})",
+                split.cost
+            ),
+            strength: 1.0 - (-split.cost).exp(),
+            bones: chain.clone(),
+        });
+    }
     let e = split.extremity.min(chain.len());
     let li = out.add_section(
         limb_kind,

@@ -183,6 +183,7 @@ pub(crate) fn analyze_flat_hand(
         humanoid: false,
         main_child: vec![None; n],
         warnings,
+        doubts: Vec::new(),
     })
 }
 

@@ -314,6 +314,10 @@ pub(super) struct Facing {
     pub flipped: bool,
     /// Names that disagreed with clear geometry.
     pub warnings: Vec<String>,
+    /// When the sides rest on a weak geometric vote alone (no names decided, no clear vote):
+    /// the vote and how close the mirror reading came, 0..1 (1: no vote at all, a coin toss;
+    /// 0 at a vote of one posture cue's full worth, 1).
+    pub doubt: Option<(f32, f32)>,
 }
 
 /// Decides forward from the geometric vote; side markers in the names decide only when the
@@ -356,7 +360,9 @@ pub(super) fn facing(
     // Two or more pairs of ground limbs: a horizontal body whose facing puts its head in
     // front; side markers that would turn it round cannot be right.
     let clear = cue.abs() >= GEOMETRY_CLEAR || (input.legs.len() >= 2 && cue != 0.0);
-    let sign = match name_sign(ctx, limbs) {
+    let named = name_sign(ctx, limbs);
+    let doubt = (named.is_none() && !clear).then(|| (cue, (1.0 - cue.abs()).max(0.0)));
+    let sign = match named {
         Some(s) if !clear => s,
         Some(s) if s != geometry => {
             warnings.push(format!(
@@ -372,6 +378,7 @@ pub(super) fn facing(
         forward: fwd0 * sign,
         flipped: sign < 0.0,
         warnings,
+        doubt,
     }
 }
 

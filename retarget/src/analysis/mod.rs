@@ -222,9 +222,33 @@ pub struct Analysis {
     /// What the analysis overruled or doubted (names against geometry, …), for the user.
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// Readings it nearly made instead, and the bones they read otherwise (see [`Doubt`]).
+    #[serde(default)]
+    pub doubts: Vec<Doubt>,
+}
+
+/// A reading the analysis nearly made instead of its own, and the bones that reading reads
+/// otherwise: the analysis' own measure of where it may be wrong, which the mapper's
+/// confidence carries (a margin between source bones cannot see a wrong reading of the body).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Doubt {
+    /// Why, for people.
+    pub reason: String,
+    /// 0..1: how close the other reading came (1: as likely as the one chosen).
+    pub strength: f32,
+    /// The bones it would read otherwise.
+    pub bones: Vec<BoneId>,
 }
 
 impl Analysis {
+    /// The strongest doubt over bone `b`'s reading, if any.
+    pub fn doubt_of(&self, b: BoneId) -> Option<&Doubt> {
+        self.doubts
+            .iter()
+            .filter(|d| d.bones.contains(&b))
+            .max_by(|x, y| x.strength.total_cmp(&y.strength))
+    }
+
     /// The pose the analysis read its geometry from, when not the rest pose: the motion frame
     /// it chose (`motion` must be the view's motion). Alignment stages use the same posture.
     pub fn posture_pose(&self, motion: &[Pose]) -> Option<Pose> {

@@ -24,7 +24,7 @@ use super::posture::{self, Posture};
 use super::sections::{classify, trunk, Layout};
 use super::topology::Topology;
 use super::vocabulary::{Role, SectionKind};
-use super::{flat, forward, frame, Analysis, BoneRole, Section, SkeletonView};
+use super::{flat, forward, frame, Analysis, BoneRole, Doubt, Section, SkeletonView};
 use crate::skeleton::BoneId;
 
 /// Analyses every candidate posture of the view and keeps the one that reads as the most
@@ -110,6 +110,20 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
     let humanoid = place_limbs(&ctx, &mut out, &limbs, &layout, &path, head_sec);
     fill_helpers(&ctx, &mut out, &limbs);
     attach_detached(&ctx, &body, &mut out);
+    if let Some((cue, strength)) = facing.doubt {
+        let sided = ctx
+            .skel
+            .bone_ids()
+            .filter(|b| out.roles[b.index()].side != super::Side::Center)
+            .collect();
+        out.doubts.push(Doubt {
+            reason: format!(
+                "its side rests on a weak facing vote ({cue:.2}; 2 is clear) and no names say it"
+            ),
+            strength,
+            bones: sided,
+        });
+    }
     Analysis {
         up,
         forward: facing.forward,
@@ -125,6 +139,7 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
         humanoid,
         main_child: topo.main.clone(),
         warnings: facing.warnings,
+        doubts: out.doubts,
     }
 }
 

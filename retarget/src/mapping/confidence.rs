@@ -5,8 +5,10 @@
 //!   margin     = chosen score − the best alternative, the smaller of:
 //!                  the target's next candidate with another source bone, and
 //!                  the best score another target bone gave the same source bone
-//!   confidence = 1 − e^(−margin / MARGIN_SCALE)
-//!   flagged    = confidence < FLAG_BELOW, or the runner-up within CLOSE_MARGIN points;
+//!   confidence = (1 − e^(−margin / MARGIN_SCALE)) × (1 − doubt)   for each analysis' doubt
+//!                over the target bone's and the source bone's readings
+//!   flagged    = margin confidence < FLAG_BELOW, the runner-up within CLOSE_MARGIN points,
+//!                or a doubt of at least DOUBT_FLAG;
 //!                unmapped: a core target bone, a gap in a driven chain (parent and a
 //!                body-part descendant driven), or a bone of a section kind whose source core bone
 //!                drives nothing (the source's head unused while the target's head chain
@@ -14,7 +16,11 @@
 //! ```
 //!
 //! The analyses' own role confidences are not used: they are rules' guesses, not measured
-//! (a right leg read at 0.3), and multiplying them in made right bones look doubtful.
+//! (a right leg read at 0.3), and multiplying them in made right bones look doubtful. Their
+//! doubts are (`Analysis::doubts`): a competing reading and how close it came, which a margin
+//! between source bones cannot see (sides resting on a weak facing vote, a limb whose
+//! proportions fit no split well). A reading whose doubt is short of a coin toss lowers the
+//! confidence without flagging: a robot's limbs fit anatomy poorly and are still read right.
 //!
 //! A chosen pair whose closest rival is far behind, between bones whose roles the analyses
 //! are sure of, is confident; a pair that won by a point, or whose source bone another target
@@ -25,7 +31,7 @@ use std::collections::HashMap;
 
 use super::candidate::Candidate;
 use super::table::{Flag, MappingTable};
-use crate::analysis::{Analysis, Role, SectionKind};
+use crate::analysis::{Analysis, Doubt, Role, SectionKind};
 use crate::skeleton::{BoneId, Skeleton};
 
 /// Score points over which a margin's confidence rises to 63 % (1 − 1/e).
@@ -34,6 +40,8 @@ const MARGIN_SCALE: f32 = 12.0;
 const FLAG_BELOW: f32 = 0.35;
 /// A runner-up within this many points of the chosen source flags the bone.
 const CLOSE_MARGIN: f32 = 4.0;
+/// An analysis' doubt at least this strong over either bone's reading flags the bone.
+const DOUBT_FLAG: f32 = 0.9;
 
 /// Per (input, source bone): the two best (score, target) pairs over every target's
 /// candidates.
@@ -79,6 +87,22 @@ fn margin(per_target: &[Vec<Candidate>], rivals: &Rivals, t: usize, k: usize) ->
     }
 }
 
+/// Per bone: the strongest of the analysis' doubts over its reading, if any (one pass over
+/// the doubts' bones, not a search per bone).
+fn doubts_per_bone(a: &Analysis) -> Vec<Option<&Doubt>> {
+    let mut out: Vec<Option<&Doubt>> = vec![None; a.roles.len()];
+    for d in &a.doubts {
+        for b in &d.bones {
+            if let Some(slot) = out.get_mut(b.index()) {
+                if slot.is_none_or(|s| d.strength > s.strength) {
+                    *slot = Some(d);
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Sets every mapped entry's confidence and the table's flagged bones.
 pub(super) fn assess(
     table: &mut MappingTable,
@@ -90,6 +114,9 @@ pub(super) fn assess(
     let rivals = rivals(per_target);
     let unused = unused_core_kinds(picked, per_target, sources);
     let below = driven_below(table, tskel, ta);
+    let tdoubt = doubts_per_bone(ta);
+    let sdoubt: Vec<Vec<Option<&Doubt>>> =
+        sources.iter().map(|(_, a)| doubts_per_bone(a)).collect();
     table.flagged.clear();
     for t in tskel.bone_ids() {
         let tr = ta.roles[t.index()];
@@ -104,7 +131,23 @@ pub(super) fn assess(
             continue;
         };
         let m = margin(per_target, &rivals, t.index(), k);
-        let c = 1.0 - (-m.max(0.0) / MARGIN_SCALE).exp();
+        let chosen = &per_target[t.index()][k];
+        // The analyses' doubts over the two bones' readings: the target's, then the source's.
+        let doubt = [
+            (tdoubt[t.index()], "the target"),
+            (
+                sdoubt
+                    .get(chosen.input as usize)
+                    .and_then(|d| d.get(chosen.bone.index()).copied().flatten()),
+                "the source",
+            ),
+        ];
+        let sure: f32 = doubt
+            .iter()
+            .filter_map(|(d, _)| d.map(|d| 1.0 - d.strength.clamp(0.0, 1.0)))
+            .product();
+        let from_margin = 1.0 - (-m.max(0.0) / MARGIN_SCALE).exp();
+        let c = from_margin * sure;
         if let Some(e) = table.entries[t.index()].as_mut() {
             e.confidence = c;
         }
@@ -118,7 +161,14 @@ pub(super) fn assess(
             )
         } else if m < CLOSE_MARGIN {
             format!("the runner-up is {m:.1} points behind")
-        } else if c < FLAG_BELOW {
+        } else if let Some((d, whose)) = doubt
+            .iter()
+            .filter_map(|(d, w)| d.map(|d| (d, w)))
+            .filter(|(d, _)| d.strength >= DOUBT_FLAG)
+            .max_by(|x, y| x.0.strength.total_cmp(&y.0.strength))
+        {
+            format!("{whose}'s analysis doubts its reading: {}", d.reason)
+        } else if from_margin < FLAG_BELOW {
             format!("low confidence {c:.2} (margin {m:.1} points)")
         } else {
             continue;
