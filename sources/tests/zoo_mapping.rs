@@ -1224,7 +1224,10 @@ fn perturbed_rigs_keep_their_core_roles() {
         return;
     }
     for (what, sc) in &totals {
-        let bound = HELD.iter().find(|(w, _)| w == what).map_or(98.0, |(_, b)| *b);
+        let bound = HELD
+            .iter()
+            .find(|(w, _)| w == what)
+            .map_or(98.0, |(_, b)| *b);
         assert_eq!(sc.swaps, 0, "{what}: left/right swaps");
         assert!(sc.pct() >= bound, "{what}: {:.1}% < {bound}%", sc.pct());
     }
@@ -1236,19 +1239,13 @@ fn perturbed_rigs_keep_their_core_roles() {
 
 /// Per perturbation, the share of core roles held, a little under today's figure where it is
 /// below the 98 % for meaningless names (the others are held to 98 %); every one with
-/// no left/right swaps. Today: helpers 95.9 % (zero-length thigh helpers on Mousey and
-/// RobotExpressive's short thighs read as the thigh), cartoon 97.9 % (Mousey's short legs on
-/// big feet), static 97.7 %, avatar 94.9 % (these at once, static).
-const HELD: &[(&str, f64)] = &[
-    ("helpers", 95.0),
-    ("cartoon", 97.0),
-    ("static", 97.0),
-    ("avatar", 94.0),
-];
+/// no left/right swaps. Today: cartoon 97.9 % (Mousey's short legs on big feet read by their
+/// proportions), static 97.7 % (Mousey and RobotExpressive without their motion).
+const HELD: &[(&str, f64)] = &[("cartoon", 97.0), ("static", 97.0)];
 
 /// Wrong core roles of the perturbed rigs that the flags must catch, percent (a little under
 /// today's figure).
-const FLAGGED_WRONG_AT_LEAST: f64 = 35.0;
+const FLAGGED_WRONG_AT_LEAST: f64 = 50.0;
 
 /// (wrong, right, wrong flagged, right flagged) over judged roles.
 fn flag_rates(j: &[Judged]) -> (usize, usize, usize, usize) {

@@ -129,12 +129,35 @@ fn fit_member(
         lengths,
         fixed
     );
+    let girdle = if is_leg && spans_girdle(ctx, chain[0]) {
+        GIRDLE_AS_THIGH_COST
+    } else {
+        0.0
+    };
     // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
     // the foot anywhere up to the branch.
     match fixed {
-        Some(f) if is_leg => fit_chain(&lengths[..=f], &bent[..=f], None, ratio),
-        _ => fit_chain(&lengths, &bent, fixed, ratio),
+        Some(f) if is_leg => fit_chain(&lengths[..=f], &bent[..=f], None, ratio, girdle),
+        _ => fit_chain(&lengths, &bent, fixed, ratio, girdle),
     }
+}
+
+/// What reading a girdle bone as the thigh costs a leg's split: as much as grouping across a
+/// joint that bends in the motion, more than any proportion.
+const GIRDLE_AS_THIGH_COST: f32 = MOTION_BEND_COST;
+
+/// Whether a limb's first bone spans the girdle: its joint sits on the body's joint it hangs
+/// from and it runs across the body more than down, to where the limb hangs (a hip bone from
+/// the pelvis' joint to the socket, a zero-length thigh helper's segment). A thigh hangs from
+/// the socket; a short-legged rig's proportions alone would read the girdle as the thigh.
+fn spans_girdle(ctx: &Ctx<'_>, b: BoneId) -> bool {
+    let (Some(p), Some(c)) = (ctx.skel.parent(b), ctx.topo.main[b.index()]) else {
+        return false;
+    };
+    let seg = ctx.pos[c.index()] - ctx.pos[b.index()];
+    let down = -seg.dot(ctx.up);
+    let across = (seg + ctx.up * down).length();
+    ctx.is_coincident(b) && ctx.pos[p.index()] != ctx.pos[c.index()] && across > down.max(0.0)
 }
 
 /// What grouping two bones across a joint that bends in the motion costs a chain split.

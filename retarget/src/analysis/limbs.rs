@@ -23,12 +23,14 @@ pub(crate) struct ChainSplit {
 /// `lengths[i]` is the length of chain bone `i`; `bent[i]` is what grouping bones `i - 1` and
 /// `i` into one segment costs because the joint between them bends (missing entries: 0); `fixed_extremity` is set when a branch
 /// point (fingers, toes) already tells where the hand / foot is; `ratio` is the expected
-/// upper / lower length ratio.
+/// upper / lower length ratio; `girdle_first` is what starting the upper segment at the
+/// chain's first bone costs (a bone that spans the girdle, see `extremities`).
 pub(crate) fn fit_chain(
     lengths: &[f32],
     bent: &[f32],
     fixed_extremity: Option<usize>,
     ratio: f32,
+    girdle_first: f32,
 ) -> Option<ChainSplit> {
     let m = lengths.len();
     if m < 2 {
@@ -53,7 +55,12 @@ pub(crate) fn fit_chain(
                 // A chain ending in a lone leaf at the lower segment (glTF rigs without hands or
                 // feet): the leaf's length is unknown, not zero. Assume the expected ratio,
                 // at a price, so that the upper segment is still found.
-                let lone = if ratio < 1.1 { a == 0 } else { a <= 1 };
+                // A leg has no girdle bone before it unless its first bone spans one.
+                let lone = if ratio < 1.1 {
+                    a <= usize::from(girdle_first > 0.0)
+                } else {
+                    a <= 1
+                };
                 if lower <= 1e-6 && e == m && b == m - 1 && b == a + 1 && lone && upper > 1e-6 {
                     lower = upper / ratio;
                     cost += 0.4;
@@ -72,7 +79,9 @@ pub(crate) fn fit_chain(
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
                 let bent = |i: usize| bent.get(i).copied().unwrap_or(0.0);
                 cost += (a + 1..b).chain(b + 1..e).map(bent).sum::<f32>();
-                if a > 0 {
+                if a == 0 {
+                    cost += girdle_first;
+                } else {
                     // The clavicle is the last bone before the upper arm; helpers before it
                     // (MakeHuman's `__Clavicle`) do not make it longer.
                     let pre: f32 = lengths[a - 1];
@@ -82,7 +91,11 @@ pub(crate) fn fit_chain(
                     }
                     // A clavicle is shorter than the upper segment; legs rarely have one.
                     let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
-                    cost += k * (pre / upper - limit).max(0.0);
+                    // ...unless it is seen to span the girdle, whatever its size (wide hips
+                    // over a robot's short thighs).
+                    if !(a == 1 && girdle_first > 0.0) {
+                        cost += k * (pre / upper - limit).max(0.0);
+                    }
                     cost += 0.02 * a as f32;
                 }
                 if e < m {
@@ -117,7 +130,7 @@ mod tests {
     use super::*;
 
     fn fit_chain_t(l: &[f32], fixed: Option<usize>, ratio: f32) -> Option<ChainSplit> {
-        fit_chain(l, &[], fixed, ratio)
+        fit_chain(l, &[], fixed, ratio, 0.0)
     }
 
     #[test]
@@ -138,6 +151,21 @@ mod tests {
     fn segmented_rigify_leg() {
         let s = fit_chain_t(&[0.225, 0.225, 0.21, 0.21, 0.14, 0.05, 0.0], None, 1.05).expect("fit");
         assert_eq!((s.upper, s.lower, s.extremity), (0, 2, 4));
+    }
+
+    /// A zero-length thigh helper whose segment spans the hips to a short thigh (Mousey's
+    /// proportions): by lengths alone the girdle reads as the thigh; seen to span the girdle
+    /// (what `extremities` measures), it is the pelvis side.
+    #[test]
+    fn a_bone_seen_to_span_the_girdle_is_not_the_thigh() {
+        let l = [0.107, 0.13, 0.106, 0.103, 0.045, 0.0];
+        let s = fit_chain(&l, &[], None, 1.05, 0.0).expect("fit");
+        assert_eq!(s.upper, 0);
+        let s = fit_chain(&l, &[], None, 1.05, 3.0).expect("fit");
+        assert_eq!((s.upper, s.lower, s.extremity), (1, 2, 3));
+        // A wide girdle over a short thigh whose shin ends in a lone leaf (an IK foot beside).
+        let s = fit_chain(&[0.66, 0.61, 0.0], &[], None, 1.05, 3.0).expect("fit");
+        assert_eq!((s.upper, s.lower), (1, 2));
     }
 
     #[test]
