@@ -99,6 +99,25 @@ pub fn assert_sides_never_swap(frames: &[Option<Landmarks>], what: &str) {
     }
 }
 
+/// Frames whose hip or shoulder line (left minus right, world) points against the previous
+/// frame's: left and right swapped between them.
+pub fn side_swaps(frames: &[Option<Landmarks>]) -> usize {
+    frames
+        .windows(2)
+        .filter(|w| {
+            let (Some(p), Some(c)) = (&w[0], &w[1]) else {
+                return false;
+            };
+            [
+                (idx::LEFT_HIP, idx::RIGHT_HIP),
+                (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
+            ]
+            .iter()
+            .any(|&(l, r)| (p.world[l] - p.world[r]).dot(c.world[l] - c.world[r]) <= 0.0)
+        })
+        .count()
+}
+
 /// Coefficient of variation (std / mean).
 pub fn cv(values: &[f32]) -> f32 {
     let n = values.len() as f32;

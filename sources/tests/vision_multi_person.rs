@@ -10,7 +10,7 @@
 #[path = "vision_common.rs"]
 mod common;
 
-use common::{assert_sides_never_swap, assets_or_skip, cv, SEGMENTS};
+use common::{assets_or_skip, cv, side_swaps, SEGMENTS};
 use glam::{Vec2, Vec3};
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
@@ -142,7 +142,9 @@ fn check_cameras_with(test: &str, cameras: &[u32], model: Option<ModelKind>) {
             }
         }
         let num_frames = people[0].frames.len();
-        let mut report = format!("cam{cam}: {num_frames} frames, {:?}", pipeline.stats());
+        let stats = pipeline.stats();
+        let mut report = format!("cam{cam}: {num_frames} frames, {stats:?}");
+        let mut swaps_seen = 0;
         // The median torso colour of each slot: who that slot is.
         let medians: Vec<Vec3> = people
             .iter()
@@ -201,7 +203,16 @@ fn check_cameras_with(test: &str, cameras: &[u32], model: Option<ModelKind>) {
                     failures.push(format!("cam{cam} #{slot} {name} cv {c:.3}"));
                 }
             }
-            assert_sides_never_swap(&person.frames, &format!("{report}: #{slot}"));
+            swaps_seen += side_swaps(&person.frames);
+        }
+        // Left and right change between two frames only where the tracker took the model's
+        // labelling on the evidence of its readings, and that at most once a person: no
+        // flicker, no swap unexplained.
+        if swaps_seen as u64 > stats.relabels || stats.relabels > people.len() as u64 {
+            failures.push(format!(
+                "cam{cam}: sides swapped {swaps_seen} times, {} relabels",
+                stats.relabels
+            ));
         }
         eprintln!("{report}");
     }

@@ -56,6 +56,7 @@ pub mod read_ahead;
 pub mod replay;
 pub mod roi;
 pub mod shared;
+mod sides;
 pub mod solve;
 pub mod source;
 pub mod stages;

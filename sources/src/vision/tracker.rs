@@ -6,16 +6,19 @@
 //! landmarks gave (all tracked people's crops in one batch): no search while tracking holds.
 //! The finder runs every frame while nobody is tracked or someone established was lost within
 //! the last second, else every `find_every_frames` frames while fewer than `max_people` are
-//! tracked; looking for more people while nobody was lost is one detector pass (see
-//! `DETECTOR_REGIONS`), so one person in view costs about what `max_people: 1` costs whatever
-//! `max_people` is. With nobody tracked, the person found takes the lowest free slot once
+//! tracked; looking for more people while nobody was lost is one detector pass (the regions
+//! of `DETECTOR_REGIONS` taking turns; every one of them, where they were first, while someone
+//! was just lost), so one person in view costs about what `max_people: 1` costs whatever
+//! `max_people` is. A detection costs a landmark run only when a slot is open to someone
+//! there, and a reading that turned over since the last frame continues nobody. With nobody tracked, the person found takes the lowest free slot once
 //! nobody was lost for a few frames (`ALONE_WAIT_FRAMES`): the one person in the picture is the
 //! performer, not a bystander while they are hidden.
 //!
 //! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
 //! back the slot whose last position is nearest (within half its ROI) rather than any free
 //! one, so two performers crossing do not trade names; two tracks that converge on one body
-//! (joint by joint) are one person twice, and the one that jumped further is dropped. Before
+//! (joint by joint) are one person twice, and the one that jumped further is dropped; a
+//! reading upside down within another's upright body is that body misread, and dropped. Before
 //! that, a result that lies on (or near) another tracked person's body is not taken: the
 //! crop is moved away from that person, a step at a time, until the model shows a body of the
 //! tracked person's own (someone crossing in front of another with their back to the camera
@@ -27,7 +30,7 @@
 //! person, and refinement passes with the ROI from that result's auxiliary landmarks centre
 //! and scale the crop.
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 
 use super::detector::{Detection, PersonDetector};
 use super::error::VisionError;
@@ -35,6 +38,7 @@ use super::frame::RgbFrame;
 use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
 use super::model::{Disc, LandmarkModel};
 use super::roi::Roi;
+use super::sides::{mirror_index, Labelling, SideGuard};
 /// How the tracker finds people it does not track yet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Finder {
@@ -56,7 +60,8 @@ pub struct TrackerConfig {
     /// Refinement passes after a [`Finder::Search`] hit (each one model run).
     pub refine_passes: usize,
     /// Undo the model's facing/away reading flips (left/right label swaps) by matching the
-    /// torso against recent frames.
+    /// torso against recent frames, taking the model's labelling when its readings hold
+    /// against the kept one (see `sides`).
     pub swap_guard: bool,
     /// People tracked at once (identities `#0` … `#max_people-1`).
     pub max_people: usize,
@@ -86,36 +91,6 @@ impl Default for TrackerConfig {
         }
     }
 }
-
-/// Left/right landmark pairs used by the swap guard (and swapped together).
-const LR_PAIRS: [(usize, usize); 16] = [
-    (1, 4),
-    (2, 5),
-    (3, 6),
-    (7, 8),
-    (9, 10),
-    (11, 12),
-    (13, 14),
-    (15, 16),
-    (17, 18),
-    (19, 20),
-    (21, 22),
-    (23, 24),
-    (25, 26),
-    (27, 28),
-    (29, 30),
-    (31, 32),
-];
-
-/// Pairs whose positions decide whether the reading flipped: the torso corners, which move
-/// least and are seen best (arms legitimately move a lot between frames).
-const GUARD_PAIRS: [(usize, usize); 2] = [
-    (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
-    (idx::LEFT_HIP, idx::RIGHT_HIP),
-];
-
-/// How fast the flip guard's reference follows accepted frames (fraction per frame).
-const REFERENCE_RATE: f32 = 0.3;
 
 /// A detection whose hips lie within this fraction of a tracked person's height from that
 /// person's hips is that person.
@@ -173,6 +148,8 @@ pub struct TrackerStats {
     pub detections: u64,
     /// Left/right label swaps undone.
     pub swaps_fixed: u64,
+    /// Tracks whose labelling was changed to the model's on the evidence of its readings.
+    pub relabels: u64,
     /// People who started being tracked.
     pub tracks_started: u64,
     /// Tracked people lost (presence below the threshold).
@@ -197,7 +174,9 @@ struct Track {
     seen: bool,
     /// The last accepted landmarks (frame pixels).
     landmarks: Landmarks,
-    reference: Option<[Vec3; 2]>,
+    /// Which way round left and right are labelled (kept while they are lost: the same person
+    /// found again carries on; a new person in the slot starts afresh).
+    sides: SideGuard,
     /// Body box (centre, size) of the last and the one before accepted frames.
     place: Option<(Vec2, Vec2)>,
     previous_place: Option<(Vec2, Vec2)>,
@@ -214,7 +193,7 @@ impl Track {
         last_roi: None,
         seen: false,
         landmarks: Landmarks::ZERO,
-        reference: None,
+        sides: SideGuard::NEW,
         place: None,
         previous_place: None,
         lost_frames: 0,
@@ -237,7 +216,6 @@ impl Track {
     fn lose(&mut self) {
         self.roi = None;
         self.seen = false;
-        self.reference = None;
         self.lost_frames = 1;
     }
 }
@@ -261,6 +239,8 @@ pub struct PoseTracker {
     lost_now: bool,
     /// The detector region the next finder pass looks at (see [`DETECTOR_REGIONS`]).
     next_region: usize,
+    /// Whether the detector's round of regions began with nobody tracked.
+    round_from_empty: bool,
     stats: TrackerStats,
 }
 
@@ -294,6 +274,7 @@ impl PoseTracker {
             frames_since_find: 0,
             lost_now: false,
             next_region: 0,
+            round_from_empty: false,
             stats: TrackerStats::default(),
         }
     }
@@ -381,10 +362,19 @@ impl PoseTracker {
             .tracks
             .iter()
             .any(|t| t.recently_lost(EAGER_FIND_FRAMES));
+        // A round of the detector regions begun with nobody tracked goes on frame by frame:
+        // everyone in view at the start is found within a few frames, not one a round.
+        let first_round = self.round_from_empty && self.next_region != 0;
         let due = std::mem::take(&mut self.lost_now)
             || recently_lost
             || num_tracked == 0
+            || first_round
             || self.frames_since_find >= self.config.find_every_frames;
+        if num_tracked == 0 {
+            self.round_from_empty = true;
+        } else if self.next_region == 0 {
+            self.round_from_empty = false;
+        }
         if num_tracked < self.tracks.len() && due {
             self.frames_since_find = 0;
             let started = std::time::Instant::now();
@@ -533,10 +523,11 @@ impl PoseTracker {
     /// True when `self.scratch` can be person `slot` this frame: present enough, and a body
     /// box that continues theirs.
     fn continues_track(&self, slot: usize, presence: f32) -> bool {
+        let t = &self.tracks[slot];
         self.scratch.presence >= presence
-            && self.tracks[slot]
-                .place
-                .is_none_or(|p| continues(p, body_box(&self.scratch)))
+            && t.place.is_none_or(|p| {
+                continues(p, body_box(&self.scratch)) && !turned_over(&t.landmarks, &self.scratch)
+            })
     }
 
     /// Another tracked person whose body `self.scratch` lies on (their landmarks of this
@@ -553,10 +544,11 @@ impl PoseTracker {
         let guard = self.config.swap_guard;
         let t = &mut self.tracks[slot];
         t.landmarks = *lm;
-        if let Some(reference) = t.reference.as_ref().filter(|_| guard) {
-            if labels_swapped(reference, &t.landmarks) {
-                flip_interpretation(&mut t.landmarks);
-                self.stats.swaps_fixed += 1;
+        if guard {
+            match t.sides.label(&mut t.landmarks) {
+                Labelling::Kept => {}
+                Labelling::Flipped => self.stats.swaps_fixed += 1,
+                Labelling::Relabelled => self.stats.relabels += 1,
             }
         }
         t.roi = next_roi(&t.landmarks);
@@ -567,12 +559,12 @@ impl PoseTracker {
         t.lost_frames = 0;
         t.previous_place = t.place;
         t.place = Some(body_box(&t.landmarks));
-        update_reference(&mut t.reference, &t.landmarks);
     }
 
-    /// Drops one of every two tracks that now cover the same body: the one not yet
-    /// established, else the one whose box jumped further from its previous frame (it is the
-    /// one that slid onto the other person).
+    /// Drops one of every two tracks that now cover the same body: the one read upside down
+    /// within the other's box (see [`upside_down_twin`]), else (one body twice, see
+    /// [`same_body`]) the one not yet established, else the one whose box jumped further from
+    /// its previous frame (it is the one that slid onto the other person).
     /// Returns whether any was dropped.
     fn drop_duplicates(&mut self) -> bool {
         let mut dropped = false;
@@ -582,9 +574,6 @@ impl PoseTracker {
                 if !(ta.seen && tb.seen) {
                     continue;
                 }
-                if !same_body(&ta.landmarks, &tb.landmarks) {
-                    continue;
-                }
                 let jump = |t: &Track| {
                     t.previous_place
                         .zip(t.place)
@@ -592,9 +581,18 @@ impl PoseTracker {
                             p.0.distance(c.0) / p.1.max_element().max(1.0)
                         })
                 };
+                let young = |t: &Track| t.held_frames < ESTABLISHED_FRAMES;
+                if let Some(a_misread) = upside_down_twin(&ta.landmarks, &tb.landmarks) {
+                    let (misread, upright) = if a_misread { (a, b) } else { (b, a) };
+                    // Nobody was lost: the finder is not made due by it.
+                    self.drop_misread_twin(misread, upright);
+                    continue;
+                }
+                if !same_body(&ta.landmarks, &tb.landmarks) {
+                    continue;
+                }
                 // A track not yet established is the same person found twice; else the one
                 // that jumped further slid onto the other person.
-                let young = |t: &Track| t.held_frames < ESTABLISHED_FRAMES;
                 let loser = match (young(ta), young(tb)) {
                     (true, false) => a,
                     (false, true) => b,
@@ -621,12 +619,35 @@ impl PoseTracker {
         })
     }
 
-    /// True when `lm` is the body of someone tracked (see [`same_body`]).
+    /// Drops track `misread`, the upside-down twin of `upright` (see [`upside_down_twin`]).
+    /// They are one person: the upright reading keeps the identity held longer (a performer
+    /// misread in #0 while found again upright as #1 stays #0), and the misreading frees its
+    /// slot at once, as a passing misreading does, so nobody looks for it again.
+    fn drop_misread_twin(&mut self, misread: usize, upright: usize) {
+        let held = self.tracks[misread]
+            .held_frames
+            .max(self.tracks[upright].held_frames);
+        let (misread, upright) =
+            if self.tracks[misread].held_frames > self.tracks[upright].held_frames {
+                self.tracks.swap(misread, upright);
+                (upright, misread)
+            } else {
+                (misread, upright)
+            };
+        self.tracks[upright].held_frames = held;
+        let t = &mut self.tracks[misread];
+        t.lose();
+        t.held_frames = 0;
+        t.place = None;
+        self.stats.duplicates_dropped += 1;
+    }
+
+    /// True when `lm` is the body of someone tracked (see [`found_again`]).
     fn is_tracked_body(&self, lm: &Landmarks) -> bool {
         self.tracks
             .iter()
             .filter(|t| t.tracked())
-            .any(|t| same_body(&t.landmarks, lm))
+            .any(|t| found_again(&t.landmarks, lm))
     }
 
     /// One landmark run at the last crop of each recently lost person: someone hidden for a
@@ -645,44 +666,72 @@ impl PoseTracker {
             if self.shows_own_body(slot, presence)
                 || self.look_beside(frame, slot, roi, presence)?
             {
+                // The same person: their labelling and its evidence carry on.
                 let found = self.scratch;
-                self.tracks[slot].reference = None;
                 self.accept(slot, &found);
             }
         }
         Ok(())
     }
 
-    /// The detector while someone is missing. Looking for more people while nobody was lost
-    /// is one pass over the next of the [`DETECTOR_REGIONS`] (they take turns), so it costs one
-    /// pass however long nobody else comes. While nobody is tracked or someone established was
-    /// lost within [`EAGER_FIND_FRAMES`], every region in order, as a tracker of one person
-    /// does to find them again.
+    /// The detector while someone is missing. While someone established was lost within
+    /// [`EAGER_FIND_FRAMES`], every frame: first where they were ([`Self::where_lost`]), then
+    /// every one of the [`DETECTOR_REGIONS`], as a tracker of one person does to find them
+    /// again (one pass a frame found the man of the pose2sim crossing late). Else one pass
+    /// over the next region in turn, so looking for more people costs one pass however long
+    /// nobody else comes.
     fn find_by_detector(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
-        let searching = !self.tracks.iter().any(Track::tracked)
-            || self
-                .tracks
-                .iter()
-                .any(|t| t.recently_lost(EAGER_FIND_FRAMES));
-        let regions = if searching {
-            0..DETECTOR_REGIONS
-        } else {
-            self.next_region = (self.next_region + 1) % DETECTOR_REGIONS;
-            self.next_region..self.next_region + 1
-        };
         Roi::search_candidates(frame.width, frame.height, &mut self.candidates);
-        for region in regions {
-            if self.tracks.iter().all(Track::tracked) {
-                break;
+        if let Some(region) = self.where_lost() {
+            self.detect_in_region(frame, region)?;
+            for other in (0..DETECTOR_REGIONS).filter(|&r| r != region) {
+                self.detect_in_region(frame, other)?;
             }
-            let Some(detector) = self.detector.as_mut() else {
-                return Ok(());
-            };
-            detector.detect_in(frame, &self.candidates[region], &mut self.detections)?;
-            self.stats.detections += 1;
-            self.start_detected(frame)?;
+            return Ok(());
         }
-        Ok(())
+        let region = self.next_region;
+        self.next_region = (region + 1) % DETECTOR_REGIONS;
+        self.detect_in_region(frame, region)
+    }
+
+    /// One detector pass over candidate region `region`, starting whoever it finds that a slot
+    /// is open to; none once everyone is tracked.
+    fn detect_in_region(&mut self, frame: &RgbFrame, region: usize) -> Result<(), VisionError> {
+        if self.tracks.iter().all(Track::tracked) {
+            return Ok(());
+        }
+        let Some(detector) = self.detector.as_mut() else {
+            return Ok(());
+        };
+        detector.detect_in(frame, &self.candidates[region], &mut self.detections)?;
+        self.stats.detections += 1;
+        self.start_detected(frame)
+    }
+
+    /// The candidate region (see [`Roi::search_candidates`]) to look for the person lost most
+    /// recently (within [`EAGER_FIND_FRAMES`]): the one nearest where they were whose square
+    /// is at least twice their size, so a small or far person appears as large as the
+    /// detector finds people best (the whole frame when none is); None when nobody was just
+    /// lost.
+    fn where_lost(&self) -> Option<usize> {
+        let (centre, size) = self
+            .tracks
+            .iter()
+            .filter(|t| t.recently_lost(EAGER_FIND_FRAMES))
+            .min_by_key(|t| t.lost_frames)?
+            .place?;
+        let reach = size.max_element();
+        self.candidates
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|(_, roi)| roi.size >= 2.0 * reach)
+            .min_by(|(_, a), (_, b)| {
+                a.center
+                    .distance(centre)
+                    .total_cmp(&b.center.distance(centre))
+            })
+            .map_or(Some(0), |(i, _)| Some(i))
     }
 
     /// Starts tracks for this detector pass's detections that are nobody tracked yet.
@@ -695,7 +744,12 @@ impl PoseTracker {
                 break;
             }
             let d = self.detections[i];
-            if self.is_tracked_at(d.hip_center) {
+            // Nobody tracked, and a slot open to someone there: else the landmark run that
+            // would check the detection is spent on a person no slot takes (a crowd while a
+            // performer is being looked for).
+            if self.is_tracked_at(d.hip_center)
+                || self.slot_at(d.hip_center, DETECTION_REACH).is_none()
+            {
                 continue;
             }
             let Some(roi) = d.roi() else { continue };
@@ -758,7 +812,7 @@ impl PoseTracker {
         t.previous_place = None;
         if !same_person {
             t.held_frames = 0;
-            t.reference = None;
+            t.sides.reset();
         }
         self.accept(slot, lm);
         self.stats.tracks_started += 1;
@@ -771,7 +825,12 @@ impl PoseTracker {
     /// hidden); while nobody is, only for [`ALONE_WAIT_FRAMES`], and then they take the
     /// lowest free slot.
     fn slot_for(&self, lm: &Landmarks) -> Option<(usize, bool)> {
-        let center = body_box(lm).0;
+        self.slot_at(body_box(lm).0, 0.5)
+    }
+
+    /// [`Self::slot_for`] a person whose body is centred at `center`, near a recently lost
+    /// person when within `reach` of their body's size from where they were.
+    fn slot_at(&self, center: Vec2, reach: f32) -> Option<(usize, bool)> {
         let window = self.config.reacquire_frames;
         let nearest = self
             .tracks
@@ -781,7 +840,7 @@ impl PoseTracker {
             .filter_map(|(i, t)| {
                 let (c, s) = t.place?;
                 let d = c.distance(center) / s.max_element().max(1.0);
-                (d < 0.5).then_some((i, d))
+                (d < reach).then_some((i, d))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(i, _)| i);
@@ -843,6 +902,70 @@ fn same_body(a: &Landmarks, b: &Landmarks) -> bool {
     body_distance(a, b) < 0.1
 }
 
+/// True when a newly found `found` is `tracked` again: the same body (see [`same_body`]), or
+/// the points both see coincide (see [`seen_distance`]; an upper body at a desk read twice,
+/// its legs guessed apart). Only for starting people: while two tracked people cross, what
+/// both readings see can coincide for a frame or two without their being one.
+fn found_again(tracked: &Landmarks, found: &Landmarks) -> bool {
+    same_body(tracked, found) || seen_distance(tracked, found).is_some_and(|d| d < SAME_SEEN)
+}
+
+/// Points compared by [`seen_distance`]: the face, the arms and the legs.
+const SEEN_POINTS: [usize; 17] = [
+    idx::NOSE,
+    idx::LEFT_EYE,
+    idx::RIGHT_EYE,
+    idx::LEFT_EAR,
+    idx::RIGHT_EAR,
+    idx::LEFT_SHOULDER,
+    idx::RIGHT_SHOULDER,
+    idx::LEFT_ELBOW,
+    idx::RIGHT_ELBOW,
+    idx::LEFT_WRIST,
+    idx::RIGHT_WRIST,
+    idx::LEFT_HIP,
+    idx::RIGHT_HIP,
+    idx::LEFT_KNEE,
+    idx::RIGHT_KNEE,
+    idx::LEFT_ANKLE,
+    idx::RIGHT_ANKLE,
+];
+
+/// Visibility from which a point counts as seen.
+const SEEN: f32 = 0.5;
+
+/// Two readings whose seen points lie closer than this (in shoulder widths, see
+/// [`seen_distance`]) are one body. On the footage two people came no closer than 0.75 (the
+/// pose2sim crossing); one upper body read twice at a desk lay 0.12-0.24 apart.
+const SAME_SEEN: f32 = 0.35;
+
+/// The mean distance between the points of [`SEEN_POINTS`] both readings see, under the closer
+/// of the two labellings, in the wider of their shoulder widths; None when they share fewer
+/// than four. An upper body at a desk has its hips and legs guessed beyond the picture, where
+/// two readings of it differ; what both see of it coincides.
+fn seen_distance(a: &Landmarks, b: &Landmarks) -> Option<f32> {
+    let point = |lm: &Landmarks, i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+    let width =
+        |lm: &Landmarks| point(lm, idx::LEFT_SHOULDER).distance(point(lm, idx::RIGHT_SHOULDER));
+    let both = |i: usize, j: usize| a.visibility(i) >= SEEN && b.visibility(j) >= SEEN;
+    let mean = |mirrored: bool| {
+        let (mut sum, mut n) = (0.0, 0);
+        for &i in &SEEN_POINTS {
+            let j = if mirrored { mirror_index(i) } else { i };
+            if both(i, j) {
+                sum += point(a, i).distance(point(b, j));
+                n += 1;
+            }
+        }
+        (n >= 4).then(|| sum / n as f32)
+    };
+    let d = match (mean(false), mean(true)) {
+        (Some(x), Some(y)) => x.min(y),
+        (x, y) => x.or(y)?,
+    };
+    Some(d / width(a).max(width(b)).max(1.0))
+}
+
 /// How far apart two landmark sets' bodies are: the mean distance of their [`BODY_POINTS`],
 /// under the closer of the two labellings, in the taller body's heights.
 fn body_distance(a: &Landmarks, b: &Landmarks) -> f32 {
@@ -860,21 +983,49 @@ fn body_distance(a: &Landmarks, b: &Landmarks) -> f32 {
     mean(false).min(mean(true)) / height
 }
 
-/// The landmark of the other side for `i` (itself for the centre line).
-fn mirror_index(i: usize) -> usize {
-    LR_PAIRS
-        .iter()
-        .find_map(|&(l, r)| {
-            if l == i {
-                Some(r)
-            } else if r == i {
-                Some(l)
-            } else {
-                None
-            }
-        })
-        .unwrap_or(i)
+/// True when the torso of `next` points more than a quarter turn away from that of `last`
+/// (hips to shoulders, in the picture): nobody turns over that fast between two frames (a
+/// roll at 30 frames a second turns a tenth of that), but the landmark model does when its
+/// crop slides down the legs and it reads the body from the feet up.
+fn turned_over(last: &Landmarks, next: &Landmarks) -> bool {
+    let up = |lm: &Landmarks| {
+        let p = |i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+        p(idx::LEFT_SHOULDER) + p(idx::RIGHT_SHOULDER) - p(idx::LEFT_HIP) - p(idx::RIGHT_HIP)
+    };
+    up(last).dot(up(next)) < 0.0
 }
+
+/// Whether `a` (Some(true)) or `b` (Some(false)) is the upside-down reading of a body the
+/// other reads upright: one's body box lies within the other's (at least
+/// [`TWIN_CONTAINED`] of the smaller box inside the larger) and only one stands with its
+/// shoulders above its hips. The landmark model reads a crop it is not centred on (a detection
+/// of the same face, a crop that drifted down the legs) as a body from the feet up; that
+/// reading follows itself frame after frame as a second person. Two people whose boxes nest
+/// (one behind the other) both stand upright.
+fn upside_down_twin(a: &Landmarks, b: &Landmarks) -> Option<bool> {
+    let upside_down = |lm: &Landmarks| {
+        let y = |i: usize| lm.image[i].y;
+        y(idx::LEFT_SHOULDER) + y(idx::RIGHT_SHOULDER) > y(idx::LEFT_HIP) + y(idx::RIGHT_HIP)
+    };
+    let (ua, ub) = (upside_down(a), upside_down(b));
+    if ua == ub {
+        return None;
+    }
+    let (ba, bb) = (body_box(a), body_box(b));
+    let lo = (ba.0 - ba.1 * 0.5).max(bb.0 - bb.1 * 0.5);
+    let hi = (ba.0 + ba.1 * 0.5).min(bb.0 + bb.1 * 0.5);
+    let inter = (hi - lo).max(Vec2::ZERO);
+    let smaller = (ba.1.x * ba.1.y).min(bb.1.x * bb.1.y).max(1.0);
+    (inter.x * inter.y >= TWIN_CONTAINED * smaller).then_some(ua)
+}
+
+/// See [`upside_down_twin`].
+const TWIN_CONTAINED: f32 = 0.9;
+
+/// How far (in body sizes) a detection's hips may lie from where a recently lost person was
+/// for their slot to be open to it: twice a landmark reading's reach in [`PoseTracker::slot_for`],
+/// the detector's hips being a guess from the face.
+const DETECTION_REACH: f32 = 1.0;
 
 /// True when body box `next` can be the same person as `last` one frame later: about the
 /// same height and not far away. Two people crossing differ in both (the one behind looks
@@ -924,70 +1075,12 @@ fn next_roi(lm: &Landmarks) -> Option<Roi> {
     Roi::from_alignment(Vec2::new(c.x, c.y), Vec2::new(s.x, s.y))
 }
 
-/// Torso lines (left minus right, world) of hips and shoulders: what the flip guard compares.
-fn torso_lines(lm: &Landmarks) -> [Vec3; 2] {
-    GUARD_PAIRS.map(|(l, r)| lm.world[l] - lm.world[r])
-}
-
-/// The torso lines after [`flip_interpretation`]: left and right exchange (negating the line)
-/// and depth is mirrored, so x and y change sign and z stays.
-fn flipped_lines(lines: [Vec3; 2]) -> [Vec3; 2] {
-    lines.map(|v| Vec3::new(-v.x, -v.y, v.z))
-}
-
-/// True when the current frame fits the reference better with its reading flipped.
-///
-/// Why: on ambiguous views (a blurred face, a side view) the model sometimes switches between
-/// "facing the camera" and "facing away" — the two readings of the same image, one the other
-/// mirrored in depth with left and right exchanged — often for single frames, sometimes
-/// through a degenerate in-between frame. Comparing against a reference that follows the
-/// accepted frames with some inertia (rather than against the last frame alone) keeps one
-/// degenerate frame from deciding the labels of all that follow.
-fn labels_swapped(reference: &[Vec3; 2], cur: &Landmarks) -> bool {
-    let same = torso_lines(cur);
-    let flipped = flipped_lines(same);
-    let cost = |lines: &[Vec3; 2]| -> f32 {
-        lines
-            .iter()
-            .zip(reference)
-            .map(|(a, b)| a.distance(*b))
-            .sum()
-    };
-    cost(&flipped) < cost(&same)
-}
-
-/// Moves the reference torso lines towards the accepted frame's.
-fn update_reference(reference: &mut Option<[Vec3; 2]>, lm: &Landmarks) {
-    let lines = torso_lines(lm);
-    *reference = Some(match *reference {
-        Some(r) => [
-            r[0].lerp(lines[0], REFERENCE_RATE),
-            r[1].lerp(lines[1], REFERENCE_RATE),
-        ],
-        None => lines,
-    });
-}
-
-/// The other reading of the same image: depth mirrored, left and right labels exchanged.
-/// (Two mirrors make a proper rotation, so the result is a valid body.)
-fn flip_interpretation(lm: &mut Landmarks) {
-    for p in lm.world.iter_mut() {
-        p.z = -p.z;
-    }
-    for p in lm.image.iter_mut() {
-        p.z = -p.z;
-    }
-    for &(l, r) in &LR_PAIRS {
-        lm.image.swap(l, r);
-        lm.world.swap(l, r);
-    }
-}
-
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use glam::Vec4;
+    use crate::vision::sides::{flip_interpretation, LR_PAIRS};
+    use glam::{Vec3, Vec4};
 
     fn person(offset_x: f32) -> Landmarks {
         let mut lm = Landmarks::default();
@@ -1015,27 +1108,65 @@ mod tests {
     }
 
     #[test]
-    fn a_depth_flip_is_detected_and_undone() {
-        let mut reference = None;
-        update_reference(&mut reference, &person(0.0));
-        let reference = reference.unwrap();
-        let mut cur = person(3.0);
-        assert!(!labels_swapped(&reference, &cur));
-        flip_interpretation(&mut cur);
-        assert!(labels_swapped(&reference, &cur));
-        flip_interpretation(&mut cur);
-        assert_eq!(cur, person(3.0));
+    fn one_upper_body_read_twice_is_one_body_whatever_its_guessed_legs() {
+        let a = person(0.0);
+        let mut b = person(3.0);
+        // The legs are beyond the picture: guessed elsewhere, and not seen.
+        for i in [
+            idx::LEFT_KNEE,
+            idx::RIGHT_KNEE,
+            idx::LEFT_ANKLE,
+            idx::RIGHT_ANKLE,
+        ] {
+            b.image[i].y += 200.0;
+            b.image[i].w = 0.1;
+        }
+        assert!(!same_body(&a, &b));
+        assert!(found_again(&a, &b));
+        // Someone beside them, seen as well, is not.
+        assert!(!found_again(&a, &person(120.0)));
     }
 
     #[test]
-    fn a_flip_keeps_limb_lengths_and_mirrors_depth() {
-        let mut lm = person(0.0);
-        lm.world[idx::LEFT_ELBOW].z = 0.2;
-        let before = lm.world[idx::LEFT_SHOULDER].distance(lm.world[idx::LEFT_ELBOW]);
-        flip_interpretation(&mut lm);
-        let after = lm.world[idx::RIGHT_SHOULDER].distance(lm.world[idx::RIGHT_ELBOW]);
-        assert!((before - after).abs() < 1e-6);
-        assert_eq!(lm.world[idx::RIGHT_ELBOW].z, -0.2);
+    fn a_torso_turned_over_within_a_frame_is_a_misreading() {
+        let upright = person(0.0);
+        let mut over = upright;
+        for p in over.image.iter_mut() {
+            p.y = 330.0 - p.y;
+        }
+        assert!(turned_over(&upright, &over));
+        assert!(!turned_over(&upright, &person(30.0)));
+        // A sixth of a turn in one frame is a fast roll, not a misreading.
+        let mut rolled = upright;
+        for p in rolled.image.iter_mut() {
+            let (x, y) = (p.x, p.y);
+            p.x = 0.5 * x - 0.866 * y;
+            p.y = 0.866 * x + 0.5 * y;
+        }
+        assert!(!turned_over(&upright, &rolled));
+    }
+
+    #[test]
+    fn an_upside_down_reading_inside_an_upright_body_is_its_twin() {
+        let upright = person(0.0);
+        let mut misread = upright;
+        for p in misread.image.iter_mut() {
+            p.y = 330.0 - p.y;
+        }
+        assert_eq!(upside_down_twin(&upright, &misread), Some(false));
+        assert_eq!(upside_down_twin(&misread, &upright), Some(true));
+        // Two upright people whose boxes nest are two people; so is someone upside down
+        // beside an upright person.
+        let mut behind = person(20.0);
+        for p in behind.image.iter_mut() {
+            p.y = 100.0 + 0.5 * p.y;
+        }
+        assert_eq!(upside_down_twin(&upright, &behind), None);
+        let mut beside = person(150.0);
+        for p in beside.image.iter_mut() {
+            p.y = 330.0 - p.y;
+        }
+        assert_eq!(upside_down_twin(&upright, &beside), None);
     }
 
     #[test]

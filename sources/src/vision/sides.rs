@@ -1,0 +1,369 @@
+//! Left and right of one tracked person: which of the landmark model's two readings of an
+//! image to keep.
+//!
+//! Why two readings: on a view the model finds ambiguous (a blurred or hidden face, a back, a
+//! side view) it reads the body either as it is or as its mirror in depth with left and right
+//! exchanged (see [`flip_interpretation`]). Both are valid bodies, equally continuous in time:
+//! a person turning from the front to the back through a side view and the same person turning
+//! to the side and back again differ only in that reading. So neither continuity nor the 3D
+//! shape can say which is right; only the model's reading of the picture can (the face, the
+//! chest or the back), and on such views it changes its mind from frame to frame.
+//!
+//! [`SideGuard`] keeps each frame continuous with the last (a reading that flipped is flipped
+//! back, against a reference that follows the kept frames with some inertia) and weighs the
+//! model's readings for and against the labelling it keeps: every frame the model read the
+//! other way round counts for a change, every frame it agreed counts for keeping, each by how
+//! decisive the reading is (a front or back view whose face, torso and depth tell one story;
+//! a side view or a reading whose parts disagree counts nothing), older frames fading. When
+//! the readings for a change outweigh those for keeping by [`RELABEL_MARGIN`], the guard takes
+//! the model's labelling, and what spoke for the change now speaks for keeping it. So the
+//! labels follow what the model sees most of the time rather than whichever reading the track
+//! started with: a track started on a misreading is put right within a few frames, a run of
+//! misreadings on a track the model has read one way for seconds changes nothing, and where
+//! the model reads a view either way round often no change happens at all (the readings
+//! against must also be four fifths of all), so the labels do not flicker. A person lost and
+//! found again keeps their guard (`tracker.rs` resets it for a new person in the slot).
+
+use glam::{Vec2, Vec3};
+
+use super::landmarks::{idx, Landmarks};
+
+/// Left/right landmark pairs (swapped together).
+pub(super) const LR_PAIRS: [(usize, usize); 16] = [
+    (1, 4),
+    (2, 5),
+    (3, 6),
+    (7, 8),
+    (9, 10),
+    (11, 12),
+    (13, 14),
+    (15, 16),
+    (17, 18),
+    (19, 20),
+    (21, 22),
+    (23, 24),
+    (25, 26),
+    (27, 28),
+    (29, 30),
+    (31, 32),
+];
+
+/// Pairs whose positions decide whether the reading flipped: the torso corners, which move
+/// least and are seen best (arms legitimately move a lot between frames).
+const GUARD_PAIRS: [(usize, usize); 2] = [
+    (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER),
+    (idx::LEFT_HIP, idx::RIGHT_HIP),
+];
+
+/// How fast the flip guard's reference follows kept frames (fraction per frame).
+const REFERENCE_RATE: f32 = 0.3;
+
+/// How far (in decisive frames, see [`reading_weight`]) the readings for a change must
+/// outweigh those for keeping: a fresh track (one frame for it) changes after about eight
+/// contrary frames; one read the same way for seconds after about thirty, longer than the
+/// runs of misreadings the lite model makes on a clear view (up to ~11 frames).
+const RELABEL_MARGIN: f32 = 6.0;
+
+/// ... and by this share of all the readings' weight (four fifths of the readings against):
+/// where the model reads the view either way round often (a third of the frames against), a
+/// run of contrary frames never adds up to a change, so the labels do not flicker with it.
+const RELABEL_SHARE: f32 = 0.6;
+
+/// Each frame keeps this much of the weight of the readings before it (a memory of about
+/// twenty frames).
+const EVIDENCE_KEPT: f32 = 0.95;
+
+/// A reading's torso facing (|forward · depth| of its 3D torso) below this is a side view,
+/// which says nothing about left and right; at [`DECISIVE_FACING`] and above it counts fully.
+const SIDE_VIEW_FACING: f32 = 0.3;
+const DECISIVE_FACING: f32 = 0.8;
+
+/// What [`SideGuard::label`] did to a reading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Labelling {
+    /// Kept as the model read it.
+    Kept,
+    /// Flipped back to continue the kept labelling.
+    Flipped,
+    /// Kept as the model read it, against the labelling held so far (the evidence said so).
+    Relabelled,
+}
+
+/// The flip guard of one track (see the module docs).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SideGuard {
+    /// Torso lines (left minus right, world) the next frame is compared with.
+    reference: Option<[Vec3; 2]>,
+    /// The fading weight of the readings against the kept labelling minus that of those for
+    /// it.
+    evidence: f32,
+    /// The fading weight of all readings, for and against.
+    weight: f32,
+}
+
+impl SideGuard {
+    /// No reference: the next reading is kept as the model gives it.
+    pub(super) const NEW: SideGuard = SideGuard {
+        reference: None,
+        evidence: 0.0,
+        weight: 0.0,
+    };
+
+    /// Forgets the reference and the evidence (a new person, or one found again).
+    pub(super) fn reset(&mut self) {
+        *self = SideGuard::NEW;
+    }
+
+    /// Labels `lm`, the model's reading of this frame, continuing the kept labelling or,
+    /// when the evidence says so, taking the model's; flips `lm` when needed.
+    pub(super) fn label(&mut self, lm: &mut Landmarks) -> Labelling {
+        let weight = reading_weight(lm);
+        let Some(reference) = &self.reference else {
+            // A new track: its first reading is kept, and speaks for itself.
+            self.evidence = -weight;
+            self.weight = weight;
+            update_reference(&mut self.reference, lm);
+            return Labelling::Kept;
+        };
+        let swapped = labels_swapped(reference, lm);
+        let step = if swapped { weight } else { -weight };
+        self.evidence = self.evidence * EVIDENCE_KEPT + step;
+        self.weight = self.weight * EVIDENCE_KEPT + weight;
+        let done = if self.evidence > RELABEL_MARGIN.max(RELABEL_SHARE * self.weight) {
+            // The model's labelling: what spoke for the change now speaks for keeping it.
+            self.evidence = -self.evidence;
+            self.reference = None;
+            Labelling::Relabelled
+        } else if swapped {
+            flip_interpretation(lm);
+            Labelling::Flipped
+        } else {
+            Labelling::Kept
+        };
+        update_reference(&mut self.reference, lm);
+        done
+    }
+}
+
+/// How much a reading says about left and right, in [0, 1]: how squarely its 3D torso faces
+/// towards or away from the camera (a side view says nothing), and nothing when its parts tell
+/// different stories: the torso's 3D facing, the torso's left and right in the picture and the
+/// ears' left and right in the picture must all agree (facing the camera, the left shoulder,
+/// hip and ear are on the picture's right of an upright spine; facing away, on its left).
+pub(super) fn reading_weight(lm: &Landmarks) -> f32 {
+    let w = |i: usize| lm.world[i];
+    let across = (w(idx::LEFT_SHOULDER) - w(idx::RIGHT_SHOULDER) + w(idx::LEFT_HIP)
+        - w(idx::RIGHT_HIP))
+        * 0.5;
+    let up =
+        (w(idx::LEFT_SHOULDER) + w(idx::RIGHT_SHOULDER) - w(idx::LEFT_HIP) - w(idx::RIGHT_HIP))
+            * 0.5;
+    // Model axes: x right in the picture, y down, z away from the camera; the body's forward
+    // is its left-to-right line crossed with its up, so facing the camera is forward.z < 0.
+    let forward = across.cross(up).normalize_or_zero();
+    let towards_camera = forward.z < 0.0;
+    let p = |i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+    let spine =
+        (p(idx::LEFT_SHOULDER) + p(idx::RIGHT_SHOULDER) - p(idx::LEFT_HIP) - p(idx::RIGHT_HIP))
+            * 0.5;
+    // Facing the camera, left is on the picture's right of the spine pointing up (image y
+    // down): the perp-dot of (left - right) with the spine is negative.
+    let on_right = |l: usize, r: usize| (p(l) - p(r)).perp_dot(spine) < 0.0;
+    let consistent = on_right(idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER) == towards_camera
+        && on_right(idx::LEFT_HIP, idx::RIGHT_HIP) == towards_camera
+        && on_right(idx::LEFT_EAR, idx::RIGHT_EAR) == towards_camera;
+    if !consistent {
+        return 0.0;
+    }
+    ((forward.z.abs() - SIDE_VIEW_FACING) / (DECISIVE_FACING - SIDE_VIEW_FACING)).clamp(0.0, 1.0)
+}
+
+/// Torso lines (left minus right, world) of hips and shoulders: what the flip guard compares.
+fn torso_lines(lm: &Landmarks) -> [Vec3; 2] {
+    GUARD_PAIRS.map(|(l, r)| lm.world[l] - lm.world[r])
+}
+
+/// The torso lines after [`flip_interpretation`]: left and right exchange (negating the line)
+/// and depth is mirrored, so x and y change sign and z stays.
+fn flipped_lines(lines: [Vec3; 2]) -> [Vec3; 2] {
+    lines.map(|v| Vec3::new(-v.x, -v.y, v.z))
+}
+
+/// True when the current frame fits the reference better with its reading flipped. The
+/// reference follows the kept frames with some inertia (rather than being the last frame
+/// alone), so one degenerate in-between frame does not decide the labels of all that follow.
+fn labels_swapped(reference: &[Vec3; 2], cur: &Landmarks) -> bool {
+    let same = torso_lines(cur);
+    let flipped = flipped_lines(same);
+    let cost = |lines: &[Vec3; 2]| -> f32 {
+        lines
+            .iter()
+            .zip(reference)
+            .map(|(a, b)| a.distance(*b))
+            .sum()
+    };
+    cost(&flipped) < cost(&same)
+}
+
+/// Moves the reference torso lines towards the kept frame's.
+fn update_reference(reference: &mut Option<[Vec3; 2]>, lm: &Landmarks) {
+    let lines = torso_lines(lm);
+    *reference = Some(match *reference {
+        Some(r) => [
+            r[0].lerp(lines[0], REFERENCE_RATE),
+            r[1].lerp(lines[1], REFERENCE_RATE),
+        ],
+        None => lines,
+    });
+}
+
+/// The other reading of the same image: depth mirrored, left and right labels exchanged.
+/// (Two mirrors make a proper rotation, so the result is a valid body.)
+pub(super) fn flip_interpretation(lm: &mut Landmarks) {
+    for p in lm.world.iter_mut() {
+        p.z = -p.z;
+    }
+    for p in lm.image.iter_mut() {
+        p.z = -p.z;
+    }
+    for &(l, r) in &LR_PAIRS {
+        lm.image.swap(l, r);
+        lm.world.swap(l, r);
+    }
+}
+
+/// The landmark of the other side for `i` (itself for the centre line).
+pub(super) fn mirror_index(i: usize) -> usize {
+    LR_PAIRS
+        .iter()
+        .find_map(|&(l, r)| {
+            if l == i {
+                Some(r)
+            } else if r == i {
+                Some(l)
+            } else {
+                None
+            }
+        })
+        .unwrap_or(i)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use glam::Vec4;
+
+    /// A body facing the camera, turned by `yaw` radians about the vertical (0: square on;
+    /// ±π/2: a side view), in model axes (y down, z away) with its picture from the front.
+    fn body(yaw: f32) -> Landmarks {
+        let mut lm = Landmarks::default();
+        let (s, c) = yaw.sin_cos();
+        // (landmark, x towards the body's left, height above the hips); the body's left is
+        // the camera's +x when square on.
+        let points = [
+            (idx::LEFT_SHOULDER, 0.18, 0.5),
+            (idx::RIGHT_SHOULDER, -0.18, 0.5),
+            (idx::LEFT_HIP, 0.1, 0.0),
+            (idx::RIGHT_HIP, -0.1, 0.0),
+            (idx::LEFT_EAR, 0.07, 0.7),
+            (idx::RIGHT_EAR, -0.07, 0.7),
+            (idx::LEFT_ELBOW, 0.2, 0.25),
+            (idx::RIGHT_ELBOW, -0.2, 0.25),
+            (idx::LEFT_KNEE, 0.1, -0.45),
+            (idx::RIGHT_KNEE, -0.1, -0.45),
+        ];
+        for (i, x, h) in points {
+            // Turned by yaw: x -> x cos, depth -> x sin (towards the camera is -z).
+            let world = Vec3::new(x * c, -h, x * s);
+            lm.world[i] = world;
+            lm.image[i] = Vec4::new(500.0 + 400.0 * world.x, 500.0 + 400.0 * world.y, 0.0, 1.0);
+        }
+        lm
+    }
+
+    fn flipped(mut lm: Landmarks) -> Landmarks {
+        flip_interpretation(&mut lm);
+        lm
+    }
+
+    #[test]
+    fn a_depth_flip_is_detected_and_undone() {
+        let mut reference = None;
+        update_reference(&mut reference, &body(0.0));
+        let reference = reference.unwrap();
+        let mut cur = body(0.1);
+        assert!(!labels_swapped(&reference, &cur));
+        flip_interpretation(&mut cur);
+        assert!(labels_swapped(&reference, &cur));
+        flip_interpretation(&mut cur);
+        assert_eq!(cur, body(0.1));
+    }
+
+    #[test]
+    fn a_flip_keeps_limb_lengths_and_mirrors_depth() {
+        let mut lm = body(0.0);
+        lm.world[idx::LEFT_ELBOW].z = 0.2;
+        let before = lm.world[idx::LEFT_SHOULDER].distance(lm.world[idx::LEFT_ELBOW]);
+        flip_interpretation(&mut lm);
+        let after = lm.world[idx::RIGHT_SHOULDER].distance(lm.world[idx::RIGHT_ELBOW]);
+        assert!((before - after).abs() < 1e-6);
+        assert_eq!(lm.world[idx::RIGHT_ELBOW].z, -0.2);
+    }
+
+    #[test]
+    fn front_and_back_views_weigh_fully_side_views_and_torn_readings_nothing() {
+        assert_eq!(reading_weight(&body(0.0)), 1.0);
+        // The mirrored reading is as decisive: it is a back view, told the same way by all.
+        assert_eq!(reading_weight(&flipped(body(0.0))), 1.0);
+        assert_eq!(reading_weight(&body(std::f32::consts::FRAC_PI_2)), 0.0);
+        let mid = reading_weight(&body(1.0));
+        assert!(mid > 0.0 && mid < 1.0, "{mid}");
+        // The ears read the other way round from the torso: the reading is torn, no evidence.
+        let mut torn = body(0.0);
+        torn.image.swap(idx::LEFT_EAR, idx::RIGHT_EAR);
+        assert_eq!(reading_weight(&torn), 0.0);
+    }
+
+    #[test]
+    fn a_run_of_misreadings_is_flipped_back_and_changes_nothing() {
+        let mut guard = SideGuard::NEW;
+        let mut relabels = 0;
+        // Eight misread frames in a row, then the model's right reading again, repeatedly:
+        // two right frames for every misread one.
+        for frame in 0..300 {
+            let misread = frame % 24 >= 16;
+            let truth = body(0.2 * (frame as f32 * 0.1).sin());
+            let mut lm = if misread { flipped(truth) } else { truth };
+            relabels += usize::from(guard.label(&mut lm) == Labelling::Relabelled);
+            assert_eq!(lm, truth, "frame {frame}");
+        }
+        assert_eq!(relabels, 0);
+    }
+
+    #[test]
+    fn a_track_started_on_a_misreading_takes_the_models_labelling() {
+        let mut guard = SideGuard::NEW;
+        // The track starts on a misread frame; the model reads right from then on.
+        let mut lm = flipped(body(0.0));
+        assert_eq!(guard.label(&mut lm), Labelling::Kept);
+        let mut done = Vec::new();
+        for frame in 0..60 {
+            let truth = body(0.1 * (frame as f32 * 0.2).sin());
+            let mut lm = truth;
+            done.push(guard.label(&mut lm));
+            if frame >= 20 {
+                assert_eq!(lm, truth, "frame {frame}: relabelled within 20 frames");
+            }
+        }
+        let relabels = done.iter().filter(|&&d| d == Labelling::Relabelled).count();
+        assert_eq!(relabels, 1, "{done:?}");
+        // Until then the kept labelling was continued: no flicker.
+        let first = done
+            .iter()
+            .position(|&d| d == Labelling::Relabelled)
+            .unwrap();
+        assert!(done[..first].iter().all(|&d| d == Labelling::Flipped));
+        assert!(done[first + 1..].iter().all(|&d| d == Labelling::Kept));
+    }
+}
