@@ -910,25 +910,17 @@ fn found_again(tracked: &Landmarks, found: &Landmarks) -> bool {
     same_body(tracked, found) || seen_distance(tracked, found).is_some_and(|d| d < SAME_SEEN)
 }
 
-/// Points compared by [`seen_distance`]: the face, the arms and the legs.
-const SEEN_POINTS: [usize; 17] = [
+/// Points [`seen_distance`] compares besides [`BODY_POINTS`]: the face and the arms.
+const FACE_AND_ARMS: [usize; 9] = [
     idx::NOSE,
     idx::LEFT_EYE,
     idx::RIGHT_EYE,
     idx::LEFT_EAR,
     idx::RIGHT_EAR,
-    idx::LEFT_SHOULDER,
-    idx::RIGHT_SHOULDER,
     idx::LEFT_ELBOW,
     idx::RIGHT_ELBOW,
     idx::LEFT_WRIST,
     idx::RIGHT_WRIST,
-    idx::LEFT_HIP,
-    idx::RIGHT_HIP,
-    idx::LEFT_KNEE,
-    idx::RIGHT_KNEE,
-    idx::LEFT_ANKLE,
-    idx::RIGHT_ANKLE,
 ];
 
 /// Visibility from which a point counts as seen.
@@ -939,9 +931,9 @@ const SEEN: f32 = 0.5;
 /// pose2sim crossing); one upper body read twice at a desk lay 0.12-0.24 apart.
 const SAME_SEEN: f32 = 0.35;
 
-/// The mean distance between the points of [`SEEN_POINTS`] both readings see, under the closer
-/// of the two labellings, in the wider of their shoulder widths; None when they share fewer
-/// than four. An upper body at a desk has its hips and legs guessed beyond the picture, where
+/// The mean distance between the points of [`FACE_AND_ARMS`] and [`BODY_POINTS`] both
+/// readings see, under the closer of the two labellings, in the wider of their shoulder
+/// widths; None when they share fewer than four. An upper body at a desk has its hips and legs guessed beyond the picture, where
 /// two readings of it differ; what both see of it coincides.
 fn seen_distance(a: &Landmarks, b: &Landmarks) -> Option<f32> {
     let point = |lm: &Landmarks, i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
@@ -950,7 +942,7 @@ fn seen_distance(a: &Landmarks, b: &Landmarks) -> Option<f32> {
     let both = |i: usize, j: usize| a.visibility(i) >= SEEN && b.visibility(j) >= SEEN;
     let mean = |mirrored: bool| {
         let (mut sum, mut n) = (0.0, 0);
-        for &i in &SEEN_POINTS {
+        for &i in FACE_AND_ARMS.iter().chain(&BODY_POINTS) {
             let j = if mirrored { mirror_index(i) } else { i };
             if both(i, j) {
                 sum += point(a, i).distance(point(b, j));
