@@ -46,8 +46,8 @@ BUILDS=("$BIN")
 [[ -n "${RIGCAST_BEFORE:-}" ]] && BUILDS=("$RIGCAST_BEFORE" "$BIN")
 BUILD_HEAD=
 [[ ${#BUILDS[@]} -gt 1 ]] && BUILD_HEAD="build | "
-echo "| ${BUILD_HEAD}model, fps | capture | decode | detect | landmarks | handoff | send | glass_to_wire | bound: 1 interval + model | client | load |"
-echo "|${BUILD_HEAD:+---|}---|---|---|---|---|---|---|---|---|---|---|"
+echo "| ${BUILD_HEAD}model, fps | capture | decode | detect | landmarks | solve | handoff | retarget | send | glass_to_wire | bound: 1 interval + model | client | load |"
+echo "|${BUILD_HEAD:+---|}---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for model in ${RIGCAST_BENCH_MODELS:-lite full}; do
     for fps in ${RIGCAST_BENCH_FPS:-30 60}; do
       for build in "${BUILDS[@]}"; do
@@ -88,7 +88,7 @@ for s in status["subjects"]:
 cell = lambda n: "%.1f / %.1f" % (stages[n]["p50_ms"], stages[n]["p99_ms"]) if n in stages else "—"
 glass = next((g for g in client["glass_us"] if camera and g["subject"] == camera["id"]), None)
 arrival = "%.1f / %.1f" % (glass["latency"]["p50"] / 1000, glass["latency"]["p99"] / 1000) if glass else "—"
-names = ["capture", "decode", "detect", "landmarks", "handoff", "send"]
+names = ["capture", "decode", "detect", "landmarks", "solve", "handoff", "retarget", "send"]
 if "glass_to_wire" in stages and "landmarks" in stages:
     bound = 1000 / float(fps) + stages["landmarks"]["p50_ms"]
     verdict = "%.1f, %s" % (bound, "met" if stages["glass_to_wire"]["p99_ms"] <= bound else "**missed**")
