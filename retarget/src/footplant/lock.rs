@@ -244,6 +244,52 @@ struct Foot {
     raw_ankle: Vec3,
 }
 
+impl Foot {
+    /// Where a pinned ankle stands: at its standing height plus the source heel's lift when
+    /// that is known, else where it was pinned, lifted by the foot's own lift.
+    fn pinned_ankle(&self, up: Vec3, floor: f32) -> Vec3 {
+        match self.heel_lift {
+            Some(h) => {
+                let p = self.lock_position;
+                p - up * p.dot(up) + up * (floor + self.heel_clearance + h)
+            }
+            None => self.lock_position + up * self.lift,
+        }
+    }
+
+    /// A pin taken or let go: the difference in place and in speed between what is shown and
+    /// the new goal (position, heading, velocity, heading rate) is taken up and decays from
+    /// here. An unpinned foot is measured from where the hips carry it down (the caller folds
+    /// that into the goal's position). A landing foot stops where it is shown (a release
+    /// blends in place and speed), except that a foot still coming down onto its pin keeps
+    /// that downward speed: stopping it would leave it hanging over the pin for the blend's
+    /// length. A foot seen for the first time has shown nothing yet: nothing to blend from.
+    fn retake_offsets(&mut self, fresh: bool, up: Vec3, goal: (Vec3, f32, Vec3, f32)) {
+        let (target, target_heading, velocity, rate) = goal;
+        let keep_speed = if self.locked { 0.0 } else { 1.0 };
+        self.position_offset = if fresh {
+            Decay::default()
+        } else {
+            let value = self.shown_position - target;
+            let relative = self.shown_velocity - velocity;
+            let down = up * relative.dot(up);
+            let settling = if down.dot(value) < 0.0 {
+                down
+            } else {
+                Vec3::ZERO
+            };
+            Decay {
+                value,
+                velocity: relative * keep_speed + settling * (1.0 - keep_speed),
+            }
+        };
+        self.heading_offset = Decay {
+            value: wrap(self.shown_heading - target_heading),
+            velocity: (self.shown_heading_rate - rate) * keep_speed,
+        };
+    }
+}
+
 /// How a foot stands on one frame: ankle and ball heights above the floor (metres), and its
 /// pitch (radians, ball above the ankle positive).
 #[derive(Debug, Clone, Copy)]
@@ -840,15 +886,7 @@ impl FootLock {
         }
         let floor = self.floor;
         let (target, target_heading, velocity, rate) = if f.locked {
-            let pinned = match f.heel_lift {
-                // The ankle at its standing height plus the source heel's lift.
-                Some(h) => {
-                    let p = f.lock_position;
-                    p - up * p.dot(up) + up * (floor + f.heel_clearance + h)
-                }
-                None => f.lock_position + up * f.lift,
-            };
-            (pinned, f.lock_heading, Vec3::ZERO, 0.0)
+            (f.pinned_ankle(up, floor), f.lock_heading, Vec3::ZERO, 0.0)
         } else {
             (
                 animated + up * approach,
@@ -858,34 +896,9 @@ impl FootLock {
             )
         };
         if f.locked != was {
-            // Take up the difference in place and in speed; it decays from here. An unpinned
-            // foot is carried down with the hips: measured from where that puts it.
-            // A landing foot stops where it is shown (a release blends in place and speed),
-            // except that a foot still coming down onto its pin keeps that downward speed:
-            // stopping it would leave it hanging over the pin for the blend's length.
             let carried = if f.locked { 0.0 } else { last_drop };
-            let keep_speed = if f.locked { 0.0 } else { 1.0 };
-            // A foot seen for the first time has shown nothing yet: nothing to blend from.
-            f.position_offset = if fresh {
-                Decay::default()
-            } else {
-                let value = f.shown_position - (target - up * carried);
-                let relative = f.shown_velocity - velocity;
-                let down = up * relative.dot(up);
-                let settling = if down.dot(value) < 0.0 {
-                    down
-                } else {
-                    Vec3::ZERO
-                };
-                Decay {
-                    value,
-                    velocity: relative * keep_speed + settling * (1.0 - keep_speed),
-                }
-            };
-            f.heading_offset = Decay {
-                value: wrap(f.shown_heading - target_heading),
-                velocity: (f.shown_heading_rate - rate) * keep_speed,
-            };
+            let goal = (target - up * carried, target_heading, velocity, rate);
+            f.retake_offsets(fresh, up, goal);
         }
         // A released foot catches up with the animation, which has lifted it already (the
         // live detector lets go a frame or two late): more slowly than a landing settles, or

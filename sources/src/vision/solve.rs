@@ -162,12 +162,28 @@ impl PoseSolver {
             _ => 0.0,
         };
         self.last_time = Some(time_secs);
+        // Every bone starts from last frame's rotation; one not seen keeps it.
+        let mut solved = self.world;
+        let mut conf = [0.0f32; bone::NUM_BONES];
+        self.solve_torso(landmarks, &mut solved, &mut conf);
+        self.solve_arms(landmarks, &mut solved, &mut conf);
+        self.solve_legs(landmarks, &mut solved, &mut conf);
+        self.world = solved;
+        self.confidence = conf;
+        self.blend_into_output(dt);
+        out.copy_from(&self.output);
+    }
+
+    /// Hips, spine, chest, neck and head from the hips, shoulders, ears and nose.
+    fn solve_torso(
+        &self,
+        landmarks: &Landmarks,
+        solved: &mut [Quat; bone::NUM_BONES],
+        conf: &mut [f32; bone::NUM_BONES],
+    ) {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
         let mid = |a: usize, b: usize| (p(a) + p(b)) * 0.5;
-        let (lo, hi) = (self.config.confidence_low, self.config.confidence_high);
-        let seen = |v: f32| smoothstep(lo, hi, v);
-
         let hip_c = mid(idx::LEFT_HIP, idx::RIGHT_HIP);
         let sho_c = mid(idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER);
         let ear_c = mid(idx::LEFT_EAR, idx::RIGHT_EAR);
@@ -179,41 +195,35 @@ impl PoseSolver {
             .min(vis(idx::LEFT_SHOULDER))
             .min(vis(idx::RIGHT_SHOULDER));
 
-        let mut solved = self.world;
-        let mut conf = [0.0f32; bone::NUM_BONES];
-        let prev = self.world;
-        // Rest directions used as twist references.
-        let x = Vec3::X;
-        let y = Vec3::Y;
-        let z = Vec3::Z;
+        let (x, y, z) = (Vec3::X, Vec3::Y, Vec3::Z);
 
         set(
-            &mut solved,
-            &mut conf,
+            solved,
+            conf,
             bone::HIPS,
             two_axis(x, y, hip_line, up),
             torso_vis,
         );
         set(
-            &mut solved,
-            &mut conf,
+            solved,
+            conf,
             bone::CHEST,
             two_axis(x, y, sho_line, up),
             torso_vis,
         );
         let spine = solved[bone::HIPS].slerp(solved[bone::CHEST], 0.5);
-        set(&mut solved, &mut conf, bone::SPINE, Some(spine), torso_vis);
+        set(solved, conf, bone::SPINE, Some(spine), torso_vis);
         let ear_vis = vis(idx::LEFT_EAR).min(vis(idx::RIGHT_EAR));
         set(
-            &mut solved,
-            &mut conf,
+            solved,
+            conf,
             bone::NECK,
             two_axis(y, x, ear_c - sho_c, sho_line),
             ear_vis.min(torso_vis),
         );
         set(
-            &mut solved,
-            &mut conf,
+            solved,
+            conf,
             bone::HEAD,
             two_axis(
                 x,
@@ -223,7 +233,22 @@ impl PoseSolver {
             ),
             ear_vis.min(vis(idx::NOSE)),
         );
+    }
 
+    /// Upper arms, forearms and hands; a twist reference not seen keeps last frame's twist.
+    fn solve_arms(
+        &self,
+        landmarks: &Landmarks,
+        solved: &mut [Quat; bone::NUM_BONES],
+        conf: &mut [f32; bone::NUM_BONES],
+    ) {
+        let p = |i: usize| landmarks.world_internal(i);
+        let vis = |i: usize| landmarks.visibility(i);
+        let mid = |a: usize, b: usize| (p(a) + p(b)) * 0.5;
+        let (lo, hi) = (self.config.confidence_low, self.config.confidence_high);
+        let seen = |v: f32| smoothstep(lo, hi, v);
+        let prev = self.world;
+        let z = Vec3::Z;
         // Arms: (upper, lower, hand, shoulder, elbow, wrist, pinky, index).
         let arms = [
             (
@@ -261,8 +286,8 @@ impl PoseSolver {
                 fallback(ub),
             );
             set(
-                &mut solved,
-                &mut conf,
+                solved,
+                conf,
                 ub,
                 two_axis(self.rest_dir[ub], z, upper, bend),
                 vis(s).min(vis(e)),
@@ -274,22 +299,36 @@ impl PoseSolver {
                 fallback(lb),
             );
             set(
-                &mut solved,
-                &mut conf,
+                solved,
+                conf,
                 lb,
                 two_axis(self.rest_dir[lb], z, fore, twist),
                 vis(e).min(vis(w)).min(hand_vis.max(0.5 * vis(w))),
             );
             let palm2 = stable_secondary(hand, palm, fallback(hb));
             set(
-                &mut solved,
-                &mut conf,
+                solved,
+                conf,
                 hb,
                 two_axis(self.rest_dir[hb], z, hand, palm2),
                 hand_vis,
             );
         }
+    }
 
+    /// Thighs, shins, feet and toes; legs face the way their foot points.
+    fn solve_legs(
+        &self,
+        landmarks: &Landmarks,
+        solved: &mut [Quat; bone::NUM_BONES],
+        conf: &mut [f32; bone::NUM_BONES],
+    ) {
+        let p = |i: usize| landmarks.world_internal(i);
+        let vis = |i: usize| landmarks.visibility(i);
+        let (lo, hi) = (self.config.confidence_low, self.config.confidence_high);
+        let seen = |v: f32| smoothstep(lo, hi, v);
+        let prev = self.world;
+        let (y, z) = (Vec3::Y, Vec3::Z);
         // Legs: (thigh, shin, foot, toes, hip, knee, ankle, heel, toe).
         let legs = [
             (
@@ -334,8 +373,8 @@ impl PoseSolver {
                     fallback(b),
                 );
                 set(
-                    &mut solved,
-                    &mut conf,
+                    solved,
+                    conf,
                     b,
                     two_axis(self.rest_dir[b], z, along, fwd),
                     c,
@@ -343,8 +382,8 @@ impl PoseSolver {
             }
             let leg_up = stable_secondary(foot, -shin, prev[fb] * y);
             set(
-                &mut solved,
-                &mut conf,
+                solved,
+                conf,
                 fb,
                 two_axis(self.rest_dir[fb], y, foot, leg_up),
                 foot_vis.min(vis(a)),
@@ -353,11 +392,6 @@ impl PoseSolver {
             solved[toes] = solved[fb];
             conf[toes] = conf[fb];
         }
-
-        self.world = solved;
-        self.confidence = conf;
-        self.blend_into_output(dt);
-        out.copy_from(&self.output);
     }
 
     /// Converts solved world rotations to local ones and moves the output towards them by
