@@ -331,6 +331,9 @@ pub struct FootLock {
     drop_offset: Decay<f32>,
     /// The root's move over the ground onto the standing feet ([`FootLock::carry_root`]).
     shift: RootShift,
+    /// The root travels ([`Mapping::root_travels`]): stride warping may move it. An output
+    /// asked for in place (or with a fixed root) keeps its root over its spot.
+    carries: bool,
     /// Height added to the root on every frame ([`FootLock::fit_to_standing`]).
     root_fix: f32,
     /// The target's own posture stands on its floor (its standing heights can be trusted).
@@ -462,6 +465,7 @@ impl FootLock {
             last_drop: 0.0,
             drop_offset: Decay::default(),
             shift: RootShift::default(),
+            carries: mapping.root_travels(),
             root_fix: 0.0,
             posture_stands: mapping.target_posture_stands(),
             lift_scale: mapping.root_scale().unwrap_or(1.0),
@@ -779,7 +783,7 @@ impl FootLock {
     /// the hips' ([`FootLock::raise_hips`], [`FootLock::lower_hips`]). `worlds` hold the
     /// animation and are brought up to date.
     fn carry_root(&mut self, planted: &[bool; MAX_FEET], dt: f32, out: &mut Pose) {
-        let Some(root) = self.root else {
+        let Some(root) = self.root.filter(|_| self.carries) else {
             return;
         };
         let up = self.up;

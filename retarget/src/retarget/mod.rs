@@ -360,6 +360,14 @@ impl RetargetPlan {
             .is_some_and(|r| r.target_floor_y.is_some())
     }
 
+    /// Whether the root travels over the ground with the source's ([`RootMotion::Scaled`]).
+    /// An in-place or fixed root stays over its spot: nothing may carry it away.
+    pub fn root_travels(&self) -> bool {
+        self.root
+            .as_ref()
+            .is_some_and(|r| r.motion == RootMotion::Scaled)
+    }
+
     /// The source input that drives root motion (the one whose legs the target's follow).
     pub fn root_input(&self) -> Option<usize> {
         self.root.as_ref().map(|r| r.input as usize)
