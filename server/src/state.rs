@@ -96,10 +96,7 @@ impl Changes {
 
     /// A subject by id.
     pub fn subject(&self, id: u32) -> Option<Arc<Subject>> {
-        self.subjects()
-            .get(id as usize)
-            .filter(|s| s.id == id)
-            .cloned()
+        self.subject_list.get(id)
     }
 }
 
@@ -139,10 +136,7 @@ impl ServerState {
 
     /// A subject by id.
     pub fn subject(&self, id: u32) -> Option<Arc<Subject>> {
-        self.subjects()
-            .get(id as usize)
-            .filter(|s| s.id == id)
-            .cloned()
+        self.subject_list.get(id)
     }
 
     /// The subjects as listed in `hello`.

@@ -30,6 +30,14 @@ impl SubjectList {
         }
     }
 
+    /// A subject by id (ids are positions in the list; a subject found there carries it).
+    pub fn get(&self, id: u32) -> Option<Arc<Subject>> {
+        self.snapshot()
+            .get(id as usize)
+            .filter(|s| s.id == id)
+            .cloned()
+    }
+
     /// Appends the subject `make` builds for the next id; returns it.
     pub fn push(&self, make: impl FnOnce(u32) -> Arc<Subject>) -> Arc<Subject> {
         let mut guard = match self.all.write() {

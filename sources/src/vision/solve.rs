@@ -69,6 +69,11 @@ pub struct PoseSolver {
     last_time: Option<f64>,
 }
 
+/// The point halfway between landmarks `a` and `b`, in the solver's frame.
+fn midpoint(landmarks: &Landmarks, a: usize, b: usize) -> Vec3 {
+    (landmarks.world_internal(a) + landmarks.world_internal(b)) * 0.5
+}
+
 #[inline]
 fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     let t = ((x - e0) / (e1 - e0).max(1e-6)).clamp(0.0, 1.0);
@@ -174,6 +179,12 @@ impl PoseSolver {
         out.copy_from(&self.output);
     }
 
+    /// How far a landmark of visibility `v` is trusted, 0..1, between the configured
+    /// confidence thresholds.
+    fn seen(&self, v: f32) -> f32 {
+        smoothstep(self.config.confidence_low, self.config.confidence_high, v)
+    }
+
     /// Hips, spine, chest, neck and head from the hips, shoulders, ears and nose.
     fn solve_torso(
         &self,
@@ -183,7 +194,7 @@ impl PoseSolver {
     ) {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
-        let mid = |a: usize, b: usize| (p(a) + p(b)) * 0.5;
+        let mid = |a: usize, b: usize| midpoint(landmarks, a, b);
         let hip_c = mid(idx::LEFT_HIP, idx::RIGHT_HIP);
         let sho_c = mid(idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER);
         let ear_c = mid(idx::LEFT_EAR, idx::RIGHT_EAR);
@@ -244,9 +255,8 @@ impl PoseSolver {
     ) {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
-        let mid = |a: usize, b: usize| (p(a) + p(b)) * 0.5;
-        let (lo, hi) = (self.config.confidence_low, self.config.confidence_high);
-        let seen = |v: f32| smoothstep(lo, hi, v);
+        let mid = |a: usize, b: usize| midpoint(landmarks, a, b);
+        let seen = |v: f32| self.seen(v);
         let prev = self.world;
         let z = Vec3::Z;
         // Arms: (upper, lower, hand, shoulder, elbow, wrist, pinky, index).
@@ -325,8 +335,7 @@ impl PoseSolver {
     ) {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
-        let (lo, hi) = (self.config.confidence_low, self.config.confidence_high);
-        let seen = |v: f32| smoothstep(lo, hi, v);
+        let seen = |v: f32| self.seen(v);
         let prev = self.world;
         let (y, z) = (Vec3::Y, Vec3::Z);
         // Legs: (thigh, shin, foot, toes, hip, knee, ankle, heel, toe).
