@@ -107,18 +107,60 @@ impl Side<'_> {
             })
             .sum()
     }
+}
 
-    /// Leg length from a mapped upper-leg joint `top` down to a mapped foot joint `low`: the
-    /// full lengths of the segments along `up` (thigh, shin), not the foot. Strides scale with
-    /// it; measured between joints mapped to each other on both rigs, the ratio compares like
-    /// with like whatever hip offsets and ankle heights the rigs have.
-    pub(super) fn leg_length(&self, top: BoneId, low: BoneId, up: Vec3) -> f32 {
-        self.segments_down(top, low)
-            .iter()
-            .filter(|d| d.dot(up).abs() >= LEG_SEGMENT_COS * d.length())
-            .map(|d| d.length())
-            .sum()
+/// Leg lengths of both rigs from the mapped upper-leg pair `top` down to the mapped foot pair
+/// `low` (target, source): the legs' segments between consecutive joints mapped to each other
+/// on that path (thigh, shin: those along `up` on both rigs, not the foot). Strides scale with
+/// it. Compared segment for segment, like with like, whatever hip offsets, ankle heights and
+/// unmapped joints the rigs have in between: a toe joint the source lacks, left unmapped between
+/// the target's foot and its mapped toe tip, is not leg (counted, it lengthened a rig whose
+/// toes hang down in its aligned rest by its toes' length).
+fn mapped_leg_lengths(
+    (src, tgt): (Side<'_>, Side<'_>),
+    table: &MappingTable,
+    input: u16,
+    (top, low): ((BoneId, BoneId), (BoneId, BoneId)),
+    up: Vec3,
+) -> (f32, f32) {
+    // The mapped pairs on the target's path from `low` up to `top` whose source joints lie, in
+    // the same order, on the source's path between the two.
+    let mut joints = vec![low];
+    let mut b = low.0;
+    while b != top.0 {
+        let Some(p) = tgt.skel.parent(b) else {
+            return (0.0, 0.0);
+        };
+        b = p;
+        let last = joints[joints.len() - 1].1;
+        let s = if b == top.0 {
+            Some(top.1)
+        } else {
+            primary(table, b)
+                .filter(|r| r.input == input && r.bone != last)
+                .map(|r| r.bone)
+        };
+        if let Some(s) = s.filter(|&s| {
+            align::is_descendant(src.skel, top.1, s) && align::is_descendant(src.skel, s, last)
+        }) {
+            joints.push((b, s));
+        }
     }
+    let at = |side: &Side<'_>, b: BoneId| side.worlds[b.index()].translation;
+    let leg = |d: Vec3| d.dot(up).abs() >= LEG_SEGMENT_COS * d.length();
+    let (mut ht, mut hs) = (0.0, 0.0);
+    for w in joints.windows(2) {
+        let (lo, hi) = (w[0], w[1]);
+        let (dt, ds) = (
+            at(&tgt, lo.0) - at(&tgt, hi.0),
+            at(&src, lo.1) - at(&src, hi.1),
+        );
+        if leg(dt) && leg(ds) {
+            ht += dt.length();
+            hs += ds.length();
+        }
+    }
+    (ht, hs)
 }
 
 /// The floor a reference posture stands on: its lowest foot joint when that is near y = 0 (a
@@ -190,7 +232,9 @@ impl RootPlan {
                     // A leg keeping its own posture (`posture_relative`) moves the body by its
                     // standing height, however its bones zig-zag.
                     Some((tt, st)) if keeps_own(t) => (y_t(tt) - y_t(t), src.leg_height(st, s, up)),
-                    Some((tt, st)) => (tgt.leg_length(tt, t, up), src.leg_length(st, s, up)),
+                    Some(pair) => {
+                        mapped_leg_lengths((src, tgt), table, rs.input, (pair, (t, s)), up)
+                    }
                     None => (tgt.leg_height(rt, t, up), src.leg_height(rs.bone, s, up)),
                 };
                 if ht > tgt.eps && hs > src.eps {
