@@ -24,7 +24,7 @@ use rigcast_retarget::Pose;
 use rigcast_sources::serial::CalibrationHandle;
 use tokio::sync::broadcast;
 
-use crate::subject::Subject;
+use rigcast_engine::subject::Subject;
 use rigcast_protocol::SourceState;
 
 /// How long the source thread may take to act on a request (it checks at every read, at
@@ -99,7 +99,7 @@ impl CalibrateRefusal {
 /// Validates a `calibrate` request and starts it; `Err` is the `error` reply.
 pub fn start(
     subjects: &Arc<Vec<Arc<Subject>>>,
-    events: &broadcast::Sender<crate::events::Event>,
+    events: &broadcast::Sender<rigcast_engine::events::Event>,
     subject: u32,
     pose: CalibrationPose,
     delay_secs: f32,
@@ -128,7 +128,10 @@ pub fn start(
         pose.label()
     ));
     // Err only means no client is listening right now.
-    let _ = events.send(crate::events::Event::source_status(subjects));
+    let _ = events.send(rigcast_engine::events::Event::source_status(
+        subjects,
+        std::time::Instant::now(),
+    ));
     let subjects = subjects.clone();
     let events = events.clone();
     tokio::spawn(async move {
@@ -142,7 +145,10 @@ pub fn start(
             if cal.generation.load(Ordering::Acquire) == generation {
                 cal.set_text(text);
                 // Err only means no client is listening right now.
-                let _ = events.send(crate::events::Event::source_status(&subjects));
+                let _ = events.send(rigcast_engine::events::Event::source_status(
+                    &subjects,
+                    std::time::Instant::now(),
+                ));
             }
         }
     });

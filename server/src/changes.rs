@@ -7,8 +7,8 @@ use rigcast_protocol::ServerMessage;
 use rigcast_retarget::Skeleton;
 use tokio::sync::mpsc;
 
-use crate::engine::EngineCommand;
 use crate::state::Changes;
+use rigcast_engine::tick::EngineCommand;
 
 /// Carries out a request that changes the server (the connection's right to it already
 /// checked, here or by the node that forwarded it).
@@ -99,7 +99,7 @@ fn send_command(state: &Changes, cmd: EngineCommand, request: &str, subject: u32
 /// is answered at once instead of failing later in the mapper.
 fn check_overrides(
     state: &Changes,
-    target: &crate::engine::Subject,
+    target: &rigcast_engine::subject::Subject,
     overrides: &std::collections::BTreeMap<String, Option<String>>,
 ) -> Result<(), String> {
     if !target.is_target() {

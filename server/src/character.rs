@@ -8,7 +8,7 @@ use rigcast_retarget::Clip;
 use rigcast_sources::{RigLayout, SourceError};
 use thiserror::Error;
 
-pub use rigcast_engine::builtin::{builtin, mannequin, BUILTIN_NAMES, BUILTIN_PREFIX};
+use rigcast_engine::builtin::{builtin, BUILTIN_NAMES, BUILTIN_PREFIX};
 
 /// A character as every command loads it (`serve --target`, `retarget --target`, config
 /// performers): one rule for files and built-ins.
@@ -88,7 +88,7 @@ mod tests {
 
     #[test]
     fn mannequin_differs_from_the_demo_source() {
-        let m = mannequin().unwrap();
+        let m = rigcast_engine::builtin::mannequin().unwrap();
         let demo = rigcast_sources::embedded_demo().unwrap();
         assert_ne!(m.fingerprint(), demo.skeleton.fingerprint());
         assert!(m.num_bones() > demo.skeleton.num_bones());

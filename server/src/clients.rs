@@ -44,11 +44,11 @@ use tokio_tungstenite::WebSocketStream;
 
 use crate::access::Access;
 use crate::changes::type_name;
-use crate::clock::unix_nanos;
-use crate::events::Event;
-use crate::state::ServerState;
+use crate::state::Sessions;
 use crate::stats::ClientStats;
 use crate::wire;
+use rigcast_engine::clock::unix_nanos;
+use rigcast_engine::events::Event;
 
 /// Largest client message the server interprets (control messages are small JSON). Larger
 /// ones up to the transport limit are answered with `message_too_large`.
@@ -112,8 +112,8 @@ const MAX_FRAMES_PER_WRITE: usize = 32;
 
 /// The next frame already queued for this client, if any (never waits).
 fn next_queued(
-    frames: &mut broadcast::Receiver<crate::engine::OutFrame>,
-) -> Option<Result<crate::engine::OutFrame, RecvError>> {
+    frames: &mut broadcast::Receiver<rigcast_engine::tick::OutFrame>,
+) -> Option<Result<rigcast_engine::tick::OutFrame, RecvError>> {
     match frames.try_recv() {
         Ok(f) => Some(Ok(f)),
         Err(TryRecvError::Lagged(n)) => Some(Err(RecvError::Lagged(n))),
@@ -135,27 +135,28 @@ fn personalise(bytes: Bytes, pending_missed: &mut u64) -> Bytes {
 /// Serves one upgraded connection until it closes or the server shuts down.
 pub async fn serve_client<S>(
     ws: WebSocketStream<S>,
-    state: Arc<ServerState>,
+    shared: Sessions,
+    client_id: u64,
     peer: String,
     access: Access,
 ) where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    let client_id = state.next_client_id.fetch_add(1, Ordering::Relaxed);
     let stats = Arc::new(ClientStats::new(peer, access));
-    if let Ok(mut clients) = state.stats.clients.lock() {
+    if let Ok(mut clients) = shared.feeds.stats.clients.lock() {
         clients.insert(client_id, stats.clone());
     }
     // Subscribe before greeting so no frame or event published after `hello` is missed.
-    let mut frames = state.frames.subscribe();
-    let mut events = state.events.subscribe();
-    if let Err(End::Stalled) = run(ws, &state, &stats, &mut frames, &mut events).await {
-        state
+    let mut frames = shared.feeds.frames.subscribe();
+    let mut events = shared.feeds.events.subscribe();
+    if let Err(End::Stalled) = run(ws, &shared, &stats, &mut frames, &mut events).await {
+        shared
+            .feeds
             .stats
             .stalled_disconnects
             .fetch_add(1, Ordering::Relaxed);
     }
-    if let Ok(mut clients) = state.stats.clients.lock() {
+    if let Ok(mut clients) = shared.feeds.stats.clients.lock() {
         clients.remove(&client_id);
     }
 }
@@ -165,7 +166,7 @@ pub async fn serve_client<S>(
 async fn resync<S>(
     sink: &mut Sink<S>,
     events: &mut broadcast::Receiver<Event>,
-    state: &ServerState,
+    shared: &Sessions,
     stats: &ClientStats,
 ) -> Result<(), End>
 where
@@ -173,20 +174,24 @@ where
 {
     // Bounded: the queue holds at most its capacity, newer messages are dropped for a lag
     // that the next recv reports (and resyncs) again.
-    for _ in 0..crate::events::EVENTS_CAPACITY * 2 {
+    for _ in 0..rigcast_engine::events::EVENTS_CAPACITY * 2 {
         match events.try_recv() {
             Ok(_) | Err(TryRecvError::Lagged(_)) => {}
             Err(TryRecvError::Empty | TryRecvError::Closed) => break,
         }
     }
     stats.control_resyncs.fetch_add(1, Ordering::Relaxed);
-    state.stats.control_resyncs.fetch_add(1, Ordering::Relaxed);
+    shared
+        .feeds
+        .stats
+        .control_resyncs
+        .fetch_add(1, Ordering::Relaxed);
     let subjects = ServerMessage::SubjectsChanged {
-        subjects: state.subject_infos(),
+        subjects: shared.subject_infos(),
     }
     .to_json();
-    send(sink, Message::text(subjects), state.stalled_client_timeout).await?;
-    send_state(sink, state).await
+    send(sink, Message::text(subjects), shared.stalled_client_timeout).await?;
+    send_state(sink, shared).await
 }
 
 /// Sends a control event as its protocol message, or the state after the queue overflowed;
@@ -195,7 +200,7 @@ async fn on_event<S>(
     sink: &mut Sink<S>,
     event: Result<Event, RecvError>,
     events: &mut broadcast::Receiver<Event>,
-    state: &ServerState,
+    shared: &Sessions,
     stats: &ClientStats,
 ) -> Result<bool, End>
 where
@@ -204,22 +209,22 @@ where
     match event {
         Ok(event) => {
             let text = wire::message(&event).to_json();
-            send(sink, Message::text(text), state.stalled_client_timeout).await?;
+            send(sink, Message::text(text), shared.stalled_client_timeout).await?;
         }
-        Err(RecvError::Lagged(_)) => resync(sink, events, state, stats).await?,
+        Err(RecvError::Lagged(_)) => resync(sink, events, shared, stats).await?,
         Err(RecvError::Closed) => return Ok(false),
     }
     Ok(true)
 }
 
 /// Sends the state that control messages describe (see [`wire::state_messages`]).
-async fn send_state<S>(sink: &mut Sink<S>, state: &ServerState) -> Result<(), End>
+async fn send_state<S>(sink: &mut Sink<S>, shared: &Sessions) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    for message in wire::state_messages(state) {
+    for message in wire::state_messages(&shared.feeds.subjects()) {
         let text = Message::text(message.to_json());
-        send(sink, text, state.stalled_client_timeout).await?;
+        send(sink, text, shared.stalled_client_timeout).await?;
     }
     Ok(())
 }
@@ -243,25 +248,25 @@ where
 
 async fn run<S>(
     ws: WebSocketStream<S>,
-    state: &ServerState,
+    shared: &Sessions,
     stats: &ClientStats,
-    frames: &mut broadcast::Receiver<crate::engine::OutFrame>,
+    frames: &mut broadcast::Receiver<rigcast_engine::tick::OutFrame>,
     events: &mut broadcast::Receiver<Event>,
 ) -> Result<(), End>
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    let stall = state.stalled_client_timeout;
+    let stall = shared.stalled_client_timeout;
     let (mut sink, mut stream) = ws.split();
-    let hello = wire::hello(state).to_json();
+    let hello = wire::hello(shared.rate_hz, &shared.feeds.subjects()).to_json();
     send(&mut sink, Message::text(hello), stall).await?;
-    send_state(&mut sink, state).await?;
+    send_state(&mut sink, shared).await?;
     // `None` = all subjects.
     let mut subscribed: Option<HashSet<u32>> = None;
     // Frame version; version 1 until the client asks for another (`set_protocol`).
     let mut version = rigcast_protocol::PROTOCOL_VERSION;
     let mut pending_missed: u64 = 0;
-    let mut shutdown = state.shutdown.clone();
+    let mut shutdown = shared.feeds.shutdown.clone();
     // Answers of requests forwarded to other nodes (cluster mode).
     let (replies, mut forwarded) = mpsc::channel::<ServerMessage>(MAX_FORWARDS_IN_FLIGHT);
     loop {
@@ -273,7 +278,7 @@ where
             }
             // Before frames, so a new skeleton arrives before frames that use it.
             event = events.recv() => {
-                if !on_event(&mut sink, event, events, state, stats).await? {
+                if !on_event(&mut sink, event, events, shared, stats).await? {
                     return Ok(());
                 }
             }
@@ -284,7 +289,7 @@ where
                 let reply = match incoming {
                     Ok(Message::Text(text)) => {
                         let session = Session { access: stats.access, subscribed: &mut subscribed, version: &mut version, replies: &replies };
-                        handle_text(text.as_str(), state, session)
+                        handle_text(text.as_str(), shared, session)
                     }
                     Ok(Message::Binary(b)) => Some(ServerMessage::error(
                         ErrorCode::BinaryNotAccepted,
@@ -340,7 +345,7 @@ where
                         Err(RecvError::Lagged(n)) => {
                             pending_missed += n;
                             stats.missed_frames.fetch_add(n, Ordering::Relaxed);
-                            state.stats.dropped_frames.fetch_add(n, Ordering::Relaxed);
+                            shared.feeds.stats.dropped_frames.fetch_add(n, Ordering::Relaxed);
                             let text = ServerMessage::Lagged { missed: n }.to_json();
                             feed(&mut sink, Message::text(text), stall).await?;
                         }
@@ -355,7 +360,7 @@ where
                     }
                 }
                 flush(&mut sink, stall).await?;
-                record_written(state, &timed[..n_timed]);
+                record_written(shared, &timed[..n_timed]);
             }
         }
     }
@@ -363,10 +368,10 @@ where
 
 /// Counts the frames of a write just taken by the client's socket into their subjects'
 /// latency figures (each frame counts at its first write only; see `WireTimes`).
-fn record_written(state: &ServerState, frames: &[(u32, u64, u64)]) {
+fn record_written(shared: &Sessions, frames: &[(u32, u64, u64)]) {
     let written = unix_nanos();
     for &(id, capture, encoded) in frames {
-        if let Some(subject) = state.subject(id) {
+        if let Some(subject) = shared.subject(id) {
             if let Ok(mut wire) = subject.stats.wire.lock() {
                 wire.sent(capture, encoded, written);
             }
@@ -395,7 +400,7 @@ struct Session<'a> {
     replies: &'a mpsc::Sender<ServerMessage>,
 }
 
-fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<ServerMessage> {
+fn handle_text(text: &str, shared: &Sessions, session: Session<'_>) -> Option<ServerMessage> {
     let Session {
         access,
         subscribed,
@@ -425,7 +430,7 @@ fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<
             ),
         ));
     }
-    if let Some(now) = forward_if_relayed(state, &msg, replies) {
+    if let Some(now) = forward_if_relayed(shared, &msg, replies) {
         return now;
     }
     match msg {
@@ -453,11 +458,11 @@ fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<
         }
         ClientMessage::Subscribe {
             subjects: Some(ids),
-        } => subscribe(state, ids, subscribed),
+        } => subscribe(shared, ids, subscribed),
         change @ (ClientMessage::Calibrate { .. }
         | ClientMessage::SetPerformer { .. }
         | ClientMessage::SetMapping { .. }) => {
-            Some(crate::changes::apply_change(&state.changes(), change))
+            Some(crate::changes::apply_change(&shared.changes, change))
         }
     }
 }
@@ -466,11 +471,11 @@ fn handle_text(text: &str, state: &ServerState, session: Session<'_>) -> Option<
 /// now)` when it was taken (the owner's answer follows through `replies`) or refused here,
 /// `None` when the subject is this node's own.
 fn forward_if_relayed(
-    state: &ServerState,
+    shared: &Sessions,
     msg: &ClientMessage,
     replies: &mpsc::Sender<ServerMessage>,
 ) -> Option<Option<ServerMessage>> {
-    let forwarder = state.forwarder.as_ref()?;
+    let forwarder = shared.forwarder.as_ref()?;
     let id = crate::cluster::subject_of(msg)?;
     if !forwarder.is_relayed(id) {
         return None;
@@ -481,7 +486,8 @@ fn forward_if_relayed(
             format!("{MAX_FORWARDS_IN_FLIGHT} requests already wait for other nodes; retry"),
         )));
     };
-    state
+    shared
+        .feeds
         .stats
         .cluster_control_forwarded
         .fetch_add(1, Ordering::Relaxed);
@@ -494,14 +500,14 @@ fn forward_if_relayed(
 
 /// `subscribe` to some subjects: all must exist, else nothing changes.
 fn subscribe(
-    state: &ServerState,
+    shared: &Sessions,
     ids: Vec<u32>,
     subscribed: &mut Option<HashSet<u32>>,
 ) -> Option<ServerMessage> {
     let unknown: Vec<u32> = ids
         .iter()
         .copied()
-        .filter(|id| state.subject(*id).is_none())
+        .filter(|id| shared.subject(*id).is_none())
         .collect();
     if !unknown.is_empty() {
         return Some(ServerMessage::error(

@@ -23,7 +23,6 @@ use std::str::FromStr;
 
 use serde::Deserialize;
 
-pub use crate::character::BUILTIN_PREFIX;
 pub use crate::cluster_config::ClusterConfig;
 pub use crate::config_error::ConfigError;
 pub use crate::source_kinds::{
@@ -31,7 +30,8 @@ pub use crate::source_kinds::{
     VmcSpec, WebcamSpec, DEFAULT_VMC_BIND,
 };
 pub use crate::token::TokenSetting;
-pub use rigcast_engine::settings::{OnLost, VmcBoneNames};
+use rigcast_engine::builtin::BUILTIN_PREFIX;
+use rigcast_engine::settings::{OnLost, VmcBoneNames};
 
 /// Default listen address: loopback only (nothing is exposed to the network unless asked) on
 /// port 8717 (unassigned by IANA, mnemonic: "RiGcast" is not a number, so we simply picked one

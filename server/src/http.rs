@@ -425,7 +425,9 @@ async fn upgrade(
         Some(websocket_config()),
     )
     .await;
-    serve_client(ws, state, peer, access).await;
+    let client_id = state.next_client_id.fetch_add(1, Ordering::Relaxed);
+    // The session sees its part of the state only.
+    serve_client(ws, state.sessions(), client_id, peer, access).await;
     drop(permit);
 }
 
@@ -603,7 +605,7 @@ const VIEWER_FILES: &[(&str, &str, &[u8])] = &[
 ];
 
 /// The foot-lock part of a subject's status.
-fn footplants(stats: &crate::stats::SubjectStats) -> Option<Vec<FootStatus>> {
+fn footplants(stats: &rigcast_engine::stats::SubjectStats) -> Option<Vec<FootStatus>> {
     let names = stats.locked_feet.lock().ok()?;
     if names.is_empty() {
         return None;
@@ -623,6 +625,7 @@ fn footplants(stats: &crate::stats::SubjectStats) -> Option<Vec<FootStatus>> {
 
 /// Snapshot of the counters.
 pub fn status(state: &ServerState) -> Status {
+    let now = std::time::Instant::now();
     let subjects = state
         .subjects()
         .iter()
@@ -632,12 +635,12 @@ pub fn status(state: &ServerState) -> Status {
                 id: info.id,
                 name: info.name,
                 num_bones: info.num_bones,
-                input_fps: s.stats.input.rate_hz(),
+                input_fps: s.stats.input.rate_hz(now),
                 input_frames: s.stats.input.total(),
                 last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
                 kind: s.info().kind,
                 inputs: s.inputs.clone(),
-                source: s.source_health(),
+                source: s.source_health(now),
                 listen: s.listen_addr.map(|a| a.to_string()),
                 skeleton_changes: s.stats.skeleton_changes.load(Ordering::Relaxed),
                 skeleton_frames_limited: s.stats.skeleton_frames_limited.load(Ordering::Relaxed),
@@ -673,7 +676,7 @@ pub fn status(state: &ServerState) -> Status {
     Status {
         server_version: env!("CARGO_PKG_VERSION").to_string(),
         tick_hz: state.rate_hz,
-        output_rate_hz: state.stats.output.rate_hz(),
+        output_rate_hz: state.stats.output.rate_hz(now),
         subjects,
         clients: ClientsStatus {
             count: list.len(),

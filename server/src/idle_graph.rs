@@ -8,7 +8,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use rigcast_retarget::{Pose, Skeleton};
 
-pub use rigcast_engine::idle_graph::IdleGraph;
+use rigcast_engine::idle_graph::IdleGraph;
 
 /// Reads the graph file and its clips and prepares them for `target` (blocking; at
 /// start). Errors name the file.
@@ -54,7 +54,7 @@ mod tests {
             .map(|p| rigcast_sources::load_clip(p).unwrap())
             .collect();
         let graph = MotionGraph::build(&clips, GraphSettings::default(), &mut |_| {}).unwrap();
-        let target = Arc::new(crate::character::mannequin().unwrap());
+        let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
         let mut idle = IdleGraph::new(&graph, &clips, &target, None, 1.0 / 60.0).unwrap();
         let mut shown = target.rest_pose();
         shown.translations[0].x += 0.7;

@@ -6,8 +6,9 @@
 //!  SourceSpec ─load─▶ Replay task ─┐
 //!  live source thread (VMC, serial, video) ─┴─▶ FrameWriter (latest wins, one slot per source)
 //!                                                   │
-//!                 tick task: tokio interval @ rate_hz, MissedTickBehavior::Skip, reads the
-//!                 clocks ─▶ engine::Ticker::tick(TickTime, &mut HostOutput)
+//!                 engine loop (tick_task): reads the clocks, sleeps until the engine's next
+//!                 wake-up or a camera's pose ─▶ rigcast_engine::Engine::handle_input(Timeout)
+//!                   │ its own timetable @ rate_hz; poll_output ─▶ the outputs below
 //!                   │ performers: Mapping::apply into preallocated target poses
 //!                   │   (mappings built by the mapper thread, never awaited by the tick)
 //!                   │ encode each subject once → Bytes (shared)      VMC bundles → UDP
@@ -23,8 +24,8 @@
 //! ```
 //!
 //! [`start`] (in [`boot`]: load, assemble, spawn) runs all of it in-process (tests use `127.0.0.1:0`); the binary's subcommands live
-//! in [`cmd`] and are listed in [`cli::Command`]. The engine's modules are re-exported at the
-//! paths they had here ([`engine`] is its `tick`).
+//! in [`cmd`] and are listed in [`cli::Command`]. The engine's items are reached at their own
+//! paths in `rigcast_engine`.
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
@@ -44,7 +45,6 @@ pub mod config_error;
 pub mod demo;
 pub mod dirs;
 pub mod fault;
-pub mod footplants;
 pub mod graph_files;
 pub mod http;
 pub mod idle_graph;
@@ -70,17 +70,10 @@ pub mod wire;
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
 
-// The engine's modules, at the paths they had in this crate.
-pub use rigcast_engine::tick as engine;
-pub use rigcast_engine::{
-    clock, events, graft_live, performer, reports, slot, subject, subject_list, translated,
-    vmc_pose,
-};
-
 pub use boot::{start, ServerHandle};
 pub use config::{
-    AccessConfig, LimitsConfig, OnLost, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec,
-    TargetSpec, VmcBoneNames, VmcOut,
+    AccessConfig, LimitsConfig, PerformerSpec, ReplaySettings, ServerConfig, SourceSpec,
+    TargetSpec, VmcOut,
 };
 pub use source_kinds::{demo_clip, NO_WEBCAM_HINT};
 pub use token::{ControlToken, TokenSetting};

@@ -21,12 +21,12 @@ use rigcast_retarget::Pose;
 use rigcast_sources::live::LiveSource;
 use tokio::sync::{broadcast, mpsc};
 
-use crate::clock::unix_nanos;
-use crate::engine::EngineCommand;
-use crate::events::Event;
 use crate::recorder::Recorder;
-use crate::slot::FrameWriter;
-use crate::subject::Subject;
+use rigcast_engine::clock::unix_nanos;
+use rigcast_engine::events::Event;
+use rigcast_engine::slot::FrameWriter;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::tick::EngineCommand;
 
 /// How long one `next_frame` call may block (bounds shutdown latency).
 const POLL: Duration = Duration::from_millis(50);
@@ -42,7 +42,7 @@ pub struct LiveContext {
     /// Its slot.
     pub tx: FrameWriter,
     /// All subjects (for `subjects_changed`).
-    pub subjects: Arc<crate::subject_list::SubjectList>,
+    pub subjects: Arc<rigcast_engine::subject_list::SubjectList>,
     /// Control messages to clients.
     pub events: broadcast::Sender<Event>,
     /// Requests to the mapper.
@@ -52,7 +52,7 @@ pub struct LiveContext {
     /// Set on shutdown.
     pub stop: Arc<AtomicBool>,
     /// Notified after each new pose when the tick should take it at once (cameras: see
-    /// [`crate::engine::run_tick`]); `None` for sources the tick samples at its own rate.
+    /// [`crate::tick_task::run_engine`]); `None` for sources the tick samples at its own rate.
     pub wake: Option<Arc<tokio::sync::Notify>>,
 }
 
@@ -76,9 +76,10 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
             if changed {
                 // Clients hear of a loss or a recovery now, not at the next periodic report.
                 // Err only means no client is connected.
-                let _ = ctx
-                    .events
-                    .send(Event::source_status(&ctx.subjects.snapshot()));
+                let _ = ctx.events.send(Event::source_status(
+                    &ctx.subjects.snapshot(),
+                    Instant::now(),
+                ));
             }
         }
         match source.next_frame(POLL, &mut pose) {
@@ -113,7 +114,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                     let shape = ctx.subject.shape();
                     let names = shape.skeleton.names();
                     let name = names.get(refusal.bone).map_or("?", |n| n.as_str());
-                    ctx.subject.stats.reject_pose(refusal, name);
+                    ctx.subject.stats.reject_pose(refusal, name, Instant::now());
                     continue;
                 }
                 let capture = if meta.capture_nanos == 0 {
@@ -139,7 +140,7 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                 if let Some(wake) = &ctx.wake {
                     wake.notify_one();
                 }
-                ctx.subject.stats.input.tick();
+                ctx.subject.stats.input.tick(Instant::now());
                 ctx.subject
                     .stats
                     .last_capture_nanos

@@ -33,13 +33,13 @@ use rigcast_retarget::{BoneId, Follow, Mapping, Pose, RetargetOptions, RootMotio
 use tokio::sync::{broadcast, mpsc};
 
 use crate::changes::find_source_bone;
-use crate::engine::EngineCommand;
-use crate::graft_live::{LiveGraft, LowerInput};
 use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
 use crate::offline::TableCache;
-use crate::performer::{BuiltMapping, Mailbox};
-use crate::reports::MappingReport;
-use crate::subject::Subject;
+use rigcast_engine::graft_live::{LiveGraft, LowerInput};
+use rigcast_engine::performer::{BuiltMapping, Mailbox};
+use rigcast_engine::reports::MappingReport;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::tick::EngineCommand;
 
 /// What the mapper knows about one performer.
 pub struct PerformerPlan {
@@ -85,7 +85,7 @@ pub struct Mapper {
     /// Cluster mode: automatic tables shared with the other nodes.
     shared: Option<crate::cluster::SharedMappings>,
     frame_time_secs: f32,
-    events: broadcast::Sender<crate::events::Event>,
+    events: broadcast::Sender<rigcast_engine::events::Event>,
     options: MapOptions,
 }
 
@@ -97,7 +97,7 @@ impl Mapper {
         extras: HashMap<u32, SourceExtra>,
         disk: Option<PathBuf>,
         rate_hz: f64,
-        events: broadcast::Sender<crate::events::Event>,
+        events: broadcast::Sender<rigcast_engine::events::Event>,
     ) -> Mapper {
         Mapper {
             subjects,
@@ -283,7 +283,9 @@ impl Mapper {
         let report = Arc::new(report);
         p.target.set_mapping(report.clone());
         // Err only means no client is listening right now.
-        let _ = self.events.send(crate::events::Event::Mapping(report));
+        let _ = self
+            .events
+            .send(rigcast_engine::events::Event::Mapping(report));
     }
 
     /// A grafted performer: the upper source mapped onto the character, the lower body (a
@@ -376,7 +378,8 @@ impl Mapper {
             clip.as_deref(),
         )?;
         // The `mapping` message: each target bone's source from the table of its half.
-        let merged = crate::graft_live::merged_table(&upper_table, &lower_table, graft.split());
+        let merged =
+            rigcast_engine::graft_live::merged_table(&upper_table, &lower_table, graft.split());
         let warnings: Vec<String> = [
             ("upper source", &upper.1),
             ("lower body", &lower.1),

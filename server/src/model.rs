@@ -20,7 +20,7 @@ pub const MAX_MODEL_BYTES: u64 = 512 * 1024 * 1024;
 pub const MODEL_CHUNK_BYTES: usize = 64 * 1024;
 
 /// A target's servable model file (plain data the engine keeps with the subject).
-pub use rigcast_engine::subject::ModelFile;
+use rigcast_engine::subject::ModelFile;
 
 /// Finding and opening a target's model file (the host's side of [`ModelFile`]).
 #[allow(async_fn_in_trait)] // only called within this crate, on a tokio runtime

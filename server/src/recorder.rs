@@ -20,7 +20,7 @@ use rigcast_retarget::Skeleton;
 use rigcast_sources::live::RecordingTap;
 use rigcast_sources::recording::RecordingWriter;
 
-use crate::subject::Subject;
+use rigcast_engine::subject::Subject;
 
 /// The writer type shared by the recorder and the raw taps.
 pub type SharedWriter = Arc<Mutex<RecordingWriter<BufWriter<File>>>>;

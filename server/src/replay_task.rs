@@ -10,9 +10,9 @@ use rigcast_sources::Replay;
 use tokio::sync::watch;
 use tokio::time::MissedTickBehavior;
 
-use crate::clock::unix_nanos;
-use crate::slot::FrameWriter;
-use crate::subject::Subject;
+use rigcast_engine::clock::unix_nanos;
+use rigcast_engine::slot::FrameWriter;
+use rigcast_engine::subject::Subject;
 
 /// Runs one replay source until shutdown or (non-looping) end of clip.
 ///
@@ -58,7 +58,7 @@ pub async fn run_replay_source(
             subject.health.set_state(SourceState::Finished);
             break;
         }
-        subject.stats.input.tick();
+        subject.stats.input.tick(Instant::now());
         subject
             .stats
             .last_capture_nanos

@@ -10,16 +10,17 @@ use rigcast_protocol::ServerMessage;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use crate::access::AccessPolicy;
-use crate::engine::{EngineCommand, OutFrame, Subject};
-use crate::events::Event;
 use crate::limits::{ConnectionLimiter, FdLimit};
 use crate::recorder::RecorderHealth;
 use crate::stats::{MappingShareCounts, Stats};
+use rigcast_engine::events::Event;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::tick::{EngineCommand, OutFrame};
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
 pub struct ServerState {
     /// Subjects in id order (id = index); grows when the cluster finds another node's.
-    pub subject_list: Arc<crate::subject_list::SubjectList>,
+    pub subject_list: Arc<rigcast_engine::subject_list::SubjectList>,
     /// Frame fan-out; client tasks call `subscribe`.
     pub frames: broadcast::Sender<OutFrame>,
     /// What every client is told about (`mapping`, `skeleton`, `subjects_changed`,
@@ -58,7 +59,7 @@ pub struct ServerState {
 #[derive(Clone)]
 pub struct Feeds {
     /// Subjects in id order (id = index).
-    pub subject_list: Arc<crate::subject_list::SubjectList>,
+    pub subject_list: Arc<rigcast_engine::subject_list::SubjectList>,
     /// Frame fan-out.
     pub frames: broadcast::Sender<OutFrame>,
     /// What every client is told about, typed.
@@ -81,7 +82,7 @@ impl Feeds {
 #[derive(Clone)]
 pub struct Changes {
     /// Subjects in id order (id = index).
-    pub subject_list: Arc<crate::subject_list::SubjectList>,
+    pub subject_list: Arc<rigcast_engine::subject_list::SubjectList>,
     /// What every client is told about, typed.
     pub events: broadcast::Sender<Event>,
     /// Requests to the mapper.
@@ -98,6 +99,62 @@ impl Changes {
     pub fn subject(&self, id: u32) -> Option<Arc<Subject>> {
         self.subject_list.get(id)
     }
+}
+
+/// What a WebSocket session sees: the feeds it streams from, the requests that change the
+/// server, where changes to relayed subjects go, the output rate it announces and how long its
+/// socket may accept nothing (no access policy, connection cap or listener: the listener
+/// checks those before a session starts, and gives it its client id).
+#[derive(Clone)]
+pub struct Sessions {
+    /// The subjects, broadcasts, shutdown signal and counters.
+    pub feeds: Feeds,
+    /// The requests that change the server.
+    pub changes: Changes,
+    /// Cluster mode: where changes to relayed subjects go.
+    pub forwarder: Option<Arc<dyn ChangeForwarder>>,
+    /// Output rate.
+    pub rate_hz: f64,
+    /// How long a client's socket may accept nothing before it is dropped.
+    pub stalled_client_timeout: std::time::Duration,
+}
+
+impl Sessions {
+    /// A subject by id.
+    pub fn subject(&self, id: u32) -> Option<Arc<Subject>> {
+        self.feeds.subject_list.get(id)
+    }
+
+    /// The subjects as listed in `hello` and `subjects_changed`.
+    pub fn subject_infos(&self) -> Vec<SubjectInfo> {
+        self.feeds.subjects().iter().map(|s| s.info()).collect()
+    }
+}
+
+/// What the cluster's control service sees: the requests it carries out for other nodes, the
+/// token their requests must prove, the shutdown signal and the counters (no frames, access
+/// policy, connection cap or client bookkeeping).
+#[derive(Clone)]
+pub struct ControlService {
+    /// The requests that change the server.
+    pub changes: Changes,
+    /// The deployment's control token.
+    pub token: crate::token::ControlToken,
+    /// Becomes `true` on shutdown.
+    pub shutdown: watch::Receiver<bool>,
+    /// Counters.
+    pub stats: Arc<Stats>,
+}
+
+/// What the cluster's bucket watch sees: the feeds (to relay a subject it finds and tell
+/// clients of it) and the mapper's command queue (a found subject's live thread asks for a
+/// re-map when its skeleton changes).
+#[derive(Clone)]
+pub struct Discovery {
+    /// The subjects, broadcasts, shutdown signal and counters.
+    pub feeds: Feeds,
+    /// Requests to the mapper.
+    pub commands: mpsc::Sender<EngineCommand>,
 }
 
 /// Cluster mode as the status shows it (the connection itself stays in `cluster`).
@@ -117,6 +174,35 @@ impl ServerState {
             events: self.events.clone(),
             shutdown: self.shutdown.clone(),
             stats: self.stats.clone(),
+        }
+    }
+
+    /// The part of the state a WebSocket session sees.
+    pub fn sessions(&self) -> Sessions {
+        Sessions {
+            feeds: self.feeds(),
+            changes: self.changes(),
+            forwarder: self.forwarder.clone(),
+            rate_hz: self.rate_hz,
+            stalled_client_timeout: self.stalled_client_timeout,
+        }
+    }
+
+    /// The part of the state the cluster's control service sees.
+    pub fn control_service(&self) -> ControlService {
+        ControlService {
+            changes: self.changes(),
+            token: self.policy.token().clone(),
+            shutdown: self.shutdown.clone(),
+            stats: self.stats.clone(),
+        }
+    }
+
+    /// The part of the state the cluster's bucket watch sees.
+    pub fn discovery(&self) -> Discovery {
+        Discovery {
+            feeds: self.feeds(),
+            commands: self.commands.clone(),
         }
     }
 

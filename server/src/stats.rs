@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicU64;
 use std::sync::Mutex;
 use std::time::Duration;
 
-pub use rigcast_engine::stats::{MotionCell, RateMeter, SubjectStats, WireTimes, WIRE_STAGES};
+use rigcast_engine::stats::RateMeter;
 
 /// Ticks kept for the duration percentiles (about 17 s at 60 Hz).
 const TICK_WINDOW: usize = 1024;
@@ -106,9 +106,9 @@ impl Default for Stats {
 pub use rigcast_protocol::status::TickPercentiles;
 
 impl Stats {
-    /// Records one tick's duration (no allocation).
-    pub fn record_tick(&self, d: Duration) {
-        self.output.tick();
+    /// Records the duration `d` of the tick that started at `started` (no allocation).
+    pub fn record_tick(&self, d: Duration, started: std::time::Instant) {
+        self.output.tick(started);
         if let Ok(mut w) = self.tick_micros.lock() {
             let micros = d.as_micros().min(u32::MAX as u128) as u32;
             let i = w.next;
@@ -147,7 +147,7 @@ mod tests {
     fn percentiles_of_known_values() {
         let s = Stats::default();
         for us in 1..=100u64 {
-            s.record_tick(Duration::from_micros(us));
+            s.record_tick(Duration::from_micros(us), std::time::Instant::now());
         }
         let p = s.tick_percentiles();
         assert_eq!(
@@ -156,7 +156,7 @@ mod tests {
         );
         // The window forgets old ticks.
         for _ in 0..TICK_WINDOW {
-            s.record_tick(Duration::from_micros(7));
+            s.record_tick(Duration::from_micros(7), std::time::Instant::now());
         }
         assert_eq!(s.tick_percentiles().max, 7);
     }

@@ -1,18 +1,19 @@
-//! The host side of the tick: a tokio interval drives [`Ticker`] at the output rate with the
-//! clocks read here, and [`HostOutput`] broadcasts its frames to the client sessions and sends
-//! its VMC bundles on a UDP socket. Never awaits anything but its interval and the shutdown
-//! signal; never blocks on a client.
+//! The host side of the engine: a loop that passes [`Engine`] the time (read here) and
+//! hands out what it yields: [`HostOutput`] broadcasts frames to the client sessions and sends
+//! VMC bundles on a UDP socket, events go on the clients' event broadcast. Never awaits
+//! anything but the engine's next wake-up, a camera's pose and the shutdown signal; never
+//! blocks on a client.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
-use std::time::Duration;
 
+use rigcast_engine::clock::TickTime;
+use rigcast_engine::events::Event;
+use rigcast_engine::tick::{OutFrame, TickOutput};
+use rigcast_engine::{Engine, Input, Output};
 use tokio::sync::{broadcast, watch};
-use tokio::time::MissedTickBehavior;
 
-use crate::clock::{unix_nanos, TickTime};
-use crate::engine::{OutFrame, TickContext, TickOutput, Ticker};
 use crate::stats::Stats;
 
 /// Where the server's tick puts what it produces: frames on the clients' broadcast, VMC
@@ -42,46 +43,54 @@ impl TickOutput for HostOutput {
     }
 }
 
-/// Runs the tick at `rate_hz` until shutdown (`MissedTickBehavior::Skip`: a late tick is not
-/// followed by a burst).
-///
-/// `wake` is notified when a camera's new pose is handed over: the tick runs at once instead
-/// of up to a period later (that wait was the largest server stage of glass-to-wire at 60 Hz),
-/// and its period restarts from there, so ticks follow the camera's frames. Two woken ticks
-/// are never closer than [`MIN_TICK_GAP`]; a woken tick right after a periodic one does not
-/// wait for it (a camera at the tick rate, or half of it, hands its pose over about when the
-/// restarted period ends, and waiting the gap there was the handoff's p99). The output rate
-/// stays under `rate_hz` plus the camera's frame rate.
-pub async fn run_tick(
-    ctx: TickContext,
+/// Runs the engine until shutdown: hands out what it yields (datagrams on the UDP socket,
+/// frames to the client sessions, events to every client, each tick's duration to the
+/// counters), then sleeps until the wake-up it asked for, a camera's new pose (`wake`,
+/// [`Input::Wake`]: the engine brings the tick forward, see
+/// `rigcast_engine::schedule::TickSchedule`) or shutdown, and passes it the time then. The
+/// only clocks read are here; every decision about when to tick is the engine's.
+pub async fn run_engine(
+    mut engine: Engine,
     mut out: HostOutput,
-    rate_hz: f64,
+    events: broadcast::Sender<Event>,
     wake: Arc<tokio::sync::Notify>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    let mut interval = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
-    interval.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let mut ticker = Ticker::new(ctx);
-    let mut last_woken = tokio::time::Instant::now();
     loop {
+        let next = hand_out(&mut engine, &mut out, &events);
+        if next <= std::time::Instant::now() {
+            // Due already (the encoding of a tick that just performed): no sleep.
+            engine.handle_input(Input::Timeout(TickTime::now()));
+            continue;
+        }
         tokio::select! {
-            _ = interval.tick() => {}
-            _ = wake.notified() => {
-                // Bounded rate: a burst of poses cannot spin the tick.
-                tokio::time::sleep_until(last_woken + MIN_TICK_GAP).await;
-                interval.reset();
-                last_woken = tokio::time::Instant::now();
+            _ = tokio::time::sleep_until(next.into()) => {
+                engine.handle_input(Input::Timeout(TickTime::now()));
             }
+            _ = wake.notified() => engine.handle_input(Input::Wake(TickTime::now())),
             _ = shutdown.changed() => break,
         }
-        let time = TickTime::now();
-        ticker.perform(time);
-        // Stamped when encoded (after the performers ran), as `send_nanos` is defined.
-        ticker.publish(time, unix_nanos(), &mut out);
-        out.stats.record_tick(time.instant.elapsed());
     }
 }
 
-/// The shortest time between two ticks when a camera's pose brings one forward (the highest
-/// tick rate the server accepts).
-pub const MIN_TICK_GAP: Duration = Duration::from_micros(1_000_000 / 240);
+/// Hands out everything the engine has yielded; returns when it next wants to run.
+fn hand_out(
+    engine: &mut Engine,
+    out: &mut HostOutput,
+    events: &broadcast::Sender<Event>,
+) -> std::time::Instant {
+    loop {
+        match engine.poll_output() {
+            Output::Datagram { to, bundle } => out.datagram(to, bundle),
+            Output::Frame(frame) => out.frame(frame),
+            Output::Event(event) => {
+                // Err only means no client is connected; the subjects keep their reports.
+                let _ = events.send(event);
+            }
+            Output::Ticked(started) => out
+                .stats
+                .record_tick(started.instant.elapsed(), started.instant),
+            Output::Timeout(at) => return at,
+        }
+    }
+}

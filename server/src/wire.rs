@@ -5,10 +5,11 @@
 use rigcast_protocol::control::{BoneInfo, ErrorCode};
 use rigcast_protocol::{ServerMessage, PROTOCOL_VERSION};
 
-use crate::events::Event;
-use crate::reports::{FootplantReport, HealthReport, MappingReport};
-use crate::state::ServerState;
-use crate::subject::SubjectShape;
+use std::sync::Arc;
+
+use rigcast_engine::events::Event;
+use rigcast_engine::reports::{FootplantReport, HealthReport, MappingReport};
+use rigcast_engine::subject::{Subject, SubjectShape};
 
 /// The protocol message of `event`.
 pub fn message(event: &Event) -> ServerMessage {
@@ -84,21 +85,20 @@ pub fn source_status(report: &HealthReport) -> ServerMessage {
 }
 
 /// The `hello` message.
-pub fn hello(state: &ServerState) -> ServerMessage {
+pub fn hello(tick_hz: f64, subjects: &[Arc<Subject>]) -> ServerMessage {
     ServerMessage::Hello {
         protocol_version: PROTOCOL_VERSION,
         protocol_versions: rigcast_protocol::PROTOCOL_VERSIONS.to_vec(),
         server_version: env!("CARGO_PKG_VERSION").to_string(),
-        tick_hz: state.rate_hz,
-        subjects: state.subject_infos(),
+        tick_hz,
+        subjects: subjects.iter().map(|s| s.info()).collect(),
     }
 }
 
 /// The state that control messages describe, as those messages: every subject's skeleton,
 /// every built mapping, every target's planted feet, the sources' health. Sent on connect and
 /// after a control-queue lag.
-pub fn state_messages(state: &ServerState) -> Vec<ServerMessage> {
-    let subjects = state.subjects();
+pub fn state_messages(subjects: &[Arc<Subject>]) -> Vec<ServerMessage> {
     let mut out: Vec<ServerMessage> = subjects.iter().map(|s| skeleton(&s.shape())).collect();
     out.extend(
         subjects
@@ -110,7 +110,10 @@ pub fn state_messages(state: &ServerState) -> Vec<ServerMessage> {
             .iter()
             .filter_map(|s| s.footplants().map(|f| footplants(&f))),
     );
-    out.push(source_status(&crate::subject::health_report(&subjects)));
+    out.push(source_status(&rigcast_engine::subject::health_report(
+        subjects,
+        std::time::Instant::now(),
+    )));
     out
 }
 
@@ -119,20 +122,20 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::subject::Subject;
+    use rigcast_engine::subject::Subject;
 
     /// A subject's `skeleton` message, read back the way a relaying node reads it, is the
     /// same skeleton (same fingerprint), and marks exactly the shape's translated bones.
     #[test]
     fn a_skeleton_event_carries_the_skeleton_and_its_translated_bones() {
-        let sk = Arc::new(crate::character::mannequin().unwrap());
+        let sk = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
         let (target, _tx) = Subject::with_kind(
             3,
             "mannequin".into(),
             sk.clone(),
             None,
             vec![0],
-            crate::config::VmcBoneNames::default(),
+            rigcast_engine::settings::VmcBoneNames::default(),
         );
         let event = Event::skeleton(&target);
         let text = message(&event).to_json();

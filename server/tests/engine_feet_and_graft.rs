@@ -1,7 +1,7 @@
 //! The foot lock and a live graft on a simulated clock, with no socket and no real time: the
-//! engine's tick ([`Ticker`]) runs a performer whose source the test feeds frame by frame, its
-//! outputs go to a recording [`TickOutput`], and the engine's own [`FootplantSampler`] reports
-//! the planted feet as typed events.
+//! engine ([`Engine`]) runs a performer whose source the test feeds frame by frame
+//! ([`Input::Frame`]) and is given each tick's time ([`Input::Timeout`]); what it yields is
+//! kept, the planted feet reported as typed events by its own foot-plant checks.
 //!
 //! - Foot lock (the CMU walk from the shared data on the mannequin, mapped as the server's
 //!   mapper does): both feet plant and lift in turn; once a plant has settled (the lock eases a landing foot onto its
@@ -18,12 +18,18 @@
 
 mod common;
 
-use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
+use rigcast_engine::clock::TickTime;
 use rigcast_engine::events::Event;
-use rigcast_engine::footplants::FootplantSampler;
+use rigcast_engine::graft_live::LiveGraft;
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::subject_list::SubjectList;
+use rigcast_engine::tick::TickContext;
+use rigcast_engine::{Engine, EngineParts, Input};
 use rigcast_protocol::{SourceState, TargetMotion};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
@@ -31,32 +37,12 @@ use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{
     world_transforms, Clip, Mapping, Pose, RetargetOptions, RootMotion, Skeleton,
 };
-use rigcast_server::clock::TickTime;
-use rigcast_server::config::OnLost;
-use rigcast_server::engine::{OutFrame, Subject, TickContext, TickOutput, Ticker};
-use rigcast_server::graft_live::LiveGraft;
 use rigcast_server::offline::plan_mapping;
-use rigcast_server::performer::{BuiltMapping, Performer};
-use rigcast_server::slot::FrameWriter;
 
 /// 60 Hz, in whole nanoseconds.
 const TICK: Duration = Duration::from_nanos(16_666_667);
 /// Ticks a landing foot takes to settle onto its pin (0.2 s).
 const SETTLE_TICKS: usize = 12;
-
-/// What the tick handed out.
-#[derive(Default)]
-struct Recorded {
-    frames: usize,
-}
-
-impl TickOutput for Recorded {
-    fn frame(&mut self, _: OutFrame) {
-        self.frames += 1;
-    }
-
-    fn datagram(&mut self, _: SocketAddr, _: &[u8]) {}
-}
 
 /// `clip`'s skeleton mapped onto `target` (analysed from its motion), with `root_motion`.
 fn map(clip: &Clip, target: &Skeleton, root_motion: RootMotion) -> Mapping {
@@ -72,14 +58,11 @@ fn map(clip: &Clip, target: &Skeleton, root_motion: RootMotion) -> Mapping {
     Mapping::build(&[&clip.skeleton], target, &table, &options).unwrap()
 }
 
-/// A source subject and a target performer on the engine's tick, and the source's writer.
+/// A source subject and a target performer on the engine, which holds the source's slot.
 struct Rig {
-    ticker: Ticker,
-    source: Arc<Subject>,
-    source_tx: FrameWriter,
+    engine: Engine,
     target: Arc<Subject>,
     now: TickTime,
-    sampler: FootplantSampler,
 }
 
 impl Rig {
@@ -92,47 +75,59 @@ impl Rig {
             .flat_map(|l| l.target_legs())
             .map(|leg| skeleton.name(leg.foot).to_string())
             .collect();
-        let mailbox = Arc::new(std::sync::Mutex::new(Some(built)));
         let performer = Performer::new(
             target.clone(),
             target_tx,
             vec![source.clone()],
-            mailbox,
+            Arc::default(),
             OnLost::Ease,
         );
         let subjects = Arc::new(vec![source.clone(), target.clone()]);
+        let now = TickTime::now();
+        let mut engine = Engine::new(
+            EngineParts {
+                tick: TickContext {
+                    subjects: subjects.clone(),
+                    vmc: Vec::new(),
+                    performers: vec![performer],
+                },
+                rate_hz: 1.0 / TICK.as_secs_f64(),
+                subjects: Arc::new(SubjectList::new(subjects)),
+            },
+            now.instant,
+        );
+        engine.feed(0, source_tx, false);
+        // Handed over as the mapper hands a built mapping over.
+        engine.handle_input(Input::Mapping { target: 1, built });
         Rig {
-            sampler: FootplantSampler::new(&subjects),
-            ticker: Ticker::new(TickContext {
-                subjects,
-                vmc: Vec::new(),
-                performers: vec![performer],
-            }),
-            source,
-            source_tx,
+            engine,
             target,
-            now: TickTime::now(),
+            now,
         }
     }
 
+    /// The source's health changes.
+    fn source_state(&mut self, state: SourceState) {
+        (self.engine).handle_input(Input::Health { subject: 0, state });
+    }
+
     /// One tick 1/60 s after the last, after the source sends `pose` (when given); the events
-    /// the sampler reported.
+    /// the engine yielded.
     fn tick(&mut self, pose: Option<&Pose>) -> Vec<Event> {
         self.now = self.now.after(TICK);
-        let at = self.now.unix_nanos;
         if let Some(pose) = pose {
-            self.source_tx.send_modify(|f| {
-                f.pose.copy_from(pose);
-                f.seq += 1;
-                f.capture_nanos = at;
+            self.engine.handle_input(Input::Frame {
+                subject: 0,
+                time: self.now,
+                capture_nanos: self.now.unix_nanos,
+                pose,
             });
         }
-        let mut out = Recorded::default();
-        self.ticker.tick(self.now, &mut out);
-        assert_eq!(out.frames, 2, "both subjects' frames every tick");
-        let mut events = Vec::new();
-        self.sampler.sample(|e| events.push(e));
-        events
+        let (out, next) = common::engine_at(&mut self.engine, self.now);
+        assert_eq!(out.frames.len(), 2, "both subjects' frames every tick");
+        assert_eq!(out.ticked, [self.now], "one tick, at the time given");
+        assert!(next <= self.now.after(TICK).instant, "the next tick is due");
+        out.events
     }
 
     fn shown(&self) -> Pose {
@@ -158,7 +153,7 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
     let Some(walk) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     // Mapped and locked as the server's mapper does it: the offline plan's options at the
     // tick's frame time, the source's floor measured on its clip.
     let character = Clip::new("mannequin", target.clone(), Vec::new(), 1.0 / 30.0).unwrap();
@@ -272,7 +267,7 @@ fn a_live_graft_walks_its_loop_and_survives_a_loss_on_a_simulated_clock() {
     let Some(walk) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let upper = map(&walk, &target, RootMotion::InPlace);
     let lower = map(&walk, &target, RootMotion::Scaled);
     let (wa, ta) = (
@@ -324,7 +319,7 @@ fn a_live_graft_walks_its_loop_and_survives_a_loss_on_a_simulated_clock() {
     assert!(r >= 0.9, "elbow correlation {r:.3}");
 
     // The upper source is lost: the character eases to its rest on the spot, then blends back.
-    rig.source.health.set_state(SourceState::Lost);
+    rig.source_state(SourceState::Lost);
     let before = pelvis(&rig.shown());
     let mut motions = Vec::new();
     for _ in 0..60 {
@@ -338,7 +333,7 @@ fn a_live_graft_walks_its_loop_and_survives_a_loss_on_a_simulated_clock() {
     let settled = pelvis(&rig.shown());
     let moved = ((settled - before) * glam::Vec3::new(1.0, 0.0, 1.0)).length();
     assert!(moved < 0.01, "the eased character slid {moved} m");
-    rig.source.health.set_state(SourceState::Live);
+    rig.source_state(SourceState::Live);
     motions.clear();
     for k in 0..60 {
         rig.tick(Some(pose_at(&walk, offset + k as f64 * TICK.as_secs_f64())));

@@ -15,15 +15,14 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use glam::Quat;
+use rigcast_engine::clock::TickTime;
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::tick::{OutFrame, TickContext, TickOutput, Ticker, VmcTarget};
 use rigcast_protocol::{SourceState, TargetMotion};
 use rigcast_retarget::graph::play::clips_onto_rig;
-use rigcast_retarget::graph::{GraphSettings, MotionGraph};
 use rigcast_retarget::{world_transforms, Clip, Pose, Skeleton};
-use rigcast_server::clock::TickTime;
-use rigcast_server::config::OnLost;
-use rigcast_server::engine::{OutFrame, Subject, TickContext, TickOutput, Ticker, VmcTarget};
-use rigcast_server::idle_graph::IdleGraph;
-use rigcast_server::performer::{BuiltMapping, Performer};
 
 mod common;
 
@@ -123,23 +122,8 @@ fn p99(mut v: Vec<f32>) -> f32 {
 #[test]
 fn a_lost_source_walks_the_idle_graph_and_hands_back_on_a_simulated_clock() {
     let wall = std::time::Instant::now();
-    let walk = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
-    let graph = MotionGraph::build(
-        std::slice::from_ref(&walk),
-        GraphSettings::default(),
-        &mut |_| {},
-    )
-    .unwrap();
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
-    let tick_secs = TICK.as_secs_f32();
-    let idle = IdleGraph::new(
-        &graph,
-        std::slice::from_ref(&walk),
-        &target,
-        None,
-        tick_secs,
-    )
-    .unwrap();
+    // The graph: the procedural walk cycle, another rig than the character.
+    let (walk, target, idle) = common::walk_idle_graph(TICK.as_secs_f32());
     let blend = Duration::from_secs_f32(idle.blend_secs());
     let live = live_clip();
     let (source, source_tx) = Subject::new(0, "performer".into(), live.skeleton.clone());

@@ -136,7 +136,7 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
         return;
     };
     let mut targets: Vec<(String, Clip)> = Vec::new();
-    let mannequin = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let mannequin = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     targets.push((
         "builtin:mannequin".into(),
         Clip::new(
@@ -250,7 +250,7 @@ fn cmu_walk_live_lock_keeps_planted_feet() {
     let Some(source) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let mannequin = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let mannequin = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let mut targets = vec![(
         "mannequin".to_string(),
         Clip::new(

@@ -10,14 +10,14 @@ mod common;
 use std::sync::Arc;
 use std::time::Duration;
 
+use rigcast_engine::graft_live::LiveGraft;
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
 use rigcast_retarget::mapping::{auto_map, MapOptions};
 use rigcast_retarget::{Mapping, RetargetOptions, RootMotion};
-use rigcast_server::config::OnLost;
-use rigcast_server::engine::Subject;
-use rigcast_server::graft_live::LiveGraft;
-use rigcast_server::performer::{BuiltMapping, Performer};
 
 #[path = "common/counting.rs"]
 mod counting;
@@ -28,7 +28,7 @@ fn a_grafted_performer_ticks_without_allocating() {
     let Some(walk) = common::shared_clip(common::CMU_WALK) else {
         return;
     };
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let map = |from: &rigcast_retarget::Skeleton, motion| {
         let table = auto_map(
             &SkeletonView::from_clip(from, &walk.poses),
@@ -74,7 +74,7 @@ fn a_grafted_performer_ticks_without_allocating() {
         });
     };
     let dt = Duration::from_micros(16_667);
-    let mut now = rigcast_server::clock::TickTime::now();
+    let mut now = rigcast_engine::clock::TickTime::now();
     for k in 0..3 {
         advance(k);
         performer.tick(now);

@@ -6,13 +6,13 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use rigcast_engine::clock::TickTime;
+use rigcast_engine::idle_graph::IdleGraph;
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
 use rigcast_protocol::SourceState;
 use rigcast_retarget::graph::{GraphSettings, MotionGraph};
-use rigcast_server::clock::TickTime;
-use rigcast_server::config::OnLost;
-use rigcast_server::engine::Subject;
-use rigcast_server::idle_graph::IdleGraph;
-use rigcast_server::performer::{BuiltMapping, Performer};
 
 mod common;
 
@@ -30,7 +30,7 @@ fn walking_the_idle_graph_allocates_nothing() {
     )
     .unwrap();
     assert!(graph.num_kept() > 0);
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let idle = IdleGraph::new(
         &graph,
         std::slice::from_ref(&clip),

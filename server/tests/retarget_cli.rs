@@ -73,7 +73,7 @@ fn the_built_in_mannequin_is_a_target_as_for_serve() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "{stderr}");
     let written = rigcast_sources::load_clip(&out).unwrap();
-    let mannequin = rigcast_server::character::mannequin().unwrap();
+    let mannequin = rigcast_engine::builtin::mannequin().unwrap();
     assert_eq!(written.skeleton.names(), mannequin.names());
     assert_eq!(written.num_frames(), demo.num_frames());
 

@@ -6,12 +6,13 @@
 
 use std::sync::Arc;
 
+use rigcast_engine::clock::TickTime;
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::tick::{TickContext, Ticker, VmcTarget};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
-use rigcast_server::clock::TickTime;
-use rigcast_server::config::OnLost;
-use rigcast_server::engine::{Subject, TickContext, Ticker, VmcTarget};
-use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
 use rigcast_server::tick_task::HostOutput;
 
@@ -36,7 +37,7 @@ fn tick_allocates_one_buffer_per_subject() {
         senders.push(tx);
     }
     // A target subject (the built-in mannequin) retargeted from subject 0.
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let (table, mapping) = common::rest_mapping(&clip.skeleton, &target);
     assert!(table.num_mapped() > 10);
     let (t, target_tx) = common::target_subject(3, &target);

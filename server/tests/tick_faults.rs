@@ -8,12 +8,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use glam::Vec3;
+use rigcast_engine::clock::TickTime;
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::tick::{TickContext, Ticker};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
-use rigcast_server::clock::TickTime;
-use rigcast_server::config::OnLost;
-use rigcast_server::engine::{Subject, TickContext, Ticker};
-use rigcast_server::performer::{BuiltMapping, Performer};
 use rigcast_server::stats::Stats;
 use rigcast_server::tick_task::HostOutput;
 
@@ -22,7 +23,7 @@ mod common;
 #[test]
 fn a_performer_fed_overflowing_values_faults_alone_and_recovers() {
     let clip = rigcast_server::demo::procedural_clip(30, 30.0).unwrap();
-    let target = Arc::new(rigcast_server::character::mannequin().unwrap());
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let mut subjects = Vec::new();
     let mut senders = Vec::new();
     let mut performers = Vec::new();
@@ -118,7 +119,7 @@ fn a_performer_fed_overflowing_values_faults_alone_and_recovers() {
     );
     assert!(targets[1].stats.fault().is_none());
     // Sane input again: after the retry delay it runs and publishes again.
-    std::thread::sleep(rigcast_server::fault::FAULT_RETRY + Duration::from_millis(50));
+    std::thread::sleep(rigcast_engine::fault::FAULT_RETRY + Duration::from_millis(50));
     for _ in 0..10 {
         feed(None);
         ticker.tick(TickTime::now(), &mut out);

@@ -13,10 +13,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use rigcast_engine::settings::OnLost;
 use rigcast_protocol::frame::DecodedFrame;
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_protocol::{ServerMessage, SourceState, TargetMotion};
-use rigcast_server::config::OnLost;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 

@@ -175,7 +175,7 @@ async fn vmc_into_server_retargets_eases_on_loss_and_resumes() {
     let source_skeleton = Arc::new(source_skeleton.expect("the VMC sender's skeleton"));
     let target_skeleton = target_skeleton.unwrap_or_else(|| {
         // The handshake's skeleton message of the target was consumed by `handshake`.
-        rigcast_server::character::mannequin().unwrap()
+        rigcast_engine::builtin::mannequin().unwrap()
     });
     let mapping_entries = mapping_entries.expect("a mapping message after the re-map");
     let source_frame = last_source.unwrap();
@@ -369,7 +369,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
     let (server, to) = start_vmc_server(ServerConfig {
         rate_hz: RATE,
         performers: vec![PerformerSpec::target_file("builtin:mannequin")],
-        on_lost: rigcast_server::config::OnLost::Hold,
+        on_lost: rigcast_engine::settings::OnLost::Hold,
         ..ServerConfig::default()
     })
     .await;
@@ -421,7 +421,7 @@ async fn hold_keeps_the_last_pose_while_the_source_is_lost() {
     assert!(worst < 1e-6, "the held pose drifted by {worst} rad");
     let moved_from_rest = max_angle(
         &last_live,
-        &rigcast_server::character::mannequin()
+        &rigcast_engine::builtin::mannequin()
             .unwrap()
             .rest_pose()
             .rotations,

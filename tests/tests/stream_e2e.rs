@@ -30,7 +30,7 @@ async fn check_file_streams_its_rotations(path: &Path) {
             },
         )],
         vmc_out: vec![rigcast_server::VmcOut::to(vmc_addr)],
-        vmc_bone_names: rigcast_server::VmcBoneNames::Skeleton,
+        vmc_bone_names: rigcast_engine::settings::VmcBoneNames::Skeleton,
         ..rigcast_server::ServerConfig::default()
     })
     .await

@@ -114,7 +114,7 @@ async fn viewer_draws_the_glb_target_skinned() {
         None => {
             std::fs::create_dir_all(&fixture_dir).unwrap();
             let path = fixture_dir.join("skinned_mannequin.glb");
-            let skeleton = rigcast_server::character::builtin("mannequin").unwrap();
+            let skeleton = rigcast_engine::builtin::builtin("mannequin").unwrap();
             std::fs::write(&path, rigcast_tests::skinned::skinned_glb(&skeleton)).unwrap();
             eprintln!("using the project's skinned GLB {} instead", path.display());
             (path, "skinned_mannequin")
@@ -376,7 +376,7 @@ async fn viewer_keeps_the_stick_figure_when_a_model_cannot_load() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let skeleton = rigcast_server::character::builtin("mannequin").unwrap();
+    let skeleton = rigcast_engine::builtin::builtin("mannequin").unwrap();
     let glb = rigcast_tests::skinned::skinned_glb(&skeleton);
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
     let mut doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();

@@ -336,7 +336,7 @@ async fn viewer_says_when_a_target_walks_its_idle_graph() {
         return;
     };
     let performer = PerformerSpec {
-        on_lost: Some(rigcast_server::config::OnLost::Idle),
+        on_lost: Some(rigcast_engine::settings::OnLost::Idle),
         idle_graph: Some(graph_file.clone()),
         ..PerformerSpec::target_file("builtin:mannequin")
     };

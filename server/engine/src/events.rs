@@ -47,9 +47,9 @@ impl Event {
         Event::Skeleton(subject.shape())
     }
 
-    /// [`Event::SourceStatus`] for `subjects` as they are now.
-    pub fn source_status(subjects: &[Arc<Subject>]) -> Event {
-        Event::SourceStatus(Arc::new(crate::subject::health_report(subjects)))
+    /// [`Event::SourceStatus`] for `subjects` as they are at `now`.
+    pub fn source_status(subjects: &[Arc<Subject>], now: std::time::Instant) -> Event {
+        Event::SourceStatus(Arc::new(crate::subject::health_report(subjects, now)))
     }
 
     /// Whether the event changes what a subject's cluster entry holds (its skeleton or its

@@ -8,15 +8,18 @@
 //! and sockets and hands the engine plain values.
 //!
 //! ```text
-//!  host: source tasks/threads ─FrameWriter─▶ subject slots ◀─FrameReader─ Ticker::tick(TickTime)
-//!        mapper thread ─Mailbox─▶ performers           │  performers: map, lock, fall back
-//!                                                      ▼  encode every subject once
-//!        TickOutput::frame / ::datagram ◀──────────────┘  (the host broadcasts / sends UDP)
+//!  host loop ─handle_input(Timeout(time) | Wake | Frame | Health | Mapping)─▶ Engine
+//!    ▲                                   timetable (schedule) · Ticker · foot plants · status
+//!    └─poll_output(): Datagram · Frame · Event · Ticked · Timeout(next wake-up)
+//!  source threads ─FrameWriter─▶ subject slots ◀─FrameReader─ the tick's performers, encoding
+//!  mapper thread ─Mailbox─▶ performers
 //! ```
 //!
-//! Entry points: [`Ticker`] (one tick at a given time, its outputs to a [`TickOutput`]),
+//! Entry points: [`Engine`] (fed [`Input`]s, yielding [`Output`]s and its next wake-up),
+//! [`Ticker`] (one tick at a given time, its outputs to a [`TickOutput`]),
 //! [`subject::Subject`], [`performer::Performer`], [`footplants::FootplantSampler`],
-//! [`fault::announce`]. `server/tests/engine_idle_graph.rs` drives it on a simulated clock.
+//! [`fault::announce`]. `server/tests/engine_machine.rs` drives the engine on a simulated
+//! clock as the host does.
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used))]
 
@@ -28,11 +31,14 @@ pub mod fault;
 pub mod footplants;
 pub mod graft_live;
 pub mod idle_graph;
+pub mod machine;
 pub mod performer;
 pub mod reports;
+pub mod schedule;
 pub mod settings;
 pub mod slot;
 pub mod stats;
+pub mod status;
 pub mod subject;
 pub mod subject_list;
 pub mod tick;
@@ -40,4 +46,5 @@ pub mod translated;
 pub mod vmc_pose;
 
 pub use clock::TickTime;
+pub use machine::{Engine, EngineParts, Input, Output};
 pub use tick::{OutFrame, TickContext, TickOutput, Ticker};

@@ -231,6 +231,13 @@ impl Performer {
         self
     }
 
+    /// Hands over a newly built mapping (the next tick takes it), replacing one not yet
+    /// taken.
+    pub fn offer(&self, built: BuiltMapping) {
+        let mut slot = self.mailbox.lock().unwrap_or_else(|p| p.into_inner());
+        *slot = Some(built);
+    }
+
     fn take_new_mapping(&mut self) {
         let Ok(mut slot) = self.mailbox.try_lock() else {
             return;
@@ -281,7 +288,7 @@ impl Performer {
         match shown {
             Ok(Some((moving, capture))) => match self.display.check_values() {
                 Ok(_) => {
-                    self.publish(moving, capture);
+                    self.publish(moving, capture, now);
                     self.clear_fault();
                 }
                 Err(r) => {
@@ -568,7 +575,7 @@ impl Performer {
 
     /// Sends `display` as the target's frame, with a new seq whenever the pose changed
     /// (clients skip repeated seqs).
-    fn publish(&mut self, moving: bool, capture: u64) {
+    fn publish(&mut self, moving: bool, capture: u64, now: Instant) {
         if !moving && self.published {
             return;
         }
@@ -583,7 +590,7 @@ impl Performer {
             f.seq = seq;
             f.capture_nanos = capture;
         });
-        self.target.stats.input.tick();
+        self.target.stats.input.tick(now);
         self.target
             .stats
             .last_capture_nanos

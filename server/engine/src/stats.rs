@@ -8,27 +8,33 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// Measures an event rate over the time since the previous read.
-#[derive(Debug)]
+/// Measures an event rate over the time since the previous read. Reads no clock: whoever
+/// counts an event or reads the rate passes the time.
+#[derive(Debug, Default)]
 pub struct RateMeter {
     count: AtomicU64,
-    window: Mutex<(Instant, u64, f64)>,
-}
-
-impl Default for RateMeter {
-    fn default() -> Self {
-        RateMeter {
-            count: AtomicU64::new(0),
-            window: Mutex::new((Instant::now(), 0, 0.0)),
-        }
-    }
+    /// Whether the window has its start (the first event's time); checked without locking.
+    started: std::sync::atomic::AtomicBool,
+    /// Start of the window, the count then, and the last figure.
+    window: Mutex<Option<(Instant, u64, f64)>>,
 }
 
 impl RateMeter {
-    /// Counts one event.
+    /// Counts one event, at `now`; the first one starts the window.
     #[inline]
-    pub fn tick(&self) {
+    pub fn tick(&self, now: Instant) {
+        if !self.started.load(Ordering::Relaxed) {
+            self.start(now);
+        }
         self.count.fetch_add(1, Ordering::Relaxed);
+    }
+
+    #[cold]
+    fn start(&self, now: Instant) {
+        if let Ok(mut w) = self.window.lock() {
+            w.get_or_insert((now, self.total(), 0.0));
+            self.started.store(true, Ordering::Relaxed);
+        }
     }
 
     /// Total events.
@@ -36,17 +42,20 @@ impl RateMeter {
         self.count.load(Ordering::Relaxed)
     }
 
-    /// Events per second since the previous call (windows shorter than 0.5 s reuse the
-    /// previous figure so frequent polling does not produce noise).
-    pub fn rate_hz(&self) -> f64 {
-        let Ok(mut w) = self.window.lock() else {
+    /// Events per second from the previous read (or the first event) to `now` (windows
+    /// shorter than 0.5 s reuse the previous figure so frequent polling does not produce
+    /// noise; 0 before any event).
+    pub fn rate_hz(&self, now: Instant) -> f64 {
+        let Ok(mut guard) = self.window.lock() else {
             return 0.0;
         };
-        let now = Instant::now();
-        let dt = now.duration_since(w.0).as_secs_f64();
+        let Some(w) = guard.as_mut() else {
+            return 0.0;
+        };
+        let dt = now.saturating_duration_since(w.0).as_secs_f64();
         let count = self.total();
         if dt >= 0.5 {
-            w.2 = (count - w.1) as f64 / dt;
+            w.2 = count.saturating_sub(w.1) as f64 / dt;
             *w = (now, count, w.2);
         }
         w.2
@@ -143,21 +152,26 @@ impl WireTimes {
 }
 
 impl SubjectStats {
-    /// Counts a refused pose and keeps why.
-    pub fn reject_pose(&self, refusal: rigcast_retarget::bounds::PoseRefusal, bone_name: &str) {
+    /// Counts a pose refused at `now` and keeps why.
+    pub fn reject_pose(
+        &self,
+        refusal: rigcast_retarget::bounds::PoseRefusal,
+        bone_name: &str,
+        now: Instant,
+    ) {
         self.rejected_poses.fetch_add(1, Ordering::Relaxed);
         if let Ok(mut last) = self.last_rejection.lock() {
             *last = Some(format!("bone {bone_name}: {}", refusal.fault));
         }
         if let Ok(mut at) = self.last_rejection_at.lock() {
-            *at = Some(Instant::now());
+            *at = Some(now);
         }
     }
 
-    /// Why poses are being refused, while one was in the last `within`.
-    pub fn recent_rejection(&self, within: Duration) -> Option<String> {
+    /// Why poses are being refused, while one was in the `within` before `now`.
+    pub fn recent_rejection(&self, within: Duration, now: Instant) -> Option<String> {
         let at = (*self.last_rejection_at.lock().ok()?)?;
-        if at.elapsed() > within {
+        if now.saturating_duration_since(at) > within {
             return None;
         }
         let why = self.last_rejection.lock().ok()?.clone()?;
@@ -199,6 +213,22 @@ impl MotionCell {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_rate_is_measured_on_the_times_given() {
+        let m = RateMeter::default();
+        let t0 = Instant::now();
+        assert_eq!(m.rate_hz(t0), 0.0);
+        // 30 events a second for 2 s, from the first one.
+        for i in 0..60u32 {
+            m.tick(t0 + Duration::from_secs(1) * i / 30);
+        }
+        assert!((m.rate_hz(t0 + Duration::from_secs(2)) - 30.0).abs() < 1e-9);
+        // Read again within 0.5 s: the same figure; after 1 s without events: none.
+        assert!((m.rate_hz(t0 + Duration::from_millis(2200)) - 30.0).abs() < 1e-9);
+        assert_eq!(m.rate_hz(t0 + Duration::from_secs(3)), 0.0);
+        assert_eq!(m.total(), 60);
+    }
 
     #[test]
     fn each_frame_counts_once_at_its_first_tick_and_first_write() {

@@ -447,11 +447,11 @@ impl Subject {
     /// The `detail` of this source's health: the server's calibration account (which
     /// supersedes the source's own `calibrated`/`not calibrated` note) and, while the device
     /// is not live, the source's detail (why it is lost).
-    fn detail(&self, live_detail: String) -> String {
+    fn detail(&self, live_detail: String, now: std::time::Instant) -> String {
         if let Some(why) = self.health.failure() {
             return why;
         }
-        if let Some(why) = (self.stats).recent_rejection(std::time::Duration::from_secs(1)) {
+        if let Some(why) = (self.stats).recent_rejection(std::time::Duration::from_secs(1), now) {
             return why;
         }
         let cal = self
@@ -546,8 +546,8 @@ impl Subject {
         !self.inputs.is_empty()
     }
 
-    /// Health as sent in `source_status` (sources only).
-    pub fn source_health(&self) -> Option<SourceHealth> {
+    /// Health as sent in `source_status` (sources only), at `now`.
+    pub fn source_health(&self, now: std::time::Instant) -> Option<SourceHealth> {
         if self.is_target() {
             return None;
         }
@@ -562,18 +562,18 @@ impl Subject {
                 latency_ms: s.latency_ms,
                 frames: s.frames,
                 dropped: s.dropped,
-                detail: self.detail(s.detail),
+                detail: self.detail(s.detail, now),
                 camera: s.camera,
             },
             None => SourceHealth {
                 subject: self.id,
                 kind: self.source_kind?,
                 state,
-                input_fps: self.stats.input.rate_hz() as f32,
+                input_fps: self.stats.input.rate_hz(now) as f32,
                 latency_ms: 0.0,
                 frames: self.stats.input.total(),
                 dropped: 0,
-                detail: self.detail(String::new()),
+                detail: self.detail(String::new(), now),
                 camera: None,
             },
         })
@@ -597,10 +597,13 @@ fn keep<T>(slot: &Mutex<Option<Arc<T>>>, report: Arc<T>) {
 }
 
 /// The sources' health and the targets' motion and faults now (the `source_status` message's
-/// content).
-pub fn health_report(subjects: &[Arc<Subject>]) -> HealthReport {
+/// content), at `now`.
+pub fn health_report(subjects: &[Arc<Subject>], now: std::time::Instant) -> HealthReport {
     HealthReport {
-        sources: subjects.iter().filter_map(|s| s.source_health()).collect(),
+        sources: subjects
+            .iter()
+            .filter_map(|s| s.source_health(now))
+            .collect(),
         targets: subjects
             .iter()
             .filter(|s| s.is_target())
@@ -652,7 +655,7 @@ mod tests {
                 detail: detail.into(),
                 camera: None,
             });
-            s.source_health().unwrap().detail
+            s.source_health(std::time::Instant::now()).unwrap().detail
         };
         // Before any request the source's own note shows.
         assert_eq!(
@@ -682,7 +685,10 @@ mod tests {
             Vec::new(),
             VmcBoneNames::default(),
         );
-        assert_eq!(v.source_health().unwrap().detail, "");
+        assert_eq!(
+            v.source_health(std::time::Instant::now()).unwrap().detail,
+            ""
+        );
     }
 
     #[test]

@@ -28,8 +28,8 @@ use rigcast_protocol::vmc::{VmcBone, VmcEncoder};
 use rigcast_retarget::{forward_kinematics, Frame, WorldTransform};
 
 use crate::clock::TickTime;
-use crate::performer::Performer;
-use crate::subject::SubjectShape;
+use crate::performer::{BuiltMapping, Performer};
+use crate::subject::{Subject, SubjectShape};
 
 /// One subject's pose of one tick on its way to clients, encoded once per protocol version.
 #[derive(Debug, Clone)]
@@ -61,8 +61,6 @@ impl OutFrame {
         }
     }
 }
-
-pub use crate::subject::Subject;
 
 /// Requests to the mapper (from clients and live sources).
 #[derive(Debug)]
@@ -141,6 +139,23 @@ impl Ticker {
             worlds: Vec::new(),
             outgoing: Vec::new(),
             start: None,
+        }
+    }
+
+    /// Subject `id` of the tick's list.
+    pub fn subject(&self, id: u32) -> Option<&Arc<Subject>> {
+        self.ctx.subjects.get(id as usize).filter(|s| s.id == id)
+    }
+
+    /// Hands `built` to the performer of target `id` (taken at its next tick); `false` when
+    /// no performer drives that target.
+    pub fn offer_mapping(&self, id: u32, built: BuiltMapping) -> bool {
+        match self.ctx.performers.iter().find(|p| p.target.id == id) {
+            Some(p) => {
+                p.offer(built);
+                true
+            }
+            None => false,
         }
     }
 

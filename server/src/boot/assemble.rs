@@ -12,12 +12,12 @@ use tokio::sync::broadcast;
 
 use super::load::{Inputs, Loaded, LoadedPerformer, LoadedSource};
 use crate::config::ServerConfig;
-use crate::engine::VmcTarget;
 use crate::mapper::{Mapper, PerformerPlan, SourceExtra};
-use crate::performer::{self, Performer};
-use crate::slot::FrameWriter;
-use crate::subject::{Calibrator, Subject};
 use crate::token;
+use rigcast_engine::performer::{self, Performer};
+use rigcast_engine::slot::FrameWriter;
+use rigcast_engine::subject::{Calibrator, Subject};
+use rigcast_engine::tick::VmcTarget;
 
 /// A source subject with what feeds it.
 pub(crate) struct SourceRunner {
@@ -36,7 +36,7 @@ pub(crate) struct Assembly {
     pub mapper: Mapper,
     /// The VMC output socket and its receivers (`None` without receivers).
     pub vmc: Option<(std::net::UdpSocket, Vec<VmcTarget>)>,
-    pub events: broadcast::Sender<crate::events::Event>,
+    pub events: broadcast::Sender<rigcast_engine::events::Event>,
     pub token: token::ResolvedToken,
     /// Cluster mode: relays and publisher to start.
     pub cluster: Option<crate::cluster::ClusterLink>,
@@ -44,7 +44,7 @@ pub(crate) struct Assembly {
 
 /// Builds the subjects, performers and mapper of `inputs`, and resolves the VMC receivers.
 pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::Result<Assembly> {
-    let (events, _) = broadcast::channel(crate::events::EVENTS_CAPACITY);
+    let (events, _) = broadcast::channel(rigcast_engine::events::EVENTS_CAPACITY);
     let names: Vec<String> = inputs.sources.iter().map(|s| s.name.clone()).collect();
     let mut subjects = Vec::new();
     let mut sources = Vec::new();
@@ -127,8 +127,8 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
 
 /// What a performer does while its source is lost, and how it comes back.
 struct Fallback {
-    on_lost: crate::config::OnLost,
-    idle: Option<crate::idle_graph::IdleGraph>,
+    on_lost: rigcast_engine::settings::OnLost,
+    idle: Option<rigcast_engine::idle_graph::IdleGraph>,
     resume: Option<std::time::Duration>,
 }
 
@@ -230,7 +230,8 @@ fn performer_plan(
         );
     }
     let all_names: Vec<String> = subjects.iter().map(|s| s.info().name).collect();
-    let name = crate::subject_list::unique_name(&all_names, spec.name.clone().unwrap_or(t.name));
+    let name =
+        rigcast_engine::subject_list::unique_name(&all_names, spec.name.clone().unwrap_or(t.name));
     let (subject, tx) = Subject::with_kind(
         subjects.len() as u32,
         name,

@@ -13,8 +13,8 @@ use crate::config::{self, PerformerSpec, ServerConfig, SourceSpec, TargetSpec};
 use crate::model::ServedModel;
 pub(crate) use crate::source_kinds::Loaded;
 use crate::source_kinds::Opened;
-use crate::subject_list::unique_name;
 use crate::{character, token};
+use rigcast_engine::subject_list::unique_name;
 
 /// A source with its subject name and (initial) skeleton.
 pub(crate) struct LoadedSource {
@@ -33,7 +33,7 @@ pub(crate) struct LoadedTarget {
     /// A VRM file's humanoid map (ground truth for its roles).
     pub truth: Option<Vec<(String, String)>>,
     /// The character file the viewer may fetch (binary glTF targets only).
-    pub model: Option<crate::model::ModelFile>,
+    pub model: Option<rigcast_engine::subject::ModelFile>,
 }
 
 /// A performer's spec with its character and mapping overrides read.
@@ -42,9 +42,9 @@ pub(crate) struct LoadedPerformer {
     pub target: LoadedTarget,
     pub overrides_file: Option<MappingFile>,
     /// A grafted performer's lower body (its clip read when it is one).
-    pub graft: Option<crate::graft_live::LowerInput>,
+    pub graft: Option<rigcast_engine::graft_live::LowerInput>,
     /// The graph walked while its source is lost, prepared for the character.
-    pub idle: Option<crate::idle_graph::IdleGraph>,
+    pub idle: Option<rigcast_engine::idle_graph::IdleGraph>,
 }
 
 /// Everything the server reads at start.
@@ -86,7 +86,7 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
         // The default demo: the bundled walk and the built-in character retargeted from it.
         performer_specs.push(PerformerSpec::target_file(format!(
             "{}mannequin",
-            config::BUILTIN_PREFIX
+            rigcast_engine::builtin::BUILTIN_PREFIX
         )));
     }
     let mut sources: Vec<LoadedSource> = Vec::new();
@@ -150,7 +150,7 @@ async fn load_idle_graph(
     spec: &PerformerSpec,
     target: &LoadedTarget,
     rate_hz: f64,
-) -> anyhow::Result<Option<crate::idle_graph::IdleGraph>> {
+) -> anyhow::Result<Option<rigcast_engine::idle_graph::IdleGraph>> {
     let Some(path) = spec.idle_graph.clone() else {
         return Ok(None);
     };
@@ -179,8 +179,8 @@ pub(crate) fn read_mapping(path: &std::path::Path) -> anyhow::Result<MappingFile
 /// locomotion clip, read here.
 async fn load_graft_lower(
     spec: &PerformerSpec,
-) -> anyhow::Result<Option<crate::graft_live::LowerInput>> {
-    use crate::graft_live::LowerInput;
+) -> anyhow::Result<Option<rigcast_engine::graft_live::LowerInput>> {
+    use rigcast_engine::graft_live::LowerInput;
     Ok(match spec.graft.as_ref().map(|g| &g.lower) {
         None => None,
         Some(config::LowerSpec::Source(_)) => Some(LowerInput::Source),
@@ -223,7 +223,7 @@ fn load_target(p: &config::PerformerSpec) -> anyhow::Result<LoadedTarget> {
                 model: c
                     .file
                     .as_deref()
-                    .and_then(crate::model::ModelFile::for_target),
+                    .and_then(rigcast_engine::subject::ModelFile::for_target),
             })
         }
     }

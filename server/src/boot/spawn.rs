@@ -4,7 +4,8 @@
 //! ```text
 //!  1. listener stops accepting; client sessions are told to close (WebSocket 1001) and
 //!     unfinished requests are dropped; wait (≤ DRAIN_TIMEOUT) until every connection is gone
-//!  2. tick, replay sources, source_status: stopped and awaited
+//!  2. the engine's loop (tick, foot plants, source_status) and replay sources: stopped and
+//!     awaited
 //!  3. live-source threads and the mapper: stopped and joined
 //!  4. recorder thread joined, then the recording finished (its last writer is gone)
 //! ```
@@ -23,12 +24,13 @@ use tokio::task::JoinHandle;
 use super::assemble::{Assembly, SourceRunner};
 use super::load::Loaded;
 use crate::config::ServerConfig;
-use crate::engine::{EngineCommand, TickContext};
 use crate::limits::ConnectionLimiter;
 use crate::live::{self, LiveContext};
 use crate::recorder::Recorder;
 use crate::state::{ClusterView, ServerState};
-use crate::{access, footplants, http, limits, stats, tick_task, token};
+use crate::{access, http, limits, stats, tick_task, token};
+use rigcast_engine::tick::{EngineCommand, TickContext};
+use rigcast_engine::{Engine, EngineParts};
 
 /// Frames kept per client before it counts as lagging: about two seconds at the default rate
 /// with one subject.
@@ -43,7 +45,7 @@ pub struct Supervisor {
     connections_stop: watch::Sender<bool>,
     listener: JoinHandle<()>,
     connections: Arc<ConnectionLimiter>,
-    /// Stage 2: the tick, replays and the status broadcaster.
+    /// Stage 2: the engine's loop and replays.
     engine_stop: watch::Sender<bool>,
     engine_tasks: Vec<JoinHandle<()>>,
     /// Stage 3: live sources and the mapper.
@@ -84,7 +86,9 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     let (frames, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
     let (commands, commands_rx) = mpsc::channel(64);
     let stats = Arc::new(stats::Stats::default());
-    let subject_list = Arc::new(crate::subject_list::SubjectList::new(subjects.clone()));
+    let subject_list = Arc::new(rigcast_engine::subject_list::SubjectList::new(
+        subjects.clone(),
+    ));
     let forwarder =
         (parts.cluster.as_ref()).map(|link| Arc::new(link.forwarder(parts.token.token.clone())));
     let state = Arc::new(ServerState {
@@ -126,7 +130,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         late_threads: Arc::default(),
         recorder: None,
     };
-    // Cameras' new poses bring the tick forward (see engine::run_tick).
+    // Cameras' new poses bring the tick forward (see tick_task::run_engine).
     let wake = Arc::new(tokio::sync::Notify::new());
     for source in parts.sources {
         supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx, &wake)?;
@@ -149,25 +153,25 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         supervisor.recorder = Some((rec, thread));
     }
     let (vmc_socket, vmc) = parts.vmc.unzip();
-    let tick = TickContext {
-        subjects: subjects.clone(),
-        vmc: vmc.unwrap_or_default(),
-        performers: parts.performers,
-    };
+    let engine = Engine::new(
+        EngineParts {
+            tick: TickContext {
+                subjects: subjects.clone(),
+                vmc: vmc.unwrap_or_default(),
+                performers: parts.performers,
+            },
+            rate_hz: config.rate_hz,
+            subjects: subject_list,
+        },
+        std::time::Instant::now(),
+    );
     let out = tick_task::HostOutput {
         frames,
         vmc_socket,
         stats,
     };
-    let run = tick_task::run_tick(tick, out, config.rate_hz, wake, engine_rx.clone());
+    let run = tick_task::run_engine(engine, out, events, wake, engine_rx.clone());
     supervisor.engine_tasks.push(tokio::spawn(run));
-    supervisor.engine_tasks.push(tokio::spawn(footplants::run(
-        subjects.clone(),
-        events.clone(),
-        engine_rx.clone(),
-    )));
-    let status = run_source_status(subject_list, events, engine_rx);
-    supervisor.engine_tasks.push(tokio::spawn(status));
     if let (Some(link), Some(forwarder)) = (parts.cluster, forwarder) {
         let live = crate::cluster::LiveThreads {
             stop: supervisor.stop_threads.clone(),
@@ -307,58 +311,4 @@ impl Supervisor {
         })
         .await;
     }
-}
-
-/// How often the status task looks at the targets' motions: a change (a target starting on
-/// its idle graph, resuming, back live) reaches clients within this and a tick, instead of
-/// waiting for the once-a-second report. Polling keeps the tick free of any wake-up call.
-const MOTION_POLL: Duration = Duration::from_millis(50);
-
-/// Broadcasts `source_status` about once per second, and as soon as a target's motion changes.
-async fn run_source_status(
-    subjects: Arc<crate::subject_list::SubjectList>,
-    events: broadcast::Sender<crate::events::Event>,
-    mut shutdown: watch::Receiver<bool>,
-) {
-    let mut poll = tokio::time::interval(MOTION_POLL);
-    poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut last_sent: Option<std::time::Instant> = None;
-    let mut motions = Vec::new();
-    let mut faults = crate::fault::SeenFaults::new();
-    loop {
-        tokio::select! {
-            _ = poll.tick() => {}
-            _ = shutdown.changed() => break,
-        }
-        let now = subjects.snapshot();
-        let changed = motions_changed(&now, &mut motions)
-            | crate::fault::announce(&now, &mut faults, &events);
-        let due = last_sent.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
-        if !(changed || due) {
-            continue;
-        }
-        last_sent = Some(std::time::Instant::now());
-        if events.receiver_count() == 0 {
-            continue;
-        }
-        // No receiver between the check and the send: nobody to tell.
-        let _ = events.send(crate::events::Event::source_status(&now));
-    }
-}
-
-/// Whether any target's motion differs from `seen` (then updated to the current ones).
-fn motions_changed(
-    subjects: &[Arc<crate::subject::Subject>],
-    seen: &mut Vec<(u32, rigcast_protocol::TargetMotion)>,
-) -> bool {
-    let current = subjects
-        .iter()
-        .filter(|s| s.is_target())
-        .map(|s| (s.id, s.stats.motion.load()));
-    if current.clone().eq(seen.iter().copied()) {
-        return false;
-    }
-    seen.clear();
-    seen.extend(current);
-    true
 }

@@ -29,10 +29,10 @@ use rigcast_protocol::ServerMessage;
 use ring::hmac;
 use serde::{Deserialize, Serialize};
 
-use crate::clock::unix_nanos;
 use crate::state::ChangeForwarder;
-use crate::state::ServerState;
+use crate::state::ControlService;
 use crate::token::ControlToken;
+use rigcast_engine::clock::unix_nanos;
 
 /// Longest a forwarding node waits for the owner's answer.
 pub const CONTROL_TIMEOUT: Duration = Duration::from_secs(2);
@@ -314,7 +314,7 @@ pub async fn run_control_service(
     client: async_nats::Client,
     namespace: String,
     site: String,
-    state: Arc<ServerState>,
+    handle: ControlService,
 ) {
     let subject = control_subject(&namespace, &site);
     let mut sub = match client.subscribe(subject.clone()).await {
@@ -324,8 +324,8 @@ pub async fn run_control_service(
             return;
         }
     };
-    let mut checker = Checker::new(state.policy.token(), &site);
-    let mut shutdown = state.shutdown.clone();
+    let mut checker = Checker::new(&handle.token, &site);
+    let mut shutdown = handle.shutdown.clone();
     loop {
         let msg = tokio::select! {
             biased;
@@ -336,7 +336,7 @@ pub async fn run_control_service(
             },
         };
         let Some(reply_to) = msg.reply else { continue };
-        let answer = serve(&mut checker, &msg.payload, &state);
+        let answer = serve(&mut checker, &msg.payload, &handle);
         // The asker may have given up (timeout); nothing more to do then.
         let _ = client
             .publish(reply_to, answer.to_json().into_bytes().into())
@@ -345,22 +345,22 @@ pub async fn run_control_service(
 }
 
 /// The answer to one forwarded request.
-fn serve(checker: &mut Checker, payload: &[u8], state: &ServerState) -> ServerMessage {
+fn serve(checker: &mut Checker, payload: &[u8], handle: &ControlService) -> ServerMessage {
     let body = match checker.open(payload, unix_nanos()) {
         Ok(b) => b,
         Err(refusal) => {
-            state
+            handle
                 .stats
                 .cluster_control_refused
                 .fetch_add(1, Ordering::Relaxed);
             return refusal.reply(&checker.site);
         }
     };
-    state
+    handle
         .stats
         .cluster_control_served
         .fetch_add(1, Ordering::Relaxed);
-    let subjects = state.subjects();
+    let subjects = handle.changes.subjects();
     let own = (subjects.iter()).find(|s| !s.is_relayed() && s.info().name == body.name);
     let Some(own) = own else {
         return ServerMessage::error(
@@ -368,7 +368,7 @@ fn serve(checker: &mut Checker, payload: &[u8], state: &ServerState) -> ServerMe
             format!("node {} has no subject {:?}", checker.site, body.name),
         );
     };
-    crate::changes::apply_change(&state.changes(), readdressed(body.message, own.id))
+    crate::changes::apply_change(&handle.changes, readdressed(body.message, own.id))
 }
 
 #[cfg(test)]

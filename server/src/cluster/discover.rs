@@ -33,10 +33,10 @@ use rigcast_protocol::SourceKind;
 use super::{
     run_relay, Change, Cluster, Forwarder, Origin, RemoteSource, SubjectEntry, ENTRY_MAX_AGE,
 };
-use crate::config::VmcBoneNames;
 use crate::live::LiveContext;
-use crate::state::ServerState;
-use crate::subject::Subject;
+use crate::state::{Discovery, Feeds};
+use rigcast_engine::settings::VmcBoneNames;
+use rigcast_engine::subject::Subject;
 
 /// How long to wait before watching again after the watch failed (NATS away).
 const REWATCH_AFTER: Duration = Duration::from_secs(1);
@@ -116,11 +116,11 @@ impl Known {
 pub async fn run_discovery(
     cluster: Arc<Cluster>,
     mut known: HashMap<String, Known>,
-    state: Arc<ServerState>,
+    host: Discovery,
     live: LiveThreads,
     forwarder: Arc<Forwarder>,
 ) {
-    let mut shutdown = state.shutdown.clone();
+    let mut shutdown = host.feeds.shutdown.clone();
     let own = format!("{}.", cluster.config.site);
     let mut check = tokio::time::interval(EXPIRY_CHECK);
     check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -159,7 +159,7 @@ pub async fn run_discovery(
                         &mut known,
                         e,
                         entry.revision,
-                        &state,
+                        &host,
                         (&live, &forwarder),
                     ),
                     Err(err) => tracing::warn!("cluster: entry {} skipped: {err}", entry.key),
@@ -205,7 +205,7 @@ fn on_put(
     known: &mut HashMap<String, Known>,
     entry: SubjectEntry,
     revision: u64,
-    state: &Arc<ServerState>,
+    host: &Discovery,
     late: (&LiveThreads, &Forwarder),
 ) {
     let key = entry.key();
@@ -214,15 +214,15 @@ fn on_put(
         let awaited = k.awaited();
         if k.record_put(&entry, revision, now) {
             if awaited {
-                count_discovered(state);
+                count_discovered(&host.feeds);
             }
             tell(k, Change::Entry(Box::new(entry)));
         }
         return;
     }
-    match add_subject(cluster, &entry, state, late) {
+    match add_subject(cluster, &entry, host, late) {
         Ok(changes) => {
-            count_discovered(state);
+            count_discovered(&host.feeds);
             let found = Known {
                 changes,
                 entry: Some(entry),
@@ -236,8 +236,8 @@ fn on_put(
 }
 
 /// A subject found while running (new, or one a performer waited for).
-fn count_discovered(state: &ServerState) {
-    state
+fn count_discovered(feeds: &Feeds) {
+    feeds
         .stats
         .cluster_subjects_discovered
         .fetch_add(1, Ordering::Relaxed);
@@ -247,15 +247,16 @@ fn count_discovered(state: &ServerState) {
 fn add_subject(
     cluster: &Cluster,
     entry: &SubjectEntry,
-    state: &Arc<ServerState>,
+    host: &Discovery,
     (live, forwarder): (&LiveThreads, &Forwarder),
 ) -> anyhow::Result<std::sync::mpsc::SyncSender<Change>> {
-    let (source, feeds) = RemoteSource::new(entry, cluster.config.lost_after())?;
+    let (source, remote) = RemoteSource::new(entry, cluster.config.lost_after())?;
     let skeleton = source.skeleton_arc();
-    let taken: Vec<String> = state.subjects().iter().map(|s| s.info().name).collect();
-    let name = crate::subject_list::unique_name(&taken, entry.relayed_name());
+    let feeds = &host.feeds;
+    let taken: Vec<String> = feeds.subjects().iter().map(|s| s.info().name).collect();
+    let name = rigcast_engine::subject_list::unique_name(&taken, entry.relayed_name());
     let mut watch_tx = None;
-    let subject = state.subject_list.push(|id| {
+    let subject = feeds.subject_list.push(|id| {
         let (s, tx) = Subject::with_kind(
             id,
             name,
@@ -282,15 +283,15 @@ fn add_subject(
         cluster.client.clone(),
         frames,
         subject.id,
-        feeds.frames,
-        state.feeds(),
+        remote.frames,
+        feeds.clone(),
     ));
     let ctx = LiveContext {
         subject: subject.clone(),
         tx,
-        subjects: state.subject_list.clone(),
-        events: state.events.clone(),
-        commands: state.commands.clone(),
+        subjects: feeds.subject_list.clone(),
+        events: feeds.events.clone(),
+        commands: host.commands.clone(),
         recorder: None,
         stop: live.stop.clone(),
         wake: None,
@@ -302,12 +303,16 @@ fn add_subject(
         t.push(thread);
     }
     // Err only means no client is connected.
-    let _ = state
+    let _ = feeds
         .events
-        .send(crate::events::Event::subjects_changed(&state.subjects()));
+        .send(rigcast_engine::events::Event::subjects_changed(
+            &feeds.subjects(),
+        ));
     // Fails only while no client listens; newcomers get every skeleton on connecting.
-    let _ = state.events.send(crate::events::Event::skeleton(&subject));
-    Ok(feeds.changes)
+    let _ = feeds
+        .events
+        .send(rigcast_engine::events::Event::skeleton(&subject));
+    Ok(remote.changes)
 }
 
 #[cfg(test)]

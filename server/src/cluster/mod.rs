@@ -351,8 +351,9 @@ impl ClusterLink {
         f
     }
 
-    /// Starts the relays, the bucket watch, the publisher and the control service; they stop
-    /// when `state` shuts down. Subjects found later get their source threads from `live`
+    /// Starts the relays, the bucket watch, the publisher and the control service, each with
+    /// only its part of `state` (`Feeds`, `Discovery`, `ControlService`); they stop when
+    /// `state` shuts down. Subjects found later get their source threads from `live`
     /// and their origin recorded in `forwarder`.
     pub fn spawn(
         self,
@@ -378,7 +379,7 @@ impl ClusterLink {
         tasks.push(tokio::spawn(run_discovery(
             c.clone(),
             known,
-            state.clone(),
+            state.discovery(),
             live,
             forwarder,
         )));
@@ -386,7 +387,7 @@ impl ClusterLink {
             c.client.clone(),
             c.config.namespace.clone(),
             c.config.site.clone(),
-            state.clone(),
+            state.control_service(),
         )));
         tasks.push(tokio::spawn(run_entries(c.clone(), state.feeds())));
         tasks.push(tokio::spawn(run_publisher(self.cluster, state.feeds())));

@@ -14,7 +14,7 @@ use tokio_tungstenite::tungstenite::Bytes;
 
 use super::{Cluster, SubjectEntry, HEARTBEAT};
 use crate::state::Feeds;
-use crate::subject::Subject;
+use rigcast_engine::subject::Subject;
 
 /// Publishes every local (not relayed) subject of `feeds` until shutdown.
 pub async fn run_publisher(cluster: Arc<Cluster>, feeds: Feeds) {

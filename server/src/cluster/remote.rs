@@ -22,9 +22,9 @@ use tokio_tungstenite::tungstenite::Bytes;
 use rigcast_protocol::control::BoneInfo;
 
 use super::SubjectEntry;
-use crate::clock::unix_nanos;
-use crate::engine::OutFrame;
 use crate::state::Feeds;
+use rigcast_engine::clock::unix_nanos;
+use rigcast_engine::tick::OutFrame;
 
 /// Frames waiting for the source thread; it only ever needs the newest, so a full queue
 /// drops (the relay to clients is not affected).

@@ -7,10 +7,11 @@ use clap::Args;
 
 use crate::access::BindScope;
 use crate::config::{
-    default_mapping_cache_dir, parse_listen, AccessConfig, FileConfig, OnLost, PerformerSpec,
-    ServerConfig, SourceSpec,
+    default_mapping_cache_dir, parse_listen, AccessConfig, FileConfig, PerformerSpec, ServerConfig,
+    SourceSpec,
 };
 use crate::token::TokenSetting;
+use rigcast_engine::settings::OnLost;
 
 /// Options of `rigcast serve`. Flags override `--config`.
 #[derive(Debug, Args, Default)]

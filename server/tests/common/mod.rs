@@ -59,16 +59,16 @@ pub fn target_subject(
     id: u32,
     skeleton: &std::sync::Arc<rigcast_retarget::Skeleton>,
 ) -> (
-    std::sync::Arc<rigcast_server::engine::Subject>,
-    rigcast_server::slot::FrameWriter,
+    std::sync::Arc<rigcast_engine::subject::Subject>,
+    rigcast_engine::slot::FrameWriter,
 ) {
-    let (subject, frames) = rigcast_server::engine::Subject::with_kind(
+    let (subject, frames) = rigcast_engine::subject::Subject::with_kind(
         id,
         "target".into(),
         skeleton.clone(),
         None,
         vec![0],
-        rigcast_server::config::VmcBoneNames::Humanoid,
+        rigcast_engine::settings::VmcBoneNames::Humanoid,
     );
     (std::sync::Arc::new(subject), frames)
 }
@@ -124,4 +124,70 @@ pub fn rigcast_fails<S: AsRef<OsStr>>(args: impl IntoIterator<Item = S>) -> Stri
         String::from_utf8_lossy(&out.stdout)
     );
     String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// What the engine yielded at one time on a simulated clock, kept.
+#[derive(Default)]
+pub struct Yielded {
+    /// Frames, in order.
+    pub frames: Vec<rigcast_engine::tick::OutFrame>,
+    /// VMC bundles: receiver and length.
+    pub datagrams: Vec<(std::net::SocketAddr, usize)>,
+    /// Events, in order.
+    pub events: Vec<rigcast_engine::events::Event>,
+    /// The start times of the ticks that finished.
+    pub ticked: Vec<rigcast_engine::TickTime>,
+}
+
+/// Passes `engine` the simulated time `now` (as the host's loop does: again while it asks to
+/// run at or before `now`, so a tick that performed is encoded at the same time) and keeps
+/// everything it yields; returns that and when it next wants to run.
+pub fn engine_at(
+    engine: &mut rigcast_engine::Engine,
+    now: rigcast_engine::TickTime,
+) -> (Yielded, std::time::Instant) {
+    use rigcast_engine::{Input, Output};
+    let mut got = Yielded::default();
+    engine.handle_input(Input::Timeout(now));
+    loop {
+        match engine.poll_output() {
+            Output::Datagram { to, bundle } => got.datagrams.push((to, bundle.len())),
+            Output::Frame(f) => got.frames.push(f),
+            Output::Event(e) => got.events.push(e),
+            Output::Ticked(t) => got.ticked.push(t),
+            Output::Timeout(at) if at <= now.instant => {
+                engine.handle_input(Input::Timeout(now));
+            }
+            Output::Timeout(at) => return (got, at),
+        }
+    }
+}
+
+/// The procedural demo walk (60 frames at 30 fps, no data files needed), the built-in
+/// mannequin, and the walk's motion graph as the mannequin's idle graph on a tick of
+/// `tick_secs`.
+pub fn walk_idle_graph(
+    tick_secs: f32,
+) -> (
+    rigcast_retarget::Clip,
+    std::sync::Arc<rigcast_retarget::Skeleton>,
+    rigcast_engine::idle_graph::IdleGraph,
+) {
+    let walk = rigcast_server::demo::procedural_clip(60, 30.0).unwrap();
+    let graph = rigcast_retarget::graph::MotionGraph::build(
+        std::slice::from_ref(&walk),
+        rigcast_retarget::graph::GraphSettings::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let target = std::sync::Arc::new(rigcast_engine::builtin::mannequin().unwrap());
+    let idle = rigcast_engine::idle_graph::IdleGraph::new(
+        &graph,
+        std::slice::from_ref(&walk),
+        &target,
+        None,
+        tick_secs,
+    )
+    .unwrap();
+    (walk, target, idle)
 }
