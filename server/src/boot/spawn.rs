@@ -66,8 +66,8 @@ pub(crate) struct Started {
     pub supervisor: Supervisor,
 }
 
-/// Opens the recording and the listener, then starts sources, mapper, recorder, tick, the
-/// status broadcaster and the listener.
+/// Opens the recording and the listener, then starts sources, mapper, recorder, the engine's
+/// loop, the cluster's tasks and the listener.
 pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Result<Started> {
     let subjects = parts.subjects.clone();
     let events = parts.events.clone();
@@ -140,17 +140,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         move || mapper.run(commands_rx)
     })?;
     if let Some(rec) = recorder {
-        let (r, subs, stop) = (
-            rec.clone(),
-            subjects.clone(),
-            supervisor.stop_threads.clone(),
-        );
-        let rate = config.rate_hz;
-        let thread = std::thread::Builder::new()
-            .name("rigcast-recorder".into())
-            .spawn(move || r.run(&subs, rate, &stop))
-            .context("cannot start the recorder thread")?;
-        supervisor.recorder = Some((rec, thread));
+        supervisor.spawn_recorder(rec, subjects.clone(), config.rate_hz)?;
     }
     let (vmc_socket, vmc) = parts.vmc.unzip();
     let engine = Engine::new(
@@ -255,6 +245,22 @@ impl Supervisor {
                 })?;
             }
         }
+        Ok(())
+    }
+
+    /// The recorder's thread, which samples `subjects` at `rate_hz` until the threads stop.
+    fn spawn_recorder(
+        &mut self,
+        rec: Arc<Recorder>,
+        subjects: Arc<Vec<Arc<rigcast_engine::subject::Subject>>>,
+        rate_hz: f64,
+    ) -> anyhow::Result<()> {
+        let (r, stop) = (rec.clone(), self.stop_threads.clone());
+        let thread = std::thread::Builder::new()
+            .name("rigcast-recorder".into())
+            .spawn(move || r.run(&subjects, rate_hz, &stop))
+            .context("cannot start the recorder thread")?;
+        self.recorder = Some((rec, thread));
         Ok(())
     }
 
