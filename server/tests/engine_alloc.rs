@@ -1,0 +1,150 @@
+//! Driven as the host drives it (sources' poses in, the time in, every output taken), the
+//! engine allocates exactly one shared frame buffer per subject per tick, as the tick alone
+//! does (`tick_alloc.rs`): its output queue, the copy a fed pose is checked in, its timetable
+//! and its status and foot-plant checks (every 50 ms and 30 Hz between the ticks, nothing to
+//! report) reuse their memory. The once-a-second `source_status` report allocates (a report
+//! for the clients), so the ticks measured fall between two of them. Proven with a counting
+//! global allocator, so this file holds only this test.
+#![allow(clippy::unwrap_used)]
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::settings::OnLost;
+use rigcast_engine::subject::Subject;
+use rigcast_engine::subject_list::SubjectList;
+use rigcast_engine::tick::{TickContext, VmcTarget};
+use rigcast_engine::{Engine, EngineParts, Input, Output, TickTime};
+
+mod common;
+
+#[path = "common/counting.rs"]
+mod counting;
+
+/// What one simulated moment handed out: frames, datagrams, events, ticks.
+#[derive(Default, Debug, PartialEq)]
+struct Counts {
+    frames: usize,
+    datagrams: usize,
+    events: usize,
+    ticks: usize,
+}
+
+/// Passes `now` as the host does and takes every output without keeping it (keeping would
+/// allocate); returns the counts and the next wake-up.
+fn run_at(engine: &mut Engine, now: TickTime, counts: &mut Counts) -> std::time::Instant {
+    engine.handle_input(Input::Timeout(now));
+    loop {
+        match engine.poll_output() {
+            Output::Datagram { bundle, .. } => {
+                assert!(bundle.len() <= 1500);
+                counts.datagrams += 1;
+            }
+            Output::Frame(_) => counts.frames += 1,
+            Output::Event(_) => counts.events += 1,
+            Output::Ticked(_) => counts.ticks += 1,
+            Output::Timeout(at) if at <= now.instant => engine.handle_input(Input::Timeout(now)),
+            Output::Timeout(at) => return at,
+        }
+    }
+}
+
+#[test]
+fn the_engine_allocates_one_buffer_per_subject_per_tick() {
+    let clip = rigcast_server::demo::procedural_clip(30, 30.0).unwrap();
+    let mut subjects = Vec::new();
+    let mut writers = Vec::new();
+    for id in 0..3u32 {
+        let (s, tx) = Subject::new(id, format!("s{id}"), clip.skeleton.clone());
+        subjects.push(Arc::new(s));
+        writers.push(tx);
+    }
+    let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
+    let (_, mapping) = common::rest_mapping(&clip.skeleton, &target);
+    let (t, target_tx) = common::target_subject(3, &target);
+    let performer = Performer::new(
+        t.clone(),
+        target_tx,
+        vec![subjects[0].clone()],
+        Arc::default(),
+        OnLost::Ease,
+    );
+    subjects.push(t.clone());
+    let subjects = Arc::new(subjects);
+    let receiver = "127.0.0.1:39539".parse().unwrap();
+    let t0 = TickTime::now();
+    let mut engine = Engine::new(
+        EngineParts {
+            tick: TickContext {
+                subjects: subjects.clone(),
+                vmc: vec![
+                    VmcTarget {
+                        addr: receiver,
+                        subject_index: 0,
+                    },
+                    VmcTarget {
+                        addr: receiver,
+                        subject_index: 3,
+                    },
+                ],
+                performers: vec![performer],
+            },
+            rate_hz: 60.0,
+            subjects: Arc::new(SubjectList::new(subjects)),
+        },
+        t0.instant,
+    );
+    for (id, tx) in writers.into_iter().enumerate() {
+        engine.feed(id as u32, tx, false);
+    }
+    engine.handle_input(Input::Mapping {
+        target: 3,
+        built: BuiltMapping {
+            mapping,
+            foot_lock: None,
+            graft: None,
+        },
+    });
+
+    // Every source sends a new pose before each tick; the host sleeps until the wake-up.
+    let mut k = 0usize;
+    let mut wake = t0.instant;
+    let mut step = |engine: &mut Engine, counts: &mut Counts, wake: &mut std::time::Instant| {
+        let now = t0.after(wake.duration_since(t0.instant));
+        for id in 0..3u32 {
+            let pose = &clip.poses[(k + id as usize) % clip.poses.len()];
+            engine.handle_input(Input::Frame {
+                subject: id,
+                time: now,
+                capture_nanos: 0,
+                pose,
+            });
+        }
+        k += 1;
+        *wake = run_at(engine, now, counts);
+    };
+    // Warm up past the second status report (at 1 s): buffers grow to size, the performer
+    // takes its mapping, every report slot is filled once.
+    let mut warm = Counts::default();
+    while wake.duration_since(t0.instant) < Duration::from_millis(1100) {
+        step(&mut engine, &mut warm, &mut wake);
+    }
+    assert!(warm.events >= 2, "no status report while warming up");
+
+    // The next 40 ticks (to about 1.77 s, before the next report at 2 s): frames only.
+    let mut counts = Counts::default();
+    let before = counting::allocations();
+    while counts.ticks < 40 {
+        step(&mut engine, &mut counts, &mut wake);
+    }
+    let allocations = counting::allocations() - before;
+    assert!(wake.duration_since(t0.instant) < Duration::from_secs(2));
+    assert_eq!(
+        counts.events, 0,
+        "nothing to report between two status reports"
+    );
+    assert_eq!((counts.ticks, counts.frames), (40, 40 * 4), "{counts:?}");
+    assert!(counts.datagrams >= 80, "{counts:?}");
+    assert_eq!(allocations, 40 * 4, "one shared frame per subject per tick");
+}
