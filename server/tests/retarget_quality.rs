@@ -890,10 +890,21 @@ fn pair_wanted(name: &str) -> bool {
 /// Not met yet (run it with `--ignored` for the table; `RIGCAST_QUALITY_PAIRS=a,b` measures
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures). Of 144 pairs, within the bounds: thigh and shin
-/// 36, foot 61, drift 143, floor 142 (26 / 61 / 142 / 141 before the root was carried over the
-/// ground onto the held feet): the lock still holds planted feet at their standing heights by
-/// bending the legs, and pitches the feet flat away from the source's. The sources' own standing feet drift
-/// more than 0.05 cm/frame on 112 of the 144 pairs (LaFAN1 0.18, the CMU run 0.30).
+/// 69, foot 1 of the 84 with toes on both rigs, drift 143, floor 138 (36 / 1 / 143 / 142 before
+/// the root was carried up onto the held feet, 26 / 1 / 142 / 141 before it was carried over the
+/// ground): two planted feet the target's proportions set apart differently from the source's
+/// still share their disagreement through the legs, and the lock pitches planted feet flat
+/// away from the source's. The sources' own standing feet drift more than 0.05 cm/frame on 112
+/// of the 144 pairs (LaFAN1 0.18, the CMU run 0.30).
+///
+/// The foot is judged by its raw direction (ankle to toes) against the source's, as the issue
+/// measured it. A rig whose foot bone is pitched differently from the source's when standing
+/// (X Bot, the UE-style mannequin, Bandai, Mousey: 15-25°) cannot both stand flat (the floor
+/// bound) and point its foot bone as the source's does. Judging the foot from where each rig
+/// stands instead was tried and left: from each rig's rest pitch, 0 of the 84 pairs with toes
+/// fall within 5°/15° and the pybvh rigs read 67-91° off (a BVH rest is only offsets: its feet
+/// need not stand as the rig does); from the median pitch of each rig's own clip where its foot
+/// stands, 0 of 84 as well (that median is the performer's habit, not the rig's build).
 #[test]
 #[ignore = "issue 35's bounds are not met yet; the test prints the table per pair"]
 fn locked_legs_follow_the_source_on_walks_and_runs() {
@@ -925,6 +936,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     let mut checked = 0;
     // Pairs within the bounds: thigh and shin, foot, drift, floor.
     let mut tally = [0usize; 4];
+    // Pairs whose feet have toes on both rigs (a foot direction to judge).
+    let mut feet_judged = 0;
     for src in &gaits {
         for (tgt, judge_t) in humans
             .iter()
@@ -1005,7 +1018,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 failures.push(format!("{name}: foot {}", pair(f.foot)));
             }
             tally[0] += usize::from(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0));
-            tally[1] += usize::from(f.foot.0.is_nan() || within(f.foot, 5.0, 15.0));
+            tally[1] += usize::from(!f.foot.0.is_nan() && within(f.foot, 5.0, 15.0));
+            feet_judged += usize::from(!f.foot.0.is_nan());
             tally[2] += usize::from(f.drift <= 0.05);
             tally[3] += usize::from(f.floor_p95.is_none_or(|c| c <= 1.0));
             if !(f.drift <= 0.05) {
@@ -1020,8 +1034,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
         }
     }
     println!(
-        "{checked} right walk/run pairs measured; within the bounds: thigh and shin {}, foot {}, \
-         drift {}, floor {}; {} failures",
+        "{checked} right walk/run pairs measured; within the bounds: thigh and shin {}, foot {} \
+         of the {feet_judged} with toes, drift {}, floor {}; {} failures",
         tally[0],
         tally[1],
         tally[2],

@@ -13,13 +13,16 @@
 //!
 //! Issue 35's bounds: thigh and shin 3° mean / 8° p95, foot 5° / 15°, drift ≤ 0.05 cm/frame,
 //! floor ≤ 1 cm. Not met yet: run with `--ignored` for the table (`cargo test -p
-//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). Last measured (60 Hz
-//! ticks, about 350 paired frames each): X Bot thigh 3.0/11.8°, shin 3.5/12.2°, foot
-//! 19.7/34.1°, drift 0.081 cm/frame, floor 1.36 cm; UE-style mannequin 2.7/7.3, 2.7/9.5,
-//! 24.3/37.9, 0.089, 0.59; the robot 8.4/28.5, 4.2/14.8, no toes, 0.022, 1.93. The live lock
-//! pitches planted feet flat as it learns the stance (the foot's direction), pins the ankle
-//! at its standing height through the IK (the legs), and a plant's first frames blend onto
-//! the pin (drift per 60 Hz frame). Skips when the shared data is absent.
+//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). Last measured, two runs
+//! (60 Hz ticks, 317-358 paired frames each): X Bot thigh 2.0-2.2/6.3-7.4°, shin
+//! 1.9-2.2/7.4-7.8°, foot 19.5-20.3/33.4-33.5°, drift 0.082-0.087 cm/frame, floor 0.74-0.86
+//! cm; UE-style mannequin 2.6/8.3-8.8, 2.3-2.5/8.7, 24.1-24.9/37.5-37.6, 0.087-0.094,
+//! 0.66-1.00; the robot 7.5-7.8/25.6-28.8, 3.5-3.8/13.0-14.4, no toes, 0.024-0.029, 2.43-5.25
+//! (its left foot hangs 20-30 cm above the floor in the retargeted walk while the source's
+//! stands: a plant pins it there and blends it down). The live lock pitches planted feet flat
+//! as it learns the stance (the foot's direction), two planted feet share their disagreement
+//! through the legs, and a plant's first frames blend onto the pin (drift per 60 Hz frame).
+//! Skips when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
 use std::collections::HashMap;

@@ -13,9 +13,10 @@
 //!  target pose ─FK─▶ fit to the standing posture: each foot pitched, the hips moved, by the
 //!                     animation's typical stance gap (offline: medians over the clip;
 //!                     live: a running average of the frames held so far)
-//!               ─FK─▶ root carried over the ground by the held feet's slide in the animation
-//!                     (stride warping, `stride`; two feet down: their mean), so a held leg
-//!                     stays as retargeted
+//!               ─FK─▶ root carried onto the held feet: over the ground by their slide in the
+//!                     animation (stride warping, `stride`), up by their ankles' gaps to their
+//!                     pinned heights (two feet down: the means), so a held leg stays as
+//!                     retargeted
 //!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
@@ -774,37 +775,54 @@ impl FootLock {
         self.shown_once = true;
     }
 
-    /// Stride warping: moves the root over the ground by what the feet held since the last
-    /// frame slid in the animation (their mean with two down, each leg's IK taking up its share
-    /// of their disagreement; see [`super::stride`]), so a held foot's leg stays as retargeted
-    /// instead of being bent back to its pin. The retarget scales the root's travel by the
-    /// legs' ratio, and a rig whose legs are proportioned differently slides a standing foot:
-    /// the body, not the leg, takes that up. Only over the ground: heights are the fit's and
-    /// the hips' ([`FootLock::raise_hips`], [`FootLock::lower_hips`]). `worlds` hold the
-    /// animation and are brought up to date.
+    /// Moves the root onto the feet held since the last frame (see [`super::stride`]), so a
+    /// held foot's leg stays as retargeted instead of being bent to its pin: over the ground by
+    /// what they slid in the animation (stride warping: the retarget scales the root's travel
+    /// by the legs' ratio, and a rig whose legs are proportioned differently slides a standing
+    /// foot), and up by how far their ankles are from their pinned heights (pelvis height);
+    /// with two down, their means, each leg's IK taking up its share of their disagreement.
+    /// A character with feet no source foot drives (a quadruped's front legs under a biped's
+    /// walk) is only carried over the ground: moving its body up or down onto the driven feet
+    /// would sink the others, which nothing stands on. `worlds` hold the animation and are
+    /// brought up to date.
     fn carry_root(&mut self, planted: &[bool; MAX_FEET], dt: f32, out: &mut Pose) {
         let Some(root) = self.root.filter(|_| self.carries) else {
             return;
         };
         let up = self.up;
         let mut stands = [FootStand::default(); MAX_FEET];
-        for (f, stand) in self.feet.iter_mut().zip(&mut stands) {
+        let mut limit = f32::INFINITY;
+        for i in 0..self.feet.len() {
+            let f = &self.feet[i];
+            limit = limit.min(self.settings.max_drop_ratio * f.leg.length);
             let ankle = self.worlds[f.leg.foot.index()].translation;
             // Held since the last frame and still planted: the slide is the animation's.
             let held = f.source.is_some_and(|s| planted[s]) && f.locked && f.seen;
-            *stand = FootStand {
+            stands[i] = FootStand {
                 stands: held,
                 slide: held.then(|| ankle - f.raw_ankle),
-                height_gap: 0.0,
+                height_gap: if held {
+                    (f.pinned_ankle(up, self.floor) - ankle).dot(up)
+                } else {
+                    0.0
+                },
             };
-            f.raw_ankle = ankle;
+            self.feet[i].raw_ankle = ankle;
         }
-        let halflife = 0.5 * self.settings.blend_secs;
+        if self.feet.iter().any(|f| f.source.is_none()) {
+            limit = 0.0;
+        }
+        // The body's height catches up with a change of the standing feet as slowly as a
+        // released foot catches up with the animation: it carries the free foot with it.
+        let halflife = [
+            0.5 * self.settings.blend_secs,
+            0.5 * self.settings.release_secs,
+        ];
         let fresh = !self.shown_once;
         let n = self.feet.len();
         self.shift
-            .update(&stands[..n], up, fresh, dt, halflife, 0.0);
-        let shift = self.shift.ground;
+            .update(&stands[..n], up, fresh, dt, halflife, limit);
+        let shift = self.shift.ground + up * self.shift.height;
         if shift == Vec3::ZERO {
             return;
         }

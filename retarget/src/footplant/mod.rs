@@ -12,8 +12,9 @@
 //!                                        with each foot's height above its ground;
 //!                                        an in-place clip's feet judged against the
 //!                                        belt they slide on: treadmill)
-//!  target pose   ─▶ lock (FootLock)      carry the root over the ground onto the held
-//!                                        feet (stride: stride warping), pin planted feet
+//!  target pose   ─▶ lock (FootLock)      carry the root onto the held feet, over the
+//!                                        ground and up (stride: stride warping and
+//!                                        pelvis height), pin planted feet
 //!                                        (position + heading), lower the
 //!                                        hips when out of reach, ik::solve_two_bone,
 //!                                        blend switches, keep feet above the floor

@@ -56,17 +56,19 @@ pub(super) struct RootShift {
 impl RootShift {
     /// Takes this frame's feet (their gaps measured on the animation before any shift; `up` the
     /// floor's normal), `dt` after the last; `fresh`: nothing was shown before (the height is
-    /// taken at once). `limit` bounds the height's move either way. Returns the standing feet's
-    /// mean slide (what the root took up).
+    /// taken at once). `halflife`: the blends' half-lives over the ground and along up.
+    /// `limit` bounds the height's move either way. Returns the standing feet's mean slide
+    /// (what the root took up).
     pub fn update(
         &mut self,
         feet: &[FootStand],
         up: Vec3,
         fresh: bool,
         dt: f32,
-        halflife: f32,
+        halflife: [f32; 2],
         limit: f32,
     ) -> Vec3 {
+        let [halflife, height_halflife] = halflife;
         let (mut slide, mut sliding) = (Vec3::ZERO, 0u32);
         let (mut gap, mut standing_count) = (0.0f32, 0u32);
         let mut standing = 0u32;
@@ -113,7 +115,7 @@ impl RootShift {
             self.ground_rate = (ground - self.ground) / dt;
         }
         self.ground = ground;
-        self.offset.step(dt, halflife);
+        self.offset.step(dt, height_halflife);
         let height = self.wanted + self.offset.value;
         if dt > 0.0 {
             self.rate = (height - self.height) / dt;
@@ -140,14 +142,14 @@ mod tests {
         let mut s = RootShift::default();
         let up = Vec3::Y;
         let free = FootStand::default();
-        s.update(&[stand(None, 0.0), free], up, true, 0.01, 0.05, 1.0);
+        s.update(&[stand(None, 0.0), free], up, true, 0.01, [0.05; 2], 1.0);
         // One foot slides 1 cm forward (and 1 mm up, which is no slide over the ground).
         let m = s.update(
             &[stand(Some(Vec3::new(0.0, 0.001, 0.01)), 0.0), free],
             up,
             false,
             0.01,
-            0.05,
+            [0.05; 2],
             1.0,
         );
         assert!((s.ground - Vec3::new(0.0, 0.0, -0.01)).length() < 1e-6);
@@ -161,13 +163,13 @@ mod tests {
             up,
             false,
             0.01,
-            0.05,
+            [0.05; 2],
             1.0,
         );
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
         // None standing: held.
-        s.update(&[free, free], up, false, 0.01, 0.05, 1.0);
+        s.update(&[free, free], up, false, 0.01, [0.05; 2], 1.0);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
     }
 
@@ -175,17 +177,17 @@ mod tests {
     fn the_height_is_taken_at_once_first_then_blended_and_held() {
         let mut s = RootShift::default();
         let up = Vec3::Y;
-        s.update(&[stand(None, 0.03)], up, true, 0.01, 0.05, 0.2);
+        s.update(&[stand(None, 0.03)], up, true, 0.01, [0.05; 2], 0.2);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
-        s.update(&[stand(None, 0.03)], up, false, 0.01, 0.05, 0.2);
+        s.update(&[stand(None, 0.03)], up, false, 0.01, [0.05; 2], 0.2);
         assert!((s.height - 0.03).abs() < 1e-6);
         // It lifts: held.
-        s.update(&[FootStand::default()], up, false, 0.01, 0.05, 0.2);
+        s.update(&[FootStand::default()], up, false, 0.01, [0.05; 2], 0.2);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
         // Another lands wanting 5 cm: blended towards it, no jump.
         let mut last = s.height;
         for _ in 0..60 {
-            s.update(&[stand(None, 0.05)], up, false, 0.01, 0.05, 0.2);
+            s.update(&[stand(None, 0.05)], up, false, 0.01, [0.05; 2], 0.2);
             assert!(
                 s.height >= last - 1e-6 && s.height - last < 0.006,
                 "{}",
@@ -195,7 +197,7 @@ mod tests {
         }
         assert!((s.height - 0.05).abs() < 1e-3, "{}", s.height);
         // Bounded.
-        s.update(&[stand(None, 5.0)], up, true, 0.01, 0.05, 0.2);
+        s.update(&[stand(None, 5.0)], up, true, 0.01, [0.05; 2], 0.2);
         assert!((s.height - 0.2).abs() < 1e-6);
     }
 }
