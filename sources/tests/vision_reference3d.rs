@@ -7,7 +7,8 @@
 //! landmarks against the reference turned into the camera's axes), PA-MPJPE (after the best
 //! similarity), jitter (the mean joint acceleration of the hip-centred 3D, mm per frame²) and
 //! left/right labelling (the model's 2D labels against the reference projected into the
-//! camera).
+//! camera). Beside rigcast's output, the landmark models' own readings (no left/right guard,
+//! no smoothing) show which way round the network itself reads each view.
 //!
 //! The reference a camera is judged against is triangulated from the *other* three cameras
 //! only, so no detector's reading of the judged view is in it; MediaPipe shares the landmark
@@ -92,23 +93,39 @@ fn readings_of_mediapipe(run: &MediaPipeRun) -> Vec<Option<Reading>> {
         .collect()
 }
 
+/// What of rigcast's person `#0` is judged.
+#[derive(Clone, Copy, PartialEq)]
+enum Output {
+    /// What a user gets (the default settings).
+    Default,
+    /// The landmark model's own readings: no left/right guard, before smoothing (which way
+    /// round the model itself reads each frame).
+    ModelsOwn,
+}
+
 /// rigcast's person `#0` over every frame of `path` with the default settings but `model`.
 fn readings_of_rigcast(
     path: &Path,
     config: &PipelineConfig,
     model: ModelKind,
+    output: Output,
 ) -> Vec<Option<Reading>> {
-    let config = PipelineConfig {
+    let mut config = PipelineConfig {
         model,
         ..config.clone()
     };
+    config.tracker.swap_guard = output == Output::Default;
     let mut pipeline = PosePipeline::new(&config).unwrap();
     let mut source = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, 30.0).unwrap();
     let mut frame = RgbFrame::default();
     let mut out = Vec::new();
     while source.next_frame(&mut frame).unwrap() {
         pipeline.process_frame(&frame).unwrap();
-        out.push(pipeline.person(0).map(|lm| Reading {
+        let person = match output {
+            Output::Default => pipeline.person(0),
+            Output::ModelsOwn => pipeline.raw_person(0),
+        };
+        out.push(person.map(|lm| Reading {
             image: lm.image[..33].iter().map(|p| [p.x, p.y, p.w]).collect(),
             world: lm.world[..33].iter().map(|p| p.as_dvec3()).collect(),
         }));
@@ -407,12 +424,17 @@ fn pose2sim_3d_reference_judges_each_camera_and_model() {
         let size = rig.view(c).video;
         let judge =
             |readings: &[Option<Reading>]| score(readings, &reference, cam, size, rig.offsets[c]);
-        let lite = judge(&readings_of_rigcast(video, &config, ModelKind::Lite));
-        let full = judge(&readings_of_rigcast(video, &config, ModelKind::Full));
+        let ours = |model, output| judge(&readings_of_rigcast(video, &config, model, output));
+        let lite = ours(ModelKind::Lite, Output::Default);
+        let full = ours(ModelKind::Full, Output::Default);
+        let lite_own = ours(ModelKind::Lite, Output::ModelsOwn);
+        let full_own = ours(ModelKind::Full, Output::ModelsOwn);
         let theirs = judge(&readings_of_mediapipe(&rig.runs[c]));
         for (model, s) in [
             ("rigcast lite (default)", &lite),
             ("rigcast full", &full),
+            ("lite model's own readings", &lite_own),
+            ("full model's own readings", &full_own),
             ("MediaPipe full", &theirs),
         ] {
             println!("{}", row(&cam.name, model, s));
