@@ -23,6 +23,15 @@
 //! the model reads a view either way round often no change happens at all (the readings
 //! against must also be four fifths of all), so the labels do not flicker. A person lost and
 //! found again keeps their guard (`tracker.rs` resets it for a new person in the slot).
+//!
+//! The limit: where the model reads a view the wrong way round as often as the right way, or
+//! for longer runs than its right readings, no labelling taken from its readings is right.
+//! The lite model reads the man of the pose2sim demo's cam02 (facing the camera, his face
+//! blurred) as a back on half the frames, forty in a row (the 3D reference's rows of the
+//! models' own readings). Nothing else in its output tells the two apart: both readings are
+//! whole bodies, and its feet point to the camera in back views too (a small player running
+//! away in the soccer broadcast), so a check of the feet against the torso, tried, put
+//! cam02 right and the broadcast wrong.
 
 use glam::{Vec2, Vec3};
 
