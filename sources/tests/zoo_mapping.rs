@@ -1239,13 +1239,13 @@ fn perturbed_rigs_keep_their_core_roles() {
 
 /// Per perturbation, the share of core roles held, a little under today's figure where it is
 /// below the 98 % for meaningless names (the others are held to 98 %); every one with
-/// no left/right swaps. Today: cartoon 97.9 % (Mousey's short legs on big feet read by their
-/// proportions), static 97.7 % (Mousey and RobotExpressive without their motion).
-const HELD: &[(&str, f64)] = &[("cartoon", 97.0), ("static", 97.0)];
+/// no left/right swaps. Today: static 97.7 % (Mousey's clavicle against its short upper arm
+/// and RobotExpressive's head, without their motion).
+const HELD: &[(&str, f64)] = &[("static", 97.0)];
 
 /// Wrong core roles of the perturbed rigs that the flags must catch, percent (a little under
 /// today's figure).
-const FLAGGED_WRONG_AT_LEAST: f64 = 50.0;
+const FLAGGED_WRONG_AT_LEAST: f64 = 58.0;
 
 /// (wrong, right, wrong flagged, right flagged) over judged roles.
 fn flag_rates(j: &[Judged]) -> (usize, usize, usize, usize) {

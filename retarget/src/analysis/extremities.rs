@@ -4,7 +4,7 @@
 use glam::Vec3;
 
 use super::context::{Builder, Ctx, LimbKind};
-use super::limbs::fit_chain;
+use super::limbs::{best_split, chain_splits, split_margins, ChainSplit, NEAR_SPLIT};
 use super::vocabulary::{Role, SectionKind};
 use super::Side;
 use crate::skeleton::BoneId;
@@ -26,7 +26,8 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
     let fixed = branch_point(ctx, &chain);
     let is_leg = member.kind == LimbKind::Leg;
     let (limb_kind, _) = section_kinds(member.kind);
-    let Some(split) = fit_member(ctx, &chain, fixed, member) else {
+    let splits = fit_member(ctx, &chain, fixed, member);
+    let Some(split) = best_split(&splits) else {
         out.add_section(
             limb_kind,
             member.side,
@@ -45,18 +46,7 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
         return;
     };
     let conf = (0.95 * (-split.cost).exp()).clamp(0.2, 0.95);
-    // How badly the best split fits is how likely another reading of the limb is: the
-    // confidence the split gives its roles, as a doubt the mapper carries.
-    if split.cost > 0.0 {
-        out.doubts.push(super::Doubt {
-            reason: format!(
-                "its limb's proportions fit no anatomical split well (fit cost {:.2})",
-                split.cost
-            ),
-            strength: 1.0 - (-split.cost).exp(),
-            bones: chain.clone(),
-        });
-    }
+    split_doubts(out, &chain, &splits, &split);
     let e = split.extremity.min(chain.len());
     let li = out.add_section(
         limb_kind,
@@ -70,6 +60,27 @@ pub(super) fn limb_roles(ctx: &Ctx<'_>, out: &mut Builder, member: LimbMember) {
     if e < chain.len() {
         let fixed_in_rest = fixed.filter(|&f| f >= e).map(|f| f - e);
         extremity_roles(ctx, out, member, &chain[e..], fixed_in_rest, li, conf);
+    }
+}
+
+/// The split's doubts, for the mapper to carry: each bone that a split nearly as cheap reads
+/// otherwise (a clavicle or an upper arm, a thigh or a shin, by proportions alone), as strong
+/// as that reading is likely against the one chosen (e^-(cost difference): 1 for a tie).
+fn split_doubts(out: &mut Builder, chain: &[BoneId], splits: &[ChainSplit], best: &ChainSplit) {
+    let margins = split_margins(splits, best, chain.len());
+    for (&b, &d) in chain.iter().zip(&margins) {
+        if d >= NEAR_SPLIT {
+            continue;
+        }
+        let strength = (-d).exp();
+        out.doubts.push(super::Doubt {
+            reason: format!(
+                "its limb's bones split nearly as well another way ({d:.2} dearer, fit cost {:.2})",
+                best.cost
+            ),
+            strength,
+            bones: vec![b],
+        });
     }
 }
 
@@ -100,7 +111,7 @@ fn fit_member(
     chain: &[BoneId],
     fixed: Option<usize>,
     member: LimbMember,
-) -> Option<super::limbs::ChainSplit> {
+) -> Vec<ChainSplit> {
     let lengths: Vec<f32> = chain.iter().map(|b| ctx.topo.length[b.index()]).collect();
     // A joint bends where two consecutive bones stop being collinear. Segments of one
     // anatomical bone stay in line however it moves; a clavicle and an upper arm in line in
@@ -137,8 +148,8 @@ fn fit_member(
     // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
     // the foot anywhere up to the branch.
     match fixed {
-        Some(f) if is_leg => fit_chain(&lengths[..=f], &bent[..=f], None, ratio, girdle),
-        _ => fit_chain(&lengths, &bent, fixed, ratio, girdle),
+        Some(f) if is_leg => chain_splits(&lengths[..=f], &bent[..=f], None, ratio, girdle),
+        _ => chain_splits(&lengths, &bent, fixed, ratio, girdle),
     }
 }
 
@@ -161,7 +172,7 @@ fn spans_girdle(ctx: &Ctx<'_>, b: BoneId) -> bool {
 }
 
 /// What grouping two bones across a joint that bends in the motion costs a chain split.
-const MOTION_BEND_COST: f32 = 3.0;
+const MOTION_BEND_COST: f32 = super::limbs::MOTION_BEND;
 
 /// Whether chain bones `i - 1` and `i` (towards their main children) are more than ~20°
 /// apart in the joint positions `pos`; a zero-length bone bends nothing.

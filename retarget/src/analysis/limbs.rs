@@ -25,6 +25,7 @@ pub(crate) struct ChainSplit {
 /// point (fingers, toes) already tells where the hand / foot is; `ratio` is the expected
 /// upper / lower length ratio; `girdle_first` is what starting the upper segment at the
 /// chain's first bone costs (a bone that spans the girdle, see `extremities`).
+#[cfg(test)]
 pub(crate) fn fit_chain(
     lengths: &[f32],
     bent: &[f32],
@@ -32,11 +33,41 @@ pub(crate) fn fit_chain(
     ratio: f32,
     girdle_first: f32,
 ) -> Option<ChainSplit> {
-    let m = lengths.len();
-    if m < 2 {
-        return None;
-    }
+    best_split(&chain_splits(
+        lengths,
+        bent,
+        fixed_extremity,
+        ratio,
+        girdle_first,
+    ))
+}
+
+/// The cheapest of `splits`, the first on ties.
+pub(crate) fn best_split(splits: &[ChainSplit]) -> Option<ChainSplit> {
     let mut best: Option<ChainSplit> = None;
+    for &cand in splits {
+        if best.is_none_or(|b| cand.cost < b.cost - 1e-6) {
+            best = Some(cand);
+        }
+    }
+    best
+}
+
+/// The splits [`fit_chain`] weighs (same arguments) that cost at most `NEAR_SPLIT` more than
+/// the cheapest, with their costs: the cheapest and its close rivals.
+pub(crate) fn chain_splits(
+    lengths: &[f32],
+    bent: &[f32],
+    fixed_extremity: Option<usize>,
+    ratio: f32,
+    girdle_first: f32,
+) -> Vec<ChainSplit> {
+    let m = lengths.len();
+    let mut out: Vec<ChainSplit> = Vec::new();
+    let mut cheapest = f32::INFINITY;
+    if m < 2 {
+        return out;
+    }
     let max_pre = 2.min(m.saturating_sub(2));
     for a in 0..=max_pre {
         for b in (a + 1)..m {
@@ -79,6 +110,20 @@ pub(crate) fn fit_chain(
                 // Segments of one anatomical bone are collinear; a bent joint splits groups.
                 let bent = |i: usize| bent.get(i).copied().unwrap_or(0.0);
                 cost += (a + 1..b).chain(b + 1..e).map(bent).sum::<f32>();
+                // A leg's bones before the thigh (a pelvis side, helpers) do not bend against
+                // each other: a joint there that bends is the knee (a cartoon's short thigh and
+                // shin read as pelvis bones before a long foot). A shoulder's do (a clavicle
+                // after a clavicle helper).
+                if ratio < 1.1 {
+                    cost += (1..a).map(bent).sum::<f32>();
+                }
+                // The elbow or knee bends: where the limb's joints (upper segment to extremity)
+                // are seen to bend in the motion, a lower segment starting at one that never
+                // does is not the limb's (an in-chain twist bone read as the forearm).
+                let flexes = |i: usize| bent(i) >= MOTION_BEND;
+                if !flexes(b) && (a + 1..=e.min(m - 1)).any(flexes) {
+                    cost += STIFF_ELBOW_COST;
+                }
                 if a == 0 {
                     cost += girdle_first;
                 } else {
@@ -99,30 +144,69 @@ pub(crate) fn fit_chain(
                     cost += 0.02 * a as f32;
                 }
                 if e < m {
+                    // Saturating too: a cartoon's big feet on short legs.
+                    let sat = |c: f32| c / (1.0 + 0.5 * c);
                     let ext = lengths[e];
-                    cost += 2.0 * (ext / lower - 0.6).max(0.0);
+                    cost += sat(2.0 * (ext / lower - 0.6).max(0.0));
                     let rest: f32 = lengths[e..].iter().sum();
-                    cost += 2.0 * (rest / (upper + lower) - 0.7).max(0.0);
+                    cost += sat(2.0 * (rest / (upper + lower) - 0.7).max(0.0));
                 } else {
                     cost += 0.3;
                 }
-                let cand = ChainSplit {
-                    upper: a,
-                    lower: b,
-                    extremity: e,
-                    cost: cost.max(0.0),
-                };
-                let better = match best {
-                    None => true,
-                    Some(bst) => cand.cost < bst.cost - 1e-6,
-                };
-                if better {
-                    best = Some(cand);
+                let cost = cost.max(0.0);
+                if cost <= cheapest + NEAR_SPLIT {
+                    cheapest = cheapest.min(cost);
+                    out.push(ChainSplit {
+                        upper: a,
+                        lower: b,
+                        extremity: e,
+                        cost,
+                    });
                 }
             }
         }
     }
-    best
+    out.retain(|s| s.cost <= cheapest + NEAR_SPLIT);
+    out
+}
+
+/// What `bent` gives a joint seen to bend in the motion (see `extremities`).
+pub(crate) const MOTION_BEND: f32 = 3.0;
+
+/// What starting the lower segment at a joint that never bends costs a split, while another
+/// joint of the chain bends in the motion: as much as a bend seen at rest.
+const STIFF_ELBOW_COST: f32 = 1.0;
+
+/// How much dearer than the cheapest a split [`chain_splits`] keeps may be: a reading e^3
+/// (20) times less likely is no rival.
+pub(crate) const NEAR_SPLIT: f32 = 3.0;
+
+/// What a split makes of chain bone `i`: before the upper segment, the upper segment's first
+/// bone or a later one, the lower segment's likewise, the extremity, or past it.
+fn part_of(s: &ChainSplit, i: usize) -> u8 {
+    match i {
+        _ if i < s.upper => 0,
+        _ if i == s.upper => 1,
+        _ if i < s.lower => 2,
+        _ if i == s.lower => 3,
+        _ if i < s.extremity => 4,
+        _ if i == s.extremity => 5,
+        _ => 6,
+    }
+}
+
+/// Per chain bone (of `m`), how much dearer the cheapest of `splits` is that reads it otherwise
+/// than `best` does (infinite when none does): the margin the bone's role won by.
+pub(crate) fn split_margins(splits: &[ChainSplit], best: &ChainSplit, m: usize) -> Vec<f32> {
+    let mut out = vec![f32::INFINITY; m];
+    for s in splits {
+        for (i, slot) in out.iter_mut().enumerate() {
+            if part_of(s, i) != part_of(best, i) {
+                *slot = slot.min(s.cost - best.cost);
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -18,9 +18,9 @@
 //! The analyses' own role confidences are not used: they are rules' guesses, not measured
 //! (a right leg read at 0.3), and multiplying them in made right bones look doubtful. Their
 //! doubts are (`Analysis::doubts`): a competing reading and how close it came, which a margin
-//! between source bones cannot see (sides resting on a weak facing vote, a limb whose
-//! proportions fit no split well). A reading whose doubt is short of a coin toss lowers the
-//! confidence without flagging: a robot's limbs fit anatomy poorly and are still read right.
+//! between source bones cannot see (sides resting on a weak facing vote, a limb bone that
+//! another split of its chain nearly as cheap reads otherwise). A reading whose doubt is short
+//! of a coin toss lowers the confidence without flagging.
 //!
 //! A chosen pair whose closest rival is far behind, between bones whose roles the analyses
 //! are sure of, is confident; a pair that won by a point, or whose source bone another target
