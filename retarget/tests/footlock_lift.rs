@@ -179,11 +179,14 @@ fn a_pinned_ankle_follows_the_source_heel_off_the_ground() {
             w[toe.index()].translation.y - ball_rest,
         )
     };
-    // The ankle comes up with the source's heel above its toe (scaled, at most 2 % of the
-    // leg), the ball stays on the floor.
+    // The ankle comes up with the source's heel above its toe (scaled, at most as far as keeps
+    // the ankle-to-ball line half level: sin 60° of the foot's length below the ankle), the
+    // ball stays on the floor.
     let foot_lift = plants.lifts(119)[left];
     let lift = (foot_lift * scale).clamp(0.0, 0.008 * target_leg);
-    let wanted = lift + ((heel - foot_lift) * scale).min(0.02 * target_leg);
+    let foot_length = (rest[toe.index()].translation - rest[foot.index()].translation).length();
+    let most = (foot_length * 0.75f32.sqrt() - (ankle_rest - ball_rest)).max(0.0);
+    let wanted = lift + ((heel - foot_lift.max(0.0)) * scale).clamp(0.0, most);
     let (ankle, ball) = run(true);
     assert!(
         (ankle - wanted).abs() < 1e-3,

@@ -890,12 +890,16 @@ fn pair_wanted(name: &str) -> bool {
 /// Not met yet (run it with `--ignored` for the table; `RIGCAST_QUALITY_PAIRS=a,b` measures
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures). Of 144 pairs, within the bounds: thigh and shin
-/// 69, foot 1 of the 84 with toes on both rigs, drift 143, floor 138 (36 / 1 / 143 / 142 before
-/// the root was carried up onto the held feet, 26 / 1 / 142 / 141 before it was carried over the
-/// ground): two planted feet the target's proportions set apart differently from the source's
-/// still share their disagreement through the legs, and the lock pitches planted feet flat
-/// away from the source's. The sources' own standing feet drift more than 0.05 cm/frame on 112
-/// of the 144 pairs (LaFAN1 0.18, the CMU run 0.30).
+/// 84, foot 18 of the 84 with toes on both rigs, drift 142, floor 140 (69 / 1 / 143 / 138 while
+/// a pinned ankle followed the source's heel up by at most 2 % of the leg, 36 / 1 / 143 / 142
+/// before the root was carried up onto the held feet, 26 / 1 / 142 / 141 before it was carried
+/// over the ground): two planted feet the target's proportions set apart differently from the
+/// source's still share their disagreement through the legs, the lock pitches planted feet flat
+/// away from the source's, and a pinned ankle rising with the source's heel is held over the
+/// ground where it was pinned, so its ball slides back under it instead of the foot pivoting
+/// on its ball (drift 0.033 -> 0.055 cm/frame on xia -> Mousey, whose source drifts 0.050). The
+/// sources' own standing feet drift more than 0.05 cm/frame on 112 of the 144 pairs (LaFAN1
+/// 0.18, the CMU run 0.30).
 ///
 /// The foot is judged by its raw direction (ankle to toes) against the source's, as the issue
 /// measured it. A rig whose foot bone is pitched differently from the source's when standing

@@ -3,7 +3,7 @@
 //! standing height (the first frame of a clip pinned at once; offline, given the plants'
 //! heights, as far above it as the source's foot stands above its ground, scaled, up to
 //! `MAX_LIFT_RATIO` of the leg, and its heel as far above its ball as the source's heel is
-//! above its toe, up to `MAX_HEEL_LIFT_RATIO`), its leg solved with the
+//! above its toe, as far as the foot pitches with its ball down), its leg solved with the
 //! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
 //! `spring`); no foot joint goes below the target's floor.
 //!
@@ -116,9 +116,12 @@ fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
 /// still landing, or stands on ground of its own, and the foot stays that close to the floor.
 const MAX_LIFT_RATIO: f32 = 0.008;
 
-/// Highest a pinned ankle follows the source's heel above the foot's lowest contact (a foot
-/// pitched toes-down), in leg lengths.
-const MAX_HEEL_LIFT_RATIO: f32 = 0.02;
+/// A pinned foot is stood flat (its ball pitched to its standing height) in full while its
+/// ankle-to-ball direction keeps at least this share of its length level; the flattening fades
+/// out as it steepens to [`FLATTEN_FADE_LEVEL`] (a foot pointing straight down has no pitch
+/// direction to speak of).
+const FLATTEN_LEVEL: f32 = 0.5;
+const FLATTEN_FADE_LEVEL: f32 = 0.2;
 
 /// Per source leg, how high its foot (its lowest contact) and its heel stand above their
 /// grounds this frame (source units), and how near its next plant is ([`landing_weight`]).
@@ -200,6 +203,8 @@ struct Foot {
     /// for a ball below an ankle the floor is measured at).
     heel_clearance: f32,
     ball_clearance: f32,
+    /// Ankle to ball (0 without a ball).
+    foot_length: f32,
     /// The posture's foot pitch (radians, ball above the ankle positive) and the pitch added
     /// to the animation's ([`FootLock::fit_to_standing`]).
     standing_pitch: f32,
@@ -421,6 +426,7 @@ impl FootLock {
                     source: source_legs.iter().position(|s| s.key() == leg.key()),
                     heel_clearance: height(leg.foot) - lowest,
                     ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
+                    foot_length: ahead.length(),
                     standing_pitch: leg.toes.map_or(0.0, |t| {
                         let o = target.positions[t.index()] - target.positions[leg.foot.index()];
                         (o.dot(target.up) / o.length().max(1e-6))
@@ -737,13 +743,13 @@ impl FootLock {
             // The heel follows how much higher than the foot's lowest contact the source's is
             // (a foot pitched toes-down); a foot without a ball stands on its ankle.
             let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
-            self.feet[i].heel_lift = heel.map(|h| {
-                lift + clamp_safe(
-                    self.lift_scale * (h - foot),
-                    0.0,
-                    MAX_HEEL_LIFT_RATIO * length,
-                )
-            });
+            // As far as keeps the foot level enough to be stood flat ([`FLATTEN_LEVEL`]), its
+            // ball on the floor: a foot pitched steeper is no longer brought down onto it.
+            let f = &self.feet[i];
+            let steepest = f.foot_length * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
+            let most = (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0);
+            self.feet[i].heel_lift =
+                heel.map(|h| lift + clamp_safe(self.lift_scale * (h - foot.max(0.0)), 0.0, most));
         }
         self.carry_root(planted, dt, out);
         for i in 0..self.feet.len() {
@@ -988,7 +994,8 @@ impl FootLock {
         // flattening fades out as the foot steepens.
         let len = o.length();
         let level = (o - up * o.dot(up)).length() / len.max(1e-6);
-        let k = ((level - 0.2) / 0.3).clamp(0.0, 1.0);
+        let k =
+            ((level - FLATTEN_FADE_LEVEL) / (FLATTEN_LEVEL - FLATTEN_FADE_LEVEL)).clamp(0.0, 1.0);
         let lift = lift * k * k * (3.0 - 2.0 * k);
         if lift.abs() > 1e-6 {
             pitch_ball(goal, up, o.dot(up) + lift);
