@@ -1245,7 +1245,7 @@ const HELD: &[(&str, f64)] = &[("static", 97.0)];
 
 /// Wrong core roles of the perturbed rigs that the flags must catch, percent (a little under
 /// today's figure).
-const FLAGGED_WRONG_AT_LEAST: f64 = 58.0;
+const FLAGGED_WRONG_AT_LEAST: f64 = 63.0;
 
 /// (wrong, right, wrong flagged, right flagged) over judged roles.
 fn flag_rates(j: &[Judged]) -> (usize, usize, usize, usize) {

@@ -164,17 +164,9 @@ pub(super) fn trunk(
             false,
         );
         let conf = if layout.legs_at.is_some() { 0.9 } else { 0.4 };
-        // Legs on a branch of their own beside the spine (MakeHuman: `Root` carries the spine,
-        // a child `Hips` only the legs): the pelvis is their common parent.
-        let legs_beside = spine.len() > 2 && ctx.skel.parent(spine[0]) == Some(spine[1]);
-        // A first "spine" segment that points down is still the pelvis (a hip bone hung below
-        // the leg joint, RobotExpressive's `Body` → `Hips`).
-        let drops = spine.len() > 3
-            && (ctx.pos[spine[1].index()] - ctx.pos[spine[0].index()]).dot(ctx.up)
-                < -0.01 * (ctx.pos[spine[2].index()] - ctx.pos[spine[1].index()]).length();
-        let hips_at = usize::from(legs_beside || drops);
-        if hips_at == 1 {
-            out.set(spine[0], Role::Helper, conf);
+        let hips_at = hips_index(ctx, &spine);
+        for &b in &spine[..hips_at] {
+            out.set(b, Role::Helper, conf);
         }
         out.set(spine[hips_at], Role::Hips, conf);
         let body = &spine[hips_at + 1..];
@@ -243,6 +235,31 @@ pub(super) fn trunk(
         }
     }
     head_sec
+}
+
+/// Which bone of the spine section (from the legs' bone up) is the hips: the first, unless
+/// legs hang on a branch of their own beside the spine (MakeHuman: `Root` carries the spine, a
+/// child `Hips` only the legs: the pelvis is their common parent), or the first spine segment
+/// points down (a hip bone hung below the leg joint, RobotExpressive's `Body` → `Hips`: still
+/// the pelvis). Bones stacked on one joint count as one there, the last of them the hips (a
+/// zero-length pelvis helper above the hip bone, whose own zero-length segment pointed
+/// nowhere and made the helper the hips).
+fn hips_index(ctx: &Ctx<'_>, spine: &[BoneId]) -> usize {
+    if spine.len() > 2 && ctx.skel.parent(spine[0]) == Some(spine[1]) {
+        return 1;
+    }
+    let mut h = 1;
+    while h + 2 < spine.len() && ctx.is_coincident(spine[h + 1]) {
+        h += 1;
+    }
+    let at = |k: usize| ctx.pos[spine[k].index()];
+    let drops =
+        spine.len() > h + 2 && (at(h) - at(0)).dot(ctx.up) < -0.01 * (at(h + 1) - at(h)).length();
+    if drops {
+        h
+    } else {
+        0
+    }
 }
 
 /// Mean leg length (thigh to ground) of the legs, for head proportions.
