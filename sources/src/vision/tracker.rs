@@ -6,19 +6,22 @@
 //! landmarks gave (all tracked people's crops in one batch): no search while tracking holds.
 //! The finder runs every frame while nobody is tracked or someone established was lost within
 //! the last second, else every `find_every_frames` frames while fewer than `max_people` are
-//! tracked; looking for more people while nobody was lost is one detector pass (the regions
-//! of `DETECTOR_REGIONS` taking turns; every one of them, where they were first, while someone
-//! was just lost), so one person in view costs about what `max_people: 1` costs whatever
-//! `max_people` is. A detection costs a landmark run only when a slot is open to someone
-//! there, and a reading that turned over since the last frame continues nobody. With nobody tracked, the person found takes the lowest free slot once
-//! nobody was lost for a few frames (`ALONE_WAIT_FRAMES`): the one person in the picture is the
-//! performer, not a bystander while they are hidden.
+//! tracked; a finder pass is one detector pass (the regions of `DETECTOR_REGIONS` taking
+//! turns, every other frame where someone was just lost), so one person in view costs about
+//! what `max_people: 1` costs whatever `max_people` is, and the detector runs at most once a
+//! frame. A detection costs a landmark run only when a slot is open to someone there, and a
+//! reading that turned over since the last frame continues nobody. A track continues when its whole body, or
+//! what both frames see of it, stays about the same size and place. With nobody tracked, the
+//! person found takes the lowest free slot once nobody was lost for a few frames
+//! (`ALONE_WAIT_FRAMES`): the one person in the picture is the performer, not a bystander
+//! while they are hidden.
 //!
 //! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
 //! back the slot whose last position is nearest (within half its ROI) rather than any free
 //! one, so two performers crossing do not trade names; two tracks that converge on one body
-//! (joint by joint) are one person twice, and the one that jumped further is dropped; a
-//! reading upside down within another's upright body is that body misread, and dropped. Before
+//! (joint by joint), or a new track on an established one's face, are one person twice, and
+//! the one not established or that jumped further is dropped; a reading upside down within another's upright body is that body misread, and
+//! dropped. Before
 //! that, a result that lies on (or near) another tracked person's body is not taken: the
 //! crop is moved away from that person, a step at a time, until the model shows a body of the
 //! tracked person's own (someone crossing in front of another with their back to the camera
@@ -526,7 +529,10 @@ impl PoseTracker {
         let t = &self.tracks[slot];
         self.scratch.presence >= presence
             && t.place.is_none_or(|p| {
-                continues(p, body_box(&self.scratch)) && !turned_over(&t.landmarks, &self.scratch)
+                (continues(p, body_box(&self.scratch))
+                    || seen_boxes(&t.landmarks, &self.scratch)
+                        .is_some_and(|(last, next)| continues(last, next)))
+                    && !turned_over(&t.landmarks, &self.scratch)
             })
     }
 
@@ -563,8 +569,9 @@ impl PoseTracker {
 
     /// Drops one of every two tracks that now cover the same body: the one read upside down
     /// within the other's box (see [`upside_down_twin`]), else (one body twice, see
-    /// [`same_body`]) the one not yet established, else the one whose box jumped further from
-    /// its previous frame (it is the one that slid onto the other person).
+    /// [`same_body`], or a new track on an established one's face, see [`same_face`]) the one
+    /// not yet established, else the one whose box jumped further from its previous frame (it
+    /// is the one that slid onto the other person).
     /// Returns whether any was dropped.
     fn drop_duplicates(&mut self) -> bool {
         let mut dropped = false;
@@ -588,7 +595,11 @@ impl PoseTracker {
                     self.drop_misread_twin(misread, upright);
                     continue;
                 }
-                if !same_body(&ta.landmarks, &tb.landmarks) {
+                // One face is one person only for a track not yet established: two people
+                // crossing put one head in front of the other for a few frames.
+                if !same_body(&ta.landmarks, &tb.landmarks)
+                    && !((young(ta) || young(tb)) && same_face(&ta.landmarks, &tb.landmarks))
+                {
                     continue;
                 }
                 // A track not yet established is the same person found twice; else the one
@@ -652,7 +663,9 @@ impl PoseTracker {
 
     /// One landmark run at the last crop of each recently lost person: someone hidden for a
     /// few frames usually reappears where they were, often facing away from the camera where
-    /// the (face-based) detector cannot see them.
+    /// the (face-based) detector cannot see them. What it finds must be nobody else tracked
+    /// (see [`found_again`]): a person hidden behind another is otherwise "found" as a second
+    /// reading of the one in front, frame after frame, and dropped again as their duplicate.
     fn look_where_lost(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         for slot in 0..self.tracks.len() {
             let t = &self.tracks[slot];
@@ -663,8 +676,9 @@ impl PoseTracker {
             self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
             let presence = self.config.presence_threshold;
-            if self.shows_own_body(slot, presence)
-                || self.look_beside(frame, slot, roi, presence)?
+            if (self.shows_own_body(slot, presence)
+                || self.look_beside(frame, slot, roi, presence)?)
+                && !self.is_tracked_body(&self.scratch)
             {
                 // The same person: their labelling and its evidence carry on.
                 let found = self.scratch;
@@ -674,20 +688,19 @@ impl PoseTracker {
         Ok(())
     }
 
-    /// The detector while someone is missing. While someone established was lost within
-    /// [`EAGER_FIND_FRAMES`], every frame: first where they were ([`Self::where_lost`]), then
-    /// every one of the [`DETECTOR_REGIONS`], as a tracker of one person does to find them
-    /// again (one pass a frame found the man of the pose2sim crossing late). Else one pass
-    /// over the next region in turn, so looking for more people costs one pass however long
-    /// nobody else comes.
+    /// The detector while someone is missing: one pass a frame. While someone established
+    /// was lost within [`EAGER_FIND_FRAMES`], every other frame's pass looks where they were
+    /// ([`Self::where_lost`]) and the others go round the [`DETECTOR_REGIONS`] in turn; else
+    /// the regions take turns. A pass costs several landmark runs, so more passes a frame
+    /// while someone hidden stays hidden (a child behind another) cost more than tracking
+    /// everyone else: one pass a frame keeps the finder under the detector's bound of once per
+    /// frame, and finds the person again within two frames where they were last seen.
     fn find_by_detector(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         Roi::search_candidates(frame.width, frame.height, &mut self.candidates);
-        if let Some(region) = self.where_lost() {
-            self.detect_in_region(frame, region)?;
-            for other in (0..DETECTOR_REGIONS).filter(|&r| r != region) {
-                self.detect_in_region(frame, other)?;
+        if let Some((region, lost_frames)) = self.where_lost() {
+            if lost_frames % 2 == 1 {
+                return self.detect_in_region(frame, region);
             }
-            return Ok(());
         }
         let region = self.next_region;
         self.next_region = (region + 1) % DETECTOR_REGIONS;
@@ -712,14 +725,14 @@ impl PoseTracker {
     /// recently (within [`EAGER_FIND_FRAMES`]): the one nearest where they were whose square
     /// is at least twice their size, so a small or far person appears as large as the
     /// detector finds people best (the whole frame when none is); None when nobody was just
-    /// lost.
-    fn where_lost(&self) -> Option<usize> {
-        let (centre, size) = self
+    /// lost; with it, how many frames ago they were lost.
+    fn where_lost(&self) -> Option<(usize, u32)> {
+        let lost = self
             .tracks
             .iter()
             .filter(|t| t.recently_lost(EAGER_FIND_FRAMES))
-            .min_by_key(|t| t.lost_frames)?
-            .place?;
+            .min_by_key(|t| t.lost_frames)?;
+        let (centre, size) = lost.place?;
         let reach = size.max_element();
         self.candidates
             .iter()
@@ -731,7 +744,9 @@ impl PoseTracker {
                     .distance(centre)
                     .total_cmp(&b.center.distance(centre))
             })
-            .map_or(Some(0), |(i, _)| Some(i))
+            .map_or(Some((0, lost.lost_frames)), |(i, _)| {
+                Some((i, lost.lost_frames))
+            })
     }
 
     /// Starts tracks for this detector pass's detections that are nobody tracked yet.
@@ -902,10 +917,26 @@ fn same_body(a: &Landmarks, b: &Landmarks) -> bool {
     body_distance(a, b) < 0.1
 }
 
+/// True when two readings put their noses within [`SAME_FACE`] of the wider one's shoulder
+/// width: one face, whatever body each reading draws below it (the model reads raised hands in
+/// front of a face as a small second body with the same face). Two people's heads overlap in
+/// the picture only while one passes behind the other, so this tells a new track from an
+/// established one, not two established ones apart (see [`PoseTracker::drop_duplicates`]).
+fn same_face(a: &Landmarks, b: &Landmarks) -> bool {
+    let point = |lm: &Landmarks, i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+    let width =
+        |lm: &Landmarks| point(lm, idx::LEFT_SHOULDER).distance(point(lm, idx::RIGHT_SHOULDER));
+    point(a, idx::NOSE).distance(point(b, idx::NOSE)) < SAME_FACE * width(a).max(width(b))
+}
+
+/// See [`same_face`]: a face is about half a shoulder width across.
+const SAME_FACE: f32 = 0.25;
+
 /// True when a newly found `found` is `tracked` again: the same body (see [`same_body`]), or
 /// the points both see coincide (see [`seen_distance`]; an upper body at a desk read twice,
-/// its legs guessed apart). Only for starting people: while two tracked people cross, what
-/// both readings see can coincide for a frame or two without their being one.
+/// its legs guessed apart). Only for finding people: while two tracked people cross, what
+/// both readings see can coincide for a frame or two without their being one. Not the face
+/// alone: a person found again behind another has their head beside the other's.
 fn found_again(tracked: &Landmarks, found: &Landmarks) -> bool {
     same_body(tracked, found) || seen_distance(tracked, found).is_some_and(|d| d < SAME_SEEN)
 }
@@ -1028,6 +1059,32 @@ fn continues(last: (Vec2, Vec2), next: (Vec2, Vec2)) -> bool {
     (0.75..=1.33).contains(&ratio) && last.0.distance(next.0) < 0.3 * h0
 }
 
+/// The boxes (centre, size; frame pixels) around the landmarks both `last` and `next` see
+/// (visibility at least [`SEEN`]), or None when they share fewer than [`MIN_SHARED_SEEN`]: the
+/// same person in two frames with what the model guesses beyond the picture left out. An
+/// upper body at a desk has legs guessed below the frame whose length changes by a third from
+/// one frame to the next, so its whole-body box does not [`continue`](continues) while what is
+/// seen of it barely moves.
+fn seen_boxes(last: &Landmarks, next: &Landmarks) -> Option<((Vec2, Vec2), (Vec2, Vec2))> {
+    let mut bounds = [(Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY)); 2];
+    let mut shared = 0;
+    for i in 0..NUM_LANDMARKS {
+        if last.visibility(i) < SEEN || next.visibility(i) < SEEN {
+            continue;
+        }
+        shared += 1;
+        for (b, lm) in bounds.iter_mut().zip([last, next]) {
+            let p = Vec2::new(lm.image[i].x, lm.image[i].y);
+            *b = (b.0.min(p), b.1.max(p));
+        }
+    }
+    let boxed = |(lo, hi): (Vec2, Vec2)| ((lo + hi) * 0.5, hi - lo);
+    (shared >= MIN_SHARED_SEEN).then(|| (boxed(bounds[0]), boxed(bounds[1])))
+}
+
+/// See [`seen_boxes`]: the face alone (11 points) says little about the body's size.
+const MIN_SHARED_SEEN: usize = 15;
+
 /// Midpoint of the hips, frame pixels.
 fn hip_centre(lm: &Landmarks) -> Vec2 {
     let (l, r) = (lm.image[idx::LEFT_HIP], lm.image[idx::RIGHT_HIP]);
@@ -1117,6 +1174,45 @@ mod tests {
         assert!(found_again(&a, &b));
         // Someone beside them, seen as well, is not.
         assert!(!found_again(&a, &person(120.0)));
+    }
+
+    #[test]
+    fn an_upper_body_whose_guessed_legs_shrink_continues_by_what_is_seen() {
+        let last = person(0.0);
+        let mut next = person(2.0);
+        // The legs (beyond the picture, not seen) guessed half as long as a frame before.
+        for p in next.image[idx::LEFT_HIP..NUM_LANDMARKS].iter_mut() {
+            p.y = 230.0;
+            p.w = 0.1;
+        }
+        assert!(!continues(body_box(&last), body_box(&next)));
+        let (a, b) = seen_boxes(&last, &next).unwrap();
+        assert!(continues(a, b));
+        // Someone else seen where the person was is not them.
+        let (a, b) = seen_boxes(&last, &person(150.0)).unwrap();
+        assert!(!continues(a, b));
+        // Too little seen in both says nothing.
+        let mut faint = person(0.0);
+        for p in faint.image.iter_mut().skip(11) {
+            p.w = 0.1;
+        }
+        assert!(seen_boxes(&last, &faint).is_none());
+    }
+
+    #[test]
+    fn two_readings_with_one_nose_share_a_face() {
+        let with_nose = |offset_x: f32| {
+            let mut lm = person(offset_x);
+            lm.image[idx::NOSE] = Vec4::new(offset_x, 5.0, 0.0, 1.0);
+            lm
+        };
+        let a = with_nose(0.0);
+        // Another body drawn below the same face (shoulders 100 px wide).
+        let mut b = with_nose(300.0);
+        b.image[idx::NOSE] = a.image[idx::NOSE] + Vec4::new(5.0, 5.0, 0.0, 0.0);
+        assert!(same_face(&a, &b));
+        // Two heads side by side, closer than their shoulders are wide, are two faces.
+        assert!(!same_face(&a, &with_nose(60.0)));
     }
 
     #[test]
