@@ -12,7 +12,6 @@ use std::time::Duration;
 
 use rigcast_engine::performer::{BuiltMapping, Performer};
 use rigcast_engine::settings::OnLost;
-use rigcast_engine::subject::Subject;
 use rigcast_engine::subject_list::SubjectList;
 use rigcast_engine::tick::{TickContext, VmcTarget};
 use rigcast_engine::{Engine, EngineParts, Input, Output, TickTime};
@@ -53,13 +52,7 @@ fn run_at(engine: &mut Engine, now: TickTime, counts: &mut Counts) -> std::time:
 #[test]
 fn the_engine_allocates_one_buffer_per_subject_per_tick() {
     let clip = rigcast_server::demo::procedural_clip(30, 30.0).unwrap();
-    let mut subjects = Vec::new();
-    let mut writers = Vec::new();
-    for id in 0..3u32 {
-        let (s, tx) = Subject::new(id, format!("s{id}"), clip.skeleton.clone());
-        subjects.push(Arc::new(s));
-        writers.push(tx);
-    }
+    let (mut subjects, writers) = common::source_subjects(3, &clip.skeleton);
     let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let (_, mapping) = common::rest_mapping(&clip.skeleton, &target);
     let (t, target_tx) = common::target_subject(3, &target);

@@ -24,14 +24,8 @@ mod common;
 fn a_performer_fed_overflowing_values_faults_alone_and_recovers() {
     let clip = rigcast_server::demo::procedural_clip(30, 30.0).unwrap();
     let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
-    let mut subjects = Vec::new();
-    let mut senders = Vec::new();
     let mut performers = Vec::new();
-    for id in 0..2u32 {
-        let (s, tx) = Subject::new(id, format!("s{id}"), clip.skeleton.clone());
-        subjects.push(Arc::new(s));
-        senders.push(tx);
-    }
+    let (mut subjects, senders) = common::source_subjects(2, &clip.skeleton);
     let mut targets = Vec::new();
     for (k, source) in subjects.clone().iter().enumerate() {
         let (_, mapping) = common::rest_mapping(&clip.skeleton, &target);

@@ -53,6 +53,23 @@ pub fn rest_mapping(
     (table, mapping)
 }
 
+/// Source subjects `0..count` ("s0", "s1", ...) on `skeleton`, and the senders of their frames.
+pub fn source_subjects(
+    count: u32,
+    skeleton: &std::sync::Arc<rigcast_retarget::Skeleton>,
+) -> (
+    Vec<std::sync::Arc<rigcast_engine::subject::Subject>>,
+    Vec<rigcast_engine::slot::FrameWriter>,
+) {
+    (0..count)
+        .map(|id| {
+            let (subject, frames) =
+                rigcast_engine::subject::Subject::new(id, format!("s{id}"), skeleton.clone());
+            (std::sync::Arc::new(subject), frames)
+        })
+        .unzip()
+}
+
 /// Target subject `id` ("target") on `skeleton`, driven by subject 0, with humanoid VMC names;
 /// and the sender of its frames.
 pub fn target_subject(
