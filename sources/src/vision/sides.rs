@@ -24,17 +24,6 @@
 //! against must also be four fifths of all), so the labels do not flicker. A person lost and
 //! found again keeps their guard (`tracker.rs` resets it for a new person in the slot).
 //!
-//! Continuity decides nothing across a side view. There the torso's left-right lines point
-//! along the line of sight, where the two readings nearly coincide, so comparing them with the
-//! frames before is a toss-up; and once the view is passed, a turn on (front to back) and a
-//! turn back are equally continuous, so continuity with the frames before the side view
-//! always took the turn back (the fashion model turning to her back was held mirrored for
-//! over a hundred frames). While a reading's torso faces the camera less squarely than
-//! [`SIDE_VIEW_FACING`] (the facing below which a reading already counts nothing for the
-//! labelling; it is the share of the torso lines' length across the picture, the same for
-//! both readings), the guard keeps the model's reading and forgets its reference and
-//! evidence; after the side view the labelling is read afresh, as for a new track.
-//!
 //! The limit: where the model reads a view the wrong way round as often as the right way, or
 //! for longer runs than its right readings, no labelling taken from its readings is right.
 //! The lite model reads the man of the pose2sim demo's cam02 (facing the camera, his face
@@ -137,14 +126,6 @@ impl SideGuard {
     /// Labels `lm`, the model's reading of this frame, continuing the kept labelling or,
     /// when the evidence says so, taking the model's; flips `lm` when needed.
     pub(super) fn label(&mut self, lm: &mut Landmarks) -> Labelling {
-        if torso_facing(lm) < SIDE_VIEW_FACING {
-            // Edge-on: both readings put the torso's lines along the line of sight, nearly
-            // alike, so comparing them with the last frames is a toss-up, and past the side
-            // view continuity cannot tell a turn from a turn back (module docs). Continuity
-            // decides nothing here; the labelling is read afresh from the model after it.
-            self.reset();
-            return Labelling::Kept;
-        }
         let weight = reading_weight(lm);
         let Some(reference) = &self.reference else {
             // A new track: its first reading is kept, and speaks for itself.
@@ -179,7 +160,16 @@ impl SideGuard {
 /// ears' left and right in the picture must all agree (facing the camera, the left shoulder,
 /// hip and ear are on the picture's right of an upright spine; facing away, on its left).
 pub(super) fn reading_weight(lm: &Landmarks) -> f32 {
-    let forward = torso_forward(lm);
+    let w = |i: usize| lm.world[i];
+    let across = (w(idx::LEFT_SHOULDER) - w(idx::RIGHT_SHOULDER) + w(idx::LEFT_HIP)
+        - w(idx::RIGHT_HIP))
+        * 0.5;
+    let up =
+        (w(idx::LEFT_SHOULDER) + w(idx::RIGHT_SHOULDER) - w(idx::LEFT_HIP) - w(idx::RIGHT_HIP))
+            * 0.5;
+    // Model axes: x right in the picture, y down, z away from the camera; the body's forward
+    // is its left-to-right line crossed with its up, so facing the camera is forward.z < 0.
+    let forward = across.cross(up).normalize_or_zero();
     let towards_camera = forward.z < 0.0;
     let p = |i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
     let spine =
@@ -195,28 +185,6 @@ pub(super) fn reading_weight(lm: &Landmarks) -> f32 {
         return 0.0;
     }
     ((forward.z.abs() - SIDE_VIEW_FACING) / (DECISIVE_FACING - SIDE_VIEW_FACING)).clamp(0.0, 1.0)
-}
-
-/// The unit forward of a reading's 3D torso: its left-to-right line crossed with its up. Model
-/// axes: x right in the picture, y down, z away from the camera, so facing the camera is
-/// forward.z < 0.
-fn torso_forward(lm: &Landmarks) -> Vec3 {
-    let w = |i: usize| lm.world[i];
-    let across = (w(idx::LEFT_SHOULDER) - w(idx::RIGHT_SHOULDER) + w(idx::LEFT_HIP)
-        - w(idx::RIGHT_HIP))
-        * 0.5;
-    let up =
-        (w(idx::LEFT_SHOULDER) + w(idx::RIGHT_SHOULDER) - w(idx::LEFT_HIP) - w(idx::RIGHT_HIP))
-            * 0.5;
-    across.cross(up).normalize_or_zero()
-}
-
-/// How squarely a reading's torso faces the camera or away from it, in [0, 1]: |forward.z|,
-/// the same for both readings of the image (the mirror in depth flips forward.z's sign only).
-/// For an upright torso it is also the share of the left-right lines' length that lies across
-/// the picture: near 0 they point along the line of sight (a side view).
-fn torso_facing(lm: &Landmarks) -> f32 {
-    torso_forward(lm).z.abs()
 }
 
 /// Torso lines (left minus right, world) of hips and shoulders: what the flip guard compares.
@@ -380,37 +348,6 @@ mod tests {
             assert_eq!(lm, truth, "frame {frame}");
         }
         assert_eq!(relabels, 0);
-    }
-
-    #[test]
-    fn a_turn_to_the_back_through_a_side_view_is_kept_as_the_model_reads_it() {
-        let mut guard = SideGuard::NEW;
-        // Front (yaw 0) to back (yaw π) in 90 frames, read right by the model throughout:
-        // after the side view both readings continue the frames before it equally well (a
-        // turn on, or a turn back), and continuity alone took the turn back.
-        for frame in 0..=90 {
-            let truth = body(std::f32::consts::PI * frame as f32 / 90.0);
-            let mut lm = truth;
-            guard.label(&mut lm);
-            assert_eq!(lm, truth, "frame {frame}");
-        }
-    }
-
-    #[test]
-    fn after_a_side_view_misreadings_are_flipped_back_again() {
-        let mut guard = SideGuard::NEW;
-        // From a side view to the front, the model misreading one frame in three once the
-        // labelling has been read afresh: continuity flips those back.
-        for frame in 0..=120 {
-            let yaw = (std::f32::consts::FRAC_PI_2 * (1.0 - frame as f32 / 30.0)).max(0.0);
-            let truth = body(yaw);
-            let misread = frame > 45 && frame % 3 == 0;
-            let mut lm = if misread { flipped(truth) } else { truth };
-            guard.label(&mut lm);
-            if frame > 20 {
-                assert_eq!(lm, truth, "frame {frame}");
-            }
-        }
     }
 
     #[test]
