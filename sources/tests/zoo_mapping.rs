@@ -1176,6 +1176,7 @@ fn perturbed_rigs_keep_their_core_roles() {
     }
     println!();
     let mut sums = vec![Score::default(); PERTURBATIONS.len()];
+    let mut per_kind: Vec<Vec<Judged>> = vec![Vec::new(); PERTURBATIONS.len()];
     for tgt in &hs {
         let f = frame_of(tgt);
         print!("{:<24}", short(&tgt.key));
@@ -1195,6 +1196,19 @@ fn perturbed_rigs_keep_their_core_roles() {
             }
             print!(" {:>8.1}% {:>2}", row.pct(), row.swaps);
             fails.extend(plog.fails.into_iter().map(|l| format!("{what}: {l}")));
+            if std::env::var("RIGCAST_ZOO_JUDGED").is_ok() {
+                for x in &plog.judged {
+                    println!(
+                        "J {what} {} {} {} {:.3} {}",
+                        short(&tgt.key),
+                        x.right,
+                        x.flagged,
+                        x.confidence,
+                        x.note
+                    );
+                }
+            }
+            per_kind[k].extend(plog.judged.iter().cloned());
             log.judged.extend(plog.judged);
             sums[k].add(row);
         }
@@ -1206,8 +1220,18 @@ fn perturbed_rigs_keep_their_core_roles() {
         totals.push((*what, sums[k]));
     }
     println!();
-    let (wrong, right, wrong_flagged, right_flagged) = flag_rates(&log.judged);
     let pct = |a: usize, b: usize| 100.0 * a as f64 / b.max(1) as f64;
+    println!("per perturbation: wrong roles, of them flagged; right roles flagged; AUROC");
+    for ((what, _), j) in PERTURBATIONS.iter().zip(&per_kind) {
+        let (wrong, right, wrong_flagged, right_flagged) = flag_rates(j);
+        println!(
+            "{what:<12} wrong {wrong:>4}, flagged {:>5.1}%; right flagged {:>4.1}%; AUROC {:.3}",
+            pct(wrong_flagged, wrong),
+            pct(right_flagged, right),
+            auroc(j)
+        );
+    }
+    let (wrong, right, wrong_flagged, right_flagged) = flag_rates(&log.judged);
     println!(
         "perturbed core roles judged {}: wrong {wrong}, flagged {wrong_flagged} ({:.1}%); right \
          {right}, flagged {right_flagged} ({:.1}%); AUROC of confidence {:.3}",
@@ -1224,12 +1248,8 @@ fn perturbed_rigs_keep_their_core_roles() {
         return;
     }
     for (what, sc) in &totals {
-        let bound = HELD
-            .iter()
-            .find(|(w, _)| w == what)
-            .map_or(98.0, |(_, b)| *b);
         assert_eq!(sc.swaps, 0, "{what}: left/right swaps");
-        assert!(sc.pct() >= bound, "{what}: {:.1}% < {bound}%", sc.pct());
+        assert!(sc.pct() >= HELD, "{what}: {:.1}% < {HELD}%", sc.pct());
     }
     // The flags: no more right roles flagged than the issue allows, and no fewer wrong ones
     // than today (the issue's 90 % is not reached on these rigs yet).
@@ -1237,15 +1257,13 @@ fn perturbed_rigs_keep_their_core_roles() {
     assert!(pct(wrong_flagged, wrong) >= FLAGGED_WRONG_AT_LEAST);
 }
 
-/// Per perturbation, the share of core roles held, a little under today's figure where it is
-/// below the issue's 98 % for meaningless names (the others are held to 98 %); every one with
-/// no left/right swaps. Today: static 97.7 % (Mousey's clavicle against its short upper arm
-/// and RobotExpressive's head, without their motion).
-const HELD: &[(&str, f64)] = &[("static", 97.0)];
+/// Per perturbation, the share of core roles held: the issue's 98 % for meaningless names,
+/// with no left/right swaps (today every perturbation holds 99.2 % or more).
+const HELD: f64 = 98.0;
 
 /// Wrong core roles of the perturbed rigs that the flags must catch, percent (a little under
 /// today's figure).
-const FLAGGED_WRONG_AT_LEAST: f64 = 63.0;
+const FLAGGED_WRONG_AT_LEAST: f64 = 75.0;
 
 /// (wrong, right, wrong flagged, right flagged) over judged roles.
 fn flag_rates(j: &[Judged]) -> (usize, usize, usize, usize) {

@@ -18,6 +18,9 @@ pub(super) struct LimbMember {
     pub(super) limb_index: u8,
     pub(super) ground: bool,
     pub(super) parent_sec: Option<usize>,
+    /// For an arm of an upright body: how far from the midline the legs hang (their sockets'
+    /// offset), which a shoulder joint is no nearer to.
+    pub(super) hips_offset: Option<f32>,
 }
 
 /// Assigns roles along one limb member (arm, leg or wing) and its extremity and digits.
@@ -140,17 +143,69 @@ fn fit_member(
         lengths,
         fixed
     );
-    let girdle = if is_leg && spans_girdle(ctx, chain[0]) {
-        GIRDLE_AS_THIGH_COST
+    let start: Vec<f32> = if is_leg {
+        let spans = spans_girdle(ctx, chain[0]);
+        vec![if spans { GIRDLE_AS_THIGH_COST } else { 0.0 }]
     } else {
-        0.0
+        narrow_shoulders(ctx, chain, member)
     };
     // A leg's branch point may be the toes (claws) rather than the ankle: let the fit choose
     // the foot anywhere up to the branch.
     match fixed {
-        Some(f) if is_leg => chain_splits(&lengths[..=f], &bent[..=f], None, ratio, girdle),
-        _ => chain_splits(&lengths, &bent, fixed, ratio, girdle),
+        Some(f) if is_leg => chain_splits(&lengths[..=f], &bent[..=f], None, ratio, &start),
+        _ => chain_splits(&lengths, &bent, fixed, ratio, &start),
     }
+}
+
+/// Per chain bone of an upright body's arm, what reading its joint as the shoulder costs a
+/// split: the shoulder joints sit at least as far from the midline as the hip sockets (human
+/// shoulders ~2 times their width, the zoo's rigs 1.0-2.7), a clavicle's inner end near the
+/// midline (0.0-0.96 of it). Nothing at the hips' offset, as much as a bent joint at half of it
+/// or nearer: a cartoon's clavicle as long as its short upper arm, read without motion, is not
+/// the upper arm.
+fn narrow_shoulders(ctx: &Ctx<'_>, chain: &[BoneId], member: LimbMember) -> Vec<f32> {
+    let (Some(hips), Some(p)) = (member.hips_offset, ctx.skel.parent(member.root)) else {
+        return Vec::new();
+    };
+    let left = ctx.up.cross(ctx.forward).normalize_or_zero();
+    chain
+        .iter()
+        .take(3)
+        .map(|b| {
+            let off = (ctx.pos[b.index()] - ctx.pos[p.index()]).dot(left).abs();
+            MOTION_BEND_COST * (2.0 * (1.0 - off / hips)).clamp(0.0, 1.0)
+        })
+        .collect()
+}
+
+/// How far from the midline a pair of legs hangs from `parent` (on the centerline): the first
+/// joint down each leg's chain that leaves the midline (a pelvis side's or a zero-length thigh
+/// helper's joint sits on it), the nearer of the two legs; `None` when they never leave it
+/// within their first bones.
+pub(super) fn hips_offset(
+    ctx: &Ctx<'_>,
+    parent: BoneId,
+    members: &[(BoneId, Side)],
+) -> Option<f32> {
+    let left = ctx.up.cross(ctx.forward).normalize_or_zero();
+    let off = |b: BoneId| {
+        (ctx.pos[b.index()] - ctx.pos[parent.index()])
+            .dot(left)
+            .abs()
+    };
+    members
+        .iter()
+        .map(|&(m, _)| {
+            ctx.topo
+                .chain(m)
+                .iter()
+                .take(3)
+                .map(|&b| off(b))
+                .find(|&o| o > 0.01 * ctx.size)
+        })
+        .collect::<Option<Vec<f32>>>()?
+        .into_iter()
+        .reduce(f32::min)
 }
 
 /// What reading a girdle bone as the thigh costs a leg's split: as much as grouping across a

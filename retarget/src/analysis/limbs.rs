@@ -23,23 +23,18 @@ pub(crate) struct ChainSplit {
 /// `lengths[i]` is the length of chain bone `i`; `bent[i]` is what grouping bones `i - 1` and
 /// `i` into one segment costs because the joint between them bends (missing entries: 0); `fixed_extremity` is set when a branch
 /// point (fingers, toes) already tells where the hand / foot is; `ratio` is the expected
-/// upper / lower length ratio; `girdle_first` is what starting the upper segment at the
-/// chain's first bone costs (a bone that spans the girdle, see `extremities`).
+/// upper / lower length ratio; `start[a]` is what starting the upper segment at chain bone `a`
+/// costs (a leg's first bone that spans the girdle, an arm's joint nearer the midline than a
+/// shoulder sits, see `extremities`; missing entries: 0).
 #[cfg(test)]
 pub(crate) fn fit_chain(
     lengths: &[f32],
     bent: &[f32],
     fixed_extremity: Option<usize>,
     ratio: f32,
-    girdle_first: f32,
+    start: &[f32],
 ) -> Option<ChainSplit> {
-    best_split(&chain_splits(
-        lengths,
-        bent,
-        fixed_extremity,
-        ratio,
-        girdle_first,
-    ))
+    best_split(&chain_splits(lengths, bent, fixed_extremity, ratio, start))
 }
 
 /// The cheapest of `splits`, the first on ties.
@@ -60,8 +55,11 @@ pub(crate) fn chain_splits(
     bent: &[f32],
     fixed_extremity: Option<usize>,
     ratio: f32,
-    girdle_first: f32,
+    start: &[f32],
 ) -> Vec<ChainSplit> {
+    let start_cost = |a: usize| start.get(a).copied().unwrap_or(0.0);
+    // A leg's first bone seen to span the girdle.
+    let girdle_first = ratio < 1.1 && start_cost(0) > 0.0;
     let m = lengths.len();
     let mut out: Vec<ChainSplit> = Vec::new();
     let mut cheapest = f32::INFINITY;
@@ -88,7 +86,7 @@ pub(crate) fn chain_splits(
                 // at a price, so that the upper segment is still found.
                 // A leg has no girdle bone before it unless its first bone spans one.
                 let lone = if ratio < 1.1 {
-                    a <= usize::from(girdle_first > 0.0)
+                    a <= usize::from(girdle_first)
                 } else {
                     a <= 1
                 };
@@ -124,9 +122,8 @@ pub(crate) fn chain_splits(
                 if !flexes(b) && (a + 1..=e.min(m - 1)).any(flexes) {
                     cost += STIFF_ELBOW_COST;
                 }
-                if a == 0 {
-                    cost += girdle_first;
-                } else {
+                cost += start_cost(a);
+                if a > 0 {
                     // The clavicle is the last bone before the upper arm; helpers before it
                     // (MakeHuman's `__Clavicle`) do not make it longer.
                     let pre: f32 = lengths[a - 1];
@@ -138,7 +135,7 @@ pub(crate) fn chain_splits(
                     let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
                     // ...unless it is seen to span the girdle, whatever its size (wide hips
                     // over a robot's short thighs).
-                    if !(a == 1 && girdle_first > 0.0) {
+                    if !(a == 1 && girdle_first) {
                         cost += k * (pre / upper - limit).max(0.0);
                     }
                     cost += 0.02 * a as f32;
@@ -214,7 +211,7 @@ mod tests {
     use super::*;
 
     fn fit_chain_t(l: &[f32], fixed: Option<usize>, ratio: f32) -> Option<ChainSplit> {
-        fit_chain(l, &[], fixed, ratio, 0.0)
+        fit_chain(l, &[], fixed, ratio, &[])
     }
 
     #[test]
@@ -243,12 +240,12 @@ mod tests {
     #[test]
     fn a_bone_seen_to_span_the_girdle_is_not_the_thigh() {
         let l = [0.107, 0.13, 0.106, 0.103, 0.045, 0.0];
-        let s = fit_chain(&l, &[], None, 1.05, 0.0).expect("fit");
+        let s = fit_chain(&l, &[], None, 1.05, &[]).expect("fit");
         assert_eq!(s.upper, 0);
-        let s = fit_chain(&l, &[], None, 1.05, 3.0).expect("fit");
+        let s = fit_chain(&l, &[], None, 1.05, &[3.0]).expect("fit");
         assert_eq!((s.upper, s.lower, s.extremity), (1, 2, 3));
         // A wide girdle over a short thigh whose shin ends in a lone leaf (an IK foot beside).
-        let s = fit_chain(&[0.66, 0.61, 0.0], &[], None, 1.05, 3.0).expect("fit");
+        let s = fit_chain(&[0.66, 0.61, 0.0], &[], None, 1.05, &[3.0]).expect("fit");
         assert_eq!((s.upper, s.lower), (1, 2));
     }
 

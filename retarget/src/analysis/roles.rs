@@ -172,6 +172,12 @@ fn place_limbs(
             .then(limbs[b].height.total_cmp(&limbs[a].height))
             .then(limbs[a].parent.cmp(&limbs[b].parent))
     });
+    // Where the legs hang from the midline, which an upright body's shoulders are no nearer to.
+    let hips = limbs
+        .iter()
+        .zip(&layout.kinds)
+        .filter(|(l, k)| **k == LimbKind::Leg && l.members.len() == 2)
+        .find_map(|(l, _)| super::extremities::hips_offset(ctx, l.parent, &l.members));
     let mut counters = [0u8; 4];
     let mut humanoid_arms = 0;
     let mut humanoid_legs = 0;
@@ -223,6 +229,7 @@ fn place_limbs(
                     limb_index,
                     ground: l.ground,
                     parent_sec,
+                    hips_offset: hips.filter(|_| kind == LimbKind::Arm && !l.ground),
                 },
             );
         }

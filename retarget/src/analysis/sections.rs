@@ -205,7 +205,7 @@ pub(super) fn trunk(
                 false,
             );
             head_sec = Some(hi);
-            let head_idx = head_index(
+            let (head_idx, doubt) = head_index(
                 ctx,
                 &head,
                 central,
@@ -214,6 +214,16 @@ pub(super) fn trunk(
                 leg_len(ctx, limbs, &layout.kinds),
                 uses_end_joints(ctx, limbs, &layout.kinds, ground, hext),
             );
+            if let Some((strength, bones)) = doubt {
+                out.doubts.push(super::Doubt {
+                    reason: format!(
+                        "which bone is the head rests on proportions and conventions that \
+                         nearly read it one bone off ({strength:.2})"
+                    ),
+                    strength,
+                    bones,
+                });
+            }
             for (j, &b) in head.iter().enumerate() {
                 let role = if j < head_idx {
                     Role::Neck(j.min(255) as u8)
@@ -303,7 +313,9 @@ fn uses_end_joints(
 }
 
 /// Which bone of the head section is the head: where eyes or a jaw attach, else the last bone
-/// unless it is an end joint (by name, or by being too long for a neck-to-head segment).
+/// unless it is an end joint (by name, or by being too long for a neck-to-head segment). With
+/// the index, the doubt of a reading from proportions and conventions alone: its strength and
+/// the bones the other reading reads otherwise.
 fn head_index(
     ctx: &Ctx<'_>,
     head: &[BoneId],
@@ -312,7 +324,7 @@ fn head_index(
     kinds: &[LimbKind],
     leg: Option<f32>,
     end_joints: Option<bool>,
-) -> usize {
+) -> (usize, Option<(f32, Vec<BoneId>)>) {
     for (j, &b) in head.iter().enumerate() {
         let has_pair = limbs
             .iter()
@@ -324,71 +336,113 @@ fn head_index(
             .iter()
             .any(|c| central[c.index()] && !head.contains(c) && !ctx.is_shadow(*c));
         if has_pair || has_jaw {
-            return j;
+            return (j, None);
         }
     }
     let last = head.len() - 1;
     if last == 0 || !ctx.is_leaf(head[last]) {
-        return last;
+        return (last, None);
     }
     let leaf = head[last];
     // A zero-length leaf only marks its parent's end (BVH End Site written at the joint).
     if (ctx.pos[leaf.index()] - ctx.pos[head[last - 1].index()]).length()
         < 1e-3 * ctx.size.max(1e-3)
     {
-        return last - 1;
+        return (last - 1, None);
     }
     let nm = &ctx.names[leaf.index()];
     // End markers: `_end`/`End`/`Nub` (helper tokens) and the skull top (`head_top`,
     // `HeadTop_End`), even when the name also says "head".
     if nm.helper || nm.tokens.iter().any(|t| t == "top") {
-        return last - 1;
+        return (last - 1, None);
     }
     // A bone named as the head is the head, however long the neck before it (the Fox) or
     // however big the head (cartoon robots).
     if nm.tokens.iter().any(|t| t == "head") {
-        return last;
+        return (last, None);
     }
     // Motion: the head is the last bone of the chain that rotates; bones after it that never
     // do are end markers (a BVH End Site, an exporter's `HeadTop_End` joint). Measured, so it
     // outweighs proportions, which cartoon heads and robots break.
     if let Some(m) = ctx.moving {
         if let Some(k) = head.iter().rposition(|b| m[b.index()]) {
-            return k;
+            return (k, None);
         }
-    }
-    // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
-    // the names (anonymised skeletons included).
-    if let Some(top) = leaf_is_skull_top(ctx, head, limbs, kinds) {
-        return if top { last - 1 } else { last };
     }
     // Exporters that write end joints (BVH End Sites, Mixamo `_End`) write them everywhere:
     // if the toes have one, so has the head.
-    if let Some(ends) = end_joints {
-        return if ends { last - 1 } else { last };
+    let ends = end_joints.map(|e| if e { END_JOINTS } else { -END_JOINTS });
+    // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
+    // the names (anonymised skeletons included). Both are evidence for the leaf being an end
+    // marker (positive) or the head; their sum decides, and how close it came is the doubt.
+    if let Some(skull) = skull_heights(ctx, head, limbs, kinds) {
+        let total = skull.leaf_evidence + ends.unwrap_or(0.0);
+        let k = if total > 0.0 {
+            // Every bone above the skull top before the leaf ends the head too (a cartoon's
+            // `HeadTop_End` with its own end joint): the head is the last one below it.
+            let below = head[..last]
+                .iter()
+                .rposition(|b| skull.r(ctx, *b) < SKULL_TOP);
+            below.filter(|&k| k + 1 < last && k > 0).unwrap_or(last - 1)
+        } else {
+            last
+        };
+        let strength = (-total.abs()).exp();
+        let bones = head[k.saturating_sub(1)..].to_vec();
+        return (k, (strength > DOUBT_FLOOR).then_some((strength, bones)));
+    }
+    if let Some(e) = ends {
+        return (if e > 0.0 { last - 1 } else { last }, None);
     }
     let seg = (ctx.pos[head[last].index()] - ctx.pos[head[last - 1].index()]).length();
     let limit = leg.map(|l| 0.14 * l).unwrap_or(0.07 * ctx.size);
     if seg > limit {
-        last - 1
+        (last - 1, None)
     } else {
-        last
+        (last, None)
     }
 }
 
-/// Whether the leaf ending an upright body's head chain is the top of the skull (an end
-/// marker) rather than the head joint itself. Measured in torso lengths (shoulder line minus
-/// hip height) above the shoulder line: the skull top sits ≈0.55–0.65 above, the skull base
-/// (where head joints sit) ≈0.25–0.4. A skull-top leaf also ends a head-long segment (≥ 0.2
-/// torso) from a joint that is itself above the shoulders. `None` when the body is not upright
-/// (no arms above legs: quadrupeds, creatures) or the leaf is in the ambiguous band, so other
-/// evidence decides.
-fn leaf_is_skull_top(
+/// What the end-joint convention weighs as evidence that the head chain's leaf is an end
+/// marker, against the skull-top proportion (whose unit is [`SKULL_SCALE`]).
+const END_JOINTS: f32 = 1.0;
+
+/// Torso lengths above the shoulder line halfway between where head joints sit (the skull
+/// base, ≈0.25–0.4) and where the skull top does (≈0.55–0.65).
+const SKULL_TOP: f32 = 0.445;
+
+/// Torso lengths per unit of evidence in the skull-top proportion.
+const SKULL_SCALE: f32 = 0.1;
+
+/// Doubts weaker than this are not worth carrying.
+const DOUBT_FLOOR: f32 = 0.05;
+
+/// An upright body's head chain measured in torso lengths (shoulder line minus hip height)
+/// above the shoulder line, and the evidence its leaf gives of being the skull top.
+struct Skull {
+    shoulder: f32,
+    torso: f32,
+    /// Positive: the leaf is the skull top (an end marker); negative: it is the head joint.
+    leaf_evidence: f32,
+}
+
+impl Skull {
+    fn r(&self, ctx: &Ctx<'_>, b: BoneId) -> f32 {
+        (ctx.h(b) - self.shoulder) / self.torso
+    }
+}
+
+/// The skull-top evidence of the leaf ending an upright body's head chain: how far it sits
+/// above or below [`SKULL_TOP`], in [`SKULL_SCALE`] units (within ±3). A skull-top leaf also
+/// ends a head-long segment (≥ 0.2 torso) from a joint that is itself above the shoulders;
+/// otherwise a high leaf is no evidence either way. `None` when the body is not upright (no
+/// arms above legs: quadrupeds, creatures).
+fn skull_heights(
     ctx: &Ctx<'_>,
     head: &[BoneId],
     limbs: &[Limb],
     kinds: &[LimbKind],
-) -> Option<bool> {
+) -> Option<Skull> {
     let n = head.len();
     if n < 2 {
         return None;
@@ -420,18 +474,18 @@ fn leaf_is_skull_top(
     if torso < 0.1 * ctx.size {
         return None;
     }
-    let leaf = head[n - 1];
-    let below = head[n - 2];
-    let r_leaf = (ctx.h(leaf) - shoulder) / torso;
-    let r_below = (ctx.h(below) - shoulder) / torso;
+    let mut skull = Skull {
+        shoulder,
+        torso,
+        leaf_evidence: 0.0,
+    };
+    let (leaf, below) = (head[n - 1], head[n - 2]);
+    let r_leaf = skull.r(ctx, leaf);
     let seg = (ctx.pos[leaf.index()] - ctx.pos[below.index()]).length() / torso;
-    if r_leaf >= 0.47 && r_below >= 0.1 && seg >= 0.2 {
-        Some(true)
-    } else if r_leaf <= 0.42 {
-        Some(false)
-    } else {
-        None
-    }
+    let ends_a_skull = skull.r(ctx, below) >= 0.1 && seg >= 0.2;
+    let e = ((r_leaf - SKULL_TOP) / SKULL_SCALE).clamp(-3.0, 3.0);
+    skull.leaf_evidence = if e > 0.0 && !ends_a_skull { 0.0 } else { e };
+    Some(skull)
 }
 
 #[cfg(test)]
