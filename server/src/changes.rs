@@ -2,10 +2,10 @@
 //! out the same way for a local client session and for a request another node forwarded
 //! (`cluster::control`): the connection's right to change the server is checked before.
 
+use rigcast_engine::inbox::Busy;
 use rigcast_protocol::control::{ClientMessage, ErrorCode};
 use rigcast_protocol::ServerMessage;
 use rigcast_retarget::Skeleton;
-use tokio::sync::mpsc;
 
 use crate::state::Changes;
 use rigcast_engine::tick::EngineCommand;
@@ -81,17 +81,12 @@ fn set_mapping(
 
 /// Hands a command to the engine and answers `ack`, or an error when it cannot take it now.
 fn send_command(state: &Changes, cmd: EngineCommand, request: &str, subject: u32) -> ServerMessage {
-    match state.commands.try_send(cmd) {
+    match state.inbox.request(cmd) {
         Ok(()) => ServerMessage::Ack {
             request: request.into(),
             subject,
         },
-        Err(mpsc::error::TrySendError::Full(_)) => {
-            ServerMessage::error(ErrorCode::Internal, "engine is busy; retry")
-        }
-        Err(mpsc::error::TrySendError::Closed(_)) => {
-            ServerMessage::error(ErrorCode::Internal, "engine is shutting down")
-        }
+        Err(Busy) => ServerMessage::error(ErrorCode::Internal, "engine is busy; retry"),
     }
 }
 

@@ -1,12 +1,16 @@
 //! Live sources (VMC, serial IMU suits, video): one std thread each, blocking in
-//! `LiveSource::next_frame` and publishing into the subject's frame slot.
+//! `LiveSource::next_frame` and handing its poses to the engine through its door.
 //!
 //! ```text
 //!  thread: next_frame(50 ms, &mut pose) ─▶ skeleton changed? ─▶ subject shape, `subjects_changed`
 //!            │                                                  + `skeleton` to clients, re-map
-//!            └─▶ FrameWriter::send_modify (copy, no allocation)
-//!          every ~100 ms: status() ─▶ subject health (state, fps, latency, frames, dropped)
+//!            └─▶ SourceDoor::hand_over (copy, no allocation) ─▶ the engine's Input::Frame
+//!          every ~100 ms: status() ─▶ the live report (fps, latency, frames, dropped) on the
+//!                                     subject; its state ─▶ the engine's Input::Health
 //! ```
+//!
+//! A subject the cluster relays from another node is no source of this node's engine: its
+//! thread writes the subject's slot and health itself ([`LiveFeed::Relayed`]).
 //!
 //! Skeleton changes are rate-limited: a sender that changes its skeleton faster than once
 //! per [`MIN_SKELETON_CHANGE_INTERVAL`] (each change re-maps, re-announces and may add a cache
@@ -19,11 +23,12 @@ use std::time::{Duration, Instant};
 
 use rigcast_retarget::Pose;
 use rigcast_sources::live::LiveSource;
-use tokio::sync::{broadcast, mpsc};
+use tokio::sync::broadcast;
 
 use crate::recorder::Recorder;
-use rigcast_engine::clock::unix_nanos;
+use rigcast_engine::clock::TickTime;
 use rigcast_engine::events::Event;
+use rigcast_engine::inbox::{Inbox, SourceDoor};
 use rigcast_engine::slot::FrameWriter;
 use rigcast_engine::subject::Subject;
 use rigcast_engine::tick::EngineCommand;
@@ -35,25 +40,69 @@ const STATUS_EVERY: Duration = Duration::from_millis(100);
 /// Shortest time between two applied skeleton changes of one source.
 pub const MIN_SKELETON_CHANGE_INTERVAL: Duration = Duration::from_secs(1);
 
+/// Where a live source's poses and health go.
+pub enum LiveFeed {
+    /// To the engine (a source of this node): its door (which wakes the engine's loop for
+    /// each pose when the tick should take it at once: cameras).
+    Engine(SourceDoor),
+    /// A subject relayed from another node (no source of this node's engine): its slot,
+    /// written here, and its health, set here.
+    Relayed(FrameWriter),
+}
+
 /// What a live-source thread talks to.
 pub struct LiveContext {
     /// The subject it feeds.
     pub subject: Arc<Subject>,
-    /// Its slot.
-    pub tx: FrameWriter,
+    /// Where its poses and health go.
+    pub feed: LiveFeed,
     /// All subjects (for `subjects_changed`).
     pub subjects: Arc<rigcast_engine::subject_list::SubjectList>,
     /// Control messages to clients.
     pub events: broadcast::Sender<Event>,
-    /// Requests to the mapper.
-    pub commands: mpsc::Sender<EngineCommand>,
+    /// The engine's inbox (a skeleton change asks for a re-map through it).
+    pub inbox: Inbox,
     /// Recording of skeleton changes, if any.
     pub recorder: Option<Arc<Recorder>>,
     /// Set on shutdown.
     pub stop: Arc<AtomicBool>,
-    /// Notified after each new pose when the tick should take it at once (cameras: see
-    /// [`crate::tick_task::run_engine`]); `None` for sources the tick samples at its own rate.
-    pub wake: Option<Arc<tokio::sync::Notify>>,
+}
+
+impl LiveContext {
+    /// The source's state now: to the engine, or set here for a relayed subject (clients
+    /// hear of a change at once either way).
+    fn health(&self, state: rigcast_protocol::SourceState) {
+        match &self.feed {
+            LiveFeed::Engine(door) => door.health(state),
+            LiveFeed::Relayed(_) => {
+                let changed = self.subject.health.state() != state;
+                self.subject.health.set_state(state);
+                if changed {
+                    // Err only means no client is connected.
+                    let _ = self.events.send(Event::source_status(
+                        &self.subjects.snapshot(),
+                        Instant::now(),
+                    ));
+                }
+            }
+        }
+    }
+
+    /// Hands over a new pose (`false`: refused by the checks).
+    fn hand_over(&self, pose: &mut Pose, seq: u64, capture_nanos: u64) -> bool {
+        let time = TickTime::now();
+        match &self.feed {
+            LiveFeed::Engine(door) => door.hand_over(time, seq, capture_nanos, pose),
+            LiveFeed::Relayed(tx) => {
+                let s = &self.subject;
+                if !s.admit(pose, time.instant) {
+                    return false;
+                }
+                s.publish_source_pose(tx, pose, time, (capture_nanos, seq));
+                true
+            }
+        }
+    }
 }
 
 /// Runs a live source until `stop` is set.
@@ -68,19 +117,12 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
         if last_status.elapsed() >= STATUS_EVERY {
             last_status = Instant::now();
             let status = source.status();
-            let changed = ctx.subject.health.state() != status.state;
-            ctx.subject.health.set_state(status.state);
+            let state = status.state;
             if let Ok(mut g) = ctx.subject.health.live.lock() {
                 *g = Some(status);
             }
-            if changed {
-                // Clients hear of a loss or a recovery now, not at the next periodic report.
-                // Err only means no client is connected.
-                let _ = ctx.events.send(Event::source_status(
-                    &ctx.subjects.snapshot(),
-                    Instant::now(),
-                ));
-            }
+            // Clients hear of a loss or a recovery now, not at the next periodic report.
+            ctx.health(state);
         }
         match source.next_frame(POLL, &mut pose) {
             Ok(Some(meta)) => {
@@ -108,44 +150,12 @@ pub fn run_live(mut source: Box<dyn LiveSource>, ctx: LiveContext) {
                         }
                     }
                 }
-                // Checked as a whole where it enters the engine: each value may be finite
-                // while their sums (root + hips, a chain in FK) are not.
-                if let Err(refusal) = pose.check_values() {
-                    let shape = ctx.subject.shape();
-                    let names = shape.skeleton.names();
-                    let name = names.get(refusal.bone).map_or("?", |n| n.as_str());
-                    ctx.subject.stats.reject_pose(refusal, name, Instant::now());
-                    continue;
+                // Checked as a whole where it enters the engine (the door or, relayed,
+                // here): each value may be finite while their sums (root + hips, a chain in
+                // FK) are not.
+                if ctx.hand_over(&mut pose, meta.seq, meta.capture_nanos) {
+                    last_error = None;
                 }
-                let capture = if meta.capture_nanos == 0 {
-                    unix_nanos()
-                } else {
-                    meta.capture_nanos
-                };
-                // Before the frame: a tick that sees the new frame sees when it was handed over.
-                ctx.subject
-                    .stats
-                    .published_nanos
-                    .store(unix_nanos(), Ordering::Relaxed);
-                ctx.tx.send_modify(|f| {
-                    if f.pose.num_bones() == pose.num_bones() {
-                        f.pose.copy_from(&pose);
-                    } else {
-                        // Only after a skeleton change.
-                        f.pose = pose.clone();
-                    }
-                    f.seq = meta.seq.max(f.seq + 1);
-                    f.capture_nanos = capture;
-                });
-                if let Some(wake) = &ctx.wake {
-                    wake.notify_one();
-                }
-                ctx.subject.stats.input.tick(Instant::now());
-                ctx.subject
-                    .stats
-                    .last_capture_nanos
-                    .store(capture, Ordering::Relaxed);
-                last_error = None;
             }
             Ok(None) => {}
             Err(e) => {
@@ -173,8 +183,7 @@ fn announce_skeleton(ctx: &LiveContext) {
     if let Some(r) = &ctx.recorder {
         r.skeleton(ctx.subject.id, &shape.info.name, &shape.skeleton);
     }
-    // Fails only when the mapper has stopped (shutdown).
-    let _ = ctx.commands.blocking_send(EngineCommand::SkeletonChanged {
+    ctx.inbox.notice(EngineCommand::SkeletonChanged {
         subject: ctx.subject.id,
     });
 }

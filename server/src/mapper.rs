@@ -8,7 +8,7 @@
 //!          ▸ cluster mode: the nodes' shared cache (crate::cluster::SharedMappings) ▸ auto_map_many
 //!        + overrides file (TOML) + the session's set_mapping overrides
 //!        ──▶ cache (memory + disk, LRU-bounded, written only when changed: mapping_store.rs)
-//!        ──▶ Mapping::build ──▶ mailbox (tick picks it up)
+//!        ──▶ Mapping::build ──▶ the engine's inbox (Input::Mapping; the tick takes it)
 //!                                                   └──▶ `mapping` message to clients
 //! ```
 //!
@@ -30,13 +30,14 @@ use rigcast_retarget::mapping::{
     SourceRef, TargetEntry, UNMAPPED,
 };
 use rigcast_retarget::{BoneId, Follow, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
-use tokio::sync::{broadcast, mpsc};
+use tokio::sync::broadcast;
 
 use crate::changes::find_source_bone;
 use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
 use crate::offline::TableCache;
 use rigcast_engine::graft_live::{LiveGraft, LowerInput};
-use rigcast_engine::performer::{BuiltMapping, Mailbox};
+use rigcast_engine::inbox::Inbox;
+use rigcast_engine::performer::BuiltMapping;
 use rigcast_engine::reports::MappingReport;
 use rigcast_engine::subject::Subject;
 use rigcast_engine::tick::EngineCommand;
@@ -60,8 +61,6 @@ pub struct PerformerPlan {
     /// Foot locking: `Some(on)` as configured, `None` for on when the character is a humanoid
     /// or a quadruped.
     pub foot_lock: Option<bool>,
-    /// Where built mappings go.
-    pub mailbox: Mailbox,
     /// A graft's lower body (`None`: not a graft; the upper body is input 0).
     pub graft: Option<LowerInput>,
 }
@@ -86,6 +85,8 @@ pub struct Mapper {
     shared: Option<crate::cluster::SharedMappings>,
     frame_time_secs: f32,
     events: broadcast::Sender<rigcast_engine::events::Event>,
+    /// Where built mappings go, and whom the mapper tells it took a command.
+    engine: Inbox,
     options: MapOptions,
 }
 
@@ -98,6 +99,7 @@ impl Mapper {
         disk: Option<PathBuf>,
         rate_hz: f64,
         events: broadcast::Sender<rigcast_engine::events::Event>,
+        engine: Inbox,
     ) -> Mapper {
         Mapper {
             subjects,
@@ -107,6 +109,7 @@ impl Mapper {
             shared: None,
             frame_time_secs: (1.0 / rate_hz) as f32,
             events,
+            engine,
             options: MapOptions::default(),
         }
     }
@@ -260,7 +263,7 @@ impl Mapper {
         crate::offline::posture_plan(table, &with_clips, ta)
     }
 
-    /// Publishes performer `i`'s built mapping: the locked feet for the status, the mailbox,
+    /// Publishes performer `i`'s built mapping: the locked feet for the status, the engine,
     /// the `mapping` message.
     fn hand_over(&self, i: usize, built: BuiltMapping, report: MappingReport) {
         let p = &self.performers[i];
@@ -277,9 +280,7 @@ impl Mapper {
             .stats
             .feet_locked
             .store(0, std::sync::atomic::Ordering::Relaxed);
-        if let Ok(mut slot) = p.mailbox.lock() {
-            *slot = Some(built);
-        }
+        self.engine.mapping(p.target.id, built);
         let report = Arc::new(report);
         p.target.set_mapping(report.clone());
         // Err only means no client is listening right now.
@@ -447,12 +448,14 @@ impl Mapper {
         }
     }
 
-    /// Runs until `Shutdown` or every sender is gone (call on a dedicated thread).
-    pub fn run(mut self, mut rx: mpsc::Receiver<EngineCommand>) {
-        while let Some(cmd) = rx.blocking_recv() {
+    /// Runs until `Shutdown` or every sender is gone (call on a dedicated thread): the
+    /// commands the engine passes on ([`rigcast_engine::Output::Build`]).
+    pub fn run(mut self, rx: std::sync::mpsc::Receiver<EngineCommand>) {
+        while let Ok(cmd) = rx.recv() {
             if matches!(cmd, EngineCommand::Shutdown) {
                 break;
             }
+            self.engine.command_taken();
             self.handle(cmd);
         }
     }

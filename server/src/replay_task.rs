@@ -1,8 +1,6 @@
-//! A replayed clip as a source: a tokio task writing the clip's frames into its subject's
-//! slot on the clip's own frame grid.
+//! A replayed clip as a source: a tokio task handing the clip's frames to the engine (its
+//! door) on the clip's own frame grid.
 
-use std::sync::atomic::Ordering;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_protocol::SourceState;
@@ -10,9 +8,8 @@ use rigcast_sources::Replay;
 use tokio::sync::watch;
 use tokio::time::MissedTickBehavior;
 
-use rigcast_engine::clock::unix_nanos;
-use rigcast_engine::slot::FrameWriter;
-use rigcast_engine::subject::Subject;
+use rigcast_engine::clock::TickTime;
+use rigcast_engine::inbox::SourceDoor;
 
 /// Runs one replay source until shutdown or (non-looping) end of clip.
 ///
@@ -21,10 +18,11 @@ use rigcast_engine::subject::Subject;
 pub async fn run_replay_source(
     player: Replay,
     speed: f64,
-    tx: FrameWriter,
-    subject: Arc<Subject>,
+    door: SourceDoor,
     mut shutdown: watch::Receiver<bool>,
 ) {
+    // Sized once; sampled into, then copied through the door.
+    let mut pose = door.subject().skeleton().rest_pose();
     // A floor on the period keeps a very fast speed setting from spinning the runtime; a
     // ceiling keeps a huge frame time (or a tiny speed) from overflowing the timer.
     let period = (player.frame_time_secs() / speed).clamp(1e-3, 3600.0);
@@ -44,24 +42,13 @@ pub async fn run_replay_source(
             continue;
         }
         last_k = Some(k);
-        let now = unix_nanos();
-        let mut finished = false;
+        let now = TickTime::now();
         let elapsed_secs = k as f64 * period;
-        tx.send_modify(|f| match player.sample(elapsed_secs, &mut f.pose) {
-            Some(_) => {
-                f.seq += 1;
-                f.capture_nanos = now;
-            }
-            None => finished = true,
-        });
-        if finished {
-            subject.health.set_state(SourceState::Finished);
+        if player.sample(elapsed_secs, &mut pose).is_none() {
+            door.health(SourceState::Finished);
             break;
         }
-        subject.stats.input.tick(Instant::now());
-        subject
-            .stats
-            .last_capture_nanos
-            .store(now, Ordering::Relaxed);
+        // Captured when sampled (0: the time it is handed over).
+        door.hand_over(now, 0, 0, &pose);
     }
 }

@@ -7,15 +7,16 @@ use std::sync::Arc;
 
 use rigcast_protocol::control::{ClientMessage, SubjectInfo};
 use rigcast_protocol::ServerMessage;
-use tokio::sync::{broadcast, mpsc, watch};
+use tokio::sync::{broadcast, watch};
 
 use crate::access::AccessPolicy;
 use crate::limits::{ConnectionLimiter, FdLimit};
 use crate::recorder::RecorderHealth;
 use crate::stats::{MappingShareCounts, Stats};
 use rigcast_engine::events::Event;
+use rigcast_engine::inbox::Inbox;
 use rigcast_engine::subject::Subject;
-use rigcast_engine::tick::{EngineCommand, OutFrame};
+use rigcast_engine::tick::OutFrame;
 
 /// Shared server state (immutable apart from atomics and the stats' locks).
 pub struct ServerState {
@@ -34,8 +35,8 @@ pub struct ServerState {
     pub next_client_id: AtomicU64,
     /// Becomes `true` on shutdown.
     pub shutdown: watch::Receiver<bool>,
-    /// Requests to the engine.
-    pub commands: mpsc::Sender<EngineCommand>,
+    /// Where requests for the engine are left (`set_mapping`, `set_performer`).
+    pub inbox: Inbox,
     /// Origin/Host/token rules of the listener.
     pub policy: AccessPolicy,
     /// The connection cap.
@@ -78,15 +79,15 @@ impl Feeds {
 }
 
 /// What the requests that change the server (`changes`) see: the subjects, the events to tell
-/// clients of a change and the mapper's command queue.
+/// clients of a change and the engine's inbox (for the requests it passes to the mapper).
 #[derive(Clone)]
 pub struct Changes {
     /// Subjects in id order (id = index).
     pub subject_list: Arc<rigcast_engine::subject_list::SubjectList>,
     /// What every client is told about, typed.
     pub events: broadcast::Sender<Event>,
-    /// Requests to the mapper.
-    pub commands: mpsc::Sender<EngineCommand>,
+    /// Where requests for the engine are left.
+    pub inbox: Inbox,
 }
 
 impl Changes {
@@ -147,14 +148,14 @@ pub struct ControlService {
 }
 
 /// What the cluster's bucket watch sees: the feeds (to relay a subject it finds and tell
-/// clients of it) and the mapper's command queue (a found subject's live thread asks for a
-/// re-map when its skeleton changes).
+/// clients of it) and the engine's inbox (a found subject's live thread asks for a re-map when
+/// its skeleton changes).
 #[derive(Clone)]
 pub struct Discovery {
     /// The subjects, broadcasts, shutdown signal and counters.
     pub feeds: Feeds,
-    /// Requests to the mapper.
-    pub commands: mpsc::Sender<EngineCommand>,
+    /// Where requests for the engine are left.
+    pub inbox: Inbox,
 }
 
 /// Cluster mode as the status shows it (the connection itself stays in `cluster`).
@@ -202,7 +203,7 @@ impl ServerState {
     pub fn discovery(&self) -> Discovery {
         Discovery {
             feeds: self.feeds(),
-            commands: self.commands.clone(),
+            inbox: self.inbox.clone(),
         }
     }
 
@@ -211,7 +212,7 @@ impl ServerState {
         Changes {
             subject_list: self.subject_list.clone(),
             events: self.events.clone(),
-            commands: self.commands.clone(),
+            inbox: self.inbox.clone(),
         }
     }
 

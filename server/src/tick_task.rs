@@ -1,8 +1,9 @@
-//! The host side of the engine: a loop that passes [`Engine`] the time (read here) and
-//! hands out what it yields: [`HostOutput`] broadcasts frames to the client sessions and sends
-//! VMC bundles on a UDP socket, events go on the clients' event broadcast. Never awaits
-//! anything but the engine's next wake-up, a camera's pose and the shutdown signal; never
-//! blocks on a client.
+//! The host side of the engine: a loop that passes [`Engine`] what its [`Inbox`] holds (the
+//! sources' poses and health, built mappings, commands) and the time (read here), and hands
+//! out what it yields: [`HostOutput`] broadcasts frames to the client sessions and sends VMC
+//! bundles on a UDP socket, events go on the clients' event broadcast, mappings to build go to
+//! the mapper's thread. Never awaits anything but the engine's next wake-up, the inbox's wake
+//! and the shutdown signal; never blocks on a client.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::Ordering;
@@ -10,7 +11,8 @@ use std::sync::Arc;
 
 use rigcast_engine::clock::TickTime;
 use rigcast_engine::events::Event;
-use rigcast_engine::tick::{OutFrame, TickOutput};
+use rigcast_engine::inbox::Inbox;
+use rigcast_engine::tick::{EngineCommand, OutFrame, TickOutput};
 use rigcast_engine::{Engine, Input, Output};
 use tokio::sync::{broadcast, watch};
 
@@ -44,32 +46,36 @@ impl TickOutput for HostOutput {
 }
 
 /// Runs the engine until shutdown: hands out what it yields (datagrams on the UDP socket,
-/// frames to the client sessions, events to every client, each tick's duration to the
-/// counters), then sleeps until the wake-up it asked for, a camera's new pose (`wake`,
-/// [`Input::Wake`]: the engine brings the tick forward, see
-/// `rigcast_engine::schedule::TickSchedule`) or shutdown, and passes it the time then. The
-/// only clocks read are here; every decision about when to tick is the engine's.
+/// frames to the client sessions, events to every client, mappings to build to the mapper,
+/// each tick's duration to the counters), then sleeps until the wake-up it asked for, the
+/// inbox's wake (a camera's new pose, a source's health, a mapping built, a command) or
+/// shutdown; then passes it everything the inbox holds ([`Inbox::drain`]: a camera's pose
+/// brings the tick forward, see `rigcast_engine::schedule::TickSchedule`) and the time now.
+/// The only clocks read are here; every decision about when to tick is the engine's.
+///
+/// `mapper` is the mapper thread's queue: unbounded, since the inbox bounds what is on its
+/// way (`rigcast_engine::inbox::COMMANDS_IN_FLIGHT`).
 pub async fn run_engine(
     mut engine: Engine,
     mut out: HostOutput,
     events: broadcast::Sender<Event>,
+    mapper: std::sync::mpsc::Sender<EngineCommand>,
+    inbox: Inbox,
     wake: Arc<tokio::sync::Notify>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     loop {
-        let next = hand_out(&mut engine, &mut out, &events);
-        if next <= std::time::Instant::now() {
-            // Due already (the encoding of a tick that just performed): no sleep.
-            engine.handle_input(Input::Timeout(TickTime::now()));
-            continue;
-        }
-        tokio::select! {
-            _ = tokio::time::sleep_until(next.into()) => {
-                engine.handle_input(Input::Timeout(TickTime::now()));
+        let next = hand_out(&mut engine, &mut out, &events, &mapper);
+        // Due already (the encoding of a tick that just performed): no sleep.
+        if next > std::time::Instant::now() {
+            tokio::select! {
+                _ = tokio::time::sleep_until(next.into()) => {}
+                _ = wake.notified() => {}
+                _ = shutdown.changed() => break,
             }
-            _ = wake.notified() => engine.handle_input(Input::Wake(TickTime::now())),
-            _ = shutdown.changed() => break,
         }
+        inbox.drain(|input| engine.handle_input(input));
+        engine.handle_input(Input::Timeout(TickTime::now()));
     }
 }
 
@@ -78,6 +84,7 @@ fn hand_out(
     engine: &mut Engine,
     out: &mut HostOutput,
     events: &broadcast::Sender<Event>,
+    mapper: &std::sync::mpsc::Sender<EngineCommand>,
 ) -> std::time::Instant {
     loop {
         match engine.poll_output() {
@@ -86,6 +93,10 @@ fn hand_out(
             Output::Event(event) => {
                 // Err only means no client is connected; the subjects keep their reports.
                 let _ = events.send(event);
+            }
+            Output::Build(command) => {
+                // Err only when the mapper has stopped (shutdown): nothing left to build.
+                let _ = mapper.send(command);
             }
             Output::Ticked(started) => out
                 .stats

@@ -1,8 +1,9 @@
-//! Driven as the host drives it (sources' poses in, the time in, every output taken), the
-//! engine allocates exactly one shared frame buffer per subject per tick, as the tick alone
-//! does (`tick_alloc.rs`): its output queue, the copy a fed pose is checked in, its timetable
-//! and its status and foot-plant checks (every 50 ms and 30 Hz between the ticks, nothing to
-//! report) reuse their memory. The once-a-second `source_status` report allocates (a report
+//! Driven as the host drives it (sources' poses handed over through their doors into the
+//! inbox, the inbox drained into the engine, the time in, every output taken), the engine
+//! allocates exactly one shared frame buffer per subject per tick, as the tick alone does
+//! (`tick_alloc.rs`): the doors' pose buffers, the inbox's drain, its output queue, the copy a
+//! fed pose is checked in, its timetable and its status and foot-plant checks (every 50 ms and
+//! 30 Hz between the ticks, nothing to report) reuse their memory. The once-a-second `source_status` report allocates (a report
 //! for the clients), so the ticks measured fall between two of them. Proven with a counting
 //! global allocator, so this file holds only this test.
 #![allow(clippy::unwrap_used)]
@@ -10,11 +11,11 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::inbox::Inbox;
+use rigcast_engine::performer::BuiltMapping;
 use rigcast_engine::settings::OnLost;
-use rigcast_engine::subject_list::SubjectList;
-use rigcast_engine::tick::{TickContext, VmcTarget};
-use rigcast_engine::{Engine, EngineParts, Input, Output, TickTime};
+use rigcast_engine::tick::VmcTarget;
+use rigcast_engine::{Engine, Input, Output, TickTime};
 
 mod common;
 
@@ -43,6 +44,7 @@ fn run_at(engine: &mut Engine, now: TickTime, counts: &mut Counts) -> std::time:
             Output::Frame(_) => counts.frames += 1,
             Output::Event(_) => counts.events += 1,
             Output::Ticked(_) => counts.ticks += 1,
+            Output::Build(c) => panic!("nothing was asked for, yet {c:?}"),
             Output::Timeout(at) if at <= now.instant => engine.handle_input(Input::Timeout(now)),
             Output::Timeout(at) => return at,
         }
@@ -55,65 +57,41 @@ fn the_engine_allocates_one_buffer_per_subject_per_tick() {
     let (mut subjects, writers) = common::source_subjects(3, &clip.skeleton);
     let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
     let (_, mapping) = common::rest_mapping(&clip.skeleton, &target);
-    let (t, target_tx) = common::target_subject(3, &target);
-    let performer = Performer::new(
-        t.clone(),
-        target_tx,
-        vec![subjects[0].clone()],
-        Arc::default(),
-        OnLost::Ease,
-    );
+    let (t, performer) = common::performer(3, &target, &subjects[..1], OnLost::Ease);
+    let inbox = Inbox::new(|| {});
+    let doors: Vec<_> = (subjects.iter())
+        .map(|s| inbox.door(s.clone(), false))
+        .collect();
     subjects.push(t.clone());
-    let subjects = Arc::new(subjects);
     let receiver = "127.0.0.1:39539".parse().unwrap();
     let t0 = TickTime::now();
-    let mut engine = Engine::new(
-        EngineParts {
-            tick: TickContext {
-                subjects: subjects.clone(),
-                vmc: vec![
-                    VmcTarget {
-                        addr: receiver,
-                        subject_index: 0,
-                    },
-                    VmcTarget {
-                        addr: receiver,
-                        subject_index: 3,
-                    },
-                ],
-                performers: vec![performer],
-            },
-            rate_hz: 60.0,
-            subjects: Arc::new(SubjectList::new(subjects)),
-        },
-        t0.instant,
-    );
+    let vmc = [0, 3].map(|subject_index| VmcTarget {
+        addr: receiver,
+        subject_index,
+    });
+    let mut engine = common::engine(subjects, vmc.to_vec(), vec![performer], 60.0, t0.instant);
     for (id, tx) in writers.into_iter().enumerate() {
         engine.feed(id as u32, tx, false);
     }
-    engine.handle_input(Input::Mapping {
-        target: 3,
-        built: BuiltMapping {
+    inbox.mapping(
+        3,
+        BuiltMapping {
             mapping,
             foot_lock: None,
             graft: None,
         },
-    });
+    );
 
     // Every source sends a new pose before each tick; the host sleeps until the wake-up.
     let mut k = 0usize;
     let mut wake = t0.instant;
     let mut step = |engine: &mut Engine, counts: &mut Counts, wake: &mut std::time::Instant| {
         let now = t0.after(wake.duration_since(t0.instant));
-        for id in 0..3u32 {
-            let pose = &clip.poses[(k + id as usize) % clip.poses.len()];
-            engine.handle_input(Input::Frame {
-                subject: id,
-                time: now,
-                capture_nanos: 0,
-                pose,
-            });
+        for (id, door) in doors.iter().enumerate() {
+            let pose = &clip.poses[(k + id) % clip.poses.len()];
+            assert!(door.hand_over(now, 0, 0, pose));
         }
+        inbox.drain(|input| engine.handle_input(input));
         k += 1;
         *wake = run_at(engine, now, counts);
     };

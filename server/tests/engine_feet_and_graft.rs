@@ -24,12 +24,10 @@ use std::time::Duration;
 use rigcast_engine::clock::TickTime;
 use rigcast_engine::events::Event;
 use rigcast_engine::graft_live::LiveGraft;
-use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::performer::BuiltMapping;
 use rigcast_engine::settings::OnLost;
 use rigcast_engine::subject::Subject;
-use rigcast_engine::subject_list::SubjectList;
-use rigcast_engine::tick::TickContext;
-use rigcast_engine::{Engine, EngineParts, Input};
+use rigcast_engine::{Engine, Input};
 use rigcast_protocol::{SourceState, TargetMotion};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings};
@@ -69,31 +67,19 @@ impl Rig {
     fn new(clip: &Clip, skeleton: &Arc<Skeleton>, built: BuiltMapping) -> Rig {
         let (source, source_tx) = Subject::new(0, "performer".into(), clip.skeleton.clone());
         let source = Arc::new(source);
-        let (target, target_tx) = common::target_subject(1, skeleton);
+        let (target, performer) =
+            common::performer(1, skeleton, std::slice::from_ref(&source), OnLost::Ease);
         // The feet the lock holds, named as the mapper names them when it hands a mapping over.
         *target.stats.locked_feet.lock().unwrap() = (built.foot_lock.iter())
             .flat_map(|l| l.target_legs())
             .map(|leg| skeleton.name(leg.foot).to_string())
             .collect();
-        let performer = Performer::new(
-            target.clone(),
-            target_tx,
-            vec![source.clone()],
-            Arc::default(),
-            OnLost::Ease,
-        );
-        let subjects = Arc::new(vec![source.clone(), target.clone()]);
         let now = TickTime::now();
-        let mut engine = Engine::new(
-            EngineParts {
-                tick: TickContext {
-                    subjects: subjects.clone(),
-                    vmc: Vec::new(),
-                    performers: vec![performer],
-                },
-                rate_hz: 1.0 / TICK.as_secs_f64(),
-                subjects: Arc::new(SubjectList::new(subjects)),
-            },
+        let mut engine = common::engine(
+            vec![source.clone(), target.clone()],
+            Vec::new(),
+            vec![performer],
+            1.0 / TICK.as_secs_f64(),
             now.instant,
         );
         engine.feed(0, source_tx, false);
@@ -120,6 +106,7 @@ impl Rig {
                 subject: 0,
                 time: self.now,
                 capture_nanos: self.now.unix_nanos,
+                seq: 0,
                 pose,
             });
         }

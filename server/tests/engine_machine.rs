@@ -23,14 +23,13 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use rigcast_engine::events::Event;
-use rigcast_engine::performer::{BuiltMapping, Performer};
+use rigcast_engine::performer::BuiltMapping;
 use rigcast_engine::schedule::MIN_TICK_GAP;
 use rigcast_engine::settings::OnLost;
 use rigcast_engine::status::MOTION_POLL;
 use rigcast_engine::subject::Subject;
-use rigcast_engine::subject_list::SubjectList;
-use rigcast_engine::tick::{TickContext, VmcTarget};
-use rigcast_engine::{Engine, EngineParts, Input, TickTime};
+use rigcast_engine::tick::VmcTarget;
+use rigcast_engine::{Input, TickTime};
 use rigcast_protocol::{SourceState, TargetMotion};
 
 const TARGET: u32 = 1;
@@ -58,31 +57,20 @@ fn loss_idle_and_resume_on_the_engines_own_timetable() {
     let (source, source_tx) = Subject::new(0, "performer".into(), walk.skeleton.clone());
     let source = Arc::new(source);
     let (_, mapping) = common::rest_mapping(&walk.skeleton, &target);
-    let (t, target_tx) = common::target_subject(TARGET, &target);
-    let performer = Performer::new(
-        t.clone(),
-        target_tx,
-        vec![source.clone()],
-        Arc::default(),
-        OnLost::Idle,
-    )
-    .with_idle_graph(idle, Some(RESUME));
+    let (t, performer) =
+        common::performer(TARGET, &target, std::slice::from_ref(&source), OnLost::Idle);
+    let performer = performer.with_idle_graph(idle, Some(RESUME));
     let receiver: SocketAddr = "127.0.0.1:39539".parse().unwrap();
-    let subjects = Arc::new(vec![source.clone(), t.clone()]);
     let t0 = TickTime::now();
-    let mut engine = Engine::new(
-        EngineParts {
-            tick: TickContext {
-                subjects: subjects.clone(),
-                vmc: vec![VmcTarget {
-                    addr: receiver,
-                    subject_index: TARGET as usize,
-                }],
-                performers: vec![performer],
-            },
-            rate_hz: RATE_HZ,
-            subjects: Arc::new(SubjectList::new(subjects)),
-        },
+    let vmc = vec![VmcTarget {
+        addr: receiver,
+        subject_index: TARGET as usize,
+    }];
+    let mut engine = common::engine(
+        vec![source.clone(), t.clone()],
+        vmc,
+        vec![performer],
+        RATE_HZ,
         t0.instant,
     );
     engine.feed(0, source_tx, false);
@@ -129,6 +117,7 @@ fn loss_idle_and_resume_on_the_engines_own_timetable() {
                     subject: 0,
                     time: now,
                     capture_nanos: 0,
+                    seq: 0,
                     pose,
                 });
                 next_frame += frame_every;
@@ -247,20 +236,14 @@ fn a_cameras_pose_brings_the_tick_forward() {
     let walk = rigcast_server::demo::procedural_clip(30, 30.0).unwrap();
     let (camera, camera_tx) = Subject::new(0, "camera".into(), walk.skeleton.clone());
     let camera = Arc::new(camera);
-    let subjects = Arc::new(vec![camera.clone()]);
     let t0 = TickTime::now();
     let rate_hz = 30.0;
     let period = Duration::from_secs_f64(1.0 / rate_hz);
-    let mut engine = Engine::new(
-        EngineParts {
-            tick: TickContext {
-                subjects: subjects.clone(),
-                vmc: Vec::new(),
-                performers: Vec::new(),
-            },
-            rate_hz,
-            subjects: Arc::new(SubjectList::new(subjects)),
-        },
+    let mut engine = common::engine(
+        vec![camera.clone()],
+        Vec::new(),
+        Vec::new(),
+        rate_hz,
         t0.instant,
     );
     engine.feed(0, camera_tx, true);
@@ -287,6 +270,7 @@ fn a_cameras_pose_brings_the_tick_forward() {
                     subject: 0,
                     time: now,
                     capture_nanos: now.unix_nanos,
+                    seq: 0,
                     pose,
                 });
                 wake = engine.next_wake_up();

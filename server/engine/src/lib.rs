@@ -8,14 +8,16 @@
 //! and sockets and hands the engine plain values.
 //!
 //! ```text
-//!  host loop ─handle_input(Timeout(time) | Wake | Frame | Health | Mapping)─▶ Engine
+//!  source threads ─SourceDoor─▶ ┐
+//!  mapper, sessions ─────────────┴▶ Inbox ─drain─▶ host loop
+//!  host loop ─handle_input(Timeout(time) | Frame | Health | Mapping | Command)─▶ Engine
 //!    ▲                                   timetable (schedule) · Ticker · foot plants · status
-//!    └─poll_output(): Datagram · Frame · Event · Ticked · Timeout(next wake-up)
-//!  source threads ─FrameWriter─▶ subject slots ◀─FrameReader─ the tick's performers, encoding
-//!  mapper thread ─Mailbox─▶ performers
+//!    └─poll_output(): Datagram · Frame · Event · Build · Ticked · Timeout(next wake-up)
+//!  Engine ─FrameWriter─▶ source subjects' slots ◀─FrameReader─ the tick's performers, encoding
 //! ```
 //!
 //! Entry points: [`Engine`] (fed [`Input`]s, yielding [`Output`]s and its next wake-up),
+//! [`inbox::Inbox`] (where the host's threads leave inputs for the engine's loop),
 //! [`Ticker`] (one tick at a given time, its outputs to a [`TickOutput`]),
 //! [`subject::Subject`], [`performer::Performer`], [`footplants::FootplantSampler`],
 //! [`fault::announce`]. `server/tests/engine_machine.rs` drives the engine on a simulated
@@ -31,6 +33,7 @@ pub mod fault;
 pub mod footplants;
 pub mod graft_live;
 pub mod idle_graph;
+pub mod inbox;
 pub mod machine;
 pub mod performer;
 pub mod reports;

@@ -1,13 +1,16 @@
 //! The engine as one state machine: fed [`Input`]s (the time, source poses, health, built
-//! mappings), it yields [`Output`]s (frames, VMC datagrams, typed events, and when it next
-//! wants to run). It reads no clock and does no IO; the host is a loop that sleeps until the
-//! wake-up it was given or an input arrives.
+//! mappings, commands), it yields [`Output`]s (frames, VMC datagrams, typed events, mappings
+//! to build, and when it next wants to run). It reads no clock and does no IO; the host is a
+//! loop that sleeps until the wake-up it was given or an input arrives. The host's threads
+//! leave their inputs in an [`crate::inbox::Inbox`], which the loop drains into
+//! [`Engine::handle_input`].
 //!
 //! ```text
-//!  host loop ──handle_input(Timeout(now) | Wake(now) | Frame | Health | Mapping)──▶ Engine
-//!      ▲                                                                             │
-//!      └──poll_output() until Timeout(at): Datagram → UDP, Frame → clients,  ◀───────┘
-//!         Event → clients, Ticked → the tick-time counters; then sleep until `at`
+//!  host loop ──handle_input(Timeout(now) | Frame | Health | Mapping | Command)──▶ Engine
+//!      ▲                                                                               │
+//!      └──poll_output() until Timeout(at): Datagram → UDP, Frame → clients,  ◀─────────┘
+//!         Event → clients, Build → the mapper, Ticked → the tick-time counters;
+//!         then sleep until `at` or the inbox wakes it
 //! ```
 //!
 //! A due tick runs in two steps so that its frames carry when they were encoded, as the
@@ -19,7 +22,6 @@
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -34,7 +36,7 @@ use crate::schedule::{Every, TickSchedule};
 use crate::slot::FrameWriter;
 use crate::status::{StatusWatch, MOTION_POLL};
 use crate::subject_list::SubjectList;
-use crate::tick::{OutFrame, TickContext, TickOutput, Ticker};
+use crate::tick::{EngineCommand, OutFrame, TickContext, TickOutput, Ticker};
 
 /// How often the planted feet are compared with the last report (plants change a few times a
 /// second while walking; 30 Hz keeps a marker within two display frames of the lock).
@@ -46,9 +48,6 @@ pub enum Input<'a> {
     /// The time now: whatever is due runs (a tick, the encoding of a tick that performed,
     /// the checks off the tick).
     Timeout(TickTime),
-    /// A pose was handed over at this time by a source that should be taken at once (a
-    /// camera writing its subject's slot from its own thread): a tick is brought forward.
-    Wake(TickTime),
     /// A source's new pose, for a source whose slot the engine holds (see [`Engine::feed`]).
     Frame {
         /// The source subject.
@@ -57,6 +56,10 @@ pub enum Input<'a> {
         time: TickTime,
         /// When it was captured, Unix ns (0: at `time`).
         capture_nanos: u64,
+        /// The source's own number for it (0: the one after the last): the frame carries
+        /// the larger of this and the last one's + 1, so a gap shows frames the engine
+        /// never took.
+        seq: u64,
         /// The pose, on the subject's skeleton.
         pose: &'a Pose,
     },
@@ -74,6 +77,11 @@ pub enum Input<'a> {
         /// The mapping.
         built: BuiltMapping,
     },
+    /// A request from a client or a source: a mapping to rebuild. Building reads whole
+    /// skeletons and may take long, so it is not done here: the engine takes note (a source
+    /// whose skeleton changed has its poses checked against the new one) and passes it on as
+    /// [`Output::Build`].
+    Command(EngineCommand),
 }
 
 /// What the engine hands out, in order: datagrams, frames, events, the end of a tick, then
@@ -91,6 +99,9 @@ pub enum Output<'a> {
     Frame(OutFrame),
     /// Something clients are told about.
     Event(Event),
+    /// A mapping to build off the realtime path (the host's mapper); it comes back as
+    /// [`Input::Mapping`].
+    Build(EngineCommand),
     /// The tick that started at this time has handed out everything.
     Ticked(TickTime),
     /// Nothing more now: call [`Engine::handle_input`] with [`Input::Timeout`] at this time
@@ -115,6 +126,7 @@ struct Queue {
     datagrams: VecDeque<(SocketAddr, usize, usize)>,
     frames: VecDeque<OutFrame>,
     events: VecDeque<Event>,
+    builds: VecDeque<EngineCommand>,
     ticked: Option<TickTime>,
 }
 
@@ -179,7 +191,8 @@ impl Engine {
     }
 
     /// Poses of source `subject` come in as [`Input::Frame`] and are written to `writer`
-    /// (its slot); with `wakes`, each brings the tick forward as [`Input::Wake`] does.
+    /// (its slot); with `wakes` (a camera), each brings the tick forward to when it was
+    /// handed over.
     pub fn feed(&mut self, subject: u32, writer: FrameWriter, wakes: bool) {
         self.fed.retain(|f| f.subject != subject);
         let checked = writer.borrow().pose.clone();
@@ -196,22 +209,51 @@ impl Engine {
     pub fn handle_input(&mut self, input: Input<'_>) {
         match input {
             Input::Timeout(time) => self.run_due(time),
-            Input::Wake(time) => self.wake(time.instant),
             Input::Frame {
                 subject,
                 time,
                 capture_nanos,
+                seq,
                 pose,
-            } => self.take_frame(subject, time, capture_nanos, pose),
-            Input::Health { subject, state } => {
-                if let Some(s) = self.ticker.subject(subject) {
-                    s.health.set_state(state);
-                }
-            }
+            } => self.take_frame(subject, time, capture_nanos, seq, pose),
+            Input::Health { subject, state } => self.take_health(subject, state),
             Input::Mapping { target, built } => {
                 if !self.ticker.offer_mapping(target, built) {
                     tracing::warn!("a mapping for subject {target}, which no performer drives");
                 }
+            }
+            Input::Command(command) => {
+                if let EngineCommand::SkeletonChanged { subject } = command {
+                    self.resize_fed(subject);
+                }
+                self.queue.builds.push_back(command);
+            }
+        }
+    }
+
+    /// A source's state: set on its subject; a change is reported to clients at once (a
+    /// loss or a recovery does not wait for the next periodic report).
+    fn take_health(&mut self, subject: u32, state: SourceState) {
+        let Some(s) = self.ticker.subject(subject) else {
+            return;
+        };
+        if s.health.state() == state {
+            return;
+        }
+        s.health.set_state(state);
+        let queue = &mut self.queue;
+        self.status.report(self.now, |e| queue.events.push_back(e));
+    }
+
+    /// Sizes the check buffer of fed source `subject` for its skeleton now (rare: a live
+    /// source learnt a new skeleton).
+    fn resize_fed(&mut self, subject: u32) {
+        let Some(s) = self.ticker.subject(subject) else {
+            return;
+        };
+        if let Some(fed) = self.fed.iter_mut().find(|f| f.subject == subject) {
+            if fed.checked.num_bones() != s.skeleton().num_bones() {
+                fed.checked = s.skeleton().rest_pose();
             }
         }
     }
@@ -236,6 +278,9 @@ impl Engine {
         if let Some(event) = q.events.pop_front() {
             return Output::Event(event);
         }
+        if let Some(command) = q.builds.pop_front() {
+            return Output::Build(command);
+        }
         if let Some(t) = q.ticked.take() {
             return Output::Ticked(t);
         }
@@ -254,10 +299,6 @@ impl Engine {
             at = at.min(self.footplant_every.next(now));
         }
         at
-    }
-
-    fn wake(&mut self, at: Instant) {
-        self.schedule.wake(at);
     }
 
     /// Runs what is due at `time`: the encoding of a performed tick, a new tick's
@@ -284,7 +325,14 @@ impl Engine {
         }
     }
 
-    fn take_frame(&mut self, subject: u32, time: TickTime, capture_nanos: u64, pose: &Pose) {
+    fn take_frame(
+        &mut self,
+        subject: u32,
+        time: TickTime,
+        capture_nanos: u64,
+        seq: u64,
+        pose: &Pose,
+    ) {
         let Some(fed) = self.fed.iter_mut().find(|f| f.subject == subject) else {
             tracing::warn!("a frame for subject {subject}, whose slot the engine does not hold");
             return;
@@ -293,35 +341,20 @@ impl Engine {
             return;
         };
         if pose.num_bones() != fed.checked.num_bones() {
-            tracing::warn!("subject {subject}: a pose of another skeleton, not taken");
-            return;
+            if pose.num_bones() != s.skeleton().num_bones() {
+                tracing::warn!("subject {subject}: a pose of another skeleton, not taken");
+                return;
+            }
+            // The source's skeleton changed before its command came through: sized now.
+            fed.checked = pose.clone();
         }
-        // Checked as a whole where it enters the engine, as a live source's thread does (the
-        // check renormalises rotations, so on a copy).
+        // Checked as a whole where it enters the engine (the check renormalises rotations,
+        // so on a copy).
         fed.checked.copy_from(pose);
-        if let Err(refusal) = fed.checked.check_values() {
-            let name = s.skeleton().names().get(refusal.bone).cloned();
-            s.stats
-                .reject_pose(refusal, name.as_deref().unwrap_or("?"), time.instant);
+        if !s.admit(&mut fed.checked, time.instant) {
             return;
         }
-        let capture = if capture_nanos == 0 {
-            time.unix_nanos
-        } else {
-            capture_nanos
-        };
-        // Before the frame: a tick that sees the new frame sees when it was handed over.
-        s.stats
-            .published_nanos
-            .store(time.unix_nanos, Ordering::Relaxed);
-        let checked = &fed.checked;
-        fed.writer.send_modify(|f| {
-            f.pose.copy_from(checked);
-            f.seq += 1;
-            f.capture_nanos = capture;
-        });
-        s.stats.input.tick(time.instant);
-        s.stats.last_capture_nanos.store(capture, Ordering::Relaxed);
+        s.publish_source_pose(&fed.writer, &fed.checked, time, (capture_nanos, seq));
         if fed.wakes {
             self.schedule.wake(time.instant);
         }

@@ -56,6 +56,14 @@ impl StatusWatch {
     }
 }
 
+impl StatusWatch {
+    /// Sends `source_status` now (a source's state changed), as of `now`.
+    pub fn report(&mut self, now: Instant, mut tell: impl FnMut(Event)) {
+        self.last_sent = Some(now);
+        tell(Event::source_status(&self.subjects.snapshot(), now));
+    }
+}
+
 /// Whether any target's motion differs from `seen` (then updated to the current ones).
 fn motions_changed(subjects: &[Arc<Subject>], seen: &mut Vec<(u32, TargetMotion)>) -> bool {
     let current = subjects

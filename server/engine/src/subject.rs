@@ -14,6 +14,7 @@ use rigcast_protocol::{SourceKind, SourceState};
 use rigcast_retarget::analysis::{analyze_with_truth, humanoid_roles, Analysis, SkeletonView};
 use rigcast_retarget::{Frame, Pose, Skeleton};
 
+use crate::clock::TickTime;
 use crate::reports::{FootplantReport, HealthReport, MappingReport};
 use crate::settings::VmcBoneNames;
 use crate::slot::{frame_slot, FrameReader, FrameWriter};
@@ -489,6 +490,51 @@ impl Subject {
     /// Current skeleton.
     pub fn skeleton(&self) -> Arc<Skeleton> {
         self.shape().skeleton.clone()
+    }
+
+    /// Checks a pose handed to the engine as a whole, in place (rotations close to unit length
+    /// are renormalised): each value may be finite while their sums (root + hips, a chain in
+    /// FK) are not. A refused pose is counted on the subject, with the bone and why, at `now`.
+    pub fn admit(&self, pose: &mut Pose, now: std::time::Instant) -> bool {
+        let Err(refusal) = pose.check_values() else {
+            return true;
+        };
+        let shape = self.shape();
+        let name = shape.skeleton.names().get(refusal.bone).map(|n| n.as_str());
+        self.stats.reject_pose(refusal, name.unwrap_or("?"), now);
+        false
+    }
+
+    /// Writes a source's checked `pose` into its slot (`writer`) as the frame handed over at
+    /// `time`: captured at `capture_nanos` (0: at `time`), numbered `seq` or, if that is not
+    /// more, the last number + 1; the input counters follow. No allocation unless the
+    /// skeleton's size changed.
+    pub fn publish_source_pose(
+        &self,
+        writer: &FrameWriter,
+        pose: &Pose,
+        time: TickTime,
+        (capture_nanos, seq): (u64, u64),
+    ) {
+        let capture = if capture_nanos == 0 {
+            time.unix_nanos
+        } else {
+            capture_nanos
+        };
+        // Before the frame: a tick that sees the new frame sees when it was handed over.
+        (self.stats.published_nanos).store(time.unix_nanos, Ordering::Relaxed);
+        writer.send_modify(|f| {
+            if f.pose.num_bones() == pose.num_bones() {
+                f.pose.copy_from(pose);
+            } else {
+                // Only after a skeleton change.
+                f.pose = pose.clone();
+            }
+            f.seq = seq.max(f.seq + 1);
+            f.capture_nanos = capture;
+        });
+        self.stats.input.tick(time.instant);
+        (self.stats.last_capture_nanos).store(capture, Ordering::Relaxed);
     }
 
     /// Replaces the skeleton (a live source learnt a new one). Returns false when it is the

@@ -14,6 +14,7 @@ use super::load::{Inputs, Loaded, LoadedPerformer, LoadedSource};
 use crate::config::ServerConfig;
 use crate::mapper::{Mapper, PerformerPlan, SourceExtra};
 use crate::token;
+use rigcast_engine::inbox::Inbox;
 use rigcast_engine::performer::{self, Performer};
 use rigcast_engine::slot::FrameWriter;
 use rigcast_engine::subject::{Calibrator, Subject};
@@ -37,6 +38,11 @@ pub(crate) struct Assembly {
     /// The VMC output socket and its receivers (`None` without receivers).
     pub vmc: Option<(std::net::UdpSocket, Vec<VmcTarget>)>,
     pub events: broadcast::Sender<rigcast_engine::events::Event>,
+    /// Where the sources, the mapper and the sessions leave what the engine should learn of
+    /// (the first mappings wait there already).
+    pub inbox: Inbox,
+    /// Notified when something comes into the inbox that the engine's loop should take now.
+    pub wake: Arc<tokio::sync::Notify>,
     pub token: token::ResolvedToken,
     /// Cluster mode: relays and publisher to start.
     pub cluster: Option<crate::cluster::ClusterLink>,
@@ -45,6 +51,11 @@ pub(crate) struct Assembly {
 /// Builds the subjects, performers and mapper of `inputs`, and resolves the VMC receivers.
 pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::Result<Assembly> {
     let (events, _) = broadcast::channel(rigcast_engine::events::EVENTS_CAPACITY);
+    let wake = Arc::new(tokio::sync::Notify::new());
+    let inbox = Inbox::new({
+        let wake = wake.clone();
+        move || wake.notify_one()
+    });
     let names: Vec<String> = inputs.sources.iter().map(|s| s.name.clone()).collect();
     let mut subjects = Vec::new();
     let mut sources = Vec::new();
@@ -80,7 +91,7 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
                 plan.target.clone(),
                 tx,
                 inputs.map(|id| subjects[*id as usize].clone()).collect(),
-                plan.mailbox.clone(),
+                Arc::default(),
                 fallback.on_lost,
             );
             match (fallback.idle, fallback.resume) {
@@ -97,6 +108,7 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         config.mapping_cache_dir.clone(),
         config.rate_hz,
         events.clone(),
+        inbox.clone(),
     )
     .with_max_cache_entries(config.limits.mapping_cache_max_entries)
     .with_shared(inputs.cluster.as_ref().map(|link| {
@@ -120,6 +132,8 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         mapper,
         vmc,
         events,
+        inbox,
+        wake,
         token: inputs.token,
         cluster: inputs.cluster,
     })
@@ -252,7 +266,6 @@ fn performer_plan(
             RootMotion::Scaled
         },
         foot_lock: spec.foot_lock,
-        mailbox: Default::default(),
         graft,
     };
     Ok((plan, tx))

@@ -18,17 +18,18 @@ use std::time::Duration;
 
 use anyhow::Context;
 use tokio::net::TcpListener;
-use tokio::sync::{broadcast, mpsc, watch};
+use tokio::sync::{broadcast, watch};
 use tokio::task::JoinHandle;
 
 use super::assemble::{Assembly, SourceRunner};
 use super::load::Loaded;
 use crate::config::ServerConfig;
 use crate::limits::ConnectionLimiter;
-use crate::live::{self, LiveContext};
+use crate::live::{self, LiveContext, LiveFeed};
 use crate::recorder::Recorder;
 use crate::state::{ClusterView, ServerState};
 use crate::{access, http, limits, stats, tick_task, token};
+use rigcast_engine::slot::FrameWriter;
 use rigcast_engine::tick::{EngineCommand, TickContext};
 use rigcast_engine::{Engine, EngineParts};
 
@@ -50,7 +51,8 @@ pub struct Supervisor {
     engine_tasks: Vec<JoinHandle<()>>,
     /// Stage 3: live sources and the mapper.
     stop_threads: Arc<AtomicBool>,
-    commands: mpsc::Sender<EngineCommand>,
+    /// The mapper's queue (for its `Shutdown`).
+    mapper: std::sync::mpsc::Sender<EngineCommand>,
     threads: Vec<std::thread::JoinHandle<()>>,
     /// Live threads started while running (relayed subjects the cluster found).
     late_threads: Arc<std::sync::Mutex<Vec<std::thread::JoinHandle<()>>>>,
@@ -84,7 +86,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
     let (connections_stop, connections_rx) = watch::channel(false);
     let (engine_stop, engine_rx) = watch::channel(false);
     let (frames, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
-    let (commands, commands_rx) = mpsc::channel(64);
+    let (mapper, mapper_rx) = std::sync::mpsc::channel();
     let stats = Arc::new(stats::Stats::default());
     let subject_list = Arc::new(rigcast_engine::subject_list::SubjectList::new(
         subjects.clone(),
@@ -99,7 +101,7 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         rate_hz: config.rate_hz,
         next_client_id: AtomicU64::new(1),
         shutdown: connections_rx,
-        commands: commands.clone(),
+        inbox: parts.inbox.clone(),
         policy: access::AccessPolicy::new(
             parts.token.token.clone(),
             access::BindScope::of(&local_addr),
@@ -125,25 +127,25 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         engine_stop,
         engine_tasks: Vec::new(),
         stop_threads: Arc::new(AtomicBool::new(false)),
-        commands: commands.clone(),
+        mapper: mapper.clone(),
         threads: Vec::new(),
         late_threads: Arc::default(),
         recorder: None,
     };
-    // Cameras' new poses bring the tick forward (see tick_task::run_engine).
-    let wake = Arc::new(tokio::sync::Notify::new());
+    // The engine writes the sources' slots; the sources hand their poses over through doors.
+    let mut fed = Vec::new();
     for source in parts.sources {
-        supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx, &wake)?;
+        fed.push(supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx)?);
     }
     supervisor.spawn_thread("rigcast-mapper".into(), {
         let mapper = parts.mapper;
-        move || mapper.run(commands_rx)
+        move || mapper.run(mapper_rx)
     })?;
     if let Some(rec) = recorder {
         supervisor.spawn_recorder(rec, subjects.clone(), config.rate_hz)?;
     }
     let (vmc_socket, vmc) = parts.vmc.unzip();
-    let engine = Engine::new(
+    let mut engine = Engine::new(
         EngineParts {
             tick: TickContext {
                 subjects: subjects.clone(),
@@ -155,12 +157,16 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
         },
         std::time::Instant::now(),
     );
+    for (subject, tx, wakes) in fed {
+        engine.feed(subject, tx, wakes);
+    }
     let out = tick_task::HostOutput {
         frames,
         vmc_socket,
         stats,
     };
-    let run = tick_task::run_engine(engine, out, events, wake, engine_rx.clone());
+    let (inbox, wake, stop) = (parts.inbox, parts.wake, engine_rx.clone());
+    let run = tick_task::run_engine(engine, out, events, mapper, inbox, wake, stop);
     supervisor.engine_tasks.push(tokio::spawn(run));
     if let (Some(link), Some(forwarder)) = (parts.cluster, forwarder) {
         let live = crate::cluster::LiveThreads {
@@ -196,35 +202,33 @@ fn max_connections(config: &ServerConfig) -> usize {
 }
 
 impl Supervisor {
-    /// A replay becomes a task; a live source a thread (its `next_frame` blocks).
+    /// A replay becomes a task; a live source a thread (its `next_frame` blocks). Each hands
+    /// its poses to the engine through a door; returns what the engine is fed for it (the
+    /// subject, its slot, whether its poses bring the tick forward: cameras').
     fn spawn_source(
         &mut self,
         source: SourceRunner,
         state: &ServerState,
         recorder: Option<&Arc<Recorder>>,
         engine_rx: &watch::Receiver<bool>,
-        wake: &Arc<tokio::sync::Notify>,
-    ) -> anyhow::Result<()> {
+    ) -> anyhow::Result<(u32, FrameWriter, bool)> {
         let SourceRunner {
             subject,
             tx,
             loaded,
         } = source;
+        let id = subject.id;
+        let wakes = matches!(&loaded, Loaded::Live { kind, .. }
+            if *kind == rigcast_protocol::SourceKind::Webcam);
+        let door = state.inbox.door(subject.clone(), wakes);
         match loaded {
             Loaded::Replay { player, speed, .. } => {
-                let task = crate::replay_task::run_replay_source(
-                    player,
-                    speed,
-                    tx,
-                    subject.clone(),
-                    engine_rx.clone(),
-                );
+                let task =
+                    crate::replay_task::run_replay_source(player, speed, door, engine_rx.clone());
                 let task = crate::fault::guard_source_task(task, subject);
                 self.engine_tasks.push(tokio::spawn(task));
             }
-            Loaded::Live {
-                mut source, kind, ..
-            } => {
+            Loaded::Live { mut source, .. } => {
                 if let Some(rec) = recorder {
                     source.set_raw_tap(Some(Box::new(rec.tap(subject.id))));
                 }
@@ -232,20 +236,19 @@ impl Supervisor {
                 let guarded = subject.clone();
                 let ctx = LiveContext {
                     subject,
-                    tx,
+                    feed: LiveFeed::Engine(door),
                     subjects: state.subject_list.clone(),
                     events: state.events.clone(),
-                    commands: state.commands.clone(),
+                    inbox: state.inbox.clone(),
                     recorder: recorder.cloned(),
                     stop: self.stop_threads.clone(),
-                    wake: (kind == rigcast_protocol::SourceKind::Webcam).then(|| wake.clone()),
                 };
                 self.spawn_thread(name, move || {
                     crate::fault::guard_source_thread(|| live::run_live(source, ctx), guarded)
                 })?;
             }
         }
-        Ok(())
+        Ok((id, tx, wakes))
     }
 
     /// The recorder's thread, which samples `subjects` at `rate_hz` until the threads stop.
@@ -292,7 +295,7 @@ impl Supervisor {
         }
         self.stop_threads.store(true, Ordering::Relaxed);
         // Fails only when the mapper has already stopped.
-        let _ = self.commands.send(EngineCommand::Shutdown).await;
+        let _ = self.mapper.send(EngineCommand::Shutdown);
         let mut threads = self.threads;
         if let Ok(mut late) = self.late_threads.lock() {
             threads.append(&mut late);

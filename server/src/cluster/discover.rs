@@ -33,7 +33,7 @@ use rigcast_protocol::SourceKind;
 use super::{
     run_relay, Change, Cluster, Forwarder, Origin, RemoteSource, SubjectEntry, ENTRY_MAX_AGE,
 };
-use crate::live::LiveContext;
+use crate::live::{LiveContext, LiveFeed};
 use crate::state::{Discovery, Feeds};
 use rigcast_engine::settings::VmcBoneNames;
 use rigcast_engine::subject::Subject;
@@ -288,13 +288,12 @@ fn add_subject(
     ));
     let ctx = LiveContext {
         subject: subject.clone(),
-        tx,
+        feed: LiveFeed::Relayed(tx),
         subjects: feeds.subject_list.clone(),
         events: feeds.events.clone(),
-        commands: host.commands.clone(),
+        inbox: host.inbox.clone(),
         recorder: None,
         stop: live.stop.clone(),
-        wake: None,
     };
     let thread = std::thread::Builder::new()
         .name(format!("rigcast-live-{}", subject.id))

@@ -90,6 +90,53 @@ pub fn target_subject(
     (std::sync::Arc::new(subject), frames)
 }
 
+/// Target subject `id` on `skeleton` (see [`target_subject`]) and the performer that drives
+/// it from `sources`, its mapping yet to come (`Input::Mapping`), doing `on_lost` while they
+/// are lost.
+pub fn performer(
+    id: u32,
+    skeleton: &std::sync::Arc<rigcast_retarget::Skeleton>,
+    sources: &[std::sync::Arc<rigcast_engine::subject::Subject>],
+    on_lost: rigcast_engine::settings::OnLost,
+) -> (
+    std::sync::Arc<rigcast_engine::subject::Subject>,
+    rigcast_engine::performer::Performer,
+) {
+    let (target, tx) = target_subject(id, skeleton);
+    let performer = rigcast_engine::performer::Performer::new(
+        target.clone(),
+        tx,
+        sources.to_vec(),
+        std::sync::Arc::default(),
+        on_lost,
+    );
+    (target, performer)
+}
+
+/// An engine over `subjects` (their status watched too) running `performers` at `rate_hz`,
+/// sending VMC to `vmc`, its first tick due at `start`.
+pub fn engine(
+    subjects: Vec<std::sync::Arc<rigcast_engine::subject::Subject>>,
+    vmc: Vec<rigcast_engine::tick::VmcTarget>,
+    performers: Vec<rigcast_engine::performer::Performer>,
+    rate_hz: f64,
+    start: std::time::Instant,
+) -> rigcast_engine::Engine {
+    let subjects = std::sync::Arc::new(subjects);
+    rigcast_engine::Engine::new(
+        rigcast_engine::EngineParts {
+            tick: rigcast_engine::tick::TickContext {
+                subjects: subjects.clone(),
+                vmc,
+                performers,
+            },
+            rate_hz,
+            subjects: std::sync::Arc::new(rigcast_engine::subject_list::SubjectList::new(subjects)),
+        },
+        start,
+    )
+}
+
 /// `source` retarget onto `target` offline with `plan`'s own options (default root motion),
 /// its feet locked when `lock`: what the foot-lock tests compare, locked against free.
 pub fn retarget(
@@ -154,6 +201,8 @@ pub struct Yielded {
     pub events: Vec<rigcast_engine::events::Event>,
     /// The start times of the ticks that finished.
     pub ticked: Vec<rigcast_engine::TickTime>,
+    /// Mappings to build, passed on for the mapper.
+    pub builds: Vec<rigcast_engine::tick::EngineCommand>,
 }
 
 /// Passes `engine` the simulated time `now` (as the host's loop does: again while it asks to
@@ -172,6 +221,7 @@ pub fn engine_at(
             Output::Frame(f) => got.frames.push(f),
             Output::Event(e) => got.events.push(e),
             Output::Ticked(t) => got.ticked.push(t),
+            Output::Build(c) => got.builds.push(c),
             Output::Timeout(at) if at <= now.instant => {
                 engine.handle_input(Input::Timeout(now));
             }
