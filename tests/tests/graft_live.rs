@@ -86,25 +86,83 @@ async fn a_replayed_upper_body_on_a_looping_walk_streams_at_the_tick_rate() {
         upper: "meredith".into(),
         lower: LowerSpec::Clip(walk),
     };
-    run(vec![replay(upper, "meredith")], graft, 1.5).await;
+    run(vec![replay(upper, "meredith")], graft, 1.5, None).await;
 }
 
 /// The lower body from a second source (the CMU walk replayed: idle, walk, idle, so it
-/// travels less in the measured 3 s than the looping stride does).
+/// travels less in the measured 3 s than the looping stride does). The seconds measured are
+/// the stretch of the clip where its hips travel furthest, found from the clip and waited for
+/// in the stream: where the clip happened to be when the test got there (how long the server
+/// took to start and the client to connect, seconds on a loaded machine) decided before
+/// whether the window held the walk or the standing, and whether it crossed the loop's seam
+/// (the hips jump back 2.6 m there).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replayed_upper_body_on_a_second_source_streams_at_the_tick_rate() {
     let Some([upper, walk]) = shared_data_all([MEREDITH, CMU_WALK]) else {
         return;
     };
+    let clip = rigcast_sources::load_clip(&walk).unwrap();
     let sources = vec![replay(upper, "meredith"), replay(walk, "walk")];
     let graft = GraftSpec {
         upper: "meredith".into(),
         lower: LowerSpec::Source("walk".into()),
     };
-    run(sources, graft, 0.3).await;
+    run(sources, graft, 0.3, Some((1, clip))).await;
 }
 
-async fn run(sources: Vec<SourceSpec>, graft: GraftSpec, min_travel_m: f32) {
+/// How long the performer is let settle after the measuring starts, and how long is measured.
+const SETTLE: Duration = Duration::from_millis(500);
+const MEASURED: Duration = Duration::from_secs(3);
+
+/// The frame of `clip` from which its hips travel furthest (flat, first to last) over the
+/// measured seconds after [`SETTLE`], within one pass of the clip (never across its end).
+fn liveliest_start(clip: &rigcast_retarget::Clip) -> usize {
+    let frames = |d: Duration| (d.as_secs_f64() / clip.frame_time_secs).round() as usize;
+    let (settle, span) = (frames(SETTLE), frames(SETTLE + MEASURED));
+    let root = |k: usize| {
+        let t = clip.poses[k].translations[0];
+        Vec3::new(t.x, 0.0, t.z)
+    };
+    (0..clip.poses.len().saturating_sub(span))
+        .max_by(|&a, &b| {
+            let travel = |k: usize| (root(k + span) - root(k + settle)).length();
+            travel(a).total_cmp(&travel(b))
+        })
+        .expect("a clip longer than the measured seconds")
+}
+
+/// Reads the stream until source `id`, replaying `clip`, is within a quarter second after
+/// `start` (its frames matched to the clip's; at most two passes of the clip).
+async fn wait_for_clip_frame(ws: &mut Ws, id: u32, clip: &rigcast_retarget::Clip, start: usize) {
+    let late = (0.25 / clip.frame_time_secs) as usize;
+    let t0 = Instant::now();
+    let most = Duration::from_secs_f64(2.0 * clip.poses.len() as f64 * clip.frame_time_secs + 5.0);
+    while let Some(left) = most.checked_sub(t0.elapsed()) {
+        let Some(Incoming::Frame(f, _)) = next(ws, left).await else {
+            continue;
+        };
+        if f.header.subject != id || f.version != 2 {
+            continue;
+        }
+        let (k, off) = best_matching_frame(clip, &f.rotations);
+        if off < 0.05 && (start..=start + late).contains(&k) {
+            println!(
+                "source {id} at {:.2} s of its clip after {:.2} s",
+                k as f64 * clip.frame_time_secs,
+                t0.elapsed().as_secs_f64()
+            );
+            return;
+        }
+    }
+    panic!("source {id} never streamed frame {start} of its clip");
+}
+
+async fn run(
+    sources: Vec<SourceSpec>,
+    graft: GraftSpec,
+    min_travel_m: f32,
+    lower_clip: Option<(u32, rigcast_retarget::Clip)>,
+) {
     let inputs = match &graft.lower {
         LowerSpec::Source(l) => vec![graft.upper.clone(), l.clone()],
         LowerSpec::Clip(_) => vec![graft.upper.clone()],
@@ -141,6 +199,23 @@ async fn run(sources: Vec<SourceSpec>, graft: GraftSpec, min_travel_m: f32) {
     let (source_bones, target_bones) = (bones(0), bones(target_id));
     let (source_skel, target_skel) = (skeleton(&source_bones), skeleton(&target_bones));
     let pelvis = target_skel.bone("pelvis").unwrap().index();
+    // Measured once the target's mapping is built (a `mapping` message for it: in the state a
+    // new client is sent, or when the mapper hands it over). A fixed wait for it was a window
+    // a loaded machine's debug build could miss: the target then streamed its rest pose into
+    // the measured seconds (a jump in the hips when the mapping came, a flat elbow).
+    let t0 = Instant::now();
+    loop {
+        let left = Duration::from_secs(60).saturating_sub(t0.elapsed());
+        match next_json(&mut ws, left).await {
+            Some(ServerMessage::Mapping { subject, .. }) if subject == target_id => break,
+            Some(_) => {}
+            None => panic!("no mapping for the target within 60 s"),
+        }
+    }
+    println!("mapping built after {:.2} s", t0.elapsed().as_secs_f64());
+    if let Some((id, clip)) = &lower_clip {
+        wait_for_clip_frame(&mut ws, *id, clip, liveliest_start(clip)).await;
+    }
     // The status, polled while frames stream: which feet the lock holds.
     let seen = Arc::new(Mutex::new(HashSet::<(String, bool)>::new()));
     let poller = {
@@ -165,9 +240,9 @@ async fn run(sources: Vec<SourceSpec>, graft: GraftSpec, min_travel_m: f32) {
             }
         })
     };
-    // Let the mapping arrive, then measure.
-    collect_frames(&mut ws, Duration::from_millis(500)).await;
-    let frames = collect_frames(&mut ws, Duration::from_secs(3)).await;
+    // The performer takes the mapping at its next tick; let the splice settle, then measure.
+    collect_frames(&mut ws, SETTLE).await;
+    let frames = collect_frames(&mut ws, MEASURED).await;
     poller.await.unwrap();
     let target: Vec<_> = frames
         .iter()
