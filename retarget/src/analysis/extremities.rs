@@ -124,7 +124,9 @@ fn fit_member(
         .map(|i| {
             if i == 0 {
                 0.0
-            } else if ctx.samples.iter().any(|s| bends_at(ctx, s, chain, i)) {
+            } else if ctx.samples.iter().any(|s| bends_at(ctx, s, chain, i))
+                || leaf_turns(ctx, chain[i])
+            {
                 MOTION_BEND_COST
             } else if bends_at(ctx, ctx.pos, chain, i) {
                 1.0
@@ -224,6 +226,14 @@ fn spans_girdle(ctx: &Ctx<'_>, b: BoneId) -> bool {
     let down = -seg.dot(ctx.up);
     let across = (seg + ctx.up * down).length();
     ctx.is_coincident(b) && ctx.pos[p.index()] != ctx.pos[c.index()] && across > down.max(0.0)
+}
+
+/// Whether `b` is a leaf that turns in the motion: the joint it hangs from bends, though no
+/// child's position can show it (a glTF forearm ending the arm).
+fn leaf_turns(ctx: &Ctx<'_>, b: BoneId) -> bool {
+    ctx.topo.main[b.index()].is_none()
+        && !ctx.samples.is_empty()
+        && ctx.moving.is_some_and(|m| m[b.index()])
 }
 
 /// What grouping two bones across a joint that bends in the motion costs a chain split.

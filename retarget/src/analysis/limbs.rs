@@ -90,7 +90,10 @@ pub(crate) fn chain_splits(
                 } else {
                     a <= 1
                 };
-                if lower <= 1e-6 && e == m && b == m - 1 && b == a + 1 && lone && upper > 1e-6 {
+                // The upper segment may hold several bones when the leaf is seen to turn
+                // (a twist bone splitting it above a glTF forearm).
+                let grouped_ok = b == a + 1 || bent.get(b).is_some_and(|&x| x >= MOTION_BEND);
+                if lower <= 1e-6 && e == m && b == m - 1 && grouped_ok && lone && upper > 1e-6 {
                     lower = upper / ratio;
                     cost += 0.4;
                 }
