@@ -214,12 +214,14 @@ pub(super) fn trunk(
                 leg_len(ctx, limbs, &layout.kinds),
                 uses_end_joints(ctx, limbs, &layout.kinds, ground, hext),
             );
-            if let Some((strength, bones)) = doubt {
+            if let Some((strength, bones, alone)) = doubt {
+                let on = if alone {
+                    "the skull-top proportion alone (no names, motion or end joints)"
+                } else {
+                    "proportions and end-joint conventions that nearly read it one bone off"
+                };
                 out.doubts.push(super::Doubt {
-                    reason: format!(
-                        "which bone is the head rests on proportions and conventions that \
-                         nearly read it one bone off ({strength:.2})"
-                    ),
+                    reason: format!("which bone is the head rests on {on} ({strength:.2})"),
                     strength,
                     bones,
                 });
@@ -312,10 +314,13 @@ fn uses_end_joints(
     seen
 }
 
+/// A head reading's doubt: its strength, the bones the other reading reads otherwise, and
+/// whether the skull-top proportion alone decided it.
+type HeadDoubt = (f32, Vec<BoneId>, bool);
+
 /// Which bone of the head section is the head: where eyes or a jaw attach, else the last bone
 /// unless it is an end joint (by name, or by being too long for a neck-to-head segment). With
-/// the index, the doubt of a reading from proportions and conventions alone: its strength and
-/// the bones the other reading reads otherwise.
+/// the index, the doubt of a reading from proportions and conventions alone.
 fn head_index(
     ctx: &Ctx<'_>,
     head: &[BoneId],
@@ -324,7 +329,7 @@ fn head_index(
     kinds: &[LimbKind],
     leg: Option<f32>,
     end_joints: Option<bool>,
-) -> (usize, Option<(f32, Vec<BoneId>)>) {
+) -> (usize, Option<HeadDoubt>) {
     for (j, &b) in head.iter().enumerate() {
         let has_pair = limbs
             .iter()
@@ -387,9 +392,17 @@ fn head_index(
         } else {
             last
         };
-        let strength = (-total.abs()).exp();
+        // The skull-top proportion alone is no reading to trust: on the zoo's rigs a head leaf
+        // and a skull-top leaf overlap (0.39-0.67 torso up, a robot's big head, a small skull
+        // over low arms), so with nothing to cross it the head is a guess a person checks.
+        let alone = ends.is_none();
+        let floor = if alone { PROPORTIONS_ALONE } else { 0.0 };
+        let strength = (-total.abs()).exp().max(floor);
         let bones = head[k.saturating_sub(1)..].to_vec();
-        return (k, (strength > DOUBT_FLOOR).then_some((strength, bones)));
+        return (
+            k,
+            (strength > DOUBT_FLOOR).then_some((strength, bones, alone)),
+        );
     }
     if let Some(e) = ends {
         return (if e > 0.0 { last - 1 } else { last }, None);
@@ -406,6 +419,10 @@ fn head_index(
 /// What the end-joint convention weighs as evidence that the head chain's leaf is an end
 /// marker, against the skull-top proportion (whose unit is [`SKULL_SCALE`]).
 const END_JOINTS: f32 = 1.0;
+
+/// The doubt over a head read from the skull-top proportion alone: as strong as the mapper's
+/// confidence flags (`DOUBT_FLAG`).
+const PROPORTIONS_ALONE: f32 = 0.9;
 
 /// Torso lengths above the shoulder line halfway between where head joints sit (the skull
 /// base, ≈0.25–0.4) and where the skull top does (≈0.55–0.65).

@@ -8,7 +8,8 @@
 //!   confidence = (1 − e^(−margin / MARGIN_SCALE)) × (1 − doubt)   for each analysis' doubt
 //!                over the target bone's and the source bone's readings
 //!   flagged    = margin confidence < FLAG_BELOW, the runner-up within CLOSE_MARGIN points,
-//!                or a doubt of at least DOUBT_FLAG;
+//!                or a doubt of at least DOUBT_FLAG (helpers too: a doubted end marker may
+//!                be the head);
 //!                unmapped: a core target bone, a gap in a driven chain (parent and a
 //!                body-part descendant driven), or a bone of a section kind whose source core bone
 //!                drives nothing (the source's head unused while the target's head chain
@@ -151,7 +152,12 @@ pub(super) fn assess(
         if let Some(e) = table.entries[t.index()].as_mut() {
             e.confidence = c;
         }
-        if tr.role.is_helper() || matches!(tr.role, Role::Unknown | Role::Control) {
+        // Helpers are not checked, unless the analysis nearly read the bone as a body part
+        // (a head read as the skull top's end marker).
+        let doubted = doubt
+            .iter()
+            .any(|(d, _)| d.is_some_and(|d| d.strength >= DOUBT_FLAG));
+        if (tr.role.is_helper() && !doubted) || matches!(tr.role, Role::Unknown | Role::Control) {
             continue;
         }
         let reason = if m < 0.0 {
