@@ -688,11 +688,13 @@ struct LegFigures {
     thigh: (f32, f32),
     shin: (f32, f32),
     foot: (f32, f32),
-    /// Horizontal move of the target's foot joints per frame while the source's foot stands
-    /// (cm/frame, scaled to a 1.75 m body), mean over both sides; and the source's own, alike
-    /// (printed beside it: a source whose standing feet roll or slide moves that much itself).
+    /// Horizontal move of the joint the target's foot stands on per frame while the source's
+    /// foot stands (cm/frame, scaled to a 1.75 m body), mean over both sides; and the source's
+    /// own, alike (printed beside it: a source whose standing feet slide moves that much itself).
     drift: f32,
     source_drift: f32,
+    /// The target's drift over every foot joint (the ankle rolling over a ball included).
+    joints_drift: f32,
     /// Planted feet's height error (95th percentile, cm), as [`planted_feet`].
     floor_p95: Option<f32>,
 }
@@ -797,20 +799,23 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
         thigh,
         shin,
         foot,
-        drift: standing_drift(tgt, src, out, &stands)?,
-        source_drift: standing_drift(src, tgt, clip, &stands)?,
+        drift: standing_drift(tgt, src, out, &stands, true)?,
+        source_drift: standing_drift(src, tgt, clip, &stands, true)?,
+        joints_drift: standing_drift(tgt, src, out, &stands, false)?,
         floor_p95: planted_feet(src, tgt, clip, out).map(|f| f.p95_cm),
     })
 }
 
-/// How far `l`'s foot joints (those `other` has too) move over the ground per frame in `clip`
-/// on the frames `stands` (each side's, from the source) and the frame before: cm/frame of a
-/// 1.75 m body, mean over both sides.
+/// How far `l`'s foot joints move over the ground per frame in `clip` on the frames `stands`
+/// (each side's, from the source) and the frame before: cm/frame of a 1.75 m body, mean over
+/// both sides. `contact`: only the joint the foot stands on (its labelled foot joint nearest
+/// the floor), else every foot joint `other` has too.
 fn standing_drift(
     l: &Labelled,
     other: &Labelled,
     clip: &Clip,
     stands: &[Vec<bool>],
+    contact: bool,
 ) -> Option<f32> {
     let s = &clip.skeleton;
     let (_, up) = foot_tracks_up(l, other, clip)?;
@@ -827,16 +832,26 @@ fn standing_drift(
         .collect();
     let (mut sum, mut n) = (0.0f32, 0usize);
     for (side, stand) in ["L", "R"].iter().zip(stands) {
+        // The contact is the rig's own (its toes count where the other rig has none).
         let joints: Vec<BoneId> = [sided("foot", side), sided("toes", side)]
             .iter()
-            .filter(|r| other.bone(r).is_some())
+            .filter(|r| contact || other.bone(r).is_some())
             .filter_map(|r| l.bone(r))
             .collect();
         for f in 1..worlds.len().min(stand.len()) {
             if !(stand[f] && stand[f - 1]) {
                 continue;
             }
-            for j in &joints {
+            // The joint the foot stands on: the one nearest the floor on the frame before.
+            let lowest = joints.iter().copied().min_by(|a, b| {
+                let h = |j: &BoneId| worlds[f - 1][j.index()].dot(up);
+                h(a).total_cmp(&h(b))
+            });
+            let measured: Vec<BoneId> = match (contact, lowest) {
+                (true, Some(j)) => vec![j],
+                _ => joints.clone(),
+            };
+            for j in &measured {
                 let d = worlds[f][j.index()] - worlds[f - 1][j.index()];
                 let cm = (d - up * d.dot(up)).length() * 100.0 * scale;
                 if cm > 0.1 && std::env::var_os("RIGCAST_QUALITY_FRAMES").is_some() {
@@ -883,32 +898,44 @@ fn pair_wanted(name: &str) -> bool {
 /// planted feet drifting ≤ 0.05 cm/frame (scaled to a 1.75 m body) and standing within 1 cm of
 /// where the source's stand ([`planted_feet`], on rigs whose feet can be judged).
 ///
-/// The table prints, beside the target's drift, the source's own (its standing feet measured
-/// alike): a source whose standing feet roll or slide more than the bound asks the target's to
-/// stand stiller than the performer's.
+/// Drift is judged on the joint each foot stands on (its labelled joint nearest the floor): a
+/// foot rolling over its ball at a toe-off, as the performer's does, moves its ankle without
+/// sliding, while a ball sliding back under a rising ankle is a slide. The table prints beside
+/// it the source's own drift (its standing feet measured alike: a source whose standing feet
+/// slide more than the bound asks the target's to stand stiller than the performer's) and, as
+/// `(drift)`, the target's over every foot joint (the measure before: the ankle included).
 ///
 /// Not met yet (run it with `--ignored` for the table; `RIGCAST_QUALITY_PAIRS=a,b` measures
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures). Of 144 pairs, within the bounds: thigh and shin
-/// 84, foot 18 of the 84 with toes on both rigs, drift 142, floor 140 (69 / 1 / 143 / 138 while
-/// a pinned ankle followed the source's heel up by at most 2 % of the leg, 36 / 1 / 143 / 142
-/// before the root was carried up onto the held feet, 26 / 1 / 142 / 141 before it was carried
-/// over the ground): two planted feet the target's proportions set apart differently from the
-/// source's still share their disagreement through the legs, the lock pitches planted feet flat
-/// away from the source's, and a pinned ankle rising with the source's heel is held over the
-/// ground where it was pinned, so its ball slides back under it instead of the foot pivoting
-/// on its ball (drift 0.033 -> 0.055 cm/frame on xia -> Mousey, whose source drifts 0.050). The
-/// sources' own standing feet drift more than 0.05 cm/frame on 112 of the 144 pairs (LaFAN1
-/// 0.18, the CMU run 0.30).
+/// 96, foot 33 of the 84 with toes on both rigs, drift 135 (every foot joint: 130), floor 141;
+/// 84 / 18 / 108 (142) / 140 while a pinned ankle rose with the source's heel over the spot it
+/// was pinned at, its ball sliding back under it (earlier, every foot joint: 69 / 1 / 143 / 138
+/// while it rose by at most 2 % of the leg, 36 / 1 / 143 / 142 before the root was carried up
+/// onto the held feet, 26 / 1 / 142 / 141 before it was carried over the ground). Thigh and
+/// shin fail most on the robot (its left foot hangs in the retargeted walk: a mapping matter),
+/// the Bandai run rig, Quaternius Casual and Mousey as targets, and with the pymo Meredith walk
+/// and LaFAN1 as sources: there the lock still bends the legs at landings (a landing foot
+/// brought down onto a floor the hips' height over the standing foot puts it under) and two
+/// planted feet the target's proportions set apart differently share their disagreement
+/// through the legs. Of the 9 drift failures, 8 are on sources whose own standing feet slide
+/// more than the bound (the CMU run 0.30, cmu_dazfriendly 0.39, LaFAN1 0.15 cm/frame; the
+/// other, Meredith onto Mousey, 0.051 against its source's 0.042).
 ///
 /// The foot is judged by its raw direction (ankle to toes) against the source's, as the issue
-/// measured it. A rig whose foot bone is pitched differently from the source's when standing
-/// (X Bot, the UE-style mannequin, Bandai, Mousey: 15-25°) cannot both stand flat (the floor
-/// bound) and point its foot bone as the source's does. Judging the foot from where each rig
-/// stands instead was tried and left: from each rig's rest pitch, 0 of the 84 pairs with toes
-/// fall within 5°/15° and the pybvh rigs read 67-91° off (a BVH rest is only offsets: its feet
-/// need not stand as the rig does); from the median pitch of each rig's own clip where its foot
-/// stands, 0 of 84 as well (that median is the performer's habit, not the rig's build).
+/// measured it. The lock keeps a planted foot's pitch the animation's while the source's heel
+/// rises (a toe-off rolls it on its ball; a heel strike is stood flat), but a rig whose foot
+/// bone is pitched differently
+/// from the source's when standing (X Bot, the UE-style mannequin, Bandai, Mousey: 15-25°)
+/// carries that difference on every frame to stand flat (the floor bound): its raw direction
+/// cannot meet 5°. Judging the foot from where each rig stands instead was tried and left: from
+/// each rig's rest pitch, 0 of the 84 pairs with toes fall within 5°/15° and the pybvh rigs read
+/// 67-91° off (a BVH rest is only offsets: its feet need not stand as the rig does); from the
+/// median pitch of each rig's own clip where its foot stands, 0 of 84 as well (that median is
+/// the performer's habit, not the rig's build); with the target's median pitch difference from
+/// the source's where the source's foot stands taken out of every frame, 37 of 84 against 35
+/// raw (before the heel's rise bounded the roll), and 25-60° p95 on the rigs it should help (a
+/// pitch taken out about the foot's side axis turns a foot pointing down in the swing far off).
 #[test]
 #[ignore = "issue 35's bounds are not met yet; the test prints the table per pair"]
 fn locked_legs_follow_the_source_on_walks_and_runs() {
@@ -933,8 +960,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
         "no walk or run among the labelled humans"
     );
     println!(
-        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7} {:>7} {:>6}",
-        "source", "target", "thigh°", "shin°", "foot°", "drift", "(src)", "floor"
+        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7} {:>7} {:>6} {:>7}",
+        "source", "target", "thigh°", "shin°", "foot°", "drift", "(src)", "floor", "(drift)"
     );
     let mut failures = Vec::new();
     let mut checked = 0;
@@ -942,6 +969,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     let mut tally = [0usize; 4];
     // Pairs whose feet have toes on both rigs (a foot direction to judge).
     let mut feet_judged = 0;
+    // Pairs whose every foot joint drifts within the bound (not judged: see above).
+    let mut joints_within = 0;
     for src in &gaits {
         for (tgt, judge_t) in humans
             .iter()
@@ -998,7 +1027,7 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 }
             };
             println!(
-                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>6}",
+                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>6} {:>7.3}",
                 src.name(),
                 tgt.name(),
                 pair(f.thigh),
@@ -1006,7 +1035,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 pair(f.foot),
                 f.drift,
                 f.source_drift,
-                f.floor_p95.map_or("-".into(), |c| format!("{c:.2}"))
+                f.floor_p95.map_or("-".into(), |c| format!("{c:.2}")),
+                f.joints_drift
             );
             let name = format!("{} → {}", src.name(), tgt.name());
             let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;
@@ -1025,6 +1055,7 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
             tally[1] += usize::from(!f.foot.0.is_nan() && within(f.foot, 5.0, 15.0));
             feet_judged += usize::from(!f.foot.0.is_nan());
             tally[2] += usize::from(f.drift <= 0.05);
+            joints_within += usize::from(f.joints_drift <= 0.05);
             tally[3] += usize::from(f.floor_p95.is_none_or(|c| c <= 1.0));
             if !(f.drift <= 0.05) {
                 failures.push(format!("{name}: drift {:.3} cm/frame", f.drift));
@@ -1039,7 +1070,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     }
     println!(
         "{checked} right walk/run pairs measured; within the bounds: thigh and shin {}, foot {} \
-         of the {feet_judged} with toes, drift {}, floor {}; {} failures",
+         of the {feet_judged} with toes, drift {} (every foot joint: {joints_within}), floor {}; \
+         {} failures",
         tally[0],
         tally[1],
         tally[2],

@@ -1,9 +1,9 @@
 //! Foot locking on the target, after [`Mapping::apply`]: while the source's foot is planted,
-//! the target's foot stays where it landed (position and heading), flat on the floor at its
-//! standing height (the first frame of a clip pinned at once; offline, given the plants'
-//! heights, as far above it as the source's foot stands above its ground, scaled, up to
-//! `MAX_LIFT_RATIO` of the leg, and its heel as far above its ball as the source's heel is
-//! above its toe, as far as the foot pitches with its ball down), its leg solved with the
+//! the target's foot stays where it landed (position and heading) at its standing height (the
+//! first frame of a clip pinned at once; offline, given the plants' heights, as far above it
+//! as the source's foot stands above its ground, scaled, up to `MAX_LIFT_RATIO` of the leg):
+//! flat on the floor, or, while the animation pitches it ball down (a toe-off), rolled onto
+//! its ball, which stays where standing put it while the ankle rises; its leg solved with the
 //! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
 //! `spring`); no foot joint goes below the target's floor.
 //!
@@ -13,15 +13,17 @@
 //!  target pose ─FK─▶ fit to the standing posture: each foot pitched, the hips moved, by the
 //!                     animation's typical stance gap (offline: medians over the clip;
 //!                     live: a running average of the frames held so far)
-//!               ─FK─▶ root carried onto the held feet: over the ground by their slide in the
-//!                     animation (stride warping, `stride`), up by their ankles' gaps to their
-//!                     pinned heights (two feet down: the means), so a held leg stays as
-//!                     retargeted
+//!               ─FK─▶ root carried onto the held feet: over the ground by their contacts'
+//!                     slide in the animation (stride warping, `stride`; a foot rolling over
+//!                     its ball does not slide), up by their ankles' gaps to their pinned
+//!                     heights (two feet down: the means), so a held leg stays as retargeted
 //!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
-//!                     pinned: the foot stood flat (ball pitched to its standing height beside
-//!                     the heel's), blended in and out the same way
+//!                     pinned: the foot rolled on its pin with the animation's pitch
+//!                     (`Foot::roll`): on its ball while that is pitched lower than standing,
+//!                     else on its heel and stood flat (ball pitched down to its standing
+//!                     height), blended in and out the same way
 //!               ─▶ hips raised when every foot would have to be pulled up (the animation
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
@@ -220,10 +222,14 @@ struct Foot {
     /// How far above its standing height the source holds its foot this frame (its lowest
     /// contact above its ground, scaled to the target): a pinned foot follows it.
     lift: f32,
-    /// When the source's heel is known: how far above its standing height a pinned ankle
-    /// stands, the foot's lift plus how much higher the source's heel stands than its lowest
-    /// contact (a heel still coming down after a toe-first landing is followed).
+    /// When the source's heel is known: how far above its standing height the ankle is brought
+    /// ahead of a plant ([`FootLock::pin_height`]), the foot's lift plus how much higher the
+    /// source's heel stands than its lowest contact (a foot landing toes first).
     heel_lift: Option<f32>,
+    /// How much higher the source's heel stands above its ground than its lowest contact
+    /// (scaled to the target; offline, 0 where not known): how far the foot may roll onto its
+    /// ball ([`Foot::roll`]).
+    heel_rise: f32,
     /// Offline, how far the unpinned foot is brought to its pin's height ahead of a plant
     /// ([`landing_weight`]).
     landing: f32,
@@ -251,16 +257,62 @@ struct Foot {
 }
 
 impl Foot {
-    /// Where a pinned ankle stands: at its standing height plus the source heel's lift when
-    /// that is known, else where it was pinned, lifted by the foot's own lift.
-    fn pinned_ankle(&self, up: Vec3, floor: f32) -> Vec3 {
-        match self.heel_lift {
-            Some(h) => {
-                let p = self.lock_position;
-                p - up * p.dot(up) + up * (floor + self.heel_clearance + h)
-            }
-            None => self.lock_position + up * self.lift,
+    /// Where a pinned ankle stands, the foot turned as `ball` (ankle to ball, when the foot has
+    /// one) says: rolled on its pin ([`Foot::roll`]) from where its heel is pinned, which is its
+    /// standing height plus the foot's lift where the source's heel is known (offline), else
+    /// where it was pinned, lifted by the foot's own lift.
+    fn pinned_ankle(&self, up: Vec3, floor: f32, ball: Option<Vec3>) -> Vec3 {
+        let p = self.lock_position;
+        let heel = match self.heel_lift {
+            Some(_) => p - up * p.dot(up) + up * (floor + self.heel_clearance + self.lift),
+            None => p + up * self.lift,
+        };
+        heel + ball.map_or(Vec3::ZERO, |o| self.roll(up, o))
+    }
+
+    /// How a planted foot turned as `ball` (ankle to ball) stands on the floor, as a foot does:
+    /// on its heel while its ball is no lower against the ankle than when it stands (a heel
+    /// strike, toes up: the ankle on its pin), on its ball once it is (the heel rising at a
+    /// toe-off: the ball held where standing puts it, the ankle raised and brought towards it
+    /// as the foot pitches about the ball). The heel rises only as far as the source's does
+    /// (`heel_rise`): a foot the animation points into the floor while its heel stays down is
+    /// pitched up about its ankle instead (`flatten`). Returns the ankle's move from the heel's
+    /// pin. Up to that, the foot keeps the animation's pitch, so the leg above it keeps the
+    /// retargeted one's.
+    fn roll(&self, up: Vec3, ball: Vec3) -> Vec3 {
+        let rise = self.ball_clearance - self.heel_clearance;
+        let o_up = ball.dot(up);
+        let lifted = (rise - o_up).min(self.heel_rise);
+        if !(lifted > 0.0) {
+            return Vec3::ZERO;
         }
+        let o_flat = ball - up * o_up;
+        let Some(dir) = o_flat.try_normalize() else {
+            return up * lifted;
+        };
+        let flat = |rise: f32| {
+            (self.foot_length * self.foot_length - rise * rise)
+                .max(0.0)
+                .sqrt()
+        };
+        // The ball stays on its pin: the ankle comes forward by how much shorter the foot's
+        // reach over the ground is, pitched to stand its heel that high.
+        dir * (flat(rise) - flat(rise - lifted)) + up * lifted
+    }
+
+    /// The animated ankle's velocity and heading rate since the last frame, `dt` ago; records
+    /// this frame's.
+    fn animation_moved(&mut self, animated: Vec3, heading: f32, dt: f32) -> (Vec3, f32) {
+        let moved = if dt > 0.0 {
+            (
+                (animated - self.animated_position) / dt,
+                wrap(heading - self.animated_heading) / dt,
+            )
+        } else {
+            (Vec3::ZERO, 0.0)
+        };
+        (self.animated_position, self.animated_heading) = (animated, heading);
+        moved
     }
 
     /// A pin taken or let go: the difference in place and in speed between what is shown and
@@ -296,13 +348,14 @@ impl Foot {
     }
 }
 
-/// How a foot stands on one frame: ankle and ball heights above the floor (metres), and its
-/// pitch (radians, ball above the ankle positive).
+/// How a foot stands on one frame: its ankle's height above the floor (metres), its pitch
+/// (radians, ball above the ankle positive) and how much higher the source's heel stands than
+/// its lowest contact (scaled; 0 where not known).
 #[derive(Debug, Clone, Copy)]
 struct Stance {
     ankle: f32,
-    ball: f32,
     pitch: f32,
+    heel_rise: f32,
 }
 
 /// The per-frame goal of one foot.
@@ -440,6 +493,7 @@ impl FootLock {
                     locked: false,
                     lift: 0.0,
                     heel_lift: None,
+                    heel_rise: 0.0,
                     landing: 0.0,
                     lock_position: ankle,
                     lock_heading: 0.0,
@@ -501,9 +555,15 @@ impl FootLock {
             }
             forward_kinematics(&self.target, pose, &mut worlds);
             for (foot, h) in self.feet.iter().zip(&mut seen) {
-                if foot.source.is_some_and(|s| plants.is_planted(frame, s)) {
-                    h.push(self.stance_of(foot, &worlds));
-                }
+                let Some(s) = foot.source.filter(|&s| plants.is_planted(frame, s)) else {
+                    continue;
+                };
+                let at = |v: &[f32]| v.get(s).copied().unwrap_or(0.0);
+                let rise = at(plants.heel_lifts(frame)) - at(plants.lifts(frame)).max(0.0);
+                h.push(Stance {
+                    heel_rise: self.lift_scale * rise.max(0.0),
+                    ..self.stance_of(foot, &worlds)
+                });
             }
         }
         let median = |h: &[Stance], key: fn(&Stance) -> f32| {
@@ -513,24 +573,46 @@ impl FootLock {
         };
         let (mut rise_sum, mut n) = (0.0, 0);
         for (foot, h) in self.feet.iter_mut().zip(&seen) {
-            let Some(ankle) = median(h, |s| s.ankle) else {
+            let Some(pitch) = median(h, |s| s.pitch) else {
+                continue;
+            };
+            // A rest that does not stand (hips at the origin, feet hanging below) says nothing
+            // about how the rig stands: the animation is the best guess (its typical pitch).
+            let (standing, fix) = if self.posture_stands {
+                (foot.standing_pitch, foot.standing_pitch - pitch)
+            } else {
+                (pitch, 0.0)
+            };
+            // Where the heel stands on each frame as the lock rolls the foot ([`Foot::roll`]):
+            // a frame on its ball (pitched lower than standing, the source's heel up) has its
+            // ankle raised by that.
+            let len = foot.foot_length;
+            let heels: Vec<Stance> = (h.iter())
+                .map(|s| Stance {
+                    ankle: s.ankle
+                        - (len * (standing.sin() - (s.pitch + fix).sin()))
+                            .min(s.heel_rise)
+                            .max(0.0),
+                    ..*s
+                })
+                .collect();
+            let Some(heel) = median(&heels, |s| s.ankle) else {
                 continue;
             };
             if self.posture_stands {
-                foot.pitch_fix = foot.standing_pitch - median(h, |s| s.pitch).unwrap_or(0.0);
-                rise_sum += foot.heel_clearance - ankle;
+                foot.pitch_fix = fix;
+                rise_sum += foot.heel_clearance - heel;
                 n += 1;
             } else {
-                // A rest that does not stand (hips at the origin, feet hanging below) says
-                // nothing about how the rig stands: the animation is the best guess.
-                foot.heel_clearance = ankle;
-                foot.ball_clearance = median(h, |s| s.ball).unwrap_or(0.0);
+                foot.standing_pitch = standing;
+                foot.heel_clearance = heel;
+                foot.ball_clearance = heel + len * standing.sin();
             }
         }
         self.root_fix = if n > 0 { rise_sum / n as f32 } else { 0.0 };
     }
 
-    /// A foot's ankle and ball heights above the floor and its pitch in `worlds`.
+    /// A foot's ankle height above the floor and its pitch in `worlds`.
     fn stance_of(&self, foot: &Foot, worlds: &[WorldTransform]) -> Stance {
         let ankle = worlds[foot.leg.foot.index()].translation;
         let height = |p: Vec3| p.dot(self.up) - self.floor;
@@ -538,7 +620,7 @@ impl FootLock {
             let h = height(ankle);
             return Stance {
                 ankle: h,
-                ball: h,
+                heel_rise: 0.0,
                 pitch: 0.0,
             };
         };
@@ -546,7 +628,7 @@ impl FootLock {
         let o = ball - ankle;
         Stance {
             ankle: height(ankle),
-            ball: height(ball),
+            heel_rise: 0.0,
             pitch: (o.dot(self.up) / o.length().max(1e-6))
                 .clamp(-1.0, 1.0)
                 .asin(),
@@ -748,8 +830,10 @@ impl FootLock {
             let f = &self.feet[i];
             let steepest = f.foot_length * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
             let most = (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0);
-            self.feet[i].heel_lift =
-                heel.map(|h| lift + clamp_safe(self.lift_scale * (h - foot.max(0.0)), 0.0, most));
+            let rise = heel.map_or(0.0, |h| self.lift_scale * (h - foot.max(0.0)));
+            self.feet[i].heel_lift = heel.map(|_| lift + clamp_safe(rise, 0.0, most));
+            // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]).
+            self.feet[i].heel_rise = rise.max(0.0);
         }
         self.carry_root(planted, dt, out);
         for i in 0..self.feet.len() {
@@ -802,18 +886,23 @@ impl FootLock {
             let f = &self.feet[i];
             limit = limit.min(self.settings.max_drop_ratio * f.leg.length);
             let ankle = self.worlds[f.leg.foot.index()].translation;
+            let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - ankle);
+            // The contact the foot stands on in the animation: the ankle, less what its roll
+            // onto the ball moved it (a foot rolling over its ball does not slide).
+            let roll = ball.map_or(Vec3::ZERO, |o| f.roll(up, o));
+            let contact = ankle - (roll - up * roll.dot(up));
             // Held since the last frame and still planted: the slide is the animation's.
             let held = f.source.is_some_and(|s| planted[s]) && f.locked && f.seen;
             stands[i] = FootStand {
                 stands: held,
-                slide: held.then(|| ankle - f.raw_ankle),
+                slide: held.then(|| contact - f.raw_ankle),
                 height_gap: if held {
-                    (f.pinned_ankle(up, self.floor) - ankle).dot(up)
+                    (f.pinned_ankle(up, self.floor, ball) - ankle).dot(up)
                 } else {
                     0.0
                 },
             };
-            self.feet[i].raw_ankle = ankle;
+            self.feet[i].raw_ankle = contact;
         }
         if self.feet.iter().any(|f| f.source.is_none()) {
             limit = 0.0;
@@ -859,6 +948,13 @@ impl FootLock {
         let release_secs = self.settings.release_secs;
         let last_drop = self.last_drop;
         let shown_once = self.shown_once;
+        let floor = self.floor;
+        // The ball relative to the ankle, turned to a heading (the pin's).
+        let ball_anim =
+            (self.feet[i].leg.toes).map(|t| self.worlds[t.index()].translation - animated);
+        let ball_at = |heading: f32| {
+            ball_anim.map(|o| Quat::from_axis_angle(up, wrap(heading - heading_now)) * o)
+        };
         // A foot not seen yet is shown where the animation has it: before the settle below,
         // which measures from there (the rest pose it starts at may float far off the floor).
         let f = &mut self.feet[i];
@@ -883,24 +979,19 @@ impl FootLock {
             0.0
         };
         let f = &mut self.feet[i];
-        let (anim_velocity, anim_rate) = if dt > 0.0 {
-            (
-                (animated - f.animated_position) / dt,
-                wrap(heading_now - f.animated_heading) / dt,
-            )
-        } else {
-            (Vec3::ZERO, 0.0)
-        };
-        (f.animated_position, f.animated_heading) = (animated, heading_now);
+        let (anim_velocity, anim_rate) = f.animation_moved(animated, heading_now, dt);
         let was = f.locked;
         if wants && !f.locked {
             // Pinned where the foot is shown as it lands (the animation's foot, or where an
             // earlier lock letting go still holds it): it stops there, without gliding on.
+            // A foot landing on its ball is pinned where its heel will come down.
             f.locked = true;
-            f.lock_position = f.shown_position + up * settle;
             f.lock_heading = f.shown_heading;
+            let roll = ball_at(f.lock_heading).map_or(Vec3::ZERO, |o| f.roll(up, o));
+            f.lock_position = f.shown_position + up * settle - flat(roll);
         }
-        if f.locked && (!wants || flat(f.lock_position - animated).length() > max_drift) {
+        let drift = flat(f.pinned_ankle(up, floor, ball_at(f.lock_heading)) - animated);
+        if f.locked && (!wants || drift.length() > max_drift) {
             f.locked = false;
         }
         // The heading stays pinned against small turns (stance jitter), but a performer who
@@ -912,9 +1003,9 @@ impl FootLock {
                 f.lock_heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
             }
         }
-        let floor = self.floor;
         let (target, target_heading, velocity, rate) = if f.locked {
-            (f.pinned_ankle(up, floor), f.lock_heading, Vec3::ZERO, 0.0)
+            let ankle = f.pinned_ankle(up, floor, ball_at(f.lock_heading));
+            (ankle, f.lock_heading, Vec3::ZERO, 0.0)
         } else {
             (
                 animated + up * approach,
@@ -974,7 +1065,8 @@ impl FootLock {
         let halflife = 0.5 * self.settings.blend_secs;
         let f = &mut self.feet[i];
         let Some(o) = goal.ball_offset else { return };
-        // Ahead of a known plant the ball comes down as the ankle does (`landing`).
+        // Ahead of a known plant the ball comes down as the ankle does (`landing`). A pinned
+        // foot rolled onto its ball already stands it there.
         let weight = if goal.pinned { 1.0 } else { f.landing };
         let wanted = weight * (floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up));
         if fresh {
