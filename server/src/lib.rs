@@ -4,13 +4,17 @@
 //!
 //! ```text
 //!  SourceSpec ─load─▶ Replay task ─┐
-//!  live source thread (VMC, serial, video) ─┴─▶ FrameWriter (latest wins, one slot per source)
+//!  live source thread (VMC, serial, video) ─┴─▶ SourceDoor (newest pose, health)
+//!  mapper thread (built mappings), sessions (set_mapping, …) ─▶ the engine's Inbox
 //!                                                   │
-//!                 engine loop (tick_task): reads the clocks, sleeps until the engine's next
-//!                 wake-up or a camera's pose ─▶ rigcast_engine::Engine::handle_input(Timeout)
+//!                 engine loop (tick_task): sleeps until the engine's next wake-up or the
+//!                 inbox's wake, drains the inbox ─▶ Engine::handle_input(Frame | Health |
+//!                 Mapping | Command), reads the clocks ─▶ handle_input(Timeout)
 //!                   │ its own timetable @ rate_hz; poll_output ─▶ the outputs below
+//!                   │ source poses into their slots (latest wins, one per source)
 //!                   │ performers: Mapping::apply into preallocated target poses
-//!                   │   (mappings built by the mapper thread, never awaited by the tick)
+//!                   │   (mappings built by the mapper thread, which the engine asks with
+//!                   │   Output::Build; never awaited by the tick)
 //!                   │ encode each subject once → Bytes (shared)      VMC bundles → UDP
 //!                   ▼                                                 (≤1500 B each)
 //!             broadcast<OutFrame>  (bounded; never awaited by the tick) ──▶ recorder
