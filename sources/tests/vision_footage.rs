@@ -6,8 +6,9 @@
 //! Per clip: coverage of every identity slot, identity jumps (a slot's hips moving more than
 //! 15 % of the source frame's longer side between frames at most 2 apart; MediaPipe's by the
 //! same measure beside them; both sides' output landmarks, smoothed as each gives them by
-//! default), left/right agreement, the detector runs per frame, and the frame rate with
-//! decoding on both sides. Left/right is judged against the 3D reference where the clip is a
+//! default), left/right agreement, the detector runs per frame, the landmark model runs per
+//! frame (with the second-opinion model's where the first's left/right readings were in doubt),
+//! and the frame rate with decoding on both sides. Left/right is judged against the 3D reference where the clip is a
 //! camera of a calibrated rig (the pose2sim single-person demo: `common/reference3d.rs`,
 //! triangulated from the rig's other cameras), elsewhere against MediaPipe where its reading is
 //! decisive and steady and both show the same person. Bounds (issue 32): person `#0`'s coverage
@@ -71,6 +72,8 @@ struct Ours {
     detections: u64,
     /// Landmark model runs (crops).
     inferences: u64,
+    /// Runs of the second-opinion model (left and right of a person read in doubt).
+    second_opinions: u64,
 }
 
 fn frames_per_clip() -> Option<usize> {
@@ -147,6 +150,7 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
         slots,
         detections: pipeline.stats().detections,
         inferences: pipeline.stats().inferences,
+        second_opinions: pipeline.stats().second_opinions,
     }
 }
 
@@ -305,10 +309,15 @@ fn judge_clip(
         .collect::<Vec<_>>()
         .join(" / ");
     let ours_text = format!("| {name} | {n} | {coverage_text} |",);
+    let per_frame = |runs: u64| runs as f64 / n.max(1) as f64;
+    let second = match ours.second_opinions {
+        0 => String::new(),
+        runs => format!(" + {:.2} second", per_frame(runs)),
+    };
     let tail = format!(
-        "{} | {:.2} | {:.1} |",
+        "{} | {:.2}{second} | {:.1} |",
         ours.detections,
-        ours.inferences as f64 / n.max(1) as f64,
+        per_frame(ours.inferences),
         ours.fps
     );
     let Ok(python) = &anchors.mediapipe else {

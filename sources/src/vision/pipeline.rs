@@ -83,8 +83,8 @@ struct Person {
 }
 
 impl PosePipeline {
-    /// Loads the runtime, the landmark model and (for [`Finder::Detector`]) the person
-    /// detector named by `config`.
+    /// Loads the runtime, the landmark model, (for [`Finder::Detector`]) the person detector
+    /// and the second-opinion landmark model named by `config`.
     pub fn new(config: &PipelineConfig) -> Result<PosePipeline, VisionError> {
         let assets = &config.assets;
         let library = assets.require(assets.runtime_library(), "ONNX Runtime shared library")?;
@@ -108,7 +108,17 @@ impl PosePipeline {
             }
             Finder::Search => None,
         };
-        let tracker = PoseTracker::new(model, detector, config.tracker);
+        let mut tracker = PoseTracker::new(model, detector, config.tracker);
+        let second = config.tracker.second_opinion;
+        // A second opinion on left and right where the model's readings are in doubt (see
+        // `TrackerConfig::second_opinion`): another model than the pipeline's, for the guard.
+        if let Some(kind) = second.filter(|&k| k != config.model && config.tracker.swap_guard) {
+            let path =
+                assets.require(assets.landmark_model(kind), "second-opinion landmark model")?;
+            let mut second = LandmarkModel::load(&library, &path, config.threads, 1)?;
+            second.set_input_range(config.input_range);
+            tracker.set_second_opinion(second);
+        }
         let mut people = Vec::with_capacity(tracker.max_people());
         for _ in 0..tracker.max_people() {
             let stages = config.stages()?;

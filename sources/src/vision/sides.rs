@@ -57,7 +57,12 @@
 //! side view, so continuity can only hold whichever labelling came first; the lite model on
 //! the mirrored picture reads him right on about two thirds of the frames, wrong on the same
 //! mid-clip run. The full model's own readings are right on 73 % of cam02's frames, which its
-//! guard makes 100 %.
+//! guard makes 100 %. So while a person's readings are in doubt (the model flips them back and
+//! forth between decisive frames, [`SideGuard::in_doubt`]), the tracker runs a second model,
+//! the full one by default, on the same person and gives the reading its labelling
+//! ([`take_labelling_of`]) before the guard weighs it: lite's cam02 goes from 0 to 78 % right
+//! (the full model runs on 79 of its 100 frames); where the lite model reads a view steadily
+//! the wrong way round (the fashion model's back, 55 frames), it never flips, and nothing asks.
 
 use glam::{Vec2, Vec3};
 
@@ -120,6 +125,13 @@ const DECISIVE_FACING: f32 = 0.8;
 /// off the camera before and after).
 const SIDE_VIEW_FRAMES: u8 = 2;
 
+/// Flips of the model's own reading between consecutive decisive frames, fading as the
+/// evidence does (about twenty frames), from which its readings of a person are in doubt (see
+/// [`SideGuard::in_doubt`]): more than one run of misreadings lately (a clear view read right
+/// flips none, one run of misreadings on it two); the lite model on pose2sim cam02, which it
+/// reads either way round, flips 25 times in 100 frames.
+const DOUBT_FLIPS: f32 = 2.5;
+
 /// What [`SideGuard::label`] did to a reading.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Labelling {
@@ -143,6 +155,10 @@ pub(super) struct SideGuard {
     weight: f32,
     /// Side views in a row up to this frame (at most [`SIDE_VIEW_FRAMES`]).
     edge_on: u8,
+    /// The torso lines of the model's own last decisive reading, and its flips between such
+    /// readings (fading), for [`Self::in_doubt`].
+    last_own: Option<[Vec3; 2]>,
+    flips: f32,
 }
 
 impl SideGuard {
@@ -152,11 +168,32 @@ impl SideGuard {
         evidence: 0.0,
         weight: 0.0,
         edge_on: 0,
+        last_own: None,
+        flips: 0.0,
     };
 
     /// Forgets the reference and the evidence (a new person, or one found again).
     pub(super) fn reset(&mut self) {
         *self = SideGuard::NEW;
+    }
+
+    /// Notes `own`, the model's own reading of this frame (before any second opinion), and
+    /// says whether its readings of this person are in doubt: it flipped its reading between
+    /// consecutive decisive frames [`DOUBT_FLIPS`] times lately (fading). A body turns through
+    /// side views, which are not decisive, so only misreadings flip between two decisive
+    /// frames in a row.
+    pub(super) fn in_doubt(&mut self, own: &Landmarks) -> bool {
+        if reading_weight(own) > 0.0 {
+            let lines = torso_lines(own);
+            let flipped = self
+                .last_own
+                .is_some_and(|last| lines_swapped(&last, lines));
+            self.flips = self.flips * EVIDENCE_KEPT + if flipped { 1.0 } else { 0.0 };
+            self.last_own = Some(lines);
+        } else {
+            self.last_own = None;
+        }
+        self.flips >= DOUBT_FLIPS
     }
 
     /// Labels `lm`, the model's reading of this frame, continuing the kept labelling or,
@@ -174,6 +211,7 @@ impl SideGuard {
             // decides nothing here; the labelling is read afresh from the model after it.
             *self = SideGuard {
                 edge_on: self.edge_on,
+                flips: self.flips,
                 ..SideGuard::NEW
             };
             return Labelling::Kept;
@@ -297,7 +335,11 @@ fn flipped_lines(lines: [Vec3; 2]) -> [Vec3; 2] {
 /// reference follows the kept frames with some inertia (rather than being the last frame
 /// alone), so one degenerate in-between frame does not decide the labels of all that follow.
 fn labels_swapped(reference: &[Vec3; 2], cur: &Landmarks) -> bool {
-    let same = torso_lines(cur);
+    lines_swapped(reference, torso_lines(cur))
+}
+
+/// [`labels_swapped`] on torso lines.
+fn lines_swapped(reference: &[Vec3; 2], same: [Vec3; 2]) -> bool {
     let flipped = flipped_lines(same);
     let cost = |lines: &[Vec3; 2]| -> f32 {
         lines
@@ -307,6 +349,15 @@ fn labels_swapped(reference: &[Vec3; 2], cur: &Landmarks) -> bool {
             .sum()
     };
     cost(&flipped) < cost(&same)
+}
+
+/// Gives `lm` the labelling of `second`, another landmark model's reading of the same picture,
+/// when `second` is decisive (see [`reading_weight`]): flips `lm` when the two read it the
+/// other way round. Both models' world points are hip-centred metres in the same axes.
+pub(super) fn take_labelling_of(lm: &mut Landmarks, second: &Landmarks) {
+    if reading_weight(second) > 0.0 && labels_swapped(&torso_lines(second), lm) {
+        flip_interpretation(lm);
+    }
 }
 
 /// Moves the reference torso lines towards the kept frame's.
@@ -510,6 +561,48 @@ mod tests {
             assert_eq!(guard.label(&mut lm), Labelling::Flipped, "frame {frame}");
             assert_eq!(lm, truth, "frame {frame}");
         }
+    }
+
+    #[test]
+    fn readings_flipping_back_and_forth_are_in_doubt_and_a_second_reading_labels_them() {
+        let mut guard = SideGuard::NEW;
+        // Read right for a second: no doubt; one run of eight misread frames: none yet.
+        for frame in 0..30 {
+            assert!(!guard.in_doubt(&body(0.0)), "frame {frame}");
+        }
+        for frame in 0..8 {
+            assert!(!guard.in_doubt(&flipped(body(0.0))), "frame {frame}");
+        }
+        assert!(!guard.in_doubt(&body(0.0)));
+        // Flipping back and forth: in doubt.
+        let doubts: Vec<bool> = (0..6)
+            .map(|frame| {
+                let truth = body(0.0);
+                guard.in_doubt(&if frame % 2 == 0 {
+                    flipped(truth)
+                } else {
+                    truth
+                })
+            })
+            .collect();
+        assert!(doubts.last().copied().unwrap_or(false), "{doubts:?}");
+        // Turns through side views are no flips (side views are not decisive).
+        let mut turning = SideGuard::NEW;
+        for frame in 0..=360 {
+            let yaw = std::f32::consts::PI * frame as f32 / 30.0;
+            let _ = turning.in_doubt(&body(yaw));
+            assert_eq!(turning.flips, 0.0, "frame {frame}");
+        }
+        // A second, decisive reading gives its labelling; an undecided one leaves it.
+        let truth = body(0.2);
+        let mut lm = flipped(truth);
+        take_labelling_of(&mut lm, &body(0.25));
+        assert_eq!(lm, truth);
+        take_labelling_of(&mut lm, &body(0.25));
+        assert_eq!(lm, truth);
+        let mut lm = flipped(truth);
+        take_labelling_of(&mut lm, &body(std::f32::consts::FRAC_PI_2));
+        assert_eq!(lm, flipped(truth));
     }
 
     #[test]

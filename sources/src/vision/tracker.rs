@@ -35,13 +35,14 @@
 
 use glam::Vec2;
 
+use super::assets::ModelKind;
 use super::detector::{Detection, PersonDetector};
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
 use super::model::{Disc, LandmarkModel};
 use super::roi::Roi;
-use super::sides::{mirror_index, Labelling, SideGuard};
+use super::sides::{mirror_index, take_labelling_of, Labelling, SideGuard};
 /// How the tracker finds people it does not track yet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Finder {
@@ -77,6 +78,10 @@ pub struct TrackerConfig {
     /// For this many frames after losing a person, their slot only takes someone found near
     /// where they were last seen.
     pub reacquire_frames: u32,
+    /// A second landmark model whose reading decides left and right of a person while the
+    /// first's readings of them are in doubt (it flips them between frames; see `sides`),
+    /// when it is another model than the pipeline's and the swap guard is on.
+    pub second_opinion: Option<ModelKind>,
 }
 
 impl Default for TrackerConfig {
@@ -91,6 +96,7 @@ impl Default for TrackerConfig {
             find_every_frames: 10,
             min_detection_score: 0.3,
             reacquire_frames: 60,
+            second_opinion: Some(ModelKind::Full),
         }
     }
 }
@@ -161,6 +167,8 @@ pub struct TrackerStats {
     pub duplicates_dropped: u64,
     /// Tracking results that lay on another tracked person (crops beside them were tried).
     pub slides_caught: u64,
+    /// Runs of the second-opinion model (see [`TrackerConfig::second_opinion`]).
+    pub second_opinions: u64,
     /// Time spent finding people (detector or search, with its landmark runs), nanoseconds:
     /// the "detect" stage of the latency figures.
     pub find_nanos: u64,
@@ -227,6 +235,9 @@ impl Track {
 #[derive(Debug)]
 pub struct PoseTracker {
     model: LandmarkModel,
+    /// The second-opinion model and its result (see [`TrackerConfig::second_opinion`]).
+    second: Option<LandmarkModel>,
+    second_scratch: Landmarks,
     detector: Option<PersonDetector>,
     config: TrackerConfig,
     tracks: Vec<Track>,
@@ -266,6 +277,8 @@ impl PoseTracker {
         };
         PoseTracker {
             model,
+            second: None,
+            second_scratch: Landmarks::default(),
             detector,
             config,
             tracks: vec![Track::EMPTY; config.max_people],
@@ -280,6 +293,11 @@ impl PoseTracker {
             round_from_empty: false,
             stats: TrackerStats::default(),
         }
+    }
+
+    /// Gives the tracker its second-opinion model (see [`TrackerConfig::second_opinion`]).
+    pub fn set_second_opinion(&mut self, model: LandmarkModel) {
+        self.second = Some(model);
     }
 
     /// The model (e.g. to change its input range).
@@ -343,7 +361,8 @@ impl PoseTracker {
             self.scratch = self.batch_results[batched];
             batched += 1;
             if self.follow(frame, slot, roi)? {
-                let found = self.scratch;
+                let mut found = self.scratch;
+                self.second_opinion(frame, slot, &mut found)?;
                 self.accept(slot, &found);
             } else {
                 self.tracks[slot].lose();
@@ -543,6 +562,29 @@ impl PoseTracker {
             let t = &self.tracks[b];
             b != slot && t.tracked() && body_distance(&self.scratch, &t.landmarks) < ON_OTHER_BODY
         })
+    }
+
+    /// While the model's readings of person `slot` are in doubt (see `sides`), gives `found`
+    /// the labelling the second-opinion model reads on the same person's crop.
+    fn second_opinion(
+        &mut self,
+        frame: &RgbFrame,
+        slot: usize,
+        found: &mut Landmarks,
+    ) -> Result<(), VisionError> {
+        let Some(second) = self.second.as_mut() else {
+            return Ok(());
+        };
+        if !self.config.swap_guard || !self.tracks[slot].sides.in_doubt(found) {
+            return Ok(());
+        }
+        let Some(roi) = next_roi(found) else {
+            return Ok(());
+        };
+        second.infer(frame, &roi, &mut self.second_scratch)?;
+        self.stats.second_opinions += 1;
+        take_labelling_of(found, &self.second_scratch);
+        Ok(())
     }
 
     /// Takes `lm` as person `slot`'s landmarks this frame.
