@@ -66,7 +66,9 @@ pub(crate) fn chain_splits(
     if m < 2 {
         return out;
     }
-    let max_pre = 2.min(m.saturating_sub(2));
+    // Up to three bones before the upper segment: a helper at the spine's joint, the clavicle
+    // and a scapula (MakeHuman's `__Clavicle` with a scapula between clavicle and arm).
+    let max_pre = 3.min(m.saturating_sub(2));
     for a in 0..=max_pre {
         for b in (a + 1)..m {
             let e_range: Vec<usize> = match fixed_extremity {
