@@ -212,3 +212,72 @@ fn quadrupeds_stand_on_four_feet() {
         }
     }
 }
+
+/// Every labelled walk ([`shared_data::walks`], picked by its own motion; cheap, so all of them):
+/// plants on both feet, at least one per two changes of the lower foot less one (a stance per
+/// step, one lost at the clip's ends), mostly alternating.
+#[test]
+#[ignore = "fails on 5 of the 9 discovered walks (no plants on the runs, repeated feet in turns and starts): the bounds above hold only on the files they name"]
+fn every_labelled_walk_plants_alternately() {
+    let mut failed = Vec::new();
+    for (l, clip, gait) in shared_data::walks() {
+        let relative = &l.rel;
+        let min_steps = (gait.switches / 2).saturating_sub(1).max(1);
+        let (two_sided, _, left, right) = tracks(&clip);
+        let steps = order(&clip, &two_sided, left, right, 0..clip.num_frames());
+        println!(
+            "{relative}: {} frames, {gait:?}, at least {min_steps} plants a foot, plant order {steps}",
+            clip.num_frames()
+        );
+        println!(
+            "  left {:?}\n  right {:?}",
+            two_sided.intervals(left),
+            two_sided.intervals(right)
+        );
+        let each = |c: char| steps.matches(c).count();
+        if each('L') < min_steps || each('R') < min_steps {
+            failed.push(format!(
+                "{relative}: {steps}, fewer than {min_steps} a foot"
+            ));
+        }
+        // Alternation: most consecutive plant starts switch feet.
+        let switches = steps.as_bytes().windows(2).filter(|w| w[0] != w[1]).count();
+        if switches * 10 < steps.len().saturating_sub(1) * 8 {
+            failed.push(format!(
+                "{relative}: {steps} switches feet {switches} times"
+            ));
+        }
+    }
+    assert!(failed.is_empty(), "{failed:#?}");
+}
+
+/// Every labelled quadruped whose four legs are labelled (rest poses: cheap, so all of them).
+#[test]
+#[ignore = "the MANN dog BVHs' front legs are not found as legs (hind legs only); Horse, Wolf and the elephant pass"]
+fn every_four_legged_quadruped_stands_on_four_feet() {
+    let mut failed = Vec::new();
+    for l in shared_data::labelled_where("four-legged quadruped", |l| l.four_legged()) {
+        let rel = &l.rel;
+        let (clip, _) = rigcast_sources::load_rig(&l.path).unwrap();
+        let analysis = analyze(&SkeletonView::rest(&clip.skeleton));
+        let legs = find_legs(&clip.skeleton, &analysis);
+        let names: Vec<_> = legs
+            .iter()
+            .map(|l| (l.kind, l.side, clip.skeleton.name(l.foot).to_string()))
+            .collect();
+        println!("{rel}: {names:?}");
+        use rigcast_retarget::footplant::LegKind;
+        for kind in [LegKind::Hind, LegKind::Front] {
+            for side in [Side::Left, Side::Right] {
+                let n = legs
+                    .iter()
+                    .filter(|l| l.kind == kind && l.side == side)
+                    .count();
+                if n != 1 {
+                    failed.push(format!("{rel}: {n} {kind:?} {side:?} in {names:?}"));
+                }
+            }
+        }
+    }
+    assert!(failed.is_empty(), "{failed:#?}");
+}

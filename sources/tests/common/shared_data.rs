@@ -96,3 +96,226 @@ pub fn all_labels(root: &std::path::Path) -> serde_json::Map<String, serde_json:
     }
     out
 }
+
+/// The sided leg roles a labelled rig with two legs carries.
+pub const LEG_ROLES: [&str; 6] = [
+    "upperLeg.L",
+    "upperLeg.R",
+    "lowerLeg.L",
+    "lowerLeg.R",
+    "foot.L",
+    "foot.R",
+];
+
+/// One labelled file of the shared data that is present: its key in the label files (a path
+/// relative to the data root), its full path and its labels. Tests pick files by what these
+/// say they are (and by what the file itself shows), never by name.
+#[derive(Clone, Debug)]
+pub struct Labelled {
+    pub rel: String,
+    pub path: PathBuf,
+    pub labels: serde_json::Value,
+}
+
+impl Labelled {
+    /// `kind` of the labels: human, quadruped, biped_creature, hand or other.
+    pub fn kind(&self) -> &str {
+        self.labels
+            .get("kind")
+            .and_then(|k| k.as_str())
+            .unwrap_or("")
+    }
+
+    pub fn has_role(&self, role: &str) -> bool {
+        self.labels.get(role).is_some()
+    }
+
+    /// The primary (first) bone name labelled for `role`.
+    pub fn bone(&self, role: &str) -> Option<&str> {
+        self.labels.get(role)?.as_array()?.first()?.as_str()
+    }
+
+    pub fn is_bvh(&self) -> bool {
+        self.path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("bvh"))
+    }
+
+    /// Two labelled legs (upper, lower leg and foot on each side).
+    pub fn has_legs(&self) -> bool {
+        LEG_ROLES.iter().all(|r| self.has_role(r))
+    }
+
+    /// A quadruped whose four legs are labelled: hind legs down to the foot, front legs down to
+    /// the lower leg (the front foot is not labelled on every rig).
+    pub fn four_legged(&self) -> bool {
+        self.kind() == "quadruped"
+            && self.has_legs()
+            && [
+                "frontUpper.L",
+                "frontUpper.R",
+                "frontLower.L",
+                "frontLower.R",
+            ]
+            .iter()
+            .all(|r| self.has_role(r))
+    }
+
+    /// A human labelled without any leg role (an upper body).
+    pub fn upper_body_only(&self) -> bool {
+        self.kind() == "human"
+            && !["upperLeg", "lowerLeg", "foot", "toes"]
+                .iter()
+                .any(|r| self.has_role(&format!("{r}.L")) || self.has_role(&format!("{r}.R")))
+    }
+
+    /// Whether the rig's bone names say the opposite side to its labels: the labels' sides are
+    /// the character's own, checked against its geometry (labels.json `_doc`), so a rig whose
+    /// names disagree on most sided roles names its sides mirrored.
+    pub fn names_mirrored(&self) -> bool {
+        let (mut agree, mut disagree) = (0, 0);
+        for (role, _) in self.labels.as_object().into_iter().flatten() {
+            let labelled = match role.rsplit_once('.') {
+                Some((_, "L")) => 'L',
+                Some((_, "R")) => 'R',
+                _ => continue,
+            };
+            match self.bone(role).and_then(name_side) {
+                Some(s) if s == labelled => agree += 1,
+                Some(_) => disagree += 1,
+                None => {}
+            }
+        }
+        disagree > agree
+    }
+}
+
+/// The side a bone name spells (`Left…`, `…_R`, `r-…`, `.L`), if any.
+fn name_side(name: &str) -> Option<char> {
+    let lower = name.to_ascii_lowercase();
+    let (left, right) = (lower.contains("left"), lower.contains("right"));
+    if left != right {
+        return Some(if left { 'L' } else { 'R' });
+    }
+    let tokens: Vec<&str> = lower
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|t| !t.is_empty())
+        .collect();
+    let (l, r) = (tokens.contains(&"l"), tokens.contains(&"r"));
+    (l != r).then_some(if l { 'L' } else { 'R' })
+}
+
+/// Every labelled file present under the shared data (both label files' entries), sorted by
+/// its relative path so tests run in a stable order.
+pub fn labelled() -> Vec<Labelled> {
+    let root = shared_data_root();
+    let mut out: Vec<Labelled> = all_labels(&root)
+        .into_iter()
+        .map(|(rel, labels)| Labelled {
+            path: root.join(&rel),
+            rel,
+            labels,
+        })
+        .filter(|l| l.path.is_file())
+        .collect();
+    out.sort_by(|a, b| a.rel.cmp(&b.rel));
+    out
+}
+
+/// The labelled files `keep` accepts, sorted; empty with a printed reason naming `what` when
+/// none is present.
+pub fn labelled_where(what: &str, keep: impl Fn(&Labelled) -> bool) -> Vec<Labelled> {
+    let out: Vec<Labelled> = labelled().into_iter().filter(|l| keep(l)).collect();
+    if out.is_empty() {
+        println!(
+            "SKIP: no {what} among the labelled files of {}",
+            shared_data_root().display()
+        );
+    }
+    out
+}
+
+/// What a clip's own motion shows about walking, from its labelled hips and feet (joint
+/// heights and positions only, independent of the footplant detector tests judge).
+#[derive(Clone, Copy, Debug)]
+pub struct Gait {
+    /// Farthest the hips get from where they start, along the ground, in leg lengths.
+    pub travel: f32,
+    /// How many times the lower foot changes sides (a change counts once a foot is lower by
+    /// more than 3 % of a leg length; a stride is two).
+    pub switches: usize,
+}
+
+impl Gait {
+    /// A walk (or run): the root travels at least one leg length over the ground and the feet
+    /// take the lower place in turn at least twice.
+    pub fn is_walk(&self) -> bool {
+        self.travel >= 1.0 && self.switches >= 2
+    }
+}
+
+/// The gait of `clip`, whose labels are `l`; `None` without labelled hips and feet found in
+/// its skeleton or with fewer than two frames.
+pub fn gait(l: &Labelled, clip: &rigcast_retarget::Clip) -> Option<Gait> {
+    use rigcast_retarget::analysis::{analyze, SkeletonView};
+    let bone = |role: &str| clip.skeleton.bone(l.bone(role)?);
+    let (hips, left, right) = (bone("hips")?, bone("foot.L")?, bone("foot.R")?);
+    if clip.poses.len() < 2 {
+        return None;
+    }
+    let up = analyze(&SkeletonView::from_clip(&clip.skeleton, &clip.poses)).up;
+    let worlds: Vec<_> = clip
+        .poses
+        .iter()
+        .map(|p| rigcast_retarget::world_transforms(&clip.skeleton, p))
+        .collect();
+    let at = |f: usize, b: rigcast_retarget::BoneId| worlds[f][b.index()].translation;
+    let first = at(0, hips);
+    let leg = (first - 0.5 * (at(0, left) + at(0, right))).dot(up);
+    if leg <= 0.0 {
+        return None;
+    }
+    let mut travel: f32 = 0.0;
+    let (mut lower, mut switches) = (None, 0);
+    for f in 0..worlds.len() {
+        let moved = at(f, hips) - first;
+        travel = travel.max((moved - moved.dot(up) * up).length() / leg);
+        let d = (at(f, left) - at(f, right)).dot(up) / leg;
+        let now = if d > 0.03 {
+            Some('R')
+        } else if d < -0.03 {
+            Some('L')
+        } else {
+            continue;
+        };
+        if lower.is_some() && lower != now {
+            switches += 1;
+        }
+        lower = now;
+    }
+    Some(Gait { travel, switches })
+}
+
+/// Every labelled BVH clip of a biped (human or biped creature, legs labelled) whose own motion
+/// is a walk ([`Gait::is_walk`]), loaded, with its gait, sorted; empty with a printed reason
+/// when none is present.
+pub fn walks() -> Vec<(Labelled, rigcast_retarget::Clip, Gait)> {
+    let biped = |l: &Labelled| matches!(l.kind(), "human" | "biped_creature") && l.has_legs();
+    let mut out = Vec::new();
+    for l in labelled().into_iter().filter(|l| l.is_bvh() && biped(l)) {
+        let Ok(clip) = rigcast_sources::load_clip(&l.path) else {
+            continue;
+        };
+        match gait(&l, &clip) {
+            Some(g) if g.is_walk() => out.push((l, clip, g)),
+            g => println!("not a walk: {} ({g:?})", l.rel),
+        }
+    }
+    if out.is_empty() {
+        println!(
+            "SKIP: no labelled walk among the clips of {}",
+            shared_data_root().display()
+        );
+    }
+    out
+}
