@@ -1,6 +1,8 @@
 //! Foot locking judged on real data (issue 13): the CMU 131_01 walk retargeted offline onto
 //! four characters with different leg lengths (the built-in mannequin, Mixamo's X Bot,
-//! Quaternius' Casual, and the short-legged Godot platformer robot), with and without the lock. Measured in world space
+//! Quaternius' Casual, and the short-legged Godot platformer robot), and (ignored until
+//! RobotExpressive passes) the first labelled walk onto every labelled human rig, with and
+//! without the lock. Measured in world space
 //! on the output, with the plants detected on the source:
 //! - horizontal drift of the target's heel and ball joints between consecutive frames of a
 //!   plant (mean, cm/frame): ≤ 0.05 with the lock (the figure without it is printed);
@@ -130,35 +132,20 @@ fn measure(
     }
 }
 
-#[test]
-fn cmu_walk_feet_stay_planted_on_four_characters() {
-    let Some(source) = common::shared_clip(common::CMU_WALK) else {
-        return;
-    };
-    let mut targets: Vec<(String, Clip)> = Vec::new();
+/// The built-in mannequin, at rest, as a target.
+fn mannequin_target() -> (String, Clip) {
     let mannequin = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
-    targets.push((
-        "builtin:mannequin".into(),
-        Clip::new(
-            "mannequin",
-            mannequin.clone(),
-            vec![mannequin.rest_pose()],
-            1.0 / 30.0,
-        )
-        .unwrap(),
-    ));
-    for rel in [
-        "zoo/gltf/mixamo_gltf__Xbot.glb",
-        "zoo/gltf/quaternius_humanoid__Casual.glb",
-        "zoo/gltf/godot_robot__platformer_player.glb",
-    ] {
-        let Some(p) = common::shared_data(rel) else {
-            return;
-        };
-        targets.push((rel.into(), rigcast_sources::load_rig(&p).unwrap().0));
-    }
+    let rest = vec![mannequin.rest_pose()];
+    let clip = Clip::new("mannequin", mannequin, rest, 1.0 / 30.0).unwrap();
+    ("builtin:mannequin".into(), clip)
+}
+
+/// The offline lock's figures for `source` onto each of `targets` (see the module's doc),
+/// every target judged before the test fails; their legs differ in length by 30 % or more.
+fn feet_stay_planted(source: &Clip, targets: &[(String, Clip)]) {
     let mut lengths = Vec::new();
-    for (name, target) in &targets {
+    let mut failures = Vec::new();
+    for (name, target) in targets {
         let plan = plan_mapping(&source, target, None).unwrap();
         let source_legs = find_legs(&source.skeleton, &plan.source_analysis);
         let plants = detect_clip(
@@ -173,7 +160,13 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
             .into_iter()
             .filter_map(|l| Some((l, source_legs.iter().position(|s| s.key() == l.key())?)))
             .collect();
-        assert_eq!(legs.len(), 2, "{name}: both legs paired with the source's");
+        if legs.len() != 2 {
+            failures.push(format!(
+                "{name}: {} legs paired with the source's",
+                legs.len()
+            ));
+            continue;
+        }
         let rest = world_transforms(&target.skeleton, &target.skeleton.rest_pose());
         let free_clip = common::retarget(&source, &plan, target, false);
         let axes = bend_axes(&free_clip, &legs);
@@ -210,31 +203,36 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
             free.largest_kick_cm,
         );
         lengths.push(legs[0].0.length);
-        assert!(locked.drift_cm_per_frame <= 0.05, "{name}: {locked:?}");
-        assert!(
-            locked.drift_cm_per_frame * 3.0 < free.drift_cm_per_frame,
-            "{name}"
-        );
-        assert!(locked.deepest_below_floor_cm <= 0.5, "{name}: {locked:?}");
         println!(
             "{name}: planted feet off their standing height {:.2} cm locked, {:.2} free (90th pct)",
             locked.planted_off_standing_cm, free.planted_off_standing_cm
         );
-        // Measured: mannequin 0.75, X Bot 0.73, Casual 0.90, robot 0.62 cm (free 3.9 / 11.5
-        // / 7.0 / 9.9): a pinned foot follows the source's clearance above its ground, up to
-        // 0.8 % of the leg, and its heel the source's above its toe, up to 2 % (before it did
-        // not: 0.05 / 0.12 / 0.34 / 0.30). Before the animation
-        // was fitted to the standing posture first: X Bot 2.18; before the landing settle the
-        // mannequin's was 4.66.
-        assert!(locked.planted_off_standing_cm <= 1.0, "{name}: {locked:?}");
-        assert_eq!(locked.knee_flips, 0, "{name}: {locked:?}");
-        // Locks blend in and out: no foot changes speed from one frame to the next much more
-        // than in the animation itself.
-        assert!(
-            locked.largest_kick_cm <= 1.5 * free.largest_kick_cm,
-            "{name}: {locked:?} vs {free:?}"
-        );
+        let checks = [
+            ("drift", locked.drift_cm_per_frame <= 0.05),
+            (
+                "drift not a third of the free one",
+                locked.drift_cm_per_frame * 3.0 < free.drift_cm_per_frame,
+            ),
+            ("below the floor", locked.deepest_below_floor_cm <= 0.5),
+            // Measured: mannequin 0.75, X Bot 0.73, Casual 0.90, robot 0.62 cm (free 3.9 /
+            // 11.5 / 7.0 / 9.9): a pinned foot follows the source's clearance above its
+            // ground, up to 0.8 % of the leg, and its heel the source's above its toe, up to
+            // 2 % (before it did not: 0.05 / 0.12 / 0.34 / 0.30). Before the animation was
+            // fitted to the standing posture first: X Bot 2.18; before the landing settle the
+            // mannequin's was 4.66.
+            ("off standing", locked.planted_off_standing_cm <= 1.0),
+            ("knee flips", locked.knee_flips == 0),
+            // Locks blend in and out: no foot changes speed from one frame to the next much
+            // more than in the animation itself.
+            ("kick", locked.largest_kick_cm <= 1.5 * free.largest_kick_cm),
+        ];
+        for (what, ok) in checks {
+            if !ok {
+                failures.push(format!("{name}: {what}: {locked:?} vs {free:?}"));
+            }
+        }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
     // Different leg lengths, as the acceptance asks.
     lengths.sort_by(f32::total_cmp);
     assert!(
@@ -243,11 +241,49 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
     );
 }
 
-/// The live path: the performer stage's causal detection and lock, frame by frame as the
-/// tick runs them, on the mannequin and X Bot; drift is measured over the (two-sided) plants.
 #[test]
-fn cmu_walk_live_lock_keeps_planted_feet() {
+fn cmu_walk_feet_stay_planted_on_four_characters() {
     let Some(source) = common::shared_clip(common::CMU_WALK) else {
+        return;
+    };
+    let mut targets = vec![mannequin_target()];
+    for rel in [
+        "zoo/gltf/mixamo_gltf__Xbot.glb",
+        "zoo/gltf/quaternius_humanoid__Casual.glb",
+        "zoo/gltf/godot_robot__platformer_player.glb",
+    ] {
+        let Some(p) = common::shared_data(rel) else {
+            return;
+        };
+        targets.push((rel.into(), rigcast_sources::load_rig(&p).unwrap().0));
+    }
+    feet_stay_planted(&source, &targets);
+}
+
+/// The same, with the data discovered: the first labelled walk (found by its motion; two
+/// retargets of a whole walk per character are expensive, so one walk) onto the mannequin and
+/// every labelled human rig with legs. Today the mannequin, the Godot robot, X Bot, Casual and
+/// the UE-style mannequin pass; RobotExpressive fails: none of its legs is paired with the
+/// walk's (`find_legs`), though its labels give both.
+#[test]
+#[ignore = "RobotExpressive: no leg paired with the walk's; the other five characters pass"]
+fn a_walk_keeps_its_feet_planted_on_every_human_character() {
+    let Some((_, source, _)) = common::first_walk() else {
+        return;
+    };
+    let mut targets = vec![mannequin_target()];
+    for rig in common::human_rigs() {
+        targets.push((rig.rel, rigcast_sources::load_rig(&rig.path).unwrap().0));
+    }
+    feet_stay_planted(&source, &targets);
+}
+
+/// The live path: the performer stage's causal detection and lock, frame by frame as the
+/// tick runs them, on the mannequin and the first labelled human rig; drift is measured over
+/// the (two-sided) plants. Expensive: the first walk onto the first rig only.
+#[test]
+fn a_walks_live_lock_keeps_planted_feet() {
+    let Some((_, source, _)) = common::first_walk() else {
         return;
     };
     let mannequin = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
@@ -261,10 +297,8 @@ fn cmu_walk_live_lock_keeps_planted_feet() {
         )
         .unwrap(),
     )];
-    let rel = "zoo/gltf/mixamo_gltf__Xbot.glb";
-    match common::shared_data(rel) {
-        Some(p) => targets.push((rel.into(), rigcast_sources::load_rig(&p).unwrap().0)),
-        None => println!("SKIP the live lock on {rel}: not in the shared data"),
+    if let Some(rig) = common::human_rigs().into_iter().next() {
+        targets.push((rig.rel, rigcast_sources::load_rig(&rig.path).unwrap().0));
     }
     let mut failures = Vec::new();
     for (name, target) in &targets {

@@ -1,6 +1,6 @@
-//! Foot locking on a quadruped target (issue 13): the CMU 131_01 walk retargeted offline onto
-//! Quaternius' Horse and Wolf (labelled quadrupeds of the zoo; front legs driven by the
-//! walker's arms). Measured on the output: the rig's four feet are found (two hind, two front),
+//! Foot locking on a quadruped target (issue 13): the first labelled walk (found by its motion)
+//! retargeted offline onto every labelled quadruped rig with four labelled legs (today
+//! Quaternius' Horse and Wolf; front legs driven by the walker's arms). Measured on the output: the rig's four feet are found (two hind, two front),
 //! the feet the source's plants drive (the hind ones) hold still while planted, no heel or
 //! ball joint of any of the four feet goes below its standing height by more than 0.5 cm more
 //! than the unlocked retarget already does, and no knee or elbow flips its bend (the sign of
@@ -23,20 +23,19 @@ use rigcast_retarget::footplant::{detect_clip, find_legs, Leg, LegKind, PlantSet
 use rigcast_retarget::{world_transforms, Clip, RetargetOptions, WorldTransform};
 use rigcast_server::offline::{plan_mapping, MappingPlan};
 
-/// The CMU walk and the zoo's labelled quadrupeds (name, rig); `None` (printed) without the
-/// shared data.
-fn walk_and_quadrupeds() -> Option<(Clip, Vec<(&'static str, Clip)>)> {
-    let walk = common::shared_data("bvh/cmu_131_01_walk.bvh")?;
-    let source = rigcast_sources::load_clip(&walk).unwrap();
-    let mut targets = Vec::new();
-    for rel in [
-        "zoo/gltf/quaternius_quadruped__Horse.glb",
-        "zoo/gltf/quaternius_quadruped__Wolf.glb",
-    ] {
-        let path = common::shared_data(rel)?;
-        targets.push((rel, rigcast_sources::load_rig(&path).unwrap().0));
-    }
-    Some((source, targets))
+/// The first labelled walk (found by its motion; retargeting a whole walk is expensive, so one)
+/// and every labelled quadruped rig (not a BVH clip) whose four legs are labelled (name, rig);
+/// `None` (printed) without them.
+fn walk_and_quadrupeds() -> Option<(Clip, Vec<(String, Clip)>)> {
+    let (_, source, _) = common::first_walk()?;
+    let rigs = common::labelled_where("quadruped rig with four labelled legs", |l| {
+        l.four_legged() && !l.is_bvh()
+    });
+    let targets: Vec<(String, Clip)> = rigs
+        .into_iter()
+        .map(|l| (l.rel, rigcast_sources::load_rig(&l.path).unwrap().0))
+        .collect();
+    (!targets.is_empty()).then_some((source, targets))
 }
 
 /// The source's legs and their plants over the whole clip (two-sided).
@@ -99,7 +98,7 @@ fn bend_axes(w: &[Vec<WorldTransform>], leg: &Leg) -> Vec<Vec3> {
 /// plants (`None` for a foot no source plant drives).
 #[derive(Debug)]
 struct FootFigures {
-    rig: &'static str,
+    rig: String,
     name: String,
     locked_depth: f32,
     free_depth: f32,
@@ -181,7 +180,7 @@ fn measure_quadrupeds() -> Option<Vec<FootFigures>> {
                 df * 100.0
             );
             figures.push(FootFigures {
-                rig: rel,
+                rig: rel.clone(),
                 name: name.to_string(),
                 locked_depth: dl,
                 free_depth: df,
@@ -357,7 +356,7 @@ fn percentile(v: &mut [f32], p: usize) -> f32 {
 /// knees and elbows bend against their standing bend, and how far the front feet swing.
 #[derive(Debug)]
 struct BodyFigures {
-    rig: &'static str,
+    rig: String,
     /// Hips → chest pitch minus the standing one, degrees: 90th percentile and worst.
     pitch_p90: f32,
     pitch_max: f32,
@@ -445,7 +444,7 @@ fn measure_bodies() -> Option<Vec<BodyFigures>> {
             })
             .fold(f32::INFINITY, f32::min);
         let figures = BodyFigures {
-            rig: rel,
+            rig: rel.clone(),
             pitch_p90: percentile(&mut pitches, 90),
             pitch_max: percentile(&mut pitches, 100),
             front_p50: percentile(&mut heights, 50),

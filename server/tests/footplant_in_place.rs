@@ -139,24 +139,22 @@ fn each_foot_of_an_in_place_animal_gait_stands_once_per_stride() {
 }
 
 /// Captures that travel stand on still feet: no belt, so the detector reads them as before
-/// (the CMU walk's plants alternate, several per foot).
+/// (a walk's plants alternate, several per foot). Every labelled clip whose root travels a leg
+/// length or more (cheap: each loaded once at 30 fps), and the first walk.
 #[test]
 fn travelling_captures_have_no_belt() {
-    for rel in [
-        "bvh/cmu_131_01_walk.bvh",
-        "bvh/cmu_run.bvh",
-        "bvh/cmu_31joint_example.bvh",
-        "zoo/bvh/xsens__ammr_S02_Trial01.bvh",
-        "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
-        "zoo/bvh/kinect2__test.bvh",
-    ] {
-        let Some((_, track)) = plants(rel, None) else {
+    let travelling = common::travelling_clips();
+    for (l, _, gait) in &travelling {
+        let Some((_, track)) = plants(&l.rel, None) else {
             return;
         };
-        println!("{rel}: belt {:?}", track.belt());
-        assert_eq!(track.belt(), None, "{rel}");
+        println!("{} ({gait:?}): belt {:?}", l.rel, track.belt());
+        assert_eq!(track.belt(), None, "{}", l.rel);
     }
-    let (_, walk) = plants("bvh/cmu_131_01_walk.bvh", None).unwrap();
+    let Some((walk, _, _)) = common::first_walk() else {
+        return;
+    };
+    let (_, walk) = plants(&walk.rel, None).unwrap();
     for l in 0..2 {
         assert!(walk.intervals(l).len() >= 3, "leg {l}");
     }
@@ -192,15 +190,20 @@ fn the_foot_lock_leaves_an_in_place_walk_alone() {
 }
 
 /// A live graft's locomotion loop from an in-place walk raises no plant flags for the lock
-/// (its standing feet slide with the belt), while one from a travelling walk does. MakeHuman's
-/// walk cycle, played three times over so a foot lands twice, loops; the CMU walk too.
+/// (its standing feet slide with the belt), while one from a travelling walk does. The first
+/// labelled in-place walk cycle (found by its motion: feet changing places, root still), played
+/// three times over so a foot lands twice, loops; the first labelled walk too.
 #[test]
 fn a_gait_loop_of_an_in_place_walk_gives_the_lock_nothing_to_pin() {
     use rigcast_retarget::graft::GaitLoop;
-    let (Some((cycle, _)), Some((walk, walk_plants))) = (
-        plants("zoo/bvh/makehuman__walk1.bvh", None),
-        plants("bvh/cmu_131_01_walk.bvh", None),
-    ) else {
+    let (Some((cycle, _, _)), Some((walk, _, _))) =
+        (common::first_in_place_cycle(), common::first_walk())
+    else {
+        return;
+    };
+    let (Some((cycle, _)), Some((walk, walk_plants))) =
+        (plants(&cycle.rel, None), plants(&walk.rel, None))
+    else {
         return;
     };
     let mut looped = cycle.clone();

@@ -10,7 +10,9 @@ use std::process::{Command, Output};
 mod shared_data;
 #[allow(unused_imports)] // not every test file uses every helper
 pub use shared_data::{
-    all_labels, shared_clip, shared_data, shared_data_all, CMU_WALK, GODOT_ROBOT, MEREDITH,
+    all_labels, first_in_place_cycle, first_walk, human_rigs, labelled, labelled_where,
+    shared_clip, shared_data, shared_data_all, travelling_clips, walks, CMU_WALK, GODOT_ROBOT,
+    MEREDITH,
 };
 
 /// A folder of this test run's own under the system's temporary folder

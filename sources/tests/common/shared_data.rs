@@ -300,22 +300,76 @@ pub fn gait(l: &Labelled, clip: &rigcast_retarget::Clip) -> Option<Gait> {
 /// is a walk ([`Gait::is_walk`]), loaded, with its gait, sorted; empty with a printed reason
 /// when none is present.
 pub fn walks() -> Vec<(Labelled, rigcast_retarget::Clip, Gait)> {
-    let biped = |l: &Labelled| matches!(l.kind(), "human" | "biped_creature") && l.has_legs();
+    gait_clips("walk", is_biped, Gait::is_walk, usize::MAX)
+}
+
+/// The first walk of [`walks`] in their sorted order (for tests too slow to run on each), or
+/// `None` with a printed reason.
+pub fn first_walk() -> Option<(Labelled, rigcast_retarget::Clip, Gait)> {
+    let walk = gait_clips("walk", is_biped, Gait::is_walk, 1).pop()?;
+    println!("the walk: {} ({:?})", walk.0.rel, walk.2);
+    Some(walk)
+}
+
+/// Every labelled BVH clip with legs (any kind) whose root travels at least a leg length over
+/// the ground, sorted; empty with a printed reason when none is present.
+pub fn travelling_clips() -> Vec<(Labelled, rigcast_retarget::Clip, Gait)> {
+    gait_clips(
+        "travelling clip",
+        Labelled::has_legs,
+        |g| g.travel >= 1.0,
+        usize::MAX,
+    )
+}
+
+/// The first labelled biped clip that steps on the spot: its feet change places at least twice
+/// while its root stays within a tenth of a leg length (an in-place walk cycle); `None` with a
+/// printed reason.
+pub fn first_in_place_cycle() -> Option<(Labelled, rigcast_retarget::Clip, Gait)> {
+    let in_place = |g: &Gait| g.switches >= 2 && g.travel < 0.1;
+    let cycle = gait_clips("in-place walk cycle", is_biped, in_place, 1).pop()?;
+    println!("the in-place cycle: {} ({:?})", cycle.0.rel, cycle.2);
+    Some(cycle)
+}
+
+fn is_biped(l: &Labelled) -> bool {
+    matches!(l.kind(), "human" | "biped_creature") && l.has_legs()
+}
+
+/// Up to `limit` labelled BVH clips that `label` accepts and whose gait `motion` accepts,
+/// loaded, in sorted order; empty with a printed reason naming `what` when none.
+fn gait_clips(
+    what: &str,
+    label: impl Fn(&Labelled) -> bool,
+    motion: impl Fn(&Gait) -> bool,
+    limit: usize,
+) -> Vec<(Labelled, rigcast_retarget::Clip, Gait)> {
     let mut out = Vec::new();
-    for l in labelled().into_iter().filter(|l| l.is_bvh() && biped(l)) {
+    for l in labelled().into_iter().filter(|l| l.is_bvh() && label(l)) {
+        if out.len() >= limit {
+            break;
+        }
         let Ok(clip) = rigcast_sources::load_clip(&l.path) else {
             continue;
         };
         match gait(&l, &clip) {
-            Some(g) if g.is_walk() => out.push((l, clip, g)),
-            g => println!("not a walk: {} ({g:?})", l.rel),
+            Some(g) if motion(&g) => out.push((l, clip, g)),
+            g => println!("not a {what}: {} ({g:?})", l.rel),
         }
     }
     if out.is_empty() {
         println!(
-            "SKIP: no labelled walk among the clips of {}",
+            "SKIP: no labelled {what} among the clips of {}",
             shared_data_root().display()
         );
     }
     out
+}
+
+/// Every labelled human character rig (not a BVH clip) with both legs labelled, sorted; empty
+/// with a printed reason when none is present.
+pub fn human_rigs() -> Vec<Labelled> {
+    labelled_where("human rig with legs", |l| {
+        l.kind() == "human" && l.has_legs() && !l.is_bvh()
+    })
 }
