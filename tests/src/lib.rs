@@ -756,23 +756,36 @@ pub struct PlantWatch {
     pub lifted_travel: f32,
 }
 
+/// A landing foot is eased onto its pin by the lock's spring, which steps on the source's
+/// capture clock: it leaves a quarter of the landing offset after 0.1 s and a few percent
+/// after 0.2 s, so a plant is judged from 0.2 s of capture time after its landing.
+const PLANT_SETTLE_NANOS: u64 = 200_000_000;
+/// A message names the frame of the tick the engine saw the change in, checked at the first
+/// tick 1/30 s after the last check: a release can reach the message up to two ticks after
+/// the lock let go, however late those ticks ran, so the last three frames before a message
+/// are not judged (counted in frames: a starved engine's check still waits for a tick).
+const PLANT_TAIL_FRAMES: usize = 3;
+
 /// Judges `subject`'s `footplants` messages against its frames (`frames` in arrival order):
-/// each foot's position must be FK of the frame the message names (within 0.1 mm, asserted),
-/// and between one message and the next a planted foot should stay put while a lifted one
-/// travels. The lock eases a landing foot onto its pin (and off it) with a spring that leaves
-/// a quarter of the landing offset after 0.1 s and a few percent after 0.2 s: a plant is
-/// judged after its first 0.2 s (12 frames at 60 Hz). A message names the frame the server
-/// saw the change in, sampled at 30 Hz: a release can reach the message up to one check period
-/// (two frames at 60 Hz) after the lock let go, so a span's last three frames are not judged.
+/// each foot's position must be FK of the frame the message names (within 0.1 mm, asserted).
+/// A planted foot should stay put over its whole plant, from the message that lands it to the
+/// one that lifts it (messages about the other feet in between do not restart it); a lifted
+/// one travels between one message and the next. Each span is judged after its settle and
+/// before its tail ([`PLANT_SETTLE_NANOS`], [`PLANT_TAIL_FRAMES`]), each in the unit it runs
+/// on, so a starved server that skips ticks judges the same stretch of motion;
+/// a frame sent again with the same `seq` (a tick without a new pose) counts once.
 pub fn judge_footplants(
     subject: u32,
     bones: &[rigcast_protocol::control::BoneInfo],
     frames: &[(DecodedFrame, u64)],
     messages: &[ServerMessage],
 ) -> PlantWatch {
-    let (settle, tail) = (12, 3);
+    let mut distinct = std::collections::HashSet::new();
+    let frames: Vec<&DecodedFrame> = (frames.iter().map(|(f, _)| f))
+        .filter(|f| distinct.insert(f.header.seq))
+        .collect();
     let by_seq: std::collections::HashMap<u64, &DecodedFrame> =
-        frames.iter().map(|(f, _)| (f.header.seq, f)).collect();
+        frames.iter().map(|f| (f.header.seq, *f)).collect();
     let index = |name: &str| bones.iter().position(|b| b.name == name).unwrap();
     let plants: Vec<(u64, &Vec<rigcast_protocol::control::FootState>)> = (messages.iter())
         .filter_map(|m| match m {
@@ -793,16 +806,15 @@ pub fn judge_footplants(
         planted_judged: 0,
         lifted_travel: 0.0,
     };
+    // Each planted foot's landing message (its first message seen planted).
+    let mut landed: std::collections::HashMap<&str, u64> = Default::default();
+    // Messages whose frame was received (earlier ones came before set_protocol took effect).
+    let plants: Vec<_> = (plants.iter())
+        .filter(|(seq, _)| by_seq.contains_key(seq))
+        .collect();
     for (k, (seq, feet)) in plants.iter().enumerate() {
-        let Some(frame) = by_seq.get(seq) else {
-            continue; // before the client's set_protocol took effect
-        };
-        let world = wire_fk(bones, frame);
-        // Frames until the next message: the state holds over them.
+        let world = wire_fk(bones, by_seq[seq]);
         let next_seq = plants.get(k + 1).map(|n| n.0);
-        let span: Vec<u64> = (frames.iter().map(|(f, _)| f.header.seq))
-            .filter(|s| *s >= *seq && next_seq.is_some_and(|n| *s < n))
-            .collect();
         for foot in feet.iter() {
             w.seen.insert((foot.bone.clone(), foot.planted));
             let error = (world[index(&foot.bone)] - Vec3::from(foot.position)).length();
@@ -811,24 +823,48 @@ pub fn judge_footplants(
                 "{}: position off FK of frame {seq} by {error} m",
                 foot.bone
             );
-            if span.len() < settle + tail + 3 {
-                continue;
-            }
-            let judged = &span[settle..span.len() - tail];
-            let at = |s: u64| wire_fk(bones, by_seq[&s])[index(&foot.bone)];
-            let from = at(judged[0]);
-            let travel = (judged.iter().map(|s| at(*s) - from))
-                .map(|p| (p.x * p.x + p.z * p.z).sqrt())
-                .fold(0.0, f32::max);
+            let travel = |from: u64, to: u64| {
+                let judged = settled_frames(&frames, by_seq[&from], by_seq[&to]);
+                let at = |f: &DecodedFrame| wire_fk(bones, f)[index(&foot.bone)];
+                let start = at(judged.first()?);
+                let travel = (judged.iter().map(|f| at(f) - start))
+                    .map(|p| (p.x * p.x + p.z * p.z).sqrt())
+                    .fold(0.0, f32::max);
+                (judged.len() >= 3).then_some((travel, judged.len()))
+            };
             if foot.planted {
-                w.planted_travel = w.planted_travel.max(travel);
-                w.planted_drift = w.planted_drift.max(travel / judged.len() as f32);
-                w.planted_judged += 1;
-            } else {
+                landed.entry(foot.bone.as_str()).or_insert(*seq);
+            } else if let Some(from) = landed.remove(foot.bone.as_str()) {
+                if let Some((travel, n)) = travel(from, *seq) {
+                    w.planted_travel = w.planted_travel.max(travel);
+                    w.planted_drift = w.planted_drift.max(travel / n as f32);
+                    w.planted_judged += 1;
+                }
+            }
+            if let Some((travel, _)) = next_seq
+                .filter(|_| !foot.planted)
+                .and_then(|n| travel(*seq, n))
+            {
                 w.lifted_travel = w.lifted_travel.max(travel);
             }
         }
         w.checked += 1;
     }
     w
+}
+
+/// The frames from message frame `from` up to message frame `to` that lie past the settle
+/// after `from` (capture clock) and before the tail ahead of `to` (ticks).
+fn settled_frames<'a>(
+    frames: &[&'a DecodedFrame],
+    from: &DecodedFrame,
+    to: &DecodedFrame,
+) -> Vec<&'a DecodedFrame> {
+    let settled = from.header.capture_nanos + PLANT_SETTLE_NANOS;
+    let mut span: Vec<&DecodedFrame> = (frames.iter().copied())
+        .filter(|f| (from.header.seq..to.header.seq).contains(&f.header.seq))
+        .collect();
+    span.truncate(span.len().saturating_sub(PLANT_TAIL_FRAMES));
+    span.retain(|f| f.header.capture_nanos >= settled);
+    span
 }

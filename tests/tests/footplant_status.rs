@@ -166,9 +166,10 @@ async fn footplants_message_follows_the_feet() {
     let bones = seen.bones.clone().expect("the mannequin's skeleton");
     let w = judge_footplants(1, &bones, &seen.frames, &seen.messages);
     println!(
-        "{} footplants messages over 2.5 s, {} checked against FK; planted feet moved ≤ {:.3} m ({:.3} cm per frame at most), lifted ones up to {:.3} m",
+        "{} footplants messages over 2.5 s, {} checked against FK, {} plants judged; planted feet moved ≤ {:.3} m ({:.3} cm per frame at most), lifted ones up to {:.3} m",
         w.messages,
         w.checked,
+        w.planted_judged,
         w.planted_travel,
         100.0 * w.planted_drift,
         w.lifted_travel
