@@ -3,7 +3,7 @@
 //! ([`Input::Frame`]) and is given each tick's time ([`Input::Timeout`]); what it yields is
 //! kept, the planted feet reported as typed events by its own foot-plant checks.
 //!
-//! - Foot lock (the CMU walk from the shared data on the mannequin, mapped as the server's
+//! - Foot lock (the first labelled walk of the shared data, found by its motion, on the mannequin, mapped as the server's
 //!   mapper does): both feet plant and lift in turn; once a plant has settled (the lock eases a landing foot onto its
 //!   pin over about 0.2 s) the planted foot moves no more than 0.5 mm per tick, while lifted
 //!   feet travel; every `footplants` event names the frame it describes and gives each foot's
@@ -136,8 +136,9 @@ fn at(skel: &Skeleton, pose: &Pose, name: &str) -> glam::Vec3 {
 #[test]
 fn planted_feet_hold_still_on_a_simulated_clock() {
     let wall = std::time::Instant::now();
-    // A walk that travels (the bundled demo walks on the spot: its feet never stand still).
-    let Some(walk) = common::shared_clip(common::CMU_WALK) else {
+    // A walk that travels (the bundled demo walks on the spot: its feet never stand still):
+    // the first labelled walk, found by its motion (a whole walk is slow in debug: one).
+    let Some((_, walk, _)) = common::first_walk() else {
         return;
     };
     let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
@@ -251,7 +252,16 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
 
 #[test]
 fn a_live_graft_walks_its_loop_and_survives_a_loss_on_a_simulated_clock() {
-    let Some(walk) = common::shared_clip(common::CMU_WALK) else {
+    let Some((labels, walk, _)) = common::first_walk() else {
+        return;
+    };
+    // The walk's left arm by its labels (shoulder, elbow and wrist joints).
+    let arm: Option<Vec<&str>> = ["upperArm.L", "lowerArm.L", "hand.L"]
+        .iter()
+        .map(|r| labels.bone(r))
+        .collect();
+    let Some(Ok(source_arm)) = arm.map(<[&str; 3]>::try_from) else {
+        println!("SKIP: {} has no labelled left arm", labels.rel);
         return;
     };
     let target = Arc::new(rigcast_engine::builtin::mannequin().unwrap());
@@ -292,7 +302,7 @@ fn a_live_graft_walks_its_loop_and_survives_a_loss_on_a_simulated_clock() {
         .map(|w| flat(pelvis(&w[1]) - pelvis(&w[0])).length())
         .fold(0.0f32, f32::max);
     // The elbow bends as the upper source's does (the lower body cannot move it).
-    let source_elbow = |p: &Pose| elbow(&walk.skeleton, p, &ELBOW_SOURCE);
+    let source_elbow = |p: &Pose| elbow(&walk.skeleton, p, &source_arm);
     let target_elbow = |p: &Pose| elbow(&target, p, &ELBOW_TARGET);
     let a: Vec<f32> = sent.iter().map(source_elbow).collect();
     let b: Vec<f32> = shown.iter().map(target_elbow).collect();
@@ -330,8 +340,7 @@ fn a_live_graft_walks_its_loop_and_survives_a_loss_on_a_simulated_clock() {
     assert_eq!(motions[59], TargetMotion::Live, "{motions:?}");
 }
 
-/// Shoulder, elbow and wrist of the CMU walk's and the mannequin's left arm.
-const ELBOW_SOURCE: [&str; 3] = ["LeftShoulder", "LeftElbow", "LeftWrist"];
+/// Shoulder, elbow and wrist of the mannequin's left arm.
 const ELBOW_TARGET: [&str; 3] = ["upperarm_l", "lowerarm_l", "hand_l"];
 
 /// The bend at the middle joint of `names`, degrees.

@@ -233,8 +233,9 @@ pub fn f64s(v: &serde_json::Value) -> Vec<f64> {
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
 pub use shared_data::{
-    all_labels, shared_clip, shared_data, shared_data_all, shared_data_dir, CMU_WALK, GODOT_ROBOT,
-    MEREDITH,
+    all_labels, first_in_place_cycle, first_walk, human_rigs, labelled, labelled_where,
+    shared_clip, shared_data, shared_data_all, shared_data_dir, travelling_clips, walks, Gait,
+    Labelled, CMU_WALK, GODOT_ROBOT, MEREDITH,
 };
 
 /// A 6-bone creature with a tail, animated with distinct rotations on every bone: 48 frames at

@@ -1,6 +1,6 @@
 //! Issue 35, live: the legs of a character under the causal foot lock stay the performer's,
-//! measured through the real server. One server replays the CMU 131_01 walk onto each
-//! labelled character twice, with the foot lock on and off (the same source sample drives both
+//! measured through the real server. One server replays the first labelled walk (found by its
+//! motion; today the CMU 131_01 walk) onto each labelled human character twice, with the foot lock on and off (the same source sample drives both
 //! in the same tick: their frames carry the same capture time). A version 2 client rebuilds
 //! both by its own forward kinematics of the wire skeleton; per character:
 //! - thigh, shin and foot (ankle to toes) directions of the locked character against the
@@ -43,14 +43,6 @@ use rigcast_protocol::ServerMessage;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
-/// Labelled characters the walk is streamed onto (their rests stand on y = 0): two with toes
-/// labelled (the foot's direction judged) and the short-legged robot.
-const TARGETS: [&str; 3] = [
-    "zoo/gltf/mixamo_gltf__Xbot.glb",
-    "zoo/gltf/ue_style_mannequiny__godot_ragdoll.glb",
-    "zoo/gltf/godot_robot__platformer_player.glb",
-];
-
 /// How long the walk is watched.
 const WATCH: Duration = Duration::from_secs(6);
 
@@ -66,12 +58,19 @@ struct Seen {
     plants: Vec<(u64, Vec<(String, bool)>)>,
 }
 
-/// Streams `WATCH` of the walk onto every target, locked and free; per target (locked, free).
-async fn stream() -> Option<Vec<(String, Seen, Seen)>> {
-    let walk = shared_data("bvh/cmu_131_01_walk.bvh")?;
+/// Streams `WATCH` of the first labelled walk (found by its motion; one server streams it onto
+/// every character, so one walk) onto every labelled human rig with legs (their rests stand on
+/// y = 0; the foot's direction is judged where toes are labelled), locked and free; per target
+/// (its labels, locked, free).
+async fn stream() -> Option<Vec<(Labelled, Seen, Seen)>> {
+    let (_, walk, _) = first_walk()?;
+    let targets = human_rigs();
+    if targets.is_empty() {
+        return None;
+    }
     let mut performers = Vec::new();
-    for rel in TARGETS {
-        let path = shared_data(rel)?;
+    for rig in &targets {
+        let path = rig.path.clone();
         for lock in [true, false] {
             performers.push(PerformerSpec {
                 name: Some(format!("{}-{lock}", performers.len())),
@@ -83,7 +82,7 @@ async fn stream() -> Option<Vec<(String, Seen, Seen)>> {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: 60.0,
-        sources: vec![clip_source(rigcast_sources::load_clip(&walk).unwrap())],
+        sources: vec![clip_source(walk)],
         performers,
         ..ServerConfig::default()
     };
@@ -117,7 +116,7 @@ async fn stream() -> Option<Vec<(String, Seen, Seen)>> {
     }
     server.shutdown().await;
     let mut out = Vec::new();
-    for (k, rel) in TARGETS.iter().enumerate() {
+    for (k, rig) in targets.into_iter().enumerate() {
         let mut take = |name: String| {
             let id = ids
                 .get(&name)
@@ -126,7 +125,7 @@ async fn stream() -> Option<Vec<(String, Seen, Seen)>> {
         };
         let locked = take(format!("{}-true", 2 * k));
         let free = take(format!("{}-false", 2 * k + 1));
-        out.push((rel.to_string(), locked, free));
+        out.push((rig, locked, free));
     }
     Some(out)
 }
@@ -154,10 +153,10 @@ fn mean_p95(mut v: Vec<f32>) -> (f32, f32) {
     (mean, v[(v.len() * 95 / 100).min(v.len() - 1)])
 }
 
-fn measure(labels: &serde_json::Value, rel: &str, locked: &Seen, free: &Seen) -> Legs {
+fn measure(rig: &Labelled, locked: &Seen, free: &Seen) -> Legs {
     let bones = &locked.bones;
     let index = |role: String| {
-        let names = labels[rel][&role].as_array()?;
+        let names = rig.labels[&role].as_array()?;
         (names.iter()).find_map(|n| {
             bones
                 .iter()
@@ -169,8 +168,9 @@ fn measure(labels: &serde_json::Value, rel: &str, locked: &Seen, free: &Seen) ->
         .iter()
         .map(|s| {
             let joints = ["upperLeg", "lowerLeg", "foot"].map(|r| {
-                index(format!("{r}.{s}"))
-                    .unwrap_or_else(|| panic!("{rel}: {r}.{s} not labelled in the wire skeleton"))
+                index(format!("{r}.{s}")).unwrap_or_else(|| {
+                    panic!("{}: {r}.{s} not labelled in the wire skeleton", rig.rel)
+                })
             });
             (joints, index(format!("toes.{s}")))
         })
@@ -269,18 +269,13 @@ fn measure(labels: &serde_json::Value, rel: &str, locked: &Seen, free: &Seen) ->
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "issue 35's bounds are not met live yet; the test prints the table per character"]
 async fn live_locked_legs_follow_the_source_on_a_walk() {
-    let Some(labels) = shared_data("labels.json") else {
-        return;
-    };
-    let labels: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(labels).unwrap()).unwrap();
     let Some(streams) = stream().await else {
         return;
     };
     let mut failures = Vec::new();
     println!(
         "{:<44} {:>6} {:>11} {:>11} {:>11} {:>7} {:>7} {:>7}",
-        "target (live, CMU 131_01 walk)",
+        "target (live, the first walk)",
         "frames",
         "thigh°",
         "shin°",
@@ -289,8 +284,9 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
         "floor",
         "(drift)"
     );
-    for (rel, locked, free) in &streams {
-        let f = measure(&labels, rel, locked, free);
+    for (rig, locked, free) in &streams {
+        let rel = &rig.rel;
+        let f = measure(rig, locked, free);
         let pair = |(m, p): (f32, f32)| format!("{m:.1}/{p:.1}");
         println!(
             "{rel:<44} {:>6} {:>11} {:>11} {:>11} {:>7.3} {:>7.2} {:>7.3}  ({} planted foot-frames)",
@@ -304,8 +300,11 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
             f.planted_frames
         );
         // Enough to judge: seconds of paired frames and plants on both feet.
-        assert!(f.frames >= 120, "{rel}: {} paired frames", f.frames);
-        assert!(f.planted_frames >= 60, "{rel}: {f:?}");
+        // (Every character judged before the test fails.)
+        if f.frames < 120 || f.planted_frames < 60 {
+            failures.push(format!("{rel}: too little to judge: {f:?}"));
+            continue;
+        }
         let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;
         if !(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0)) {
             failures.push(format!("{rel}: thigh {:?} shin {:?}", f.thigh, f.shin));
