@@ -1,7 +1,8 @@
-//! A walker driving a quadruped live (issue 13): the real server replays the CMU 131_01 walk
-//! onto the Quaternius Horse and the Wolf, and a version 2 client rebuilds the character by its
+//! A walker driving a quadruped live (issue 13): the real server replays the first labelled
+//! walk (found by its motion) onto every labelled four-legged quadruped rig (today the
+//! Quaternius Horse and the Wolf), and a version 2 client rebuilds the character by its
 //! own forward kinematics of the wire skeleton. A horse or a wolf walks with its trunk level:
-//! the hips→chest line (bones named by `labels.json`, the zoo's ground truth) stays within a
+//! the hips→chest line (bones named by the label files, the zoo's ground truth) stays within a
 //! few degrees of its rest elevation, and the front legs' lower joints stay below the hips.
 //! Before the live mapper kept the quadruped's own posture, the trunk took the walker's
 //! upright one (pitched ~90° off its rest, the front legs lifted over the hips). The foot
@@ -17,9 +18,9 @@ use rigcast_protocol::control::BoneInfo;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
-/// The first labelled bone name of `role` in `labels.json` for the file `rel`.
-fn labelled(labels: &serde_json::Value, rel: &str, role: &str) -> String {
-    labels[rel][role][0].as_str().unwrap().to_string()
+/// The first labelled bone name of `role` for the rig `rig`.
+fn labelled_bone(rig: &Labelled, role: &str) -> String {
+    rig.bone(role).unwrap().to_string()
 }
 
 /// Elevation of `to − from` above the horizontal, degrees.
@@ -36,15 +37,13 @@ struct Streamed {
     messages: Vec<rigcast_protocol::ServerMessage>,
 }
 
-/// Streams 5 s of the walk on `rel` as version 2 frames of the target subject.
-async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
-    let walk = shared_data("bvh/cmu_131_01_walk.bvh")?;
-    let target = shared_data(rel)?;
+/// Streams 5 s of `walk` on `target` as version 2 frames of the target subject.
+async fn stream_walk_onto(walk: &rigcast_retarget::Clip, target: &Labelled) -> Option<Streamed> {
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         rate_hz: 60.0,
-        sources: vec![clip_source(rigcast_sources::load_clip(&walk).unwrap())],
-        performers: vec![PerformerSpec::target_file(target)],
+        sources: vec![clip_source(walk.clone())],
+        performers: vec![PerformerSpec::target_file(target.path.clone())],
         ..ServerConfig::default()
     };
     let server = rigcast_server::start(config).await.unwrap();
@@ -68,20 +67,21 @@ async fn stream_walk_onto(rel: &str) -> Option<Streamed> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
-    let Some(labels) = shared_data("labels.json") else {
+    // The first labelled walk (found by its motion; one walk, 5 s streamed per rig) onto every
+    // labelled quadruped rig with four legs and its trunk (hips, chest) labelled.
+    let Some((_, walk, _)) = first_walk() else {
         return;
     };
-    let labels: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(labels).unwrap()).unwrap();
-    for rel in [
-        "zoo/gltf/quaternius_quadruped__Horse.glb",
-        "zoo/gltf/quaternius_quadruped__Wolf.glb",
-    ] {
-        let Some(s) = stream_walk_onto(rel).await else {
+    let rigs = labelled_where("quadruped rig with four legs and a labelled trunk", |l| {
+        l.four_legged() && !l.is_bvh() && l.has_role("hips") && l.has_role("chest")
+    });
+    for rig in &rigs {
+        let rel = &rig.rel;
+        let Some(s) = stream_walk_onto(&walk, rig).await else {
             return;
         };
         let index = |role: &str| {
-            let name = labelled(&labels, rel, role);
+            let name = labelled_bone(rig, role);
             s.bones.iter().position(|b| b.name == name).unwrap()
         };
         let (hips, chest) = (index("hips"), index("chest"));
@@ -117,7 +117,7 @@ async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
         let locked = s.locked_feet.clone().unwrap_or_default();
         println!("{rel}: locked feet {locked:?}");
         for role in ["foot.L", "foot.R"] {
-            let name = labelled(&labels, rel, role);
+            let name = labelled_bone(rig, role);
             assert!(
                 locked.contains(&name),
                 "{rel}: {name} not locked: {locked:?}"
@@ -136,7 +136,7 @@ async fn a_walker_drives_a_quadruped_live_with_its_trunk_level() {
             100.0 * w.lifted_travel
         );
         for role in ["foot.L", "foot.R"] {
-            let name = labelled(&labels, rel, role);
+            let name = labelled_bone(rig, role);
             for planted in [true, false] {
                 assert!(
                     w.seen.contains(&(name.clone(), planted)),
