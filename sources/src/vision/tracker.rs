@@ -5,8 +5,9 @@
 //! Per frame the landmark model runs once per tracked person, on the ROI its own last
 //! landmarks gave (all tracked people's crops in one batch): no search while tracking holds.
 //! The finder runs every frame while nobody is tracked or someone established was lost within
-//! the last second, else every `find_every_frames` frames while fewer than `max_people` are
-//! tracked; a finder pass is one detector pass (the regions of `DETECTOR_REGIONS` taking
+//! the last second, else every `find_every_frames` frames (stretched while passes find nobody
+//! and the longer a lost person stays away) while fewer than `max_people` are tracked; a
+//! finder pass is one detector pass (the regions of `DETECTOR_REGIONS` taking
 //! turns, every other frame where someone was just lost), so one person in view costs about
 //! what `max_people: 1` costs whatever `max_people` is, and the detector runs at most once a
 //! frame. A detection costs a landmark run only when a slot is open to someone there, and a
@@ -71,7 +72,9 @@ pub struct TrackerConfig {
     pub max_people: usize,
     /// How new people are found.
     pub finder: Finder,
-    /// While fewer than `max_people` are tracked, look for more this often (frames).
+    /// While fewer than `max_people` are tracked, look for more this often (frames) after
+    /// someone was found or lost; passes that find nobody stretch it (see
+    /// `PoseTracker::find_interval`).
     pub find_every_frames: u32,
     /// Minimum detector score.
     pub min_detection_score: f32,
@@ -130,6 +133,14 @@ const MASKED_STEPS: [f32; 4] = [0.0, 0.1, 0.2, 0.3];
 /// While a person lost this recently is not found again, the finder runs every frame.
 const EAGER_FIND_FRAMES: u32 = 30;
 
+/// See [`PoseTracker::find_interval`]: frames of a person's absence per frame added to the
+/// finder's interval.
+const BACKOFF_FRAMES: u32 = 10;
+
+/// See [`PoseTracker::find_interval`]: the idle interval grows to this many times
+/// [`TrackerConfig::find_every_frames`].
+const IDLE_BACKOFF: u32 = 4;
+
 /// A track held this many frames is someone: losing them makes the finder eager and keeps their
 /// slot for them. A track lost sooner was a passing misreading (a poster, a reflection, the
 /// same person read twice) and frees its slot at once.
@@ -172,6 +183,12 @@ pub struct TrackerStats {
     /// Time spent finding people (detector or search, with its landmark runs), nanoseconds:
     /// the "detect" stage of the latency figures.
     pub find_nanos: u64,
+    /// Landmark runs the finder made (of [`Self::inferences`]): looks where someone was lost
+    /// and checks of detections.
+    pub finder_inferences: u64,
+    /// Landmark runs on crops beside a person whose reading lay on someone else (of
+    /// [`Self::inferences`], the finder's included).
+    pub beside_inferences: u64,
 }
 
 /// One identity slot.
@@ -249,6 +266,10 @@ pub struct PoseTracker {
     batch_rois: Vec<Roi>,
     batch_results: Vec<Landmarks>,
     frames_since_find: u32,
+    /// The finder's interval while nobody established is missing (see
+    /// [`PoseTracker::find_interval`]): [`TrackerConfig::find_every_frames`], doubled after
+    /// every such pass that found nobody, up to [`IDLE_BACKOFF`] times it.
+    idle_interval: u32,
     /// Someone was lost in this frame's [`Self::track`] (the finder is due in its `find`).
     lost_now: bool,
     /// The detector region the next finder pass looks at (see [`DETECTOR_REGIONS`]).
@@ -288,6 +309,7 @@ impl PoseTracker {
             batch_rois: Vec::with_capacity(config.max_people),
             batch_results: vec![Landmarks::default(); config.max_people],
             frames_since_find: 0,
+            idle_interval: config.find_every_frames.max(1),
             lost_now: false,
             next_region: 0,
             round_from_empty: false,
@@ -387,11 +409,12 @@ impl PoseTracker {
         // A round of the detector regions begun with nobody tracked goes on frame by frame:
         // everyone in view at the start is found within a few frames, not one a round.
         let first_round = self.round_from_empty && self.next_region != 0;
-        let due = std::mem::take(&mut self.lost_now)
+        let lost_now = std::mem::take(&mut self.lost_now);
+        let due = lost_now
             || recently_lost
             || num_tracked == 0
             || first_round
-            || self.frames_since_find >= self.config.find_every_frames;
+            || self.frames_since_find >= self.find_interval();
         if num_tracked == 0 {
             self.round_from_empty = true;
         } else if self.next_region == 0 {
@@ -400,10 +423,23 @@ impl PoseTracker {
         if num_tracked < self.tracks.len() && due {
             self.frames_since_find = 0;
             let started = std::time::Instant::now();
+            let runs_before = self.stats.inferences;
+            let tracks_before = self.stats.tracks_started;
             self.look_where_lost(frame)?;
             match self.config.finder {
                 Finder::Detector => self.find_by_detector(frame)?,
                 Finder::Search => self.find_by_search(frame)?,
+            }
+            self.stats.finder_inferences += self.stats.inferences - runs_before;
+            let base = self.config.find_every_frames.max(1);
+            // Only a pass made for the idle interval alone stretches it: one made because
+            // someone was just lost, or while the picture is being searched from empty, says
+            // nothing about how often to look with everyone held.
+            let idle_pass = !(lost_now || recently_lost || num_tracked == 0 || first_round);
+            if lost_now || self.stats.tracks_started > tracks_before {
+                self.idle_interval = base;
+            } else if idle_pass {
+                self.idle_interval = (self.idle_interval * 2).min(base * IDLE_BACKOFF);
             }
             self.stats.find_nanos += started.elapsed().as_nanos() as u64;
         }
@@ -415,6 +451,24 @@ impl PoseTracker {
             }
         }
         Ok(())
+    }
+
+    /// Frames between finder passes once nobody was lost within [`EAGER_FIND_FRAMES`]: one
+    /// more for every [`BACKOFF_FRAMES`] the most recently lost established person has been
+    /// gone (someone gone a second is looked for every third frame), and at most the idle
+    /// interval: [`TrackerConfig::find_every_frames`] after a change (someone found or lost),
+    /// doubled by every pass that finds nobody, up to [`IDLE_BACKOFF`] times. A pass costs
+    /// about as much as tracking someone: the longer someone has been away, or the picture
+    /// has shown nobody new, the less likely the next frame does, and one performer alone
+    /// then costs a pass every `IDLE_BACKOFF × find_every_frames` frames.
+    fn find_interval(&self) -> u32 {
+        let idle = self.idle_interval;
+        self.tracks
+            .iter()
+            .filter(|t| !t.tracked() && t.place.is_some() && t.held_frames >= ESTABLISHED_FRAMES)
+            .map(|t| (t.lost_frames / BACKOFF_FRAMES).max(1))
+            .min()
+            .map_or(idle, |n| n.min(idle))
     }
 
     /// Single-person convenience: processes the frame and copies person `#0` into `out`.
@@ -493,6 +547,7 @@ impl PoseTracker {
                 };
                 self.model.infer(frame, &crop, &mut self.scratch)?;
                 self.stats.inferences += 1;
+                self.stats.beside_inferences += 1;
                 if self.shows_own_body(slot, presence) {
                     return Ok(true);
                 }
@@ -529,6 +584,7 @@ impl PoseTracker {
             self.model
                 .infer_masked(frame, &crop, face, &mut self.scratch)?;
             self.stats.inferences += 1;
+            self.stats.beside_inferences += 1;
             if self.shows_own_body(slot, presence) {
                 return Ok(true);
             }
@@ -708,18 +764,21 @@ impl PoseTracker {
     /// the (face-based) detector cannot see them. What it finds must be nobody else tracked
     /// (see [`found_again`]): a person hidden behind another is otherwise "found" as a second
     /// reading of the one in front, frame after frame, and dropped again as their duplicate.
+    /// Not in the frame they were lost in (that crop has just failed), and the crops beside
+    /// someone else's body only at [`beside_due`] frames.
     fn look_where_lost(&mut self, frame: &RgbFrame) -> Result<(), VisionError> {
         for slot in 0..self.tracks.len() {
             let t = &self.tracks[slot];
-            if !t.recently_lost(EAGER_FIND_FRAMES) {
+            if !t.recently_lost(EAGER_FIND_FRAMES) || t.lost_frames < 2 {
                 continue;
             }
             let Some(roi) = t.last_roi else { continue };
+            let beside = beside_due(t.lost_frames);
             self.model.infer(frame, &roi, &mut self.scratch)?;
             self.stats.inferences += 1;
             let presence = self.config.presence_threshold;
             if (self.shows_own_body(slot, presence)
-                || self.look_beside(frame, slot, roi, presence)?)
+                || (beside && self.look_beside(frame, slot, roi, presence)?))
                 && !self.is_tracked_body(&self.scratch)
             {
                 // The same person: their labelling and its evidence carry on.
@@ -920,6 +979,16 @@ impl PoseTracker {
         };
         free.map(|slot| (slot, false))
     }
+}
+
+/// Whether a person lost `lost_frames` frames ago (counted from 1 in the frame of the loss) is
+/// looked for in the crops beside whoever now covers their last place: a power of two, so
+/// right after the loss and then ever more rarely. Those crops cost up to ten landmark runs,
+/// and someone hidden behind another for a few frames mostly stays hidden a while: made
+/// every frame, they cost more than tracking both people (the child behind the girl jumping
+/// on the bed: 1.5 runs a frame beside, 3.6 in all).
+fn beside_due(lost_frames: u32) -> bool {
+    lost_frames <= 4 || lost_frames.is_power_of_two()
 }
 
 /// The disc covering `lm`'s head: around the nose, out past the ears (at least half the
