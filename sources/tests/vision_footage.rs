@@ -8,13 +8,14 @@
 //! same measure beside them; both sides' output landmarks, smoothed as each gives them by
 //! default), left/right agreement, the detector runs per frame, the landmark model runs per
 //! frame (with the second-opinion model's where the first's left/right readings were in doubt),
-//! and the frame rate with decoding on both sides. Left/right is judged against the 3D reference where the clip is a
-//! camera of a calibrated rig (the pose2sim single-person demo: `common/reference3d.rs`,
-//! triangulated from the rig's other cameras), elsewhere against MediaPipe where its reading is
-//! decisive and steady and both show the same person. Bounds (issue 32): person `#0`'s coverage
-//! within one point of MediaPipe's or above, no identity jumps, left/right right on at least
-//! 99 % of the frames with a reference, the detector at most once per frame, and (release
-//! builds only: a debug build's frame rate says nothing) at least twice MediaPipe's frame rate.
+//! and the frame rate with decoding on both sides (each clock started after the first frame).
+//! Left/right is judged against the 3D reference where the clip is a camera of a calibrated rig
+//! (the pose2sim single-person demo: `common/reference3d.rs`, triangulated from the rig's other
+//! cameras), elsewhere against MediaPipe where its reading is decisive and steady and both show
+//! the same person. Bounds (issue 32): person `#0`'s coverage within one point of MediaPipe's or
+//! above, no identity jumps, left/right right on at least 99 % of the frames with a reference,
+//! the detector at most once per frame, and (release builds only: a debug build's frame rate
+//! says nothing) at least twice MediaPipe's frame rate.
 //!
 //! Two tests run the judge: `footage_judge_reports_every_clip` (every test run, CI's included:
 //! the table in the log and the clips outside the bounds listed; asserted: both programs ran on
@@ -126,8 +127,10 @@ fn points(lm: &rigcast_sources::vision::Landmarks) -> Points {
 
 fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
     let mut pipeline = PosePipeline::new(config).unwrap();
-    let started = Instant::now();
     let mut source = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, 30.0).unwrap();
+    // The clock starts after the first frame, as `bench_mediapipe.py`'s does for MediaPipe
+    // (whose graph is built lazily on it): start-up is not the frame rate.
+    let mut started = None;
     // Landmarks come in the source's pixels; the frames are decoded smaller.
     let (decoded_width, decoded_height) = source.size();
     let mut frame = RgbFrame::default();
@@ -141,12 +144,13 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
                 .map(|s| pipeline.person(s).map(points))
                 .collect(),
         );
+        started.get_or_insert_with(Instant::now);
     }
-    let secs = started.elapsed().as_secs_f64();
+    let secs = started.map_or(0.0, |t| t.elapsed().as_secs_f64());
     Ours {
         width: decoded_width as f32 * to_source,
         height: decoded_height as f32 * to_source,
-        fps: slots.len() as f64 / secs,
+        fps: slots.len().saturating_sub(1) as f64 / secs.max(1e-9),
         slots,
         detections: pipeline.stats().detections,
         inferences: pipeline.stats().inferences,
