@@ -191,13 +191,14 @@ fn labelled_humans(root: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn retargeting_onto_every_labelled_human_keeps_its_exact_hierarchy() {
-    let (Some(root), Some(anim)) = (
+    // The first labelled walk (found by its motion): one source, onto every labelled human.
+    let (Some(root), Some((walk, source, _))) = (
         common::shared_data("labels.json").and_then(|p| p.parent().map(Path::to_path_buf)),
-        common::shared_data("bvh/cmu_131_01_walk.bvh"),
+        common::first_walk(),
     ) else {
         return;
     };
-    let source = rigcast_sources::load_clip(&anim).unwrap();
+    let anim = walk.path;
     let dir = std::env::temp_dir().join(format!("rigcast-hierarchy-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let targets = labelled_humans(&root);

@@ -135,14 +135,19 @@ async fn wait_for(ws: &mut Ws, f: impl Fn(&ServerMessage) -> bool) -> ServerMess
     }
 }
 
-/// A target whose names mark the sides the other way round from its body (the Godot platformer
-/// robot in ../shared/data names its left side `r-*`): the live `mapping` message drives the
-/// robot's `r-thigh` (its left) from the performer's left thigh and carries the warning.
+/// A target whose names mark the sides the other way round from its body (the label files
+/// say so: today the Godot platformer robot, which names its left side `r-*`): the live
+/// `mapping` message drives its labelled left thigh from the performer's left thigh and
+/// carries the warning. The first labelled human rig with mirrored names (a server each).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn mapping_message_warns_when_names_lie_about_sides() {
-    let Some(robot) = shared_data("zoo/gltf/godot_robot__platformer_player.glb") else {
+    let rigs = labelled_where("human rig with mirrored side names", |l| {
+        l.kind() == "human" && l.has_legs() && !l.is_bvh() && l.names_mirrored()
+    });
+    let Some(rig) = rigs.first() else {
         return;
     };
+    let robot = rig.path.clone();
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         mapping_cache_dir: Some(temp_path("cache-lying").with_file_name("mappings-lying")),
@@ -171,7 +176,21 @@ async fn mapping_message_warns_when_names_lie_about_sides() {
             .and_then(|e| e.source.clone())
     };
     // The bundled demo walk's thighs are `leg_upper_l` / `leg_upper_r`.
-    assert_eq!(source_of("r-thigh").as_deref(), Some("leg_upper_l"));
-    assert_eq!(source_of("l-thigh").as_deref(), Some("leg_upper_r"));
+    let (left, right) = (
+        rig.bone("upperLeg.L").unwrap(),
+        rig.bone("upperLeg.R").unwrap(),
+    );
+    assert_eq!(
+        source_of(left).as_deref(),
+        Some("leg_upper_l"),
+        "{}",
+        rig.rel
+    );
+    assert_eq!(
+        source_of(right).as_deref(),
+        Some("leg_upper_r"),
+        "{}",
+        rig.rel
+    );
     server.shutdown().await;
 }
