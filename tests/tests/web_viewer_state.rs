@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use rigcast_protocol::vmc::VmcEncoder;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::chromium::{one_browser, DevTools};
-use rigcast_tests::{clip_source, send_vmc_pose, shared_data, start_vmc_server};
+use rigcast_tests::{clip_source, first_walk, send_vmc_pose, start_vmc_server};
 use serde_json::json;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -25,10 +25,10 @@ async fn viewer_marks_planted_feet() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let Some(walk) = shared_data("bvh/cmu_131_01_walk.bvh") else {
+    // The first labelled walk (found by its motion; a browser session per clip, so one).
+    let Some((_, clip, _)) = first_walk() else {
         return;
     };
-    let clip = rigcast_sources::load_clip(&walk).unwrap();
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         sources: vec![clip_source(clip)],
