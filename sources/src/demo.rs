@@ -21,7 +21,7 @@
 use std::f64::consts::TAU;
 use std::sync::Arc;
 
-use glam::{DQuat, DVec3, Vec3};
+use glam::{DQuat, DVec3, Quat, Vec3};
 use rigcast_retarget::{Clip, RawSkeleton, Skeleton, Transform};
 
 use crate::error::SourceError;
@@ -104,6 +104,13 @@ fn rz(a: f64) -> DQuat {
     DQuat::from_axis_angle(DVec3::Z, a)
 }
 
+/// `x`, with a zero always +0.0. The sign of a zero carries no meaning here, but it reaches the
+/// file's bytes, and `f64::max(-0.0, 0.0)` may return either zero (debug and release builds
+/// differed on the toes' resting angle), so zeros are written one way.
+fn unsigned_zero(x: f32) -> f32 {
+    x + 0.0
+}
+
 /// Generates the demo clip (deterministic).
 pub fn generate() -> Clip {
     let skeleton = demo_skeleton();
@@ -151,7 +158,7 @@ pub fn generate() -> Clip {
         }
         let mut pose = skeleton.rest_pose();
         for (out, q) in pose.rotations.iter_mut().zip(&rot) {
-            *out = q.normalize().as_quat();
+            *out = Quat::from_array(q.normalize().as_quat().to_array().map(unsigned_zero));
         }
         // Two bobs per cycle: lowest at each heel strike.
         let bob = 0.025 * (2.0 * phase).cos();
