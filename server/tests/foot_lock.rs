@@ -264,9 +264,12 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
 /// retargets of a whole walk per character are expensive, so one walk) onto the mannequin and
 /// every labelled human rig with legs. Today the mannequin, the Godot robot, X Bot, Casual and
 /// the UE-style mannequin pass; RobotExpressive fails: none of its legs is paired with the
-/// walk's (`find_legs`), though its labels give both.
+/// walk's. It is an IK-style rig: its feet hang from the root bone beside the legs and its
+/// shins end in leaves, so bending a leg cannot move its foot, and `find_legs` (the legs the
+/// lock can bend) leaves both out; locking it needs a lock that places such a foot and aims
+/// the leg at it.
 #[test]
-#[ignore = "RobotExpressive: no leg paired with the walk's; the other five characters pass"]
+#[ignore = "RobotExpressive: its feet hang from the root, not below its shins (an IK rig), so no leg of it can be locked; the other five characters pass"]
 fn a_walk_keeps_its_feet_planted_on_every_human_character() {
     let Some((_, source, _)) = common::first_walk() else {
         return;

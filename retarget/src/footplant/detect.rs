@@ -1,9 +1,11 @@
 //! Footplant detection: a foot is planted while its heel (foot joint) or ball (toes joint) is
-//! near the ground AND barely moving (seed 002). Thresholds scale with the leg's length and
-//! speeds are measured over at least `window_secs` (raw mocap feet jitter at 120 Hz, so
-//! frame-to-frame differences would read a standing foot as moving). Hysteresis (looser
-//! thresholds to stay planted than to plant) and a shortest plant keep the state from
-//! flickering.
+//! near the ground AND barely moving (seed 002). Thresholds scale with the leg's length, and
+//! "barely moving" with the pace too: slow is under a share of the body's speed over the
+//! ground (over about a step) when that is more (a run's standing foot seems to move faster
+//! than a walk's; a swinging foot always overtakes the body). Speeds are measured over at
+//! least `window_secs` (raw mocap feet jitter at 120 Hz, so frame-to-frame differences would
+//! read a standing foot as moving). Hysteresis (looser thresholds to stay planted than to
+//! plant) and a shortest plant keep the state from flickering.
 //!
 //! The ground is read from the motion, never assumed at 0: each contact joint's ground is the
 //! lowest level it reaches while slow (where it stands), so a rig whose ball joint sits 3 cm
@@ -29,6 +31,12 @@ use crate::skeleton::{BoneId, Skeleton};
 const JOINTS_PER_FOOT: usize = 2;
 /// Samples the causal detector keeps (enough for a 1/30 s window up to 900 Hz input).
 const RING: usize = 32;
+/// Positions kept per sample: every contact joint, then the body (the legs' hips' midpoint).
+const TRACKED: usize = JOINTS_PER_FOOT * MAX_FEET + 1;
+const BODY: usize = TRACKED - 1;
+/// The body's pace is its speed over the ground over about this long (a step of a walk): the
+/// hips speed up and slow down within every step, the pace does not.
+const PACE_SECS: f32 = 0.5;
 
 /// Thresholds of the detector, relative to each leg's length (hip to ankle).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,8 +46,17 @@ pub struct PlantSettings {
     pub height_ratio: f32,
     /// ... and slow below this many leg lengths per second (0.25: 20 cm/s on a 0.8 m leg; a
     /// swinging foot moves at 2–5 m/s, a standing one jitters at 2–15 cm/s over 1/30 s, a
-    /// ball pivoting under a rising heel at 10–25 cm/s).
+    /// ball pivoting under a rising heel at 10–25 cm/s) ...
     pub speed_ratio: f32,
+    /// ... or below this fraction of the body's pace (the hips' speed over the ground over
+    /// about a step), whichever is more. A standing foot carries the body forward while a
+    /// swinging one overtakes it (about twice its speed on average), at any pace; what a
+    /// standing foot seems to move over the speed window grows with the pace (a window
+    /// straddling a landing or a toe-off takes in some of the swing, a foot rolling over its
+    /// ball turns faster), so a run's stance reads 0.3–0.9 leg lengths a second where a
+    /// walk's reads under 0.25 (0.15: a body running at 3 leg lengths a second allows 0.45;
+    /// a walk, under 1.7, keeps `speed_ratio`).
+    pub body_speed_ratio: f32,
     /// A planted foot stays planted until its joints exceed the thresholds times this.
     pub release_factor: f32,
     /// Speeds are measured over at least this long.
@@ -56,6 +73,7 @@ impl Default for PlantSettings {
         PlantSettings {
             height_ratio: 0.05,
             speed_ratio: 0.25,
+            body_speed_ratio: 0.15,
             release_factor: 1.3,
             window_secs: 1.0 / 30.0,
             min_plant_secs: 1.0 / 30.0,
@@ -76,6 +94,20 @@ struct Reading {
     speed: f32,
 }
 
+/// The speed below which `leg`'s contact joints count as slow at the body's `pace`.
+fn slow_below(settings: &PlantSettings, leg: &Leg, pace: f32) -> f32 {
+    (settings.speed_ratio * leg.length).max(settings.body_speed_ratio * pace)
+}
+
+/// Where the body is: the midpoint of the legs' hip joints (a pose's world transforms).
+fn body_position(legs: &[Leg], worlds: &[WorldTransform]) -> Vec3 {
+    let sum: Vec3 = legs
+        .iter()
+        .map(|l| worlds[l.upper.index()].translation)
+        .sum();
+    sum / legs.len().max(1) as f32
+}
+
 /// The hysteresis rule shared by both modes: plant when some contact joint is near and slow;
 /// stay planted while some joint is within the looser release thresholds.
 fn next_state(planted: bool, readings: &[Option<Reading>], h: f32, v: f32, k: f32) -> bool {
@@ -92,15 +124,17 @@ pub struct PlantDetector {
     up: Vec3,
     settings: PlantSettings,
     worlds: Vec<WorldTransform>,
-    /// Ring of (time, contact joint positions).
+    /// Ring of (time, contact joint and body positions).
     times: [f64; RING],
-    positions: [[Vec3; JOINTS_PER_FOOT * MAX_FEET]; RING],
+    positions: [[Vec3; TRACKED]; RING],
     head: usize,
     len: usize,
     now_secs: f64,
     grounds: [f32; JOINTS_PER_FOOT * MAX_FEET],
     planted: [bool; MAX_FEET],
     planted_since: [f64; MAX_FEET],
+    /// The body's pace: its speed over the ground, low-passed over about [`PACE_SECS`].
+    pace: f32,
 }
 
 impl PlantDetector {
@@ -112,13 +146,14 @@ impl PlantDetector {
             settings,
             worlds: vec![WorldTransform::IDENTITY; skeleton.num_bones()],
             times: [0.0; RING],
-            positions: [[Vec3::ZERO; JOINTS_PER_FOOT * MAX_FEET]; RING],
+            positions: [[Vec3::ZERO; TRACKED]; RING],
             head: 0,
             len: 0,
             now_secs: 0.0,
             grounds: [f32::INFINITY; JOINTS_PER_FOOT * MAX_FEET],
             planted: [false; MAX_FEET],
             planted_since: [0.0; MAX_FEET],
+            pace: 0.0,
         }
     }
 
@@ -131,6 +166,7 @@ impl PlantDetector {
     pub fn reset(&mut self) {
         self.len = 0;
         self.planted = [false; MAX_FEET];
+        self.pace = 0.0;
     }
 
     /// Current state per leg.
@@ -157,6 +193,7 @@ impl PlantDetector {
                 }
             }
         }
+        self.positions[self.head][BODY] = body_position(&self.legs, &self.worlds);
         // The newest sample at least a window back (or the oldest one kept).
         let window = f64::from(self.settings.window_secs);
         let mut back = self.head;
@@ -168,9 +205,16 @@ impl PlantDetector {
         }
         let elapsed = (self.now_secs - self.times[back]) as f32;
         let s = self.settings;
+        if elapsed > 0.0 {
+            let moved = self.positions[self.head][BODY] - self.positions[back][BODY];
+            let speed = (moved - self.up * moved.dot(self.up)).length() / elapsed;
+            let dt = dt_secs.max(0.0);
+            self.pace += (speed - self.pace) * dt / (PACE_SECS + dt);
+        }
         for f in 0..self.legs.len() {
             let leg = self.legs[f];
-            let (h, v) = (s.height_ratio * leg.length, s.speed_ratio * leg.length);
+            let h = s.height_ratio * leg.length;
+            let v = slow_below(&s, &leg, self.pace);
             let mut readings = [None; JOINTS_PER_FOOT];
             for (j, bone) in contacts(&leg).iter().enumerate() {
                 if bone.is_none() {
@@ -344,6 +388,8 @@ struct ClipContacts {
     /// Joint-major: `pos[j * frames + i]`.
     pos: Vec<Vec3>,
     speeds: Vec<f32>,
+    /// Per frame, the body's pace: its centred speed over the ground over [`PACE_SECS`].
+    paces: Vec<f32>,
     grounds: Vec<f32>,
     /// Per joint, the height above its ground a standing joint may ride at (0: the leg's
     /// `height_ratio` alone).
@@ -367,7 +413,7 @@ impl ClipContacts {
         let joints: Vec<(usize, BoneId)> = (legs.iter().enumerate())
             .flat_map(|(f, l)| contacts(l).into_iter().flatten().map(move |b| (f, b)))
             .collect();
-        let pos = contact_positions(skeleton, poses, &joints);
+        let (pos, body) = contact_positions(skeleton, poses, legs, &joints);
         // Centred speeds over at least the window.
         let half = ((settings.window_secs / dt) / 2.0).ceil().max(1.0) as usize;
         // An in-place clip: judge the feet against the belt they stand on (`treadmill`).
@@ -382,6 +428,15 @@ impl ClipContacts {
         let belt = belt_velocity(&view, settings.speed_ratio * mean_leg);
         let speeds: Vec<f32> = (0..joints.len() * n)
             .map(|k| view.speed(k / n.max(1), k % n.max(1), belt))
+            .collect();
+        let pace_half = ((PACE_SECS / dt) / 2.0).round().max(half as f32) as usize;
+        let paces = (0..n)
+            .map(|i| {
+                let (a, b) = (i.saturating_sub(pace_half), (i + pace_half).min(n - 1));
+                let moved = body[b] - body[a];
+                let flat = (moved - up * moved.dot(up)).length();
+                flat / ((b - a).max(1) as f32 * dt)
+            })
             .collect();
         let grounds: Vec<f32> = (joints.iter().enumerate())
             .map(|(j, &(f, _))| {
@@ -400,6 +455,7 @@ impl ClipContacts {
             joints,
             pos,
             speeds,
+            paces,
             grounds,
             stance_band,
             belt,
@@ -414,13 +470,10 @@ impl ClipContacts {
         self.pos[j * self.frames + i].dot(self.up) - self.grounds[j]
     }
 
-    /// Leg `f`'s plants, frame by frame: the hysteresis rule, then short gaps closed and
-    /// short plants dropped.
+    /// Leg `f`'s plants, frame by frame: the hysteresis rule, then gaps the foot stayed
+    /// through and short gaps closed, and short plants dropped.
     fn plants_of(&self, f: usize, leg: &Leg, settings: &PlantSettings) -> Vec<bool> {
-        let (h, v) = (
-            settings.height_ratio * leg.length,
-            settings.speed_ratio * leg.length,
-        );
+        let h = settings.height_ratio * leg.length;
         let mine: Vec<usize> = (0..self.joints.len())
             .filter(|&j| self.joints[j].0 == f)
             .collect();
@@ -436,21 +489,61 @@ impl ClipContacts {
                     speed: self.speeds[j * self.frames + i],
                 });
             }
+            let v = slow_below(settings, leg, self.paces[i]);
             state = next_state(state, &readings, h, v, settings.release_factor);
             *slot = state;
         }
+        self.close_still_gaps(&mut column, &mine, leg, settings);
         let frames = |secs: f32| (secs / self.dt).round() as usize;
         close_gaps(&mut column, frames(settings.min_gap_secs));
         drop_short(&mut column, frames(settings.min_plant_secs));
         column
     }
+
+    /// Gaps in a column where the foot never left its place become plants: a standing foot's
+    /// jitter (a noisy capture's standing ball wobbles 1–2 cm from frame to frame, 0.5 m/s
+    /// over the speed window) can break a plant the foot never lifted from. The foot stayed
+    /// when some contact joint stays within the release height on every frame of the gap and
+    /// every contact joint ends it where it began, give or take what a slow joint moves in
+    /// that time. In place, standing is judged against the belt; gaps there stay.
+    fn close_still_gaps(&self, column: &mut [bool], mine: &[usize], leg: &Leg, s: &PlantSettings) {
+        if self.belt.is_some() {
+            return;
+        }
+        let h = s.height_ratio * leg.length * s.release_factor;
+        let flat = |v: Vec3| v - self.up * v.dot(self.up);
+        for gap in runs(column, false) {
+            if gap.start == 0 || gap.end == column.len() {
+                continue;
+            }
+            // From the last planted frame to the first planted again.
+            let (a, b) = (gap.start - 1, gap.end);
+            let secs = (b - a) as f32 * self.dt;
+            let slow = slow_below(s, leg, self.paces[a].min(self.paces[b]));
+            let at = |j: usize, i: usize| self.pos[j * self.frames + i];
+            let low = (a..=b).all(|i| mine.iter().any(|&j| self.height(j, i) < h));
+            let stayed = mine
+                .iter()
+                .all(|&j| flat(at(j, b) - at(j, a)).length() < slow * secs);
+            if low && stayed {
+                column[gap].fill(true);
+            }
+        }
+    }
 }
 
-/// World positions of `joints` over `poses`, joint-major (`[j * frames + i]`); a pose that
-/// does not fit the skeleton leaves zeros.
-fn contact_positions(skeleton: &Skeleton, poses: &[Pose], joints: &[(usize, BoneId)]) -> Vec<Vec3> {
+/// World positions of `joints` over `poses`, joint-major (`[j * frames + i]`), and the body's
+/// ([`body_position`] of `legs`) per frame; a pose that does not fit the skeleton leaves
+/// zeros.
+fn contact_positions(
+    skeleton: &Skeleton,
+    poses: &[Pose],
+    legs: &[Leg],
+    joints: &[(usize, BoneId)],
+) -> (Vec<Vec3>, Vec<Vec3>) {
     let n = poses.len();
     let mut pos = vec![Vec3::ZERO; joints.len() * n];
+    let mut body = vec![Vec3::ZERO; n];
     let mut worlds = vec![WorldTransform::IDENTITY; skeleton.num_bones()];
     for (i, p) in poses.iter().enumerate() {
         if p.check(skeleton).is_err() {
@@ -460,8 +553,9 @@ fn contact_positions(skeleton: &Skeleton, poses: &[Pose], joints: &[(usize, Bone
         for (j, &(_, b)) in joints.iter().enumerate() {
             pos[j * n + i] = worlds[b.index()].translation;
         }
+        body[i] = body_position(legs, &worlds);
     }
-    pos
+    (pos, body)
 }
 
 /// A joint's ground over a clip: a low percentile of its heights on slow frames (where it
@@ -552,6 +646,67 @@ mod tests {
         assert!(next_state(true, &r(0.012, 0.1), 0.01, 0.2, 1.5));
         assert!(!next_state(true, &r(0.016, 0.1), 0.01, 0.2, 1.5));
         assert!(!next_state(true, &r(0.001, 0.31), 0.01, 0.2, 1.5));
+    }
+
+    /// A heel standing on y = 0 for 30 frames at 120 Hz whose plant the hysteresis broke at
+    /// frames 10..20, with what the foot did meanwhile.
+    fn one_heel(during_gap: impl Fn(usize) -> Vec3) -> (ClipContacts, Leg) {
+        let pos: Vec<Vec3> = (0..30)
+            .map(|i| match i {
+                10..20 => during_gap(i),
+                // Where the gap ends is where the foot stands from then on.
+                20.. => during_gap(19) * Vec3::new(1.0, 0.0, 1.0),
+                _ => Vec3::ZERO,
+            })
+            .collect();
+        let leg = Leg {
+            kind: super::super::rig::LegKind::Hind,
+            side: crate::analysis::Side::Left,
+            limb: 0,
+            upper: BoneId(0),
+            lower: BoneId(1),
+            foot: BoneId(2),
+            toes: None,
+            length: 0.8,
+        };
+        let c = ClipContacts {
+            joints: vec![(0, BoneId(2))],
+            pos,
+            speeds: vec![0.0; 30],
+            paces: vec![1.0; 30],
+            grounds: vec![0.0],
+            stance_band: vec![0.0],
+            belt: None,
+            frames: 30,
+            up: Vec3::Y,
+            dt: 1.0 / 120.0,
+        };
+        (c, leg)
+    }
+
+    #[test]
+    fn a_gap_the_foot_stayed_through_is_one_plant() {
+        let settings = PlantSettings::default();
+        let broken = || {
+            let mut c = [true; 30];
+            c[10..20].fill(false);
+            c
+        };
+        // Jitter of 1.5 cm about where it stands: one plant.
+        let (c, leg) = one_heel(|i| Vec3::new(if i % 2 == 0 { 0.015 } else { -0.015 }, 0.0, 0.0));
+        let mut column = broken();
+        c.close_still_gaps(&mut column, &[0], &leg, &settings);
+        assert!(column.iter().all(|&p| p));
+        // Lifted 10 cm and put back: a step on the spot, two plants.
+        let (c, leg) = one_heel(|_| Vec3::new(0.0, 0.1, 0.0));
+        let mut column = broken();
+        c.close_still_gaps(&mut column, &[0], &leg, &settings);
+        assert_eq!(column, broken());
+        // Slid 10 cm along the ground in 1/12 s (1.2 m/s): two plants.
+        let (c, leg) = one_heel(|i| Vec3::new(0.01 * (i - 9) as f32, 0.0, 0.0));
+        let mut column = broken();
+        c.close_still_gaps(&mut column, &[0], &leg, &settings);
+        assert_eq!(column, broken());
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //!                                        source's: find_contact_legs, feet hanging from
 //!                                        anywhere)
 //!  source motion ─▶ detect               heel or ball near its ground AND slow, relative
-//!                                        to the leg's length; hysteresis; causal
+//!                                        to the leg's length and the body's speed;
+//!                                        hysteresis; causal
 //!                                        (PlantDetector) or two-sided (detect_clip,
 //!                                        with each foot's height above its ground;
 //!                                        an in-place clip's feet judged against the
