@@ -57,12 +57,18 @@
 //! side view, so continuity can only hold whichever labelling came first; the lite model on
 //! the mirrored picture reads him right on about two thirds of the frames, wrong on the same
 //! mid-clip run. The full model's own readings are right on 73 % of cam02's frames, which its
-//! guard makes 100 %. So while a person's readings are in doubt (the model flips them back and
-//! forth between decisive frames, [`SideGuard::in_doubt`]), the tracker runs a second model,
-//! the full one by default, on the same person and gives the reading its labelling
-//! ([`take_labelling_of`]) before the guard weighs it: lite's cam02 goes from 0 to 84 % right
-//! (the full model runs on 79 of its 100 frames); where the lite model reads a view steadily
-//! the wrong way round (the fashion model's back, 55 frames), it never flips, and nothing asks.
+//! guard makes 100 %. So the tracker runs a second model, the full one by default, on the
+//! same person whenever the first model's readings of them are unconfirmed
+//! ([`SideGuard::wants_second`]), and gives the reading its labelling
+//! ([`SideGuard::second_reads`]) before the guard weighs it. Unconfirmed: a new track and a
+//! labelling read afresh after a side view (their first readings speak for themselves, and
+//! the lite model starts cam02's track on misread frames before it ever flips); after the
+//! first model flipped its reading between two decisive frames; while it flips them back and
+//! forth ([`DOUBT_FLIPS`]); and after a check found the second model reading a frame the other
+//! way round; until the two models read [`CONFIRM_FRAMES`] decisive frames in a row alike.
+//! Then the second model checks now and then, ever less often up to [`AUDIT_LONGEST`]
+//! frames, so a run of misreadings that never flips (the fashion model's back, read as a
+//! front for 55 frames) is caught within a bounded wait, at a cost bounded by it.
 
 use glam::{Vec2, Vec3};
 
@@ -127,10 +133,24 @@ const SIDE_VIEW_FRAMES: u8 = 2;
 
 /// Flips of the model's own reading between consecutive decisive frames, fading as the
 /// evidence does (about twenty frames), from which its readings of a person are in doubt (see
-/// [`SideGuard::in_doubt`]): more than one run of misreadings lately (a clear view read right
+/// [`SideGuard::wants_second`]): more than one run of misreadings lately (a clear view read right
 /// flips none, one run of misreadings on it two); the lite model on pose2sim cam02, which it
 /// reads either way round, flips 25 times in 100 frames.
 const DOUBT_FLIPS: f32 = 2.5;
+
+/// Decisive frames in a row on which the second model must read a person the way the first
+/// model reads them by itself before the first is trusted alone (see [`SideGuard::wants_second`]):
+/// as many as the readings a fresh track's labelling needs against it to change
+/// ([`RELABEL_MARGIN`]), so a labelling is confirmed on no less evidence than would overturn it.
+const CONFIRM_FRAMES: u8 = RELABEL_MARGIN as u8;
+
+/// Once confirmed, the second model still checks a person's readings now and then: first after
+/// this many frames, each agreeing check doubling the wait up to [`AUDIT_LONGEST`] (about a
+/// second of 30 fps video, 3 % of the frames). A run of misreadings the first model makes
+/// without ever flipping (a back read as a front from the moment it turns, with no side view
+/// in between) is caught within that wait, at a cost bounded by it.
+const AUDIT_FIRST: u16 = 2;
+const AUDIT_LONGEST: u16 = 32;
 
 /// What [`SideGuard::label`] did to a reading.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -156,11 +176,19 @@ pub(super) struct SideGuard {
     /// Side views in a row up to this frame (at most [`SIDE_VIEW_FRAMES`]).
     edge_on: u8,
     /// The torso lines of the model's own last decisive reading, and its flips between such
-    /// readings (fading), for [`Self::in_doubt`].
+    /// readings (fading), for [`Self::wants_second`].
     last_own: Option<[Vec3; 2]>,
     flips: f32,
     /// Whether the last reading was in doubt.
     doubted: bool,
+    /// Decisive frames in a row the second model read as the first did (up to
+    /// [`CONFIRM_FRAMES`]; the second model checks every frame until then).
+    confirmed: u8,
+    /// Whether the second model has read the kept labelling since it was last read afresh.
+    seconded: bool,
+    /// Once confirmed: frames until the next check, and the wait after it (see [`AUDIT_FIRST`]).
+    audit_in: u16,
+    audit_every: u16,
 }
 
 impl SideGuard {
@@ -173,6 +201,10 @@ impl SideGuard {
         last_own: None,
         flips: 0.0,
         doubted: false,
+        confirmed: 0,
+        seconded: false,
+        audit_in: 0,
+        audit_every: AUDIT_FIRST,
     };
 
     /// Forgets the reference and the evidence (a new person, or one found again).
@@ -180,18 +212,28 @@ impl SideGuard {
         *self = SideGuard::NEW;
     }
 
-    /// Notes `own`, the model's own reading of this frame (before any second opinion), and
-    /// says whether its readings of this person are in doubt: it flipped its reading between
-    /// consecutive decisive frames [`DOUBT_FLIPS`] times lately (fading). A body turns through
-    /// side views, which are not decisive, so only misreadings flip between two decisive
-    /// frames in a row. When doubt begins, the evidence weighed so far is forgotten.
-    pub(super) fn in_doubt(&mut self, own: &Landmarks) -> bool {
-        if reading_weight(own) > 0.0 {
+    /// Notes `own`, the first model's own reading of this frame, and says whether the second
+    /// model should read the person too ([`Self::second_reads`] takes its reading). It does
+    /// while the first model's readings are unconfirmed: on a new track and after a side view
+    /// (the labelling read afresh), after the first model flipped its reading between two
+    /// decisive frames (a run of misreadings begins or ends), and after the second model read
+    /// a frame the other way round; until the two read [`CONFIRM_FRAMES`] decisive frames in a
+    /// row alike. Once confirmed, it checks now and then ([`AUDIT_FIRST`]). And it does on every
+    /// frame while the first's readings are in doubt: flipped [`DOUBT_FLIPS`] times lately
+    /// (fading; a body turns through side views, which are not decisive, so only misreadings
+    /// flip between two decisive frames in a row). When doubt begins, the evidence weighed so
+    /// far is forgotten.
+    pub(super) fn wants_second(&mut self, own: &Landmarks) -> bool {
+        let decisive = reading_weight(own) > 0.0;
+        if decisive {
             let lines = torso_lines(own);
             let flipped = self
                 .last_own
                 .is_some_and(|last| lines_swapped(&last, lines));
             self.flips = self.flips * EVIDENCE_KEPT + if flipped { 1.0 } else { 0.0 };
+            if flipped {
+                self.unconfirm();
+            }
             self.last_own = Some(lines);
         } else {
             self.last_own = None;
@@ -204,7 +246,57 @@ impl SideGuard {
             self.evidence = 0.0;
             self.weight = 0.0;
         }
-        self.doubted
+        if self.confirmed >= CONFIRM_FRAMES {
+            self.audit_in = self.audit_in.saturating_sub(1);
+        }
+        self.doubted || (decisive && (self.confirmed < CONFIRM_FRAMES || self.audit_in == 0))
+    }
+
+    /// Takes the second model's reading `second` of the picture `lm` (the first model's
+    /// reading, which [`Self::wants_second`] noted) came from: gives `lm` its labelling when
+    /// `second` is decisive, and notes whether the two agreed. A labelling the second model
+    /// has never read that it reads the other way round is read afresh from it (a track
+    /// started on the first model's misreadings is put right at once); one it has read before
+    /// is weighed as ever, from what the second model says (its own misreadings come in runs
+    /// too). A check now and then of a confirmed labelling that disagrees forgets the evidence
+    /// the first model's unchecked readings built since, and checks every frame again.
+    pub(super) fn second_reads(&mut self, lm: &mut Landmarks, second: &Landmarks) {
+        if reading_weight(second) <= 0.0 {
+            return;
+        }
+        let theirs = torso_lines(second);
+        let agrees = !lines_swapped(&theirs, torso_lines(lm));
+        if self.confirmed >= CONFIRM_FRAMES && !self.doubted {
+            // A check now and then: the evidence since the last came from the first model's
+            // readings alone.
+            if agrees {
+                self.audit_every = (self.audit_every * 2).min(AUDIT_LONGEST);
+                self.audit_in = self.audit_every;
+            } else {
+                self.evidence = 0.0;
+                self.weight = 0.0;
+                self.unconfirm();
+            }
+        } else if reading_weight(lm) > 0.0 {
+            self.confirmed = if agrees { self.confirmed + 1 } else { 0 };
+            self.audit_every = AUDIT_FIRST;
+            self.audit_in = AUDIT_FIRST;
+        }
+        if !agrees {
+            flip_interpretation(lm);
+        }
+        if !self.seconded && self.reference.is_some_and(|r| labels_swapped(&r, lm)) {
+            self.reference = None;
+            self.evidence = 0.0;
+            self.weight = 0.0;
+        }
+        self.seconded = true;
+    }
+
+    /// The first model's readings need the second's check every frame again.
+    fn unconfirm(&mut self) {
+        self.confirmed = 0;
+        self.audit_every = AUDIT_FIRST;
     }
 
     /// Labels `lm`, the model's reading of this frame, continuing the kept labelling or,
@@ -361,15 +453,6 @@ fn lines_swapped(reference: &[Vec3; 2], same: [Vec3; 2]) -> bool {
             .sum()
     };
     cost(&flipped) < cost(&same)
-}
-
-/// Gives `lm` the labelling of `second`, another landmark model's reading of the same picture,
-/// when `second` is decisive (see [`reading_weight`]): flips `lm` when the two read it the
-/// other way round. Both models' world points are hip-centred metres in the same axes.
-pub(super) fn take_labelling_of(lm: &mut Landmarks, second: &Landmarks) {
-    if reading_weight(second) > 0.0 && labels_swapped(&torso_lines(second), lm) {
-        flip_interpretation(lm);
-    }
 }
 
 /// Moves the reference torso lines towards the kept frame's.
@@ -575,73 +658,154 @@ mod tests {
         }
     }
 
+    /// One frame as the tracker runs it: the first model reads `own`; while the guard asks,
+    /// the second model reads `second`; the guard labels the result.
+    fn frame(guard: &mut SideGuard, own: Landmarks, second: Landmarks) -> (Landmarks, bool) {
+        let mut lm = own;
+        let asked = guard.wants_second(&own);
+        if asked {
+            guard.second_reads(&mut lm, &second);
+        }
+        let _ = guard.label(&mut lm);
+        (lm, asked)
+    }
+
     #[test]
     fn readings_flipping_back_and_forth_are_in_doubt_and_a_second_reading_labels_them() {
         let mut guard = SideGuard::NEW;
         // Read right for a second: no doubt; one run of eight misread frames: none yet.
         for frame in 0..30 {
-            assert!(!guard.in_doubt(&body(0.0)), "frame {frame}");
+            let _ = guard.wants_second(&body(0.0));
+            assert!(!guard.doubted, "frame {frame}");
         }
         for frame in 0..8 {
-            assert!(!guard.in_doubt(&flipped(body(0.0))), "frame {frame}");
+            let _ = guard.wants_second(&flipped(body(0.0)));
+            assert!(!guard.doubted, "frame {frame}");
         }
-        assert!(!guard.in_doubt(&body(0.0)));
-        // Flipping back and forth: in doubt.
-        let doubts: Vec<bool> = (0..6)
-            .map(|frame| {
-                let truth = body(0.0);
-                guard.in_doubt(&if frame % 2 == 0 {
-                    flipped(truth)
-                } else {
-                    truth
-                })
-            })
-            .collect();
-        assert!(doubts.last().copied().unwrap_or(false), "{doubts:?}");
+        let _ = guard.wants_second(&body(0.0));
+        assert!(!guard.doubted);
+        // Flipping back and forth: in doubt, and the second model asked every frame.
+        for frame in 0..6 {
+            let truth = body(0.0);
+            let own = if frame % 2 == 0 {
+                flipped(truth)
+            } else {
+                truth
+            };
+            assert!(guard.wants_second(&own), "frame {frame}");
+        }
+        assert!(guard.doubted);
         // Turns through side views are no flips (side views are not decisive).
         let mut turning = SideGuard::NEW;
         for frame in 0..=360 {
             let yaw = std::f32::consts::PI * frame as f32 / 30.0;
-            let _ = turning.in_doubt(&body(yaw));
+            let _ = turning.wants_second(&body(yaw));
             assert_eq!(turning.flips, 0.0, "frame {frame}");
         }
         // A second, decisive reading gives its labelling; an undecided one leaves it.
         let truth = body(0.2);
+        let mut guard = SideGuard::NEW;
         let mut lm = flipped(truth);
-        take_labelling_of(&mut lm, &body(0.25));
+        guard.second_reads(&mut lm, &body(0.25));
         assert_eq!(lm, truth);
-        take_labelling_of(&mut lm, &body(0.25));
+        guard.second_reads(&mut lm, &body(0.25));
         assert_eq!(lm, truth);
         let mut lm = flipped(truth);
-        take_labelling_of(&mut lm, &body(std::f32::consts::FRAC_PI_2));
+        guard.second_reads(&mut lm, &body(std::f32::consts::FRAC_PI_2));
         assert_eq!(lm, flipped(truth));
     }
 
     #[test]
     fn when_doubt_begins_the_evidence_of_the_doubted_readings_is_forgotten() {
         let mut guard = SideGuard::NEW;
-        // A track started on misreadings, read so for a second: the guard holds them.
-        for _ in 0..30 {
-            let mut lm = flipped(body(0.0));
-            let _ = guard.in_doubt(&lm);
-            let _ = guard.label(&mut lm);
-        }
-        // The model flips back and forth; once in doubt, a second opinion gives each reading
-        // the right labelling. Without forgetting, a second of misreadings held out longer.
+        // A track read the wrong way round by both models for a second: the guard holds it.
         let truth = body(0.0);
+        for _ in 0..30 {
+            let (lm, _) = frame(&mut guard, flipped(truth), flipped(truth));
+            assert_eq!(lm, flipped(truth));
+        }
+        // The first model flips back and forth, the second reads right; once in doubt, the
+        // evidence of the readings before is forgotten. Without forgetting, a second of
+        // misreadings held out longer.
         let mut right = Vec::new();
-        for frame in 0..30 {
-            let own = if frame % 2 == 0 {
+        for frame_no in 0..30 {
+            let own = if frame_no % 2 == 0 {
                 truth
             } else {
                 flipped(truth)
             };
-            let mut lm = if guard.in_doubt(&own) { truth } else { own };
-            let _ = guard.label(&mut lm);
+            let (lm, asked) = frame(&mut guard, own, truth);
+            assert!(asked, "frame {frame_no}");
             right.push(lm == truth);
         }
         let first = right.iter().position(|&r| r);
         assert!(first.is_some_and(|f| f <= 12), "{right:?}");
+        assert!(right[first.unwrap_or(0)..].iter().all(|&r| r), "{right:?}");
+    }
+
+    #[test]
+    fn a_track_started_on_misreadings_takes_the_second_models_labelling_at_once() {
+        // The first model misreads the first ten frames, then reads right; the second model
+        // reads right throughout. The first frame is the first model's alone (a new track is
+        // started from it); from the next the second model's labelling holds.
+        let mut guard = SideGuard::NEW;
+        let mut lm = flipped(body(0.0));
+        let _ = guard.label(&mut lm);
+        let mut asked = Vec::new();
+        for frame_no in 1..40 {
+            let truth = body(0.1 * (frame_no as f32 * 0.2).sin());
+            let own = if frame_no < 10 { flipped(truth) } else { truth };
+            let (lm, a) = frame(&mut guard, own, truth);
+            assert_eq!(lm, truth, "frame {frame_no}");
+            asked.push(a);
+        }
+        // Asked on every misread frame, the flip to right readings and CONFIRM_FRAMES more;
+        // then only now and then.
+        let checks = asked.iter().filter(|&&a| a).count();
+        assert!(
+            asked[..9 + usize::from(CONFIRM_FRAMES)].iter().all(|&a| a),
+            "{asked:?}"
+        );
+        assert!(checks < 9 + usize::from(CONFIRM_FRAMES) + 6, "{asked:?}");
+    }
+
+    #[test]
+    fn once_confirmed_the_second_model_checks_ever_less_often_up_to_a_bound() {
+        let mut guard = SideGuard::NEW;
+        let truth = body(0.0);
+        let asked: Vec<bool> = (0..400)
+            .map(|_| frame(&mut guard, truth, truth).1)
+            .collect();
+        let checks: Vec<usize> = (0..asked.len()).filter(|&i| asked[i]).collect();
+        let waits: Vec<usize> = checks.windows(2).map(|w| w[1] - w[0]).collect();
+        let confirm = usize::from(CONFIRM_FRAMES);
+        assert!(waits[..confirm - 1].iter().all(|&w| w == 1), "{waits:?}");
+        // Then waits of 2, 4, ... up to the longest, and no longer.
+        let later = &waits[confirm - 1..];
+        assert!(later.windows(2).all(|w| w[1] >= w[0]), "{waits:?}");
+        assert_eq!(later.iter().max(), Some(&usize::from(AUDIT_LONGEST)));
+        let cost = checks.len() as f32 / asked.len() as f32;
+        assert!(cost < 0.1, "{cost}");
+    }
+
+    #[test]
+    fn a_steady_misreading_the_first_model_never_flips_is_caught_by_a_check() {
+        // Square on to the camera for two seconds, then turned to the back within a frame (no
+        // side view); the first model reads the back as a front, steadily: its torso lines
+        // never flip. The second model reads right.
+        let mut guard = SideGuard::NEW;
+        for _ in 0..60 {
+            let truth = body(0.0);
+            assert_eq!(frame(&mut guard, truth, truth).0, truth);
+        }
+        let back = body(std::f32::consts::PI);
+        let mut right = Vec::new();
+        for _ in 0..90 {
+            right.push(frame(&mut guard, flipped(back), back).0 == back);
+        }
+        let first = right.iter().position(|&r| r);
+        let bound = usize::from(AUDIT_LONGEST) + usize::from(CONFIRM_FRAMES) + 4;
+        assert!(first.is_some_and(|f| f <= bound), "{right:?}");
         assert!(right[first.unwrap_or(0)..].iter().all(|&r| r), "{right:?}");
     }
 

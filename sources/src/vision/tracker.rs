@@ -43,7 +43,7 @@ use super::frame::RgbFrame;
 use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
 use super::model::{Disc, LandmarkModel};
 use super::roi::Roi;
-use super::sides::{mirror_index, take_labelling_of, Labelling, SideGuard};
+use super::sides::{mirror_index, Labelling, SideGuard};
 /// How the tracker finds people it does not track yet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Finder {
@@ -620,8 +620,8 @@ impl PoseTracker {
         })
     }
 
-    /// While the model's readings of person `slot` are in doubt (see `sides`), gives `found`
-    /// the labelling the second-opinion model reads on the same person's crop.
+    /// While the model's readings of person `slot` are unconfirmed or in doubt (see `sides`),
+    /// gives `found` the labelling the second-opinion model reads on the same person's crop.
     fn second_opinion(
         &mut self,
         frame: &RgbFrame,
@@ -631,7 +631,7 @@ impl PoseTracker {
         let Some(second) = self.second.as_mut() else {
             return Ok(());
         };
-        if !self.config.swap_guard || !self.tracks[slot].sides.in_doubt(found) {
+        if !self.config.swap_guard || !self.tracks[slot].sides.wants_second(found) {
             return Ok(());
         }
         let Some(roi) = next_roi(found) else {
@@ -639,7 +639,9 @@ impl PoseTracker {
         };
         second.infer(frame, &roi, &mut self.second_scratch)?;
         self.stats.second_opinions += 1;
-        take_labelling_of(found, &self.second_scratch);
+        self.tracks[slot]
+            .sides
+            .second_reads(found, &self.second_scratch);
         Ok(())
     }
 
@@ -875,7 +877,7 @@ impl PoseTracker {
                 && upright_as_detected(&self.scratch, &d)
             {
                 let found = self.scratch;
-                self.start_track(&found);
+                self.start_track(frame, &found)?;
             }
         }
         Ok(())
@@ -911,17 +913,17 @@ impl PoseTracker {
             }
             best = self.scratch;
         }
-        self.start_track(&best);
-        Ok(())
+        self.start_track(frame, &best)
     }
 
-    /// Gives a newly found person a slot (see [`Self::slot_for`]) and starts their track.
-    fn start_track(&mut self, lm: &Landmarks) {
+    /// Gives a newly found person a slot (see [`Self::slot_for`]) and starts their track. A
+    /// new person's first reading is labelled as any other unconfirmed one (`sides`).
+    fn start_track(&mut self, frame: &RgbFrame, lm: &Landmarks) -> Result<(), VisionError> {
         if self.is_tracked_body(lm) {
-            return;
+            return Ok(());
         }
         let Some((slot, same_person)) = self.slot_for(lm) else {
-            return;
+            return Ok(());
         };
         let t = &mut self.tracks[slot];
         t.place = None;
@@ -930,8 +932,11 @@ impl PoseTracker {
             t.held_frames = 0;
             t.sides.reset();
         }
-        self.accept(slot, lm);
+        let mut found = *lm;
+        self.second_opinion(frame, slot, &mut found)?;
+        self.accept(slot, &found);
         self.stats.tracks_started += 1;
+        Ok(())
     }
 
     /// The slot for a newly found person `lm`, and whether it is someone the slot held: the
