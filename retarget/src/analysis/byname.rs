@@ -17,6 +17,7 @@
 use super::names::NameInfo;
 use super::{HumanBone, Side};
 use crate::skeleton::{BoneId, Skeleton};
+use glam::Vec3;
 
 /// A body part a name can say.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -220,6 +221,9 @@ fn common_parent(skel: &Skeleton, [a, b]: [BoneId; 2]) -> Option<BoneId> {
 
 /// Sections rebuilt from the roles alone (after the names replaced a reading of broken
 /// geometry): spine, head, and per side arm, hand, leg and foot, bones in hierarchy order.
+/// Legs stand on the ground; arms do where the posture hangs them down to it (a quadruped
+/// named like a humanoid, as the MANN dogs are, stands on its arms; a body whose geometry
+/// lies flat, as kinect2's rest does, says nothing of where its ground is).
 pub(crate) fn sections_from_roles(skel: &Skeleton, a: &mut super::Analysis) {
     use super::{Role, Section, SectionKind};
     let kind_of = |r: Role| match r {
@@ -269,7 +273,44 @@ pub(crate) fn sections_from_roles(skel: &Skeleton, a: &mut super::Analysis) {
             a.roles[b.index()].position = j as f32 / n;
         }
     }
+    for s in sections.iter_mut().filter(|s| s.kind == SectionKind::Arm) {
+        s.ground = reaches_ground(skel, &a.positions, a.up, &s.bones);
+    }
     a.sections = sections;
+}
+
+/// Whether the limb of `bones` (and all that hangs below them) hangs down to the ground of
+/// the posture `positions`: its lowest joint within a fifth of the posture's height above
+/// the lowest joint of all (the band the geometric reading gives a ground limb), and at
+/// least 30 degrees below level as seen from the limb's first joint.
+fn reaches_ground(skel: &Skeleton, positions: &[Vec3], up: Vec3, bones: &[BoneId]) -> bool {
+    let at = |b: BoneId| positions.get(b.index()).copied().unwrap_or(Vec3::ZERO);
+    let h = |b: BoneId| at(b).dot(up);
+    let (ground, top) = skel
+        .bone_ids()
+        .map(h)
+        .fold((f32::MAX, f32::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+    let in_limb = |mut b: BoneId| loop {
+        if bones.contains(&b) {
+            return true;
+        }
+        match skel.parent(b) {
+            Some(p) => b = p,
+            None => return false,
+        }
+    };
+    let Some(lowest) = skel
+        .bone_ids()
+        .filter(|&b| in_limb(b))
+        .min_by(|&x, &y| h(x).total_cmp(&h(y)))
+    else {
+        return false;
+    };
+    let Some(&first) = bones.first() else {
+        return false;
+    };
+    let down = (at(first) - at(lowest)).normalize_or_zero().dot(up);
+    h(lowest) < ground + 0.2 * (top - ground).max(1e-3) && down >= 0.5
 }
 
 #[cfg(test)]
