@@ -261,11 +261,10 @@ impl SideGuard {
     /// too). A check now and then of a confirmed labelling that disagrees forgets the evidence
     /// the first model's unchecked readings built since, and checks every frame again.
     pub(super) fn second_reads(&mut self, lm: &mut Landmarks, second: &Landmarks) {
-        if reading_weight(second) <= 0.0 {
-            return;
-        }
-        let theirs = torso_lines(second);
-        let agrees = !lines_swapped(&theirs, torso_lines(lm));
+        // A second reading that cannot tell left from right (a side view or a torn reading to
+        // it) objects to nothing: checking again every frame would cost without telling more.
+        let decided = reading_weight(second) > 0.0;
+        let agrees = !decided || !lines_swapped(&torso_lines(second), torso_lines(lm));
         if self.confirmed >= CONFIRM_FRAMES && !self.doubted {
             // A check now and then: the evidence since the last came from the first model's
             // readings alone.
@@ -281,6 +280,9 @@ impl SideGuard {
             self.confirmed = if agrees { self.confirmed + 1 } else { 0 };
             self.audit_every = AUDIT_FIRST;
             self.audit_in = AUDIT_FIRST;
+        }
+        if !decided {
+            return;
         }
         if !agrees {
             flip_interpretation(lm);
@@ -786,6 +788,24 @@ mod tests {
         assert_eq!(later.iter().max(), Some(&usize::from(AUDIT_LONGEST)));
         let cost = checks.len() as f32 / asked.len() as f32;
         assert!(cost < 0.1, "{cost}");
+    }
+
+    #[test]
+    fn a_second_reading_that_cannot_tell_objects_to_nothing() {
+        // The second model reads every frame as a side view: its checks say nothing, so they
+        // neither change the labelling nor keep it being asked every frame.
+        let mut guard = SideGuard::NEW;
+        let truth = body(0.0);
+        let edge_on = body(std::f32::consts::FRAC_PI_2);
+        let asked: Vec<bool> = (0..200)
+            .map(|_| {
+                let (lm, asked) = frame(&mut guard, truth, edge_on);
+                assert_eq!(lm, truth);
+                asked
+            })
+            .collect();
+        let checks = asked.iter().filter(|&&a| a).count();
+        assert!(checks < usize::from(CONFIRM_FRAMES) + 10, "{asked:?}");
     }
 
     #[test]
