@@ -66,9 +66,15 @@
 //! first model flipped its reading between two decisive frames; while it flips them back and
 //! forth ([`DOUBT_FLIPS`]); and after a check found the second model reading a frame the other
 //! way round; until the two models read [`CONFIRM_FRAMES`] decisive frames in a row alike.
-//! Then the second model checks now and then, ever less often up to [`AUDIT_LONGEST`]
-//! frames, so a run of misreadings that never flips (the fashion model's back, read as a
-//! front for 55 frames) is caught within a bounded wait, at a cost bounded by it.
+//! The fashion model's back, which the lite model reads as a front for 55 frames after she
+//! turns, is checked from the side view on, so her labels follow the full model's reading;
+//! lite's cam02 is right on every frame (the full model runs on 89 of its 100). Then the
+//! second model checks now and then, ever less often up to [`AUDIT_LONGEST`] frames, so a run
+//! of misreadings that never flips is caught within a bounded wait, at a cost bounded by it.
+//! What is left: a turn the picture never shows edge-on (a small player in the soccer
+//! broadcast turns to his back within a few frames, both models reading a front for four
+//! frames after it, then a back): continuity holds the front until the two models' readings
+//! outweigh it, five frames late.
 
 use glam::{Vec2, Vec3};
 
