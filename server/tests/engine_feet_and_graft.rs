@@ -5,7 +5,8 @@
 //!
 //! - Foot lock (the first labelled walk of the shared data, found by its motion, on the mannequin, mapped as the server's
 //!   mapper does): both feet plant and lift in turn; once a plant has settled (the lock eases a landing foot onto its
-//!   pin over about 0.2 s) the planted foot moves no more than 0.5 mm per tick, while lifted
+//!   pin over about 0.2 s) the joint the planted foot stands on (its foot or toe joint, the
+//!   lower) moves no more than 0.5 mm per tick, while lifted
 //!   feet travel; every `footplants` event names the frame it describes and gives each foot's
 //!   position as forward kinematics of that frame and its flag as the tick stored it.
 //! - Graft (the same walk: an upper source and the walk looping one stride
@@ -159,6 +160,16 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
     let feet: Vec<String> = (lock.target_legs())
         .map(|l| target.name(l.foot).to_string())
         .collect();
+    // Each foot's joints it may stand on: its foot joint, and its toes where it has them.
+    let contacts: Vec<Vec<String>> = (lock.target_legs())
+        .map(|l| {
+            [Some(l.foot), l.toes]
+                .into_iter()
+                .flatten()
+                .map(|b| target.name(b).to_string())
+                .collect()
+        })
+        .collect();
     let mut rig = Rig::new(
         &walk,
         &target,
@@ -220,8 +231,14 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
                 (start..k).map(|j| at(&target, &shown[j].0, foot)).collect();
             if state && span.len() > SETTLE_TICKS + 2 {
                 judged += 1;
-                for w in span[SETTLE_TICKS..].windows(2) {
-                    let d = w[1] - w[0];
+                for j in start + SETTLE_TICKS + 1..k {
+                    // The joint the foot stands on: the lowest on the tick before (a foot
+                    // rolling over its ball at a toe-off moves its ankle without sliding).
+                    let before = |name: &String| at(&target, &shown[j - 1].0, name);
+                    let contact = (contacts[i].iter())
+                        .min_by(|a, b| before(a).y.total_cmp(&before(b).y))
+                        .unwrap_or(foot);
+                    let d = at(&target, &shown[j].0, contact) - before(contact);
                     worst_drift = worst_drift.max((d.x * d.x + d.z * d.z).sqrt());
                 }
             } else if !state {

@@ -908,9 +908,13 @@ fn pair_wanted(name: &str) -> bool {
 /// Not met yet (run it with `--ignored` for the table; `RIGCAST_QUALITY_PAIRS=a,b` measures
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures). Of 144 pairs, within the bounds: thigh and shin
-/// 96, foot 33 of the 84 with toes on both rigs, drift 135 (every foot joint: 130), floor 141;
-/// 84 / 18 / 108 (142) / 140 while a pinned ankle rose with the source's heel over the spot it
-/// was pinned at, its ball sliding back under it (earlier, every foot joint: 69 / 1 / 143 / 138
+/// 96, foot 29 of the 84 with toes on both rigs, drift 141 (every foot joint: 133), floor 141,
+/// since a foot turned on the spot turns on its ball, stands flat about its heel and keeps the
+/// way its ball points (96 / 32 / 136 (133) / 141 before, the ball swinging about a held
+/// ankle; the three feet lost fall 0.2-0.5° over the 15° p95); with the detection before
+/// d31149a's, 96 / 33 / 135 / 141 before the ball turned, 84 / 18 / 108 (142) / 140 while a pinned
+/// ankle rose with the source's heel over the spot it was pinned at, its ball sliding back
+/// under it (earlier, every foot joint: 69 / 1 / 143 / 138
 /// while it rose by at most 2 % of the leg, 36 / 1 / 143 / 142 before the root was carried up
 /// onto the held feet, 26 / 1 / 142 / 141 before it was carried over the ground). Thigh and
 /// shin fail most on the robot (its left foot hangs in the retargeted walk: a mapping matter),
@@ -918,9 +922,8 @@ fn pair_wanted(name: &str) -> bool {
 /// and LaFAN1 as sources: there the lock still bends the legs at landings (a landing foot
 /// brought down onto a floor the hips' height over the standing foot puts it under) and two
 /// planted feet the target's proportions set apart differently share their disagreement
-/// through the legs. Of the 9 drift failures, 8 are on sources whose own standing feet slide
-/// more than the bound (the CMU run 0.30, cmu_dazfriendly 0.39, LaFAN1 0.15 cm/frame; the
-/// other, Meredith onto Mousey, 0.051 against its source's 0.042).
+/// through the legs. The 3 drift failures are all under the CMU run, whose own standing feet
+/// slide 0.30 cm/frame (0.083-0.185 on the targets).
 ///
 /// The foot is judged by its raw direction (ankle to toes) against the source's, as the issue
 /// measured it. The lock keeps a planted foot's pitch the animation's while the source's heel

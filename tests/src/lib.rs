@@ -748,7 +748,8 @@ pub struct PlantWatch {
     pub checked: usize,
     /// (bone, planted) states seen.
     pub seen: std::collections::HashSet<(String, bool)>,
-    /// Farthest a planted foot moved horizontally over one plant (m), and per frame (m).
+    /// Farthest the joint a planted foot stands on moved horizontally over one plant (m, along
+    /// its path), and per frame (m).
     pub planted_travel: f32,
     pub planted_drift: f32,
     /// Plants long enough to be judged.
@@ -769,12 +770,13 @@ const PLANT_TAIL_FRAMES: usize = 3;
 
 /// Judges `subject`'s `footplants` messages against its frames (`frames` in arrival order):
 /// each foot's position must be FK of the frame the message names (within 0.1 mm, asserted).
-/// A planted foot should stay put over its whole plant, from the message that lands it to the
-/// one that lifts it (messages about the other feet in between do not restart it); a lifted
-/// one travels between one message and the next. Each span is judged after its settle and
-/// before its tail ([`PLANT_SETTLE_NANOS`], [`PLANT_TAIL_FRAMES`]), each in the unit it runs
-/// on, so a starved server that skips ticks judges the same stretch of motion;
-/// a frame sent again with the same `seq` (a tick without a new pose) counts once.
+/// A planted foot should stand still (the joint it stands on: [`stood_still`]) over its whole
+/// plant, from the message that lands it to the one that lifts it (messages about the other
+/// feet in between do not restart it); a lifted one travels between one message and the next.
+/// Each span is judged after its settle and before its tail ([`PLANT_SETTLE_NANOS`],
+/// [`PLANT_TAIL_FRAMES`]), each in the unit it runs on, so a starved server that skips ticks
+/// judges the same stretch of motion; a frame sent again with the same `seq` (a tick without a
+/// new pose) counts once.
 pub fn judge_footplants(
     subject: u32,
     bones: &[rigcast_protocol::control::BoneInfo],
@@ -836,7 +838,8 @@ pub fn judge_footplants(
             if foot.planted {
                 landed.entry(foot.bone.as_str()).or_insert(*seq);
             } else if let Some(from) = landed.remove(foot.bone.as_str()) {
-                if let Some((travel, n)) = travel(from, *seq) {
+                let judged = settled_frames(&frames, by_seq[&from], by_seq[seq]);
+                if let Some((travel, n)) = stood_still(bones, index(&foot.bone), &judged) {
                     w.planted_travel = w.planted_travel.max(travel);
                     w.planted_drift = w.planted_drift.max(travel / n as f32);
                     w.planted_judged += 1;
@@ -852,6 +855,29 @@ pub fn judge_footplants(
         w.checked += 1;
     }
     w
+}
+
+/// How far the joint a planted foot stands on moves over the ground along `judged` (the foot
+/// bone `foot`'s joint or one of its children's, the lowest on the frame before: a foot
+/// rolling over its ball moves its ankle without sliding), and over how many frames; `None`
+/// for fewer than three frames.
+fn stood_still(
+    bones: &[rigcast_protocol::control::BoneInfo],
+    foot: usize,
+    judged: &[&DecodedFrame],
+) -> Option<(f32, usize)> {
+    let joints: Vec<usize> = std::iter::once(foot)
+        .chain((0..bones.len()).filter(|&b| bones[b].parent == Some(foot as u32)))
+        .collect();
+    let worlds: Vec<Vec<Vec3>> = judged.iter().map(|f| wire_fk(bones, f)).collect();
+    let mut moved = 0.0;
+    for w in worlds.windows(2) {
+        let lowest = |a: &usize, b: &usize| w[0][*a].y.total_cmp(&w[0][*b].y);
+        let contact = joints.iter().copied().min_by(lowest).unwrap_or(foot);
+        let d = w[1][contact] - w[0][contact];
+        moved += (d.x * d.x + d.z * d.z).sqrt();
+    }
+    (judged.len() >= 3).then_some((moved, judged.len()))
 }
 
 /// The frames from message frame `from` up to message frame `to` that lie past the settle

@@ -135,6 +135,9 @@ pub struct PlantDetector {
     planted_since: [f64; MAX_FEET],
     /// The body's pace: its speed over the ground, low-passed over about [`PACE_SECS`].
     pace: f32,
+    /// Per leg, the last sample's foot (least of its contacts) and heel above their grounds.
+    lifts: [f32; MAX_FEET],
+    heel_lifts: [f32; MAX_FEET],
 }
 
 impl PlantDetector {
@@ -154,6 +157,8 @@ impl PlantDetector {
             planted: [false; MAX_FEET],
             planted_since: [0.0; MAX_FEET],
             pace: 0.0,
+            lifts: [0.0; MAX_FEET],
+            heel_lifts: [0.0; MAX_FEET],
         }
     }
 
@@ -172,6 +177,17 @@ impl PlantDetector {
     /// Current state per leg.
     pub fn planted(&self) -> &[bool] {
         &self.planted[..self.legs.len()]
+    }
+
+    /// Per leg, how high the foot stood above its ground at the last sample: the least of its
+    /// contacts' heights (source units; 0 before a ground is known), as [`PlantTrack::lifts`].
+    pub fn lifts(&self) -> &[f32] {
+        &self.lifts[..self.legs.len()]
+    }
+
+    /// The same for the heel (foot joint) alone, as [`PlantTrack::heel_lifts`].
+    pub fn heel_lifts(&self) -> &[f32] {
+        &self.heel_lifts[..self.legs.len()]
     }
 
     /// Takes the next source pose, `dt_secs` after the previous one, and returns the state per
@@ -236,6 +252,12 @@ impl PlantDetector {
                     speed,
                 });
             }
+            // Heights above grounds not known yet (no slow sample) read 0.
+            let above = |r: &Reading| Some(r.height_above_ground).filter(|h| h.is_finite());
+            self.heel_lifts[f] = readings[0].as_ref().and_then(above).unwrap_or(0.0);
+            let lowest = (readings.iter().flatten().map(|r| above(r).unwrap_or(0.0)))
+                .fold(f32::INFINITY, f32::min);
+            self.lifts[f] = if lowest.is_finite() { lowest } else { 0.0 };
             let was = self.planted[f];
             let mut now = next_state(was, &readings, h, v, s.release_factor);
             // A fresh plant is held for the shortest plant, so a jittery landing does not

@@ -3,9 +3,12 @@
 //! first frame of a clip pinned at once; offline, given the plants' heights, as far above it
 //! as the source's foot stands above its ground, scaled, up to `MAX_LIFT_RATIO` of the leg):
 //! flat on the floor, or, while the animation pitches it ball down (a toe-off), rolled onto
-//! its ball, which stays where standing put it while the ankle rises; its leg solved with the
-//! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
-//! `spring`); no foot joint goes below the target's floor.
+//! its ball, which stays where standing put it while the ankle rises (live too: the causal
+//! detector gives the source heel's rise over its lowest contact); a foot landing toes up
+//! comes down about its heel, and one turned on the spot turns on its ball, so the joint a
+//! foot stands on stays put; its leg solved with the two-bone IK; the hips come down when a
+//! leg cannot reach; every switch blends (see `spring`); no foot joint goes below the
+//! target's floor.
 //!
 //! ```text
 //!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
@@ -17,13 +20,16 @@
 //!                     slide in the animation (stride warping, `stride`; a foot rolling over
 //!                     its ball does not slide), up by their ankles' gaps to their pinned
 //!                     heights (two feet down: the means), so a held leg stays as retargeted
+//!                     (live: no farther than `max_carry_ratio` legs from the performer's)
 //!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
 //!                     pinned: the foot rolled on its pin with the animation's pitch
 //!                     (`Foot::roll`): on its ball while that is pitched lower than standing,
 //!                     else on its heel and stood flat (ball pitched down to its standing
-//!                     height), blended in and out the same way
+//!                     height, about the heel: the pin comes forward), blended in and out
+//!                     the same way; its heading (the way its ball points) held, dragged
+//!                     past `PIVOT_RAD` about the ball
 //!               ─▶ hips raised when every foot would have to be pulled up (the animation
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
@@ -179,6 +185,13 @@ pub struct LockSettings {
     /// The hips never come down (or, when every foot has sunk, go up) by more than this many
     /// leg lengths.
     pub max_drop_ratio: f32,
+    /// Live, stride warping carries the root at most this many leg lengths over the ground
+    /// from where the performer's motion puts it: the character stays within about half a step
+    /// of the performer's place however long the walk (past it, the legs take up the rest of
+    /// the stride's difference). Offline the character keeps its own stride's path: a
+    /// character whose stride differs much (the Godot robot under LaFAN1's walk) would
+    /// otherwise bend its standing legs until the locks let go.
+    pub max_carry_ratio: f32,
     /// The live detector's thresholds.
     pub plants: PlantSettings,
 }
@@ -190,6 +203,7 @@ impl Default for LockSettings {
             release_secs: 0.15,
             max_drift_ratio: 0.35,
             max_drop_ratio: 0.3,
+            max_carry_ratio: 0.5,
             plants: PlantSettings::default(),
         }
     }
@@ -213,7 +227,8 @@ struct Foot {
     pitch_fix: f32,
     /// The foot's left-to-right axis, fixed in the foot bone's frame: what it pitches about.
     side_local: Vec3,
-    /// A horizontal direction fixed in the foot bone's frame (its heading).
+    /// A direction fixed in the foot bone's frame whose way over the ground is the foot's
+    /// heading: towards the ball, or (without one) ahead at rest.
     heading_local: Vec3,
     /// The knee's side of the hip–ankle line, in the upper bone's frame (kept for straight
     /// legs, where the animation does not show it).
@@ -242,6 +257,8 @@ struct Foot {
     /// up: what is wanted minus what was shown at the last switch, decaying; and what was shown.
     flat_offset: Decay<f32>,
     shown_flat: f32,
+    /// How far (radians) the foot was shown pitched toes up past standing last frame.
+    toes_up: f32,
     /// Last frame: where the ankle was shown and the animated ankle, for velocities.
     shown_position: Vec3,
     shown_velocity: Vec3,
@@ -300,6 +317,25 @@ impl Foot {
         dir * (flat(rise) - flat(rise - lifted)) + up * lifted
     }
 
+    /// Turns the pin to `heading` on its ball, as a foot turning on the spot does: the pin
+    /// moves so the ball stays where the foot stood flat ([`FootLock::flatten`]) puts it.
+    /// `balls`: the ball's offset from the ankle at the old heading and at the new.
+    fn turn_on_ball(&mut self, up: Vec3, floor: f32, heading: f32, balls: Option<(Vec3, Vec3)>) {
+        if let Some((from, to)) = balls {
+            let ball = |o: Vec3| {
+                let ankle = self.pinned_ankle(up, floor, Some(o));
+                let len = o.length();
+                let stand = floor + self.ball_clearance + self.lift;
+                let rise = clamp_safe(stand - ankle.dot(up), -len, len);
+                let reach = (len * len - rise * rise).max(0.0).sqrt();
+                ankle + (o - up * o.dot(up)).normalize_or_zero() * reach
+            };
+            let moved = ball(from) - ball(to);
+            self.lock_position += moved - up * moved.dot(up);
+        }
+        self.lock_heading = heading;
+    }
+
     /// The animated ankle's velocity and heading rate since the last frame, `dt` ago; records
     /// this frame's.
     fn animation_moved(&mut self, animated: Vec3, heading: f32, dt: f32) -> (Vec3, f32) {
@@ -356,6 +392,18 @@ struct Stance {
     ankle: f32,
     pitch: f32,
     heel_rise: f32,
+}
+
+impl Stance {
+    /// How far the lock raises the ankle of a foot standing so, rolling it onto its ball
+    /// ([`Foot::roll`]): a frame on its ball (pitched lower than `standing` once `fix` is
+    /// added, the source's heel up) has it raised by that, as far as the heel rises. `len`:
+    /// the foot's length.
+    fn rolled(&self, len: f32, standing: f32, fix: f32) -> f32 {
+        (len * (standing.sin() - (self.pitch + fix).sin()))
+            .min(self.heel_rise)
+            .max(0.0)
+    }
 }
 
 /// The per-frame goal of one foot.
@@ -488,7 +536,9 @@ impl FootLock {
                     }),
                     pitch_fix: 0.0,
                     side_local: w(leg.foot).rotation.inverse() * heading_dir.cross(up),
-                    heading_local: w(leg.foot).rotation.inverse() * heading_dir,
+                    // Towards the ball: a pinned ball keeps its place however the foot twists.
+                    heading_local: w(leg.foot).rotation.inverse()
+                        * ahead.try_normalize().unwrap_or(heading_dir),
                     pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
                     locked: false,
                     lift: 0.0,
@@ -501,6 +551,7 @@ impl FootLock {
                     heading_offset: Decay::default(),
                     flat_offset: Decay::default(),
                     shown_flat: 0.0,
+                    toes_up: 0.0,
                     shown_position: ankle,
                     shown_velocity: Vec3::ZERO,
                     shown_heading: 0.0,
@@ -586,13 +637,9 @@ impl FootLock {
             // Where the heel stands on each frame as the lock rolls the foot ([`Foot::roll`]):
             // a frame on its ball (pitched lower than standing, the source's heel up) has its
             // ankle raised by that.
-            let len = foot.foot_length;
             let heels: Vec<Stance> = (h.iter())
                 .map(|s| Stance {
-                    ankle: s.ankle
-                        - (len * (standing.sin() - (s.pitch + fix).sin()))
-                            .min(s.heel_rise)
-                            .max(0.0),
+                    ankle: s.ankle - s.rolled(foot.foot_length, standing, fix),
                     ..*s
                 })
                 .collect();
@@ -606,7 +653,7 @@ impl FootLock {
             } else {
                 foot.standing_pitch = standing;
                 foot.heel_clearance = heel;
-                foot.ball_clearance = heel + len * standing.sin();
+                foot.ball_clearance = heel + foot.foot_length * standing.sin();
             }
         }
         self.root_fix = if n > 0 { rise_sum / n as f32 } else { 0.0 };
@@ -650,11 +697,19 @@ impl FootLock {
             if !(foot.locked && foot.source.is_some_and(|s| planted[s])) {
                 continue;
             }
-            let stance = self.stance_of(foot, &self.worlds);
+            let stance = Stance {
+                heel_rise: foot.heel_rise,
+                ..self.stance_of(foot, &self.worlds)
+            };
             let (gap, clearance) = (foot.standing_pitch - stance.pitch, foot.heel_clearance);
+            // A foot rolling onto its ball (a toe-off) stands its heel lower than its ankle,
+            // and its pitch is the roll's, not the stance's: learnt from flat frames only.
+            let rolled = stance.rolled(foot.foot_length, foot.standing_pitch, foot.pitch_fix);
             let foot = &mut self.feet[i];
-            foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
-            rise += clearance - stance.ankle;
+            if rolled <= 0.0 {
+                foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
+            }
+            rise += clearance - (stance.ankle - rolled);
             n += 1;
         }
         if n > 0 {
@@ -745,7 +800,18 @@ impl FootLock {
         for (p, s) in planted.iter_mut().zip(self.detector.planted()) {
             *p = *s;
         }
-        self.lock(&planted, None, dt_secs, true, out);
+        // How much higher the source's heels stand than their feet's lowest contacts (how far
+        // a foot rolls onto its ball). The foot itself is held on the floor, not as far above
+        // it as the source's stands (offline): the causal ground is the lowest slow height
+        // seen so far, which one dip of a foot lowers for good, so every later stance would
+        // read a few millimetres up (the CMU walk onto X Bot: planted feet 0.71 cm up on half
+        // their frames, 0.00 held on the floor).
+        let mut lifts = Lifts::default();
+        let measured = self.detector.heel_lifts().iter().zip(self.detector.lifts());
+        for (l, (heel, foot)) in lifts.heel.iter_mut().zip(measured) {
+            *l = heel - foot.max(0.0);
+        }
+        self.lock(&planted, Some(&lifts), dt_secs, true, out);
     }
 
     /// Offline: locks `out` with known plant flags per source leg (from [`super::detect_clip`]
@@ -794,14 +860,15 @@ impl FootLock {
         self.lock(&flags, Some(&lifts), dt_secs, false, out);
     }
 
-    /// Locks `out`; `learn`: the fit to the standing posture is learnt from this frame (live,
-    /// where no clip is known in advance).
+    /// Locks `out`; `live`: no clip is known in advance, so the fit to the standing posture is
+    /// learnt from this frame on, and the root is carried no farther than
+    /// [`LockSettings::max_carry_ratio`] from where the performer's motion puts it.
     fn lock(
         &mut self,
         planted: &[bool; MAX_FEET],
         lifts: Option<&Lifts>,
         dt_secs: f32,
-        learn: bool,
+        live: bool,
         out: &mut Pose,
     ) {
         if out.check(&self.target).is_err() {
@@ -809,33 +876,12 @@ impl FootLock {
         }
         forward_kinematics(&self.target, out, &mut self.worlds);
         let dt = dt_secs.max(0.0);
-        if learn {
+        self.take_lifts(lifts);
+        if live {
             self.learn_fit(planted, dt);
         }
         self.apply_fit(out);
-        for i in 0..self.feet.len() {
-            let length = self.feet[i].leg.length;
-            let (foot, heel, landing) = match (self.feet[i].source, lifts) {
-                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s]),
-                _ => (0.0, None, 0.0),
-            };
-            self.feet[i].landing = landing;
-            let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
-            self.feet[i].lift = lift;
-            // The heel follows how much higher than the foot's lowest contact the source's is
-            // (a foot pitched toes-down); a foot without a ball stands on its ankle.
-            let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
-            // As far as keeps the foot level enough to be stood flat ([`FLATTEN_LEVEL`]), its
-            // ball on the floor: a foot pitched steeper is no longer brought down onto it.
-            let f = &self.feet[i];
-            let steepest = f.foot_length * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
-            let most = (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0);
-            let rise = heel.map_or(0.0, |h| self.lift_scale * (h - foot.max(0.0)));
-            self.feet[i].heel_lift = heel.map(|_| lift + clamp_safe(rise, 0.0, most));
-            // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]).
-            self.feet[i].heel_rise = rise.max(0.0);
-        }
-        self.carry_root(planted, dt, out);
+        self.carry_root(planted, dt, live, out);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
             self.goals[i] = self.foot_goal(i, wants, dt);
@@ -865,6 +911,33 @@ impl FootLock {
         self.shown_once = true;
     }
 
+    /// Takes this frame's source lifts into every foot: how high a pinned foot is held, its
+    /// heel's pin and how far it may roll onto its ball.
+    fn take_lifts(&mut self, lifts: Option<&Lifts>) {
+        for i in 0..self.feet.len() {
+            let length = self.feet[i].leg.length;
+            let (foot, heel, landing) = match (self.feet[i].source, lifts) {
+                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s]),
+                _ => (0.0, None, 0.0),
+            };
+            self.feet[i].landing = landing;
+            let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
+            self.feet[i].lift = lift;
+            // The heel follows how much higher than the foot's lowest contact the source's is
+            // (a foot pitched toes-down); a foot without a ball stands on its ankle.
+            let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
+            // As far as keeps the foot level enough to be stood flat ([`FLATTEN_LEVEL`]), its
+            // ball on the floor: a foot pitched steeper is no longer brought down onto it.
+            let f = &self.feet[i];
+            let steepest = f.foot_length * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
+            let most = (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0);
+            let rise = heel.map_or(0.0, |h| self.lift_scale * (h - foot.max(0.0)));
+            self.feet[i].heel_lift = heel.map(|_| lift + clamp_safe(rise, 0.0, most));
+            // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]).
+            self.feet[i].heel_rise = rise.max(0.0);
+        }
+    }
+
     /// Moves the root onto the feet held since the last frame (see [`super::stride`]), so a
     /// held foot's leg stays as retargeted instead of being bent to its pin: over the ground by
     /// what they slid in the animation (stride warping: the retarget scales the root's travel
@@ -873,18 +946,22 @@ impl FootLock {
     /// with two down, their means, each leg's IK taking up its share of their disagreement.
     /// A character with feet no source foot drives (a quadruped's front legs under a biped's
     /// walk) is only carried over the ground: moving its body up or down onto the driven feet
-    /// would sink the others, which nothing stands on. `worlds` hold the animation and are
-    /// brought up to date.
-    fn carry_root(&mut self, planted: &[bool; MAX_FEET], dt: f32, out: &mut Pose) {
+    /// would sink the others, which nothing stands on. `live`: carried no farther than
+    /// [`LockSettings::max_carry_ratio`]. `worlds` hold the animation and are brought up to
+    /// date.
+    fn carry_root(&mut self, planted: &[bool; MAX_FEET], dt: f32, live: bool, out: &mut Pose) {
         let Some(root) = self.root.filter(|_| self.carries) else {
             return;
         };
         let up = self.up;
         let mut stands = [FootStand::default(); MAX_FEET];
-        let mut limit = f32::INFINITY;
+        let (mut limit, mut reach) = (f32::INFINITY, f32::INFINITY);
         for i in 0..self.feet.len() {
             let f = &self.feet[i];
             limit = limit.min(self.settings.max_drop_ratio * f.leg.length);
+            if live {
+                reach = reach.min(self.settings.max_carry_ratio * f.leg.length);
+            }
             let ankle = self.worlds[f.leg.foot.index()].translation;
             let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - ankle);
             // The contact the foot stands on in the animation: the ankle, less what its roll
@@ -916,7 +993,7 @@ impl FootLock {
         let fresh = !self.shown_once;
         let n = self.feet.len();
         self.shift
-            .update(&stands[..n], up, fresh, dt, halflife, limit);
+            .update(&stands[..n], up, fresh, dt, halflife, [limit, reach]);
         let shift = self.shift.ground + up * self.shift.height;
         if shift == Vec3::ZERO {
             return;
@@ -1000,7 +1077,9 @@ impl FootLock {
         if f.locked {
             let off = wrap(heading_now - f.lock_heading);
             if off.abs() > PIVOT_RAD {
-                f.lock_heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
+                let heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
+                let (from, to) = (ball_at(f.lock_heading), ball_at(heading));
+                f.turn_on_ball(up, floor, heading, from.zip(to));
             }
         }
         let (target, target_heading, velocity, rate) = if f.locked {
@@ -1093,6 +1172,21 @@ impl FootLock {
             pitch_ball(goal, up, o.dot(up) + lift);
             goal.active = true;
         }
+        // A pinned foot pitched toes up (landing on its heel) comes down onto its sole about
+        // its heel, the point of the sole under the ankle where it stands: the pin comes
+        // forward by how much less the ankle leans back over that point. Pitched about the
+        // ankle joint alone, a rig whose ankle stands high over its toe joint (8 cm on X Bot)
+        // would swing its toes over the ground as they come down.
+        let Some(o) = goal.ball_offset else { return };
+        let pitch = |rise: f32| (rise / len.max(1e-6)).clamp(-1.0, 1.0).asin();
+        let toes_up = (pitch(o.dot(up)) - pitch(f.ball_clearance - f.heel_clearance)).max(0.0);
+        if goal.pinned && !switched {
+            let ahead = (o - up * o.dot(up)).normalize_or_zero();
+            let shift = ahead * (f.heel_clearance.max(0.0) * (f.toes_up.sin() - toes_up.sin()));
+            f.lock_position += shift;
+            goal.ankle += shift;
+        }
+        f.toes_up = toes_up;
     }
 
     /// How far foot `i`, landing with its ankle at `ankle`, is from its standing height: its

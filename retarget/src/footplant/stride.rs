@@ -9,7 +9,9 @@
 //! - over the ground, the root takes up the standing feet's slide (each held foot's ankle
 //!   moving since the frame before), so one standing foot holds still exactly; with two
 //!   down, it takes up their mean and each leg keeps only half their disagreement (the IK's);
-//!   with none down it holds where it is;
+//!   with none down it holds where it is; it never carries the root farther than a reach from
+//!   where the animation puts it (a long walk would otherwise take the character ever farther
+//!   from the performer's place: past it the legs take up the rest of the stride's difference);
 //! - along up, the root stands the feet at their standing heights (their mean gap when two
 //!   are down), held while none is; a change of which feet stand blends with a decaying
 //!   offset, so the body never jumps. A caller that leaves heights to others passes a height
@@ -57,8 +59,8 @@ impl RootShift {
     /// Takes this frame's feet (their gaps measured on the animation before any shift; `up` the
     /// floor's normal), `dt` after the last; `fresh`: nothing was shown before (the height is
     /// taken at once). `halflife`: the blends' half-lives over the ground and along up.
-    /// `limit` bounds the height's move either way. Returns the standing feet's mean slide
-    /// (what the root took up).
+    /// `limits` bound the height's move either way and the move over the ground. Returns the
+    /// standing feet's mean slide (what the root took up).
     pub fn update(
         &mut self,
         feet: &[FootStand],
@@ -66,9 +68,10 @@ impl RootShift {
         fresh: bool,
         dt: f32,
         halflife: [f32; 2],
-        limit: f32,
+        limits: [f32; 2],
     ) -> Vec3 {
         let [halflife, height_halflife] = halflife;
+        let [limit, reach] = limits;
         let (mut slide, mut sliding) = (Vec3::ZERO, 0u32);
         let (mut gap, mut standing_count) = (0.0f32, 0u32);
         let mut standing = 0u32;
@@ -87,6 +90,10 @@ impl RootShift {
             Vec3::ZERO
         };
         self.ground_wanted -= mean_slide;
+        let far = self.ground_wanted.length();
+        if far > reach {
+            self.ground_wanted *= reach / far;
+        }
         if standing_count > 0 {
             self.wanted = crate::bounds::clamp_safe(gap / standing_count as f32, -limit, limit);
         }
@@ -142,7 +149,14 @@ mod tests {
         let mut s = RootShift::default();
         let up = Vec3::Y;
         let free = FootStand::default();
-        s.update(&[stand(None, 0.0), free], up, true, 0.01, [0.05; 2], 1.0);
+        s.update(
+            &[stand(None, 0.0), free],
+            up,
+            true,
+            0.01,
+            [0.05; 2],
+            [1.0; 2],
+        );
         // One foot slides 1 cm forward (and 1 mm up, which is no slide over the ground).
         let m = s.update(
             &[stand(Some(Vec3::new(0.0, 0.001, 0.01)), 0.0), free],
@@ -150,7 +164,7 @@ mod tests {
             false,
             0.01,
             [0.05; 2],
-            1.0,
+            [1.0; 2],
         );
         assert!((s.ground - Vec3::new(0.0, 0.0, -0.01)).length() < 1e-6);
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
@@ -164,12 +178,12 @@ mod tests {
             false,
             0.01,
             [0.05; 2],
-            1.0,
+            [1.0; 2],
         );
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
         // None standing: held.
-        s.update(&[free, free], up, false, 0.01, [0.05; 2], 1.0);
+        s.update(&[free, free], up, false, 0.01, [0.05; 2], [1.0; 2]);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
     }
 
@@ -177,17 +191,24 @@ mod tests {
     fn the_height_is_taken_at_once_first_then_blended_and_held() {
         let mut s = RootShift::default();
         let up = Vec3::Y;
-        s.update(&[stand(None, 0.03)], up, true, 0.01, [0.05; 2], 0.2);
+        s.update(&[stand(None, 0.03)], up, true, 0.01, [0.05; 2], [0.2, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
-        s.update(&[stand(None, 0.03)], up, false, 0.01, [0.05; 2], 0.2);
+        s.update(&[stand(None, 0.03)], up, false, 0.01, [0.05; 2], [0.2, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6);
         // It lifts: held.
-        s.update(&[FootStand::default()], up, false, 0.01, [0.05; 2], 0.2);
+        s.update(
+            &[FootStand::default()],
+            up,
+            false,
+            0.01,
+            [0.05; 2],
+            [0.2, 1.0],
+        );
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
         // Another lands wanting 5 cm: blended towards it, no jump.
         let mut last = s.height;
         for _ in 0..60 {
-            s.update(&[stand(None, 0.05)], up, false, 0.01, [0.05; 2], 0.2);
+            s.update(&[stand(None, 0.05)], up, false, 0.01, [0.05; 2], [0.2, 1.0]);
             assert!(
                 s.height >= last - 1e-6 && s.height - last < 0.006,
                 "{}",
@@ -197,7 +218,46 @@ mod tests {
         }
         assert!((s.height - 0.05).abs() < 1e-3, "{}", s.height);
         // Bounded.
-        s.update(&[stand(None, 5.0)], up, true, 0.01, [0.05; 2], 0.2);
+        s.update(&[stand(None, 5.0)], up, true, 0.01, [0.05; 2], [0.2, 1.0]);
         assert!((s.height - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_root_is_carried_no_farther_than_its_reach() {
+        let mut s = RootShift::default();
+        let up = Vec3::Y;
+        s.update(&[stand(None, 0.0)], up, true, 0.01, [0.05; 2], [1.0, 0.3]);
+        // The standing foot slides 1 cm a frame forward, 100 frames (a metre): the root is
+        // carried back 30 cm at most, and no farther however long it slides.
+        for _ in 0..100 {
+            s.update(
+                &[stand(Some(Vec3::new(0.0, 0.0, 0.01)), 0.0)],
+                up,
+                false,
+                0.01,
+                [0.05; 2],
+                [1.0, 0.3],
+            );
+            assert!(s.ground.length() <= 0.3 + 1e-6, "{}", s.ground);
+        }
+        assert!(
+            (s.ground - Vec3::new(0.0, 0.0, -0.3)).length() < 1e-5,
+            "{}",
+            s.ground
+        );
+        // Sliding back: carried back inside at once.
+        s.update(
+            &[stand(Some(Vec3::new(0.0, 0.0, -0.05)), 0.0)],
+            up,
+            false,
+            0.01,
+            [0.05; 2],
+            [1.0, 0.3],
+        );
+        assert!(
+            (s.ground - Vec3::new(0.0, 0.0, -0.25)).length() < 1e-5,
+            "{}",
+            s.ground
+        );
     }
 }
