@@ -16,19 +16,19 @@
 //!
 //! Issue 35's bounds: thigh and shin 3° mean / 8° p95, foot 5° / 15°, drift ≤ 0.05 cm/frame,
 //! floor ≤ 1 cm. Not met yet: run with `--ignored` for the table (`cargo test -p
-//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). Last measured, four
-//! runs at load 10-11 (60 Hz ticks, 269-351 paired frames; the run with 269 was starved),
-//! with the live lock rolling a foot onto its ball as far as the source's heel rises, turning
-//! it on its ball and standing it flat about its heel: X Bot thigh 2.0-2.3/6.4-7.4°, shin
-//! 1.8-2.2/6.4-7.5°, foot 20.2-21.8/31.8-35.1°, drift 0.008-0.056 cm/frame (every foot joint
-//! 0.064-0.114: ankles roll), floor 0.51-0.81 cm; UE-style mannequin 2.8-3.1/8.1-9.2,
-//! 2.2-2.7/7.8-8.6, 24.2-26.3/36.6-39.3, 0.013-0.059, 0.41-0.66; Quaternius Casual (no toes)
-//! 2.7-3.7/9.5-12.1, 2.3-2.9/9.0-10.2, 0.002-0.048, 0.79-0.95; the robot (no toes)
-//! 7.2-11.1/27.6-33.0, 3.4-4.9/12.6-22.0, 0.001-0.038, 1.99-2.52 (its left foot hangs 20-30
-//! cm above the floor in the retargeted walk while the source's stands: a plant pins it there
-//! and blends it down). Before (two runs of b0ba56f's lock the same day): X Bot drift
-//! 0.133-0.156, floor 0.53-0.68; mannequin 0.149-0.168, 0.34-0.52; Casual 0.006-0.023,
-//! 0.47-0.62; robot 0.005-0.024, 1.25-1.49: the ball slid back under a held ankle while the
+//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). Last measured, three
+//! runs at load 10-11 (60 Hz ticks, 348-351 paired frames), with the live lock rolling a foot
+//! onto its ball as far as the source's heel rises, turning it on its ball and standing it
+//! flat about its heel: X Bot thigh 2.0-2.3/6.4-7.4°, shin 1.8-2.1/6.3-7.3°, foot
+//! 21.3-21.8/33.8-34.9°, drift 0.015-0.027 cm/frame (every foot joint 0.067-0.079: ankles
+//! roll), floor 0.61-0.87 cm; UE-style mannequin 2.6-3.1/8.1-9.2, 2.1-2.5/8.2-8.5,
+//! 25.8-26.1/38.6-39.2, 0.019-0.031, 0.66-1.08; Quaternius Casual (no toes) 2.6-3.2/8.5-10.8,
+//! 2.4-2.8/9.2-10.2, 0.007-0.013, 0.95-1.29; the robot (no toes) 7.0-8.4/26.4-30.4,
+//! 3.5-4.0/13.1-15.5, 0.010-0.015, 2.52-3.47 (its left foot hangs 20-30 cm above the floor in
+//! the retargeted walk while the source's stands: a plant pins it there and blends it down).
+//! Before (two runs of the lock before it rolled live, the same day): X Bot drift
+//! 0.131-0.158, floor 0.52-0.69; mannequin 0.146-0.176, 0.38-0.77; Casual 0.004-0.033,
+//! 0.43-1.22; robot 0.005-0.033, 1.01-2.89: the ball slid back under a held ankle while the
 //! heel rose, and swung about it when the foot turned. The live lock pitches planted feet
 //! flat as it learns the stance (the foot's direction: a foot bone pitched differently at
 //! rest carries that pitch to stand flat), two planted feet share their disagreement through
