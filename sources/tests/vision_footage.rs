@@ -28,7 +28,9 @@
 //! for all), `RIGCAST_FOOTAGE_CLIPS` (only clips whose names hold one of these comma-separated
 //! parts), `RIGCAST_MEDIAPIPE_PYTHON` (the venv's python), `RIGCAST_MEDIAPIPE_CACHE` (a folder
 //! keeping MediaPipe's landmarks between runs while iterating; its frame rate is then not
-//! compared).
+//! compared), `RIGCAST_FOOTAGE_DUMP` (a folder where each clip's output is written as
+//! `CLIP.MODEL.json`: per frame, per slot, the 33 image points `[x, y, visibility]` in source
+//! pixels or null, to look at what the figures count beside MediaPipe's cached landmarks).
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
@@ -147,6 +149,11 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
         started.get_or_insert_with(Instant::now);
     }
     let secs = started.map_or(0.0, |t| t.elapsed().as_secs_f64());
+    if let Some(dir) = std::env::var_os("RIGCAST_FOOTAGE_DUMP") {
+        let name = path.file_name().unwrap().to_string_lossy();
+        let file = Path::new(&dir).join(format!("{name}.{}.json", config.model.as_str()));
+        std::fs::write(file, serde_json::to_string(&slots).unwrap()).unwrap();
+    }
     Ours {
         width: decoded_width as f32 * to_source,
         height: decoded_height as f32 * to_source,

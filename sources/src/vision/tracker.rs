@@ -12,16 +12,21 @@
 //! what `max_people: 1` costs whatever `max_people` is, and the detector runs at most once a
 //! frame. A detection costs a landmark run only when a slot is open to someone there, and a
 //! reading that turned over since the last frame continues nobody. A track continues when its whole body, or
-//! what both frames see of it, stays about the same size and place. With nobody tracked, the
+//! what both frames see of it, stays about the same size, and near where it was or where its
+//! last step takes it. A detection whose face or hips are a tracked person's is that person.
+//! With nobody tracked, the
 //! person found takes the lowest free slot once nobody was lost for a few frames
 //! (`ALONE_WAIT_FRAMES`): the one person in the picture is the performer, not a bystander
 //! while they are hidden.
 //!
 //! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
 //! back the slot whose last position is nearest (within half its ROI) rather than any free
-//! one, so two performers crossing do not trade names; two tracks that converge on one body
-//! (joint by joint), or a new track on an established one's face, are one person twice, and
-//! the one not established or that jumped further is dropped; a reading upside down within another's upright body is that body misread, and
+//! one, so two performers crossing do not trade names, and only with a body of the size they
+//! were lost with; two tracks that converge on one body (joint by joint), or a new track on an
+//! established one's face, are one person twice, and the one not established, else the one
+//! that followed its body for less than half as long (it came onto the other's body from
+//! someone hidden behind them), else the one that jumped further is dropped; a reading upside
+//! down within another's upright body is that body misread, and
 //! dropped. Before
 //! that, a result that lies on (or near) another tracked person's body is not taken: the
 //! crop is moved away from that person, a step at a time, until the model shows a body of the
@@ -208,11 +213,18 @@ struct Track {
     /// Body box (centre, size) of the last and the one before accepted frames.
     place: Option<(Vec2, Vec2)>,
     previous_place: Option<(Vec2, Vec2)>,
+    /// How far the body box's centre moved from the frame before the last accepted one to
+    /// it (frame pixels) when both were in a row; zero otherwise (someone taken back after a
+    /// loss has moved on meanwhile by nobody knows how much).
+    velocity: Vec2,
     /// Frames since the person was lost (0 while tracked).
     lost_frames: u32,
     /// Frames the person in this slot has been tracked (kept after losing them and counted on
     /// when they are taken back; a new person in the slot starts at 0).
     held_frames: u32,
+    /// Frames tracked without a break since the track was last started or taken back (0
+    /// while lost): see [`PoseTracker::prior_claim`].
+    run_frames: u32,
 }
 
 impl Track {
@@ -224,8 +236,10 @@ impl Track {
         sides: SideGuard::NEW,
         place: None,
         previous_place: None,
+        velocity: Vec2::ZERO,
         lost_frames: 0,
         held_frames: 0,
+        run_frames: 0,
     };
 
     fn tracked(&self) -> bool {
@@ -241,10 +255,24 @@ impl Track {
             && self.held_frames >= ESTABLISHED_FRAMES
     }
 
+    /// Whether this track has the prior claim to a body it and `other` both read: it has
+    /// followed its body without a break more than twice as long. A track is started or taken
+    /// back where a person half hidden behind another is read as a blend of the two or as the
+    /// one in front; from there it follows the one in front, while the track that followed
+    /// that body before is theirs. A fast performer jumps further between frames than such a
+    /// slide, so the jump alone picks the wrong one (a girl jumping on a bed, the boy hidden
+    /// behind her). Two tracks that both followed their bodies since about the same time have
+    /// no prior claim on each other.
+    fn claims_before(&self, other: &Track) -> bool {
+        self.run_frames > 2 * other.run_frames
+    }
+
     fn lose(&mut self) {
         self.roi = None;
         self.seen = false;
         self.lost_frames = 1;
+        self.run_frames = 0;
+        self.velocity = Vec2::ZERO;
     }
 }
 
@@ -446,6 +474,7 @@ impl PoseTracker {
         for t in self.tracks.iter_mut() {
             if t.tracked() {
                 t.held_frames = t.held_frames.saturating_add(1);
+                t.run_frames = t.run_frames.saturating_add(1);
             } else {
                 t.lost_frames = t.lost_frames.saturating_add(1);
             }
@@ -599,25 +628,37 @@ impl PoseTracker {
     }
 
     /// True when `self.scratch` can be person `slot` this frame: present enough, and a body
-    /// box that continues theirs.
+    /// box that continues theirs (see [`continues`]).
     fn continues_track(&self, slot: usize, presence: f32) -> bool {
         let t = &self.tracks[slot];
+        let velocity = t.velocity;
         self.scratch.presence >= presence
             && t.place.is_none_or(|p| {
-                (continues(p, body_box(&self.scratch))
+                (continues(p, velocity, body_box(&self.scratch))
                     || seen_boxes(&t.landmarks, &self.scratch)
-                        .is_some_and(|(last, next)| continues(last, next)))
+                        .is_some_and(|(last, next)| continues(last, velocity, next)))
                     && !turned_over(&t.landmarks, &self.scratch)
             })
     }
 
     /// Another tracked person whose body `self.scratch` lies on (their landmarks of this
-    /// frame when already processed, else of the last).
+    /// frame when already processed, else of the last), unless `slot` has the prior claim to
+    /// that body (see [`Self::prior_claim`]): then it is the other track that came onto
+    /// `slot`'s body, and that track is checked against this reading in turn.
     fn other_body_under(&self, slot: usize) -> Option<usize> {
         (0..self.tracks.len()).find(|&b| {
             let t = &self.tracks[b];
-            b != slot && t.tracked() && body_distance(&self.scratch, &t.landmarks) < ON_OTHER_BODY
+            b != slot
+                && t.tracked()
+                && body_distance(&self.scratch, &t.landmarks) < ON_OTHER_BODY
+                && !self.prior_claim(slot, b)
         })
+    }
+
+    /// Whether track `a` has the prior claim to a body it and track `b` both read (see
+    /// [`Track::claims_before`]).
+    fn prior_claim(&self, a: usize, b: usize) -> bool {
+        self.tracks[a].claims_before(&self.tracks[b])
     }
 
     /// While the model's readings of person `slot` are unconfirmed or in doubt (see `sides`),
@@ -662,16 +703,22 @@ impl PoseTracker {
             t.last_roi = t.roi;
         }
         t.seen = true;
+        let place = body_box(&t.landmarks);
+        t.velocity = match t.place {
+            Some(last) if t.lost_frames == 0 => place.0 - last.0,
+            _ => Vec2::ZERO,
+        };
         t.lost_frames = 0;
         t.previous_place = t.place;
-        t.place = Some(body_box(&t.landmarks));
+        t.place = Some(place);
     }
 
     /// Drops one of every two tracks that now cover the same body: the one read upside down
     /// within the other's box (see [`upside_down_twin`]), else (one body twice, see
     /// [`same_body`], or a new track on an established one's face, see [`same_face`]) the one
-    /// not yet established, else the one whose box jumped further from its previous frame (it
-    /// is the one that slid onto the other person).
+    /// not yet established, else the one without the prior claim to it (see
+    /// [`Self::prior_claim`]), else the one whose box jumped further from its previous frame
+    /// (it is the one that slid onto the other person).
     /// Returns whether any was dropped.
     fn drop_duplicates(&mut self) -> bool {
         let mut dropped = false;
@@ -707,6 +754,8 @@ impl PoseTracker {
                 let loser = match (young(ta), young(tb)) {
                     (true, false) => a,
                     (false, true) => b,
+                    _ if self.prior_claim(a, b) => b,
+                    _ if self.prior_claim(b, a) => a,
                     _ if jump(ta) > jump(tb) => a,
                     _ => b,
                 };
@@ -721,12 +770,19 @@ impl PoseTracker {
         dropped
     }
 
-    /// True when `hips` (frame pixels) lie near a tracked person's hips: the detector's box is
-    /// the face, so its hip keypoint is what says whom it found.
-    fn is_tracked_at(&self, hips: Vec2) -> bool {
+    /// True when detection `d` is someone tracked: its hip keypoint lies near a tracked
+    /// person's hips, or its box (the face the detector found) is centred on a tracked
+    /// person's face (see [`face_disc`]). One face is one person whatever body the detector
+    /// guesses below it (a cook bent over a stove, the hips beyond the picture, has them
+    /// guessed anywhere), and a landmark run on that detection reads that person again, or a
+    /// misreading of their arms and what they hold. Two people's faces coincide only while one
+    /// is behind the other, and then the detection shows the face in front.
+    fn is_tracked_detection(&self, d: &Detection) -> bool {
         self.tracks.iter().filter(|t| t.tracked()).any(|t| {
-            t.place
-                .is_some_and(|(_, s)| hip_centre(&t.landmarks).distance(hips) < TRACKED_HIPS * s.y)
+            let at_hips = t.place.is_some_and(|(_, s)| {
+                hip_centre(&t.landmarks).distance(d.hip_center) < TRACKED_HIPS * s.y
+            });
+            at_hips || detected_face_of(&t.landmarks, d)
         })
     }
 
@@ -865,7 +921,7 @@ impl PoseTracker {
             // Nobody tracked, and a slot open to someone there: else the landmark run that
             // would check the detection is spent on a person no slot takes (a crowd while a
             // performer is being looked for).
-            if self.is_tracked_at(d.hip_center)
+            if self.is_tracked_detection(&d)
                 || self.slot_at(d.hip_center, DETECTION_REACH).is_none()
             {
                 continue;
@@ -925,9 +981,27 @@ impl PoseTracker {
         let Some((slot, same_person)) = self.slot_for(lm) else {
             return Ok(());
         };
+        // Someone taken back has the body they were lost with: a reading of another size
+        // where they were is a misreading (a pan raised before the face read as a small body)
+        // or someone else, and either way not them.
+        if same_person && !same_size(&self.tracks[slot].landmarks, lm) {
+            return Ok(());
+        }
+        // Someone new shows a body of their own: a reading that sees mostly what lies within
+        // a tracked person's body is that person's arms, or what they hold, read as a body,
+        // or someone hidden behind them whose track would slide onto them.
+        if !same_person
+            && self
+                .tracks
+                .iter()
+                .any(|t| t.tracked() && mostly_within(lm, &t.landmarks))
+        {
+            return Ok(());
+        }
         let t = &mut self.tracks[slot];
         t.place = None;
         t.previous_place = None;
+        t.run_frames = 0;
         if !same_person {
             t.held_frames = 0;
             t.sides.reset();
@@ -1007,6 +1081,11 @@ fn face_disc(lm: &Landmarks) -> Option<Disc> {
         center: point(idx::NOSE),
         radius,
     })
+}
+
+/// True when detection `d`'s box (a face) is centred within `lm`'s head (see [`face_disc`]).
+fn detected_face_of(lm: &Landmarks, d: &Detection) -> bool {
+    face_disc(lm).is_some_and(|face| face.center.distance(d.center) < face.radius)
 }
 
 /// Least radius of a hidden face, in shoulder widths.
@@ -1167,12 +1246,27 @@ const TWIN_CONTAINED: f32 = 0.9;
 const DETECTION_REACH: f32 = 1.0;
 
 /// True when body box `next` can be the same person as `last` one frame later: about the
-/// same height and not far away. Two people crossing differ in both (the one behind looks
-/// smaller), so a crop that slides from one to the other shows up as a jump.
-fn continues(last: (Vec2, Vec2), next: (Vec2, Vec2)) -> bool {
-    let (h0, h1) = (last.1.y.max(1.0), next.1.y.max(1.0));
-    let ratio = h1 / h0;
-    (0.75..=1.33).contains(&ratio) && last.0.distance(next.0) < 0.3 * h0
+/// same height and not far from where they were or from where their last step (`velocity`,
+/// the centre's move into `last`) takes them. Two people crossing differ in both (the one
+/// behind looks smaller), so a crop that slides from one to the other shows up as a jump;
+/// someone running across a small picture moves a third of their height a frame, steadily.
+fn continues(last: (Vec2, Vec2), velocity: Vec2, next: (Vec2, Vec2)) -> bool {
+    let reach = 0.3 * last.1.y.max(1.0);
+    similar_height(last, next)
+        && (last.0.distance(next.0) < reach || (last.0 + velocity).distance(next.0) < reach)
+}
+
+/// True when body box `next` is about as tall as `last` (a quarter shorter to a third taller).
+fn similar_height(last: (Vec2, Vec2), next: (Vec2, Vec2)) -> bool {
+    (0.75..=1.33).contains(&(next.1.y.max(1.0) / last.1.y.max(1.0)))
+}
+
+/// True when `next` shows a body about the size `last` showed (see [`similar_height`]): the
+/// whole body's box, or the box of what both see (see [`seen_boxes`]; an upper body's guessed
+/// legs change length from one reading to the next).
+fn same_size(last: &Landmarks, next: &Landmarks) -> bool {
+    similar_height(body_box(last), body_box(next))
+        || seen_boxes(last, next).is_some_and(|(a, b)| similar_height(a, b))
 }
 
 /// The boxes (centre, size; frame pixels) around the landmarks both `last` and `next` see
@@ -1196,6 +1290,27 @@ fn seen_boxes(last: &Landmarks, next: &Landmarks) -> Option<((Vec2, Vec2), (Vec2
     }
     let boxed = |(lo, hi): (Vec2, Vec2)| ((lo + hi) * 0.5, hi - lo);
     (shared >= MIN_SHARED_SEEN).then(|| (boxed(bounds[0]), boxed(bounds[1])))
+}
+
+/// True when more than half of the points `inner` sees (visibility at least [`SEEN`]) lie
+/// within the box around the points `outer` sees (around all of its points when it sees
+/// fewer than four).
+fn mostly_within(inner: &Landmarks, outer: &Landmarks) -> bool {
+    fn seen(lm: &Landmarks) -> impl Iterator<Item = usize> + '_ {
+        (0..NUM_LANDMARKS).filter(move |&i| lm.visibility(i) >= SEEN)
+    }
+    let point = |lm: &Landmarks, i: usize| Vec2::new(lm.image[i].x, lm.image[i].y);
+    let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for i in seen(outer) {
+        (lo, hi) = (lo.min(point(outer, i)), hi.max(point(outer, i)));
+    }
+    if seen(outer).count() < 4 {
+        let (centre, size) = body_box(outer);
+        (lo, hi) = (centre - size * 0.5, centre + size * 0.5);
+    }
+    let inside = |p: Vec2| p.cmpge(lo).all() && p.cmple(hi).all();
+    let within = seen(inner).filter(|&i| inside(point(inner, i))).count();
+    2 * within > seen(inner).count()
 }
 
 /// See [`seen_boxes`]: the face alone (11 points) says little about the body's size.
@@ -1301,18 +1416,88 @@ mod tests {
             p.y = 230.0;
             p.w = 0.1;
         }
-        assert!(!continues(body_box(&last), body_box(&next)));
+        assert!(!continues(body_box(&last), Vec2::ZERO, body_box(&next)));
         let (a, b) = seen_boxes(&last, &next).unwrap();
-        assert!(continues(a, b));
+        assert!(continues(a, Vec2::ZERO, b));
         // Someone else seen where the person was is not them.
         let (a, b) = seen_boxes(&last, &person(150.0)).unwrap();
-        assert!(!continues(a, b));
+        assert!(!continues(a, Vec2::ZERO, b));
         // Too little seen in both says nothing.
         let mut faint = person(0.0);
         for p in faint.image.iter_mut().skip(11) {
             p.w = 0.1;
         }
         assert!(seen_boxes(&last, &faint).is_none());
+    }
+
+    #[test]
+    fn a_steady_runner_continues_where_their_step_takes_them() {
+        let last = (Vec2::new(100.0, 100.0), Vec2::new(40.0, 50.0));
+        // A third of their height a frame to the left, as in the frame before.
+        let next = (Vec2::new(80.0, 100.0), Vec2::new(40.0, 52.0));
+        assert!(!continues(last, Vec2::ZERO, next));
+        assert!(continues(last, Vec2::new(-20.0, 0.0), next));
+        // Stopping dead still continues; a step the other way does not.
+        assert!(continues(last, Vec2::new(-20.0, 0.0), last));
+        assert!(!continues(last, Vec2::new(20.0, 0.0), next));
+        // Half the height is another body, wherever it is.
+        let small = (Vec2::new(80.0, 100.0), Vec2::new(20.0, 25.0));
+        assert!(!continues(last, Vec2::new(-20.0, 0.0), small));
+    }
+
+    #[test]
+    fn a_body_of_another_size_is_not_the_person_taken_back() {
+        let last = person(0.0);
+        assert!(same_size(&last, &person(20.0)));
+        let mut small = person(0.0);
+        for p in small.image.iter_mut() {
+            p.y *= 0.4;
+        }
+        assert!(!same_size(&last, &small));
+        // An upper body whose guessed legs shrink is still its size by what is seen.
+        let mut legs = person(2.0);
+        for p in legs.image[idx::LEFT_HIP..NUM_LANDMARKS].iter_mut() {
+            p.y = 230.0;
+            p.w = 0.1;
+        }
+        assert!(same_size(&last, &legs));
+    }
+
+    #[test]
+    fn a_reading_that_sees_mostly_within_a_tracked_body_is_not_someone_new() {
+        let tracked = person(0.0);
+        // Arms and what they hold, read as a small body on the tracked one's chest.
+        let mut arms = person(0.0);
+        for p in arms.image.iter_mut() {
+            p.x *= 0.5;
+            p.y = 100.0 + 0.3 * p.y;
+        }
+        assert!(mostly_within(&arms, &tracked));
+        // Someone beside them, overlapping by an arm, is someone.
+        assert!(!mostly_within(&person(90.0), &tracked));
+        // What is not seen does not count: a body whose seen points lie beside.
+        let mut beside = person(200.0);
+        for i in [idx::LEFT_WRIST, idx::LEFT_ELBOW] {
+            beside.image[i].x = 10.0;
+        }
+        assert!(!mostly_within(&beside, &tracked));
+    }
+
+    #[test]
+    fn the_track_that_followed_a_body_longer_has_the_prior_claim() {
+        let mut girl = Track::EMPTY;
+        let mut boy = Track::EMPTY;
+        girl.run_frames = 89;
+        boy.run_frames = 12;
+        assert!(girl.claims_before(&boy));
+        assert!(!boy.claims_before(&girl));
+        // Both followed since about the same time: neither.
+        boy.run_frames = 80;
+        assert!(!girl.claims_before(&boy) && !boy.claims_before(&girl));
+        // Just taken back: the other's claim holds from its first frame on.
+        boy.lose();
+        girl.run_frames = 1;
+        assert!(girl.claims_before(&boy));
     }
 
     #[test]
@@ -1371,6 +1556,22 @@ mod tests {
             p.y = 330.0 - p.y;
         }
         assert_eq!(upside_down_twin(&upright, &beside), None);
+    }
+
+    #[test]
+    fn a_detection_of_a_tracked_face_is_that_person_whatever_hips_it_guesses() {
+        let mut lm = person(0.0);
+        lm.image[idx::NOSE] = Vec4::new(0.0, 5.0, 0.0, 1.0);
+        let d = |x: f32| Detection {
+            score: 0.9,
+            center: Vec2::new(x, 8.0),
+            size: Vec2::splat(40.0),
+            hip_center: Vec2::new(x + 200.0, 400.0),
+            body_scale: Vec2::new(x, 0.0),
+        };
+        // Shoulders 100 px apart: a head half that across.
+        assert!(detected_face_of(&lm, &d(20.0)));
+        assert!(!detected_face_of(&lm, &d(120.0)));
     }
 
     #[test]
