@@ -53,6 +53,7 @@ pub mod model;
 pub mod one_euro;
 pub mod pipeline;
 pub mod read_ahead;
+mod readings;
 pub mod replay;
 pub mod roi;
 pub mod shared;
