@@ -133,8 +133,9 @@ pub struct PlantDetector {
     grounds: [f32; JOINTS_PER_FOOT * MAX_FEET],
     planted: [bool; MAX_FEET],
     planted_since: [f64; MAX_FEET],
-    /// The body's pace: its speed over the ground, low-passed over about [`PACE_SECS`].
-    pace: f32,
+    /// The body's pace: its speed over the ground, low-passed over about [`PACE_SECS`] from
+    /// the first speed measured (none yet: `None`).
+    pace: Option<f32>,
     /// Per leg, the last sample's foot (least of its contacts) and heel above their grounds.
     lifts: [f32; MAX_FEET],
     heel_lifts: [f32; MAX_FEET],
@@ -156,7 +157,7 @@ impl PlantDetector {
             grounds: [f32::INFINITY; JOINTS_PER_FOOT * MAX_FEET],
             planted: [false; MAX_FEET],
             planted_since: [0.0; MAX_FEET],
-            pace: 0.0,
+            pace: None,
             lifts: [0.0; MAX_FEET],
             heel_lifts: [0.0; MAX_FEET],
         }
@@ -171,7 +172,7 @@ impl PlantDetector {
     pub fn reset(&mut self) {
         self.len = 0;
         self.planted = [false; MAX_FEET];
-        self.pace = 0.0;
+        self.pace = None;
     }
 
     /// Current state per leg.
@@ -225,12 +226,15 @@ impl PlantDetector {
             let moved = self.positions[self.head][BODY] - self.positions[back][BODY];
             let speed = (moved - self.up * moved.dot(self.up)).length() / elapsed;
             let dt = dt_secs.max(0.0);
-            self.pace += (speed - self.pace) * dt / (PACE_SECS + dt);
+            self.pace = Some(match self.pace {
+                Some(pace) => pace + (speed - pace) * dt / (PACE_SECS + dt),
+                None => speed,
+            });
         }
         for f in 0..self.legs.len() {
             let leg = self.legs[f];
             let h = s.height_ratio * leg.length;
-            let v = slow_below(&s, &leg, self.pace);
+            let v = slow_below(&s, &leg, self.pace.unwrap_or(0.0));
             let mut readings = [None; JOINTS_PER_FOOT];
             for (j, bone) in contacts(&leg).iter().enumerate() {
                 if bone.is_none() {
