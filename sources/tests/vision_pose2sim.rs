@@ -35,6 +35,12 @@ fn pose2sim_landmarks_are_complete_stable_and_never_swap_sides() {
             pipeline.stats()
         );
         assert!(coverage >= 0.95, "{report}");
+        // The second model's cost is bounded whatever its decision asks: one reading serves two
+        // frames of a person, so it runs at most on every other frame (a track started or lost
+        // starts afresh).
+        let stats = pipeline.stats();
+        let bound = frames.len().div_ceil(2) as u64 + stats.tracks_started + stats.tracks_lost;
+        assert!(stats.second_opinions <= bound, "{report}: more second opinions than {bound}");
 
         let raw_found: Vec<_> = raw.iter().flatten().collect();
         for (name, a, b) in SEGMENTS {

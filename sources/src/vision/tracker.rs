@@ -230,6 +230,12 @@ struct Track {
     /// Frames tracked without a break since the track was last started or taken back (0
     /// while lost): see [`PoseTracker::prior_claim`].
     run_frames: u32,
+    /// The second-opinion model's reading of this person in the last frame, while it was asked
+    /// for and not used twice yet. The second model costs 1.6 of the first's runs (full
+    /// against lite, CPU time), so while it is asked for frame after frame it reads every other
+    /// frame, and the frame between is compared with the reading before (a body turns little
+    /// in one frame); checks made now and then are always fresh.
+    opinion: Option<Landmarks>,
 }
 
 impl Track {
@@ -245,6 +251,7 @@ impl Track {
         lost_frames: 0,
         held_frames: 0,
         run_frames: 0,
+        opinion: None,
     };
 
     fn tracked(&self) -> bool {
@@ -278,6 +285,7 @@ impl Track {
         self.lost_frames = 1;
         self.run_frames = 0;
         self.velocity = Vec2::ZERO;
+        self.opinion = None;
     }
 }
 
@@ -677,7 +685,15 @@ impl PoseTracker {
         let Some(second) = self.second.as_mut() else {
             return Ok(());
         };
-        if !self.config.swap_guard || !self.tracks[slot].sides.wants_second(found) {
+        let t = &mut self.tracks[slot];
+        if !self.config.swap_guard || !t.sides.wants_second(found) {
+            t.opinion = None;
+            return Ok(());
+        }
+        // The second model's reading of the frame before, not used twice yet, reads this one
+        // too (see `Track::opinion`); else the second model reads this frame.
+        if let Some(opinion) = t.opinion.take() {
+            t.sides.second_reads(found, &opinion);
             return Ok(());
         }
         let Some(roi) = next_roi(found) else {
@@ -685,9 +701,8 @@ impl PoseTracker {
         };
         second.infer(frame, &roi, &mut self.second_scratch)?;
         self.stats.second_opinions += 1;
-        self.tracks[slot]
-            .sides
-            .second_reads(found, &self.second_scratch);
+        t.sides.second_reads(found, &self.second_scratch);
+        t.opinion = Some(self.second_scratch);
         Ok(())
     }
 
@@ -1010,6 +1025,7 @@ impl PoseTracker {
         if !same_person {
             t.held_frames = 0;
             t.sides.reset();
+            t.opinion = None;
         }
         let mut found = *lm;
         self.second_opinion(frame, slot, &mut found)?;
