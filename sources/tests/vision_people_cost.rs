@@ -16,40 +16,12 @@ mod common;
 #[path = "common/shared_data.rs"]
 mod shared_data;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use rigcast_sources::vision::{
-    DecodeSize, FfmpegSource, FrameSource, PipelineConfig, PosePipeline, RgbFrame, VisionAssets,
+    DecodeSize, FfmpegSource, FrameSource, PipelineConfig, PosePipeline, RgbFrame,
 };
-
-/// Every clip, sorted per folder, filtered by `RIGCAST_FOOTAGE_CLIPS`.
-fn clips(assets: &VisionAssets) -> Vec<PathBuf> {
-    let only = std::env::var("RIGCAST_FOOTAGE_CLIPS").unwrap_or_default();
-    let mut found = Vec::new();
-    for dir in [
-        shared_data::shared_data_root().join("video"),
-        assets.root.join("pose2sim"),
-    ] {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            println!("SKIP part: no folder {}", dir.display());
-            continue;
-        };
-        let mut here: Vec<PathBuf> = entries
-            .filter_map(|e| Some(e.ok()?.path()))
-            .filter(|p| {
-                let name = p.file_name().unwrap_or_default().to_string_lossy();
-                ["mp4", "avi", "mkv", "mov", "webm"]
-                    .iter()
-                    .any(|e| name.ends_with(&format!(".{e}")))
-                    && (only.is_empty() || only.split(',').any(|part| name.contains(part)))
-            })
-            .collect();
-        here.sort();
-        found.extend(here);
-    }
-    found
-}
 
 /// One run over a clip.
 struct Run {
@@ -109,7 +81,7 @@ fn the_default_costs_what_one_person_costs_where_one_is_in_view() {
     );
     println!("| clip | frames | #0 seen, default / --people 1 | model runs a frame, default / --people 1 | fps, default / --people 1 | fps ratio |");
     println!("|---|---|---|---|---|---|");
-    for clip in clips(&assets) {
+    for clip in shared_data::footage_clips(&assets.root.join("pose2sim")) {
         let name = clip.file_name().unwrap().to_string_lossy().into_owned();
         let (mut fps_d, mut fps_1) = (Vec::new(), Vec::new());
         let mut last = None;

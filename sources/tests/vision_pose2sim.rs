@@ -40,7 +40,10 @@ fn pose2sim_landmarks_are_complete_stable_and_never_swap_sides() {
         // starts afresh).
         let stats = pipeline.stats();
         let bound = frames.len().div_ceil(2) as u64 + stats.tracks_started + stats.tracks_lost;
-        assert!(stats.second_opinions <= bound, "{report}: more second opinions than {bound}");
+        assert!(
+            stats.second_opinions <= bound,
+            "{report}: more second opinions than {bound}"
+        );
 
         let raw_found: Vec<_> = raw.iter().flatten().collect();
         for (name, a, b) in SEGMENTS {

@@ -15,43 +15,16 @@ mod common;
 #[path = "common/shared_data.rs"]
 mod shared_data;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use glam::Vec2;
 use rigcast_sources::vision::detector::PersonDetector;
 use rigcast_sources::vision::roi::Roi;
 use rigcast_sources::vision::{
-    DecodeSize, FfmpegSource, FrameSource, Landmarks, LandmarkModel, ModelKind, PipelineConfig,
+    DecodeSize, FfmpegSource, FrameSource, LandmarkModel, Landmarks, ModelKind, PipelineConfig,
     PosePipeline, RgbFrame, VisionAssets,
 };
-
-fn clips(assets: &VisionAssets) -> Vec<PathBuf> {
-    let only = std::env::var("RIGCAST_FOOTAGE_CLIPS").unwrap_or_default();
-    let mut found = Vec::new();
-    for dir in [
-        shared_data::shared_data_root().join("video"),
-        assets.root.join("pose2sim"),
-    ] {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            println!("SKIP part: no folder {}", dir.display());
-            continue;
-        };
-        let mut here: Vec<PathBuf> = entries
-            .filter_map(|e| Some(e.ok()?.path()))
-            .filter(|p| {
-                let name = p.file_name().unwrap_or_default().to_string_lossy();
-                ["mp4", "avi", "mkv", "mov", "webm"]
-                    .iter()
-                    .any(|e| name.ends_with(&format!(".{e}")))
-                    && (only.is_empty() || only.split(',').any(|part| name.contains(part)))
-            })
-            .collect();
-        here.sort();
-        found.extend(here);
-    }
-    found
-}
 
 fn max_frames() -> Option<usize> {
     std::env::var("RIGCAST_FOOTAGE_FRAMES")
@@ -156,7 +129,12 @@ fn model_costs(assets: &VisionAssets, config: &PipelineConfig, clip: &Path) {
     let roi = Roi::square(Vec2::new(w * 0.5, h * 0.5), w.min(h) * 0.8);
     let rois = [roi, roi];
     let mut outs = [Landmarks::default(); 2];
-    for (kind, threads) in [(ModelKind::Lite, 1), (ModelKind::Lite, config.threads), (ModelKind::Full, 1), (ModelKind::Full, config.threads)] {
+    for (kind, threads) in [
+        (ModelKind::Lite, 1),
+        (ModelKind::Lite, config.threads),
+        (ModelKind::Full, 1),
+        (ModelKind::Full, config.threads),
+    ] {
         let path = assets.landmark_model(kind);
         print!("{threads} threads: ");
         let mut model = LandmarkModel::load(&library, &path, threads, 2).unwrap();
@@ -181,7 +159,7 @@ fn where_a_frame_goes() {
     let Some((assets, config)) = common::default_config_or_skip("where_a_frame_goes") else {
         return;
     };
-    let clips = clips(&assets);
+    let clips = shared_data::footage_clips(&assets.root.join("pose2sim"));
     println!(
         "| clip | decoded width | fps | ms a frame | CPU ms a frame (ffmpeg apart) | waiting for \
          the decoder | tracking | finding | stages | landmark runs a frame | second opinions a \

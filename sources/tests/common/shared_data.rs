@@ -5,7 +5,7 @@
 //! level below the workspace, so the same relative path finds the data from each of them.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The CMU walk (mocap, 31 joints, MotionBuilder names).
 pub const CMU_WALK: &str = "bvh/cmu_131_01_walk.bvh";
@@ -372,4 +372,32 @@ pub fn human_rigs() -> Vec<Labelled> {
     labelled_where("human rig with legs", |l| {
         l.kind() == "human" && l.has_legs() && !l.is_bvh()
     })
+}
+
+/// Every video of the shared data's `video/` folder and of `pose2sim` (the clips
+/// `scripts/setup-vision.sh` installs), sorted per folder, found by listing; only those whose
+/// name holds one of `RIGCAST_FOOTAGE_CLIPS`' comma-separated parts when it is set. A folder
+/// missing is said and skipped.
+pub fn footage_clips(pose2sim: &Path) -> Vec<PathBuf> {
+    let only = std::env::var("RIGCAST_FOOTAGE_CLIPS").unwrap_or_default();
+    let mut found = Vec::new();
+    for dir in [shared_data_root().join("video"), pose2sim.to_path_buf()] {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            println!("SKIP part: no folder {}", dir.display());
+            continue;
+        };
+        let mut here: Vec<PathBuf> = entries
+            .filter_map(|e| Some(e.ok()?.path()))
+            .filter(|p| {
+                let name = p.file_name().unwrap_or_default().to_string_lossy();
+                ["mp4", "avi", "mkv", "mov", "webm"]
+                    .iter()
+                    .any(|e| name.ends_with(&format!(".{e}")))
+                    && (only.is_empty() || only.split(',').any(|part| name.contains(part)))
+            })
+            .collect();
+        here.sort();
+        found.extend(here);
+    }
+    found
 }
