@@ -637,6 +637,7 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             }
             checked += 1;
         }
+        eprintln!("{label}: subject {id}: {checked} sampled poses matched a server frame");
         assert!(
             checked >= 15,
             "subject {id}: only {checked} sampled poses matched a server frame"
