@@ -459,6 +459,83 @@ fn wrap(a: f32) -> f32 {
     a - t * ((a + std::f32::consts::PI) / t).floor()
 }
 
+/// A leg's foot as it stands in the character's aligned rest: its clearances above `lowest`,
+/// its length and standing pitch, and the local axes the lock turns it by; not yet locked.
+/// `source` is the watched source leg it follows, if any.
+fn standing_foot(
+    leg: &Leg,
+    source: Option<usize>,
+    aligned: &[WorldTransform],
+    target: &Analysis,
+    up: Vec3,
+    lowest: f32,
+) -> Foot {
+    let height = |b: BoneId| target.positions[b.index()].dot(target.up);
+    let w = |b: BoneId| aligned[b.index()];
+    let ankle = w(leg.foot).translation;
+    let ahead = leg
+        .toes
+        .map(|t| w(t).translation - ankle)
+        .unwrap_or(Vec3::ZERO);
+    let flat = ahead - up * ahead.dot(up);
+    let heading_dir = flat
+        .try_normalize()
+        .unwrap_or_else(|| up.any_orthonormal_vector());
+    let knee = w(leg.lower).translation;
+    let hip = w(leg.upper).translation;
+    let line = (ankle - hip).normalize_or_zero();
+    let bend = (knee - hip) - line * (knee - hip).dot(line);
+    // Knees bend the way the toes point; a quadruped's elbows the other way.
+    let toward = match leg.kind {
+        super::rig::LegKind::Hind => heading_dir,
+        super::rig::LegKind::Front => -heading_dir,
+    };
+    let pole = if bend.length() > 0.02 * leg.length {
+        bend
+    } else {
+        toward
+    };
+    Foot {
+        leg: *leg,
+        source,
+        heel_clearance: height(leg.foot) - lowest,
+        ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
+        foot_length: ahead.length(),
+        standing_pitch: leg.toes.map_or(0.0, |t| {
+            let o = target.positions[t.index()] - target.positions[leg.foot.index()];
+            (o.dot(target.up) / o.length().max(1e-6))
+                .clamp(-1.0, 1.0)
+                .asin()
+        }),
+        pitch_fix: 0.0,
+        side_local: w(leg.foot).rotation.inverse() * heading_dir.cross(up),
+        // Towards the ball: a pinned ball keeps its place however the foot twists.
+        heading_local: w(leg.foot).rotation.inverse()
+            * ahead.try_normalize().unwrap_or(heading_dir),
+        pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
+        locked: false,
+        lift: 0.0,
+        heel_lift: None,
+        heel_rise: 0.0,
+        landing: 0.0,
+        lock_position: ankle,
+        lock_heading: 0.0,
+        position_offset: Decay::default(),
+        heading_offset: Decay::default(),
+        flat_offset: Decay::default(),
+        shown_flat: 0.0,
+        toes_up: 0.0,
+        shown_position: ankle,
+        shown_velocity: Vec3::ZERO,
+        shown_heading: 0.0,
+        shown_heading_rate: 0.0,
+        animated_position: ankle,
+        animated_heading: 0.0,
+        seen: false,
+        raw_ankle: ankle,
+    }
+}
+
 impl FootLock {
     /// A lock for `mapping`'s target, driven by the plants of its root input. `source` and
     /// `target` are the analyses of those skeletons. `None` when the target has no standing
@@ -498,69 +575,8 @@ impl FootLock {
         let feet = target_legs
             .iter()
             .map(|leg| {
-                let w = |b: BoneId| aligned[b.index()];
-                let ankle = w(leg.foot).translation;
-                let ahead = leg
-                    .toes
-                    .map(|t| w(t).translation - ankle)
-                    .unwrap_or(Vec3::ZERO);
-                let flat = ahead - up * ahead.dot(up);
-                let heading_dir = flat
-                    .try_normalize()
-                    .unwrap_or_else(|| up.any_orthonormal_vector());
-                let knee = w(leg.lower).translation;
-                let hip = w(leg.upper).translation;
-                let line = (ankle - hip).normalize_or_zero();
-                let bend = (knee - hip) - line * (knee - hip).dot(line);
-                // Knees bend the way the toes point; a quadruped's elbows the other way.
-                let toward = match leg.kind {
-                    super::rig::LegKind::Hind => heading_dir,
-                    super::rig::LegKind::Front => -heading_dir,
-                };
-                let pole = if bend.length() > 0.02 * leg.length {
-                    bend
-                } else {
-                    toward
-                };
-                Foot {
-                    leg: *leg,
-                    source: source_legs.iter().position(|s| s.key() == leg.key()),
-                    heel_clearance: height(leg.foot) - lowest,
-                    ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
-                    foot_length: ahead.length(),
-                    standing_pitch: leg.toes.map_or(0.0, |t| {
-                        let o = target.positions[t.index()] - target.positions[leg.foot.index()];
-                        (o.dot(target.up) / o.length().max(1e-6))
-                            .clamp(-1.0, 1.0)
-                            .asin()
-                    }),
-                    pitch_fix: 0.0,
-                    side_local: w(leg.foot).rotation.inverse() * heading_dir.cross(up),
-                    // Towards the ball: a pinned ball keeps its place however the foot twists.
-                    heading_local: w(leg.foot).rotation.inverse()
-                        * ahead.try_normalize().unwrap_or(heading_dir),
-                    pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
-                    locked: false,
-                    lift: 0.0,
-                    heel_lift: None,
-                    heel_rise: 0.0,
-                    landing: 0.0,
-                    lock_position: ankle,
-                    lock_heading: 0.0,
-                    position_offset: Decay::default(),
-                    heading_offset: Decay::default(),
-                    flat_offset: Decay::default(),
-                    shown_flat: 0.0,
-                    toes_up: 0.0,
-                    shown_position: ankle,
-                    shown_velocity: Vec3::ZERO,
-                    shown_heading: 0.0,
-                    shown_heading_rate: 0.0,
-                    animated_position: ankle,
-                    animated_heading: 0.0,
-                    seen: false,
-                    raw_ankle: ankle,
-                }
+                let source = source_legs.iter().position(|s| s.key() == leg.key());
+                standing_foot(leg, source, &aligned, target, up, lowest)
             })
             .collect();
         Some(FootLock {

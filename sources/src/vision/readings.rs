@@ -306,6 +306,14 @@ mod tests {
         lm
     }
 
+    /// The same reading mirrored top to bottom within a 330 px picture.
+    fn upside_down(mut lm: Landmarks) -> Landmarks {
+        for p in lm.image.iter_mut() {
+            p.y = 330.0 - p.y;
+        }
+        lm
+    }
+
     #[test]
     fn one_body_read_with_swapped_labels_is_still_one_body() {
         let a = person(0.0);
@@ -434,10 +442,7 @@ mod tests {
     #[test]
     fn a_torso_turned_over_within_a_frame_is_a_misreading() {
         let upright = person(0.0);
-        let mut over = upright;
-        for p in over.image.iter_mut() {
-            p.y = 330.0 - p.y;
-        }
+        let over = upside_down(upright);
         assert!(turned_over(&upright, &over));
         assert!(!turned_over(&upright, &person(30.0)));
         // A sixth of a turn in one frame is a fast roll, not a misreading.
@@ -453,10 +458,7 @@ mod tests {
     #[test]
     fn an_upside_down_reading_inside_an_upright_body_is_its_twin() {
         let upright = person(0.0);
-        let mut misread = upright;
-        for p in misread.image.iter_mut() {
-            p.y = 330.0 - p.y;
-        }
+        let misread = upside_down(upright);
         assert_eq!(upside_down_twin(&upright, &misread), Some(false));
         assert_eq!(upside_down_twin(&misread, &upright), Some(true));
         // Two upright people whose boxes nest are two people; so is someone upside down
@@ -466,10 +468,7 @@ mod tests {
             p.y = 100.0 + 0.5 * p.y;
         }
         assert_eq!(upside_down_twin(&upright, &behind), None);
-        let mut beside = person(150.0);
-        for p in beside.image.iter_mut() {
-            p.y = 330.0 - p.y;
-        }
+        let beside = upside_down(person(150.0));
         assert_eq!(upside_down_twin(&upright, &beside), None);
     }
 
