@@ -23,17 +23,22 @@ fn plants(rel: &str, animation: Option<&str>) -> Option<(Clip, PlantTrack)> {
         ..LoadOptions::default()
     };
     let clip = load_clip_with(&path, &opts).unwrap();
+    let track = detect(&clip);
+    Some((clip, track))
+}
+
+/// The plants of `clip` on the rig's own legs.
+fn detect(clip: &Clip) -> PlantTrack {
     let a = analyze_with_truth(&SkeletonView::from_clip(&clip.skeleton, &clip.poses), None);
     let legs = find_legs(&clip.skeleton, &a);
-    let track = detect_clip(
+    detect_clip(
         &clip.skeleton,
         &legs,
         &clip.poses,
         clip.frame_time_secs as f32,
         a.up,
         &PlantSettings::default(),
-    );
-    Some((clip, track))
+    )
 }
 
 /// One row per leg: `#` planted, `.` not.
@@ -61,6 +66,7 @@ fn rows(clip: &Clip, t: &PlantTrack) -> Vec<(String, String)> {
 /// ```
 ///
 /// The detector agrees on ≥ 90 % of those frames overall and ≥ 85 % per paw (measured 95 %).
+/// A known answer read by hand from this file: skips with a printed reason without it.
 #[test]
 fn plants_of_the_foxs_in_place_walk_match_the_hand_read_reference() {
     let Some((clip, track)) = plants("gltf/Fox.glb", Some("Walk")) else {
@@ -92,11 +98,90 @@ fn plants_of_the_foxs_in_place_walk_match_the_hand_read_reference() {
     assert!(agree * 10 >= total * 9, "{agree}/{total}");
 }
 
-/// Every in-place walk and run of the zoo's animals, and MakeHuman's in-place walk cycle: a
-/// belt is found, and each of the feet stands once per stride for a plausible share of it (walks 30–75 %, runs and gallops
+/// Each foot of `rows` stands for a share of the clip within `duty` (when given) in one
+/// stretch of two frames or more (cyclically); the failures, described.
+fn stands_once(
+    what: &str,
+    rows: &[(String, String)],
+    duty: Option<std::ops::RangeInclusive<f32>>,
+) -> Vec<String> {
+    let mut failures = Vec::new();
+    for (name, row) in rows {
+        let share = row.bytes().filter(|&b| b == b'#').count() as f32 / row.len() as f32;
+        // Stretches of `#` two frames or longer, the clip's ends joined (a stride loops;
+        // a lone frame is noise the lock's blend absorbs, counted apart).
+        let at = |f: usize| row.as_bytes()[f % row.len()] == b'#';
+        let starts = (0..row.len())
+            .filter(|&f| at(f) && at(f + 1) && !at(f + row.len() - 1))
+            .count();
+        println!("  {name:<20} {row}  {:.0} %", share * 100.0);
+        if duty.as_ref().is_some_and(|d| !d.contains(&share)) {
+            failures.push(format!("{what} {name}: stands {share}"));
+        }
+        if starts != 1 {
+            failures.push(format!("{what} {name}: {starts} stances: {row}"));
+        }
+    }
+    failures
+}
+
+/// The share of a stride a foot may stand, by what the animation's own name says it is (a
+/// walk 30–75 %, a run, trot or gallop 15–60 %); `None` when the name says neither.
+fn duty_by_name(animation: &str) -> Option<std::ops::RangeInclusive<f32>> {
+    let name = animation.to_ascii_lowercase();
+    if name.contains("walk") {
+        Some(0.3..=0.75)
+    } else if ["run", "trot", "gallop"].iter().any(|g| name.contains(g)) {
+        Some(0.15..=0.6)
+    } else {
+        None
+    }
+}
+
+/// Every in-place gait cycle of the labelled characters and clips (found by their motion:
+/// feet changing places, hips still; cheap: each detected once at 30 fps) that is one stride
+/// (its feet change places twice): a belt is found on the rig's legs (four on a four-legged
+/// animal, else two), and each foot stands once in the stride, for the share its animation's
+/// name asks (a walk 30–75 %, a run or gallop 15–60 %; no share checked when the name says
+/// neither).
+#[test]
+#[ignore = "fails on 3 of the 5 in-place strides found: RobotExpressive's Walking and WalkJump \
+            (no legs found on the rig), the UE-style mannequin's run_root.001 (its right foot \
+            stands twice); MakeHuman's walk and the Wolf's pass"]
+fn each_foot_of_every_in_place_stride_stands_once() {
+    let mut failures = Vec::new();
+    let cycles = common::in_place_cycles(|_| true);
+    for c in cycles.iter().filter(|c| c.gait.switches == 2) {
+        let name = c.animation.clone().unwrap_or_default();
+        let what = format!("{} {name}", c.file.rel);
+        let track = detect(&c.clip);
+        println!("{what} ({:?}): belt {:?}", c.gait, track.belt());
+        let feet = if c.file.four_legged() { 4 } else { 2 };
+        if track.belt().is_none() || track.legs.len() != feet {
+            failures.push(format!(
+                "{what}: belt {:?}, {} legs",
+                track.belt(),
+                track.legs.len()
+            ));
+            continue;
+        }
+        failures.extend(stands_once(
+            &what,
+            &rows(&c.clip, &track),
+            duty_by_name(&name),
+        ));
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Known answers, read by hand: the in-place walks and runs of the sample Fox (unlabelled) and
+/// the zoo's animals, and MakeHuman's in-place walk cycle: a belt is found, and each of the
+/// feet stands once per stride for a plausible share of it (walks 30–75 %, runs and gallops
 /// 15–60 %), in one stretch of two frames or more (cyclically). Not asserted: the Horse's
 /// gallop (18 frames a stride) also shows a belt and plants on its four feet, but one hind
-/// hock's stance splits around a 2-frame gap.
+/// hock's stance splits around a 2-frame gap. A file absent is skipped with a printed reason;
+/// [`each_foot_of_every_in_place_stride_stands_once`] runs the same checks on every in-place
+/// stride found.
 #[test]
 fn each_foot_of_an_in_place_animal_gait_stands_once_per_stride() {
     let clips = [
@@ -123,18 +208,12 @@ fn each_foot_of_an_in_place_animal_gait_stands_once_per_stride() {
         assert!(track.belt().is_some(), "{rel} {animation}: no belt");
         let feet = if rel.ends_with(".bvh") { 2 } else { 4 };
         assert_eq!(track.legs.len(), feet, "{rel}");
-        for (name, row) in rows(&clip, &track) {
-            let share = row.bytes().filter(|&b| b == b'#').count() as f32 / row.len() as f32;
-            // Stretches of `#` two frames or longer, the clip's ends joined (a stride loops;
-            // a lone frame is noise the lock's blend absorbs, counted apart).
-            let at = |f: usize| row.as_bytes()[f % row.len()] == b'#';
-            let starts = (0..row.len())
-                .filter(|&f| at(f) && at(f + 1) && !at(f + row.len() - 1))
-                .count();
-            println!("  {name:<20} {row}  {:.0} %", share * 100.0);
-            assert!(duty.contains(&share), "{rel} {animation} {name}: {share}");
-            assert_eq!(starts, 1, "{rel} {animation} {name}: {row}");
-        }
+        let failures = stands_once(
+            &format!("{rel} {animation}"),
+            &rows(&clip, &track),
+            Some(duty),
+        );
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
     }
 }
 
@@ -161,22 +240,30 @@ fn travelling_captures_have_no_belt() {
 }
 
 /// The foot lock leaves an in-place source alone: pinning feet that slide back with the belt
-/// would drag the legs back under a body that never travels. The Horse's in-place walk
-/// retargeted onto the Wolf comes out the same locked and unlocked, and its feet still move
-/// (the lock had plants to act on).
+/// would drag the legs back under a body that never travels. The first in-place gait of a
+/// labelled four-legged animal (found by its motion) retargeted onto the next four-legged
+/// animal (expensive: two retargets, so the first only) comes out the same locked and
+/// unlocked, and its feet still move (the lock had plants to act on).
 #[test]
 fn the_foot_lock_leaves_an_in_place_walk_alone() {
-    let (Some((source, track)), Some(wolf)) = (
-        plants(
-            "zoo/gltf/quaternius_quadruped__Horse.glb",
-            Some("AnimalArmature|Walk"),
-        ),
-        common::shared_data("zoo/gltf/quaternius_quadruped__Wolf.glb"),
-    ) else {
+    let animals = common::labelled_where("four-legged animal", common::Labelled::four_legged);
+    let Some(cycle) = common::in_place_cycles(common::Labelled::four_legged)
+        .into_iter()
+        .next()
+    else {
         return;
     };
+    let Some(other) = animals.iter().find(|a| a.rel != cycle.file.rel) else {
+        println!("SKIP: no second four-legged animal");
+        return;
+    };
+    println!(
+        "{} {:?} onto {}",
+        cycle.file.rel, cycle.animation, other.rel
+    );
+    let (source, track) = (cycle.clip.clone(), detect(&cycle.clip));
     assert!(track.belt().is_some());
-    let target = rigcast_sources::load_rig(&wolf).unwrap().0;
+    let target = rigcast_sources::load_rig(&other.path).unwrap().0;
     let plan = rigcast_server::offline::plan_mapping(&source, &target, None).unwrap();
     let free = common::retarget(&source, &plan, &target, false);
     let locked = common::retarget(&source, &plan, &target, true);

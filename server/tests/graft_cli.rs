@@ -35,9 +35,13 @@ fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
+/// The second labelled walk's upper body on the first (both found by their motion).
 #[test]
 fn graft_writes_the_lower_rig_and_prints_a_summary() {
-    let Some([up, low]) = common::shared_data_all([common::MEREDITH, common::CMU_WALK]) else {
+    let walks = common::first_walks(2);
+    let [Some(low), Some(up)] = [walks.first(), walks.get(1)].map(|w| w.map(|w| w.0.path.clone()))
+    else {
+        println!("SKIP: fewer than two labelled walks");
         return;
     };
     let out = tmp("grafted.bvh");
@@ -67,7 +71,9 @@ fn graft_writes_the_lower_rig_and_prints_a_summary() {
 
 #[test]
 fn bad_input_is_a_short_error() {
-    let walk = common::shared_data("bvh/cmu_131_01_walk.bvh");
+    let walk = common::first_walk().map(|w| w.0.path);
+    // Known answer: RobotExpressive's legs are ones the analysis does not find (read by hand;
+    // no label says so). The case is left out without the file.
     let robot = common::shared_data("zoo/gltf/robotexpressive__RobotExpressive.glb");
     // A one-frame clip, written here (no shared data needed).
     let still = tmp("still.bvh");

@@ -1,6 +1,10 @@
-//! `rigcast map` on the real files in ../shared/data (skipped with a message when absent):
-//! CMU BVHs in both naming styles and the Khronos Fox (a quadruped whose front legs are named
-//! UpperArm/ForeArm/Hand).
+//! `rigcast map` on the real files in ../shared/data (skipped with a message when absent).
+//! The general tests pick their files from the label files (every labelled human, quadruped,
+//! rig with mirrored names) and the folders (every rig), and judge each mapping by the labels:
+//! a role's bone on the target is driven by the same role's bone on the source. The tests
+//! named after files (CMU BVHs in both naming styles, the Khronos Fox, a quadruped whose front
+//! legs are named UpperArm/ForeArm/Hand) check pairs read by hand from them (known answers)
+//! and skip with a printed reason when a file is absent.
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 mod common;
@@ -10,7 +14,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-use common::{shared_data as data, shared_data_all};
+use common::{labelled_where, shared_data as data, shared_data_all, Labelled};
 
 fn map_json(src: &Path, tgt: &Path, extra: &[&str]) -> Value {
     let out = Command::new(env!("CARGO_BIN_EXE_rigcast"))
@@ -46,9 +50,80 @@ fn mapped<'a>(v: &'a Value, target_bone: &str) -> Option<&'a str> {
     v["mapping"][target_bone].as_str()
 }
 
+/// The roles judged on every labelled pair: the body's core, each side.
+const CORE_ROLES: [&str; 16] = [
+    "hips",
+    "head",
+    "upperArm.L",
+    "upperArm.R",
+    "lowerArm.L",
+    "lowerArm.R",
+    "hand.L",
+    "hand.R",
+    "upperLeg.L",
+    "upperLeg.R",
+    "lowerLeg.L",
+    "lowerLeg.R",
+    "foot.L",
+    "foot.R",
+    "toes.L",
+    "toes.R",
+];
+
+/// The acceptable bone names labelled for `role` on `l`.
+fn names<'a>(l: &'a Labelled, role: &str) -> Vec<&'a str> {
+    l.labels[role]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|n| n.as_str())
+        .collect()
+}
+
+/// Every labelled human with both legs onto the next one in sorted order (the last onto the
+/// first; cheap: one `rigcast map` each): each core role labelled on both gets, on the
+/// target's labelled bone, a bone labelled for the same role on the source. Each pair is one
+/// comparison the labels answer independently of the mapper.
+#[test]
+#[ignore = "fails on 2 of the 20 pairs: Xsens onto the Godot robot drives its head from Head_end, \
+            Casual onto RobotExpressive leaves its labelled hands (Palm2L, Palm2R) unmapped"]
+fn labelled_humans_map_role_for_role() {
+    let humans = labelled_where("human with legs", |l| l.kind() == "human" && l.has_legs());
+    let mut failures = Vec::new();
+    for (i, src) in humans.iter().enumerate() {
+        let tgt = &humans[(i + 1) % humans.len()];
+        if tgt.rel == src.rel {
+            continue;
+        }
+        let v = map_json(&src.path, &tgt.path, &[]);
+        let mut checked = 0;
+        for role in CORE_ROLES {
+            let (Some(t), ok) = (tgt.bone(role), names(src, role)) else {
+                continue;
+            };
+            if ok.is_empty() {
+                continue;
+            }
+            checked += 1;
+            let got = mapped(&v, t);
+            if !got.is_some_and(|g| ok.contains(&g)) {
+                failures.push(format!(
+                    "{} -> {}: {role} {t} <- {got:?}, labelled {ok:?}",
+                    src.rel, tgt.rel
+                ));
+            }
+        }
+        println!("{} -> {}: {checked} roles compared", src.rel, tgt.rel);
+        assert!(checked >= 12, "{} -> {}: {checked} roles", src.rel, tgt.rel);
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Known answer (bone pairs read by hand from these two CMU files): skips without them; the
+/// general version fails on two pairs ([`labelled_humans_map_role_for_role`]).
 #[test]
 fn cmu_cgspeed_onto_cmu_max_names() {
-    let Some(v) = map_shared("bvh/cmu_31joint_example.bvh", common::CMU_WALK) else {
+    let Some(v) = map_shared("bvh/cmu_31joint_example.bvh", "bvh/cmu_131_01_walk.bvh") else {
         return;
     };
     for (t, s) in [
@@ -80,6 +155,7 @@ fn cmu_cgspeed_onto_cmu_max_names() {
     );
 }
 
+/// Known answer (bone pairs read by hand): skips without the files.
 #[test]
 fn daz_names_onto_cmu() {
     let Some(v) = map_shared("bvh/cmu_run.bvh", "bvh/cmu_31joint_example.bvh") else {
@@ -98,6 +174,51 @@ fn daz_names_onto_cmu() {
     }
 }
 
+/// The first labelled walk (found by its motion) onto every labelled four-legged animal
+/// (cheap: two `rigcast map` each): each front upper and lower leg is driven by the walk's
+/// upper and lower arm of the same side, each hind leg by its leg of the same side; with
+/// `--mirror` the front legs take the other side's arm (a diagonal gait) and the hind legs
+/// keep theirs.
+#[test]
+fn a_walk_onto_every_quadruped_drives_front_legs_from_arms() {
+    let Some((walk, _, _)) = common::first_walk() else {
+        return;
+    };
+    let other = |side: &str| if side == "L" { "R" } else { "L" };
+    let mut failures = Vec::new();
+    for animal in labelled_where("four-legged animal", Labelled::four_legged) {
+        let v = map_json(&walk.path, &animal.path, &[]);
+        let m = map_json(&walk.path, &animal.path, &["--mirror"]);
+        for side in ["L", "R"] {
+            for (front, arm, mirror_side) in [
+                ("frontUpper", "upperArm", other(side)),
+                ("frontLower", "lowerArm", other(side)),
+                ("upperLeg", "upperLeg", side),
+                ("lowerLeg", "lowerLeg", side),
+            ] {
+                let Some(t) = animal.bone(&format!("{front}.{side}")) else {
+                    continue;
+                };
+                for (json, from_side, how) in [(&v, side, ""), (&m, mirror_side, " --mirror")] {
+                    let ok = names(&walk, &format!("{arm}.{from_side}"));
+                    let got = mapped(json, t);
+                    println!("{}{how}: {front}.{side} {t} <- {got:?}", animal.rel);
+                    if !got.is_some_and(|g| ok.contains(&g)) {
+                        failures.push(format!(
+                            "{}{how}: {front}.{side} {t} <- {got:?}, want one of {ok:?}",
+                            animal.rel
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Known answer (the Fox's bone names and roles, read by hand; the Fox carries no labels):
+/// skips without the files; [`a_walk_onto_every_quadruped_drives_front_legs_from_arms`]
+/// judges every labelled quadruped.
 #[test]
 fn human_onto_fox_front_legs_from_arms() {
     let Some([a, b]) = shared_data_all(["bvh/cmu_31joint_example.bvh", "gltf/Fox.glb"]) else {
@@ -127,33 +248,62 @@ fn human_onto_fox_front_legs_from_arms() {
     assert_eq!(mapped(&m, "b_LeftLeg01_015"), Some("LeftUpLeg"));
 }
 
+/// Every rig of the shared data onto itself (found by listing its folders; cheap: one `rigcast
+/// map` each): this exercises the geometry path, and a bone mapped at all is mapped from
+/// itself, so the forward axis inferred from the feet agrees with the side the rig's own
+/// bones are on (no swap).
 #[test]
-fn fox_names_hidden_still_maps_sides_by_geometry() {
-    // The Fox onto itself exercises the geometry path; names agree, so this checks that the
-    // forward axis inferred from the feet matches the names' sides (no swap).
-    let Some(f) = data("gltf/Fox.glb") else {
-        return;
-    };
-    let v = map_json(&f, &f, &[]);
-    for (t, s) in v["mapping"].as_object().unwrap() {
-        if let Some(s) = s.as_str() {
-            assert_eq!(t, s, "fox onto itself");
+fn every_rig_onto_itself_maps_each_bone_from_itself() {
+    let mut failures = Vec::new();
+    for f in common::data_files("rigs", &["bvh", "glb", "gltf", "vrm"]) {
+        let v = map_json(&f, &f, &[]);
+        let swapped: Vec<String> = v["mapping"]
+            .as_object()
+            .unwrap()
+            .iter()
+            .filter_map(|(t, s)| Some((t, s.as_str()?)))
+            .filter(|(t, s)| t != s)
+            .map(|(t, s)| format!("{t} <- {s}"))
+            .collect();
+        println!(
+            "{}: {} bones mapped from others",
+            common::data_rel(&f),
+            swapped.len()
+        );
+        if !swapped.is_empty() {
+            failures.push(format!("{}: {swapped:?}", common::data_rel(&f)));
         }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// Overrides, `--save` and the cache, on the first two labelled human clips with legs (any
+/// two do: the bones overridden and checked are the ones the labels name).
 #[test]
 fn overrides_save_and_cache() {
-    let (Some(a), Some(b)) = (data("bvh/cmu_31joint_example.bvh"), data("bvh/cmu_run.bvh")) else {
+    let humans = labelled_where("human clip with legs", |l| {
+        l.kind() == "human" && l.has_legs() && l.is_bvh() && l.has_role("head")
+    });
+    let [src, tgt] = [humans.first(), humans.get(1)];
+    let (Some(src), Some(tgt)) = (src, tgt) else {
+        println!("SKIP: fewer than two labelled human clips");
         return;
     };
+    println!("{} onto {}", src.rel, tgt.rel);
+    let (a, b) = (src.path.clone(), tgt.path.clone());
+    let shin = tgt.bone("lowerLeg.L").unwrap();
+    let head = tgt.bone("head").unwrap();
+    let (right_leg, left_leg) = (src.bone("lowerLeg.R").unwrap(), names(src, "lowerLeg.L"));
     let dir = std::env::temp_dir().join(format!("rigcast-map-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let saved = dir.join("saved.toml");
     let overrides = dir.join("over.toml");
     std::fs::write(
         &overrides,
-        "version = 1\n[bones.lShin]\nsource = \"RightLeg\"\n[bones.head]\nunmapped = true\n",
+        format!(
+            "version = 1\n[bones.\"{shin}\"]\nsource = \"{right_leg}\"\n[bones.\"{head}\"]\n\
+             unmapped = true\n"
+        ),
     )
     .unwrap();
     let cache = dir.join("cache");
@@ -171,11 +321,15 @@ fn overrides_save_and_cache() {
         saved.to_str().unwrap(),
     ]);
     assert_eq!(first["cached"], Value::Bool(false));
-    assert_eq!(mapped(&first, "lShin"), Some("RightLeg"));
-    assert_eq!(mapped(&first, "head"), None);
+    assert_eq!(mapped(&first, shin), Some(right_leg));
+    assert_eq!(mapped(&first, head), None);
     let second = run(&[]);
     assert_eq!(second["cached"], Value::Bool(true));
-    assert_eq!(mapped(&second, "lShin"), Some("LeftLeg"));
+    let own = mapped(&second, shin);
+    assert!(
+        own.is_some_and(|s| left_leg.contains(&s)),
+        "{shin} <- {own:?}"
+    );
     let third = run(&["--threshold", "40"]);
     assert_eq!(
         third["cached"],
@@ -184,7 +338,7 @@ fn overrides_save_and_cache() {
     );
     let text = std::fs::read_to_string(&saved).unwrap();
     assert!(
-        text.contains("[bones.lShin]") && text.contains("RightLeg"),
+        text.contains(&format!("[bones.{shin}]")) && text.contains(right_leg),
         "{text}"
     );
     let _ = std::fs::remove_dir_all(&dir);
@@ -216,9 +370,65 @@ fn unreadable_input_fails_with_the_file_name() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// [`real_files_with_meaningless_names_get_the_same_core_roles`] on every rig of the shared
+/// data (found by listing; cheap: two analyses each); a labelled human or four-legged animal
+/// has at least 14 core bones recognised.
+#[test]
+#[ignore = "fails on 11 of the 35 rigs: read blind, Bandai's two clips (21 core bones each), \
+            the two MANN dogs (19 each), LaFAN1 (12) and Kinect (15) get other roles, the Godot \
+            robot's named reading takes its mirrored names' sides (10), the elephant, crab, \
+            RobotExpressive and WebXR hand differ on one or two bones"]
+fn every_rig_with_meaningless_names_gets_the_same_core_roles() {
+    use rigcast_retarget::analysis::{analyze, SkeletonView};
+    let bodies: Vec<String> = common::labelled()
+        .into_iter()
+        .filter(|l| (l.kind() == "human" && l.has_legs()) || l.four_legged())
+        .map(|l| l.rel)
+        .collect();
+    let mut failures = Vec::new();
+    for p in common::data_files("rigs", &["bvh", "glb", "gltf", "vrm"]) {
+        let rel = common::data_rel(&p);
+        let clip = rigcast_sources::load_clip(&p).expect("load");
+        let skel = &clip.skeleton;
+        let anon = skel.renamed(|b, _| format!("j{}", b.0)).expect("rename");
+        let frame = clip.poses.get(clip.poses.len() / 2);
+        let named = analyze(&SkeletonView::with_pose(skel, frame));
+        let blind = analyze(&SkeletonView::with_pose(&anon, frame));
+        let mut core = 0;
+        let mut differ = Vec::new();
+        for b in skel.bone_ids() {
+            let r = named.roles[b.index()];
+            if !r.role.is_core() {
+                continue;
+            }
+            core += 1;
+            if blind.label(b) != named.label(b) {
+                differ.push(format!(
+                    "{} {} / {}",
+                    skel.name(b),
+                    named.label(b),
+                    blind.label(b)
+                ));
+            }
+        }
+        println!(
+            "{rel}: {core} core bones, {} read otherwise blind",
+            differ.len()
+        );
+        if !differ.is_empty() {
+            failures.push(format!("{rel}: {differ:?}"));
+        }
+        if bodies.contains(&rel) && core < 14 {
+            failures.push(format!("{rel}: only {core} core bones recognised"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// Real files with their names replaced by `j0..jN`: roles (and so sides) must come from
 /// geometry and structure alone and agree with the analysis of the named file on every core
-/// bone.
+/// bone. Named files, each skipped when absent: the general version fails on other rigs
+/// ([`every_rig_with_meaningless_names_gets_the_same_core_roles`]).
 #[test]
 fn real_files_with_meaningless_names_get_the_same_core_roles() {
     use rigcast_retarget::analysis::{analyze, SkeletonView};
@@ -258,8 +468,34 @@ fn demo_recording() -> PathBuf {
 }
 
 /// Issue 3 regression: the demo's head chain ends in `head_top`, a skull-top marker whose
-/// name says "head" but not "end". Onto CMU (Neck → Neck1 → Head → End Site) the demo's head
-/// drives Head and its neck drives Neck, never the skull top.
+/// name says "head" but not "end". Onto every labelled human with a neck and a head (cheap:
+/// one `rigcast map` each) the demo's head drives the labelled head and its neck a labelled
+/// neck bone, never the skull top.
+#[test]
+#[ignore = "fails on 1 of the 20 humans: the Godot robot's labelled head takes the demo's \
+            head_top (its headtracker takes head)"]
+fn demo_head_top_onto_every_human_head_from_head() {
+    let humans = labelled_where("human with a neck and a head", |l| {
+        l.kind() == "human" && l.has_role("neck") && l.has_role("head")
+    });
+    let mut failures = Vec::new();
+    for h in humans {
+        let v = map_json(&demo_recording(), &h.path, &[]);
+        let head = mapped(&v, h.bone("head").unwrap());
+        let necks = names(&h, "neck");
+        let neck = necks.iter().find(|n| mapped(&v, n) == Some("neck"));
+        println!("{}: head <- {head:?}, neck {neck:?} <- neck", h.rel);
+        if head != Some("head") || neck.is_none() {
+            failures.push(format!("{}: {}", h.rel, v["mapping"]));
+        }
+        assert_eq!(v["roles"]["source"]["head_top"], "head_end");
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Known answer (CMU's Neck → Neck1 → Head → End Site, read by hand): skips without the file;
+/// the general version fails on another rig
+/// ([`demo_head_top_onto_every_human_head_from_head`]).
 #[test]
 fn demo_head_top_onto_cmu_head_from_head() {
     let Some(cmu) = data("bvh/cmu_31joint_example.bvh") else {

@@ -1,16 +1,15 @@
-//! Motion graphs on real capture (`../shared/data`; skipped with a message when absent):
+//! Motion graphs on real capture (`../shared/data`; skipped with a message when absent). The
+//! clips are the labelled human captures the tests' graphs take (a second or more of motion
+//! each, at 120 Hz, the first in sorted order within 2,600 frames: the size of the recorded
+//! figures' workload, 2,508 frames in four clips on today's data); the frames are printed.
 //!
 //! - `graph_build_10k_frames`: the whole build (analysis, features, pruned search, SCC) of a
-//!   10,160-frame, 120 Hz database: the CMU walk, walk and run captures and the PyMO walk,
-//!   each at four playback speeds (0.85×, 0.95×, 1.05×, 1.15×, resampled back to 120 Hz) —
-//!   like several takes of the same moves;
+//!   database of the clips each at four playback speeds (0.85×, 0.95×, 1.05×, 1.15×,
+//!   resampled back to 120 Hz), about 10,000 frames — like several takes of the same moves;
 //! - `graph_search_exhaustive_2508_frames` (the baseline): the naive all-pairs search at full
-//!   resolution over the 2,508 frames of the four clips at 1× (the 10k database would take
-//!   16× as long: O(N²));
-//! - `graph_walk_step`: one frame of a wandering walker on the 10k graph, played on the
-//!   31-joint CMU rig (the live fallback's per-tick cost).
-
-use std::path::Path;
+//!   resolution over the clips at 1× (the 4× database would take 16× as long: O(N²));
+//! - `graph_walk_step`: one frame of a wandering walker on the 4× graph, played on the second
+//!   clip's rig (the live fallback's per-tick cost).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
@@ -18,14 +17,6 @@ use rigcast_retarget::graph::play::clips_onto_rig;
 use rigcast_retarget::graph::search::{find_similar_exhaustive, SearchParams};
 use rigcast_retarget::graph::{GraphSettings, MotionGraph, Playback, Walker};
 use rigcast_retarget::Clip;
-use rigcast_sources::load_clip;
-
-const CLIPS: [&str; 4] = [
-    "bvh/cmu_131_01_walk.bvh",
-    "bvh/cmu_31joint_example.bvh",
-    "bvh/cmu_run.bvh",
-    "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
-];
 
 #[path = "../tests/common/graph_features.rs"]
 mod graph_features;
@@ -39,11 +30,7 @@ fn at_speed(clip: &Clip, speed: f64) -> Clip {
     c.resampled(clip.frame_time_secs).expect("resamples")
 }
 
-fn database(dir: &Path) -> (Vec<Clip>, Vec<Clip>) {
-    let base: Vec<Clip> = CLIPS
-        .iter()
-        .map(|f| load_clip(&dir.join(f)).expect("loads"))
-        .collect();
+fn database(base: Vec<Clip>) -> (Vec<Clip>, Vec<Clip>) {
     let mut all = Vec::new();
     for speed in [0.85, 0.95, 1.05, 1.15] {
         all.extend(base.iter().map(|c| at_speed(c, speed)));
@@ -52,10 +39,15 @@ fn database(dir: &Path) -> (Vec<Clip>, Vec<Clip>) {
 }
 
 fn bench(c: &mut Criterion) {
-    let Some(dir) = shared_data::shared_data_dir(CLIPS[0], "real clips") else {
+    let base: Vec<Clip> = shared_data::graph_clips(2600)
+        .into_iter()
+        .map(|(_, clip)| clip)
+        .collect();
+    if base.len() < 2 {
+        println!("SKIP: fewer than two labelled human clips for a graph");
         return;
-    };
-    let (base, db) = database(&dir);
+    }
+    let (base, db) = database(base);
     let frames: usize = db.iter().map(Clip::num_frames).sum();
     let s = GraphSettings::default();
     let g = MotionGraph::build(&db, s, &mut |_| {}).expect("builds");

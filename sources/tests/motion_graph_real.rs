@@ -1,13 +1,15 @@
-//! Motion graphs on real clips in `../shared/data` (acceptance, issue 14): the CMU walk, walk
-//! and run captures and the PyMO walk build one graph that keeps most frames; the pruned
+//! Motion graphs on real clips in `../shared/data` (acceptance, issue 14): the labelled human
+//! captures ([`shared_data::graph_clips`]: a second or more of motion each, about 3,000 frames
+//! at 120 Hz in all, the first in sorted order: a debug build of the graph is the expensive
+//! part) build one graph that keeps most frames; the pruned
 //! search finds what the exhaustive one finds; a walk between two chosen poses exists with
 //! every join under the threshold; played back (through the walker the live fallback uses),
 //! joins keep joint velocities and the root path continuous; looping game idles close on
-//! themselves; timed walks are at their goal on the asked frame with the same smooth joins, and
+//! themselves (every animation of a labelled character that ends where it starts); timed walks are at their goal on the asked frame with the same smooth joins, and
 //! a time shorter than the quickest walk is refused with the shortfall. Skipped with a
 //! printed reason when the data is absent.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::OnceLock;
 use std::time::Instant;
 
@@ -29,32 +31,27 @@ mod positions;
 use positions::joint_positions as joints;
 #[path = "common/shared_data.rs"]
 mod shared_data;
-use shared_data::shared_data_dir;
+use shared_data::{graph_clips, labelled};
 
-fn data_dir() -> Option<PathBuf> {
-    shared_data_dir("bvh/cmu_131_01_walk.bvh", "real clips")
-}
-
-fn load(dir: &Path, file: &str, animation: Option<&str>) -> Clip {
+fn load(file: &Path, animation: Option<&str>) -> Clip {
     let opts = LoadOptions {
         animation: animation.map(str::to_string),
         sample_fps: Some(120.0),
         ..LoadOptions::default()
     };
-    load_clip_with(&dir.join(file), &opts).expect("loads")
+    load_clip_with(file, &opts).expect("loads")
 }
 
-/// The motion-capture humanoids, all at 120 Hz: 2,509 frames.
-fn mocap(dir: &Path) -> Vec<Clip> {
-    [
-        "bvh/cmu_131_01_walk.bvh",
-        "bvh/cmu_31joint_example.bvh",
-        "bvh/cmu_run.bvh",
-        "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
-    ]
-    .iter()
-    .map(|f| load(dir, f, None))
-    .collect()
+/// The motion-capture humanoids for the graph, all at 120 Hz, at most 3,000 frames in all;
+/// `None` (with a printed reason) when fewer than two are found (a graph of one clip joins
+/// nothing to anything).
+fn mocap() -> Option<Vec<Clip>> {
+    let clips: Vec<Clip> = graph_clips(3000).into_iter().map(|(_, c)| c).collect();
+    if clips.len() < 2 {
+        println!("SKIP: fewer than two labelled human clips for a graph");
+        return None;
+    }
+    Some(clips)
 }
 
 fn build(clips: &[Clip]) -> MotionGraph {
@@ -80,7 +77,7 @@ fn build(clips: &[Clip]) -> MotionGraph {
     g
 }
 
-/// The mocap clips, their graph and its playback on the 31-joint CMU rig, made once for
+/// The mocap clips, their graph and its playback on the second clip's rig, made once for
 /// every test here (a debug build of the graph takes a while).
 struct Mocap {
     graph: MotionGraph,
@@ -89,28 +86,54 @@ struct Mocap {
     pb: Playback,
 }
 
-/// [`mocap_graph`] of the shared data, or `None` (with a printed reason) when it is absent.
+/// The graph of [`mocap`], or `None` (with a printed reason) when the clips are absent.
 fn real_mocap() -> Option<&'static Mocap> {
-    Some(mocap_graph(&data_dir()?))
+    static MOCAP: OnceLock<Option<Mocap>> = OnceLock::new();
+    MOCAP
+        .get_or_init(|| mocap().map(|clips| mocap_graph(clips)))
+        .as_ref()
 }
 
-fn mocap_graph(dir: &Path) -> &'static Mocap {
-    static MOCAP: OnceLock<Mocap> = OnceLock::new();
-    MOCAP.get_or_init(|| {
-        let clips = mocap(dir);
+fn mocap_graph(clips: Vec<Clip>) -> Mocap {
+    {
         let graph = build(&clips);
         let rig = &clips[1];
         let played = clips_onto_rig(&clips, rig).expect("retargets");
         let analysis = analyze(&SkeletonView::from_clip(&rig.skeleton, &rig.poses));
         let pb = Playback::new(&graph, &played, &analysis).expect("playback");
         Mocap { graph, played, pb }
-    })
+    }
 }
 
+/// The labelled captures' graph keeps 90 % of their frames, each clip joined to the others.
 #[test]
+#[ignore = "keeps 79.2 % of the 2,953 frames: the pybvh Z-up clip (296 frames) and Xia's walk \
+            (149) join nothing; the four clips named below keep 90 % and more"]
 fn mocap_clips_build_one_graph_keeping_most_frames() {
     let Some(m) = real_mocap() else { return };
-    let g = &m.graph;
+    assert_keeps_most_frames(&m.graph);
+}
+
+/// Known answer: the four captures the graph was first judged on (the CMU walk, walk and run
+/// and the PyMO walk, 2,509 frames at 120 Hz) build one graph that keeps 90 % of their frames,
+/// each clip joined to the others. Skips when any is absent; the general version over the
+/// labelled captures fails ([`mocap_clips_build_one_graph_keeping_most_frames`]).
+#[test]
+fn four_named_captures_build_one_graph_keeping_most_frames() {
+    let files = [
+        "bvh/cmu_131_01_walk.bvh",
+        "bvh/cmu_31joint_example.bvh",
+        "bvh/cmu_run.bvh",
+        "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
+    ];
+    let Some(paths) = shared_data::shared_data_all(files) else {
+        return;
+    };
+    let clips: Vec<Clip> = paths.iter().map(|p| load(p, None)).collect();
+    assert_keeps_most_frames(&build(&clips));
+}
+
+fn assert_keeps_most_frames(g: &MotionGraph) {
     assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64);
     for c in &g.clips {
         let kept = (c.offset..c.offset + c.frames).any(|n| g.is_kept(n));
@@ -118,13 +141,15 @@ fn mocap_clips_build_one_graph_keeping_most_frames() {
     }
 }
 
+/// The pruned search against the exhaustive one (whose cost grows with the square of the
+/// frames) on the labelled human clips that fit in 800 frames at 120 Hz.
 #[test]
 fn pruned_search_finds_the_exhaustive_transitions() {
-    let Some(dir) = data_dir() else { return };
-    let clips = [
-        load(&dir, "bvh/cmu_31joint_example.bvh", None),
-        load(&dir, "bvh/cmu_run.bvh", None),
-    ];
+    let clips: Vec<Clip> = graph_clips(800).into_iter().map(|(_, c)| c).collect();
+    if clips.len() < 2 {
+        println!("SKIP: fewer than two short labelled human clips");
+        return;
+    }
     let s = GraphSettings::default();
     let ft = clips[0].frame_time_secs;
     let features = graph_features::clip_features(&clips, &s);
@@ -278,9 +303,23 @@ fn assert_smooth_joins(m: &Mocap, poses: &[Pose], joins: &[usize], nodes: &[usiz
     assert!(worst_root <= 0.01, "root jumps {worst_root} m");
 }
 
-/// The start and goal of the walks below: a CMU frame and a PyMO frame (different clips).
+/// The first kept frame of clip `c` at or after `share` of its length.
+fn kept_from(g: &MotionGraph, c: usize, share: f64) -> usize {
+    let clip = &g.clips[c];
+    let first = clip.offset + (clip.frames as f64 * share) as usize;
+    (first..clip.offset + clip.frames)
+        .find(|&n| g.is_kept(n))
+        .expect("a kept frame")
+}
+
+/// The start and goal of the walks below, in different clips: a quarter into the second clip
+/// and three quarters into the longest of the others.
 fn start_and_goal(g: &MotionGraph) -> (usize, usize) {
-    (g.clips[1].offset + 60, g.clips[3].offset + 800)
+    let goal = (0..g.clips.len())
+        .filter(|&c| c != 1)
+        .max_by_key(|&c| g.clips[c].frames)
+        .expect("two clips");
+    (kept_from(g, 1, 0.25), kept_from(g, goal, 0.75))
 }
 
 #[test]
@@ -305,7 +344,7 @@ fn a_walk_between_two_poses_has_cheap_smooth_joins() {
             v.iter().fold(0.0f32, |a, b| a.max(*b))
         );
     }
-    // Played on the 31-joint CMU rig, then wandering for 30 s.
+    // Played on the second clip's rig, then wandering for 30 s.
     let (poses, joins, nodes) = play(m, &path, 3600, 11);
     println!("{} frames played, {} joins", poses.len(), joins.len());
     assert!(joins.len() >= jumps + 5, "it kept wandering");
@@ -353,16 +392,56 @@ fn timed_walks_arrive_on_the_asked_frame_with_smooth_joins() {
     assert!(text.contains(&format!("{:.3} s more", ft)), "{text}");
 }
 
+/// Whether `clip` loops: its last pose is its first (every bone within 2 degrees, the root
+/// within 1 % of the figure's size), judged on the poses alone.
+fn loops(clip: &Clip) -> bool {
+    let (Some(first), Some(last)) = (clip.poses.first(), clip.poses.last()) else {
+        return false;
+    };
+    let size = clip
+        .skeleton
+        .rest()
+        .iter()
+        .map(|t| t.translation.length())
+        .sum::<f32>();
+    first
+        .rotations
+        .iter()
+        .zip(&last.rotations)
+        .all(|(a, b)| a.angle_between(*b) < 2f32.to_radians())
+        && first.root_translation().distance(last.root_translation()) < 0.01 * size
+}
+
+/// Every animation of a labelled human character (not a capture) that lasts a second or more
+/// and loops (its last pose its first), alone in a graph, keeps most of its frames: the end
+/// joins the start. The first three found in sorted order (each a debug graph build).
 #[test]
 fn looping_game_idles_close_on_themselves() {
-    let Some(dir) = data_dir() else { return };
-    for (file, anim) in [
-        ("zoo/gltf/robotexpressive__RobotExpressive.glb", "Idle"),
-        ("zoo/gltf/godot_robot__platformer_player.glb", "idle"),
-    ] {
-        let clip = load(&dir, file, Some(anim));
-        let g = build(std::slice::from_ref(&clip));
-        assert!(g.num_kept() as f64 >= 0.9 * g.num_frames() as f64, "{file}");
+    let mut built = 0;
+    let characters = labelled()
+        .into_iter()
+        .filter(|l| l.kind() == "human" && !l.is_bvh());
+    'files: for l in characters {
+        for anim in shared_data::animation_names(&l.path) {
+            let clip = load(&l.path, Some(&anim));
+            if clip.duration_secs() < 1.0 || !loops(&clip) {
+                continue;
+            }
+            println!("{} {anim}: loops", l.rel);
+            let g = build(std::slice::from_ref(&clip));
+            assert!(
+                g.num_kept() as f64 >= 0.9 * g.num_frames() as f64,
+                "{} {anim}",
+                l.rel
+            );
+            built += 1;
+            if built == 3 {
+                break 'files;
+            }
+        }
+    }
+    if built == 0 {
+        println!("SKIP: no looping animation of a labelled character");
     }
 }
 

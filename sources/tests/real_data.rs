@@ -1,4 +1,9 @@
-//! Tests against the shared real data set (skipped with a message when it is absent).
+//! Tests against the shared real data set (skipped with a message when it is absent). The
+//! general tests run on every BVH and glTF file found by listing the data's folders (each is
+//! cheap: a read and a write), judged against what the file's own text says (its frame count,
+//! frame time and joints; its animations' names and lengths); the tests named after one file
+//! check figures read by hand from it (known answers) and skip with a printed reason when it
+//! is absent.
 #![allow(clippy::unwrap_used)]
 
 use rigcast_retarget::approx::{quat_close_precise as quat_close, vec_close};
@@ -7,7 +12,7 @@ use rigcast_sources::bvh::{read_bvh, write_bvh, BvhReadOptions, BvhWriteOptions}
 
 #[path = "common/shared_data.rs"]
 mod shared_data;
-use shared_data::shared_data;
+use shared_data::{data_files, data_rel, labelled, shared_data};
 
 fn height_m(clip: &Clip, frame: usize) -> f32 {
     let w = world_transforms(&clip.skeleton, &clip.poses[frame]);
@@ -63,6 +68,177 @@ fn bvh_round_trip(rel: &str, joints: usize, frames: usize, fps: f64) -> Option<C
     Some(r.clip)
 }
 
+/// What a BVH file's own text says: joints (`ROOT` and `JOINT` lines), frames and the frame
+/// time from the motion header.
+struct BvhHeader {
+    joints: usize,
+    frames: usize,
+    frame_time: f64,
+}
+
+fn bvh_header(text: &str) -> BvhHeader {
+    let words = |line: &str| {
+        line.split_whitespace()
+            .map(str::to_string)
+            .collect::<Vec<_>>()
+    };
+    let mut h = BvhHeader {
+        joints: 0,
+        frames: 0,
+        frame_time: 0.0,
+    };
+    for line in text.lines() {
+        let w = words(line);
+        match w.first().map(String::as_str) {
+            Some("ROOT" | "JOINT") => h.joints += 1,
+            Some("Frames:") => h.frames = w[1].parse().unwrap(),
+            Some("Frame") if w.get(1).is_some_and(|t| t == "Time:") => {
+                h.frame_time = w[2].parse().unwrap()
+            }
+            _ => {}
+        }
+    }
+    h
+}
+
+/// The relative paths of the labelled human rigs with both legs labelled (whose height a
+/// person's range bounds).
+fn labelled_humans() -> Vec<String> {
+    labelled()
+        .into_iter()
+        .filter(|l| l.kind() == "human" && l.has_legs())
+        .map(|l| l.rel)
+        .collect()
+}
+
+/// Every BVH of the shared data (cheap: each read, written and read again): the joints,
+/// frames and frame rate its text declares are read, and the clip written and read back is
+/// the same clip.
+#[test]
+fn every_bvh_reads_and_round_trips() {
+    for path in data_files("BVH clips", &["bvh"]) {
+        let rel = data_rel(&path);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let h = bvh_header(&text);
+        let r = read_bvh(text.as_bytes(), "x", &BvhReadOptions::default()).unwrap();
+        println!(
+            "{rel}: {} joints, {} frames at {:.2} fps",
+            r.num_joints,
+            h.frames,
+            r.clip.fps()
+        );
+        assert_eq!(r.num_joints, h.joints, "{rel}");
+        assert_eq!(r.clip.num_frames(), h.frames, "{rel}");
+        assert!(
+            (r.clip.frame_time_secs - h.frame_time).abs() < 1e-6,
+            "{rel}"
+        );
+        let written = write_bvh(&r.clip, &BvhWriteOptions::default()).unwrap();
+        let back = read_bvh(
+            written.as_bytes(),
+            "x",
+            &BvhReadOptions { scale: Some(0.01) },
+        );
+        assert_clips_equal(&r.clip, &back.unwrap().clip);
+    }
+}
+
+/// The named CMU clips' size checks ([`bvh_round_trip`], [`describe_bvh_reports_scale_and_height`])
+/// on every labelled human BVH with legs: 1.3-2.1 m tall on its first frame and in `rigcast
+/// info`, and written in centimetres that are guessed as such when read back.
+#[test]
+#[ignore = "fails on 7 of the 16: Z-up rigs measured along Y (Kinect 0.15 m, MakeHuman 0.25, \
+            the pybvh clips 0.24 and 0.23), rigcast info measuring the rest pose (Bandai 1.00 m, \
+            LaFAN1 0.06 against 1.43 and 1.55 on the first frame), MakeHuman written in \
+            centimetres read back as inches"]
+fn every_labelled_human_bvh_is_person_sized_and_written_in_centimetres() {
+    let mut failures = Vec::new();
+    for rel in labelled_humans().iter().filter(|r| r.ends_with(".bvh")) {
+        let path = shared_data(rel).unwrap();
+        let r = read_bvh(
+            &std::fs::read(&path).unwrap(),
+            "x",
+            &BvhReadOptions::default(),
+        );
+        let clip = r.unwrap().clip;
+        let height = height_m(&clip, 0);
+        let described = rigcast_sources::describe(&path).unwrap().height_m;
+        let written = write_bvh(&clip, &BvhWriteOptions::default()).unwrap();
+        let guessed = read_bvh(written.as_bytes(), "x", &BvhReadOptions::default());
+        let scale = guessed.unwrap().scale;
+        println!("{rel}: {height:.2} m, described {described:.2} m, written read at {scale}");
+        let person = 1.3..2.1;
+        if !person.contains(&height) || !person.contains(&described) || scale != 0.01 {
+            failures.push(rel.clone());
+        }
+    }
+    assert!(failures.is_empty(), "{failures:?}");
+}
+
+/// `rigcast info` on every BVH of the shared data (cheap) reports what its text declares: the
+/// format, frames and rate, a guessed scale, every joint by name.
+#[test]
+fn describe_reports_every_bvh_as_its_text_declares() {
+    for path in data_files("BVH clips", &["bvh"]) {
+        let rel = data_rel(&path);
+        let h = bvh_header(&std::fs::read_to_string(&path).unwrap());
+        let info = rigcast_sources::describe(&path).unwrap();
+        assert_eq!(info.format, "BVH");
+        assert_eq!(info.num_frames, h.frames, "{rel}");
+        assert!(
+            (info.fps.unwrap() - 1.0 / h.frame_time).abs() < 0.01,
+            "{rel}"
+        );
+        assert!(info.bvh_scale.unwrap().1, "{rel}: the scale is guessed");
+        let text = info.to_string();
+        assert!(text.contains(&h.frames.to_string()), "{rel}: {text}");
+        for b in info.skeleton.bone_ids() {
+            assert!(text.contains(info.skeleton.name(b)), "{rel}: {text}");
+        }
+    }
+}
+
+/// Every glTF of the shared data (cheap: each animation read twice): joints are the
+/// skeleton's bones, parents come first, each animation is selected by its name and by its
+/// index and sampled at a chosen rate has as many frames as its length asks, and `rigcast
+/// info` lists the same animations.
+#[test]
+fn every_gltf_reads_each_animation_by_name_and_index() {
+    use rigcast_sources::gltf::{read_gltf, GltfReadOptions};
+    for path in data_files("glTF files", &["glb", "gltf", "vrm"]) {
+        let rel = data_rel(&path);
+        let bytes = std::fs::read(&path).unwrap();
+        let read = |animation: Option<String>, sample_fps| {
+            let opts = GltfReadOptions {
+                animation,
+                sample_fps,
+            };
+            read_gltf(&bytes, path.parent(), "x", &opts).unwrap()
+        };
+        let r = read(None, None);
+        println!(
+            "{rel}: {} joints, {} animations",
+            r.num_joints,
+            r.animations.len()
+        );
+        assert_eq!(r.clip.skeleton.num_bones(), r.num_joints, "{rel}");
+        for (i, p) in r.clip.skeleton.parents().iter().enumerate() {
+            assert!(p.is_none_or(|p| p.index() < i), "{rel}");
+        }
+        for (i, a) in r.animations.iter().enumerate() {
+            let by_name = read(Some(a.name.clone()), Some(24.0));
+            assert_eq!(by_name.clip.name, a.name, "{rel}");
+            let expect = (a.duration_secs * 24.0 + 1e-3).floor() as usize + 1;
+            assert_eq!(by_name.clip.num_frames(), expect, "{rel} {}", a.name);
+            assert_eq!(read(Some(i.to_string()), None).clip.name, a.name, "{rel}");
+        }
+        let info = rigcast_sources::describe(&path).unwrap();
+        assert_eq!(info.animations.len(), r.animations.len(), "{rel}");
+    }
+}
+
+/// Known answer (read by hand from this file: 31 joints, 994 frames at 120 fps): skips with a
+/// printed reason without it; [`every_bvh_reads_and_round_trips`] covers every BVH.
 #[test]
 fn cmu_walk_reads_and_round_trips() {
     let Some(clip) = bvh_round_trip("bvh/cmu_131_01_walk.bvh", 31, 994, 120.0) else {
@@ -72,11 +248,13 @@ fn cmu_walk_reads_and_round_trips() {
     assert!(clip.skeleton.bone("LeftToe_end").is_some());
 }
 
+/// Known answer (31 joints, 278 frames at 120 fps, read by hand): skips without the file.
 #[test]
 fn cmu_31_joint_reads_and_round_trips() {
     bvh_round_trip("bvh/cmu_31joint_example.bvh", 31, 278, 120.0);
 }
 
+/// Known answer (19 joints, written in centimetres, read by hand): skips without the file.
 #[test]
 fn cmu_run_in_centimetres() {
     let Some(path) = shared_data("bvh/cmu_run.bvh") else {
@@ -89,6 +267,8 @@ fn cmu_run_in_centimetres() {
     bvh_round_trip("bvh/cmu_run.bvh", 19, r.clip.num_frames(), r.clip.fps());
 }
 
+/// Known answer (the Fox's 24 joints and its three animations' names, read by hand): skips
+/// without the file; [`every_gltf_reads_each_animation_by_name_and_index`] covers every glTF.
 #[test]
 fn fox_glb_skin_and_animations() {
     use rigcast_sources::gltf::{read_gltf, GltfReadOptions};
@@ -138,6 +318,8 @@ fn fox_glb_skin_and_animations() {
     println!("{info}");
 }
 
+/// Known answer (the glTF sample's two unnamed joints and their rest, read by hand): skips
+/// without the file.
 #[test]
 fn simple_skin_unnamed_joints() {
     let Some(path) = shared_data("gltf/SimpleSkin.gltf") else {
@@ -161,6 +343,9 @@ fn simple_skin_unnamed_joints() {
     println!("{}", rigcast_sources::describe(&path).unwrap());
 }
 
+/// Known answer (the CMU walk's 994 frames and its guessed scale 0.056444, read by hand):
+/// skips without the file; [`describe_reports_every_bvh_as_its_text_declares`] covers every
+/// BVH.
 #[test]
 fn describe_bvh_reports_scale_and_height() {
     let Some(path) = shared_data("bvh/cmu_131_01_walk.bvh") else {

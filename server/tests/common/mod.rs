@@ -10,9 +10,10 @@ use std::process::{Command, Output};
 mod shared_data;
 #[allow(unused_imports)] // not every test file uses every helper
 pub use shared_data::{
-    all_labels, first_in_place_cycle, first_walk, human_rigs, labelled, labelled_where,
-    shared_clip, shared_data, shared_data_all, travelling_clips, walks, CMU_WALK, GODOT_ROBOT,
-    MEREDITH,
+    all_labels, animation_names, data_files, data_rel, first_in_place_cycle, first_walk,
+    first_walks, graph_clips, human_rigs, in_place_cycles, labelled, labelled_where, shared_clip,
+    shared_data, shared_data_all, skinned_human_glbs, travelling_clips, walks, Labelled, CMU_WALK,
+    GODOT_ROBOT, MEREDITH,
 };
 
 /// A folder of this test run's own under the system's temporary folder

@@ -311,6 +311,16 @@ pub fn first_walk() -> Option<(Labelled, rigcast_retarget::Clip, Gait)> {
     Some(walk)
 }
 
+/// The first `n` walks of [`walks`] in their sorted order (for tests that pair walks but are
+/// too slow to run on each), fewer when fewer are present (with a printed reason when none).
+pub fn first_walks(n: usize) -> Vec<(Labelled, rigcast_retarget::Clip, Gait)> {
+    let found = gait_clips("walk", is_biped, Gait::is_walk, n);
+    for w in &found {
+        println!("a walk: {} ({:?})", w.0.rel, w.2);
+    }
+    found
+}
+
 /// Every labelled BVH clip with legs (any kind) whose root travels at least a leg length over
 /// the ground, sorted; empty with a printed reason when none is present.
 pub fn travelling_clips() -> Vec<(Labelled, rigcast_retarget::Clip, Gait)> {
@@ -330,6 +340,56 @@ pub fn first_in_place_cycle() -> Option<(Labelled, rigcast_retarget::Clip, Gait)
     let cycle = gait_clips("in-place walk cycle", is_biped, in_place, 1).pop()?;
     println!("the in-place cycle: {} ({:?})", cycle.0.rel, cycle.2);
     Some(cycle)
+}
+
+/// One animation of a labelled file, loaded at 30 fps (`animation` `None` for a BVH clip).
+#[derive(Clone, Debug)]
+pub struct Animation {
+    pub file: Labelled,
+    pub animation: Option<String>,
+    pub clip: rigcast_retarget::Clip,
+    pub gait: Gait,
+}
+
+/// Every animation (each of a glTF's, a BVH's one) of the labelled files `keep` accepts that
+/// steps on the spot: its feet change places at least twice while its hips stay within a
+/// tenth of a leg length (an in-place gait cycle, as game assets walk), loaded at 30 fps, in
+/// sorted order; empty with a printed reason when none.
+pub fn in_place_cycles(keep: impl Fn(&Labelled) -> bool) -> Vec<Animation> {
+    let mut out = Vec::new();
+    for file in labelled().into_iter().filter(|l| l.has_legs() && keep(l)) {
+        let names: Vec<Option<String>> = if file.is_bvh() {
+            vec![None]
+        } else {
+            animation_names(&file.path).into_iter().map(Some).collect()
+        };
+        for animation in names {
+            let opts = rigcast_sources::LoadOptions {
+                animation: animation.clone(),
+                sample_fps: Some(30.0),
+                ..rigcast_sources::LoadOptions::default()
+            };
+            let Ok(clip) = rigcast_sources::load_clip_with(&file.path, &opts) else {
+                continue;
+            };
+            match gait(&file, &clip) {
+                Some(gait) if gait.switches >= 2 && gait.travel < 0.1 => out.push(Animation {
+                    file: file.clone(),
+                    animation,
+                    clip,
+                    gait,
+                }),
+                _ => {}
+            }
+        }
+    }
+    if out.is_empty() {
+        println!(
+            "SKIP: no labelled in-place gait cycle under {}",
+            shared_data_root().display()
+        );
+    }
+    out
 }
 
 fn is_biped(l: &Labelled) -> bool {
@@ -360,6 +420,58 @@ fn gait_clips(
     if out.is_empty() {
         println!(
             "SKIP: no labelled {what} among the clips of {}",
+            shared_data_root().display()
+        );
+    }
+    out
+}
+
+/// Labelled human BVH clips with both legs labelled whose motion lasts a second or more and
+/// moves (a bone turns by more than a degree from its first pose; a still capture is no motion
+/// to join), loaded and resampled to 120 Hz, in sorted order, each taken while the frames
+/// taken so far and its own fit within `budget_frames` (a motion graph's build grows with the
+/// square of its frames; a clip that does not fit is passed over for the next); empty with a
+/// printed reason when none is found.
+pub fn graph_clips(budget_frames: usize) -> Vec<(Labelled, rigcast_retarget::Clip)> {
+    let mut out = Vec::new();
+    let mut total = 0;
+    let human = |l: &Labelled| l.kind() == "human" && l.has_legs() && l.is_bvh();
+    for l in labelled().into_iter().filter(human) {
+        let Ok(clip) = rigcast_sources::load_clip(&l.path) else {
+            continue;
+        };
+        // Resampled only when not at 120 Hz already (a resampling drops a last frame that
+        // falls a rounding short of the new grid).
+        let at_120 = (clip.frame_time_secs * 120.0 - 1.0).abs() < 1e-3;
+        let Ok(clip) = (if at_120 {
+            Ok(clip)
+        } else {
+            clip.resampled(1.0 / 120.0)
+        }) else {
+            continue;
+        };
+        let first = &clip.poses[0];
+        let moves = clip.poses.iter().any(|p| {
+            p.rotations
+                .iter()
+                .zip(&first.rotations)
+                .any(|(a, b)| a.angle_between(*b) > 1f32.to_radians())
+        });
+        let frames = clip.num_frames();
+        if frames < 120 || !moves || total + frames > budget_frames {
+            println!(
+                "not taken for a graph: {} ({frames} frames, moves: {moves})",
+                l.rel
+            );
+            continue;
+        }
+        total += frames;
+        println!("for a graph: {} ({frames} frames at 120 Hz)", l.rel);
+        out.push((l, clip));
+    }
+    if out.is_empty() {
+        println!(
+            "SKIP: no labelled human clip for a graph under {}",
             shared_data_root().display()
         );
     }
@@ -400,4 +512,103 @@ pub fn footage_clips(pose2sim: &Path) -> Vec<PathBuf> {
         found.extend(here);
     }
     found
+}
+
+/// Every file of the shared data whose extension is one of `exts` (any case), labelled or not,
+/// found by listing its folders (up to three levels down), sorted by path; empty with a printed
+/// reason naming `what` when none is present.
+pub fn data_files(what: &str, exts: &[&str]) -> Vec<PathBuf> {
+    let root = shared_data_root();
+    let mut out = Vec::new();
+    let mut folders = vec![(root.clone(), 0)];
+    while let Some((dir, depth)) = folders.pop() {
+        for path in std::fs::read_dir(&dir)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+        {
+            if path.is_dir() && depth < 3 {
+                folders.push((path, depth + 1));
+            } else if path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
+            {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    if out.is_empty() {
+        println!("SKIP: no {what} ({exts:?}) under {}", root.display());
+    }
+    out
+}
+
+/// `path` relative to the shared data folder (as the label files key it), for messages.
+pub fn data_rel(path: &Path) -> String {
+    let root = shared_data_root();
+    path.strip_prefix(&root)
+        .unwrap_or(path)
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// The JSON document of a glTF file (`.gltf` text, or a GLB's JSON chunk), or `None` when the
+/// file cannot be read as one.
+pub fn gltf_json(path: &Path) -> Option<serde_json::Value> {
+    let bytes = std::fs::read(path).ok()?;
+    let json = if bytes.starts_with(b"glTF") {
+        let len = u32::from_le_bytes(bytes.get(12..16)?.try_into().ok()?) as usize;
+        bytes.get(20..20 + len)?
+    } else {
+        &bytes[..]
+    };
+    serde_json::from_slice(json).ok()
+}
+
+/// Whether a glTF file draws a skinned mesh: a node carries both a `skin` and a `mesh`.
+pub fn has_skinned_mesh(path: &Path) -> bool {
+    gltf_json(path).is_some_and(|doc| {
+        doc["nodes"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .any(|n| n.get("skin").is_some() && n.get("mesh").is_some())
+    })
+}
+
+/// Every labelled human character with both legs labelled stored as a binary glTF (`.glb`)
+/// that draws a skinned mesh, sorted; empty with a printed reason when none is present.
+pub fn skinned_human_glbs() -> Vec<Labelled> {
+    labelled_where("human GLB with legs and a skinned mesh", |l| {
+        l.kind() == "human"
+            && l.has_legs()
+            && l.path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+            && has_skinned_mesh(&l.path)
+    })
+}
+
+/// The first labelled human clip with legs whose labels give it no neck (a sparse spine, the
+/// head straight on the spine: a character with a neck has a bone no source bone drives),
+/// loaded; `None` with a printed reason.
+pub fn first_neckless_clip() -> Option<(Labelled, rigcast_retarget::Clip)> {
+    let found = labelled_where("human clip with legs and no neck", |l| {
+        l.kind() == "human" && l.is_bvh() && l.has_legs() && !l.has_role("neck")
+    });
+    let first = found.into_iter().next()?;
+    println!("the neckless clip: {}", first.rel);
+    let clip = rigcast_sources::load_clip(&first.path).expect("a labelled clip loads");
+    Some((first, clip))
+}
+
+/// The names of a file's animations, in the file's order (one for a BVH); empty when it has
+/// none or cannot be read.
+pub fn animation_names(path: &Path) -> Vec<String> {
+    rigcast_sources::describe(path)
+        .map(|info| info.animations.into_iter().map(|a| a.name).collect())
+        .unwrap_or_default()
 }
