@@ -12,7 +12,10 @@
 //! - the walk's own arms correlate less with them (the arms are the graft's, not the walk's);
 //! - the warp puts the upper clip's paired landings on the walk's.
 //!
-//! Skips with a printed reason when the shared data is absent.
+//! The thresholds were set on that pair (the issue's acceptance case), which the test names
+//! and skips without; the same judge on every other labelled walk's upper body over the first
+//! walk (found by their motion) is ignored with the reason it fails. Skips with a printed
+//! reason when the shared data is absent.
 #![allow(clippy::unwrap_used)]
 
 mod common;
@@ -90,13 +93,49 @@ fn analysis(c: &Clip) -> Analysis {
     analyze(&SkeletonView::from_clip(&c.skeleton, &c.poses))
 }
 
+/// Known answer: the issue's acceptance pair, PyMO's Meredith on CMU 131_01, named and
+/// skipped when either is absent.
 #[test]
 fn expressive_upper_body_on_a_cmu_walk_keeps_the_walks_plants_and_the_arms_motion() {
-    let Some([up, low]) = common::shared_data_all([common::MEREDITH, common::CMU_WALK]) else {
+    let files = [
+        "zoo/bvh/sparse_spine_head__pymo_meredith.bvh",
+        "bvh/cmu_131_01_walk.bvh",
+    ];
+    let Some([up, low]) = common::shared_data_all(files) else {
         return;
     };
     let upper = rigcast_sources::load_clip(&up).unwrap();
     let lower = rigcast_sources::load_clip(&low).unwrap();
+    judge_graft(&upper, &lower);
+}
+
+/// The same judge with every other labelled walk's upper body on the first walk (all found
+/// by their motion; each a graft, a few seconds in a debug build).
+#[test]
+#[ignore = "fails on 6 of the 7 other walks: too few landings paired (6 needed: CMU \
+            31-joint and CMU run 4, Bandai run 2), a warp knot 0.154 s from the upper clip's \
+            landings (CMU 131_02), \
+            423 of 994 frames inside the graft (CMU dazfriendly), the left shoulder's elevation \
+            correlating 0.601 (LaFAN1); only PyMO's Meredith, the named pair, passes"]
+fn every_walks_upper_body_on_the_first_walk_keeps_its_plants_and_the_arms_motion() {
+    let walks = common::walks();
+    let Some((low, lower, _)) = walks.first() else {
+        return;
+    };
+    let mut failures = Vec::new();
+    for (up, upper, _) in &walks[1..] {
+        println!("{} on {}", up.rel, low.rel);
+        let judged = std::panic::catch_unwind(|| judge_graft(upper, lower));
+        if judged.is_err() {
+            failures.push(up.rel.clone());
+        }
+    }
+    assert!(failures.is_empty(), "failed: {failures:?}");
+}
+
+/// Grafts `upper`'s upper body on `lower` and judges the output (the module's list).
+fn judge_graft(upper: &Clip, lower: &Clip) {
+    let (upper, lower) = (upper.clone(), lower.clone());
     let g = graft_clips(
         &upper,
         &lower,

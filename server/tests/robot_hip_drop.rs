@@ -7,8 +7,9 @@
 //! worst frames are the lock lifting an ankle about 15 cm out of the floor, into which the
 //! plain retarget sinks the robot's feet (BENCHMARKS.md: 15.7 cm below the floor unlocked),
 //! so the knee bends to keep the foot on the floor; a lower hip-drop limit only costs drift.
-//! The fix belongs to the robot's root height in the retarget, not to the lock. Skips when the
-//! shared data is absent.
+//! The fix belongs to the robot's root height in the retarget, not to the lock. A study of
+//! these two files (the figures above were read from them), so it names them and skips when
+//! either is absent.
 #![allow(clippy::unwrap_used)]
 
 mod common;
@@ -19,8 +20,11 @@ use rigcast_server::offline::plan_mapping;
 
 #[test]
 fn robot_thigh_directions_per_hip_drop_limit() {
-    let Some([walk, robot]) = common::shared_data_all([common::CMU_WALK, common::GODOT_ROBOT])
-    else {
+    let files = [
+        common::CMU_WALK,
+        "zoo/gltf/godot_robot__platformer_player.glb",
+    ];
+    let Some([walk, robot]) = common::shared_data_all(files) else {
         return;
     };
     let source = rigcast_sources::load_clip(&walk).unwrap();

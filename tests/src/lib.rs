@@ -233,9 +233,9 @@ pub fn f64s(v: &serde_json::Value) -> Vec<f64> {
 #[path = "../../sources/tests/common/shared_data.rs"]
 mod shared_data;
 pub use shared_data::{
-    all_labels, first_in_place_cycle, first_walk, human_rigs, labelled, labelled_where,
-    shared_clip, shared_data, shared_data_all, shared_data_dir, travelling_clips, walks, Gait,
-    Labelled, CMU_WALK, GODOT_ROBOT, MEREDITH,
+    all_labels, first_in_place_cycle, first_neckless_clip, first_walk, first_walks, gltf_json,
+    human_rigs, labelled, labelled_where, shared_clip, shared_data, shared_data_all,
+    shared_data_dir, skinned_human_glbs, travelling_clips, walks, Gait, Labelled, CMU_WALK,
 };
 
 /// A 6-bone creature with a tail, animated with distinct rotations on every bone: 48 frames at

@@ -931,15 +931,15 @@ async fn survives_a_failing_take(blender: Blender) {
     let _ = std::fs::remove_dir_all(&work);
 }
 
-/// The foot-lock state reaches Blender: the CMU walk drives the mannequin (foot lock on), and
+/// The foot-lock state reaches Blender: the first labelled walk (found by its motion) drives
+/// the mannequin (foot lock on), and
 /// the target armature's `rigcast_footplants` property and its foot bones' `rigcast_planted`
 /// equal the server's `footplants` messages (state, and position in Blender axes), with each
 /// foot seen planted and lifted. Skips without the shared walk.
 async fn exposes_the_footplants(blender: Blender) {
-    let Some(path) = rigcast_tests::shared_data("bvh/cmu_131_01_walk.bvh") else {
+    let Some((_, clip, _)) = rigcast_tests::first_walk() else {
         return;
     };
-    let clip = rigcast_sources::load_clip(&path).unwrap();
     let config = ServerConfig {
         listen: "127.0.0.1:0".parse().unwrap(),
         sources: vec![rigcast_tests::clip_source(clip)],
@@ -1351,12 +1351,13 @@ async fn shows_and_overrides_the_server_mapping(blender: Blender) {
     let _ = std::fs::remove_dir_all(&work);
 }
 
-/// A mapping with flagged bones (the shared data's sparse-spined Meredith onto the built-in
-/// mannequin, whose chest and neck no source bone can drive; skipped without the data): the
+/// A mapping with flagged bones (the shared data's first labelled human clip without a neck,
+/// a sparse spine, onto the built-in mannequin, whose chest and neck no source bone can drive;
+/// skipped without one): the
 /// add-on's list equals the server's message with its flags, marks exactly the flagged rows
 /// with the warning icon and shows each row's confidence.
 async fn marks_the_bones_the_mapper_flagged(blender: Blender) {
-    let Some(clip) = rigcast_tests::shared_clip(rigcast_tests::MEREDITH) else {
+    let Some((_, clip)) = rigcast_tests::first_neckless_clip() else {
         return;
     };
     let config = ServerConfig {

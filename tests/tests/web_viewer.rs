@@ -141,14 +141,15 @@ fn check_flag(row: &Value, entry: &MappingEntry) {
 }
 
 /// A mapping with flagged bones (a source whose sparse spine has no chest or neck for the
-/// mannequin's, from the shared data; skipped without it): the viewer marks exactly the
-/// flagged rows, gives their count, and the message's other rows stay unmarked.
+/// mannequin's: the first labelled human clip labelled without a neck; skipped without one):
+/// the viewer marks exactly the flagged rows, gives their count, and the message's other rows
+/// stay unmarked.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn viewer_marks_the_bones_the_mapper_flagged() {
     let Some(chromium) = find_app("chromium") else {
         return;
     };
-    let Some(clip) = rigcast_tests::shared_clip(rigcast_tests::MEREDITH) else {
+    let Some((_, clip)) = rigcast_tests::first_neckless_clip() else {
         return;
     };
     let config = rigcast_server::ServerConfig {

@@ -1,15 +1,17 @@
 //! The viewer shows a target character's own skinned mesh (issue 15), in real headless Chromium
 //! against the real server.
 //!
-//! - GLB: the embedded demo drives Mixamo's X Bot (`../shared/data/zoo/gltf`, skipped with a
-//!   printed reason when absent). The server serves the file at
+//! - GLB: the embedded demo drives the first labelled human GLB of the shared data that draws a
+//!   skinned mesh (Chromium runs are expensive: the first only; without one, a skinned GLB of
+//!   the mannequin the tests make). The server serves the file at
 //!   `/v1/subjects/{id}/model.glb` (byte-identical to the file); the page loads it with
 //!   GLTFLoader, a `SkinnedMesh` exists, its bone matrices change between two frames, and with
 //!   the stream paused the screenshot with the mesh covers far more of the view than the
 //!   stick-figure-only one (meshes toggled off). Both screenshots are saved to
 //!   `target/viewer-mesh.png` and `target/viewer-stick.png`.
-//! - VRM: the same character turned into a VRM 1.0 file (the `VRMC_vrm` extension with its
-//!   humanoid bones added to the GLB's JSON); the page renders it through three-vrm.
+//! - VRM: the first such character whose labels hold every bone VRM requires, turned into a
+//!   VRM 1.0 file (the `VRMC_vrm` extension with its labelled humanoid bones added to the GLB's
+//!   JSON); the page renders it through three-vrm.
 //! - Bad requests: an unknown subject, a target without a model file and a non-numeric id are
 //!   404s that say why; a model the browser cannot decode (Draco-compressed) leaves the stick
 //!   figure and the subject list says why.
@@ -20,10 +22,8 @@ use std::time::Duration;
 
 use rigcast_server::{PerformerSpec, ServerConfig, SourceSpec};
 use rigcast_tests::chromium::{one_browser, DevTools};
-use rigcast_tests::{http_get, repo_root, shared_data};
+use rigcast_tests::{http_get, repo_root, skinned_human_glbs, Labelled};
 use serde_json::{json, Value};
-
-const XBOT: &str = "zoo/gltf/mixamo_gltf__Xbot.glb";
 
 /// The demo driving `targets` (subjects 1, 2, …) and the built-in mannequin (no model).
 async fn serve(targets: &[&Path]) -> rigcast_server::ServerHandle {
@@ -106,18 +106,23 @@ async fn viewer_draws_the_glb_target_skinned() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    // X Bot when the shared characters are here, else a skinned GLB of the mannequin made
-    // by the tests (tests/src/skinned.rs).
+    // The first labelled skinned human GLB when the shared characters are here, else a skinned
+    // GLB of the mannequin made by the tests (tests/src/skinned.rs).
     let fixture_dir = rigcast_tests::temp_path("skinned");
-    let (xbot, name) = match shared_data(XBOT) {
-        Some(path) => (path, "mixamo_gltf__Xbot"),
+    let found = skinned_human_glbs().into_iter().next();
+    let (xbot, name) = match found {
+        Some(l) => {
+            println!("the skinned character: {}", l.rel);
+            let stem = l.path.file_stem().unwrap().to_string_lossy().into_owned();
+            (l.path, stem)
+        }
         None => {
             std::fs::create_dir_all(&fixture_dir).unwrap();
             let path = fixture_dir.join("skinned_mannequin.glb");
             let skeleton = rigcast_engine::builtin::builtin("mannequin").unwrap();
             std::fs::write(&path, rigcast_tests::skinned::skinned_glb(&skeleton)).unwrap();
             eprintln!("using the project's skinned GLB {} instead", path.display());
-            (path, "skinned_mannequin")
+            (path, "skinned_mannequin".to_string())
         }
     };
     // Two skinned characters on one 60 Hz stream (the frame budget's case).
@@ -181,7 +186,7 @@ async fn viewer_draws_the_glb_target_skinned() {
         )
         .await;
     println!("viewer: two skinned characters at 60 Hz: {perf}");
-    assert_eq!(perf["skinned"], 2, "both X Bots skinned: {perf}");
+    assert_eq!(perf["skinned"], 2, "both characters skinned: {perf}");
     for (id, latency) in perf["latencyMs"].as_object().unwrap() {
         let latency = latency.as_f64().unwrap();
         assert!(
@@ -227,9 +232,37 @@ async fn viewer_draws_the_glb_target_skinned() {
     let _ = std::fs::remove_dir_all(&fixture_dir);
 }
 
-/// Adds a `VRMC_vrm` (VRM 1.0) extension with X Bot's humanoid bones to the GLB: a VRM
-/// avatar made from a file the project may not ship.
-fn xbot_as_vrm(glb: &[u8]) -> Vec<u8> {
+/// VRM 1.0 humanoid bones and the label files' roles they are; the first
+/// [`VRM_REQUIRED`] are the ones VRM requires.
+const VRM_BONES: [(&str, &str); 22] = [
+    ("hips", "hips"),
+    ("spine", "spine"),
+    ("head", "head"),
+    ("leftUpperArm", "upperArm.L"),
+    ("leftLowerArm", "lowerArm.L"),
+    ("leftHand", "hand.L"),
+    ("rightUpperArm", "upperArm.R"),
+    ("rightLowerArm", "lowerArm.R"),
+    ("rightHand", "hand.R"),
+    ("leftUpperLeg", "upperLeg.L"),
+    ("leftLowerLeg", "lowerLeg.L"),
+    ("leftFoot", "foot.L"),
+    ("rightUpperLeg", "upperLeg.R"),
+    ("rightLowerLeg", "lowerLeg.R"),
+    ("rightFoot", "foot.R"),
+    ("chest", "chest"),
+    ("neck", "neck"),
+    ("leftShoulder", "shoulder.L"),
+    ("rightShoulder", "shoulder.R"),
+    ("leftToes", "toes.L"),
+    ("rightToes", "toes.R"),
+    ("jaw", "jaw"),
+];
+const VRM_REQUIRED: usize = 15;
+
+/// Adds a `VRMC_vrm` (VRM 1.0) extension with the character's labelled humanoid bones to its
+/// GLB (`l`'s file): a VRM avatar made from a file the project may not ship.
+fn glb_as_vrm(l: &Labelled, glb: &[u8]) -> Vec<u8> {
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
     let mut doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
     let node = |name: &str| {
@@ -237,44 +270,28 @@ fn xbot_as_vrm(glb: &[u8]) -> Vec<u8> {
             .as_array()
             .unwrap()
             .iter()
-            .position(|n| n["name"] == format!("mixamorig:{name}").as_str())
-            .unwrap_or_else(|| panic!("X Bot has no {name}"))
+            .position(|n| n["name"] == name)
+            .unwrap_or_else(|| panic!("{}: no node {name}", l.rel))
     };
-    let bones = [
-        ("hips", "Hips"),
-        ("spine", "Spine"),
-        ("chest", "Spine1"),
-        ("upperChest", "Spine2"),
-        ("neck", "Neck"),
-        ("head", "Head"),
-        ("leftShoulder", "LeftShoulder"),
-        ("leftUpperArm", "LeftArm"),
-        ("leftLowerArm", "LeftForeArm"),
-        ("leftHand", "LeftHand"),
-        ("rightShoulder", "RightShoulder"),
-        ("rightUpperArm", "RightArm"),
-        ("rightLowerArm", "RightForeArm"),
-        ("rightHand", "RightHand"),
-        ("leftUpperLeg", "LeftUpLeg"),
-        ("leftLowerLeg", "LeftLeg"),
-        ("leftFoot", "LeftFoot"),
-        ("leftToes", "LeftToeBase"),
-        ("rightUpperLeg", "RightUpLeg"),
-        ("rightLowerLeg", "RightLeg"),
-        ("rightFoot", "RightFoot"),
-        ("rightToes", "RightToeBase"),
-    ];
-    let human: serde_json::Map<String, Value> = bones
-        .iter()
-        .map(|(role, name)| (role.to_string(), json!({ "node": node(name) })))
-        .collect();
+    // Each labelled role once (a spine labelled as the chest too is the spine).
+    let mut used = Vec::new();
+    let mut human = serde_json::Map::new();
+    for (vrm, role) in VRM_BONES {
+        let Some(n) = l.bone(role).map(node) else {
+            continue;
+        };
+        if !used.contains(&n) {
+            used.push(n);
+            human.insert(vrm.to_string(), json!({ "node": n }));
+        }
+    }
     doc["extensionsUsed"]
         .as_array_mut()
         .map(|a| a.push(json!("VRMC_vrm")))
         .unwrap_or_else(|| doc["extensionsUsed"] = json!(["VRMC_vrm"]));
     doc["extensions"]["VRMC_vrm"] = json!({
         "specVersion": "1.0",
-        "meta": { "name": "X Bot (test VRM)", "authors": ["rigcast tests"], "licenseUrl": "https://vrm.dev/licenses/1.0/" },
+        "meta": { "name": "test VRM", "authors": ["rigcast tests"], "licenseUrl": "https://vrm.dev/licenses/1.0/" },
         "humanoid": { "humanBones": human },
     });
     let mut json_bytes = serde_json::to_vec(&doc).unwrap();
@@ -298,16 +315,22 @@ async fn viewer_draws_a_vrm_target_through_three_vrm() {
     let Some((chromium, _one)) = one_browser().await else {
         return;
     };
-    let Some(xbot) = shared_data(XBOT) else {
+    let Some(character) = skinned_human_glbs()
+        .into_iter()
+        .find(|l| VRM_BONES[..VRM_REQUIRED].iter().all(|(_, r)| l.has_role(r)))
+    else {
+        println!("SKIP: no labelled skinned human GLB with every bone VRM requires");
         return;
     };
+    println!("the character: {}", character.rel);
     let dir = rigcast_tests::temp_path("vrm");
     std::fs::create_dir_all(&dir).unwrap();
-    let vrm = dir.join("xbot.vrm");
-    std::fs::write(&vrm, xbot_as_vrm(&std::fs::read(&xbot).unwrap())).unwrap();
+    let vrm = dir.join("character.vrm");
+    let glb = std::fs::read(&character.path).unwrap();
+    std::fs::write(&vrm, glb_as_vrm(&character, &glb)).unwrap();
     let server = serve(&[&vrm]).await;
     let (_, status) = http_get(server.local_addr(), "/v1/status").await;
-    assert!(status.contains("\"xbot\""), "{status}");
+    assert!(status.contains("\"character\""), "{status}");
     let (browser, mut cdp, mesh) = open_viewer(&chromium, &server, 1).await;
     assert_eq!(mesh["isVrm"], true, "not loaded as a VRM: {mesh}");
     let moved = cdp.bone_matrices_move(1).await;

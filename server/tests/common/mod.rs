@@ -13,7 +13,6 @@ pub use shared_data::{
     all_labels, animation_names, data_files, data_rel, first_in_place_cycle, first_walk,
     first_walks, graph_clips, human_rigs, in_place_cycles, labelled, labelled_where, shared_clip,
     shared_data, shared_data_all, skinned_human_glbs, travelling_clips, walks, Labelled, CMU_WALK,
-    GODOT_ROBOT, MEREDITH,
 };
 
 /// A folder of this test run's own under the system's temporary folder

@@ -7,12 +7,10 @@
 
 use std::path::{Path, PathBuf};
 
-/// The CMU walk (mocap, 31 joints, MotionBuilder names).
+/// The CMU walk (mocap, 31 joints, MotionBuilder names), for the tests that check figures read
+/// by hand from it (known answers: they skip without it). Every other test finds its data by
+/// what it is (the helpers below).
 pub const CMU_WALK: &str = "bvh/cmu_131_01_walk.bvh";
-/// An upper body with a sparse spine and a head, no legs to speak of (PyMO's Meredith).
-pub const MEREDITH: &str = "zoo/bvh/sparse_spine_head__pymo_meredith.bvh";
-/// Godot's platformer robot, which names its left side `r-*`.
-pub const GODOT_ROBOT: &str = "zoo/gltf/godot_robot__platformer_player.glb";
 
 /// The shared data folder, whether or not it exists: `RIGCAST_SHARED_DATA` when set (a checkout
 /// elsewhere than beside the data), else `../shared/data` beside the workspace.
