@@ -1,13 +1,13 @@
 //! Motion graphs on real clips in `../shared/data` (acceptance, issue 14): the labelled human
 //! captures ([`shared_data::graph_clips`]: a second or more of motion each, about 3,000 frames
 //! at 120 Hz in all, the first in sorted order: a debug build of the graph is the expensive
-//! part) build one graph that keeps most frames; the pruned
-//! search finds what the exhaustive one finds; a walk between two chosen poses exists with
-//! every join under the threshold; played back (through the walker the live fallback uses),
-//! joins keep joint velocities and the root path continuous; looping game idles close on
-//! themselves (every animation of a labelled character that ends where it starts); timed walks are at their goal on the asked frame with the same smooth joins, and
-//! a time shorter than the quickest walk is refused with the shortfall. Skipped with a
-//! printed reason when the data is absent.
+//! part) build one graph that keeps most frames; the pruned search finds what the exhaustive
+//! one finds; a walk between two chosen poses exists with every join under the threshold;
+//! played back (through the walker the live fallback uses), joins keep joint velocities and
+//! the root path continuous; looping game idles close on themselves (animations of labelled
+//! characters that end where they start); timed walks are at their goal on the asked frame
+//! with the same smooth joins, and a time shorter than the quickest walk is refused with the
+//! shortfall. Skipped with a printed reason when the data is absent.
 
 use std::path::Path;
 use std::sync::OnceLock;

@@ -1,7 +1,8 @@
 //! Two people from one video drive two characters through the real server: `rigcast serve`
 //! with `[[sources]] kind = "video"` entries for persons `#0` (a plain entry) and `#1` of the
 //! pose2sim two-person footage (real model, real decoder), two performers on two different rigs
-//! (the built-in mannequin and Mixamo's X Bot), a real WebSocket client.
+//! (the built-in mannequin and the first labelled human character of the shared data), a real
+//! WebSocket client.
 //!
 //! What is known independently of the server: the same footage run through the landmark
 //! pipeline offline, in this process, gives each person's knee bend per video frame straight
@@ -100,9 +101,11 @@ async fn two_people_of_one_video_drive_two_targets_at_the_tick_rate() {
         );
         return;
     }
-    let Some(xbot) = shared_data("zoo/gltf/mixamo_gltf__Xbot.glb") else {
+    let Some(character) = human_rigs().into_iter().next() else {
         return;
     };
+    println!("the second character: {}", character.rel);
+    let xbot = character.path;
     let expected = offline_knees(&assets, &video);
 
     let dir = temp_path("vision-two-people");
