@@ -1,6 +1,8 @@
 //! `Mapping::build`: everything per-frame code needs, computed once from the skeletons'
 //! reference postures and the mapping table.
 
+use std::cmp::Reverse;
+
 use glam::{Quat, Vec3};
 
 use super::root::{RootPlan, Side};
@@ -150,13 +152,53 @@ impl<'a> Setup<'a> {
         primary(self.table, t).is_some()
     }
 
-    /// The shallowest mapped target bone (normally the hips) and its primary source.
+    /// The target bone that carries the body (normally the hips) and the source of the
+    /// mapped bone that drives most others (normally the source's hips). The body is every
+    /// mapped bone that is part of a mapped chain (its parent or a child mapped too), so a
+    /// mapped control beside the body (an IK foot hanging from the armature root, as shallow
+    /// as the hips) is no part of it; the root is the deepest bone all of them hang from,
+    /// mapped or not (legs hanging from a body bone above the spine's first mapped bone travel
+    /// with it).
     fn root_pair(&self) -> Option<(BoneId, SourceRef)> {
-        self.target
-            .bone_ids()
-            .filter(|&t| self.is_mapped(t))
-            .min_by_key(|&t| (self.target.depth(t), t.0))
-            .and_then(|t| primary(self.table, t).map(|s| (t, s)))
+        let (skel, n) = (self.target, self.target.num_bones());
+        let mapped: Vec<bool> = skel.bone_ids().map(|t| self.is_mapped(t)).collect();
+        let in_chain = |t: BoneId| {
+            skel.parent(t).is_some_and(|p| mapped[p.index()])
+                || skel.children(t).iter().any(|c| mapped[c.index()])
+        };
+        let mut body: Vec<BoneId> = (skel.bone_ids())
+            .filter(|&t| mapped[t.index()] && in_chain(t))
+            .collect();
+        if body.is_empty() {
+            body = skel.bone_ids().filter(|&t| mapped[t.index()]).collect();
+        }
+        // Mapped body bones at or below each bone: parents come before their children, so one
+        // backward pass sums every subtree.
+        let mut below = vec![0usize; n];
+        for &t in &body {
+            below[t.index()] = 1;
+        }
+        let is_body: Vec<bool> = below.iter().map(|&b| b == 1).collect();
+        for i in (0..n).rev() {
+            if let Some(p) = skel.parent(BoneId(i as u16)) {
+                below[p.index()] += below[i];
+            }
+        }
+        // The deepest bone holding the body (of several roots, the one holding most of it):
+        // down from the top while a child holds all its body bones and it is none itself.
+        let mut root = skel
+            .roots()
+            .max_by_key(|r| (below[r.index()], Reverse(r.0)))?;
+        let all = below[root.index()];
+        while !is_body[root.index()] {
+            match skel.children(root).iter().find(|c| below[c.index()] == all) {
+                Some(&c) => root = c,
+                None => break,
+            }
+        }
+        let driver = (body.iter().copied())
+            .min_by_key(|&t| (Reverse(below[t.index()]), skel.depth(t), t.0))?;
+        primary(self.table, driver).map(|s| (root, s))
     }
 
     /// Relative facing of the two characters, from all mapped pairs on the root's input.
@@ -368,7 +410,25 @@ impl<'a> Setup<'a> {
                 bones[c].curl_frame = frame;
             }
         }
+        // A leaf whose source's child drives a lone bone beside the body (hanging from above
+        // the body's root, as an IK foot under the armature root does: a control, as the
+        // analysis's `detached` calls it) carries it at its end.
+        let skel = self.target;
+        let body = self.root_pair().map(|(root, _)| root);
+        let beside = |u: BoneId| {
+            body.is_some_and(|root| {
+                skel.children(u).is_empty()
+                    && !is_below(skel, root, u)
+                    && skel.parent(u).is_none_or(|p| is_below(skel, root, p))
+            })
+        };
+        let carried = (skel.bone_ids())
+            .filter_map(|t| Some((t, self.detached_end(t)?)))
+            .filter(|&(_, u)| beside(u))
+            .map(|(t, u)| super::carried::Carried::new(&self.tgt_w, u, t))
+            .collect();
         RetargetPlan {
+            carried,
             sources: self.sources.iter().map(|s| (*s).clone()).collect(),
             target: self.target.clone(),
             bones,
@@ -475,4 +535,16 @@ impl Mapping {
         });
         Ok(Mapping::from_plan(std::sync::Arc::new(plan)))
     }
+}
+
+/// Whether `bone` hangs (at any depth) below `ancestor`.
+fn is_below(skel: &Skeleton, bone: BoneId, ancestor: BoneId) -> bool {
+    let mut b = skel.parent(bone);
+    while let Some(p) = b {
+        if p == ancestor {
+            return true;
+        }
+        b = skel.parent(p);
+    }
+    false
 }

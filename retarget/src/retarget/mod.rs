@@ -31,6 +31,7 @@
 
 mod align;
 mod build;
+mod carried;
 mod history;
 mod options;
 mod root;
@@ -118,6 +119,8 @@ pub struct RetargetPlan {
     chain_bones: Vec<u16>,
     /// The sources' up (unit): what [`Follow::Heading`] links turn about.
     up: Vec3,
+    /// Bones carried at a limb's end from beside it (IK feet under the armature root).
+    carried: Vec<carried::Carried>,
 }
 
 /// The per-performer state of a retargeting job: source history (for per-bone delays),
@@ -477,6 +480,7 @@ impl RetargetPlan {
                 local
             };
         }
+        self.carry(ctx, out);
         self.place_feet(ctx, out);
     }
 }

@@ -1,0 +1,54 @@
+//! Bones carried at a limb's end from beside it: an IK-style rig's foot hangs from the
+//! armature root next to the legs, and its shin ends in a leaf, so turning the leg moves no
+//! foot. Such a lone bone (the mapped bone driven by the source's child of the leaf's source,
+//! see `build::Setup::detached_end`) is placed every frame where the leaf's end puts it, as if
+//! it hung there: at its reference offset in the leaf's frame. Its rotation stays the
+//! mapping's.
+
+use glam::Vec3;
+
+use super::{RetargetContext, RetargetPlan};
+use crate::fk::WorldTransform;
+use crate::pose::Pose;
+use crate::skeleton::BoneId;
+
+/// One carried bone (a leaf: it carries nothing itself).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Carried {
+    /// The bone placed.
+    bone: BoneId,
+    /// The limb's leaf it is carried by.
+    by: BoneId,
+    /// Where it sits in the leaf's frame (the target's reference posture).
+    offset: Vec3,
+}
+
+impl Carried {
+    /// `bone` carried by leaf `by`, placed as the reference worlds `worlds` show them.
+    pub(super) fn new(worlds: &[WorldTransform], bone: BoneId, by: BoneId) -> Self {
+        let (b, l) = (worlds[bone.index()], worlds[by.index()]);
+        Carried {
+            bone,
+            by,
+            offset: l.rotation.inverse() * (b.translation - l.translation),
+        }
+    }
+}
+
+impl RetargetPlan {
+    /// Places every carried bone at its leaf's end (its translation under its own parent).
+    /// Allocates nothing.
+    pub(super) fn carry(&self, ctx: &mut RetargetContext, out: &mut Pose) {
+        for c in &self.carried {
+            let leaf = ctx.scratch[c.by.index()];
+            let position = leaf.translation + leaf.rotation * c.offset;
+            let parent = match self.target.parent(c.bone) {
+                Some(p) => ctx.scratch[p.index()],
+                None => WorldTransform::IDENTITY,
+            };
+            out.translations[c.bone.index()] =
+                parent.rotation.inverse() * (position - parent.translation);
+            ctx.scratch[c.bone.index()].translation = position;
+        }
+    }
+}
