@@ -264,12 +264,15 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
 /// retargets of a whole walk per character are expensive, so one walk) onto the mannequin and
 /// every labelled human rig with legs. Today the mannequin, the Godot robot, X Bot, Casual and
 /// the UE-style mannequin pass; RobotExpressive fails: none of its legs is paired with the
-/// walk's. It is an IK-style rig: its feet hang from the root bone beside the legs and its
-/// shins end in leaves, so bending a leg cannot move its foot, and `find_legs` (the legs the
-/// lock can bend) leaves both out; locking it needs a lock that places such a foot and aims
-/// the leg at it.
+/// walk's. It is an IK-style rig: its feet are lone bones hanging from the armature root
+/// beside the legs, and its shins end in leaves, so bending a leg cannot move its foot and
+/// `find_legs` (the legs the lock can bend) leaves both out. The retargeter now takes its body
+/// (not its left IK foot) for the root and carries each foot at its shin's end; a lock that
+/// does the same with the legs it bends pairs both legs and holds them (drift 0.002 cm/frame
+/// against 0.84 free, no knee flip), but the root's floor is still read at the lowest joint
+/// below the body, the knee, so the robot stands 90 cm below its floor free (91 locked).
 #[test]
-#[ignore = "RobotExpressive: its feet hang from the root, not below its shins (an IK rig), so no leg of it can be locked; the other five characters pass"]
+#[ignore = "RobotExpressive: its feet hang beside the legs (an IK rig), so no leg of it is locked; and its root's floor is read at its knees (90 cm below its own floor free, 91 locked); the other five characters pass"]
 fn a_walk_keeps_its_feet_planted_on_every_human_character() {
     let Some((_, source, _)) = common::first_walk() else {
         return;
