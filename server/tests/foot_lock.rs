@@ -269,11 +269,13 @@ fn cmu_walk_feet_stay_planted_on_four_characters() {
 /// `find_legs` (the legs the lock can bend) leaves both out. The retargeter now takes its body
 /// (not its left IK foot) for the root and carries each foot at its shin's end; a lock that
 /// does the same with the legs it bends pairs both legs and holds them (drift 0.002 cm/frame
-/// against 0.84 free, no knee flip), but the root's height does not fit the rig yet: its hip
+/// against 0.84 free, no knee flip), but the root's plan does not fit the rig yet: it reads
+/// the lowest mapped joints below the body, and the feet are not below it, so its floor and
+/// root scale come from a finger (Ring2L; scale 4.26 against the legs' ratio 1.92): its hip
 /// joints stand at 2.39 on the walk's first frame against 1.55 in its rest, and its feet sink
 /// up to 90 cm below its floor (the crouch), free and locked.
 #[test]
-#[ignore = "RobotExpressive: its feet hang beside the legs (an IK rig), so no leg of it is locked; and its root's height does not fit it yet (feet up to 90 cm below its floor, free too); the other five characters pass"]
+#[ignore = "RobotExpressive: its feet hang beside the legs (an IK rig), so no leg of it is locked; and its root's floor and scale are read from a finger (feet up to 90 cm below its floor, free too); the other five characters pass"]
 fn a_walk_keeps_its_feet_planted_on_every_human_character() {
     let Some((_, source, _)) = common::first_walk() else {
         return;
