@@ -150,3 +150,13 @@ impl<F: FnMut(&mut RgbFrame) -> bool + Send> FrameSource for Edited<F> {
         Ok(self.inner.next_frame(out)? && (self.edit)(out))
     }
 }
+
+/// The process's CPU time so far (user + system), seconds.
+pub fn cpu_secs() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap();
+    let after = &stat[stat.rfind(')').unwrap() + 2..];
+    let fields: Vec<&str> = after.split(' ').collect();
+    // utime and stime are fields 14 and 15 of the line (11 and 12 after the name).
+    let ticks: f64 = fields[11].parse::<f64>().unwrap() + fields[12].parse::<f64>().unwrap();
+    ticks / 100.0
+}

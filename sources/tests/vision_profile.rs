@@ -65,7 +65,7 @@ fn profile_clip(path: &Path, config: &PipelineConfig) {
             // As the judge: the clock starts after the first frame.
             first = false;
             clock = t3;
-            cpu_start = cpu_secs();
+            cpu_start = common::cpu_secs();
             continue;
         }
         split.frames += 1;
@@ -75,7 +75,7 @@ fn profile_clip(path: &Path, config: &PipelineConfig) {
         split.solve += pipeline.solve_time();
     }
     split.total = clock.elapsed();
-    let cpu = (cpu_secs() - cpu_start) * 1e3 / split.frames.max(1) as f64;
+    let cpu = (common::cpu_secs() - cpu_start) * 1e3 / split.frames.max(1) as f64;
     let n = split.frames.max(1) as f64;
     let ms = |d: Duration| d.as_secs_f64() * 1e3 / n;
     let stats = pipeline.stats();
@@ -96,27 +96,17 @@ fn profile_clip(path: &Path, config: &PipelineConfig) {
     );
 }
 
-/// The process's CPU time so far (user + system), seconds.
-fn cpu_secs() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap();
-    let after = &stat[stat.rfind(')').unwrap() + 2..];
-    let fields: Vec<&str> = after.split(' ').collect();
-    // utime and stime are fields 14 and 15 of the line (11 and 12 after the name).
-    let ticks: f64 = fields[11].parse::<f64>().unwrap() + fields[12].parse::<f64>().unwrap();
-    ticks / 100.0
-}
-
 /// Mean wall time and CPU time (ms) of one call of `f`, after two warm-up calls.
 fn time_per_call(runs: u32, mut f: impl FnMut()) -> String {
     f();
     f();
     let t = Instant::now();
-    let c = cpu_secs();
+    let c = common::cpu_secs();
     for _ in 0..runs {
         f();
     }
     let wall = t.elapsed().as_secs_f64() * 1e3 / runs as f64;
-    let cpu = (cpu_secs() - c) * 1e3 / runs as f64;
+    let cpu = (common::cpu_secs() - c) * 1e3 / runs as f64;
     format!("{wall:.2} ms wall, {cpu:.2} ms CPU")
 }
 

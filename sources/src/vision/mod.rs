@@ -43,6 +43,7 @@ pub mod assets;
 pub mod body;
 mod bound;
 pub mod camera_modes;
+mod change;
 pub mod detector;
 pub mod error;
 pub mod ffmpeg;

@@ -6,7 +6,8 @@
 //! landmarks gave (all tracked people's crops in one batch): no search while tracking holds.
 //! The finder runs every frame while nobody is tracked or someone established was lost within
 //! the last second, else every `find_every_frames` frames (stretched while passes find nobody
-//! and the longer a lost person stays away) while fewer than `max_people` are tracked; a
+//! and the longer a lost person stays away, and while the picture outside the tracked people
+//! stays as the finder last saw it: `change`) while fewer than `max_people` are tracked; a
 //! finder pass is one detector pass (the regions of `DETECTOR_REGIONS` taking
 //! turns, every other frame where someone was just lost), so one person in view costs about
 //! what `max_people: 1` costs whatever `max_people` is, and the detector runs at most once a
@@ -42,6 +43,7 @@
 use glam::Vec2;
 
 use super::assets::ModelKind;
+use super::change::PictureWatch;
 use super::detector::{Detection, PersonDetector};
 use super::error::VisionError;
 use super::frame::RgbFrame;
@@ -162,6 +164,14 @@ const ESTABLISHED_FRAMES: u32 = 5;
 /// performer. Longer than the identity judge's span, shorter than anyone notices.
 const ALONE_WAIT_FRAMES: u32 = 5;
 
+/// An idle finder pass (see [`PoseTracker::find_interval`]) on a picture that did not change
+/// outside the tracked people since the finder last looked at the same region waits this many
+/// times its interval (see `change`): a detector pass on the picture it already searched finds
+/// what it found then, nobody new. The wait is bounded for a change too faint to show (a
+/// newcomer as dark as the wall behind them): one person alone in a still picture is then
+/// looked for every `STILL_WAIT × IDLE_BACKOFF × find_every_frames` frames.
+const STILL_WAIT: u32 = 4;
+
 /// Detector regions, taking turns: the whole frame, then the three squares of the short side
 /// along the long one (a small or far person the whole-frame pass misses appears up to twice
 /// as large there).
@@ -258,13 +268,16 @@ impl Track {
         self.roi.is_some()
     }
 
+    /// True for someone established (see [`ESTABLISHED_FRAMES`]) who is not tracked now: the
+    /// finder goes on looking for them.
+    fn awaited(&self) -> bool {
+        !self.tracked() && self.place.is_some() && self.held_frames >= ESTABLISHED_FRAMES
+    }
+
     /// True for a person lost within `frames` frames after being held long enough to be
     /// someone (see [`ESTABLISHED_FRAMES`]), not a passing misreading.
     fn recently_lost(&self, frames: u32) -> bool {
-        !self.tracked()
-            && self.place.is_some()
-            && self.lost_frames <= frames
-            && self.held_frames >= ESTABLISHED_FRAMES
+        self.awaited() && self.lost_frames <= frames
     }
 
     /// Whether this track has the prior claim to a body it and `other` both read: it has
@@ -317,6 +330,10 @@ pub struct PoseTracker {
     next_region: usize,
     /// Whether the detector's round of regions began with nobody tracked.
     round_from_empty: bool,
+    /// The picture at the finder's last look in each region (see [`STILL_WAIT`]).
+    watch: PictureWatch,
+    /// The tracked people's body boxes, for `watch`.
+    bodies: Vec<(Vec2, Vec2)>,
     stats: TrackerStats,
 }
 
@@ -354,6 +371,8 @@ impl PoseTracker {
             lost_now: false,
             next_region: 0,
             round_from_empty: false,
+            watch: PictureWatch::new(DETECTOR_REGIONS),
+            bodies: Vec::with_capacity(config.max_people),
             stats: TrackerStats::default(),
         }
     }
@@ -399,6 +418,7 @@ impl PoseTracker {
     /// Forgets everyone; the next frame looks for people afresh.
     pub fn reset(&mut self) {
         self.tracks.fill(Track::EMPTY);
+        self.watch.reset();
     }
 
     /// Processes one frame: every tracked person once ([`Self::track`]), then the finder when
@@ -451,11 +471,8 @@ impl PoseTracker {
         // everyone in view at the start is found within a few frames, not one a round.
         let first_round = self.round_from_empty && self.next_region != 0;
         let lost_now = std::mem::take(&mut self.lost_now);
-        let due = lost_now
-            || recently_lost
-            || num_tracked == 0
-            || first_round
-            || self.frames_since_find >= self.find_interval();
+        let due =
+            lost_now || recently_lost || num_tracked == 0 || first_round || self.idle_due(frame);
         if num_tracked == 0 {
             self.round_from_empty = true;
         } else if self.next_region == 0 {
@@ -507,10 +524,55 @@ impl PoseTracker {
         let idle = self.idle_interval;
         self.tracks
             .iter()
-            .filter(|t| !t.tracked() && t.place.is_some() && t.held_frames >= ESTABLISHED_FRAMES)
+            .filter(|t| t.awaited())
             .map(|t| (t.lost_frames / BACKOFF_FRAMES).max(1))
             .min()
             .map_or(idle, |n| n.min(idle))
+    }
+
+    /// Whether the finder's interval (see [`Self::find_interval`]) has passed and the pass is
+    /// worth making: someone established is away (they may be back anywhere, in a picture
+    /// that barely changed: the model lost them standing where they were), or the picture
+    /// changed outside the tracked people since the finder last looked at the region the pass
+    /// would search, or [`STILL_WAIT`] intervals passed without such a change.
+    fn idle_due(&mut self, frame: &RgbFrame) -> bool {
+        let interval = self.find_interval();
+        if self.frames_since_find < interval {
+            return false;
+        }
+        if self.frames_since_find >= interval.saturating_mul(STILL_WAIT)
+            || self.tracks.iter().any(Track::awaited)
+        {
+            return true;
+        }
+        let region = self.next_look_region();
+        self.note_bodies();
+        self.watch.changed(region, frame, &self.bodies)
+    }
+
+    /// The region the finder's next idle pass searches (the whole frame for a search).
+    fn next_look_region(&self) -> usize {
+        match self.config.finder {
+            Finder::Detector => self.next_region,
+            Finder::Search => 0,
+        }
+    }
+
+    /// Fills `self.bodies` with the tracked people's body boxes.
+    fn note_bodies(&mut self) {
+        self.bodies.clear();
+        self.bodies.extend(
+            self.tracks
+                .iter()
+                .filter(|t| t.tracked())
+                .filter_map(|t| t.place),
+        );
+    }
+
+    /// Remembers `frame` as what the finder saw in `region`, with the people tracked now.
+    fn note_look(&mut self, region: usize, frame: &RgbFrame) {
+        self.note_bodies();
+        self.watch.take_reference(region, frame, &self.bodies);
     }
 
     /// Single-person convenience: processes the frame and copies person `#0` into `out`.
@@ -897,7 +959,9 @@ impl PoseTracker {
         };
         detector.detect_in(frame, &self.candidates[region], &mut self.detections)?;
         self.stats.detections += 1;
-        self.start_detected(frame)
+        self.start_detected(frame)?;
+        self.note_look(region, frame);
+        Ok(())
     }
 
     /// The candidate region (see [`Roi::search_candidates`]) to look for the person lost most
@@ -989,7 +1053,9 @@ impl PoseTracker {
             }
             best = self.scratch;
         }
-        self.start_track(frame, &best)
+        self.start_track(frame, &best)?;
+        self.note_look(0, frame);
+        Ok(())
     }
 
     /// Gives a newly found person a slot (see [`Self::slot_for`]) and starts their track. A
