@@ -688,6 +688,9 @@ struct LegFigures {
     thigh: (f32, f32),
     shin: (f32, f32),
     foot: (f32, f32),
+    /// The foot's, on the frames the source's foot stands and on the others.
+    foot_standing: (f32, f32),
+    foot_free: (f32, f32),
     /// Horizontal move of the joint the target's foot stands on per frame while the source's
     /// foot stands (cm/frame, scaled to a 1.75 m body), mean over both sides; and the source's
     /// own, alike (printed beside it: a source whose standing feet slide moves that much itself).
@@ -774,10 +777,13 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
         ("foot", "toes"),
     ];
     let mut errors: [Vec<f32>; 3] = Default::default();
+    // The foot's errors split by whether the source's foot stands on the frame.
+    let mut foot_split: [Vec<f32>; 2] = Default::default();
+    let (stands, _) = standing_frames(src, tgt, clip)?;
     let step = (clip.num_frames() / 400).max(1);
-    for (sp, tp) in clip.poses.iter().zip(&out.poses).step_by(step) {
+    for (frame, (sp, tp)) in clip.poses.iter().zip(&out.poses).enumerate().step_by(step) {
         let (fs, ft) = (world_transforms(ss, sp), world_transforms(ts, tp));
-        for side in ["L", "R"] {
+        for (si, side) in ["L", "R"].into_iter().enumerate() {
             for (k, (a, b)) in segments.iter().enumerate() {
                 let (a, b) = (sided(a, side), sided(b, side));
                 let (Some(sa), Some(sb), Some(ta), Some(tb)) =
@@ -788,17 +794,24 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
                 let ds = segment_direction(ss, &rest_s, &fs, sa, sb);
                 let dt = segment_direction(ts, &rest_t, &ft, ta, tb);
                 if ds.length() > 1e-4 && dt.length() > 1e-4 {
-                    errors[k].push(ds.angle_between(dt).to_degrees());
+                    let e = ds.angle_between(dt).to_degrees();
+                    errors[k].push(e);
+                    if k == 2 {
+                        let standing = stands.get(si).and_then(|s| s.get(frame)) == Some(&true);
+                        foot_split[usize::from(!standing)].push(e);
+                    }
                 }
             }
         }
     }
     let [thigh, shin, foot] = errors.map(|mut e| mean_p95(&mut e));
-    let (stands, _) = standing_frames(src, tgt, clip)?;
+    let [foot_standing, foot_free] = foot_split.map(|mut e| mean_p95(&mut e));
     Some(LegFigures {
         thigh,
         shin,
         foot,
+        foot_standing,
+        foot_free,
         drift: standing_drift(tgt, src, out, &stands, true)?,
         source_drift: standing_drift(src, tgt, clip, &stands, true)?,
         joints_drift: standing_drift(tgt, src, out, &stands, false)?,
@@ -929,6 +942,21 @@ fn pair_wanted(name: &str) -> bool {
 /// are now held within it on every target. Under the run few frames are judged (its stances
 /// last about 0.2 s; the lock blends onto a pin over 0.1 s); the cause is not pinned down.
 ///
+/// The table's last two columns split the foot's error over the frames the source's foot
+/// stands on and the others. Where the foot misses its bound the error is on both alike (the
+/// CMU 131_01 walk onto X Bot: 28.2/40.5° standing, 24.9/36.3° free; onto the CMU 31-joint
+/// rig: 10.0/24.8 and 5.5/23.1): it is not the flattening of a planted foot. Two causes,
+/// measured by turning each part of the lock off: the posture fit's pitch, given to every
+/// frame so a foot built differently stands flat (off, X Bot 25.3 -> 14.8° mean, but its
+/// planted feet 0.69 -> 1.22 cm off the floor, Bandai 47.9 -> 25.2° and 1.25 -> 2.22 cm),
+/// and the heading a flat planted foot holds against the animation's turns (up to `PIVOT_RAD`
+/// of the lock), whose lag shows while it stands and again while the released foot catches up
+/// (turning with the animation on the ball instead: 29 -> 47 of the 84 within the foot's
+/// bound, every CMU 131_01 and 131_02 pair onto a CMU-built rig, but the heel then swings
+/// about the ball: foot_lock's drift over every foot joint 0.053 on the mannequin, 0.043 on
+/// X Bot against its bound of a third of the free 0.106, and drift here 141 -> 133, the
+/// targets whose toes are not labelled being judged at the ankle; not landed).
+///
 /// The foot is judged by its raw direction (ankle to toes) against the source's, as the issue
 /// measured it. The lock keeps a planted foot's pitch the animation's while the source's heel
 /// rises (a toe-off rolls it on its ball; a heel strike is stood flat), but a rig whose foot
@@ -967,8 +995,18 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
         "no walk or run among the labelled humans"
     );
     println!(
-        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7} {:>7} {:>6} {:>7}",
-        "source", "target", "thigh°", "shin°", "foot°", "drift", "(src)", "floor", "(drift)"
+        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7} {:>7} {:>6} {:>7} {:>11} {:>11}",
+        "source",
+        "target",
+        "thigh°",
+        "shin°",
+        "foot°",
+        "drift",
+        "(src)",
+        "floor",
+        "(drift)",
+        "(stand°)",
+        "(free°)"
     );
     let mut failures = Vec::new();
     let mut checked = 0;
@@ -1034,7 +1072,7 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 }
             };
             println!(
-                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>6} {:>7.3}",
+                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>6} {:>7.3} {:>11} {:>11}",
                 src.name(),
                 tgt.name(),
                 pair(f.thigh),
@@ -1043,7 +1081,9 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 f.drift,
                 f.source_drift,
                 f.floor_p95.map_or("-".into(), |c| format!("{c:.2}")),
-                f.joints_drift
+                f.joints_drift,
+                pair(f.foot_standing),
+                pair(f.foot_free)
             );
             let name = format!("{} → {}", src.name(), tgt.name());
             let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;

@@ -19,15 +19,19 @@
 //! Issue 35's bounds: thigh and shin 3° mean / 8° p95, foot 5° / 15°, drift ≤ 0.05 cm/frame,
 //! floor ≤ 1 cm. Not met yet: run with `--ignored` for the table (`cargo test -p
 //! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). Last measured, two
-//! runs at load 8-10 on 4eca62c's detection (60 Hz ticks; the debug server sampled 471-492 of
-//! the walk's 497 ticks): X Bot thigh 2.4-2.5/6.2-7.2°, shin 1.9-2.1/6.0-6.3°, foot
-//! 22.4-22.5/34.6-35.1°, drift 0.011-0.013 cm/frame (every foot joint 0.060-0.062: ankles
-//! roll), floor 0.50-0.53 cm; UE-style mannequin 3.0/7.4-7.6, 2.2-2.3/7.1-7.5, 27.2-27.3/
-//! 39.2-39.3, 0.015-0.018, 0.50-0.55; Quaternius Casual (no toes) 2.8/8.4-8.8, 2.4/8.7-8.8,
-//! 0.004-0.006, 0.76-0.89; the robot (no toes) 6.8-6.9/24.9-26.4, 3.3-3.4/10.7-11.2, 0.006,
-//! 1.48-1.53 (its left foot hangs 20-30 cm above the floor in the retargeted walk while the
-//! source's stands: a plant pins it there and blends it down, and the floor's 95th
-//! percentile falls on those frames, so it swings with which samples the server takes).
+//! runs at load 14-17 with the free foot brought down ahead of a plant the source's heel
+//! foretells (the debug server sampled 453-466 of the walk's 497 ticks), against one of the
+//! lock before in between: X Bot thigh 2.6-2.7/7.1-7.7° (2.5/7.0), shin 2.1/6.3-6.7 (2.1/7.0),
+//! foot 22.4-22.5/34.8-35.8 (22.5/34.9), drift 0.018-0.029 cm/frame (0.021), floor 0.49-0.66
+//! cm (0.64); UE-style mannequin 3.1/7.1-8.0 (3.0/7.7), 2.3/6.6-7.3 (2.3/7.8), 27.2/39.0-40.3
+//! (27.2/39.1), 0.024-0.034 (0.026), 0.50-0.64 (0.54); Quaternius Casual (no toes) 2.9-3.0/
+//! 8.3-8.5 (2.8/8.5), 2.4-2.5/8.1-8.2 (2.3/8.0), 0.014-0.022 (0.010), 0.82-0.91 (0.88); the
+//! robot (no toes) 6.5-6.8/23.4-24.1 (6.5/25.6), 3.2-3.5/9.8-10.4 (3.3/10.4), 0.018-0.027
+//! (0.012), 1.07-1.36 (1.48; two runs at load 8-10 on 4eca62c: 1.48-1.53). Its left foot
+//! hangs 20-30 cm above the floor in the retargeted walk while the source's stands: a plant
+//! pins it and blends it down, and the floor's 95th percentile falls on those frames, so it
+//! swings with which samples the server takes. RobotExpressive's feet hang from its root
+//! (no leg the lock can bend): not judged.
 //! Until then six seconds were watched of the looping walk, wherever the stream began: the
 //! same lock, run without the server from where each of six starts 1.25 s apart put it, read
 //! the floor at robot 0.96-3.54, Casual 0.57-1.89, X Bot 0.30-0.72 cm; over the whole walk
@@ -315,8 +319,16 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
         "floor",
         "(drift)"
     );
+    let mut judged = 0;
     for (rig, locked, free) in &streams {
         let rel = &rig.rel;
+        // A character whose feet the lock holds none of (feet hanging from the root, no leg
+        // to bend: RobotExpressive) is the offline foot_lock's ignored case, not this one's.
+        if locked.plants.iter().all(|(_, feet)| feet.is_empty()) {
+            println!("{rel}: the lock holds none of its feet, not judged");
+            continue;
+        }
+        judged += 1;
         let f = measure(rig, locked, free, pass_nanos);
         let pair = |(m, p): (f32, f32)| format!("{m:.1}/{p:.1}");
         println!(
@@ -351,6 +363,7 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
             failures.push(format!("{rel}: planted feet {:.2} cm off", f.floor_p95));
         }
     }
+    assert!(judged > 0, "no character whose feet the lock holds");
     assert!(
         failures.is_empty(),
         "{} failures:\n{}",

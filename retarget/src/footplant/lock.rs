@@ -138,6 +138,10 @@ struct Lifts {
     foot: [f32; MAX_FEET],
     heel: [f32; MAX_FEET],
     landing: [f32; MAX_FEET],
+    /// The ball comes down with the ankle ahead of a plant (offline, where the plant is
+    /// known; live the foot keeps the animation's pitch, toes up for a heel strike: a ball
+    /// pitched down onto a guess of the landing kicked the toes).
+    landing_flat: bool,
 }
 
 /// Offline, where the plants ahead are known: how far a foot not planted on `frame` is brought
@@ -162,6 +166,56 @@ fn landing_weight(plants: &PlantTrack, frame: usize, leg: usize, lead: usize) ->
     }
     let t = (lead + 1 - k) as f32 / lead as f32;
     t * t * (3.0 - 2.0 * t)
+}
+
+/// Live, where the plants ahead are not known: per source leg, how near its foot's next
+/// plant looks from how fast it comes down, as [`landing_weight`] is offline.
+#[derive(Debug, Clone, Copy, Default)]
+struct LiveLanding {
+    /// The heel above its ground at the last sample (source units).
+    lift: [f32; MAX_FEET],
+    /// The heel has been up past the detector's height bound since its last plant (a swing,
+    /// not the shuffle of a foot that never left the ground, nor one just lifted).
+    swung: [bool; MAX_FEET],
+    weight: [f32; MAX_FEET],
+}
+
+impl LiveLanding {
+    /// Takes a new source sample `dt` after the last: per leg its plant, its heel's height
+    /// above its ground and the height above which a heel has swung. Each weight rises from 0
+    /// to 1 as the time the heel takes to reach its ground at its present speed comes down
+    /// from `lead` seconds to none (smoothly, as offline), and fades out as a blend does when
+    /// the heel rises again. The heel, not the lowest contact: a walk's toes pass a
+    /// centimetre or two over the ground in mid-swing, coming down fast.
+    fn update(&mut self, planted: &[bool], lifts: &[f32], near: &[f32], dt: f32, lead: f32) {
+        for (s, ((&p, &lift), &near)) in planted.iter().zip(lifts).zip(near).enumerate() {
+            let falling = if dt > 0.0 {
+                (self.lift[s] - lift) / dt
+            } else {
+                0.0
+            };
+            self.lift[s] = lift;
+            if p {
+                (self.swung[s], self.weight[s]) = (false, 0.0);
+                continue;
+            }
+            self.swung[s] |= lift > near;
+            let soon = if self.swung[s] && falling > 0.0 && lead > 0.0 {
+                let t = (1.0 - lift.max(0.0) / (falling * lead)).clamp(0.0, 1.0);
+                t * t * (3.0 - 2.0 * t)
+            } else {
+                0.0
+            };
+            // Held while the heel stays down (it may stop just over its ground until the
+            // foot is slow enough to stand); faded out as a blend is once it rises again.
+            let kept = if falling >= 0.0 {
+                self.weight[s]
+            } else {
+                self.weight[s] * (-dt * std::f32::consts::LN_2 / (0.5 * lead)).exp()
+            };
+            self.weight[s] = soon.max(kept);
+        }
+    }
 }
 
 /// How long (seconds) the live fit to the standing posture takes to follow a new stance gap
@@ -245,9 +299,10 @@ struct Foot {
     /// (scaled to the target; offline, 0 where not known): how far the foot may roll onto its
     /// ball ([`Foot::roll`]).
     heel_rise: f32,
-    /// Offline, how far the unpinned foot is brought to its pin's height ahead of a plant
-    /// ([`landing_weight`]).
+    /// How far the unpinned foot is brought to its pin's height ahead of a plant
+    /// ([`landing_weight`], [`LiveLanding`]), and how far its ball to its standing height.
     landing: f32,
+    landing_flat: f32,
     lock_position: Vec3,
     lock_heading: f32,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -451,6 +506,8 @@ pub struct FootLock {
     /// A frame has been locked since the lock was built ([`FootLock::reset`] keeps it: the
     /// character was shown, so later plants blend from it).
     shown_once: bool,
+    /// Live: how near each source foot's next plant is.
+    landing: LiveLanding,
 }
 
 /// The angle in (−π, π] equal to `a` modulo a turn.
@@ -518,6 +575,7 @@ fn standing_foot(
         heel_lift: None,
         heel_rise: 0.0,
         landing: 0.0,
+        landing_flat: 0.0,
         lock_position: ankle,
         lock_heading: 0.0,
         position_offset: Decay::default(),
@@ -598,6 +656,7 @@ impl FootLock {
             posture_stands: mapping.target_posture_stands(),
             lift_scale: mapping.root_scale().unwrap_or(1.0),
             shown_once: false,
+            landing: LiveLanding::default(),
         })
     }
 
@@ -801,6 +860,7 @@ impl FootLock {
             f.shown_flat = 0.0;
         }
         self.shift = RootShift::default();
+        self.landing = LiveLanding::default();
         self.last_drop = 0.0;
         self.drop_offset = Decay::default();
     }
@@ -827,6 +887,22 @@ impl FootLock {
         for (l, (heel, foot)) in lifts.heel.iter_mut().zip(measured) {
             *l = heel - foot.max(0.0);
         }
+        // Ahead of a plant the free foot comes down onto the height it will be pinned at, as
+        // offline ([`landing_weight`]), when the source's heel is due on its ground within a
+        // blend's time: a character whose retargeted foot hangs above the floor while the
+        // performer's lands would otherwise be pinned up there and blended down while the
+        // performer's already stands.
+        if new_sample {
+            let mut near = [0.0; MAX_FEET];
+            for (n, leg) in near.iter_mut().zip(self.detector.legs()) {
+                *n = self.settings.plants.height_ratio * leg.length;
+            }
+            let (legs, lead) = (self.detector.legs().len(), self.settings.blend_secs);
+            let heights = self.detector.heel_lifts();
+            let flags = &planted[..legs];
+            (self.landing).update(flags, heights, &near[..legs], dt_secs, lead);
+        }
+        lifts.landing = self.landing.weight;
         self.lock(&planted, Some(&lifts), dt_secs, true, out);
     }
 
@@ -873,6 +949,7 @@ impl FootLock {
         for (leg, l) in lifts.landing.iter_mut().enumerate().take(plants.legs.len()) {
             *l = landing_weight(plants, frame, leg, lead);
         }
+        lifts.landing_flat = true;
         self.lock(&flags, Some(&lifts), dt_secs, false, out);
     }
 
@@ -932,11 +1009,12 @@ impl FootLock {
     fn take_lifts(&mut self, lifts: Option<&Lifts>) {
         for i in 0..self.feet.len() {
             let length = self.feet[i].leg.length;
-            let (foot, heel, landing) = match (self.feet[i].source, lifts) {
-                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s]),
-                _ => (0.0, None, 0.0),
+            let (foot, heel, landing, flat) = match (self.feet[i].source, lifts) {
+                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s], l.landing_flat),
+                _ => (0.0, None, 0.0, false),
             };
             self.feet[i].landing = landing;
+            self.feet[i].landing_flat = if flat { landing } else { 0.0 };
             let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
             self.feet[i].lift = lift;
             // The heel follows how much higher than the foot's lowest contact the source's is
@@ -1063,8 +1141,8 @@ impl FootLock {
         } else {
             0.0
         };
-        // Ahead of a known plant the free foot is brought towards the height it will be
-        // pinned at, so it stands when the source's does.
+        // Ahead of a plant (known offline, foreseen live) the free foot is brought towards
+        // the height it will be pinned at, so it stands when the source's does.
         let landing = self.feet[i].landing;
         let approach = if !wants && !self.feet[i].locked && landing > 0.0 {
             landing * (self.pin_height(i, animated, animated) - animated.dot(up))
@@ -1160,9 +1238,9 @@ impl FootLock {
         let halflife = 0.5 * self.settings.blend_secs;
         let f = &mut self.feet[i];
         let Some(o) = goal.ball_offset else { return };
-        // Ahead of a known plant the ball comes down as the ankle does (`landing`). A pinned
-        // foot rolled onto its ball already stands it there.
-        let weight = if goal.pinned { 1.0 } else { f.landing };
+        // Ahead of a known plant the ball comes down as the ankle does (`landing_flat`). A
+        // pinned foot rolled onto its ball already stands it there.
+        let weight = if goal.pinned { 1.0 } else { f.landing_flat };
         let wanted = weight * (floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up));
         if fresh {
             f.shown_flat = wanted;
@@ -1443,6 +1521,60 @@ mod tests {
         // No plant ahead within the clip.
         assert_eq!(landing_weight(&plants, 24, 0, 4), 0.0);
         assert_eq!(landing_weight(&plants, 17, 0, 0), 0.0);
+    }
+
+    #[test]
+    fn a_live_landing_is_foreseen_from_the_heel_coming_down_after_a_swing() {
+        let (dt, lead, near) = (1.0 / 60.0, 0.1, 0.04);
+        let mut l = LiveLanding::default();
+        let step = |l: &mut LiveLanding, planted: bool, heel: f32| {
+            l.update(&[planted], &[heel], &[near], dt, lead);
+            l.weight[0]
+        };
+        // A foot shuffling low (never up past `near`) is not foreseen landing.
+        step(&mut l, true, 0.0);
+        for k in 1..10 {
+            assert_eq!(step(&mut l, false, 0.002 * k as f32), 0.0);
+        }
+        for k in (0..10).rev() {
+            assert_eq!(step(&mut l, false, 0.002 * k as f32), 0.0);
+        }
+        // Up to 20 cm and down at 1 m/s: nothing while the ground is more than `lead` away,
+        // then rising smoothly to 1 as the heel reaches it.
+        let mut heel = 0.0;
+        while heel < 0.2 {
+            heel += 0.01;
+            assert_eq!(step(&mut l, false, heel), 0.0);
+        }
+        let mut ramp = Vec::new();
+        while heel > 1e-4 {
+            heel = (heel - 1.0 * dt).max(0.0);
+            ramp.push((heel, step(&mut l, false, heel)));
+        }
+        let due = |(h, _): &(f32, f32)| *h > 1.0 * lead;
+        assert!(
+            ramp.iter().filter(|r| due(r)).all(|r| r.1 == 0.0),
+            "{ramp:?}"
+        );
+        assert!(ramp.windows(2).all(|w| w[1].1 >= w[0].1), "{ramp:?}");
+        assert!(ramp.windows(2).all(|w| w[1].1 - w[0].1 < 0.5), "{ramp:?}");
+        assert_eq!(ramp.last().map(|r| r.1), Some(1.0), "{ramp:?}");
+        // Held while the heel waits just over the ground; a plant clears it.
+        assert_eq!(step(&mut l, false, 0.0), 1.0);
+        assert_eq!(step(&mut l, true, 0.0), 0.0);
+        // A heel rising again fades it out.
+        let mut l = LiveLanding {
+            lift: [0.01; MAX_FEET],
+            swung: [true; MAX_FEET],
+            weight: [1.0; MAX_FEET],
+        };
+        let fading: Vec<f32> = (1..8)
+            .map(|k| step(&mut l, false, 0.01 + 0.01 * k as f32))
+            .collect();
+        assert!(
+            fading.windows(2).all(|w| w[1] < w[0]) && fading[6] < 0.3,
+            "{fading:?}"
+        );
     }
 
     #[test]
