@@ -71,10 +71,32 @@
 //! lite's cam02 is right on every frame (the full model runs on 89 of its 100). Then the
 //! second model checks now and then, ever less often up to [`AUDIT_LONGEST`] frames, so a run
 //! of misreadings that never flips is caught within a bounded wait, at a cost bounded by it.
-//! What is left: a turn the picture never shows edge-on (a small player in the soccer
-//! broadcast turns to his back within a few frames, both models reading a front for four
-//! frames after it, then a back): continuity holds the front until the two models' readings
-//! outweigh it, five frames late.
+//!
+//! A turn the picture never shows edge-on (a small player in the soccer broadcast turns to
+//! his back within a few frames, both models reading a front for four frames after it, then a
+//! back) is no side view, so continuity held the front until the readings against it
+//! outweighed it by the margin, five frames late. But a frame both models read squarely and
+//! alike, while the first model's readings are not in doubt, is two readings, not one model's
+//! run of misreadings: it needs only that the readings against the kept labelling make four
+//! fifths of all lately ([`RELABEL_SHARE`]), not the margin ([`RELABEL_MARGIN`]) one model's
+//! runs of misreadings call for. Where the kept labelling rests on readings of its own (the
+//! fashion model's back, read so by both models for two seconds, then read as a front by both
+//! for four frames), that share is far off; where it rests on little (the player's front, read
+//! at a slant, then in doubt and its evidence forgotten), the two models' back is taken on
+//! the first frame they read it out of doubt. The two models read pose2sim cam02's man
+//! (facing the camera) as a back together on runs of up to fourteen frames, but there the
+//! lite model flips often: in doubt its agreement adds nothing to the second's reading, which
+//! is weighed as ever, and when the doubt fades the readings of the last second are mixed,
+//! far from the share.
+//!
+//! The face, measured against the 3D reference and MediaPipe's steady readings, is no
+//! evidence the readings lack: every model gives the nose a visibility of 0.98-1.00 in back
+//! views as in front views; the nose's depth against the shoulders mirrors with the torso's
+//! reading (nearer the camera on 100 % of front readings, on 0-11 % of back readings, right
+//! or wrong); and the nose drawn below the ears (by a tenth of the torso or more) marks a
+//! front on none of the full model's and MediaPipe's misreadings of cam02 and on 0-3 % of
+//! true backs (cam03, cam04), but only on 51-69 % of their right front readings, and on none
+//! of the lite model's, whose face is level in both.
 
 use glam::{Vec2, Vec3};
 
@@ -192,6 +214,8 @@ pub(super) struct SideGuard {
     confirmed: u8,
     /// Whether the second model has read the kept labelling since it was last read afresh.
     seconded: bool,
+    /// Whether both models read this frame squarely and alike (see [`Self::second_reads`]).
+    jointly: bool,
     /// Once confirmed: frames until the next check, and the wait after it (see [`AUDIT_FIRST`]).
     audit_in: u16,
     audit_every: u16,
@@ -209,6 +233,7 @@ impl SideGuard {
         doubted: false,
         confirmed: 0,
         seconded: false,
+        jointly: false,
         audit_in: 0,
         audit_every: AUDIT_FIRST,
     };
@@ -265,12 +290,16 @@ impl SideGuard {
     /// started on the first model's misreadings is put right at once); one it has read before
     /// is weighed as ever, from what the second model says (its own misreadings come in runs
     /// too). A check now and then of a confirmed labelling that disagrees forgets the evidence
-    /// the first model's unchecked readings built since, and checks every frame again.
+    /// the first model's unchecked readings built since, and checks every frame again. Notes,
+    /// for [`Self::label`], whether both models read the frame squarely and alike while the
+    /// first's readings are not in doubt.
     pub(super) fn second_reads(&mut self, lm: &mut Landmarks, second: &Landmarks) {
         // A second reading that cannot tell left from right (a side view or a torn reading to
         // it) objects to nothing: checking again every frame would cost without telling more.
         let decided = reading_weight(second) > 0.0;
         let agrees = !decided || !lines_swapped(&torso_lines(second), torso_lines(lm));
+        self.jointly =
+            agrees && !self.doubted && reading_weight(second) >= 1.0 && reading_weight(lm) >= 1.0;
         if self.confirmed >= CONFIRM_FRAMES && !self.doubted {
             // A check now and then: the evidence since the last came from the first model's
             // readings alone.
@@ -308,8 +337,12 @@ impl SideGuard {
     }
 
     /// Labels `lm`, the model's reading of this frame, continuing the kept labelling or,
-    /// when the evidence says so, taking the model's; flips `lm` when needed.
+    /// when the evidence says so, taking the model's; flips `lm` when needed. The readings
+    /// against the kept labelling must outweigh those for it by [`RELABEL_MARGIN`] (and
+    /// [`RELABEL_SHARE`]), or by the share alone on a frame both models read squarely and
+    /// alike ([`Self::second_reads`]).
     pub(super) fn label(&mut self, lm: &mut Landmarks) -> Labelling {
+        let jointly = std::mem::take(&mut self.jointly);
         self.edge_on = if side_view(lm) {
             (self.edge_on + 1).min(SIDE_VIEW_FRAMES)
         } else {
@@ -340,7 +373,15 @@ impl SideGuard {
         let step = if swapped { weight } else { -weight };
         self.evidence = self.evidence * EVIDENCE_KEPT + step;
         self.weight = self.weight * EVIDENCE_KEPT + weight;
-        let done = if self.evidence > RELABEL_MARGIN.max(RELABEL_SHARE * self.weight) {
+        // Two models reading this frame squarely and alike need only the share of the
+        // readings against; one model's need the margin its runs of misreadings call for too
+        // (module docs).
+        let margin = if jointly {
+            RELABEL_SHARE * self.weight
+        } else {
+            RELABEL_MARGIN.max(RELABEL_SHARE * self.weight)
+        };
+        let done = if self.evidence > margin {
             // The model's labelling: what spoke for the change now speaks for keeping it.
             self.evidence = -self.evidence;
             self.reference = None;
@@ -833,6 +874,44 @@ mod tests {
         let bound = usize::from(AUDIT_LONGEST) + usize::from(CONFIRM_FRAMES) + 4;
         assert!(first.is_some_and(|f| f <= bound), "{right:?}");
         assert!(right[first.unwrap_or(0)..].iter().all(|&r| r), "{right:?}");
+    }
+
+    #[test]
+    fn both_models_reading_squarely_alike_relabel_on_the_share_of_readings_against_alone() {
+        // A track started on a turning body read at a slant (little evidence either way), then
+        // turned to the back between two frames, both models reading the back squarely: the
+        // labelling follows on the first such frame. One model's readings needed the margin.
+        let slant = 1.25;
+        let back = body(std::f32::consts::PI + 0.1);
+        let mut guard = SideGuard::NEW;
+        for _ in 0..3 {
+            let truth = body(slant);
+            let _ = frame(&mut guard, truth, truth);
+        }
+        for frame_no in 0..20 {
+            assert_eq!(frame(&mut guard, back, back).0, back, "frame {frame_no}");
+        }
+        let mut alone = SideGuard::NEW;
+        for _ in 0..3 {
+            let _ = alone.label(&mut body(slant));
+        }
+        let mut lm = back;
+        assert_eq!(alone.label(&mut lm), Labelling::Flipped);
+        // A labelling both models have read squarely for two seconds is not overturned by a
+        // run of frames both misread (the fashion model's back read as a front by both for
+        // four frames).
+        let mut guard = SideGuard::NEW;
+        for _ in 0..60 {
+            let _ = frame(&mut guard, back, back);
+        }
+        for frame_no in 0..4 {
+            let misread = flipped(back);
+            assert_eq!(
+                frame(&mut guard, misread, misread).0,
+                back,
+                "frame {frame_no}"
+            );
+        }
     }
 
     #[test]
