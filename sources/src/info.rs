@@ -5,13 +5,14 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use rigcast_retarget::{world_transforms, Clip, Skeleton};
+use rigcast_retarget::{Clip, Skeleton};
 
-use crate::bvh::{extent_of, read_bvh, BvhReadOptions};
+use crate::bvh::{read_bvh, BvhReadOptions};
 use crate::error::SourceError;
 use crate::files::{extension, read_file, stem};
 use crate::gltf::{read_gltf, AnimationInfo, GltfReadOptions};
 use crate::recording::{clip_from_recording, read_recording};
+use crate::stature::stature;
 
 /// A summary of one file's skeleton and animation.
 #[derive(Debug, Clone)]
@@ -24,10 +25,10 @@ pub struct FileInfo {
     pub skeleton: Arc<Skeleton>,
     /// Number of bones (BVH End Sites included, as `<parent>_end` leaves).
     pub num_bones: usize,
-    /// Vertical extent of the figure, metres.
+    /// Standing height of the figure along its own up axis, metres.
     pub height_m: f32,
-    /// True when the rest pose is degenerate (bones along one line) and the height was measured
-    /// on the first animation frame instead.
+    /// True when the rest pose is not a posture (bones folded along one line) and the height
+    /// was measured on the first animation frame instead.
     pub height_from_first_frame: bool,
     /// Frame rate of the loaded animation (None without frames).
     pub fps: Option<f64>,
@@ -37,8 +38,9 @@ pub struct FileInfo {
     pub duration_secs: f64,
     /// All animations in the file (one entry for BVH and recordings).
     pub animations: Vec<AnimationInfo>,
-    /// BVH only: metres per file unit applied, and whether it was guessed.
-    pub bvh_scale: Option<(f32, bool)>,
+    /// BVH only: metres per file unit applied, whether it was guessed, and how sure the guess
+    /// is (0..1; 1 when given).
+    pub bvh_scale: Option<(f32, bool, f32)>,
     /// VRM only: humanoid role → bone name.
     pub vrm_roles: Option<BTreeMap<String, String>>,
     /// Recordings only: (subjects, frames, raw packets, ended cleanly).
@@ -65,14 +67,24 @@ impl fmt::Display for FileInfo {
         writeln!(f, "format:    {}", self.format)?;
         writeln!(f, "bones:     {}", self.num_bones)?;
         let note = if self.height_from_first_frame {
-            " (first frame; rest pose is degenerate)"
+            " (first frame; the rest pose is not a posture)"
         } else {
             ""
         };
         writeln!(f, "height:    {:.3} m{note}", self.height_m)?;
-        if let Some((scale, guessed)) = self.bvh_scale {
-            let how = if guessed { "guessed" } else { "given" };
-            writeln!(f, "scale:     {scale} m per unit ({how})")?;
+        match self.bvh_scale {
+            Some((scale, false, _)) => writeln!(f, "scale:     {scale} m per unit (given)")?,
+            Some((scale, true, sure)) => writeln!(
+                f,
+                "scale:     {scale} m per unit (guessed from the height, {:.0} % sure{})",
+                sure * 100.0,
+                if sure < 0.8 {
+                    "; the unit may be wrong"
+                } else {
+                    ""
+                }
+            )?,
+            None => {}
         }
         match self.fps {
             Some(fps) => writeln!(
@@ -106,30 +118,11 @@ impl fmt::Display for FileInfo {
     }
 }
 
-/// Vertical extent at rest, or on the first frame when the rest layout is degenerate.
+/// Standing height along the figure's own up axis, at rest or on the first frame when the
+/// rest is not a posture (see [`stature`]).
 fn height_of(clip: &Clip) -> (f32, bool) {
-    let rest = world_transforms(&clip.skeleton, &clip.skeleton.rest_pose());
-    let points: Vec<_> = rest.iter().map(|w| w.translation).collect();
-    let (_, degenerate) = extent_of(&points);
-    let (pose_points, from_frame) = match clip.poses.first() {
-        Some(p) if degenerate => (
-            world_transforms(&clip.skeleton, p)
-                .iter()
-                .map(|w| w.translation)
-                .collect::<Vec<_>>(),
-            true,
-        ),
-        _ => (points, false),
-    };
-    let lo = pose_points
-        .iter()
-        .map(|p| p.y)
-        .fold(f32::INFINITY, f32::min);
-    let hi = pose_points
-        .iter()
-        .map(|p| p.y)
-        .fold(f32::NEG_INFINITY, f32::max);
-    ((hi - lo).max(0.0), from_frame)
+    let s = stature(&clip.skeleton, clip.poses.first());
+    (s.height, s.from_first_frame)
 }
 
 /// Reads `path` and summarises it (see [`FileInfo`]).
@@ -146,7 +139,7 @@ fn describe_inner(path: &Path) -> Result<FileInfo, SourceError> {
     let (format, clip, animations) = match ext.as_str() {
         "bvh" => {
             let r = read_bvh(&bytes, &stem(path), &BvhReadOptions::default())?;
-            bvh_scale = Some((r.scale, r.scale_guessed));
+            bvh_scale = Some((r.scale, r.scale_guessed, r.scale_confidence));
             let a = vec![AnimationInfo {
                 name: r.clip.name.clone(),
                 duration_secs: r.clip.duration_secs(),

@@ -26,6 +26,7 @@ pub mod live;
 pub mod recording;
 pub mod replay;
 pub mod serial;
+pub mod stature;
 #[cfg(feature = "vision")]
 pub mod vision;
 pub mod vmc_in;

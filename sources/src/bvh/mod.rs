@@ -15,13 +15,12 @@
 
 mod layout;
 mod parse;
+mod units;
 mod write;
 
 pub use layout::{write_bvh_onto, BvhLayout, LayoutJoint};
-pub(crate) use parse::extent_of;
-pub use parse::{
-    guess_scale, read_bvh, BvhRead, BvhReadOptions, FRAME_TIME_RANGE_SECS, MAX_JOINT_DEPTH,
-};
+pub use parse::{read_bvh, BvhRead, BvhReadOptions, FRAME_TIME_RANGE_SECS, MAX_JOINT_DEPTH};
+pub use units::{guess_unit, UnitGuess, UNIT_CANDIDATES};
 pub use write::{write_bvh, BvhWriteOptions};
 
 /// One BVH channel.

@@ -24,13 +24,15 @@ use glam::{Quat, Vec3};
 use rigcast_retarget::{Clip, Pose, RawSkeleton, Skeleton, Transform};
 
 use super::layout::{BvhLayout, LayoutJoint};
+use super::units::{guess_unit, UnitGuess};
 use super::Channel;
 use crate::error::SourceError;
+use crate::stature::stature;
 
 /// Options for reading BVH.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct BvhReadOptions {
-    /// Metres per file unit. `None` guesses from the skeleton's size (see [`guess_scale`]).
+    /// Metres per file unit. `None` guesses from the figure's standing height (see [`guess_unit`]).
     pub scale: Option<f32>,
 }
 
@@ -43,6 +45,8 @@ pub struct BvhRead {
     pub scale: f32,
     /// True when `scale` was guessed rather than given.
     pub scale_guessed: bool,
+    /// 0..1, how clearly the guessed unit beats the others (see [`UnitGuess`]); 1 when given.
+    pub scale_confidence: f32,
     /// Number of ROOT/JOINT entries (End Sites excluded).
     pub num_joints: usize,
     /// Number of End Sites (each became a leaf bone).
@@ -454,29 +458,6 @@ fn joint_local(j: &RawJoint, values: &[f32], scale: f32) -> (Quat, Vec3) {
     (rotation.normalize(), t * scale)
 }
 
-/// Candidate units, metres per unit: metres, CMU's "inches / 0.45", inches, centimetres,
-/// millimetres.
-const UNIT_CANDIDATES: [f32; 5] = [1.0, 0.056444, 0.0254, 0.01, 0.001];
-
-/// Guesses metres per file unit from a figure's size in file units: picks the candidate unit
-/// that brings it closest (in ratio) to a 1.7 m human. A heuristic: non-human figures may need
-/// an explicit scale.
-pub fn guess_scale(size_in_file_units: f32) -> f32 {
-    if !(size_in_file_units.is_finite() && size_in_file_units > 0.0) {
-        return 1.0;
-    }
-    let mut best = 1.0;
-    let mut best_err = f32::INFINITY;
-    for s in UNIT_CANDIDATES {
-        let err = (size_in_file_units * s / 1.7).ln().abs();
-        if err < best_err {
-            best_err = err;
-            best = s;
-        }
-    }
-    best
-}
-
 /// Largest bounding-box extent of the joint positions, and whether the box is degenerate
 /// (all joints near one line: a rest layout that is not a posture).
 pub fn extent_of(points: &[Vec3]) -> (f32, bool) {
@@ -519,6 +500,65 @@ fn positions(joints: &[RawJoint], frame: Option<&[f32]>) -> Vec<Vec3> {
     world.into_iter().map(|(_, t)| t).collect()
 }
 
+/// A first unit from the joints' largest extent (on the first frame when the rest lies on a
+/// line), close enough to size the analysis that measures the standing height.
+fn provisional_scale(joints: &[RawJoint], frames: &[Vec<f32>]) -> f32 {
+    let (mut size, degenerate) = extent_of(&positions(joints, None));
+    if degenerate {
+        if let Some(first) = frames.first() {
+            size = extent_of(&positions(joints, Some(first))).0;
+        }
+    }
+    guess_unit(size).scale
+}
+
+/// The skeleton of `joints` at `scale` metres per unit, and each joint's bone index.
+fn skeleton_at(
+    joints: &[RawJoint],
+    scale: f32,
+) -> Result<(Arc<Skeleton>, Vec<usize>), SourceError> {
+    let mut raw = RawSkeleton::default();
+    for j in joints {
+        raw.add(
+            j.name.clone(),
+            j.parent,
+            Transform::from_translation(j.offset * scale),
+        );
+    }
+    let skeleton = Arc::new(Skeleton::build(&raw)?);
+    // Map file order to skeleton order (identical for well-formed files, but don't rely on it).
+    let mut to_bone = Vec::with_capacity(joints.len());
+    for j in joints {
+        let id = skeleton
+            .bone(&j.name)
+            .ok_or_else(|| SourceError::InvalidOption {
+                reason: format!("bone {:?} vanished while building the skeleton", j.name),
+            })?;
+        to_bone.push(id.index());
+    }
+    Ok((skeleton, to_bone))
+}
+
+/// One frame's channel values as a pose of `skeleton`.
+fn pose_of(
+    skeleton: &Skeleton,
+    joints: &[RawJoint],
+    to_bone: &[usize],
+    values: &[f32],
+    scale: f32,
+) -> Pose {
+    let mut pose = Pose::from_rest(skeleton);
+    let mut k = 0;
+    for (ji, j) in joints.iter().enumerate() {
+        let n = j.channels.len();
+        let (r, t) = joint_local(j, &values[k..k + n], scale);
+        k += n;
+        pose.rotations[to_bone[ji]] = r;
+        pose.translations[to_bone[ji]] = t;
+    }
+    pose
+}
+
 fn build(
     name: &str,
     mut joints: Vec<RawJoint>,
@@ -543,55 +583,37 @@ fn build(
         used.insert(candidate.clone());
         j.name = candidate;
     }
-    let (scale, scale_guessed) = match opts.scale {
-        Some(s) if s.is_finite() && s > 0.0 => (s, false),
+    let given = match opts.scale {
+        Some(s) if s.is_finite() && s > 0.0 => Some(s),
         Some(s) => {
             return Err(SourceError::InvalidOption {
                 reason: format!("BVH scale must be positive and finite, got {s}"),
             })
         }
-        None => {
-            let (mut size, degenerate) = extent_of(&positions(&joints, None));
-            if degenerate {
-                if let Some(first) = frames.first() {
-                    size = extent_of(&positions(&joints, Some(first))).0;
-                }
-            }
-            (guess_scale(size), true)
-        }
+        None => None,
     };
-    let mut raw = RawSkeleton::default();
-    for j in &joints {
-        raw.add(
-            j.name.clone(),
-            j.parent,
-            Transform::from_translation(j.offset * scale),
-        );
-    }
-    let skeleton = Arc::new(Skeleton::build(&raw)?);
-    // Map file order to skeleton order (identical for well-formed files, but don't rely on it).
-    let mut to_bone = Vec::with_capacity(joints.len());
-    for j in &joints {
-        let id = skeleton
-            .bone(&j.name)
-            .ok_or_else(|| SourceError::InvalidOption {
-                reason: format!("bone {:?} vanished while building the skeleton", j.name),
-            })?;
-        to_bone.push(id.index());
-    }
-    let mut poses = Vec::with_capacity(frames.len());
-    for values in frames {
-        let mut pose = Pose::from_rest(&skeleton);
-        let mut k = 0;
-        for (ji, j) in joints.iter().enumerate() {
-            let n = j.channels.len();
-            let (r, t) = joint_local(j, &values[k..k + n], scale);
-            k += n;
-            pose.rotations[to_bone[ji]] = r;
-            pose.translations[to_bone[ji]] = t;
+    let mut unit = UnitGuess {
+        scale: given.unwrap_or_else(|| provisional_scale(&joints, frames)),
+        confidence: 1.0,
+    };
+    let (mut skeleton, mut to_bone) = skeleton_at(&joints, unit.scale)?;
+    if given.is_none() {
+        // The provisional unit only sizes the analysis; the guess is made on the figure's
+        // standing height along its own up axis.
+        let provisional = unit.scale;
+        let first = frames
+            .first()
+            .map(|v| pose_of(&skeleton, &joints, &to_bone, v, provisional));
+        unit = guess_unit(stature(&skeleton, first.as_ref()).height / provisional);
+        if unit.scale != provisional {
+            (skeleton, to_bone) = skeleton_at(&joints, unit.scale)?;
         }
-        poses.push(pose);
     }
+    let scale = unit.scale;
+    let poses: Vec<Pose> = frames
+        .iter()
+        .map(|v| pose_of(&skeleton, &joints, &to_bone, v, scale))
+        .collect();
     let mut channels = vec![Vec::new(); joints.len()];
     for (ji, j) in joints.iter().enumerate() {
         channels[to_bone[ji]] = j.channels.clone();
@@ -615,7 +637,8 @@ fn build(
     Ok(BvhRead {
         clip,
         scale,
-        scale_guessed,
+        scale_guessed: given.is_none(),
+        scale_confidence: unit.confidence,
         num_joints: joints.len() - num_end_sites,
         num_end_sites,
         channels,

@@ -95,15 +95,19 @@ pub(crate) fn assert_clips_equal(a: &rigcast_retarget::Clip, b: &rigcast_retarge
 
 #[test]
 fn guesses_units_from_height() {
-    assert_eq!(guess_scale(1.8), 1.0);
-    assert_eq!(guess_scale(175.0), 0.01);
-    assert_eq!(guess_scale(1750.0), 0.001);
-    assert_eq!(guess_scale(31.0), 0.056444);
     let r = read_bvh(SMALL.as_bytes(), "t", &BvhReadOptions::default()).unwrap();
-    // Rest layout spans 20 (arm) units vertically and 10 horizontally: not degenerate;
-    // 20 units is closest to a human in CMU units.
+    // The rest stands 20 units tall along Y (hips to the arm's end): 2.0 m in decimetres, the
+    // unit nearest a person's height, though 1.13 m in CMU units is not far behind.
     assert!(r.scale_guessed);
-    assert_eq!(r.scale, 0.056444);
+    assert_eq!(r.scale, 0.1);
+    assert!(
+        (0.5..0.9).contains(&r.scale_confidence),
+        "{}",
+        r.scale_confidence
+    );
+    let given = read(SMALL).unwrap();
+    assert!(!given.scale_guessed);
+    assert_eq!(given.scale_confidence, 1.0);
 }
 
 fn expect_err(text: &[u8]) -> SourceError {
