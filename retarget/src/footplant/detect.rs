@@ -694,6 +694,7 @@ mod tests {
             foot: BoneId(2),
             toes: None,
             length: 0.8,
+            carried: false,
         };
         let c = ClipContacts {
             joints: vec![(0, BoneId(2))],

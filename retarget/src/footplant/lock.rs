@@ -326,6 +326,9 @@ struct Foot {
     /// Last frame's animated ankle before the root's move onto the standing feet (the foot's
     /// slide over the ground, [`FootLock::carry_root`]).
     raw_ankle: Vec3,
+    /// A foot carried at its shin's end from beside the body ([`Leg::carried`]): where it
+    /// sits in the lower bone's frame, so it goes wherever the leg puts the shin.
+    carried: Option<Vec3>,
 }
 
 impl Foot {
@@ -591,6 +594,10 @@ fn standing_foot(
         animated_heading: 0.0,
         seen: false,
         raw_ankle: ankle,
+        carried: leg.carried.then(|| {
+            let shin = w(leg.lower);
+            shin.rotation.inverse() * (ankle - shin.translation)
+        }),
     }
 }
 
@@ -823,7 +830,7 @@ impl FootLock {
             };
             out.rotations[foot.leg.foot.index()] = (parent.inverse() * turned).normalize();
         }
-        forward_kinematics(&self.target, out, &mut self.worlds);
+        self.fk(out);
         true
     }
 
@@ -967,7 +974,7 @@ impl FootLock {
         if out.check(&self.target).is_err() {
             return;
         }
-        forward_kinematics(&self.target, out, &mut self.worlds);
+        self.fk(out);
         let dt = dt_secs.max(0.0);
         self.take_lifts(lifts);
         if live {
@@ -980,7 +987,7 @@ impl FootLock {
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
         if self.raise_hips(out) {
-            forward_kinematics(&self.target, out, &mut self.worlds);
+            self.fk(out);
         }
         // The floor first (a locked goal lifted above it may need the hips lower), then again
         // after the hips came down: an unlocked foot moves down with them.
@@ -990,7 +997,7 @@ impl FootLock {
         let drop = self.lower_hips(out, dt);
         self.last_drop = drop;
         if drop > 0.0 {
-            forward_kinematics(&self.target, out, &mut self.worlds);
+            self.fk(out);
         }
         for i in 0..self.feet.len() {
             self.clamp_to_floor(i, drop);
@@ -1097,7 +1104,7 @@ impl FootLock {
             None => Quat::IDENTITY,
         };
         out.translations[root.index()] += parent.inverse() * shift;
-        forward_kinematics(&self.target, out, &mut self.worlds);
+        self.fk(out);
     }
 
     fn heading(&self, foot: &Foot, rotation: Quat) -> f32 {
@@ -1444,8 +1451,33 @@ impl FootLock {
         drop
     }
 
-    /// Two-bone IK of foot `i` onto its goal; writes the upper, lower and foot rotations and
-    /// returns where the ankle went.
+    /// The target's world transforms of `out`, with every carried foot placed at its shin's
+    /// end (in `out` too): a move of the root moves the legs but not a foot beside them.
+    fn fk(&mut self, out: &mut Pose) {
+        forward_kinematics(&self.target, out, &mut self.worlds);
+        for i in 0..self.feet.len() {
+            let Some(offset) = self.feet[i].carried else {
+                continue;
+            };
+            let leg = self.feet[i].leg;
+            let at = self.worlds[leg.lower.index()].transform_point(offset);
+            let parent = self.parent_world(leg.foot);
+            out.translations[leg.foot.index()] =
+                parent.rotation.inverse() * (at - parent.translation);
+            self.worlds[leg.foot.index()].translation = at;
+        }
+    }
+
+    /// The world transform `bone` hangs from (identity for a root).
+    fn parent_world(&self, bone: BoneId) -> WorldTransform {
+        match self.target.parent(bone) {
+            Some(p) => self.worlds[p.index()],
+            None => WorldTransform::IDENTITY,
+        }
+    }
+
+    /// Two-bone IK of foot `i` onto its goal; writes the upper, lower and foot rotations (and a
+    /// carried foot's place) and returns where the ankle went.
     fn solve_leg(&mut self, i: usize, out: &mut Pose) -> Vec3 {
         let leg = self.feet[i].leg;
         let goal = self.goals[i];
@@ -1478,6 +1510,15 @@ impl FootLock {
         let lower_parent = s.upper * parent_world(leg.lower);
         let lower_world = s.lower * s.upper * wl.rotation;
         out.rotations[leg.lower.index()] = (lower_parent.inverse() * lower_world).normalize();
+        if self.feet[i].carried.is_some() {
+            // Beside the body: the leg does not turn it; it goes where the shin now ends.
+            let parent = self.parent_world(leg.foot);
+            out.translations[leg.foot.index()] =
+                parent.rotation.inverse() * (s.ankle - parent.translation);
+            let turned = parent.rotation.inverse() * goal.rotation;
+            out.rotations[leg.foot.index()] = turned.normalize();
+            return s.ankle;
+        }
         let foot_parent = s.lower * s.upper * parent_world(leg.foot);
         out.rotations[leg.foot.index()] = (foot_parent.inverse() * goal.rotation).normalize();
         s.ankle
@@ -1501,6 +1542,7 @@ mod tests {
             foot: BoneId(2),
             toes: None,
             length: 1.0,
+            carried: false,
         };
         // Planted 0-3, a 2-frame gap, 6-9, a 10-frame swing, 20-24.
         let flags: Vec<bool> = (0..25)

@@ -3,9 +3,10 @@
 //!
 //! ```text
 //!  Analysis roles ─▶ rig::find_legs      hind legs (thigh, shin, foot, toes) and a
-//!                                        quadruped's front legs, by side and pair (a
-//!                                        source's: find_contact_legs, feet hanging from
-//!                                        anywhere)
+//!                                        quadruped's front legs, by side and pair; a
+//!                                        lone IK foot beside the body is carried at
+//!                                        its shin's end (a source's: find_contact_legs,
+//!                                        feet hanging from anywhere)
 //!  source motion ─▶ detect               heel or ball near its ground AND slow, relative
 //!                                        to the leg's length and the body's speed;
 //!                                        hysteresis; causal

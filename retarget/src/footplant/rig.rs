@@ -36,6 +36,10 @@ pub struct Leg {
     pub toes: Option<BoneId>,
     /// Hip to ankle along the bones at the analysis's posture, metres.
     pub length: f32,
+    /// The foot hangs beside the body instead of below the shin (an IK-style rig's foot, a
+    /// lone bone under the armature root): bending the leg does not move it, so the
+    /// retargeter carries it at the shin's end and the lock places it there.
+    pub carried: bool,
 }
 
 impl Leg {
@@ -70,20 +74,20 @@ fn is_below(skel: &Skeleton, ancestor: BoneId, mut bone: BoneId) -> bool {
     false
 }
 
-/// Every standing leg of `skel` (at most [`MAX_FEET`]), in bone order. Empty for a rig without
-/// legs (an upper body, a hand, a snake).
+/// Every standing leg of `skel` (at most [`MAX_FEET`]), in bone order: its foot below its
+/// shin, or a lone foot bone beside the body that continues the shin (an IK-style rig's,
+/// [`Leg::carried`]). Empty for a rig without legs (an upper body, a hand, a snake).
 pub fn find_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
     legs_of(skel, analysis, false)
 }
 
-/// [`find_legs`] for a rig whose plants are only watched (a source's): a foot that does not
-/// hang below its shin (an IK-style rig whose feet hang from the root) still stands on the
-/// ground, so its leg is found with it.
+/// [`find_legs`] for a rig whose plants are only watched (a source's): a foot beside the body
+/// with bones of its own below it still stands on the ground, so its leg is found with it.
 pub fn find_contact_legs(skel: &Skeleton, analysis: &Analysis) -> Vec<Leg> {
     legs_of(skel, analysis, true)
 }
 
-fn legs_of(skel: &Skeleton, analysis: &Analysis, detached_feet: bool) -> Vec<Leg> {
+fn legs_of(skel: &Skeleton, analysis: &Analysis, watched: bool) -> Vec<Leg> {
     let mut legs = Vec::new();
     if analysis.roles.len() != skel.num_bones() {
         return legs;
@@ -102,18 +106,21 @@ fn legs_of(skel: &Skeleton, analysis: &Analysis, detached_feet: bool) -> Vec<Leg
         let Some(lower) = find_below(skel, analysis, lower_role, r.side, r.limb, b) else {
             continue;
         };
-        // A foot that does not hang below its shin (a rig whose feet sit beside the legs)
-        // cannot be reached by bending the leg: such a leg is not locked.
-        let found = find_below(skel, analysis, foot_role, r.side, r.limb, lower).or_else(|| {
+        // A foot that does not hang below its shin (a rig whose feet sit beside the legs) is
+        // carried at the shin's end when it is a bone alone (nothing below it to carry too).
+        let below = find_below(skel, analysis, foot_role, r.side, r.limb, lower);
+        let beside = below.is_none().then(|| {
             let (side, limb) = (r.side, r.limb);
             let detached = |f: &BoneId| {
                 let fr = &analysis.roles[f.index()];
                 fr.role == foot_role && fr.side == side && fr.limb == limb
             };
-            (detached_feet && kind == LegKind::Hind)
+            (kind == LegKind::Hind)
                 .then(|| skel.bone_ids().find(detached))
                 .flatten()
+                .filter(|&f| watched || skel.children(f).is_empty())
         });
+        let found = below.or(beside.flatten());
         let (b, lower, foot) = match (found, kind) {
             (Some(foot), _) => (b, lower, foot),
             // A front leg that ends at its forearm (the hoof is the forearm's far end, with
@@ -145,6 +152,7 @@ fn legs_of(skel: &Skeleton, analysis: &Analysis, detached_feet: bool) -> Vec<Leg
             foot,
             toes,
             length,
+            carried: !is_below(skel, lower, foot),
         });
         if legs.len() == MAX_FEET {
             break;

@@ -98,7 +98,11 @@ impl BodySplit {
             .enumerate()
             .map(|(k, &b)| (b, (k + 1) as f32 / n as f32))
             .collect();
-        let legs = crate::footplant::find_legs(skel, analysis);
+        // The graft cuts at the hips and keeps the legs' own chains: a foot carried beside
+        // the body (an IK rig's) is no part of them, so such legs are not grafted.
+        let legs: Vec<_> = (crate::footplant::find_legs(skel, analysis).into_iter())
+            .filter(|l| !l.carried)
+            .collect();
         let leg_length = legs.iter().map(|l| l.length).fold(0.0, f32::max);
         let hind = |side: Side| {
             legs.iter()

@@ -513,6 +513,7 @@ impl Mapping {
         // when the target's own rest lies along another axis (Z-up files).
         let mut aligned_w = vec![WorldTransform::IDENTITY; target.num_bones()];
         crate::fk::forward_kinematics(target, &aligned, &mut aligned_w);
+        let carried: Vec<(BoneId, BoneId)> = plan.carried.iter().map(|c| c.pair()).collect();
         plan.root = setup.root_pair().map(|(rt, rs)| {
             let input = rs.input as usize;
             RootPlan::new(
@@ -520,11 +521,13 @@ impl Mapping {
                     skel: sources[input],
                     worlds: &setup.src_w[input],
                     eps: setup.src_eps[input],
+                    carried: &[],
                 },
                 Side {
                     skel: target,
                     worlds: &aligned_w,
                     eps: setup.tgt_eps,
+                    carried: &carried,
                 },
                 &setup.tgt_w,
                 table,

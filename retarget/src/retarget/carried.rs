@@ -24,6 +24,11 @@ pub(super) struct Carried {
 }
 
 impl Carried {
+    /// The bone carried and the leaf carrying it.
+    pub(super) fn pair(&self) -> (BoneId, BoneId) {
+        (self.bone, self.by)
+    }
+
     /// `bone` carried by leaf `by`, placed as the reference worlds `worlds` show them.
     pub(super) fn new(worlds: &[WorldTransform], bone: BoneId, by: BoneId) -> Self {
         let (b, l) = (worlds[bone.index()], worlds[by.index()]);

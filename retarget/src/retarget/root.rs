@@ -64,6 +64,9 @@ pub(super) struct Side<'a> {
     pub(super) skel: &'a Skeleton,
     pub(super) worlds: &'a [WorldTransform],
     pub(super) eps: f32,
+    /// Bones carried at a limb's end from beside the body, with the leaf carrying each
+    /// (`carried`): measured as if they hung from it.
+    pub(super) carried: &'a [(BoneId, BoneId)],
 }
 
 /// Segments within about 37° of `up` count as leg (thigh, shin); the foot's slope and the hip
@@ -71,13 +74,33 @@ pub(super) struct Side<'a> {
 const LEG_SEGMENT_COS: f32 = 0.8;
 
 impl Side<'_> {
+    /// The bone `b` hangs from: its parent, or the leaf that carries it.
+    fn parent(&self, b: BoneId) -> Option<BoneId> {
+        match self.carried.iter().find(|c| c.0 == b) {
+            Some(&(_, by)) => Some(by),
+            None => self.skel.parent(b),
+        }
+    }
+
+    /// Whether `d` is `a` or hangs below it (through [`Side::parent`]).
+    fn is_descendant(&self, a: BoneId, d: BoneId) -> bool {
+        let mut b = Some(d);
+        while let Some(x) = b {
+            if x == a {
+                return true;
+            }
+            b = self.parent(x);
+        }
+        false
+    }
+
     /// The segments (joint to joint, world space) from `top` down to `low`, those longer than
     /// `eps`; empty when `low` is not below `top`.
     fn segments_down(&self, top: BoneId, low: BoneId) -> Vec<Vec3> {
         let mut path = vec![low];
         let mut b = low;
         while b != top {
-            match self.skel.parent(b) {
+            match self.parent(b) {
                 Some(p) => b = p,
                 None => return Vec::new(),
             }
@@ -128,7 +151,7 @@ fn mapped_leg_lengths(
     let mut joints = vec![low];
     let mut b = low.0;
     while b != top.0 {
-        let Some(p) = tgt.skel.parent(b) else {
+        let Some(p) = tgt.parent(b) else {
             return (0.0, 0.0);
         };
         b = p;
@@ -211,7 +234,13 @@ impl RootPlan {
             .fold(f32::INFINITY, f32::min);
         let near_src_feet = lowest_src + 0.25 * (y_s(rs.bone) - lowest_src).abs();
         below.retain(|&(t, s)| !keeps_own(t) || y_s(s) <= near_src_feet);
-        let low = below
+        // The target's feet are where the source's feet go: joints driven by the source's
+        // lowest ones (a long-armed target's fingers may hang below its feet in the source's
+        // posture, and are no floor).
+        let feet: Vec<(BoneId, BoneId)> = (below.iter().copied())
+            .filter(|&(_, s)| y_s(s) <= near_src_feet)
+            .collect();
+        let low = feet
             .iter()
             .copied()
             .min_by(|a, b| y_t(a.0).total_cmp(&y_t(b.0)));
@@ -224,7 +253,7 @@ impl RootPlan {
             let first = tgt.leg_height(rt, tl, up);
             // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
             let (mut sum_t, mut sum_s) = (0.0, 0.0);
-            for &(t, s) in below
+            for &(t, s) in feet
                 .iter()
                 .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
             {
@@ -246,7 +275,7 @@ impl RootPlan {
                 scale = sum_t / sum_s;
             }
             // Feet: mapped joints near the lowest one (toes, ankles, both sides).
-            contacts = contact_pairs(tgt.skel, &below, rt, y_t(tl) + 0.15 * first, &y_t);
+            contacts = contact_pairs(&tgt, &feet, rt, y_t(tl) + 0.15 * first, &y_t);
             let lowest_s = contacts
                 .iter()
                 .map(|&(_, b, _)| y_s(b))
@@ -311,7 +340,7 @@ fn pairs_below(
     rs: SourceRef,
 ) -> Vec<(BoneId, BoneId)> {
     (tgt.skel.bone_ids())
-        .filter(|&t| t != rt && align::is_descendant(tgt.skel, rt, t))
+        .filter(|&t| t != rt && tgt.is_descendant(rt, t))
         .filter_map(|t| {
             let s = primary(table, t)?;
             (s.input == rs.input
@@ -326,7 +355,7 @@ fn pairs_below(
 /// each with the index of its leg (the root child it hangs from; more than `MAX_LEGS` share
 /// the last).
 fn contact_pairs(
-    skel: &Skeleton,
+    tgt: &Side<'_>,
     below: &[(BoneId, BoneId)],
     rt: BoneId,
     near: f32,
@@ -340,7 +369,7 @@ fn contact_pairs(
         .map(|(t, s)| {
             // The leg: the root's child this joint hangs from.
             let mut top = t;
-            while let Some(p) = skel.parent(top).filter(|&p| p != rt) {
+            while let Some(p) = tgt.parent(top).filter(|&p| p != rt) {
                 top = p;
             }
             let leg = legs.iter().position(|&l| l == top).unwrap_or_else(|| {
@@ -394,7 +423,7 @@ fn top_pair(
     s: BoneId,
 ) -> Option<(BoneId, BoneId)> {
     let mut best = None;
-    let mut a = tgt.skel.parent(t);
+    let mut a = tgt.parent(t);
     while let Some(b) = a.filter(|&b| b != rt) {
         if let Some(sb) = primary(table, b).filter(|r| r.input == rs.input) {
             if sb.bone != rs.bone
@@ -404,7 +433,7 @@ fn top_pair(
                 best = Some((b, sb.bone));
             }
         }
-        a = tgt.skel.parent(b);
+        a = tgt.parent(b);
     }
     best
 }
