@@ -4,9 +4,10 @@
 //! the same frames in the same run, clip by clip in turn.
 //!
 //! Per clip: coverage of every identity slot, identity jumps (a slot's hips moving more than
-//! 15 % of the source frame's longer side between frames at most 2 apart; MediaPipe's by the
-//! same measure beside them; both sides' output landmarks, smoothed as each gives them by
-//! default), left/right agreement, the detector runs per frame, the landmark model runs per
+//! 15 % of the source frame's longer side between frames at most 2 apart, in the picture and
+//! against the scene's own motion alike: a camera's whip carries a person as far; MediaPipe's
+//! by the same measure beside them; both sides' output landmarks, smoothed as each gives them
+//! by default), left/right agreement, the detector runs per frame, the landmark model runs per
 //! frame (with the second-opinion model's where the first's left/right readings were in doubt),
 //! and the frame rate with decoding on both sides (each clock started after the first frame).
 //! Left/right is judged against the 3D reference where the clip is a camera of a calibrated rig
@@ -41,6 +42,8 @@ mod mediapipe;
 mod multiview;
 #[path = "common/reference3d.rs"]
 mod reference3d;
+#[path = "common/scene_motion.rs"]
+mod scene_motion;
 #[path = "common/shared_data.rs"]
 mod shared_data;
 
@@ -55,6 +58,7 @@ use rigcast_sources::vision::{
     DecodeSize, FfmpegSource, FrameSource, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
     VisionAssets,
 };
+use scene_motion::{scene_track, Thumb};
 
 /// File name endings of videos in the footage folder.
 const VIDEO_ENDINGS: [&str; 5] = ["mp4", "avi", "mkv", "mov", "webm"];
@@ -71,6 +75,9 @@ struct Ours {
     /// Per frame, per slot: the output landmarks' image points when seen (smoothed, what a
     /// user gets, as MediaPipe's are by default).
     slots: Vec<Vec<Option<Points>>>,
+    /// Per frame, where the scene has moved since the first frame (source pixels; see
+    /// `scene_motion`).
+    scene: Vec<Vec2>,
     fps: f64,
     detections: u64,
     /// Landmark model runs (crops).
@@ -138,6 +145,8 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
     let mut frame = RgbFrame::default();
     let mut slots = Vec::new();
     let mut to_source = 1.0;
+    // The judge's own measure of the scene's motion is kept out of the frame rate.
+    let (mut thumbs, mut thumb_secs) = (Vec::new(), 0.0);
     while max.is_none_or(|m| slots.len() < m) && source.next_frame(&mut frame).unwrap() {
         to_source = frame.source_from_frame;
         pipeline.process_frame(&frame).unwrap();
@@ -146,17 +155,24 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
                 .map(|s| pipeline.person(s).map(points))
                 .collect(),
         );
+        let thumb_started = Instant::now();
+        thumbs.push(Thumb::new(&frame.data, frame.width, frame.height));
+        if started.is_some() {
+            thumb_secs += thumb_started.elapsed().as_secs_f64();
+        }
         started.get_or_insert_with(Instant::now);
     }
-    let secs = started.map_or(0.0, |t| t.elapsed().as_secs_f64());
+    let secs = started.map_or(0.0, |t| t.elapsed().as_secs_f64()) - thumb_secs;
     if let Some(dir) = std::env::var_os("RIGCAST_FOOTAGE_DUMP") {
         let name = path.file_name().unwrap().to_string_lossy();
         let file = Path::new(&dir).join(format!("{name}.{}.json", config.model.as_str()));
         std::fs::write(file, serde_json::to_string(&slots).unwrap()).unwrap();
     }
+    let width = decoded_width as f32 * to_source;
     Ours {
-        width: decoded_width as f32 * to_source,
+        width,
         height: decoded_height as f32 * to_source,
+        scene: scene_track(&thumbs, width),
         fps: slots.len().saturating_sub(1) as f64 / secs.max(1e-9),
         slots,
         detections: pipeline.stats().detections,
@@ -190,15 +206,23 @@ fn facing(p: &Points) -> f32 {
 
 /// Identity jumps of one person's frames (`None` where not seen): frame pairs at most
 /// [`JUMP_SPAN`] apart where the hips moved further than [`JUMP_FRACTION`] of the frame's
-/// longer side `side`.
-fn jumps<'a>(frames: impl Iterator<Item = Option<&'a Points>>, side: f32) -> usize {
+/// longer side `side`, both in the picture and against the scene (`scene`, where the scene has
+/// moved by each frame: see `scene_motion`). A camera's whip carries everyone across the
+/// picture as fast as a jump to someone else would; a track that stays with its person moves
+/// with the scene then, and one that jumps moves against it.
+fn jumps<'a>(frames: impl Iterator<Item = Option<&'a Points>>, scene: &[Vec2], side: f32) -> usize {
     let limit = JUMP_FRACTION * side;
     let hip: Vec<Option<Vec2>> = frames.map(|p| p.map(hips)).collect();
+    let pan = |i: usize, j: usize| match (scene.get(i), scene.get(j)) {
+        (Some(a), Some(b)) => *b - *a,
+        _ => Vec2::ZERO,
+    };
     (0..hip.len())
         .filter(|&i| {
             (1..=JUMP_SPAN).any(|d| {
                 matches!((hip[i], hip.get(i + d).copied().flatten()),
-                    (Some(a), Some(b)) if a.distance(b) > limit)
+                    (Some(a), Some(b)) if a.distance(b) > limit
+                        && (b - a - pan(i, i + d)).length() > limit)
             })
         })
         .count()
@@ -302,7 +326,7 @@ fn judge_clip(
         .collect();
     let side = ours.width.max(ours.height);
     let our_jumps: usize = (0..slots)
-        .map(|s| jumps(ours.slots.iter().map(|f| f[s].as_ref()), side))
+        .map(|s| jumps(ours.slots.iter().map(|f| f[s].as_ref()), &ours.scene, side))
         .sum();
     let mut failures = Vec::new();
     if our_jumps > 0 {
@@ -365,7 +389,7 @@ fn judge_clip(
     };
     let row = format!(
         "{ours_text} {theirs_cov:.1} | {our_jumps} ({}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} |",
-        jumps(theirs.frames.iter().map(Option::as_ref), side),
+        jumps(theirs.frames.iter().map(Option::as_ref), &ours.scene, side),
         theirs.fps,
         if theirs.cached { "- (cached)".into() } else { format!("{ratio:.2}") },
     );

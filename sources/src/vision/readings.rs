@@ -193,7 +193,12 @@ pub(super) fn continues(last: (Vec2, Vec2), velocity: Vec2, next: (Vec2, Vec2)) 
 
 /// True when body box `next` is about as tall as `last` (a quarter shorter to a third taller).
 fn similar_height(last: (Vec2, Vec2), next: (Vec2, Vec2)) -> bool {
-    (0.75..=1.33).contains(&(next.1.y.max(1.0) / last.1.y.max(1.0)))
+    similar_length(last.1.y, next.1.y)
+}
+
+/// True when length `next` is about `last` (a quarter shorter to a third longer).
+pub(super) fn similar_length(last: f32, next: f32) -> bool {
+    (0.75..=1.33).contains(&(next.max(1.0) / last.max(1.0)))
 }
 
 /// True when `next` shows a body about the size `last` showed (see [`similar_height`]): the
@@ -249,6 +254,21 @@ pub(super) fn mostly_within(inner: &Landmarks, outer: &Landmarks) -> bool {
     let inside = |p: Vec2| p.cmpge(lo).all() && p.cmple(hi).all();
     let within = seen(inner).filter(|&i| inside(point(inner, i))).count();
     2 * within > seen(inner).count()
+}
+
+/// True when at least half of the points `lm` sees (visibility at least [`SEEN`]) lie within
+/// a `width` × `height` picture: the model also reports points beyond the crop's edge as
+/// seen, and a reading that sees mostly beyond the picture's edge (a blurred pan read as a
+/// body leaning in from outside) shows nobody in it.
+pub(super) fn seen_in_picture(lm: &Landmarks, width: u32, height: u32) -> bool {
+    let size = Vec2::new(width as f32, height as f32);
+    let (mut seen, mut inside) = (0, 0);
+    for p in lm.image[..NUM_LANDMARKS].iter().filter(|p| p.w >= SEEN) {
+        seen += 1;
+        let p = Vec2::new(p.x, p.y);
+        inside += usize::from(p.cmpge(Vec2::ZERO).all() && p.cmplt(size).all());
+    }
+    seen > 0 && 2 * inside >= seen
 }
 
 /// See [`seen_boxes`]: the face alone (11 points) says little about the body's size.
@@ -421,6 +441,23 @@ mod tests {
             beside.image[i].x = 10.0;
         }
         assert!(!mostly_within(&beside, &tracked));
+    }
+
+    #[test]
+    fn a_reading_that_sees_mostly_beyond_the_picture_shows_nobody_in_it() {
+        // Left points at x 250, right at 150, all seen, y up to 310.
+        let lm = person(200.0);
+        assert!(seen_in_picture(&lm, 400, 400));
+        assert!(!seen_in_picture(&lm, 100, 400));
+        // Half of it in the picture: someone at its edge.
+        assert!(seen_in_picture(&lm, 200, 400));
+        // What is not seen does not count.
+        let mut faint = lm;
+        for &(l, _) in &LR_PAIRS {
+            faint.image[l].w = 0.1;
+        }
+        assert!(seen_in_picture(&faint, 200, 400));
+        assert!(!seen_in_picture(&Landmarks::default(), 400, 400));
     }
 
     #[test]

@@ -21,14 +21,19 @@
 //! while they are hidden.
 //!
 //! Identities are slots (`#0`, `#1`, …). A person found again shortly after being lost takes
-//! back the slot whose last position is nearest (within half its ROI) rather than any free
-//! one, so two performers crossing do not trade names, and only with a body of the size they
-//! were lost with; two tracks that converge on one body (joint by joint), or a new track on an
-//! established one's face, are one person twice, and the one not established, else the one
+//! back the slot of the lost person whose reach they lie deepest within rather than any free
+//! one, so two performers crossing do not trade names: half a body from where that person was
+//! or from where their last step was taking them, growing with every frame they are away (a
+//! dribbling player hidden for half a second is found a body further on). Only with a body of
+//! the size they were lost with or of their standing height (a box shrinks when its body
+//! crouches), and only where the picture shows them (a blurred pan read as someone leaning in
+//! from beyond the edge is nobody). Two tracks that converge on one body (joint by joint), or
+//! a new track on an established one's face, are one person twice, and the one not
+//! established, else the one
 //! that followed its body for less than half as long (it came onto the other's body from
 //! someone hidden behind them), else the one that jumped further is dropped; a reading upside
-//! down within another's upright body is that body misread, and
-//! dropped. Before
+//! down within another's upright body is that body misread, and dropped (its identity goes to
+//! the upright reading only when the misreading had followed the body longer). Before
 //! that, a result that lies on (or near) another tracked person's body is not taken: the
 //! crop is moved away from that person, a step at a time, until the model shows a body of the
 //! tracked person's own (someone crossing in front of another with their back to the camera
@@ -51,8 +56,8 @@ use super::landmarks::{idx, Landmarks};
 use super::model::LandmarkModel;
 use super::readings::{
     body_box, body_distance, continues, detected_face_of, face_disc, found_again, hip_centre,
-    mostly_within, same_body, same_face, same_size, seen_boxes, turned_over, upright_as_detected,
-    upside_down_twin,
+    mostly_within, same_body, same_face, same_size, seen_boxes, seen_in_picture, similar_length,
+    turned_over, upright_as_detected, upside_down_twin,
 };
 use super::roi::Roi;
 use super::sides::{Labelling, SideGuard};
@@ -177,6 +182,17 @@ const STILL_WAIT: u32 = 4;
 /// as large there).
 const DETECTOR_REGIONS: usize = 4;
 
+/// A person just lost is found again within half their body's size of where they were (or of
+/// where their last step takes them) ...
+const REACH_AT_LOSS: f32 = 0.5;
+/// ... and this much of their body's size further for every frame they have been away: a
+/// walker covers about a body height a second (0.03 a frame at 30 frames a second), a player
+/// dribbling or running about twice that.
+const REACH_PER_LOST_FRAME: f32 = 0.05;
+
+/// See `Track::stature`: it halves in about 70 frames unless a reading as tall comes.
+const STATURE_FADE: f32 = 0.99;
+
 /// Counters for diagnostics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TrackerStats {
@@ -230,8 +246,14 @@ struct Track {
     previous_place: Option<(Vec2, Vec2)>,
     /// How far the body box's centre moved from the frame before the last accepted one to
     /// it (frame pixels) when both were in a row; zero otherwise (someone taken back after a
-    /// loss has moved on meanwhile by nobody knows how much).
+    /// loss has moved on meanwhile by nobody knows how much). Kept while they are lost: where
+    /// they were heading is where they may be found (see [`Track::reach_from`]).
     velocity: Vec2,
+    /// The person's standing height in the picture (frame pixels): the tallest body box of
+    /// their readings, shrinking by [`STATURE_FADE`] a frame (someone walking away grows
+    /// smaller). A box is a posture's as much as a body's: crouched over a ball, or arms
+    /// lowered, it is a third shorter than the same person's a moment before.
+    stature: f32,
     /// Frames since the person was lost (0 while tracked).
     lost_frames: u32,
     /// Frames the person in this slot has been tracked (kept after losing them and counted on
@@ -258,6 +280,7 @@ impl Track {
         place: None,
         previous_place: None,
         velocity: Vec2::ZERO,
+        stature: 0.0,
         lost_frames: 0,
         held_frames: 0,
         run_frames: 0,
@@ -292,12 +315,26 @@ impl Track {
         self.run_frames > 2 * other.run_frames
     }
 
+    /// How deep within this lost person's reach a body centred at `center` lies: its distance
+    /// from where they were, or from where their last step would have taken them since, in
+    /// units of the reach (under 1: within it; None without a place). The reach is half their
+    /// body's size when just lost, and grows by [`REACH_PER_LOST_FRAME`] of it for every frame
+    /// they have been away (someone hidden for a second has walked on, a runner further),
+    /// plus `slack`.
+    fn reach_from(&self, center: Vec2, slack: f32) -> Option<f32> {
+        let (c, s) = self.place?;
+        let size = s.max_element().max(1.0);
+        let frames = self.lost_frames as f32;
+        let reach = size * (REACH_AT_LOSS + REACH_PER_LOST_FRAME * frames + slack);
+        let stepped = c + self.velocity * frames;
+        Some(c.distance(center).min(stepped.distance(center)) / reach)
+    }
+
     fn lose(&mut self) {
         self.roi = None;
         self.seen = false;
         self.lost_frames = 1;
         self.run_frames = 0;
-        self.velocity = Vec2::ZERO;
         self.opinion = None;
     }
 }
@@ -790,6 +827,8 @@ impl PoseTracker {
             Some(last) if t.lost_frames == 0 => place.0 - last.0,
             _ => Vec2::ZERO,
         };
+        let fade = STATURE_FADE.powi(t.lost_frames.max(1) as i32);
+        t.stature = (t.stature * fade).max(place.1.y);
         t.lost_frames = 0;
         t.previous_place = t.place;
         t.place = Some(place);
@@ -843,8 +882,10 @@ impl PoseTracker {
                 };
                 let t = &mut self.tracks[loser];
                 t.lose();
-                // Remember where it was before it slid, for taking the slot back.
+                // Remember where it was before it slid, for taking the slot back; the slide
+                // is no step of theirs.
                 t.place = t.previous_place;
+                t.velocity = Vec2::ZERO;
                 self.stats.duplicates_dropped += 1;
                 dropped = true;
             }
@@ -869,22 +910,25 @@ impl PoseTracker {
     }
 
     /// Drops track `misread`, the upside-down twin of `upright` (see [`upside_down_twin`]).
-    /// They are one person: the upright reading keeps the identity held longer (a performer
-    /// misread in #0 while found again upright as #1 stays #0), and the misreading frees its
-    /// slot at once, as a passing misreading does, so nobody looks for it again.
+    /// They are one person, and the misreading frees its slot at once, as a passing misreading
+    /// does, so nobody looks for it again. When the misreading has followed its body longer, it
+    /// is the person that track held, read from the feet up after its crop slid: the upright
+    /// reading takes over that identity (a performer misread in #0 while found again upright
+    /// as #1 stays #0). Else the misreading is the newer one (a detection of the upright
+    /// person read upside down, taken for someone lost nearby) and the upright track keeps its
+    /// own: the identity held longer is not the question, the body followed longer is.
     fn drop_misread_twin(&mut self, misread: usize, upright: usize) {
-        let held = self.tracks[misread]
-            .held_frames
-            .max(self.tracks[upright].held_frames);
-        let (misread, upright) =
-            if self.tracks[misread].held_frames > self.tracks[upright].held_frames {
-                self.tracks.swap(misread, upright);
-                (upright, misread)
-            } else {
-                (misread, upright)
-            };
-        self.tracks[upright].held_frames = held;
-        let t = &mut self.tracks[misread];
+        let dropped = if self.tracks[misread].run_frames > self.tracks[upright].run_frames {
+            let held = self.tracks[misread]
+                .held_frames
+                .max(self.tracks[upright].held_frames);
+            self.tracks.swap(misread, upright);
+            self.tracks[misread].held_frames = held;
+            upright
+        } else {
+            misread
+        };
+        let t = &mut self.tracks[dropped];
         t.lose();
         t.held_frames = 0;
         t.place = None;
@@ -1006,7 +1050,7 @@ impl PoseTracker {
             // would check the detection is spent on a person no slot takes (a crowd while a
             // performer is being looked for).
             if self.is_tracked_detection(&d)
-                || self.slot_at(d.hip_center, DETECTION_REACH).is_none()
+                || self.slot_at(d.hip_center, DETECTION_SLACK).is_none()
             {
                 continue;
             }
@@ -1061,16 +1105,21 @@ impl PoseTracker {
     /// Gives a newly found person a slot (see [`Self::slot_for`]) and starts their track. A
     /// new person's first reading is labelled as any other unconfirmed one (`sides`).
     fn start_track(&mut self, frame: &RgbFrame, lm: &Landmarks) -> Result<(), VisionError> {
-        if self.is_tracked_body(lm) {
+        if self.is_tracked_body(lm) || !seen_in_picture(lm, frame.width, frame.height) {
             return Ok(());
         }
         let Some((slot, same_person)) = self.slot_for(lm) else {
             return Ok(());
         };
-        // Someone taken back has the body they were lost with: a reading of another size
-        // where they were is a misreading (a pan raised before the face read as a small body)
-        // or someone else, and either way not them.
-        if same_person && !same_size(&self.tracks[slot].landmarks, lm) {
+        // Someone taken back has the body they were lost with, in the posture they were lost
+        // in or standing: a reading of another size where they were is a misreading (a pan
+        // raised before the face read as a small body) or someone else, and either way not
+        // them.
+        let t = &self.tracks[slot];
+        if same_person
+            && !same_size(&t.landmarks, lm)
+            && !similar_length(t.stature, body_box(lm).1.y)
+        {
             return Ok(());
         }
         // Someone new shows a body of their own: a reading that sees mostly what lies within
@@ -1090,6 +1139,7 @@ impl PoseTracker {
         t.run_frames = 0;
         if !same_person {
             t.held_frames = 0;
+            t.stature = 0.0;
             t.sides.reset();
             t.opinion = None;
         }
@@ -1101,18 +1151,18 @@ impl PoseTracker {
     }
 
     /// The slot for a newly found person `lm`, and whether it is someone the slot held: the
-    /// recently lost slot they are nearest to, else a slot nobody held recently. While someone else is tracked, a person found
-    /// away from everyone recently lost is left alone for
-    /// [`TrackerConfig::reacquire_frames`] (most likely a bystander while the performer is
-    /// hidden); while nobody is, only for [`ALONE_WAIT_FRAMES`], and then they take the
-    /// lowest free slot.
+    /// recently lost person whose reach they are deepest within (see [`Track::reach_from`]),
+    /// else a slot nobody held recently. While someone else is tracked, a person found away
+    /// from everyone recently lost is left alone for [`TrackerConfig::reacquire_frames`] (most
+    /// likely a bystander while the performer is hidden); while nobody is, only for
+    /// [`ALONE_WAIT_FRAMES`], and then they take the lowest free slot.
     fn slot_for(&self, lm: &Landmarks) -> Option<(usize, bool)> {
-        self.slot_at(body_box(lm).0, 0.5)
+        self.slot_at(body_box(lm).0, 0.0)
     }
 
-    /// [`Self::slot_for`] a person whose body is centred at `center`, near a recently lost
-    /// person when within `reach` of their body's size from where they were.
-    fn slot_at(&self, center: Vec2, reach: f32) -> Option<(usize, bool)> {
+    /// [`Self::slot_for`] a person whose body is centred at `center`, give or take `slack` of a
+    /// lost person's body size beyond their reach.
+    fn slot_at(&self, center: Vec2, slack: f32) -> Option<(usize, bool)> {
         let window = self.config.reacquire_frames;
         let nearest = self
             .tracks
@@ -1120,9 +1170,8 @@ impl PoseTracker {
             .enumerate()
             .filter(|(_, t)| t.recently_lost(window))
             .filter_map(|(i, t)| {
-                let (c, s) = t.place?;
-                let d = c.distance(center) / s.max_element().max(1.0);
-                (d < reach).then_some((i, d))
+                let d = t.reach_from(center, slack)?;
+                (d < 1.0).then_some((i, d))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(i, _)| i);
@@ -1157,10 +1206,10 @@ fn beside_due(lost_frames: u32) -> bool {
     lost_frames <= 4 || lost_frames.is_power_of_two()
 }
 
-/// How far (in body sizes) a detection's hips may lie from where a recently lost person was
-/// for their slot to be open to it: twice a landmark reading's reach in [`PoseTracker::slot_for`],
-/// the detector's hips being a guess from the face.
-const DETECTION_REACH: f32 = 1.0;
+/// How far (in body sizes) beyond a recently lost person's reach (see [`Track::reach_from`]) a
+/// detection's hips may lie for their slot to be open to it: the detector's hips are a guess
+/// from the face.
+const DETECTION_SLACK: f32 = 0.5;
 
 fn next_roi(lm: &Landmarks) -> Option<Roi> {
     let c = lm.image[idx::AUX_CENTER];
@@ -1171,6 +1220,29 @@ fn next_roi(lm: &Landmarks) -> Option<Roi> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lost_persons_reach_grows_with_the_time_away_and_follows_their_step() {
+        let at = |x: f32| Vec2::new(x, 100.0);
+        let mut t = Track::EMPTY;
+        assert!(t.reach_from(at(0.0), 0.0).is_none());
+        // 80 px tall, walking 8 px a frame to the right when lost.
+        t.place = Some((at(100.0), Vec2::new(40.0, 80.0)));
+        t.velocity = Vec2::new(8.0, 0.0);
+        t.lose();
+        let within = |t: &Track, x: f32, slack: f32| t.reach_from(at(x), slack).unwrap() < 1.0;
+        // Just lost: about half their height (44 px) from where they were or a step on.
+        assert!(within(&t, 60.0, 0.0) && within(&t, 150.0, 0.0));
+        assert!(!within(&t, 50.0, 0.0) && !within(&t, 160.0, 0.0));
+        // Twenty frames on: further back (120 px), and on along their way (260 px on).
+        t.lost_frames = 20;
+        assert!(within(&t, -10.0, 0.0) && within(&t, 370.0, 0.0));
+        assert!(!within(&t, -30.0, 0.0) && !within(&t, 400.0, 0.0));
+        // A detection's hips, a guess, half a body further.
+        assert!(within(&t, -30.0, 0.5));
+        // The deeper within, the nearer to 0.
+        assert!(t.reach_from(at(100.0), 0.0) < t.reach_from(at(50.0), 0.0));
+    }
 
     #[test]
     fn the_track_that_followed_a_body_longer_has_the_prior_claim() {
