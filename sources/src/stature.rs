@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 use rigcast_retarget::analysis::{analyze, Analysis, Role, Side, SkeletonView};
-use rigcast_retarget::{Pose, Skeleton};
+use rigcast_retarget::{world_transforms, Pose, Skeleton};
 
 /// A figure's standing height.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,14 +27,47 @@ pub fn stature(skeleton: &Skeleton, first: Option<&Pose>) -> Stature {
     let motion = first.map(std::slice::from_ref).unwrap_or(&[]);
     let a = analyze(&SkeletonView::from_clip(skeleton, motion));
     let up = feet_to_head(&a).unwrap_or(a.up);
-    let along = a.positions.iter().map(|p| p.dot(up));
-    let lo = along.clone().fold(f32::INFINITY, f32::min);
-    let hi = along.fold(f32::NEG_INFINITY, f32::max);
+    let read = extent_along(&a.positions, up);
+    // A rest the analysis kept only because no posture reads as a body (a chain of joints on
+    // one line) has no height at all when the line lies across `up`; the first frame, which
+    // stands it up, is then the better measure (`read` is 0 there, so any frame is no worse).
+    let flat = !a.used_pose && read < FLAT_SHARE * extent_along_any(&a.positions);
+    if let Some(pose) = first.filter(|p| flat && p.check(skeleton).is_ok()) {
+        let posed: Vec<Vec3> = world_transforms(skeleton, pose)
+            .iter()
+            .map(|w| w.translation)
+            .collect();
+        return Stature {
+            height: extent_along(&posed, up),
+            up,
+            from_first_frame: true,
+        };
+    }
     Stature {
-        height: (hi - lo).max(0.0),
+        height: read,
         up,
         from_first_frame: a.used_pose,
     }
+}
+
+/// Height along `up` under which a kept rest counts as lying flat across it, as a share of
+/// the rest's largest extent (a standing body's height is the larger share of it).
+const FLAT_SHARE: f32 = 0.05;
+
+/// Extent of `points` along the unit direction `up`.
+fn extent_along(points: &[Vec3], up: Vec3) -> f32 {
+    let along = points.iter().map(|p| p.dot(up));
+    let lo = along.clone().fold(f32::INFINITY, f32::min);
+    let hi = along.fold(f32::NEG_INFINITY, f32::max);
+    (hi - lo).max(0.0)
+}
+
+/// Largest extent of `points` along the three axes.
+fn extent_along_any(points: &[Vec3]) -> f32 {
+    [Vec3::X, Vec3::Y, Vec3::Z]
+        .into_iter()
+        .map(|axis| extent_along(points, axis))
+        .fold(0.0, f32::max)
 }
 
 /// A two-legged body's up: from between its feet to its head. Unlike the analysis' axis it
