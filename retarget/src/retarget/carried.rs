@@ -7,10 +7,9 @@
 
 use glam::Vec3;
 
-use super::{RetargetContext, RetargetPlan};
 use crate::fk::WorldTransform;
 use crate::pose::Pose;
-use crate::skeleton::BoneId;
+use crate::skeleton::{BoneId, Skeleton};
 
 /// One carried bone (a leaf: it carries nothing itself).
 #[derive(Debug, Clone, Copy)]
@@ -40,20 +39,24 @@ impl Carried {
     }
 }
 
-impl RetargetPlan {
-    /// Places every carried bone at its leaf's end (its translation under its own parent).
-    /// Allocates nothing.
-    pub(super) fn carry(&self, ctx: &mut RetargetContext, out: &mut Pose) {
-        for c in &self.carried {
-            let leaf = ctx.scratch[c.by.index()];
-            let position = leaf.translation + leaf.rotation * c.offset;
-            let parent = match self.target.parent(c.bone) {
-                Some(p) => ctx.scratch[p.index()],
-                None => WorldTransform::IDENTITY,
-            };
-            out.translations[c.bone.index()] =
-                parent.rotation.inverse() * (position - parent.translation);
-            ctx.scratch[c.bone.index()].translation = position;
-        }
+/// Places every bone of `carried` at its leaf's end (its translation under its own parent in
+/// `out`), reading and updating the target's world transforms `worlds` (the skeleton of
+/// `target`). Allocates nothing.
+pub(super) fn carry(
+    carried: &[Carried],
+    target: &Skeleton,
+    worlds: &mut [WorldTransform],
+    out: &mut Pose,
+) {
+    for c in carried {
+        let leaf = worlds[c.by.index()];
+        let position = leaf.translation + leaf.rotation * c.offset;
+        let parent = match target.parent(c.bone) {
+            Some(p) => worlds[p.index()],
+            None => WorldTransform::IDENTITY,
+        };
+        out.translations[c.bone.index()] =
+            parent.rotation.inverse() * (position - parent.translation);
+        worlds[c.bone.index()].translation = position;
     }
 }

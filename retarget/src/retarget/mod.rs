@@ -480,7 +480,7 @@ impl RetargetPlan {
                 local
             };
         }
-        self.carry(ctx, out);
+        carried::carry(&self.carried, &self.target, &mut ctx.scratch, out);
         self.place_feet(ctx, out);
     }
 }
