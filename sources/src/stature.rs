@@ -17,6 +17,9 @@ pub struct Stature {
     pub up: Vec3,
     /// The rest pose is not a posture and the height was measured on the first frame.
     pub from_first_frame: bool,
+    /// The figure reads as a two-legged body with feet and a head (the height is a person's
+    /// kind of height; a dog's or a snake's says nothing of its file's unit).
+    pub two_legged: bool,
 }
 
 /// The stature of `skeleton`, read on its rest pose, or on `first` (its first animation frame)
@@ -26,7 +29,9 @@ pub struct Stature {
 pub fn stature(skeleton: &Skeleton, first: Option<&Pose>) -> Stature {
     let motion = first.map(std::slice::from_ref).unwrap_or(&[]);
     let a = analyze(&SkeletonView::from_clip(skeleton, motion));
-    let up = feet_to_head(&a).unwrap_or(a.up);
+    let feet_up = feet_to_head(&a);
+    let two_legged = feet_up.is_some();
+    let up = feet_up.unwrap_or(a.up);
     let read = extent_along(&a.positions, up);
     // A rest the analysis kept only because no posture reads as a body (a chain of joints on
     // one line) has no height at all when the line lies across `up`; the first frame, which
@@ -41,12 +46,14 @@ pub fn stature(skeleton: &Skeleton, first: Option<&Pose>) -> Stature {
             height: extent_along(&posed, up),
             up,
             from_first_frame: true,
+            two_legged,
         };
     }
     Stature {
         height: read,
         up,
         from_first_frame: a.used_pose,
+        two_legged,
     }
 }
 

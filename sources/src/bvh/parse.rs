@@ -45,7 +45,8 @@ pub struct BvhRead {
     pub scale: f32,
     /// True when `scale` was guessed rather than given.
     pub scale_guessed: bool,
-    /// 0..1, how clearly the guessed unit beats the others (see [`UnitGuess`]); 1 when given.
+    /// 0..1, how clearly the guessed unit beats the others (see [`UnitGuess`]); 1 when given,
+    /// 0 when the figure reads as no two-legged body (its height is then no evidence).
     pub scale_confidence: f32,
     /// Number of ROOT/JOINT entries (End Sites excluded).
     pub num_joints: usize,
@@ -604,7 +605,13 @@ fn build(
         let first = frames
             .first()
             .map(|v| pose_of(&skeleton, &joints, &to_bone, v, provisional));
-        unit = guess_unit(stature(&skeleton, first.as_ref()).height / provisional);
+        let figure = stature(&skeleton, first.as_ref());
+        unit = guess_unit(figure.height / provisional);
+        if !figure.two_legged {
+            // The guess compares the height with a person's: for a figure that reads as no
+            // two-legged body (a quadruped, a prop) that is no evidence, so say so.
+            unit.confidence = 0.0;
+        }
         if unit.scale != provisional {
             (skeleton, to_bone) = skeleton_at(&joints, unit.scale)?;
         }
