@@ -395,10 +395,13 @@ fn read_blind(path: &Path) -> (usize, Vec<String>) {
 /// data (found by listing; cheap: two analyses each); a labelled human or four-legged animal
 /// has at least 14 core bones recognised.
 #[test]
-#[ignore = "fails on 11 of the 35 rigs: read blind, Bandai's two clips (21 core bones each), \
-            the two MANN dogs (19 each), LaFAN1 (12) and Kinect (15) get other roles, the Godot \
-            robot's named reading takes its mirrored names' sides (10), the elephant, crab, \
-            RobotExpressive and WebXR hand differ on one or two bones"]
+#[ignore = "fails on 9 of the 35 rigs: read blind on the middle frame, the two MANN dogs (19 \
+            core bones each: front and back read the other way round) and LaFAN1 (12: that \
+            frame reads as no body) get other roles, Kinect's offsets shifted a level on \
+            purpose read as another body (15), the Godot robot's named reading takes its \
+            mirrored names' sides (10), the elephant, crab, RobotExpressive and WebXR hand \
+            differ on one or two bones (Bandai's two clips pass since their middle frame is \
+            read beside the rest)"]
 fn every_rig_with_meaningless_names_gets_the_same_core_roles() {
     let bodies: Vec<String> = common::labelled()
         .into_iter()

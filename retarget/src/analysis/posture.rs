@@ -63,21 +63,32 @@ pub(crate) fn candidates(view: &SkeletonView<'_>) -> Vec<Posture> {
     out
 }
 
-/// A rest that looks like a posture by its shape, and, when the view has motion, the motion's
-/// medoid frame beside it: the shape test cannot see every folded rest (one whose mirrored
-/// halves lie along opposite signs of the axis, with names that say nothing), so the analysis
-/// reads both and keeps the more complete body (the rest on ties).
+/// A rest that looks like a posture by its shape, and beside it the motion's medoid frame or,
+/// without a motion, the view's representative pose (a live source's latest frame): the shape
+/// test cannot see every folded rest (one whose mirrored halves lie along opposite signs of the
+/// axis, with names that say nothing), so the analysis reads both and keeps the more complete
+/// body (the rest on ties).
 fn with_medoid(view: &SkeletonView<'_>, rest: Posture) -> Vec<Posture> {
+    if rest.used_pose {
+        return vec![rest];
+    }
     let skel = view.skeleton;
     let valid: Vec<usize> = (0..view.motion.len())
         .filter(|&i| view.motion[i].check(skel).is_ok())
         .collect();
-    let Some(m) = medoid(view, &valid).filter(|_| !rest.used_pose) else {
-        return vec![rest];
+    let (positions, frame) = match medoid(view, &valid) {
+        Some(m) => (joint_positions(skel, Some(&view.motion[m])), Some(m)),
+        None => match view.pose.filter(|p| p.check(skel).is_ok()) {
+            Some(p) => (joint_positions(skel, Some(p)), None),
+            None => return vec![rest],
+        },
     };
+    if is_degenerate(&positions) {
+        return vec![rest];
+    }
     let frame = Posture {
-        positions: joint_positions(skel, Some(&view.motion[m])),
-        frame: Some(m),
+        positions,
+        frame,
         used_pose: true,
         samples: rest.samples.clone(),
     };
