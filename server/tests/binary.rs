@@ -301,3 +301,48 @@ fn info_and_convert_commands() {
     let err = common::rigcast_fails(["convert", "/no/such.bvh", rcr.to_str().unwrap()]);
     assert!(err.contains("/no/such.bvh"), "{err}");
 }
+
+/// `--unit` reads a BVH in the unit given instead of the guessed one: the demo's figure read at
+/// a unit stands that unit's share of its height read in metres, and `info` says the unit was
+/// given; the other commands reading a BVH take it too, and a unit that is none is refused with
+/// what is accepted.
+#[test]
+fn a_given_bvh_unit_replaces_the_guess() {
+    let dir = common::test_dir("bin-unit");
+    let clip = rigcast_server::demo::procedural_clip(10, 30.0).unwrap();
+    let bvh = dir.join("demo.bvh");
+    rigcast_sources::save_clip(&bvh, &clip).unwrap();
+    let path = bvh.to_str().unwrap();
+    let height = |text: &str| -> f32 {
+        let line = text.lines().find(|l| l.starts_with("height:")).unwrap();
+        line.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    let guessed = common::rigcast_ok(["info", path]);
+    assert!(guessed.contains("guessed"), "{guessed}");
+    let metres = height(&common::rigcast_ok(["info", path, "--unit", "m"]));
+    for (unit, ratio) in [("cm", 0.01), ("0.01", 0.01), ("in", 0.0254), ("2.5", 2.5)] {
+        let given = common::rigcast_ok(["info", path, "--unit", unit]);
+        assert!(
+            given.contains(&format!("{ratio} m per unit (given)")),
+            "{given}"
+        );
+        let h = height(&given);
+        assert!(
+            (h / metres - ratio).abs() < 0.01 * ratio,
+            "{unit}: {h} m against {metres} m in metres"
+        );
+    }
+    // The same unit through the other commands that read a BVH.
+    let rcr = dir.join("demo_mm.rcr");
+    common::rigcast_ok(["convert", path, rcr.to_str().unwrap(), "--unit", "mm"]);
+    let back = rigcast_sources::describe(&rcr).unwrap();
+    assert!(
+        (back.height_m / metres - 0.001).abs() < 1e-5,
+        "{} m against {metres} m",
+        back.height_m
+    );
+    let map = common::rigcast_ok(["map", path, path, "--json", "--no-cache", "--unit", "mm"]);
+    assert!(map.contains("\"mapping\""), "{map}");
+    let err = common::rigcast_fails(["info", path, "--unit", "furlong"]);
+    assert!(err.contains("furlong") && err.contains("cm"), "{err}");
+}

@@ -9,7 +9,7 @@ use rigcast_retarget::{Clip, Skeleton};
 
 use crate::bvh::{read_bvh, BvhReadOptions};
 use crate::error::SourceError;
-use crate::files::{extension, read_file, stem};
+use crate::files::{extension, read_file, stem, LoadOptions};
 use crate::gltf::{read_gltf, AnimationInfo, GltfReadOptions};
 use crate::recording::{clip_from_recording, read_recording};
 use crate::stature::stature;
@@ -79,7 +79,7 @@ impl fmt::Display for FileInfo {
                 "scale:     {scale} m per unit (guessed from the height, {:.0} % sure{})",
                 sure * 100.0,
                 if sure < 0.8 {
-                    "; the unit may be wrong"
+                    "; the unit may be wrong: `--unit` gives it"
                 } else {
                     ""
                 }
@@ -125,12 +125,18 @@ fn height_of(clip: &Clip) -> (f32, bool) {
     (s.height, s.from_first_frame)
 }
 
-/// Reads `path` and summarises it (see [`FileInfo`]).
+/// Reads `path` and summarises it (see [`FileInfo`]); a BVH's unit is guessed.
 pub fn describe(path: &Path) -> Result<FileInfo, SourceError> {
-    describe_inner(path).map_err(|e| e.in_file(path))
+    describe_with(path, &LoadOptions::default())
 }
 
-fn describe_inner(path: &Path) -> Result<FileInfo, SourceError> {
+/// [`describe`] with load options: a BVH read at `opts.bvh_scale` when given (the unit is then
+/// reported as given, not guessed).
+pub fn describe_with(path: &Path, opts: &LoadOptions) -> Result<FileInfo, SourceError> {
+    describe_inner(path, opts).map_err(|e| e.in_file(path))
+}
+
+fn describe_inner(path: &Path, opts: &LoadOptions) -> Result<FileInfo, SourceError> {
     let ext = extension(path);
     let bytes = read_file(path)?;
     let mut bvh_scale = None;
@@ -138,7 +144,10 @@ fn describe_inner(path: &Path) -> Result<FileInfo, SourceError> {
     let mut recording = None;
     let (format, clip, animations) = match ext.as_str() {
         "bvh" => {
-            let r = read_bvh(&bytes, &stem(path), &BvhReadOptions::default())?;
+            let bvh_opts = BvhReadOptions {
+                scale: opts.bvh_scale,
+            };
+            let r = read_bvh(&bytes, &stem(path), &bvh_opts)?;
             bvh_scale = Some((r.scale, r.scale_guessed, r.scale_confidence));
             let a = vec![AnimationInfo {
                 name: r.clip.name.clone(),

@@ -37,5 +37,5 @@ pub use files::{
     load_clip, load_clip_and_humanoid, load_clip_with, load_rig, save_clip, save_clip_onto,
     LoadOptions, LoadedClip, RigLayout,
 };
-pub use info::{describe, FileInfo};
+pub use info::{describe, describe_with, FileInfo};
 pub use replay::{Replay, ReplayOptions};

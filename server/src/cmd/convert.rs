@@ -13,11 +13,14 @@ pub struct ConvertArgs {
     pub input: PathBuf,
     /// Output file; its extension picks the format.
     pub output: PathBuf,
+    /// The input's BVH unit (instead of the guess).
+    #[command(flatten)]
+    pub unit: super::unit::UnitArgs,
 }
 
 /// Converts.
 pub fn run(args: ConvertArgs) -> anyhow::Result<()> {
-    let clip = rigcast_sources::load_clip(&args.input)
+    let clip = rigcast_sources::load_clip_with(&args.input, &args.unit.load_options())
         .with_context(|| format!("cannot read {}", args.input.display()))?;
     rigcast_sources::save_clip(&args.output, &clip)
         .with_context(|| format!("cannot write {}", args.output.display()))?;

@@ -10,11 +10,14 @@ use clap::Args;
 pub struct InfoArgs {
     /// The file to describe.
     pub file: PathBuf,
+    /// The BVH unit (instead of the guess).
+    #[command(flatten)]
+    pub unit: super::unit::UnitArgs,
 }
 
 /// Prints the description.
 pub fn run(args: InfoArgs) -> anyhow::Result<()> {
-    let info = rigcast_sources::describe(&args.file)?;
+    let info = rigcast_sources::describe_with(&args.file, &args.unit.load_options())?;
     print!("{info}");
     Ok(())
 }

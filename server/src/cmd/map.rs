@@ -54,10 +54,16 @@ pub struct MapArgs {
     /// Neither read nor write the cache.
     #[arg(long)]
     pub no_cache: bool,
+    /// The source's BVH unit (instead of the guess).
+    #[command(flatten)]
+    pub unit: super::unit::UnitArgs,
+    /// The target's BVH unit, as `--unit` (default: guessed).
+    #[arg(long, value_name = "UNIT", value_parser = rigcast_sources::bvh::parse_unit)]
+    pub target_unit: Option<f32>,
 }
 
-fn load(path: &Path, what: &str) -> anyhow::Result<Clip> {
-    rigcast_sources::load_clip(path)
+fn load(path: &Path, unit: Option<f32>, what: &str) -> anyhow::Result<Clip> {
+    rigcast_sources::load_clip_with(path, &super::unit::load_options(unit))
         .with_context(|| format!("cannot read {what} file {}", path.display()))
 }
 
@@ -124,8 +130,8 @@ fn humanoid_json(skel: &Skeleton, a: &Analysis, truth: Option<&[(String, String)
 /// Runs the command.
 pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     let t_load = Instant::now();
-    let src = load(&args.source, "source")?;
-    let tgt = load(&args.target, "target")?;
+    let src = load(&args.source, args.unit.unit, "source")?;
+    let tgt = load(&args.target, args.target_unit, "target")?;
     let overrides = match &args.overrides {
         Some(p) => {
             let text = std::fs::read_to_string(p)

@@ -15,3 +15,4 @@ pub mod retarget;
 pub mod serve;
 pub mod setup;
 pub mod token;
+pub mod unit;

@@ -39,6 +39,9 @@ pub struct RetargetArgs {
     /// foot where it lands while the source's foot is planted.
     #[arg(long)]
     pub no_foot_lock: bool,
+    /// The animation's BVH unit (instead of the guess).
+    #[command(flatten)]
+    pub unit: super::unit::UnitArgs,
 }
 
 /// Formats `rigcast_sources::save_clip` writes.
@@ -68,7 +71,7 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
     // Refuse an unwritable output format before doing any work.
     output_extension(&args.output)?;
     // Source errors already name the file and the cause; no extra context, so nothing repeats.
-    let mut clip = rigcast_sources::load_clip(&args.anim)
+    let mut clip = rigcast_sources::load_clip_with(&args.anim, &args.unit.load_options())
         .map_err(|e| anyhow!("cannot read the animation: {e}"))?;
     if clip.num_frames() == 0 {
         bail!(

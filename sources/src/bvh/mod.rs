@@ -20,7 +20,7 @@ mod write;
 
 pub use layout::{write_bvh_onto, BvhLayout, LayoutJoint};
 pub use parse::{read_bvh, BvhRead, BvhReadOptions, FRAME_TIME_RANGE_SECS, MAX_JOINT_DEPTH};
-pub use units::{guess_unit, UnitGuess, UNIT_CANDIDATES};
+pub use units::{guess_unit, parse_unit, UnitGuess, UNIT_CANDIDATES};
 pub use write::{write_bvh, BvhWriteOptions};
 
 /// One BVH channel.

@@ -53,6 +53,38 @@ pub fn guess_unit(height_in_file_units: f32) -> UnitGuess {
     }
 }
 
+/// Units a person may name for a BVH file, metres per unit (`rigcast … --unit`).
+const NAMED_UNITS: [(&str, f32); 8] = [
+    ("m", 1.0),
+    ("dm", 0.1),
+    ("cm", 0.01),
+    ("mm", 0.001),
+    ("in", 0.0254),
+    ("inch", 0.0254),
+    ("ft", 0.3048),
+    ("cmu", 0.056444),
+];
+
+/// Reads a unit a person gives for a BVH file: a name (`m`, `dm`, `cm`, `mm`, `in`, `ft`, or
+/// `cmu` for CMU's "inches / 0.45") or metres per file unit as a number (`0.01`). The error
+/// says what is accepted.
+pub fn parse_unit(text: &str) -> Result<f32, String> {
+    let t = text.trim().to_ascii_lowercase();
+    if let Some((_, s)) = NAMED_UNITS.iter().find(|(n, _)| *n == t) {
+        return Ok(*s);
+    }
+    match t.parse::<f32>() {
+        Ok(s) if s.is_finite() && s > 0.0 && s <= MAX_GIVEN_SCALE => Ok(s),
+        _ => Err(format!(
+            "`{text}` is not a unit: give m, dm, cm, mm, in, ft or cmu, or metres per file unit \
+             as a positive number up to {MAX_GIVEN_SCALE} (0.01 for centimetres)"
+        )),
+    }
+}
+
+/// Largest metres-per-unit a person may give: a kilometre per unit is already no body.
+const MAX_GIVEN_SCALE: f32 = 1000.0;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -74,5 +106,16 @@ mod tests {
         assert!((g.confidence - 0.5).abs() < 0.02, "{}", g.confidence);
         assert_eq!(guess_unit(0.0).confidence, 0.0);
         assert_eq!(guess_unit(f32::NAN).scale, 1.0);
+    }
+
+    #[test]
+    fn units_by_name_or_number() {
+        assert_eq!(parse_unit("cm"), Ok(0.01));
+        assert_eq!(parse_unit(" IN "), Ok(0.0254));
+        assert_eq!(parse_unit("0.001"), Ok(0.001));
+        for bad in ["", "furlong", "0", "-1", "nan", "inf", "1e9"] {
+            let e = parse_unit(bad).unwrap_err();
+            assert!(e.contains("cm"), "{bad}: {e}");
+        }
     }
 }
