@@ -70,6 +70,56 @@ fn two_clips(skel: &Arc<Skeleton>) -> ([Clip; 2], MotionGraph) {
     (clips, g)
 }
 
+/// The frame vectors of `clip` as the graph computes them (its body points, windowed).
+fn features_of(clip: &Clip) -> rigcast_retarget::graph::features::ClipFeatures {
+    use rigcast_retarget::graph::features::{ClipFeatures, ClipTrack};
+    let a = analyze(&SkeletonView::from_clip(&clip.skeleton, &clip.poses));
+    let body = rigcast_retarget::graph::BodyPoints::find(&a).expect("body");
+    let track = ClipTrack::measure(&clip.skeleton, &body, &clip.poses);
+    let s = GraphSettings::default();
+    let half = GraphSettings::frames(s.window_secs / 2.0, clip.frame_time_secs, 1);
+    ClipFeatures::compute(
+        &track,
+        half,
+        clip.frame_time_secs as f32,
+        s.velocity_weight_secs,
+    )
+}
+
+/// A frame looks the same whichever way its file points: the gait on a copy of the rig turned
+/// Z-up (its root turned 90° about X, so it faces −Y) gives the original's frame vectors,
+/// written along the body's own axes, so the two join as the same motion.
+#[test]
+fn a_turned_rig_gives_the_same_frame_vectors() {
+    let skel = rig();
+    let walk = clip(&skel, "a", 120, 0.0);
+    let turn = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    let mut raw = skel.to_raw();
+    raw.bones[0].rest.rotation = turn * raw.bones[0].rest.rotation;
+    raw.bones[0].rest.translation = turn * raw.bones[0].rest.translation;
+    let turned_skel = Arc::new(Skeleton::build(&raw).expect("skeleton"));
+    let poses = walk
+        .poses
+        .iter()
+        .map(|p| {
+            let mut p = p.clone();
+            p.rotations[0] = turn * p.rotations[0];
+            p.translations[0] = turn * p.translations[0];
+            p
+        })
+        .collect();
+    let turned = Clip::new("z-up", turned_skel, poses, walk.frame_time_secs).expect("clip");
+    let up = analyze(&SkeletonView::from_clip(&turned.skeleton, &turned.poses)).up;
+    assert!(up.abs_diff_eq(Vec3::Z, 1e-4), "{up}");
+    let (a, b) = (features_of(&walk), features_of(&turned));
+    let mut worst = 0.0f32;
+    for i in a.valid_range() {
+        let (x, y) = (a.get(i).expect("frame"), b.get(i).expect("frame"));
+        worst = worst.max(rigcast_retarget::graph::features::frame_distance(x, y));
+    }
+    assert!(worst < 1e-4, "{worst} leg lengths apart");
+}
+
 #[test]
 fn transitions_join_frames_whole_periods_apart() {
     let skel = rig();

@@ -142,6 +142,16 @@ impl BodyPoints {
         self.up
     }
 
+    /// The rig's forward axis (the analysis').
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
+    /// The rig's left axis (the analysis').
+    pub fn left(&self) -> Vec3 {
+        self.left
+    }
+
     /// Mean leg length, metres.
     pub fn leg_length(&self) -> f32 {
         self.leg

@@ -14,8 +14,9 @@
 //!   [`super::GraphSettings::velocity_weight_secs`], so that two poses passing each other in
 //!   opposite directions are far apart;
 //!
-//! all in leg lengths, heights above the clip's own floor (its lowest foot), so clips of
-//! different rigs and captures compare.
+//! all in leg lengths, heights above the clip's own floor (its lowest foot), along the body's
+//! own axes (left, up, forward), so clips of different rigs and captures compare, whichever
+//! way their files point up and forward.
 
 use glam::Vec3;
 
@@ -23,6 +24,10 @@ use super::body::{BodyPoints, Planar, NUM_POINTS};
 use crate::fk::WorldTransform;
 use crate::pose::Pose;
 use crate::skeleton::Skeleton;
+
+/// What the frame vectors hold, for caches of graphs built from them: 2 since they are written
+/// along the body's axes rather than the file's.
+pub const FEATURES_VERSION: u32 = 2;
 
 /// Taps of the window: before, centre, after.
 const TAPS: usize = 3;
@@ -46,6 +51,11 @@ pub struct ClipTrack {
     pub floor: f32,
     /// The rig's up axis.
     pub up: Vec3,
+    /// The rig's forward and left (the analysis'): a frame's vector is written along the
+    /// body's own axes, so rigs built along other axes (Z-up, facing −Z) compare.
+    pub forward: Vec3,
+    /// The rig's left.
+    pub left: Vec3,
     /// Leg length, metres.
     pub leg: f32,
 }
@@ -70,6 +80,8 @@ impl ClipTrack {
             headings,
             floor: if floor.is_finite() { floor } else { 0.0 },
             up,
+            forward: body.forward(),
+            left: body.left(),
             leg: body.leg_length(),
         }
     }
@@ -111,6 +123,8 @@ impl ClipFeatures {
         let mut values = vec![0.0; valid * DIM];
         let scale = 1.0 / track.leg;
         let vel_scale = scale * velocity_weight_secs / (2.0 * frame_time_secs);
+        // Along the body's axes (left, up, forward), not the file's.
+        let along = |v: Vec3| Vec3::new(v.dot(track.left), v.dot(track.up), v.dot(track.forward));
         for (k, out) in values.chunks_exact_mut(DIM).enumerate() {
             let i = k + half;
             let to_local = track.headings[i].inverse(track.up);
@@ -119,7 +133,7 @@ impl ClipFeatures {
             for tap in [i - half, i, i + half] {
                 let block = blocks.next().unwrap_or_default();
                 for (slot, p) in block.chunks_exact_mut(3).zip(&track.points[tap]) {
-                    let v = to_local.apply(track.up, *p - floor) * scale;
+                    let v = along(to_local.apply(track.up, *p - floor)) * scale;
                     slot.copy_from_slice(&v.to_array());
                 }
             }
@@ -127,7 +141,7 @@ impl ClipFeatures {
             let block = blocks.next().unwrap_or_default();
             let velocities = track.points[i + 1].iter().zip(&track.points[i - 1]);
             for (slot, (a, b)) in block.chunks_exact_mut(3).zip(velocities) {
-                slot.copy_from_slice(&(turn * (*a - *b) * vel_scale).to_array());
+                slot.copy_from_slice(&(along(turn * (*a - *b)) * vel_scale).to_array());
             }
         }
         ClipFeatures {

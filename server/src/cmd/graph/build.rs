@@ -107,7 +107,11 @@ fn cache_key(clips: &[rigcast_retarget::Clip], settings: &GraphSettings) -> Stri
         h ^= b as u64;
         h = h.wrapping_mul(0x0100_0000_01b3);
     }
-    format!("{h:016x}-v{}", rigcast_retarget::graph::file::VERSION)
+    format!(
+        "{h:016x}-v{}-f{}",
+        rigcast_retarget::graph::file::VERSION,
+        rigcast_retarget::graph::features::FEATURES_VERSION
+    )
 }
 
 fn read_cached(key: &str) -> Option<MotionGraph> {
