@@ -50,13 +50,48 @@ pub(super) fn carry(
 ) {
     for c in carried {
         let leaf = worlds[c.by.index()];
-        let position = leaf.translation + leaf.rotation * c.offset;
-        let parent = match target.parent(c.bone) {
-            Some(p) => worlds[p.index()],
-            None => WorldTransform::IDENTITY,
-        };
-        out.translations[c.bone.index()] =
-            parent.rotation.inverse() * (position - parent.translation);
-        worlds[c.bone.index()].translation = position;
+        place(
+            c.bone,
+            leaf.translation + leaf.rotation * c.offset,
+            target,
+            worlds,
+            out,
+        );
     }
+}
+
+/// Moves every bone of `carried` by `delta` (world space) after the root moved its leaves
+/// by it (the feet's calibration onto the floor): a carried bone hangs from above the root,
+/// so that move does not reach it through its parent. Its translation in `out` and its world
+/// in `worlds` follow. Allocates nothing.
+pub(super) fn shift(
+    carried: &[Carried],
+    target: &Skeleton,
+    delta: Vec3,
+    worlds: &mut [WorldTransform],
+    out: &mut Pose,
+) {
+    if delta == Vec3::ZERO {
+        return;
+    }
+    for c in carried {
+        let position = worlds[c.bone.index()].translation + delta;
+        place(c.bone, position, target, worlds, out);
+    }
+}
+
+/// Puts `bone` at world `position`: its translation under its parent in `out`, and `worlds`.
+fn place(
+    bone: BoneId,
+    position: Vec3,
+    target: &Skeleton,
+    worlds: &mut [WorldTransform],
+    out: &mut Pose,
+) {
+    let parent = match target.parent(bone) {
+        Some(p) => worlds[p.index()],
+        None => WorldTransform::IDENTITY,
+    };
+    out.translations[bone.index()] = parent.rotation.inverse() * (position - parent.translation);
+    worlds[bone.index()].translation = position;
 }

@@ -291,11 +291,16 @@ impl RetargetPlan {
     }
 
     /// The target pose produced while every source holds its reference posture: the target's
-    /// rest re-posed into the source's posture (e.g. an A-pose character shown in T-pose).
+    /// rest re-posed into the source's posture (e.g. an A-pose character shown in T-pose),
+    /// with every carried bone at its limb's end, as [`Mapping::apply`] places it.
     pub fn aligned_rest_pose(&self) -> Pose {
         let mut p = self.target.rest_pose();
         for (r, plan) in p.rotations.iter_mut().zip(&self.bones) {
             *r = plan.aligned_local;
+        }
+        if !self.carried.is_empty() {
+            let mut worlds = crate::fk::world_transforms(&self.target, &p);
+            carried::carry(&self.carried, &self.target, &mut worlds, &mut p);
         }
         p
     }
@@ -481,7 +486,9 @@ impl RetargetPlan {
             };
         }
         carried::carry(&self.carried, &self.target, &mut ctx.scratch, out);
-        self.place_feet(ctx, out);
+        // The legs carrying them hang from the root: a carried bone goes where its leg goes.
+        let moved = self.place_feet(ctx, out);
+        carried::shift(&self.carried, &self.target, moved, &mut ctx.scratch, out);
     }
 }
 

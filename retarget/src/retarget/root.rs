@@ -441,16 +441,17 @@ fn top_pair(
 impl RetargetPlan {
     /// Moves the root vertically so the lowest foot joint stands as high above the target's
     /// floor as the source's stands above its floor (scaled): the legs' own geometry then sets
-    /// the hips height, so different proportions neither float nor sink.
-    pub(super) fn place_feet(&self, ctx: &mut RetargetContext, out: &mut Pose) {
+    /// the hips height, so different proportions neither float nor sink. Returns the root's
+    /// move in the world (zero when it stays).
+    pub(super) fn place_feet(&self, ctx: &mut RetargetContext, out: &mut Pose) -> Vec3 {
         let Some(root) = self.root.as_ref() else {
-            return;
+            return Vec3::ZERO;
         };
         if root.foot_contact == FootContact::Off
             || root.motion == RootMotion::Fixed
             || root.contacts.is_empty()
         {
-            return;
+            return Vec3::ZERO;
         }
         let dy = match (root.foot_contact, ctx.vertical_offset) {
             (FootContact::FirstFrame, Some(dy)) => dy,
@@ -465,6 +466,7 @@ impl RetargetPlan {
             None => Quat::IDENTITY,
         };
         out.translations[root.bone.index()] += parent_rotation.inverse() * (root.up * dy);
+        root.up * dy
     }
 
     /// The vertical move that puts the target's lowest foot joint at the scaled source height.
