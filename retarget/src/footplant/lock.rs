@@ -501,7 +501,8 @@ pub struct FootLock {
     carries: bool,
     /// Height added to the root on every frame ([`FootLock::fit_to_standing`]).
     root_fix: f32,
-    /// The target's own posture stands on its floor (its standing heights can be trusted).
+    /// The target's own posture is its rest and stands on its floor (its standing heights and
+    /// foot pitch can be trusted).
     posture_stands: bool,
     /// Source lengths to the target's (the mapping's root scale): what a source foot's lift is
     /// multiplied by.
@@ -660,7 +661,11 @@ impl FootLock {
             shift: RootShift::default(),
             carries: mapping.root_travels(),
             root_fix: 0.0,
-            posture_stands: mapping.target_posture_stands(),
+            // A posture read off a frame of the character's own motion (its rest folded along
+            // one axis, as LaFAN1's and Bandai-Namco's BVH are) is a moment of a performance,
+            // not how the character stands: the medoid frame of the Bandai run pitches its feet
+            // 50-76° down, and fitting every frame to that tipped the retargeted feet as far.
+            posture_stands: mapping.target_posture_stands() && !target.used_pose,
             lift_scale: mapping.root_scale().unwrap_or(1.0),
             shown_once: false,
             landing: LiveLanding::default(),
@@ -675,8 +680,9 @@ impl FootLock {
     /// lift-off blends across that gap. Here the typical gap is measured on the frames whose
     /// source foot is planted (medians) and taken out of every frame: each foot pitched about
     /// its ankle by its own angle, the hips moved by the feet's mean height error. A target
-    /// whose rest does not stand on a floor (a CMU-style rest floating at the origin) has no
-    /// standing posture to fit to: its standing heights are taken from the animation instead.
+    /// whose rest does not stand on a floor (a CMU-style rest floating at the origin), or whose
+    /// posture is a frame of its own motion (a folded rest), has no standing posture to fit to:
+    /// its standing heights are taken from the animation instead.
     /// `animated` is the clip retargeted without the lock, `plants` its source's plants (from
     /// [`super::detect_clip`]). Allocates (height lists).
     pub fn fit_to_standing(&mut self, animated: &[Pose], plants: &PlantTrack) {
