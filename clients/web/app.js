@@ -155,9 +155,17 @@ class SubjectView {
     this.lost = false;
     this.markers = new Map(); // foot bone -> marker mesh
     // In place: the deepest translated bone of the root chain (the hips of most rigs) keeps
-    // its rest ground position; everything moves with it.
+    // its rest ground position; everything moves with it. The chain goes down while one
+    // translated child carries bones of its own: a translated leaf beside it (an IK foot under
+    // the armature root) is no part of it, and the body ends it where it branches.
+    const kids = this.bones.map(() => []);
+    this.parents.forEach((p, i) => { if (p >= 0) kids[p].push(i); });
     this.anchor = 0;
-    for (let i = 0; i < n; i++) if (this.slot[i] >= 0 && (this.parents[i] < 0 || this.slot[this.parents[i]] >= 0)) this.anchor = i;
+    for (;;) {
+      const next = kids[this.anchor].filter((c) => this.slot[c] >= 0 && kids[c].length > 0);
+      if (next.length !== 1) break;
+      this.anchor = next[0];
+    }
     this.height = this.computeHeight();
     this.jointRadius = Math.max(this.height * 0.012, 0.004);
     this.jointSegments = budget.current.jointSegments;
@@ -170,11 +178,9 @@ class SubjectView {
     const from = info.kind === 'target' ? ` ← ${state.subjects.get(info.source)?.name ?? info.source}` : '';
     this.labelText = `${info.name} (${info.kind}${from})`;
     this.subjectLabel = makeLabel(this.labelText, `subject ${info.kind}`);
-    const childCount = new Array(n).fill(0);
-    this.parents.forEach((p) => { if (p >= 0) childCount[p]++; });
     this.boneLabels = [];
     for (let i = 0; i < n; i++) {
-      if (childCount[i] === 0 || this.parents[i] < 0) this.boneLabels.push([i, makeLabel(this.bones[i].name, 'bone')]);
+      if (kids[i].length === 0 || this.parents[i] < 0) this.boneLabels.push([i, makeLabel(this.bones[i].name, 'bone')]);
     }
     this.update();
   }

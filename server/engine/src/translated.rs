@@ -9,6 +9,9 @@
 //!   ground `root` above the pelvis, an armature node above the hips);
 //! * every bone the analysis calls hips, with its ancestors (rigs whose root branches into
 //!   helper bones before the pelvis, like UE's `root → pelvis, ik_foot_root`);
+//! * every foot hanging beside its leg instead of below its shin (an IK-style rig's lone foot
+//!   under the armature root, `Leg::carried`): the retargeter and the foot lock place it at
+//!   the shin's end, a translation no rotation of its parent gives;
 //! * for a replayed file, every bone whose translation leaves its rest in some frame (BVH
 //!   position channels on non-root joints, animated glTF translations);
 //! * for a live input, every bone (a VMC sender may move any bone, and the set must not change
@@ -17,6 +20,7 @@
 use std::sync::Arc;
 
 use rigcast_retarget::analysis::{Analysis, Role};
+use rigcast_retarget::footplant::find_legs;
 use rigcast_retarget::{Pose, Skeleton};
 
 /// Translation leaving its rest by more than this counts as moving (metres).
@@ -76,6 +80,9 @@ pub fn translated_bones(
             }
         }
     }
+    for leg in find_legs(skeleton, analysis).iter().filter(|l| l.carried) {
+        marked[leg.foot.index()] = true;
+    }
     match moving {
         MovingBones::Structural => {}
         MovingBones::Measured(moves) => {
@@ -110,6 +117,34 @@ mod tests {
             translated_bones(&m, &a, &MovingBones::All).len(),
             m.num_bones()
         );
+    }
+
+    #[test]
+    fn a_foot_beside_its_leg_is_carried() {
+        // An IK-style rig: the feet hang from the armature root beside the body, the shins
+        // end in leaves.
+        use glam::Vec3;
+        use rigcast_retarget::{RawSkeleton, Transform};
+        let mut raw = RawSkeleton::default();
+        let mut add = |name: &str, parent: Option<usize>, t: [f32; 3]| {
+            raw.add(name, parent, Transform::from_translation(Vec3::from(t)))
+        };
+        let armature = add("Armature", None, [0.0, 0.0, 0.0]);
+        let hips = add("Hips", Some(armature), [0.0, 1.0, 0.0]);
+        let spine = add("Spine", Some(hips), [0.0, 0.2, 0.0]);
+        let chest = add("Chest", Some(spine), [0.0, 0.2, 0.0]);
+        add("Head", Some(chest), [0.0, 0.3, 0.0]);
+        for (side, x) in [("L", 0.1), ("R", -0.1)] {
+            let thigh = add(&format!("UpperLeg.{side}"), Some(hips), [x, -0.05, 0.0]);
+            add(&format!("LowerLeg.{side}"), Some(thigh), [0.0, -0.45, 0.0]);
+        }
+        for (side, x) in [("L", 0.1), ("R", -0.1)] {
+            add(&format!("Foot.{side}"), Some(armature), [x, 0.05, 0.0]);
+        }
+        let s = Skeleton::build(&raw).unwrap();
+        let a = analyze(&SkeletonView::rest(&s));
+        let t = translated_bones(&s, &a, &MovingBones::Structural);
+        assert_eq!(names_of(&s, &t), ["Armature", "Hips", "Foot.L", "Foot.R"]);
     }
 
     #[test]
