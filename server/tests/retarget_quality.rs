@@ -22,7 +22,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 use rigcast_retarget::{world_transforms, BoneId, Clip, RootMotion, Skeleton};
 use rigcast_server::offline::{plan_mapping, retarget_clip_locked};
 use serde_json::Value;
@@ -688,6 +688,8 @@ struct LegFigures {
     thigh: (f32, f32),
     shin: (f32, f32),
     foot: (f32, f32),
+    /// The foot's on each rig's own standing foot ([`rest_standing_pitch`]).
+    foot_own: (f32, f32),
     /// The foot's, on the frames the source's foot stands and on the others.
     foot_standing: (f32, f32),
     foot_free: (f32, f32),
@@ -764,6 +766,95 @@ fn is_gait(l: &Labelled) -> bool {
         && travel >= leg
 }
 
+/// A foot's pitch (radians, toes above the ankle positive) from its ankle-to-toes direction.
+fn pitch_along(d: Vec3, up: Vec3) -> f32 {
+    (d.dot(up) / d.length().max(1e-9)).clamp(-1.0, 1.0).asin()
+}
+
+/// The up of a rig's own rest: the coordinate axis nearest its labelled thigh's root over its
+/// ankle (as [`rest_ankle_share`] reads it; a rest may stand along another axis than its
+/// motion, a Z-up BVH turned upright by its root's rotation).
+fn rest_up(l: &Labelled, side: &str) -> Option<Vec3> {
+    let s = &l.clip.skeleton;
+    let rest = world_transforms(s, &s.rest_pose());
+    let p = |r: String| l.bone(&r).map(|b| rest[b.index()].translation);
+    let d = p(sided("upperLeg", side))? - p(sided("foot", side))?;
+    let axis = d.abs().max_position();
+    Some(Vec3::AXES[axis] * d[axis].signum())
+}
+
+/// A rig's foot's left-to-right axis (what it pitches about), fixed in the foot bone's frame:
+/// its rest's ankle-to-toes direction over its rest's ground, across its rest's up. Carried by
+/// the bone, it stays put however the foot turns or points down.
+fn foot_side_local(l: &Labelled, side: &str) -> Option<Vec3> {
+    let s = &l.clip.skeleton;
+    let up = rest_up(l, side)?;
+    let (foot, toes) = (l.bone(&sided("foot", side))?, l.bone(&sided("toes", side))?);
+    let rest = world_transforms(s, &s.rest_pose());
+    let d0 = segment_direction(s, &rest, &rest, foot, toes);
+    let flat = (d0 - up * d0.dot(up)).try_normalize()?;
+    Some(rest[foot.index()].rotation.inverse() * flat.cross(up))
+}
+
+/// How a performer's foot is pitched when it stands flat (radians, toes above the ankle
+/// positive): the median over the frames of `clip` its foot stands (`stands`), as captured.
+fn clip_standing_pitch(
+    l: &Labelled,
+    clip: &Clip,
+    side: &str,
+    stands: &[bool],
+    up: Vec3,
+) -> Option<f32> {
+    let s = &clip.skeleton;
+    let (foot, toes) = (l.bone(&sided("foot", side))?, l.bone(&sided("toes", side))?);
+    let rest = world_transforms(s, &s.rest_pose());
+    let mut v: Vec<f32> = (clip.poses.iter().zip(stands))
+        .filter(|(_, s)| **s)
+        .map(|(p, _)| {
+            let w = world_transforms(s, p);
+            pitch_along(segment_direction(s, &rest, &w, foot, toes), up)
+        })
+        .collect();
+    v.sort_by(f32::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
+/// How a character's foot is pitched when it stands flat: its rest's, where that rest stands
+/// on the ground along its own up ([`rest_up`]), as a character authored standing does: its
+/// lowest labelled foot joint within a quarter of a leg of the ground, its labelled ankles
+/// low ([`rest_ankle_share`]) and its toe joint no higher than its ankle (a joint above the
+/// ankle is no sole's). Else `None`: a rest floating at the origin (CMU's) or folded along
+/// one axis (Bandai's, LaFAN1's) says nothing of how the rig stands.
+fn rest_standing_pitch(l: &Labelled, side: &str) -> Option<f32> {
+    let s = &l.clip.skeleton;
+    let (foot, toes) = (l.bone(&sided("foot", side))?, l.bone(&sided("toes", side))?);
+    let rest = world_transforms(s, &s.rest_pose());
+    let up = rest_up(l, side)?;
+    let p = pitch_along(segment_direction(s, &rest, &rest, foot, toes), up);
+    let lowest = [foot, toes]
+        .map(|b| rest[b.index()].translation.dot(up))
+        .into_iter()
+        .fold(f32::MAX, f32::min);
+    let on_ground = lowest.abs() <= 0.25 * leg_length(s, l)?;
+    let ankles_low = rest_ankle_share(l).is_some_and(|a| a <= MAX_REST_ANKLE_SHARE);
+    (on_ground && ankles_low && p <= 0.0).then_some(p)
+}
+
+/// One frame's raw foot error (`RIGCAST_QUALITY_FOOT`): the angle between the source's
+/// direction `ds` and the target's `dt`, the angle between them over the ground (the heading)
+/// and each one's pitch.
+fn print_foot_frame(frame: usize, side: &str, standing: bool, ds: Vec3, dt: Vec3, up: Vec3) {
+    let flat = |d: Vec3| d - up * d.dot(up);
+    println!(
+        "  {side} frame {frame}{}: {:.1}°, heading {:.1}°, pitch {:.1}° (source {:.1}°)",
+        if standing { " standing" } else { "" },
+        ds.angle_between(dt).to_degrees(),
+        flat(ds).angle_between(flat(dt)).to_degrees(),
+        pitch_along(dt, up).to_degrees(),
+        pitch_along(ds, up).to_degrees()
+    );
+}
+
 /// The legs of `out` (the whole clip, locked) against the source's.
 fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Option<LegFigures> {
     let (ss, ts) = (&clip.skeleton, &out.skeleton);
@@ -779,7 +870,21 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
     let mut errors: [Vec<f32>; 3] = Default::default();
     // The foot's errors split by whether the source's foot stands on the frame.
     let mut foot_split: [Vec<f32>; 2] = Default::default();
-    let (stands, _) = standing_frames(src, tgt, clip)?;
+    let (stands, up_s) = standing_frames(src, tgt, clip)?;
+    // The foot against the source's on each rig's own standing foot: the target's pitched
+    // back about its own side axis by how much its standing foot is pitched past the source's.
+    let mut own: Vec<f32> = Vec::new();
+    // Per side: the pitch the target's standing foot has past the source's, and its side
+    // axis; `None` where the target's standing foot is not known (judged raw).
+    let offsets: Vec<Option<(f32, Vec3)>> = ["L", "R"]
+        .iter()
+        .zip(&stands)
+        .map(|(side, st)| {
+            let ps = clip_standing_pitch(src, clip, side, st, up_s)?;
+            let pt = rest_standing_pitch(tgt, side)?;
+            Some((pt - ps, foot_side_local(tgt, side)?))
+        })
+        .collect();
     let step = (clip.num_frames() / 400).max(1);
     for (frame, (sp, tp)) in clip.poses.iter().zip(&out.poses).enumerate().step_by(step) {
         let (fs, ft) = (world_transforms(ss, sp), world_transforms(ts, tp));
@@ -797,6 +902,19 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
                     let e = ds.angle_between(dt).to_degrees();
                     errors[k].push(e);
                     if k == 2 {
+                        let back = match offsets.get(si) {
+                            Some(Some((pitch, axis))) => {
+                                Quat::from_axis_angle(ft[ta.index()].rotation * *axis, -pitch)
+                            }
+                            _ => Quat::IDENTITY,
+                        };
+                        own.push(ds.angle_between(back * dt).to_degrees());
+                    }
+                    if k == 2 && std::env::var_os("RIGCAST_QUALITY_FOOT").is_some() {
+                        let standing = stands.get(si).and_then(|s| s.get(frame)) == Some(&true);
+                        print_foot_frame(frame, side, standing, ds, dt, up_s);
+                    }
+                    if k == 2 {
                         let standing = stands.get(si).and_then(|s| s.get(frame)) == Some(&true);
                         foot_split[usize::from(!standing)].push(e);
                     }
@@ -805,11 +923,13 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
         }
     }
     let [thigh, shin, foot] = errors.map(|mut e| mean_p95(&mut e));
+    let foot_own = mean_p95(&mut own);
     let [foot_standing, foot_free] = foot_split.map(|mut e| mean_p95(&mut e));
     Some(LegFigures {
         thigh,
         shin,
         foot,
+        foot_own,
         foot_standing,
         foot_free,
         drift: standing_drift(tgt, src, out, &stands, true)?,
@@ -907,8 +1027,8 @@ fn pair_wanted(name: &str) -> bool {
 
 /// Issue 35: with the foot lock on, the legs stay the performer's. On every right pair of
 /// labelled humans (every labels file) whose source walks or runs ([`is_gait`]): thigh and shin
-/// within 3° mean, 8° p95 of the source's direction, the foot (ankle to toes) within 5° / 15°,
-/// planted feet drifting ≤ 0.05 cm/frame (scaled to a 1.75 m body) and standing within 1 cm of
+/// within 3° mean, 8° p95 of the source's direction, the foot (ankle to toes) within 5° / 15°
+/// on each rig's own standing foot (below), planted feet drifting ≤ 0.05 cm/frame (scaled to a 1.75 m body) and standing within 1 cm of
 /// where the source's stand ([`planted_feet`], on rigs whose feet can be judged).
 ///
 /// Drift is judged on the joint each foot stands on (its labelled joint nearest the floor): a
@@ -920,12 +1040,13 @@ fn pair_wanted(name: &str) -> bool {
 ///
 /// Not met yet (run it with `--ignored` for the table; `RIGCAST_QUALITY_PAIRS=a,b` measures
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
-/// frames behind the drift and floor figures). Of 144 pairs, within the bounds: thigh and shin
-/// 104, foot 34 of the 84 with toes on both rigs, drift 143 (every foot joint: 133), floor 143,
+/// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's raw error
+/// frame by frame with its heading part and both pitches). Of 144 pairs, within the bounds: thigh and shin
+/// 104, foot 33 of the 84 with toes on both rigs (34 raw), drift 143 (every foot joint: 133), floor 143,
 /// since the lock no longer takes a character's posture read off a frame of its own motion
 /// (the Bandai rigs' and LaFAN1's folded rests) for how it stands: the medoid frame of the
-/// Bandai run pitched its feet 50-76° down, and every frame was fitted to it (97 / 28 / 141 /
-/// 141 before; all 16 pairs onto those rigs that changed got better: CMU 131_01 → Bandai run
+/// Bandai run pitched its feet 50-76° down, and every frame was fitted to it (97 / 28 raw /
+/// 141 / 141 before; all 16 pairs onto those rigs that changed got better: CMU 131_01 → Bandai run
 /// thigh 4.4/14.1 → 1.7/5.1°, foot 47.9/59.3 → 6.0/24.1°, floor 1.25 → 0.67 cm; CMU run →
 /// LaFAN1 thigh 4.9/19.9 → 1.2/7.3°, drift 0.185 → 0.020, floor 1.53 → 0.39). Before that,
 /// 96 / 29 / 141 / 141 once a foot turned on the spot turns on its ball, stands flat about its
@@ -964,20 +1085,45 @@ fn pair_wanted(name: &str) -> bool {
 /// X Bot against its bound of a third of the free 0.106, and drift here 141 -> 133, the
 /// targets whose toes are not labelled being judged at the ankle; not landed).
 ///
-/// The foot is judged by its raw direction (ankle to toes) against the source's, as the issue
-/// measured it. The lock keeps a planted foot's pitch the animation's while the source's heel
-/// rises (a toe-off rolls it on its ball; a heel strike is stood flat), but a rig whose foot
-/// bone is pitched differently
-/// from the source's when standing (X Bot, the UE-style mannequin, Bandai, Mousey: 15-25°)
-/// carries that difference on every frame to stand flat (the floor bound): its raw direction
-/// cannot meet 5°. Judging the foot from where each rig stands instead was tried and left: from
-/// each rig's rest pitch, 0 of the 84 pairs with toes fall within 5°/15° and the pybvh rigs read
-/// 67-91° off (a BVH rest is only offsets: its feet need not stand as the rig does); from the
-/// median pitch of each rig's own clip where its foot stands, 0 of 84 as well (that median is
-/// the performer's habit, not the rig's build); with the target's median pitch difference from
-/// the source's where the source's foot stands taken out of every frame, 37 of 84 against 35
-/// raw (before the heel's rise bounded the roll), and 25-60° p95 on the rigs it should help (a
-/// pitch taken out about the foot's side axis turns a foot pointing down in the swing far off).
+/// The foot is judged on each rig's own standing foot: the target's direction (ankle to toes)
+/// pitched back, about its own left-to-right axis fixed in its foot bone, by how far its
+/// standing foot is pitched past the source's, against the source's. Rigs build feet
+/// differently (a toe joint on the ground far ahead of a high ankle, or nearly level with it):
+/// X Bot's, the UE-style mannequin's and Mousey's rests stand their feet pitched 39-45° down,
+/// the CMU 131_01 performer's stand 13-20°. The raw direction copied onto such a rig tips its
+/// foot 20-30° toes up whenever the performer's stands flat; the lock stands it flat instead
+/// (the floor bound), as retargeting carries every other bone's rest difference, so a raw
+/// judge fails a foot for standing on its sole. The source's standing foot is read from its
+/// clip ([`clip_standing_pitch`]: the median over the frames its foot stands), a character's
+/// from its rest where that stands on the ground along its own up ([`rest_standing_pitch`],
+/// the posture the lock fits to). Where the rest says nothing (CMU's floating at the origin,
+/// Bandai's and LaFAN1's folded along one axis) the raw direction is judged, as the lock then
+/// keeps the source's. The table prints the raw direction beside it as `(raw°)`.
+///
+/// Measured on the same lock: 33 of 84 within 5°/15° on the rig's own standing foot, 34 raw.
+/// The fitted rigs pass where the lock holds the source's foot: X Bot 4.7-12.2° mean (raw
+/// 12.9-25.3), the mannequin 5.0-9.3 (18.8-30.7), Mousey 4.9-15.4 (17.5-29.1), all three
+/// within the bound under the Xia walk; their p95 (10.9-33.3°) is the heading a planted foot
+/// holds (below). MakeHuman's rest stands along Z while its motion stands along Y: the lock
+/// does not fit to it (the retarget finds no floor for that posture in its world), so its
+/// foot keeps the source's pitch and is judged 5.1-16.8° off its own standing foot (raw
+/// 3.2-6.4): three pairs within the bound raw fail here. Tried before and left: judging from
+/// each rig's rest pitch alike (0 of 84; the pybvh rigs 67-91° off, their rests floating or
+/// read along the motion's up), from each rig's own clip (0 of 84: another performer's foot),
+/// and the pitch difference taken out about a side axis read off the foot's direction each
+/// frame (25-60° p95: a foot pointing down in the swing has no such axis; the axis here is
+/// carried by the foot bone).
+///
+/// Where the foot fails, it fails on its 95th percentile, under the CMU 131_01, 131_02 and
+/// Meredith walks on every target alike (the CMU 31-joint rig, no fit: 6.0/23.5°): frame by
+/// frame (CMU 131_01 onto Xia's rig) the error is the heading, held up to `PIVOT_RAD` (25.8°)
+/// while the performer turns a planted foot, and again as the released foot catches up. A
+/// pivot of 0.15 rad instead: foot 28 -> 42 of 84 raw, but thigh and shin 97 -> 91 (the pin
+/// turned about the ball moves the ankle the leg must reach) and foot_lock's drift over every
+/// foot joint 0.023 -> 0.034 on the mannequin (its bound about 0.035); not landed. Pitching a
+/// heel strike's toes down onto the floor only where they would go under it (instead of
+/// standing the pinned foot flat) kept the pitch (foot 28 -> 36 raw) but lost the floor on
+/// 43 pairs (141 -> 98); not landed.
 #[test]
 #[ignore = "issue 35's bounds are not met yet; the test prints the table per pair"]
 fn locked_legs_follow_the_source_on_walks_and_runs() {
@@ -1001,13 +1147,20 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
         !gaits.is_empty(),
         "no walk or run among the labelled humans"
     );
+    for h in &humans {
+        let pitch = |side| rest_standing_pitch(h, side).map(|p| format!("{:.1}", p.to_degrees()));
+        if let (Some(l), Some(r)) = (pitch("L"), pitch("R")) {
+            println!("{}: its rest stands, feet pitched {l}° / {r}°", h.name());
+        }
+    }
     println!(
-        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7} {:>7} {:>6} {:>7} {:>11} {:>11}",
+        "{:<36} {:<36} {:>11} {:>11} {:>11} {:>11} {:>7} {:>7} {:>6} {:>7} {:>11} {:>11}",
         "source",
         "target",
         "thigh°",
         "shin°",
         "foot°",
+        "(raw°)",
         "drift",
         "(src)",
         "floor",
@@ -1023,6 +1176,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     let mut feet_judged = 0;
     // Pairs whose every foot joint drifts within the bound (not judged: see above).
     let mut joints_within = 0;
+    // Pairs whose raw foot direction is within the foot's bound (printed, not judged).
+    let mut raw_within = 0;
     for src in &gaits {
         for (tgt, judge_t) in humans
             .iter()
@@ -1079,11 +1234,12 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 }
             };
             println!(
-                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>6} {:>7.3} {:>11} {:>11}",
+                "{:<36} {:<36} {:>11} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>6} {:>7.3} {:>11} {:>11}",
                 src.name(),
                 tgt.name(),
                 pair(f.thigh),
                 pair(f.shin),
+                pair(f.foot_own),
                 pair(f.foot),
                 f.drift,
                 f.source_drift,
@@ -1102,11 +1258,12 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 ));
             }
             // A rig without toes has no foot direction to judge.
-            if !f.foot.0.is_nan() && !within(f.foot, 5.0, 15.0) {
-                failures.push(format!("{name}: foot {}", pair(f.foot)));
+            if !f.foot.0.is_nan() && !within(f.foot_own, 5.0, 15.0) {
+                failures.push(format!("{name}: foot {}", pair(f.foot_own)));
             }
             tally[0] += usize::from(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0));
-            tally[1] += usize::from(!f.foot.0.is_nan() && within(f.foot, 5.0, 15.0));
+            tally[1] += usize::from(!f.foot.0.is_nan() && within(f.foot_own, 5.0, 15.0));
+            raw_within += usize::from(!f.foot.0.is_nan() && within(f.foot, 5.0, 15.0));
             feet_judged += usize::from(!f.foot.0.is_nan());
             tally[2] += usize::from(f.drift <= 0.05);
             joints_within += usize::from(f.joints_drift <= 0.05);
@@ -1124,8 +1281,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     }
     println!(
         "{checked} right walk/run pairs measured; within the bounds: thigh and shin {}, foot {} \
-         of the {feet_judged} with toes, drift {} (every foot joint: {joints_within}), floor {}; \
-         {} failures",
+         of the {feet_judged} with toes (raw: {raw_within}), drift {} (every foot joint: \
+         {joints_within}), floor {}; {} failures",
         tally[0],
         tally[1],
         tally[2],
