@@ -8,7 +8,10 @@
 //! similarity), jitter (the mean joint acceleration of the hip-centred 3D, mm per frame²) and
 //! left/right labelling (the model's 2D labels against the reference projected into the
 //! camera). Beside rigcast's output, the landmark models' own readings (no left/right guard,
-//! no smoothing) show which way round the network itself reads each view.
+//! no smoothing) show which way round the network itself reads each view, and MediaPipe with
+//! its lite model (the network rigcast's default runs, with MediaPipe's crops, runtime and
+//! smoothing around it) shows what of the default's distance from MediaPipe full is the
+//! network's.
 //!
 //! The reference a camera is judged against is triangulated from the *other* three cameras
 //! only, so no detector's reading of the judged view is in it; MediaPipe shares the landmark
@@ -42,7 +45,7 @@ mod reference3d;
 use std::path::Path;
 
 use glam::{DVec2, DVec3};
-use mediapipe::{mediapipe_python, MediaPipeRun, Points};
+use mediapipe::{mediapipe_python, run_mediapipe_model, MediaPipeRun, Points};
 use multiview::{similarity_aligned, Camera};
 use reference3d::{Frame3d, Rig, View};
 use rigcast_sources::vision::landmarks::idx;
@@ -430,12 +433,15 @@ fn pose2sim_3d_reference_judges_each_camera_and_model() {
         let lite_own = ours(ModelKind::Lite, Output::ModelsOwn);
         let full_own = ours(ModelKind::Full, Output::ModelsOwn);
         let theirs = judge(&readings_of_mediapipe(&rig.runs[c]));
+        let their_lite = run_mediapipe_model(&python, video, None, "lite");
+        let their_lite = judge(&readings_of_mediapipe(&their_lite));
         for (model, s) in [
             ("rigcast lite (default)", &lite),
             ("rigcast full", &full),
             ("lite model's own readings", &lite_own),
             ("full model's own readings", &full_own),
             ("MediaPipe full", &theirs),
+            ("MediaPipe lite", &their_lite),
         ] {
             println!("{}", row(&cam.name, model, s));
             if s.frames == 0 {

@@ -56,8 +56,11 @@ pub fn mediapipe_python() -> Result<PathBuf, String> {
 /// Where this run's landmarks and summary line go: `RIGCAST_MEDIAPIPE_CACHE` (a folder:
 /// `CLIP.json`, its landmarks over every frame, and `CLIP.txt`, its summary line, kept between
 /// runs while iterating on the tracker) or a temporary pair removed after reading.
-fn outputs(path: &Path) -> (PathBuf, PathBuf, bool) {
-    let name = path.file_name().unwrap().to_string_lossy().into_owned();
+fn outputs(path: &Path, model: &str) -> (PathBuf, PathBuf, bool) {
+    let mut name = path.file_name().unwrap().to_string_lossy().into_owned();
+    if model != "full" {
+        name = format!("{name}.{model}");
+    }
     match std::env::var_os("RIGCAST_MEDIAPIPE_CACHE").map(PathBuf::from) {
         Some(dir) => (
             dir.join(format!("{name}.json")),
@@ -111,14 +114,25 @@ fn points(frames: &serde_json::Value, max: Option<usize>) -> Vec<Option<Points>>
 /// MediaPipe's run over `path` (its first `max` frames): in this run, or read back from
 /// `RIGCAST_MEDIAPIPE_CACHE` while iterating on the tracker.
 pub fn run_mediapipe(python: &Path, path: &Path, max: Option<usize>) -> MediaPipeRun {
-    let (json_path, text_path, keep) = outputs(path);
+    run_mediapipe_model(python, path, max, "full")
+}
+
+/// [`run_mediapipe`] with MediaPipe's `model` (`full` or `lite`; a cache keeps lite's landmarks
+/// as `CLIP.lite.json`).
+pub fn run_mediapipe_model(
+    python: &Path,
+    path: &Path,
+    max: Option<usize>,
+    model: &str,
+) -> MediaPipeRun {
+    let (json_path, text_path, keep) = outputs(path, model);
     let was_cached = keep && cached(&json_path, &text_path);
     if !was_cached {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
         let mut cmd = Command::new(python);
         cmd.arg(&script)
             .arg(path)
-            .args(["full", "1", "--landmarks"])
+            .args([model, "1", "--landmarks"])
             .arg(&json_path);
         // A cache holds every frame, so that any bound reads it.
         if let Some(m) = max.filter(|_| !keep) {
