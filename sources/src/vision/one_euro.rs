@@ -60,6 +60,14 @@ impl OneEuro {
         self.state = None;
     }
 
+    /// Continues with the negated signal: the history's value and speed change sign (a
+    /// coordinate mirrored between two frames carries on smoothly from its mirror image).
+    pub fn negate(&mut self) {
+        if let Some((x, dx, t)) = self.state {
+            self.state = Some((-x, -dx, t));
+        }
+    }
+
     /// Filters `x` observed at `time_secs`. A non-increasing time returns the last value.
     pub fn filter(&mut self, x: f32, time_secs: f64) -> f32 {
         let Some((prev, dprev, tprev)) = self.state else {

@@ -474,7 +474,7 @@ fn side_view(lm: &Landmarks) -> bool {
 }
 
 /// Torso lines (left minus right, world) of hips and shoulders: what the flip guard compares.
-fn torso_lines(lm: &Landmarks) -> [Vec3; 2] {
+pub(super) fn torso_lines(lm: &Landmarks) -> [Vec3; 2] {
     GUARD_PAIRS.map(|(l, r)| lm.world[l] - lm.world[r])
 }
 
@@ -492,7 +492,7 @@ fn labels_swapped(reference: &[Vec3; 2], cur: &Landmarks) -> bool {
 }
 
 /// [`labels_swapped`] on torso lines.
-fn lines_swapped(reference: &[Vec3; 2], same: [Vec3; 2]) -> bool {
+pub(super) fn lines_swapped(reference: &[Vec3; 2], same: [Vec3; 2]) -> bool {
     let flipped = flipped_lines(same);
     let cost = |lines: &[Vec3; 2]| -> f32 {
         lines

@@ -1,5 +1,6 @@
 //! The model-free half of the vision pipeline: landmarks → One Euro smoothing → constant limb
-//! lengths → rotations of the BlazePose skeleton.
+//! lengths → rotations of the BlazePose skeleton. Where the landmarks' left/right labelling
+//! changes between frames, the filters' histories change sides with it.
 //!
 //! [`PosePipeline`](super::PosePipeline) runs these stages on the tracker's output for live
 //! video; [`LandmarkReplaySource`](super::LandmarkReplaySource) runs the very same stages on
@@ -8,6 +9,7 @@
 
 use std::sync::Arc;
 
+use glam::Vec3;
 use rigcast_retarget::{Pose, Skeleton};
 
 use super::body::blazepose_skeleton;
@@ -15,6 +17,7 @@ use super::error::VisionError;
 use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
 use super::lengths::LimbLengths;
 use super::one_euro::{OneEuro, OneEuroParams};
+use super::sides::{lines_swapped, reading_weight, torso_lines, LR_PAIRS};
 use super::solve::{PoseSolver, SolverConfig};
 
 /// A person back in their slot within this long (seconds) keeps their limb-length estimates:
@@ -36,6 +39,9 @@ pub struct LandmarkStages {
     tracking: bool,
     /// When the person was last processed (the lengths are kept across a short loss).
     last_seen_secs: Option<f64>,
+    /// The torso lines (left minus right, world) of the last frame's landmarks, to see the
+    /// labels exchanged between frames (see [`Self::follow_exchanged_sides`]).
+    last_lines: Option<[Vec3; 2]>,
 }
 
 impl LandmarkStages {
@@ -55,6 +61,7 @@ impl LandmarkStages {
             lengths: constant_lengths.then(LimbLengths::new),
             tracking: false,
             last_seen_secs: None,
+            last_lines: None,
         })
     }
 
@@ -87,6 +94,7 @@ impl LandmarkStages {
             }
         }
         self.last_seen_secs = Some(t);
+        self.follow_exchanged_sides(raw);
         self.smoothed = *raw;
         if self.smoothing {
             for i in 0..NUM_MODEL_LANDMARKS {
@@ -112,6 +120,43 @@ impl LandmarkStages {
         &self.smoothed
     }
 
+    /// When `raw` is labelled the other way round from the last frame (the tracker's left/right
+    /// guard took the model's labelling, or there is no guard and the model read the mirror
+    /// image), moves each filter's history to the landmark that now names its point: left and
+    /// right exchanged, depth mirrored, as the labels were. Filtered through, the exchange
+    /// would draw every left point across the body to its right twin over several frames, and
+    /// the output would show a body labelled neither way meanwhile (basketball practice: the
+    /// player's back, taken from the model on frame 173, read side-on in the output until
+    /// frame 176). Only a decisive reading is compared (a torso
+    /// facing the camera or away from it, its parts agreeing), and only with the frame just
+    /// before when that one was decisive too: at a side view both labellings put the torso
+    /// along the line of sight, and either comparison is a toss-up (pose2sim cam01: the lite
+    /// model's one edge-on frame, then a square one, read as an exchange), and across one a
+    /// body turned to its back is a mirror of its front.
+    fn follow_exchanged_sides(&mut self, raw: &Landmarks) {
+        let lines = torso_lines(raw);
+        let decisive = reading_weight(raw) > 0.0;
+        let exchanged = decisive
+            && self
+                .last_lines
+                .is_some_and(|last| lines_swapped(&last, lines));
+        self.last_lines = decisive.then_some(lines);
+        if !exchanged || !self.smoothing {
+            return;
+        }
+        for &(l, r) in &LR_PAIRS {
+            self.image_filters.swap(l, r);
+            self.world_filters.swap(l, r);
+        }
+        for f in self
+            .image_filters
+            .iter_mut()
+            .chain(self.world_filters.iter_mut())
+        {
+            f[2].negate();
+        }
+    }
+
     /// The person left the view: the next frame starts fresh filters, and fresh length
     /// estimates unless the person is back within [`KEEP_LENGTHS_SECS`] (the solver keeps its
     /// output, so the caller holds the last pose).
@@ -120,6 +165,7 @@ impl LandmarkStages {
             return;
         }
         self.tracking = false;
+        self.last_lines = None;
         for f in self
             .image_filters
             .iter_mut()
@@ -185,5 +231,89 @@ mod tests {
         // Time going back (a replay restarted) starts afresh too.
         let restarted = back_after(-1.0);
         assert!((restarted - 0.18).abs() < 1e-4, "{restarted}");
+    }
+
+    /// A body square on to the camera (its left on the picture's right), its elbows `depth`
+    /// metres towards the camera, in the picture at `(x, 500)`; every other point at the hips.
+    fn facing_body(x: f32, depth: f32) -> Landmarks {
+        let mut lm = Landmarks::default();
+        // (landmark, towards the body's left, height above the hips, depth)
+        let points = [
+            (idx::LEFT_SHOULDER, 0.18, 0.5, 0.0),
+            (idx::RIGHT_SHOULDER, -0.18, 0.5, 0.0),
+            (idx::LEFT_HIP, 0.1, 0.0, 0.0),
+            (idx::RIGHT_HIP, -0.1, 0.0, 0.0),
+            (idx::LEFT_EAR, 0.07, 0.7, 0.0),
+            (idx::RIGHT_EAR, -0.07, 0.7, 0.0),
+            (idx::LEFT_ELBOW, 0.3, 0.25, -depth),
+            (idx::RIGHT_ELBOW, -0.3, 0.25, -depth),
+        ];
+        for (i, across, up, z) in points {
+            lm.world[i] = Vec3::new(across, -up, z);
+            lm.image[i] = Vec4::new(x + 400.0 * across, 500.0 - 400.0 * up, 0.0, 1.0);
+        }
+        lm
+    }
+
+    fn mirrored(mut lm: Landmarks) -> Landmarks {
+        crate::vision::sides::flip_interpretation(&mut lm);
+        lm
+    }
+
+    /// The smoothed left elbow (picture x, depth) after a second of `body`, then `next`.
+    fn left_elbow_after(body: &Landmarks, next: &[Landmarks]) -> (f32, f32) {
+        let mut stages = LandmarkStages::new(SolverConfig::default(), true, false).unwrap();
+        let mut pose = stages.skeleton().rest_pose();
+        let dt = 1.0 / 30.0;
+        for i in 0..30 {
+            stages.process(body, i as f64 * dt, &mut pose);
+        }
+        let mut out = Landmarks::default();
+        for (i, lm) in next.iter().enumerate() {
+            out = *stages.process(lm, (30 + i) as f64 * dt, &mut pose);
+        }
+        let e = idx::LEFT_ELBOW;
+        (out.image[e].x, out.world[e].z)
+    }
+
+    #[test]
+    fn labels_exchanged_between_frames_exchange_the_filters_histories() {
+        let body = facing_body(500.0, 0.2);
+        // The same picture labelled the other way round (the guard took the model's
+        // labelling): the left elbow is the right one's point, its depth mirrored, at once.
+        let (x, z) = left_elbow_after(&body, &[mirrored(body)]);
+        let want = mirrored(body);
+        assert!((x - want.image[idx::LEFT_ELBOW].x).abs() < 0.5, "{x}");
+        assert!((z - want.world[idx::LEFT_ELBOW].z).abs() < 1e-3, "{z}");
+        // Labelled alike and moved: smoothed as before, lagging behind the move.
+        let moved = facing_body(560.0, 0.2);
+        let (x, _) = left_elbow_after(&body, &[moved]);
+        assert!(
+            x > 500.0 + 400.0 * 0.3 && x < 560.0 + 400.0 * 0.3 - 5.0,
+            "{x}"
+        );
+    }
+
+    #[test]
+    fn no_exchange_is_read_across_an_edge_on_frame() {
+        // A frame read edge-on (its torso along the line of sight, no evidence), then the
+        // body square on again: its torso lines against the edge-on ones say nothing, so the
+        // filters go on smoothing the same labels.
+        let body = facing_body(500.0, 0.2);
+        // Edge-on, leaning a little towards the mirror reading: compared with it, the next
+        // square frame would read as exchanged.
+        let mut edge_on = body;
+        for (l, r, half) in [
+            (idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER, 0.18),
+            (idx::LEFT_HIP, idx::RIGHT_HIP, 0.1),
+        ] {
+            let y = edge_on.world[l].y;
+            edge_on.world[l] = Vec3::new(-0.1 * half, y, -half);
+            edge_on.world[r] = Vec3::new(0.1 * half, y, half);
+        }
+        assert_eq!(reading_weight(&edge_on), 0.0);
+        assert!(lines_swapped(&torso_lines(&edge_on), torso_lines(&body)));
+        let (_, z) = left_elbow_after(&body, &[edge_on, body]);
+        assert!((z - body.world[idx::LEFT_ELBOW].z).abs() < 1e-3, "{z}");
     }
 }
