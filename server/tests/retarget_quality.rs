@@ -1107,7 +1107,11 @@ fn pair_wanted(name: &str) -> bool {
 /// holds (below). MakeHuman's rest stands along Z while its motion stands along Y: the lock
 /// does not fit to it (the retarget finds no floor for that posture in its world), so its
 /// foot keeps the source's pitch and is judged 5.1-16.8° off its own standing foot (raw
-/// 3.2-6.4): three pairs within the bound raw fail here. Tried before and left: judging from
+/// 3.2-6.4): three pairs within the bound raw fail here. Fitting it to that rest anyway (a
+/// rest whose feet stand on its own ground along its own up) brought its foot to 3.6/10.1°
+/// under the Xia walk but bent its legs and lifted its feet on the others (thigh+shin 104 ->
+/// 100, floor 143 -> 141: cmu_dazfriendly 0.60 -> 3.95 cm, its standing heights read along
+/// Z against a world along Y); not landed. Tried before and left: judging from
 /// each rig's rest pitch alike (0 of 84; the pybvh rigs 67-91° off, their rests floating or
 /// read along the motion's up), from each rig's own clip (0 of 84: another performer's foot),
 /// and the pitch difference taken out about a side axis read off the foot's direction each
