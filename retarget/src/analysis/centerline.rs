@@ -3,6 +3,8 @@
 //! the central tree; mirror-image limbs on the two sides pair up. The centerline is the central
 //! tree's longest path, oriented tail → head.
 
+use std::collections::HashMap;
+
 use glam::Vec3;
 
 use super::context::{Ctx, Limb};
@@ -30,6 +32,8 @@ pub(super) fn central_and_limbs(
         }
         let mut plus = Vec::new();
         let mut minus = Vec::new();
+        let twins = twins_of(ctx, p);
+        let mut considered = 0;
         for &c in skel.children(p) {
             if ctx.detached[c.index()] {
                 continue;
@@ -42,12 +46,15 @@ pub(super) fn central_and_limbs(
             if ctx.is_shadow(c) && ctx.names[c.index()].helper && ctx.is_coincident(c) {
                 continue;
             }
+            considered += 1;
             let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
             let spread = ctx
                 .subtree(c)
                 .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
                 .fold(0.0, f32::max);
-            if off.abs() > 0.3 * spread && off.abs() > 0.005 * size {
+            let side = twin_offset(ctx, p, c, &twins, lat)
+                .or_else(|| (off.abs() > 0.3 * spread && off.abs() > 0.005 * size).then_some(off));
+            if let Some(off) = side {
                 if off > 0.0 {
                     plus.push(c);
                 } else {
@@ -69,9 +76,12 @@ pub(super) fn central_and_limbs(
         for c in plus.into_iter().chain(minus) {
             let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
             // Without a mirror twin, only a chain far to one side is a limb; a head that
-            // sits a little off the midline continues the body.
+            // sits a little off the midline continues the body, and so does a central bone's
+            // only child that goes on (a head tilted over its neck, its end joint on it): a
+            // limb hangs beside a body that continues. A lone end joint is left as it was.
             let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
-            if off.abs() < 0.15 * extent {
+            let goes_on = considered == 1 && !ctx.is_leaf(c);
+            if off.abs() < 0.15 * extent || goes_on {
                 central[c.index()] = true;
                 continue;
             }
@@ -92,6 +102,46 @@ pub(super) fn central_and_limbs(
         l.ground &= l.low < lowest + 0.12 * hext;
     }
     (central, limbs)
+}
+
+/// Per shape among `p`'s children (not detached): how many, and the first two.
+fn twins_of(ctx: &Ctx<'_>, p: BoneId) -> HashMap<u64, (usize, BoneId, BoneId)> {
+    let mut shapes: HashMap<u64, (usize, BoneId, BoneId)> = HashMap::new();
+    for &c in ctx.skel.children(p) {
+        if ctx.detached[c.index()] {
+            continue;
+        }
+        let e = shapes.entry(ctx.topo.hash[c.index()]).or_insert((0, c, c));
+        e.0 += 1;
+        if e.0 == 2 {
+            e.2 = c;
+        }
+    }
+    shapes
+}
+
+/// The offset along `lat` of child `c`'s own joint from `p`'s, when `c` has exactly one
+/// mirror twin among `p`'s children (`twins`, see [`twins_of`]) and their joints (the first
+/// down their chains that part, past zero-length helpers) lie on either side of `p`: twins
+/// that part at their roots are a pair of limbs, even when one swings across the body (a
+/// walk's crossing leg, whose foot under the hips puts its subtree's centroid on the midline).
+fn twin_offset(
+    ctx: &Ctx<'_>,
+    p: BoneId,
+    c: BoneId,
+    twins: &HashMap<u64, (usize, BoneId, BoneId)>,
+    lat: Vec3,
+) -> Option<f32> {
+    let &(n, a, b) = twins.get(&ctx.topo.hash[c.index()])?;
+    if n != 2 {
+        return None;
+    }
+    let other = if a == c { b } else { a };
+    let (x, y) = ctx.topo.parted(ctx.pos, c, other, 0.02 * ctx.size);
+    let at = |j: BoneId| (ctx.pos[j.index()] - ctx.pos[p.index()]).dot(lat);
+    let (ox, oy) = (at(x), at(y));
+    let clear = 0.005 * ctx.size;
+    (ox * oy < 0.0 && ox.abs() > clear && oy.abs() > clear).then_some(ox)
 }
 
 /// The centerline turned to run tail → head: its head end is the higher and more forward one.
@@ -253,7 +303,11 @@ pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool], limbs: &[Limb]) -> Vec
 
 #[cfg(test)]
 mod tests {
+    use glam::Quat;
+
     use crate::analysis::{analyze, Role, SkeletonView};
+    use crate::fk::world_transforms;
+    use crate::skeleton::{BoneId, Skeleton};
 
     #[test]
     fn a_shuffled_anonymous_human_has_the_same_centerline() {
@@ -283,5 +337,73 @@ mod tests {
         let r = roles(&named);
         assert!(r.len() >= 5, "{r:?}");
         assert_eq!(r, roles(&anon));
+    }
+
+    /// `skel` with bone `b` turned by `turn` about its joint, in world space, as its rest.
+    fn turned(skel: &Skeleton, b: BoneId, turn: Quat) -> Skeleton {
+        let w = world_transforms(skel, &skel.rest_pose());
+        let parent = skel
+            .parent(b)
+            .map_or(Quat::IDENTITY, |p| w[p.index()].rotation);
+        let mut raw = skel.to_raw();
+        raw.bones[b.index()].rest.rotation =
+            (parent.inverse() * turn * w[b.index()].rotation).normalize();
+        Skeleton::build(&raw).expect("skeleton")
+    }
+
+    /// Read without names, a crossover step (the right foot swung half the hips' width past
+    /// the midline, so its leg's joints average to the middle) and a head tilted 25° over its
+    /// neck keep every core role: mirror twins that part at their roots are a pair of limbs,
+    /// and a central bone's only child that goes on continues the body.
+    #[test]
+    fn a_crossing_leg_and_a_tilted_head_keep_their_roles() {
+        let e = crate::corpus::get("mixamo").expect("corpus");
+        let find = |l: &str| {
+            let b = e.skeleton.bone_ids().find(|b| e.labels[b.index()] == l);
+            b.expect(l)
+        };
+        let w = world_transforms(&e.skeleton, &e.skeleton.rest_pose());
+        let at = |b: BoneId| w[b.index()].translation;
+        let (hips, thigh, foot) = (find("hips"), find("right_upper_leg"), find("right_foot"));
+        let side = (at(thigh) - at(hips)).x;
+        let down = (at(foot) - at(thigh)).length();
+        let swing = -side.signum() * (1.5 * side.abs() / down).atan();
+        let crossed = turned(&e.skeleton, thigh, Quat::from_rotation_z(swing));
+        let tilted = turned(
+            &crossed,
+            find("neck"),
+            Quat::from_rotation_z(25f32.to_radians()),
+        );
+        let w = world_transforms(&tilted, &tilted.rest_pose());
+        let past = (w[foot.index()].translation - w[hips.index()].translation).x;
+        assert!(
+            past * side < 0.0,
+            "the foot crossed the midline: {past} against {side}"
+        );
+        let blind = tilted.renamed(|b, _| format!("j{}", b.0)).expect("rename");
+        let a = analyze(&SkeletonView::rest(&blind));
+        let core = [
+            "hips",
+            "neck",
+            "head",
+            "upper_leg",
+            "lower_leg",
+            "foot",
+            "upper_arm",
+            "lower_arm",
+            "hand",
+        ];
+        let mut checked = 0;
+        for b in blind.bone_ids() {
+            let want = &e.labels[b.index()];
+            let side = want
+                .trim_start_matches("left_")
+                .trim_start_matches("right_");
+            if core.contains(&side) {
+                assert_eq!(&a.label(b), want, "bone {}", e.skeleton.name(b));
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 15);
     }
 }

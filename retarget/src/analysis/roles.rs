@@ -28,10 +28,17 @@ use super::{flat, forward, frame, Analysis, BoneRole, Doubt, Section, SkeletonVi
 use crate::skeleton::BoneId;
 
 /// Analyses every candidate posture of the view and keeps the one that reads as the most
-/// complete body (the first on ties: the rest pose, or the motion's medoid frame).
+/// complete body (the first on ties: the rest pose, or the motion's medoid frame). A first
+/// posture that reads as a two-legged, two-armed body is kept outright: a frame of the motion
+/// can show a body a folded rest hides, but it is no better evidence than a rest that shows
+/// one, and a mid-stride frame can read an extra bone where there is none (an end joint as a
+/// head over a neck).
 pub(crate) fn analyze_impl(view: &SkeletonView<'_>) -> Analysis {
     let mut best: Option<(usize, Analysis)> = None;
     for p in posture::candidates(view) {
+        if best.as_ref().is_some_and(|(_, a)| a.humanoid) {
+            break;
+        }
         let a = analyze_posture(view, p);
         let score = coherence(&a);
         if best.as_ref().is_none_or(|(s, _)| score > *s) {
