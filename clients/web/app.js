@@ -109,7 +109,7 @@ state.perf = () => ({
   renderReasons: { ...renderReasons },
   triangles: renderer.info.render.triangles,
 });
-state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved });
+state.camera = () => ({ position: camera.position.toArray(), target: rig.orbit.target.toArray(), userMoved: rig.userMoved, followed: rig.lastFollowed?.toArray() ?? null });
 const labelLayer = $('labels');
 
 function nowNanos() {

@@ -686,11 +686,21 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             .collect();
         let span = applied.last().unwrap() - applied.first().unwrap();
         let rate = (applied.len() - 1) as f64 / span;
-        assert!(
-            rate >= 30.0,
-            "subject {id}: applied {rate:.1} frames/s, want ≥ 30"
-        );
         let seqs: Vec<u64> = mine.iter().map(|o| o["seq"].as_u64().unwrap()).collect();
+        // The add-on applies the newest frame on each of Blender's ticks, so it can apply no
+        // faster than it ticks or than the server produces (seq counts produced frames). The
+        // two are not in phase, so half the slower of them is the bound: 30 frames/s on an
+        // idle machine (60 Hz ticks, the 60 fps demo), less when a loaded machine slows Blender
+        // or the server. A fixed 30 failed at load 20 (15.1/s) though every frame given was
+        // applied; the speed itself is a benchmark's figure, printed below.
+        let tick_rate =
+            result["record_ticks"].as_f64().unwrap() / result["record_secs"].as_f64().unwrap();
+        let produced_rate = (seqs.last().unwrap() - seqs.first().unwrap()) as f64 / span;
+        let bound = 0.5 * tick_rate.min(produced_rate);
+        assert!(
+            rate >= bound,
+            "subject {id}: applied {rate:.1} frames/s, want ≥ {bound:.1} (Blender ticked {tick_rate:.1}/s, the server produced {produced_rate:.1}/s)"
+        );
         assert!(
             seqs.windows(2).all(|w| w[1] > w[0]),
             "subject {id}: seq went backwards"

@@ -143,6 +143,8 @@ def run(args, out):
     # Longest wall-clock wait between two ticks while recording: a key can only be made on a
     # tick, so the test bounds the gaps between keys by this, not by a guess at the load.
     max_tick_gap = [0.0]
+    # Ticks made while recording: the rate the add-on could apply at is bounded by them.
+    record_ticks = [0]
 
     def observer(subject_id, frame, obj):
         pending.append((subject_id, frame, obj))
@@ -159,6 +161,8 @@ def run(args, out):
             if collect:
                 max_tick_gap[0] = max(max_tick_gap[0], now - last_tick)
             last_tick = now
+            if collect:
+                record_ticks[0] += 1
             livelink.tick()
             if pending:
                 if collect:
@@ -243,6 +247,7 @@ def run(args, out):
     bpy.ops.rigcast.record()
     out["record_secs"] = time.monotonic() - record_start
     out["max_tick_gap_secs"] = max_tick_gap[0]
+    out["record_ticks"] = record_ticks[0]
 
     session = runtime.session
     out["session"] = {
