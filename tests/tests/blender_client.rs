@@ -691,8 +691,8 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
         // faster than it ticks or than the server produces (seq counts produced frames). The
         // two are not in phase, so half the slower of them is the bound: 30 frames/s on an
         // idle machine (60 Hz ticks, the 60 fps demo), less when a loaded machine slows Blender
-        // or the server. A fixed 30 failed at load 20 (15.1/s) though every frame given was
-        // applied; the speed itself is a benchmark's figure, printed below.
+        // or the server. A fixed 30 failed at load 20 (15.1/s), judging the machine's speed,
+        // which is a benchmark's figure (printed below), not the add-on's behaviour.
         let tick_rate =
             result["record_ticks"].as_f64().unwrap() / result["record_secs"].as_f64().unwrap();
         let produced_rate = (seqs.last().unwrap() - seqs.first().unwrap()) as f64 / span;
