@@ -416,13 +416,17 @@ impl Foot {
     /// blends in place and speed), except that a foot still coming down onto its pin keeps
     /// that downward speed: stopping it would leave it hanging over the pin for the blend's
     /// length. A foot seen for the first time has shown nothing yet: nothing to blend from.
-    fn retake_offsets(&mut self, fresh: bool, up: Vec3, goal: (Vec3, f32, Vec3, f32)) {
+    /// The difference is taken against where the goal was `dt` ago, as the shown foot is last
+    /// frame's: the offset then steps over this frame with the goal (taken against the goal's
+    /// place now, a released foot stepped back by the animation's move over the frame before
+    /// it swung on, a kick).
+    fn retake_offsets(&mut self, fresh: bool, up: Vec3, goal: (Vec3, f32, Vec3, f32), dt: f32) {
         let (target, target_heading, velocity, rate) = goal;
         let keep_speed = if self.locked { 0.0 } else { 1.0 };
         self.position_offset = if fresh {
             Decay::default()
         } else {
-            let value = self.shown_position - target;
+            let value = self.shown_position - (target - velocity * dt);
             let relative = self.shown_velocity - velocity;
             let down = up * relative.dot(up);
             let settling = if down.dot(value) < 0.0 {
@@ -436,7 +440,7 @@ impl Foot {
             }
         };
         self.heading_offset = Decay {
-            value: wrap(self.shown_heading - target_heading),
+            value: wrap(self.shown_heading - (target_heading - rate * dt)),
             velocity: (self.shown_heading_rate - rate) * keep_speed,
         };
     }
@@ -1203,7 +1207,7 @@ impl FootLock {
         if f.locked != was {
             let carried = if f.locked { 0.0 } else { last_drop };
             let goal = (target - up * carried, target_heading, velocity, rate);
-            f.retake_offsets(fresh, up, goal);
+            f.retake_offsets(fresh, up, goal, dt);
         }
         // A released foot catches up with the animation, which has lifted it already (the
         // live detector lets go a frame or two late): more slowly than a landing settles, or

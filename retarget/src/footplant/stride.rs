@@ -89,6 +89,8 @@ impl RootShift {
         } else {
             Vec3::ZERO
         };
+        // Last frame's: what a change of the standing feet blends from (see below).
+        let wanted_before = self.ground_wanted;
         self.ground_wanted -= mean_slide;
         let far = self.ground_wanted.length();
         if far > reach {
@@ -110,8 +112,11 @@ impl RootShift {
             } else {
                 Vec3::ZERO
             };
+            // Against last frame's wanted, as the ground shown is last frame's: the offset
+            // then steps over this frame with the wanted's move (against this frame's, the
+            // body stood still for the frame of the change, a kick).
             self.ground_offset = Decay {
-                value: self.ground - self.ground_wanted,
+                value: self.ground - wanted_before,
                 velocity: self.ground_rate - wanted_rate,
             };
         }
