@@ -41,8 +41,9 @@
 //! hangs 20-30 cm above the floor in the retargeted walk while the source's stands: a plant
 //! pins it and blends it down, and the floor's 95th percentile falls on those frames, so it
 //! swings with which samples the server takes. RobotExpressive (an IK-style rig: its feet hang
-//! from its root, carried at its shins' ends, their translations on the wire), one run at load
-//! 13-18: 5.2/16.3, 3.3/12.3, 0.008, 0.96.
+//! from its root, carried at its shins' ends, their translations on the wire), two runs at load
+//! 13-18 and 6-9 (the second after 5d607be's blends): 5.2/16.3 and 4.5/14.3, 3.3/12.3 and
+//! 3.1/12.1, 0.008 both, floor 0.96 and 1.18 (the Godot robot's 1.30 and 1.39 alike).
 //! Until then six seconds were watched of the looping walk, wherever the stream began: the
 //! same lock, run without the server from where each of six starts 1.25 s apart put it, read
 //! the floor at robot 0.96-3.54, Casual 0.57-1.89, X Bot 0.30-0.72 cm; over the whole walk
