@@ -82,7 +82,7 @@ fn profile_clip(path: &Path, config: &PipelineConfig) {
     let name = path.file_name().unwrap().to_string_lossy();
     let short: String = name.chars().take(28).collect();
     println!(
-        "| {short} | {} | {:.1} | {:.2} | {cpu:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} |",
+        "| {short} | {} | {:.1} | {:.2} | {cpu:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} ({:.2}; {:.2}) | {:.3} | {:.3} |",
         source.size().0,
         n / split.total.as_secs_f64(),
         ms(split.total),
@@ -91,6 +91,8 @@ fn profile_clip(path: &Path, config: &PipelineConfig) {
         ms(split.find),
         ms(split.solve),
         stats.inferences as f64 / n,
+        stats.finder_inferences as f64 / n,
+        stats.beside_inferences as f64 / n,
         stats.second_opinions as f64 / n,
         stats.detections as f64 / n,
     );
@@ -152,8 +154,8 @@ fn where_a_frame_goes() {
     let clips = shared_data::footage_clips(&assets.root.join("pose2sim"));
     println!(
         "| clip | decoded width | fps | ms a frame | CPU ms a frame (ffmpeg apart) | waiting for \
-         the decoder | tracking | finding | stages | landmark runs a frame | second opinions a \
-         frame | detector passes a frame |"
+         the decoder | tracking | finding | stages | landmark runs a frame (the finder's; beside \
+         someone) | second opinions a frame | detector passes a frame |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for clip in &clips {
