@@ -247,6 +247,19 @@ impl Skeleton {
         self.parents[bone.index()]
     }
 
+    /// Whether `bone` hangs (at any depth) below `ancestor`; a bone is not below itself.
+    /// Parents come before their children (checked at construction), so the walk ends.
+    pub fn is_below(&self, bone: BoneId, ancestor: BoneId) -> bool {
+        let mut b = self.parent(bone);
+        while let Some(p) = b {
+            if p == ancestor {
+                return true;
+            }
+            b = self.parent(p);
+        }
+        false
+    }
+
     /// Children of one bone, in their original order.
     pub fn children(&self, bone: BoneId) -> &[BoneId] {
         &self.children[bone.index()]
@@ -407,6 +420,14 @@ mod tests {
         assert_eq!(s.bone("c"), Some(BoneId(2)));
         assert_eq!(s.depth(BoneId(2)), 2);
         assert_eq!(s.children(BoneId(0)), &[BoneId(1)]);
+    }
+
+    #[test]
+    fn is_below_follows_parents_strictly() {
+        let s = Skeleton::build(&chain()).expect("valid");
+        let [a, b, c] = ["a", "b", "c"].map(|n| s.bone(n).unwrap());
+        assert!(s.is_below(c, a) && s.is_below(c, b) && s.is_below(b, a));
+        assert!(!s.is_below(a, c) && !s.is_below(b, c) && !s.is_below(a, a));
     }
 
     #[test]

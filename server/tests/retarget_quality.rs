@@ -675,7 +675,7 @@ fn limb_measure_sees_a_carried_foot_left_behind() {
             .filter_map(|side| {
                 let knee = h.bone(&sided("lowerLeg", side))?;
                 let foot = h.bone(&sided("foot", side))?;
-                (!is_below(&h.clip.skeleton, foot, knee)).then_some(foot)
+                (!h.clip.skeleton.is_below(foot, knee)).then_some(foot)
             })
             .collect()
     };
@@ -728,18 +728,6 @@ fn limb_measure_sees_a_carried_foot_left_behind() {
     if checked == 0 {
         println!("SKIP: no labelled rig whose foot hangs beside its shin");
     }
-}
-
-/// Whether `b` hangs below `a` in the hierarchy.
-fn is_below(skel: &Skeleton, b: BoneId, a: BoneId) -> bool {
-    let mut x = skel.parent(b);
-    while let Some(p) = x {
-        if p == a {
-            return true;
-        }
-        x = skel.parent(p);
-    }
-    false
 }
 
 /// Half the standing height of the 1.75 m body drift is normalised to: a person's hip joint

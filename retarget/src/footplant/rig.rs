@@ -60,18 +60,8 @@ fn find_below(
 ) -> Option<BoneId> {
     skel.bone_ids().find(|&b| {
         let r = &analysis.roles[b.index()];
-        r.role == role && r.side == side && r.limb == limb && is_below(skel, from, b)
+        r.role == role && r.side == side && r.limb == limb && skel.is_below(b, from)
     })
-}
-
-fn is_below(skel: &Skeleton, ancestor: BoneId, mut bone: BoneId) -> bool {
-    while let Some(p) = skel.parent(bone) {
-        if p == ancestor {
-            return true;
-        }
-        bone = p;
-    }
-    false
 }
 
 /// Every standing leg of `skel` (at most [`MAX_FEET`]), in bone order: its foot below its
@@ -152,7 +142,7 @@ fn legs_of(skel: &Skeleton, analysis: &Analysis, watched: bool) -> Vec<Leg> {
             foot,
             toes,
             length,
-            carried: !is_below(skel, lower, foot),
+            carried: !skel.is_below(foot, lower),
         });
         if legs.len() == MAX_FEET {
             break;

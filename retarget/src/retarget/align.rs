@@ -37,14 +37,7 @@ pub(crate) fn extent(worlds: &[WorldTransform]) -> f32 {
 
 /// True when `d` is `a` or lies below it.
 pub(crate) fn is_descendant(skel: &Skeleton, a: BoneId, d: BoneId) -> bool {
-    let mut b = Some(d);
-    while let Some(x) = b {
-        if x == a {
-            return true;
-        }
-        b = skel.parent(x);
-    }
-    false
+    d == a || skel.is_below(d, a)
 }
 
 /// Direction the chain arrives at `bone` from: from the nearest ancestor joint that is not at

@@ -418,8 +418,8 @@ impl<'a> Setup<'a> {
         let beside = |u: BoneId| {
             body.is_some_and(|root| {
                 skel.children(u).is_empty()
-                    && !is_below(skel, root, u)
-                    && skel.parent(u).is_none_or(|p| is_below(skel, root, p))
+                    && !skel.is_below(root, u)
+                    && skel.parent(u).is_none_or(|p| skel.is_below(root, p))
             })
         };
         let carried = (skel.bone_ids())
@@ -538,16 +538,4 @@ impl Mapping {
         });
         Ok(Mapping::from_plan(std::sync::Arc::new(plan)))
     }
-}
-
-/// Whether `bone` hangs (at any depth) below `ancestor`.
-fn is_below(skel: &Skeleton, bone: BoneId, ancestor: BoneId) -> bool {
-    let mut b = skel.parent(bone);
-    while let Some(p) = b {
-        if p == ancestor {
-            return true;
-        }
-        b = skel.parent(p);
-    }
-    false
 }
