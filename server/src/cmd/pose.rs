@@ -6,7 +6,7 @@
 //! `--json` prints exactly one JSON object on standard output:
 //! `{"fps", "frames": [{"time_secs", "image", "world", "people"}]}` — `image` is 33 × `[x, y,
 //! z, visibility]` in pixels of the input (z in the same pixel scale, smaller = nearer),
-//! `world` is 33 × `[x, y, z]` metres, hip-centred, in BlazePose's axes (x right in the image,
+//! `world` is 33 × `[x, y, z]` metres, hip-centred, in the camera's axes (x right in the image,
 //! y down, z away from the camera); both `null` for frames without person `#0`. `people` holds
 //! one `{"image", "world"}` per identity slot (`#0`, `#1`, …; `null`s when that person is not
 //! seen). `-o` writes person `#0`'s motion as BVH on the BlazePose source skeleton (frames

@@ -6,7 +6,7 @@
 //! point into rigcast's +Y-up right-handed space, where a performer facing the camera faces +Z
 //! and their left hand is on +X.
 
-use glam::{Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 
 /// Number of body landmarks.
 pub const NUM_LANDMARKS: usize = 33;
@@ -95,6 +95,10 @@ pub struct Landmarks {
     pub world: [Vec3; NUM_MODEL_LANDMARKS],
     /// Pose presence in [0, 1].
     pub presence: f32,
+    /// Size in pixels of the picture the image landmarks are in (the source's), zero when
+    /// unknown (landmarks recorded before it was kept): the perspective stage needs where the
+    /// picture's centre is and how wide it is.
+    pub picture: Vec2,
 }
 
 impl Default for Landmarks {
@@ -109,6 +113,7 @@ impl Landmarks {
         image: [Vec4::ZERO; NUM_MODEL_LANDMARKS],
         world: [Vec3::ZERO; NUM_MODEL_LANDMARKS],
         presence: 0.0,
+        picture: Vec2::ZERO,
     };
 
     /// Visibility of body landmark `i` in [0, 1].
@@ -123,12 +128,13 @@ impl Landmarks {
         world_to_internal(self.world[i])
     }
 
-    /// Multiplies the image landmarks' x, y and z (all in pixels) by `k`: from the pixels of a
-    /// scaled frame to those of the source.
+    /// Multiplies the image landmarks' x, y and z (all in pixels) and the picture's size by
+    /// `k`: from the pixels of a scaled frame to those of the source.
     pub fn scale_image(&mut self, k: f32) {
         if k == 1.0 {
             return;
         }
+        self.picture *= k;
         for p in self.image.iter_mut() {
             p.x *= k;
             p.y *= k;

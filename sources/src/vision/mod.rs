@@ -11,7 +11,9 @@
 //!      │           candidate-crop search without the detector model)
 //!      ▼ Landmarks per person (33 image + world points, visibility, presence)
 //!      │   ◀── LandmarkReplaySource: recorded landmarks re-enter here (no model, no camera)
-//!  LandmarkStages: One Euro smoothing per coordinate, constant limb lengths (world)
+//!  LandmarkStages: One Euro smoothing per coordinate, world landmarks into the camera's axes
+//!      │          with their across-picture shape from the image (perspective), constant
+//!      │          limb lengths (world)
 //!      ▼
 //!  PoseSolver ── two-direction aim per bone, twist from hip line / palm / foot plane,
 //!      │         confidence per bone: hold, then ease to rest
@@ -52,6 +54,7 @@ pub mod landmarks;
 pub mod lengths;
 pub mod model;
 pub mod one_euro;
+pub mod perspective;
 pub mod pipeline;
 pub mod read_ahead;
 mod readings;

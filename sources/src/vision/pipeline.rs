@@ -213,6 +213,7 @@ impl PosePipeline {
                 continue;
             };
             person.raw = *tracked;
+            person.raw.picture = glam::Vec2::new(frame.width as f32, frame.height as f32);
             person.raw.scale_image(frame.source_from_frame);
             person
                 .stages

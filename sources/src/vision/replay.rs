@@ -16,7 +16,9 @@ use rigcast_retarget::{Pose, Skeleton};
 use super::error::VisionError;
 use super::landmarks::Landmarks;
 use super::pipeline::PipelineConfig;
-use super::source::{decode_landmarks, LandmarkTap, LANDMARK_RECORD_BYTES};
+use super::source::{
+    decode_landmarks, LandmarkTap, LANDMARK_RECORD_BYTES, PICTURELESS_RECORD_BYTES,
+};
 use super::stages::LandmarkStages;
 use crate::live::{
     unix_nanos_now, wait_until, HealthTracker, LiveSource, NextFrame, Pace, RawKind, RawTap,
@@ -99,7 +101,8 @@ impl LandmarkReplaySource {
             return Err(VisionError::Recording {
                 path: name.into(),
                 message: format!(
-                    "no landmark records (raw kind 2, {LANDMARK_RECORD_BYTES} bytes or empty); \
+                    "no landmark records (raw kind 2, {LANDMARK_RECORD_BYTES} or \
+                     {PICTURELESS_RECORD_BYTES} bytes, or empty); \
                      {malformed} of the wrong length"
                 ),
             });

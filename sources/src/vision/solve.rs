@@ -490,6 +490,7 @@ mod tests {
             image: [Vec4::new(0.0, 0.0, 0.0, 1.0); NUM_MODEL_LANDMARKS],
             world: [Vec3::ZERO; NUM_MODEL_LANDMARKS],
             presence: 1.0,
+            ..Landmarks::default()
         };
         let mut put = |i: usize, v: Vec3| lm.world[i] = to_model(v - hip_c);
         // Joints at a bone's origin.

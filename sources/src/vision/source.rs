@@ -24,9 +24,12 @@ use crate::live::{
     SourceError, SourceStatus,
 };
 
-/// Bytes of one landmark record: presence, then 39 × (x, y, z, visibility) image values and
-/// 39 × (x, y, z) world values, all little-endian f32.
-pub const LANDMARK_RECORD_BYTES: usize = 4 * (1 + NUM_MODEL_LANDMARKS * 7);
+/// Bytes of one landmark record: presence, then 39 × (x, y, z, visibility) image values,
+/// 39 × (x, y, z) world values and the picture's width and height, all little-endian f32.
+pub const LANDMARK_RECORD_BYTES: usize = PICTURELESS_RECORD_BYTES + 8;
+
+/// Bytes of a record written before the picture's size was kept (read with it unknown).
+pub const PICTURELESS_RECORD_BYTES: usize = 4 * (1 + NUM_MODEL_LANDMARKS * 7);
 
 /// Encodes landmarks as a raw record (little-endian f32s) into `out` (cleared first).
 pub fn encode_landmarks(lm: &Landmarks, out: &mut Vec<u8>) {
@@ -42,11 +45,15 @@ pub fn encode_landmarks(lm: &Landmarks, out: &mut Vec<u8>) {
             out.extend_from_slice(&c.to_le_bytes());
         }
     }
+    for c in lm.picture.to_array() {
+        out.extend_from_slice(&c.to_le_bytes());
+    }
 }
 
-/// Decodes a record written by [`encode_landmarks`]; `None` when the length is wrong.
+/// Decodes a record written by [`encode_landmarks`] (or one without the picture's size, from
+/// before it was kept); `None` when the length is neither.
 pub fn decode_landmarks(bytes: &[u8]) -> Option<Landmarks> {
-    if bytes.len() != LANDMARK_RECORD_BYTES {
+    if bytes.len() != LANDMARK_RECORD_BYTES && bytes.len() != PICTURELESS_RECORD_BYTES {
         return None;
     }
     let mut vals = bytes
@@ -61,6 +68,9 @@ pub fn decode_landmarks(bytes: &[u8]) -> Option<Landmarks> {
     }
     for v in lm.world.iter_mut() {
         *v = glam::Vec3::new(vals.next()?, vals.next()?, vals.next()?);
+    }
+    if let (Some(w), Some(h)) = (vals.next(), vals.next()) {
+        lm.picture = glam::Vec2::new(w, h);
     }
     Some(lm)
 }
@@ -248,10 +258,17 @@ mod tests {
         };
         lm.image[3] = glam::Vec4::new(1.0, 2.0, 3.0, 0.5);
         lm.world[38] = glam::Vec3::new(-0.1, 0.2, 0.3);
+        lm.picture = glam::Vec2::new(1080.0, 1920.0);
         let mut bytes = Vec::new();
         encode_landmarks(&lm, &mut bytes);
         assert_eq!(bytes.len(), LANDMARK_RECORD_BYTES);
         assert_eq!(decode_landmarks(&bytes), Some(lm));
         assert_eq!(decode_landmarks(&bytes[1..]), None);
+        // A record from before the picture's size was kept: the same, the size unknown.
+        let old = &bytes[..PICTURELESS_RECORD_BYTES];
+        let read = decode_landmarks(old).unwrap();
+        assert_eq!(read.picture, glam::Vec2::ZERO);
+        assert_eq!(read.world, lm.world);
+        assert_eq!(read.image, lm.image);
     }
 }

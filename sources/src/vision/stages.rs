@@ -1,4 +1,5 @@
-//! The model-free half of the vision pipeline: landmarks → One Euro smoothing → constant limb
+//! The model-free half of the vision pipeline: landmarks → One Euro smoothing → the camera's
+//! axes and the image's picture-plane shape (see [`super::perspective`]) → constant limb
 //! lengths → rotations of the BlazePose skeleton. Where the landmarks' left/right labelling
 //! changes between frames, the filters' histories change sides with it.
 //!
@@ -17,6 +18,7 @@ use super::error::VisionError;
 use super::landmarks::{Landmarks, NUM_MODEL_LANDMARKS};
 use super::lengths::LimbLengths;
 use super::one_euro::{OneEuro, OneEuroParams};
+use super::perspective;
 use super::sides::{lines_swapped, reading_weight, torso_lines, LR_PAIRS};
 use super::solve::{PoseSolver, SolverConfig};
 
@@ -110,6 +112,7 @@ impl LandmarkStages {
                 w.z = f[2].filter(w.z, t);
             }
         }
+        perspective::apply(&mut self.smoothed);
         if let Some(lengths) = self.lengths.as_mut() {
             lengths.apply(&mut self.smoothed);
         }
