@@ -19,10 +19,27 @@
 //!   every foot joint printed beside it;
 //! - feet on the floor: on those frames, the 95th percentile of how far the foot's lowest
 //!   joint stands from its height in the character's own rest (authored standing on y = 0).
+//!   A foot without labelled toes only where the performer's ankle stands within 1 cm (of a
+//!   1.75 m body) of its floor, as the offline judge reads the joints both rigs have: at a
+//!   toe-off the performer's heel rises, and so does such a foot's ankle (the lock raises it
+//!   with the heel; pinned to the floor, the hips came down onto it and bent the other leg).
+//!   The walk's frame of each sample is found from the capture times, the replay's frames
+//!   being a frame time apart, from the first where the free character's hips rise and fall
+//!   with the walk's.
 //!
 //! Issue 35's bounds: thigh and shin 3° mean / 8° p95, foot 5° / 15°, drift ≤ 0.05 cm/frame,
 //! floor ≤ 1 cm. Not met yet: run with `--ignored` for the table (`cargo test -p
-//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). Three runs at load
+//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). With the toeless
+//! feet rising with the heel, five runs at load 7-14 (before, two runs of the lock before
+//! in the same build): the Godot robot thigh 6.4-7.0/24.2-26.1° (7.4-7.6/27.9-28.5), shin
+//! 3.2-3.5/9.3-11.8 (3.6-3.7/11.9-12.7), floor 0.54-0.59 cm (0.35); RobotExpressive
+//! 3.2-3.7/10.9-13.0 (4.2-4.3/13.7-14.4), 2.4-2.7/8.8-11.0 (2.8-3.0/11.6-12.0), 0.55-0.56
+//! (0.33-0.35); Quaternius Casual 2.4-2.7/6.8-7.9 (3.0-3.1/9.2-9.6), 2.1-2.4/6.8-7.7
+//! (2.6-2.7/9.1-9.5), 0.50-0.54 (0.21-0.24): Casual meets every bound; drift 0.003-0.011 on
+//! all three; the characters with toes as before (X Bot 2.4-2.6/5.6-6.9, UE-style mannequin
+//! 2.9-3.1/7.3-8.2). Judged on every planted frame (before the toeless foot was judged where
+//! the performer's ankle stands), the toeless floors read 3.3 cm with the feet rising and
+//! 0.79-1.43 before (below). Earlier, three runs at load
 //! 15-18 (387, 474 and 497 frames sampled): the foot on each character's own standing foot
 //! X Bot 11.7-13.4/29.4-32.9° (raw 21.9-22.5/33.7-34.8), the UE-style mannequin
 //! 10.4-11.2/21.7-23.9 (raw 26.6-27.2/38.1-39.3); thigh, shin X Bot 2.1-2.6/6.4-7.1,
@@ -86,8 +103,9 @@ struct Seen {
 /// every character, so one walk) onto every labelled human rig with legs (their rests stand on
 /// y = 0; the foot's direction is judged where toes are labelled), locked and free; per target
 /// (its labels, locked, free), and how long the walk takes (ns).
-async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64)> {
-    let (_, walk, _) = first_walk()?;
+async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64, Walk)> {
+    let (walk_labels, walk, _) = first_walk()?;
+    let source = Walk::new(&walk_labels, &walk)?;
     let pass_nanos = (walk.duration_secs() * 1e9) as u64;
     let watch = Duration::from_secs_f64(walk.duration_secs()) + WATCH_MARGIN;
     let targets = human_rigs();
@@ -164,7 +182,108 @@ async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64)> {
         let free = take(format!("{}-false", 2 * k + 1));
         out.push((rig, locked, free));
     }
-    Some((out, pass_nanos))
+    Some((out, pass_nanos, source))
+}
+
+/// The replayed walk, as the judge reads it: per frame, each side's ankle's height above its
+/// floor, and the hips' height.
+struct Walk {
+    frame_secs: f64,
+    hips: Vec<f32>,
+    /// Per side (L, R), per frame: the ankle above its floor.
+    feet: [Vec<f32>; 2],
+    /// 1 cm of a 1.75 m body, in the walk's units.
+    near: f32,
+}
+
+impl Walk {
+    fn new(labels: &Labelled, clip: &rigcast_retarget::Clip) -> Option<Walk> {
+        let s = &clip.skeleton;
+        let bone = |role: String| labels.bone(&role).and_then(|n| s.bone(n));
+        let worlds: Vec<Vec<Vec3>> = (clip.poses.iter())
+            .map(|p| {
+                rigcast_retarget::world_transforms(s, p)
+                    .iter()
+                    .map(|w| w.translation)
+                    .collect()
+            })
+            .collect();
+        let rest: Vec<Vec3> = (rigcast_retarget::world_transforms(s, &s.rest_pose()).iter())
+            .map(|w| w.translation)
+            .collect();
+        let hips = bone("hips".into())?;
+        let mut feet: [Vec<f32>; 2] = Default::default();
+        let mut leg = 0.0;
+        for (k, side) in ["L", "R"].iter().enumerate() {
+            let [u, l, f] = ["upperLeg", "lowerLeg", "foot"].map(|r| bone(format!("{r}.{side}")));
+            let (u, l, f) = (u?, l?, f?);
+            leg += 0.5
+                * ((rest[l.index()] - rest[u.index()]).length()
+                    + (rest[f.index()] - rest[l.index()]).length());
+            // The ankle's floor: the 5th percentile of its heights (most frames of a walk have
+            // the foot down; a dip through the floor does not move it).
+            let mut heights: Vec<f32> = worlds.iter().map(|w| w[f.index()].y).collect();
+            heights.sort_by(f32::total_cmp);
+            let floor = heights[heights.len() / 20];
+            feet[k] = worlds.iter().map(|w| w[f.index()].y - floor).collect();
+        }
+        Some(Walk {
+            frame_secs: clip.frame_time_secs,
+            hips: worlds.iter().map(|w| w[hips.index()].y).collect(),
+            feet,
+            near: 0.01 * leg / LEG_OF_175_CM_BODY,
+        })
+    }
+
+    /// The walk's frame each capture time of `free`'s frames shows: the replay samples frame k
+    /// k frame times after it starts, so the frames follow the capture times from an unknown
+    /// first frame, found where the free character's hips rise and fall with the walk's
+    /// (the retarget scales the hips' height: the two correlate best there).
+    fn frames_of(&self, free: &Seen, hips: usize) -> HashMap<u64, usize> {
+        let mut seen: Vec<(u64, f32)> = (free.frames.iter())
+            .filter(|f| f.header.capture_nanos != 0)
+            .map(|f| (f.header.capture_nanos, wire_fk(&free.bones, f)[hips].y))
+            .collect();
+        seen.sort_by_key(|s| s.0);
+        let Some(&(first, _)) = seen.first() else {
+            return HashMap::new();
+        };
+        let step = |c: u64| ((c - first) as f64 * 1e-9 / self.frame_secs).round() as usize;
+        let n = self.hips.len();
+        let correlation = |k0: usize| {
+            let pairs: Vec<(f32, f32)> = (seen.iter())
+                .filter_map(|&(c, y)| Some((*self.hips.get(k0 + step(c))?, y)))
+                .collect();
+            if pairs.len() * 5 < seen.len() * 4 {
+                return f32::NEG_INFINITY;
+            }
+            let m = pairs.len() as f32;
+            let (ma, mb) = pairs
+                .iter()
+                .fold((0.0, 0.0), |(a, b), p| (a + p.0 / m, b + p.1 / m));
+            let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+            for (a, b) in &pairs {
+                (ab, aa, bb) = (
+                    ab + (a - ma) * (b - mb),
+                    aa + (a - ma).powi(2),
+                    bb + (b - mb).powi(2),
+                );
+            }
+            ab / (aa * bb).sqrt().max(1e-12)
+        };
+        let k0 = (0..n)
+            .max_by(|&a, &b| correlation(a).total_cmp(&correlation(b)))
+            .unwrap_or(0);
+        (seen.iter())
+            .filter(|&&(c, _)| k0 + step(c) < n)
+            .map(|&(c, _)| (c, k0 + step(c)))
+            .collect()
+    }
+
+    /// Whether side `side`'s ankle stands on its floor on `frame` (within `near`).
+    fn down(&self, side: usize, frame: usize) -> bool {
+        self.feet[side][frame] < self.near
+    }
 }
 
 /// Figures of one character, as `locked_legs_follow_the_source_on_walks_and_runs` offline.
@@ -211,7 +330,7 @@ fn mean_p95(mut v: Vec<f32>) -> (f32, f32) {
 /// the first the client saw, each sample once: all of the walk but its first moments, whatever
 /// the server's timing (six seconds of the looping 8.3 s walk read the robot's floor at
 /// 0.84-4.25 cm by where they began, the same lock; the jump back to the start read as drift).
-fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64) -> Legs {
+fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &Walk) -> Legs {
     let bones = &locked.bones;
     let index = |role: String| {
         let names = rig.labels[&role].as_array()?;
@@ -240,6 +359,8 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64) -> Legs 
         .sum::<f32>()
         / legs.len() as f32;
     let body = LEG_OF_175_CM_BODY / leg_length;
+    let hips = index("hips".into()).unwrap_or_else(|| panic!("{}: hips not labelled", rig.rel));
+    let walk_frame = walk.frames_of(free, hips);
     // The free character's frames by capture time: the same source sample.
     let free_at: HashMap<u64, &DecodedFrame> = (free.frames.iter())
         .filter(|f| f.header.capture_nanos != 0)
@@ -329,13 +450,20 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64) -> Legs 
                 }
             }
         }
-        for (l, toes) in &legs {
+        for (side, (l, toes)) in legs.iter().enumerate() {
             if !planted_at(f.header.seq, l[2]) {
                 continue;
             }
             let joints: Vec<usize> = [Some(l[2]), *toes].into_iter().flatten().collect();
             let lowest = (joints.iter().map(|&j| w[j].y - rest[j].y)).fold(f32::INFINITY, f32::min);
-            off_floor.push(lowest.abs() * 100.0 * body);
+            // A foot without toes stands on toes its skeleton does not show: at a toe-off the
+            // performer's heel rises, and so does its ankle. It is judged where the
+            // performer's ankle stands on the floor, as the offline judge reads the joints
+            // both rigs have; a foot with toes stands on them, judged on every planted frame.
+            let src = walk_frame.get(&f.header.capture_nanos);
+            if toes.is_some() || src.is_some_and(|&k| walk.down(side, k)) {
+                off_floor.push(lowest.abs() * 100.0 * body);
+            }
             if let Some((seq, before)) = &last {
                 if *seq + 1 == f.header.seq && planted_at(*seq, l[2]) {
                     let moved = |j: usize| {
@@ -380,7 +508,7 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64) -> Legs 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "issue 35's bounds are not met live yet; the test prints the table per character"]
 async fn live_locked_legs_follow_the_source_on_a_walk() {
-    let Some((streams, pass_nanos)) = stream().await else {
+    let Some((streams, pass_nanos, walk)) = stream().await else {
         return;
     };
     let mut failures = Vec::new();
@@ -406,7 +534,7 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
             continue;
         }
         judged += 1;
-        let f = measure(rig, locked, free, pass_nanos);
+        let f = measure(rig, locked, free, pass_nanos, &walk);
         let pair = |(m, p): (f32, f32)| format!("{m:.1}/{p:.1}");
         println!(
             "{rel:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7.3} {:>7.2} {:>7.3}  ({} planted foot-frames)",

@@ -4,7 +4,8 @@
 //! as the source's foot stands above its ground, scaled, up to `MAX_LIFT_RATIO` of the leg):
 //! flat on the floor, or, while the animation pitches it ball down (a toe-off), rolled onto
 //! its ball, which stays where standing put it while the ankle rises (live too: the causal
-//! detector gives the source heel's rise over its lowest contact); a foot landing toes up
+//! detector gives the source heel's rise over its lowest contact; a foot whose toes are not
+//! rigged has its ankle raised as far, straight up); a foot landing toes up
 //! comes down about its heel, and one turned on the spot turns on its ball, so the joint a
 //! foot stands on stays put; its leg solved with the two-bone IK; the hips come down when a
 //! leg cannot reach; every switch blends (see `spring`); no foot joint goes below the
@@ -297,8 +298,14 @@ struct Foot {
     heel_lift: Option<f32>,
     /// How much higher the source's heel stands above its ground than its lowest contact
     /// (scaled to the target; offline, 0 where not known): how far the foot may roll onto its
-    /// ball ([`Foot::roll`]).
+    /// ball ([`Foot::roll`]); a foot without one, by how much its ankle rises with the heel.
     heel_rise: f32,
+    /// A foot without a ball (its ankle the lowest joint, the toes not rigged): how far its
+    /// ankle may rise with the source's heel, the source's foot length scaled. Its sole still
+    /// rolls over a ball, as the performer's does, that the skeleton does not show: pinned on
+    /// the floor instead, the ankle holds the leg down while the performer's heel rises, and
+    /// the hips come down onto it, bending the other leg.
+    heel_reach: f32,
     /// How far the unpinned foot is brought to its pin's height ahead of a plant
     /// ([`landing_weight`], [`LiveLanding`]), and how far its ball to its standing height.
     landing: f32,
@@ -332,6 +339,11 @@ struct Foot {
 }
 
 impl Foot {
+    /// The foot's length to its ball; `None` without one (the toes not rigged).
+    fn ball(&self) -> Option<f32> {
+        self.leg.toes.map(|_| self.foot_length)
+    }
+
     /// Where a pinned ankle stands, the foot turned as `ball` (ankle to ball, when the foot has
     /// one) says: rolled on its pin ([`Foot::roll`]) from where its heel is pinned, which is its
     /// standing height plus the foot's lift where the source's heel is known (offline), else
@@ -342,7 +354,8 @@ impl Foot {
             Some(_) => p - up * p.dot(up) + up * (floor + self.heel_clearance + self.lift),
             None => p + up * self.lift,
         };
-        heel + ball.map_or(Vec3::ZERO, |o| self.roll(up, o))
+        // Without a ball the ankle rises with the heel, straight up.
+        heel + ball.map_or(up * self.heel_rise, |o| self.roll(up, o))
     }
 
     /// How a planted foot turned as `ball` (ankle to ball) stands on the floor, as a foot does:
@@ -460,8 +473,11 @@ impl Stance {
     /// How far the lock raises the ankle of a foot standing so, rolling it onto its ball
     /// ([`Foot::roll`]): a frame on its ball (pitched lower than `standing` once `fix` is
     /// added, the source's heel up) has it raised by that, as far as the heel rises. `len`:
-    /// the foot's length.
-    fn rolled(&self, len: f32, standing: f32, fix: f32) -> f32 {
+    /// the foot's length, `None` for a foot without a ball, raised as far as the heel rises.
+    fn rolled(&self, len: Option<f32>, standing: f32, fix: f32) -> f32 {
+        let Some(len) = len else {
+            return self.heel_rise.max(0.0);
+        };
         (len * (standing.sin() - (self.pitch + fix).sin()))
             .min(self.heel_rise)
             .max(0.0)
@@ -582,6 +598,7 @@ fn standing_foot(
         lift: 0.0,
         heel_lift: None,
         heel_rise: 0.0,
+        heel_reach: 0.0,
         landing: 0.0,
         landing_flat: 0.0,
         lock_position: ankle,
@@ -642,11 +659,19 @@ impl FootLock {
                 .map(height)
                 .fold(f32::INFINITY, f32::min),
         };
+        let lift_scale = mapping.root_scale().unwrap_or(1.0);
+        // The source's foot, ankle to ball, in its posture (0 without a ball).
+        let source_foot = |l: &Leg| {
+            let at = |b: BoneId| source.positions[b.index()];
+            l.toes.map_or(0.0, |t| (at(t) - at(l.foot)).length())
+        };
         let feet = target_legs
             .iter()
             .map(|leg| {
                 let source = source_legs.iter().position(|s| s.key() == leg.key());
-                standing_foot(leg, source, &aligned, target, up, lowest)
+                let mut foot = standing_foot(leg, source, &aligned, target, up, lowest);
+                foot.heel_reach = source.map_or(0.0, |s| lift_scale * source_foot(&source_legs[s]));
+                foot
             })
             .collect();
         Some(FootLock {
@@ -670,7 +695,7 @@ impl FootLock {
             // not how the character stands: the medoid frame of the Bandai run pitches its feet
             // 50-76° down, and fitting every frame to that tipped the retargeted feet as far.
             posture_stands: mapping.target_posture_stands() && !target.used_pose,
-            lift_scale: mapping.root_scale().unwrap_or(1.0),
+            lift_scale,
             shown_once: false,
             landing: LiveLanding::default(),
         })
@@ -703,8 +728,9 @@ impl FootLock {
                 };
                 let at = |v: &[f32]| v.get(s).copied().unwrap_or(0.0);
                 let rise = at(plants.heel_lifts(frame)) - at(plants.lifts(frame)).max(0.0);
+                let rise = self.lift_scale * rise.max(0.0);
                 h.push(Stance {
-                    heel_rise: self.lift_scale * rise.max(0.0),
+                    heel_rise: foot.ball().map_or(rise.min(foot.heel_reach), |_| rise),
                     ..self.stance_of(foot, &worlds)
                 });
             }
@@ -731,7 +757,7 @@ impl FootLock {
             // ankle raised by that.
             let heels: Vec<Stance> = (h.iter())
                 .map(|s| Stance {
-                    ankle: s.ankle - s.rolled(foot.foot_length, standing, fix),
+                    ankle: s.ankle - s.rolled(foot.ball(), standing, fix),
                     ..*s
                 })
                 .collect();
@@ -796,7 +822,7 @@ impl FootLock {
             let (gap, clearance) = (foot.standing_pitch - stance.pitch, foot.heel_clearance);
             // A foot rolling onto its ball (a toe-off) stands its heel lower than its ankle,
             // and its pitch is the roll's, not the stance's: learnt from flat frames only.
-            let rolled = stance.rolled(foot.foot_length, foot.standing_pitch, foot.pitch_fix);
+            let rolled = stance.rolled(foot.ball(), foot.standing_pitch, foot.pitch_fix);
             let foot = &mut self.feet[i];
             if rolled <= 0.0 {
                 foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
@@ -1035,17 +1061,27 @@ impl FootLock {
             let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
             self.feet[i].lift = lift;
             // The heel follows how much higher than the foot's lowest contact the source's is
-            // (a foot pitched toes-down); a foot without a ball stands on its ankle.
-            let heel = heel.filter(|_| self.feet[i].leg.toes.is_some());
-            // As far as keeps the foot level enough to be stood flat ([`FLATTEN_LEVEL`]), its
-            // ball on the floor: a foot pitched steeper is no longer brought down onto it.
+            // (a foot pitched toes-down). As far as keeps the foot level enough to be stood
+            // flat ([`FLATTEN_LEVEL`]), its ball on the floor: a foot pitched steeper is no
+            // longer brought down onto it. A foot without a ball rises as the source's heel
+            // does, up to the source's foot length.
             let f = &self.feet[i];
-            let steepest = f.foot_length * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
-            let most = (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0);
+            let ball = f.ball();
+            let most = match ball {
+                Some(len) => {
+                    let steepest = len * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
+                    (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0)
+                }
+                None => f.heel_reach,
+            };
             let rise = heel.map_or(0.0, |h| self.lift_scale * (h - foot.max(0.0)));
             self.feet[i].heel_lift = heel.map(|_| lift + clamp_safe(rise, 0.0, most));
-            // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]).
-            self.feet[i].heel_rise = rise.max(0.0);
+            // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]);
+            // one without rises with it.
+            self.feet[i].heel_rise = match ball {
+                Some(_) => rise.max(0.0),
+                None => clamp_safe(rise, 0.0, most),
+            };
         }
     }
 
