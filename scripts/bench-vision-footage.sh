@@ -2,7 +2,8 @@
 # The judge on real footage (sources/tests/vision_footage.rs) in a release build, every frame of
 # every clip, lite and full, with issue 32's acceptance bounds asserted: per clip coverage of each
 # identity slot, identity jumps, left/right agreement and frame rate with decoding, against
-# MediaPipe Pose 0.10.14 (full, one person) on the same frames, clip by clip in turn; the 3D
+# MediaPipe Pose 0.10.14 (full; one person, and for speed as many people as it finds in the clip,
+# up to 2) on the same frames, clip by clip in turn; the 3D
 # table of the pose2sim cameras (sources/tests/vision_reference3d.rs) with its bounds. Then the
 # frame rate of `rigcast pose` with the defaults against `--people 1` on every clip, the two
 # runs alternating clip by clip (the machine's load moves both alike).

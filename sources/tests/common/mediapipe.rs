@@ -53,6 +53,99 @@ pub fn mediapipe_python() -> Result<PathBuf, String> {
     }
 }
 
+/// MediaPipe asked for several people: the Tasks API's `PoseLandmarker` with `num_poses`
+/// (see `scripts/bench_mediapipe.py`), MediaPipe's own way to follow several people.
+pub struct MediaPipeCrowd {
+    /// People asked for.
+    pub asked: usize,
+    /// Timed frames (the warm-up frame left out) by how many people were found in them, 0 to
+    /// `asked`.
+    pub found: Vec<usize>,
+    /// Frames a second with decoding.
+    pub fps: f64,
+    /// Read back from `RIGCAST_MEDIAPIPE_CACHE` (its frame rate is from another run).
+    pub cached: bool,
+}
+
+impl MediaPipeCrowd {
+    /// How many people the clip holds by this run: the most people found together in at least
+    /// half the frames (at least 1: a clip where MediaPipe finds nobody is judged against its
+    /// one-person tracker, and at most `asked`).
+    pub fn people(&self) -> usize {
+        let frames: usize = self.found.iter().sum();
+        (2..=self.asked)
+            .take_while(|&k| 2 * self.found[k..].iter().sum::<usize>() >= frames.max(1))
+            .last()
+            .unwrap_or(1)
+    }
+
+    /// The share of frames where all those asked for were found, in percent.
+    pub fn all_found_percent(&self) -> f64 {
+        let frames: usize = self.found.iter().sum();
+        100.0 * self.found.last().copied().unwrap_or(0) as f64 / frames.max(1) as f64
+    }
+}
+
+/// MediaPipe asked for `people` (2 or more) over `path`'s first `max` frames, with its `model`:
+/// in this run, or read back from `RIGCAST_MEDIAPIPE_CACHE` (`CLIP[.lite].peopleN.FRAMES.txt`).
+pub fn run_mediapipe_crowd(
+    python: &Path,
+    path: &Path,
+    max: Option<usize>,
+    model: &str,
+    people: usize,
+) -> MediaPipeCrowd {
+    assert!(people >= 2, "the one-person tracker is run_mediapipe's");
+    let (_, text_path, keep) = outputs(path, model);
+    // Counts cannot be cut to fewer frames afterwards: a cache keeps one run per bound.
+    let frames = max.map_or("all".into(), |m| m.to_string());
+    let text_path = text_path.with_extension(format!("people{people}.{frames}.txt"));
+    let was_cached = keep && text_path.is_file();
+    if !was_cached {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
+        let mut cmd = Command::new(python);
+        cmd.arg(&script)
+            .arg(path)
+            .args([model, &people.to_string()]);
+        if let Some(m) = max {
+            cmd.args(["--max-frames", &m.to_string()]);
+        }
+        let output = cmd.output().unwrap();
+        assert!(
+            output.status.success(),
+            "MediaPipe for {people} on {}: {}",
+            path.display(),
+            String::from_utf8_lossy(&output.stderr)
+        );
+        std::fs::write(&text_path, &output.stdout).unwrap();
+    }
+    let stdout = std::fs::read_to_string(&text_path).unwrap();
+    if !keep {
+        let _ = std::fs::remove_file(&text_path);
+    }
+    let field = |name: &str| {
+        stdout
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix(name))
+            .unwrap_or_else(|| panic!("MediaPipe for {people}: no {name} in {stdout:?}"))
+    };
+    let found: Vec<usize> = field("found=")
+        .split(',')
+        .map(|n| n.parse().unwrap())
+        .collect();
+    assert_eq!(
+        found.len(),
+        people + 1,
+        "MediaPipe for {people}: {stdout:?}"
+    );
+    MediaPipeCrowd {
+        asked: people,
+        found,
+        fps: field("fps_with_decoding=").parse().unwrap(),
+        cached: was_cached,
+    }
+}
+
 /// Where this run's landmarks and summary line go: `RIGCAST_MEDIAPIPE_CACHE` (a folder:
 /// `CLIP.json`, its landmarks over every frame, and `CLIP.txt`, its summary line, kept between
 /// runs while iterating on the tracker) or a temporary pair removed after reading.
