@@ -49,6 +49,9 @@ const SIZE_SEGMENTS: [(usize, usize); 12] = [
 /// reaching towards a webcam from close by, read deeper than the person is far).
 const NEAREST_SHARE: f32 = 0.25;
 
+/// Visibility from which a landmark counts as seen (the model's own even odds).
+const SEEN: f32 = 0.5;
+
 /// A picture's focal length in pixels under the assumed field of view.
 fn focal_px(picture: Vec2) -> f32 {
     0.5 * picture.length() / (0.5 * ASSUMED_DIAGONAL_FOV_DEG.to_radians()).tan()
@@ -57,11 +60,14 @@ fn focal_px(picture: Vec2) -> f32 {
 /// The person's distance (world landmarks' metres) at which the body's across-picture size
 /// seen along `sight` matches the world landmarks' (hip depth `hip_depth`), `None` when there
 /// is no size to measure. A point nearer than the hips looks larger: the first guess takes
-/// every point at the hips' distance, and two refinements put each at its own depth.
+/// every point at the hips' distance, and two refinements put each at its own depth. Only
+/// segments seen at both ends count, by how well they are seen ([`size_weight`]): a hidden
+/// wrist guessed far off must not rescale every other bone.
 fn distance(lm: &Landmarks, sight: &[Vec2; NUM_LANDMARKS], hip_depth: f32) -> Option<f32> {
+    let weight = |a: usize, b: usize| size_weight(lm.visibility(a).min(lm.visibility(b)));
     let world_size: f32 = SIZE_SEGMENTS
         .iter()
-        .map(|&(a, b)| (lm.world[b] - lm.world[a]).truncate().length())
+        .map(|&(a, b)| weight(a, b) * (lm.world[b] - lm.world[a]).truncate().length())
         .sum();
     let mut distance = f32::INFINITY;
     for _ in 0..3 {
@@ -76,7 +82,7 @@ fn distance(lm: &Landmarks, sight: &[Vec2; NUM_LANDMARKS], hip_depth: f32) -> Op
         };
         let sight_size: f32 = SIZE_SEGMENTS
             .iter()
-            .map(|&(a, b)| (sight[b] * scale(b) - sight[a] * scale(a)).length())
+            .map(|&(a, b)| weight(a, b) * (sight[b] * scale(b) - sight[a] * scale(a)).length())
             .sum();
         distance = world_size / sight_size;
         if !(distance.is_finite() && distance > 0.0) {
@@ -84,6 +90,16 @@ fn distance(lm: &Landmarks, sight: &[Vec2; NUM_LANDMARKS], hip_depth: f32) -> Op
         }
     }
     Some(distance)
+}
+
+/// How much a segment whose ends are seen at `visibility` (the lower of the two) counts
+/// towards the person's size: nothing below [`SEEN`], as much as it is seen above.
+fn size_weight(visibility: f32) -> f32 {
+    if visibility >= SEEN {
+        visibility
+    } else {
+        0.0
+    }
 }
 
 /// Turns `lm`'s world landmarks into the camera's axes and takes their across-picture shape
@@ -204,6 +220,28 @@ mod tests {
         let was = deep.world[idx::LEFT_WRIST].z;
         apply(&mut deep);
         assert!((deep.world[idx::LEFT_WRIST].z - was).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_hidden_joint_guessed_far_off_moves_no_other_bone() {
+        // The wrist hidden: guessed where it is, or 300 px and 40 cm off.
+        let (mut lm, _) = seen_from_the_side(Vec3::new(-1.0, -0.6, 3.0));
+        lm.image[idx::LEFT_WRIST].w = 0.05;
+        let mut misread = lm;
+        misread.image[idx::LEFT_WRIST].y -= 300.0;
+        misread.world[idx::LEFT_WRIST] += Vec3::new(0.0, -0.3, -0.3);
+        apply(&mut lm);
+        apply(&mut misread);
+        for &(a, b) in SIZE_SEGMENTS.iter().filter(|&&(_, b)| b != idx::LEFT_WRIST) {
+            let (got, want) = (
+                misread.world[b] - misread.world[a],
+                lm.world[b] - lm.world[a],
+            );
+            assert!(
+                got.abs_diff_eq(want, 1e-5),
+                "{a}->{b}: {got} against {want}"
+            );
+        }
     }
 
     #[test]
