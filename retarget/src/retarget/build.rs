@@ -224,8 +224,20 @@ impl<'a> Setup<'a> {
     fn target_segment(&self, t: BoneId) -> TargetSegment {
         let (skel, w, eps) = (self.target, &self.tgt_w, self.tgt_eps);
         let mapped = |b: BoneId| self.is_mapped(b);
-        let mapped_end =
-            align::chain_end(skel, w, t, eps, &mapped).or_else(|| self.detached_end(t));
+        // Among mapped children, the one driven by the joint the source's segment ends in,
+        // when it ends in one (its only child): a forearm whose palm and thumb both start
+        // below it aims at the palm the source's wrist drives, not at whichever child lies
+        // nearer its line.
+        let continues = |b: BoneId| {
+            let (Some(ps), Some(pb)) = (primary(self.table, t), primary(self.table, b)) else {
+                return false;
+            };
+            let kids = self.sources[ps.input as usize].children(ps.bone);
+            ps.input == pb.input && kids.len() == 1 && kids[0] == pb.bone
+        };
+        let mapped_end = align::chain_end(skel, w, t, eps, &|b| mapped(b) && continues(b))
+            .or_else(|| align::chain_end(skel, w, t, eps, &mapped))
+            .or_else(|| self.detached_end(t));
         let any_end = mapped_end.or_else(|| align::chain_end(skel, w, t, eps, &|_| true));
         let direction = match any_end {
             Some(e) => align::direction(w, t, e),
