@@ -4,7 +4,9 @@
 //! for speed, asked for the clip's people) on the same frames in the same run, clip by clip in
 //! turn.
 //!
-//! Per clip: coverage of every identity slot, identity jumps (a slot's hips moving more than
+//! Per clip: coverage of every identity slot, MediaPipe's one person followed through the
+//! slots (the share of its frames some slot shows that person, and how often the slot showing
+//! them changes: see `followed`), identity jumps (a slot's hips moving more than
 //! 15 % of the source frame's longer side between frames at most 2 apart: the measure,
 //! which the bound uses; beside it, those that also move so against the scene's own motion —
 //! a camera's whip carries a person as far, so the difference is what pans account for;
@@ -286,6 +288,50 @@ fn left_right(ours: &Ours, theirs: &MediaPipeRun) -> (usize, usize) {
     (reference, agree)
 }
 
+/// MediaPipe's one person, followed through rigcast's slots: (frames MediaPipe sees someone,
+/// those where some slot shows that person (shoulders within half their torso: the shoulders
+/// are seen where the hips are often guesses, at a desk, in a close-up, below a table),
+/// changes of the slot showing them). Person `#0`'s coverage says how often `#0` shows someone;
+/// with two people in view, who is `#0` and who `#1` is the tracker's first choice, and a
+/// change of the start path can swap them for a whole clip (a cook found first in `#1` while a
+/// misreading holds `#0`). This says whether the person was kept, and in one identity: a change
+/// is the person shown by another slot than before, the slot before not showing them (lost
+/// and found again as someone else, or two slots traded). MediaPipe's own jumps (hips moving
+/// more than [`JUMP_FRACTION`] of `side` from its last reading) start a new person, no change.
+fn followed(ours: &Ours, theirs: &MediaPipeRun, side: f32) -> (usize, usize, usize) {
+    let (mut seen, mut held, mut changes) = (0, 0, 0);
+    let (mut slot, mut last_hips): (Option<usize>, Option<Vec2>) = (None, None);
+    for (slots, mp) in ours.slots.iter().zip(&theirs.frames) {
+        let Some(mp) = mp else { continue };
+        seen += 1;
+        let at = hips(mp);
+        if last_hips.is_some_and(|h| h.distance(at) > JUMP_FRACTION * side) {
+            slot = None;
+        }
+        last_hips = Some(at);
+        let top = shoulders(mp);
+        let reach = 0.5 * top.distance(at);
+        let shows = |s: usize| {
+            slots[s]
+                .as_ref()
+                .is_some_and(|p| shoulders(p).distance(top) <= reach)
+        };
+        let Some(first) = (0..slots.len()).find(|&s| shows(s)) else {
+            continue;
+        };
+        held += 1;
+        match slot {
+            Some(s) if shows(s) => {}
+            Some(_) => {
+                changes += 1;
+                slot = Some(first);
+            }
+            None => slot = Some(first),
+        }
+    }
+    (seen, held, changes)
+}
+
 fn percent(n: usize, of: usize) -> f64 {
     100.0 * n as f64 / of.max(1) as f64
 }
@@ -450,7 +496,7 @@ fn judge_clip(
     );
     let Ok(python) = &anchors.mediapipe else {
         return (
-            format!("{ours_text} - | {our_jumps}, {our_scene_jumps} (-) | - | {tail} - | - | - | - | - |"),
+            format!("{ours_text} - | - | {our_jumps}, {our_scene_jumps} (-) | - | {tail} - | - | - | - | - |"),
             failures,
         );
     };
@@ -475,6 +521,7 @@ fn judge_clip(
         }
     };
     let speed = speed_anchor(python, clip, max, config.tracker.max_people, &theirs);
+    let (mp_seen, mp_held, mp_changes) = followed(&ours, &theirs, side);
     let agreement = if reference > 0 {
         format!("{:.1}", percent(agree, reference))
     } else {
@@ -488,7 +535,8 @@ fn judge_clip(
         }
     };
     let row = format!(
-        "{ours_text} {theirs_cov:.1} | {our_jumps}, {our_scene_jumps} ({}, {}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} | {} | {} |",
+        "{ours_text} {theirs_cov:.1} | {:.1}, {mp_changes} | {our_jumps}, {our_scene_jumps} ({}, {}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} | {} | {} |",
+        percent(mp_held, mp_seen),
         jumps(theirs.frames.iter().map(Option::as_ref), &[], side),
         jumps(theirs.frames.iter().map(Option::as_ref), &ours.scene, side),
         theirs.fps,
@@ -554,8 +602,8 @@ fn judge() -> Vec<String> {
             .unwrap_or_default()
             .trim()
     );
-    println!("| clip | frames | coverage per slot % | MediaPipe % | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) |", max_people = config.tracker.max_people);
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| clip | frames | coverage per slot % | MediaPipe % | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) |", max_people = config.tracker.max_people);
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let anchors = Anchors {
         mediapipe,
         rig: rig.as_ref(),
@@ -596,4 +644,74 @@ fn footage_judge_reports_every_clip() {
 fn default_settings_keep_the_person_against_mediapipe_on_real_footage() {
     let failures = judge();
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A standing body's 33 points around hips at `(x, 300)`, shoulders 100 px above them.
+fn standing_at(x: f32) -> Points {
+    let mut p = vec![[x, 250.0, 1.0]; 33];
+    for i in [idx::LEFT_SHOULDER, idx::RIGHT_SHOULDER] {
+        p[i] = [x, 200.0, 1.0];
+    }
+    for i in [idx::LEFT_HIP, idx::RIGHT_HIP] {
+        p[i] = [x, 300.0, 1.0];
+    }
+    p
+}
+
+#[test]
+fn mediapipes_person_is_followed_through_the_slots_that_show_them() {
+    let run = |ours: Vec<Vec<Option<Points>>>, theirs: Vec<Option<Points>>| {
+        let ours = Ours {
+            width: 1000.0,
+            height: 600.0,
+            slots: ours,
+            scene: Vec::new(),
+            fps: 0.0,
+            detections: 0,
+            inferences: 0,
+            second_opinions: 0,
+        };
+        let theirs = MediaPipeRun {
+            frames: theirs,
+            world: Vec::new(),
+            width: 1000.0,
+            height: 600.0,
+            fps: 0.0,
+            cached: true,
+        };
+        followed(&ours, &theirs, 1000.0)
+    };
+    // MediaPipe's person walks right 5 px a frame; #0 shows them for 4 frames, is lost for
+    // 2, and they come back as #1 while #0 shows someone else: one change.
+    let theirs: Vec<Option<Points>> = (0..10)
+        .map(|i| Some(standing_at(100.0 + 5.0 * i as f32)))
+        .collect();
+    let ours: Vec<Vec<Option<Points>>> = (0..10)
+        .map(|i| {
+            let them = Some(standing_at(100.0 + 5.0 * i as f32));
+            match i {
+                0..=3 => vec![them, None],
+                4..=5 => vec![None, None],
+                _ => vec![Some(standing_at(600.0)), them],
+            }
+        })
+        .collect();
+    assert_eq!(run(ours.clone(), theirs.clone()), (10, 8, 1));
+    // Found again in #0: no change.
+    let mut back = ours.clone();
+    for frame in back.iter_mut().skip(6) {
+        frame.swap(0, 1);
+    }
+    assert_eq!(run(back, theirs.clone()), (10, 8, 0));
+    // MediaPipe jumps to the other person (500 px, more than 15 % of the picture) while #1
+    // shows them: MediaPipe's change, not ours.
+    let mut jumped = theirs.clone();
+    for frame in jumped.iter_mut().skip(6) {
+        *frame = Some(standing_at(600.0));
+    }
+    let mut ours = ours;
+    for frame in ours.iter_mut().skip(6) {
+        frame.swap(0, 1);
+    }
+    assert_eq!(run(ours, jumped), (10, 8, 0));
 }
