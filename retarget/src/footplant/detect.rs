@@ -94,6 +94,34 @@ struct Reading {
     speed: f32,
 }
 
+/// Which of a foot's contact joints hold (near their ground and slow, the plant rule's own
+/// test): what a planted foot may turn about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Contact {
+    /// The heel alone: a heel strike, the toes still coming down.
+    Heel,
+    /// The ball alone: the heel rising at a toe-off, or a turn on the ball.
+    Ball,
+    /// Both: the foot stands flat.
+    Flat,
+}
+
+/// The contact of a foot whose heel and ball hold or not (`None`: no such joint).
+fn contact_of(heel: Option<bool>, ball: Option<bool>) -> Option<Contact> {
+    match (heel, ball) {
+        (Some(true), Some(false)) => Some(Contact::Heel),
+        (Some(false), Some(true)) => Some(Contact::Ball),
+        (Some(true), Some(true)) => Some(Contact::Flat),
+        _ => None,
+    }
+}
+
+/// Whether a contact joint's reading holds: near its ground (below `h`) and slow (below `v`),
+/// both scaled by `scale` (the release factor for a planted foot).
+fn holds(r: &Reading, h: f32, v: f32, scale: f32) -> bool {
+    r.height_above_ground < h * scale && r.speed < v * scale
+}
+
 /// The speed below which `leg`'s contact joints count as slow at the body's `pace`.
 fn slow_below(settings: &PlantSettings, leg: &Leg, pace: f32) -> f32 {
     (settings.speed_ratio * leg.length).max(settings.body_speed_ratio * pace)
@@ -111,9 +139,8 @@ fn body_position(legs: &[Leg], worlds: &[WorldTransform]) -> Vec3 {
 /// The hysteresis rule shared by both modes: plant when some contact joint is near and slow;
 /// stay planted while some joint is within the looser release thresholds.
 fn next_state(planted: bool, readings: &[Option<Reading>], h: f32, v: f32, k: f32) -> bool {
-    let holds = |r: &Reading, scale: f32| r.height_above_ground < h * scale && r.speed < v * scale;
     let scale = if planted { k } else { 1.0 };
-    readings.iter().flatten().any(|r| holds(r, scale))
+    readings.iter().flatten().any(|r| holds(r, h, v, scale))
 }
 
 /// Live, causal footplant detection on one skeleton. Build once, call [`PlantDetector::push`]
@@ -139,6 +166,8 @@ pub struct PlantDetector {
     /// Per leg, the last sample's foot (least of its contacts) and heel above their grounds.
     lifts: [f32; MAX_FEET],
     heel_lifts: [f32; MAX_FEET],
+    /// Per leg, which contacts of its foot hold ([`contact_of`]).
+    contacts: [Option<Contact>; MAX_FEET],
 }
 
 impl PlantDetector {
@@ -160,6 +189,7 @@ impl PlantDetector {
             pace: None,
             lifts: [0.0; MAX_FEET],
             heel_lifts: [0.0; MAX_FEET],
+            contacts: [None; MAX_FEET],
         }
     }
 
@@ -189,6 +219,12 @@ impl PlantDetector {
     /// The same for the heel (foot joint) alone, as [`PlantTrack::heel_lifts`].
     pub fn heel_lifts(&self) -> &[f32] {
         &self.heel_lifts[..self.legs.len()]
+    }
+
+    /// Per leg, which contacts of its foot held at the last sample, as
+    /// [`PlantTrack::contacts`].
+    pub fn contacts(&self) -> &[Option<Contact>] {
+        &self.contacts[..self.legs.len()]
     }
 
     /// Takes the next source pose, `dt_secs` after the previous one, and returns the state per
@@ -273,6 +309,9 @@ impl PlantDetector {
                 self.planted_since[f] = self.now_secs;
             }
             self.planted[f] = now;
+            let scale = if now { s.release_factor } else { 1.0 };
+            let held = |r: &Option<Reading>| r.as_ref().map(|r| holds(r, h, v, scale));
+            self.contacts[f] = contact_of(held(&readings[0]), held(&readings[1]));
         }
         self.planted()
     }
@@ -291,6 +330,9 @@ pub struct PlantTrack {
     lifts: Vec<f32>,
     /// The same for the heel (foot joint) alone.
     heel_lifts: Vec<f32>,
+    /// The same layout: which contacts of the foot hold ([`contact_of`]); `None` where neither
+    /// does, it has no ball, or in a track built from flags.
+    contacts: Vec<Option<Contact>>,
     /// An in-place clip's ground velocity under the body (source units per second): its
     /// standing feet slide back with it (`treadmill`). `None` for a clip that travels.
     belt: Option<Vec3>,
@@ -305,6 +347,7 @@ impl PlantTrack {
             legs,
             planted,
             heel_lifts: lifts.clone(),
+            contacts: vec![None; lifts.len()],
             lifts,
             belt: None,
         }
@@ -339,6 +382,12 @@ impl PlantTrack {
         self.heel_lifts
             .get(frame * n..(frame + 1) * n)
             .unwrap_or(&[])
+    }
+
+    /// Which contacts of every leg's foot hold at `frame` ([`contact_of`]).
+    pub fn contacts(&self, frame: usize) -> &[Option<Contact>] {
+        let n = self.legs.len();
+        self.contacts.get(frame * n..(frame + 1) * n).unwrap_or(&[])
     }
 
     /// Whether `leg` is planted at `frame`.
@@ -386,6 +435,7 @@ pub fn detect_clip(
         planted: vec![false; nl * n],
         lifts: vec![0.0; nl * n],
         heel_lifts: vec![0.0; nl * n],
+        contacts: vec![None; nl * n],
         belt: c.belt,
         legs,
     };
@@ -401,6 +451,7 @@ pub fn detect_clip(
             track.lifts[i * nl + f] = if lift.is_finite() { lift } else { 0.0 };
             // The heel is the leg's first contact.
             track.heel_lifts[i * nl + f] = c.height(mine[0], i);
+            track.contacts[i * nl + f] = c.contact(&mine, i, &track.legs[f], planted, settings);
         }
     }
     track
@@ -489,6 +540,34 @@ impl ClipContacts {
             up,
             dt,
         }
+    }
+
+    /// Which contacts of a foot of `leg` (its contact joints `mine`: heel, ball) hold at frame
+    /// `i` ([`contact_of`]), judged as the plant rule judges them (`planted`: at the release
+    /// thresholds).
+    fn contact(
+        &self,
+        mine: &[usize],
+        i: usize,
+        leg: &Leg,
+        planted: bool,
+        s: &PlantSettings,
+    ) -> Option<Contact> {
+        let (h, v) = (
+            s.height_ratio * leg.length,
+            slow_below(s, leg, self.paces[i]),
+        );
+        let scale = if planted { s.release_factor } else { 1.0 };
+        let held = |j: Option<&usize>| {
+            j.map(|&j| {
+                let r = Reading {
+                    height_above_ground: self.height(j, i),
+                    speed: self.speeds[j * self.frames + i],
+                };
+                holds(&r, h, v, scale)
+            })
+        };
+        contact_of(held(mine.first()), held(mine.get(1)))
     }
 
     /// Height of joint `j` above its ground at frame `i`.

@@ -5,11 +5,11 @@
 //! flat on the floor, or, while the animation pitches it ball down (a toe-off), rolled onto
 //! its ball, which stays where standing put it while the ankle rises (live too: the causal
 //! detector gives the source heel's rise over its lowest contact; a foot whose toes are not
-//! rigged has its ankle raised as far, straight up); a foot landing toes up
-//! comes down about its heel, and one turned on the spot turns on its ball, so the joint a
-//! foot stands on stays put; its leg solved with the two-bone IK; the hips come down when a
-//! leg cannot reach; every switch blends (see `spring`); no foot joint goes below the
-//! target's floor.
+//! rigged has its ankle raised as far, straight up); a foot landing toes up comes down about
+//! its heel, and one turned on the spot, or whose source's heel rises, turns on its ball (the
+//! root carried with it), so the joint a foot stands on stays put; its leg solved with the
+//! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
+//! `spring`); no foot joint goes below the target's floor.
 //!
 //! ```text
 //!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
@@ -30,7 +30,9 @@
 //!                     else on its heel and stood flat (ball pitched down to its standing
 //!                     height, about the heel: the pin comes forward), blended in and out
 //!                     the same way; its heading (the way its ball points) held, dragged
-//!                     past `PIVOT_RAD` about the ball
+//!                     past `PIVOT_RAD` about the ball; while the source's foot stands on
+//!                     its ball alone, turned with the animation on its ball (`turn_pins`,
+//!                     before the root is carried, which takes up the pin's move)
 //!               ─▶ hips raised when every foot would have to be pulled up (the animation
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
@@ -45,7 +47,7 @@
 
 use glam::{Quat, Vec3};
 
-use super::detect::{PlantDetector, PlantSettings, PlantTrack};
+use super::detect::{Contact, PlantDetector, PlantSettings, PlantTrack};
 use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
 use super::rig::{find_contact_legs, find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
@@ -143,6 +145,8 @@ struct Lifts {
     /// known; live the foot keeps the animation's pitch, toes up for a heel strike: a ball
     /// pitched down onto a guess of the landing kicked the toes).
     landing_flat: bool,
+    /// Which of each source foot's contacts hold this frame ([`PlantTrack::contacts`]).
+    contact: [Option<Contact>; MAX_FEET],
 }
 
 /// Offline, where the plants ahead are known: how far a foot not planted on `frame` is brought
@@ -312,6 +316,12 @@ struct Foot {
     landing_flat: f32,
     lock_position: Vec3,
     lock_heading: f32,
+    /// The source's contacts are known (a clip's track or the live detector), and its foot
+    /// stands on its ball alone this frame (its heel rising): the pinned foot turns with the
+    /// animation on its ball ([`FootLock::turn_pins`]).
+    on_ball: bool,
+    /// How far this frame's turn moved the pin over the ground (the root takes it up).
+    pin_moved: Vec3,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
     position_offset: Decay<Vec3>,
     heading_offset: Decay<f32>,
@@ -603,6 +613,8 @@ fn standing_foot(
         landing_flat: 0.0,
         lock_position: ankle,
         lock_heading: 0.0,
+        on_ball: false,
+        pin_moved: Vec3::ZERO,
         position_offset: Decay::default(),
         heading_offset: Decay::default(),
         flat_offset: Decay::default(),
@@ -946,6 +958,9 @@ impl FootLock {
             (self.landing).update(flags, heights, &near[..legs], dt_secs, lead);
         }
         lifts.landing = self.landing.weight;
+        for (p, s) in lifts.contact.iter_mut().zip(self.detector.contacts()) {
+            *p = *s;
+        }
         self.lock(&planted, Some(&lifts), dt_secs, true, out);
     }
 
@@ -983,6 +998,9 @@ impl FootLock {
         for (l, s) in lifts.heel.iter_mut().zip(plants.heel_lifts(frame)) {
             *l = *s;
         }
+        for (p, s) in lifts.contact.iter_mut().zip(plants.contacts(frame)) {
+            *p = *s;
+        }
         // The approach takes as long as a lock's blend would after the landing.
         let lead = if dt_secs > 0.0 {
             (self.settings.blend_secs / dt_secs).round() as usize
@@ -1017,6 +1035,7 @@ impl FootLock {
             self.learn_fit(planted, dt);
         }
         self.apply_fit(out);
+        self.turn_pins(planted, dt);
         self.carry_root(planted, dt, live, out);
         for i in 0..self.feet.len() {
             let wants = self.feet[i].source.is_some_and(|s| planted[s]);
@@ -1056,6 +1075,11 @@ impl FootLock {
                 (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s], l.landing_flat),
                 _ => (0.0, None, 0.0, false),
             };
+            let contact = self.feet[i]
+                .source
+                .zip(lifts)
+                .and_then(|(s, l)| l.contact[s]);
+            self.feet[i].on_ball = contact == Some(Contact::Ball);
             self.feet[i].landing = landing;
             self.feet[i].landing_flat = if flat { landing } else { 0.0 };
             let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
@@ -1119,7 +1143,8 @@ impl FootLock {
             let held = f.source.is_some_and(|s| planted[s]) && f.locked && f.seen;
             stands[i] = FootStand {
                 stands: held,
-                slide: held.then(|| contact - f.raw_ankle),
+                // Less the pin's own move as it turned with the foot: the leg reaches it.
+                slide: held.then(|| contact - f.raw_ankle - f.pin_moved),
                 height_gap: if held {
                     (f.pinned_ankle(up, self.floor, ball) - ankle).dot(up)
                 } else {
@@ -1151,6 +1176,49 @@ impl FootLock {
         };
         out.translations[root.index()] += parent.inverse() * shift;
         self.fk(out);
+    }
+
+    /// Turns every pinned foot whose source's foot stands on its ball alone (its heel rising:
+    /// a toe-off, a turn on the ball) with the animation's heading, on its ball
+    /// ([`Foot::turn_on_ball`]): the heading a planted foot held while it stood flat (up to
+    /// [`PIVOT_RAD`] behind the performer's, caught up only after the release) is caught up
+    /// where the performer's foot turns, about the joint it stands on. What that moves the
+    /// ankle over the ground is recorded for [`FootLock::carry_root`], so the root goes with
+    /// it and the leg stays as retargeted (the pin turned alone moved the ankle the leg had to
+    /// reach). A foot standing flat keeps its heading: turning it, whatever the pivot, slides
+    /// its other end (the every-joint drift). A heel strike's turn is not followed either:
+    /// live, the causal detector reads a landing foot's toes as moving for its speed window
+    /// after they stop, and turning about the heel then swept the toes a rig like X Bot stands
+    /// on. `worlds` hold the animation.
+    fn turn_pins(&mut self, planted: &[bool; MAX_FEET], dt: f32) {
+        let (up, floor) = (self.up, self.floor);
+        // The share of the way to the animation's heading the pin turns this frame: over the
+        // blends' half-life, so the heading held while the foot stood flat is caught up as a
+        // blend is, not in one frame, and a capture's heading jitter (±0.5° a frame on a
+        // noisy walk) does not swing the sole about.
+        let follow = 1.0 - (-dt * std::f32::consts::LN_2 / (0.5 * self.settings.blend_secs)).exp();
+        for i in 0..self.feet.len() {
+            self.feet[i].pin_moved = Vec3::ZERO;
+            let f = &self.feet[i];
+            let held = f.locked && f.source.is_some_and(|s| planted[s]);
+            if !(f.on_ball && held) {
+                continue;
+            }
+            let w = self.worlds[f.leg.foot.index()];
+            let animated = self.heading(f, w.rotation);
+            let turn = wrap(animated - f.lock_heading) * follow;
+            if !(turn != 0.0) {
+                continue;
+            }
+            let heading = wrap(f.lock_heading + turn);
+            let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - w.translation);
+            let ball_at = |h: f32| ball.map(|o| Quat::from_axis_angle(up, wrap(h - animated)) * o);
+            let balls = ball_at(f.lock_heading).zip(ball_at(heading));
+            let f = &mut self.feet[i];
+            let before = f.lock_position;
+            f.turn_on_ball(up, floor, heading, balls);
+            f.pin_moved = f.lock_position - before;
+        }
     }
 
     fn heading(&self, foot: &Foot, rotation: Quat) -> f32 {
@@ -1220,8 +1288,9 @@ impl FootLock {
         }
         // The heading stays pinned against small turns (stance jitter), but a performer who
         // pivots on a planted foot (turning on the spot) turns it: past `PIVOT_RAD` the pin
-        // is dragged along, so the toes never point far from the performer's.
-        if f.locked {
+        // is dragged along, so the toes never point far from the performer's. (On its ball
+        // alone the pin turns with the animation, `turn_pins`.)
+        if f.locked && !f.on_ball {
             let off = wrap(heading_now - f.lock_heading);
             if off.abs() > PIVOT_RAD {
                 let heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));

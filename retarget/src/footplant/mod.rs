@@ -30,7 +30,7 @@ pub mod spring;
 mod stride;
 mod treadmill;
 
-pub use detect::{detect_clip, PlantDetector, PlantSettings, PlantTrack};
+pub use detect::{detect_clip, Contact, PlantDetector, PlantSettings, PlantTrack};
 pub use ik::{solve_two_bone, TwoBoneSolution};
 pub use lock::{FootLock, LockSettings};
 pub use rig::{find_contact_legs, find_legs, Leg, LegKind, MAX_FEET};
