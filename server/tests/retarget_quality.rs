@@ -780,6 +780,62 @@ struct LegFigures {
     joints_drift: f32,
     /// Planted feet's height error (95th percentile, cm), as [`planted_feet`].
     floor_p95: Option<f32>,
+    /// Thigh and shin errors (degrees) split by the leg's phase ([`Phase`]).
+    phases: [[Vec<f32>; PHASES]; 2],
+}
+
+/// A leg's phase on a frame, from its source foot's plants and the other's: where
+/// the lock's part in a thigh or shin error comes from (`RIGCAST_QUALITY_PHASES`).
+const PHASES: usize = 5;
+const PHASE_NAMES: [&str; PHASES] = ["single", "double", "approach", "release", "swing"];
+
+/// How long (seconds) before a plant a free foot is approaching it, and after a release
+/// leaving it.
+const PHASE_NEAR_SECS: f64 = 0.15;
+
+/// Per side ("L", "R"), the frames the lock holds the source's foot as planted (its own
+/// two-sided detection on the source's labelled-side hind leg): the phases the lock goes
+/// through, which the judge's stricter standing frames (within 1 cm, still) see only part of.
+fn lock_plants(clip: &Clip, plan: &rigcast_server::offline::MappingPlan) -> Vec<Vec<bool>> {
+    use rigcast_retarget::analysis::Side;
+    use rigcast_retarget::footplant::{detect_clip, find_contact_legs, LegKind, PlantSettings};
+    let legs = find_contact_legs(&clip.skeleton, &plan.source_analysis);
+    let dt = clip.frame_time_secs as f32;
+    let up = plan.source_analysis.up;
+    let plants = detect_clip(
+        &clip.skeleton,
+        &legs,
+        &clip.poses,
+        dt,
+        up,
+        &PlantSettings::default(),
+    );
+    [Side::Left, Side::Right]
+        .iter()
+        .map(|side| {
+            let leg = (plants.legs.iter())
+                .position(|l| l.side == *side && l.kind == LegKind::Hind && l.limb == 0);
+            (0..clip.num_frames())
+                .map(|f| leg.is_some_and(|l| plants.is_planted(f, l)))
+                .collect()
+        })
+        .collect()
+}
+
+/// The phase of side `si` on `frame`: its foot standing alone (0) or with the other (1), or
+/// free: within [`PHASE_NEAR_SECS`] before a stance (2), after one (3), or swinging (4).
+fn phase(stands: &[Vec<bool>], si: usize, frame: usize, near: usize) -> usize {
+    let at = |s: usize, f: usize| stands.get(s).and_then(|v| v.get(f)) == Some(&true);
+    if at(si, frame) {
+        return if at(1 - si, frame) { 1 } else { 0 };
+    }
+    if (1..=near).any(|k| at(si, frame + k)) {
+        2
+    } else if (1..=near.min(frame)).any(|k| at(si, frame - k)) {
+        3
+    } else {
+        4
+    }
 }
 
 fn mean_p95(v: &mut [f32]) -> (f32, f32) {
@@ -933,7 +989,13 @@ fn print_foot_frame(frame: usize, side: &str, standing: bool, ds: Vec3, dt: Vec3
 }
 
 /// The legs of `out` (the whole clip, locked) against the source's.
-fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Option<LegFigures> {
+fn measure_legs(
+    src: &Labelled,
+    tgt: &Labelled,
+    clip: &Clip,
+    out: &Clip,
+    held: &[Vec<bool>],
+) -> Option<LegFigures> {
     let (ss, ts) = (&clip.skeleton, &out.skeleton);
     let segments = LEG_SEGMENTS;
     let mut errors: [Vec<f32>; 3] = Default::default();
@@ -955,6 +1017,8 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
         })
         .collect();
     let step = (clip.num_frames() / 400).max(1);
+    let mut phases: [[Vec<f32>; PHASES]; 2] = Default::default();
+    let near = (PHASE_NEAR_SECS / clip.frame_time_secs.max(1e-6)).round() as usize;
     for (frame, (sp, tp)) in clip.poses.iter().zip(&out.poses).enumerate().step_by(step) {
         let (fs, ft) = (world_transforms(ss, sp), world_transforms(ts, tp));
         for (si, side) in ["L", "R"].into_iter().enumerate() {
@@ -970,6 +1034,9 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
                 if ds.length() > 1e-4 && dt.length() > 1e-4 {
                     let e = ds.angle_between(dt).to_degrees();
                     errors[k].push(e);
+                    if k < 2 && si < 2 {
+                        phases[k][phase(held, si, frame, near)].push(e);
+                    }
                     if k == 2 {
                         let back = match offsets.get(si) {
                             Some(Some((pitch, axis))) => {
@@ -1005,6 +1072,7 @@ fn measure_legs(src: &Labelled, tgt: &Labelled, clip: &Clip, out: &Clip) -> Opti
         source_drift: standing_drift(src, tgt, clip, &stands, true)?,
         joints_drift: standing_drift(tgt, src, out, &stands, false)?,
         floor_p95: planted_feet(src, tgt, clip, out).map(|f| f.p95_cm),
+        phases,
     })
 }
 
@@ -1075,6 +1143,30 @@ fn standing_drift(
 /// rotation instead, as before, the line could not see the foot at all.)
 fn segment_direction(w: &[rigcast_retarget::WorldTransform], a: BoneId, b: BoneId) -> Vec3 {
     w[b.index()].translation - w[a.index()].translation
+}
+
+/// Adds a pair's thigh and shin errors per phase to `sums` (frames, frames over 8°, sum).
+fn tally_phases(sums: &mut [[(usize, usize, f32); PHASES]; 2], phases: &[[Vec<f32>; PHASES]; 2]) {
+    for (sum, errors) in sums.iter_mut().zip(phases) {
+        for ((n, over, total), e) in sum.iter_mut().zip(errors) {
+            *n += e.len();
+            *over += e.iter().filter(|e| **e > 8.0).count();
+            *total += e.iter().sum::<f32>();
+        }
+    }
+}
+
+/// A pair's thigh and shin errors per phase (`RIGCAST_QUALITY_PHASES`): frames, mean/p95.
+fn print_phases(phases: &[[Vec<f32>; PHASES]; 2]) {
+    for (segment, errors) in ["thigh", "shin"].iter().zip(phases) {
+        let cells: Vec<String> = (PHASE_NAMES.iter().zip(errors))
+            .map(|(name, e)| {
+                let (m, p) = mean_p95(&mut e.clone());
+                format!("{name} {} {m:.1}/{p:.1}", e.len())
+            })
+            .collect();
+        println!("    {segment}: {}", cells.join(", "));
+    }
 }
 
 /// Whether the pair named `name` ("source → target") is measured: all of them, or with
@@ -1208,6 +1300,37 @@ fn pair_wanted(name: &str) -> bool {
 /// heel strike's toes down onto the floor only where they would go under it (instead of
 /// standing the pinned foot flat) kept the pitch (foot 28 -> 36 raw) but lost the floor on
 /// 43 pairs (141 -> 98); not landed.
+///
+/// Where the thigh and shin miss: the table is followed by their errors over the pairs outside
+/// the bounds, split by each leg's phase as the lock goes through it (its own two-sided
+/// detection on the source, [`lock_plants`]): standing alone, both standing, the 0.15 s before
+/// a plant (approach), the 0.15 s after one (release), swinging (`RIGCAST_QUALITY_PHASES=1`
+/// prints each such pair's split). On main at the ball turn's commit, 29 pairs outside, thigh
+/// (frames, mean, share over 8°): single stance 9651, 4.3°, 18 %; double 2110, 4.4°, 17 %;
+/// approach 3947, 6.6°, 38 %; release 3516, 2.9°, 7 %; swing 6146, 0.8°, 3 % (shin alike,
+/// 3.2 / 4.0 / 4.4 / 1.3 / 0.5°): the legs the lock bends are the standing one (most frames)
+/// and the landing one (the worst rate), never a swinging one. 14 of the 29 pairs are under
+/// the pymo Meredith walk, whose plants never overlap (no double stance): its standing leg
+/// 2.6-3.8° mean, 8.5-11.7° p95, its approach 3.6-6.5 / 12.0-16.0° (onto CMU 131_01, X Bot);
+/// 7 are onto the two robots, 5 onto Mousey.
+///
+/// A pinned foot standing on its ball alone (the source's heel rising: a toe-off, a turn on
+/// the ball; which contacts hold is the plant rule's own test, `footplant::Contact`) turns with the
+/// animation's heading on its ball, the root carried by the pin's move. The counts above are
+/// unchanged by it; over the 152 pairs the means moved foot 5.85/16.21 -> 5.31/15.04°, thigh
+/// 1.81/6.30 -> 1.75/6.22, shin 1.38/4.89 -> 1.33/4.80, drift 0.0058 -> 0.0057 (every foot
+/// joint 0.0116 -> 0.0120), floor 0.537 -> 0.543 cm (Meredith onto Mousey 2.52 -> 3.21, onto
+/// the CMU run and dazfriendly rigs 0.47 -> 0.67). Turning a foot that stands flat too (about
+/// the character's own standing contact): foot 40 -> 54 of 84, but drift 151 -> 149 (LaFAN1,
+/// whose own standing feet slide 0.12 cm/frame, onto the two CMU rigs whose toes are not
+/// labelled, judged at the ankle: 0.003 -> 0.058) and foot_lock's every-joint drift on the
+/// mannequin 0.022 -> 0.041 against its bound of 0.035: a flat foot turning moves its heel
+/// and ball by the turn times the foot's length between them whatever it turns about; not
+/// landed. Turning about the source's least-moving point (its heel or its ball, from their
+/// moves): foot 60, drift 142 (a noisy capture's heading jitter ratchets the pin), 54 and 149
+/// with the turn followed over the blends' half-life; not landed. Following a heel strike's
+/// turn about the heel too: live drift X Bot 0.014 -> 0.063 cm/frame (the causal detector
+/// reads the landing toes as moving for its speed window, and they swept); not landed.
 #[test]
 #[ignore = "issue 35's bounds are not met yet; the test prints the table per pair"]
 fn locked_legs_follow_the_source_on_walks_and_runs() {
@@ -1262,6 +1385,9 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     let mut joints_within = 0;
     // Pairs whose raw foot direction is within the foot's bound (printed, not judged).
     let mut raw_within = 0;
+    // Over the pairs whose thigh or shin misses its bound, per segment and phase: frames
+    // measured, frames past the p95 bound, summed error.
+    let mut by_phase = [[(0usize, 0usize, 0.0f32); PHASES]; 2];
     for src in &gaits {
         for (tgt, judge_t) in humans
             .iter()
@@ -1294,7 +1420,8 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
                 );
                 continue;
             }
-            let Some(mut f) = measure_legs(src, tgt, &src.clip, &out) else {
+            let held = lock_plants(&src.clip, &plan);
+            let Some(mut f) = measure_legs(src, tgt, &src.clip, &out, &held) else {
                 println!(
                     "{} → {}: legs not labelled on both, not measured",
                     src.name(),
@@ -1335,6 +1462,10 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
             let name = format!("{} → {}", src.name(), tgt.name());
             let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;
             if !(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0)) {
+                tally_phases(&mut by_phase, &f.phases);
+                if std::env::var_os("RIGCAST_QUALITY_PHASES").is_some() {
+                    print_phases(&f.phases);
+                }
                 failures.push(format!(
                     "{name}: thigh {} shin {}",
                     pair(f.thigh),
@@ -1373,6 +1504,19 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
         tally[3],
         failures.len()
     );
+    println!(
+        "where the thigh and shin miss (pairs outside their bounds; frames, mean°, share over 8°):"
+    );
+    for (k, segment) in ["thigh", "shin"].iter().enumerate() {
+        let cells: Vec<String> = (PHASE_NAMES.iter().zip(&by_phase[k]))
+            .map(|(name, (n, over, sum))| {
+                let share = 100.0 * *over as f32 / (*n).max(1) as f32;
+                let mean = sum / (*n).max(1) as f32;
+                format!("{name} {n} {mean:.1}° {share:.0}%")
+            })
+            .collect();
+        println!("  {segment}: {}", cells.join(", "));
+    }
     assert!(checked > 0, "no right pair with a walk or run source");
     assert!(
         failures.is_empty(),
