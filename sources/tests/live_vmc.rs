@@ -10,6 +10,7 @@
 
 use std::net::UdpSocket;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -137,7 +138,13 @@ fn write_vmc_recording() {
 /// What a collector thread hands back: the source and each received (skeleton, pose).
 type Collected = (VmcSource, Vec<(Arc<Skeleton>, Pose)>);
 
-fn spawn_collector(mut source: VmcSource, want: usize) -> std::thread::JoinHandle<Collected> {
+/// Collects `want` frames (10 s at most); `progress` counts them as they come, so a sender can
+/// wait for the receiver instead of guessing how long a loaded machine takes to schedule it.
+fn spawn_collector(
+    mut source: VmcSource,
+    want: usize,
+    progress: Arc<AtomicUsize>,
+) -> std::thread::JoinHandle<Collected> {
     std::thread::spawn(move || {
         let mut out = Vec::new();
         let mut pose = Pose {
@@ -153,6 +160,7 @@ fn spawn_collector(mut source: VmcSource, want: usize) -> std::thread::JoinHandl
                 assert_eq!(meta.seq as usize, out.len() + 1);
                 assert_eq!(meta.skeleton_changed, out.is_empty());
                 out.push((source.skeleton().unwrap(), pose.clone()));
+                progress.store(out.len(), Ordering::Release);
             }
         }
         (source, out)
@@ -180,15 +188,25 @@ fn recorded_vmc_stream_over_udp_matches_expected_pose() {
     })
     .unwrap();
     let addr = source.local_addr().unwrap();
-    let collector = spawn_collector(source, NUM_FRAMES);
+    let progress = Arc::new(AtomicUsize::new(0));
+    let collector = spawn_collector(source, NUM_FRAMES, Arc::clone(&progress));
     let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
     std::thread::sleep(Duration::from_millis(50));
-    let mut last = 0;
+    let (mut last, mut frame) = (0, 0);
     for p in &rec.raw {
         assert_eq!(p.kind, RawKind::Osc);
         if p.capture_nanos != last {
-            // Pace frames so the receiver never overflows its socket buffer.
-            std::thread::sleep(Duration::from_millis(2));
+            // Pace frames on the receiver: on a loaded machine its thread can sleep long enough
+            // for the kernel's socket buffer to overflow, a loss this test is not about. The
+            // first frame closes only at the second's `/VMC/Ext/T`, so frame f + 1 goes out once
+            // f - 1 frames are in.
+            frame += 1;
+            let start = Instant::now();
+            while progress.load(Ordering::Acquire) + 1 < frame.max(1)
+                && start.elapsed() < Duration::from_secs(2)
+            {
+                std::thread::sleep(Duration::from_millis(1));
+            }
             last = p.capture_nanos;
         }
         sender.send_to(&p.bytes, addr).unwrap();

@@ -229,3 +229,33 @@ fn person_sources_read_frames_without_allocating() {
     assert!(produced >= 60, "only {produced} frames after the warm-up");
     assert_eq!(allocations, 0, "reading {produced} frames allocated");
 }
+
+/// Decoding behind the caller: frames taken as fast as they can be read, after a start where
+/// the read-ahead was always full, so every wait below is the caller's first. A channel
+/// allocated on a thread's first wait (2 allocations, seen on a loaded CI machine the first time
+/// decoding fell behind inference): the hand-over must not.
+#[test]
+fn waiting_for_the_decoder_allocates_nothing() {
+    let Some(assets) = assets_or_skip("decoder wait allocations") else {
+        return;
+    };
+    let mut frames =
+        FfmpegSource::open_at(&assets.pose2sim_multi_video(2), DecodeSize::FOR_MODEL, 30.0)
+            .unwrap();
+    let (w, h) = frames.size();
+    let mut frame = RgbFrame::new(w, h);
+    for _ in 0..3 {
+        // The read-ahead fills while the caller is away: these reads never wait.
+        std::thread::sleep(std::time::Duration::from_millis(150));
+        assert!(frames.next_frame(&mut frame).unwrap());
+    }
+    let (mut read, mut allocations) = (0, 0);
+    while read < 30 {
+        let (more, n, _) = counted(None, || frames.next_frame(&mut frame).unwrap());
+        assert!(more, "the clip ended after {read} frames");
+        allocations += n;
+        read += 1;
+    }
+    eprintln!("{read} frames read back to back: {allocations} allocations");
+    assert_eq!(allocations, 0, "waiting for decoded frames allocated");
+}

@@ -5,10 +5,14 @@
 //! wants the next frame leaves ffmpeg blocked for the whole inference: decoding and inference
 //! take turns instead of running on both cores at once. The pool is fixed (`depth` frames in
 //! flight plus the caller's), buffers are swapped rather than copied, so the steady state
-//! allocates nothing.
+//! allocates nothing. The hand-over is a mutex and a condition variable over queues sized at
+//! the start, not `std::sync::mpsc`: a channel allocates the first time a thread waits on it
+//! (its waiter list and the thread's wait context), and on a loaded machine that first wait can
+//! come long after the start, the first time decoding falls behind inference.
 
+use std::collections::VecDeque;
 use std::io::{ErrorKind, Read};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 
 /// What the reader thread hands over.
 enum Filled {
@@ -33,12 +37,49 @@ pub enum ReadEnd {
     Failed(String),
 }
 
+/// The two queues between the reader and the caller, with room for every buffer reserved.
+struct Queues {
+    filled: VecDeque<Filled>,
+    free: Vec<Vec<u8>>,
+    /// The caller is gone: the reader stops.
+    caller_gone: bool,
+    /// The reader is gone (ended or panicked): nothing more will be filled.
+    reader_gone: bool,
+}
+
+struct Shared {
+    queues: Mutex<Queues>,
+    changed: Condvar,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Queues> {
+        // A panic elsewhere leaves the queues whole (every change is one push or pop).
+        self.queues.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn wait<'a>(&self, guard: MutexGuard<'a, Queues>) -> MutexGuard<'a, Queues> {
+        self.changed
+            .wait(guard)
+            .unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
 /// Frames of `frame_bytes` read ahead from a byte stream on a thread of its own.
-#[derive(Debug)]
 pub struct ReadAhead {
-    filled: Receiver<Filled>,
-    free: SyncSender<Vec<u8>>,
+    shared: Arc<Shared>,
+    /// Buffers in the pool, the caller's excluded: more given back are dropped.
+    depth: usize,
     frame_bytes: usize,
+}
+
+impl std::fmt::Debug for ReadAhead {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReadAhead")
+            .field("depth", &self.depth)
+            .field("frame_bytes", &self.frame_bytes)
+            .finish_non_exhaustive()
+    }
 }
 
 impl ReadAhead {
@@ -50,19 +91,25 @@ impl ReadAhead {
         depth: usize,
     ) -> std::io::Result<ReadAhead> {
         let depth = depth.max(1);
-        let (filled_tx, filled) = sync_channel(depth);
         // Room for the pool plus the buffer the caller gives back on each frame.
-        let (free, free_rx) = sync_channel(depth + 1);
-        for _ in 0..depth {
-            // Cannot fail: the channel has room for `depth + 1` and its receiver is alive.
-            let _ = free.try_send(vec![0u8; frame_bytes]);
-        }
+        let mut free = Vec::with_capacity(depth + 1);
+        free.extend((0..depth).map(|_| vec![0u8; frame_bytes]));
+        let shared = Arc::new(Shared {
+            queues: Mutex::new(Queues {
+                filled: VecDeque::with_capacity(depth + 2),
+                free,
+                caller_gone: false,
+                reader_gone: false,
+            }),
+            changed: Condvar::new(),
+        });
+        let reader = Arc::clone(&shared);
         std::thread::Builder::new()
             .name("rigcast-decode".into())
-            .spawn(move || read_loop(stream, frame_bytes, &free_rx, &filled_tx))?;
+            .spawn(move || read_loop(stream, frame_bytes, &reader))?;
         Ok(ReadAhead {
-            filled,
-            free,
+            shared,
+            depth,
             frame_bytes,
         })
     }
@@ -75,29 +122,56 @@ impl ReadAhead {
     /// Swaps the next frame into `data` (whose old buffer goes back to the pool). Blocks until
     /// the frame is decoded.
     pub fn next_into(&mut self, data: &mut Vec<u8>) -> Result<(), ReadEnd> {
-        match self.filled.recv() {
-            Ok(Filled::Frame(mut buf)) => {
+        let mut queues = self.shared.lock();
+        let message = loop {
+            if let Some(message) = queues.filled.pop_front() {
+                break message;
+            }
+            if queues.reader_gone {
+                return Err(ReadEnd::Failed("decoder reader stopped".into()));
+            }
+            queues = self.shared.wait(queues);
+        };
+        match message {
+            Filled::Frame(mut buf) => {
                 std::mem::swap(data, &mut buf);
-                // Full only if the caller kept buffers of its own; then dropping one is fine.
-                let _ = self.free.try_send(buf);
+                // Only a caller that kept buffers of its own gives back more than the pool
+                // holds; dropping those is fine, and the reserved room is never outgrown.
+                if queues.free.len() <= self.depth {
+                    queues.free.push(buf);
+                }
+                drop(queues);
+                self.shared.changed.notify_all();
                 Ok(())
             }
-            Ok(Filled::End) => Err(ReadEnd::End),
-            Ok(Filled::Truncated(n)) => Err(ReadEnd::Truncated(n)),
-            Ok(Filled::Failed(e)) => Err(ReadEnd::Failed(e.to_string())),
-            Err(_) => Err(ReadEnd::Failed("decoder reader stopped".into())),
+            Filled::End => Err(ReadEnd::End),
+            Filled::Truncated(n) => Err(ReadEnd::Truncated(n)),
+            Filled::Failed(e) => Err(ReadEnd::Failed(e.to_string())),
         }
     }
 }
 
-fn read_loop(
-    mut stream: impl Read,
-    frame_bytes: usize,
-    free: &Receiver<Vec<u8>>,
-    filled: &SyncSender<Filled>,
-) {
-    // Every exit below is final; a send error only means the consumer is gone.
-    while let Ok(mut buf) = free.recv() {
+impl Drop for ReadAhead {
+    fn drop(&mut self) {
+        self.shared.lock().caller_gone = true;
+        self.shared.changed.notify_all();
+    }
+}
+
+/// Marks the reader gone however it leaves (a panic included), so the caller never waits on it.
+struct ReaderGone<'a>(&'a Shared);
+
+impl Drop for ReaderGone<'_> {
+    fn drop(&mut self) {
+        self.0.lock().reader_gone = true;
+        self.0.changed.notify_all();
+    }
+}
+
+fn read_loop(mut stream: impl Read, frame_bytes: usize, shared: &Shared) {
+    let _gone = ReaderGone(shared);
+    // Every exit below is final.
+    while let Some(mut buf) = take_free(shared) {
         buf.resize(frame_bytes, 0);
         let message = match read_frame(&mut stream, &mut buf) {
             Ok(n) if n == frame_bytes => Filled::Frame(buf),
@@ -106,9 +180,25 @@ fn read_loop(
             Err(e) => Filled::Failed(e),
         };
         let last = !matches!(message, Filled::Frame(_));
-        if filled.send(message).is_err() || last {
+        shared.lock().filled.push_back(message);
+        shared.changed.notify_all();
+        if last {
             return;
         }
+    }
+}
+
+/// A free buffer, waiting for the caller to give one back; `None` once the caller is gone.
+fn take_free(shared: &Shared) -> Option<Vec<u8>> {
+    let mut queues = shared.lock();
+    loop {
+        if queues.caller_gone {
+            return None;
+        }
+        if let Some(buf) = queues.free.pop() {
+            return Some(buf);
+        }
+        queues = shared.wait(queues);
     }
 }
 
