@@ -49,7 +49,26 @@ impl NatsCluster {
     }
 
     /// `n` servers (one: no cluster), healthy (JetStream ready) when this returns.
+    ///
+    /// Ports are chosen free and then handed to the servers, so another process (any test's
+    /// outgoing connection takes a port from the same range) can take one in between; that
+    /// server then exits at once. Such a start is thrown away and tried again on fresh ports,
+    /// three times at most; a cluster that stays up and unhealthy for 30 s fails as before.
     pub fn start_n(bin: &Path, n: usize) -> NatsCluster {
+        let mut last = String::new();
+        for attempt in 1..=3 {
+            match Self::try_start(bin, n) {
+                Ok(cluster) => return cluster,
+                Err(why) => {
+                    eprintln!("NATS start {attempt} of 3 failed: {why}");
+                    last = why;
+                }
+            }
+        }
+        panic!("NATS cluster did not start: {last}");
+    }
+
+    fn try_start(bin: &Path, n: usize) -> Result<NatsCluster, String> {
         let client_ports: Vec<u16> = (0..n).map(|_| free_port()).collect();
         let route_ports: Vec<u16> = (0..n).map(|_| free_port()).collect();
         let monitor_ports: Vec<u16> = (0..n).map(|_| free_port()).collect();
@@ -82,7 +101,8 @@ impl NatsCluster {
                 Some(child)
             })
             .collect();
-        let cluster = NatsCluster {
+        // Dropped on an early return: the servers started are killed.
+        let mut cluster = NatsCluster {
             servers,
             client_ports,
         };
@@ -90,6 +110,9 @@ impl NatsCluster {
         let deadline = Instant::now() + Duration::from_secs(30);
         for port in &monitor_ports {
             while !healthy(*port) {
+                if let Some(i) = cluster.exited() {
+                    return Err(format!("server {i} exited (a port taken before it bound?)"));
+                }
                 assert!(
                     Instant::now() < deadline,
                     "NATS cluster not healthy in 30 s"
@@ -97,7 +120,15 @@ impl NatsCluster {
                 std::thread::sleep(Duration::from_millis(200));
             }
         }
-        cluster
+        Ok(cluster)
+    }
+
+    /// The first server that has exited, if any.
+    fn exited(&mut self) -> Option<usize> {
+        self.servers.iter_mut().position(|s| {
+            s.as_mut()
+                .is_some_and(|c| c.try_wait().ok().flatten().is_some())
+        })
     }
 
     /// The servers' URLs, comma-separated (as `--nats` takes them).
