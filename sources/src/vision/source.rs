@@ -70,7 +70,12 @@ pub fn decode_landmarks(bytes: &[u8]) -> Option<Landmarks> {
         *v = glam::Vec3::new(vals.next()?, vals.next()?, vals.next()?);
     }
     if let (Some(w), Some(h)) = (vals.next(), vals.next()) {
-        lm.picture = glam::Vec2::new(w, h);
+        // A recording is untrusted: a size no camera gives (or not a number) is read as
+        // unknown, which leaves the perspective stage off rather than feeding it absurd values.
+        let side = 0.0..=super::camera_modes::MAX_SIDE as f32;
+        if side.contains(&w) && side.contains(&h) {
+            lm.picture = glam::Vec2::new(w, h);
+        }
     }
     Some(lm)
 }
@@ -268,6 +273,13 @@ mod tests {
         let old = &bytes[..PICTURELESS_RECORD_BYTES];
         let read = decode_landmarks(old).unwrap();
         assert_eq!(read.picture, glam::Vec2::ZERO);
+        // A size no camera gives (from a hostile file) is read as unknown.
+        for bad in [f32::NAN, -1.0, 1e30] {
+            let mut wild = bytes.clone();
+            let at = PICTURELESS_RECORD_BYTES;
+            wild[at..at + 4].copy_from_slice(&bad.to_le_bytes());
+            assert_eq!(decode_landmarks(&wild).unwrap().picture, glam::Vec2::ZERO);
+        }
         assert_eq!(read.world, lm.world);
         assert_eq!(read.image, lm.image);
     }

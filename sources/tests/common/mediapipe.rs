@@ -102,22 +102,12 @@ pub fn run_mediapipe_crowd(
     let text_path = text_path.with_extension(format!("people{people}.{frames}.txt"));
     let was_cached = keep && text_path.is_file();
     if !was_cached {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
-        let mut cmd = Command::new(python);
-        cmd.arg(&script)
-            .arg(path)
-            .args([model, &people.to_string()]);
+        let mut cmd = bench_script(python, path);
+        cmd.args([model, &people.to_string()]);
         if let Some(m) = max {
             cmd.args(["--max-frames", &m.to_string()]);
         }
-        let output = cmd.output().unwrap();
-        assert!(
-            output.status.success(),
-            "MediaPipe for {people} on {}: {}",
-            path.display(),
-            String::from_utf8_lossy(&output.stderr)
-        );
-        std::fs::write(&text_path, &output.stdout).unwrap();
+        run_into(cmd, &format!("MediaPipe for {people}"), path, &text_path);
     }
     let stdout = std::fs::read_to_string(&text_path).unwrap();
     if !keep {
@@ -210,6 +200,26 @@ pub fn run_mediapipe(python: &Path, path: &Path, max: Option<usize>) -> MediaPip
     run_mediapipe_model(python, path, max, "full")
 }
 
+/// `scripts/bench_mediapipe.py VIDEO` under the venv's python; the caller adds the rest.
+fn bench_script(python: &Path, video: &Path) -> Command {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
+    let mut cmd = Command::new(python);
+    cmd.arg(script).arg(video);
+    cmd
+}
+
+/// Runs `cmd` and writes its output line to `text_path`; a failure panics with its stderr.
+fn run_into(mut cmd: Command, what: &str, video: &Path, text_path: &Path) {
+    let output = cmd.output().unwrap();
+    assert!(
+        output.status.success(),
+        "{what} on {}: {}",
+        video.display(),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    std::fs::write(text_path, &output.stdout).unwrap();
+}
+
 /// [`run_mediapipe`] with MediaPipe's `model` (`full` or `lite`; a cache keeps lite's landmarks
 /// as `CLIP.lite.json`).
 pub fn run_mediapipe_model(
@@ -221,24 +231,13 @@ pub fn run_mediapipe_model(
     let (json_path, text_path, keep) = outputs(path, model);
     let was_cached = keep && cached(&json_path, &text_path);
     if !was_cached {
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_mediapipe.py");
-        let mut cmd = Command::new(python);
-        cmd.arg(&script)
-            .arg(path)
-            .args([model, "1", "--landmarks"])
-            .arg(&json_path);
+        let mut cmd = bench_script(python, path);
+        cmd.args([model, "1", "--landmarks"]).arg(&json_path);
         // A cache holds every frame, so that any bound reads it.
         if let Some(m) = max.filter(|_| !keep) {
             cmd.args(["--max-frames", &m.to_string()]);
         }
-        let output = cmd.output().unwrap();
-        assert!(
-            output.status.success(),
-            "MediaPipe on {}: {}",
-            path.display(),
-            String::from_utf8_lossy(&output.stderr)
-        );
-        std::fs::write(&text_path, &output.stdout).unwrap();
+        run_into(cmd, "MediaPipe", path, &text_path);
     }
     let stdout = std::fs::read_to_string(&text_path).unwrap();
     let fps = stdout
