@@ -363,7 +363,7 @@ fn left_right_3d(ours: &Ours, rig: &Rig, camera: usize) -> (usize, usize) {
             continue;
         }
         frames += 1;
-        agree += usize::from(reference3d::labels_agree(us, &projected));
+        agree += usize::from(reference3d::labels_agree(us, &projected, &rig.body));
     }
     (frames, agree)
 }

@@ -1,4 +1,5 @@
-//! The 3D reference (issue 32, item 4): the pose2sim single-person demo's four calibrated
+//! The 3D reference (issue 32, item 4), on every calibrated rig found: the pose2sim
+//! single-person demo's four calibrated
 //! cameras (`scripts/setup-vision.sh` installs the videos and `Calib.qca.txt`, found by
 //! listing: a camera of the calibration is judged when a video named after it is beside it)
 //! triangulated from MediaPipe Pose 0.10.14's 2D landmarks (full model, run on every camera in
@@ -30,7 +31,12 @@
 //! the reason without it. The geometry itself is proven on a synthetic rig written in the
 //! calibration's own format (no footage needed): a known body comes back through padded,
 //! distorted views, with a view read mirrored, with every view mirrored, and with one view's
-//! wrist far off.
+//! wrist far off (left out of four views; not held from three).
+//!
+//! A second test judges every other calibrated rig of the shared data the same way (caliscope
+//! calibrations: the desk set's four webcams), on the landmarks its cameras see; its
+//! calibration reader and frame offsets are proven on a synthetic rig written in caliscope's
+//! format.
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]
@@ -41,13 +47,15 @@ mod mediapipe;
 mod multiview;
 #[path = "common/reference3d.rs"]
 mod reference3d;
+#[path = "common/shared_data.rs"]
+mod shared_data;
 
 use std::path::Path;
 
 use glam::{DVec2, DVec3};
 use mediapipe::{mediapipe_python, run_mediapipe_model, MediaPipeRun, Points};
 use multiview::{similarity_aligned, Camera};
-use reference3d::{Frame3d, Rig, View};
+use reference3d::{Body, Frame3d, Rig, View};
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
     DecodeSize, FfmpegSource, FrameSource, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
@@ -68,8 +76,21 @@ const BONES: [(usize, usize); 10] = [
     (idx::RIGHT_HIP, idx::LEFT_HIP),
 ];
 
-/// Joints of PA-MPJPE and jitter.
-const JOINTS: [usize; 12] = reference3d::LIMBS;
+/// The bones of [`BONES`] whose ends `body` holds.
+fn bones(body: &Body) -> Vec<(usize, usize)> {
+    BONES
+        .into_iter()
+        .filter(|&(a, b)| body.holds(a) && body.holds(b))
+        .collect()
+}
+
+/// Joints of PA-MPJPE and jitter: the limbs' that `body` holds.
+fn joints(body: &Body) -> Vec<usize> {
+    reference3d::LIMBS
+        .into_iter()
+        .filter(|&j| body.holds(j))
+        .collect()
+}
 
 /// One model's reading of one frame: image points (source pixels, with visibility) and world
 /// points (metres, camera axes: x right, y down, z away).
@@ -148,19 +169,22 @@ struct Scores {
     pa_mpjpe_mm: f64,
     jitter_mm: f64,
     left_right: f64,
+    /// Median distance of the limbs' image landmarks from the reference's projection, px.
+    image_px: f64,
 }
 
-/// A model's readings of one camera against that camera's reference (timeline frame `f` is
-/// the camera's frame `f + offset`).
+/// A model's readings of one camera against that camera's reference of `body` (timeline
+/// frame `f` is the camera's frame `f + offset`).
 fn score(
     readings: &[Option<Reading>],
     reference: &[Option<Frame3d>],
-    cam: &Camera,
-    video: DVec2,
-    offset: i64,
+    body: &Body,
+    view: &View,
 ) -> Scores {
+    let (cam, video, offset) = (view.cam, view.video, view.offset);
+    let (judged_bones, judged_joints) = (bones(body), joints(body));
     let mut s = Scores::default();
-    let (mut bones, mut pa, mut lr) = (Vec::new(), Vec::new(), 0usize);
+    let (mut bones, mut pa, mut lr, mut px) = (Vec::new(), Vec::new(), 0usize, Vec::new());
     let mut judged: Vec<Option<&Reading>> = Vec::new();
     for (f, r) in reference.iter().enumerate() {
         let g = f as i64 + offset;
@@ -174,43 +198,55 @@ fn score(
         judged.push(Some(m));
         s.frames += 1;
         let in_cam: Vec<DVec3> = r.joints.iter().map(|&p| cam.rot * p).collect();
-        for &(a, b) in &BONES {
+        for &(a, b) in judged_bones
+            .iter()
+            .filter(|&&(a, b)| r.holds(a) && r.holds(b))
+        {
             let want = (in_cam[b] - in_cam[a]).normalize_or_zero();
             let got = (m.world[b] - m.world[a]).normalize_or_zero();
             bones.push(want.dot(got).clamp(-1.0, 1.0).acos().to_degrees());
         }
-        let from: Vec<DVec3> = JOINTS.iter().map(|&j| m.world[j]).collect();
-        let to: Vec<DVec3> = JOINTS.iter().map(|&j| in_cam[j]).collect();
-        let aligned = similarity_aligned(&from, &to);
-        pa.push(mean(
-            &aligned
-                .iter()
-                .zip(&to)
-                .map(|(a, b)| a.distance(*b) * 1000.0)
-                .collect::<Vec<_>>(),
-        ));
+        if judged_joints.iter().all(|&j| r.holds(j)) {
+            let from: Vec<DVec3> = judged_joints.iter().map(|&j| m.world[j]).collect();
+            let to: Vec<DVec3> = judged_joints.iter().map(|&j| in_cam[j]).collect();
+            let aligned = similarity_aligned(&from, &to);
+            pa.push(mean(
+                &aligned
+                    .iter()
+                    .zip(&to)
+                    .map(|(a, b)| a.distance(*b) * 1000.0)
+                    .collect::<Vec<_>>(),
+            ));
+        }
         let projected: Vec<DVec2> = r
             .joints
             .iter()
             .map(|&p| cam.project(video, p).unwrap_or(DVec2::splat(f64::NAN)))
             .collect();
-        lr += usize::from(reference3d::labels_agree(&m.image, &projected));
+        lr += usize::from(reference3d::labels_agree(&m.image, &projected, body));
+        for &j in judged_joints.iter().filter(|&&j| r.holds(j)) {
+            let at = DVec2::new(m.image[j][0].into(), m.image[j][1].into());
+            px.push(at.distance(projected[j]));
+        }
     }
+    px.sort_by(f64::total_cmp);
+    s.image_px = px.get(px.len() / 2).copied().unwrap_or(f64::NAN);
     s.bone_deg = mean(&bones);
     s.pa_mpjpe_mm = mean(&pa);
-    s.jitter_mm = jitter(judged.iter().map(|r| r.map(|r| r.world.clone())));
+    s.jitter_mm = jitter(judged.iter().map(|r| r.map(|r| r.world.clone())), body);
     s.left_right = 100.0 * lr as f64 / s.frames.max(1) as f64;
     s
 }
 
-/// Mean joint acceleration of the hip-centred points (mm per frame²) over runs of three
-/// consecutive frames.
-fn jitter(frames: impl Iterator<Item = Option<Vec<DVec3>>>) -> f64 {
+/// Mean joint acceleration of `body`'s limb points around its centre (the hips', or the
+/// shoulders' without hips; mm per frame²) over runs of three consecutive frames.
+fn jitter(frames: impl Iterator<Item = Option<Vec<DVec3>>>, body: &Body) -> f64 {
+    let ((a, b), judged) = (body.centre(), joints(body));
     let centred: Vec<Option<Vec<DVec3>>> = frames
         .map(|f| {
             f.map(|p| {
-                let hip = (p[idx::LEFT_HIP] + p[idx::RIGHT_HIP]) * 0.5;
-                JOINTS.iter().map(|&j| p[j] - hip).collect()
+                let centre = (p[a] + p[b]) * 0.5;
+                judged.iter().map(|&j| p[j] - centre).collect()
             })
         })
         .collect();
@@ -225,11 +261,12 @@ fn jitter(frames: impl Iterator<Item = Option<Vec<DVec3>>>) -> f64 {
     mean(&acc)
 }
 
-/// Coefficient of variation of a bone's length over the reference's frames.
+/// Coefficient of variation of a bone's length over the reference's frames that hold it.
 fn length_cv(reference: &[Option<Frame3d>], a: usize, b: usize) -> f64 {
     let l: Vec<f64> = reference
         .iter()
         .flatten()
+        .filter(|r| r.holds(a) && r.holds(b))
         .map(|r| r.joints[a].distance(r.joints[b]))
         .collect();
     let m = mean(&l);
@@ -258,7 +295,7 @@ fn similarity_alignment_recovers_a_known_pose() {
 /// The reference's own checks on camera `c` (left out of it): how far MediaPipe's landmarks
 /// in that camera land from the reference's projection (median, fraction of the torso; each
 /// frame read with whichever labelling fits, since this checks the geometry, not the labels).
-fn left_out_error(reference: &[Option<Frame3d>], view: &View) -> f64 {
+fn left_out_error(reference: &[Option<Frame3d>], view: &View, body: &Body) -> f64 {
     let mut errors = Vec::new();
     for (f, r) in reference.iter().enumerate() {
         let g = f as i64 + view.offset;
@@ -274,8 +311,9 @@ fn left_out_error(reference: &[Option<Frame3d>], view: &View) -> f64 {
             .map(|&q| view.cam.project(view.video, q).unwrap_or(DVec2::splat(1e9)))
             .collect();
         let cost = |m: fn(usize) -> usize| -> Vec<f64> {
-            JOINTS
+            joints(body)
                 .iter()
+                .filter(|&&j| r.holds(j) && r.holds(m(j)))
                 .map(|&j| at(j).distance(projected[m(j)]) / torso.max(1.0))
                 .collect()
         };
@@ -295,33 +333,47 @@ fn left_out_error(reference: &[Option<Frame3d>], view: &View) -> f64 {
 
 fn row(camera: &str, model: &str, s: &Scores) -> String {
     format!(
-        "| {camera} | {model} | {} | {:.1} | {:.0} | {:.2} | {:.1} |",
-        s.frames, s.bone_deg, s.pa_mpjpe_mm, s.jitter_mm, s.left_right
+        "| {camera} | {model} | {} | {:.1} | {:.0} | {:.2} | {:.1} | {:.1} |",
+        s.frames, s.bone_deg, s.pa_mpjpe_mm, s.jitter_mm, s.left_right, s.image_px
     )
 }
 
 /// Issue 32's bounds on one camera: rigcast's default (lite) at least as accurate as MediaPipe
 /// and less jittery; left/right right on 99 % of frames with lite and full.
 fn misses(camera: &str, lite: &Scores, full: &Scores, theirs: &Scores) -> Vec<String> {
-    let mut out = Vec::new();
-    if lite.bone_deg > theirs.bone_deg {
-        out.push(format!(
-            "{camera}: lite's bone directions {:.1}° against MediaPipe's {:.1}°",
-            lite.bone_deg, theirs.bone_deg
-        ));
-    }
-    if lite.pa_mpjpe_mm > theirs.pa_mpjpe_mm {
-        out.push(format!(
-            "{camera}: lite's PA-MPJPE {:.0} mm against MediaPipe's {:.0} mm",
-            lite.pa_mpjpe_mm, theirs.pa_mpjpe_mm
-        ));
-    }
+    let mut out = less_accurate(camera, "lite", lite, theirs);
     if lite.jitter_mm >= theirs.jitter_mm {
         out.push(format!(
             "{camera}: lite's jitter {:.2} against MediaPipe's {:.2} mm/frame²",
             lite.jitter_mm, theirs.jitter_mm
         ));
     }
+    out.extend(mislabelled(camera, lite, full));
+    out
+}
+
+/// Where `model` is less accurate than MediaPipe full (`theirs`) on one camera: its bone
+/// directions or its PA-MPJPE.
+fn less_accurate(camera: &str, model: &str, ours: &Scores, theirs: &Scores) -> Vec<String> {
+    let mut out = Vec::new();
+    if ours.bone_deg > theirs.bone_deg {
+        out.push(format!(
+            "{camera}: {model}'s bone directions {:.1}° against MediaPipe's {:.1}°",
+            ours.bone_deg, theirs.bone_deg
+        ));
+    }
+    if ours.pa_mpjpe_mm > theirs.pa_mpjpe_mm {
+        out.push(format!(
+            "{camera}: {model}'s PA-MPJPE {:.0} mm against MediaPipe's {:.0} mm",
+            ours.pa_mpjpe_mm, theirs.pa_mpjpe_mm
+        ));
+    }
+    out
+}
+
+/// Where lite or full labels left and right right on fewer than 99 % of one camera's frames.
+fn mislabelled(camera: &str, lite: &Scores, full: &Scores) -> Vec<String> {
+    let mut out = Vec::new();
     for (model, s) in [("lite", lite), ("full", full)] {
         if s.left_right < 99.0 {
             out.push(format!(
@@ -367,20 +419,33 @@ fn reference_row(rig: &Rig, c: usize) -> (Vec<Option<Frame3d>>, Option<String>) 
     let cam = &rig.cameras[c].0;
     let reference = rig.reference(Some(c));
     let covered = reference.iter().flatten().count();
-    let left_out = left_out_error(&reference, &rig.view(c));
+    let left_out = left_out_error(&reference, &rig.view(c), &rig.body);
     let cv = [(11, 13), (12, 14), (23, 25), (24, 26), (25, 27), (26, 28)]
         .iter()
+        .filter(|&&(a, b)| rig.body.holds(a) && rig.body.holds(b))
         .map(|&(a, b)| length_cv(&reference, a, b))
         .fold(0.0, f64::max);
-    let ref_jitter = jitter(reference.iter().map(|r| {
-        r.as_ref()
-            .map(|r| r.joints.iter().map(|&p| cam.rot * p).collect())
-    }));
+    let ref_jitter = jitter(
+        reference.iter().map(|r| {
+            r.as_ref()
+                .filter(|r| joints(&rig.body).iter().all(|&j| r.holds(j)))
+                .map(|r| r.joints.iter().map(|&p| cam.rot * p).collect())
+        }),
+        &rig.body,
+    );
+    let judged = joints(&rig.body);
+    let held = reference
+        .iter()
+        .flatten()
+        .map(|r| judged.iter().filter(|&&j| r.holds(j)).count())
+        .sum::<usize>() as f64
+        / (covered * judged.len()).max(1) as f64;
     println!(
         "| {} | reference (the other cameras) | {covered} | MediaPipe's 2D here {:.1} % of the \
-         torso off it | bone lengths cv <= {cv:.3} | {ref_jitter:.2} | - |",
+         torso off it | bone lengths cv <= {cv:.3} | {ref_jitter:.2} | limbs held {:.1} % | - |",
         cam.name,
-        left_out * 100.0
+        left_out * 100.0,
+        held * 100.0
     );
     let broken =
         ((covered as f64) < 0.8 * rig.frames as f64 || left_out > 0.15 || cv > 0.15).then(|| {
@@ -393,6 +458,73 @@ fn reference_row(rig: &Rig, c: usize) -> (Vec<Option<Frame3d>>, Option<String>) 
             )
         });
     (reference, broken)
+}
+
+/// The table's header.
+fn print_header() {
+    println!(
+        "| camera | model | frames | bone direction ° | PA-MPJPE mm | jitter mm/frame² | left/right % | 2D px |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+}
+
+/// What one camera of a rig reads, per model judged.
+struct CameraScores {
+    name: String,
+    lite: Scores,
+    full: Scores,
+    theirs: Scores,
+}
+
+/// Every camera of `rig` judged (the models' own readings too when `own`): the table's rows
+/// printed, each camera's scores, and what is wrong with the reference or a row.
+fn judge_rig(
+    rig: &Rig,
+    config: &PipelineConfig,
+    python: &Path,
+    own: bool,
+) -> (Vec<CameraScores>, Vec<String>) {
+    print_reference(rig);
+    print_header();
+    let (mut cameras, mut broken) = (Vec::new(), Vec::new());
+    for (c, (cam, video)) in rig.cameras.iter().enumerate() {
+        let (reference, wrong) = reference_row(rig, c);
+        broken.extend(wrong);
+        let view = rig.view(c);
+        let judge = |readings: &[Option<Reading>]| score(readings, &reference, &rig.body, &view);
+        let ours = |model, output| judge(&readings_of_rigcast(video, config, model, output));
+        let lite = ours(ModelKind::Lite, Output::Default);
+        let full = ours(ModelKind::Full, Output::Default);
+        let theirs = judge(&readings_of_mediapipe(&rig.runs[c]));
+        let their_lite = run_mediapipe_model(python, video, None, "lite");
+        let their_lite = judge(&readings_of_mediapipe(&their_lite));
+        let mut rows = vec![("rigcast lite (default)", &lite), ("rigcast full", &full)];
+        let owns = own.then(|| {
+            (
+                ours(ModelKind::Lite, Output::ModelsOwn),
+                ours(ModelKind::Full, Output::ModelsOwn),
+            )
+        });
+        if let Some((lite_own, full_own)) = &owns {
+            rows.push(("lite model's own readings", lite_own));
+            rows.push(("full model's own readings", full_own));
+        }
+        rows.push(("MediaPipe full", &theirs));
+        rows.push(("MediaPipe lite", &their_lite));
+        for (model, s) in rows {
+            println!("{}", row(&cam.name, model, s));
+            if s.frames == 0 {
+                broken.push(format!("{}: no frames judged for {model}", cam.name));
+            }
+        }
+        cameras.push(CameraScores {
+            name: cam.name.clone(),
+            lite,
+            full,
+            theirs,
+        });
+    }
+    (cameras, broken)
 }
 
 #[test]
@@ -415,48 +547,84 @@ fn pose2sim_3d_reference_judges_each_camera_and_model() {
         );
         return;
     };
-    print_reference(&rig);
-    println!(
-        "| camera | model | frames | bone direction ° | PA-MPJPE mm | jitter mm/frame² | left/right % |"
-    );
-    println!("|---|---|---|---|---|---|---|");
-    let (mut broken, mut missed) = (Vec::new(), Vec::new());
-    for (c, (cam, video)) in rig.cameras.iter().enumerate() {
-        let (reference, wrong) = reference_row(&rig, c);
-        broken.extend(wrong);
-        let size = rig.view(c).video;
-        let judge =
-            |readings: &[Option<Reading>]| score(readings, &reference, cam, size, rig.offsets[c]);
-        let ours = |model, output| judge(&readings_of_rigcast(video, &config, model, output));
-        let lite = ours(ModelKind::Lite, Output::Default);
-        let full = ours(ModelKind::Full, Output::Default);
-        let lite_own = ours(ModelKind::Lite, Output::ModelsOwn);
-        let full_own = ours(ModelKind::Full, Output::ModelsOwn);
-        let theirs = judge(&readings_of_mediapipe(&rig.runs[c]));
-        let their_lite = run_mediapipe_model(&python, video, None, "lite");
-        let their_lite = judge(&readings_of_mediapipe(&their_lite));
-        for (model, s) in [
-            ("rigcast lite (default)", &lite),
-            ("rigcast full", &full),
-            ("lite model's own readings", &lite_own),
-            ("full model's own readings", &full_own),
-            ("MediaPipe full", &theirs),
-            ("MediaPipe lite", &their_lite),
-        ] {
-            println!("{}", row(&cam.name, model, s));
-            if s.frames == 0 {
-                broken.push(format!("{}: no frames judged for {model}", cam.name));
-            }
-        }
-        missed.extend(misses(&cam.name, &lite, &full, &theirs));
-    }
+    let (cameras, broken) = judge_rig(&rig, &config, &python, true);
     assert!(broken.is_empty(), "{}", broken.join("\n"));
+    let missed: Vec<String> = cameras
+        .iter()
+        .flat_map(|c| misses(&c.name, &c.lite, &c.full, &c.theirs))
+        .collect();
     if std::env::var("RIGCAST_FOOTAGE_ACCEPTANCE").as_deref() == Ok("1") {
         assert!(missed.is_empty(), "{}", missed.join("\n"));
     } else if !missed.is_empty() {
         println!(
             "outside issue 32's bounds (asserted with RIGCAST_FOOTAGE_ACCEPTANCE=1):\n{}",
             missed.join("\n")
+        );
+    }
+}
+
+/// Every other calibrated rig of the shared data (caliscope's `camera_array.toml` under
+/// `video/`, its cameras' videos found by listing, their frame offsets from its
+/// `timestamps.csv`: the desk set's four webcams today, 6 fps) judged as the pose2sim rig is,
+/// on the landmarks its cameras see (the desk set's seated man: nose, shoulders, elbows,
+/// wrists; bones: upper arms, forearms, shoulder line; jitter around the shoulders).
+///
+/// Asserted beside the reference's own checks (what holds today): rigcast full at least as
+/// accurate as MediaPipe full on every camera of every set (bone directions and PA-MPJPE),
+/// and left/right right on 99 % of frames with lite and full. Issue 32's bounds on the
+/// default (lite at least as accurate as MediaPipe full, less jittery) are listed, and
+/// asserted with `RIGCAST_FOOTAGE_ACCEPTANCE=1`; they do not all hold: on the desk set (debug
+/// build, MediaPipe cached) lite's bone directions / PA-MPJPE read 16.8° / 59, 21.1 / 70,
+/// 10.0 / 46, 13.9 / 50 mm on cameras 0-3 against MediaPipe full's 27.1 / 77, 19.4 / 68,
+/// 20.2 / 73, 21.8 / 77 (camera 1, a side view, outside), and its jitter at 6 fps 38.4,
+/// 17.7, 14.3, 17.9 mm/frame² against 28.2, 17.2, 17.6, 15.6.
+#[test]
+fn calibrated_rigs_3d_reference_judges_each_camera() {
+    let Some((_, config)) = common::default_config_or_skip("vision_reference3d") else {
+        return;
+    };
+    let python = match mediapipe_python() {
+        Ok(p) => p,
+        Err(reason) => {
+            println!("SKIP calibrated rigs: {reason}");
+            return;
+        }
+    };
+    let root = shared_data::shared_data_root().join("video");
+    let sets = reference3d::caliscope_sets(&root);
+    if sets.is_empty() {
+        println!(
+            "SKIP calibrated rigs: no caliscope calibration with 3+ cameras' videos under {}",
+            root.display()
+        );
+        return;
+    }
+    let (mut broken, mut missed, mut listed) = (Vec::new(), Vec::new(), Vec::new());
+    for set in sets {
+        let name = set.name;
+        let rig = Rig::of(&python, set.cameras, set.offsets);
+        println!(
+            "\n{name}: {} cameras, landmarks judged {:?}",
+            rig.cameras.len(),
+            rig.body.joints
+        );
+        let (cameras, wrong) = judge_rig(&rig, &config, &python, false);
+        broken.extend(wrong.into_iter().map(|w| format!("{name} {w}")));
+        for c in &cameras {
+            let at = format!("{name} {}", c.name);
+            missed.extend(less_accurate(&at, "full", &c.full, &c.theirs));
+            missed.extend(mislabelled(&at, &c.lite, &c.full));
+            listed.extend(misses(&at, &c.lite, &c.full, &c.theirs));
+        }
+    }
+    assert!(broken.is_empty(), "{}", broken.join("\n"));
+    assert!(missed.is_empty(), "{}", missed.join("\n"));
+    if std::env::var("RIGCAST_FOOTAGE_ACCEPTANCE").as_deref() == Ok("1") {
+        assert!(listed.is_empty(), "{}", listed.join("\n"));
+    } else if !listed.is_empty() {
+        println!(
+            "outside issue 32's bounds (asserted with RIGCAST_FOOTAGE_ACCEPTANCE=1):\n{}",
+            listed.join("\n")
         );
     }
 }
@@ -619,5 +787,124 @@ fn the_reference_takes_sides_from_the_body_not_from_the_views_labels() {
         r.joints[15].distance(body[15]) < 1e-6,
         "wrist at {}",
         r.joints[15]
+    );
+    assert!(r.holds(15));
+    // From three views (a least-squares point spreads a 150 px miss over all three, under the
+    // rejection; 400 px is not), which one is off is not known: the wrist is not held, the
+    // rest is.
+    frames[1][0].as_mut().unwrap()[15][0] += 250.0;
+    let three = views(&cameras[..3], &videos[..3], &frames[..3]);
+    let r = reference3d::frame(&three, 0).unwrap();
+    assert!(!r.holds(15) && r.holds(16) && r.holds(13), "{:b}", r.held);
+}
+
+/// A caliscope `camera_array.toml` of cameras at `positions` looking at `target` (z up, a
+/// 1280×720 picture, strong barrel distortion with k3), and the same cameras as a Qualisys
+/// export would give them, for comparing projections.
+fn synthetic_caliscope(positions: &[DVec3], target: DVec3) -> String {
+    let mut text = String::new();
+    for (k, &pos) in positions.iter().enumerate() {
+        let z = (target - pos).normalize();
+        let y = (DVec3::NEG_Z - z * DVec3::NEG_Z.dot(z)).normalize();
+        let x = y.cross(z);
+        let t = -DVec3::new(x.dot(pos), y.dot(pos), z.dot(pos));
+        let row = |v: DVec3| format!("[{}, {}, {}]", v.x, v.y, v.z);
+        text += &format!(
+            "[cameras.{k}]\ncam_id = {k}\nignore = false\nsize = [1280, 720]\n\
+             matrix = [[900.0, 0.0, 630.0], [0.0, 905.0, 370.0], [0.0, 0.0, 1.0]]\n\
+             distortions = [-0.33, 0.046, -0.004, 0.004, 0.067]\n\
+             translation = [{}, {}, {}]\nrotation = [{}, {}, {}]\n\n",
+            t.x,
+            t.y,
+            t.z,
+            row(x),
+            row(y),
+            row(z)
+        );
+    }
+    text
+}
+
+#[test]
+fn a_caliscope_rig_triangulates_a_known_body_through_its_distortion() {
+    let body = synthetic_body();
+    let positions: Vec<DVec3> = (0..3)
+        .map(|k| {
+            let a = 1.0 + f64::from(k) * 0.5;
+            DVec3::new(1.0 * a.cos(), 1.0 * a.sin(), 1.4)
+        })
+        .collect();
+    let cameras =
+        multiview::read_caliscope(&synthetic_caliscope(&positions, DVec3::new(0.0, 0.0, 1.2)))
+            .unwrap();
+    assert_eq!(cameras.len(), 3);
+    let video = DVec2::new(1280.0, 720.0);
+    for (cam, &pos) in cameras.iter().zip(&positions) {
+        assert!(cam.pos.distance(pos) < 1e-9, "{}: at {}", cam.name, cam.pos);
+        assert!(
+            cam.up().distance(DVec3::Z) < 0.5,
+            "{}: up {}",
+            cam.name,
+            cam.up()
+        );
+        // Off-centre points, where the barrel bends most, come back through the inverse.
+        for &j in &[11, 15, 16] {
+            let px = cam.project(video, body[j]).unwrap();
+            let c = cam.to_camera(body[j]);
+            assert!(
+                cam.ray(video, px).distance(c.truncate() / c.z) < 1e-7,
+                "{}",
+                cam.name
+            );
+        }
+    }
+    let frames: Vec<Vec<Option<Points>>> = cameras
+        .iter()
+        .map(|cam| {
+            let points = (0..33)
+                .map(|j| {
+                    let px = cam.project(video, body[j]).unwrap();
+                    [px.x as f32, px.y as f32, 1.0]
+                })
+                .collect();
+            vec![Some(points)]
+        })
+        .collect();
+    let videos = vec![video; 3];
+    let r = reference3d::frame(&views(&cameras, &videos, &frames), 0).unwrap();
+    for &j in &reference3d::BODY {
+        assert!(r.joints[j].distance(body[j]) < 1e-3, "joint {j}");
+    }
+}
+
+#[test]
+fn caliscope_frame_times_give_each_cameras_offset() {
+    let cams: Vec<(multiview::Camera, std::path::PathBuf)> = multiview::read_caliscope(
+        &synthetic_caliscope(&[DVec3::X, DVec3::Y, DVec3::NEG_X], DVec3::ZERO),
+    )
+    .unwrap()
+    .into_iter()
+    .map(|c| (c, std::path::PathBuf::new()))
+    .collect();
+    let rows = |starts: [i64; 3], drop: Option<(i64, i64)>| {
+        let mut text = String::from("sync_index,cam_id,frame_index,frame_time\n");
+        for sync in 10..20 {
+            for (k, &start) in starts.iter().enumerate() {
+                if sync >= start && drop != Some((k as i64, sync)) {
+                    text += &format!("{sync},{k},{sync},{}.0\n", sync);
+                }
+            }
+        }
+        text
+    };
+    // Camera 1 starts two frames late: its first frame is the set's frame 2.
+    assert_eq!(
+        reference3d::caliscope_offsets(&rows([10, 12, 10], None), &cams),
+        Some(vec![0, -2, 0])
+    );
+    // A dropped frame breaks the one-for-one order: left to the search.
+    assert_eq!(
+        reference3d::caliscope_offsets(&rows([10, 10, 10], Some((2, 15))), &cams),
+        None
     );
 }

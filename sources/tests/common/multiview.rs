@@ -1,14 +1,19 @@
 //! Calibrated cameras and a 3D reference triangulated from several views' 2D landmarks: the
 //! geometry the vision tests judge 3D, bone directions and left/right labels with. Included by
-//! path in the vision tests.
+//! path in the vision tests. Two calibration formats are read.
 //!
-//! The calibration is a Qualisys export (`*.qca.txt`, as the pose2sim demo ships it): per
+//! A Qualisys export (`*.qca.txt`, as the pose2sim demo ships it): per
 //! camera its position (mm) and a rotation whose rows are the camera's axes in the world with
 //! y and z pointing up and backwards (Qualisys' convention; OpenCV's camera looks along +z with
 //! y down, a half turn about x away), its focal length and principal point in 1/64 pixel of the
 //! calibrated picture (`fov_video`), and Brown distortion (k1, k2, p1, p2). A video whose size
 //! differs from the calibrated picture holds it scaled to fit and padded evenly (the demo's
 //! cameras 1 and 2: 1088×1920 scaled to 1080 wide, 7 black rows above and below).
+//!
+//! A caliscope `camera_array.toml` (as the shared data's desk set ships it): per camera
+//! `[cameras.ID]` its OpenCV intrinsic `matrix`, `distortions` (k1, k2, p1, p2, k3), and the
+//! world → camera `rotation` and `translation` (x_cam = R·x + t, metres), the calibrated
+//! picture's `size`; a camera marked `ignore` is left out.
 #![allow(dead_code)]
 
 use glam::{DMat3, DVec2, DVec3, DVec4};
@@ -24,8 +29,8 @@ pub struct Camera {
     pub pos: DVec3,
     focal: DVec2,
     centre: DVec2,
-    /// k1, k2, p1, p2.
-    dist: [f64; 4],
+    /// k1, k2, p1, p2, k3.
+    dist: [f64; 5],
     /// The calibrated picture's size in pixels.
     pub size: DVec2,
 }
@@ -88,6 +93,7 @@ pub fn read_qca(text: &str) -> Result<Vec<Camera>, String> {
                 attr(k, "radialDistortion2")?,
                 attr(k, "tangentalDistortion1")?,
                 attr(k, "tangentalDistortion2")?,
+                0.0,
             ],
             size,
         });
@@ -98,7 +104,85 @@ pub fn read_qca(text: &str) -> Result<Vec<Camera>, String> {
     Ok(cameras)
 }
 
+/// `value` as a list of numbers, or an error naming `what`.
+fn numbers(value: Option<&toml::Value>, what: &str) -> Result<Vec<f64>, String> {
+    value
+        .and_then(toml::Value::as_array)
+        .ok_or_else(|| format!("no {what}"))?
+        .iter()
+        .map(|v| {
+            v.as_float()
+                .or_else(|| v.as_integer().map(|i| i as f64))
+                .ok_or_else(|| format!("{what}: {v} is not a number"))
+        })
+        .collect()
+}
+
+/// `value` as a `rows`×`cols` matrix (rows of numbers), or an error naming `what`.
+fn matrix(value: Option<&toml::Value>, what: &str, rows: usize) -> Result<Vec<Vec<f64>>, String> {
+    let out: Vec<Vec<f64>> = value
+        .and_then(toml::Value::as_array)
+        .ok_or_else(|| format!("no {what}"))?
+        .iter()
+        .map(|row| numbers(Some(row), what))
+        .collect::<Result<_, _>>()?;
+    if out.len() != rows || out.iter().any(|r| r.len() != 3) {
+        return Err(format!("{what} is not {rows}x3"));
+    }
+    Ok(out)
+}
+
+/// The cameras of a caliscope `camera_array.toml`, named `cam_ID`, sorted by id.
+pub fn read_caliscope(text: &str) -> Result<Vec<Camera>, String> {
+    let doc: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
+    let table = doc
+        .get("cameras")
+        .and_then(toml::Value::as_table)
+        .ok_or("no [cameras.*] tables")?;
+    let mut cameras = Vec::new();
+    for (id, cam) in table {
+        if cam.get("ignore").and_then(toml::Value::as_bool) == Some(true) {
+            continue;
+        }
+        let what = |field: &str| format!("camera {id}: {field}");
+        let k = matrix(cam.get("matrix"), &what("matrix"), 3)?;
+        let r = matrix(cam.get("rotation"), &what("rotation"), 3)?;
+        let t = numbers(cam.get("translation"), &what("translation"))?;
+        let size = numbers(cam.get("size"), &what("size"))?;
+        let mut dist = numbers(cam.get("distortions"), &what("distortions"))?;
+        if t.len() != 3 || size.len() != 2 || dist.len() > 5 {
+            return Err(what("translation, size or distortions of the wrong length"));
+        }
+        dist.resize(5, 0.0);
+        // Rows of R are the camera's axes in the world; the camera sits at -Rᵀ·t.
+        let rot = DMat3::from_cols(
+            DVec3::new(r[0][0], r[1][0], r[2][0]),
+            DVec3::new(r[0][1], r[1][1], r[2][1]),
+            DVec3::new(r[0][2], r[1][2], r[2][2]),
+        );
+        cameras.push(Camera {
+            name: format!("cam_{id}"),
+            rot,
+            pos: -(rot.transpose() * DVec3::new(t[0], t[1], t[2])),
+            focal: DVec2::new(k[0][0], k[1][1]),
+            centre: DVec2::new(k[0][2], k[1][2]),
+            dist: [dist[0], dist[1], dist[2], dist[3], dist[4]],
+            size: DVec2::new(size[0], size[1]),
+        });
+    }
+    if cameras.is_empty() {
+        return Err("no cameras in the calibration".into());
+    }
+    cameras.sort_by(|a, b| (a.name.len(), &a.name).cmp(&(b.name.len(), &b.name)));
+    Ok(cameras)
+}
+
 impl Camera {
+    /// The world's up as this camera sees it (its picture's up), in world axes.
+    pub fn up(&self) -> DVec3 {
+        -(self.rot.transpose() * DVec3::Y)
+    }
+
     /// The scale and padding that fit the calibrated picture into a video of `video` pixels.
     fn letterbox(&self, video: DVec2) -> (f64, DVec2) {
         let scale = (video.x / self.size.x).min(video.y / self.size.y);
@@ -106,9 +190,9 @@ impl Camera {
     }
 
     fn distort(&self, n: DVec2) -> DVec2 {
-        let [k1, k2, p1, p2] = self.dist;
+        let [k1, k2, p1, p2, k3] = self.dist;
         let r2 = n.length_squared();
-        let radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
         n * radial
             + DVec2::new(
                 2.0 * p1 * n.x * n.y + p2 * (r2 + 2.0 * n.x * n.x),
@@ -121,10 +205,11 @@ impl Camera {
     pub fn ray(&self, video: DVec2, pixel: DVec2) -> DVec2 {
         let (scale, pad) = self.letterbox(video);
         let target = ((pixel - pad) / scale - self.centre) / self.focal;
-        // Fixed-point inversion of the distortion (converges in a few steps for lenses
-        // this mild).
+        // Fixed-point inversion of the distortion (each step shrinks the error by the
+        // distortion's slope away from 1: a few for the pose2sim lenses, 40 steps leave
+        // 1e-7 of the desk set's strong barrel at its corners).
         let mut n = target;
-        for _ in 0..10 {
+        for _ in 0..40 {
             n += target - self.distort(n);
         }
         n
