@@ -1103,11 +1103,20 @@ fn standing_drift(
     let (mut sum, mut n) = (0.0f32, 0usize);
     for (side, stand) in ["L", "R"].iter().zip(stands) {
         // The contact is the rig's own (its toes count where the other rig has none).
-        let joints: Vec<BoneId> = [sided("foot", side), sided("toes", side)]
+        let mut joints: Vec<BoneId> = [sided("foot", side), sided("toes", side)]
             .iter()
             .filter(|r| contact || other.bone(r).is_some())
             .filter_map(|r| l.bone(r))
             .collect();
+        // A foot whose toes are not labelled may still end in a joint of its own (a BVH End
+        // Site ahead of and below the ankle, as the CMU-style rigs' feet do): the foot stands
+        // on it too, and the lock turns such a foot about it.
+        if let Some(foot) = l.bone(&sided("foot", side)).filter(|_| contact) {
+            if l.bone(&sided("toes", side)).is_none() {
+                let leaves = s.children(foot).iter().copied();
+                joints.extend(leaves.filter(|c| s.children(*c).is_empty()));
+            }
+        }
         for f in 1..worlds.len().min(stand.len()) {
             if !(stand[f] && stand[f - 1]) {
                 continue;
@@ -1185,9 +1194,12 @@ fn pair_wanted(name: &str) -> bool {
 /// on each rig's own standing foot (below), planted feet drifting ≤ 0.05 cm/frame (scaled to a 1.75 m body) and standing within 1 cm of
 /// where the source's stand ([`planted_feet`], on rigs whose feet can be judged).
 ///
-/// Drift is judged on the joint each foot stands on (its labelled joint nearest the floor): a
-/// foot rolling over its ball at a toe-off, as the performer's does, moves its ankle without
-/// sliding, while a ball sliding back under a rising ankle is a slide. The table prints beside
+/// Drift is judged on the joint each foot stands on (its labelled joint nearest the floor; a
+/// foot whose toes are not labelled counts the joint its foot bone ends in too, a BVH End
+/// Site: the CMU run and dazfriendly rigs stand on theirs, which lies below the ankle): a foot
+/// rolling over its ball at a toe-off, as the performer's does, moves its ankle without
+/// sliding, while a ball sliding back under a rising ankle is a slide; a planted foot turning
+/// with the performer's moves the end it does not turn about. The table prints beside
 /// it the source's own drift (its standing feet measured alike: a source whose standing feet
 /// slide more than the bound asks the target's to stand stiller than the performer's) and, as
 /// `(drift)`, the target's over every foot joint (the measure before: the ankle included).
