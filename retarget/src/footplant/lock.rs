@@ -6,10 +6,11 @@
 //! its ball, which stays where standing put it while the ankle rises (live too: the causal
 //! detector gives the source heel's rise over its lowest contact; a foot whose toes are not
 //! rigged has its ankle raised as far, straight up); a foot landing toes up comes down about
-//! its heel, and one turned on the spot, or whose source's heel rises, turns on its ball (the
-//! root carried with it), so the joint a foot stands on stays put; its leg solved with the
-//! two-bone IK; the hips come down when a leg cannot reach; every switch blends (see
-//! `spring`); no foot joint goes below the target's floor.
+//! its heel, and one the performer turns turns with it (the root carried with it) about the
+//! joint it stands on (its ball while the source's heel rises, else its own lower joint), so
+//! that joint stays put; its leg solved with the two-bone IK; the hips come down when a leg
+//! cannot reach; every switch blends (see `spring`); no foot joint goes below the target's
+//! floor.
 //!
 //! ```text
 //!  source pose ─▶ PlantDetector (causal) ─┐        (offline: a PlantTrack from detect_clip)
@@ -29,10 +30,11 @@
 //!                     (`Foot::roll`): on its ball while that is pitched lower than standing,
 //!                     else on its heel and stood flat (ball pitched down to its standing
 //!                     height, about the heel: the pin comes forward), blended in and out
-//!                     the same way; its heading (the way its ball points) held, dragged
-//!                     past `PIVOT_RAD` about the ball; while the source's foot stands on
-//!                     its ball alone, turned with the animation on its ball (`turn_pins`,
-//!                     before the root is carried, which takes up the pin's move)
+//!                     the same way; its heading (the way its ball points) turned with the
+//!                     animation's over the blends' half-life about the joint it stands on
+//!                     (`turn_pins`, before the root is carried, which takes up the pin's
+//!                     move; with plants given as flags alone: held, dragged past
+//!                     `PIVOT_RAD` about the ball)
 //!               ─▶ hips raised when every foot would have to be pulled up (the animation
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
@@ -316,10 +318,11 @@ struct Foot {
     landing_flat: f32,
     lock_position: Vec3,
     lock_heading: f32,
-    /// The source's contacts are known (a clip's track or the live detector), and its foot
-    /// stands on its ball alone this frame (its heel rising): the pinned foot turns with the
-    /// animation on its ball ([`FootLock::turn_pins`]).
-    on_ball: bool,
+    /// Where along its sole, heel (0) to ball (1), a pinned foot turns with the animation this
+    /// frame ([`Foot::pivot_of`], [`FootLock::turn_pins`]); `None` where the source's contacts
+    /// are not known (plants given as flags alone) or none of them holds: the heading is then
+    /// held, dragged past [`PIVOT_RAD`].
+    pivot: Option<f32>,
     /// How far this frame's turn moved the pin over the ground (the root takes it up).
     pin_moved: Vec3,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -398,10 +401,64 @@ impl Foot {
         dir * (flat(rise) - flat(rise - lifted)) + up * lifted
     }
 
-    /// Turns the pin to `heading` on its ball, as a foot turning on the spot does: the pin
-    /// moves so the ball stays where the foot stood flat ([`FootLock::flatten`]) puts it.
-    /// `balls`: the ball's offset from the ankle at the old heading and at the new.
-    fn turn_on_ball(&mut self, up: Vec3, floor: f32, heading: f32, balls: Option<(Vec3, Vec3)>) {
+    /// Takes this frame's lift of the source's foot (its lowest contact over its ground,
+    /// scaled, `lift`) and how much higher than that its heel stands (scaled; `None` where the
+    /// source's heel is not known): how high the pin is held, how far the heel's pin rises
+    /// ([`Foot::pinned_ankle`]) and how far the foot rolls onto its ball ([`Foot::roll`]).
+    fn take_heel(&mut self, lift: f32, rise: Option<f32>) {
+        self.lift = lift;
+        // The heel follows how much higher than the foot's lowest contact the source's is
+        // (a foot pitched toes-down). As far as keeps the foot level enough to be stood
+        // flat ([`FLATTEN_LEVEL`]), its ball on the floor: a foot pitched steeper is no
+        // longer brought down onto it. A foot without a ball rises as the source's heel
+        // does, up to the source's foot length.
+        let most = match self.ball() {
+            Some(len) => {
+                let steepest = len * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
+                (steepest - (self.heel_clearance - self.ball_clearance)).max(0.0)
+            }
+            None => self.heel_reach,
+        };
+        self.heel_lift = rise.map(|r| lift + clamp_safe(r, 0.0, most));
+        // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]);
+        // one without rises with it.
+        let rise = rise.unwrap_or(0.0);
+        self.heel_rise = match self.ball() {
+            Some(_) => rise.max(0.0),
+            None => clamp_safe(rise, 0.0, most),
+        };
+    }
+
+    /// Where along its sole, heel (0) to ball (1), this foot turns with the animation while the
+    /// source's foot stands on `contact`: on its ball while only the source's ball holds (its
+    /// heel rising: a toe-off, a turn on the ball), where the lock rolls it too
+    /// ([`Foot::roll`]); else about the joint it stands on itself, the lower of its heel and
+    /// ball when it stands. The lock stands a pinned foot flat ([`FootLock::flatten`]), so
+    /// that joint is on the floor whichever of the source's contacts hold: at a heel strike's
+    /// pivot the performer's toes are off the ground, the character's are not, and a turn
+    /// about the heel swept them over it.
+    fn pivot_of(&self, contact: Contact) -> f32 {
+        match contact {
+            Contact::Ball => 1.0,
+            _ if self.heel_clearance <= self.ball_clearance => 0.0,
+            _ => 1.0,
+        }
+    }
+
+    /// Turns the pin to `heading` about the point `share` of the way from its heel to its
+    /// ball (1: on its ball, as a foot turning on the spot does): the pin moves so that point
+    /// stays where the foot stood flat ([`FootLock::flatten`]) puts it. The points of the sole
+    /// between heel (under the ankle, which a turn about the up axis leaves in place) and ball
+    /// move by a blend of the two ends' moves. `balls`: the ball's offset from the ankle at the
+    /// old heading and at the new.
+    fn turn_about(
+        &mut self,
+        up: Vec3,
+        floor: f32,
+        heading: f32,
+        balls: Option<(Vec3, Vec3)>,
+        share: f32,
+    ) {
         if let Some((from, to)) = balls {
             let ball = |o: Vec3| {
                 let ankle = self.pinned_ankle(up, floor, Some(o));
@@ -411,7 +468,7 @@ impl Foot {
                 let reach = (len * len - rise * rise).max(0.0).sqrt();
                 ankle + (o - up * o.dot(up)).normalize_or_zero() * reach
             };
-            let moved = ball(from) - ball(to);
+            let moved = (ball(from) - ball(to)) * share;
             self.lock_position += moved - up * moved.dot(up);
         }
         self.lock_heading = heading;
@@ -613,7 +670,7 @@ fn standing_foot(
         landing_flat: 0.0,
         lock_position: ankle,
         lock_heading: 0.0,
-        on_ball: false,
+        pivot: None,
         pin_moved: Vec3::ZERO,
         position_offset: Decay::default(),
         heading_offset: Decay::default(),
@@ -1079,33 +1136,12 @@ impl FootLock {
                 .source
                 .zip(lifts)
                 .and_then(|(s, l)| l.contact[s]);
-            self.feet[i].on_ball = contact == Some(Contact::Ball);
+            self.feet[i].pivot = contact.map(|c| self.feet[i].pivot_of(c));
             self.feet[i].landing = landing;
             self.feet[i].landing_flat = if flat { landing } else { 0.0 };
             let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
-            self.feet[i].lift = lift;
-            // The heel follows how much higher than the foot's lowest contact the source's is
-            // (a foot pitched toes-down). As far as keeps the foot level enough to be stood
-            // flat ([`FLATTEN_LEVEL`]), its ball on the floor: a foot pitched steeper is no
-            // longer brought down onto it. A foot without a ball rises as the source's heel
-            // does, up to the source's foot length.
-            let f = &self.feet[i];
-            let ball = f.ball();
-            let most = match ball {
-                Some(len) => {
-                    let steepest = len * (1.0 - FLATTEN_LEVEL * FLATTEN_LEVEL).sqrt();
-                    (steepest - (f.heel_clearance - f.ball_clearance)).max(0.0)
-                }
-                None => f.heel_reach,
-            };
-            let rise = heel.map_or(0.0, |h| self.lift_scale * (h - foot.max(0.0)));
-            self.feet[i].heel_lift = heel.map(|_| lift + clamp_safe(rise, 0.0, most));
-            // A foot rolls onto its ball as far as the source's heel rises ([`Foot::roll`]);
-            // one without rises with it.
-            self.feet[i].heel_rise = match ball {
-                Some(_) => rise.max(0.0),
-                None => clamp_safe(rise, 0.0, most),
-            };
+            let rise = heel.map(|h| self.lift_scale * (h - foot.max(0.0)));
+            self.feet[i].take_heel(lift, rise);
         }
     }
 
@@ -1178,32 +1214,30 @@ impl FootLock {
         self.fk(out);
     }
 
-    /// Turns every pinned foot whose source's foot stands on its ball alone (its heel rising:
-    /// a toe-off, a turn on the ball) with the animation's heading, on its ball
-    /// ([`Foot::turn_on_ball`]): the heading a planted foot held while it stood flat (up to
-    /// [`PIVOT_RAD`] behind the performer's, caught up only after the release) is caught up
-    /// where the performer's foot turns, about the joint it stands on. What that moves the
-    /// ankle over the ground is recorded for [`FootLock::carry_root`], so the root goes with
-    /// it and the leg stays as retargeted (the pin turned alone moved the ankle the leg had to
-    /// reach). A foot standing flat keeps its heading: turning it, whatever the pivot, slides
-    /// its other end (the every-joint drift). A heel strike's turn is not followed either:
-    /// live, the causal detector reads a landing foot's toes as moving for its speed window
-    /// after they stop, and turning about the heel then swept the toes a rig like X Bot stands
-    /// on. `worlds` hold the animation.
+    /// Turns every pinned foot whose source's contacts are known and hold with the
+    /// animation's heading, about the joint it stands on ([`Foot::pivot_of`],
+    /// [`Foot::turn_about`]): the foot points as the performer's does (a held heading lagged
+    /// it by up to [`PIVOT_RAD`], caught up only after the release), and that joint stays
+    /// where it stood. The pin is taken at the heading shown as the foot lands, so the whole
+    /// catching up happens here, about that joint: an offset blending the shown heading onto
+    /// the animation's turned the foot about its ankle instead, sweeping its ball. What the
+    /// turn moves the ankle over the ground is recorded for [`FootLock::carry_root`], so the
+    /// root goes with it and the leg stays as retargeted (turning the pin alone moved the
+    /// ankle the leg had to reach). `worlds` hold the animation.
     fn turn_pins(&mut self, planted: &[bool; MAX_FEET], dt: f32) {
         let (up, floor) = (self.up, self.floor);
         // The share of the way to the animation's heading the pin turns this frame: over the
-        // blends' half-life, so the heading held while the foot stood flat is caught up as a
-        // blend is, not in one frame, and a capture's heading jitter (±0.5° a frame on a
-        // noisy walk) does not swing the sole about.
+        // blends' half-life, so the heading held as the foot landed, or while no contact held,
+        // is caught up as a blend is, not in one frame, and a capture's heading jitter (±0.5°
+        // a frame on a noisy walk) does not swing the sole about.
         let follow = 1.0 - (-dt * std::f32::consts::LN_2 / (0.5 * self.settings.blend_secs)).exp();
         for i in 0..self.feet.len() {
             self.feet[i].pin_moved = Vec3::ZERO;
             let f = &self.feet[i];
             let held = f.locked && f.source.is_some_and(|s| planted[s]);
-            if !(f.on_ball && held) {
+            let Some(share) = f.pivot.filter(|_| held) else {
                 continue;
-            }
+            };
             let w = self.worlds[f.leg.foot.index()];
             let animated = self.heading(f, w.rotation);
             let turn = wrap(animated - f.lock_heading) * follow;
@@ -1216,7 +1250,7 @@ impl FootLock {
             let balls = ball_at(f.lock_heading).zip(ball_at(heading));
             let f = &mut self.feet[i];
             let before = f.lock_position;
-            f.turn_on_ball(up, floor, heading, balls);
+            f.turn_about(up, floor, heading, balls, share);
             f.pin_moved = f.lock_position - before;
         }
     }
@@ -1286,16 +1320,17 @@ impl FootLock {
         if f.locked && (!wants || drift.length() > max_drift) {
             f.locked = false;
         }
-        // The heading stays pinned against small turns (stance jitter), but a performer who
-        // pivots on a planted foot (turning on the spot) turns it: past `PIVOT_RAD` the pin
-        // is dragged along, so the toes never point far from the performer's. (On its ball
-        // alone the pin turns with the animation, `turn_pins`.)
-        if f.locked && !f.on_ball {
+        // Where the pin does not turn with the animation (plants given as flags alone, or no
+        // contact of the source's holds) the heading stays pinned against small turns (stance
+        // jitter), but a performer who pivots on a planted foot (turning on the spot) turns
+        // it: past `PIVOT_RAD` the pin is dragged along on its ball, so the toes never point
+        // far from the performer's.
+        if f.locked && f.pivot.is_none() {
             let off = wrap(heading_now - f.lock_heading);
             if off.abs() > PIVOT_RAD {
                 let heading = wrap(f.lock_heading + off - PIVOT_RAD.copysign(off));
                 let (from, to) = (ball_at(f.lock_heading), ball_at(heading));
-                f.turn_on_ball(up, floor, heading, from.zip(to));
+                f.turn_about(up, floor, heading, from.zip(to), 1.0);
             }
         }
         let (target, target_heading, velocity, rate) = if f.locked {
@@ -1732,6 +1767,169 @@ mod tests {
             fading.windows(2).all(|w| w[1] < w[0]) && fading[6] < 0.3,
             "{fading:?}"
         );
+    }
+
+    /// A pinned foot standing on a floor at 0 with up +Y, built as X Bot's is: its ankle
+    /// 8 cm up, and with `toes` a ball 2 cm up and 15 cm ahead (heading +X); without, a foot
+    /// whose toes are not rigged, its ankle the lowest joint (2 cm up), whose performer's
+    /// foot is 12 cm long.
+    fn pinned_foot(toes: bool) -> Foot {
+        let leg = Leg {
+            kind: LegKind::Hind,
+            side: Side::Left,
+            limb: 0,
+            upper: BoneId(0),
+            lower: BoneId(1),
+            foot: BoneId(2),
+            toes: toes.then_some(BoneId(3)),
+            length: 0.9,
+            carried: false,
+        };
+        let (heel, ball, len) = if toes {
+            (0.08, 0.02, 0.15)
+        } else {
+            (0.02, 0.0, 0.0)
+        };
+        let ankle = Vec3::new(0.3, heel, -0.2);
+        let mut foot = Foot {
+            leg,
+            source: Some(0),
+            heel_clearance: heel,
+            ball_clearance: ball,
+            foot_length: len,
+            standing_pitch: 0.0,
+            pitch_fix: 0.0,
+            side_local: Vec3::Z,
+            heading_local: Vec3::X,
+            pole_local: Vec3::X,
+            locked: true,
+            lift: 0.0,
+            heel_lift: None,
+            heel_rise: 0.0,
+            heel_reach: if toes { 0.0 } else { 0.12 },
+            landing: 0.0,
+            landing_flat: 0.0,
+            lock_position: ankle,
+            lock_heading: 0.0,
+            pivot: None,
+            pin_moved: Vec3::ZERO,
+            position_offset: Decay::default(),
+            heading_offset: Decay::default(),
+            flat_offset: Decay::default(),
+            shown_flat: 0.0,
+            toes_up: 0.0,
+            shown_position: ankle,
+            shown_velocity: Vec3::ZERO,
+            shown_heading: 0.0,
+            shown_heading_rate: 0.0,
+            animated_position: ankle,
+            animated_heading: 0.0,
+            seen: true,
+            raw_ankle: ankle,
+            carried: None,
+        };
+        foot.take_heel(0.0, Some(0.0));
+        foot
+    }
+
+    /// The ball's offset from the ankle of a foot heading `heading` (radians about +Y from
+    /// +X), pitched so the ball stands `drop` below the ankle.
+    fn ball_offset(len: f32, heading: f32, drop: f32) -> Vec3 {
+        let reach = (len * len - drop * drop).sqrt();
+        Vec3::new(heading.cos() * reach, -drop, -heading.sin() * reach)
+    }
+
+    fn flat(v: Vec3) -> Vec3 {
+        Vec3::new(v.x, 0.0, v.z)
+    }
+
+    #[test]
+    fn a_toeless_foot_rises_with_the_source_heel_straight_up_as_far_as_its_foot_reaches() {
+        let up = Vec3::Y;
+        let mut foot = pinned_foot(false);
+        let standing = foot.pinned_ankle(up, 0.0, None);
+        assert!(
+            (standing - foot.lock_position).length() < 1e-6,
+            "{standing}"
+        );
+        // The performer's heel 5 cm over its toes (a toe-off), the foot 3 mm up.
+        foot.take_heel(0.003, Some(0.05));
+        let risen = foot.pinned_ankle(up, 0.0, None);
+        assert!(
+            (flat(risen - standing)).length() < 1e-6,
+            "{risen} {standing}"
+        );
+        assert!(((risen - standing).y - 0.053).abs() < 1e-6, "{risen}");
+        // No higher than the performer's foot is long (12 cm): past that it is no toe-off.
+        foot.take_heel(0.0, Some(0.3));
+        let most = foot.pinned_ankle(up, 0.0, None);
+        assert!(((most - standing).y - 0.12).abs() < 1e-6, "{most}");
+        // A heel below the toes (a heel strike) does not sink it; one not known leaves it on
+        // its pin, lifted with the foot.
+        foot.take_heel(0.0, Some(-0.04));
+        assert!((foot.pinned_ankle(up, 0.0, None) - standing).length() < 1e-6);
+        foot.take_heel(0.002, None);
+        let lifted = foot.pinned_ankle(up, 0.0, None) - standing;
+        assert!((lifted - up * 0.002).length() < 1e-6, "{lifted}");
+    }
+
+    #[test]
+    fn a_foot_rising_onto_its_ball_keeps_the_ball_where_it_stood() {
+        let up = Vec3::Y;
+        let mut foot = pinned_foot(true);
+        let flat_ball = ball_offset(0.15, 0.4, 0.06);
+        let stood = foot.pinned_ankle(up, 0.0, Some(flat_ball)) + flat_ball;
+        assert!((stood.y - 0.02).abs() < 1e-6, "{stood}");
+        // The performer's heel 4 cm over its toes, the animation's foot pitched so: the ankle
+        // rises 4 cm and comes towards the ball, which stays put.
+        foot.take_heel(0.0, Some(0.04));
+        let pitched = ball_offset(0.15, 0.4, 0.1);
+        let ankle = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!((ankle.y - 0.12).abs() < 1e-5, "{ankle}");
+        assert!(
+            (ankle + pitched - stood).length() < 1e-5,
+            "{} {stood}",
+            ankle + pitched
+        );
+    }
+
+    #[test]
+    fn a_pinned_foot_turns_about_the_point_it_stands_on() {
+        let up = Vec3::Y;
+        // Heel (0), ball (1) and the sole's middle; standing flat and risen onto its ball.
+        for (share, rise) in [(1.0, 0.0), (0.0, 0.0), (0.5, 0.0), (1.0, 0.04)] {
+            let mut foot = pinned_foot(true);
+            foot.take_heel(0.0, Some(rise));
+            let drop = 0.06 + rise;
+            let (from, to) = (0.2f32, -0.3f32);
+            let (o_from, o_to) = (ball_offset(0.15, from, drop), ball_offset(0.15, to, drop));
+            // The point of the sole `share` of the way from the heel (under the ankle) to the
+            // ball, over the ground.
+            let point = |foot: &Foot, o: Vec3| {
+                let ankle = foot.pinned_ankle(up, 0.0, Some(o));
+                let heel = ankle - flat(foot.roll(up, o));
+                flat(heel + (ankle + o - heel) * share)
+            };
+            let before = point(&foot, o_from);
+            let heel_before = flat(foot.lock_position);
+            foot.turn_about(up, 0.0, to, Some((o_from, o_to)), share);
+            let after = point(&foot, o_to);
+            assert!(
+                (after - before).length() < 1e-5,
+                "{share} {rise}: {before} -> {after}"
+            );
+            assert_eq!(foot.lock_heading, to);
+            // The rest of the sole turned about that point: its heel moved along the chord of
+            // the turn, `share` of the foot's reach over the ground from the pivot.
+            let heel_after = flat(foot.lock_position);
+            let moved = (heel_after - heel_before).length();
+            let reach = (0.15f32 * 0.15 - 0.06 * 0.06).sqrt();
+            let expected = share * 2.0 * reach * (0.5f32 * (to - from)).abs().sin();
+            assert!(
+                (moved - expected).abs() < 1e-5,
+                "{share} {rise}: {moved} vs {expected}"
+            );
+        }
     }
 
     #[test]
