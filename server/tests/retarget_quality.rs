@@ -1208,10 +1208,12 @@ fn pair_wanted(name: &str) -> bool {
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's raw error
 /// frame by frame with its heading part and both pitches). Of 152 pairs whose legs' roles
-/// map right, within the bounds: thigh and shin 123, foot 54 of the 84 with toes on both rigs
-/// (54 raw), drift 151 (every foot joint: 132), floor 149; every bound at once (the foot's
-/// where both rigs have toes) 100, since a planted foot turns with the performer's about the
-/// joint it stands on (below; 40 (40), 151 (141), 149 and 87 before; floor 150 before the
+/// map right, within the bounds: thigh and shin 136, foot 54 of the 84 with toes on both rigs
+/// (54 raw), drift 151 (every foot joint: 133), floor 150; every bound at once (the foot's
+/// where both rigs have toes) 110, since the body's height is set from the reach of the held
+/// legs and the landing one (below; 123, 54, 151 (132), 149 and 100 before), and since a
+/// planted foot turns with the performer's about the joint it stands on (below; 40 (40),
+/// 151 (141), 149 and 87 before; floor 150 before the
 /// forearm's aim changed with RobotExpressive's rest alignment: Xia → RobotExpressive 1.00 →
 /// 1.01 cm; it read 0.74 before the toeless feet rose with the heel). A pinned foot without toes (the
 /// Godot robot, RobotExpressive, Quaternius Casual) now rises with the source's heel at a
@@ -1330,9 +1332,29 @@ fn pair_wanted(name: &str) -> bool {
 /// down alone: without it (no landing weight offline) thigh and shin 123 -> 127, foot 40 -> 45,
 /// but floor 149 -> 126 and drift 151 -> 142 (the CMU 31-joint walk's landings 0.67 -> 3.04
 /// cm onto most rigs; the CMU run's feet slide 0.02-0.04 -> 0.06-0.24), and its phase still
-/// reads 6.4° mean, 38 % of frames over 8°: most of the landing leg's error has another cause,
-/// not traced yet (the next suspect: the body's height, set by the standing foot alone, leaving
-/// the landing foot below the floor, which lifts it).
+/// reads 6.4° mean, 38 % of frames over 8°: most of the landing leg's error has another cause.
+///
+/// That cause, traced frame by frame (Meredith → X Bot): the body's height was set by the
+/// standing foot alone, and at its toe-off that foot rolls onto its ball. X Bot's foot stands
+/// 39° down against the performer's 15°, so the same roll raises its ankle 4.8 cm where the
+/// performer's rises 10 (scaled): the body, carried to keep that leg exact, came down 4.4 cm,
+/// and the landing foot, 0.4 cm from its floor in the plain retarget, was 4.9 cm under it; its
+/// leg bent 12° to reach its pin, and stayed bent (12° → 3° over 0.25 s) while the body came
+/// back up after the plant. The height is now the one that turns the legs least (`pelvis`):
+/// the held legs and the landing one (weighted by how near its plant is, its goal the height
+/// it will be pinned at), each by the squared turn of its thigh and shin, so the bent toe-off
+/// leg takes up the difference rather than the straight landing one. With the foot turning
+/// about its contact (6cb826e): thigh and shin 123 → 136, every bound at once 100 → 110, floor
+/// 149 → 150 (Meredith → Mousey 3.15 → 0.52 cm), foot 54 and drift 151 as before; over the
+/// pairs thigh 1.72/6.09 → 1.36/4.51°, shin 1.30/4.70 → 1.04/3.52, foot 4.56/13.20 →
+/// 4.57/13.19, drift 0.0056 → 0.0057, floor 0.544 → 0.520 cm (before it, 123 → 135 and 87 →
+/// 96). Every Meredith pair gained (→ X Bot thigh 3.0/12.2 → 1.8/6.9°, → Godot robot 5.2/21.4
+/// → 3.0/12.0, → UE-style 4.1/15.3 → 2.5/9.5), the largest loss Xia → pybvh test3 3.2 → 5.5°
+/// p95 (within). The 16 pairs outside, thigh (frames, mean, share over 8°): single 4582,
+/// 3.3°, 10 %; double 1696, 4.6°, 19 %; approach 2037, 6.2°, 33 %; release 1717, 5.1°, 20 %;
+/// swing 2994, 1.4°, 6 %: ten onto the two robots, three onto Mousey. Tried before: the mean
+/// of the standing and the landing feet's height gaps (123 → 118), which bends a straight leg
+/// as much as a bent one.
 ///
 /// A pinned foot standing on its ball alone (the source's heel rising: a toe-off, a turn on
 /// the ball; which contacts hold is the plant rule's own test, `footplant::Contact`) turns with the

@@ -21,7 +21,8 @@
 //!               ─FK─▶ root carried onto the held feet: over the ground by their contacts'
 //!                     slide in the animation (stride warping, `stride`; a foot rolling over
 //!                     its ball does not slide), up by their ankles' gaps to their pinned
-//!                     heights (two feet down: the means), so a held leg stays as retargeted
+//!                     heights, so a held leg stays as retargeted (two feet down, or one
+//!                     about to land: the height that turns those legs least, `pelvis`)
 //!                     (live: no farther than `max_carry_ratio` legs from the performer's)
 //!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
@@ -51,6 +52,7 @@ use glam::{Quat, Vec3};
 
 use super::detect::{Contact, PlantDetector, PlantSettings, PlantTrack};
 use super::ik::{solve_two_bone, TwoBoneSolution, MAX_EXTENSION};
+use super::pelvis;
 use super::rig::{find_contact_legs, find_legs, Leg, MAX_FEET};
 use super::spring::Decay;
 use super::stride::{FootStand, RootShift};
@@ -316,6 +318,9 @@ struct Foot {
     /// ([`landing_weight`], [`LiveLanding`]), and how far its ball to its standing height.
     landing: f32,
     landing_flat: f32,
+    /// `landing` on the frame before (what a foot landing this frame still counts for in the
+    /// body's height, [`FootLock::body_height`]).
+    landing_before: f32,
     lock_position: Vec3,
     lock_heading: f32,
     /// Where along its sole, heel (0) to ball (1), a pinned foot turns with the animation this
@@ -668,6 +673,7 @@ fn standing_foot(
         heel_reach: 0.0,
         landing: 0.0,
         landing_flat: 0.0,
+        landing_before: 0.0,
         lock_position: ankle,
         lock_heading: 0.0,
         pivot: None,
@@ -970,6 +976,7 @@ impl FootLock {
             f.heading_offset = Decay::default();
             f.flat_offset = Decay::default();
             f.shown_flat = 0.0;
+            f.landing = 0.0;
         }
         self.shift = RootShift::default();
         self.landing = LiveLanding::default();
@@ -1137,6 +1144,7 @@ impl FootLock {
                 .zip(lifts)
                 .and_then(|(s, l)| l.contact[s]);
             self.feet[i].pivot = contact.map(|c| self.feet[i].pivot_of(c));
+            self.feet[i].landing_before = self.feet[i].landing;
             self.feet[i].landing = landing;
             self.feet[i].landing_flat = if flat { landing } else { 0.0 };
             let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
@@ -1150,7 +1158,8 @@ impl FootLock {
     /// what they slid in the animation (stride warping: the retarget scales the root's travel
     /// by the legs' ratio, and a rig whose legs are proportioned differently slides a standing
     /// foot), and up by how far their ankles are from their pinned heights (pelvis height);
-    /// with two down, their means, each leg's IK taking up its share of their disagreement.
+    /// with two down, or one about to land, the height that turns those legs least
+    /// ([`FootLock::body_height`]), each leg's IK taking up its share of their disagreement.
     /// A character with feet no source foot drives (a quadruped's front legs under a biped's
     /// walk) is only carried over the ground: moving its body up or down onto the driven feet
     /// would sink the others, which nothing stands on. `live`: carried no farther than
@@ -1192,6 +1201,7 @@ impl FootLock {
         if self.feet.iter().any(|f| f.source.is_none()) {
             limit = 0.0;
         }
+        let height = self.body_height(planted, &stands, limit);
         // The body's height catches up with a change of the standing feet as slowly as a
         // released foot catches up with the animation: it carries the free foot with it.
         let halflife = [
@@ -1200,8 +1210,8 @@ impl FootLock {
         ];
         let fresh = !self.shown_once;
         let n = self.feet.len();
-        self.shift
-            .update(&stands[..n], up, fresh, dt, halflife, [limit, reach]);
+        let limits = [limit, reach];
+        (self.shift).update(&stands[..n], up, fresh, dt, halflife, limits, height);
         let shift = self.shift.ground + up * self.shift.height;
         if shift == Vec3::ZERO {
             return;
@@ -1212,6 +1222,70 @@ impl FootLock {
         };
         out.translations[root.index()] += parent.inverse() * shift;
         self.fk(out);
+    }
+
+    /// The body's height (its move up from the animation's) that keeps the legs of the held
+    /// feet and of the feet about to land least turned from the animation ([`pelvis`]), with
+    /// the share it takes: 1 while a foot is held, else the landing feet's weight. A landing
+    /// foot counts by how near its plant is, its goal the height it will be pinned at: the
+    /// body set by the standing foot alone (its toe-off rolling it down onto a ball that
+    /// rises less than the performer's did, or a floor that is not flat under the capture)
+    /// left the landing foot to be brought up to its pin by its own leg, bent away from the
+    /// performer's, and the pinned leg bent again while the body caught up after the plant.
+    /// `worlds` hold the animation.
+    fn body_height(
+        &self,
+        planted: &[bool; MAX_FEET],
+        stands: &[FootStand; MAX_FEET],
+        limit: f32,
+    ) -> Option<(f32, f32)> {
+        let up = self.up;
+        let mut legs = [pelvis::LegReach::default(); MAX_FEET];
+        let mut k = 0;
+        let (mut held, mut landing) = (false, 0.0f32);
+        for (i, f) in self.feet.iter().enumerate() {
+            let p = |b: BoneId| self.worlds[b.index()].translation;
+            let ankle = p(f.leg.foot);
+            let (gap, weight) = if stands[i].stands {
+                held = true;
+                (stands[i].height_gap, 1.0)
+            } else if !f.locked {
+                // Landing this frame (pinned below, held from the next; its weight is 0 now):
+                // as much as it counted a frame ago, so the height does not jump back.
+                let weight = if f.source.is_some_and(|s| planted[s]) {
+                    f.landing_before
+                } else {
+                    f.landing
+                };
+                if !(weight > 0.0) {
+                    continue;
+                }
+                landing = landing.max(weight);
+                (self.pin_height(i, ankle, ankle) - ankle.dot(up), weight)
+            } else {
+                continue;
+            };
+            let (hip, knee) = (p(f.leg.upper), p(f.leg.lower));
+            let line = (ankle - hip).normalize_or_zero();
+            let bend = (knee - hip) - line * (knee - hip).dot(line);
+            let pole = if bend.length() > 0.01 * f.leg.length {
+                bend
+            } else {
+                self.worlds[f.leg.upper.index()].rotation * f.pole_local
+            };
+            legs[k] = pelvis::LegReach {
+                hip,
+                knee,
+                ankle,
+                pole,
+                gap,
+                weight,
+                length: f.leg.length,
+            };
+            k += 1;
+        }
+        let h = pelvis::best_height(&legs[..k], up, limit)?;
+        Some((h, if held { 1.0 } else { landing }))
     }
 
     /// Turns every pinned foot whose source's contacts are known and hold with the
@@ -1809,6 +1883,7 @@ mod tests {
             heel_reach: if toes { 0.0 } else { 0.12 },
             landing: 0.0,
             landing_flat: 0.0,
+            landing_before: 0.0,
             lock_position: ankle,
             lock_heading: 0.0,
             pivot: None,

@@ -16,7 +16,8 @@
 //!                                        belt they slide on: treadmill)
 //!  target pose   ─▶ lock (FootLock)      carry the root onto the held feet, over the
 //!                                        ground and up (stride: stride warping and
-//!                                        pelvis height), pin planted feet
+//!                                        pelvis height from the legs' reach:
+//!                                        pelvis), pin planted feet
 //!                                        (position + heading), lower the
 //!                                        hips when out of reach, ik::solve_two_bone,
 //!                                        blend switches, keep feet above the floor
@@ -25,6 +26,7 @@
 pub mod detect;
 pub mod ik;
 pub mod lock;
+mod pelvis;
 pub mod rig;
 pub mod spring;
 mod stride;

@@ -12,10 +12,11 @@
 //!   with none down it holds where it is; it never carries the root farther than a reach from
 //!   where the animation puts it (a long walk would otherwise take the character ever farther
 //!   from the performer's place: past it the legs take up the rest of the stride's difference);
-//! - along up, the root stands the feet at their standing heights (their mean gap when two
-//!   are down), held while none is; a change of which feet stand blends with a decaying
-//!   offset, so the body never jumps. A caller that leaves heights to others passes a height
-//!   limit of 0.
+//! - along up, the root stands the feet at their standing heights (when two are down, or one
+//!   is landing, the height the caller finds for them together, `pelvis`; else their mean
+//!   gap), held while none is (moved towards a landing foot's as it comes down); a change of
+//!   which feet stand blends with a decaying offset, so the body never jumps. A caller that
+//!   leaves heights to others passes a height limit of 0.
 
 use glam::Vec3;
 
@@ -44,11 +45,15 @@ pub(super) struct RootShift {
     pub ground: Vec3,
     ground_rate: Vec3,
     ground_offset: Decay<Vec3>,
-    /// Along up: what the standing feet ask for (held while none stands).
+    /// Along up: what the standing feet ask for (held while none stands), and what they asked
+    /// for last (what a landing foot moves it from as it comes down).
     wanted: f32,
-    /// Along up: shown last frame, and its rate.
+    held: f32,
+    /// Along up: shown last frame, and its rate; the wanted height's rate (it moves while a
+    /// foot comes down to land).
     pub height: f32,
     rate: f32,
+    wanted_rate: f32,
     /// Shown minus wanted at the last change of the standing feet, decaying.
     offset: Decay<f32>,
     /// Which feet stood last frame (a bit each).
@@ -59,8 +64,12 @@ impl RootShift {
     /// Takes this frame's feet (their gaps measured on the animation before any shift; `up` the
     /// floor's normal), `dt` after the last; `fresh`: nothing was shown before (the height is
     /// taken at once). `halflife`: the blends' half-lives over the ground and along up.
-    /// `limits` bound the height's move either way and the move over the ground. Returns the
-    /// standing feet's mean slide (what the root took up).
+    /// `limits` bound the height's move either way and the move over the ground. `height`:
+    /// the height the caller found for the standing and landing feet together (see
+    /// `pelvis`), with the share it takes (1 while a foot stands; a landing foot's weight while
+    /// none does: the height moves that far from what the last standing feet asked for);
+    /// without it, the standing feet's mean gap. Returns the standing feet's mean slide (what
+    /// the root took up).
     pub fn update(
         &mut self,
         feet: &[FootStand],
@@ -69,6 +78,7 @@ impl RootShift {
         dt: f32,
         halflife: [f32; 2],
         limits: [f32; 2],
+        height: Option<(f32, f32)>,
     ) -> Vec3 {
         let [halflife, height_halflife] = halflife;
         let [limit, reach] = limits;
@@ -96,16 +106,28 @@ impl RootShift {
         if far > reach {
             self.ground_wanted *= reach / far;
         }
-        if standing_count > 0 {
-            self.wanted = crate::bounds::clamp_safe(gap / standing_count as f32, -limit, limit);
+        let bound = |h: f32| crate::bounds::clamp_safe(h, -limit, limit);
+        let height_before = self.wanted;
+        match height {
+            Some((h, _)) if standing_count > 0 => (self.wanted, self.held) = (bound(h), bound(h)),
+            Some((h, share)) => {
+                self.wanted = self.held + share.clamp(0.0, 1.0) * (bound(h) - self.held);
+            }
+            None if standing_count > 0 => {
+                self.wanted = bound(gap / standing_count as f32);
+                self.held = self.wanted;
+            }
+            None => self.wanted = self.held,
         }
         if fresh {
             self.offset = Decay::default();
             self.ground_offset = Decay::default();
+            (self.rate, self.wanted_rate) = (0.0, 0.0);
         } else if standing != self.standing {
+            // The body's speed kept, less what the wanted height's own speed goes on giving.
             self.offset = Decay {
                 value: self.height - self.wanted,
-                velocity: self.rate,
+                velocity: self.rate - self.wanted_rate,
             };
             let wanted_rate = if dt > 0.0 {
                 -mean_slide / dt
@@ -120,6 +142,9 @@ impl RootShift {
                 velocity: self.ground_rate - wanted_rate,
             };
         }
+        if !fresh && standing == self.standing && dt > 0.0 {
+            self.wanted_rate = (self.wanted - height_before) / dt;
+        }
         self.standing = standing;
         self.ground_offset.step(dt, halflife);
         let ground = self.ground_wanted + self.ground_offset.value;
@@ -129,7 +154,7 @@ impl RootShift {
         self.ground = ground;
         self.offset.step(dt, height_halflife);
         let height = self.wanted + self.offset.value;
-        if dt > 0.0 {
+        if dt > 0.0 && !fresh {
             self.rate = (height - self.height) / dt;
         }
         self.height = height;
@@ -161,6 +186,7 @@ mod tests {
             0.01,
             [0.05; 2],
             [1.0; 2],
+            None,
         );
         // One foot slides 1 cm forward (and 1 mm up, which is no slide over the ground).
         let m = s.update(
@@ -170,6 +196,7 @@ mod tests {
             0.01,
             [0.05; 2],
             [1.0; 2],
+            None,
         );
         assert!((s.ground - Vec3::new(0.0, 0.0, -0.01)).length() < 1e-6);
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
@@ -184,11 +211,12 @@ mod tests {
             0.01,
             [0.05; 2],
             [1.0; 2],
+            None,
         );
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
         // None standing: held.
-        s.update(&[free, free], up, false, 0.01, [0.05; 2], [1.0; 2]);
+        s.update(&[free, free], up, false, 0.01, [0.05; 2], [1.0; 2], None);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
     }
 
@@ -196,9 +224,25 @@ mod tests {
     fn the_height_is_taken_at_once_first_then_blended_and_held() {
         let mut s = RootShift::default();
         let up = Vec3::Y;
-        s.update(&[stand(None, 0.03)], up, true, 0.01, [0.05; 2], [0.2, 1.0]);
+        s.update(
+            &[stand(None, 0.03)],
+            up,
+            true,
+            0.01,
+            [0.05; 2],
+            [0.2, 1.0],
+            None,
+        );
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
-        s.update(&[stand(None, 0.03)], up, false, 0.01, [0.05; 2], [0.2, 1.0]);
+        s.update(
+            &[stand(None, 0.03)],
+            up,
+            false,
+            0.01,
+            [0.05; 2],
+            [0.2, 1.0],
+            None,
+        );
         assert!((s.height - 0.03).abs() < 1e-6);
         // It lifts: held.
         s.update(
@@ -208,12 +252,21 @@ mod tests {
             0.01,
             [0.05; 2],
             [0.2, 1.0],
+            None,
         );
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
         // Another lands wanting 5 cm: blended towards it, no jump.
         let mut last = s.height;
         for _ in 0..60 {
-            s.update(&[stand(None, 0.05)], up, false, 0.01, [0.05; 2], [0.2, 1.0]);
+            s.update(
+                &[stand(None, 0.05)],
+                up,
+                false,
+                0.01,
+                [0.05; 2],
+                [0.2, 1.0],
+                None,
+            );
             assert!(
                 s.height >= last - 1e-6 && s.height - last < 0.006,
                 "{}",
@@ -223,7 +276,15 @@ mod tests {
         }
         assert!((s.height - 0.05).abs() < 1e-3, "{}", s.height);
         // Bounded.
-        s.update(&[stand(None, 5.0)], up, true, 0.01, [0.05; 2], [0.2, 1.0]);
+        s.update(
+            &[stand(None, 5.0)],
+            up,
+            true,
+            0.01,
+            [0.05; 2],
+            [0.2, 1.0],
+            None,
+        );
         assert!((s.height - 0.2).abs() < 1e-6);
     }
 
@@ -231,7 +292,15 @@ mod tests {
     fn the_root_is_carried_no_farther_than_its_reach() {
         let mut s = RootShift::default();
         let up = Vec3::Y;
-        s.update(&[stand(None, 0.0)], up, true, 0.01, [0.05; 2], [1.0, 0.3]);
+        s.update(
+            &[stand(None, 0.0)],
+            up,
+            true,
+            0.01,
+            [0.05; 2],
+            [1.0, 0.3],
+            None,
+        );
         // The standing foot slides 1 cm a frame forward, 100 frames (a metre): the root is
         // carried back 30 cm at most, and no farther however long it slides.
         for _ in 0..100 {
@@ -242,6 +311,7 @@ mod tests {
                 0.01,
                 [0.05; 2],
                 [1.0, 0.3],
+                None,
             );
             assert!(s.ground.length() <= 0.3 + 1e-6, "{}", s.ground);
         }
@@ -258,6 +328,7 @@ mod tests {
             0.01,
             [0.05; 2],
             [1.0, 0.3],
+            None,
         );
         assert!(
             (s.ground - Vec3::new(0.0, 0.0, -0.25)).length() < 1e-5,
