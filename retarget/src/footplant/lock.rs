@@ -1256,8 +1256,19 @@ impl FootLock {
         for (i, f) in self.feet.iter().enumerate() {
             let p = |b: BoneId| self.worlds[b.index()].translation;
             let ankle = p(f.leg.foot);
+            let mut aside = Vec3::ZERO;
             let (gap, weight) = if stands[i].stands {
                 held = true;
+                // Where the pin stands over the ground from the ankle once the body is
+                // carried (by last frame's carry, a stride's slide a frame from this one's):
+                // a leg reaching a pin ahead or behind is straighter, and stiffer, than one
+                // reaching straight down. Left out, the CMU walk's double stance at 3.3-3.7 s
+                // live onto Casual (pins 3-5 cm over the ground from the carried ankles, the
+                // hind foot on its toes) read the hind leg as bent and soft and gave it most
+                // of the two feet's disagreement: its shin carried the live shin's p95.
+                let ball = (f.leg.toes).map(|t| p(t) - ankle);
+                let d = f.pinned_ankle(up, self.floor, ball) - ankle - self.shift.ground;
+                aside = d - up * d.dot(up);
                 (stands[i].height_gap, 1.0)
             } else if !f.locked {
                 // Landing this frame (pinned below, held from the next; its weight is 0 now):
@@ -1289,6 +1300,7 @@ impl FootLock {
                 ankle,
                 pole,
                 gap,
+                aside,
                 weight,
                 length: f.leg.length,
             };

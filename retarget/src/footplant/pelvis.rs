@@ -27,6 +27,9 @@ pub(super) struct LegReach {
     pub pole: Vec3,
     /// How far up the ankle must go.
     pub gap: f32,
+    /// How far over the ground the ankle's goal stands from it (with the body where it is
+    /// carried over the ground).
+    pub aside: Vec3,
     /// How firmly its foot is held: 1 pinned, a landing foot's weight as it comes down.
     pub weight: f32,
     /// Hip to knee to ankle.
@@ -50,7 +53,7 @@ impl LegReach {
     fn cost(&self, up: Vec3, h: f32) -> f32 {
         let shift = up * h;
         let (hip, knee, ankle) = (self.hip + shift, self.knee + shift, self.ankle + shift);
-        let goal = self.ankle + up * self.gap;
+        let goal = self.ankle + self.aside + up * self.gap;
         let s = solve_two_bone(hip, knee, ankle, goal, self.pole);
         let thigh = (knee - hip).angle_between(s.knee - hip);
         let shin = (ankle - knee).angle_between(s.ankle - s.knee);
@@ -120,6 +123,7 @@ mod tests {
             ankle: hip - Vec3::new(0.0, 2.0 * h, 0.0),
             pole: Vec3::Z,
             gap,
+            aside: Vec3::ZERO,
             weight,
             length: 0.9,
         }
@@ -153,6 +157,21 @@ mod tests {
         // Two alike (bent well within their reach) share it about evenly.
         let h = best_height(&[leg(40.0, -0.02, 1.0), leg(40.0, 0.0, 1.0)], up, 0.2).unwrap();
         assert!((h + 0.01).abs() < 2e-3, "{h}");
+    }
+
+    #[test]
+    fn a_goal_ahead_or_behind_stiffens_the_leg() {
+        let up = Vec3::Y;
+        // Two legs bent alike, one wanting the body 2 cm down; with that leg's pin also 15 cm
+        // ahead of its ankle it reaches farther, nearer straight: it keeps more of its height.
+        let (a, b) = (leg(40.0, -0.02, 1.0), leg(40.0, 0.0, 1.0));
+        let below = best_height(&[a, b], up, 0.2).unwrap();
+        let ahead = LegReach {
+            aside: Vec3::new(0.15, 0.0, 0.0),
+            ..a
+        };
+        let reaching = best_height(&[ahead, b], up, 0.2).unwrap();
+        assert!(reaching < below - 0.002, "{reaching} vs {below}");
     }
 
     #[test]
