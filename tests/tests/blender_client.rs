@@ -766,6 +766,7 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
             .collect();
         let max_frame_gap = captures.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
         let max_key_gap = 8f64.max((max_tick_gap.max(max_frame_gap) * scene_fps).ceil() + 1.0);
+        let ticked_frames = result["record_ticked_frames"].as_f64().unwrap();
         for name in &skeleton.names {
             let path = format!("pose.bones[\"{name}\"].rotation_quaternion");
             let curves: Vec<&Value> = fcurves
@@ -801,9 +802,13 @@ async fn applies_and_records_the_live_stream(blender: Blender) {
                     (span - expected).abs() <= 0.15 * expected + 2.0,
                     "{name}: keys span {span} frames over {record_secs:.2} s at {scene_fps} fps"
                 );
+                // Most scene frames keyed, of those Blender ticked in at all: a machine that
+                // stalls Blender's ticks for whole frames (four Blenders beside the server on
+                // shared cores) leaves those frames without a chance of a key.
+                let chances = span.min(ticked_frames);
                 assert!(
-                    frames.len() as f64 >= 0.8 * span,
-                    "{name}: only {} keys over {span} frames",
+                    frames.len() as f64 >= 0.8 * chances,
+                    "{name}: only {} keys over {span} frames ({ticked_frames} with a tick)",
                     frames.len()
                 );
             }

@@ -145,6 +145,10 @@ def run(args, out):
     max_tick_gap = [0.0]
     # Ticks made while recording: the rate the add-on could apply at is bounded by them.
     record_ticks = [0]
+    # Scene-frame-long windows of wall-clock time holding at least one tick while recording:
+    # the add-on can make at most one key in each, so a stalled Blender bounds the keys by it.
+    frame_secs = scene.render.fps_base / scene.render.fps
+    ticked_windows = set()
 
     def observer(subject_id, frame, obj):
         pending.append((subject_id, frame, obj))
@@ -163,6 +167,7 @@ def run(args, out):
             last_tick = now
             if collect:
                 record_ticks[0] += 1
+                ticked_windows.add(int(now / frame_secs))
             livelink.tick()
             if pending:
                 if collect:
@@ -248,6 +253,7 @@ def run(args, out):
     out["record_secs"] = time.monotonic() - record_start
     out["max_tick_gap_secs"] = max_tick_gap[0]
     out["record_ticks"] = record_ticks[0]
+    out["record_ticked_frames"] = len(ticked_windows)
 
     session = runtime.session
     out["session"] = {
