@@ -622,6 +622,51 @@ fn wrap(a: f32) -> f32 {
     a - t * ((a + std::f32::consts::PI) / t).floor()
 }
 
+impl Foot {
+    /// `leg`'s foot with its ankle at `ankle`, unlocked, nothing lifted, blended or seen yet,
+    /// and neutral local axes: what [`standing_foot`] measures from the rig goes on top.
+    fn unlocked_at(leg: Leg, source: Option<usize>, ankle: Vec3) -> Foot {
+        Foot {
+            leg,
+            source,
+            heel_clearance: 0.0,
+            ball_clearance: 0.0,
+            foot_length: 0.0,
+            standing_pitch: 0.0,
+            pitch_fix: 0.0,
+            side_local: Vec3::Z,
+            heading_local: Vec3::X,
+            pole_local: Vec3::X,
+            locked: false,
+            lift: 0.0,
+            heel_lift: None,
+            heel_rise: 0.0,
+            heel_reach: 0.0,
+            landing: 0.0,
+            landing_flat: 0.0,
+            landing_before: 0.0,
+            lock_position: ankle,
+            lock_heading: 0.0,
+            pivot: None,
+            pin_moved: Vec3::ZERO,
+            position_offset: Decay::default(),
+            heading_offset: Decay::default(),
+            flat_offset: Decay::default(),
+            shown_flat: 0.0,
+            toes_up: 0.0,
+            shown_position: ankle,
+            shown_velocity: Vec3::ZERO,
+            shown_heading: 0.0,
+            shown_heading_rate: 0.0,
+            animated_position: ankle,
+            animated_heading: 0.0,
+            seen: false,
+            raw_ankle: ankle,
+            carried: None,
+        }
+    }
+}
+
 /// A leg's foot as it stands in the character's aligned rest: its clearances above `lowest`,
 /// its length and standing pitch, and the local axes the lock turns it by; not yet locked.
 /// `source` is the watched source leg it follows, if any.
@@ -659,8 +704,6 @@ fn standing_foot(
         toward
     };
     Foot {
-        leg: *leg,
-        source,
         heel_clearance: height(leg.foot) - lowest,
         ball_clearance: leg.toes.map(|t| height(t) - lowest).unwrap_or(0.0),
         foot_length: ahead.length(),
@@ -670,41 +713,16 @@ fn standing_foot(
                 .clamp(-1.0, 1.0)
                 .asin()
         }),
-        pitch_fix: 0.0,
         side_local: w(leg.foot).rotation.inverse() * heading_dir.cross(up),
         // Towards the ball: a pinned ball keeps its place however the foot twists.
         heading_local: w(leg.foot).rotation.inverse()
             * ahead.try_normalize().unwrap_or(heading_dir),
         pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
-        locked: false,
-        lift: 0.0,
-        heel_lift: None,
-        heel_rise: 0.0,
-        heel_reach: 0.0,
-        landing: 0.0,
-        landing_flat: 0.0,
-        landing_before: 0.0,
-        lock_position: ankle,
-        lock_heading: 0.0,
-        pivot: None,
-        pin_moved: Vec3::ZERO,
-        position_offset: Decay::default(),
-        heading_offset: Decay::default(),
-        flat_offset: Decay::default(),
-        shown_flat: 0.0,
-        toes_up: 0.0,
-        shown_position: ankle,
-        shown_velocity: Vec3::ZERO,
-        shown_heading: 0.0,
-        shown_heading_rate: 0.0,
-        animated_position: ankle,
-        animated_heading: 0.0,
-        seen: false,
-        raw_ankle: ankle,
         carried: leg.carried.then(|| {
             let shin = w(leg.lower);
             shin.rotation.inverse() * (ankle - shin.translation)
         }),
+        ..Foot::unlocked_at(*leg, source, ankle)
     }
 }
 
@@ -1886,42 +1904,13 @@ mod tests {
         };
         let ankle = Vec3::new(0.3, heel, -0.2);
         let mut foot = Foot {
-            leg,
-            source: Some(0),
             heel_clearance: heel,
             ball_clearance: ball,
             foot_length: len,
-            standing_pitch: 0.0,
-            pitch_fix: 0.0,
-            side_local: Vec3::Z,
-            heading_local: Vec3::X,
-            pole_local: Vec3::X,
             locked: true,
-            lift: 0.0,
-            heel_lift: None,
-            heel_rise: 0.0,
             heel_reach: if toes { 0.0 } else { 0.12 },
-            landing: 0.0,
-            landing_flat: 0.0,
-            landing_before: 0.0,
-            lock_position: ankle,
-            lock_heading: 0.0,
-            pivot: None,
-            pin_moved: Vec3::ZERO,
-            position_offset: Decay::default(),
-            heading_offset: Decay::default(),
-            flat_offset: Decay::default(),
-            shown_flat: 0.0,
-            toes_up: 0.0,
-            shown_position: ankle,
-            shown_velocity: Vec3::ZERO,
-            shown_heading: 0.0,
-            shown_heading_rate: 0.0,
-            animated_position: ankle,
-            animated_heading: 0.0,
             seen: true,
-            raw_ankle: ankle,
-            carried: None,
+            ..Foot::unlocked_at(leg, Some(0), ankle)
         };
         foot.take_heel(0.0, Some(0.0));
         foot

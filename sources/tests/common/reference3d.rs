@@ -487,23 +487,10 @@ pub fn caliscope_offsets(text: &str, cameras: &[(Camera, PathBuf)]) -> Option<Ve
 /// calibration folder's name (`caliscope_desk` → `…desk…cam2…caliscope…`). A camera with
 /// no such video, or more than one, is left out (and said).
 pub fn caliscope_sets(root: &Path) -> Vec<CalibratedSet> {
-    let mut calibrations = Vec::new();
-    let mut folders = vec![(root.to_path_buf(), 0)];
-    while let Some((dir, depth)) = folders.pop() {
-        for path in std::fs::read_dir(&dir)
-            .into_iter()
-            .flatten()
-            .flatten()
-            .map(|e| e.path())
-        {
-            if path.is_dir() && depth < 3 {
-                folders.push((path, depth + 1));
-            } else if path.file_name().is_some_and(|n| n == "camera_array.toml") {
-                calibrations.push(path);
-            }
-        }
-    }
-    calibrations.sort();
+    let calibrations: Vec<PathBuf> = crate::shared_data::files_under(root)
+        .into_iter()
+        .filter(|path| path.file_name().is_some_and(|n| n == "camera_array.toml"))
+        .collect();
     let mut sets = Vec::new();
     for calib in calibrations {
         let dir = calib.parent().unwrap_or(root);

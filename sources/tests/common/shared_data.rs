@@ -517,8 +517,25 @@ pub fn footage_clips(pose2sim: &Path) -> Vec<PathBuf> {
 /// reason naming `what` when none is present.
 pub fn data_files(what: &str, exts: &[&str]) -> Vec<PathBuf> {
     let root = shared_data_root();
+    let out: Vec<PathBuf> = files_under(&root)
+        .into_iter()
+        .filter(|path| {
+            path.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
+        })
+        .collect();
+    if out.is_empty() {
+        println!("SKIP: no {what} ({exts:?}) under {}", root.display());
+    }
+    out
+}
+
+/// Every file under `root`, found by listing its folders (up to three levels down; a loop of
+/// links cannot run away), sorted by path.
+pub fn files_under(root: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
-    let mut folders = vec![(root.clone(), 0)];
+    let mut folders = vec![(root.to_path_buf(), 0)];
     while let Some((dir, depth)) = folders.pop() {
         for path in std::fs::read_dir(&dir)
             .into_iter()
@@ -526,21 +543,16 @@ pub fn data_files(what: &str, exts: &[&str]) -> Vec<PathBuf> {
             .flatten()
             .map(|e| e.path())
         {
-            if path.is_dir() && depth < 3 {
-                folders.push((path, depth + 1));
-            } else if path
-                .extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
-            {
+            if path.is_dir() {
+                if depth < 3 {
+                    folders.push((path, depth + 1));
+                }
+            } else {
                 out.push(path);
             }
         }
     }
     out.sort();
-    if out.is_empty() {
-        println!("SKIP: no {what} ({exts:?}) under {}", root.display());
-    }
     out
 }
 
