@@ -3,13 +3,7 @@
 //! Per call: warp the ROI of the frame into the model's 256×256 RGB input (bilinear, black
 //! outside the frame), run the model, and map its outputs back: landmarks from crop pixels to
 //! frame pixels, world landmarks rotated by the ROI's in-plane rotation (as MediaPipe's
-//! world-landmark projection does), visibility and presence through a sigmoid. The body's
-//! landmarks' refinement from the model's heatmaps is read too when the model file has them
-//! (the pruned models do since setup's derivation 3), as MediaPipe's pose graph refines its
-//! own, and kept beside the landmarks for the output ([`Landmarks::refined`]): the lite
-//! model's limbs then land nearer the 3D reference's projection on seven of eight calibrated
-//! cameras, for about a tenth more work a run (`RIGCAST_NO_HEATMAP=1` reads none, to
-//! compare). Several crops
+//! world-landmark projection does), visibility and presence through a sigmoid. Several crops
 //! (one per tracked person) can run in one call when the model file's batch dimension is
 //! dynamic, which the pruned models made by `scripts/prune_landmark_model.py` have. Buffers
 //! are allocated once in [`LandmarkModel::load`].
@@ -23,7 +17,7 @@ use ort::session::builder::GraphOptimizationLevel;
 use ort::session::Session;
 use ort::value::Tensor;
 
-use super::bound::{model_err, output_shape, takes_batches, BoundRun};
+use super::bound::{model_err, takes_batches, BoundRun};
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{sigmoid, Landmarks, NUM_MODEL_LANDMARKS};
@@ -35,23 +29,6 @@ pub const INPUT_SIZE: usize = 256;
 const OUT_LANDMARKS: &str = "Identity";
 const OUT_PRESENCE: &str = "Identity_1";
 const OUT_WORLD: &str = "Identity_4";
-const OUT_HEATMAP: &str = "Identity_3";
-/// Side of the model's heatmaps (one a landmark, channels last), cells.
-const HEATMAP_SIDE: usize = 64;
-/// Cells either side of a landmark's cell that its heatmap refinement weighs.
-const HEATMAP_REACH: i32 = 3;
-/// A landmark is refined from its heatmap when the window's strongest cell is at least this
-/// sure of it.
-const HEATMAP_SURE: f32 = 0.5;
-/// The landmarks refined from their heatmaps: the body's, shoulders to feet. Not the face's:
-/// the left/right readings (`sides.rs`, and the smoothing's exchange of sides) take a
-/// reading as evidence only when its ears lie the way its torso faces, and the face's
-/// heatmaps can follow the face while the regression head follows the body's reading (the
-/// lite model's back readings of pose2sim's cam02, a man facing the camera, refined, left
-/// the guard mirrored on 29 of 100 frames). Not the crop's alignment points either: the
-/// refinement reaches the output only ([`Landmarks::refined`]), the tracker follows the
-/// regression head (refined, its tracks took other paths on the two-person clips).
-const REFINED: std::ops::Range<usize> = 11..33;
 
 /// How pixel values are scaled into the model's input.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -105,64 +82,10 @@ pub struct LandmarkModel {
 
 /// The input and bound outputs of runs on a fixed number of crops.
 struct Batch {
-    run: Outputs,
+    /// Landmarks, presence and world landmarks: the only outputs fetched (segmentation and
+    /// heatmap are not needed, and not fetching them saves their copies).
+    run: BoundRun<3>,
     input: Tensor<f32>,
-}
-
-/// The outputs fetched: landmarks, presence and world landmarks, and the heatmaps when the
-/// model has them (the segmentation mask is never needed; a model pruned before the heatmaps
-/// were kept runs without them, unrefined).
-enum Outputs {
-    Three(BoundRun<3>),
-    Four(BoundRun<4>, HeatChannels),
-}
-
-/// Which landmarks a model's heatmap channels hold, in order from `first`: all 39 (setup's
-/// derivation 3), or only the [`REFINED`] ones (derivation 4 on: the prune script keeps only
-/// their channels of the heatmap head's last convolution, whose channels are computed
-/// independently, so the values read are the same for less work a run).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct HeatChannels {
-    count: usize,
-    first: usize,
-}
-
-/// One crop's heatmaps: 64×64 cells, `channels.count` logits a cell (channels last).
-#[derive(Clone, Copy)]
-struct Heat<'a> {
-    cells: &'a [f32],
-    channels: HeatChannels,
-}
-
-impl Outputs {
-    fn run(&mut self, session: &mut Session, input: &Tensor<f32>) -> Result<(), VisionError> {
-        match self {
-            Outputs::Three(r) => r.run(session, input),
-            Outputs::Four(r, _) => r.run(session, input),
-        }
-    }
-
-    fn output(&self, i: usize) -> &[f32] {
-        match self {
-            Outputs::Three(r) => r.output(i),
-            Outputs::Four(r, _) => r.output(i),
-        }
-    }
-
-    /// Crop `i`'s heatmaps from the last run, when fetched.
-    fn heatmaps(&self, i: usize) -> Option<Heat<'_>> {
-        match self {
-            Outputs::Three(_) => None,
-            Outputs::Four(r, channels) => {
-                let n = HEATMAP_SIDE * HEATMAP_SIDE * channels.count;
-                let cells = &r.output(3)[i * n..(i + 1) * n];
-                Some(Heat {
-                    cells,
-                    channels: *channels,
-                })
-            }
-        }
-    }
 }
 
 debug_fields!(LandmarkModel { path, range });
@@ -296,7 +219,7 @@ impl LandmarkModel {
         for (i, (roi, out)) in rois.iter().zip(outs.iter_mut()).enumerate() {
             let lm = &lm[i * n_lm..(i + 1) * n_lm];
             let world = &world[i * n_world..(i + 1) * n_world];
-            decode(lm, world, presence[i], batch.run.heatmaps(i), roi, out);
+            decode(lm, world, presence[i], roi, out);
         }
         Ok(())
     }
@@ -344,34 +267,18 @@ fn fill_disc(roi: &Roi, disc: Disc, side: usize, value: f32, out: &mut [f32]) {
 }
 
 /// The landmark model's bound outputs for runs on `batch` crops.
-fn landmark_outputs(session: &Session, model: &Path, batch: usize) -> Result<Outputs, VisionError> {
-    let heat_channels = output_shape(session, OUT_HEATMAP, batch)
-        .filter(|_| std::env::var_os("RIGCAST_NO_HEATMAP").is_none())
-        .map(|shape| heat_channels(*shape.last().unwrap_or(&0)))
-        .transpose()
-        .map_err(|e| model_err(model, e))?;
-    if let Some(channels) = heat_channels {
-        let run = BoundRun::new(
-            session,
-            model,
-            [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD, OUT_HEATMAP],
-            [
-                NUM_MODEL_LANDMARKS * 5,
-                1,
-                NUM_MODEL_LANDMARKS * 3,
-                HEATMAP_SIDE * HEATMAP_SIDE * channels.count,
-            ],
-            batch,
-        )?;
-        return Ok(Outputs::Four(run, channels));
-    }
-    Ok(Outputs::Three(BoundRun::new(
+fn landmark_outputs(
+    session: &Session,
+    model: &Path,
+    batch: usize,
+) -> Result<BoundRun<3>, VisionError> {
+    BoundRun::new(
         session,
         model,
         [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD],
         [NUM_MODEL_LANDMARKS * 5, 1, NUM_MODEL_LANDMARKS * 3],
         batch,
-    )?))
+    )
 }
 
 /// A zeroed input of `batch` square RGB images of `size` pixels.
@@ -425,71 +332,13 @@ pub(crate) fn build_session(
         .map_err(|e| model_err(model, e))
 }
 
-/// The heatmap channels a model with `count` of them a cell holds: every landmark's, or the
-/// [`REFINED`] ones'.
-fn heat_channels(count: i64) -> Result<HeatChannels, String> {
-    match usize::try_from(count) {
-        Ok(NUM_MODEL_LANDMARKS) => Ok(HeatChannels {
-            count: NUM_MODEL_LANDMARKS,
-            first: 0,
-        }),
-        Ok(n) if n == REFINED.len() => Ok(HeatChannels {
-            count: n,
-            first: REFINED.start,
-        }),
-        _ => Err(format!(
-            "heatmaps with {count} channels (expected {NUM_MODEL_LANDMARKS} or {})",
-            REFINED.len()
-        )),
-    }
-}
-
-/// Landmark `i`'s crop point (each in [0, 1]) refined from its heatmap (logits, `i` one of
-/// [`REFINED`]): the sure-weighted mean of the cells within [`HEATMAP_REACH`]
-/// of its own cell, when the surest of them reaches [`HEATMAP_SURE`]. MediaPipe's pose graph
-/// refines its landmarks so; the regression head alone reads a few crop pixels off.
-fn refine(p: Vec2, heat: Heat<'_>, i: usize) -> Vec2 {
-    let HeatChannels { count, first } = heat.channels;
-    let side = HEATMAP_SIDE as i32;
-    let cell = p * HEATMAP_SIDE as f32;
-    let (col, row) = (cell.x as i32, cell.y as i32);
-    if !(0..side).contains(&col) || !(0..side).contains(&row) {
-        return p;
-    }
-    let (mut sum, mut at, mut surest) = (0.0f32, Vec2::ZERO, 0.0f32);
-    for r in (row - HEATMAP_REACH).max(0)..(row + HEATMAP_REACH + 1).min(side) {
-        for c in (col - HEATMAP_REACH).max(0)..(col + HEATMAP_REACH + 1).min(side) {
-            let sure = sigmoid(heat.cells[(r * side + c) as usize * count + i - first]);
-            sum += sure;
-            at += Vec2::new(c as f32, r as f32) * sure;
-            surest = surest.max(sure);
-        }
-    }
-    if surest >= HEATMAP_SURE && sum > 0.0 {
-        at / (sum * HEATMAP_SIDE as f32)
-    } else {
-        p
-    }
-}
-
 /// Maps raw model outputs to frame pixels / metres.
-fn decode(
-    raw: &[f32],
-    raw_world: &[f32],
-    presence: f32,
-    heat: Option<Heat<'_>>,
-    roi: &Roi,
-    out: &mut Landmarks,
-) {
+fn decode(raw: &[f32], raw_world: &[f32], presence: f32, roi: &Roi, out: &mut Landmarks) {
     let inv = 1.0 / INPUT_SIZE as f32;
     for i in 0..NUM_MODEL_LANDMARKS {
         let r = &raw[i * 5..i * 5 + 5];
-        let read = Vec2::new(r[0], r[1]) * inv;
-        let p = roi.to_frame(read - 0.5);
-        out.refined[i] = match heat.filter(|_| REFINED.contains(&i)) {
-            Some(heat) => roi.to_frame(refine(read, heat, i) - 0.5) - p,
-            None => Vec2::ZERO,
-        };
+        let n = Vec2::new(r[0] * inv - 0.5, r[1] * inv - 0.5);
+        let p = roi.to_frame(n);
         // z shares x's crop-pixel scale.
         let z = r[2] * inv * roi.size;
         out.image[i] = Vec4::new(p.x, p.y, z, sigmoid(r[3]));
@@ -628,7 +477,6 @@ fn floor(v: f32) -> f32 {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use crate::vision::landmarks::idx;
 
     fn gradient_frame(w: u32, h: u32) -> RgbFrame {
         let mut f = RgbFrame::new(w, h);
@@ -784,108 +632,6 @@ mod tests {
         assert!(g(200, 128) > g(50, 128) + 100.0);
     }
 
-    /// Heatmaps (logits) nobody is sure of but one sure cell of landmark `i`'s.
-    fn one_sure_cell(i: usize, col: usize, row: usize) -> Vec<f32> {
-        let mut heat = vec![-10.0f32; HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS];
-        heat[(row * HEATMAP_SIDE + col) * NUM_MODEL_LANDMARKS + i] = 10.0;
-        heat
-    }
-
-    /// `cells` as a model with every landmark's heatmap gives them.
-    fn all(cells: &[f32]) -> Heat<'_> {
-        let channels = heat_channels(NUM_MODEL_LANDMARKS as i64).unwrap();
-        Heat { cells, channels }
-    }
-
-    #[test]
-    fn heatmaps_of_the_refined_landmarks_only_refine_as_all_of_them_do() {
-        // Varied logits, then each cell's channels of the refined landmarks alone (what the
-        // prune script's sliced last convolution gives).
-        let every: Vec<f32> = (0..HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS)
-            .map(|k| ((k * 7919) % 1013) as f32 / 101.3 - 4.0)
-            .collect();
-        let sliced: Vec<f32> = every
-            .chunks(NUM_MODEL_LANDMARKS)
-            .flat_map(|cell| cell[REFINED].iter().copied())
-            .collect();
-        let channels = heat_channels(REFINED.len() as i64).unwrap();
-        assert_eq!(
-            channels,
-            HeatChannels {
-                count: 22,
-                first: 11
-            }
-        );
-        let some = Heat {
-            cells: &sliced,
-            channels,
-        };
-        let mut moved = 0;
-        for i in REFINED {
-            for at in [
-                Vec2::new(0.3, 0.7),
-                Vec2::new(0.01, 0.5),
-                Vec2::new(0.9, 0.99),
-            ] {
-                let want = refine(at, all(&every), i);
-                assert_eq!(refine(at, some, i), want, "landmark {i} at {at}");
-                moved += usize::from(want != at);
-            }
-        }
-        assert!(moved > 0, "no landmark was refined: the test shows nothing");
-        assert!(heat_channels(38).is_err() && heat_channels(0).is_err());
-    }
-
-    #[test]
-    fn a_landmark_moves_to_its_heatmaps_sure_cell_nearby_and_only_then() {
-        let cell = |c: f32, r: f32| Vec2::new(c, r) / HEATMAP_SIDE as f32;
-        let at = cell(22.5, 31.5);
-        // A sure cell two cells away: the landmark goes there (the other 48 cells of the
-        // window weigh 2e-3 together).
-        let moved = refine(at, all(&one_sure_cell(15, 20, 30)), 15);
-        assert!(moved.distance(cell(20.0, 30.0)) < 0.01 / 64.0, "{moved}");
-        // Beyond the window, for another landmark, or only half sure: it stays.
-        assert_eq!(refine(at, all(&one_sure_cell(15, 40, 30)), 15), at);
-        assert_eq!(refine(at, all(&one_sure_cell(16, 20, 30)), 15), at);
-        let mut unsure = one_sure_cell(15, 20, 30);
-        unsure.iter_mut().for_each(|v| *v = v.min(-0.5));
-        assert_eq!(refine(at, all(&unsure), 15), at);
-        // A point outside the crop is left as the regression read it.
-        assert_eq!(
-            refine(cell(70.0, 30.0), all(&one_sure_cell(15, 63, 30)), 15),
-            cell(70.0, 30.0)
-        );
-    }
-
-    #[test]
-    fn decode_keeps_the_bodys_refinement_beside_the_reading_and_none_for_the_face() {
-        let mut raw = [0.0f32; NUM_MODEL_LANDMARKS * 5];
-        for i in [idx::NOSE, idx::LEFT_WRIST] {
-            raw[i * 5] = 90.0; // crop pixel 90: heatmap cell 22.5
-            raw[i * 5 + 1] = 126.0;
-        }
-        let mut heat = one_sure_cell(idx::LEFT_WRIST, 20, 30);
-        heat[(30 * HEATMAP_SIDE + 20) * NUM_MODEL_LANDMARKS + idx::NOSE] = 10.0;
-        let world = [0.0f32; NUM_MODEL_LANDMARKS * 3];
-        let roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
-        let mut out = Landmarks::default();
-        decode(&raw, &world, 0.9, Some(all(&heat)), &roi, &mut out);
-        let px = |i: usize| Vec2::new(out.image[i].x, out.image[i].y);
-        // The reading itself is the regression head's (what the tracker follows).
-        assert!(px(idx::LEFT_WRIST).distance(Vec2::new(90.0, 126.0)) < 1e-3);
-        assert!(out.refined[idx::LEFT_WRIST].distance(Vec2::new(-10.0, -6.0)) < 0.1);
-        assert_eq!(out.refined[idx::NOSE], Vec2::ZERO);
-        // The output takes it, once.
-        out.take_refinement();
-        assert!(px_of(&out, idx::LEFT_WRIST).distance(Vec2::new(80.0, 120.0)) < 0.1);
-        assert_eq!(out.refined[idx::LEFT_WRIST], Vec2::ZERO);
-        assert!(px_of(&out, idx::NOSE).distance(Vec2::new(90.0, 126.0)) < 1e-3);
-    }
-
-    fn px_of(lm: &Landmarks, i: usize) -> Vec2 {
-        Vec2::new(lm.image[i].x, lm.image[i].y)
-    }
-
     #[test]
     fn decode_maps_crop_centre_to_roi_centre() {
         let mut raw = [0.0f32; NUM_MODEL_LANDMARKS * 5];
@@ -895,7 +641,7 @@ mod tests {
         let world = [0.0f32; NUM_MODEL_LANDMARKS * 3];
         let roi = Roi::square(Vec2::new(500.0, 300.0), 400.0);
         let mut out = Landmarks::default();
-        decode(&raw, &world, 0.9, None, &roi, &mut out);
+        decode(&raw, &world, 0.9, &roi, &mut out);
         assert!((out.image[0].x - 500.0).abs() < 1e-3 && (out.image[0].y - 300.0).abs() < 1e-3);
         assert!(out.image[0].w > 0.99);
         assert!((out.presence - 0.9).abs() < 1e-6);
