@@ -1208,9 +1208,14 @@ fn pair_wanted(name: &str) -> bool {
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's raw error
 /// frame by frame with its heading part and both pitches). Of 152 pairs whose legs' roles
-/// map right, within the bounds: thigh and shin 136, foot 60 of the 84 with toes on both rigs
-/// (60 raw), drift 151 (every foot joint: 128), floor 150; every bound at once (the foot's
-/// where both rigs have toes) 116, since a pinned foot's heading catches up with the
+/// map right, within the bounds: thigh and shin 136, foot 65 of the 84 with toes on both rigs
+/// (60 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the foot's
+/// where both rigs have toes) 119, since the fit to the standing posture pitches a foot about
+/// the axis across its own rest's sole rather than one read off the aligned rest, which the
+/// alignment may roll out of the sole (60 (60), 151 (128), 150 and 116 before; foot means
+/// 4.23/12.05 -> 3.77/11.82°; X Bot, Mousey and the mannequin gained, CMU 131_01 → X Bot
+/// 9.2/12.8 -> 4.2/10.3°, no pair's thigh, shin or foot p95 worse by over 0.5°), since a
+/// pinned foot's heading catches up with the
 /// animation's over 0.015 s (below; 54 (54), 151 (133) and 110 over the blends' 0.05 s), since
 /// the body's height is set from the reach of the held legs and the landing one (below; 123,
 /// 54, 151 (132), 149 and 100 before), and since a planted foot turns with the performer's

@@ -669,11 +669,14 @@ impl Foot {
 
 /// A leg's foot as it stands in the character's aligned rest: its clearances above `lowest`,
 /// its length and standing pitch, and the local axes the lock turns it by; not yet locked.
-/// `source` is the watched source leg it follows, if any.
+/// `source` is the watched source leg it follows, if any. `own`: the character's own rest
+/// (world transforms), where that rest is how it stands: the foot's side axis is then its
+/// own sole's ([`own_side_axis`]).
 fn standing_foot(
     leg: &Leg,
     source: Option<usize>,
     aligned: &[WorldTransform],
+    own: Option<&[WorldTransform]>,
     target: &Analysis,
     up: Vec3,
     lowest: f32,
@@ -713,7 +716,9 @@ fn standing_foot(
                 .clamp(-1.0, 1.0)
                 .asin()
         }),
-        side_local: w(leg.foot).rotation.inverse() * heading_dir.cross(up),
+        side_local: own
+            .and_then(|rest| own_side_axis(leg, rest, target.up))
+            .unwrap_or_else(|| w(leg.foot).rotation.inverse() * heading_dir.cross(up)),
         // Towards the ball: a pinned ball keeps its place however the foot twists.
         heading_local: w(leg.foot).rotation.inverse()
             * ahead.try_normalize().unwrap_or(heading_dir),
@@ -724,6 +729,22 @@ fn standing_foot(
         }),
         ..Foot::unlocked_at(*leg, source, ankle)
     }
+}
+
+/// The axis across a foot's sole as the character stands in its own rest (`rest`, world
+/// transforms, `up` its up), fixed in the foot bone's frame: ahead (ankle to ball) over the
+/// ground, across up. What the fit to the standing posture pitches the foot about
+/// ([`FootLock::apply_fit`]): the aligned rest poses the foot as the source's rest stands, and
+/// the turn that takes it there may roll it about its length as well, so an axis read off it
+/// is tilted out of the sole, and pitching about it swung the foot's heading (the CMU walk
+/// onto X Bot, fitted 20-26° down: the foot 9.2° mean off the performer's on its own standing
+/// foot, most of it heading; 4.2° about this axis). `None` without a ball or for a foot
+/// pointing straight down.
+fn own_side_axis(leg: &Leg, rest: &[WorldTransform], up: Vec3) -> Option<Vec3> {
+    let foot = rest[leg.foot.index()];
+    let ahead = rest[leg.toes?.index()].translation - foot.translation;
+    let flat = (ahead - up * ahead.dot(up)).try_normalize()?;
+    Some(foot.rotation.inverse() * flat.cross(up))
 }
 
 impl FootLock {
@@ -746,6 +767,8 @@ impl FootLock {
             return None;
         }
         let aligned = world_transforms(&tgt_skel, &mapping.aligned_rest_pose());
+        let own_rest = world_transforms(&tgt_skel, &tgt_skel.rest_pose());
+        let own = (!target.used_pose).then_some(own_rest.as_slice());
         // Standing clearances from the character's own posture (it is authored standing; the
         // aligned rest shows the source's rest, whose feet need not be flat).
         let height = |b: BoneId| target.positions[b.index()].dot(target.up);
@@ -772,7 +795,7 @@ impl FootLock {
             .iter()
             .map(|leg| {
                 let source = source_legs.iter().position(|s| s.key() == leg.key());
-                let mut foot = standing_foot(leg, source, &aligned, target, up, lowest);
+                let mut foot = standing_foot(leg, source, &aligned, own, target, up, lowest);
                 foot.heel_reach = source.map_or(0.0, |s| lift_scale * source_foot(&source_legs[s]));
                 foot
             })
