@@ -268,8 +268,9 @@ class SubjectView {
   }
 
   /** A marker on the floor under each planted foot. It sits under the foot as drawn: the
-   *  message's position is where the foot was when it planted, and the lock then eases it onto
-   *  its pin over ~0.1 s (a few cm); the message position is the fallback. */
+   *  message's position is where the foot stood on the message's frame (re-sent when a planted
+   *  foot moves: the lock eases it onto its pin over ~0.1 s and turns it with the performer
+   *  about its ball), and frames are drawn ahead of it; the message position is the fallback. */
   setFootplants(message) {
     const seen = new Set();
     for (const foot of message.feet ?? []) {

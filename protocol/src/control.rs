@@ -251,7 +251,10 @@ pub struct FootState {
     /// Held where it landed by the foot lock.
     pub planted: bool,
     /// The foot bone's world position in the subject's frame (internal space, metres):
-    /// forward kinematics of frame `seq`, so where the foot is pinned while planted.
+    /// forward kinematics of frame `seq`. A planted foot's message is sent again whenever the
+    /// foot has moved 2 % of its leg's length since (the foot lock turns a planted foot with the
+    /// performer about the joint it stands on: a pivot on the ball carries the ankle round it),
+    /// so this stays where the foot stands.
     pub position: [f32; 3],
 }
 
@@ -387,8 +390,9 @@ pub enum ServerMessage {
         #[serde(default)]
         targets: Vec<TargetHealth>,
     },
-    /// A target's foot-lock state: sent whenever a foot is planted or lifts (and on connect),
-    /// so clients can draw planted feet without polling `/v1/status`.
+    /// A target's foot-lock state: sent whenever a foot is planted or lifts, when a planted foot
+    /// has moved (it turns with the performer), and on connect, so clients can draw planted
+    /// feet without polling `/v1/status`.
     Footplants {
         /// Target subject id.
         subject: u32,

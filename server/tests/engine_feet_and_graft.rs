@@ -160,6 +160,14 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
     let feet: Vec<String> = (lock.target_legs())
         .map(|l| target.name(l.foot).to_string())
         .collect();
+    // Each foot's leg (thigh and shin at rest), the unit of the reports' allowance.
+    let legs: Vec<f32> = (lock.target_legs())
+        .map(|l| {
+            let offset =
+                |b: rigcast_retarget::BoneId| target.rest()[b.index()].translation.length();
+            offset(l.foot) + target.parent(l.foot).map_or(0.0, offset)
+        })
+        .collect();
     // Each foot's joints it may stand on: its foot joint, and its toes where it has them.
     let contacts: Vec<Vec<String>> = (lock.target_legs())
         .map(|l| {
@@ -183,6 +191,10 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
     let ticks = 240;
     let mut shown: Vec<(Pose, u32)> = Vec::new();
     let mut events = 0;
+    // The latest report's planted feet (index, position), and how far a planted foot has been
+    // from it at most beyond what the checks allow.
+    let mut reported: Vec<(usize, glam::Vec3)> = Vec::new();
+    let (mut worst_stale, mut farthest) = (f32::NEG_INFINITY, 0.0f32);
     for k in 0..ticks {
         let secs = k as f64 * TICK.as_secs_f64();
         for event in rig.tick(Some(pose_at(&walk, secs))) {
@@ -190,6 +202,10 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
                 continue;
             };
             events += 1;
+            reported = (report.feet.iter().enumerate())
+                .filter(|(_, f)| f.planted)
+                .map(|(i, f)| (i, glam::Vec3::from(f.position)))
+                .collect();
             // The report describes the frame the tick just published, with the tick's flags.
             let frame = rig.target.latest.borrow();
             assert_eq!(report.seq, frame.seq);
@@ -212,7 +228,26 @@ fn planted_feet_hold_still_on_a_simulated_clock() {
             .feet_locked
             .load(std::sync::atomic::Ordering::Relaxed);
         shown.push((rig.shown(), bits));
+        // A planted foot is re-reported once it moves 2 % of its leg from its report, checked
+        // every other tick (30 Hz): it may be that far plus its move since the last check.
+        for &(i, position) in &reported {
+            let now = at(&target, &shown[k].0, &feet[i]);
+            let recent = k
+                .checked_sub(2)
+                .map_or(0.0, |j| now.distance(at(&target, &shown[j].0, &feet[i])));
+            let allowed = rigcast_engine::footplants::MOVED_SHARE_OF_LEG * legs[i] + recent;
+            worst_stale = worst_stale.max(now.distance(position) - allowed);
+            farthest = farthest.max(now.distance(position));
+        }
     }
+    println!(
+        "a planted foot stood up to {farthest:.4} m from its report, {:.4} m within the allowance",
+        -worst_stale
+    );
+    assert!(
+        worst_stale <= 1e-4,
+        "a planted foot stood {worst_stale} m farther from its report than the checks allow"
+    );
     let mut judged = 0;
     for (i, foot) in feet.iter().enumerate() {
         let planted = |k: usize| shown[k].1 & (1 << i) != 0;

@@ -73,11 +73,15 @@ async fn viewer_marks_planted_feet() {
                 );
                 let q = rigcast_tests::f64s(&m["message"]);
                 let horizontal = ((p[0] - j[0]).powi(2) + (p[2] - j[2]).powi(2)).sqrt();
-                // The message's position is where the foot stood when it planted; the lock
-                // eases it onto its pin over ~0.1 s, a few centimetres. Only a pose drawn from
-                // the message's frame or later can show the landed foot; and the release
-                // reaches the page up to a check period (plus a loaded machine's delay) after
-                // the foot lifts, so a few poses drawn in that gap show the swing.
+                // The message's position is where the foot stood on its frame; the server
+                // sends it again when a planted foot has moved 2 % of its leg (the lock eases
+                // it onto its pin, a few centimetres, and turns it with the performer about
+                // its ball: the walk's performer pivots 50° on one plant, the ankle swinging
+                // 14 cm), checked at 30 Hz, so a newer drawn pose can be a few centimetres
+                // on. Only a pose drawn from the message's frame or later can show the landed
+                // foot; and the release reaches the page up to a check period (plus a loaded
+                // machine's delay) after the foot lifts, so a few poses drawn in that gap show
+                // the swing.
                 let drawn = m["drawnSeq"].as_u64().unwrap_or(0);
                 if drawn >= m["messageSeq"].as_u64().unwrap_or(u64::MAX) {
                     let from_message = ((p[0] - q[0]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
