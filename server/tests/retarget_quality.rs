@@ -1208,9 +1208,11 @@ fn pair_wanted(name: &str) -> bool {
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's raw error
 /// frame by frame with its heading part and both pitches). Of 152 pairs whose legs' roles
-/// map right, within the bounds: thigh and shin 136, foot 65 of the 84 with toes on both rigs
-/// (60 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the foot's
-/// where both rigs have toes) 119, since the fit to the standing posture pitches a foot about
+/// map right, within the bounds: thigh and shin 136, foot 69 of the 84 with toes on both rigs
+/// (55 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the foot's
+/// where both rigs have toes) 123, since a rest standing on its own ground along its own up
+/// gives the fit its feet's pitch even where the retarget places no floor for it (MakeHuman,
+/// below; 65 (60) and 119 before), since the fit to the standing posture pitches a foot about
 /// the axis across its own rest's sole rather than one read off the aligned rest, which the
 /// alignment may roll out of the sole (60 (60), 151 (128), 150 and 116 before; foot means
 /// 4.23/12.05 -> 3.77/11.82°; X Bot, Mousey and the mannequin gained, CMU 131_01 → X Bot
@@ -1305,7 +1307,12 @@ fn pair_wanted(name: &str) -> bool {
 /// rest whose feet stand on its own ground along its own up) brought its foot to 3.6/10.1°
 /// under the Xia walk but bent its legs and lifted its feet on the others (thigh+shin 104 ->
 /// 100, floor 143 -> 141: cmu_dazfriendly 0.60 -> 3.95 cm, its standing heights read along
-/// Z against a world along Y); not landed. Tried before and left: judging from
+/// Z against a world along Y); not landed. Taking from that rest the feet's pitch alone, the
+/// standing heights still the animation's, does not move them: MakeHuman's foot under the
+/// CMU 131_01 walk 12.0/24.1 -> 4.0/9.8°, CMU 31-joint 16.5/23.1 -> 4.2/9.9, Meredith
+/// 12.4/15.2 -> 3.7/8.3, CMU 131_02 11.6/15.1 -> 2.9/10.1, Xia 7.1/10.6 -> 2.4/10.3, LaFAN1
+/// 4.3/12.9 -> 5.3/14.6 (lost), floor and drift unchanged on all eight, thigh and shin p95
+/// 1.2° worse at most (Meredith 2.4 -> 3.6). Tried before and left: judging from
 /// each rig's rest pitch alike (0 of 84; the pybvh rigs 67-91° off, their rests floating or
 /// read along the motion's up), from each rig's own clip (0 of 84: another performer's foot),
 /// and the pitch difference taken out about a side axis read off the foot's direction each

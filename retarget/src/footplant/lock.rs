@@ -606,6 +606,10 @@ pub struct FootLock {
     /// The target's own posture is its rest and stands on its floor (its standing heights and
     /// foot pitch can be trusted).
     posture_stands: bool,
+    /// The target's own rest stands on its own ground, along its own up, where that need not
+    /// be this world's (a Z-up rest under a Y-up motion, whose floor the retarget cannot
+    /// place): its feet's standing pitch can be trusted, their heights are the animation's.
+    rest_feet_stand: bool,
     /// Source lengths to the target's (the mapping's root scale): what a source foot's lift is
     /// multiplied by.
     lift_scale: f32,
@@ -747,6 +751,20 @@ fn own_side_axis(leg: &Leg, rest: &[WorldTransform], up: Vec3) -> Option<Vec3> {
     Some(foot.rotation.inverse() * flat.cross(up))
 }
 
+/// Whether a posture's feet stand on its own ground (height 0 along its own up): its lowest
+/// foot joint within a quarter of a leg of it, as the retarget reads a reference posture's
+/// floor. A rest floating at the origin (CMU's: hips there, feet a leg below) does not.
+fn rest_on_own_ground(legs: &[Leg], posture: &Analysis) -> bool {
+    let height = |b: BoneId| posture.positions[b.index()].dot(posture.up);
+    let lowest = (legs.iter())
+        .flat_map(|l| [Some(l.foot), l.toes])
+        .flatten()
+        .map(height)
+        .fold(f32::INFINITY, f32::min);
+    let leg = legs.iter().map(|l| l.length).fold(f32::INFINITY, f32::min);
+    lowest.abs() <= 0.25 * leg
+}
+
 impl FootLock {
     /// A lock for `mapping`'s target, driven by the plants of its root input. `source` and
     /// `target` are the analyses of those skeletons. `None` when the target has no standing
@@ -821,6 +839,7 @@ impl FootLock {
             // not how the character stands: the medoid frame of the Bandai run pitches its feet
             // 50-76° down, and fitting every frame to that tipped the retargeted feet as far.
             posture_stands: mapping.target_posture_stands() && !target.used_pose,
+            rest_feet_stand: !target.used_pose && rest_on_own_ground(&target_legs, target),
             lift_scale,
             shown_once: false,
             landing: LiveLanding::default(),
@@ -873,7 +892,7 @@ impl FootLock {
             };
             // A rest that does not stand (hips at the origin, feet hanging below) says nothing
             // about how the rig stands: the animation is the best guess (its typical pitch).
-            let (standing, fix) = if self.posture_stands {
+            let (standing, fix) = if self.posture_stands || self.rest_feet_stand {
                 (foot.standing_pitch, foot.standing_pitch - pitch)
             } else {
                 (pitch, 0.0)
@@ -895,6 +914,9 @@ impl FootLock {
                 rise_sum += foot.heel_clearance - heel;
                 n += 1;
             } else {
+                // Standing heights from the animation, the pitch from the rest where its feet
+                // stand on its own ground.
+                foot.pitch_fix = fix;
                 foot.standing_pitch = standing;
                 foot.heel_clearance = heel;
                 foot.ball_clearance = heel + foot.foot_length * standing.sin();
