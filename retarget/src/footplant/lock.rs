@@ -1838,19 +1838,24 @@ mod tests {
     use crate::analysis::Side;
     use crate::footplant::rig::LegKind;
 
-    #[test]
-    fn a_landing_is_approached_only_after_a_swing() {
-        let leg = Leg {
+    /// A left hind leg of bones 0 (thigh), 1 (shin), 2 (foot) and `toes`, `length` long.
+    fn left_leg(toes: Option<BoneId>, length: f32) -> Leg {
+        Leg {
             kind: LegKind::Hind,
             side: Side::Left,
             limb: 0,
             upper: BoneId(0),
             lower: BoneId(1),
             foot: BoneId(2),
-            toes: None,
-            length: 1.0,
+            toes,
+            length,
             carried: false,
-        };
+        }
+    }
+
+    #[test]
+    fn a_landing_is_approached_only_after_a_swing() {
+        let leg = left_leg(None, 1.0);
         // Planted 0-3, a 2-frame gap, 6-9, a 10-frame swing, 20-24.
         let flags: Vec<bool> = (0..25)
             .map(|f| f < 4 || (6..10).contains(&f) || f >= 20)
@@ -1931,17 +1936,7 @@ mod tests {
     /// whose toes are not rigged, its ankle the lowest joint (2 cm up), whose performer's
     /// foot is 12 cm long.
     fn pinned_foot(toes: bool) -> Foot {
-        let leg = Leg {
-            kind: LegKind::Hind,
-            side: Side::Left,
-            limb: 0,
-            upper: BoneId(0),
-            lower: BoneId(1),
-            foot: BoneId(2),
-            toes: toes.then_some(BoneId(3)),
-            length: 0.9,
-            carried: false,
-        };
+        let leg = left_leg(toes.then_some(BoneId(3)), 0.9);
         let (heel, ball, len) = if toes {
             (0.08, 0.02, 0.15)
         } else {

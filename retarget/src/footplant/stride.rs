@@ -166,6 +166,12 @@ impl RootShift {
 mod tests {
     use super::*;
 
+    /// One frame of 0.01 s of `s` (y up, half-lives 0.05 s, no fitted height), `limits` its
+    /// height limit and reach.
+    fn frame(s: &mut RootShift, feet: &[FootStand], fresh: bool, limits: [f32; 2]) -> Vec3 {
+        s.update(feet, Vec3::Y, fresh, 0.01, [0.05; 2], limits, None)
+    }
+
     fn stand(slide: Option<Vec3>, gap: f32) -> FootStand {
         FootStand {
             stands: true,
@@ -177,96 +183,48 @@ mod tests {
     #[test]
     fn one_standing_foot_is_held_exactly_two_share_their_disagreement() {
         let mut s = RootShift::default();
-        let up = Vec3::Y;
         let free = FootStand::default();
-        s.update(
-            &[stand(None, 0.0), free],
-            up,
-            true,
-            0.01,
-            [0.05; 2],
-            [1.0; 2],
-            None,
-        );
+        frame(&mut s, &[stand(None, 0.0), free], true, [1.0; 2]);
         // One foot slides 1 cm forward (and 1 mm up, which is no slide over the ground).
-        let m = s.update(
+        let m = frame(
+            &mut s,
             &[stand(Some(Vec3::new(0.0, 0.001, 0.01)), 0.0), free],
-            up,
             false,
-            0.01,
-            [0.05; 2],
             [1.0; 2],
-            None,
         );
         assert!((s.ground - Vec3::new(0.0, 0.0, -0.01)).length() < 1e-6);
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
         // Two feet sliding apart: the root takes up their mean.
-        let m = s.update(
+        let m = frame(
+            &mut s,
             &[
                 stand(Some(Vec3::new(0.0, 0.0, 0.02)), 0.0),
                 stand(Some(Vec3::ZERO), 0.0),
             ],
-            up,
             false,
-            0.01,
-            [0.05; 2],
             [1.0; 2],
-            None,
         );
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
         // None standing: held.
-        s.update(&[free, free], up, false, 0.01, [0.05; 2], [1.0; 2], None);
+        frame(&mut s, &[free, free], false, [1.0; 2]);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
     }
 
     #[test]
     fn the_height_is_taken_at_once_first_then_blended_and_held() {
         let mut s = RootShift::default();
-        let up = Vec3::Y;
-        s.update(
-            &[stand(None, 0.03)],
-            up,
-            true,
-            0.01,
-            [0.05; 2],
-            [0.2, 1.0],
-            None,
-        );
+        frame(&mut s, &[stand(None, 0.03)], true, [0.2, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
-        s.update(
-            &[stand(None, 0.03)],
-            up,
-            false,
-            0.01,
-            [0.05; 2],
-            [0.2, 1.0],
-            None,
-        );
+        frame(&mut s, &[stand(None, 0.03)], false, [0.2, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6);
         // It lifts: held.
-        s.update(
-            &[FootStand::default()],
-            up,
-            false,
-            0.01,
-            [0.05; 2],
-            [0.2, 1.0],
-            None,
-        );
+        frame(&mut s, &[FootStand::default()], false, [0.2, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
         // Another lands wanting 5 cm: blended towards it, no jump.
         let mut last = s.height;
         for _ in 0..60 {
-            s.update(
-                &[stand(None, 0.05)],
-                up,
-                false,
-                0.01,
-                [0.05; 2],
-                [0.2, 1.0],
-                None,
-            );
+            frame(&mut s, &[stand(None, 0.05)], false, [0.2, 1.0]);
             assert!(
                 s.height >= last - 1e-6 && s.height - last < 0.006,
                 "{}",
@@ -276,42 +234,22 @@ mod tests {
         }
         assert!((s.height - 0.05).abs() < 1e-3, "{}", s.height);
         // Bounded.
-        s.update(
-            &[stand(None, 5.0)],
-            up,
-            true,
-            0.01,
-            [0.05; 2],
-            [0.2, 1.0],
-            None,
-        );
+        frame(&mut s, &[stand(None, 5.0)], true, [0.2, 1.0]);
         assert!((s.height - 0.2).abs() < 1e-6);
     }
 
     #[test]
     fn the_root_is_carried_no_farther_than_its_reach() {
         let mut s = RootShift::default();
-        let up = Vec3::Y;
-        s.update(
-            &[stand(None, 0.0)],
-            up,
-            true,
-            0.01,
-            [0.05; 2],
-            [1.0, 0.3],
-            None,
-        );
+        frame(&mut s, &[stand(None, 0.0)], true, [1.0, 0.3]);
         // The standing foot slides 1 cm a frame forward, 100 frames (a metre): the root is
         // carried back 30 cm at most, and no farther however long it slides.
         for _ in 0..100 {
-            s.update(
+            frame(
+                &mut s,
                 &[stand(Some(Vec3::new(0.0, 0.0, 0.01)), 0.0)],
-                up,
                 false,
-                0.01,
-                [0.05; 2],
                 [1.0, 0.3],
-                None,
             );
             assert!(s.ground.length() <= 0.3 + 1e-6, "{}", s.ground);
         }
@@ -321,14 +259,11 @@ mod tests {
             s.ground
         );
         // Sliding back: carried back inside at once.
-        s.update(
+        frame(
+            &mut s,
             &[stand(Some(Vec3::new(0.0, 0.0, -0.05)), 0.0)],
-            up,
             false,
-            0.01,
-            [0.05; 2],
             [1.0, 0.3],
-            None,
         );
         assert!(
             (s.ground - Vec3::new(0.0, 0.0, -0.25)).length() < 1e-5,
