@@ -4,11 +4,12 @@
 //! for speed, asked for the clip's people) on the same frames in the same run, clip by clip in
 //! turn.
 //!
-//! Per clip: coverage of every identity slot, MediaPipe's one person followed through the
-//! slots (the share of its frames some slot shows that person, and how often the slot showing
-//! them changes: see `followed`), identity jumps (a slot's hips moving more than
-//! 15 % of the source frame's longer side between frames at most 2 apart: the issue's measure,
-//! which the bound uses; beside it, those that also move so against the scene's own motion —
+//! Per clip: coverage of every identity slot (beside MediaPipe's, the frames where `#0` shows
+//! someone and MediaPipe nobody: coverage no anchor confirms, see `unconfirmed`), MediaPipe's
+//! one person followed through the slots (the share of its frames some slot shows that person,
+//! and how often the slot showing them changes: see `followed`), identity jumps (a slot's hips
+//! moving more than 15 % of the source frame's longer side between frames at most 2 apart: the
+//! issue's measure, which the bound uses; beside it, those that also move so against the scene's own motion —
 //! a camera's whip carries a person as far, so the difference is what pans account for;
 //! MediaPipe's by the same measures beside them; both sides' output landmarks, smoothed as each gives them
 //! by default), left/right agreement, the detector runs per frame, the landmark model runs per
@@ -332,6 +333,20 @@ fn followed(ours: &Ours, theirs: &MediaPipeRun, side: f32) -> (usize, usize, usi
     (seen, held, changes)
 }
 
+/// Frames where rigcast's `#0` shows someone and MediaPipe nobody. Coverage counts every
+/// reading, and where the anchor sees nobody the judge has nothing to tell a person from a
+/// misreading: a cook's hand filling the picture, read upside down as a body, counts as much as
+/// a small player MediaPipe misses. MediaPipe asked about a crop around such a reading is no
+/// referee either: it agrees with neither. So these frames are shown beside the coverage, and
+/// the bound reads the coverage as the issue defines it.
+fn unconfirmed(ours: &Ours, theirs: &MediaPipeRun) -> usize {
+    ours.slots
+        .iter()
+        .zip(&theirs.frames)
+        .filter(|(slots, mp)| slots.first().is_some_and(Option::is_some) && mp.is_none())
+        .count()
+}
+
 fn percent(n: usize, of: usize) -> f64 {
     100.0 * n as f64 / of.max(1) as f64
 }
@@ -535,7 +550,8 @@ fn judge_clip(
         }
     };
     let row = format!(
-        "{ours_text} {theirs_cov:.1} | {:.1}, {mp_changes} | {our_jumps}, {our_scene_jumps} ({}, {}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} | {} | {} |",
+        "{ours_text} {theirs_cov:.1} ({}) | {:.1}, {mp_changes} | {our_jumps}, {our_scene_jumps} ({}, {}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} | {} | {} |",
+        unconfirmed(&ours, &theirs),
         percent(mp_held, mp_seen),
         jumps(theirs.frames.iter().map(Option::as_ref), &[], side),
         jumps(theirs.frames.iter().map(Option::as_ref), &ours.scene, side),
@@ -602,7 +618,7 @@ fn judge() -> Vec<String> {
             .unwrap_or_default()
             .trim()
     );
-    println!("| clip | frames | coverage per slot % | MediaPipe % | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) |", max_people = config.tracker.max_people);
+    println!("| clip | frames | coverage per slot % | MediaPipe % (frames only #0 shows someone in) | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) |", max_people = config.tracker.max_people);
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let anchors = Anchors {
         mediapipe,
@@ -714,4 +730,39 @@ fn mediapipes_person_is_followed_through_the_slots_that_show_them() {
         frame.swap(0, 1);
     }
     assert_eq!(run(ours, jumped), (10, 8, 0));
+}
+
+#[test]
+fn frames_where_only_rigcasts_first_slot_shows_someone_are_counted() {
+    // #0 shows someone in frames 0-5, #1 in 6-9; MediaPipe in 0-2 and 8-9: #0 alone in 3-5.
+    let ours = Ours {
+        width: 1000.0,
+        height: 600.0,
+        slots: (0..10)
+            .map(|i| {
+                let someone = Some(standing_at(100.0));
+                if i < 6 {
+                    vec![someone, None]
+                } else {
+                    vec![None, someone]
+                }
+            })
+            .collect(),
+        scene: Vec::new(),
+        fps: 0.0,
+        detections: 0,
+        inferences: 0,
+        second_opinions: 0,
+    };
+    let theirs = MediaPipeRun {
+        frames: (0..10)
+            .map(|i| (i < 3 || i >= 8).then(|| standing_at(100.0)))
+            .collect(),
+        world: Vec::new(),
+        width: 1000.0,
+        height: 600.0,
+        fps: 0.0,
+        cached: true,
+    };
+    assert_eq!(unconfirmed(&ours, &theirs), 3);
 }
