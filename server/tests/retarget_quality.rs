@@ -1208,9 +1208,17 @@ fn pair_wanted(name: &str) -> bool {
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's raw error
 /// frame by frame with its heading part and both pitches). Of 152 pairs whose legs' roles
-/// map right, within the bounds: thigh and shin 136, foot 69 of the 84 with toes on both rigs
-/// (55 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the foot's
-/// where both rigs have toes) 123, since a rest standing on its own ground along its own up
+/// map right, within the bounds: thigh and shin 136, foot 73 of the 84 with toes on both rigs
+/// (57 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the foot's
+/// where both rigs have toes) 127, since a pinned foot whose source stands on its ball alone
+/// rolls onto its ball as far as its own length asks, its ball where it stood and the
+/// animation's pitch kept, not only as far as the source's heel rises (blended in and out
+/// over the blends' half-life: switched at once, foot_lock's largest kick on the mannequin
+/// 1.59 -> 2.81 cm/frame²): a foot longer against its leg than the performer's was flattened
+/// up to 30° at a stand on the toes (CMU 131_01 → xsens, frames 348-426: the source's foot
+/// 50-65° down, the target's 25-37°; 3.7/15.8 -> 2.9/8.8°); 69 (55) and 123 before, thigh
+/// and shin p95 4.47 -> 4.49°, 3.53 -> 3.58 over the pairs (CMU 31-joint → Mousey 3.9 ->
+/// 7.5, within), since a rest standing on its own ground along its own up
 /// gives the fit its feet's pitch even where the retarget places no floor for it (MakeHuman,
 /// below; 65 (60) and 119 before), since the fit to the standing posture pitches a foot about
 /// the axis across its own rest's sole rather than one read off the aligned rest, which the

@@ -322,6 +322,10 @@ struct Foot {
     /// (scaled to the target; offline, 0 where not known): how far the foot may roll onto its
     /// ball ([`Foot::roll`]); a foot without one, by how much its ankle rises with the heel.
     heel_rise: f32,
+    /// How far (0 to 1) the foot rolls onto its ball by its own geometry rather than only as
+    /// far as the source's heel rises ([`Foot::roll`]): 1 while only the source's ball holds
+    /// (its heel up: a toe-off, a stand on the toes), followed over the blends' half-life.
+    on_ball: f32,
     /// A foot without a ball (its ankle the lowest joint, the toes not rigged): how far its
     /// ankle may rise with the source's heel, the source's foot length scaled. Its sole still
     /// rolls over a ball, as the performer's does, that the skeleton does not show: pinned on
@@ -394,15 +398,23 @@ impl Foot {
     /// on its heel while its ball is no lower against the ankle than when it stands (a heel
     /// strike, toes up: the ankle on its pin), on its ball once it is (the heel rising at a
     /// toe-off: the ball held where standing puts it, the ankle raised and brought towards it
-    /// as the foot pitches about the ball). The heel rises only as far as the source's does
-    /// (`heel_rise`): a foot the animation points into the floor while its heel stays down is
-    /// pitched up about its ankle instead (`flatten`). Returns the ankle's move from the heel's
+    /// as the foot pitches about the ball). While the source's heel holds, the heel rises only
+    /// as far as the source's does (`heel_rise`): a foot the animation points into the floor
+    /// while its heel stays down is pitched up about its ankle instead (`flatten`); while the
+    /// source stands on its ball alone, as far as the foot's own length asks (`on_ball`). Returns the ankle's move from the heel's
     /// pin. Up to that, the foot keeps the animation's pitch, so the leg above it keeps the
     /// retargeted one's.
     fn roll(&self, up: Vec3, ball: Vec3) -> Vec3 {
         let rise = self.ball_clearance - self.heel_clearance;
         let o_up = ball.dot(up);
-        let lifted = (rise - o_up).min(self.heel_rise);
+        // A foot rolled onto its ball while the performer stands on theirs keeps the
+        // animation's pitch with its ball where it stood, its ankle raised as far as its own
+        // length asks; else the heel rises only as far as the source's does, and a foot
+        // pitched further is stood flatter (`flatten`). A target foot longer against its leg
+        // than the performer's was flattened up to 30° at a stand on the toes (the CMU 131_01
+        // walk onto the xsens rig: its ball 6 cm short of where the source's heel rise puts it).
+        let own = rise - o_up;
+        let lifted = own.min(self.heel_rise) + self.on_ball * (own - self.heel_rise).max(0.0);
         if !(lifted > 0.0) {
             return Vec3::ZERO;
         }
@@ -649,6 +661,7 @@ impl Foot {
             lift: 0.0,
             heel_lift: None,
             heel_rise: 0.0,
+            on_ball: 0.0,
             heel_reach: 0.0,
             landing: 0.0,
             landing_flat: 0.0,
@@ -1171,7 +1184,7 @@ impl FootLock {
         }
         self.fk(out);
         let dt = dt_secs.max(0.0);
-        self.take_lifts(lifts);
+        self.take_lifts(lifts, dt);
         if live {
             self.learn_fit(planted, dt);
         }
@@ -1209,7 +1222,9 @@ impl FootLock {
 
     /// Takes this frame's source lifts into every foot: how high a pinned foot is held, its
     /// heel's pin and how far it may roll onto its ball.
-    fn take_lifts(&mut self, lifts: Option<&Lifts>) {
+    fn take_lifts(&mut self, lifts: Option<&Lifts>, dt: f32) {
+        let halflife = 0.5 * self.settings.blend_secs;
+        let follow = 1.0 - (-dt * std::f32::consts::LN_2 / halflife).exp();
         for i in 0..self.feet.len() {
             let length = self.feet[i].leg.length;
             let (foot, heel, landing, flat) = match (self.feet[i].source, lifts) {
@@ -1221,6 +1236,12 @@ impl FootLock {
                 .zip(lifts)
                 .and_then(|(s, l)| l.contact[s]);
             self.feet[i].pivot = contact.map(|c| self.feet[i].pivot_of(c));
+            let on_ball = if contact == Some(Contact::Ball) {
+                1.0
+            } else {
+                0.0
+            };
+            self.feet[i].on_ball += follow * (on_ball - self.feet[i].on_ball);
             self.feet[i].landing_before = self.feet[i].landing;
             self.feet[i].landing = landing;
             self.feet[i].landing_flat = if flat { landing } else { 0.0 };
@@ -2023,6 +2044,32 @@ mod tests {
             "{} {stood}",
             ankle + pitched
         );
+    }
+
+    #[test]
+    fn a_foot_on_its_ball_rolls_as_far_as_its_own_length_asks() {
+        let up = Vec3::Y;
+        let mut foot = pinned_foot(true);
+        let flat_ball = ball_offset(0.15, 0.4, 0.06);
+        let stood = foot.pinned_ankle(up, 0.0, Some(flat_ball)) + flat_ball;
+        // The animation pitches the foot so its ball is 10 cm under the ankle (4 cm of rise
+        // past standing), the performer's shorter foot raising its heel only 2 cm.
+        foot.take_heel(0.0, Some(0.02));
+        let pitched = ball_offset(0.15, 0.4, 0.1);
+        // While the source's heel and ball both hold, only as far as the heel rises: the
+        // ball is left 2 cm low (the flattening then pitches it up).
+        let ankle = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!((ankle.y - 0.10).abs() < 1e-5, "{ankle}");
+        // Standing on its ball alone, fully: the ball stays where it stood, the pitch kept.
+        foot.on_ball = 1.0;
+        let ankle = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!((ankle.y - 0.12).abs() < 1e-5, "{ankle}");
+        let ball = ankle + pitched;
+        assert!((ball - stood).length() < 1e-5, "{ball} {stood}");
+        // Half way through the blend, half the way.
+        foot.on_ball = 0.5;
+        let ankle = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!((ankle.y - 0.11).abs() < 1e-5, "{ankle}");
     }
 
     #[test]
