@@ -6,8 +6,8 @@
 #     models/pose_landmark_{lite,full,heavy}.onnx   BlazePose landmark models (npm @mediapipe/pose,
 #                                    converted from TFLite with tf2onnx in a private venv)
 #     models/pose_landmark_{lite,full,heavy}_pruned.onnx   the same models with only the outputs
-#                                    rigcast reads (no segmentation mask or heatmaps: same
-#                                    landmarks, about half the work; scripts/prune_landmark_model.py)
+#                                    rigcast reads (no segmentation mask: same landmarks, about
+#                                    half the work; scripts/prune_landmark_model.py)
 #     models/pose_landmark_full_int8.onnx   full, pruned and quantised to int8 (static QDQ,
 #                                    calibrated on the single-person pose2sim clips;
 #                                    scripts/quantize_landmark_model.py); only `--model full-int8`
@@ -165,8 +165,8 @@ fi
 # Made from the converted models with onnx and ONNX Runtime's own quantisation tools, in a
 # private venv removed afterwards. The int8 model is calibrated on the single-person clips above.
 # DERIVED names the version of the derivation: models derived by an older one are made again
-# (2: pruned models take a batch of crops).
-DERIVED_VERSION=2
+# (2: pruned models take a batch of crops; 3: they keep the heatmaps, which refine the landmarks).
+DERIVED_VERSION=3
 need_derived=0
 if [[ "$(cat "$ROOT/models/DERIVED" 2>/dev/null)" != "$DERIVED_VERSION" ]]; then
     rm -f "$ROOT"/models/pose_landmark_{lite,full,heavy}_pruned.onnx \

@@ -574,10 +574,10 @@ fn pose2sim_3d_reference_judges_each_camera_and_model() {
 /// and left/right right on 99 % of frames with lite and full. Issue 32's bounds on the
 /// default (lite at least as accurate as MediaPipe full, less jittery) are listed, and
 /// asserted with `RIGCAST_FOOTAGE_ACCEPTANCE=1`; they do not all hold: on the desk set (debug
-/// build, MediaPipe cached) lite's bone directions / PA-MPJPE read 16.8° / 59, 21.1 / 70,
-/// 10.0 / 46, 13.9 / 50 mm on cameras 0-3 against MediaPipe full's 27.1 / 77, 19.4 / 68,
-/// 20.2 / 73, 21.8 / 77 (camera 1, a side view, outside), and its jitter at 6 fps 38.4,
-/// 17.7, 14.3, 17.9 mm/frame² against 28.2, 17.2, 17.6, 15.6.
+/// build, MediaPipe cached, models with heatmaps) lite's bone directions / PA-MPJPE read
+/// 16.2° / 58, 20.7 / 73, 10.7 / 39, 14.5 / 46 mm on cameras 0-3 against MediaPipe full's
+/// 27.1 / 77, 19.4 / 68, 20.2 / 73, 21.8 / 77 (camera 1, a side view, outside), and its
+/// jitter at 6 fps 39.8, 18.6, 15.3, 17.5 mm/frame² against 28.2, 17.2, 17.6, 15.6.
 #[test]
 fn calibrated_rigs_3d_reference_judges_each_camera() {
     let Some((_, config)) = common::default_config_or_skip("vision_reference3d") else {

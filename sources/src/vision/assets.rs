@@ -2,8 +2,8 @@
 //!
 //! `$RIGCAST_HOME/vision/` (default `~/.cache/rigcast/vision/`) holds `lib/libonnxruntime.so`,
 //! `models/pose_landmark_{lite,full,heavy}.onnx` (as converted) with their pruned copies
-//! `pose_landmark_{lite,full,heavy}_pruned.onnx` (only the outputs rigcast reads: the same
-//! numbers in about half the time), the int8 copy `pose_landmark_full_int8.onnx`, and
+//! `pose_landmark_{lite,full,heavy}_pruned.onnx` (only the outputs rigcast reads, without
+//! the segmentation mask: the same numbers in about half the time), the int8 copy `pose_landmark_full_int8.onnx`, and
 //! `pose2sim/cam0N.mp4`. Nothing here downloads anything: a missing file is a
 //! [`VisionError::NotSetUp`] telling the user which command to run.
 
@@ -95,9 +95,9 @@ impl VisionAssets {
     }
 
     /// The file to load for a landmark model: the pruned copy when setup made one (same
-    /// landmarks, about half the work: the converted model also computes a segmentation mask
-    /// and heatmaps, which ONNX Runtime runs even when nobody reads them), else the model as
-    /// converted. The int8 model exists only pruned.
+    /// landmarks, about half the work: the converted model also computes a segmentation mask,
+    /// which ONNX Runtime runs even when nobody reads it), else the model as converted. The
+    /// int8 model exists only pruned.
     pub fn landmark_model(&self, kind: ModelKind) -> PathBuf {
         let pruned = self.pruned_landmark_model(kind);
         if kind == ModelKind::FullInt8 || pruned.is_file() {
@@ -112,7 +112,8 @@ impl VisionAssets {
             .join(format!("models/pose_landmark_{}.onnx", kind.file_stem()))
     }
 
-    /// The copy of a landmark model with only the landmark, presence and world outputs.
+    /// The copy of a landmark model with only the landmark, presence, world and heatmap
+    /// outputs (setup's derivations before 3 left the heatmaps out too).
     pub fn pruned_landmark_model(&self, kind: ModelKind) -> PathBuf {
         let name = match kind {
             ModelKind::FullInt8 => "pose_landmark_full_int8.onnx".to_string(),

@@ -99,6 +99,11 @@ pub struct Landmarks {
     /// unknown (landmarks recorded before it was kept): the perspective stage needs where the
     /// picture's centre is and how wide it is.
     pub picture: Vec2,
+    /// How far the landmark model's heatmaps move each image landmark (pixels, zero where
+    /// they do not): the output takes it ([`Self::take_refinement`]), the tracker never sees
+    /// it, so who is followed where and which way round stays the regression head's reading.
+    /// Not recorded: a recording holds the output's points.
+    pub refined: [Vec2; NUM_MODEL_LANDMARKS],
 }
 
 impl Default for Landmarks {
@@ -114,6 +119,7 @@ impl Landmarks {
         world: [Vec3::ZERO; NUM_MODEL_LANDMARKS],
         presence: 0.0,
         picture: Vec2::ZERO,
+        refined: [Vec2::ZERO; NUM_MODEL_LANDMARKS],
     };
 
     /// Visibility of body landmark `i` in [0, 1].
@@ -139,6 +145,19 @@ impl Landmarks {
             p.x *= k;
             p.y *= k;
             p.z *= k;
+        }
+        for d in self.refined.iter_mut() {
+            *d *= k;
+        }
+    }
+
+    /// Moves each image landmark by its heatmap refinement (see [`Self::refined`]), which is
+    /// then spent (zero).
+    pub fn take_refinement(&mut self) {
+        for (p, d) in self.image.iter_mut().zip(self.refined.iter_mut()) {
+            p.x += d.x;
+            p.y += d.y;
+            *d = Vec2::ZERO;
         }
     }
 }

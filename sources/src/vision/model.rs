@@ -3,7 +3,13 @@
 //! Per call: warp the ROI of the frame into the model's 256×256 RGB input (bilinear, black
 //! outside the frame), run the model, and map its outputs back: landmarks from crop pixels to
 //! frame pixels, world landmarks rotated by the ROI's in-plane rotation (as MediaPipe's
-//! world-landmark projection does), visibility and presence through a sigmoid. Several crops
+//! world-landmark projection does), visibility and presence through a sigmoid. The body's
+//! landmarks' refinement from the model's heatmaps is read too when the model file has them
+//! (the pruned models do since setup's derivation 3), as MediaPipe's pose graph refines its
+//! own, and kept beside the landmarks for the output ([`Landmarks::refined`]): the lite
+//! model's limbs then land nearer the 3D reference's projection on seven of eight calibrated
+//! cameras, for about a tenth more work a run (`RIGCAST_NO_HEATMAP=1` reads none, to
+//! compare). Several crops
 //! (one per tracked person) can run in one call when the model file's batch dimension is
 //! dynamic, which the pruned models made by `scripts/prune_landmark_model.py` have. Buffers
 //! are allocated once in [`LandmarkModel::load`].
@@ -29,6 +35,23 @@ pub const INPUT_SIZE: usize = 256;
 const OUT_LANDMARKS: &str = "Identity";
 const OUT_PRESENCE: &str = "Identity_1";
 const OUT_WORLD: &str = "Identity_4";
+const OUT_HEATMAP: &str = "Identity_3";
+/// Side of the model's heatmaps (one a landmark, channels last), cells.
+const HEATMAP_SIDE: usize = 64;
+/// Cells either side of a landmark's cell that its heatmap refinement weighs.
+const HEATMAP_REACH: i32 = 3;
+/// A landmark is refined from its heatmap when the window's strongest cell is at least this
+/// sure of it.
+const HEATMAP_SURE: f32 = 0.5;
+/// The landmarks refined from their heatmaps: the body's, shoulders to feet. Not the face's:
+/// the left/right readings (`sides.rs`, and the smoothing's exchange of sides) take a
+/// reading as evidence only when its ears lie the way its torso faces, and the face's
+/// heatmaps can follow the face while the regression head follows the body's reading (the
+/// lite model's back readings of pose2sim's cam02, a man facing the camera, refined, left
+/// the guard mirrored on 29 of 100 frames). Not the crop's alignment points either: the
+/// refinement reaches the output only ([`Landmarks::refined`]), the tracker follows the
+/// regression head (refined, its tracks took other paths on the two-person clips).
+const REFINED: std::ops::Range<usize> = 11..33;
 
 /// How pixel values are scaled into the model's input.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -82,10 +105,39 @@ pub struct LandmarkModel {
 
 /// The input and bound outputs of runs on a fixed number of crops.
 struct Batch {
-    /// Landmarks, presence and world landmarks: the only outputs fetched (segmentation and
-    /// heatmap are not needed, and not fetching them saves their copies).
-    run: BoundRun<3>,
+    run: Outputs,
     input: Tensor<f32>,
+}
+
+/// The outputs fetched: landmarks, presence and world landmarks, and the heatmaps when the
+/// model has them (the segmentation mask is never needed; a model pruned before the heatmaps
+/// were kept runs without them, unrefined).
+enum Outputs {
+    Three(BoundRun<3>),
+    Four(BoundRun<4>),
+}
+
+impl Outputs {
+    fn run(&mut self, session: &mut Session, input: &Tensor<f32>) -> Result<(), VisionError> {
+        match self {
+            Outputs::Three(r) => r.run(session, input),
+            Outputs::Four(r) => r.run(session, input),
+        }
+    }
+
+    fn output(&self, i: usize) -> &[f32] {
+        match self {
+            Outputs::Three(r) => r.output(i),
+            Outputs::Four(r) => r.output(i),
+        }
+    }
+
+    fn heatmaps(&self) -> Option<&[f32]> {
+        match self {
+            Outputs::Three(_) => None,
+            Outputs::Four(r) => Some(r.output(3)),
+        }
+    }
 }
 
 debug_fields!(LandmarkModel { path, range });
@@ -216,10 +268,15 @@ impl LandmarkModel {
             batch.run.output(2),
         );
         let (n_lm, n_world) = (NUM_MODEL_LANDMARKS * 5, NUM_MODEL_LANDMARKS * 3);
+        let n_heat = HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS;
         for (i, (roi, out)) in rois.iter().zip(outs.iter_mut()).enumerate() {
             let lm = &lm[i * n_lm..(i + 1) * n_lm];
             let world = &world[i * n_world..(i + 1) * n_world];
-            decode(lm, world, presence[i], roi, out);
+            let heat = batch
+                .run
+                .heatmaps()
+                .map(|h| &h[i * n_heat..(i + 1) * n_heat]);
+            decode(lm, world, presence[i], heat, roi, out);
         }
         Ok(())
     }
@@ -267,18 +324,30 @@ fn fill_disc(roi: &Roi, disc: Disc, side: usize, value: f32, out: &mut [f32]) {
 }
 
 /// The landmark model's bound outputs for runs on `batch` crops.
-fn landmark_outputs(
-    session: &Session,
-    model: &Path,
-    batch: usize,
-) -> Result<BoundRun<3>, VisionError> {
-    BoundRun::new(
+fn landmark_outputs(session: &Session, model: &Path, batch: usize) -> Result<Outputs, VisionError> {
+    let has_heatmaps = session.outputs().iter().any(|o| o.name() == OUT_HEATMAP)
+        && std::env::var_os("RIGCAST_NO_HEATMAP").is_none();
+    if has_heatmaps {
+        return Ok(Outputs::Four(BoundRun::new(
+            session,
+            model,
+            [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD, OUT_HEATMAP],
+            [
+                NUM_MODEL_LANDMARKS * 5,
+                1,
+                NUM_MODEL_LANDMARKS * 3,
+                HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS,
+            ],
+            batch,
+        )?));
+    }
+    Ok(Outputs::Three(BoundRun::new(
         session,
         model,
         [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD],
         [NUM_MODEL_LANDMARKS * 5, 1, NUM_MODEL_LANDMARKS * 3],
         batch,
-    )
+    )?))
 }
 
 /// A zeroed input of `batch` square RGB images of `size` pixels.
@@ -332,13 +401,51 @@ pub(crate) fn build_session(
         .map_err(|e| model_err(model, e))
 }
 
+/// Landmark `i`'s crop point (each in [0, 1]) refined from its heatmap (`heat`: 64×64 cells,
+/// 39 channels last, logits): the sure-weighted mean of the cells within [`HEATMAP_REACH`]
+/// of its own cell, when the surest of them reaches [`HEATMAP_SURE`]. MediaPipe's pose graph
+/// refines its landmarks so; the regression head alone reads a few crop pixels off.
+fn refine(p: Vec2, heat: &[f32], i: usize) -> Vec2 {
+    let side = HEATMAP_SIDE as i32;
+    let cell = p * HEATMAP_SIDE as f32;
+    let (col, row) = (cell.x as i32, cell.y as i32);
+    if !(0..side).contains(&col) || !(0..side).contains(&row) {
+        return p;
+    }
+    let (mut sum, mut at, mut surest) = (0.0f32, Vec2::ZERO, 0.0f32);
+    for r in (row - HEATMAP_REACH).max(0)..(row + HEATMAP_REACH + 1).min(side) {
+        for c in (col - HEATMAP_REACH).max(0)..(col + HEATMAP_REACH + 1).min(side) {
+            let sure = sigmoid(heat[(r * side + c) as usize * NUM_MODEL_LANDMARKS + i]);
+            sum += sure;
+            at += Vec2::new(c as f32, r as f32) * sure;
+            surest = surest.max(sure);
+        }
+    }
+    if surest >= HEATMAP_SURE && sum > 0.0 {
+        at / (sum * HEATMAP_SIDE as f32)
+    } else {
+        p
+    }
+}
+
 /// Maps raw model outputs to frame pixels / metres.
-fn decode(raw: &[f32], raw_world: &[f32], presence: f32, roi: &Roi, out: &mut Landmarks) {
+fn decode(
+    raw: &[f32],
+    raw_world: &[f32],
+    presence: f32,
+    heat: Option<&[f32]>,
+    roi: &Roi,
+    out: &mut Landmarks,
+) {
     let inv = 1.0 / INPUT_SIZE as f32;
     for i in 0..NUM_MODEL_LANDMARKS {
         let r = &raw[i * 5..i * 5 + 5];
-        let n = Vec2::new(r[0] * inv - 0.5, r[1] * inv - 0.5);
-        let p = roi.to_frame(n);
+        let read = Vec2::new(r[0], r[1]) * inv;
+        let p = roi.to_frame(read - 0.5);
+        out.refined[i] = match heat.filter(|_| REFINED.contains(&i)) {
+            Some(heat) => roi.to_frame(refine(read, heat, i) - 0.5) - p,
+            None => Vec2::ZERO,
+        };
         // z shares x's crop-pixel scale.
         let z = r[2] * inv * roi.size;
         out.image[i] = Vec4::new(p.x, p.y, z, sigmoid(r[3]));
@@ -477,6 +584,7 @@ fn floor(v: f32) -> f32 {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use crate::vision::landmarks::idx;
 
     fn gradient_frame(w: u32, h: u32) -> RgbFrame {
         let mut f = RgbFrame::new(w, h);
@@ -632,6 +740,63 @@ mod tests {
         assert!(g(200, 128) > g(50, 128) + 100.0);
     }
 
+    /// Heatmaps (logits) nobody is sure of but one sure cell of landmark `i`'s.
+    fn one_sure_cell(i: usize, col: usize, row: usize) -> Vec<f32> {
+        let mut heat = vec![-10.0f32; HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS];
+        heat[(row * HEATMAP_SIDE + col) * NUM_MODEL_LANDMARKS + i] = 10.0;
+        heat
+    }
+
+    #[test]
+    fn a_landmark_moves_to_its_heatmaps_sure_cell_nearby_and_only_then() {
+        let cell = |c: f32, r: f32| Vec2::new(c, r) / HEATMAP_SIDE as f32;
+        let at = cell(22.5, 31.5);
+        // A sure cell two cells away: the landmark goes there (the other 48 cells of the
+        // window weigh 2e-3 together).
+        let moved = refine(at, &one_sure_cell(15, 20, 30), 15);
+        assert!(moved.distance(cell(20.0, 30.0)) < 0.01 / 64.0, "{moved}");
+        // Beyond the window, for another landmark, or only half sure: it stays.
+        assert_eq!(refine(at, &one_sure_cell(15, 40, 30), 15), at);
+        assert_eq!(refine(at, &one_sure_cell(16, 20, 30), 15), at);
+        let mut unsure = one_sure_cell(15, 20, 30);
+        unsure.iter_mut().for_each(|v| *v = v.min(-0.5));
+        assert_eq!(refine(at, &unsure, 15), at);
+        // A point outside the crop is left as the regression read it.
+        assert_eq!(
+            refine(cell(70.0, 30.0), &one_sure_cell(15, 63, 30), 15),
+            cell(70.0, 30.0)
+        );
+    }
+
+    #[test]
+    fn decode_keeps_the_bodys_refinement_beside_the_reading_and_none_for_the_face() {
+        let mut raw = [0.0f32; NUM_MODEL_LANDMARKS * 5];
+        for i in [idx::NOSE, idx::LEFT_WRIST] {
+            raw[i * 5] = 90.0; // crop pixel 90: heatmap cell 22.5
+            raw[i * 5 + 1] = 126.0;
+        }
+        let mut heat = one_sure_cell(idx::LEFT_WRIST, 20, 30);
+        heat[(30 * HEATMAP_SIDE + 20) * NUM_MODEL_LANDMARKS + idx::NOSE] = 10.0;
+        let world = [0.0f32; NUM_MODEL_LANDMARKS * 3];
+        let roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
+        let mut out = Landmarks::default();
+        decode(&raw, &world, 0.9, Some(&heat), &roi, &mut out);
+        let px = |i: usize| Vec2::new(out.image[i].x, out.image[i].y);
+        // The reading itself is the regression head's (what the tracker follows).
+        assert!(px(idx::LEFT_WRIST).distance(Vec2::new(90.0, 126.0)) < 1e-3);
+        assert!(out.refined[idx::LEFT_WRIST].distance(Vec2::new(-10.0, -6.0)) < 0.1);
+        assert_eq!(out.refined[idx::NOSE], Vec2::ZERO);
+        // The output takes it, once.
+        out.take_refinement();
+        assert!(px_of(&out, idx::LEFT_WRIST).distance(Vec2::new(80.0, 120.0)) < 0.1);
+        assert_eq!(out.refined[idx::LEFT_WRIST], Vec2::ZERO);
+        assert!(px_of(&out, idx::NOSE).distance(Vec2::new(90.0, 126.0)) < 1e-3);
+    }
+
+    fn px_of(lm: &Landmarks, i: usize) -> Vec2 {
+        Vec2::new(lm.image[i].x, lm.image[i].y)
+    }
+
     #[test]
     fn decode_maps_crop_centre_to_roi_centre() {
         let mut raw = [0.0f32; NUM_MODEL_LANDMARKS * 5];
@@ -641,7 +806,7 @@ mod tests {
         let world = [0.0f32; NUM_MODEL_LANDMARKS * 3];
         let roi = Roi::square(Vec2::new(500.0, 300.0), 400.0);
         let mut out = Landmarks::default();
-        decode(&raw, &world, 0.9, &roi, &mut out);
+        decode(&raw, &world, 0.9, None, &roi, &mut out);
         assert!((out.image[0].x - 500.0).abs() < 1e-3 && (out.image[0].y - 300.0).abs() < 1e-3);
         assert!(out.image[0].w > 0.99);
         assert!((out.presence - 0.9).abs() < 1e-6);

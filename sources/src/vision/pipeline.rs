@@ -215,6 +215,7 @@ impl PosePipeline {
             person.raw = *tracked;
             person.raw.picture = glam::Vec2::new(frame.width as f32, frame.height as f32);
             person.raw.scale_image(frame.source_from_frame);
+            person.raw.take_refinement();
             person
                 .stages
                 .process(&person.raw, frame.time_secs, &mut person.pose);

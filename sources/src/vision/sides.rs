@@ -528,6 +528,7 @@ pub(super) fn flip_interpretation(lm: &mut Landmarks) {
     for &(l, r) in &LR_PAIRS {
         lm.image.swap(l, r);
         lm.world.swap(l, r);
+        lm.refined.swap(l, r);
     }
 }
 
@@ -579,6 +580,15 @@ mod tests {
             lm.image[i] = Vec4::new(500.0 + 400.0 * world.x, 500.0 + 400.0 * world.y, 0.0, 1.0);
         }
         lm
+    }
+
+    #[test]
+    fn a_flip_carries_each_landmarks_refinement_with_its_label() {
+        let mut lm = body(0.0);
+        lm.refined[idx::LEFT_WRIST] = glam::Vec2::new(3.0, -2.0);
+        flip_interpretation(&mut lm);
+        assert_eq!(lm.refined[idx::RIGHT_WRIST], glam::Vec2::new(3.0, -2.0));
+        assert_eq!(lm.refined[idx::LEFT_WRIST], glam::Vec2::ZERO);
     }
 
     fn flipped(mut lm: Landmarks) -> Landmarks {
