@@ -165,8 +165,9 @@ fi
 # Made from the converted models with onnx and ONNX Runtime's own quantisation tools, in a
 # private venv removed afterwards. The int8 model is calibrated on the single-person clips above.
 # DERIVED names the version of the derivation: models derived by an older one are made again
-# (2: pruned models take a batch of crops; 3: they keep the heatmaps, which refine the landmarks).
-DERIVED_VERSION=3
+# (2: pruned models take a batch of crops; 3: they keep the heatmaps, which refine the landmarks;
+# 4: only the heatmaps of the landmarks refined, shoulders to feet).
+DERIVED_VERSION=4
 need_derived=0
 if [[ "$(cat "$ROOT/models/DERIVED" 2>/dev/null)" != "$DERIVED_VERSION" ]]; then
     rm -f "$ROOT"/models/pose_landmark_{lite,full,heavy}_pruned.onnx \

@@ -113,7 +113,8 @@ impl VisionAssets {
     }
 
     /// The copy of a landmark model with only the landmark, presence, world and heatmap
-    /// outputs (setup's derivations before 3 left the heatmaps out too).
+    /// outputs (setup's derivations before 3 left the heatmaps out too; from 4 the heatmaps
+    /// hold only the body's landmarks, shoulders to feet, the ones refined).
     pub fn pruned_landmark_model(&self, kind: ModelKind) -> PathBuf {
         let name = match kind {
             ModelKind::FullInt8 => "pose_landmark_full_int8.onnx".to_string(),

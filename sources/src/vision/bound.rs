@@ -133,7 +133,7 @@ impl<const N: usize> BoundRun<N> {
 
 /// The shape of float output `name` for `batch` inputs: a dynamic first dimension is the
 /// batch, other dynamic dimensions 1.
-fn output_shape(session: &Session, name: &str, batch: usize) -> Option<Vec<i64>> {
+pub(crate) fn output_shape(session: &Session, name: &str, batch: usize) -> Option<Vec<i64>> {
     let outlet = session.outputs().iter().find(|o| o.name() == name)?;
     match outlet.dtype() {
         ValueType::Tensor { ty, shape, .. } if *ty == ort::value::TensorElementType::Float32 => {

@@ -23,7 +23,7 @@ use ort::session::builder::GraphOptimizationLevel;
 use ort::session::Session;
 use ort::value::Tensor;
 
-use super::bound::{model_err, takes_batches, BoundRun};
+use super::bound::{model_err, output_shape, takes_batches, BoundRun};
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{sigmoid, Landmarks, NUM_MODEL_LANDMARKS};
@@ -114,28 +114,53 @@ struct Batch {
 /// were kept runs without them, unrefined).
 enum Outputs {
     Three(BoundRun<3>),
-    Four(BoundRun<4>),
+    Four(BoundRun<4>, HeatChannels),
+}
+
+/// Which landmarks a model's heatmap channels hold, in order from `first`: all 39 (setup's
+/// derivation 3), or only the [`REFINED`] ones (derivation 4 on: the prune script keeps only
+/// their channels of the heatmap head's last convolution, whose channels are computed
+/// independently, so the values read are the same for less work a run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HeatChannels {
+    count: usize,
+    first: usize,
+}
+
+/// One crop's heatmaps: 64×64 cells, `channels.count` logits a cell (channels last).
+#[derive(Clone, Copy)]
+struct Heat<'a> {
+    cells: &'a [f32],
+    channels: HeatChannels,
 }
 
 impl Outputs {
     fn run(&mut self, session: &mut Session, input: &Tensor<f32>) -> Result<(), VisionError> {
         match self {
             Outputs::Three(r) => r.run(session, input),
-            Outputs::Four(r) => r.run(session, input),
+            Outputs::Four(r, _) => r.run(session, input),
         }
     }
 
     fn output(&self, i: usize) -> &[f32] {
         match self {
             Outputs::Three(r) => r.output(i),
-            Outputs::Four(r) => r.output(i),
+            Outputs::Four(r, _) => r.output(i),
         }
     }
 
-    fn heatmaps(&self) -> Option<&[f32]> {
+    /// Crop `i`'s heatmaps from the last run, when fetched.
+    fn heatmaps(&self, i: usize) -> Option<Heat<'_>> {
         match self {
             Outputs::Three(_) => None,
-            Outputs::Four(r) => Some(r.output(3)),
+            Outputs::Four(r, channels) => {
+                let n = HEATMAP_SIDE * HEATMAP_SIDE * channels.count;
+                let cells = &r.output(3)[i * n..(i + 1) * n];
+                Some(Heat {
+                    cells,
+                    channels: *channels,
+                })
+            }
         }
     }
 }
@@ -268,15 +293,10 @@ impl LandmarkModel {
             batch.run.output(2),
         );
         let (n_lm, n_world) = (NUM_MODEL_LANDMARKS * 5, NUM_MODEL_LANDMARKS * 3);
-        let n_heat = HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS;
         for (i, (roi, out)) in rois.iter().zip(outs.iter_mut()).enumerate() {
             let lm = &lm[i * n_lm..(i + 1) * n_lm];
             let world = &world[i * n_world..(i + 1) * n_world];
-            let heat = batch
-                .run
-                .heatmaps()
-                .map(|h| &h[i * n_heat..(i + 1) * n_heat]);
-            decode(lm, world, presence[i], heat, roi, out);
+            decode(lm, world, presence[i], batch.run.heatmaps(i), roi, out);
         }
         Ok(())
     }
@@ -325,10 +345,13 @@ fn fill_disc(roi: &Roi, disc: Disc, side: usize, value: f32, out: &mut [f32]) {
 
 /// The landmark model's bound outputs for runs on `batch` crops.
 fn landmark_outputs(session: &Session, model: &Path, batch: usize) -> Result<Outputs, VisionError> {
-    let has_heatmaps = session.outputs().iter().any(|o| o.name() == OUT_HEATMAP)
-        && std::env::var_os("RIGCAST_NO_HEATMAP").is_none();
-    if has_heatmaps {
-        return Ok(Outputs::Four(BoundRun::new(
+    let heat_channels = output_shape(session, OUT_HEATMAP, batch)
+        .filter(|_| std::env::var_os("RIGCAST_NO_HEATMAP").is_none())
+        .map(|shape| heat_channels(*shape.last().unwrap_or(&0)))
+        .transpose()
+        .map_err(|e| model_err(model, e))?;
+    if let Some(channels) = heat_channels {
+        let run = BoundRun::new(
             session,
             model,
             [OUT_LANDMARKS, OUT_PRESENCE, OUT_WORLD, OUT_HEATMAP],
@@ -336,10 +359,11 @@ fn landmark_outputs(session: &Session, model: &Path, batch: usize) -> Result<Out
                 NUM_MODEL_LANDMARKS * 5,
                 1,
                 NUM_MODEL_LANDMARKS * 3,
-                HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS,
+                HEATMAP_SIDE * HEATMAP_SIDE * channels.count,
             ],
             batch,
-        )?));
+        )?;
+        return Ok(Outputs::Four(run, channels));
     }
     Ok(Outputs::Three(BoundRun::new(
         session,
@@ -401,11 +425,31 @@ pub(crate) fn build_session(
         .map_err(|e| model_err(model, e))
 }
 
-/// Landmark `i`'s crop point (each in [0, 1]) refined from its heatmap (`heat`: 64×64 cells,
-/// 39 channels last, logits): the sure-weighted mean of the cells within [`HEATMAP_REACH`]
+/// The heatmap channels a model with `count` of them a cell holds: every landmark's, or the
+/// [`REFINED`] ones'.
+fn heat_channels(count: i64) -> Result<HeatChannels, String> {
+    match usize::try_from(count) {
+        Ok(NUM_MODEL_LANDMARKS) => Ok(HeatChannels {
+            count: NUM_MODEL_LANDMARKS,
+            first: 0,
+        }),
+        Ok(n) if n == REFINED.len() => Ok(HeatChannels {
+            count: n,
+            first: REFINED.start,
+        }),
+        _ => Err(format!(
+            "heatmaps with {count} channels (expected {NUM_MODEL_LANDMARKS} or {})",
+            REFINED.len()
+        )),
+    }
+}
+
+/// Landmark `i`'s crop point (each in [0, 1]) refined from its heatmap (logits, `i` one of
+/// [`REFINED`]): the sure-weighted mean of the cells within [`HEATMAP_REACH`]
 /// of its own cell, when the surest of them reaches [`HEATMAP_SURE`]. MediaPipe's pose graph
 /// refines its landmarks so; the regression head alone reads a few crop pixels off.
-fn refine(p: Vec2, heat: &[f32], i: usize) -> Vec2 {
+fn refine(p: Vec2, heat: Heat<'_>, i: usize) -> Vec2 {
+    let HeatChannels { count, first } = heat.channels;
     let side = HEATMAP_SIDE as i32;
     let cell = p * HEATMAP_SIDE as f32;
     let (col, row) = (cell.x as i32, cell.y as i32);
@@ -415,7 +459,7 @@ fn refine(p: Vec2, heat: &[f32], i: usize) -> Vec2 {
     let (mut sum, mut at, mut surest) = (0.0f32, Vec2::ZERO, 0.0f32);
     for r in (row - HEATMAP_REACH).max(0)..(row + HEATMAP_REACH + 1).min(side) {
         for c in (col - HEATMAP_REACH).max(0)..(col + HEATMAP_REACH + 1).min(side) {
-            let sure = sigmoid(heat[(r * side + c) as usize * NUM_MODEL_LANDMARKS + i]);
+            let sure = sigmoid(heat.cells[(r * side + c) as usize * count + i - first]);
             sum += sure;
             at += Vec2::new(c as f32, r as f32) * sure;
             surest = surest.max(sure);
@@ -433,7 +477,7 @@ fn decode(
     raw: &[f32],
     raw_world: &[f32],
     presence: f32,
-    heat: Option<&[f32]>,
+    heat: Option<Heat<'_>>,
     roi: &Roi,
     out: &mut Landmarks,
 ) {
@@ -747,23 +791,68 @@ mod tests {
         heat
     }
 
+    /// `cells` as a model with every landmark's heatmap gives them.
+    fn all(cells: &[f32]) -> Heat<'_> {
+        let channels = heat_channels(NUM_MODEL_LANDMARKS as i64).unwrap();
+        Heat { cells, channels }
+    }
+
+    #[test]
+    fn heatmaps_of_the_refined_landmarks_only_refine_as_all_of_them_do() {
+        // Varied logits, then each cell's channels of the refined landmarks alone (what the
+        // prune script's sliced last convolution gives).
+        let every: Vec<f32> = (0..HEATMAP_SIDE * HEATMAP_SIDE * NUM_MODEL_LANDMARKS)
+            .map(|k| ((k * 7919) % 1013) as f32 / 101.3 - 4.0)
+            .collect();
+        let sliced: Vec<f32> = every
+            .chunks(NUM_MODEL_LANDMARKS)
+            .flat_map(|cell| cell[REFINED].iter().copied())
+            .collect();
+        let channels = heat_channels(REFINED.len() as i64).unwrap();
+        assert_eq!(
+            channels,
+            HeatChannels {
+                count: 22,
+                first: 11
+            }
+        );
+        let some = Heat {
+            cells: &sliced,
+            channels,
+        };
+        let mut moved = 0;
+        for i in REFINED {
+            for at in [
+                Vec2::new(0.3, 0.7),
+                Vec2::new(0.01, 0.5),
+                Vec2::new(0.9, 0.99),
+            ] {
+                let want = refine(at, all(&every), i);
+                assert_eq!(refine(at, some, i), want, "landmark {i} at {at}");
+                moved += usize::from(want != at);
+            }
+        }
+        assert!(moved > 0, "no landmark was refined: the test shows nothing");
+        assert!(heat_channels(38).is_err() && heat_channels(0).is_err());
+    }
+
     #[test]
     fn a_landmark_moves_to_its_heatmaps_sure_cell_nearby_and_only_then() {
         let cell = |c: f32, r: f32| Vec2::new(c, r) / HEATMAP_SIDE as f32;
         let at = cell(22.5, 31.5);
         // A sure cell two cells away: the landmark goes there (the other 48 cells of the
         // window weigh 2e-3 together).
-        let moved = refine(at, &one_sure_cell(15, 20, 30), 15);
+        let moved = refine(at, all(&one_sure_cell(15, 20, 30)), 15);
         assert!(moved.distance(cell(20.0, 30.0)) < 0.01 / 64.0, "{moved}");
         // Beyond the window, for another landmark, or only half sure: it stays.
-        assert_eq!(refine(at, &one_sure_cell(15, 40, 30), 15), at);
-        assert_eq!(refine(at, &one_sure_cell(16, 20, 30), 15), at);
+        assert_eq!(refine(at, all(&one_sure_cell(15, 40, 30)), 15), at);
+        assert_eq!(refine(at, all(&one_sure_cell(16, 20, 30)), 15), at);
         let mut unsure = one_sure_cell(15, 20, 30);
         unsure.iter_mut().for_each(|v| *v = v.min(-0.5));
-        assert_eq!(refine(at, &unsure, 15), at);
+        assert_eq!(refine(at, all(&unsure), 15), at);
         // A point outside the crop is left as the regression read it.
         assert_eq!(
-            refine(cell(70.0, 30.0), &one_sure_cell(15, 63, 30), 15),
+            refine(cell(70.0, 30.0), all(&one_sure_cell(15, 63, 30)), 15),
             cell(70.0, 30.0)
         );
     }
@@ -780,7 +869,7 @@ mod tests {
         let world = [0.0f32; NUM_MODEL_LANDMARKS * 3];
         let roi = Roi::square(Vec2::new(128.0, 128.0), 256.0);
         let mut out = Landmarks::default();
-        decode(&raw, &world, 0.9, Some(&heat), &roi, &mut out);
+        decode(&raw, &world, 0.9, Some(all(&heat)), &roi, &mut out);
         let px = |i: usize| Vec2::new(out.image[i].x, out.image[i].y);
         // The reading itself is the regression head's (what the tracker follows).
         assert!(px(idx::LEFT_WRIST).distance(Vec2::new(90.0, 126.0)) < 1e-3);
