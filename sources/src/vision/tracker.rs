@@ -7,7 +7,9 @@
 //! The finder runs every frame while nobody is tracked or someone established was lost within
 //! the last second, else every `find_every_frames` frames (stretched while passes find nobody
 //! and the longer a lost person stays away, and while the picture outside the tracked people
-//! stays as the finder last saw it: `change`) while fewer than `max_people` are tracked; a
+//! stays as the finder last saw it: `change`; much further while its passes have seen nobody
+//! but the people tracked, a change appearing in a still picture bringing the pass forward)
+//! while fewer than `max_people` are tracked; a
 //! finder pass is one detector pass (the regions of `DETECTOR_REGIONS` taking
 //! turns, every other frame where someone was just lost), so one person in view costs about
 //! what `max_people: 1` costs whatever `max_people` is, and the detector runs at most once a
@@ -157,6 +159,12 @@ const BACKOFF_FRAMES: u32 = 10;
 /// See [`PoseTracker::find_interval`]: the idle interval grows to this many times
 /// [`TrackerConfig::find_every_frames`].
 const IDLE_BACKOFF: u32 = 4;
+
+/// See [`PoseTracker::find_interval`]: while the finder's passes have seen nobody but the
+/// people tracked, its interval grows to this many times [`TrackerConfig::find_every_frames`]
+/// (160 frames, about five seconds at 30 frames a second), and a change appearing in a still
+/// picture makes the next pass due at once instead.
+const ALONE_BACKOFF: u32 = 16;
 
 /// A track held this many frames is someone: losing them makes the finder eager and keeps their
 /// slot for them. A track lost sooner was a passing misreading (a poster, a reflection, the
@@ -361,6 +369,12 @@ pub struct PoseTracker {
     /// [`PoseTracker::find_interval`]): [`TrackerConfig::find_every_frames`], doubled after
     /// every such pass that found nobody, up to [`IDLE_BACKOFF`] times it.
     idle_interval: u32,
+    /// The finder's interval while its passes have seen nobody but the people tracked (see
+    /// [`PoseTracker::find_interval`]): doubled after every such pass, up to
+    /// [`ALONE_BACKOFF`] times [`TrackerConfig::find_every_frames`].
+    alone_interval: u32,
+    /// A pass since someone was last found or lost saw someone untracked.
+    others_seen: bool,
     /// Someone was lost in this frame's [`Self::track`] (the finder is due in its `find`).
     lost_now: bool,
     /// The detector region the next finder pass looks at (see [`DETECTOR_REGIONS`]).
@@ -405,6 +419,8 @@ impl PoseTracker {
             batch_results: vec![Landmarks::default(); config.max_people],
             frames_since_find: 0,
             idle_interval: config.find_every_frames.max(1),
+            alone_interval: config.find_every_frames.max(1),
+            others_seen: false,
             lost_now: false,
             next_region: 0,
             round_from_empty: false,
@@ -456,6 +472,9 @@ impl PoseTracker {
     pub fn reset(&mut self) {
         self.tracks.fill(Track::EMPTY);
         self.watch.reset();
+        self.idle_interval = self.config.find_every_frames.max(1);
+        self.alone_interval = self.idle_interval;
+        self.others_seen = false;
     }
 
     /// Processes one frame: every tracked person once ([`Self::track`]), then the finder when
@@ -520,6 +539,7 @@ impl PoseTracker {
             let started = std::time::Instant::now();
             let runs_before = self.stats.inferences;
             let tracks_before = self.stats.tracks_started;
+            let seen_before = std::mem::replace(&mut self.others_seen, false);
             self.look_where_lost(frame)?;
             match self.config.finder {
                 Finder::Detector => self.find_by_detector(frame)?,
@@ -531,10 +551,20 @@ impl PoseTracker {
             // someone was just lost, or while the picture is being searched from empty, says
             // nothing about how often to look with everyone held.
             let idle_pass = !(lost_now || recently_lost || num_tracked == 0 || first_round);
+            let seen_now = self.others_seen;
+            self.others_seen |= seen_before;
             if lost_now || self.stats.tracks_started > tracks_before {
                 self.idle_interval = base;
-            } else if idle_pass {
-                self.idle_interval = (self.idle_interval * 2).min(base * IDLE_BACKOFF);
+                self.alone_interval = base;
+                self.others_seen = false;
+            } else {
+                if idle_pass {
+                    self.idle_interval = (self.idle_interval * 2).min(base * IDLE_BACKOFF);
+                }
+                // An idle pass that saw nobody but the people tracked.
+                if !seen_now && idle_pass {
+                    self.alone_interval = (self.alone_interval * 2).min(base * ALONE_BACKOFF);
+                }
             }
             self.stats.find_nanos += started.elapsed().as_nanos() as u64;
         }
@@ -556,15 +586,23 @@ impl PoseTracker {
     /// doubled by every pass that finds nobody, up to [`IDLE_BACKOFF`] times. A pass costs
     /// about as much as tracking someone: the longer someone has been away, or the picture
     /// has shown nobody new, the less likely the next frame does, and one performer alone
-    /// then costs a pass every `IDLE_BACKOFF × find_every_frames` frames.
+    /// then costs a pass every `IDLE_BACKOFF × find_every_frames` frames. While the passes
+    /// since someone was last found or lost have seen nobody but the people tracked (the
+    /// first round of regions after someone was found among them) and nobody established is
+    /// away, the interval doubles on up to [`ALONE_BACKOFF`] times instead (see
+    /// [`Self::idle_due`] for what brings the pass forward).
     fn find_interval(&self) -> u32 {
-        let idle = self.idle_interval;
-        self.tracks
+        let awaited = self
+            .tracks
             .iter()
             .filter(|t| t.awaited())
             .map(|t| (t.lost_frames / BACKOFF_FRAMES).max(1))
-            .min()
-            .map_or(idle, |n| n.min(idle))
+            .min();
+        match awaited {
+            Some(n) => n.min(self.idle_interval),
+            None if self.others_seen => self.idle_interval,
+            None => self.alone_interval,
+        }
     }
 
     /// Whether the finder's interval (see [`Self::find_interval`]) has passed and the pass is
@@ -582,6 +620,12 @@ impl PoseTracker {
         {
             return true;
         }
+        self.picture_changed(frame)
+    }
+
+    /// Whether the picture outside the tracked people changed since the finder last looked
+    /// at the region its next pass searches (see `change`).
+    fn picture_changed(&mut self, frame: &RgbFrame) -> bool {
         let region = self.next_look_region();
         self.note_bodies();
         self.watch.changed(region, frame, &self.bodies)
@@ -1003,6 +1047,10 @@ impl PoseTracker {
         };
         detector.detect_in(frame, &self.candidates[region], &mut self.detections)?;
         self.stats.detections += 1;
+        self.others_seen |= self
+            .detections
+            .iter()
+            .any(|d| !self.is_tracked_detection(d));
         self.start_detected(frame)?;
         self.note_look(region, frame);
         Ok(())
@@ -1087,6 +1135,7 @@ impl PoseTracker {
         if best_presence < self.config.presence_threshold {
             return Ok(());
         }
+        self.others_seen = true;
         // Re-crop around the person found; keep a refinement only if it is still a person.
         for _ in 0..self.config.refine_passes {
             let Some(roi) = next_roi(&best) else { break };
