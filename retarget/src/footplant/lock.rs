@@ -302,6 +302,9 @@ struct Foot {
     /// to the animation's ([`FootLock::fit_to_standing`]).
     standing_pitch: f32,
     pitch_fix: f32,
+    /// Live: how long (seconds) this foot has stood flat under a lock, what its `pitch_fix`
+    /// has been learnt from ([`FootLock::learn_fit`]).
+    fit_secs: f32,
     /// The foot's left-to-right axis, fixed in the foot bone's frame: what it pitches about.
     side_local: Vec3,
     /// A direction fixed in the foot bone's frame whose way over the ground is the foot's
@@ -654,6 +657,7 @@ impl Foot {
             foot_length: 0.0,
             standing_pitch: 0.0,
             pitch_fix: 0.0,
+            fit_secs: 0.0,
             side_local: Vec3::Z,
             heading_local: Vec3::X,
             pole_local: Vec3::X,
@@ -990,6 +994,14 @@ impl FootLock {
             let rolled = stance.rolled(foot.ball(), foot.standing_pitch, foot.pitch_fix);
             let foot = &mut self.feet[i];
             if rolled <= 0.0 {
+                // The mean of the frames seen so far until they span the running average's
+                // time: a foot's first flat stance sets its pitch at once, which from zero
+                // took the average a second or two, the character's feet tipped by the whole
+                // gap meanwhile (live, the CMU walk onto X Bot: the foot 11° and 9° off in
+                // its first two seconds, 2.5-4.9 after). A planted foot stands at its pinned
+                // pitch whatever the fit; the one it pitches is the foot it learns on.
+                foot.fit_secs += dt;
+                let k = k.max(dt / foot.fit_secs);
                 foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
             }
             rise += clearance - (stance.ankle - rolled);
