@@ -1652,12 +1652,23 @@ impl FootLock {
     }
 
     /// The height along up at which foot `i`'s ankle is pinned when it lands with its ankle at
-    /// `ankle`: where the source's heel is known, its standing height plus the heel's lift;
+    /// `ankle`: where the source's heel is known, its standing height plus the heel's lift, or,
+    /// landing toes down, as high as stands its ball at its standing height at the animation's
+    /// pitch, whichever is higher (as [`Foot::roll`] stands a foot on its ball);
     /// else its lowest contact settled onto its standing height, plus the foot's lift.
     fn pin_height(&self, i: usize, ankle: Vec3, animated: Vec3) -> f32 {
         let f = &self.feet[i];
         match f.heel_lift {
-            Some(h) => self.floor + f.heel_clearance + h,
+            Some(h) => {
+                let heel = self.floor + f.heel_clearance + h;
+                // A foot landing toes down (the source's heel up) keeps the animation's pitch,
+                // its ball on its standing height: the ankle as high as that asks.
+                let ball = (f.leg.toes).filter(|_| f.heel_rise > 0.0).map(|t| {
+                    let o = self.worlds[t.index()].translation - animated;
+                    self.floor + f.ball_clearance + f.lift - o.dot(self.up)
+                });
+                ball.map_or(heel, |b| heel.max(b))
+            }
             None => ankle.dot(self.up) + self.landing_settle(i, ankle, animated) + f.lift,
         }
     }
