@@ -1208,9 +1208,13 @@ fn pair_wanted(name: &str) -> bool {
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's raw error
 /// frame by frame with its heading part and both pitches). Of 152 pairs whose legs' roles
-/// map right, within the bounds: thigh and shin 136, foot 73 of the 84 with toes on both rigs
+/// map right, within the bounds: thigh and shin 136, foot 74 of the 84 with toes on both rigs
 /// (57 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the foot's
-/// where both rigs have toes) 127, since a pinned foot whose source stands on its ball alone
+/// where both rigs have toes) 128, since a foot landing toes down is brought to the ankle
+/// height its own ball asks at the animation's pitch, not only to the source's heel's (73
+/// and 127 before; never pitching an approaching ball down onto its standing height, only
+/// up, gave foot 82 but floor 133, drift 143 and every bound 111: the landings' floor), since
+/// a pinned foot whose source stands on its ball alone
 /// rolls onto its ball as far as its own length asks, its ball where it stood and the
 /// animation's pitch kept, not only as far as the source's heel rises (blended in and out
 /// over the blends' half-life: switched at once, foot_lock's largest kick on the mannequin
