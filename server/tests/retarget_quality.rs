@@ -1076,49 +1076,10 @@ fn measure_legs(
     })
 }
 
-/// A human foot, ankle to the ball's joint, over the leg (hip to knee to ankle), where the
-/// other rig's is not known: the CMU 131_01 performer's (0.153) (as `footlock_live_legs` reads
-/// its rest).
-const FOOT_PER_LEG: f32 = 0.153;
-
-/// `l`'s foot (ankle to labelled toes in its rest) over its leg, mean over both sides.
-fn foot_per_leg(l: &Labelled) -> Option<f32> {
-    let s = &l.clip.skeleton;
-    let rest = world_transforms(s, &s.rest_pose());
-    let p = |r: String| l.bone(&r).map(|b| rest[b.index()].translation);
-    let mut foot = 0.0;
-    for side in ["L", "R"] {
-        foot += 0.5 * (p(sided("toes", side))? - p(sided("foot", side))?).length();
-    }
-    Some(foot / leg_length(s, l)?)
-}
-
-/// The least horizontal move (along `up`'s plane) of a point of the sole segment from the
-/// ankle `a0` to `a0 + d0` on the frame before, to `a1` to `a1 + d1` on this one: the point a
-/// foot whose toes are not rigged may stand still on while its ankle goes round it. Each point
-/// moves `(a1 - a0) + t (d1 - d0)` for `t` in 0..=1 (0 the ankle), least where that line comes
-/// nearest the origin. (`footlock_live_legs` reads the live feet alike.)
-fn least_sole_move(a0: Vec3, d0: Vec3, a1: Vec3, d1: Vec3, up: Vec3) -> f32 {
-    let flat = |v: Vec3| v - up * v.dot(up);
-    let (m, dm) = (flat(a1 - a0), flat(d1 - d0));
-    let t = (-m.dot(dm) / dm.length_squared().max(1e-12)).clamp(0.0, 1.0);
-    (m + dm * t).length()
-}
-
 /// How far `l`'s foot joints move over the ground per frame in `clip` on the frames `stands`
 /// (each side's, from the source) and the frame before: cm/frame of a 1.75 m body, mean over
-/// both sides. `contact`: only the point the foot stands on (its labelled foot joint nearest
+/// both sides. `contact`: only the joint the foot stands on (its labelled foot joint nearest
 /// the floor), else every foot joint `other` has too.
-///
-/// A foot whose toes are neither labelled nor rigged (no joint below its foot bone, as a glTF
-/// character's may be) stands on a sole the skeleton does not show: it is not sliding if some
-/// point of that sole stays still. With `contact` it is read at the point of the segment from
-/// its ankle to one foot length ahead along its heading over the ground that moves least
-/// ([`least_sole_move`]), the foot length the other rig's (its performer's, for a target)
-/// scaled by the legs ([`foot_per_leg`], else [`FOOT_PER_LEG`]), the heading a direction fixed
-/// in the foot bone's frame that points where the character faces in its rest. The ankle is
-/// one end of that segment, so this reads no higher than the ankle alone, which is what the
-/// every-joint figure (`contact` false) reads on such a foot. The live judge reads alike.
 fn standing_drift(
     l: &Labelled,
     other: &Labelled,
@@ -1128,20 +1089,17 @@ fn standing_drift(
 ) -> Option<f32> {
     let s = &clip.skeleton;
     let (_, up) = foot_tracks_up(l, other, clip)?;
-    let leg = leg_length(s, l)?;
-    let scale = LEG_OF_175_CM_BODY / leg;
-    let transforms: Vec<Vec<rigcast_retarget::WorldTransform>> =
-        clip.poses.iter().map(|p| world_transforms(s, p)).collect();
-    let worlds: Vec<Vec<Vec3>> = (transforms.iter())
-        .map(|w| w.iter().map(|w| w.translation).collect())
+    let scale = LEG_OF_175_CM_BODY / leg_length(s, l)?;
+    let worlds: Vec<Vec<Vec3>> = clip
+        .poses
+        .iter()
+        .map(|p| {
+            world_transforms(s, p)
+                .iter()
+                .map(|w| w.translation)
+                .collect()
+        })
         .collect();
-    let rest = world_transforms(s, &s.rest_pose());
-    let sole = foot_per_leg(other).unwrap_or(FOOT_PER_LEG) * leg;
-    let hip = |side: &str| {
-        l.bone(&sided("upperLeg", side))
-            .map(|b| rest[b.index()].translation)
-    };
-    let ahead_at_rest = (hip("L")? - hip("R")?).cross(up);
     let (mut sum, mut n) = (0.0f32, 0usize);
     for (side, stand) in ["L", "R"].iter().zip(stands) {
         // The contact is the rig's own (its toes count where the other rig has none).
@@ -1153,30 +1111,14 @@ fn standing_drift(
         // A foot whose toes are not labelled may still end in a joint of its own (a BVH End
         // Site ahead of and below the ankle, as the CMU-style rigs' feet do): the foot stands
         // on it too, and the lock turns such a foot about it.
-        let mut sole_of = None;
         if let Some(foot) = l.bone(&sided("foot", side)).filter(|_| contact) {
             if l.bone(&sided("toes", side)).is_none() {
                 let leaves = s.children(foot).iter().copied();
                 joints.extend(leaves.filter(|c| s.children(*c).is_empty()));
-                if s.children(foot).is_empty() {
-                    sole_of = Some((foot, rest[foot.index()].rotation.inverse() * ahead_at_rest));
-                }
             }
         }
         for f in 1..worlds.len().min(stand.len()) {
             if !(stand[f] && stand[f - 1]) {
-                continue;
-            }
-            if let Some((foot, ahead_local)) = sole_of {
-                let ahead = |w: &[rigcast_retarget::WorldTransform]| {
-                    let d = w[foot.index()].rotation * ahead_local;
-                    (d - up * d.dot(up)).normalize_or_zero() * sole
-                };
-                let (t0, t1) = (&transforms[f - 1], &transforms[f]);
-                let (a0, a1) = (t0[foot.index()].translation, t1[foot.index()].translation);
-                let cm = least_sole_move(a0, ahead(t0), a1, ahead(t1), up) * 100.0 * scale;
-                sum += cm;
-                n += 1;
                 continue;
             }
             // The joint the foot stands on: the one nearest the floor on the frame before.

@@ -12,17 +12,11 @@
 //!   own side axis by how far its rest's standing foot is pitched past the source's (the
 //!   unlocked foot's median pitch over the frames the lock shows it planted), the raw
 //!   direction printed beside it;
-//! - planted-foot drift: the horizontal move per frame of the point the foot stands on while
-//!   the lock's `footplants` messages show the foot planted (both frames), cm of a 1.75 m
-//!   body, as the offline measure judges it. A foot with labelled toes: its foot or toe joint,
-//!   the lower on the frame before (a foot rolling over its ball moves its ankle without
-//!   sliding). A foot whose toes are not rigged stands on a sole the skeleton does not show:
-//!   it is not sliding if some point of that sole stays still, so the judge reads the point of
-//!   the sole that moves least ([`least_sole_move`]: the segment from the ankle to one foot
-//!   length ahead along the foot's heading over the ground, the performer's foot scaled by
-//!   the legs, [`Walk::foot_per_leg`]). The ankle is one end of that segment, so this reads
-//!   no higher than the ankle alone would, and can read lower: the ankle-only figure (the
-//!   judge before) is printed beside it, `(ankle)`, with the move of every foot joint;
+//! - planted-foot drift: the horizontal move per frame of the joint the foot stands on (its
+//!   labelled foot or toe joint, the lower on the frame before) while the lock's `footplants`
+//!   messages show the foot planted (both frames), cm of a 1.75 m body, as the offline measure
+//!   judges it (a foot rolling over its ball moves its ankle without sliding); the move of
+//!   every foot joint printed beside it;
 //! - feet on the floor: on those frames, the 95th percentile of how far the foot's lowest
 //!   joint stands from its height in the character's own rest (authored standing on y = 0).
 //!   A foot without labelled toes only where the performer's ankle stands within 1 cm (of a
@@ -200,28 +194,6 @@ struct Walk {
     feet: [Vec<f32>; 2],
     /// 1 cm of a 1.75 m body, in the walk's units.
     near: f32,
-    /// The performer's foot (ankle to toes in its rest) over its leg (hip to knee to ankle):
-    /// how long a sole the skeleton does not show is judged on a character's leg, as the lock
-    /// takes it (the performer's foot scaled; the lock scales by the hips' height, the judge by
-    /// the legs). Without labelled toes, `FOOT_PER_LEG`.
-    foot_per_leg: f32,
-}
-
-/// A human foot, ankle to the ball's joint, over the leg (hip to knee to ankle) when the
-/// performer's is not known: the CMU 131_01 performer's (0.153) (measured by this test's
-/// `Walk::new` on its rest).
-const FOOT_PER_LEG: f32 = 0.153;
-
-/// The least horizontal move (along `up`'s plane) of a point of the sole segment from the
-/// ankle `a0` to `a0 + d0` on the frame before, to `a1` to `a1 + d1` on this one: the point a
-/// foot whose toes are not rigged may stand still on while its ankle goes round it. Each point
-/// moves `(a1 - a0) + t (d1 - d0)` for `t` in 0..=1 (0 the ankle), least where that line comes
-/// nearest the origin.
-fn least_sole_move(a0: Vec3, d0: Vec3, a1: Vec3, d1: Vec3, up: Vec3) -> f32 {
-    let flat = |v: Vec3| v - up * v.dot(up);
-    let (m, dm) = (flat(a1 - a0), flat(d1 - d0));
-    let t = (-m.dot(dm) / dm.length_squared().max(1e-12)).clamp(0.0, 1.0);
-    (m + dm * t).length()
 }
 
 impl Walk {
@@ -242,17 +214,12 @@ impl Walk {
         let hips = bone("hips".into())?;
         let mut feet: [Vec<f32>; 2] = Default::default();
         let mut leg = 0.0;
-        let mut foot: Option<f32> = Some(0.0);
         for (k, side) in ["L", "R"].iter().enumerate() {
             let [u, l, f] = ["upperLeg", "lowerLeg", "foot"].map(|r| bone(format!("{r}.{side}")));
             let (u, l, f) = (u?, l?, f?);
             leg += 0.5
                 * ((rest[l.index()] - rest[u.index()]).length()
                     + (rest[f.index()] - rest[l.index()]).length());
-            let toes = bone(format!("toes.{side}"));
-            foot = foot
-                .zip(toes)
-                .map(|(s, t)| s + 0.5 * (rest[t.index()] - rest[f.index()]).length());
             // The ankle's floor: the 5th percentile of its heights (most frames of a walk have
             // the foot down; a dip through the floor does not move it).
             let mut heights: Vec<f32> = worlds.iter().map(|w| w[f.index()].y).collect();
@@ -265,7 +232,6 @@ impl Walk {
             hips: worlds.iter().map(|w| w[hips.index()].y).collect(),
             feet,
             near: 0.01 * leg / LEG_OF_175_CM_BODY,
-            foot_per_leg: foot.map_or(FOOT_PER_LEG, |f| f / leg),
         })
     }
 
@@ -330,8 +296,6 @@ struct Legs {
     foot: (f32, f32),
     raw_foot: (f32, f32),
     drift: f32,
-    /// The same with a foot whose toes are not rigged judged at its ankle (the judge before).
-    ankle_drift: f32,
     /// The same over every foot joint (an ankle rolling over its ball included).
     joints_drift: f32,
     planted_frames: usize,
@@ -395,12 +359,6 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
         .sum::<f32>()
         / legs.len() as f32;
     let body = LEG_OF_175_CM_BODY / leg_length;
-    // A sole the skeleton does not show: the performer's foot scaled by the legs, ahead of the
-    // ankle along a direction fixed in the foot bone's frame that points where the character
-    // faces in its rest (left hip to right hip, across up).
-    let sole = walk.foot_per_leg * leg_length;
-    let hips_across = rest[legs[0].0[0]] - rest[legs[1].0[0]];
-    let ahead_at_rest = hips_across.cross(Vec3::Y);
     let hips = index("hips".into()).unwrap_or_else(|| panic!("{}: hips not labelled", rig.rel));
     let walk_frame = walk.frames_of(free, hips);
     // The free character's frames by capture time: the same source sample.
@@ -423,9 +381,6 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
     // higher than the ankle), and its left-to-right axis fixed in the foot bone's frame (what
     // it pitches about, carried by the bone however it turns).
     let rest_rot = world_rotations(bones, |i| Quat::from_array(bones[i].rest_rotation));
-    let ahead_local: Vec<Vec3> = (legs.iter())
-        .map(|(l, _)| rest_rot[l[2]].inverse() * ahead_at_rest)
-        .collect();
     let own: Vec<Option<(Option<f32>, Vec3)>> = (legs.iter())
         .map(|(l, toes)| {
             let (ankle, toes) = (rest[l[2]], rest[(*toes)?]);
@@ -459,11 +414,10 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
     let mut own_errors = Vec::new();
     let mut errors: [Vec<f32>; 3] = Default::default();
     let (mut drift_sum, mut drift_n) = (0.0f32, 0usize);
-    let mut ankle_sum = 0.0f32;
     let (mut all_sum, mut all_n) = (0.0f32, 0usize);
     let mut off_floor = Vec::new();
     let mut frames = 0;
-    let mut last: Option<(u64, Vec<Vec3>, Vec<Quat>)> = None;
+    let mut last: Option<(u64, Vec<Vec3>)> = None;
     let first = locked.frames.first().map_or(0, |f| f.header.capture_nanos);
     let mut shown = None;
     let one_pass = (locked.frames.iter())
@@ -472,10 +426,10 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
         .filter(|f| shown.replace(f.header.seq) != Some(f.header.seq));
     for f in one_pass {
         let w = wire_fk(bones, f);
-        let rot = world_rotations(bones, |i| f.rotations[i]);
         if let Some(g) = free_at.get(&f.header.capture_nanos) {
             frames += 1;
             let v = wire_fk(&free.bones, g);
+            let rot = world_rotations(bones, |i| f.rotations[i]);
             for ((l, toes), (own, standing)) in legs.iter().zip(own.iter().zip(&standing)) {
                 let chain = [Some(l[0]), Some(l[1]), Some(l[2]), *toes];
                 for k in 0..3 {
@@ -510,7 +464,7 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
             if toes.is_some() || src.is_some_and(|&k| walk.down(side, k)) {
                 off_floor.push(lowest.abs() * 100.0 * body);
             }
-            if let Some((seq, before, rot_before)) = &last {
+            if let Some((seq, before)) = &last {
                 if *seq + 1 == f.header.seq && planted_at(*seq, l[2]) {
                     let moved = |j: usize| {
                         let d = w[j] - before[j];
@@ -520,20 +474,7 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
                     let contact = (joints.iter().copied())
                         .min_by(|&a, &b| before[a].y.total_cmp(&before[b].y))
                         .unwrap_or(l[2]);
-                    ankle_sum += moved(contact);
-                    drift_sum += match toes {
-                        Some(_) => moved(contact),
-                        None => {
-                            let ahead = |r: &[Quat]| {
-                                let d = r[l[2]] * ahead_local[side];
-                                Vec3::new(d.x, 0.0, d.z).normalize_or_zero() * sole
-                            };
-                            let (a0, a1) = (before[l[2]], w[l[2]]);
-                            let least =
-                                least_sole_move(a0, ahead(rot_before), a1, ahead(&rot), Vec3::Y);
-                            least * 100.0 * body
-                        }
-                    };
+                    drift_sum += moved(contact);
                     drift_n += 1;
                     for &j in &joints {
                         all_sum += moved(j);
@@ -542,7 +483,7 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
                 }
             }
         }
-        last = Some((f.header.seq, w, rot));
+        last = Some((f.header.seq, w));
     }
     let [thigh, shin, raw_foot] = errors.map(mean_p95);
     let foot = mean_p95(own_errors);
@@ -555,7 +496,6 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
         foot,
         raw_foot,
         drift: drift_sum / drift_n.max(1) as f32,
-        ankle_drift: ankle_sum / drift_n.max(1) as f32,
         joints_drift: all_sum / all_n.max(1) as f32,
         planted_frames,
         floor_p95: off_floor
@@ -573,11 +513,7 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
     };
     let mut failures = Vec::new();
     println!(
-        "a sole the skeleton does not show judged {:.3} of the leg long (the performer's foot)",
-        walk.foot_per_leg
-    );
-    println!(
-        "{:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7} {:>7} {:>7} {:>7}",
+        "{:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7} {:>7} {:>7}",
         "target (live, the first walk)",
         "frames",
         "thigh°",
@@ -585,7 +521,6 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
         "foot°",
         "(raw°)",
         "drift",
-        "(ankle)",
         "floor",
         "(drift)"
     );
@@ -602,14 +537,13 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
         let f = measure(rig, locked, free, pass_nanos, &walk);
         let pair = |(m, p): (f32, f32)| format!("{m:.1}/{p:.1}");
         println!(
-            "{rel:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7.3} {:>7.3} {:>7.2} {:>7.3}  ({} planted foot-frames)",
+            "{rel:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7.3} {:>7.2} {:>7.3}  ({} planted foot-frames)",
             f.frames,
             pair(f.thigh),
             pair(f.shin),
             pair(f.foot),
             pair(f.raw_foot),
             f.drift,
-            f.ankle_drift,
             f.floor_p95,
             f.joints_drift,
             f.planted_frames

@@ -474,23 +474,9 @@ impl Foot {
     fn pivot_of(&self, contact: Contact) -> f32 {
         match contact {
             Contact::Ball => 1.0,
-            _ if self.ball().is_none() || self.heel_clearance <= self.ball_clearance => 0.0,
+            _ if self.heel_clearance <= self.ball_clearance => 0.0,
             _ => 1.0,
         }
-    }
-
-    /// A foot whose toes are not rigged still stands on a ball, as the performer's does: where
-    /// the skeleton would show it, the source's foot length scaled ([`Foot::heel_reach`])
-    /// ahead of the ankle over the ground, along its heading (`rotation` the foot bone's);
-    /// `None` without a source foot. A performer turning on the ball of such a foot (a turn on
-    /// the spot) sweeps its heel, and the ankle above it, round that point: a pin turned
-    /// about the ankle held the ankle where the animation's went round, and the legs took up
-    /// the difference (the CMU 131_01 walk's turn at 2.0-2.4 s onto Quaternius Casual, live:
-    /// the left pin 25 cm behind its animated ankle, both legs bent through the double stance).
-    fn sole_ball(&self, up: Vec3, rotation: Quat) -> Option<Vec3> {
-        let ahead = rotation * self.heading_local;
-        let flat = (ahead - up * ahead.dot(up)).try_normalize()?;
-        (self.heel_reach > 0.0).then_some(flat * self.heel_reach)
     }
 
     /// Turns the pin to `heading` about the point `share` of the way from its heel to its
@@ -508,14 +494,6 @@ impl Foot {
         share: f32,
     ) {
         if let Some((from, to)) = balls {
-            if self.ball().is_none() {
-                // A ball the skeleton does not show ([`Foot::sole_ball`]): the ankle, over the
-                // heel, goes round it.
-                let moved = (from - to) * share;
-                self.lock_position += moved - up * moved.dot(up);
-                self.lock_heading = heading;
-                return;
-            }
             let ball = |o: Vec3| {
                 let ankle = self.pinned_ankle(up, floor, Some(o));
                 let len = o.length();
@@ -735,10 +713,9 @@ fn standing_foot(
         .toes
         .map(|t| w(t).translation - ankle)
         .unwrap_or(Vec3::ZERO);
-    let flat = |v: Vec3| (v - up * v.dot(up)).try_normalize();
-    // A foot whose toes are not rigged points where the character faces.
-    let heading_dir = flat(ahead)
-        .or_else(|| flat(target.forward))
+    let flat = ahead - up * ahead.dot(up);
+    let heading_dir = flat
+        .try_normalize()
         .unwrap_or_else(|| up.any_orthonormal_vector());
     let knee = w(leg.lower).translation;
     let hip = w(leg.upper).translation;
@@ -768,15 +745,8 @@ fn standing_foot(
             .and_then(|rest| own_side_axis(leg, rest, target.up))
             .unwrap_or_else(|| w(leg.foot).rotation.inverse() * heading_dir.cross(up)),
         // Towards the ball: a pinned ball keeps its place however the foot twists.
-        heading_local: match (leg.toes, own) {
-            // A foot whose toes are not rigged points where the character faces as it stands
-            // in its own rest ([`Foot::sole_ball`] lies that way). The aligned rest poses it as
-            // the performer's rest foot stands: a ball read off that lay off the foot the
-            // character shows, and the pin's turn about it slid every point of its sole
-            // (CMU 131_01 live onto the three toeless characters: 0.06-0.10 cm/frame).
-            (None, Some(rest)) => rest[leg.foot.index()].rotation.inverse() * heading_dir,
-            _ => w(leg.foot).rotation.inverse() * ahead.try_normalize().unwrap_or(heading_dir),
-        },
+        heading_local: w(leg.foot).rotation.inverse()
+            * ahead.try_normalize().unwrap_or(heading_dir),
         pole_local: (w(leg.upper).rotation.inverse() * pole).normalize_or_zero(),
         carried: leg.carried.then(|| {
             let shin = w(leg.lower);
@@ -1469,10 +1439,7 @@ impl FootLock {
                 continue;
             }
             let heading = wrap(f.lock_heading + turn);
-            let ball = match f.leg.toes {
-                Some(t) => Some(self.worlds[t.index()].translation - w.translation),
-                None => f.sole_ball(up, w.rotation),
-            };
+            let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - w.translation);
             let ball_at = |h: f32| ball.map(|o| Quat::from_axis_angle(up, wrap(h - animated)) * o);
             let balls = ball_at(f.lock_heading).zip(ball_at(heading));
             let f = &mut self.feet[i];
@@ -2165,38 +2132,6 @@ mod tests {
                 "{share} {rise}: {moved} vs {expected}"
             );
         }
-    }
-
-    #[test]
-    fn a_toeless_foot_turning_on_its_ball_goes_round_the_ball_the_skeleton_does_not_show() {
-        let up = Vec3::Y;
-        let mut foot = pinned_foot(false);
-        // Its heading in the foot bone's frame: +X; the performer's foot 12 cm long.
-        let ball = foot.sole_ball(up, Quat::IDENTITY).unwrap();
-        assert!((ball - Vec3::X * 0.12).length() < 1e-6, "{ball}");
-        let turned = Quat::from_axis_angle(up, 0.5);
-        let o_to = foot.sole_ball(up, turned).unwrap();
-        // On its ball (a turn on the spot): the ankle goes round the ball, which stays put.
-        let stood = foot.lock_position + ball;
-        foot.turn_about(
-            up,
-            0.0,
-            0.5,
-            Some((ball, o_to)),
-            foot.pivot_of(Contact::Ball),
-        );
-        assert!((flat(foot.lock_position + o_to - stood)).length() < 1e-6);
-        assert!((foot.lock_position - stood + ball).length() > 0.05);
-        // Standing on its heel or flat, it turns about the ankle, the one joint it shows.
-        for contact in [Contact::Heel, Contact::Flat] {
-            let mut foot = pinned_foot(false);
-            let before = foot.lock_position;
-            foot.turn_about(up, 0.0, 0.5, Some((ball, o_to)), foot.pivot_of(contact));
-            assert!((foot.lock_position - before).length() < 1e-6, "{contact:?}");
-        }
-        // Without a source foot there is no ball to turn about.
-        foot.heel_reach = 0.0;
-        assert_eq!(foot.sole_ball(up, Quat::IDENTITY), None);
     }
 
     #[test]
