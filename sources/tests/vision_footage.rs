@@ -674,27 +674,37 @@ fn standing_at(x: f32) -> Points {
     p
 }
 
+/// A run of ours (`slots` per frame) and MediaPipe's (`frames`) on a 1000×600 picture, with
+/// nothing else measured: what the judge's counting tests read.
+fn synthetic_runs(
+    slots: Vec<Vec<Option<Points>>>,
+    frames: Vec<Option<Points>>,
+) -> (Ours, MediaPipeRun) {
+    let ours = Ours {
+        width: 1000.0,
+        height: 600.0,
+        slots,
+        scene: Vec::new(),
+        fps: 0.0,
+        detections: 0,
+        inferences: 0,
+        second_opinions: 0,
+    };
+    let theirs = MediaPipeRun {
+        frames,
+        world: Vec::new(),
+        width: 1000.0,
+        height: 600.0,
+        fps: 0.0,
+        cached: true,
+    };
+    (ours, theirs)
+}
+
 #[test]
 fn mediapipes_person_is_followed_through_the_slots_that_show_them() {
     let run = |ours: Vec<Vec<Option<Points>>>, theirs: Vec<Option<Points>>| {
-        let ours = Ours {
-            width: 1000.0,
-            height: 600.0,
-            slots: ours,
-            scene: Vec::new(),
-            fps: 0.0,
-            detections: 0,
-            inferences: 0,
-            second_opinions: 0,
-        };
-        let theirs = MediaPipeRun {
-            frames: theirs,
-            world: Vec::new(),
-            width: 1000.0,
-            height: 600.0,
-            fps: 0.0,
-            cached: true,
-        };
+        let (ours, theirs) = synthetic_runs(ours, theirs);
         followed(&ours, &theirs, 1000.0)
     };
     // MediaPipe's person walks right 5 px a frame; #0 shows them for 4 frames, is lost for
@@ -735,34 +745,19 @@ fn mediapipes_person_is_followed_through_the_slots_that_show_them() {
 #[test]
 fn frames_where_only_rigcasts_first_slot_shows_someone_are_counted() {
     // #0 shows someone in frames 0-5, #1 in 6-9; MediaPipe in 0-2 and 8-9: #0 alone in 3-5.
-    let ours = Ours {
-        width: 1000.0,
-        height: 600.0,
-        slots: (0..10)
-            .map(|i| {
-                let someone = Some(standing_at(100.0));
-                if i < 6 {
-                    vec![someone, None]
-                } else {
-                    vec![None, someone]
-                }
-            })
-            .collect(),
-        scene: Vec::new(),
-        fps: 0.0,
-        detections: 0,
-        inferences: 0,
-        second_opinions: 0,
-    };
-    let theirs = MediaPipeRun {
-        frames: (0..10)
-            .map(|i| (i < 3 || i >= 8).then(|| standing_at(100.0)))
-            .collect(),
-        world: Vec::new(),
-        width: 1000.0,
-        height: 600.0,
-        fps: 0.0,
-        cached: true,
-    };
+    let slots = (0..10)
+        .map(|i| {
+            let someone = Some(standing_at(100.0));
+            if i < 6 {
+                vec![someone, None]
+            } else {
+                vec![None, someone]
+            }
+        })
+        .collect();
+    let frames = (0..10)
+        .map(|i| (i < 3 || i >= 8).then(|| standing_at(100.0)))
+        .collect();
+    let (ours, theirs) = synthetic_runs(slots, frames);
     assert_eq!(unconfirmed(&ours, &theirs), 3);
 }
