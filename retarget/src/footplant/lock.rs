@@ -2015,6 +2015,13 @@ mod tests {
         Vec3::new(heading.cos() * reach, -drop, -heading.sin() * reach)
     }
 
+    /// Where the ball of `pinned_foot(true)` stands when the animation holds the foot flat,
+    /// heading 0.4 rad: the point the tests of a rising foot expect to stay put.
+    fn ball_standing_flat(foot: &mut Foot) -> Vec3 {
+        let flat_ball = ball_offset(0.15, 0.4, 0.06);
+        foot.pinned_ankle(Vec3::Y, 0.0, Some(flat_ball)) + flat_ball
+    }
+
     fn flat(v: Vec3) -> Vec3 {
         Vec3::new(v.x, 0.0, v.z)
     }
@@ -2053,8 +2060,7 @@ mod tests {
     fn a_foot_rising_onto_its_ball_keeps_the_ball_where_it_stood() {
         let up = Vec3::Y;
         let mut foot = pinned_foot(true);
-        let flat_ball = ball_offset(0.15, 0.4, 0.06);
-        let stood = foot.pinned_ankle(up, 0.0, Some(flat_ball)) + flat_ball;
+        let stood = ball_standing_flat(&mut foot);
         assert!((stood.y - 0.02).abs() < 1e-6, "{stood}");
         // The performer's heel 4 cm over its toes, the animation's foot pitched so: the ankle
         // rises 4 cm and comes towards the ball, which stays put.
@@ -2073,8 +2079,7 @@ mod tests {
     fn a_foot_on_its_ball_rolls_as_far_as_its_own_length_asks() {
         let up = Vec3::Y;
         let mut foot = pinned_foot(true);
-        let flat_ball = ball_offset(0.15, 0.4, 0.06);
-        let stood = foot.pinned_ankle(up, 0.0, Some(flat_ball)) + flat_ball;
+        let stood = ball_standing_flat(&mut foot);
         // The animation pitches the foot so its ball is 10 cm under the ankle (4 cm of rise
         // past standing), the performer's shorter foot raising its heel only 2 cm.
         foot.take_heel(0.0, Some(0.02));
