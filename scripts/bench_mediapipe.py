@@ -3,8 +3,10 @@ scripts/bench-vision.sh compares `rigcast pose` with.
 
 Usage: bench_mediapipe.py VIDEO lite|full [PEOPLE] [--max-frames N] [--landmarks OUT.json]
 Prints one line: `mediapipe MODEL VIDEO people=P frames=N with_person=N found=N0,N1,...,NP
-fps_with_decoding=X fps_model_only=Y` (`found`: the timed frames by how many people were found
-in them, 0 to P). `--max-frames` stops after N frames (the warm-up frame included);
+fps_with_decoding=X fps_model_only=Y cpu_ms_per_frame=C decoder_cpu_ms_per_frame=D` (`found`: the
+timed frames by how many people were found in them, 0 to P; `C`: CPU time a timed frame, this
+process's after the warm-up frame plus the whole of ffmpeg's, which is `D`: on a shared machine
+the CPU a frame is what the load does not swing as it swings the frame rate). `--max-frames` stops after N frames (the warm-up frame included);
 `--landmarks` (one person only) writes `{"width", "height", "frames": [...], "world": [...]}`
 with, per frame (the warm-up frame included), `null` or the 33 landmarks: in `frames` as
 `[x, y, visibility]` in pixels, in `world` as `[x, y, z]` in metres (MediaPipe's world
@@ -24,6 +26,7 @@ match `solutions.pose`'s within 1-2.5 px a point (mean) on a person alone, asked
 """
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -107,6 +110,8 @@ probe = json.loads(subprocess.check_output(
 w, h = probe["width"], probe["height"]
 track = tracker(model, people)
 # First frame outside the timing: MediaPipe builds its graph lazily.
+# The decoder's CPU (ffprobe's left out) is read from the children's usage once it is waited for.
+children_before = resource.getrusage(resource.RUSAGE_CHILDREN)
 ff = subprocess.Popen(["ffmpeg", "-nostdin", "-v", "error", "-i", video, "-f", "rawvideo",
                        "-pix_fmt", "rgb24", "-"], stdout=subprocess.PIPE)
 frame_bytes = w * h * 3
@@ -126,17 +131,24 @@ while max_frames is None or index < max_frames:
     index += 1
     if start is None:
         start = time.perf_counter()  # the clock starts after the first (warm-up) frame
+        cpu_start = time.process_time()
         continue
     model_secs += time.perf_counter() - t
     frames += 1
     found += n >= people
     by_count[min(n, people)] += 1
 total = time.perf_counter() - start
+cpu = time.process_time() - cpu_start
 ff.kill()
 ff.wait()
+children = resource.getrusage(resource.RUSAGE_CHILDREN)
+decoder_cpu = (children.ru_utime - children_before.ru_utime
+               + children.ru_stime - children_before.ru_stime)
 if landmarks_out:
     with open(landmarks_out, "w") as out:
         json.dump({"width": w, "height": h, "frames": [p and p[0] for p in per_frame],
                    "world": [p and p[1] for p in per_frame]}, out)
 print(f"mediapipe {model} {video} people={people} frames={frames} with_person={found} "
-      f"found={','.join(map(str, by_count))} fps_with_decoding={frames / total:.1f} fps_model_only={frames / model_secs:.1f}")
+      f"found={','.join(map(str, by_count))} fps_with_decoding={frames / total:.1f} fps_model_only={frames / model_secs:.1f} "
+      f"cpu_ms_per_frame={1e3 * (cpu + decoder_cpu) / max(frames, 1):.2f} "
+      f"decoder_cpu_ms_per_frame={1e3 * decoder_cpu / max(frames, 1):.2f}")

@@ -151,12 +151,37 @@ impl<F: FnMut(&mut RgbFrame) -> bool + Send> FrameSource for Edited<F> {
     }
 }
 
-/// The process's CPU time so far (user + system), seconds.
-pub fn cpu_secs() -> f64 {
+/// Fields `at` and `at + 1` of `/proc/self/stat` summed (clock ticks) in seconds, counted from
+/// the first field after the process name (the line's third).
+fn stat_secs(at: usize) -> f64 {
     let stat = std::fs::read_to_string("/proc/self/stat").unwrap();
     let after = &stat[stat.rfind(')').unwrap() + 2..];
     let fields: Vec<&str> = after.split(' ').collect();
-    // utime and stime are fields 14 and 15 of the line (11 and 12 after the name).
-    let ticks: f64 = fields[11].parse::<f64>().unwrap() + fields[12].parse::<f64>().unwrap();
+    let ticks: f64 = fields[at].parse::<f64>().unwrap() + fields[at + 1].parse::<f64>().unwrap();
     ticks / 100.0
+}
+
+/// The process's CPU time so far (user + system, every thread), seconds.
+pub fn cpu_secs() -> f64 {
+    // utime and stime are fields 14 and 15 of the line (11 and 12 after the name).
+    stat_secs(11)
+}
+
+/// The CPU time (user + system) of this process's children that have ended and been waited
+/// for, seconds: an ffmpeg decoder's once its source is dropped.
+pub fn children_cpu_secs() -> f64 {
+    // cutime and cstime are fields 16 and 17 of the line.
+    stat_secs(13)
+}
+
+/// The calling thread's CPU time so far, seconds (the scheduler's count, in nanoseconds): for
+/// leaving a test's own work out of the process's.
+pub fn thread_cpu_secs() -> f64 {
+    let stat = std::fs::read_to_string("/proc/thread-self/schedstat").unwrap_or_default();
+    let ns: f64 = stat
+        .split_whitespace()
+        .next()
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0.0);
+    ns * 1e-9
 }

@@ -15,6 +15,10 @@
 //! by default), left/right agreement, the detector runs per frame, the landmark model runs per
 //! frame (with the second-opinion model's where the first's left/right readings were in doubt),
 //! and the frame rate with decoding on both sides (each clock started after the first frame).
+//! Beside the frame rates, the CPU time a frame with decoding on both sides: each program's
+//! process after its first frame plus the whole of its ffmpeg decoder's (rigcast's less the
+//! judge's own measure of the scene's motion); on a shared machine the load swings the frame
+//! rates, each program's and so their ratio, far more than the CPU a frame (see `cpu_text`).
 //! Left/right is judged against the 3D reference where the clip is a camera of a calibrated rig
 //! (the pose2sim single-person demo: `common/reference3d.rs`, triangulated from the rig's other
 //! cameras), elsewhere against MediaPipe where its reading is decisive and steady and both show
@@ -101,6 +105,8 @@ struct Ours {
     /// `scene_motion`).
     scene: Vec<Vec2>,
     fps: f64,
+    /// CPU time a frame with decoding, ms (see the module docs).
+    cpu_ms: f64,
     detections: u64,
     /// Landmark model runs (crops).
     inferences: u64,
@@ -159,16 +165,20 @@ fn points(lm: &rigcast_sources::vision::Landmarks) -> Points {
 fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
     let mut pipeline = PosePipeline::new(config).unwrap();
     let mut source = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, 30.0).unwrap();
+    // ffprobe has ended, ffmpeg not: the children's CPU from here on is the decoder's.
+    let children_before = common::children_cpu_secs();
     // The clock starts after the first frame, as `bench_mediapipe.py`'s does for MediaPipe
-    // (whose graph is built lazily on it): start-up is not the frame rate.
+    // (whose graph is built lazily on it): start-up is not the frame rate. So does this
+    // process's CPU count; the decoder's counts whole on both sides.
     let mut started = None;
+    let mut cpu_started = 0.0;
     // Landmarks come in the source's pixels; the frames are decoded smaller.
     let (decoded_width, decoded_height) = source.size();
     let mut frame = RgbFrame::default();
     let mut slots = Vec::new();
     let mut to_source = 1.0;
-    // The judge's own measure of the scene's motion is kept out of the frame rate.
-    let (mut thumbs, mut thumb_secs) = (Vec::new(), 0.0);
+    // The judge's own measure of the scene's motion is kept out of the frame rate and CPU.
+    let (mut thumbs, mut thumb_secs, mut thumb_cpu) = (Vec::new(), 0.0, 0.0);
     while max.is_none_or(|m| slots.len() < m) && source.next_frame(&mut frame).unwrap() {
         to_source = frame.source_from_frame;
         pipeline.process_frame(&frame).unwrap();
@@ -177,14 +187,23 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
                 .map(|s| pipeline.person(s).map(points))
                 .collect(),
         );
-        let thumb_started = Instant::now();
+        let (thumb_started, thumb_cpu_started) = (Instant::now(), common::thread_cpu_secs());
         thumbs.push(Thumb::new(&frame.data, frame.width, frame.height));
         if started.is_some() {
             thumb_secs += thumb_started.elapsed().as_secs_f64();
+            thumb_cpu += common::thread_cpu_secs() - thumb_cpu_started;
         }
-        started.get_or_insert_with(Instant::now);
+        started.get_or_insert_with(|| {
+            cpu_started = common::cpu_secs();
+            Instant::now()
+        });
     }
     let secs = started.map_or(0.0, |t| t.elapsed().as_secs_f64()) - thumb_secs;
+    let cpu = common::cpu_secs() - cpu_started - thumb_cpu;
+    // Dropping the source waits for ffmpeg (killed if frames were left).
+    drop(source);
+    let decoder_cpu = common::children_cpu_secs() - children_before;
+    let timed = slots.len().saturating_sub(1).max(1) as f64;
     if let Some(dir) = std::env::var_os("RIGCAST_FOOTAGE_DUMP") {
         let name = path.file_name().unwrap().to_string_lossy();
         let file = Path::new(&dir).join(format!("{name}.{}.json", config.model.as_str()));
@@ -196,6 +215,7 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
         height: decoded_height as f32 * to_source,
         scene: scene_track(&thumbs, width),
         fps: slots.len().saturating_sub(1) as f64 / secs.max(1e-9),
+        cpu_ms: 1e3 * (cpu + decoder_cpu) / timed,
         slots,
         detections: pipeline.stats().detections,
         inferences: pipeline.stats().inferences,
@@ -400,6 +420,7 @@ struct SpeedAnchor {
     crowd: Option<MediaPipeCrowd>,
     /// MediaPipe asked for `people`: its one-person tracker for 1.
     fps: f64,
+    cpu_ms: Option<f64>,
     cached: bool,
 }
 
@@ -420,6 +441,21 @@ impl SpeedAnchor {
     }
 }
 
+/// The CPU a frame with decoding, ours against MediaPipe's (`theirs`, ms; `None` from a cache
+/// written before the script printed it), and their ratio: MediaPipe's over ours, as the
+/// frame rates' ratio is ours over theirs. A cached anchor's CPU is from another run, often
+/// over every frame of the clip: marked so, as it is read the same way at any load.
+fn cpu_text(ours: f64, theirs: Option<f64>, cached: bool) -> String {
+    match theirs {
+        None => format!("{ours:.1} / - | -"),
+        Some(t) => format!(
+            "{ours:.1} / {t:.1} | {:.2}{}",
+            t / ours.max(1e-9),
+            if cached { " (cached)" } else { "" }
+        ),
+    }
+}
+
 /// The speed anchor of `clip` (see [`SpeedAnchor`]): MediaPipe asked for `max_people` counts
 /// the people (its own multi-person tracker, independent of rigcast's); that run is the anchor
 /// when it counts as many, MediaPipe asked for the count when fewer but two or more, and its
@@ -435,6 +471,7 @@ fn speed_anchor(
         people: 1,
         crowd,
         fps: one.fps,
+        cpu_ms: one.cpu_ms,
         cached: one.cached,
     };
     if max_people < 2 {
@@ -445,16 +482,17 @@ fn speed_anchor(
     if people < 2 {
         return single(Some(crowd));
     }
-    let (fps, cached) = if people == crowd.asked {
-        (crowd.fps, crowd.cached)
+    let (fps, cpu_ms, cached) = if people == crowd.asked {
+        (crowd.fps, crowd.cpu_ms, crowd.cached)
     } else {
         let asked = run_mediapipe_crowd(python, clip, max, "full", people);
-        (asked.fps, asked.cached)
+        (asked.fps, asked.cpu_ms, asked.cached)
     };
     SpeedAnchor {
         people,
         crowd: Some(crowd),
         fps,
+        cpu_ms,
         cached,
     }
 }
@@ -511,7 +549,7 @@ fn judge_clip(
     );
     let Ok(python) = &anchors.mediapipe else {
         return (
-            format!("{ours_text} - | - | {our_jumps}, {our_scene_jumps} (-) | - | {tail} - | - | - | - | - |"),
+            format!("{ours_text} - | - | {our_jumps}, {our_scene_jumps} (-) | - | {tail} - | - | - | - | - | {:.1} / - | - |", ours.cpu_ms),
             failures,
         );
     };
@@ -550,7 +588,7 @@ fn judge_clip(
         }
     };
     let row = format!(
-        "{ours_text} {theirs_cov:.1} ({}) | {:.1}, {mp_changes} | {our_jumps}, {our_scene_jumps} ({}, {}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} | {} | {} |",
+        "{ours_text} {theirs_cov:.1} ({}) | {:.1}, {mp_changes} | {our_jumps}, {our_scene_jumps} ({}, {}) | {agreement} ({reference}, {against}) | {tail} {:.1} | {} | {} | {} | {} |",
         unconfirmed(&ours, &theirs),
         percent(mp_held, mp_seen),
         jumps(theirs.frames.iter().map(Option::as_ref), &[], side),
@@ -559,6 +597,7 @@ fn judge_clip(
         speed.text(),
         ratio(theirs.fps, theirs.cached),
         ratio(speed.fps, speed.cached),
+        cpu_text(ours.cpu_ms, speed.cpu_ms, speed.cached),
     );
     if coverage.first().copied().unwrap_or(0.0) < theirs_cov - 1.0 {
         failures.push(format!(
@@ -618,8 +657,8 @@ fn judge() -> Vec<String> {
             .unwrap_or_default()
             .trim()
     );
-    println!("| clip | frames | coverage per slot % | MediaPipe % (frames only #0 shows someone in) | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) |", max_people = config.tracker.max_people);
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| clip | frames | coverage per slot % | MediaPipe % (frames only #0 shows someone in) | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) | CPU ms a frame with decoding, rigcast / MediaPipe for the clip's people | CPU ratio, MediaPipe's ÷ rigcast's (the bound's, steadier at load) |", max_people = config.tracker.max_people);
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let anchors = Anchors {
         mediapipe,
         rig: rig.as_ref(),
@@ -686,6 +725,7 @@ fn synthetic_runs(
         slots,
         scene: Vec::new(),
         fps: 0.0,
+        cpu_ms: 0.0,
         detections: 0,
         inferences: 0,
         second_opinions: 0,
@@ -696,6 +736,7 @@ fn synthetic_runs(
         width: 1000.0,
         height: 600.0,
         fps: 0.0,
+        cpu_ms: None,
         cached: true,
     };
     (ours, theirs)

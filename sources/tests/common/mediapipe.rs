@@ -22,8 +22,20 @@ pub struct MediaPipeRun {
     pub height: f32,
     /// Frames a second with decoding.
     pub fps: f64,
+    /// CPU time a frame with decoding, ms (see [`cpu_ms`]).
+    pub cpu_ms: Option<f64>,
     /// Read back from `RIGCAST_MEDIAPIPE_CACHE` (its frame rate is from another run).
     pub cached: bool,
+}
+
+/// The CPU time a timed frame in `bench_mediapipe.py`'s summary line `stdout`, ms: its Python
+/// process's after the warm-up frame plus its ffmpeg decoder's whole. `None` in a line written
+/// before the script printed it (a cache from then).
+fn cpu_ms(stdout: &str) -> Option<f64> {
+    stdout
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix("cpu_ms_per_frame="))
+        .and_then(|v| v.parse().ok())
 }
 
 /// The venv's python with MediaPipe 0.10.14, or the reason there is none.
@@ -63,6 +75,8 @@ pub struct MediaPipeCrowd {
     pub found: Vec<usize>,
     /// Frames a second with decoding.
     pub fps: f64,
+    /// CPU time a frame with decoding, ms (see [`cpu_ms`]).
+    pub cpu_ms: Option<f64>,
     /// Read back from `RIGCAST_MEDIAPIPE_CACHE` (its frame rate is from another run).
     pub cached: bool,
 }
@@ -132,6 +146,7 @@ pub fn run_mediapipe_crowd(
         asked: people,
         found,
         fps: field("fps_with_decoding=").parse().unwrap(),
+        cpu_ms: cpu_ms(&stdout),
         cached: was_cached,
     }
 }
@@ -259,6 +274,7 @@ pub fn run_mediapipe_model(
         width: size("width"),
         height: size("height"),
         fps,
+        cpu_ms: cpu_ms(&stdout),
         cached: was_cached,
     }
 }
