@@ -330,6 +330,8 @@ pub struct PlantTrack {
     lifts: Vec<f32>,
     /// The same for the heel (foot joint) alone.
     heel_lifts: Vec<f32>,
+    /// The same for the ball (toes joint; the heel where the foot has none).
+    ball_lifts: Vec<f32>,
     /// The same layout: which contacts of the foot hold ([`contact_of`]); `None` where neither
     /// does, it has no ball, or in a track built from flags.
     contacts: Vec<Option<Contact>>,
@@ -347,6 +349,7 @@ impl PlantTrack {
             legs,
             planted,
             heel_lifts: lifts.clone(),
+            ball_lifts: lifts.clone(),
             contacts: vec![None; lifts.len()],
             lifts,
             belt: None,
@@ -380,6 +383,15 @@ impl PlantTrack {
     pub fn heel_lifts(&self, frame: usize) -> &[f32] {
         let n = self.legs.len();
         self.heel_lifts
+            .get(frame * n..(frame + 1) * n)
+            .unwrap_or(&[])
+    }
+
+    /// How high every leg's ball (toes joint; the heel where the foot has none) is above its
+    /// ground at `frame`.
+    pub fn ball_lifts(&self, frame: usize) -> &[f32] {
+        let n = self.legs.len();
+        self.ball_lifts
             .get(frame * n..(frame + 1) * n)
             .unwrap_or(&[])
     }
@@ -435,6 +447,7 @@ pub fn detect_clip(
         planted: vec![false; nl * n],
         lifts: vec![0.0; nl * n],
         heel_lifts: vec![0.0; nl * n],
+        ball_lifts: vec![0.0; nl * n],
         contacts: vec![None; nl * n],
         belt: c.belt,
         legs,
@@ -451,6 +464,8 @@ pub fn detect_clip(
             track.lifts[i * nl + f] = if lift.is_finite() { lift } else { 0.0 };
             // The heel is the leg's first contact.
             track.heel_lifts[i * nl + f] = c.height(mine[0], i);
+            // The ball is its last (the heel again on a foot without one).
+            track.ball_lifts[i * nl + f] = c.height(mine[mine.len() - 1], i);
             track.contacts[i * nl + f] = c.contact(&mine, i, &track.legs[f], planted, settings);
         }
     }

@@ -30,8 +30,10 @@
 //!                     pinned: the foot rolled on its pin with the animation's pitch
 //!                     (`Foot::roll`): on its ball while that is pitched lower than standing,
 //!                     else on its heel and stood flat (ball pitched down to its standing
-//!                     height, about the heel: the pin comes forward), blended in and out
-//!                     the same way; its heading (the way its ball points) turned with the
+//!                     height, about the heel: the pin comes forward; offline no lower than
+//!                     the source's ball stands over its own flat standing height, scaled:
+//!                     a heel strike's toes come down as the performer's do), blended in
+//!                     and out the same way; its heading (the way its ball points) turned with the
 //!                     animation's over the blends' half-life about the joint it stands on
 //!                     (`turn_pins`, before the root is carried, which takes up the pin's
 //!                     move; with plants given as flags alone: held, dragged past
@@ -154,6 +156,8 @@ const FLATTEN_FADE_LEVEL: f32 = 0.2;
 struct Lifts {
     foot: [f32; MAX_FEET],
     heel: [f32; MAX_FEET],
+    /// Offline: how high its ball stands above its ground (its heel's where it has none).
+    ball: Option<[f32; MAX_FEET]>,
     landing: [f32; MAX_FEET],
     /// The ball comes down with the ankle ahead of a plant (offline, where the plant is
     /// known; live the foot keeps the animation's pitch, toes up for a heel strike: a ball
@@ -321,6 +325,16 @@ struct Foot {
     /// ahead of a plant ([`FootLock::pin_height`]), the foot's lift plus how much higher the
     /// source's heel stands than its lowest contact (a foot landing toes first).
     heel_lift: Option<f32>,
+    /// Offline, once [`FootLock::fit_to_standing`] has read it: how high above its ground the
+    /// source's ball stands while the source's foot stands flat (source units, the median
+    /// over those frames). A ball joint sits above the sole, and rolling over it at a toe-off
+    /// takes it lower than standing does: the ground the detector reads is that low point
+    /// (LaFAN1's stands 2 cm above it, the CMU 31-joint rig's 4-5 cm, scaled to X Bot).
+    ball_standing: Option<f32>,
+    /// How far the source's ball stands above that this frame (scaled to the target, never
+    /// below 0; `None` where not known): how far a pinned or landing foot's ball may stay
+    /// above its standing height ([`FootLock::flatten`]).
+    ball_lift: Option<f32>,
     /// How much higher the source's heel stands above its ground than its lowest contact
     /// (scaled to the target; offline, 0 where not known): how far the foot may roll onto its
     /// ball ([`Foot::roll`]); a foot without one, by how much its ankle rises with the heel.
@@ -433,6 +447,21 @@ impl Foot {
         // The ball stays on its pin: the ankle comes forward by how much shorter the foot's
         // reach over the ground is, pitched to stand its heel that high.
         dir * (flat(rise) - flat(rise - lifted)) + up * lifted
+    }
+
+    /// The height a pinned foot's ball, `now` at that height, is brought to over a floor at
+    /// `floor`: its standing height (plus the foot's lift) where it is lower, else no higher
+    /// than the source's ball stands over its own flat standing height (`ball_lift`, offline;
+    /// where that is not known, its standing height: stood flat). At a heel strike the
+    /// performer's toes come down after the heel, and the foot keeps the animation's pitch
+    /// until they have: stood flat at once, LaFAN1's walk onto X Bot had its feet pitched
+    /// down onto the floor 3 frames ahead of each plant and for 8 after it, 6-21° off the
+    /// performer's.
+    fn ball_goal(&self, floor: f32, now: f32) -> f32 {
+        let lowest = floor + self.ball_clearance + self.lift;
+        let highest =
+            (self.ball_lift).map_or(lowest, |b| lowest.max(floor + self.ball_clearance + b));
+        clamp_safe(now, lowest, highest)
     }
 
     /// Takes this frame's lift of the source's foot (its lowest contact over its ground,
@@ -664,6 +693,8 @@ impl Foot {
             locked: false,
             lift: 0.0,
             heel_lift: None,
+            ball_standing: None,
+            ball_lift: None,
             heel_rise: 0.0,
             on_ball: 0.0,
             heel_reach: 0.0,
@@ -786,6 +817,17 @@ fn rest_on_own_ground(legs: &[Leg], posture: &Analysis) -> bool {
     lowest.abs() <= 0.25 * leg
 }
 
+/// How high above its ground source leg `leg`'s ball stands while its foot stands flat (heel
+/// and ball holding): the median over those frames of `plants`, 0 where there are none.
+fn flat_ball_height(plants: &PlantTrack, leg: usize) -> f32 {
+    let mut v: Vec<f32> = (0..plants.num_frames())
+        .filter(|&f| plants.contacts(f).get(leg).copied().flatten() == Some(Contact::Flat))
+        .filter_map(|f| plants.ball_lifts(f).get(leg).copied())
+        .collect();
+    v.sort_by(f32::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
 impl FootLock {
     /// A lock for `mapping`'s target, driven by the plants of its root input. `source` and
     /// `target` are the analyses of those skeletons. `None` when the target has no standing
@@ -900,6 +942,9 @@ impl FootLock {
                     ..self.stance_of(foot, &worlds)
                 });
             }
+        }
+        for foot in &mut self.feet {
+            foot.ball_standing = foot.source.map(|s| flat_ball_height(plants, s));
         }
         let median = |h: &[Stance], key: fn(&Stance) -> f32| {
             let mut v: Vec<f32> = h.iter().map(key).collect();
@@ -1164,6 +1209,11 @@ impl FootLock {
         for (l, s) in lifts.heel.iter_mut().zip(plants.heel_lifts(frame)) {
             *l = *s;
         }
+        let mut ball = [0.0; MAX_FEET];
+        for (l, s) in ball.iter_mut().zip(plants.ball_lifts(frame)) {
+            *l = *s;
+        }
+        lifts.ball = Some(ball);
         for (p, s) in lifts.contact.iter_mut().zip(plants.contacts(frame)) {
             *p = *s;
         }
@@ -1243,6 +1293,11 @@ impl FootLock {
                 (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s], l.landing_flat),
                 _ => (0.0, None, 0.0, false),
             };
+            let ball = (self.feet[i].source)
+                .zip(lifts.and_then(|l| l.ball))
+                .map(|(s, b)| b[s]);
+            self.feet[i].ball_lift = (ball.zip(self.feet[i].ball_standing))
+                .map(|(b, stand)| self.lift_scale * (b - stand).max(0.0));
             let contact = self.feet[i]
                 .source
                 .zip(lifts)
@@ -1592,7 +1647,8 @@ impl FootLock {
         // Ahead of a known plant the ball comes down as the ankle does (`landing_flat`). A
         // pinned foot rolled onto its ball already stands it there.
         let weight = if goal.pinned { 1.0 } else { f.landing_flat };
-        let wanted = weight * (floor + f.ball_clearance + f.lift - (goal.ankle + o).dot(up));
+        let now = (goal.ankle + o).dot(up);
+        let wanted = weight * (f.ball_goal(floor, now) - now);
         if fresh {
             f.shown_flat = wanted;
         }
@@ -2073,6 +2129,25 @@ mod tests {
             "{} {stood}",
             ankle + pitched
         );
+    }
+
+    #[test]
+    fn a_pinned_ball_comes_down_no_lower_than_the_source_ball_stands() {
+        let mut foot = pinned_foot(true);
+        // Its ball stands 2 cm over the floor at 0.1. Not knowing the source's ball: stood
+        // flat from above and below.
+        assert!((foot.ball_goal(0.1, 0.15) - 0.12).abs() < 1e-6);
+        assert!((foot.ball_goal(0.1, 0.11) - 0.12).abs() < 1e-6);
+        // The source's ball 3 cm over its flat standing height (a heel strike, the toes still
+        // coming down): a ball up to that high stays where the animation has it, one higher
+        // comes down to it, one under its standing height is still brought up.
+        foot.ball_lift = Some(0.03);
+        assert!((foot.ball_goal(0.1, 0.14) - 0.14).abs() < 1e-6);
+        assert!((foot.ball_goal(0.1, 0.2) - 0.15).abs() < 1e-6);
+        assert!((foot.ball_goal(0.1, 0.11) - 0.12).abs() < 1e-6);
+        // The source's ball down: stood flat.
+        foot.ball_lift = Some(0.0);
+        assert!((foot.ball_goal(0.1, 0.14) - 0.12).abs() < 1e-6);
     }
 
     #[test]
