@@ -575,9 +575,9 @@ fn pose2sim_3d_reference_judges_each_camera_and_model() {
 /// default (lite at least as accurate as MediaPipe full, less jittery) are listed, and
 /// asserted with `RIGCAST_FOOTAGE_ACCEPTANCE=1`; they do not all hold: on the desk set (debug
 /// build, MediaPipe cached, models with heatmaps) lite's bone directions / PA-MPJPE read
-/// 16.2° / 58, 20.7 / 73, 10.7 / 39, 14.5 / 46 mm on cameras 0-3 against MediaPipe full's
-/// 27.1 / 77, 19.4 / 68, 20.2 / 73, 21.8 / 77 (camera 1, a side view, outside), and its
-/// jitter at 6 fps 39.8, 18.6, 15.3, 17.5 mm/frame² against 28.2, 17.2, 17.6, 15.6.
+/// 16.4° / 53, 20.8 / 73, 10.5 / 39, 14.5 / 46 mm on cameras 0-3 against MediaPipe full's
+/// 27.1 / 77, 19.4 / 68, 20.2 / 73, 21.8 / 77 (camera 1, a side view, outside); its jitter
+/// at 6 fps, 23.9, 13.2, 10.0, 12.2 mm/frame² against 28.2, 17.2, 17.6, 15.6, is inside.
 #[test]
 fn calibrated_rigs_3d_reference_judges_each_camera() {
     let Some((_, config)) = common::default_config_or_skip("vision_reference3d") else {

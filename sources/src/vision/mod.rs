@@ -12,8 +12,9 @@
 //!      ▼ Landmarks per person (33 image + world points, visibility, presence)
 //!      │   ◀── LandmarkReplaySource: recorded landmarks re-enter here (no model, no camera)
 //!  LandmarkStages: One Euro smoothing per coordinate, world landmarks into the camera's axes
-//!      │          with their across-picture shape from the image (perspective), constant
-//!      │          limb lengths (world)
+//!      │          with their across-picture shape from the image (perspective), the world
+//!      │          output smoothed as MediaPipe smooths its world landmarks, each point by its
+//!      │          visibility (world_smoothing), constant limb lengths (world)
 //!      ▼
 //!  PoseSolver ── two-direction aim per bone, twist from hip line / palm / foot plane,
 //!      │         confidence per bone: hold, then ease to rest
@@ -68,6 +69,7 @@ pub mod stages;
 pub mod tracker;
 #[cfg(feature = "webcam")]
 pub mod webcam;
+pub mod world_smoothing;
 
 pub use assets::{ModelKind, VisionAssets};
 pub use body::blazepose_skeleton;

@@ -24,6 +24,14 @@ impl OneEuroParams {
         beta: 7.0,
         d_cutoff: 1.0,
     };
+    /// For world landmarks already in the camera's axes, as MediaPipe's pose graph smooths its
+    /// own world landmarks (metres, no scaling by the body's size): min_cutoff 0.1 Hz, beta 40
+    /// per m/s, d_cutoff 1 Hz. Heavy at rest, near pass-through for a limb in motion.
+    pub const WORLD_OUTPUT: OneEuroParams = OneEuroParams {
+        min_cutoff: 0.1,
+        beta: 40.0,
+        d_cutoff: 1.0,
+    };
     /// Defaults for image landmarks in pixels (a person spans roughly a thousand pixels, so a
     /// pixel is about a millimetre).
     pub const PIXELS: OneEuroParams = OneEuroParams {
@@ -33,8 +41,10 @@ impl OneEuroParams {
     };
 }
 
+/// The share of the way from the last output to a new reading that a low-pass filter with
+/// `cutoff` (Hz) moves over `dt` seconds.
 #[inline]
-fn alpha(cutoff: f32, dt: f32) -> f32 {
+pub(super) fn alpha(cutoff: f32, dt: f32) -> f32 {
     let tau = 1.0 / (TAU * cutoff.max(1e-6));
     1.0 / (1.0 + tau / dt)
 }

@@ -1,6 +1,7 @@
 //! The model-free half of the vision pipeline: landmarks → One Euro smoothing → the camera's
-//! axes and the image's picture-plane shape (see [`super::perspective`]) → constant limb
-//! lengths → rotations of the BlazePose skeleton. Where the landmarks' left/right labelling
+//! axes and the image's picture-plane shape (see [`super::perspective`]) → the world output's
+//! own smoothing (see [`super::world_smoothing`]) → constant limb lengths → rotations of the
+//! BlazePose skeleton. Where the landmarks' left/right labelling
 //! changes between frames, the filters' histories change sides with it.
 //!
 //! [`PosePipeline`](super::PosePipeline) runs these stages on the tracker's output for live
@@ -21,6 +22,7 @@ use super::one_euro::{OneEuro, OneEuroParams};
 use super::perspective;
 use super::sides::{lines_swapped, reading_weight, torso_lines, LR_PAIRS};
 use super::solve::{PoseSolver, SolverConfig};
+use super::world_smoothing::WorldSmoothing;
 
 /// A person back in their slot within this long (seconds) keeps their limb-length estimates:
 /// the tracker lost them for a frame or two (a crossing, a detector miss) and re-found the
@@ -36,6 +38,8 @@ pub struct LandmarkStages {
     smoothed: Landmarks,
     image_filters: [[OneEuro; 3]; NUM_MODEL_LANDMARKS],
     world_filters: [[OneEuro; 3]; NUM_MODEL_LANDMARKS],
+    /// The world output's smoothing, after the perspective stage.
+    output_filters: WorldSmoothing,
     smoothing: bool,
     lengths: Option<LimbLengths>,
     tracking: bool,
@@ -59,6 +63,7 @@ impl LandmarkStages {
             smoothed: Landmarks::default(),
             image_filters: [[OneEuro::new(OneEuroParams::PIXELS); 3]; NUM_MODEL_LANDMARKS],
             world_filters: [[OneEuro::new(OneEuroParams::METRES); 3]; NUM_MODEL_LANDMARKS],
+            output_filters: WorldSmoothing::new(),
             smoothing,
             lengths: constant_lengths.then(LimbLengths::new),
             tracking: false,
@@ -113,6 +118,9 @@ impl LandmarkStages {
             }
         }
         perspective::apply(&mut self.smoothed);
+        if self.smoothing {
+            self.output_filters.apply(&mut self.smoothed, t);
+        }
         if let Some(lengths) = self.lengths.as_mut() {
             lengths.apply(&mut self.smoothed);
         }
@@ -158,6 +166,7 @@ impl LandmarkStages {
         {
             f[2].negate();
         }
+        self.output_filters.exchange_sides();
     }
 
     /// The person left the view: the next frame starts fresh filters, and fresh length
@@ -178,6 +187,7 @@ impl LandmarkStages {
                 c.reset();
             }
         }
+        self.output_filters.reset();
     }
 }
 
