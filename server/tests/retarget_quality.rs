@@ -1181,6 +1181,45 @@ fn print_phases(phases: &[[Vec<f32>; PHASES]; 2]) {
     }
 }
 
+/// `clip` retargeted onto `target` as [`retarget_clip_locked`] does, but locked by the causal
+/// lock frame by frame as the server's tick runs it (`FootLock::apply_live`: plants detected
+/// as they come, the fit learnt from the frames seen so far), for `RIGCAST_QUALITY_LIVE`: the
+/// live rule on every pair, the rigs the live judge does not stream (BVH characters) too.
+fn retarget_causal(
+    clip: &Clip,
+    target: &Skeleton,
+    plan: &rigcast_server::offline::MappingPlan,
+    opts: &rigcast_retarget::RetargetOptions,
+) -> Clip {
+    use rigcast_retarget::footplant::{FootLock, LockSettings};
+    let mut mapping =
+        rigcast_retarget::Mapping::build(&[&clip.skeleton], target, &plan.table, opts).unwrap();
+    if let Some(floor) = mapping.measure_source_floor(&clip.poses) {
+        mapping.set_source_floor_y(floor);
+    }
+    let settings = LockSettings::default();
+    let analyses = (&plan.source_analysis, &plan.target_analysis);
+    let mut lock = FootLock::new(&mapping, analyses.0, analyses.1, settings);
+    let dt = clip.frame_time_secs as f32;
+    let mut out = mapping.new_target_pose();
+    let poses = (clip.poses.iter())
+        .map(|p| {
+            mapping.apply_one(p, &mut out).unwrap();
+            if let Some(lock) = lock.as_mut() {
+                lock.apply_live(p, true, dt, &mut out);
+            }
+            out.clone()
+        })
+        .collect();
+    Clip::new(
+        clip.name.clone(),
+        Arc::new(target.clone()),
+        poses,
+        clip.frame_time_secs,
+    )
+    .unwrap()
+}
+
 /// Whether the pair named `name` ("source → target") is measured: all of them, or with
 /// `RIGCAST_QUALITY_PAIRS` set, those whose name contains one of its comma-separated parts
 /// (to look at a few pairs while working on the lock).
@@ -1210,7 +1249,8 @@ fn pair_wanted(name: &str) -> bool {
 /// Not met yet (run it with `--ignored` for the table; `RIGCAST_QUALITY_PAIRS=a,b` measures
 /// only the pairs whose name contains one of the parts, `RIGCAST_QUALITY_FRAMES=1` prints the
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's error as
-/// judged frame by frame with its heading part and both pitches). Of 152 pairs whose legs'
+/// judged frame by frame with its heading part and both pitches, `RIGCAST_QUALITY_LIVE=1` judges
+/// the causal lock instead, run frame by frame as the server's tick runs it). Of 152 pairs whose legs'
 /// roles map right, within the bounds: thigh and shin 137, foot 81 of the 84 with toes on both
 /// rigs (58 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the
 /// foot's where both rigs have toes) 135, since a pinned or landing foot's ball is brought
@@ -1528,15 +1568,19 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
             }
             let opts = plan.retarget_options(&src.clip, RootMotion::Scaled);
             let target = Arc::new((*tgt.clip.skeleton).clone());
-            let out = retarget_clip_locked(
-                &src.clip,
-                &target,
-                &plan.table,
-                &opts,
-                Some(&plan),
-                &mut |_| {},
-            )
-            .unwrap();
+            let out = if std::env::var_os("RIGCAST_QUALITY_LIVE").is_some() {
+                retarget_causal(&src.clip, &target, &plan, &opts)
+            } else {
+                retarget_clip_locked(
+                    &src.clip,
+                    &target,
+                    &plan.table,
+                    &opts,
+                    Some(&plan),
+                    &mut |_| {},
+                )
+                .unwrap()
+            };
             if !*judge_t {
                 println!(
                     "{} → {}: the target's labelled legs are not its legs, not judged",

@@ -1017,9 +1017,12 @@ impl FootLock {
     /// Live: moves the fit of [`FootLock::fit_to_standing`] towards this frame's stance gap
     /// (`worlds` hold the animation): an average over the last [`FIT_LEARN_SECS`] or so of the
     /// frames with a foot held by a lock since the frame before (a landing foot is still on its
-    /// way down). Slow enough that the correction never shows as a movement of its own.
+    /// way down). Slow enough that the correction never shows as a movement of its own. As
+    /// offline, a rest standing on its own ground along its own up gives the feet's pitch even
+    /// where the retarget places no floor for it (MakeHuman's: its rest along Z, its motion
+    /// along Y); the hips are moved onto the standing heights only where the posture stands.
     fn learn_fit(&mut self, planted: &[bool; MAX_FEET], dt: f32) {
-        if !self.posture_stands || dt <= 0.0 {
+        if !(self.posture_stands || self.rest_feet_stand) || dt <= 0.0 {
             return;
         }
         let k = 1.0 - (-dt / FIT_LEARN_SECS).exp();
@@ -1052,7 +1055,9 @@ impl FootLock {
             rise += clearance - (stance.ankle - rolled);
             n += 1;
         }
-        if n > 0 {
+        // A rest standing along its own up only (no floor placed for it) gives the feet's
+        // pitch alone: its standing heights are not this world's.
+        if n > 0 && self.posture_stands {
             let limit = self.settings.max_drop_ratio * self.feet[0].leg.length;
             let wanted = clamp_safe(rise / n as f32, -limit, limit);
             self.root_fix += k * (wanted - self.root_fix);
