@@ -1,10 +1,13 @@
 //! Issue 35, live: the legs of a character under the causal foot lock stay the performer's,
-//! measured through the real server. One server replays the first labelled walk (found by its
-//! motion; today the CMU 131_01 walk, 8.3 s) once through, not looping, onto each labelled
-//! human character twice, with the foot lock on and off (the same source sample drives both
-//! in the same tick: their frames carry the same capture time). A version 2 client rebuilds
-//! both by its own forward kinematics of the wire skeleton and judges each source sample once
-//! over the whole walk (a tick that got no new sample re-sends its frame); per character:
+//! measured through the real server, on every source the offline judge (retarget_quality's
+//! locked_legs) reads: each labelled human whose own motion walks or runs as that judge finds
+//! one (both feet stand, three stances or more, the hips travel a leg length; today 8 clips,
+//! 1.2-13.0 s), its first `SOURCE_SECS` (15 s: all of each today), onto each labelled human
+//! character. One server per source replays it once through, not looping, onto every
+//! character twice, with the foot lock on and off (the same source sample drives both in the
+//! same tick: their frames carry the same capture time). A version 2 client rebuilds both by
+//! its own forward kinematics of the wire skeleton and judges each source sample once (a tick
+//! that got no new sample re-sends its frame); per pair:
 //! - thigh, shin and foot (ankle to toes) directions of the locked character against the
 //!   unlocked one (the source's directions as retargeted; the offline retarget keeps them
 //!   within 2° mean of the source's), mean and 95th percentile; the foot on the character's
@@ -27,9 +30,41 @@
 //!   being a frame time apart, from the first where the free character's hips rise and fall
 //!   with the walk's.
 //!
+//! The thigh and shin errors are split by each leg's phase on the source, as offline: the
+//! lock's own two-sided detection on the source clip, read at the source frame each sample
+//! shows (standing alone, both standing, the 0.15 s before a plant, after one, swinging).
+//! The foot is judged where both the source and the character have labelled toes, the floor
+//! where ten planted foot-frames or more were seen, as offline judges only what both show.
+//!
 //! Issue 35's bounds: thigh and shin 3° mean / 8° p95, foot 5° / 15°, drift ≤ 0.05 cm/frame,
 //! floor ≤ 1 cm. Not met yet: run with `--ignored` for the table (`cargo test -p
-//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`). With the toeless
+//! rigcast-tests --test footlock_live_legs -- --ignored --nocapture`; 1:16 wall time in debug
+//! at load 7, 2:05 with the build). On 2eb5ae4, two runs (load 7-12), 40 pairs (8
+//! sources × 5 characters), within: thigh and shin 22 and 22, foot 4 and 5 of the 12 with
+//! toes, drift 28 and 23 (every foot joint: 19 and 16), floor 29 and 30, every bound at once
+//! 12 and 10. The same 40 pairs offline (locked_legs): 30, 12, 40 (39), 38, 30; locked
+//! causally in process (locked_legs with `RIGCAST_QUALITY_LIVE=1`, `apply_live` frame by
+//! frame): 20, 4, 33 (29), 28, 13, failing thigh and shin on the same pairs: the gap is the
+//! causal lock's, not the server's. Thigh and shin fail live only on 7 pairs in both runs
+//! (the CMU 31-joint walk onto the Godot robot and UE-style; Meredith onto X Bot, Casual and
+//! UE-style; LaFAN1 onto Casual and UE-style) and 2 more in one (CMU 31-joint onto
+//! RobotExpressive, Xia onto UE-style at 8.01° shin p95). Their frames over 8° (thigh and
+//! shin, both runs) by phase: single 2690, double 20, approach 1235, release 845, swing 653
+//! (without LaFAN1 onto Casual, below: 1253, 0, 733, 524, 73): the standing leg bent while
+//! the other swings, the largest phase on 12 of the 16 failing pair-runs (release on 3).
+//! Two classes are far off live on every run: LaFAN1 onto the three toeless characters
+//! (thigh: Casual 45/90°, RobotExpressive 30-31/90, the robot 23-24/50-51) and Xia onto both
+//! robots (27-29/79-82, floor 138-193 cm where judged). Traced in process (the same lock on
+//! the same mapping, live against offline): on these pairs the mapping does not know where
+//! the character's floor is (`FloorAt::Unknown`), and the retargeted feet do not stand on
+//! the floor height it gives. LaFAN1 onto Casual's stand about 1 m under it (the heel's
+//! standing height offline reads off the clip: -1.00 m); live, the pins stand 78-101 cm over
+//! the animation's ankles and the hips are carried 29-57 cm up. Xia onto the robot: the
+//! pinned ankles 45-66 cm under the animation's, the hips 37 cm down. Offline the lock
+//! learns the standing heights from the clip (`fit_to_standing`); live it pins the feet at
+//! the mapping's floor, and the legs fold to reach them.
+//!
+//! Before, the first walk alone (CMU 131_01), the figures below. With the toeless
 //! feet rising with the heel, five runs at load 7-14 (before, two runs of the lock before
 //! in the same build): the Godot robot thigh 6.4-7.0/24.2-26.1° (7.4-7.6/27.9-28.5), shin
 //! 3.2-3.5/9.3-11.8 (3.6-3.7/11.9-12.7), floor 0.54-0.59 cm (0.35); RobotExpressive
@@ -83,12 +118,24 @@ use rigcast_tests::*;
 /// The server's tick rate.
 const RATE_HZ: f64 = 60.0;
 
-/// How much longer than the walk it is watched (the first frames arrive after the client
+/// How much of each source is replayed: its first seconds (every source of today's data is
+/// shorter: the longest, LaFAN1's, lasts 13.0 s), so the whole run's wall time is bounded
+/// (each source is watched this long and `WATCH_MARGIN` more at most).
+const SOURCE_SECS: f64 = 15.0;
+
+/// How much longer than the source it is watched (the first frames arrive after the client
 /// connects).
 const WATCH_MARGIN: Duration = Duration::from_secs(2);
 
 /// Half the standing height of the 1.75 m body drift and floor are normalised to.
 const LEG_OF_175_CM_BODY: f32 = 0.875;
+
+/// A leg's phase, as the offline judge splits the thigh and shin errors (retarget_quality's
+/// `phase`): its source foot standing alone or with the other, the 0.15 s before a plant
+/// (approach), the 0.15 s after one (release), swinging.
+const PHASES: usize = 5;
+const PHASE_NAMES: [&str; PHASES] = ["single", "double", "approach", "release", "swing"];
+const PHASE_NEAR_SECS: f64 = 0.15;
 
 /// One subject as the client saw it.
 #[derive(Default)]
@@ -99,21 +146,134 @@ struct Seen {
     plants: Vec<(u64, Vec<(String, bool)>)>,
 }
 
-/// Streams the first labelled walk once through (watched `WATCH_MARGIN` longer) (found by its motion; one server streams it onto
-/// every character, so one walk) onto every labelled human rig with legs (their rests stand on
-/// y = 0; the foot's direction is judged where toes are labelled), locked and free; per target
-/// (its labels, locked, free), and how long the walk takes (ns).
-async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64, Walk)> {
-    let (walk_labels, walk, _) = first_walk()?;
-    let source = Walk::new(&walk_labels, &walk)?;
-    let pass_nanos = (walk.duration_secs() * 1e9) as u64;
-    let watch = Duration::from_secs_f64(walk.duration_secs()) + WATCH_MARGIN;
-    let targets = human_rigs();
-    if targets.is_empty() {
-        return None;
+/// Every labelled human (any format, both legs labelled) whose own motion walks or runs as
+/// the offline judge reads it ([`walks_or_runs`]), its first [`SOURCE_SECS`]; empty with a
+/// printed reason when none.
+fn sources() -> Vec<(Labelled, rigcast_retarget::Clip)> {
+    let humans = labelled_where("human with legs", |l| l.kind() == "human" && l.has_legs());
+    let mut out = Vec::new();
+    for l in humans {
+        let Ok(mut clip) = rigcast_sources::load_clip(&l.path) else {
+            continue;
+        };
+        if !walks_or_runs(&l, &clip) {
+            continue;
+        }
+        let frames = (SOURCE_SECS / clip.frame_time_secs).floor() as usize;
+        clip.poses.truncate(frames.max(2));
+        println!(
+            "a source: {}, its first {:.1} s",
+            l.rel,
+            clip.duration_secs()
+        );
+        out.push((l, clip));
     }
+    if out.is_empty() {
+        println!("SKIP: no labelled human walks or runs");
+    }
+    out
+}
+
+/// A foot stands still below this speed (m/s of a 1.75 m body) over at least
+/// [`STILL_WINDOW_SECS`], within [`NEAR_FLOOR`] (m of a 1.75 m body) of its floor: the offline
+/// judge's standing frames.
+const STILL_SPEED: f32 = 0.15;
+const STILL_WINDOW_SECS: f64 = 1.0 / 30.0;
+const NEAR_FLOOR: f32 = 0.01;
+
+/// A walk or a run, as the offline judge (retarget_quality's `is_gait`) finds one: both feet
+/// stand (still, near their floor) at least once, three stances or more in all, and the hips
+/// travel at least one leg length over the ground.
+fn walks_or_runs(l: &Labelled, clip: &rigcast_retarget::Clip) -> bool {
+    let s = &clip.skeleton;
+    let bone = |role: String| l.bone(&role).and_then(|n| s.bone(n));
+    let Some(hips) = bone("hips".into()) else {
+        return false;
+    };
+    if clip.num_frames() < 2 {
+        return false;
+    }
+    let rest: Vec<Vec3> = (rigcast_retarget::world_transforms(s, &s.rest_pose()).iter())
+        .map(|w| w.translation)
+        .collect();
+    let mut leg = 0.0;
+    let mut sides = Vec::new();
+    for side in ["L", "R"] {
+        let [u, k, f] = ["upperLeg", "lowerLeg", "foot"].map(|r| bone(format!("{r}.{side}")));
+        let (Some(u), Some(k), Some(f)) = (u, k, f) else {
+            return false;
+        };
+        leg += 0.5
+            * ((rest[k.index()] - rest[u.index()]).length()
+                + (rest[f.index()] - rest[k.index()]).length());
+        sides.push([Some(f), bone(format!("toes.{side}"))]);
+    }
+    let worlds: Vec<Vec<Vec3>> = (clip.poses.iter())
+        .map(|p| {
+            (rigcast_retarget::world_transforms(s, p).iter())
+                .map(|w| w.translation)
+                .collect()
+        })
+        .collect();
+    // Up: the coordinate axis nearest hips over the ankles, summed over the frames.
+    let up_sum: Vec3 = (worlds.iter())
+        .map(|w| {
+            w[hips.index()] - sides.iter().map(|j| w[j[0].unwrap().index()]).sum::<Vec3>() / 2.0
+        })
+        .sum();
+    let axis = up_sum.abs().max_position();
+    let up = Vec3::AXES[axis] * up_sum[axis].signum();
+    let unit = LEG_OF_175_CM_BODY / leg;
+    let lag = ((STILL_WINDOW_SECS / clip.frame_time_secs).ceil() as usize).max(1);
+    let secs = (lag as f64 * clip.frame_time_secs) as f32;
+    let flat = |v: Vec3| v - up * v.dot(up);
+    let n = worlds.len();
+    let stances: Vec<usize> = (sides.iter())
+        .map(|joints| {
+            let joints: Vec<usize> = joints.iter().flatten().map(|b| b.index()).collect();
+            let track: Vec<(f32, bool)> = (0..n)
+                .map(|i| {
+                    let low =
+                        (joints.iter().map(|&j| worlds[i][j].dot(up))).fold(f32::MAX, f32::min);
+                    let (a, b) = (i.saturating_sub(lag / 2), (i + lag - lag / 2).min(n - 1));
+                    let still = b > a
+                        && joints.iter().all(|&j| {
+                            let d = flat(worlds[b][j] - worlds[a][j]).length();
+                            d / (secs * (b - a) as f32 / lag as f32) < STILL_SPEED / unit
+                        });
+                    (low, still)
+                })
+                .collect();
+            // Its floor: the 5th percentile of its lowest points while still.
+            let mut h: Vec<f32> = (track.iter()).filter(|t| t.1).map(|t| t.0).collect();
+            h.sort_by(f32::total_cmp);
+            let floor = h.get(h.len() / 20).copied();
+            let stands: Vec<bool> = (track.iter())
+                .map(|(h, still)| *still && floor.is_some_and(|f| h - f < NEAR_FLOOR / unit))
+                .collect();
+            stands.windows(2).filter(|w| w[1] && !w[0]).count()
+                + usize::from(stands.first() == Some(&true))
+        })
+        .collect();
+    let travel = (worlds.iter())
+        .map(|w| flat(w[hips.index()] - worlds[0][hips.index()]).length())
+        .fold(0.0, f32::max);
+    stances.iter().all(|n| *n >= 1) && stances.iter().sum::<usize>() >= 3 && travel >= leg
+}
+
+/// Streams `clip` (labelled `labels`) once through (watched `WATCH_MARGIN` longer) onto every
+/// rig of `targets`, locked and free, through one server; per target (locked, free), how long
+/// the source takes (ns) and the source as the judge reads it.
+async fn stream(
+    labels: &Labelled,
+    clip: rigcast_retarget::Clip,
+    targets: &[Labelled],
+) -> Option<(Vec<(Seen, Seen)>, u64, Walk)> {
+    let source = Walk::new(labels, &clip)?;
+    let pass_nanos = (clip.duration_secs() * 1e9) as u64;
+    let watch = Duration::from_secs_f64(clip.duration_secs()) + WATCH_MARGIN;
     let mut performers = Vec::new();
-    for rig in &targets {
+    for rig in targets {
         let path = rig.path.clone();
         for lock in [true, false] {
             performers.push(PerformerSpec {
@@ -130,7 +290,7 @@ async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64, Walk)> {
         // foot's drift.
         sources: vec![rigcast_server::SourceSpec::ReplayClip(
             rigcast_server::config::ReplayClipSpec {
-                clip: walk,
+                clip,
                 name: None,
                 settings: rigcast_server::ReplaySettings {
                     looping: false,
@@ -171,7 +331,7 @@ async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64, Walk)> {
     }
     server.shutdown().await;
     let mut out = Vec::new();
-    for (k, rig) in targets.into_iter().enumerate() {
+    for k in 0..targets.len() {
         let mut take = |name: String| {
             let id = ids
                 .get(&name)
@@ -180,7 +340,7 @@ async fn stream() -> Option<(Vec<(Labelled, Seen, Seen)>, u64, Walk)> {
         };
         let locked = take(format!("{}-true", 2 * k));
         let free = take(format!("{}-false", 2 * k + 1));
-        out.push((rig, locked, free));
+        out.push((locked, free));
     }
     Some((out, pass_nanos, source))
 }
@@ -194,6 +354,11 @@ struct Walk {
     feet: [Vec<f32>; 2],
     /// 1 cm of a 1.75 m body, in the walk's units.
     near: f32,
+    /// Per side (L, R), per frame: the lock's own two-sided detection holds the foot planted
+    /// (what the phase split reads, as offline).
+    held: [Vec<bool>; 2],
+    /// [`PHASE_NEAR_SECS`] in the walk's frames.
+    near_frames: usize,
 }
 
 impl Walk {
@@ -232,7 +397,27 @@ impl Walk {
             hips: worlds.iter().map(|w| w[hips.index()].y).collect(),
             feet,
             near: 0.01 * leg / LEG_OF_175_CM_BODY,
+            held: held_plants(clip),
+            near_frames: (PHASE_NEAR_SECS / clip.frame_time_secs.max(1e-6)).round() as usize,
         })
+    }
+
+    /// The phase of side `side` on the walk's `frame` (as retarget_quality's `phase`): its
+    /// foot standing alone (0) or with the other (1), or free: within [`PHASE_NEAR_SECS`]
+    /// before a stance (2), after one (3), or swinging (4).
+    fn phase(&self, side: usize, frame: usize) -> usize {
+        let at = |s: usize, f: usize| self.held[s].get(f) == Some(&true);
+        if at(side, frame) {
+            return if at(1 - side, frame) { 1 } else { 0 };
+        }
+        let near = self.near_frames;
+        if (1..=near).any(|k| at(side, frame + k)) {
+            2
+        } else if (1..=near.min(frame)).any(|k| at(side, frame - k)) {
+            3
+        } else {
+            4
+        }
     }
 
     /// The walk's frame each capture time of `free`'s frames shows: the replay samples frame k
@@ -286,6 +471,32 @@ impl Walk {
     }
 }
 
+/// Per side (L, R), the frames the lock's own two-sided detection holds the source's foot
+/// planted (on its labelled-side first hind leg), as the offline judge's `lock_plants`.
+fn held_plants(clip: &rigcast_retarget::Clip) -> [Vec<bool>; 2] {
+    use rigcast_retarget::analysis::{analyze, Side, SkeletonView};
+    use rigcast_retarget::footplant::{detect_clip, find_contact_legs, LegKind, PlantSettings};
+    let analysis = analyze(&SkeletonView::from_clip(&clip.skeleton, &clip.poses));
+    let legs = find_contact_legs(&clip.skeleton, &analysis);
+    let dt = clip.frame_time_secs as f32;
+    let settings = PlantSettings::default();
+    let plants = detect_clip(
+        &clip.skeleton,
+        &legs,
+        &clip.poses,
+        dt,
+        analysis.up,
+        &settings,
+    );
+    [Side::Left, Side::Right].map(|side| {
+        let leg = (plants.legs.iter())
+            .position(|l| l.side == side && l.kind == LegKind::Hind && l.limb == 0);
+        (0..clip.num_frames())
+            .map(|f| leg.is_some_and(|l| plants.is_planted(f, l)))
+            .collect()
+    })
+}
+
 /// Figures of one character, as `locked_legs_follow_the_source_on_walks_and_runs` offline.
 #[derive(Debug)]
 struct Legs {
@@ -300,6 +511,9 @@ struct Legs {
     joints_drift: f32,
     planted_frames: usize,
     floor_p95: f32,
+    /// Thigh and shin errors split by the leg's phase on the source ([`Walk::phase`]); frames
+    /// whose source frame is not found are left out.
+    phases: [[Vec<f32>; PHASES]; 2],
 }
 
 /// World rotations down the wire skeleton's parent chain from each bone's local rotation.
@@ -413,6 +627,7 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
         .collect();
     let mut own_errors = Vec::new();
     let mut errors: [Vec<f32>; 3] = Default::default();
+    let mut phases: [[Vec<f32>; PHASES]; 2] = Default::default();
     let (mut drift_sum, mut drift_n) = (0.0f32, 0usize);
     let (mut all_sum, mut all_n) = (0.0f32, 0usize);
     let mut off_floor = Vec::new();
@@ -430,7 +645,10 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
             frames += 1;
             let v = wire_fk(&free.bones, g);
             let rot = world_rotations(bones, |i| f.rotations[i]);
-            for ((l, toes), (own, standing)) in legs.iter().zip(own.iter().zip(&standing)) {
+            let src = walk_frame.get(&f.header.capture_nanos).copied();
+            for (side, ((l, toes), (own, standing))) in
+                legs.iter().zip(own.iter().zip(&standing)).enumerate()
+            {
                 let chain = [Some(l[0]), Some(l[1]), Some(l[2]), *toes];
                 for k in 0..3 {
                     let (Some(a0), Some(a1)) = (chain[k], chain[k + 1]) else {
@@ -438,7 +656,11 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
                     };
                     let (a, b) = (w[a1] - w[a0], v[a1] - v[a0]);
                     if a.length() > 1e-6 && b.length() > 1e-6 {
-                        errors[k].push(a.angle_between(b).to_degrees());
+                        let e = a.angle_between(b).to_degrees();
+                        errors[k].push(e);
+                        if let (0 | 1, Some(frame)) = (k, src) {
+                            phases[k][walk.phase(side, frame)].push(e);
+                        }
                         // On the character's own standing foot: pitched back about its own
                         // side axis by how much its standing foot is pitched past the source's.
                         if let (2, Some((pt, axis)), Some(ps)) = (k, own, standing) {
@@ -502,19 +724,38 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
             .get(planted_frames * 95 / 100)
             .copied()
             .unwrap_or(f32::NAN),
+        phases,
+    }
+}
+
+/// Prints a pair's thigh and shin errors per phase: frames, mean/p95 and how many are over 8°.
+fn print_phases(phases: &[[Vec<f32>; PHASES]; 2]) {
+    for (segment, errors) in ["thigh", "shin"].iter().zip(phases) {
+        let cells: Vec<String> = (PHASE_NAMES.iter().zip(errors))
+            .map(|(name, e)| {
+                let (m, p) = mean_p95(e.clone());
+                let over = e.iter().filter(|e| **e > 8.0).count();
+                format!("{name} {} {m:.1}/{p:.1} >8: {over}", e.len())
+            })
+            .collect();
+        println!("    {segment}: {}", cells.join(", "));
     }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[ignore = "issue 35's bounds are not met live yet; the test prints the table per character"]
-async fn live_locked_legs_follow_the_source_on_a_walk() {
-    let Some((streams, pass_nanos, walk)) = stream().await else {
+#[ignore = "issue 35's bounds are not met live yet; the test prints the table per pair"]
+async fn live_locked_legs_follow_the_source_on_walks_and_runs() {
+    let targets = human_rigs();
+    let sources = sources();
+    if targets.is_empty() || sources.is_empty() {
         return;
-    };
+    }
+    println!("each source's first {SOURCE_SECS} s at most, through one server per source");
     let mut failures = Vec::new();
     println!(
-        "{:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7} {:>7} {:>7}",
-        "target (live, the first walk)",
+        "{:<36} {:<36} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7} {:>7} {:>7}",
+        "source (live)",
+        "target",
         "frames",
         "thigh°",
         "shin°",
@@ -524,52 +765,129 @@ async fn live_locked_legs_follow_the_source_on_a_walk() {
         "floor",
         "(drift)"
     );
-    let mut judged = 0;
-    for (rig, locked, free) in &streams {
-        let rel = &rig.rel;
-        // A character whose feet the lock holds none of (no leg to bend) is not this one's
-        // case.
-        if locked.plants.iter().all(|(_, feet)| feet.is_empty()) {
-            println!("{rel}: the lock holds none of its feet, not judged");
+    let name = |rel: &str| {
+        let file = rel.rsplit('/').next().unwrap_or(rel);
+        file.rsplit_once('.')
+            .map_or(file, |(stem, _)| stem)
+            .to_string()
+    };
+    // Pairs judged, and within the bounds: thigh and shin, foot (of those with toes), drift,
+    // floor, every bound at once.
+    let (mut judged, mut with_toes, mut joints_within) = (0, 0, 0);
+    let mut tally = [0usize; 5];
+    // Over the pairs whose thigh or shin misses: per segment and phase, frames, over 8°, sum.
+    let mut by_phase = [[(0usize, 0usize, 0.0f32); PHASES]; 2];
+    for (labels, clip) in sources {
+        // The source samples the server can show: one a tick, or each of the source's frames
+        // where it has fewer (a 30 Hz capture at 60 Hz).
+        let samples = (clip.duration_secs() * RATE_HZ).min(clip.num_frames() as f64);
+        let src = name(&labels.rel);
+        let source_toes = ["toes.L", "toes.R"].iter().all(|r| labels.has_role(r));
+        let Some((streams, pass_nanos, walk)) = stream(&labels, clip, &targets).await else {
+            println!("{src}: its legs are not found in its skeleton, not streamed");
             continue;
-        }
-        judged += 1;
-        let f = measure(rig, locked, free, pass_nanos, &walk);
-        let pair = |(m, p): (f32, f32)| format!("{m:.1}/{p:.1}");
-        println!(
-            "{rel:<44} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7.3} {:>7.2} {:>7.3}  ({} planted foot-frames)",
-            f.frames,
-            pair(f.thigh),
-            pair(f.shin),
-            pair(f.foot),
-            pair(f.raw_foot),
-            f.drift,
-            f.floor_p95,
-            f.joints_drift,
-            f.planted_frames
-        );
-        // Enough to judge: seconds of paired frames and plants on both feet.
-        // (Every character judged before the test fails.)
-        if f.frames < 120 || f.planted_frames < 60 {
-            failures.push(format!("{rel}: too little to judge: {f:?}"));
-            continue;
-        }
-        let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;
-        if !(within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0)) {
-            failures.push(format!("{rel}: thigh {:?} shin {:?}", f.thigh, f.shin));
-        }
-        // A character without labelled toes has no foot direction to judge.
-        if !f.foot.0.is_nan() && !within(f.foot, 5.0, 15.0) {
-            failures.push(format!("{rel}: foot {:?}", f.foot));
-        }
-        if !(f.drift <= 0.05) {
-            failures.push(format!("{rel}: drift {:.3} cm/frame", f.drift));
-        }
-        if !(f.floor_p95 <= 1.0) {
-            failures.push(format!("{rel}: planted feet {:.2} cm off", f.floor_p95));
+        };
+        for (rig, (locked, free)) in targets.iter().zip(&streams) {
+            let tgt = name(&rig.rel);
+            // A character whose feet the lock holds none of (no leg to bend) is not this
+            // one's case.
+            if locked.plants.iter().all(|(_, feet)| feet.is_empty()) {
+                println!("{src} → {tgt}: the lock holds none of its feet, not judged");
+                continue;
+            }
+            let f = measure(rig, locked, free, pass_nanos, &walk);
+            let pair = |(m, p): (f32, f32)| format!("{m:.1}/{p:.1}");
+            println!(
+                "{src:<36} {tgt:<36} {:>6} {:>11} {:>11} {:>11} {:>11} {:>7.3} {:>7.2} {:>7.3}  ({} planted foot-frames)",
+                f.frames,
+                pair(f.thigh),
+                pair(f.shin),
+                pair(f.foot),
+                pair(f.raw_foot),
+                f.drift,
+                f.floor_p95,
+                f.joints_drift,
+                f.planted_frames
+            );
+            // Enough to judge: half the source's samples paired (a loaded debug server shows
+            // 80-100 % of them). (Every pair is judged before the test fails.)
+            if (f.frames as f64) < 0.5 * samples {
+                failures.push(format!(
+                    "{src} → {tgt}: too little to judge: {} frames",
+                    f.frames
+                ));
+                continue;
+            }
+            judged += 1;
+            let within = |(m, p): (f32, f32), bm: f32, bp: f32| m <= bm && p <= bp;
+            let legs = within(f.thigh, 3.0, 8.0) && within(f.shin, 3.0, 8.0);
+            // The foot's direction is judged where both have labelled toes, as offline (a
+            // source without them gives its foot no direction to follow).
+            let toes = !f.foot.0.is_nan() && source_toes;
+            let foot = !toes || within(f.foot, 5.0, 15.0);
+            // The floor where planted feet were seen standing on ten frames or more (a run's
+            // toeless feet, judged where the performer's ankle is down, may show fewer).
+            let floor = f.planted_frames < 10 || f.floor_p95 <= 1.0;
+            let drift = f.drift <= 0.05;
+            if !legs {
+                failures.push(format!(
+                    "{src} → {tgt}: thigh {:?} shin {:?}",
+                    f.thigh, f.shin
+                ));
+                print_phases(&f.phases);
+                for (sum, errors) in by_phase.iter_mut().zip(&f.phases) {
+                    for ((n, over, total), e) in sum.iter_mut().zip(errors) {
+                        *n += e.len();
+                        *over += e.iter().filter(|e| **e > 8.0).count();
+                        *total += e.iter().sum::<f32>();
+                    }
+                }
+            }
+            if !foot {
+                failures.push(format!("{src} → {tgt}: foot {:?}", f.foot));
+            }
+            if !drift {
+                failures.push(format!("{src} → {tgt}: drift {:.3} cm/frame", f.drift));
+            }
+            if !floor {
+                failures.push(format!(
+                    "{src} → {tgt}: planted feet {:.2} cm off",
+                    f.floor_p95
+                ));
+            }
+            with_toes += usize::from(toes);
+            joints_within += usize::from(f.joints_drift <= 0.05);
+            for (t, ok) in tally.iter_mut().zip([legs, toes && foot, drift, floor]) {
+                *t += usize::from(ok);
+            }
+            tally[4] += usize::from(legs && foot && drift && floor);
         }
     }
-    assert!(judged > 0, "no character whose feet the lock holds");
+    println!(
+        "{judged} pairs judged live; within the bounds: thigh and shin {}, foot {} of the \
+         {with_toes} with toes, drift {} (every foot joint: {joints_within}), floor {}; every \
+         bound at once {}; {} failures",
+        tally[0],
+        tally[1],
+        tally[2],
+        tally[3],
+        tally[4],
+        failures.len()
+    );
+    println!(
+        "where the thigh and shin miss (pairs outside their bounds; frames, mean°, share over 8°):"
+    );
+    for (k, segment) in ["thigh", "shin"].iter().enumerate() {
+        let cells: Vec<String> = (PHASE_NAMES.iter().zip(&by_phase[k]))
+            .map(|(name, (n, over, sum))| {
+                let share = 100.0 * *over as f32 / (*n).max(1) as f32;
+                let mean = sum / (*n).max(1) as f32;
+                format!("{name} {n} {mean:.1}° {share:.0}%")
+            })
+            .collect();
+        println!("  {segment}: {}", cells.join(", "));
+    }
+    assert!(judged > 0, "no pair judged");
     assert!(
         failures.is_empty(),
         "{} failures:\n{}",
