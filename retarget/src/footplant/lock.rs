@@ -1715,7 +1715,7 @@ impl FootLock {
     /// The height along up at which foot `i`'s ankle is pinned when it lands with its ankle at
     /// `ankle`: where the source's heel is known, its standing height plus the heel's lift, or,
     /// landing toes down, as high as stands its ball at its standing height at the animation's
-    /// pitch, whichever is higher (as [`Foot::roll`] stands a foot on its ball);
+    /// pitch (as [`Foot::roll`] stands a foot on its ball), never under its standing height;
     /// else its lowest contact settled onto its standing height, plus the foot's lift.
     fn pin_height(&self, i: usize, ankle: Vec3, animated: Vec3) -> f32 {
         let f = &self.feet[i];
@@ -1723,12 +1723,18 @@ impl FootLock {
             Some(h) => {
                 let heel = self.floor + f.heel_clearance + h;
                 // A foot landing toes down (the source's heel up) keeps the animation's pitch,
-                // its ball on its standing height: the ankle as high as that asks.
+                // its ball on its standing height: the ankle as high as its own foot asks, not
+                // as high as the performer's heel rises (scaled by the legs): a foot shorter
+                // against its leg than the performer's, its ankle held that high, had its ball
+                // pitched down onto the floor ahead of the plant, up to the 64° limit (Xia's
+                // walk's final stop onto the pybvh test rig: 50-60° against the performer's
+                // 20-26°).
                 let ball = (f.leg.toes).filter(|_| f.heel_rise > 0.0).map(|t| {
                     let o = self.worlds[t.index()].translation - animated;
                     self.floor + f.ball_clearance + f.lift - o.dot(self.up)
                 });
-                ball.map_or(heel, |b| heel.max(b))
+                let standing = self.floor + f.heel_clearance + f.lift;
+                ball.map_or(heel, |b| b.max(standing))
             }
             None => ankle.dot(self.up) + self.landing_settle(i, ankle, animated) + f.lift,
         }
