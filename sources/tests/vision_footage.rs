@@ -105,8 +105,9 @@ struct Ours {
     /// `scene_motion`).
     scene: Vec<Vec2>,
     fps: f64,
-    /// CPU time a frame with decoding, ms (see the module docs).
+    /// CPU time a frame with decoding, and of it the decoder's, ms (see the module docs).
     cpu_ms: f64,
+    decoder_ms: f64,
     detections: u64,
     /// Landmark model runs (crops).
     inferences: u64,
@@ -216,6 +217,7 @@ fn run_ours(path: &Path, config: &PipelineConfig, max: Option<usize>) -> Ours {
         scene: scene_track(&thumbs, width),
         fps: slots.len().saturating_sub(1) as f64 / secs.max(1e-9),
         cpu_ms: 1e3 * (cpu + decoder_cpu) / timed,
+        decoder_ms: 1e3 * decoder_cpu / timed,
         slots,
         detections: pipeline.stats().detections,
         inferences: pipeline.stats().inferences,
@@ -421,6 +423,7 @@ struct SpeedAnchor {
     /// MediaPipe asked for `people`: its one-person tracker for 1.
     fps: f64,
     cpu_ms: Option<f64>,
+    decoder_ms: Option<f64>,
     cached: bool,
 }
 
@@ -441,17 +444,25 @@ impl SpeedAnchor {
     }
 }
 
-/// The CPU a frame with decoding, ours against MediaPipe's (`theirs`, ms; `None` from a cache
-/// written before the script printed it), and their ratio: MediaPipe's over ours, as the
-/// frame rates' ratio is ours over theirs. A cached anchor's CPU is from another run, often
-/// over every frame of the clip: marked so, as it is read the same way at any load.
-fn cpu_text(ours: f64, theirs: Option<f64>, cached: bool) -> String {
-    match theirs {
-        None => format!("{ours:.1} / - | -"),
+/// The CPU a frame with decoding, ours against MediaPipe's (`speed`'s; `None` from a cache
+/// written before the script printed it), each with its decoder's share in brackets (the two
+/// decode differently: rigcast scaled to the model's size on one thread, MediaPipe at the
+/// video's size), and their ratio: MediaPipe's over ours, as the frame rates' ratio is ours
+/// over theirs. A cached anchor's CPU is from another run, often over every frame of the clip:
+/// marked so, as it is read the same way at any load.
+fn cpu_text(ours: &Ours, speed: &SpeedAnchor) -> String {
+    let with_decoder = |total: f64, decoder: Option<f64>| match decoder {
+        Some(d) => format!("{total:.1} ({d:.1})"),
+        None => format!("{total:.1}"),
+    };
+    let mine = with_decoder(ours.cpu_ms, Some(ours.decoder_ms));
+    match speed.cpu_ms {
+        None => format!("{mine} / - | -"),
         Some(t) => format!(
-            "{ours:.1} / {t:.1} | {:.2}{}",
-            t / ours.max(1e-9),
-            if cached { " (cached)" } else { "" }
+            "{mine} / {} | {:.2}{}",
+            with_decoder(t, speed.decoder_ms),
+            t / ours.cpu_ms.max(1e-9),
+            if speed.cached { " (cached)" } else { "" }
         ),
     }
 }
@@ -472,6 +483,7 @@ fn speed_anchor(
         crowd,
         fps: one.fps,
         cpu_ms: one.cpu_ms,
+        decoder_ms: one.decoder_ms,
         cached: one.cached,
     };
     if max_people < 2 {
@@ -482,17 +494,18 @@ fn speed_anchor(
     if people < 2 {
         return single(Some(crowd));
     }
-    let (fps, cpu_ms, cached) = if people == crowd.asked {
-        (crowd.fps, crowd.cpu_ms, crowd.cached)
+    let (fps, cpu_ms, decoder_ms, cached) = if people == crowd.asked {
+        (crowd.fps, crowd.cpu_ms, crowd.decoder_ms, crowd.cached)
     } else {
         let asked = run_mediapipe_crowd(python, clip, max, "full", people);
-        (asked.fps, asked.cpu_ms, asked.cached)
+        (asked.fps, asked.cpu_ms, asked.decoder_ms, asked.cached)
     };
     SpeedAnchor {
         people,
         crowd: Some(crowd),
         fps,
         cpu_ms,
+        decoder_ms,
         cached,
     }
 }
@@ -549,7 +562,7 @@ fn judge_clip(
     );
     let Ok(python) = &anchors.mediapipe else {
         return (
-            format!("{ours_text} - | - | {our_jumps}, {our_scene_jumps} (-) | - | {tail} - | - | - | - | - | {:.1} / - | - |", ours.cpu_ms),
+            format!("{ours_text} - | - | {our_jumps}, {our_scene_jumps} (-) | - | {tail} - | - | - | - | - | {:.1} ({:.1}) / - | - |", ours.cpu_ms, ours.decoder_ms),
             failures,
         );
     };
@@ -597,7 +610,7 @@ fn judge_clip(
         speed.text(),
         ratio(theirs.fps, theirs.cached),
         ratio(speed.fps, speed.cached),
-        cpu_text(ours.cpu_ms, speed.cpu_ms, speed.cached),
+        cpu_text(&ours, &speed),
     );
     if coverage.first().copied().unwrap_or(0.0) < theirs_cov - 1.0 {
         failures.push(format!(
@@ -657,7 +670,7 @@ fn judge() -> Vec<String> {
             .unwrap_or_default()
             .trim()
     );
-    println!("| clip | frames | coverage per slot % | MediaPipe % (frames only #0 shows someone in) | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) | CPU ms a frame with decoding, rigcast / MediaPipe for the clip's people | CPU ratio, MediaPipe's ÷ rigcast's (the bound's, steadier at load) |", max_people = config.tracker.max_people);
+    println!("| clip | frames | coverage per slot % | MediaPipe % (frames only #0 shows someone in) | MediaPipe's person: in a slot %, slot changes | jumps: in picture, against scene (MediaPipe's) | left/right % (frames, against) | detector runs | model runs / frame | fps | MediaPipe fps, one person | people in the clip (MediaPipe for {max_people}: all found in % of frames, fps) | MediaPipe fps for the clip's people | ratio to one person | ratio to the clip's people (the bound) | CPU ms a frame with decoding (of it the decoder's), rigcast / MediaPipe for the clip's people | CPU ratio, MediaPipe's ÷ rigcast's (the bound's, steadier at load) |", max_people = config.tracker.max_people);
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let anchors = Anchors {
         mediapipe,
@@ -726,6 +739,7 @@ fn synthetic_runs(
         scene: Vec::new(),
         fps: 0.0,
         cpu_ms: 0.0,
+        decoder_ms: 0.0,
         detections: 0,
         inferences: 0,
         second_opinions: 0,
@@ -737,6 +751,7 @@ fn synthetic_runs(
         height: 600.0,
         fps: 0.0,
         cpu_ms: None,
+        decoder_ms: None,
         cached: true,
     };
     (ours, theirs)

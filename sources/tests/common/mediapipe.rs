@@ -22,19 +22,22 @@ pub struct MediaPipeRun {
     pub height: f32,
     /// Frames a second with decoding.
     pub fps: f64,
-    /// CPU time a frame with decoding, ms (see [`cpu_ms`]).
+    /// CPU time a frame with decoding, and of it the decoder's, ms (see [`cpu_ms`]).
     pub cpu_ms: Option<f64>,
+    pub decoder_ms: Option<f64>,
     /// Read back from `RIGCAST_MEDIAPIPE_CACHE` (its frame rate is from another run).
     pub cached: bool,
 }
 
 /// The CPU time a timed frame in `bench_mediapipe.py`'s summary line `stdout`, ms: its Python
-/// process's after the warm-up frame plus its ffmpeg decoder's whole. `None` in a line written
-/// before the script printed it (a cache from then).
-fn cpu_ms(stdout: &str) -> Option<f64> {
+/// process's after the warm-up frame plus its ffmpeg decoder's whole (`what`: `cpu`), or the
+/// decoder's alone (`decoder_cpu`). `None` in a line written before the script printed it (a
+/// cache from then).
+fn cpu_ms(stdout: &str, what: &str) -> Option<f64> {
+    let name = format!("{what}_ms_per_frame=");
     stdout
         .split_whitespace()
-        .find_map(|w| w.strip_prefix("cpu_ms_per_frame="))
+        .find_map(|w| w.strip_prefix(name.as_str()))
         .and_then(|v| v.parse().ok())
 }
 
@@ -75,8 +78,9 @@ pub struct MediaPipeCrowd {
     pub found: Vec<usize>,
     /// Frames a second with decoding.
     pub fps: f64,
-    /// CPU time a frame with decoding, ms (see [`cpu_ms`]).
+    /// CPU time a frame with decoding, and of it the decoder's, ms (see [`cpu_ms`]).
     pub cpu_ms: Option<f64>,
+    pub decoder_ms: Option<f64>,
     /// Read back from `RIGCAST_MEDIAPIPE_CACHE` (its frame rate is from another run).
     pub cached: bool,
 }
@@ -146,7 +150,8 @@ pub fn run_mediapipe_crowd(
         asked: people,
         found,
         fps: field("fps_with_decoding=").parse().unwrap(),
-        cpu_ms: cpu_ms(&stdout),
+        cpu_ms: cpu_ms(&stdout, "cpu"),
+        decoder_ms: cpu_ms(&stdout, "decoder_cpu"),
         cached: was_cached,
     }
 }
@@ -274,7 +279,8 @@ pub fn run_mediapipe_model(
         width: size("width"),
         height: size("height"),
         fps,
-        cpu_ms: cpu_ms(&stdout),
+        cpu_ms: cpu_ms(&stdout, "cpu"),
+        decoder_ms: cpu_ms(&stdout, "decoder_cpu"),
         cached: was_cached,
     }
 }
