@@ -1251,9 +1251,12 @@ fn pair_wanted(name: &str) -> bool {
 /// frames behind the drift and floor figures, `RIGCAST_QUALITY_FOOT=1` the foot's error as
 /// judged frame by frame with its heading part and both pitches, `RIGCAST_QUALITY_LIVE=1` judges
 /// the causal lock instead, run frame by frame as the server's tick runs it). Of 152 pairs whose legs'
-/// roles map right, within the bounds: thigh and shin 137, foot 81 of the 84 with toes on both
-/// rigs (58 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the
-/// foot's where both rigs have toes) 135, since a pinned or landing foot's ball is brought
+/// roles map right, within the bounds: thigh and shin 137, foot 82 of the 84 with toes on both
+/// rigs (59 raw), drift 151 (every foot joint: 129), floor 150; every bound at once (the
+/// foot's where both rigs have toes) 136, since a foot landing toes down is pinned as high as
+/// its own ball asks at the animation's pitch, not as high as the performer's heel rises
+/// (Xia → pybvh test3 3.4/17.7 -> 1.6/7.9°; thigh and shin p95 up to 0.9° worse on 7 pairs
+/// under Xia, all far within; 81 (58) and 135 before), since a pinned or landing foot's ball is brought
 /// down no lower than the source's ball stands over its own flat standing height (the median
 /// over the frames its heel and ball hold; the detector's ground for a ball is where a toe-off
 /// rolls it, 2-5 cm lower): a heel strike's toes come down as the performer's do (LaFAN1 →
