@@ -10,12 +10,14 @@
 //!   reset it blends in again);
 //! - a clip's floor ignores a few frames dipping through it;
 //! - offline, the animation is fitted to the standing posture first (a landing foot arrives
-//!   flat at its standing height).
+//!   flat at its standing height);
+//! - live, a rest standing along another up than its motion's (no floor placed for it) still
+//!   gives the feet their standing pitch.
 
 mod retarget_fixtures;
 
-use glam::Quat;
-use retarget_fixtures::locked_pair;
+use glam::{Quat, Vec3};
+use retarget_fixtures::{locked_pair, table_by_canonical, Humanoid};
 use rigcast_retarget::analysis::{analyze, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings, PlantTrack};
 use rigcast_retarget::{world_transforms, Clip, Mapping, Pose, Skeleton, WorldTransform};
@@ -403,4 +405,81 @@ fn offline_the_animation_is_fitted_to_the_standing_posture() {
         landing(&plain),
         landing(&fitted)
     );
+}
+
+/// `skel` turned Z-up: its root's rest turned 90° about X (+Y to +Z), as a rig authored in a
+/// Z-up tool stands in its file.
+fn turned_z_up(skel: &Skeleton) -> Skeleton {
+    let turn = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    let mut raw = skel.to_raw();
+    for b in raw.bones.iter_mut().filter(|b| b.parent.is_none()) {
+        b.rest.rotation = turn * b.rest.rotation;
+        b.rest.translation = turn * b.rest.translation;
+    }
+    Skeleton::build(&raw).expect("turned skeleton")
+}
+
+/// Live, a rig whose rest stands on its own ground along its own up (+Z) under a motion whose up
+/// is +Y, so the retarget places no floor for that rest (MakeHuman's case), still gets its feet's
+/// standing pitch: the live fit learns it on the planted frames and pitches every frame by it, so
+/// a foot lifted with its pitch kept shows the rest's pitch too, read along the animation's up.
+/// The answer is the rig's own: its rest's ankle-to-ball pitch along +Z. The performer stands
+/// with its toes 0.3 rad up against that (the retargeted foot 17° off it). The pin stands the
+/// planted frames at that pitch whatever the fit; the lifted ones show the fit (without it
+/// they keep the animation's 17° gap).
+#[test]
+fn live_a_rest_standing_along_its_own_up_gives_its_feet_pitch() {
+    let source = Humanoid::default().build();
+    let target = turned_z_up(
+        &Humanoid {
+            leg: 0.8,
+            ..Humanoid::default()
+        }
+        .build(),
+    );
+    let table = table_by_canonical(&source, "", &target, "");
+    let opts = rigcast_retarget::RetargetOptions::default();
+    let mut mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
+    let (sa, ta) = (
+        analyze(&SkeletonView::rest(&source)),
+        analyze(&SkeletonView::rest(&target)),
+    );
+    assert!(ta.up.abs_diff_eq(Vec3::Z, 1e-4), "rest up {}", ta.up);
+    assert!(
+        !mapping.target_posture_stands(),
+        "the case: no floor placed for a rest along another up"
+    );
+    let (up, _, _) = mapping.target_floor().expect("a floor");
+    assert!(up.abs_diff_eq(Vec3::Y, 1e-4), "motion up {up}");
+    let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
+    let (foot, toe) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+    );
+    let pitch = |w: &[WorldTransform], up: Vec3| {
+        let o = w[toe.index()].translation - w[foot.index()].translation;
+        (o.dot(up) / o.length()).asin().to_degrees()
+    };
+    let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
+    let (poses, _) = toes_up_steps(&source);
+    let mut out = mapping.new_target_pose();
+    let mut free = mapping.new_target_pose();
+    let mut checked = 0;
+    for (f, p) in poses.iter().enumerate() {
+        let (w, wf) = locked_and_free(&mut mapping, &mut lock, p, &mut out, &mut free);
+        // Planted, after the pin has taken the foot; lifted (hip flexed, the foot's pitch kept).
+        if (20..40).contains(&f) || (45..65).contains(&f) {
+            let (locked, animated) = (pitch(&w, up), pitch(&wf, up));
+            assert!(
+                (animated - standing).abs() > 10.0,
+                "frame {f}: the animation already stands at {animated}°"
+            );
+            assert!(
+                (locked - standing).abs() < 1.0,
+                "frame {f}: the foot pitched {locked}°, its rest {standing}° (animated {animated}°)"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 40);
 }
