@@ -31,7 +31,8 @@
 //! the reason without it. The geometry itself is proven on a synthetic rig written in the
 //! calibration's own format (no footage needed): a known body comes back through padded,
 //! distorted views, with a view read mirrored, with every view mirrored, and with one view's
-//! wrist far off (left out of four views; not held from three).
+//! wrist far off (left out of four views; not held from three); the frame offsets on a
+//! synthetic walk seen by cameras started late and early.
 //!
 //! A second test judges every other calibrated rig of the shared data the same way (caliscope
 //! calibrations: the desk set's four webcams), on the landmarks its cameras see; its
@@ -875,6 +876,54 @@ fn a_caliscope_rig_triangulates_a_known_body_through_its_distortion() {
     for &j in &reference3d::BODY {
         assert!(r.joints[j].distance(body[j]) < 1e-3, "joint {j}");
     }
+}
+
+/// The synthetic body at time `t` (frames): walking along x while its arms and legs swing
+/// at different paces.
+fn synthetic_body_at(t: f64) -> Vec<DVec3> {
+    let mut body = synthetic_body();
+    let step = DVec3::new(0.004 * t, 0.0, 0.0);
+    // (landmark, swing a frame in radians, reach in metres); the right side 1.3× as quick.
+    for (j, pace, reach) in [
+        (13, 0.21, 0.1),
+        (15, 0.21, 0.25),
+        (25, 0.13, 0.08),
+        (27, 0.13, 0.2),
+    ] {
+        for (j, pace) in [(j, pace), (reference3d::mirror(j), pace * 1.3)] {
+            body[j].y += reach * (pace * t).sin();
+            body[j].z += 0.5 * reach * (pace * t).cos();
+        }
+    }
+    body.iter().map(|&p| p + step).collect()
+}
+
+#[test]
+fn synchronise_finds_cameras_that_started_late_or_early() {
+    // Camera k's frame g shows the body at time g - late[k]: its offset is late[k].
+    let late = [0i64, 0, 3, -2];
+    let (cameras, videos, _) = synthetic_views(&synthetic_body(), 0);
+    let frames: Vec<Vec<Option<Points>>> = (0..4)
+        .map(|k| {
+            (0..60)
+                .map(|g| {
+                    let body = synthetic_body_at((g - late[k]) as f64);
+                    let points = body
+                        .iter()
+                        .map(|&p| {
+                            let px = cameras[k].project(videos[k], p).unwrap();
+                            [px.x as f32, px.y as f32, 1.0]
+                        })
+                        .collect();
+                    Some(points)
+                })
+                .collect()
+        })
+        .collect();
+    let mut rig = views(&cameras, &videos, &frames);
+    reference3d::synchronise(&mut rig, 60, 30.0, &Body::whole());
+    let found: Vec<i64> = rig.iter().map(|v| v.offset).collect();
+    assert_eq!(found, late);
 }
 
 #[test]

@@ -18,8 +18,9 @@
 //! - a rig that sees only part of the body (the desk set's seated man: hips and legs below
 //!   the pictures): the reference holds the [`BODY`] landmarks MediaPipe sees in most frames
 //!   of three views or more ([`Body::seen`]);
-//! - cameras that did not start together: each camera's frame offset is the one whose
-//!   triangulation reprojects best (searched within [`MAX_SHIFT_SECS`]).
+//! - cameras that did not start together: each camera's frame offset is the one where every
+//!   camera's own 2D best agrees with the other cameras' triangulation, over every frame
+//!   (searched within [`MAX_SHIFT_SECS`]).
 //!
 //! Two calibration formats are found by listing: a Qualisys export beside videos named after
 //! its cameras (pose2sim), and caliscope's `camera_array.toml` ([`caliscope_sets`]). Each
@@ -352,21 +353,72 @@ pub fn build(views: &[View], frames: i64, body: &Body) -> Vec<Option<Frame3d>> {
         .collect()
 }
 
-/// The median reprojection error (of the torso) over the frames every view sees, and how
-/// many frames that is.
-fn sync_score(views: &[View], frames: i64, body: &Body) -> (f64, usize) {
-    let all: Vec<f64> = (0..frames)
+/// How far each view's own 2D lies from the triangulation of the *other* views: the mean,
+/// over the views, of the view's mean error (of its torso) on `body`'s held joints, over the
+/// frames every view sees of `first..last`; and how many frames that is. Every frame counts
+/// (a median keeps the still ones, which fit any offset), and the view scored is not in the
+/// triangulation (a late view in it is left out of the joints it misses, which hides it).
+fn sync_score(views: &[View], first: i64, last: i64, body: &Body) -> (f64, usize) {
+    let frames: Vec<i64> = (first..last)
         .filter(|&f| views.iter().all(|v| seen(v, f).is_some()))
-        .filter_map(|f| frame_of(views, f, body))
-        .map(|r| r.residual_torso)
         .collect();
-    let n = all.len();
-    (median(all), n)
+    let per_view: Vec<f64> = (0..views.len())
+        .map(|k| {
+            let others: Vec<View> = views
+                .iter()
+                .enumerate()
+                .filter(|&(o, _)| o != k)
+                .map(|(_, v)| View { ..*v })
+                .collect();
+            let errors: Vec<f64> = frames
+                .iter()
+                .filter_map(|&f| Some((frame_of(&others, f, body)?, own_points(&views[k], f)?)))
+                .flat_map(|(r, p)| view_errors(&r, &views[k], p, body))
+                .collect();
+            errors.iter().sum::<f64>() / errors.len().max(1) as f64
+        })
+        .collect();
+    let score = per_view.iter().sum::<f64>() / per_view.len().max(1) as f64;
+    (score, frames.len())
+}
+
+fn own_points<'a>(view: &View<'a>, f: i64) -> Option<&'a Points> {
+    view.frames
+        .get(usize::try_from(f + view.offset).ok()?)?
+        .as_ref()
+}
+
+/// A view's 2D joints' distances (of its torso) from the reference's projection, its labels
+/// read the way round (as they are, or mirrored) that fits the projection better.
+fn view_errors(r: &Frame3d, view: &View, p: &Points, body: &Body) -> Vec<f64> {
+    let at = |i: usize| DVec2::new(p[i][0].into(), p[i][1].into());
+    let torso = ((at(idx::LEFT_SHOULDER) + at(idx::RIGHT_SHOULDER))
+        - (at(idx::LEFT_HIP) + at(idx::RIGHT_HIP)))
+    .length()
+        * 0.5;
+    let cost = |m: fn(usize) -> usize| -> Vec<f64> {
+        body.joints
+            .iter()
+            .filter(|&&j| r.holds(j) && r.holds(m(j)))
+            .map(|&j| {
+                let projected = view.cam.project(view.video, r.joints[m(j)]);
+                projected.map_or(1e3, |q| at(j).distance(q) / torso.max(1.0))
+            })
+            .collect()
+    };
+    let (same, swapped) = (cost(|j| j), cost(mirror));
+    let total = |v: &[f64]| v.iter().sum::<f64>();
+    if total(&same) <= total(&swapped) {
+        same
+    } else {
+        swapped
+    }
 }
 
 /// Each view's offset after the first (which stays), in frames within [`MAX_SHIFT_SECS`] at
-/// `fps`: the one whose triangulation reprojects best over the frames all views see (at least
-/// half of `frames`), one camera at a time, twice round.
+/// `fps`: the one where the views' own 2D best agree with the other views' triangulation
+/// ([`sync_score`], over the frames every view sees, the search's reach off both ends, at
+/// least half of `frames`), one camera at a time, twice round.
 pub fn synchronise(views: &mut [View], frames: i64, fps: f64, body: &Body) {
     let reach = (MAX_SHIFT_SECS * fps).round() as i64;
     for _ in 0..2 {
@@ -374,7 +426,7 @@ pub fn synchronise(views: &mut [View], frames: i64, fps: f64, body: &Body) {
             let mut best = (f64::INFINITY, views[k].offset);
             for shift in -reach..=reach {
                 views[k].offset = shift;
-                let (score, n) = sync_score(views, frames, body);
+                let (score, n) = sync_score(views, reach, frames - reach, body);
                 if 2 * n as i64 >= frames && score < best.0 {
                     best = (score, shift);
                 }
