@@ -878,10 +878,12 @@ fn a_caliscope_rig_triangulates_a_known_body_through_its_distortion() {
     }
 }
 
-/// The synthetic body at time `t` (frames): walking along x while its arms and legs swing
-/// at different paces.
+/// The synthetic body at time `t` (frames): still but for frames 20-35, where it steps along
+/// x and its arms and legs swing at different paces (a clip's few quick moments are what
+/// tell its cameras' offsets).
 fn synthetic_body_at(t: f64) -> Vec<DVec3> {
     let mut body = synthetic_body();
+    let t = t.clamp(20.0, 35.0);
     let step = DVec3::new(0.004 * t, 0.0, 0.0);
     // (landmark, swing a frame in radians, reach in metres); the right side 1.3× as quick.
     for (j, pace, reach) in [
@@ -908,11 +910,17 @@ fn synchronise_finds_cameras_that_started_late_or_early() {
             (0..60)
                 .map(|g| {
                     let body = synthetic_body_at((g - late[k]) as f64);
+                    // A steady ±2 px of noise a landmark, as a detector's.
+                    let noise = |j: usize, axis: usize| {
+                        let n = (g as usize * 131 + j * 17 + axis * 7 + k * 3) * 7919 % 101;
+                        (n as f32 / 100.0 - 0.5) * 4.0
+                    };
                     let points = body
                         .iter()
-                        .map(|&p| {
+                        .enumerate()
+                        .map(|(j, &p)| {
                             let px = cameras[k].project(videos[k], p).unwrap();
-                            [px.x as f32, px.y as f32, 1.0]
+                            [px.x as f32 + noise(j, 0), px.y as f32 + noise(j, 1), 1.0]
                         })
                         .collect();
                     Some(points)
