@@ -12,7 +12,9 @@
 //! - offline, the animation is fitted to the standing posture first (a landing foot arrives
 //!   flat at its standing height);
 //! - live, a rest standing along another up than its motion's (no floor placed for it) still
-//!   gives the feet their standing pitch.
+//!   gives the feet their standing pitch;
+//! - live, feet whose floor the mapping does not know are pinned where they stand, not at the
+//!   floor it gives.
 
 mod retarget_fixtures;
 
@@ -482,4 +484,97 @@ fn live_a_rest_standing_along_its_own_up_gives_its_feet_pitch() {
         }
     }
     assert_eq!(checked, 40);
+}
+
+/// Standing still at 60 Hz on bent knees (thighs turned `bend` rad, shins back twice that, feet
+/// level again), the hips lowered so the toes stand where they stood in the rest.
+fn crouching(source: &Skeleton, num_frames: usize, bend: f32) -> Vec<Pose> {
+    let mut p = source.rest_pose();
+    for side in ["l", "r"] {
+        for (bone, angle) in [("thigh", bend), ("shin", -2.0 * bend), ("foot", bend)] {
+            let b = source.bone(&format!("{side}_{bone}")).expect("a leg bone");
+            p.rotations[b.index()] *= Quat::from_rotation_x(angle);
+        }
+    }
+    let toe = source.bone("l_toe").expect("toe");
+    let toe_y = |p: &Pose| world_transforms(source, p)[toe.index()].translation.y;
+    p.translations[0].y -= toe_y(&p) - toe_y(&source.rest_pose());
+    vec![p; num_frames]
+}
+
+/// Where the mapping does not know the character's floor (nothing mapped below its root is
+/// below the source's: here the root follows the source's spine, the legs its legs), the
+/// floor it gives is the source's scaled, and the retargeted feet may stand far from it (here
+/// 1 m above: the source's floor given 1.5 m under its feet, scaled by 0.69). Live, the lock
+/// learns where each
+/// foot stands from its stance and pins it there: the planted legs keep the source's bent
+/// knees. Pinned at the mapping's floor, the legs were stretched towards it.
+#[test]
+fn live_feet_whose_floor_is_unknown_are_pinned_where_they_stand() {
+    use rigcast_retarget::retarget::FloorAt;
+    let source = Humanoid::default().build();
+    let target = Humanoid {
+        leg: 0.8,
+        ..Humanoid::default()
+    }
+    .build();
+    let mut table = table_by_canonical(&source, "", &target, "");
+    let is_leg = |name: &str| {
+        ["thigh", "shin", "foot", "toe"]
+            .iter()
+            .any(|l| name.contains(l))
+    };
+    for t in target.bone_ids() {
+        if t == target.bone("hips").expect("hips") || !is_leg(target.name(t)) {
+            table.entries[t.index()] = None;
+        }
+    }
+    let mut hips = table_by_canonical(&source, "", &target, "");
+    let spine = source.bone("spine").expect("spine");
+    let root = target.bone("hips").expect("hips").index();
+    table.entries[root] = hips.entries[root].take().map(|mut e| {
+        e.sources[0].bone = spine;
+        e
+    });
+    let opts = rigcast_retarget::RetargetOptions {
+        source_floor_y: Some(-1.5),
+        ..Default::default()
+    };
+    let mut mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
+    let (_, floor, floor_at) = mapping.target_floor().expect("a floor");
+    assert_eq!(floor_at, FloorAt::Unknown, "the mapping knows the floor");
+    let sa = analyze(&SkeletonView::rest(&source));
+    let ta = analyze(&SkeletonView::rest(&target));
+    let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("lock");
+    let bones = |side: &str| {
+        ["thigh", "shin", "foot"].map(|b| target.bone(&format!("{side}_{b}")).expect("leg"))
+    };
+    let (mut out, mut free) = (mapping.new_target_pose(), mapping.new_target_pose());
+    let mut checked = 0;
+    for (f, p) in crouching(&source, 120, 0.5).iter().enumerate() {
+        let (w, wf) = locked_and_free(&mut mapping, &mut lock, p, &mut out, &mut free);
+        let ankle = wf[bones("l")[2].index()].translation.y;
+        assert!(
+            ankle > floor + 0.9,
+            "the feet stand at {ankle}, the floor {floor}"
+        );
+        if f < 30 {
+            continue;
+        }
+        assert!(
+            (0..2).all(|i| lock.is_locked(i)),
+            "frame {f}: a standing foot is not held"
+        );
+        for [thigh, shin, foot] in [bones("l"), bones("r")] {
+            for (a, b) in [(thigh, shin), (shin, foot)] {
+                let d = |w: &[WorldTransform]| {
+                    (w[b.index()].translation - w[a.index()].translation).normalize_or_zero()
+                };
+                let deg = d(&w).angle_between(d(&wf)).to_degrees();
+                assert!(deg < 3.0, "frame {f}: a leg segment turned {deg:.1}°");
+            }
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 90);
 }

@@ -52,17 +52,19 @@
 //! shin, both runs) by phase: single 2690, double 20, approach 1235, release 845, swing 653
 //! (without LaFAN1 onto Casual, below: 1253, 0, 733, 524, 73): the standing leg bent while
 //! the other swings, the largest phase on 12 of the 16 failing pair-runs (release on 3).
-//! Two classes are far off live on every run: LaFAN1 onto the three toeless characters
+//! Two classes were far off live on every run: LaFAN1 onto the three toeless characters
 //! (thigh: Casual 45/90°, RobotExpressive 30-31/90, the robot 23-24/50-51) and Xia onto both
-//! robots (27-29/79-82, floor 138-193 cm where judged). Traced in process (the same lock on
-//! the same mapping, live against offline): on these pairs the mapping does not know where
-//! the character's floor is (`FloorAt::Unknown`), and the retargeted feet do not stand on
-//! the floor height it gives. LaFAN1 onto Casual's stand about 1 m under it (the heel's
-//! standing height offline reads off the clip: -1.00 m); live, the pins stand 78-101 cm over
-//! the animation's ankles and the hips are carried 29-57 cm up. Xia onto the robot: the
-//! pinned ankles 45-66 cm under the animation's, the hips 37 cm down. Offline the lock
-//! learns the standing heights from the clip (`fit_to_standing`); live it pins the feet at
-//! the mapping's floor, and the legs fold to reach them.
+//! robots (27-29/79-82). On these pairs the mapping does not know where the character's floor
+//! is (`FloorAt::Unknown`) and the retargeted feet do not stand at the height it gives
+//! (LaFAN1 onto Casual's about 1 m under it); the live lock pinned them there and the legs
+//! folded to reach (LaFAN1 onto Casual: pins 78-101 cm over the animation's ankles). Since
+//! the lock learns such a foot's standing heights from its stances, as offline, two runs at
+//! load 16-19 (fewer frames per source than at load 7): LaFAN1 onto Casual 3.2/10.2 and
+//! 2.5/7.6° thigh, RobotExpressive 17.8/42.9 and 17.6/40.9, Xia onto the robot 5.1/14.6 and
+//! 4.4/15.7, RobotExpressive 4.9/15.6 and 5.1/16.6. The floor, judged against the
+//! character's own rest ground, now shows where the retarget stands these characters:
+//! LaFAN1 onto Casual 95 cm (5-8 pinned at the mapping's floor), RobotExpressive 42-44
+//! (10), Xia onto Casual 7 (2), the robots 147-150 and 206-209 (138, 193).
 //!
 //! Before, the first walk alone (CMU 131_01), the figures below. With the toeless
 //! feet rising with the heel, five runs at load 7-14 (before, two runs of the lock before

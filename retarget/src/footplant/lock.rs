@@ -309,6 +309,12 @@ struct Foot {
     /// Live: how long (seconds) this foot has stood flat under a lock, what its `pitch_fix`
     /// has been learnt from ([`FootLock::learn_fit`]).
     fit_secs: f32,
+    /// The mapping does not know where the character's floor is ([`FloorAt::Unknown`]) and no
+    /// clip was read for the foot's standing heights: it learns them from its flat stances
+    /// ([`FootLock::learn_fit`]), and is not pulled towards that floor before it has stood.
+    learns_heights: bool,
+    /// How long (seconds) such a foot has stood since: what its heights are learnt from.
+    stand_secs: f32,
     /// The foot's left-to-right axis, fixed in the foot bone's frame: what it pitches about.
     side_local: Vec3,
     /// A direction fixed in the foot bone's frame whose way over the ground is the foot's
@@ -392,6 +398,12 @@ struct Foot {
 }
 
 impl Foot {
+    /// Whether the foot's standing heights above the lock's floor are known: given by the
+    /// mapping or the clip, or learnt from a flat stance ([`Foot::learns_heights`]).
+    fn stands_known(&self) -> bool {
+        !self.learns_heights || self.stand_secs > 0.0
+    }
+
     /// The foot's length to its ball; `None` without one (the toes not rigged).
     fn ball(&self) -> Option<f32> {
         self.leg.toes.map(|_| self.foot_length)
@@ -687,6 +699,8 @@ impl Foot {
             standing_pitch: 0.0,
             pitch_fix: 0.0,
             fit_secs: 0.0,
+            learns_heights: false,
+            stand_secs: 0.0,
             side_local: Vec3::Z,
             heading_local: Vec3::X,
             pole_local: Vec3::X,
@@ -872,12 +886,16 @@ impl FootLock {
             let at = |b: BoneId| source.positions[b.index()];
             l.toes.map_or(0.0, |t| (at(t) - at(l.foot)).length())
         };
+        // Not knowing the floor, the mapping gives the source's scaled: the retargeted feet
+        // may stand far from it (LaFAN1 onto Casual about 1 m under it).
+        let learns_heights = floor_at == FloorAt::Unknown && !mapping.target_posture_stands();
         let feet = target_legs
             .iter()
             .map(|leg| {
                 let source = source_legs.iter().position(|s| s.key() == leg.key());
                 let mut foot = standing_foot(leg, source, &aligned, own, target, up, lowest);
                 foot.heel_reach = source.map_or(0.0, |s| lift_scale * source_foot(&source_legs[s]));
+                foot.learns_heights = learns_heights;
                 foot
             })
             .collect();
@@ -986,6 +1004,7 @@ impl FootLock {
                 foot.standing_pitch = standing;
                 foot.heel_clearance = heel;
                 foot.ball_clearance = heel + foot.foot_length * standing.sin();
+                foot.learns_heights = false;
             }
         }
         self.root_fix = if n > 0 { rise_sum / n as f32 } else { 0.0 };
@@ -1021,15 +1040,26 @@ impl FootLock {
     /// offline, a rest standing on its own ground along its own up gives the feet's pitch even
     /// where the retarget places no floor for it (MakeHuman's: its rest along Z, its motion
     /// along Y); the hips are moved onto the standing heights only where the posture stands.
-    fn learn_fit(&mut self, planted: &[bool; MAX_FEET], dt: f32) {
-        if !(self.posture_stands || self.rest_feet_stand) || dt <= 0.0 {
+    /// Live or not, a foot whose floor the mapping does not know and no clip gave heights to
+    /// ([`Foot::learns_heights`]) learns its standing heights the same way, off the animation:
+    /// pinned at the mapping's floor, LaFAN1's walk onto Casual had its pins 78-101 cm over
+    /// the animation's ankles, the thighs 45° mean off the performer's.
+    fn learn_fit(&mut self, planted: &[bool; MAX_FEET], dt: f32, live: bool) {
+        let pitch = live && (self.posture_stands || self.rest_feet_stand);
+        if !(pitch || self.feet.iter().any(|f| f.learns_heights)) || dt <= 0.0 {
             return;
         }
         let k = 1.0 - (-dt / FIT_LEARN_SECS).exp();
         let (mut rise, mut n) = (0.0, 0);
         for i in 0..self.feet.len() {
             let foot = &self.feet[i];
-            if !(foot.locked && foot.source.is_some_and(|s| planted[s])) {
+            // A foot learning its heights is pinned only once it knows them: its first
+            // planted frame is read before any pin.
+            let held = foot.locked || !foot.stands_known();
+            if !(held && foot.source.is_some_and(|s| planted[s])) {
+                continue;
+            }
+            if !(pitch || foot.learns_heights) {
                 continue;
             }
             let stance = Stance {
@@ -1040,6 +1070,7 @@ impl FootLock {
             // A foot rolling onto its ball (a toe-off) stands its heel lower than its ankle,
             // and its pitch is the roll's, not the stance's: learnt from flat frames only.
             let rolled = stance.rolled(foot.ball(), foot.standing_pitch, foot.pitch_fix);
+            let rest_pitch = self.posture_stands || self.rest_feet_stand;
             let foot = &mut self.feet[i];
             if rolled <= 0.0 {
                 // The mean of the frames seen so far until they span the running average's
@@ -1050,14 +1081,29 @@ impl FootLock {
                 // pitch whatever the fit; the one it pitches is the foot it learns on.
                 foot.fit_secs += dt;
                 let k = k.max(dt / foot.fit_secs);
-                foot.pitch_fix += k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
+                if pitch {
+                    foot.pitch_fix +=
+                        k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
+                } else if foot.learns_heights && !rest_pitch {
+                    // No rest to stand it as: the animation's own pitch, as offline.
+                    foot.standing_pitch += k * (stance.pitch - foot.standing_pitch);
+                }
+            }
+            if foot.learns_heights {
+                // Where the heel stands as the lock rolls the foot, from its first stance at
+                // once (as the pitch): as offline, off the animation, not the unknown floor.
+                foot.stand_secs += dt;
+                let k = k.max(dt / foot.stand_secs);
+                foot.heel_clearance += k * (stance.ankle - rolled - foot.heel_clearance);
+                foot.ball_clearance =
+                    foot.heel_clearance + foot.foot_length * foot.standing_pitch.sin();
             }
             rise += clearance - (stance.ankle - rolled);
             n += 1;
         }
         // A rest standing along its own up only (no floor placed for it) gives the feet's
         // pitch alone: its standing heights are not this world's.
-        if n > 0 && self.posture_stands {
+        if n > 0 && pitch && self.posture_stands {
             let limit = self.settings.max_drop_ratio * self.feet[0].leg.length;
             let wanted = clamp_safe(rise / n as f32, -limit, limit);
             self.root_fix += k * (wanted - self.root_fix);
@@ -1252,14 +1298,14 @@ impl FootLock {
         self.fk(out);
         let dt = dt_secs.max(0.0);
         self.take_lifts(lifts, dt);
-        if live {
-            self.learn_fit(planted, dt);
-        }
+        self.learn_fit(planted, dt, live);
         self.apply_fit(out);
         self.turn_pins(planted, dt);
         self.carry_root(planted, dt, live, out);
         for i in 0..self.feet.len() {
-            let wants = self.feet[i].source.is_some_and(|s| planted[s]);
+            // A foot that has not learnt where it stands is not pinned to a floor unknown.
+            let f = &self.feet[i];
+            let wants = f.source.is_some_and(|s| planted[s]) && f.stands_known();
             self.goals[i] = self.foot_goal(i, wants, dt);
         }
         if self.raise_hips(out) {
@@ -1719,6 +1765,9 @@ impl FootLock {
     /// else its lowest contact settled onto its standing height, plus the foot's lift.
     fn pin_height(&self, i: usize, ankle: Vec3, animated: Vec3) -> f32 {
         let f = &self.feet[i];
+        if !f.stands_known() {
+            return ankle.dot(self.up);
+        }
         match f.heel_lift {
             Some(h) => {
                 let heel = self.floor + f.heel_clearance + h;
@@ -1756,6 +1805,9 @@ impl FootLock {
         let g = &mut self.goals[i];
         if !g.pinned {
             g.ankle -= self.up * drop;
+        }
+        if !f.stands_known() {
+            return;
         }
         let up = self.up;
         let heel_low = self.floor + f.heel_clearance - g.ankle.dot(up);
@@ -1800,6 +1852,8 @@ impl FootLock {
             limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
             let need = if goal.pinned {
                 (goal.ankle - foot.animated_position).dot(up)
+            } else if !foot.stands_known() {
+                0.0
             } else {
                 self.floor + foot.heel_clearance - goal.ankle.dot(up)
             };
