@@ -20,6 +20,8 @@
 #![allow(clippy::unwrap_used)]
 
 mod common;
+#[path = "common/leg_phases.rs"]
+mod leg_phases;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -28,6 +30,10 @@ use glam::{Quat, Vec3};
 use rigcast_retarget::{world_transforms, BoneId, Clip, RootMotion, Skeleton};
 use rigcast_server::offline::{plan_mapping, retarget_clip_locked};
 use serde_json::Value;
+
+use leg_phases::{
+    phase, print_phase_sums, print_phases, tally_phases, PhaseSums, PHASES, PHASE_NEAR_SECS,
+};
 
 /// Source frames measured per pair (evenly spread over the clip).
 const FRAMES_PER_PAIR: usize = 90;
@@ -784,15 +790,6 @@ struct LegFigures {
     phases: [[Vec<f32>; PHASES]; 2],
 }
 
-/// A leg's phase on a frame, from its source foot's plants and the other's: where
-/// the lock's part in a thigh or shin error comes from (`RIGCAST_QUALITY_PHASES`).
-const PHASES: usize = 5;
-const PHASE_NAMES: [&str; PHASES] = ["single", "double", "approach", "release", "swing"];
-
-/// How long (seconds) before a plant a free foot is approaching it, and after a release
-/// leaving it.
-const PHASE_NEAR_SECS: f64 = 0.15;
-
 /// Per side ("L", "R"), the frames the lock holds the source's foot as planted (its own
 /// two-sided detection on the source's labelled-side hind leg): the phases the lock goes
 /// through, which the judge's stricter standing frames (within 1 cm, still) see only part of.
@@ -820,22 +817,6 @@ fn lock_plants(clip: &Clip, plan: &rigcast_server::offline::MappingPlan) -> Vec<
                 .collect()
         })
         .collect()
-}
-
-/// The phase of side `si` on `frame`: its foot standing alone (0) or with the other (1), or
-/// free: within [`PHASE_NEAR_SECS`] before a stance (2), after one (3), or swinging (4).
-fn phase(stands: &[Vec<bool>], si: usize, frame: usize, near: usize) -> usize {
-    let at = |s: usize, f: usize| stands.get(s).and_then(|v| v.get(f)) == Some(&true);
-    if at(si, frame) {
-        return if at(1 - si, frame) { 1 } else { 0 };
-    }
-    if (1..=near).any(|k| at(si, frame + k)) {
-        2
-    } else if (1..=near.min(frame)).any(|k| at(si, frame - k)) {
-        3
-    } else {
-        4
-    }
 }
 
 fn mean_p95(v: &mut [f32]) -> (f32, f32) {
@@ -1153,32 +1134,6 @@ fn standing_drift(
 /// rotation instead, as before, the line could not see the foot at all.)
 fn segment_direction(w: &[rigcast_retarget::WorldTransform], a: BoneId, b: BoneId) -> Vec3 {
     w[b.index()].translation - w[a.index()].translation
-}
-
-/// Adds a pair's thigh and shin errors per phase to `sums` (frames, frames over 8°, sum).
-fn tally_phases(sums: &mut [[(usize, usize, f32); PHASES]; 2], phases: &[[Vec<f32>; PHASES]; 2]) {
-    for (sum, errors) in sums.iter_mut().zip(phases) {
-        for ((n, over, total), e) in sum.iter_mut().zip(errors) {
-            *n += e.len();
-            *over += e.iter().filter(|e| **e > 8.0).count();
-            *total += e.iter().sum::<f32>();
-        }
-    }
-}
-
-/// A pair's thigh and shin errors per phase (`RIGCAST_QUALITY_PHASES`): frames, mean/p95,
-/// and how many of those frames are over 8° (what puts a pair's p95 over its bound).
-fn print_phases(phases: &[[Vec<f32>; PHASES]; 2]) {
-    for (segment, errors) in ["thigh", "shin"].iter().zip(phases) {
-        let cells: Vec<String> = (PHASE_NAMES.iter().zip(errors))
-            .map(|(name, e)| {
-                let (m, p) = mean_p95(&mut e.clone());
-                let over = e.iter().filter(|e| **e > 8.0).count();
-                format!("{name} {} {m:.1}/{p:.1} >8: {over}", e.len())
-            })
-            .collect();
-        println!("    {segment}: {}", cells.join(", "));
-    }
 }
 
 /// `clip` retargeted onto `target` as [`retarget_clip_locked`] does, but locked by the causal
@@ -1555,7 +1510,7 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
     let mut all_within = 0;
     // Over the pairs whose thigh or shin misses its bound, per segment and phase: frames
     // measured, frames past the p95 bound, summed error.
-    let mut by_phase = [[(0usize, 0usize, 0.0f32); PHASES]; 2];
+    let mut by_phase: PhaseSums = Default::default();
     for src in &gaits {
         for (tgt, judge_t) in humans
             .iter()
@@ -1684,19 +1639,7 @@ fn locked_legs_follow_the_source_on_walks_and_runs() {
         tally[3],
         failures.len()
     );
-    println!(
-        "where the thigh and shin miss (pairs outside their bounds; frames, mean°, share over 8°):"
-    );
-    for (k, segment) in ["thigh", "shin"].iter().enumerate() {
-        let cells: Vec<String> = (PHASE_NAMES.iter().zip(&by_phase[k]))
-            .map(|(name, (n, over, sum))| {
-                let share = 100.0 * *over as f32 / (*n).max(1) as f32;
-                let mean = sum / (*n).max(1) as f32;
-                format!("{name} {n} {mean:.1}° {share:.0}%")
-            })
-            .collect();
-        println!("  {segment}: {}", cells.join(", "));
-    }
+    print_phase_sums(&by_phase);
     assert!(checked > 0, "no right pair with a walk or run source");
     assert!(
         failures.is_empty(),

@@ -117,6 +117,12 @@ use rigcast_protocol::ServerMessage;
 use rigcast_server::{PerformerSpec, ServerConfig};
 use rigcast_tests::*;
 
+#[path = "../../server/tests/common/leg_phases.rs"]
+mod leg_phases;
+use leg_phases::{
+    phase, print_phase_sums, print_phases, tally_phases, PhaseSums, PHASES, PHASE_NEAR_SECS,
+};
+
 /// The server's tick rate.
 const RATE_HZ: f64 = 60.0;
 
@@ -131,13 +137,6 @@ const WATCH_MARGIN: Duration = Duration::from_secs(2);
 
 /// Half the standing height of the 1.75 m body drift and floor are normalised to.
 const LEG_OF_175_CM_BODY: f32 = 0.875;
-
-/// A leg's phase, as the offline judge splits the thigh and shin errors (retarget_quality's
-/// `phase`): its source foot standing alone or with the other, the 0.15 s before a plant
-/// (approach), the 0.15 s after one (release), swinging.
-const PHASES: usize = 5;
-const PHASE_NAMES: [&str; PHASES] = ["single", "double", "approach", "release", "swing"];
-const PHASE_NEAR_SECS: f64 = 0.15;
 
 /// One subject as the client saw it.
 #[derive(Default)]
@@ -408,18 +407,7 @@ impl Walk {
     /// foot standing alone (0) or with the other (1), or free: within [`PHASE_NEAR_SECS`]
     /// before a stance (2), after one (3), or swinging (4).
     fn phase(&self, side: usize, frame: usize) -> usize {
-        let at = |s: usize, f: usize| self.held[s].get(f) == Some(&true);
-        if at(side, frame) {
-            return if at(1 - side, frame) { 1 } else { 0 };
-        }
-        let near = self.near_frames;
-        if (1..=near).any(|k| at(side, frame + k)) {
-            2
-        } else if (1..=near.min(frame)).any(|k| at(side, frame - k)) {
-            3
-        } else {
-            4
-        }
+        phase(&self.held, side, frame, self.near_frames)
     }
 
     /// The walk's frame each capture time of `free`'s frames shows: the replay samples frame k
@@ -730,20 +718,6 @@ fn measure(rig: &Labelled, locked: &Seen, free: &Seen, pass_nanos: u64, walk: &W
     }
 }
 
-/// Prints a pair's thigh and shin errors per phase: frames, mean/p95 and how many are over 8°.
-fn print_phases(phases: &[[Vec<f32>; PHASES]; 2]) {
-    for (segment, errors) in ["thigh", "shin"].iter().zip(phases) {
-        let cells: Vec<String> = (PHASE_NAMES.iter().zip(errors))
-            .map(|(name, e)| {
-                let (m, p) = mean_p95(e.clone());
-                let over = e.iter().filter(|e| **e > 8.0).count();
-                format!("{name} {} {m:.1}/{p:.1} >8: {over}", e.len())
-            })
-            .collect();
-        println!("    {segment}: {}", cells.join(", "));
-    }
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "issue 35's bounds are not met live yet; the test prints the table per pair"]
 async fn live_locked_legs_follow_the_source_on_walks_and_runs() {
@@ -778,7 +752,7 @@ async fn live_locked_legs_follow_the_source_on_walks_and_runs() {
     let (mut judged, mut with_toes, mut joints_within) = (0, 0, 0);
     let mut tally = [0usize; 5];
     // Over the pairs whose thigh or shin misses: per segment and phase, frames, over 8°, sum.
-    let mut by_phase = [[(0usize, 0usize, 0.0f32); PHASES]; 2];
+    let mut by_phase: PhaseSums = Default::default();
     for (labels, clip) in sources {
         // The source samples the server can show: one a tick, or each of the source's frames
         // where it has fewer (a 30 Hz capture at 60 Hz).
@@ -837,13 +811,7 @@ async fn live_locked_legs_follow_the_source_on_walks_and_runs() {
                     f.thigh, f.shin
                 ));
                 print_phases(&f.phases);
-                for (sum, errors) in by_phase.iter_mut().zip(&f.phases) {
-                    for ((n, over, total), e) in sum.iter_mut().zip(errors) {
-                        *n += e.len();
-                        *over += e.iter().filter(|e| **e > 8.0).count();
-                        *total += e.iter().sum::<f32>();
-                    }
-                }
+                tally_phases(&mut by_phase, &f.phases);
             }
             if !foot {
                 failures.push(format!("{src} → {tgt}: foot {:?}", f.foot));
@@ -876,19 +844,7 @@ async fn live_locked_legs_follow_the_source_on_walks_and_runs() {
         tally[4],
         failures.len()
     );
-    println!(
-        "where the thigh and shin miss (pairs outside their bounds; frames, mean°, share over 8°):"
-    );
-    for (k, segment) in ["thigh", "shin"].iter().enumerate() {
-        let cells: Vec<String> = (PHASE_NAMES.iter().zip(&by_phase[k]))
-            .map(|(name, (n, over, sum))| {
-                let share = 100.0 * *over as f32 / (*n).max(1) as f32;
-                let mean = sum / (*n).max(1) as f32;
-                format!("{name} {n} {mean:.1}° {share:.0}%")
-            })
-            .collect();
-        println!("  {segment}: {}", cells.join(", "));
-    }
+    print_phase_sums(&by_phase);
     assert!(judged > 0, "no pair judged");
     assert!(
         failures.is_empty(),
