@@ -34,6 +34,11 @@
 //! wrist far off (left out of four views; not held from three); the frame offsets on a
 //! synthetic walk seen by cameras started late and early.
 //!
+//! With `RIGCAST_REFERENCE3D_DUMP=DIR` the judge also writes what it judged to `DIR`, to trace
+//! an error to its stage offline: per camera (named after its video) the reference and
+//! MediaPipe full's readings ([`dump_reference`]), and per rigcast model the stages' input
+//! and output on every frame ([`dump_frame`]).
+//!
 //! A second test judges every other calibrated rig of the shared data the same way (caliscope
 //! calibrations: the desk set's four webcams), on the landmarks its cameras see; its
 //! calibration reader and frame offsets are proven on a synthetic rig written in caliscope's
@@ -51,7 +56,8 @@ mod reference3d;
 #[path = "common/shared_data.rs"]
 mod shared_data;
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 use glam::{DVec2, DVec3};
 use mediapipe::{mediapipe_python, run_mediapipe_model, MediaPipeRun, Points};
@@ -59,7 +65,8 @@ use multiview::{similarity_aligned, Camera};
 use reference3d::{Body, Frame3d, Rig, View};
 use rigcast_sources::vision::landmarks::idx;
 use rigcast_sources::vision::{
-    DecodeSize, FfmpegSource, FrameSource, ModelKind, PipelineConfig, PosePipeline, RgbFrame,
+    DecodeSize, FfmpegSource, FrameSource, Landmarks, ModelKind, PipelineConfig, PosePipeline,
+    RgbFrame,
 };
 
 /// Bones whose directions are judged: upper arms, forearms, thighs, shins, and the shoulder
@@ -144,6 +151,8 @@ fn readings_of_rigcast(
     let mut source = FfmpegSource::open_at(path, DecodeSize::FOR_MODEL, 30.0).unwrap();
     let mut frame = RgbFrame::default();
     let mut out = Vec::new();
+    let dump = dump_dir().filter(|_| output == Output::Default);
+    let mut dumped = String::new();
     while source.next_frame(&mut frame).unwrap() {
         pipeline.process_frame(&frame).unwrap();
         let person = match output {
@@ -154,8 +163,77 @@ fn readings_of_rigcast(
             image: lm.image[..33].iter().map(|p| [p.x, p.y, p.w]).collect(),
             world: lm.world[..33].iter().map(|p| p.as_dvec3()).collect(),
         }));
+        if dump.is_some() {
+            let stages = pipeline.raw_person(0).zip(pipeline.person(0));
+            dump_frame(&mut dumped, frame.time_secs, out.len() - 1, stages);
+        }
+    }
+    if let Some(dir) = dump {
+        let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+        std::fs::write(dir.join(format!("{stem}_{model:?}_def.txt")), dumped).unwrap();
     }
     out
+}
+
+/// The folder `RIGCAST_REFERENCE3D_DUMP` names, if any (see the module doc).
+fn dump_dir() -> Option<PathBuf> {
+    std::env::var_os("RIGCAST_REFERENCE3D_DUMP").map(PathBuf::from)
+}
+
+/// One frame of a model's dump, a line: its time (s), its index, 1 when person `#0` was seen
+/// (0 and nothing more where not), the picture's size (px), then for each of the 39 landmarks
+/// the stages' input (image x, y, z, visibility; world x, y, z) and their output (image x,
+/// y, z; world x, y, z).
+fn dump_frame(out: &mut String, time: f64, index: usize, stages: Option<(&Landmarks, &Landmarks)>) {
+    let Some((input, output)) = stages else {
+        writeln!(out, "{time} {index} 0").unwrap();
+        return;
+    };
+    write!(
+        out,
+        "{time} {index} 1 {} {}",
+        input.picture.x, input.picture.y
+    )
+    .unwrap();
+    for i in 0..input.image.len() {
+        let (a, w) = (input.image[i], input.world[i]);
+        let (b, v) = (output.image[i], output.world[i]);
+        write!(
+            out,
+            " {} {} {} {} {} {} {}",
+            a.x, a.y, a.z, a.w, w.x, w.y, w.z
+        )
+        .unwrap();
+        write!(out, " {} {} {} {} {} {}", b.x, b.y, b.z, v.x, v.y, v.z).unwrap();
+    }
+    out.push('\n');
+}
+
+/// Camera `c`'s reference in the dump: a line `offset N` (the camera's frame `f + N` is the
+/// reference's frame `f`), then a line per reference frame: its index and, for each of the 33
+/// landmarks, the reference in the camera's axes (metres, NaN where not held), MediaPipe
+/// full's world landmarks and its image landmarks (x, y, visibility) on that camera's frame.
+fn dump_reference(dir: &Path, rig: &Rig, c: usize, reference: &[Option<Frame3d>]) {
+    let (cam, video) = &rig.cameras[c];
+    let (run, offset) = (&rig.runs[c], rig.offsets[c]);
+    let mut out = format!("offset {offset}\n");
+    for (f, r) in reference.iter().enumerate() {
+        let g = usize::try_from(f as i64 + offset).ok();
+        let world = g.and_then(|g| run.world.get(g)?.as_ref());
+        let image = g.and_then(|g| run.frames.get(g)?.as_ref());
+        write!(out, "{f}").unwrap();
+        for j in 0..33 {
+            let p = r.as_ref().filter(|r| r.holds(j));
+            let p = p.map_or(DVec3::NAN, |r| cam.rot * r.joints[j]);
+            let w = world.map_or([f32::NAN; 3], |w| w[j]);
+            let i = image.map_or([f32::NAN; 3], |i| i[j]);
+            write!(out, " {} {} {} {} {} {}", p.x, p.y, p.z, w[0], w[1], w[2]).unwrap();
+            write!(out, " {} {} {}", i[0], i[1], i[2]).unwrap();
+        }
+        out.push('\n');
+    }
+    let stem = video.file_stem().unwrap_or_default().to_string_lossy();
+    std::fs::write(dir.join(format!("{stem}_ref.txt")), out).unwrap();
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -491,6 +569,9 @@ fn judge_rig(
     for (c, (cam, video)) in rig.cameras.iter().enumerate() {
         let (reference, wrong) = reference_row(rig, c);
         broken.extend(wrong);
+        if let Some(dir) = dump_dir() {
+            dump_reference(&dir, rig, c, &reference);
+        }
         let view = rig.view(c);
         let judge = |readings: &[Option<Reading>]| score(readings, &reference, &rig.body, &view);
         let ours = |model, output| judge(&readings_of_rigcast(video, config, model, output));
