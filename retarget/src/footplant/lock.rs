@@ -28,8 +28,11 @@
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
 //!                     pinned: the foot rolled on its pin with the animation's pitch
-//!                     (`Foot::roll`): on its ball while that is pitched lower than standing,
-//!                     else on its heel and stood flat (ball pitched down to its standing
+//!                     (`Foot::roll`): on its ball while that is pitched lower than standing
+//!                     (offline, as its lift-off nears, its ankle no lower than the
+//!                     animation's: a foot that cannot keep its ball down there leaves the
+//!                     floor early rather than bend the legs), else on its heel and stood
+//!                     flat (ball pitched down to its standing
 //!                     height, about the heel: the pin comes forward; offline no lower than
 //!                     the source's ball stands over its own flat standing height, scaled:
 //!                     a heel strike's toes come down as the performer's do), blended in
@@ -159,6 +162,9 @@ struct Lifts {
     /// Offline: how high its ball stands above its ground (its heel's where it has none).
     ball: Option<[f32; MAX_FEET]>,
     landing: [f32; MAX_FEET],
+    /// How near each source foot's lift-off is (offline, [`release_weight`]; live, where the
+    /// lift-off is not known, 0).
+    release: [f32; MAX_FEET],
     /// The ball comes down with the ankle ahead of a plant (offline, where the plant is
     /// known; live the foot keeps the animation's pitch, toes up for a heel strike: a ball
     /// pitched down onto a guess of the landing kicked the toes).
@@ -188,6 +194,24 @@ fn landing_weight(plants: &PlantTrack, frame: usize, leg: usize, lead: usize) ->
         return 0.0;
     }
     let t = (lead + 1 - k) as f32 / lead as f32;
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Offline, where the plants ahead are known: how near the lift-off of `leg`'s foot planted on
+/// `frame` is, 0 (lifted more than `lead` frames later, or not within the clip) rising smoothly
+/// to 1 on its last planted frame; 0 where it is not planted. How far a pin on its ball is
+/// raised towards the animation's ankle ([`Foot::raise_to_animation`]): the end of a toe-off,
+/// not a stand on the toes.
+fn release_weight(plants: &PlantTrack, frame: usize, leg: usize, lead: usize) -> f32 {
+    if lead == 0 || !plants.is_planted(frame, leg) {
+        return 0.0;
+    }
+    let last = plants.num_frames();
+    let lifted = |k: usize| frame + k + 1 < last && !plants.is_planted(frame + k + 1, leg);
+    let Some(k) = (0..lead).find(|&k| lifted(k)) else {
+        return 0.0;
+    };
+    let t = (lead - k) as f32 / lead as f32;
     t * t * (3.0 - 2.0 * t)
 }
 
@@ -392,6 +416,14 @@ struct Foot {
     /// Last frame's animated ankle before the root's move onto the standing feet (the foot's
     /// slide over the ground, [`FootLock::carry_root`]).
     raw_ankle: Vec3,
+    /// This frame's animated ankle along up (after the fit, before the root is carried onto
+    /// the standing feet): where the retargeted foot stands.
+    animated_up: f32,
+    /// How near the source foot's lift-off is (0 to 1, [`release_weight`]).
+    release: f32,
+    /// How far this frame's pin was raised towards the animation's ankle
+    /// ([`Foot::raise_to_animation`]): how far its ball may stay above its standing height.
+    raised: f32,
     /// A foot carried at its shin's end from beside the body ([`Leg::carried`]): where it
     /// sits in the lower bone's frame, so it goes wherever the leg puts the shin.
     carried: Option<Vec3>,
@@ -413,7 +445,15 @@ impl Foot {
     /// one) says: rolled on its pin ([`Foot::roll`]) from where its heel is pinned, which is its
     /// standing height plus the foot's lift where the source's heel is known (offline), else
     /// where it was pinned, lifted by the foot's own lift.
+    /// At the end of a toe-off, raised towards the animation's ankle
+    /// ([`Foot::raise_to_animation`]).
     fn pinned_ankle(&self, up: Vec3, floor: f32, ball: Option<Vec3>) -> Vec3 {
+        let ankle = self.rolled_ankle(up, floor, ball);
+        ankle + up * self.raise_to_animation(up, ankle)
+    }
+
+    /// [`Foot::pinned_ankle`] before the raise.
+    fn rolled_ankle(&self, up: Vec3, floor: f32, ball: Option<Vec3>) -> Vec3 {
         let p = self.lock_position;
         let heel = match self.heel_lift {
             Some(_) => p - up * p.dot(up) + up * (floor + self.heel_clearance + self.lift),
@@ -421,6 +461,22 @@ impl Foot {
         };
         // Without a ball the ankle rises with the heel, straight up.
         heel + ball.map_or(up * self.heel_rise, |o| self.roll(up, o))
+    }
+
+    /// How far a pin whose ankle would stand at `ankle` is raised towards the animation's
+    /// ankle: while the foot stands on its ball (`on_ball`), as its lift-off nears
+    /// (`release`), up to where the retargeted foot stands, never down. Its ball keeps its
+    /// place over the ground and the animation's pitch, and leaves the floor early. A foot
+    /// standing steeper than the performer's, or shorter against its leg, raises its ankle
+    /// less as it rolls over its ball: pinned on the floor to the end, the ankle stood under
+    /// the animation's and the body came down onto it, taking the landing foot under its
+    /// floor (the pymo Meredith walk onto the UE-style mannequin, whose foot stands 45° down
+    /// against the performer's 15°: that ankle 3.0 cm under the animation's as the toe-off
+    /// ended, the animation's ball 3.7 cm up, the body 3.0 cm down, the landing thigh 17° off).
+    /// Only as the lift-off nears: a stand on the toes held (the CMU 131_01 walk's final
+    /// stand) keeps its ball on the floor.
+    fn raise_to_animation(&self, up: Vec3, ankle: Vec3) -> f32 {
+        self.release * self.on_ball * (self.animated_up - ankle.dot(up)).max(0.0)
     }
 
     /// How a planted foot turned as `ball` (ankle to ball) stands on the floor, as a foot does:
@@ -473,6 +529,9 @@ impl Foot {
         let lowest = floor + self.ball_clearance + self.lift;
         let highest =
             (self.ball_lift).map_or(lowest, |b| lowest.max(floor + self.ball_clearance + b));
+        // A pin raised towards the animation's ankle at the end of a toe-off keeps the
+        // animation's pitch: its ball stays up with it.
+        let highest = highest.max(lowest + self.raised);
         clamp_safe(now, lowest, highest)
     }
 
@@ -732,6 +791,9 @@ impl Foot {
             animated_heading: 0.0,
             seen: false,
             raw_ankle: ankle,
+            animated_up: 0.0,
+            release: 0.0,
+            raised: 0.0,
             carried: None,
         }
     }
@@ -1277,6 +1339,9 @@ impl FootLock {
         for (leg, l) in lifts.landing.iter_mut().enumerate().take(plants.legs.len()) {
             *l = landing_weight(plants, frame, leg, lead);
         }
+        for (leg, l) in lifts.release.iter_mut().enumerate().take(plants.legs.len()) {
+            *l = release_weight(plants, frame, leg, lead);
+        }
         lifts.landing_flat = true;
         self.lock(&flags, Some(&lifts), dt_secs, false, out);
     }
@@ -1301,6 +1366,9 @@ impl FootLock {
         self.learn_fit(planted, dt, live);
         self.apply_fit(out);
         self.turn_pins(planted, dt);
+        for f in &mut self.feet {
+            f.animated_up = self.worlds[f.leg.foot.index()].translation.dot(self.up);
+        }
         self.carry_root(planted, dt, live, out);
         for i in 0..self.feet.len() {
             // A foot that has not learnt where it stands is not pinned to a floor unknown.
@@ -1340,9 +1408,15 @@ impl FootLock {
         let follow = 1.0 - (-dt * std::f32::consts::LN_2 / halflife).exp();
         for i in 0..self.feet.len() {
             let length = self.feet[i].leg.length;
-            let (foot, heel, landing, flat) = match (self.feet[i].source, lifts) {
-                (Some(s), Some(l)) => (l.foot[s], Some(l.heel[s]), l.landing[s], l.landing_flat),
-                _ => (0.0, None, 0.0, false),
+            let (foot, heel, landing, release, flat) = match (self.feet[i].source, lifts) {
+                (Some(s), Some(l)) => (
+                    l.foot[s],
+                    Some(l.heel[s]),
+                    l.landing[s],
+                    l.release[s],
+                    l.landing_flat,
+                ),
+                _ => (0.0, None, 0.0, 0.0, false),
             };
             let ball = (self.feet[i].source)
                 .zip(lifts.and_then(|l| l.ball))
@@ -1362,6 +1436,7 @@ impl FootLock {
             self.feet[i].on_ball += follow * (on_ball - self.feet[i].on_ball);
             self.feet[i].landing_before = self.feet[i].landing;
             self.feet[i].landing = landing;
+            self.feet[i].release = release;
             self.feet[i].landing_flat = if flat { landing } else { 0.0 };
             let lift = clamp_safe(self.lift_scale * foot, 0.0, MAX_LIFT_RATIO * length);
             let rise = heel.map(|h| self.lift_scale * (h - foot.max(0.0)));
@@ -1633,8 +1708,11 @@ impl FootLock {
                 f.turn_about(up, floor, heading, from.zip(to), 1.0);
             }
         }
+        f.raised = 0.0;
         let (target, target_heading, velocity, rate) = if f.locked {
-            let ankle = f.pinned_ankle(up, floor, ball_at(f.lock_heading));
+            let rolled = f.rolled_ankle(up, floor, ball_at(f.lock_heading));
+            f.raised = f.raise_to_animation(up, rolled);
+            let ankle = rolled + up * f.raised;
             (ankle, f.lock_heading, Vec3::ZERO, 0.0)
         } else {
             (
@@ -2047,6 +2125,26 @@ mod tests {
     }
 
     #[test]
+    fn a_release_is_foreseen_only_over_the_last_frames_of_a_plant() {
+        let leg = left_leg(None, 1.0);
+        // Planted 0-9, lifted 10-14, planted 15 to the clip's end.
+        let flags: Vec<bool> = (0..20).map(|f| !(10..15).contains(&f)).collect();
+        let plants = PlantTrack::from_flags(vec![leg], flags);
+        let w = |f: usize| release_weight(&plants, f, 0, 4);
+        // Nothing until four frames before the lift-off, then rising to 1 on the last
+        // planted frame.
+        assert_eq!(w(5), 0.0);
+        let ramp: Vec<f32> = (6..10).map(w).collect();
+        assert!(ramp[0] > 0.0 && ramp[3] == 1.0, "{ramp:?}");
+        assert!(ramp.windows(2).all(|p| p[0] < p[1]), "{ramp:?}");
+        // Lifted frames, and a plant that lasts to the clip's end (no lift-off known).
+        assert_eq!(w(12), 0.0);
+        assert_eq!(w(18), 0.0);
+        assert_eq!(w(19), 0.0);
+        assert_eq!(release_weight(&plants, 9, 0, 0), 0.0);
+    }
+
+    #[test]
     fn a_live_landing_is_foreseen_from_the_heel_coming_down_after_a_swing() {
         let (dt, lead, near) = (1.0 / 60.0, 0.1, 0.04);
         let mut l = LiveLanding::default();
@@ -2213,6 +2311,42 @@ mod tests {
         // The source's ball down: stood flat.
         foot.ball_lift = Some(0.0);
         assert!((foot.ball_goal(0.1, 0.14) - 0.12).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_foot_leaving_its_ball_is_raised_to_the_animation_as_its_lift_off_nears() {
+        let up = Vec3::Y;
+        let mut foot = pinned_foot(true);
+        let stood = ball_standing_flat(&mut foot);
+        // On its ball, the animation's foot pitched so its ball is 10 cm under the ankle; the
+        // performer's heel 4 cm up: the pin's ankle 12 cm up, its ball where it stood.
+        foot.take_heel(0.0, Some(0.04));
+        foot.on_ball = 1.0;
+        let pitched = ball_offset(0.15, 0.4, 0.1);
+        let rolled = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!((rolled.y - 0.12).abs() < 1e-5, "{rolled}");
+        // The retargeted ankle stands 3 cm higher (a foot that raises its ankle less than
+        // the performer's as it rolls): left there until the lift-off nears.
+        foot.animated_up = 0.15;
+        assert!((foot.pinned_ankle(up, 0.0, Some(pitched)) - rolled).length() < 1e-6);
+        // On the last frame before it, at the animation's height, straight up: the ball keeps
+        // its place over the ground and leaves the floor by as much.
+        foot.release = 1.0;
+        let raised = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!((raised.y - 0.15).abs() < 1e-5, "{raised}");
+        assert!((flat(raised + pitched) - flat(stood)).length() < 1e-5);
+        // Half way there on the ball, half the way.
+        foot.on_ball = 0.5;
+        let ankle = foot.pinned_ankle(up, 0.0, Some(pitched));
+        assert!(ankle.y > 0.10 && ankle.y < 0.15, "{ankle}");
+        // Never down: an animation lower than the pin leaves it.
+        foot.on_ball = 1.0;
+        foot.animated_up = 0.05;
+        assert!((foot.pinned_ankle(up, 0.0, Some(pitched)) - rolled).length() < 1e-6);
+        // A raised pin's ball stays as high as the raise put it.
+        foot.raised = 0.03;
+        assert!((foot.ball_goal(0.0, 0.05) - 0.05).abs() < 1e-6);
+        assert!((foot.ball_goal(0.0, 0.08) - 0.05).abs() < 1e-6);
     }
 
     #[test]
