@@ -475,3 +475,42 @@ fn a_plain_chain_maps_onto_itself() {
         assert_eq!(e.map(|e| e.sources[0].bone), Some(b), "{}", chain.name(b));
     }
 }
+
+/// A helper above the hips (an armature root the body hangs from) carries the whole body: it
+/// maps onto a helper above the other rig's hips, never onto a helper elsewhere (an end joint
+/// at the head read as one). Driven by such a leaf, the target's root followed the source's head:
+/// LaFAN1's walk onto three glTF characters whose body hangs from a root at the ground, their
+/// feet 0.4-1 m under it.
+#[test]
+fn a_root_above_the_hips_is_not_driven_by_a_helper_elsewhere() {
+    use rigcast_retarget::analysis::Role;
+    use rigcast_retarget::Transform;
+    let base = entry("mixamo");
+    // The target: the same body hung from a root at the ground.
+    let mut raw = RawSkeleton::default();
+    let root = raw.add("Root", None, Transform::IDENTITY);
+    for b in base.skeleton.to_raw().bones {
+        raw.add(b.name, Some(b.parent.map_or(root, |p| p + 1)), b.rest);
+    }
+    let target = Skeleton::build(&raw).unwrap();
+    // The source: the body with an end joint at its head's (zero length, as LaFAN1's).
+    let mut raw = base.skeleton.to_raw();
+    let head = base.labels.iter().position(|l| l == "head").unwrap();
+    raw.add("Head_end", Some(head), Transform::IDENTITY);
+    let source = Skeleton::build(&raw).unwrap();
+    let role = |s: &Skeleton, name: &str| {
+        let a = analyze(&SkeletonView::rest(s));
+        a.roles[s.bone(name).unwrap().index()].role
+    };
+    assert_eq!(role(&target, "Root"), Role::Helper);
+    assert_eq!(role(&source, "Head_end"), Role::Helper);
+    let table = map_at_rest(&source, &target, &MapOptions::default());
+    let driver = |t: &str| {
+        let e = table.entries[target.bone(t).unwrap().index()].as_ref();
+        e.and_then(|e| e.primary()).map(|s| source.name(s.bone).to_string())
+    };
+    assert_eq!(driver("Root"), None, "the root follows a bone that is not above the hips");
+    let hips = base.labels.iter().position(|l| l == "hips").unwrap();
+    let hips = base.skeleton.name(rigcast_retarget::BoneId(hips as u16));
+    assert_eq!(driver(hips).as_deref(), Some(hips));
+}

@@ -12,9 +12,10 @@
 //! ```
 //!
 //! Helper roles (twist, end joints, mechanism bones) only ever map onto the same role, so a
-//! twist bone is never driven by a full limb rotation on top of its parent's. Everything is
-//! polynomial: O(target × source) scoring, and the section graph comparison runs on sections
-//! (tens of nodes), never on bones, so no NP-hard graph edit distance is needed.
+//! twist bone is never driven by a full limb rotation on top of its parent's, and only onto a
+//! helper that hangs above the hips where it does (an armature root carries the whole body).
+//! Everything is polynomial: O(target × source) scoring, and the section graph comparison runs
+//! on sections (tens of nodes), never on bones, so no NP-hard graph edit distance is needed.
 
 use std::collections::BTreeMap;
 
@@ -261,6 +262,24 @@ struct Scorer<'a> {
     multi_legged: bool,
     /// The orientation term's cut-off angle, radians.
     max_angle: f32,
+    /// Per bone of the target and of each source: whether it hangs above the hips
+    /// ([`above_hips`]).
+    t_above: Vec<bool>,
+    s_above: Vec<Vec<bool>>,
+}
+
+/// Per bone of `skel`: whether it is an ancestor of the bone `a` reads as the hips (an
+/// armature root, a ground bone the body hangs from), all false without hips. A helper there
+/// carries the whole body; one anywhere else (a head's end, a twist bone) carries nothing.
+fn above_hips(skel: &Skeleton, a: &Analysis) -> Vec<bool> {
+    let mut above = vec![false; skel.num_bones()];
+    let hips = skel.bone_ids().find(|b| a.roles[b.index()].role == Role::Hips);
+    let mut b = hips.and_then(|h| skel.parent(h));
+    while let Some(p) = b {
+        above[p.index()] = true;
+        b = skel.parent(p);
+    }
+    above
 }
 
 impl<'a> Scorer<'a> {
@@ -290,6 +309,8 @@ impl<'a> Scorer<'a> {
                 .count()
                 > 2,
             max_angle: opts.weights.orientation_max_deg.to_radians(),
+            t_above: above_hips(tskel, ta),
+            s_above: sources.iter().map(|(s, a)| above_hips(s, a)).collect(),
         }
     }
 
@@ -348,6 +369,15 @@ impl<'a> Scorer<'a> {
         let (w, sa) = (&self.opts.weights, self.sources[input].1);
         let (tr, sr) = (self.ta.roles[t.index()], sa.roles[s.index()]);
         if !may_drive(sr.role, tr.role) {
+            return None;
+        }
+        // Helpers match by role alone, so by where they hang too: a helper above the hips (an
+        // armature root) driven by one elsewhere moved the whole character with it (LaFAN1's
+        // and Xia's zero-length head ends carried the roots of Casual, both robots and the
+        // Bandai-Namco rig: their feet from 1 m under their ground to 2 m over it).
+        if (tr.role.is_helper() || sr.role.is_helper())
+            && self.t_above[t.index()] != self.s_above[input][s.index()]
+        {
             return None;
         }
         let mut score = 0.0;

@@ -17,7 +17,8 @@ use crate::skeleton::Skeleton;
 /// Bumped whenever the mapper's behaviour changes, so old cache entries miss.
 /// 2: a skull-top leaf (`head_top`) is the head's end marker, not the head (issue 3).
 /// 3: names as evidence, the facing vote's strength, confidences and flags (issue 31).
-pub const CACHE_FORMAT: u32 = 3;
+/// 4: a helper above the hips maps only onto a helper above the other rig's hips (issue 35).
+pub const CACHE_FORMAT: u32 = 4;
 
 /// Identity of one mapping computation.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
