@@ -507,10 +507,47 @@ fn a_root_above_the_hips_is_not_driven_by_a_helper_elsewhere() {
     let table = map_at_rest(&source, &target, &MapOptions::default());
     let driver = |t: &str| {
         let e = table.entries[target.bone(t).unwrap().index()].as_ref();
-        e.and_then(|e| e.primary()).map(|s| source.name(s.bone).to_string())
+        e.and_then(|e| e.primary())
+            .map(|s| source.name(s.bone).to_string())
     };
-    assert_eq!(driver("Root"), None, "the root follows a bone that is not above the hips");
+    assert_eq!(
+        driver("Root"),
+        None,
+        "the root follows a bone that is not above the hips"
+    );
     let hips = base.labels.iter().position(|l| l == "hips").unwrap();
     let hips = base.skeleton.name(rigcast_retarget::BoneId(hips as u16));
     assert_eq!(driver(hips).as_deref(), Some(hips));
+}
+
+/// A helper in a body section maps only onto a helper in a section of the same kind: an end
+/// joint at a toe never drives one at a hand (LaFAN1's zero-length toe ends drove a finger of
+/// RobotExpressive, and the retarget took that finger for a foot: its legs' ratio 2.88
+/// against 1.79).
+#[test]
+fn a_toe_end_does_not_drive_a_hand_end() {
+    use rigcast_retarget::analysis::Role;
+    use rigcast_retarget::Transform;
+    let base = entry("mixamo");
+    // A zero-length end joint (as LaFAN1's) at the bone labelled `label`.
+    let with_end = |label: &str, name: &str| {
+        let mut raw = base.skeleton.to_raw();
+        let at = base.labels.iter().position(|l| l == label).unwrap();
+        raw.add(name, Some(at), Transform::IDENTITY);
+        Skeleton::build(&raw).unwrap()
+    };
+    let source = with_end("left_toes", "LeftToe_end");
+    let target = with_end("left_hand", "LeftFinger_end");
+    let role = |s: &Skeleton, name: &str| {
+        let a = analyze(&SkeletonView::rest(s));
+        a.roles[s.bone(name).unwrap().index()].role
+    };
+    assert_eq!(role(&source, "LeftToe_end"), Role::Helper);
+    assert_eq!(role(&target, "LeftFinger_end"), Role::Helper);
+    let table = map_at_rest(&source, &target, &MapOptions::default());
+    let e = table.entries[target.bone("LeftFinger_end").unwrap().index()].as_ref();
+    let driver = e
+        .and_then(|e| e.primary())
+        .map(|s| source.name(s.bone).to_string());
+    assert_ne!(driver.as_deref(), Some("LeftToe_end"));
 }

@@ -13,7 +13,8 @@
 //!
 //! Helper roles (twist, end joints, mechanism bones) only ever map onto the same role, so a
 //! twist bone is never driven by a full limb rotation on top of its parent's, and only onto a
-//! helper that hangs above the hips where it does (an armature root carries the whole body).
+//! helper that hangs alike: above the hips (an armature root carries the whole body) or in a
+//! section of the same kind (a toe's end never drives a finger's).
 //! Everything is polynomial: O(target × source) scoring, and the section graph comparison runs
 //! on sections (tens of nodes), never on bones, so no NP-hard graph edit distance is needed.
 
@@ -273,7 +274,9 @@ struct Scorer<'a> {
 /// carries the whole body; one anywhere else (a head's end, a twist bone) carries nothing.
 fn above_hips(skel: &Skeleton, a: &Analysis) -> Vec<bool> {
     let mut above = vec![false; skel.num_bones()];
-    let hips = skel.bone_ids().find(|b| a.roles[b.index()].role == Role::Hips);
+    let hips = skel
+        .bone_ids()
+        .find(|b| a.roles[b.index()].role == Role::Hips);
     let mut b = hips.and_then(|h| skel.parent(h));
     while let Some(p) = b {
         above[p.index()] = true;
@@ -371,13 +374,7 @@ impl<'a> Scorer<'a> {
         if !may_drive(sr.role, tr.role) {
             return None;
         }
-        // Helpers match by role alone, so by where they hang too: a helper above the hips (an
-        // armature root) driven by one elsewhere moved the whole character with it (LaFAN1's
-        // and Xia's zero-length head ends carried the roots of Casual, both robots and the
-        // Bandai-Namco rig: their feet from 1 m under their ground to 2 m over it).
-        if (tr.role.is_helper() || sr.role.is_helper())
-            && self.t_above[t.index()] != self.s_above[input][s.index()]
-        {
+        if (tr.role.is_helper() || sr.role.is_helper()) && !self.hang_alike(t, input, s) {
             return None;
         }
         let mut score = 0.0;
@@ -410,6 +407,26 @@ impl<'a> Scorer<'a> {
             score: score - tie,
             evidence: ev,
         })
+    }
+
+    /// Whether target bone `t` and source bone `s` (of source `input`) hang alike: both above
+    /// the hips ([`above_hips`]), or neither and in sections of the same kind (or both in
+    /// none). Helpers match by role alone, so by where they hang too: a helper above the hips
+    /// (an armature root) driven by one elsewhere moved the whole character with it (LaFAN1's
+    /// and Xia's zero-length head ends carried the roots of Casual, both robots and the
+    /// Bandai-Namco rig: their feet from 1 m under their ground to 2 m over it), and a
+    /// finger's end driven by a toe's end (LaFAN1's, onto RobotExpressive) was taken for a
+    /// foot: its arm's length made the legs' ratio 2.88, not 1.79.
+    fn hang_alike(&self, t: BoneId, input: usize, s: BoneId) -> bool {
+        let sa = self.sources[input].1;
+        let above = self.t_above[t.index()];
+        if above != self.s_above[input][s.index()] {
+            return false;
+        }
+        let kind = |a: &Analysis, b: BoneId| {
+            (a.roles[b.index()].section).map(|i| a.sections[i as usize].kind)
+        };
+        above || kind(self.ta, t) == kind(sa, s)
     }
 
     /// Section kind, bone count and place in the section tree of `t` and `s` alike.
