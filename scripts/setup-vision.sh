@@ -16,6 +16,11 @@
 #                                    pose_solution_packed_assets.data is pose_detection.tflite;
 #                                    sparse fp16 weights made dense by scripts/densify_tflite.py
 #                                    first, which tf2onnx cannot read as they are)
+#     models/pose_{landmark_lite,landmark_full,landmark_heavy,detection}_planar.onnx
+#                                    the pruned landmark models and the detector taking their
+#                                    input channels first (the input Pad and Transpose folded
+#                                    into the first convolution, scripts/planar_input.py: the
+#                                    same outputs, less work); rigcast loads these when there
 #     pose2sim/cam01..cam04.mp4      real footage for the acceptance tests (PyPI wheel pose2sim),
 #     pose2sim/multi_cam01..04.mp4   and its two-person demo
 #     pose2sim/Calib.qca.txt         the single-person demo's four-camera calibration (Qualisys
@@ -166,17 +171,20 @@ fi
 # private venv removed afterwards. The int8 model is calibrated on the single-person clips above.
 # DERIVED names the version of the derivation: models derived by an older one are made again
 # (2: pruned models take a batch of crops; 3: they keep the heatmaps, which refine the landmarks;
-# 4: only the heatmaps of the landmarks refined, shoulders to feet).
-DERIVED_VERSION=4
+# 4: only the heatmaps of the landmarks refined, shoulders to feet; 5: copies of the pruned
+# models and the detector taking their input channels first, scripts/planar_input.py).
+DERIVED_VERSION=5
 need_derived=0
 if [[ "$(cat "$ROOT/models/DERIVED" 2>/dev/null)" != "$DERIVED_VERSION" ]]; then
-    rm -f "$ROOT"/models/pose_landmark_{lite,full,heavy}_pruned.onnx \
-        "$ROOT/models/pose_landmark_full_int8.onnx"
+    rm -f "$ROOT"/models/pose_landmark_{lite,full,heavy}_{pruned,planar}.onnx \
+        "$ROOT/models/pose_landmark_full_int8.onnx" "$ROOT/models/pose_detection_planar.onnx"
 fi
 for m in lite full heavy; do
     [[ -f "$ROOT/models/pose_landmark_${m}_pruned.onnx" ]] || need_derived=1
+    [[ -f "$ROOT/models/pose_landmark_${m}_planar.onnx" ]] || need_derived=1
 done
 [[ -f "$ROOT/models/pose_landmark_full_int8.onnx" ]] || need_derived=1
+[[ -f "$ROOT/models/pose_detection_planar.onnx" ]] || need_derived=1
 if [[ $need_derived == 1 ]]; then
     TOOLS="$ROOT/tools-venv"
     if [[ ! -x "$TOOLS/bin/python" ]] || ! "$TOOLS/bin/python" -c "import onnx, onnxruntime" >/dev/null 2>&1; then
@@ -191,6 +199,15 @@ if [[ $need_derived == 1 ]]; then
         log "pruning pose_landmark_$m.onnx to the outputs rigcast reads"
         "$TOOLS/bin/python" "$(dirname "$0")/prune_landmark_model.py" \
             "$ROOT/models/pose_landmark_$m.onnx" "$out.tmp.onnx" >&2
+        mv "$out.tmp.onnx" "$out"
+    done
+    for m in landmark_lite landmark_full landmark_heavy detection; do
+        src="$ROOT/models/pose_${m}_pruned.onnx"
+        [[ $m == detection ]] && src="$ROOT/models/pose_detection.onnx"
+        out="$ROOT/models/pose_${m}_planar.onnx"
+        [[ -f "$out" ]] && continue
+        log "$(basename "$src"): a copy taking its input channels first"
+        "$TOOLS/bin/python" "$(dirname "$0")/planar_input.py" "$src" "$out.tmp.onnx" >&2
         mv "$out.tmp.onnx" "$out"
     done
     out="$ROOT/models/pose_landmark_full_int8.onnx"

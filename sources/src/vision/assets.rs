@@ -3,7 +3,10 @@
 //! `$RIGCAST_HOME/vision/` (default `~/.cache/rigcast/vision/`) holds `lib/libonnxruntime.so`,
 //! `models/pose_landmark_{lite,full,heavy}.onnx` (as converted) with their pruned copies
 //! `pose_landmark_{lite,full,heavy}_pruned.onnx` (only the outputs rigcast reads, without
-//! the segmentation mask: the same numbers in about half the time), the int8 copy `pose_landmark_full_int8.onnx`, and
+//! the segmentation mask: the same numbers in about half the time), the int8 copy `pose_landmark_full_int8.onnx`,
+//! the detector `pose_detection.onnx`, copies of the pruned models and the detector that
+//! take their input channels first (`pose_landmark_{lite,full,heavy}_planar.onnx`,
+//! `pose_detection_planar.onnx`: the same numbers for a little less work), and
 //! `pose2sim/cam0N.mp4`. Nothing here downloads anything: a missing file is a
 //! [`VisionError::NotSetUp`] telling the user which command to run.
 
@@ -96,14 +99,34 @@ impl VisionAssets {
 
     /// The file to load for a landmark model: the pruned copy when setup made one (same
     /// landmarks, about half the work: the converted model also computes a segmentation mask,
-    /// which ONNX Runtime runs even when nobody reads it), else the model as converted. The
-    /// int8 model exists only pruned.
+    /// which ONNX Runtime runs even when nobody reads it), and of it the copy taking its
+    /// input channels first when there (setup's derivation 5 on: the same numbers, without
+    /// a transpose and a pad of the input a run), else the model as converted. The int8
+    /// model exists only pruned.
     pub fn landmark_model(&self, kind: ModelKind) -> PathBuf {
         let pruned = self.pruned_landmark_model(kind);
-        if kind == ModelKind::FullInt8 || pruned.is_file() {
+        if kind == ModelKind::FullInt8 {
+            return pruned;
+        }
+        let planar = Self::planar_copy(&pruned);
+        if planar.is_file() {
+            return planar;
+        }
+        if pruned.is_file() {
             return pruned;
         }
         self.converted_landmark_model(kind)
+    }
+
+    /// Where setup puts the copy of `model` (`…_pruned.onnx` or the detector) taking its input
+    /// channels first (`scripts/planar_input.py`).
+    fn planar_copy(model: &Path) -> PathBuf {
+        let stem = model
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or_default();
+        let stem = stem.strip_suffix("_pruned").unwrap_or(stem);
+        model.with_file_name(format!("{stem}_planar.onnx"))
     }
 
     /// A landmark model as converted from MediaPipe's TFLite (all five outputs).
@@ -123,9 +146,15 @@ impl VisionAssets {
         self.root.join("models").join(name)
     }
 
-    /// The person detector.
+    /// The person detector: the copy taking its input channels first when setup made one
+    /// (derivation 5 on: the same detections for a little less work), else as converted.
     pub fn detector_model(&self) -> PathBuf {
-        self.root.join("models/pose_detection.onnx")
+        let converted = self.root.join("models/pose_detection.onnx");
+        let planar = Self::planar_copy(&converted);
+        if planar.is_file() {
+            return planar;
+        }
+        converted
     }
 
     /// One of the pose2sim two-person demo videos (`camera` 1..=4).
@@ -198,11 +227,33 @@ mod tests {
         let pruned = root.join("models/pose_landmark_full_pruned.onnx");
         std::fs::write(&pruned, b"x").unwrap();
         assert_eq!(assets.landmark_model(ModelKind::Full), pruned);
+        let planar = root.join("models/pose_landmark_full_planar.onnx");
+        std::fs::write(&planar, b"x").unwrap();
+        assert_eq!(assets.landmark_model(ModelKind::Full), planar);
+        assert_eq!(
+            assets.landmark_model(ModelKind::Lite),
+            root.join("models/pose_landmark_lite.onnx")
+        );
         // The int8 file never stands in for `full`, and `full-int8` never falls back to float.
         assert_eq!(
             assets.landmark_model(ModelKind::FullInt8),
             root.join("models/pose_landmark_full_int8.onnx")
         );
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn the_planar_detector_is_loaded_when_there() {
+        let root = std::env::temp_dir().join(format!("rigcast-det-{}", std::process::id()));
+        std::fs::create_dir_all(root.join("models")).unwrap();
+        let assets = VisionAssets::at(&root);
+        assert_eq!(
+            assets.detector_model(),
+            root.join("models/pose_detection.onnx")
+        );
+        let planar = root.join("models/pose_detection_planar.onnx");
+        std::fs::write(&planar, b"x").unwrap();
+        assert_eq!(assets.detector_model(), planar);
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -21,7 +21,7 @@ use super::bound::BoundRun;
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::sigmoid;
-use super::model::{open_model, warp_crop};
+use super::model::{open_model, warp_crop, InputLayout};
 use super::roi::Roi;
 
 /// Side of the detector's square input, pixels.
@@ -128,6 +128,7 @@ pub struct PersonDetector {
     /// Boxes and scores, written in place by each run.
     run: BoundRun<2>,
     input: Tensor<f32>,
+    layout: InputLayout,
     anchors: Vec<Vec2>,
     min_score: f32,
     candidates: Vec<Detection>,
@@ -144,7 +145,7 @@ impl PersonDetector {
         threads: usize,
         min_score: f32,
     ) -> Result<PersonDetector, VisionError> {
-        let (session, input) = open_model(
+        let (session, input, layout) = open_model(
             library,
             model,
             "person detector model",
@@ -163,6 +164,7 @@ impl PersonDetector {
             session,
             run,
             input,
+            layout,
             anchors: anchors(),
             min_score,
             candidates: Vec::with_capacity(NUM_ANCHORS),
@@ -196,7 +198,16 @@ impl PersonDetector {
         let letterbox = *letterbox;
         {
             let (_, data) = self.input.extract_tensor_mut();
-            warp_crop(frame, &letterbox, DETECTOR_SIZE, 1.0 / 127.5, -1.0, data);
+            let (scale, offset) = (1.0 / 127.5, -1.0);
+            warp_crop(
+                frame,
+                &letterbox,
+                DETECTOR_SIZE,
+                scale,
+                offset,
+                self.layout,
+                data,
+            );
         }
         self.run.run(&mut self.session, &self.input)?;
         // Lengths were checked against the model when the outputs were bound.
