@@ -44,7 +44,8 @@
 //!               ─▶ hips raised when every foot would have to be pulled up (the animation
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
-//!                     about the ankle so the ball does
+//!                     about the ankle so the ball does (offline, a swinging foot shares
+//!                     that with lifting its ankle: `split_lift`)
 //!               ─▶ hips lowered by what the farthest pinned goal lacks (back up smoothly)
 //!               ─FK─▶ two-bone IK per foot (skipped where the goal is the animated foot),
 //!                     only as far as keeps each leg bone within 90° of the animation
