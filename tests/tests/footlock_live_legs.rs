@@ -64,7 +64,12 @@
 //! 4.4/15.7, RobotExpressive 4.9/15.6 and 5.1/16.6. The floor, judged against the
 //! character's own rest ground, now shows where the retarget stands these characters:
 //! LaFAN1 onto Casual 95 cm (5-8 pinned at the mapping's floor), RobotExpressive 42-44
-//! (10), Xia onto Casual 7 (2), the robots 147-150 and 206-209 (138, 193).
+//! (10), Xia onto Casual 7 (2), the robots 147-150 and 206-209 (138, 193). The cause was the
+//! mapping: those characters' armature roots were driven by the source's zero-length head end
+//! (and RobotExpressive's finger by LaFAN1's toe end). Since helpers match only helpers that
+//! hang alike (b19a22d), one run at load 9-11: thigh and shin 24, foot 4 of 12, drift 28,
+//! floor 32, every bound at once 13; those floors 0.45-0.81 cm, LaFAN1 onto RobotExpressive
+//! 5.6/18.5° thigh (drift 0.022 cm/frame).
 //!
 //! Before, the first walk alone (CMU 131_01), the figures below. With the toeless
 //! feet rising with the heel, five runs at load 7-14 (before, two runs of the lock before
