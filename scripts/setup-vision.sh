@@ -173,12 +173,14 @@ fi
 # (2: pruned models take a batch of crops; 3: they keep the heatmaps, which refine the landmarks;
 # 4: only the heatmaps of the landmarks refined, shoulders to feet; 5: copies of the pruned
 # models and the detector taking their input channels first, scripts/planar_input.py).
+# Files of an older derivation are made again and moved over the old ones, never deleted first:
+# rigcast (or its tests) running meanwhile still finds every model it loads.
 DERIVED_VERSION=5
-need_derived=0
-if [[ "$(cat "$ROOT/models/DERIVED" 2>/dev/null)" != "$DERIVED_VERSION" ]]; then
-    rm -f "$ROOT"/models/pose_landmark_{lite,full,heavy}_{pruned,planar}.onnx \
-        "$ROOT/models/pose_landmark_full_int8.onnx" "$ROOT/models/pose_detection_planar.onnx"
-fi
+stale=0
+[[ "$(cat "$ROOT/models/DERIVED" 2>/dev/null)" != "$DERIVED_VERSION" ]] && stale=1
+need_derived=$stale
+# Whether derived file $1 is there and of this derivation.
+fresh() { [[ $stale == 0 && -f "$1" ]]; }
 for m in lite full heavy; do
     [[ -f "$ROOT/models/pose_landmark_${m}_pruned.onnx" ]] || need_derived=1
     [[ -f "$ROOT/models/pose_landmark_${m}_planar.onnx" ]] || need_derived=1
@@ -195,7 +197,7 @@ if [[ $need_derived == 1 ]]; then
     fi
     for m in lite full heavy; do
         out="$ROOT/models/pose_landmark_${m}_pruned.onnx"
-        [[ -f "$out" ]] && continue
+        fresh "$out" && continue
         log "pruning pose_landmark_$m.onnx to the outputs rigcast reads"
         "$TOOLS/bin/python" "$(dirname "$0")/prune_landmark_model.py" \
             "$ROOT/models/pose_landmark_$m.onnx" "$out.tmp.onnx" >&2
@@ -205,13 +207,13 @@ if [[ $need_derived == 1 ]]; then
         src="$ROOT/models/pose_${m}_pruned.onnx"
         [[ $m == detection ]] && src="$ROOT/models/pose_detection.onnx"
         out="$ROOT/models/pose_${m}_planar.onnx"
-        [[ -f "$out" ]] && continue
+        fresh "$out" && continue
         log "$(basename "$src"): a copy taking its input channels first"
         "$TOOLS/bin/python" "$(dirname "$0")/planar_input.py" "$src" "$out.tmp.onnx" >&2
         mv "$out.tmp.onnx" "$out"
     done
     out="$ROOT/models/pose_landmark_full_int8.onnx"
-    if [[ ! -f "$out" ]]; then
+    if ! fresh "$out"; then
         log "quantising pose_landmark_full to int8 (calibration on the pose2sim clips, ~1-2 min)"
         "$TOOLS/bin/python" "$(dirname "$0")/quantize_landmark_model.py" \
             "$ROOT/models/pose_landmark_full_pruned.onnx" "$out.tmp.onnx" \
