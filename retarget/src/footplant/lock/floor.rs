@@ -1,0 +1,210 @@
+//! No foot under the floor, and the hips' height: a goal raised (a free foot's lift shared
+//! between its leg and its pitch, [`split_lift`]), the hips raised when every foot sank and
+//! lowered when a pinned goal is out of reach.
+
+use super::*;
+
+/// How much of `need` (how far a free foot's ball, `o` from its ankle, is under the floor) its
+/// ankle goal `goal` is lifted, the rest taken by pitching the ball up about the ankle: the
+/// share whose squared turns of thigh and shin (from the animation's leg, `leg`: hip, knee,
+/// ankle and the side the knee bends to) and of the foot's pitch add up least, as the body's
+/// height shares a difference between legs (`pelvis`). A swinging foot longer against its leg
+/// than the performer's, pointed down, passes its toes under the floor: pitched up alone it
+/// was 20-35° off the performer's for the 0.1 s after each lift-off (LaFAN1's walk onto
+/// Mousey, its p95 19.5°), where its bent leg takes most of it for a few degrees.
+pub(super) fn split_lift(leg: [Vec3; 4], goal: Vec3, o: Vec3, up: Vec3, need: f32) -> f32 {
+    let [hip, knee, ankle, pole] = leg;
+    let (len, rise) = (o.length().max(1e-6), o.dot(up));
+    let pitch = |r: f32| (r / len).clamp(-MAX_BALL_RISE, MAX_BALL_RISE).asin();
+    let sq = |a: f32| if a.is_finite() { a * a } else { 0.0 };
+    let cost = |lift: f32| {
+        let s = solve_bounded(hip, knee, ankle, goal + up * lift, pole);
+        let thigh = (knee - hip).angle_between(s.knee - hip);
+        let shin = (ankle - knee).angle_between(s.ankle - s.knee);
+        sq(thigh) + sq(shin) + sq(pitch(rise + need - lift) - pitch(rise))
+    };
+    // Golden-section search over [0, need] (each part's cost grows with its share).
+    let (mut a, mut b) = (0.0f32, need.max(0.0));
+    let k = 0.5 * (5f32.sqrt() - 1.0);
+    let (mut c, mut d) = (b - k * (b - a), a + k * (b - a));
+    let (mut fc, mut fd) = (cost(c), cost(d));
+    for _ in 0..SPLIT_STEPS {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - k * (b - a);
+            fc = cost(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + k * (b - a);
+            fd = cost(d);
+        }
+    }
+    0.5 * (a + b)
+}
+
+/// Golden-section steps of [`split_lift`] (the bracket shrinks 0.618 a step: 16 steps leave
+/// under a thousandth of it).
+pub(super) const SPLIT_STEPS: usize = 16;
+
+impl FootLock {
+    /// Raises goal `i` so heel and ball stay above the floor, after the hips came down by
+    /// `drop` (which carries the animated share of the goal down with them). `live`: a
+    /// swinging foot's ball is pitched up alone (see below).
+    pub(super) fn clamp_to_floor(&mut self, i: usize, drop: f32, live: bool) {
+        let f = &self.feet[i];
+        let g = &mut self.goals[i];
+        if !g.pinned {
+            g.ankle -= self.up * drop;
+        }
+        if !f.stands_known() {
+            return;
+        }
+        let up = self.up;
+        let heel_low = self.floor + f.heel_clearance - g.ankle.dot(up);
+        if heel_low > 0.0 {
+            g.ankle += up * heel_low;
+            g.active = true;
+        }
+        // A ball below the floor pitches the foot up about the ankle (as a foot rolls onto its
+        // heel) rather than lifting the ankle: lifting it would make the knee take up the
+        // whole difference, and a rig whose foot points steeply down (its ankle joint on the
+        // ground when it stands) would have its leg folded over. Only what pitching cannot
+        // give (a ball more than the foot's length too low) lifts the ankle. Offline, a
+        // swinging foot shares the need between its leg and its pitch ([`split_lift`]). Live
+        // the detector plants a foot a frame or two late, and the share, moving with the
+        // leg, slid feet the performer already stood on (the causal lock in process: the CMU
+        // run onto the pybvh example rig 0.000 -> 0.065 cm/frame, onto the CMU 31-joint rig
+        // 0.025 -> 0.062, though the foot within its bound on 33 -> 38 of 84 pairs).
+        let Some(o) = g.ball_offset else { return };
+        let need = self.floor + f.ball_clearance - (g.ankle + o).dot(up);
+        if need <= 0.0 {
+            return;
+        }
+        let goal = *g;
+        let lifted = if goal.pinned || !goal.swinging || live {
+            0.0
+        } else {
+            self.free_lift(i, &goal, o, need)
+        };
+        let g = &mut self.goals[i];
+        g.ankle += up * lifted;
+        let need = need - lifted;
+        let rise = o.dot(up);
+        let reached = pitch_ball(g, up, rise + need);
+        let rest = need - (reached - rise);
+        if rest > 0.0 {
+            g.ankle += up * rest;
+        }
+        g.active = true;
+    }
+
+    /// How far foot `i`'s free goal `g`, its ball (`o` from the ankle) `need` under the floor,
+    /// has its ankle lifted rather than its ball pitched up ([`split_lift`]); `worlds` hold
+    /// the animation's leg.
+    pub(super) fn free_lift(&self, i: usize, g: &Goal, o: Vec3, need: f32) -> f32 {
+        let f = &self.feet[i];
+        let p = |b: BoneId| self.worlds[b.index()].translation;
+        let (hip, knee, ankle) = (p(f.leg.upper), p(f.leg.lower), p(f.leg.foot));
+        let line = (ankle - hip).normalize_or_zero();
+        let bend = (knee - hip) - line * (knee - hip).dot(line);
+        let pole = if bend.length() > 0.01 * f.leg.length {
+            bend
+        } else {
+            self.worlds[f.leg.upper.index()].rotation * f.pole_local
+        };
+        split_lift([hip, knee, ankle, pole], g.ankle, o, self.up, need)
+    }
+
+    /// Raises the root when every foot would otherwise have to be pulled up: each pinned one
+    /// towards its pin, each other one onto the floor. The animation has then sunk the whole
+    /// character (a rig whose legs come out longer than the scaled hips' height allows), and
+    /// bending the knees to take that up folds short leg bones over; lifting the body keeps
+    /// the legs as animated. (With a foot in the air nothing is raised: lifting the body then
+    /// lifts the feet about to land too.) Unpinned goals, carried by the hips, move up with
+    /// them. Returns whether the root moved.
+    pub(super) fn raise_hips(&mut self, out: &mut Pose) -> bool {
+        let Some(root) = self.root else {
+            return false;
+        };
+        let up = self.up;
+        let mut raise = f32::INFINITY;
+        let mut limit = f32::INFINITY;
+        for (foot, goal) in self.feet.iter().zip(&self.goals) {
+            limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
+            let need = if goal.pinned {
+                (goal.ankle - foot.animated_position).dot(up)
+            } else if !foot.stands_known() {
+                0.0
+            } else {
+                self.floor + foot.heel_clearance - goal.ankle.dot(up)
+            };
+            raise = raise.min(need);
+        }
+        let raise = raise.min(limit);
+        if raise.is_nan() || raise <= 0.0 {
+            return false;
+        }
+        for g in self.goals.iter_mut().take(self.feet.len()) {
+            if !g.pinned {
+                g.ankle += up * raise;
+            }
+        }
+        let parent = match self.target.parent(root) {
+            Some(p) => self.worlds[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.index()] += parent.inverse() * (up * raise);
+        true
+    }
+
+    /// Lowers the root so every pinned goal is within its leg's reach; returns by how much.
+    /// The hips come down at once (a pinned foot must stay reachable) but go back up through
+    /// a decaying offset, so a release does not pop the body up.
+    pub(super) fn lower_hips(&mut self, out: &mut Pose, dt: f32) -> f32 {
+        let Some(root) = self.root else {
+            return 0.0;
+        };
+        let mut drop: f32 = 0.0;
+        let mut limit = f32::INFINITY;
+        for foot in &self.feet {
+            limit = limit.min(self.settings.max_drop_ratio * foot.leg.length);
+        }
+        for (foot, goal) in self.feet.iter().zip(&self.goals) {
+            // Only pinned goals: the others come down with the hips, so lowering cannot help.
+            if !goal.pinned {
+                continue;
+            }
+            let p = |b: BoneId| self.worlds[b.index()].translation;
+            let (hip, knee, ankle) = (p(foot.leg.upper), p(foot.leg.lower), p(foot.leg.foot));
+            let full = (knee - hip).length() + (ankle - knee).length();
+            // As far as the solver stretches, or as the animation already does.
+            let reach = (full * MAX_EXTENSION).max((ankle - hip).length().min(full)) * 0.999;
+            let r = hip - goal.ankle;
+            let r_up = r.dot(self.up);
+            let r_flat2 = (r.length_squared() - r_up * r_up).max(0.0);
+            if r.length() > reach {
+                let need = r_up - (reach * reach - r_flat2).max(0.0).sqrt();
+                drop = drop.max(need);
+            }
+        }
+        let required = clamp_safe(drop, 0.0, limit);
+        let above = self.last_drop - required;
+        let drop = if above > 0.0 {
+            self.drop_offset.value = above;
+            self.drop_offset.step(dt, 0.5 * self.settings.blend_secs);
+            required + self.drop_offset.value.max(0.0)
+        } else {
+            self.drop_offset = Decay::default();
+            required
+        };
+        if drop <= 0.0 {
+            return 0.0;
+        }
+        let parent = match self.target.parent(root) {
+            Some(p) => self.worlds[p.index()].rotation,
+            None => Quat::IDENTITY,
+        };
+        out.translations[root.index()] -= parent.inverse() * (self.up * drop);
+        drop
+    }
+}
