@@ -39,8 +39,7 @@ pub(super) fn standing_foot(
         .unwrap_or_else(|| up.any_orthonormal_vector());
     let knee = w(leg.lower).translation;
     let hip = w(leg.upper).translation;
-    let line = (ankle - hip).normalize_or_zero();
-    let bend = (knee - hip) - line * (knee - hip).dot(line);
+    let bend = bend_of(hip, knee, ankle);
     // Knees bend the way the toes point; a quadruped's elbows the other way.
     let toward = match leg.kind {
         crate::footplant::rig::LegKind::Hind => heading_dir,

@@ -105,13 +105,10 @@ impl FootLock {
         let f = &self.feet[i];
         let p = |b: BoneId| self.worlds[b.index()].translation;
         let (hip, knee, ankle) = (p(f.leg.upper), p(f.leg.lower), p(f.leg.foot));
-        let line = (ankle - hip).normalize_or_zero();
-        let bend = (knee - hip) - line * (knee - hip).dot(line);
-        let pole = if bend.length() > 0.01 * f.leg.length {
-            bend
-        } else {
-            self.worlds[f.leg.upper.index()].rotation * f.pole_local
-        };
+        let pole = f.pole(
+            [hip, knee, ankle],
+            self.worlds[f.leg.upper.index()].rotation,
+        );
         split_lift([hip, knee, ankle, pole], g.ankle, o, self.up, need)
     }
 

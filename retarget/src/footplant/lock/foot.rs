@@ -4,6 +4,16 @@
 
 use super::*;
 
+/// A leg whose knee stands less than this many leg lengths off its hip-to-ankle line counts as
+/// straight: its bend side is the one remembered ([`Foot::pole`]).
+pub(super) const STRAIGHT_BEND_RATIO: f32 = 0.01;
+
+/// The knee's offset from the hip-to-ankle line: the side the leg bends to (zero when straight).
+pub(super) fn bend_of(hip: Vec3, knee: Vec3, ankle: Vec3) -> Vec3 {
+    let line = (ankle - hip).normalize_or_zero();
+    (knee - hip) - line * (knee - hip).dot(line)
+}
+
 /// Pitches `g`'s foot about the ankle so that its ball is `wanted` above the ankle along `up`
 /// (at most [`MAX_BALL_RISE`] of the foot's length either way); returns the height reached.
 pub(super) fn pitch_ball(g: &mut Goal, up: Vec3, wanted: f32) -> f32 {
@@ -141,6 +151,18 @@ pub(super) struct Foot {
 }
 
 impl Foot {
+    /// The side the foot's leg bends to for the IK: the animation's own bend (`hip`, `knee`,
+    /// `ankle`), or the one remembered in the thigh's frame (`upper`, its world rotation)
+    /// while the leg is nearly straight.
+    pub(super) fn pole(&self, [hip, knee, ankle]: [Vec3; 3], upper: Quat) -> Vec3 {
+        let bend = bend_of(hip, knee, ankle);
+        if bend.length() > STRAIGHT_BEND_RATIO * self.leg.length {
+            bend
+        } else {
+            upper * self.pole_local
+        }
+    }
+
     /// Whether the foot's standing heights above the lock's floor are known: given by the
     /// mapping or the clip, or learnt from a flat stance ([`Foot::learns_heights`]).
     pub(super) fn stands_known(&self) -> bool {

@@ -675,13 +675,10 @@ impl FootLock {
                 continue;
             };
             let (hip, knee) = (p(f.leg.upper), p(f.leg.lower));
-            let line = (ankle - hip).normalize_or_zero();
-            let bend = (knee - hip) - line * (knee - hip).dot(line);
-            let pole = if bend.length() > 0.01 * f.leg.length {
-                bend
-            } else {
-                self.worlds[f.leg.upper.index()].rotation * f.pole_local
-            };
+            let pole = f.pole(
+                [hip, knee, ankle],
+                self.worlds[f.leg.upper.index()].rotation,
+            );
             legs[k] = pelvis::LegReach {
                 hip,
                 knee,
@@ -1023,9 +1020,8 @@ impl FootLock {
             return ankle;
         }
         // The animation's own bend side; the remembered one when the leg is straight.
-        let line = (ankle - hip).normalize_or_zero();
-        let bend = (knee - hip) - line * (knee - hip).dot(line);
-        let pole = if bend.length() > 0.01 * leg.length {
+        let bend = bend_of(hip, knee, ankle);
+        let pole = if bend.length() > STRAIGHT_BEND_RATIO * leg.length {
             self.feet[i].pole_local = (wu.rotation.inverse() * bend).normalize_or_zero();
             bend
         } else {
