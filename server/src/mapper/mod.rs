@@ -17,6 +17,8 @@
 //! Subjects loaded from a VRM carry its humanoid map as ground truth for their roles
 //! ([`Subject::truth`]); the key does not cover it, so such mappings bypass both caches.
 
+mod graft;
+
 use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -26,8 +28,8 @@ use rigcast_protocol::control::MappingEntry;
 use rigcast_retarget::analysis::{analyze_with_truth, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{find_legs, FootLock, LegKind, LockSettings};
 use rigcast_retarget::mapping::{
-    apply_overrides, map_analyzed, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable,
-    SourceRef, TargetEntry, UNMAPPED,
+    apply_overrides, mapping_colors, CacheKey, MapOptions, MappingFile, MappingTable, SourceRef,
+    TargetEntry, UNMAPPED,
 };
 use rigcast_retarget::{BoneId, Follow, Mapping, Pose, RetargetOptions, RootMotion, Skeleton};
 use tokio::sync::broadcast;
@@ -35,7 +37,7 @@ use tokio::sync::broadcast;
 use crate::changes::find_source_bone;
 use crate::mapping_store::{MappingStore, DEFAULT_MAX_ENTRIES};
 use crate::offline::TableCache;
-use rigcast_engine::graft_live::{LiveGraft, LowerInput};
+use rigcast_engine::graft_live::LowerInput;
 use rigcast_engine::inbox::Inbox;
 use rigcast_engine::performer::BuiltMapping;
 use rigcast_engine::reports::MappingReport;
@@ -287,127 +289,6 @@ impl Mapper {
         let _ = self
             .events
             .send(rigcast_engine::events::Event::Mapping(report));
-    }
-
-    /// A grafted performer: the upper source mapped onto the character, the lower body (a
-    /// second source, or the clip) mapped separately, spliced at the waist (`graft_live`).
-    /// Overrides (file and session) apply to the upper body's table.
-    fn build_graft(&mut self, i: usize) -> anyhow::Result<()> {
-        let p = &self.performers[i];
-        let target = p.target.skeleton();
-        let ta = analyze_with_truth(&target_view(&target, p), p.target.truth());
-        let side = |id: u32| {
-            let s = &self.subjects[id as usize];
-            let extra = self.extras.get(&id);
-            let skel = s.skeleton();
-            let reference = extra.and_then(|e| e.reference.clone());
-            let a = analyze_with_truth(
-                &SkeletonView::with_pose(&skel, reference.as_ref()),
-                s.truth(),
-            );
-            let poses = extra.map(|e| e.poses.clone()).unwrap_or_default();
-            (skel, a, reference, poses)
-        };
-        let upper_id = *p
-            .target
-            .inputs
-            .first()
-            .context("a graft without an upper source")?;
-        let upper = side(upper_id);
-        let clip = match &p.graft {
-            Some(LowerInput::Clip(c)) => Some(c.clone()),
-            _ => None,
-        };
-        let lower = match &clip {
-            Some(c) => {
-                let a = analyze_with_truth(&SkeletonView::from_clip(&c.skeleton, &c.poses), None);
-                let reference = a.posture_pose(&c.poses);
-                (c.skeleton.clone(), a, reference, Arc::new(c.poses.clone()))
-            }
-            None => side(
-                *p.target
-                    .inputs
-                    .get(1)
-                    .context("a graft without a lower source")?,
-            ),
-        };
-        let mut upper_table = map_analyzed(&[(&upper.0, &upper.1)], (&target, &ta), &self.options);
-        if let Some(file) = &p.overrides_file {
-            apply_overrides(&mut upper_table, file, &[&upper.0], &target)
-                .context("mapping file")?;
-        }
-        apply_session(&mut upper_table, &p.session, &[&upper.0], &target)?;
-        let lower_table = map_analyzed(&[(&lower.0, &lower.1)], (&target, &ta), &self.options);
-        let opts = |side: &(Arc<Skeleton>, Analysis, Option<Pose>, Arc<Vec<Pose>>), motion| {
-            RetargetOptions {
-                frame_time_secs: self.frame_time_secs,
-                root_motion: motion,
-                source_reference: vec![side.2.clone().filter(|_| side.1.used_pose)],
-                target_reference: p.target_reference.clone().filter(|_| ta.used_pose),
-                source_up: Some(side.1.up),
-                ..RetargetOptions::default()
-            }
-        };
-        let upper_mapping = Mapping::build(
-            &[&upper.0],
-            &target,
-            &upper_table,
-            &opts(&upper, RootMotion::InPlace),
-        )
-        .context("cannot build the upper body's mapping")?;
-        let mut lower_mapping = Mapping::build(
-            &[&lower.0],
-            &target,
-            &lower_table,
-            &opts(&lower, p.root_motion),
-        )
-        .context("cannot build the lower body's mapping")?;
-        if let Some(floor) = lower_mapping.measure_source_floor(&lower.3) {
-            lower_mapping.set_source_floor_y(floor);
-        }
-        let foot_lock = build_foot_lock(
-            &lower_mapping,
-            std::slice::from_ref(&lower.1),
-            &ta,
-            p.foot_lock,
-        );
-        let graft = LiveGraft::new(
-            &upper_mapping,
-            lower_mapping,
-            &lower.1,
-            &ta,
-            clip.as_deref(),
-        )?;
-        // The `mapping` message: each target bone's source from the table of its half.
-        let merged =
-            rigcast_engine::graft_live::merged_table(&upper_table, &lower_table, graft.split());
-        let warnings: Vec<String> = [
-            ("upper source", &upper.1),
-            ("lower body", &lower.1),
-            ("target", &ta),
-        ]
-        .iter()
-        .flat_map(|(who, a)| a.warnings.iter().map(move |w| format!("{who}: {w}")))
-        .collect();
-        let report = mapping_report(
-            &p.target,
-            &[upper.0.clone(), lower.0.clone()],
-            &target,
-            &ta,
-            &merged,
-            &self.options,
-            warnings,
-        );
-        self.hand_over(
-            i,
-            BuiltMapping {
-                mapping: upper_mapping,
-                foot_lock,
-                graft: Some(graft),
-            },
-            report,
-        );
-        Ok(())
     }
 
     /// Handles one command.
