@@ -71,36 +71,88 @@ pub(crate) struct Started {
 /// Opens the recording and the listener, then starts sources, mapper, recorder, the engine's
 /// loop, the cluster's tasks and the listener.
 pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Result<Started> {
-    let subjects = parts.subjects.clone();
-    let events = parts.events.clone();
-    let recorder = match config.record.clone() {
-        Some(path) => Some(Arc::new(
-            tokio::task::spawn_blocking(move || Recorder::create(&path)).await??,
-        )),
-        None => None,
-    };
+    let recorder = open_recorder(config).await?;
     let listener = TcpListener::bind(config.listen)
         .await
         .with_context(|| format!("cannot listen on {}", config.listen))?;
     let local_addr = listener.local_addr()?;
     let (connections_stop, connections_rx) = watch::channel(false);
     let (engine_stop, engine_rx) = watch::channel(false);
-    let (frames, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
     let (mapper, mapper_rx) = std::sync::mpsc::channel();
-    let stats = Arc::new(stats::Stats::default());
-    let subject_list = Arc::new(rigcast_engine::subject_list::SubjectList::new(
-        subjects.clone(),
-    ));
     let forwarder =
         (parts.cluster.as_ref()).map(|link| Arc::new(link.forwarder(parts.token.token.clone())));
-    let state = Arc::new(ServerState {
-        subject_list: subject_list.clone(),
-        frames: frames.clone(),
-        events: events.clone(),
-        stats: stats.clone(),
+    let changes_to_forward = forwarder
+        .clone()
+        .map(|f| f as Arc<dyn crate::state::ChangeForwarder>);
+    let session_ends = (local_addr, connections_rx);
+    let state = server_state(config, &parts, session_ends, &recorder, changes_to_forward);
+    let state = Arc::new(state);
+    let stops = (connections_stop, engine_stop);
+    let mut supervisor = Supervisor::new(stops, state.connections.clone(), mapper.clone());
+    // The engine writes the sources' slots; the sources hand their poses over through doors.
+    let mut fed = Vec::new();
+    for source in parts.sources {
+        fed.push(supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx)?);
+    }
+    supervisor.spawn_thread("rigcast-mapper".into(), {
+        let mapper = parts.mapper;
+        move || mapper.run(mapper_rx)
+    })?;
+    if let Some(rec) = recorder {
+        supervisor.spawn_recorder(rec, parts.subjects.clone(), config.rate_hz)?;
+    }
+    let engine = EngineStart {
+        subjects: parts.subjects,
+        performers: parts.performers,
+        vmc: parts.vmc,
+        fed,
+        rate_hz: config.rate_hz,
+    };
+    let run = engine.run(&state, mapper, parts.inbox, parts.wake, engine_rx);
+    supervisor.engine_tasks.push(tokio::spawn(run));
+    if let (Some(link), Some(forwarder)) = (parts.cluster, forwarder) {
+        supervisor.spawn_cluster(link, &state, forwarder);
+    }
+    supervisor.listener = tokio::spawn(http::run_listener(listener, state.clone()));
+    Ok(Started {
+        local_addr,
+        state,
+        token: parts.token,
+        supervisor,
+    })
+}
+
+/// The recording, when one is configured (created off the async threads: it writes a file).
+async fn open_recorder(config: &ServerConfig) -> anyhow::Result<Option<Arc<Recorder>>> {
+    let Some(path) = config.record.clone() else {
+        return Ok(None);
+    };
+    let recorder = tokio::task::spawn_blocking(move || Recorder::create(&path)).await??;
+    Ok(Some(Arc::new(recorder)))
+}
+
+/// The state every session, relay and service shares. `listen` is the listener's address
+/// (its scope decides who is trusted) and the watch that tells sessions to close.
+fn server_state(
+    config: &ServerConfig,
+    parts: &Assembly,
+    listen: (std::net::SocketAddr, watch::Receiver<bool>),
+    recorder: &Option<Arc<Recorder>>,
+    forwarder: Option<Arc<dyn crate::state::ChangeForwarder>>,
+) -> ServerState {
+    let (local_addr, shutdown) = listen;
+    let subjects = &parts.subjects;
+    let (frames, _) = broadcast::channel(BROADCAST_CAPACITY * subjects.len().max(1));
+    ServerState {
+        subject_list: Arc::new(rigcast_engine::subject_list::SubjectList::new(
+            subjects.clone(),
+        )),
+        frames,
+        events: parts.events.clone(),
+        stats: Arc::new(stats::Stats::default()),
         rate_hz: config.rate_hz,
         next_client_id: AtomicU64::new(1),
-        shutdown: connections_rx,
+        shutdown,
         inbox: parts.inbox.clone(),
         policy: access::AccessPolicy::new(
             parts.token.token.clone(),
@@ -116,74 +168,55 @@ pub(crate) async fn spawn(config: &ServerConfig, parts: Assembly) -> anyhow::Res
             site: link.cluster.config.site.clone(),
             mapping_counts: link.cluster.mapping_counts.clone(),
         }),
-        forwarder: forwarder
-            .clone()
-            .map(|f| f as Arc<dyn crate::state::ChangeForwarder>),
-    });
-    let mut supervisor = Supervisor {
-        connections_stop,
-        listener: tokio::spawn(std::future::ready(())),
-        connections: state.connections.clone(),
-        engine_stop,
-        engine_tasks: Vec::new(),
-        stop_threads: Arc::new(AtomicBool::new(false)),
-        mapper: mapper.clone(),
-        threads: Vec::new(),
-        late_threads: Arc::default(),
-        recorder: None,
-    };
-    // The engine writes the sources' slots; the sources hand their poses over through doors.
-    let mut fed = Vec::new();
-    for source in parts.sources {
-        fed.push(supervisor.spawn_source(source, &state, recorder.as_ref(), &engine_rx)?);
+        forwarder,
     }
-    supervisor.spawn_thread("rigcast-mapper".into(), {
-        let mapper = parts.mapper;
-        move || mapper.run(mapper_rx)
-    })?;
-    if let Some(rec) = recorder {
-        supervisor.spawn_recorder(rec, subjects.clone(), config.rate_hz)?;
-    }
-    let (vmc_socket, vmc) = parts.vmc.unzip();
-    let mut engine = Engine::new(
-        EngineParts {
-            tick: TickContext {
-                subjects: subjects.clone(),
-                vmc: vmc.unwrap_or_default(),
-                performers: parts.performers,
+}
+
+/// What the engine starts from: the subjects, the performers, the VMC output and the sources'
+/// slots (subject, slot, whether its poses bring the tick forward).
+struct EngineStart {
+    subjects: Arc<Vec<Arc<rigcast_engine::subject::Subject>>>,
+    performers: Vec<rigcast_engine::performer::Performer>,
+    vmc: Option<(std::net::UdpSocket, Vec<rigcast_engine::tick::VmcTarget>)>,
+    fed: Vec<(u32, FrameWriter, bool)>,
+    rate_hz: f64,
+}
+
+impl EngineStart {
+    /// The engine's loop (tick, foot plants, source status), writing into the state's frame
+    /// broadcast and counters.
+    fn run(
+        self,
+        state: &ServerState,
+        mapper: std::sync::mpsc::Sender<EngineCommand>,
+        inbox: rigcast_engine::inbox::Inbox,
+        wake: Arc<tokio::sync::Notify>,
+        stop: watch::Receiver<bool>,
+    ) -> impl std::future::Future<Output = ()> {
+        let (vmc_socket, vmc) = self.vmc.unzip();
+        let mut engine = Engine::new(
+            EngineParts {
+                tick: TickContext {
+                    subjects: self.subjects,
+                    vmc: vmc.unwrap_or_default(),
+                    performers: self.performers,
+                },
+                rate_hz: self.rate_hz,
+                subjects: state.subject_list.clone(),
             },
-            rate_hz: config.rate_hz,
-            subjects: subject_list,
-        },
-        std::time::Instant::now(),
-    );
-    for (subject, tx, wakes) in fed {
-        engine.feed(subject, tx, wakes);
-    }
-    let out = tick_task::HostOutput {
-        frames,
-        vmc_socket,
-        stats,
-    };
-    let (inbox, wake, stop) = (parts.inbox, parts.wake, engine_rx.clone());
-    let run = tick_task::run_engine(engine, out, events, mapper, inbox, wake, stop);
-    supervisor.engine_tasks.push(tokio::spawn(run));
-    if let (Some(link), Some(forwarder)) = (parts.cluster, forwarder) {
-        let live = crate::cluster::LiveThreads {
-            stop: supervisor.stop_threads.clone(),
-            threads: supervisor.late_threads.clone(),
+            std::time::Instant::now(),
+        );
+        for (subject, tx, wakes) in self.fed {
+            engine.feed(subject, tx, wakes);
+        }
+        let out = tick_task::HostOutput {
+            frames: state.frames.clone(),
+            vmc_socket,
+            stats: state.stats.clone(),
         };
-        supervisor
-            .engine_tasks
-            .extend(link.spawn(&state, live, forwarder));
+        let events = state.events.clone();
+        tick_task::run_engine(engine, out, events, mapper, inbox, wake, stop)
     }
-    supervisor.listener = tokio::spawn(http::run_listener(listener, state.clone()));
-    Ok(Started {
-        local_addr,
-        state,
-        token: parts.token,
-        supervisor,
-    })
 }
 
 /// The configured connection cap, or what the open-file limit allows.
@@ -202,6 +235,27 @@ fn max_connections(config: &ServerConfig) -> usize {
 }
 
 impl Supervisor {
+    /// A supervisor with nothing started yet; `stops` are the watches of stages 1 and 2.
+    fn new(
+        stops: (watch::Sender<bool>, watch::Sender<bool>),
+        connections: Arc<ConnectionLimiter>,
+        mapper: std::sync::mpsc::Sender<EngineCommand>,
+    ) -> Supervisor {
+        let (connections_stop, engine_stop) = stops;
+        Supervisor {
+            connections_stop,
+            listener: tokio::spawn(std::future::ready(())),
+            connections,
+            engine_stop,
+            engine_tasks: Vec::new(),
+            stop_threads: Arc::new(AtomicBool::new(false)),
+            mapper,
+            threads: Vec::new(),
+            late_threads: Arc::default(),
+            recorder: None,
+        }
+    }
+
     /// A replay becomes a task; a live source a thread (its `next_frame` blocks). Each hands
     /// its poses to the engine through a door; returns what the engine is fed for it (the
     /// subject, its slot, whether its poses bring the tick forward: cameras').
@@ -265,6 +319,20 @@ impl Supervisor {
             .context("cannot start the recorder thread")?;
         self.recorder = Some((rec, thread));
         Ok(())
+    }
+
+    /// Cluster mode: the relays and the publisher, with the forwarder the state holds.
+    fn spawn_cluster(
+        &mut self,
+        link: crate::cluster::ClusterLink,
+        state: &Arc<ServerState>,
+        forwarder: Arc<crate::cluster::Forwarder>,
+    ) {
+        let live = crate::cluster::LiveThreads {
+            stop: self.stop_threads.clone(),
+            threads: self.late_threads.clone(),
+        };
+        self.engine_tasks.extend(link.spawn(state, live, forwarder));
     }
 
     fn spawn_thread(
