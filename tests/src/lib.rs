@@ -150,6 +150,28 @@ pub async fn collect_frames(ws: &mut Ws, duration: Duration) -> Vec<(DecodedFram
     out
 }
 
+/// Frames until `wanted` have arrived or `timeout` passed: for tests that need a count of
+/// frames, which a loaded machine delivers later but still delivers.
+pub async fn collect_n_frames(
+    ws: &mut Ws,
+    wanted: usize,
+    timeout: Duration,
+) -> Vec<(DecodedFrame, u64)> {
+    let deadline = Instant::now() + timeout;
+    let mut out = Vec::new();
+    while out.len() < wanted {
+        let Some(left) = deadline.checked_duration_since(Instant::now()) else {
+            break;
+        };
+        match next(ws, left).await {
+            Some(Incoming::Frame(f, t)) => out.push((f, t)),
+            Some(Incoming::Json(_)) => {}
+            None => break,
+        }
+    }
+    out
+}
+
 /// A WebSocket upgrade on a socket with a tiny receive buffer, read up to the end of the 101
 /// head only, so the socket fills as soon as the client stops reading.
 pub async fn stalled_client(addr: std::net::SocketAddr) -> TcpStream {
