@@ -75,6 +75,9 @@ impl PoseArg {
 /// How long to wait for the server's greeting and for each answer.
 const ANSWER_TIMEOUT: Duration = Duration::from_secs(5);
 
+type Socket =
+    tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
 /// Runs the command; `Ok` only when the server reports the source calibrated.
 pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     if !(args.delay.is_finite() && (0.0..=MAX_CALIBRATION_DELAY_SECS).contains(&args.delay)) {
@@ -83,31 +86,9 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             args.delay
         );
     }
-    let token = crate::token::client_token(args.token.as_deref(), args.token_file.as_deref())?;
-    let request = crate::token::authorized_request(&args.url, token.as_ref())?;
-    let connect = tokio_tungstenite::connect_async(request);
-    let (mut ws, _) = tokio::time::timeout(ANSWER_TIMEOUT, connect)
-        .await
-        .with_context(|| format!("cannot connect to {}: timed out", args.url))?
-        .with_context(|| {
-            format!(
-                "cannot connect to {} (is `rigcast serve` running?)",
-                args.url
-            )
-        })?;
-
-    // The greeting: hello, skeletons, mappings, then the first source_status.
-    let mut subjects: Option<Vec<SubjectInfo>> = None;
-    let sources: Vec<SourceHealth> = loop {
-        match next_message(&mut ws, Instant::now() + ANSWER_TIMEOUT).await? {
-            ServerMessage::Hello { subjects: s, .. } => subjects = Some(s),
-            ServerMessage::SourceStatus { sources, .. } => break sources,
-            _ => {}
-        }
-    };
-    let subjects = subjects.context("the server sent no hello")?;
+    let mut ws = connect(&args).await?;
+    let (subjects, sources) = greeting(&mut ws).await?;
     let (id, name) = pick_subject(&subjects, &sources, args.subject.as_deref())?;
-
     let request = ClientMessage::Calibrate {
         subject: id,
         pose: args.pose.wire(),
@@ -117,28 +98,103 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     ws.send(Message::text(text))
         .await
         .context("sending the calibrate request")?;
+    let who = Named { id, name: &name };
+    await_outcome(&mut ws, who, &args).await
+}
 
-    // Statuses published before the request may still be queued; the outcome is the first
-    // final text after the server's "calibrating …" one.
+/// Opens the stream with the control token.
+async fn connect(args: &CalibrateArgs) -> anyhow::Result<Socket> {
+    let token = crate::token::client_token(args.token.as_deref(), args.token_file.as_deref())?;
+    let request = crate::token::authorized_request(&args.url, token.as_ref())?;
+    let connect = tokio_tungstenite::connect_async(request);
+    let (ws, _) = tokio::time::timeout(ANSWER_TIMEOUT, connect)
+        .await
+        .with_context(|| format!("cannot connect to {}: timed out", args.url))?
+        .with_context(|| {
+            format!(
+                "cannot connect to {} (is `rigcast serve` running?)",
+                args.url
+            )
+        })?;
+    Ok(ws)
+}
+
+/// The greeting: hello, skeletons, mappings, then the first source_status.
+async fn greeting(ws: &mut Socket) -> anyhow::Result<(Vec<SubjectInfo>, Vec<SourceHealth>)> {
+    let mut subjects: Option<Vec<SubjectInfo>> = None;
+    let sources: Vec<SourceHealth> = loop {
+        match next_message(ws, Instant::now() + ANSWER_TIMEOUT).await? {
+            ServerMessage::Hello { subjects: s, .. } => subjects = Some(s),
+            ServerMessage::SourceStatus { sources, .. } => break sources,
+            _ => {}
+        }
+    };
+    let subjects = subjects.context("the server sent no hello")?;
+    Ok((subjects, sources))
+}
+
+/// The subject being calibrated, as the messages name it.
+#[derive(Clone, Copy)]
+struct Named<'a> {
+    id: u32,
+    name: &'a str,
+}
+
+/// The "3 2 1" printed while the server waits for the performer.
+struct Countdown {
+    left: u32,
+    next_tick: Instant,
+}
+
+impl Countdown {
+    fn new(capture_at: Instant, delay_secs: f32) -> Countdown {
+        let left = delay_secs.ceil() as u32;
+        Countdown {
+            left,
+            next_tick: capture_at - Duration::from_secs(u64::from(left)),
+        }
+    }
+
+    /// Prints the next number (and ends the line after the last).
+    fn tick(&mut self) {
+        print!(" {}", self.left);
+        if self.left == 1 {
+            println!();
+        }
+        // Progress only: the capture goes on if stdout is closed.
+        let _ = std::io::stdout().flush();
+        self.left -= 1;
+        self.next_tick += Duration::from_secs(1);
+    }
+
+    /// Ends a line the countdown left open.
+    fn end_line(&self) {
+        if self.left > 0 {
+            println!();
+        }
+    }
+}
+
+/// Waits for the server's answer and the capture's outcome, counting down meanwhile.
+///
+/// Statuses published before the request may still be queued; the outcome is the first
+/// final text after the server's "calibrating …" one.
+async fn await_outcome(
+    ws: &mut Socket,
+    who: Named<'_>,
+    args: &CalibrateArgs,
+) -> anyhow::Result<()> {
+    let Named { id, name } = who;
     let mut seen_pending = false;
     let mut acked = false;
-    let started = Instant::now();
-    let capture_at = started + Duration::from_secs_f32(args.delay);
-    let mut next_count = args.delay.ceil() as u32;
-    let mut next_tick = capture_at - Duration::from_secs(next_count as u64);
+    let capture_at = Instant::now() + Duration::from_secs_f32(args.delay);
+    let mut countdown = Countdown::new(capture_at, args.delay);
     let give_up = capture_at + ANSWER_TIMEOUT;
     loop {
         let msg = tokio::select! {
-            m = next_message(&mut ws, give_up) => m?,
-            _ = tokio::time::sleep_until(next_tick), if acked && next_count > 0 => {
-                print!(" {next_count}");
-                if next_count == 1 {
-                    println!();
-                }
-                // Progress only: the capture goes on if stdout is closed.
-                let _ = std::io::stdout().flush();
-                next_count -= 1;
-                next_tick += Duration::from_secs(1);
+            m = next_message(ws, give_up) => m?,
+            _ = tokio::time::sleep_until(countdown.next_tick), if acked && countdown.left > 0 => {
+                countdown.tick();
                 continue;
             }
         };
@@ -151,14 +207,7 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             }
             ServerMessage::Ack { request, subject } if request == "calibrate" && subject == id => {
                 acked = true;
-                let what = args.pose.instruction();
-                if next_count == 0 {
-                    println!("calibrating {name} (subject {id}): {what}; capturing now");
-                } else {
-                    print!("calibrating {name} (subject {id}): {what}…");
-                    // Progress only, as above.
-                    let _ = std::io::stdout().flush();
-                }
+                announce(who, args.pose, countdown.left);
             }
             ServerMessage::SourceStatus { sources, .. } => {
                 let Some(detail) = sources.iter().find(|s| s.subject == id).map(|s| &s.detail)
@@ -168,20 +217,29 @@ pub async fn run(args: CalibrateArgs) -> anyhow::Result<()> {
                 if detail.starts_with(PENDING_PREFIX) {
                     seen_pending = true;
                 } else if seen_pending && detail.starts_with(SUCCESS_PREFIX) {
-                    if next_count > 0 {
-                        println!();
-                    }
+                    countdown.end_line();
                     println!("{name} (subject {id}): {detail}; sensor offsets captured");
                     return Ok(());
                 } else if seen_pending && detail.starts_with(FAILURE_PREFIX) {
-                    if next_count > 0 {
-                        println!();
-                    }
+                    countdown.end_line();
                     bail!("{name} (subject {id}): {detail}");
                 }
             }
             _ => {}
         }
+    }
+}
+
+/// Tells the performer what to hold, once the server took the request.
+fn announce(who: Named<'_>, pose: PoseArg, countdown_left: u32) {
+    let Named { id, name } = who;
+    let what = pose.instruction();
+    if countdown_left == 0 {
+        println!("calibrating {name} (subject {id}): {what}; capturing now");
+    } else {
+        print!("calibrating {name} (subject {id}): {what}…");
+        // Progress only, as in the countdown.
+        let _ = std::io::stdout().flush();
     }
 }
 
