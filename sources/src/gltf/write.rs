@@ -3,7 +3,7 @@
 //! rotation channels for every bone and translation channels for roots and moving bones.
 
 use glam::Quat;
-use rigcast_retarget::Clip;
+use rigcast_retarget::{Clip, Skeleton};
 use serde_json::{json, Value};
 
 use crate::error::SourceError;
@@ -12,8 +12,24 @@ const FLOAT: u32 = 5126;
 
 /// Encodes `clip` as a GLB file.
 pub fn write_glb(clip: &Clip) -> Result<Vec<u8>, SourceError> {
-    let s = &clip.skeleton;
-    let n = s.num_bones();
+    let mut root = skeleton_json(&clip.skeleton);
+    let mut buffers = Buffers::default();
+    if !clip.poses.is_empty() {
+        root["animations"] = json!([animation(clip, &mut buffers)]);
+        root["accessors"] = json!(buffers.accessors);
+        root["bufferViews"] = json!(buffers.views);
+        root["buffers"] = json!([{"byteLength": buffers.bin.len()}]);
+    }
+    let mut bin = buffers.bin;
+    while bin.len() & 3 != 0 {
+        bin.push(0);
+    }
+    glb_container(&root, (!bin.is_empty()).then_some(&bin[..]))
+}
+
+/// The document without animation: one node per bone at its rest, the scene's roots, and a
+/// skin listing every bone.
+fn skeleton_json(s: &Skeleton) -> Value {
     let rest = s.rest();
     let nodes: Vec<Value> = s
         .bone_ids()
@@ -32,94 +48,109 @@ pub fn write_glb(clip: &Clip) -> Result<Vec<u8>, SourceError> {
         })
         .collect();
     let roots: Vec<usize> = s.roots().map(|b| b.index()).collect();
-    let mut root = json!({
+    json!({
         "asset": {"version": "2.0", "generator": "rigcast"},
         "scene": 0,
         "scenes": [{"nodes": roots}],
         "nodes": nodes,
-        "skins": [{"joints": (0..n).collect::<Vec<_>>(), "skeleton": roots.first().copied().unwrap_or(0)}],
-    });
+        "skins": [{"joints": (0..s.num_bones()).collect::<Vec<_>>(), "skeleton": roots.first().copied().unwrap_or(0)}],
+    })
+}
 
-    let mut bin: Vec<u8> = Vec::new();
-    if !clip.poses.is_empty() {
-        let mut views = Vec::new();
-        let mut accessors = Vec::new();
-        let mut push = |bin: &mut Vec<u8>,
-                        data: &[f32],
-                        kind: &str,
-                        count: usize,
-                        minmax: Option<(f32, f32)>| {
-            let offset = bin.len();
-            for v in data {
-                bin.extend_from_slice(&v.to_le_bytes());
-            }
-            views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4}));
-            let mut acc = json!({
-                "bufferView": views.len() - 1,
-                "componentType": FLOAT,
-                "count": count,
-                "type": kind,
-            });
-            if let Some((lo, hi)) = minmax {
-                acc["min"] = json!([lo]);
-                acc["max"] = json!([hi]);
-            }
-            accessors.push(acc);
-            accessors.len() - 1
-        };
-        let times: Vec<f32> = (0..clip.num_frames())
-            .map(|k| (k as f64 * clip.frame_time_secs) as f32)
-            .collect();
-        let last = times.last().copied().unwrap_or(0.0);
-        let input = push(&mut bin, &times, "SCALAR", times.len(), Some((0.0, last)));
-        let mut samplers = Vec::new();
-        let mut channels = Vec::new();
-        for b in s.bone_ids() {
-            let i = b.index();
-            // Keep consecutive keys in one hemisphere so slerp takes the short way.
-            let mut prev = Quat::IDENTITY;
-            let mut data = Vec::with_capacity(4 * clip.num_frames());
-            for (k, p) in clip.poses.iter().enumerate() {
-                let mut q = p.rotations[i].normalize();
-                if k > 0 && q.dot(prev) < 0.0 {
-                    q = -q;
-                }
-                prev = q;
-                data.extend_from_slice(&q.to_array());
-            }
-            let out = push(&mut bin, &data, "VEC4", clip.num_frames(), None);
-            samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
-            channels.push(
-                json!({"sampler": samplers.len() - 1, "target": {"node": i, "path": "rotation"}}),
-            );
-            let moves = s.parent(b).is_none()
-                || clip.poses.iter().any(|p| {
-                    (p.translations[i] - rest[i].translation)
-                        .abs()
-                        .max_element()
-                        > 1e-7
-                });
-            if moves {
-                let data: Vec<f32> = clip
-                    .poses
-                    .iter()
-                    .flat_map(|p| p.translations[i].to_array())
-                    .collect();
-                let out = push(&mut bin, &data, "VEC3", clip.num_frames(), None);
-                samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
-                channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": i, "path": "translation"}}));
-            }
+/// The binary chunk as it fills, with a buffer view and an accessor for each array.
+#[derive(Default)]
+struct Buffers {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Buffers {
+    /// Appends `data` as `count` elements of `kind`; returns the accessor's index.
+    fn push(
+        &mut self,
+        data: &[f32],
+        kind: &str,
+        count: usize,
+        minmax: Option<(f32, f32)>,
+    ) -> usize {
+        let offset = self.bin.len();
+        for v in data {
+            self.bin.extend_from_slice(&v.to_le_bytes());
         }
-        root["animations"] =
-            json!([{"name": clip.name, "samplers": samplers, "channels": channels}]);
-        root["accessors"] = json!(accessors);
-        root["bufferViews"] = json!(views);
-        root["buffers"] = json!([{"byteLength": bin.len()}]);
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4}));
+        let mut acc = json!({
+            "bufferView": self.views.len() - 1,
+            "componentType": FLOAT,
+            "count": count,
+            "type": kind,
+        });
+        if let Some((lo, hi)) = minmax {
+            acc["min"] = json!([lo]);
+            acc["max"] = json!([hi]);
+        }
+        self.accessors.push(acc);
+        self.accessors.len() - 1
     }
-    while bin.len() & 3 != 0 {
-        bin.push(0);
+}
+
+/// The clip as one animation: a rotation channel for every bone, a translation channel for
+/// roots and bones that move off their rest.
+fn animation(clip: &Clip, buffers: &mut Buffers) -> Value {
+    let s = &clip.skeleton;
+    let frames = clip.num_frames();
+    let times: Vec<f32> = (0..frames)
+        .map(|k| (k as f64 * clip.frame_time_secs) as f32)
+        .collect();
+    let last = times.last().copied().unwrap_or(0.0);
+    let input = buffers.push(&times, "SCALAR", times.len(), Some((0.0, last)));
+    let mut samplers = Vec::new();
+    let mut channels = Vec::new();
+    let mut channel = |output: usize, node: usize, path: &str| {
+        samplers.push(json!({"input": input, "output": output, "interpolation": "LINEAR"}));
+        channels
+            .push(json!({"sampler": samplers.len() - 1, "target": {"node": node, "path": path}}));
+    };
+    for b in s.bone_ids() {
+        let i = b.index();
+        let out = buffers.push(&rotation_keys(clip, i), "VEC4", frames, None);
+        channel(out, i, "rotation");
+        if s.parent(b).is_none() || moves_off_rest(clip, i) {
+            let data: Vec<f32> = clip
+                .poses
+                .iter()
+                .flat_map(|p| p.translations[i].to_array())
+                .collect();
+            let out = buffers.push(&data, "VEC3", frames, None);
+            channel(out, i, "translation");
+        }
     }
-    glb_container(&root, (!bin.is_empty()).then_some(&bin[..]))
+    json!({"name": clip.name, "samplers": samplers, "channels": channels})
+}
+
+/// Bone `i`'s rotations over the clip, consecutive keys kept in one hemisphere so that
+/// slerp takes the short way.
+fn rotation_keys(clip: &Clip, i: usize) -> Vec<f32> {
+    let mut prev = Quat::IDENTITY;
+    let mut data = Vec::with_capacity(4 * clip.num_frames());
+    for (k, p) in clip.poses.iter().enumerate() {
+        let mut q = p.rotations[i].normalize();
+        if k > 0 && q.dot(prev) < 0.0 {
+            q = -q;
+        }
+        prev = q;
+        data.extend_from_slice(&q.to_array());
+    }
+    data
+}
+
+/// Whether bone `i` leaves its rest translation anywhere in the clip.
+fn moves_off_rest(clip: &Clip, i: usize) -> bool {
+    let rest = clip.skeleton.rest()[i].translation;
+    clip.poses
+        .iter()
+        .any(|p| (p.translations[i] - rest).abs().max_element() > 1e-7)
 }
 
 /// A GLB file of `root` and its binary chunk (`None`: no BIN chunk), JSON padded to 4 bytes.
