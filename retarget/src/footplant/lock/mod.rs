@@ -36,7 +36,8 @@
 //!                     height, about the heel: the pin comes forward; offline no lower than
 //!                     the source's ball stands over its own flat standing height, scaled:
 //!                     a heel strike's toes come down as the performer's do), blended in
-//!                     and out the same way; its heading (the way its ball points) turned with the
+//!                     and out the same way; its heading (the way its ball points, or where
+//!                     that points straight down its side axis's, `Foot::heading`) turned with the
 //!                     animation's over the blends' half-life about the joint it stands on
 //!                     (`turn_pins`, before the root is carried, which takes up the pin's
 //!                     move; with plants given as flags alone: held, dragged past
@@ -142,6 +143,17 @@ const MAX_LIFT_RATIO: f32 = 0.008;
 const FLATTEN_LEVEL: f32 = 0.5;
 const FLATTEN_FADE_LEVEL: f32 = 0.2;
 
+/// How much a direction keeping `level` of its length level tells of its way over the ground:
+/// all of it from [`FLATTEN_LEVEL`] up, nothing at [`FLATTEN_FADE_LEVEL`] and below (smoothly
+/// between). A foot pointing nearly straight down has no heading to speak of: the small
+/// horizontal part of its way to the ball turns quickly, and flips as the ball passes under
+/// the ankle.
+fn level_weight(d: Vec3, up: Vec3) -> f32 {
+    let level = (d - up * d.dot(up)).length() / d.length().max(1e-6);
+    let k = ((level - FLATTEN_FADE_LEVEL) / (FLATTEN_LEVEL - FLATTEN_FADE_LEVEL)).clamp(0.0, 1.0);
+    k * k * (3.0 - 2.0 * k)
+}
+
 /// How the lock behaves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LockSettings {
@@ -219,6 +231,13 @@ pub struct FootLock {
     shown_once: bool,
     /// Live: how near each source foot's next plant is.
     landing: LiveLanding,
+}
+
+/// The angle of `d`'s way over the ground about `up` (from a fixed direction across it).
+fn heading_about(up: Vec3, d: Vec3) -> f32 {
+    let e1 = up.any_orthonormal_vector();
+    let e2 = up.cross(e1);
+    d.dot(e2).atan2(d.dot(e1))
 }
 
 /// The angle in (−π, π] equal to `a` modulo a turn.
@@ -580,7 +599,12 @@ impl FootLock {
             let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - ankle);
             // The contact the foot stands on in the animation: the ankle, less what its roll
             // onto the ball moved it (a foot rolling over its ball does not slide).
-            let roll = ball.map_or(Vec3::ZERO, |o| f.roll(up, o));
+            // Its way over the ground is the foot's heading ([`Foot::heading`]), not the
+            // way to its ball, which flips as a toe-off points the foot straight down.
+            let rotation = self.worlds[f.leg.foot.index()].rotation;
+            let turn = wrap(self.heading(f, rotation) - self.ball_heading(f, rotation));
+            let headed = ball.map(|o| Quat::from_axis_angle(up, turn) * o);
+            let roll = headed.map_or(Vec3::ZERO, |o| f.roll(up, o));
             let contact = ankle - (roll - up * roll.dot(up));
             // Held since the last frame and still planted: the slide is the animation's.
             let held = f.source.is_some_and(|s| planted[s]) && f.locked && f.seen;
@@ -725,7 +749,8 @@ impl FootLock {
             }
             let heading = wrap(f.lock_heading + turn);
             let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - w.translation);
-            let ball_at = |h: f32| ball.map(|o| Quat::from_axis_angle(up, wrap(h - animated)) * o);
+            let own = self.ball_heading(f, w.rotation);
+            let ball_at = |h: f32| ball.map(|o| Quat::from_axis_angle(up, wrap(h - own)) * o);
             let balls = ball_at(f.lock_heading).zip(ball_at(heading));
             let f = &mut self.feet[i];
             let before = f.lock_position;
@@ -735,10 +760,13 @@ impl FootLock {
     }
 
     fn heading(&self, foot: &Foot, rotation: Quat) -> f32 {
-        let d = rotation * foot.heading_local;
-        let e1 = self.up.any_orthonormal_vector();
-        let e2 = self.up.cross(e1);
-        d.dot(e2).atan2(d.dot(e1))
+        foot.heading(self.up, rotation)
+    }
+
+    /// The way from `foot`'s ankle to its ball over the ground (or, without one, a level axis
+    /// of its rest): what a ball offset is turned from to stand at a heading.
+    fn ball_heading(&self, foot: &Foot, rotation: Quat) -> f32 {
+        heading_about(self.up, rotation * foot.heading_local)
     }
 
     /// Updates foot `i`'s lock state and returns where its ankle and rotation should go.
@@ -746,6 +774,7 @@ impl FootLock {
         let ankle_w = self.worlds[self.feet[i].leg.foot.index()];
         let animated = ankle_w.translation;
         let heading_now = self.heading(&self.feet[i], ankle_w.rotation);
+        let ball_heading = self.ball_heading(&self.feet[i], ankle_w.rotation);
         let up = self.up;
         let flat = |v: Vec3| v - up * v.dot(up);
         let max_drift = self.settings.max_drift_ratio * self.feet[i].leg.length;
@@ -758,7 +787,7 @@ impl FootLock {
         let ball_anim =
             (self.feet[i].leg.toes).map(|t| self.worlds[t.index()].translation - animated);
         let ball_at = |heading: f32| {
-            ball_anim.map(|o| Quat::from_axis_angle(up, wrap(heading - heading_now)) * o)
+            ball_anim.map(|o| Quat::from_axis_angle(up, wrap(heading - ball_heading)) * o)
         };
         // A foot not seen yet is shown where the animation has it: before the settle below,
         // which measures from there (the rest pose it starts at may float far off the floor).
@@ -899,10 +928,7 @@ impl FootLock {
         // horizontal part turns quickly, and pitching along it would swing the toes about. The
         // flattening fades out as the foot steepens.
         let len = o.length();
-        let level = (o - up * o.dot(up)).length() / len.max(1e-6);
-        let k =
-            ((level - FLATTEN_FADE_LEVEL) / (FLATTEN_LEVEL - FLATTEN_FADE_LEVEL)).clamp(0.0, 1.0);
-        let lift = lift * k * k * (3.0 - 2.0 * k);
+        let lift = lift * level_weight(o, up);
         if lift.abs() > 1e-6 {
             pitch_ball(goal, up, o.dot(up) + lift);
             goal.active = true;
@@ -1249,6 +1275,53 @@ mod tests {
         foot.take_heel(0.002, None);
         let lifted = foot.pinned_ankle(up, 0.0, None) - standing;
         assert!((lifted - up * 0.002).length() < 1e-6, "{lifted}");
+    }
+
+    #[test]
+    fn a_foot_pointing_straight_down_keeps_the_heading_its_side_axis_gives() {
+        let up = Vec3::Y;
+        // Heading +X, side axis +Z (ahead × up); pitched `down` degrees toes down, then
+        // turned `turn` radians about up.
+        let foot = pinned_foot(true);
+        let pose = |down: f32, turn: f32| {
+            Quat::from_axis_angle(up, turn) * Quat::from_axis_angle(Vec3::Z, -down.to_radians())
+        };
+        let level = foot.heading(up, pose(0.0, 0.0));
+        assert!((level - heading_about(up, Vec3::X)).abs() < 1e-6);
+        // Past straight down the way to the ball flips (its toes now point back under the
+        // ankle); the foot's heading does not, and it still turns with the foot.
+        for turn in [0.0f32, 0.5, -2.0] {
+            let flipped = pose(95.0, turn) * foot.heading_local;
+            let ball_way = wrap(heading_about(up, flipped) - level - turn);
+            assert!(
+                (ball_way.abs() - std::f32::consts::PI).abs() < 1e-4,
+                "{ball_way}"
+            );
+            for down in [80.0, 90.0, 95.0, 100.0] {
+                let h = foot.heading(up, pose(down, turn));
+                assert!(wrap(h - level - turn).abs() < 1e-4, "{down}° {turn}: {h}");
+            }
+        }
+        // A level foot (here 40° down and rolled 25° about its length, which tilts its side
+        // axis) heads the way to its ball.
+        let rolled = pose(40.0, 0.3) * Quat::from_axis_angle(Vec3::X, 0.44);
+        let ball_way = heading_about(up, rolled * foot.heading_local);
+        assert!((foot.heading(up, rolled) - ball_way).abs() < 1e-6);
+        // In between, between the two, without a jump.
+        let headings: Vec<f32> = (60..=85)
+            .map(|d| {
+                wrap(
+                    foot.heading(
+                        up,
+                        pose(d as f32, 0.0) * Quat::from_axis_angle(Vec3::X, 0.44),
+                    ) - level,
+                )
+            })
+            .collect();
+        assert!(
+            headings.windows(2).all(|w| (w[1] - w[0]).abs() < 0.05),
+            "{headings:?}"
+        );
     }
 
     #[test]
