@@ -54,8 +54,9 @@ pub(super) struct Foot {
     /// Live: how long (seconds) this foot has stood flat under a lock, what its `pitch_fix`
     /// has been learnt from ([`FootLock::learn_fit`]).
     pub(super) fit_secs: f32,
-    /// The mapping does not know where the character's floor is ([`FloorAt::Unknown`]) and no
-    /// clip was read for the foot's standing heights: it learns them from its flat stances
+    /// The mapping does not know where the character's floor is ([`FloorAt::Unknown`]), or the
+    /// character's posture is a frame of its own motion, and no clip was read for the foot's
+    /// standing heights: it learns them from its flat stances
     /// ([`FootLock::learn_fit`]), and is not pulled towards that floor before it has stood.
     pub(super) learns_heights: bool,
     /// How long (seconds) such a foot has stood since: what its heights are learnt from.

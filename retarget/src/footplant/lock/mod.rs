@@ -291,8 +291,13 @@ impl FootLock {
             l.toes.map_or(0.0, |t| (at(t) - at(l.foot)).length())
         };
         // Not knowing the floor, the mapping gives the source's scaled: the retargeted feet
-        // may stand far from it (LaFAN1 onto Casual about 1 m under it).
-        let learns_heights = floor_at == FloorAt::Unknown && !mapping.target_posture_stands();
+        // may stand far from it (LaFAN1 onto Casual about 1 m under it). A posture read off a
+        // frame of the character's own motion places its floor but says nothing of how its
+        // feet stand (offline, `fit_to_standing` takes their heights from the animation as
+        // well): pinned at that frame's heights, the Bandai-Namco run rig stood its feet
+        // 2.6-15 cm off its ground live, its thighs 5-9° mean off the performer's.
+        let learns_heights =
+            (floor_at == FloorAt::Unknown && !mapping.target_posture_stands()) || target.used_pose;
         let feet = target_legs
             .iter()
             .map(|leg| {
