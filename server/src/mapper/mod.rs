@@ -148,92 +148,39 @@ impl Mapper {
         }
         let p = &self.performers[i];
         let target = p.target.skeleton();
-        let sources: Vec<Arc<Skeleton>> = p
-            .target
-            .inputs
-            .iter()
-            .map(|id| self.subjects[*id as usize].skeleton())
-            .collect();
-        let src_refs: Vec<&Skeleton> = sources.iter().map(|s| &**s).collect();
-        let references: Vec<Option<&Pose>> = p
-            .target
-            .inputs
-            .iter()
-            .map(|id| self.extras.get(id).and_then(|e| e.reference.as_ref()))
-            .collect();
-        let source_truths: Vec<Option<&[(String, String)]>> = p
-            .target
-            .inputs
-            .iter()
-            .map(|id| self.subjects[*id as usize].truth())
-            .collect();
-        let analyses: Vec<Analysis> = src_refs
-            .iter()
-            .zip(&references)
-            .zip(&source_truths)
-            .map(|((s, r), t)| analyze_with_truth(&SkeletonView::with_pose(s, *r), *t))
-            .collect();
-        let target_truth = p.target.truth();
-        let ta = analyze_with_truth(&target_view(&target, p), target_truth);
+        let src = read_sources(&self.subjects, &self.extras, &p.target.inputs);
+        let ta = analyze_with_truth(&target_view(&target, p), p.target.truth());
         // The cache key knows the skeletons, not the truth: a truth-driven table must neither
         // come from nor go into the cache.
-        let use_cache = target_truth.is_none() && source_truths.iter().all(|t| t.is_none());
+        let use_cache = p.target.truth().is_none() && src.truths.iter().all(|t| t.is_none());
         let mut caches = Caches {
             store: &mut self.store,
             shared: self.shared.as_ref(),
         };
-        let pairs: Vec<(&Skeleton, &Analysis)> = src_refs.iter().copied().zip(&analyses).collect();
-        let cache = use_cache.then_some(&mut caches as &mut dyn TableCache);
-        let (mut table, _) =
-            crate::offline::table_for(&pairs, (&target, &ta), &self.options, cache);
-        if let Some(file) = &p.overrides_file {
-            apply_overrides(&mut table, file, &src_refs, &target).context("mapping file")?;
-        }
-        apply_session(&mut table, &p.session, &src_refs, &target)?;
-        if use_cache {
-            // The store keeps the table as used (file and session overrides applied), so a
-            // restart starts where the session left it; the cluster shares only automatic ones.
-            let key = CacheKey::new(&src_refs, &target, &self.options);
-            self.store.put(key, table.clone());
-        }
-        let (relative, source_standing) =
-            self.posture_plan(&p.target.inputs, &src_refs, &analyses, &table, &ta);
-        let opts = RetargetOptions {
-            frame_time_secs: self.frame_time_secs,
-            root_motion: p.root_motion,
-            posture_relative: relative,
-            source_standing,
-            source_reference: references
-                .iter()
-                .zip(&analyses)
-                .map(|(r, a)| r.filter(|_| a.used_pose).cloned())
-                .collect(),
-            target_reference: p.target_reference.clone().filter(|_| ta.used_pose),
-            source_up: analyses.first().map(|a| a.up),
-            ..RetargetOptions::default()
-        };
-        let mut mapping = Mapping::build(&src_refs, &target, &table, &opts)
+        let cache = use_cache.then_some(&mut caches);
+        let table = performer_table(p, &src, (&target, &ta), &self.options, cache)?;
+        let opts = self.retarget_options(p, &src, &table, &ta);
+        let mut mapping = Mapping::build(&src.refs(), &target, &table, &opts)
             .context("cannot build the retargeting mapping")?;
         if let Some(extra) = p.target.inputs.first().and_then(|id| self.extras.get(id)) {
             if let Some(floor) = mapping.measure_source_floor(&extra.poses) {
                 mapping.set_source_floor_y(floor);
             }
         }
-        let warnings: Vec<String> = analyses
-            .iter()
+        let warnings: Vec<String> = (src.analyses.iter())
             .flat_map(|a| a.warnings.iter().map(|w| format!("source: {w}")))
             .chain(ta.warnings.iter().map(|w| format!("target: {w}")))
             .collect();
         let report = mapping_report(
             &p.target,
-            &sources,
+            &src.skeletons,
             &target,
             &ta,
             &table,
             &self.options,
             warnings,
         );
-        let foot_lock = build_foot_lock(&mapping, &analyses, &ta, p.foot_lock);
+        let foot_lock = build_foot_lock(&mapping, &src.analyses, &ta, p.foot_lock);
         self.hand_over(
             i,
             BuiltMapping {
@@ -244,6 +191,32 @@ impl Mapper {
             report,
         );
         Ok(())
+    }
+
+    /// The retarget options of a performer: its root motion, the quadruped posture plan, and
+    /// the references its analyses used.
+    fn retarget_options(
+        &self,
+        p: &PerformerPlan,
+        src: &Sources<'_>,
+        table: &MappingTable,
+        ta: &Analysis,
+    ) -> RetargetOptions {
+        let (relative, source_standing) =
+            self.posture_plan(&p.target.inputs, &src.refs(), &src.analyses, table, ta);
+        RetargetOptions {
+            frame_time_secs: self.frame_time_secs,
+            root_motion: p.root_motion,
+            posture_relative: relative,
+            source_standing,
+            source_reference: (src.references.iter())
+                .zip(&src.analyses)
+                .map(|(r, a)| r.filter(|_| a.used_pose).cloned())
+                .collect(),
+            target_reference: p.target_reference.clone().filter(|_| ta.used_pose),
+            source_up: src.analyses.first().map(|a| a.up),
+            ..RetargetOptions::default()
+        }
     }
 
     /// A walker driving a quadruped: the target's extra ground limbs keep their own posture
@@ -399,6 +372,75 @@ impl TableCache for Caches<'_> {
             s.put(key, table);
         }
     }
+}
+
+/// A performer's sources as the mapper reads them, in input order.
+struct Sources<'a> {
+    skeletons: Vec<Arc<Skeleton>>,
+    /// A replayed source's representative pose.
+    references: Vec<Option<&'a Pose>>,
+    /// Roles known from the file (a VRM's humanoid map).
+    truths: Vec<Option<&'a [(String, String)]>>,
+    analyses: Vec<Analysis>,
+}
+
+impl Sources<'_> {
+    fn refs(&self) -> Vec<&Skeleton> {
+        self.skeletons.iter().map(|s| &**s).collect()
+    }
+}
+
+/// Reads and analyses the source subjects `inputs`.
+fn read_sources<'a>(
+    subjects: &'a [Arc<Subject>],
+    extras: &'a HashMap<u32, SourceExtra>,
+    inputs: &[u32],
+) -> Sources<'a> {
+    let skeletons: Vec<Arc<Skeleton>> = (inputs.iter())
+        .map(|id| subjects[*id as usize].skeleton())
+        .collect();
+    let references: Vec<Option<&Pose>> = (inputs.iter())
+        .map(|id| extras.get(id).and_then(|e| e.reference.as_ref()))
+        .collect();
+    let truths: Vec<Option<&[(String, String)]>> = (inputs.iter())
+        .map(|id| subjects[*id as usize].truth())
+        .collect();
+    let analyses = (skeletons.iter())
+        .zip(&references)
+        .zip(&truths)
+        .map(|((s, r), t)| analyze_with_truth(&SkeletonView::with_pose(s, *r), *t))
+        .collect();
+    Sources {
+        skeletons,
+        references,
+        truths,
+        analyses,
+    }
+}
+
+/// The performer's table: cached or automatic, then its file's and its session's overrides.
+/// With a cache, the table as used is stored, so a restart starts where the session left it
+/// (the cluster shares only automatic ones).
+fn performer_table(
+    p: &PerformerPlan,
+    src: &Sources<'_>,
+    target: (&Skeleton, &Analysis),
+    options: &MapOptions,
+    mut caches: Option<&mut Caches<'_>>,
+) -> anyhow::Result<MappingTable> {
+    let src_refs = src.refs();
+    let pairs: Vec<(&Skeleton, &Analysis)> = src_refs.iter().copied().zip(&src.analyses).collect();
+    let cache = caches.as_mut().map(|c| &mut **c as &mut dyn TableCache);
+    let (mut table, _) = crate::offline::table_for(&pairs, target, options, cache);
+    if let Some(file) = &p.overrides_file {
+        apply_overrides(&mut table, file, &src_refs, target.0).context("mapping file")?;
+    }
+    apply_session(&mut table, &p.session, &src_refs, target.0)?;
+    if let Some(caches) = caches {
+        let key = CacheKey::new(&src_refs, target.0, options);
+        caches.store.put(key, table.clone());
+    }
+    Ok(table)
 }
 
 /// A target's mapping as clients are told of it.
