@@ -69,7 +69,12 @@
 //! (and RobotExpressive's finger by LaFAN1's toe end). Since helpers match only helpers that
 //! hang alike (b19a22d), one run at load 9-11: thigh and shin 24, foot 4 of 12, drift 28,
 //! floor 32, every bound at once 13; those floors 0.45-0.81 cm, LaFAN1 onto RobotExpressive
-//! 5.6/18.5° thigh (drift 0.022 cm/frame).
+//! 5.6/18.5° thigh (drift 0.022 cm/frame). With a foot's heading held to its side axis's
+//! where it points straight down (85ddb1a) and the standing heights learnt where the posture
+//! is a frame of motion (e2c2cf6; none of these five), one run at load 14-17: 26, 5 of 12,
+//! drift 22 (the two shortest sources, 1.4-2.3 s, 0.25-0.56 cm/frame at that load; their
+//! causal drift in process did not move), floor 33, every bound at once 10; Meredith onto X
+//! Bot 4.9/15.5 -> 3.8/11.4° thigh.
 //!
 //! Before, the first walk alone (CMU 131_01), the figures below. With the toeless
 //! feet rising with the heel, five runs at load 7-14 (before, two runs of the lock before
