@@ -55,7 +55,10 @@
 //! keeping MediaPipe's landmarks between runs while iterating; its frame rate is then not
 //! compared), `RIGCAST_FOOTAGE_DUMP` (a folder where each clip's output is written as
 //! `CLIP.MODEL.json`: per frame, per slot, the 33 image points `[x, y, visibility]` in source
-//! pixels or null, to look at what the figures count beside MediaPipe's cached landmarks).
+//! pixels or null, to look at what the figures count beside MediaPipe's cached landmarks),
+//! `RIGCAST_DECODE_EXACT_RGB` (rigcast's decoder uses ffmpeg's exact RGB conversion instead of
+//! its default, 1-4 levels apart: a second run with it shows which figures flip with the
+//! rounding; MediaPipe's side decodes as before).
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]

@@ -63,6 +63,19 @@ fn decoder_threads() -> &'static str {
     }
 }
 
+/// swscale flags added when `RIGCAST_DECODE_EXACT_RGB` is set: ffmpeg's exact RGB
+/// conversion (every step rounded once, chroma interpolated at full resolution) instead of
+/// its default, which differs from it by 1-4 levels a channel. A measuring knob: the
+/// tracker's two-person decisions on some clips flip under that difference, so running the
+/// footage judge both ways shows which figures are chance (BENCHMARKS.md, identity row).
+fn exact_rgb_flags() -> &'static str {
+    if std::env::var_os("RIGCAST_DECODE_EXACT_RGB").is_some() {
+        "+accurate_rnd+full_chroma_int"
+    } else {
+        ""
+    }
+}
+
 /// Frame rate assumed for image sequences unless told otherwise.
 pub const DEFAULT_SEQUENCE_FPS: f64 = 30.0;
 
@@ -264,6 +277,7 @@ impl FfmpegSource {
         size: DecodeSize,
     ) -> Result<FfmpegSource, VisionError> {
         let (width, height) = size.apply(info.width, info.height);
+        let exact = exact_rgb_flags();
         let mut command = Command::new("ffmpeg");
         command
             .args(["-nostdin", "-v", "error"])
@@ -280,7 +294,10 @@ impl FfmpegSource {
             // or the video's own size (BENCHMARKS.md, "Decoder settings").
             command
                 .arg("-vf")
-                .arg(format!("scale={width}:{height}:flags=fast_bilinear"));
+                .arg(format!("scale={width}:{height}:flags=fast_bilinear{exact}"));
+        } else if !exact.is_empty() {
+            // The conversion alone, in the scaler ffmpeg inserts with its default flags.
+            command.args(["-sws_flags", &format!("bicubic{exact}")]);
         }
         let mut child = command
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
