@@ -1,6 +1,8 @@
 //! The foot lock on the Godot platformer robot (short legs, 0.62 m; CMU 131_01 retargeted
 //! offline): with the lock its thighs point up to 62° away from the unlocked retarget's (48.4°
-//! with today's lock). Was it the hips coming down to reach pinned feet? Measured per hip-drop
+//! with the lock of a9a275d, 35.7° since a swinging foot lifted onto its floor also moves over
+//! the ground where its leg turns least, `lift_aside`; the worst frame is still the kneel's
+//! pinned ankle lifted 14.3 cm out of the floor). Was it the hips coming down to reach pinned feet? Measured per hip-drop
 //! limit (`LockSettings::max_drop_ratio` 0.3 … 0) and per drift release (`max_drift_ratio`): the
 //! largest angle between a thigh's direction with and without the lock, where it happens, the
 //! hips' largest drop and the planted feet's drift. Finding: no limit changes the 62° — the
@@ -131,7 +133,7 @@ fn robot_thigh_directions_per_hip_drop_limit() {
         println!("  worst at frame {} leg {}: ankle raised {:.1} cm by the lock, locked {}; {over30} leg-frames over 30 deg of {}", at.0, at.1, at.2 * 100.0, at.3, 2 * source.num_frames());
         println!("max_drop_ratio {limit}, max_drift_ratio {drift_ratio}: thigh off the free retarget by up to {worst:.1} deg, hips down up to {:.1} cm, planted-foot drift {drift:.4} cm/frame", drop * 100.0);
         assert!(
-            worst > 45.0,
+            worst > 30.0,
             "the thighs now follow the free retarget: {worst:.1} deg"
         );
         assert!(

@@ -38,7 +38,7 @@ pub(super) struct LegReach {
 
 /// What missing a goal costs, in radians of turn per leg length missed (a leg that cannot
 /// reach is worse than any bend: 1 % of the leg costs as much as a 5.7° turn).
-const MISS_RAD_PER_LEG: f32 = 10.0;
+pub(super) const MISS_RAD_PER_LEG: f32 = 10.0;
 
 /// Golden-section steps after the coarse scan (the bracket shrinks 0.618 a step: 24 steps
 /// leave a 10⁻⁵ of it).

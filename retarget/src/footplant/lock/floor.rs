@@ -1,6 +1,7 @@
 //! No foot under the floor, and the hips' height: a goal raised (a free foot's lift shared
-//! between its leg and its pitch, [`split_lift`]), the hips raised when every foot sank and
-//! lowered when a pinned goal is out of reach.
+//! between its leg and its pitch, [`split_lift`], and taken where its leg turns least,
+//! [`lift_aside`]), the hips raised when every foot sank and lowered when a pinned goal is out
+//! of reach.
 
 use super::*;
 
@@ -46,6 +47,68 @@ pub(super) fn split_lift(leg: [Vec3; 4], goal: Vec3, o: Vec3, up: Vec3, need: f3
 /// under a thousandth of it).
 pub(super) const SPLIT_STEPS: usize = 16;
 
+/// Coarse samples of [`lift_aside`]'s bracket before its golden-section steps.
+const ASIDE_SCAN: usize = 9;
+
+/// How far over the ground, along its leg's bend side, a free foot's goal lifted onto the
+/// floor (`goal`) is moved: the move within `reach` either way whose squared thigh and shin
+/// turns (from the animation's leg, `leg`: hip, knee, ankle and the side the knee bends to;
+/// a goal out of reach costing as in `pelvis`, `length` the leg's) add up least, as the
+/// body's height shares a difference between legs. Lifted straight up, the lift is taken in
+/// the knee's bend alone, which turns a short upper bone far: the Godot robot's thighs are
+/// short, and under LaFAN1's walk its swinging foot passes 2-3.6 cm under its floor; lifted
+/// straight up, that thigh was 11-16° off the performer's, the shin 4-5°. Turning the leg
+/// about the hip too (the foot a few centimetres ahead or behind in the air, where nothing
+/// holds it) lifts it for less turn of either bone.
+pub(super) fn lift_aside(leg: [Vec3; 4], goal: Vec3, up: Vec3, reach: f32, length: f32) -> Vec3 {
+    let [hip, knee, ankle, pole] = leg;
+    let Some(axis) = (pole - up * pole.dot(up)).try_normalize() else {
+        return Vec3::ZERO;
+    };
+    let sq = |a: f32| if a.is_finite() { a * a } else { 0.0 };
+    let cost = |d: f32| {
+        let to = goal + axis * d;
+        let s = solve_bounded(hip, knee, ankle, to, pole);
+        let thigh = (knee - hip).angle_between(s.knee - hip);
+        let shin = (ankle - knee).angle_between(s.ankle - s.knee);
+        let miss = pelvis::MISS_RAD_PER_LEG * (to - s.ankle).length() / length.max(1e-6);
+        sq(thigh) + sq(shin) + sq(miss)
+    };
+    if !(reach > 0.0) {
+        return Vec3::ZERO;
+    }
+    // The cost need not have one minimum over the whole bracket: a coarse scan first.
+    let step = 2.0 * reach / (ASIDE_SCAN - 1) as f32;
+    let at = |k: usize| -reach + step * k as f32;
+    let best = (0..ASIDE_SCAN)
+        .min_by(|&a, &b| cost(at(a)).total_cmp(&cost(at(b))))
+        .unwrap_or(ASIDE_SCAN / 2);
+    let (mut a, mut b) = (
+        at(best.saturating_sub(1)),
+        at((best + 1).min(ASIDE_SCAN - 1)),
+    );
+    let k = 0.5 * (5f32.sqrt() - 1.0);
+    let (mut c, mut d) = (b - k * (b - a), a + k * (b - a));
+    let (mut fc, mut fd) = (cost(c), cost(d));
+    for _ in 0..SPLIT_STEPS {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - k * (b - a);
+            fc = cost(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + k * (b - a);
+            fd = cost(d);
+        }
+    }
+    let d = 0.5 * (a + b);
+    if cost(d) < cost(0.0) {
+        axis * d
+    } else {
+        Vec3::ZERO
+    }
+}
+
 impl FootLock {
     /// Raises goal `i` so heel and ball stay above the floor, after the hips came down by
     /// `drop` (which carries the animated share of the goal down with them). `live`: a
@@ -64,6 +127,7 @@ impl FootLock {
         if heel_low > 0.0 {
             g.ankle += up * heel_low;
             g.active = true;
+            g.floor_lift += heel_low;
         }
         // A ball below the floor pitches the foot up about the ankle (as a foot rolls onto its
         // heel) rather than lifting the ankle: lifting it would make the knee take up the
@@ -88,6 +152,7 @@ impl FootLock {
         };
         let g = &mut self.goals[i];
         g.ankle += up * lifted;
+        g.floor_lift += lifted;
         let need = need - lifted;
         let rise = o.dot(up);
         let reached = pitch_ball(g, up, rise + need);
@@ -96,6 +161,53 @@ impl FootLock {
             g.ankle += up * rest;
         }
         g.active = true;
+    }
+
+    /// Offline, moves foot `i`'s swinging goal, lifted onto the floor this frame, over the
+    /// ground to where its leg turns least ([`lift_aside`], within `max_drift_ratio` of its
+    /// leg: no farther than a lock lets a foot stray from the animation), less as its landing
+    /// nears (none on the last frame before it: it is pinned under the animation's foot, as
+    /// without the move). The move shown follows the one wanted with the blends' spring: the
+    /// one wanted changes as fast as the animated foot dips under the floor and comes out
+    /// (shown at once, the feet kicked: the built-in mannequin's largest kick under the CMU
+    /// walk 1.62 -> 5.17 cm/frame², RobotExpressive's 2.57 -> 11.9). `worlds` hold the
+    /// animation's leg, brought down with the hips. Live the detector plants a foot a frame
+    /// or two late, and the move slid feet the performer already stood on (the causal lock
+    /// in process: drift within its bound on 127 -> 125 pairs, dazfriendly's walk onto
+    /// RobotExpressive 0.009 -> 0.086 cm/frame).
+    pub(super) fn step_aside(&mut self, i: usize, dt: f32, live: bool) {
+        let g = &self.goals[i];
+        let f = &self.feet[i];
+        if live || g.pinned {
+            let f = &mut self.feet[i];
+            (f.aside, f.aside_wanted) = (Decay::default(), Vec3::ZERO);
+            return;
+        }
+        let wanted = if g.swinging && g.floor_lift > 0.0 {
+            let p = |b: BoneId| self.worlds[b.index()].translation;
+            let (hip, knee, ankle) = (p(f.leg.upper), p(f.leg.lower), p(f.leg.foot));
+            let pole = f.pole(
+                [hip, knee, ankle],
+                self.worlds[f.leg.upper.index()].rotation,
+            );
+            let length = f.leg.length;
+            let reach = self.settings.max_drift_ratio * length;
+            lift_aside([hip, knee, ankle, pole], g.ankle, self.up, reach, length)
+        } else {
+            Vec3::ZERO
+        };
+        let halflife = 0.5 * self.settings.blend_secs;
+        let f = &mut self.feet[i];
+        // The offset from the move wanted keeps the move shown where it was, then decays.
+        f.aside.value += f.aside_wanted - wanted;
+        f.aside_wanted = wanted;
+        f.aside.step(dt, halflife);
+        let shown = (wanted + f.aside.value) * (1.0 - f.landing).clamp(0.0, 1.0);
+        if shown != Vec3::ZERO {
+            let g = &mut self.goals[i];
+            g.ankle += shown;
+            g.active = true;
+        }
     }
 
     /// How far foot `i`'s free goal `g`, its ball (`o` from the ankle) `need` under the floor,

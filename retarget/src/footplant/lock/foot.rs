@@ -149,6 +149,12 @@ pub(super) struct Foot {
     /// A foot carried at its shin's end from beside the body ([`Leg::carried`]): where it
     /// sits in the lower bone's frame, so it goes wherever the leg puts the shin.
     pub(super) carried: Option<Vec3>,
+    /// Offline, a swinging foot's move over the ground where its leg turns least as the floor
+    /// lifts it ([`lift_aside`]), following the move wanted with the blends' spring: as
+    /// [`FootLock::step_aside`] shows it, less the move wanted (0 while none is).
+    pub(super) aside: Decay<Vec3>,
+    /// The move wanted last frame.
+    pub(super) aside_wanted: Vec3,
 }
 
 impl Foot {
@@ -453,6 +459,8 @@ pub(super) struct Goal {
     pub(super) ball_offset: Option<Vec3>,
     /// The source's foot is off the ground (the foot swings, or comes down to land).
     pub(super) swinging: bool,
+    /// How far the floor's clamp has lifted the ankle goal this frame.
+    pub(super) floor_lift: f32,
 }
 
 impl Foot {
@@ -505,6 +513,8 @@ impl Foot {
             release: 0.0,
             raised: 0.0,
             carried: None,
+            aside: Decay::default(),
+            aside_wanted: Vec3::ZERO,
         }
     }
 }

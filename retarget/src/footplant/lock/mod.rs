@@ -46,7 +46,9 @@
 //!                  sank the whole character)
 //!                     floor: raise the goal so the heel stays above it; pitch the foot up
 //!                     about the ankle so the ball does (offline, a swinging foot shares
-//!                     that with lifting its ankle: `split_lift`)
+//!                     that with lifting its ankle: `split_lift`, and a lifted swinging
+//!                     goal moves over the ground to where its leg turns least:
+//!                     `lift_aside`)
 //!               ─▶ hips lowered by what the farthest pinned goal lacks (back up smoothly)
 //!               ─FK─▶ two-bone IK per foot (skipped where the goal is the animated foot),
 //!                     only as far as keeps each leg bone within 90° of the animation
@@ -368,6 +370,8 @@ impl FootLock {
             f.flat_offset = Decay::default();
             f.shown_flat = 0.0;
             f.landing = 0.0;
+            f.aside = Decay::default();
+            f.aside_wanted = Vec3::ZERO;
         }
         self.shift = RootShift::default();
         self.landing = LiveLanding::default();
@@ -522,6 +526,7 @@ impl FootLock {
         }
         for i in 0..self.feet.len() {
             self.clamp_to_floor(i, drop, live);
+            self.step_aside(i, dt, live);
             let shown = if self.goals[i].active {
                 self.solve_leg(i, out)
             } else {
@@ -897,6 +902,7 @@ impl FootLock {
             rotation: (yaw * ankle_w.rotation).normalize(),
             ball_offset,
             swinging: !wants,
+            floor_lift: 0.0,
         };
         self.flatten(i, pinned != was, fresh, dt, &mut goal);
         goal
@@ -1090,7 +1096,7 @@ mod tests {
     use super::*;
     use crate::analysis::Side;
     use crate::footplant::rig::LegKind;
-    use floor::split_lift;
+    use floor::{lift_aside, split_lift};
 
     /// A left hind leg of bones 0 (thigh), 1 (shin), 2 (foot) and `toes`, `length` long.
     fn left_leg(toes: Option<BoneId>, length: f32) -> Leg {
@@ -1495,6 +1501,49 @@ mod tests {
         );
         // Nothing under the floor, nothing lifted.
         assert!(split_lift(bent, bent[2], o, up, 0.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_lifted_free_foot_moves_over_the_ground_where_its_leg_turns_less() {
+        let up = Vec3::Y;
+        // A short thigh (20 cm) over a long shin (40 cm), reaching forward as it comes down:
+        // the thigh 25° ahead of straight down, the shin 5° ahead, the knee bending forward.
+        let dir = |deg: f32| Vec3::new(deg.to_radians().sin(), -deg.to_radians().cos(), 0.0);
+        let hip = Vec3::new(0.0, 1.0, 0.0);
+        let knee = hip + dir(25.0) * 0.2;
+        let ankle = knee + dir(5.0) * 0.4;
+        let pole = bend_of(hip, knee, ankle);
+        let leg = [hip, knee, ankle, pole];
+        let turns = |goal: Vec3| {
+            let s = solve_bounded(hip, knee, ankle, goal, pole);
+            let thigh = (knee - hip).angle_between(s.knee - hip).to_degrees();
+            let shin = (ankle - knee).angle_between(s.ankle - s.knee).to_degrees();
+            (thigh, shin, s.ankle)
+        };
+        // Lifted 3 cm onto its floor.
+        let lifted = ankle + up * 0.03;
+        let aside = lift_aside(leg, lifted, up, 0.2, 0.6);
+        // Over the ground only, within the reach, and along the leg's own plane.
+        assert!(
+            aside.dot(up).abs() < 1e-6 && aside.z.abs() < 1e-6,
+            "{aside}"
+        );
+        assert!(
+            aside.length() > 0.005 && aside.length() <= 0.2 + 1e-6,
+            "{aside}"
+        );
+        let (t0, s0, _) = turns(lifted);
+        let (t1, s1, reached) = turns(lifted + aside);
+        // Still lifted as far (the goal reached), for less turn: the thigh most.
+        assert!((reached - (lifted + aside)).length() < 1e-4, "{reached}");
+        assert!(
+            t1 * t1 + s1 * s1 < t0 * t0 + s0 * s0,
+            "{t1}/{s1} vs {t0}/{s0}"
+        );
+        assert!(t1 < t0 - 2.0, "thigh {t1} vs {t0}");
+        // Nothing lifted, nothing moved; no reach, no move.
+        assert_eq!(lift_aside(leg, ankle, up, 0.2, 0.6), Vec3::ZERO);
+        assert_eq!(lift_aside(leg, lifted, up, 0.0, 0.6), Vec3::ZERO);
     }
 
     #[test]
