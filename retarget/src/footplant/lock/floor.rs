@@ -16,7 +16,12 @@ use super::*;
 pub(super) fn split_lift(leg: [Vec3; 4], goal: Vec3, o: Vec3, up: Vec3, need: f32) -> f32 {
     let [hip, knee, ankle, pole] = leg;
     let (len, rise) = (o.length().max(1e-6), o.dot(up));
-    let pitch = |r: f32| (r / len).clamp(-MAX_BALL_RISE, MAX_BALL_RISE).asin();
+    // The pitch as the foot turns: down to straight down (a foot pointed steeper than
+    // `MAX_BALL_RISE` is pitched up from where it points, `pitch_ball`), up to what pitching
+    // may give. Clamped at `MAX_BALL_RISE` below too, a foot pointed 60-80° down (Mousey's
+    // long foot after a lift-off under LaFAN1's walk) read its first turns up as free, and was
+    // pitched up alone, 20-25° off the performer's.
+    let pitch = |r: f32| (r / len).clamp(-1.0, MAX_BALL_RISE).asin();
     let sq = |a: f32| if a.is_finite() { a * a } else { 0.0 };
     let cost = |lift: f32| {
         let s = solve_bounded(hip, knee, ankle, goal + up * lift, pole);

@@ -1501,6 +1501,11 @@ mod tests {
         );
         // Nothing under the floor, nothing lifted.
         assert!(split_lift(bent, bent[2], o, up, 0.0).abs() < 1e-6);
+        // A foot pointed 80° down (steeper than a pitch may go up to): pitching it up turns it
+        // as far as its own pitch changes, so the bent leg still takes most of the need.
+        let steep = Vec3::new(0.15 * 0.174, -0.15 * 0.985, 0.0);
+        let lift_steep = split_lift(bent, bent[2], steep, up, need);
+        assert!(lift_steep > 0.5 * need, "{lift_steep}");
     }
 
     #[test]
