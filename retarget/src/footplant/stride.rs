@@ -9,9 +9,11 @@
 //! - over the ground, the root takes up the standing feet's slide (each held foot's ankle
 //!   moving since the frame before), so one standing foot holds still exactly; with two
 //!   down, it takes up their mean and each leg keeps only half their disagreement (the IK's);
-//!   with none down it holds where it is; it never carries the root farther than a reach from
-//!   where the animation puts it (a long walk would otherwise take the character ever farther
-//!   from the performer's place: past it the legs take up the rest of the stride's difference);
+//!   with none down it holds where it is, brought back within a reach of where the animation
+//!   puts it (a long walk would otherwise take the character ever farther from the performer's
+//!   place; moving the body while no foot stands turns no leg), and while one is down it goes
+//!   no farther than a second, wider reach (past it the legs take up the rest of the stride's
+//!   difference);
 //! - along up, the root stands the feet at their standing heights (when two are down, or one
 //!   is landing, the height the caller finds for them together, `pelvis`; else their mean
 //!   gap), held while none is (moved towards a landing foot's as it comes down); a change of
@@ -58,13 +60,17 @@ pub(super) struct RootShift {
     offset: Decay<f32>,
     /// Which feet stood last frame (a bit each).
     standing: u32,
+    /// Since the last foot lifted, the body is being brought back within its reach.
+    bringing_back: bool,
 }
 
 impl RootShift {
     /// Takes this frame's feet (their gaps measured on the animation before any shift; `up` the
     /// floor's normal), `dt` after the last; `fresh`: nothing was shown before (the height is
     /// taken at once). `halflife`: the blends' half-lives over the ground and along up.
-    /// `limits` bound the height's move either way and the move over the ground. `height`:
+    /// `limits` bound the height's move either way and the move over the ground while no
+    /// foot stands (blended in; what is left of it when a foot lands is dropped) and while
+    /// one does. `height`:
     /// the height the caller found for the standing and landing feet together (see
     /// `pelvis`), with the share it takes (1 while a foot stands; a landing foot's weight while
     /// none does: the height moves that far from what the last standing feet asked for);
@@ -77,11 +83,11 @@ impl RootShift {
         fresh: bool,
         dt: f32,
         halflife: [f32; 2],
-        limits: [f32; 2],
+        limits: [f32; 3],
         height: Option<(f32, f32)>,
     ) -> Vec3 {
         let [halflife, height_halflife] = halflife;
-        let [limit, reach] = limits;
+        let [limit, reach, stance_reach] = limits;
         let (mut slide, mut sliding) = (Vec3::ZERO, 0u32);
         let (mut gap, mut standing_count) = (0.0f32, 0u32);
         let mut standing = 0u32;
@@ -102,10 +108,20 @@ impl RootShift {
         // Last frame's: what a change of the standing feet blends from (see below).
         let wanted_before = self.ground_wanted;
         self.ground_wanted -= mean_slide;
+        // While a foot stands the root goes where its leg needs it (as far as `stance_reach`);
+        // while none does, moving the body turns no leg, and it is brought back within
+        // `reach`, blended in as a change of the standing feet is (below).
+        let bound = if standing_count > 0 {
+            stance_reach
+        } else {
+            reach
+        };
+        let unbounded = self.ground_wanted;
         let far = self.ground_wanted.length();
-        if far > reach {
-            self.ground_wanted *= reach / far;
+        if far > bound {
+            self.ground_wanted *= bound / far;
         }
+        let cut = unbounded - self.ground_wanted;
         let bound = |h: f32| crate::bounds::clamp_safe(h, -limit, limit);
         let height_before = self.wanted;
         match height {
@@ -141,11 +157,26 @@ impl RootShift {
                 value: self.ground - wanted_before,
                 velocity: self.ground_rate - wanted_rate,
             };
+            if self.standing == 0 && standing_count > 0 && self.bringing_back {
+                // A foot lands: what is left of bringing the body back within `reach` is
+                // dropped (its leg would have to take it up); the body goes on from where it
+                // is shown.
+                self.ground_wanted += self.ground_offset.value;
+                self.ground_offset.value = Vec3::ZERO;
+            }
         }
         if !fresh && standing == self.standing && dt > 0.0 {
             self.wanted_rate = (self.wanted - height_before) / dt;
         }
         self.standing = standing;
+        if !fresh && standing_count == 0 {
+            // Blended in: the body does not jump as its last foot lifts (a foot standing
+            // takes its own cut a frame's slide at a time).
+            self.ground_offset.value += cut;
+            self.bringing_back |= cut != Vec3::ZERO;
+        } else {
+            self.bringing_back = false;
+        }
         self.ground_offset.step(dt, halflife);
         let ground = self.ground_wanted + self.ground_offset.value;
         if dt > 0.0 {
@@ -167,8 +198,8 @@ mod tests {
     use super::*;
 
     /// One frame of 0.01 s of `s` (y up, half-lives 0.05 s, no fitted height), `limits` its
-    /// height limit and reach.
-    fn frame(s: &mut RootShift, feet: &[FootStand], fresh: bool, limits: [f32; 2]) -> Vec3 {
+    /// height limit and reaches (no foot standing, one standing).
+    fn frame(s: &mut RootShift, feet: &[FootStand], fresh: bool, limits: [f32; 3]) -> Vec3 {
         s.update(feet, Vec3::Y, fresh, 0.01, [0.05; 2], limits, None)
     }
 
@@ -184,13 +215,13 @@ mod tests {
     fn one_standing_foot_is_held_exactly_two_share_their_disagreement() {
         let mut s = RootShift::default();
         let free = FootStand::default();
-        frame(&mut s, &[stand(None, 0.0), free], true, [1.0; 2]);
+        frame(&mut s, &[stand(None, 0.0), free], true, [1.0; 3]);
         // One foot slides 1 cm forward (and 1 mm up, which is no slide over the ground).
         let m = frame(
             &mut s,
             &[stand(Some(Vec3::new(0.0, 0.001, 0.01)), 0.0), free],
             false,
-            [1.0; 2],
+            [1.0; 3],
         );
         assert!((s.ground - Vec3::new(0.0, 0.0, -0.01)).length() < 1e-6);
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
@@ -202,29 +233,29 @@ mod tests {
                 stand(Some(Vec3::ZERO), 0.0),
             ],
             false,
-            [1.0; 2],
+            [1.0; 3],
         );
         assert!((m - Vec3::new(0.0, 0.0, 0.01)).length() < 1e-6);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
         // None standing: held.
-        frame(&mut s, &[free, free], false, [1.0; 2]);
+        frame(&mut s, &[free, free], false, [1.0; 3]);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
     }
 
     #[test]
     fn the_height_is_taken_at_once_first_then_blended_and_held() {
         let mut s = RootShift::default();
-        frame(&mut s, &[stand(None, 0.03)], true, [0.2, 1.0]);
+        frame(&mut s, &[stand(None, 0.03)], true, [0.2, 1.0, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
-        frame(&mut s, &[stand(None, 0.03)], false, [0.2, 1.0]);
+        frame(&mut s, &[stand(None, 0.03)], false, [0.2, 1.0, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6);
         // It lifts: held.
-        frame(&mut s, &[FootStand::default()], false, [0.2, 1.0]);
+        frame(&mut s, &[FootStand::default()], false, [0.2, 1.0, 1.0]);
         assert!((s.height - 0.03).abs() < 1e-6, "{}", s.height);
         // Another lands wanting 5 cm: blended towards it, no jump.
         let mut last = s.height;
         for _ in 0..60 {
-            frame(&mut s, &[stand(None, 0.05)], false, [0.2, 1.0]);
+            frame(&mut s, &[stand(None, 0.05)], false, [0.2, 1.0, 1.0]);
             assert!(
                 s.height >= last - 1e-6 && s.height - last < 0.006,
                 "{}",
@@ -234,41 +265,48 @@ mod tests {
         }
         assert!((s.height - 0.05).abs() < 1e-3, "{}", s.height);
         // Bounded.
-        frame(&mut s, &[stand(None, 5.0)], true, [0.2, 1.0]);
+        frame(&mut s, &[stand(None, 5.0)], true, [0.2, 1.0, 1.0]);
         assert!((s.height - 0.2).abs() < 1e-6);
     }
 
     #[test]
-    fn the_root_is_carried_no_farther_than_its_reach() {
+    fn the_root_is_carried_past_its_reach_only_while_a_foot_stands() {
+        let limits = [1.0, 0.3, 0.5];
+        let slide = stand(Some(Vec3::new(0.0, 0.0, 0.01)), 0.0);
+        let free = FootStand::default();
         let mut s = RootShift::default();
-        frame(&mut s, &[stand(None, 0.0)], true, [1.0, 0.3]);
+        frame(&mut s, &[stand(None, 0.0)], true, limits);
         // The standing foot slides 1 cm a frame forward, 100 frames (a metre): the root is
-        // carried back 30 cm at most, and no farther however long it slides.
+        // carried back 50 cm at most while it stands, however long it slides.
         for _ in 0..100 {
-            frame(
-                &mut s,
-                &[stand(Some(Vec3::new(0.0, 0.0, 0.01)), 0.0)],
-                false,
-                [1.0, 0.3],
-            );
-            assert!(s.ground.length() <= 0.3 + 1e-6, "{}", s.ground);
+            frame(&mut s, &[slide], false, limits);
+            assert!(s.ground.length() <= 0.5 + 1e-5, "{}", s.ground);
+        }
+        assert!((s.ground - Vec3::new(0.0, 0.0, -0.5)).length() < 1e-5);
+        // It lifts: the body comes back within 30 cm, without a jump.
+        let mut last = s.ground;
+        for _ in 0..100 {
+            frame(&mut s, &[free], false, limits);
+            assert!((s.ground - last).length() < 0.03, "{} {}", s.ground, last);
+            last = s.ground;
         }
         assert!(
-            (s.ground - Vec3::new(0.0, 0.0, -0.3)).length() < 1e-5,
+            (s.ground - Vec3::new(0.0, 0.0, -0.3)).length() < 1e-3,
             "{}",
             s.ground
         );
-        // Sliding back: carried back inside at once.
-        frame(
-            &mut s,
-            &[stand(Some(Vec3::new(0.0, 0.0, -0.05)), 0.0)],
-            false,
-            [1.0, 0.3],
-        );
-        assert!(
-            (s.ground - Vec3::new(0.0, 0.0, -0.25)).length() < 1e-5,
-            "{}",
-            s.ground
-        );
+        // Carried out again, one frame free, then a foot lands: the body stays where it was
+        // shown as it landed (its leg would take up the rest), its speed blending out.
+        for _ in 0..100 {
+            frame(&mut s, &[slide], false, limits);
+        }
+        frame(&mut s, &[free], false, limits);
+        let landed = s.ground;
+        assert!(landed.length() > 0.4, "{landed}");
+        frame(&mut s, &[stand(None, 0.0)], false, limits);
+        for _ in 0..100 {
+            frame(&mut s, &[stand(Some(Vec3::ZERO), 0.0)], false, limits);
+        }
+        assert!((s.ground - landed).length() < 0.02, "{} {landed}", s.ground);
     }
 }

@@ -23,7 +23,9 @@
 //!                     its ball does not slide), up by their ankles' gaps to their pinned
 //!                     heights, so a held leg stays as retargeted (two feet down, or one
 //!                     about to land: the height that turns those legs least, `pelvis`)
-//!                     (live: no farther than `max_carry_ratio` legs from the performer's)
+//!                     (live: brought back within `max_carry_ratio` legs of the performer's
+//!                     while no foot stands, where moving the body turns no leg; while one
+//!                     stands, at most a leg farther)
 //!               ─FK─▶ per foot: where it should go = planted ? lock : animated (ankle, heading)
 //!                     at a switch: offset = shown − that, in place and speed; it decays
 //!                     goal = where it should go + offset
@@ -169,10 +171,12 @@ pub struct LockSettings {
     /// The hips never come down (or, when every foot has sunk, go up) by more than this many
     /// leg lengths.
     pub max_drop_ratio: f32,
-    /// Live, stride warping carries the root at most this many leg lengths over the ground
-    /// from where the performer's motion puts it: the character stays within about half a step
-    /// of the performer's place however long the walk (past it, the legs take up the rest of
-    /// the stride's difference). Offline the character keeps its own stride's path: a
+    /// Live, stride warping brings the root back within this many leg lengths over the ground
+    /// of where the performer's motion puts it whenever no foot stands (moving the body then
+    /// turns no leg), and while one stands carries it at most a leg farther: the character
+    /// stays within about half a step of the performer's place between stances however long
+    /// the walk (past the farther bound, the legs take up the rest of the stride's
+    /// difference). Offline the character keeps its own stride's path: a
     /// character whose stride differs much (the Godot robot under LaFAN1's walk) would
     /// otherwise bend its standing legs until the locks let go.
     pub max_carry_ratio: f32,
@@ -482,8 +486,9 @@ impl FootLock {
     }
 
     /// Locks `out`; `live`: no clip is known in advance, so the fit to the standing posture is
-    /// learnt from this frame on, and the root is carried no farther than
-    /// [`LockSettings::max_carry_ratio`] from where the performer's motion puts it.
+    /// learnt from this frame on, and the root is carried back within
+    /// [`LockSettings::max_carry_ratio`] of where the performer's motion puts it whenever no
+    /// foot stands ([`FootLock::carry_root`]).
     fn lock(
         &mut self,
         planted: &[bool; MAX_FEET],
@@ -589,8 +594,11 @@ impl FootLock {
     /// ([`FootLock::body_height`]), each leg's IK taking up its share of their disagreement.
     /// A character with feet no source foot drives (a quadruped's front legs under a biped's
     /// walk) is only carried over the ground: moving its body up or down onto the driven feet
-    /// would sink the others, which nothing stands on. `live`: carried no farther than
-    /// [`LockSettings::max_carry_ratio`]. `worlds` hold the animation and are brought up to
+    /// would sink the others, which nothing stands on. `live`: brought back within
+    /// [`LockSettings::max_carry_ratio`] while no foot stands, and never more than a leg past
+    /// it (a foot standing holds it where its leg needs it: the limit enforced while a foot
+    /// stood dropped the hips as the held leg reached back to its pin, thigh off by up to
+    /// 28° in the release). `worlds` hold the animation and are brought up to
     /// date.
     fn carry_root(&mut self, planted: &[bool; MAX_FEET], dt: f32, live: bool, out: &mut Pose) {
         let Some(root) = self.root.filter(|_| self.carries) else {
@@ -599,11 +607,16 @@ impl FootLock {
         let up = self.up;
         let mut stands = [FootStand::default(); MAX_FEET];
         let (mut limit, mut reach) = (f32::INFINITY, f32::INFINITY);
+        let mut stance_reach = f32::INFINITY;
         for i in 0..self.feet.len() {
             let f = &self.feet[i];
             limit = limit.min(self.settings.max_drop_ratio * f.leg.length);
             if live {
                 reach = reach.min(self.settings.max_carry_ratio * f.leg.length);
+                // A stance carries the body over its foot by about a leg at most: while a
+                // foot stands, the root may go that much farther (brought back once none does).
+                let past = (self.settings.max_carry_ratio + 1.0) * f.leg.length;
+                stance_reach = stance_reach.min(past);
             }
             let ankle = self.worlds[f.leg.foot.index()].translation;
             let ball = (f.leg.toes).map(|t| self.worlds[t.index()].translation - ankle);
@@ -642,7 +655,7 @@ impl FootLock {
         ];
         let fresh = !self.shown_once;
         let n = self.feet.len();
-        let limits = [limit, reach];
+        let limits = [limit, reach, stance_reach];
         (self.shift).update(&stands[..n], up, fresh, dt, halflife, limits, height);
         let shift = self.shift.ground + up * self.shift.height;
         if shift == Vec3::ZERO {
