@@ -130,3 +130,37 @@ fn both_performers_of_the_two_person_demo_are_detected() {
         }
     }
 }
+
+/// A performer alone in a still picture costs the detector's first round (one pass in each of
+/// its four regions, the first finding them) and then one pass per longest wait, 640 frames
+/// (`tracker.rs`, `STILL_WAIT`): the picture outside them never changes, so a pass would find
+/// nobody new. Each single-person demo camera's first frame, shown 700 times: 5 passes. The
+/// wait was four times the finder's interval before, a pass at frames 44, 124, 284 and 604
+/// (8 passes).
+#[test]
+fn a_performer_alone_in_a_still_picture_costs_the_first_round_and_the_longest_wait() {
+    let Some(assets) = assets_or_skip("finder passes on a still picture") else {
+        return;
+    };
+    let config = PipelineConfig {
+        assets: assets.clone(),
+        ..PipelineConfig::default()
+    };
+    assert_eq!(config.tracker.max_people, 2, "the default looks for two");
+    for cam in 1..=4 {
+        let path = assets.pose2sim_video(cam);
+        let mut source = FfmpegSource::open_at(&path, DecodeSize::FOR_MODEL, 30.0).unwrap();
+        let mut frame = RgbFrame::default();
+        assert!(source.next_frame(&mut frame).unwrap());
+        let mut pipeline = PosePipeline::new(&config).unwrap();
+        let mut seen = 0;
+        for _ in 0..700 {
+            pipeline.process_frame(&frame).unwrap();
+            seen += usize::from(pipeline.person(0).is_some());
+        }
+        let stats = pipeline.stats();
+        eprintln!("cam{cam}: #0 in {seen} of 700 frames, {stats:?}");
+        assert_eq!(seen, 700, "cam{cam}: the performer is held");
+        assert_eq!(stats.detections, 5, "cam{cam}: detector passes");
+    }
+}

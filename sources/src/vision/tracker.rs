@@ -7,8 +7,8 @@
 //! The finder runs every frame while nobody is tracked or someone established was lost within
 //! the last second, else every `find_every_frames` frames (stretched while passes find nobody
 //! and the longer a lost person stays away, and while the picture outside the tracked people
-//! stays as the finder last saw it: `change`; much further while its passes have seen nobody
-//! but the people tracked, a change appearing in a still picture bringing the pass forward)
+//! stays as the finder last saw it: `change`, a pass waiting for a change up to about 20 s;
+//! much further while its passes have seen nobody but the people tracked)
 //! while fewer than `max_people` are tracked; a
 //! finder pass is one detector pass (the regions of `DETECTOR_REGIONS` taking
 //! turns, every other frame where someone was just lost), so one person in view costs about
@@ -178,11 +178,14 @@ const ESTABLISHED_FRAMES: u32 = 5;
 const ALONE_WAIT_FRAMES: u32 = 5;
 
 /// An idle finder pass (see [`PoseTracker::find_interval`]) on a picture that did not change
-/// outside the tracked people since the finder last looked at the same region waits this many
-/// times its interval (see `change`): a detector pass on the picture it already searched finds
-/// what it found then, nobody new. The wait is bounded for a change too faint to show (a
-/// newcomer as dark as the wall behind them): one person alone in a still picture is then
-/// looked for every `STILL_WAIT × IDLE_BACKOFF × find_every_frames` frames.
+/// outside the tracked people since the finder last looked at the same region waits for a
+/// change (see `change`): a detector pass on the picture it already searched finds what it
+/// found then, nobody new. The wait is bounded for a change too faint to show (a newcomer as
+/// dark as the wall behind them, someone uncovered where a tracked person stood at the last
+/// look): `STILL_WAIT × ALONE_BACKOFF × find_every_frames` frames (640, about 20 s at 30 frames
+/// a second: `STILL_WAIT` times the longest interval), whatever the interval now. Bounded
+/// by `STILL_WAIT` times the interval instead, a performer alone paid passes at frames 44, 124
+/// and 284 that found nobody on any clip.
 const STILL_WAIT: u32 = 4;
 
 /// Detector regions, taking turns: the whole frame, then the three squares of the short side
@@ -609,15 +612,16 @@ impl PoseTracker {
     /// worth making: someone established is away (they may be back anywhere, in a picture
     /// that barely changed: the model lost them standing where they were), or the picture
     /// changed outside the tracked people since the finder last looked at the region the pass
-    /// would search, or [`STILL_WAIT`] intervals passed without such a change.
+    /// would search, or the longest wait passed without such a change (see [`STILL_WAIT`]).
     fn idle_due(&mut self, frame: &RgbFrame) -> bool {
         let interval = self.find_interval();
         if self.frames_since_find < interval {
             return false;
         }
-        if self.frames_since_find >= interval.saturating_mul(STILL_WAIT)
-            || self.tracks.iter().any(Track::awaited)
-        {
+        let longest_wait = (self.config.find_every_frames.max(1))
+            .saturating_mul(ALONE_BACKOFF * STILL_WAIT)
+            .max(interval);
+        if self.frames_since_find >= longest_wait || self.tracks.iter().any(Track::awaited) {
             return true;
         }
         self.picture_changed(frame)
