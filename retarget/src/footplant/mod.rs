@@ -28,6 +28,7 @@ pub mod ik;
 pub mod lock;
 mod pelvis;
 pub mod rig;
+mod search;
 pub mod spring;
 mod stride;
 mod treadmill;

@@ -83,27 +83,14 @@ pub(super) fn best_height(legs: &[LegReach], up: Vec3, limit: f32) -> Option<f32
         return Some(clamp(0.5 * (lo + hi)));
     }
     // Every leg's own cost falls towards its gap: the best height lies between the gaps.
-    let step = (hi - lo) / (SCAN - 1) as f32;
-    let at = |k: usize| lo + step * k as f32;
-    let best = (0..SCAN)
-        .min_by(|&a, &b| total(legs, up, at(a)).total_cmp(&total(legs, up, at(b))))
-        .unwrap_or(0);
-    let (mut a, mut b) = (at(best.saturating_sub(1)), at((best + 1).min(SCAN - 1)));
-    let g = 0.5 * (5f32.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (total(legs, up, c), total(legs, up, d));
-    for _ in 0..REFINE_STEPS {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = total(legs, up, c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = total(legs, up, d);
-        }
-    }
-    Some(0.5 * (a + b))
+    let cost = |h: f32| total(legs, up, h);
+    Some(super::search::least_between(
+        cost,
+        lo,
+        hi,
+        SCAN,
+        REFINE_STEPS,
+    ))
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 //! of reach.
 
 use super::*;
+use crate::footplant::search::least_between;
 
 /// How much of `need` (how far a free foot's ball, `o` from its ankle, is under the floor) its
 /// ankle goal `goal` is lifted, the rest taken by pitching the ball up about the ankle: the
@@ -29,23 +30,8 @@ pub(super) fn split_lift(leg: [Vec3; 4], goal: Vec3, o: Vec3, up: Vec3, need: f3
         let shin = (ankle - knee).angle_between(s.ankle - s.knee);
         sq(thigh) + sq(shin) + sq(pitch(rise + need - lift) - pitch(rise))
     };
-    // Golden-section search over [0, need] (each part's cost grows with its share).
-    let (mut a, mut b) = (0.0f32, need.max(0.0));
-    let k = 0.5 * (5f32.sqrt() - 1.0);
-    let (mut c, mut d) = (b - k * (b - a), a + k * (b - a));
-    let (mut fc, mut fd) = (cost(c), cost(d));
-    for _ in 0..SPLIT_STEPS {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - k * (b - a);
-            fc = cost(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + k * (b - a);
-            fd = cost(d);
-        }
-    }
-    0.5 * (a + b)
+    // One minimum over [0, need]: each part's cost grows with its share.
+    least_between(cost, 0.0, need.max(0.0), 0, SPLIT_STEPS)
 }
 
 /// Golden-section steps of [`split_lift`] (the bracket shrinks 0.618 a step: 16 steps leave
@@ -83,30 +69,7 @@ pub(super) fn lift_aside(leg: [Vec3; 4], goal: Vec3, up: Vec3, reach: f32, lengt
         return Vec3::ZERO;
     }
     // The cost need not have one minimum over the whole bracket: a coarse scan first.
-    let step = 2.0 * reach / (ASIDE_SCAN - 1) as f32;
-    let at = |k: usize| -reach + step * k as f32;
-    let best = (0..ASIDE_SCAN)
-        .min_by(|&a, &b| cost(at(a)).total_cmp(&cost(at(b))))
-        .unwrap_or(ASIDE_SCAN / 2);
-    let (mut a, mut b) = (
-        at(best.saturating_sub(1)),
-        at((best + 1).min(ASIDE_SCAN - 1)),
-    );
-    let k = 0.5 * (5f32.sqrt() - 1.0);
-    let (mut c, mut d) = (b - k * (b - a), a + k * (b - a));
-    let (mut fc, mut fd) = (cost(c), cost(d));
-    for _ in 0..SPLIT_STEPS {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - k * (b - a);
-            fc = cost(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + k * (b - a);
-            fd = cost(d);
-        }
-    }
-    let d = 0.5 * (a + b);
+    let d = least_between(cost, -reach, reach, ASIDE_SCAN, SPLIT_STEPS);
     if cost(d) < cost(0.0) {
         axis * d
     } else {
