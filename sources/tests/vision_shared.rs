@@ -42,8 +42,9 @@ fn pose_distance(a: &Pose, b: &Pose) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// Every pose each slot had, running the pipeline offline over the video.
-fn offline_poses(config: &PipelineConfig, video: &std::path::Path) -> Vec<Vec<Pose>> {
+/// Each slot's pose on every frame of the video (`None` where the slot saw nobody), running
+/// the pipeline offline.
+fn offline_poses(config: &PipelineConfig, video: &std::path::Path) -> Vec<Vec<Option<Pose>>> {
     let mut frames = FfmpegSource::open_at(video, DecodeSize::FOR_MODEL, 30.0).unwrap();
     let mut pipeline = PosePipeline::new(config).unwrap();
     let mut frame = RgbFrame::default();
@@ -51,12 +52,23 @@ fn offline_poses(config: &PipelineConfig, video: &std::path::Path) -> Vec<Vec<Po
     while frames.next_frame(&mut frame).unwrap() {
         pipeline.process_frame(&frame).unwrap();
         for (slot, poses) in out.iter_mut().enumerate() {
-            if pipeline.person(slot).is_some() {
-                poses.push(pipeline.pose(slot).unwrap().clone());
-            }
+            poses.push(
+                pipeline
+                    .person(slot)
+                    .map(|_| pipeline.pose(slot).unwrap().clone()),
+            );
         }
     }
     out
+}
+
+/// The frames of `offline` whose pose is within `tolerance` (radians) of `pose`.
+fn frames_like(offline: &[Option<Pose>], pose: &Pose, tolerance: f32) -> Vec<usize> {
+    let near = |p: &Option<Pose>| {
+        p.as_ref()
+            .is_some_and(|p| pose_distance(pose, p) < tolerance)
+    };
+    (0..offline.len()).filter(|&i| near(&offline[i])).collect()
 }
 
 /// Reads `source` until its input ends; the poses it produced.
@@ -72,7 +84,9 @@ fn drain(mut source: impl LiveSource) -> (Vec<Pose>, SourceState, String) {
                 assert_eq!(meta.seq, poses.len() as u64 + 1);
                 poses.push(pose.clone());
             }
-            None if source.status().state == SourceState::Lost => break,
+            // Only the end of input ends the read: a loaded machine can leave a person unseen
+            // for over a second of wall time, which reports them lost in between.
+            None if source.status().detail == "end of input" => break,
             None => {}
         }
     }
@@ -87,10 +101,11 @@ fn each_person_source_carries_its_own_slot_of_one_shared_pipeline() {
     };
     let video = assets.pose2sim_multi_video(2);
     let expected = offline_poses(&config, &video);
+    let seen = |slot: &Vec<Option<Pose>>| slot.iter().flatten().count();
     assert!(
-        expected.iter().all(|p| p.len() >= 95),
+        expected.iter().all(|p| seen(p) >= 95),
         "offline: {:?}",
-        expected.iter().map(Vec::len).collect::<Vec<_>>()
+        expected.iter().map(seen).collect::<Vec<_>>()
     );
 
     let frames = FfmpegSource::open_at(&video, DecodeSize::FOR_MODEL, 30.0).unwrap();
@@ -119,41 +134,67 @@ fn each_person_source_carries_its_own_slot_of_one_shared_pipeline() {
         handles.into_iter().map(|h| h.join().unwrap()).collect()
     });
     for (slot, (poses, state, detail)) in results.iter().enumerate() {
-        // Latest pose wins: a reader may skip a frame, but not many at this speed.
-        assert!(poses.len() >= 90, "#{slot}: only {} frames", poses.len());
         assert_eq!(
             (*state, detail.as_str()),
             (SourceState::Lost, "end of input")
         );
-        let nearest = |list: &[Pose], p: &Pose| {
-            list.iter()
-                .map(|q| pose_distance(p, q))
-                .fold(f32::INFINITY, f32::min)
-        };
-        let own = poses
-            .iter()
-            .map(|p| nearest(&expected[slot], p))
-            .fold(0.0, f32::max);
-        let other_matches = poses
-            .iter()
-            .filter(|p| nearest(&expected[1 - slot], p) < 0.01)
-            .count();
-        eprintln!("#{slot}: {} frames, worst distance to own slot {own:.5} rad, {other_matches} like the other", poses.len());
-        assert!(
-            own < 0.01,
-            "#{slot}: a pose {own} rad from every offline pose of its slot"
-        );
-        assert_eq!(other_matches, 0, "#{slot} carried the other person's poses");
+        assert_own_poses_in_order(slot, poses, &expected);
     }
     // The two people move differently.
-    let d = pose_distance(&results[0].0[40], &results[1].0[40]);
+    let both = (40..)
+        .find(|&i| expected.iter().all(|e| e[i].is_some()))
+        .unwrap();
+    let at = |slot: usize| expected[slot][both].as_ref().unwrap();
+    let d = pose_distance(at(0), at(1));
     assert!(d > 0.2, "the two subjects' poses differ by only {d} rad");
+}
+
+/// What a person source must have carried, however fast its reader was: only its own slot's
+/// poses, each the offline pose of a frame, in the video's order (frames taken in turn, each
+/// the earliest that fits after the last: two still frames may read alike within the model's
+/// run-to-run noise), and the newest one (latest pose wins: a reader may skip frames, never the
+/// last publication). How many frames a reader skips depends on how the threads are
+/// scheduled, so it is printed, not bounded.
+fn assert_own_poses_in_order(slot: usize, poses: &[Pose], expected: &[Vec<Option<Pose>>]) {
+    const SAME: f32 = 0.01; // radians; ONNX Runtime's run-to-run noise is ~1e-3
+    let other_matches = poses
+        .iter()
+        .filter(|p| !frames_like(&expected[1 - slot], p, SAME).is_empty())
+        .count();
+    eprintln!(
+        "#{slot}: {} of {} frames, {other_matches} like the other",
+        poses.len(),
+        expected[slot].len()
+    );
+    assert_eq!(other_matches, 0, "#{slot} carried the other person's poses");
+    let mut frame = 0;
+    for (k, pose) in poses.iter().enumerate() {
+        let like = frames_like(&expected[slot], pose, SAME);
+        assert!(
+            !like.is_empty(),
+            "#{slot}: pose {k} is no offline pose of its slot"
+        );
+        frame = *like
+            .iter()
+            .find(|&&i| i >= frame)
+            .unwrap_or_else(|| panic!("#{slot}: pose {k} is of frames {like:?}, before {frame}"));
+    }
+    if expected[slot].last().is_some_and(Option::is_some) {
+        let last = expected[slot].len() - 1;
+        let newest = poses.last().map(|p| frames_like(&expected[slot], p, SAME));
+        assert!(
+            newest.is_some_and(|like| like.contains(&last)),
+            "#{slot}: the last frame's pose never reached the reader"
+        );
+    }
 }
 
 /// How one person source's subject fared.
 struct Fate {
     /// Frames produced from video frame [`LATE_FRAME`] on.
     late_frames: usize,
+    /// The video frame of the newest pose produced.
+    last_frame: Option<u64>,
     /// Every distinct "state: detail" in order.
     details: Vec<String>,
     final_state: SourceState,
@@ -170,6 +211,7 @@ fn follow(mut source: impl LiveSource, first_capture: &std::sync::Mutex<Option<u
     let mut pose = source.skeleton().unwrap().rest_pose();
     let mut fate = Fate {
         late_frames: 0,
+        last_frame: None,
         details: Vec::new(),
         final_state: SourceState::Connecting,
     };
@@ -185,6 +227,7 @@ fn follow(mut source: impl LiveSource, first_capture: &std::sync::Mutex<Option<u
                 .get_or_insert(meta.capture_nanos);
             let frame = meta.capture_nanos.saturating_sub(first) as f64 * 1e-9 * 60.0;
             fate.late_frames += usize::from(frame.round() >= LATE_FRAME);
+            fate.last_frame = Some(frame.round() as u64);
         }
         let status = source.status();
         let note = format!("{:?}: {}", status.state, status.detail);
@@ -206,9 +249,16 @@ fn a_person_leaving_the_view_loses_only_their_own_subject() {
     };
     let video = assets.pose2sim_multi_video(2);
     let inner = FfmpegSource::open_at(&video, DecodeSize::FOR_MODEL, 30.0).unwrap();
+    let last_read = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let frames = common::Edited {
         inner,
-        edit: |f: &mut RgbFrame| without_person_zero(f, CUT_FRAME),
+        edit: {
+            let last_read = last_read.clone();
+            move |f: &mut RgbFrame| {
+                last_read.store(f.index, std::sync::atomic::Ordering::Relaxed);
+                without_person_zero(f, CUT_FRAME)
+            }
+        },
     };
     // Paced: 100 frames at 60 fps take at least 1.7 s, so a second without person #0 is
     // within the clip even if the pipeline keeps up.
@@ -253,11 +303,14 @@ fn a_person_leaving_the_view_loses_only_their_own_subject() {
         "#1 was affected by #0 leaving: {:?}",
         one.details
     );
-    // Frames 45..100: the man stays in view (a reader may skip one now and then).
-    assert!(
-        one.late_frames >= 45,
-        "#1 stopped: {} late frames",
-        one.late_frames
+    // The man stays in view to the end. How many frames his reader skips depends on how the
+    // threads are scheduled (latest pose wins), but never the newest one.
+    let last = last_read.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(one.late_frames > 0, "#1 stopped before frame {LATE_FRAME}");
+    assert_eq!(
+        one.last_frame,
+        Some(last),
+        "#1 stopped before the last frame"
     );
     assert_eq!(
         zero.late_frames, 0,
