@@ -34,6 +34,10 @@ pub(super) struct FootStand {
     pub slide: Option<Vec3>,
     /// How far its contact must move up to stand where it should.
     pub height_gap: f32,
+    /// Live: how far over the ground the body must stand from where the animation puts it for
+    /// this foot's leg to reach its pin as retargeted. Where every standing foot gives one, the
+    /// body goes there (their mean), not by the slides since it stood (see `update`).
+    pub pin_gap: Option<Vec3>,
 }
 
 /// The root's move onto the standing feet.
@@ -65,6 +69,32 @@ pub(super) struct RootShift {
 }
 
 impl RootShift {
+    /// Where the standing feet want the body over the ground this frame, `mean_slide` being
+    /// their mean slide since the last. Live, where the standing legs reach their pins as
+    /// retargeted (every standing foot's `pin_gap`, their mean): a foot is pinned where it is
+    /// shown as it lands, a frame or two after the performer's (the causal detector), while the
+    /// body may be moving (brought back within its reach); carried by the slides alone, that
+    /// first gap stayed for the whole stance and the leg took it up (LaFAN1's walk onto
+    /// Mousey: 2-3 cm, the thigh 7-13° off). Else moved on by the slides.
+    fn ground_wanted_now(
+        &self,
+        feet: &[FootStand],
+        up: Vec3,
+        standing: u32,
+        mean_slide: Vec3,
+    ) -> Vec3 {
+        let (mut pins, mut pinned) = (Vec3::ZERO, 0u32);
+        for p in feet.iter().filter(|f| f.stands).filter_map(|f| f.pin_gap) {
+            pins += p - up * p.dot(up);
+            pinned += 1;
+        }
+        if pinned > 0 && pinned == standing {
+            pins / pinned as f32
+        } else {
+            self.ground_wanted - mean_slide
+        }
+    }
+
     /// Takes this frame's feet (their gaps measured on the animation before any shift; `up` the
     /// floor's normal), `dt` after the last; `fresh`: nothing was shown before (the height is
     /// taken at once). `halflife`: the blends' half-lives over the ground and along up.
@@ -105,9 +135,10 @@ impl RootShift {
         } else {
             Vec3::ZERO
         };
-        // Last frame's: what a change of the standing feet blends from (see below).
-        let wanted_before = self.ground_wanted;
-        self.ground_wanted -= mean_slide;
+        self.ground_wanted = self.ground_wanted_now(feet, up, standing_count, mean_slide);
+        // Last frame's, moved on by this frame's slide: what a change of the standing feet
+        // blends from (see below).
+        let wanted_before = self.ground_wanted + mean_slide;
         // While a foot stands the root goes where its leg needs it (as far as `stance_reach`);
         // while none does, moving the body turns no leg, and it is brought back within
         // `reach`, blended in as a change of the standing feet is (below).
@@ -208,6 +239,7 @@ mod tests {
             stands: true,
             slide,
             height_gap: gap,
+            pin_gap: None,
         }
     }
 
@@ -240,6 +272,46 @@ mod tests {
         // None standing: held.
         frame(&mut s, &[free, free], false, [1.0; 3]);
         assert!((s.ground_wanted - Vec3::new(0.0, 0.0, -0.02)).length() < 1e-6);
+    }
+
+    #[test]
+    fn a_standing_foot_carries_the_body_where_its_leg_reaches_its_pin() {
+        let limits = [1.0; 3];
+        let free = FootStand::default();
+        // A foot lands 2 cm ahead of where the animation's ankle is (it was pinned where it
+        // was shown, the body moving meanwhile); the animation's foot does not slide.
+        let gap = Vec3::new(0.0, 0.0, 0.02);
+        let pinned = |gap: Vec3| FootStand {
+            pin_gap: Some(gap + Vec3::Y * 0.01),
+            ..stand(Some(Vec3::ZERO), 0.0)
+        };
+        let mut s = RootShift::default();
+        frame(&mut s, &[free, free], true, limits);
+        frame(&mut s, &[pinned(gap), free], false, limits);
+        // Blended in, not a jump; then the body stands where the leg reaches the pin (the
+        // gap's part along up is no move over the ground).
+        assert!(s.ground.length() < 0.01, "{}", s.ground);
+        for _ in 0..100 {
+            frame(&mut s, &[pinned(gap), free], false, limits);
+        }
+        assert!((s.ground - gap).length() < 1e-4, "{}", s.ground);
+        // Two standing: their mean.
+        let other = Vec3::new(0.01, 0.0, 0.0);
+        for _ in 0..100 {
+            frame(&mut s, &[pinned(gap), pinned(other)], false, limits);
+        }
+        assert!(
+            (s.ground - 0.5 * (gap + other)).length() < 1e-4,
+            "{}",
+            s.ground
+        );
+        // Without the pins' gaps (offline), the slides alone carry it: none, it stays.
+        let mut s = RootShift::default();
+        frame(&mut s, &[free, free], true, limits);
+        for _ in 0..100 {
+            frame(&mut s, &[stand(Some(Vec3::ZERO), 0.0), free], false, limits);
+        }
+        assert!(s.ground.length() < 1e-6, "{}", s.ground);
     }
 
     #[test]

@@ -631,7 +631,16 @@ impl FootLock {
             let contact = ankle - (roll - up * roll.dot(up));
             // Held since the last frame and still planted: the slide is the animation's.
             let held = f.source.is_some_and(|s| planted[s]) && f.locked && f.seen;
+            // Live, where the pin stands over the ground from the animation's ankle, its ball
+            // turned to the pin's heading (as the goal is).
+            let pin_gap = (held && live).then(|| {
+                let own = self.ball_heading(f, rotation);
+                let turn = Quat::from_axis_angle(up, wrap(f.lock_heading - own));
+                let d = f.pinned_ankle(up, self.floor, ball.map(|o| turn * o)) - ankle;
+                d - up * d.dot(up)
+            });
             stands[i] = FootStand {
+                pin_gap,
                 stands: held,
                 // Less the pin's own move as it turned with the foot: the leg reaches it.
                 slide: held.then(|| contact - f.raw_ankle - f.pin_moved),
