@@ -164,3 +164,51 @@ fn a_performer_alone_in_a_still_picture_costs_the_first_round_and_the_longest_wa
         assert_eq!(stats.detections, 5, "cam{cam}: detector passes");
     }
 }
+
+/// `frame` in the middle of a square of its longer side, mid-grey around it.
+fn in_square(frame: &RgbFrame) -> RgbFrame {
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let side = w.max(h);
+    let mut square = RgbFrame::new(side as u32, side as u32);
+    square.data.fill(128);
+    let (x0, y0) = ((side - w) / 2, (side - h) / 2);
+    for y in 0..h {
+        let to = ((y0 + y) * side + x0) * 3;
+        square.data[to..to + w * 3].copy_from_slice(&frame.data[y * w * 3..(y + 1) * w * 3]);
+    }
+    square
+}
+
+/// In a square picture a square of the short side is the whole picture again: the detector's
+/// closer looks (`tracker.rs`, `closer_regions`) would read the same input and find the same
+/// people. A performer alone in a still square picture (each single-person demo camera's first
+/// frame set in a square, 700 times) costs the whole-frame pass that finds them and one pass
+/// after the longest wait, 640 frames: 2 passes. Looking at the squares too, as before, cost 5:
+/// the first round's three more.
+#[test]
+fn a_square_picture_is_looked_at_whole_without_closer_squares() {
+    let Some(assets) = assets_or_skip("finder passes on a square picture") else {
+        return;
+    };
+    let config = PipelineConfig {
+        assets: assets.clone(),
+        ..PipelineConfig::default()
+    };
+    for cam in 1..=4 {
+        let path = assets.pose2sim_video(cam);
+        let mut source = FfmpegSource::open_at(&path, DecodeSize::FOR_MODEL, 30.0).unwrap();
+        let mut frame = RgbFrame::default();
+        assert!(source.next_frame(&mut frame).unwrap());
+        let square = in_square(&frame);
+        let mut pipeline = PosePipeline::new(&config).unwrap();
+        let mut seen = 0;
+        for _ in 0..700 {
+            pipeline.process_frame(&square).unwrap();
+            seen += usize::from(pipeline.person(0).is_some());
+        }
+        let stats = pipeline.stats();
+        eprintln!("cam{cam} in a square: #0 in {seen} of 700 frames, {stats:?}");
+        assert_eq!(seen, 700, "cam{cam}: the performer is held");
+        assert_eq!(stats.detections, 2, "cam{cam}: detector passes");
+    }
+}

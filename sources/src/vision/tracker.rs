@@ -51,7 +51,7 @@ use glam::Vec2;
 
 use super::assets::ModelKind;
 use super::change::PictureWatch;
-use super::detector::{Detection, PersonDetector};
+use super::detector::{Detection, PersonDetector, DETECTOR_SIZE};
 use super::error::VisionError;
 use super::frame::RgbFrame;
 use super::landmarks::{idx, Landmarks};
@@ -190,7 +190,7 @@ const STILL_WAIT: u32 = 4;
 
 /// Detector regions, taking turns: the whole frame, then the three squares of the short side
 /// along the long one (a small or far person the whole-frame pass misses appears up to twice
-/// as large there).
+/// as large there; in a square frame there are none, see `closer_regions`).
 const DETECTOR_REGIONS: usize = 4;
 
 /// A person just lost is found again within half their body's size of where they were (or of
@@ -1036,7 +1036,7 @@ impl PoseTracker {
             }
         }
         let region = self.next_region;
-        self.next_region = (region + 1) % DETECTOR_REGIONS;
+        self.next_region = (region + 1) % closer_regions(&self.candidates);
         self.detect_in_region(frame, region)
     }
 
@@ -1246,6 +1246,23 @@ impl PoseTracker {
             Some(0)
         };
         free.map(|slot| (slot, false))
+    }
+}
+
+/// How many of the [`DETECTOR_REGIONS`] (the first ones of `candidates`, see
+/// [`Roi::search_candidates`]) the finder's passes take turns over: a square of the short
+/// side shows people closer than the whole frame only when the long side is longer by at least
+/// a pixel of the detector's input. In a square frame it is the whole frame again, and a pass
+/// there would read the same input and find the same people: only the whole frame is looked at.
+fn closer_regions(candidates: &[Roi]) -> usize {
+    let (Some(whole), Some(square)) = (candidates.first(), candidates.get(1)) else {
+        return 1;
+    };
+    let magnified = whole.size / square.size.max(1.0);
+    if (magnified - 1.0) * DETECTOR_SIZE as f32 >= 1.0 {
+        DETECTOR_REGIONS.min(candidates.len())
+    } else {
+        1
     }
 }
 
