@@ -57,111 +57,34 @@ pub(crate) fn chain_splits(
     ratio: f32,
     start: &[f32],
 ) -> Vec<ChainSplit> {
-    let start_cost = |a: usize| start.get(a).copied().unwrap_or(0.0);
-    // A leg's first bone seen to span the girdle.
-    let girdle_first = ratio < 1.1 && start_cost(0) > 0.0;
     let m = lengths.len();
     let mut out: Vec<ChainSplit> = Vec::new();
-    let mut cheapest = f32::INFINITY;
     if m < 2 {
         return out;
     }
+    let costs = SplitCosts::new(lengths, bent, ratio, start);
+    let mut cheapest = f32::INFINITY;
     // Up to three bones before the upper segment: a helper at the spine's joint, the clavicle
     // and a scapula (MakeHuman's `__Clavicle` with a scapula between clavicle and arm).
     let max_pre = 3.min(m.saturating_sub(2));
     for a in 0..=max_pre {
         for b in (a + 1)..m {
-            let e_range: Vec<usize> = match fixed_extremity {
-                Some(e) => vec![e],
-                // The extremity may be missing when the chain ends at the lower segment.
-                None => ((b + 1)..=m).collect(),
+            // The extremity may be missing when the chain ends at the lower segment.
+            let extremities = match fixed_extremity {
+                Some(e) => e..=e,
+                None => (b + 1)..=m,
             };
-            for e in e_range {
-                if e <= b || e > m {
+            for e in extremities.filter(|&e| e > b && e <= m) {
+                let Some(cost) = costs.of(a, b, e) else {
                     continue;
-                }
-                let upper: f32 = lengths[a..b].iter().sum();
-                let mut lower: f32 = lengths[b..e].iter().sum();
-                let mut cost = 0.0;
-                // A chain ending in a lone leaf at the lower segment (glTF rigs without hands or
-                // feet): the leaf's length is unknown, not zero. Assume the expected ratio,
-                // at a price, so that the upper segment is still found.
-                // A leg has no girdle bone before it unless its first bone spans one.
-                let lone = if ratio < 1.1 {
-                    a <= usize::from(girdle_first)
-                } else {
-                    a <= 1
                 };
-                // The upper segment may hold several bones when the leaf is seen to turn
-                // (a twist bone splitting it above a glTF forearm).
-                let grouped_ok = b == a + 1 || bent.get(b).is_some_and(|&x| x >= MOTION_BEND);
-                if lower <= 1e-6 && e == m && b == m - 1 && grouped_ok && lone && upper > 1e-6 {
-                    lower = upper / ratio;
-                    cost += 0.4;
-                }
-                if upper <= 1e-6 || lower <= 1e-6 {
-                    continue;
-                }
-                // Saturating: robots and cartoons have wild proportions, and past a point
-                // the bends and the clavicle's size must still be able to decide.
-                let d2 = ((upper / lower).ln() - ratio.ln()).powi(2);
-                cost += 4.0 * d2 / (1.0 + 2.0 * d2);
-                // Extra bones in a group (segments / twist bones) are allowed but not free.
-                // Dearer than a long hand (Xsens measures the hand to the fingertips, ≈0.75
-                // of the forearm), so a hand is not folded into the forearm to shorten it.
-                cost += 0.2 * ((b - a - 1) + (e - b - 1)) as f32;
-                // Segments of one anatomical bone are collinear; a bent joint splits groups.
-                let bent = |i: usize| bent.get(i).copied().unwrap_or(0.0);
-                cost += (a + 1..b).chain(b + 1..e).map(bent).sum::<f32>();
-                // A leg's bones before the thigh (a pelvis side, helpers) do not bend against
-                // each other: a joint there that bends is the knee (a cartoon's short thigh and
-                // shin read as pelvis bones before a long foot). A shoulder's do (a clavicle
-                // after a clavicle helper).
-                if ratio < 1.1 {
-                    cost += (1..a).map(bent).sum::<f32>();
-                }
-                // The elbow or knee bends: where the limb's joints (upper segment to extremity)
-                // are seen to bend in the motion, a lower segment starting at one that never
-                // does is not the limb's (an in-chain twist bone read as the forearm).
-                let flexes = |i: usize| bent(i) >= MOTION_BEND;
-                if !flexes(b) && (a + 1..=e.min(m - 1)).any(flexes) {
-                    cost += STIFF_ELBOW_COST;
-                }
-                cost += start_cost(a);
-                if a > 0 {
-                    // The clavicle is the last bone before the upper arm; helpers before it
-                    // (MakeHuman's `__Clavicle`) do not make it longer.
-                    let pre: f32 = lengths[a - 1];
-                    // ...but a long bone before it is a limb segment, not a helper.
-                    for &l in &lengths[..a - 1] {
-                        cost += 4.0 * (l / upper - 0.5).max(0.0);
-                    }
-                    // A clavicle is shorter than the upper segment; legs rarely have one.
-                    let (limit, k) = if ratio < 1.1 { (0.45, 4.0) } else { (0.8, 2.0) };
-                    // ...unless it is seen to span the girdle, whatever its size (wide hips
-                    // over a robot's short thighs).
-                    if !(a == 1 && girdle_first) {
-                        cost += k * (pre / upper - limit).max(0.0);
-                    }
-                    cost += 0.02 * a as f32;
-                }
-                if e < m {
-                    // Saturating too: a cartoon's big feet on short legs.
-                    let sat = |c: f32| c / (1.0 + 0.5 * c);
-                    let ext = lengths[e];
-                    cost += sat(2.0 * (ext / lower - 0.6).max(0.0));
-                    let rest: f32 = lengths[e..].iter().sum();
-                    cost += sat(2.0 * (rest / (upper + lower) - 0.7).max(0.0));
-                } else {
-                    cost += 0.3;
-                }
-                let cost = cost.max(0.0);
                 if cost <= cheapest + NEAR_SPLIT {
                     cheapest = cheapest.min(cost);
+                    let (upper, lower, extremity) = (a, b, e);
                     out.push(ChainSplit {
-                        upper: a,
-                        lower: b,
-                        extremity: e,
+                        upper,
+                        lower,
+                        extremity,
                         cost,
                     });
                 }
@@ -170,6 +93,153 @@ pub(crate) fn chain_splits(
     }
     out.retain(|s| s.cost <= cheapest + NEAR_SPLIT);
     out
+}
+
+/// What a split of one chain costs: [`chain_splits`]'s arguments, and the terms it adds up.
+/// Each term adds to the running cost in a fixed order (the sum's rounding is part of which
+/// split wins a near tie).
+struct SplitCosts<'a> {
+    lengths: &'a [f32],
+    bent: &'a [f32],
+    ratio: f32,
+    start: &'a [f32],
+    /// The chain is a leg's (its expected ratio is near 1).
+    leg: bool,
+    /// A leg's first bone seen to span the girdle.
+    girdle_first: bool,
+}
+
+impl<'a> SplitCosts<'a> {
+    fn new(lengths: &'a [f32], bent: &'a [f32], ratio: f32, start: &'a [f32]) -> Self {
+        let leg = ratio < 1.1;
+        let mut costs = SplitCosts {
+            lengths,
+            bent,
+            ratio,
+            start,
+            leg,
+            girdle_first: false,
+        };
+        costs.girdle_first = leg && costs.start_cost(0) > 0.0;
+        costs
+    }
+
+    fn start_cost(&self, a: usize) -> f32 {
+        self.start.get(a).copied().unwrap_or(0.0)
+    }
+
+    fn bent(&self, i: usize) -> f32 {
+        self.bent.get(i).copied().unwrap_or(0.0)
+    }
+
+    /// The cost of the upper segment from bone `a`, the lower from `b`, the extremity at `e`
+    /// (`e == m`: none); `None` when a segment has no length.
+    fn of(&self, a: usize, b: usize, e: usize) -> Option<f32> {
+        let m = self.lengths.len();
+        let upper: f32 = self.lengths[a..b].iter().sum();
+        let mut lower: f32 = self.lengths[b..e].iter().sum();
+        let mut cost = 0.0;
+        // A chain ending in a lone leaf at the lower segment (glTF rigs without hands or
+        // feet): the leaf's length is unknown, not zero. Assume the expected ratio, at a
+        // price, so that the upper segment is still found.
+        if lower <= 1e-6 && e == m && b == m - 1 && self.lone_leaf_fits(a, b) && upper > 1e-6 {
+            lower = upper / self.ratio;
+            cost += 0.4;
+        }
+        if upper <= 1e-6 || lower <= 1e-6 {
+            return None;
+        }
+        self.add_segments(&mut cost, (a, b, e), upper, lower);
+        cost += self.start_cost(a);
+        if a > 0 {
+            self.add_before_upper(&mut cost, a, upper);
+        }
+        self.add_extremity(&mut cost, e, upper, lower);
+        Some(cost.max(0.0))
+    }
+
+    /// Whether the lower segment may be a lone leaf of unknown length: a leg has no girdle
+    /// bone before it unless its first bone spans one, and the upper segment may hold several
+    /// bones only when the leaf is seen to turn (a twist bone splitting it above a glTF
+    /// forearm).
+    fn lone_leaf_fits(&self, a: usize, b: usize) -> bool {
+        let lone = if self.leg {
+            a <= usize::from(self.girdle_first)
+        } else {
+            a <= 1
+        };
+        let grouped_ok = b == a + 1 || self.bent(b) >= MOTION_BEND;
+        grouped_ok && lone
+    }
+
+    /// The segments' proportion, their grouped bones and where they bend.
+    fn add_segments(
+        &self,
+        cost: &mut f32,
+        (a, b, e): (usize, usize, usize),
+        upper: f32,
+        lower: f32,
+    ) {
+        // Saturating: robots and cartoons have wild proportions, and past a point the bends
+        // and the clavicle's size must still be able to decide.
+        let d2 = ((upper / lower).ln() - self.ratio.ln()).powi(2);
+        *cost += 4.0 * d2 / (1.0 + 2.0 * d2);
+        // Extra bones in a group (segments / twist bones) are allowed but not free. Dearer
+        // than a long hand (Xsens measures the hand to the fingertips, ≈0.75 of the forearm),
+        // so a hand is not folded into the forearm to shorten it.
+        *cost += 0.2 * ((b - a - 1) + (e - b - 1)) as f32;
+        // Segments of one anatomical bone are collinear; a bent joint splits groups.
+        *cost += (a + 1..b)
+            .chain(b + 1..e)
+            .map(|i| self.bent(i))
+            .sum::<f32>();
+        // A leg's bones before the thigh (a pelvis side, helpers) do not bend against each
+        // other: a joint there that bends is the knee (a cartoon's short thigh and shin read
+        // as pelvis bones before a long foot). A shoulder's do (a clavicle after a clavicle
+        // helper).
+        if self.leg {
+            *cost += (1..a).map(|i| self.bent(i)).sum::<f32>();
+        }
+        // The elbow or knee bends: where the limb's joints (upper segment to extremity) are
+        // seen to bend in the motion, a lower segment starting at one that never does is not
+        // the limb's (an in-chain twist bone read as the forearm).
+        let flexes = |i: usize| self.bent(i) >= MOTION_BEND;
+        if !flexes(b) && (a + 1..=e.min(self.lengths.len() - 1)).any(flexes) {
+            *cost += STIFF_ELBOW_COST;
+        }
+    }
+
+    /// The bones before the upper segment (`a > 0`): the clavicle is the last of them;
+    /// helpers before it (MakeHuman's `__Clavicle`) do not make it longer.
+    fn add_before_upper(&self, cost: &mut f32, a: usize, upper: f32) {
+        let pre: f32 = self.lengths[a - 1];
+        // ...but a long bone before it is a limb segment, not a helper.
+        for &l in &self.lengths[..a - 1] {
+            *cost += 4.0 * (l / upper - 0.5).max(0.0);
+        }
+        // A clavicle is shorter than the upper segment; legs rarely have one.
+        let (limit, k) = if self.leg { (0.45, 4.0) } else { (0.8, 2.0) };
+        // ...unless it is seen to span the girdle, whatever its size (wide hips over a
+        // robot's short thighs).
+        if !(a == 1 && self.girdle_first) {
+            *cost += k * (pre / upper - limit).max(0.0);
+        }
+        *cost += 0.02 * a as f32;
+    }
+
+    /// The extremity against the lower segment, and what follows it against the limb.
+    fn add_extremity(&self, cost: &mut f32, e: usize, upper: f32, lower: f32) {
+        if e == self.lengths.len() {
+            *cost += 0.3;
+            return;
+        }
+        // Saturating too: a cartoon's big feet on short legs.
+        let sat = |c: f32| c / (1.0 + 0.5 * c);
+        let ext = self.lengths[e];
+        *cost += sat(2.0 * (ext / lower - 0.6).max(0.0));
+        let rest: f32 = self.lengths[e..].iter().sum();
+        *cost += sat(2.0 * (rest / (upper + lower) - 0.7).max(0.0));
+    }
 }
 
 /// What `bent` gives a joint seen to bend in the motion (see `extremities`).
