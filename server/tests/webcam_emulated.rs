@@ -103,8 +103,8 @@ fn wait_for(port: u16, name: &str, secs: u64, what: &str, pred: impl Fn(&Value) 
 /// A WebSocket client (`rigcast loadtest`, its own process) reads the stream for a few
 /// seconds; the target's `latency` in `/v1/status` then has every stage, and the camera
 /// subject's `glass_to_wire` (capture to the server's write) agrees with the client's capture
-/// to arrival of the same frames: a write comes before its arrival, so the server's median
-/// cannot be later than the client's slowest. (The camera subject's frames are all camera
+/// to arrival of the same frames (the client counts from its first frame): a write comes
+/// before its arrival, so the server's median cannot be later than the client's slowest. (The camera subject's frames are all camera
 /// frames; a target's include the poses it falls back to while the person is out of view,
 /// stamped when made, which a client cannot tell apart.)
 fn wire_latency_matches_a_client(cam: &EmuCamera, home: &std::path::Path, port: u16) {
@@ -115,6 +115,10 @@ fn wire_latency_matches_a_client(cam: &EmuCamera, home: &std::path::Path, port: 
             "1",
             "--secs",
             "3",
+            // Count from the first frame written, as the server's status does: frames of a
+            // warm-up the client skipped would be in the server's figures only.
+            "--warm-up",
+            "0",
             "--json",
             "--url",
         ])

@@ -7,7 +7,9 @@
 //!
 //! Latency is measured against this machine's clock, so it is meaningful on loopback or
 //! between clock-synchronised machines. Frames that arrive before every client is connected
-//! (plus a short warm-up) are not counted, so slow connects do not skew the rates.
+//! (plus a short warm-up, `--warm-up`) are not counted, so slow connects do not skew the rates.
+//! With `--warm-up 0` a single client counts every frame the server writes to it, so its
+//! figures can be set against the server's own `/v1/status` latencies frame for frame.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
@@ -24,8 +26,6 @@ use tokio_tungstenite::tungstenite::Message;
 
 /// Connections opened at once (a burst of thousands overflows the listen backlog).
 const CONNECTS_IN_FLIGHT: usize = 64;
-/// Frames in the first moments after every client is connected are not counted.
-const WARM_UP: Duration = Duration::from_millis(500);
 /// How long a client may take to connect before it counts as failed.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
 /// Read buffer per client. tungstenite zero-fills the free part of its read buffer before
@@ -45,6 +45,10 @@ pub struct LoadtestArgs {
     /// Seconds to measure (after every client is connected).
     #[arg(long, default_value_t = 5.0)]
     pub secs: f64,
+    /// Seconds after every client is connected whose frames are not counted (0: count from
+    /// the first frame, as the server's own status does).
+    #[arg(long, default_value_t = 0.5)]
+    pub warm_up: f64,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -140,13 +144,20 @@ pub async fn run(args: LoadtestArgs) -> anyhow::Result<()> {
     if !(args.secs.is_finite() && args.secs > 0.0) {
         bail!("--secs must be a positive number of seconds");
     }
+    if !(args.warm_up.is_finite() && (0.0..=3600.0).contains(&args.warm_up)) {
+        bail!("--warm-up must be 0 to 3600 seconds");
+    }
     if !args.json {
         eprintln!(
             "loadtest: {} clients on {} for {:.1} s",
             args.clients, args.url, args.secs
         );
     }
-    let report = measure(&args.url, args.clients, Duration::from_secs_f64(args.secs)).await?;
+    let window = Window {
+        warm_up: Duration::from_secs_f64(args.warm_up),
+        secs: Duration::from_secs_f64(args.secs),
+    };
+    let report = measure(&args.url, args.clients, window).await?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -166,8 +177,18 @@ pub async fn run(args: LoadtestArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Opens `clients` clients on `url`, measures for `secs` once all are connected, and reports.
-pub async fn measure(url: &str, clients: usize, secs: Duration) -> anyhow::Result<LoadReport> {
+/// What each client counts, from the moment every client is connected.
+#[derive(Debug, Clone, Copy)]
+pub struct Window {
+    /// Not counted first.
+    pub warm_up: Duration,
+    /// Then counted.
+    pub secs: Duration,
+}
+
+/// Opens `clients` clients on `url`, measures over `window` once all are connected, and
+/// reports.
+pub async fn measure(url: &str, clients: usize, window: Window) -> anyhow::Result<LoadReport> {
     url.parse::<tokio_tungstenite::tungstenite::http::Uri>()
         .with_context(|| format!("not a WebSocket URL: {url}"))?;
     let connects = Arc::new(Semaphore::new(CONNECTS_IN_FLIGHT));
@@ -177,7 +198,7 @@ pub async fn measure(url: &str, clients: usize, secs: Duration) -> anyhow::Resul
     for _ in 0..clients {
         let (url, connects, ready) = (url.to_string(), connects.clone(), ready.clone());
         tasks.push(tokio::spawn(async move {
-            client(&url, &connects, &ready, secs).await
+            client(&url, &connects, &ready, window).await
         }));
     }
     ready.wait().await;
@@ -188,11 +209,11 @@ pub async fn measure(url: &str, clients: usize, secs: Duration) -> anyhow::Resul
             ..ClientLog::default()
         }));
     }
-    Ok(summarise(url, secs.as_secs_f64(), &logs))
+    Ok(summarise(url, window.secs.as_secs_f64(), &logs))
 }
 
 /// One client: connect, wait for the others, then read until the window closes.
-async fn client(url: &str, connects: &Semaphore, ready: &Barrier, secs: Duration) -> ClientLog {
+async fn client(url: &str, connects: &Semaphore, ready: &Barrier, window: Window) -> ClientLog {
     let mut log = ClientLog::default();
     let ws = {
         let _permit = connects.acquire().await;
@@ -215,10 +236,10 @@ async fn client(url: &str, connects: &Semaphore, ready: &Barrier, secs: Duration
     let Some(mut ws) = ws else {
         return log;
     };
-    let start = Instant::now() + WARM_UP;
-    let end = start + secs;
+    let start = Instant::now() + window.warm_up;
+    let end = start + window.secs;
     log.latencies_us
-        .reserve((secs.as_secs_f64() * 500.0) as usize);
+        .reserve((window.secs.as_secs_f64() * 500.0) as usize);
     // One timer for the whole window: a timeout per read would register a timer for every
     // frame of every client, and the load tool's own overhead is part of what it measures.
     let window = tokio::time::sleep_until(tokio::time::Instant::from_std(end));
