@@ -283,7 +283,7 @@ impl FootLock {
                 // Where the heel stands as the lock rolls the foot, from its first stance at
                 // once (as the pitch): as offline, off the animation, not the unknown floor.
                 foot.stand_secs += dt;
-                let k = k.max(dt / foot.stand_secs);
+                let k = dt / foot.stand_secs;
                 foot.heel_clearance += k * (stance.ankle - rolled - foot.heel_clearance);
                 foot.ball_clearance =
                     foot.heel_clearance + foot.foot_length * foot.standing_pitch.sin();
