@@ -404,8 +404,10 @@ impl Foot {
         } else {
             let value = self.shown_position - (target - velocity * dt);
             let relative = self.shown_velocity - velocity;
+            // Only a foot above its goal and coming down: a speed up onto a goal above (or
+            // away from one below) carried past it.
             let down = up * relative.dot(up);
-            let settling = if down.dot(value) < 0.0 {
+            let settling = if relative.dot(up) < 0.0 && value.dot(up) > 0.0 {
                 down
             } else {
                 Vec3::ZERO

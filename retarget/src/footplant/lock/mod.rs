@@ -510,6 +510,11 @@ impl FootLock {
             f.animated_up = self.worlds[f.leg.foot.index()].translation.dot(self.up);
         }
         self.carry_root(planted, dt, live, out);
+        // Feet seen for the first time have no shown speed yet.
+        let mut unseen = [false; MAX_FEET];
+        for (u, f) in unseen.iter_mut().zip(&self.feet) {
+            *u = !f.seen;
+        }
         for i in 0..self.feet.len() {
             // A foot that has not learnt where it stands is not pinned to a floor unknown.
             let f = &self.feet[i];
@@ -537,7 +542,7 @@ impl FootLock {
             } else {
                 self.worlds[self.feet[i].leg.foot.index()].translation
             };
-            self.shown_at(i, shown, dt);
+            self.shown_at(i, shown, dt, unseen[i]);
         }
         self.shown_once = true;
     }
@@ -1031,10 +1036,16 @@ impl FootLock {
         }
     }
 
-    /// Records where foot `i` was shown this frame (for the next frame's velocities).
-    fn shown_at(&mut self, i: usize, ankle: Vec3, dt: f32) {
+    /// Records where foot `i` was shown this frame (for the next frame's velocities). `first`:
+    /// the foot is shown for the first time, its speed not known (measured from the animated
+    /// ankle it starts from, a foot the floor lifts read as moving up fast, and a plant on
+    /// the next frame blended that speed in: Xia's walk onto X Bot, the first pinned foot
+    /// thrown 7 cm up).
+    fn shown_at(&mut self, i: usize, ankle: Vec3, dt: f32, first: bool) {
         let f = &mut self.feet[i];
-        if dt > 0.0 {
+        if first {
+            f.shown_velocity = Vec3::ZERO;
+        } else if dt > 0.0 {
             f.shown_velocity = (ankle - f.shown_position) / dt;
         }
         f.shown_position = ankle;
@@ -1260,6 +1271,39 @@ mod tests {
         };
         foot.take_heel(0.0, Some(0.0));
         foot
+    }
+
+    /// A foot pinned where it is shown keeps no speed up onto its pin: only a foot above its
+    /// pin and coming down keeps its speed down (it settles instead of stopping in the air).
+    /// A foot shown a hair under its pin and moving up was given its upward speed, and the
+    /// spring carried it past the pin: live, Xia's walk onto X Bot, whose first frame read the
+    /// floor's lift as a speed of 5 m/s, threw its first pinned foot 7 cm up.
+    #[test]
+    fn a_pinned_foot_keeps_only_a_speed_down_onto_its_pin() {
+        let up = Vec3::Y;
+        let pin = Vec3::new(0.3, 0.08, -0.2);
+        let offset_after = |shown: Vec3, speed: Vec3| {
+            let mut foot = pinned_foot(true);
+            (foot.shown_position, foot.shown_velocity) = (shown, speed);
+            foot.retake_offsets(false, up, (pin, 0.0, Vec3::ZERO, 0.0), 1.0 / 60.0);
+            let kept = foot.position_offset.velocity;
+            let mut highest = f32::NEG_INFINITY;
+            for _ in 0..30 {
+                foot.position_offset.step(1.0 / 60.0, 0.05);
+                highest = highest.max(foot.position_offset.value.y);
+            }
+            (kept, highest)
+        };
+        // A hair under the pin, moving up fast: stopped there, never carried over it.
+        let (v, highest) = offset_after(pin - up * 1e-6, up * 5.0);
+        assert_eq!(v, Vec3::ZERO);
+        assert!(highest < 1e-3, "carried {highest} m over its pin");
+        // Above it and coming down: it keeps coming down.
+        let (v, _) = offset_after(pin + up * 0.02, -up * 0.5);
+        assert!(v.y < -0.4, "{v}");
+        // Above it and moving up: stopped.
+        let (v, _) = offset_after(pin + up * 0.02, up * 0.5);
+        assert_eq!(v, Vec3::ZERO);
     }
 
     /// The ball's offset from the ankle of a foot heading `heading` (radians about +Y from
