@@ -24,51 +24,110 @@ pub(super) struct Layout {
 /// when much longer than the other arms), everything else and whatever hangs beyond the
 /// front-most arms are appendages.
 pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout {
-    let k_of = |b: BoneId| path.iter().position(|&x| x == b);
     let mut kinds = vec![LimbKind::Appendage; limbs.len()];
-    let big = |l: &Limb| l.reach > 0.12 * ctx.size && l.members.len() == 2;
-    let leg_k = limbs
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| big(l) && l.ground)
-        .filter_map(|(i, l)| k_of(l.parent).map(|k| (k, i)))
-        .min_by_key(|&(k, _)| k);
-    if let Some((lk, _)) = leg_k {
-        // Several ground pairs on one central bone (a bug whose four legs hang from its root):
-        // the rear-most pair are the legs, the ones ahead are front legs.
-        let at_k: Vec<usize> = (0..limbs.len())
-            .filter(|&i| big(&limbs[i]) && limbs[i].ground && k_of(limbs[i].parent) == Some(lk))
-            .collect();
-        let ahead = |i: usize| {
-            let l = &limbs[i];
-            l.members
-                .iter()
-                .map(|m| ctx.pos[m.0.index()].dot(ctx.forward))
-                .sum::<f32>()
-                / 2.0
-        };
-        let rear = at_k
-            .iter()
-            .copied()
-            .min_by(|&a, &b| ahead(a).total_cmp(&ahead(b)));
-        for &i in &at_k {
-            let clearly_ahead = rear.is_some_and(|r| ahead(i) - ahead(r) > 0.15 * ctx.size);
-            kinds[i] = if clearly_ahead {
-                LimbKind::Arm
-            } else {
-                LimbKind::Leg
-            };
+    let legs_at = mark_legs(ctx, limbs, path, &mut kinds);
+    mark_arms(ctx, limbs, path, legs_at, &mut kinds);
+    let r = legs_at.unwrap_or(0);
+    let front = |kind: LimbKind| {
+        (0..limbs.len())
+            .filter(|&i| kinds[i] == kind)
+            .filter_map(|i| centerline_index(path, limbs[i].parent))
+            .max()
+    };
+    let f = front(LimbKind::Arm)
+        .or(front(LimbKind::Wing))
+        .unwrap_or(r)
+        .max(r);
+    // Limbs attached beyond the front-most limbs are head appendages (eyes, ears).
+    for (i, l) in limbs.iter().enumerate() {
+        if let Some(k) = centerline_index(path, l.parent) {
+            if k > f && kinds[i] != LimbKind::Leg {
+                kinds[i] = LimbKind::Appendage;
+            }
         }
     }
-    // Arms are limbs of a ctx.size with the legs: eyes and ears on a long-faced rig are not.
+    Layout {
+        kinds,
+        legs_at,
+        r,
+        f,
+    }
+}
+
+/// Where bone `b` is on the centerline `path`.
+fn centerline_index(path: &[BoneId], b: BoneId) -> Option<usize> {
+    path.iter().position(|&x| x == b)
+}
+
+/// A limb pair big enough to be a leg, arm or wing: two members reaching over an eighth of
+/// the skeleton's size.
+fn is_big(ctx: &Ctx<'_>, l: &Limb) -> bool {
+    l.reach > 0.12 * ctx.size && l.members.len() == 2
+}
+
+/// Marks the legs in `kinds`: the ground pairs on the rear-most central bone that carries one.
+/// Several ground pairs on one central bone (a bug whose four legs hang from its root): the
+/// rear-most pair are the legs, the ones clearly ahead are front legs (arms). Returns the
+/// legs' centerline index.
+fn mark_legs(
+    ctx: &Ctx<'_>,
+    limbs: &[Limb],
+    path: &[BoneId],
+    kinds: &mut [LimbKind],
+) -> Option<usize> {
+    let on_ground = |i: usize| is_big(ctx, &limbs[i]) && limbs[i].ground;
+    let lk = (0..limbs.len())
+        .filter(|&i| on_ground(i))
+        .filter_map(|i| centerline_index(path, limbs[i].parent))
+        .min()?;
+    let at_k: Vec<usize> = (0..limbs.len())
+        .filter(|&i| on_ground(i) && centerline_index(path, limbs[i].parent) == Some(lk))
+        .collect();
+    let ahead = |i: usize| {
+        let l = &limbs[i];
+        l.members
+            .iter()
+            .map(|m| ctx.pos[m.0.index()].dot(ctx.forward))
+            .sum::<f32>()
+            / 2.0
+    };
+    let rear = at_k
+        .iter()
+        .copied()
+        .min_by(|&a, &b| ahead(a).total_cmp(&ahead(b)));
+    for &i in &at_k {
+        let clearly_ahead = rear.is_some_and(|r| ahead(i) - ahead(r) > 0.15 * ctx.size);
+        kinds[i] = if clearly_ahead {
+            LimbKind::Arm
+        } else {
+            LimbKind::Leg
+        };
+    }
+    Some(lk)
+}
+
+/// Marks the arms and wings in `kinds` (the legs already marked, hanging at `legs_k`): limbs
+/// of a size with the legs, not hanging from the head; of several arm pairs one much longer
+/// than the others is a wing pair.
+fn mark_arms(
+    ctx: &Ctx<'_>,
+    limbs: &[Limb],
+    path: &[BoneId],
+    legs_k: Option<usize>,
+    kinds: &mut [LimbKind],
+) {
+    let k_of = |b: BoneId| centerline_index(path, b);
+    // Arms are limbs of a size with the legs: eyes and ears on a long-faced rig are not.
     let leg_reach = limbs
         .iter()
-        .zip(&kinds)
+        .zip(kinds.iter())
         .filter(|(_, k)| **k == LimbKind::Leg)
         .map(|(l, _)| l.reach)
         .fold(0.0f32, f32::max);
     let arm_cands: Vec<usize> = (0..limbs.len())
-        .filter(|&i| kinds[i] != LimbKind::Leg && big(&limbs[i]) && k_of(limbs[i].parent).is_some())
+        .filter(|&i| {
+            kinds[i] != LimbKind::Leg && is_big(ctx, &limbs[i]) && k_of(limbs[i].parent).is_some()
+        })
         .filter(|&i| limbs[i].reach > 0.3 * leg_reach)
         .collect();
     // Arms hang from the upper torso, not from the head: of two pairs, the one attached further
@@ -76,7 +135,6 @@ pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout
     // less for the body below it than the other does. An arm reaches about twice the torso
     // under it; hair on a head reaches about the torso under it, though it may be as long as a
     // short arm. Ground limbs are legs whatever their size.
-    let legs_k = leg_k.map(|(k, _)| k);
     let for_body = |i: usize| reach_for_body(ctx, path, legs_k, &limbs[i]);
     let arm_cands: Vec<usize> = arm_cands
         .iter()
@@ -98,32 +156,6 @@ pub(super) fn classify(ctx: &Ctx<'_>, limbs: &[Limb], path: &[BoneId]) -> Layout
         } else {
             LimbKind::Arm
         };
-    }
-    let r = leg_k.map(|(k, _)| k).unwrap_or(0);
-    let front = |kind: LimbKind| {
-        (0..limbs.len())
-            .filter(|&i| kinds[i] == kind)
-            .filter_map(|i| k_of(limbs[i].parent))
-            .max()
-    };
-    let f = front(LimbKind::Arm)
-        .or(front(LimbKind::Wing))
-        .unwrap_or(r)
-        .max(r);
-    // Limbs attached beyond the front-most limbs are head appendages (eyes, ears).
-    for (i, l) in limbs.iter().enumerate() {
-        if let Some(k) = k_of(l.parent) {
-            if k > f && kinds[i] != LimbKind::Leg {
-                kinds[i] = LimbKind::Appendage;
-            }
-        }
-    }
-
-    Layout {
-        kinds,
-        legs_at: leg_k.map(|(k, _)| k),
-        r,
-        f,
     }
 }
 
@@ -150,103 +182,124 @@ pub(super) fn trunk(
     layout: &Layout,
     central: &[bool],
     limbs: &[Limb],
-    (ground, hext): (f32, f32),
+    ends: (f32, f32),
 ) -> Option<usize> {
-    let mut head_sec = None;
-    if !path.is_empty() {
-        let spine: Vec<BoneId> = path[layout.r..=layout.f.min(path.len() - 1)].to_vec();
-        let si = out.add_section(
-            SectionKind::Spine,
+    if path.is_empty() {
+        return None;
+    }
+    let si = spine_section(ctx, out, path, layout);
+    if layout.r > 0 {
+        let tail: Vec<BoneId> = path[..layout.r].iter().rev().copied().collect();
+        out.add_section(
+            SectionKind::Tail,
             Side::Center,
             0,
-            spine.clone(),
-            None,
+            tail.clone(),
+            Some(si),
             false,
         );
-        let conf = if layout.legs_at.is_some() { 0.9 } else { 0.4 };
-        let hips_at = hips_index(ctx, &spine);
-        for &b in &spine[..hips_at] {
-            out.set(b, Role::Helper, conf);
-        }
-        out.set(spine[hips_at], Role::Hips, conf);
-        let body = &spine[hips_at + 1..];
-        for (j, &b) in body.iter().enumerate() {
-            let role = if j == 0 {
-                Role::Spine
-            } else if j + 1 == body.len() {
-                Role::Chest
-            } else {
-                Role::SpineMid
-            };
-            out.set(b, role, conf * 0.95);
-        }
-        if layout.r > 0 {
-            let tail: Vec<BoneId> = path[..layout.r].iter().rev().copied().collect();
-            out.add_section(
-                SectionKind::Tail,
-                Side::Center,
-                0,
-                tail.clone(),
-                Some(si),
-                false,
-            );
-            for (j, &b) in tail.iter().enumerate() {
-                out.set(b, Role::Tail(j.min(255) as u8), 0.8);
-            }
-        }
-        if layout.f + 1 < path.len() {
-            let head: Vec<BoneId> = path[layout.f + 1..].to_vec();
-            let hi = out.add_section(
-                SectionKind::Head,
-                Side::Center,
-                0,
-                head.clone(),
-                Some(si),
-                false,
-            );
-            head_sec = Some(hi);
-            let (head_idx, doubt) = head_index(
-                ctx,
-                &head,
-                central,
-                limbs,
-                &layout.kinds,
-                leg_len(ctx, limbs, &layout.kinds),
-                uses_end_joints(ctx, limbs, &layout.kinds, ground, hext),
-            );
-            if let Some((strength, bones, alone)) = doubt {
-                let on = if alone {
-                    "the skull-top proportion alone (no names, motion or end joints)"
-                } else {
-                    "proportions and end-joint conventions that nearly read it one bone off"
-                };
-                out.doubts.push(super::Doubt {
-                    reason: format!("which bone is the head rests on {on} ({strength:.2})"),
-                    strength,
-                    bones,
-                });
-            }
-            for (j, &b) in head.iter().enumerate() {
-                let role = if j < head_idx {
-                    Role::Neck(j.min(255) as u8)
-                } else if j == head_idx {
-                    Role::Head
-                } else {
-                    Role::HeadEnd
-                };
-                out.set(b, role, 0.8);
-            }
-            // Central side branches at the head: the jaw (forward / down), else helpers.
-            let hb = head[head_idx];
-            for &c in ctx.skel.children(hb) {
-                if central[c.index()] && !head.contains(&c) && !ctx.is_shadow(c) {
-                    out.set(c, Role::Jaw, 0.6);
-                    out.roles[c.index()].section = Some(hi as u16);
-                }
-            }
+        for (j, &b) in tail.iter().enumerate() {
+            out.set(b, Role::Tail(j.min(255) as u8), 0.8);
         }
     }
-    head_sec
+    if layout.f + 1 >= path.len() {
+        return None;
+    }
+    let head: Vec<BoneId> = path[layout.f + 1..].to_vec();
+    let hi = out.add_section(
+        SectionKind::Head,
+        Side::Center,
+        0,
+        head.clone(),
+        Some(si),
+        false,
+    );
+    head_roles(ctx, out, (&head, hi), layout, central, limbs, ends);
+    Some(hi)
+}
+
+/// The spine section, from the legs' bone to where the front-most arms hang: helpers below
+/// the hips, the hips, then spine, spine middles and chest. Returns its index.
+fn spine_section(ctx: &Ctx<'_>, out: &mut Builder, path: &[BoneId], layout: &Layout) -> usize {
+    let spine: Vec<BoneId> = path[layout.r..=layout.f.min(path.len() - 1)].to_vec();
+    let si = out.add_section(
+        SectionKind::Spine,
+        Side::Center,
+        0,
+        spine.clone(),
+        None,
+        false,
+    );
+    let conf = if layout.legs_at.is_some() { 0.9 } else { 0.4 };
+    let hips_at = hips_index(ctx, &spine);
+    for &b in &spine[..hips_at] {
+        out.set(b, Role::Helper, conf);
+    }
+    out.set(spine[hips_at], Role::Hips, conf);
+    let body = &spine[hips_at + 1..];
+    for (j, &b) in body.iter().enumerate() {
+        let role = if j == 0 {
+            Role::Spine
+        } else if j + 1 == body.len() {
+            Role::Chest
+        } else {
+            Role::SpineMid
+        };
+        out.set(b, role, conf * 0.95);
+    }
+    si
+}
+
+/// The head section's roles (section `hi`): neck bones, the head, what is beyond it, and the
+/// jaw among the head's central side branches; a doubt when the head bone was a near call.
+fn head_roles(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    (head, hi): (&[BoneId], usize),
+    layout: &Layout,
+    central: &[bool],
+    limbs: &[Limb],
+    (ground, hext): (f32, f32),
+) {
+    let (head_idx, doubt) = head_index(
+        ctx,
+        head,
+        central,
+        limbs,
+        &layout.kinds,
+        leg_len(ctx, limbs, &layout.kinds),
+        uses_end_joints(ctx, limbs, &layout.kinds, ground, hext),
+    );
+    if let Some((strength, bones, alone)) = doubt {
+        let on = if alone {
+            "the skull-top proportion alone (no names, motion or end joints)"
+        } else {
+            "proportions and end-joint conventions that nearly read it one bone off"
+        };
+        out.doubts.push(super::Doubt {
+            reason: format!("which bone is the head rests on {on} ({strength:.2})"),
+            strength,
+            bones,
+        });
+    }
+    for (j, &b) in head.iter().enumerate() {
+        let role = if j < head_idx {
+            Role::Neck(j.min(255) as u8)
+        } else if j == head_idx {
+            Role::Head
+        } else {
+            Role::HeadEnd
+        };
+        out.set(b, role, 0.8);
+    }
+    // Central side branches at the head: the jaw (forward / down), else helpers.
+    let hb = head[head_idx];
+    for &c in ctx.skel.children(hb) {
+        if central[c.index()] && !head.contains(&c) && !ctx.is_shadow(c) {
+            out.set(c, Role::Jaw, 0.6);
+            out.roles[c.index()].section = Some(hi as u16);
+        }
+    }
 }
 
 /// Which bone of the spine section (from the legs' bone up) is the hips: the first, unless
@@ -330,79 +383,21 @@ fn head_index(
     leg: Option<f32>,
     end_joints: Option<bool>,
 ) -> (usize, Option<HeadDoubt>) {
-    for (j, &b) in head.iter().enumerate() {
-        let has_pair = limbs
-            .iter()
-            .zip(kinds)
-            .any(|(l, k)| l.parent == b && *k == LimbKind::Appendage && l.members.len() == 2);
-        let has_jaw = ctx
-            .skel
-            .children(b)
-            .iter()
-            .any(|c| central[c.index()] && !head.contains(c) && !ctx.is_shadow(*c));
-        if has_pair || has_jaw {
-            return (j, None);
-        }
+    if let Some(j) = where_the_face_hangs(ctx, head, central, limbs, kinds) {
+        return (j, None);
     }
     let last = head.len() - 1;
     if last == 0 || !ctx.is_leaf(head[last]) {
         return (last, None);
     }
-    let leaf = head[last];
-    // A zero-length leaf only marks its parent's end (BVH End Site written at the joint).
-    if (ctx.pos[leaf.index()] - ctx.pos[head[last - 1].index()]).length()
-        < 1e-3 * ctx.size.max(1e-3)
-    {
-        return (last - 1, None);
-    }
-    let nm = &ctx.names[leaf.index()];
-    // End markers: `_end`/`End`/`Nub` (helper tokens) and the skull top (`head_top`,
-    // `HeadTop_End`), even when the name also says "head".
-    if nm.helper || nm.tokens.iter().any(|t| t == "top") {
-        return (last - 1, None);
-    }
-    // A bone named as the head is the head, however long the neck before it (the Fox) or
-    // however big the head (cartoon robots).
-    if nm.tokens.iter().any(|t| t == "head") {
-        return (last, None);
-    }
-    // Motion: the head is the last bone of the chain that rotates; bones after it that never
-    // do are end markers (a BVH End Site, an exporter's `HeadTop_End` joint). Measured, so it
-    // outweighs proportions, which cartoon heads and robots break.
-    if let Some(m) = ctx.moving {
-        if let Some(k) = head.iter().rposition(|b| m[b.index()]) {
-            return (k, None);
-        }
+    if let Some(k) = head_by_leaf(ctx, head) {
+        return (k, None);
     }
     // Exporters that write end joints (BVH End Sites, Mixamo `_End`) write them everywhere:
     // if the toes have one, so has the head.
     let ends = end_joints.map(|e| if e { END_JOINTS } else { -END_JOINTS });
-    // Upright two-armed bodies: proportions tell the skull top from the skull base whatever
-    // the names (anonymised skeletons included). Both are evidence for the leaf being an end
-    // marker (positive) or the head; their sum decides, and how close it came is the doubt.
     if let Some(skull) = skull_heights(ctx, head, limbs, kinds) {
-        let total = skull.leaf_evidence + ends.unwrap_or(0.0);
-        let k = if total > 0.0 {
-            // Every bone above the skull top before the leaf ends the head too (a cartoon's
-            // `HeadTop_End` with its own end joint): the head is the last one below it.
-            let below = head[..last]
-                .iter()
-                .rposition(|b| skull.r(ctx, *b) < SKULL_TOP);
-            below.filter(|&k| k + 1 < last && k > 0).unwrap_or(last - 1)
-        } else {
-            last
-        };
-        // The skull-top proportion alone is no reading to trust: on the zoo's rigs a head leaf
-        // and a skull-top leaf overlap (0.39-0.67 torso up, a robot's big head, a small skull
-        // over low arms), so with nothing to cross it the head is a guess a person checks.
-        let alone = ends.is_none();
-        let floor = if alone { PROPORTIONS_ALONE } else { 0.0 };
-        let strength = (-total.abs()).exp().max(floor);
-        let bones = head[k.saturating_sub(1)..].to_vec();
-        return (
-            k,
-            (strength > DOUBT_FLOOR).then_some((strength, bones, alone)),
-        );
+        return head_by_skull(ctx, head, &skull, ends);
     }
     if let Some(e) = ends {
         return (if e > 0.0 { last - 1 } else { last }, None);
@@ -414,6 +409,93 @@ fn head_index(
     } else {
         (last, None)
     }
+}
+
+/// The first head-section bone that a pair of appendages (eyes, ears) or a jaw hangs from.
+fn where_the_face_hangs(
+    ctx: &Ctx<'_>,
+    head: &[BoneId],
+    central: &[bool],
+    limbs: &[Limb],
+    kinds: &[LimbKind],
+) -> Option<usize> {
+    head.iter().position(|&b| {
+        let has_pair = limbs
+            .iter()
+            .zip(kinds)
+            .any(|(l, k)| l.parent == b && *k == LimbKind::Appendage && l.members.len() == 2);
+        let has_jaw = ctx
+            .skel
+            .children(b)
+            .iter()
+            .any(|c| central[c.index()] && !head.contains(c) && !ctx.is_shadow(*c));
+        has_pair || has_jaw
+    })
+}
+
+/// What the head section's leaf (it has two bones or more) says of itself: an end marker
+/// (zero length, an end or skull-top name: the head is the bone before), named as the head,
+/// or, in motion, the last bone that rotates. `None` when it says nothing.
+fn head_by_leaf(ctx: &Ctx<'_>, head: &[BoneId]) -> Option<usize> {
+    let last = head.len() - 1;
+    let leaf = head[last];
+    // A zero-length leaf only marks its parent's end (BVH End Site written at the joint).
+    if (ctx.pos[leaf.index()] - ctx.pos[head[last - 1].index()]).length()
+        < 1e-3 * ctx.size.max(1e-3)
+    {
+        return Some(last - 1);
+    }
+    let nm = &ctx.names[leaf.index()];
+    // End markers: `_end`/`End`/`Nub` (helper tokens) and the skull top (`head_top`,
+    // `HeadTop_End`), even when the name also says "head".
+    if nm.helper || nm.tokens.iter().any(|t| t == "top") {
+        return Some(last - 1);
+    }
+    // A bone named as the head is the head, however long the neck before it (the Fox) or
+    // however big the head (cartoon robots).
+    if nm.tokens.iter().any(|t| t == "head") {
+        return Some(last);
+    }
+    // Motion: the head is the last bone of the chain that rotates; bones after it that never
+    // do are end markers (a BVH End Site, an exporter's `HeadTop_End` joint). Measured, so it
+    // outweighs proportions, which cartoon heads and robots break.
+    let moving = ctx.moving?;
+    head.iter().rposition(|b| moving[b.index()])
+}
+
+/// Upright two-armed bodies: proportions tell the skull top from the skull base whatever the
+/// names (anonymised skeletons included). Both they and the end-joint convention (`ends`) are
+/// evidence for the leaf being an end marker (positive) or the head; their sum decides, and
+/// how close it came is the doubt.
+fn head_by_skull(
+    ctx: &Ctx<'_>,
+    head: &[BoneId],
+    skull: &Skull,
+    ends: Option<f32>,
+) -> (usize, Option<HeadDoubt>) {
+    let last = head.len() - 1;
+    let total = skull.leaf_evidence + ends.unwrap_or(0.0);
+    let k = if total > 0.0 {
+        // Every bone above the skull top before the leaf ends the head too (a cartoon's
+        // `HeadTop_End` with its own end joint): the head is the last one below it.
+        let below = head[..last]
+            .iter()
+            .rposition(|b| skull.r(ctx, *b) < SKULL_TOP);
+        below.filter(|&k| k + 1 < last && k > 0).unwrap_or(last - 1)
+    } else {
+        last
+    };
+    // The skull-top proportion alone is no reading to trust: on the zoo's rigs a head leaf and
+    // a skull-top leaf overlap (0.39-0.67 torso up, a robot's big head, a small skull over low
+    // arms), so with nothing to cross it the head is a guess a person checks.
+    let alone = ends.is_none();
+    let floor = if alone { PROPORTIONS_ALONE } else { 0.0 };
+    let strength = (-total.abs()).exp().max(floor);
+    let bones = head[k.saturating_sub(1)..].to_vec();
+    (
+        k,
+        (strength > DOUBT_FLOOR).then_some((strength, bones, alone)),
+    )
 }
 
 /// What the end-joint convention weighs as evidence that the head chain's leaf is an end
