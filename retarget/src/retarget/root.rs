@@ -217,99 +217,34 @@ impl RootPlan {
         rs: SourceRef,
         opts: &RetargetOptions,
     ) -> RootPlan {
-        let mut below = pairs_below(src, tgt, table, rt, rs);
         // Both postures are in the source's world (the target's is its aligned reference).
         let up = opts
             .source_up
             .and_then(|u| u.try_normalize())
             .unwrap_or(Vec3::Y);
-        let y_t = |b: BoneId| tgt.worlds[b.index()].translation.dot(up);
-        let y_s = |b: BoneId| src.worlds[b.index()].translation.dot(up);
-        let keeps_own = |t: BoneId| opts.posture_relative.iter().any(|&(b, _)| b == t);
-        // A bone keeping its own posture stands where the target's posture puts it, whatever
-        // its source does: it is a leg only when its source joint is one (near the source's
-        // lowest joints), not a quadruped's front leg driven by a walker's arm.
-        let lowest_src = (below.iter())
-            .map(|&(_, s)| y_s(s))
-            .fold(f32::INFINITY, f32::min);
-        let near_src_feet = lowest_src + 0.25 * (y_s(rs.bone) - lowest_src).abs();
-        below.retain(|&(t, s)| !keeps_own(t) || y_s(s) <= near_src_feet);
-        // The target's feet are where the source's feet go: joints driven by the source's
-        // lowest ones (a long-armed target's fingers may hang below its feet in the source's
-        // posture, and are no floor).
-        let feet: Vec<(BoneId, BoneId)> = (below.iter().copied())
-            .filter(|&(_, s)| y_s(s) <= near_src_feet)
-            .collect();
+        let m = Measure {
+            src,
+            tgt,
+            tgt_own,
+            table,
+            rt,
+            rs,
+            up,
+            opts,
+        };
+        let feet = m.feet();
         let low = feet
             .iter()
             .copied()
-            .min_by(|a, b| y_t(a.0).total_cmp(&y_t(b.0)));
+            .min_by(|a, b| m.y_t(a.0).total_cmp(&m.y_t(b.0)));
         let mut scale = align::extent(tgt.worlds) / align::extent(src.worlds);
-        let mut contacts = Vec::new();
-        let (mut floor_t, mut floor_s) = (None, None);
-        let mut stand = [0.0; MAX_LEGS];
-        let mut floor_at = FloorAt::Unknown;
+        let mut floors = Floors::default();
         if let Some((tl, _)) = low {
             let first = tgt.leg_height(rt, tl, up);
-            // Every pair at the lowest level (both feet), so left/right asymmetry averages out.
-            let (mut sum_t, mut sum_s) = (0.0, 0.0);
-            for &(t, s) in feet
-                .iter()
-                .filter(|(t, _)| y_t(*t) <= y_t(tl) + 0.02 * first)
-            {
-                let (ht, hs) = match top_pair(src, tgt, table, rt, rs, t, s) {
-                    // A leg keeping its own posture (`posture_relative`) moves the body by its
-                    // standing height, however its bones zig-zag.
-                    Some((tt, st)) if keeps_own(t) => (y_t(tt) - y_t(t), src.leg_height(st, s, up)),
-                    Some(pair) => {
-                        mapped_leg_lengths((src, tgt), table, rs.input, (pair, (t, s)), up)
-                    }
-                    None => (tgt.leg_height(rt, t, up), src.leg_height(rs.bone, s, up)),
-                };
-                if ht > tgt.eps && hs > src.eps {
-                    sum_t += ht;
-                    sum_s += hs;
-                }
+            if let Some(legs) = m.leg_scale(&feet, tl, first) {
+                scale = legs;
             }
-            if sum_t > 0.0 && sum_s > 0.0 {
-                scale = sum_t / sum_s;
-            }
-            // Feet: mapped joints near the lowest one (toes, ankles, both sides).
-            contacts = contact_pairs(&tgt, &feet, rt, y_t(tl) + 0.15 * first, &y_t);
-            let lowest_s = contacts
-                .iter()
-                .map(|&(_, b, _)| y_s(b))
-                .fold(f32::INFINITY, f32::min);
-            // The target's floor is where its own reference stands, when that reference
-            // stands along the same up (its ground is then known); a rig lying along another
-            // axis has no floor in this world, and keeps the source's clearance instead.
-            let own_y = |b: BoneId| tgt_own[b.index()].translation.dot(up);
-            let standing = |y: &dyn Fn(BoneId) -> f32| y(rt) - y(tl);
-            // A leg keeping its own posture stands as in it, whatever the source's would make
-            // of it.
-            let y_floor: &dyn Fn(BoneId) -> f32 =
-                if keeps_own(tl) || standing(&own_y) > 0.8 * standing(&y_t) {
-                    &own_y
-                } else {
-                    &y_t
-                };
-            floor_t = floor_from_reference(y_floor(tl), first, y_floor(rt));
-            // A floor put at the ground below raised contacts is nobody's standing height.
-            floor_at = match floor_t {
-                Some(f) if y_floor(tl) - f > RAISED_CONTACT * first => FloorAt::Ground,
-                _ => FloorAt::Joint(tl),
-            };
-            floor_s = floor_from_reference(lowest_s, first / scale, y_s(rs.bone));
-            if let Some(floor) = floor_t {
-                stand = raised_contacts(
-                    &contacts,
-                    y_floor,
-                    floor,
-                    |b| y_s(b) - lowest_s,
-                    scale,
-                    first,
-                );
-            }
+            floors = m.floors(&feet, tl, first, scale);
         }
         RootPlan {
             bone: rt,
@@ -318,14 +253,148 @@ impl RootPlan {
             scale: opts.root_scale.unwrap_or(scale),
             up,
             motion: opts.root_motion,
-            source_floor_y: opts.source_floor_y.or(floor_s).unwrap_or(0.0),
-            target_floor_y: opts.target_floor_y.or(floor_t),
-            floor_at,
+            source_floor_y: opts.source_floor_y.or(floors.source).unwrap_or(0.0),
+            target_floor_y: opts.target_floor_y.or(floors.target),
+            floor_at: floors.at,
             reference_position: tgt.worlds[rt.index()].translation,
-            contact_bones: contacts.iter().map(|&(_, s, _)| s).collect(),
-            contacts,
-            stand,
+            contact_bones: floors.contacts.iter().map(|&(_, s, _)| s).collect(),
+            contacts: floors.contacts,
+            stand: floors.stand,
             foot_contact: opts.foot_contact,
+        }
+    }
+}
+
+/// What [`RootPlan::new`] measures from: both sides in the source's world (the target's
+/// posture is its aligned reference), the target's own reference, the mapping and the roots.
+struct Measure<'a> {
+    src: Side<'a>,
+    tgt: Side<'a>,
+    tgt_own: &'a [WorldTransform],
+    table: &'a MappingTable,
+    rt: BoneId,
+    rs: SourceRef,
+    up: Vec3,
+    opts: &'a RetargetOptions,
+}
+
+/// The floors and the feet standing on them, as [`RootPlan`] keeps them; all unknown until
+/// the target's feet are found.
+struct Floors {
+    contacts: Vec<(BoneId, BoneId, u8)>,
+    target: Option<f32>,
+    source: Option<f32>,
+    stand: [f32; MAX_LEGS],
+    at: FloorAt,
+}
+
+impl Default for Floors {
+    fn default() -> Self {
+        Floors {
+            contacts: Vec::new(),
+            target: None,
+            source: None,
+            stand: [0.0; MAX_LEGS],
+            at: FloorAt::Unknown,
+        }
+    }
+}
+
+impl Measure<'_> {
+    fn y_t(&self, b: BoneId) -> f32 {
+        self.tgt.worlds[b.index()].translation.dot(self.up)
+    }
+
+    fn y_s(&self, b: BoneId) -> f32 {
+        self.src.worlds[b.index()].translation.dot(self.up)
+    }
+
+    fn keeps_own(&self, t: BoneId) -> bool {
+        self.opts.posture_relative.iter().any(|&(b, _)| b == t)
+    }
+
+    /// The target's feet are where the source's feet go: mapped pairs below the root whose
+    /// source joint is near the source's lowest ones. A long-armed target's fingers may hang
+    /// below its feet in the source's posture, and are no floor; a bone keeping its own
+    /// posture is a leg only when its source joint is one, not a quadruped's front leg driven
+    /// by a walker's arm.
+    fn feet(&self) -> Vec<(BoneId, BoneId)> {
+        let below = pairs_below(self.src, self.tgt, self.table, self.rt, self.rs);
+        let lowest_src = (below.iter())
+            .map(|&(_, s)| self.y_s(s))
+            .fold(f32::INFINITY, f32::min);
+        let near_src_feet = lowest_src + 0.25 * (self.y_s(self.rs.bone) - lowest_src).abs();
+        below
+            .into_iter()
+            .filter(|&(_, s)| self.y_s(s) <= near_src_feet)
+            .collect()
+    }
+
+    /// Target over source leg height, summed over every foot pair at the lowest level (both
+    /// feet, so left/right asymmetry averages out); `None` when no pair measured.
+    fn leg_scale(&self, feet: &[(BoneId, BoneId)], tl: BoneId, first: f32) -> Option<f32> {
+        let (src, tgt, up) = (self.src, self.tgt, self.up);
+        let (mut sum_t, mut sum_s) = (0.0, 0.0);
+        for &(t, s) in feet
+            .iter()
+            .filter(|(t, _)| self.y_t(*t) <= self.y_t(tl) + 0.02 * first)
+        {
+            let (ht, hs) = match top_pair(src, tgt, self.table, self.rt, self.rs, t, s) {
+                // A leg keeping its own posture (`posture_relative`) moves the body by its
+                // standing height, however its bones zig-zag.
+                Some((tt, st)) if self.keeps_own(t) => {
+                    (self.y_t(tt) - self.y_t(t), src.leg_height(st, s, up))
+                }
+                Some(pair) => {
+                    mapped_leg_lengths((src, tgt), self.table, self.rs.input, (pair, (t, s)), up)
+                }
+                None => (
+                    tgt.leg_height(self.rt, t, up),
+                    src.leg_height(self.rs.bone, s, up),
+                ),
+            };
+            if ht > tgt.eps && hs > src.eps {
+                sum_t += ht;
+                sum_s += hs;
+            }
+        }
+        (sum_t > 0.0 && sum_s > 0.0).then(|| sum_t / sum_s)
+    }
+
+    /// The contacts (mapped joints near the lowest foot joint `tl`: toes, ankles, both
+    /// sides), both floors, and how high each leg's contact stands above the target's.
+    fn floors(&self, feet: &[(BoneId, BoneId)], tl: BoneId, first: f32, scale: f32) -> Floors {
+        let y_t = |b: BoneId| self.y_t(b);
+        let contacts = contact_pairs(&self.tgt, feet, self.rt, y_t(tl) + 0.15 * first, &y_t);
+        let lowest_s = contacts
+            .iter()
+            .map(|&(_, b, _)| self.y_s(b))
+            .fold(f32::INFINITY, f32::min);
+        // The target's floor is where its own reference stands, when that reference stands
+        // along the same up (its ground is then known); a rig lying along another axis has no
+        // floor in this world, and keeps the source's clearance instead. A leg keeping its
+        // own posture stands as in it, whatever the source's would make of it.
+        let own_y = |b: BoneId| self.tgt_own[b.index()].translation.dot(self.up);
+        let standing = |y: &dyn Fn(BoneId) -> f32| y(self.rt) - y(tl);
+        let own = self.keeps_own(tl) || standing(&own_y) > 0.8 * standing(&y_t);
+        let y_floor: &dyn Fn(BoneId) -> f32 = if own { &own_y } else { &y_t };
+        let target = floor_from_reference(y_floor(tl), first, y_floor(self.rt));
+        // A floor put at the ground below raised contacts is nobody's standing height.
+        let at = match target {
+            Some(f) if y_floor(tl) - f > RAISED_CONTACT * first => FloorAt::Ground,
+            _ => FloorAt::Joint(tl),
+        };
+        let source = floor_from_reference(lowest_s, first / scale, self.y_s(self.rs.bone));
+        let stand = target.map_or([0.0; MAX_LEGS], |floor| {
+            let clear_s = |b: BoneId| self.y_s(b) - lowest_s;
+            raised_contacts(&contacts, y_floor, floor, clear_s, scale, first)
+        });
+        Floors {
+            contacts,
+            target,
+            source,
+            stand,
+            at,
         }
     }
 }
