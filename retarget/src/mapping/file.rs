@@ -232,90 +232,96 @@ pub fn apply_overrides(
             out.entries[t.index()] = None;
             continue;
         }
-        let mut listed: Vec<FileSource> = fb.sources.clone();
-        if let Some(s) = &fb.source {
-            listed.insert(
-                0,
-                FileSource {
-                    bone: s.clone(),
-                    input: 0,
-                    weight: 1.0,
-                },
-            );
-        }
-        let mut refs = Vec::new();
-        for s in &listed {
-            let sk = sources.get(s.input as usize).ok_or_else(|| {
-                MappingFileError::UnknownSourceBone {
-                    target: tname.clone(),
-                    name: s.bone.clone(),
-                    input: s.input,
-                }
-            })?;
-            let bone = sk
-                .bone(&s.bone)
-                .ok_or_else(|| MappingFileError::UnknownSourceBone {
-                    target: tname.clone(),
-                    name: s.bone.clone(),
-                    input: s.input,
-                })?;
-            if !(s.weight.is_finite() && s.weight >= 0.0) {
-                return Err(MappingFileError::BadValue {
-                    target: tname.clone(),
-                    what: format!("weight {} must be a finite number >= 0", s.weight),
-                });
-            }
-            refs.push(SourceRef {
-                input: s.input,
-                bone,
-                weight: s.weight,
-            });
-        }
+        let refs = source_refs(tname, fb, sources)?;
         let existing = out.entries[t.index()].take();
-        let mut entry = match (existing, refs.is_empty()) {
-            (Some(mut e), false) => {
-                e.sources = refs;
-                e.score = 0.0;
-                e.evidence = vec!["override".into()];
-                e.confidence = 1.0;
-                e
-            }
-            (Some(e), true) => e,
-            (None, false) => TargetEntry {
-                sources: refs,
-                options: BoneOptions::default(),
-                score: 0.0,
-                evidence: vec!["override".into()],
-                confidence: 1.0,
-            },
-            (None, true) => {
-                // Options for a bone with no source: nothing to drive.
-                continue;
-            }
+        let Some(mut entry) = overridden_entry(existing, refs) else {
+            // Options for a bone with no source: nothing to drive.
+            continue;
         };
-        if let Some(d) = fb.delay_secs {
-            if !(d.is_finite() && d >= 0.0) {
-                return Err(MappingFileError::BadValue {
-                    target: tname.clone(),
-                    what: format!("delay_secs {d} must be a finite number >= 0"),
-                });
-            }
-            entry.options.delay_secs = d;
-        }
-        if let Some(r) = fb.reverse {
-            entry.options.reverse = r;
-        }
-        if let Some(w) = fb.weight {
-            if !(w.is_finite() && (0.0..=1.0).contains(&w)) {
-                return Err(MappingFileError::BadValue {
-                    target: tname.clone(),
-                    what: format!("weight {w} must be within 0..=1"),
-                });
-            }
-            entry.options.weight = w;
-        }
+        override_options(&mut entry.options, tname, fb)?;
         out.entries[t.index()] = Some(entry);
     }
     *table = out;
+    Ok(())
+}
+
+/// The sources a file's bone `tname` lists (`source` first, then `sources`), found in the
+/// source skeletons, with their weights checked.
+fn source_refs(
+    tname: &str,
+    fb: &FileBone,
+    sources: &[&Skeleton],
+) -> Result<Vec<SourceRef>, MappingFileError> {
+    let shorthand = fb.source.iter().map(|bone| FileSource {
+        bone: bone.clone(),
+        input: 0,
+        weight: 1.0,
+    });
+    let listed: Vec<FileSource> = shorthand.chain(fb.sources.iter().cloned()).collect();
+    let mut refs = Vec::with_capacity(listed.len());
+    for s in &listed {
+        let unknown = || MappingFileError::UnknownSourceBone {
+            target: tname.to_string(),
+            name: s.bone.clone(),
+            input: s.input,
+        };
+        let sk = sources.get(s.input as usize).ok_or_else(unknown)?;
+        let bone = sk.bone(&s.bone).ok_or_else(unknown)?;
+        if !(s.weight.is_finite() && s.weight >= 0.0) {
+            return Err(MappingFileError::BadValue {
+                target: tname.to_string(),
+                what: format!("weight {} must be a finite number >= 0", s.weight),
+            });
+        }
+        refs.push(SourceRef {
+            input: s.input,
+            bone,
+            weight: s.weight,
+        });
+    }
+    Ok(refs)
+}
+
+/// A target bone's entry after a file names sources for it (`refs`, maybe none): the sources
+/// replace the automatic ones as a certain override, keeping the bone's options; with none the
+/// automatic entry stays (`None`: nothing to drive).
+fn overridden_entry(existing: Option<TargetEntry>, refs: Vec<SourceRef>) -> Option<TargetEntry> {
+    if refs.is_empty() {
+        return existing;
+    }
+    Some(TargetEntry {
+        sources: refs,
+        options: existing.map(|e| e.options).unwrap_or_default(),
+        score: 0.0,
+        evidence: vec!["override".into()],
+        confidence: 1.0,
+    })
+}
+
+/// The per-bone options a file's bone `tname` sets, checked, over `options`.
+fn override_options(
+    options: &mut BoneOptions,
+    tname: &str,
+    fb: &FileBone,
+) -> Result<(), MappingFileError> {
+    let bad = |what: String| MappingFileError::BadValue {
+        target: tname.to_string(),
+        what,
+    };
+    if let Some(d) = fb.delay_secs {
+        if !(d.is_finite() && d >= 0.0) {
+            return Err(bad(format!("delay_secs {d} must be a finite number >= 0")));
+        }
+        options.delay_secs = d;
+    }
+    if let Some(r) = fb.reverse {
+        options.reverse = r;
+    }
+    if let Some(w) = fb.weight {
+        if !(w.is_finite() && (0.0..=1.0).contains(&w)) {
+            return Err(bad(format!("weight {w} must be within 0..=1")));
+        }
+        options.weight = w;
+    }
     Ok(())
 }
