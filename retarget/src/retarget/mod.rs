@@ -407,45 +407,10 @@ impl RetargetPlan {
             };
             let plan = &self.bones[t];
             let (local, world_rotation) = if plan.num_links == 0 {
-                let local = if with_options && plan.curl_root != NO_END {
-                    // Interior of a longer target chain: take the chain root's share of the bend.
-                    let share = ctx.curl[plan.curl_root as usize];
-                    plan.rest_local * plan.curl_frame.inverse() * share * plan.curl_frame
-                } else {
-                    plan.rest_local
-                };
+                let local = self.unmapped_local(plan, ctx, with_options);
                 (local, parent.rotation * local)
             } else {
-                let first = plan.first_link as usize;
-                let mut blended = Quat::from_xyzw(0.0, 0.0, 0.0, 0.0);
-                let mut reference = Quat::IDENTITY;
-                for (k, link) in self.links[first..first + plan.num_links as usize]
-                    .iter()
-                    .enumerate()
-                {
-                    let worlds = ctx.history[link.input as usize].get(link.delay_frames as usize);
-                    let ws = worlds[link.bone as usize];
-                    let held = link.standing.filter(|_| !with_options);
-                    let mut q = held.unwrap_or(ws.rotation) * link.offset;
-                    if let (Some(standing), true, None) = (link.standing, link.heading_only, held) {
-                        let turn = ws.rotation * standing.inverse();
-                        q = heading(turn, self.up) * standing * link.offset;
-                    }
-                    if link.end != NO_END {
-                        let to_end = worlds[link.end as usize].translation - ws.translation;
-                        if let Some(d) = to_end.try_normalize() {
-                            let predicted = q * plan.dir_local;
-                            q = Quat::from_rotation_arc(predicted, d) * q;
-                        }
-                    }
-                    if k == 0 {
-                        reference = q;
-                    } else if reference.dot(q) < 0.0 {
-                        q = -q;
-                    }
-                    blended += q * link.weight;
-                }
-                let world = blended.normalize();
+                let world = self.blend_links(plan, ctx, with_options);
                 let local = (parent.rotation.inverse() * world).normalize();
                 if with_options && plan.chain_len > 0 {
                     let (local, world, share) =
@@ -459,19 +424,7 @@ impl RetargetPlan {
             let mut translation = rest[t].translation;
             let mut position = parent.translation + parent.rotation * translation;
             if let Some(root) = self.root.as_ref().filter(|r| r.bone.index() == t) {
-                let src =
-                    ctx.history[root.input as usize].get(0)[root.source_bone.index()].translation;
-                let (s, up) = (root.scale, root.up);
-                let floor_t = root.target_floor_y.unwrap_or(s * root.source_floor_y);
-                // Height along the source's up, measured from each side's floor; the rest is
-                // horizontal travel, scaled by the leg-length ratio.
-                let y = floor_t + s * (src.dot(up) - root.source_floor_y);
-                let flat = |v: Vec3| v - up * v.dot(up);
-                position = match root.motion {
-                    RootMotion::Scaled => flat(src) * s + up * y,
-                    RootMotion::InPlace => flat(root.reference_position) + up * y,
-                    RootMotion::Fixed => root.reference_position,
-                };
+                position = root_position(root, ctx);
                 translation = parent.rotation.inverse() * (position - parent.translation);
             }
             ctx.scratch[t] = WorldTransform {
@@ -489,6 +442,71 @@ impl RetargetPlan {
         // The legs carrying them hang from the root: a carried bone goes where its leg goes.
         let moved = self.place_feet(ctx, out);
         carried::shift(&self.carried, &self.target, moved, &mut ctx.scratch, out);
+    }
+}
+
+impl RetargetPlan {
+    /// The local rotation of a bone no source drives: its rest, or, inside a longer target
+    /// chain, the chain root's share of the bend.
+    fn unmapped_local(&self, plan: &BonePlan, ctx: &RetargetContext, with_options: bool) -> Quat {
+        if with_options && plan.curl_root != NO_END {
+            let share = ctx.curl[plan.curl_root as usize];
+            plan.rest_local * plan.curl_frame.inverse() * share * plan.curl_frame
+        } else {
+            plan.rest_local
+        }
+    }
+
+    /// The world rotation a mapped bone's source links give, blended by their weights (each
+    /// link's rotation with its offset, turned to point where its source bone points; without
+    /// the options, a standing link holds its standing rotation).
+    fn blend_links(&self, plan: &BonePlan, ctx: &RetargetContext, with_options: bool) -> Quat {
+        let first = plan.first_link as usize;
+        let mut blended = Quat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+        let mut reference = Quat::IDENTITY;
+        for (k, link) in self.links[first..first + plan.num_links as usize]
+            .iter()
+            .enumerate()
+        {
+            let worlds = ctx.history[link.input as usize].get(link.delay_frames as usize);
+            let ws = worlds[link.bone as usize];
+            let held = link.standing.filter(|_| !with_options);
+            let mut q = held.unwrap_or(ws.rotation) * link.offset;
+            if let (Some(standing), true, None) = (link.standing, link.heading_only, held) {
+                let turn = ws.rotation * standing.inverse();
+                q = heading(turn, self.up) * standing * link.offset;
+            }
+            if link.end != NO_END {
+                let to_end = worlds[link.end as usize].translation - ws.translation;
+                if let Some(d) = to_end.try_normalize() {
+                    let predicted = q * plan.dir_local;
+                    q = Quat::from_rotation_arc(predicted, d) * q;
+                }
+            }
+            if k == 0 {
+                reference = q;
+            } else if reference.dot(q) < 0.0 {
+                q = -q;
+            }
+            blended += q * link.weight;
+        }
+        blended.normalize()
+    }
+}
+
+/// Where the root goes this frame: height along the source's up, measured from each side's
+/// floor; the rest is horizontal travel, scaled by the leg-length ratio (or none, or the
+/// reference position, by the root motion).
+fn root_position(root: &RootPlan, ctx: &RetargetContext) -> Vec3 {
+    let src = ctx.history[root.input as usize].get(0)[root.source_bone.index()].translation;
+    let (s, up) = (root.scale, root.up);
+    let floor_t = root.target_floor_y.unwrap_or(s * root.source_floor_y);
+    let y = floor_t + s * (src.dot(up) - root.source_floor_y);
+    let flat = |v: Vec3| v - up * v.dot(up);
+    match root.motion {
+        RootMotion::Scaled => flat(src) * s + up * y,
+        RootMotion::InPlace => flat(root.reference_position) + up * y,
+        RootMotion::Fixed => root.reference_position,
     }
 }
 
