@@ -352,81 +352,91 @@ fn parse_motion(
 ) -> Result<(f64, Vec<Vec<f32>>), SourceError> {
     let num_channels: usize = joints.iter().map(|j| j.channels.len()).sum();
     let mut i = motion_at + 1;
+    let (at, count) = header_entry(lines, &mut i, "Frames:", "\"Frames: <count>\"")?;
+    let declared = count.parse::<usize>().map_err(|_| SourceError::BadNumber {
+        line: at + 1,
+        token: count.into(),
+    })?;
+    let (at, time) = header_entry(lines, &mut i, "Frame Time:", "\"Frame Time: <seconds>\"")?;
+    let frame_time = frame_time(time, at)?;
+    let frames = frame_rows(&lines[i..], i, num_channels, declared)?;
+    Ok((frame_time, frames))
+}
+
+/// The next non-blank line from `i` (moved past it), which must start with `label`: its line
+/// index and the trimmed value after the label. `expected` names the entry in errors.
+fn header_entry<'a>(
+    lines: &[&'a str],
+    i: &mut usize,
+    label: &str,
+    expected: &str,
+) -> Result<(usize, &'a str), SourceError> {
     // Skip blank lines between header entries.
-    let next_nonblank = |i: &mut usize, expected: &str| -> Result<usize, SourceError> {
-        while *i < lines.len() && lines[*i].trim().is_empty() {
-            *i += 1;
-        }
-        if *i >= lines.len() {
-            return Err(SourceError::UnexpectedEof {
-                line: lines.len(),
-                expected: expected.into(),
-            });
-        }
+    while *i < lines.len() && lines[*i].trim().is_empty() {
         *i += 1;
-        Ok(*i - 1)
+    }
+    let Some(line) = lines.get(*i).map(|l| l.trim()) else {
+        return Err(SourceError::UnexpectedEof {
+            line: lines.len(),
+            expected: expected.into(),
+        });
     };
-    let at = next_nonblank(&mut i, "\"Frames: <count>\"")?;
-    let frames_line = lines[at].trim();
-    let declared = match frames_line.strip_prefix("Frames:") {
-        Some(v) => v
-            .trim()
-            .parse::<usize>()
-            .map_err(|_| SourceError::BadNumber {
-                line: at + 1,
-                token: v.trim().into(),
-            })?,
-        None => {
-            return Err(SourceError::Syntax {
-                line: at + 1,
-                expected: "\"Frames: <count>\"".into(),
-                found: frames_line.into(),
-            })
-        }
-    };
-    let at = next_nonblank(&mut i, "\"Frame Time: <seconds>\"")?;
-    let time_line = lines[at].trim();
-    let frame_time = match time_line.strip_prefix("Frame Time:") {
-        Some(v) => match v.trim().parse::<f64>() {
-            Ok(t) if t.is_finite() && t > 0.0 => {
-                let (shortest, longest) = FRAME_TIME_RANGE_SECS;
-                if !(shortest..=longest).contains(&t) {
-                    return Err(SourceError::limit(
-                        format!("line {}: Frame Time", at + 1),
-                        v.trim(),
-                        format!("{shortest}..={longest} s"),
-                    ));
-                }
-                t
+    let at = *i;
+    *i += 1;
+    match line.strip_prefix(label) {
+        Some(v) => Ok((at, v.trim())),
+        None => Err(SourceError::Syntax {
+            line: at + 1,
+            expected: expected.into(),
+            found: line.into(),
+        }),
+    }
+}
+
+/// The frame time `value` (on line index `at`): positive, finite and within
+/// [`FRAME_TIME_RANGE_SECS`].
+fn frame_time(value: &str, at: usize) -> Result<f64, SourceError> {
+    match value.parse::<f64>() {
+        Ok(t) if t.is_finite() && t > 0.0 => {
+            let (shortest, longest) = FRAME_TIME_RANGE_SECS;
+            if !(shortest..=longest).contains(&t) {
+                return Err(SourceError::limit(
+                    format!("line {}: Frame Time", at + 1),
+                    value,
+                    format!("{shortest}..={longest} s"),
+                ));
             }
-            _ => {
-                return Err(SourceError::BadNumber {
-                    line: at + 1,
-                    token: v.trim().into(),
-                })
-            }
-        },
-        None => {
-            return Err(SourceError::Syntax {
-                line: at + 1,
-                expected: "\"Frame Time: <seconds>\"".into(),
-                found: time_line.into(),
-            })
+            Ok(t)
         }
-    };
+        _ => Err(SourceError::BadNumber {
+            line: at + 1,
+            token: value.into(),
+        }),
+    }
+}
+
+/// The frames' channel values: one row of `num_channels` numbers per non-blank line of `rows`
+/// (which start at line index `first`), `declared` rows in all.
+fn frame_rows(
+    rows: &[&str],
+    first: usize,
+    num_channels: usize,
+    declared: usize,
+) -> Result<Vec<Vec<f32>>, SourceError> {
     // Cap the up-front reservation: the declared count is untrusted.
-    let mut frames = Vec::with_capacity(declared.min(lines.len()));
-    for (k, l) in lines.iter().enumerate().skip(i) {
+    let mut frames = Vec::with_capacity(declared.min(rows.len()));
+    for (k, l) in rows.iter().enumerate() {
         if l.trim().is_empty() {
             continue;
         }
+        let line = first + k + 1;
         let mut values = Vec::with_capacity(num_channels);
         for tok in l.split_whitespace() {
-            values.push(parse_number(tok, k + 1)?);
+            values.push(parse_number(tok, line)?);
         }
         if values.len() != num_channels {
             return Err(SourceError::FrameValues {
-                line: k + 1,
+                line,
                 expected: num_channels,
                 found: values.len(),
             });
@@ -439,7 +449,7 @@ fn parse_motion(
             found: frames.len(),
         });
     }
-    Ok((frame_time, frames))
+    Ok(frames)
 }
 
 /// Local rotation and translation of one joint from its channel values (file units).
@@ -567,23 +577,7 @@ fn build(
     frames: &[Vec<f32>],
     opts: &BvhReadOptions,
 ) -> Result<BvhRead, SourceError> {
-    // End Site names may collide with real joints; make them unique deterministically.
-    let mut used: HashSet<String> = joints
-        .iter()
-        .filter(|j| !j.is_end_site)
-        .map(|j| j.name.clone())
-        .collect();
-    for j in joints.iter_mut().filter(|j| j.is_end_site) {
-        let base = j.name.clone();
-        let mut candidate = base.clone();
-        let mut n = 2;
-        while used.contains(&candidate) {
-            candidate = format!("{base}{n}");
-            n += 1;
-        }
-        used.insert(candidate.clone());
-        j.name = candidate;
-    }
+    unique_end_site_names(&mut joints);
     let given = match opts.scale {
         Some(s) if s.is_finite() && s > 0.0 => Some(s),
         Some(s) => {
@@ -593,29 +587,17 @@ fn build(
         }
         None => None,
     };
-    let mut unit = UnitGuess {
-        scale: given.unwrap_or_else(|| provisional_scale(&joints, frames)),
-        confidence: 1.0,
+    let (unit, skeleton, to_bone) = match given {
+        Some(scale) => {
+            let (skeleton, to_bone) = skeleton_at(&joints, scale)?;
+            let unit = UnitGuess {
+                scale,
+                confidence: 1.0,
+            };
+            (unit, skeleton, to_bone)
+        }
+        None => guessed_unit(&joints, frames)?,
     };
-    let (mut skeleton, mut to_bone) = skeleton_at(&joints, unit.scale)?;
-    if given.is_none() {
-        // The provisional unit only sizes the analysis; the guess is made on the figure's
-        // standing height along its own up axis.
-        let provisional = unit.scale;
-        let first = frames
-            .first()
-            .map(|v| pose_of(&skeleton, &joints, &to_bone, v, provisional));
-        let figure = stature(&skeleton, first.as_ref());
-        unit = guess_unit(figure.height / provisional);
-        if !figure.two_legged {
-            // The guess compares the height with a person's: for a figure that reads as no
-            // two-legged body (a quadruped, a prop) that is no evidence, so say so.
-            unit.confidence = 0.0;
-        }
-        if unit.scale != provisional {
-            (skeleton, to_bone) = skeleton_at(&joints, unit.scale)?;
-        }
-    }
     let scale = unit.scale;
     let poses: Vec<Pose> = frames
         .iter()
@@ -651,4 +633,51 @@ fn build(
         channels,
         layout,
     })
+}
+
+/// End Site names may collide with real joints: each is made unique, deterministically, by a
+/// number after it (2, 3, …).
+fn unique_end_site_names(joints: &mut [RawJoint]) {
+    let mut used: HashSet<String> = joints
+        .iter()
+        .filter(|j| !j.is_end_site)
+        .map(|j| j.name.clone())
+        .collect();
+    for j in joints.iter_mut().filter(|j| j.is_end_site) {
+        let base = j.name.clone();
+        let mut candidate = base.clone();
+        let mut n = 2;
+        while used.contains(&candidate) {
+            candidate = format!("{base}{n}");
+            n += 1;
+        }
+        used.insert(candidate.clone());
+        j.name = candidate;
+    }
+}
+
+/// The file's unit guessed from the figure, with the skeleton at it. A provisional unit only
+/// sizes the analysis; the guess is made on the figure's standing height along its own up
+/// axis.
+fn guessed_unit(
+    joints: &[RawJoint],
+    frames: &[Vec<f32>],
+) -> Result<(UnitGuess, Arc<Skeleton>, Vec<usize>), SourceError> {
+    let provisional = provisional_scale(joints, frames);
+    let (skeleton, to_bone) = skeleton_at(joints, provisional)?;
+    let first = frames
+        .first()
+        .map(|v| pose_of(&skeleton, joints, &to_bone, v, provisional));
+    let figure = stature(&skeleton, first.as_ref());
+    let mut unit = guess_unit(figure.height / provisional);
+    if !figure.two_legged {
+        // The guess compares the height with a person's: for a figure that reads as no
+        // two-legged body (a quadruped, a prop) that is no evidence, so say so.
+        unit.confidence = 0.0;
+    }
+    if unit.scale == provisional {
+        return Ok((unit, skeleton, to_bone));
+    }
+    let (skeleton, to_bone) = skeleton_at(joints, unit.scale)?;
+    Ok((unit, skeleton, to_bone))
 }
