@@ -774,33 +774,8 @@ fn sample_animation(
     trs: &[(Vec3, Quat, f32)],
     opts: &GltfReadOptions,
 ) -> Result<(Vec<Pose>, f64), SourceError> {
-    let bone_of_node: BTreeMap<usize, usize> = frames
-        .iter()
-        .enumerate()
-        .map(|(b, f)| (f.node, b))
-        .collect();
-    let mut rotation_tracks: Vec<Option<Track>> = vec![None; frames.len()];
-    let mut translation_tracks: Vec<Option<Track>> = vec![None; frames.len()];
-    let mut end_secs = 0.0f32;
-    let mut first_times: Option<Vec<f32>> = None;
-    for channel in anim.channels() {
-        let Some(&bone) = bone_of_node.get(&channel.target().node().index()) else {
-            continue;
-        };
-        let Some((property, track)) = read_track(&channel, buffers)? else {
-            continue;
-        };
-        end_secs = end_secs.max(track.end_secs());
-        if first_times.is_none() {
-            first_times = Some(track.times.clone());
-        }
-        match property {
-            Property::Rotation => rotation_tracks[bone] = Some(track),
-            Property::Translation => translation_tracks[bone] = Some(track),
-            _ => {}
-        }
-    }
-    let keyed_fps = first_times.as_deref().and_then(keyframe_fps);
+    let tracks = BoneTracks::read(anim, buffers, frames)?;
+    let keyed_fps = tracks.first_times.as_deref().and_then(keyframe_fps);
     let fps = match opts.sample_fps {
         Some(f) if f.is_finite() && f > 0.0 && f <= 10_000.0 => f,
         Some(f) => {
@@ -814,54 +789,126 @@ fn sample_animation(
     // writers often store a truncated frame time (BVH's 0.008333 for 120 fps), which puts the
     // last key a fraction of a frame short of `n / fps` and would drop it under `floor`.
     let on_keys = opts.sample_fps.is_none() && keyed_fps.is_some();
+    let end_secs = tracks.end_secs;
     let wanted = if on_keys {
         (end_secs as f64 * fps).round() + 1.0
     } else {
         (end_secs as f64 * fps + 1e-3).floor() + 1.0
     };
-    // Bounded by what the file holds: its keys (times and values) across the sampled tracks.
-    let input_samples = rotation_tracks
-        .iter()
-        .chain(&translation_tracks)
-        .flatten()
-        .map(|t| t.times.len() as u64)
-        .sum::<u64>();
-    let num_frames =
-        rigcast_retarget::bounds::frames_within_budget(wanted, skeleton.num_bones(), input_samples)
-            .ok_or_else(|| {
-                SourceError::limit(
-                    format!(
-                        "animation {:?}: {} s at {fps} fps makes {wanted} frames of {} bones;",
-                        animation_name(anim),
-                        end_secs,
-                        skeleton.num_bones()
-                    ),
-                    format!("{} bone samples", wanted * skeleton.num_bones() as f64),
-                    format!(
-                        "{} for this file",
-                        rigcast_retarget::bounds::sample_budget(input_samples)
-                    ),
-                )
-            })?;
+    let num_frames = tracks.frames_within_budget(wanted, skeleton, || {
+        format!(
+            "animation {:?}: {} s at {fps} fps makes {wanted} frames of {} bones;",
+            animation_name(anim),
+            end_secs,
+            skeleton.num_bones()
+        )
+    })?;
     // On keys, sample at the keys themselves: a truncated frame time drifts from k / fps by
     // a fraction of a frame over a long clip, which would interpolate between keys.
-    let key_times = first_times
-        .as_deref()
-        .filter(|t| on_keys && t.len() == num_frames);
+    let key_times = (tracks.first_times.as_deref()).filter(|t| on_keys && t.len() == num_frames);
     let mut poses = Vec::with_capacity(num_frames);
     for k in 0..num_frames {
         let t = match key_times {
             Some(times) => times[k],
             None => (k as f64 / fps) as f32,
         };
+        poses.push(tracks.pose_at(t, skeleton, frames, trs));
+    }
+    Ok((poses, 1.0 / fps))
+}
+
+/// An animation's rotation and translation tracks per bone, how long it runs, and the key
+/// times of its first track (whose rate the clip is sampled at by default).
+struct BoneTracks {
+    rotation: Vec<Option<Track>>,
+    translation: Vec<Option<Track>>,
+    end_secs: f32,
+    first_times: Option<Vec<f32>>,
+}
+
+impl BoneTracks {
+    /// The tracks of `anim`'s channels that target one of the skeleton's bone nodes.
+    fn read(
+        anim: &::gltf::Animation<'_>,
+        buffers: &[&[u8]],
+        frames: &[BoneFrame],
+    ) -> Result<Self, SourceError> {
+        let bone_of_node: BTreeMap<usize, usize> = frames
+            .iter()
+            .enumerate()
+            .map(|(b, f)| (f.node, b))
+            .collect();
+        let mut tracks = BoneTracks {
+            rotation: vec![None; frames.len()],
+            translation: vec![None; frames.len()],
+            end_secs: 0.0,
+            first_times: None,
+        };
+        for channel in anim.channels() {
+            let Some(&bone) = bone_of_node.get(&channel.target().node().index()) else {
+                continue;
+            };
+            let Some((property, track)) = read_track(&channel, buffers)? else {
+                continue;
+            };
+            tracks.end_secs = tracks.end_secs.max(track.end_secs());
+            if tracks.first_times.is_none() {
+                tracks.first_times = Some(track.times.clone());
+            }
+            match property {
+                Property::Rotation => tracks.rotation[bone] = Some(track),
+                Property::Translation => tracks.translation[bone] = Some(track),
+                _ => {}
+            }
+        }
+        Ok(tracks)
+    }
+
+    /// `wanted` frames of `skeleton`, if within the sample budget of what the file holds (its
+    /// keys across the sampled tracks); else a limit error that `what` describes.
+    fn frames_within_budget(
+        &self,
+        wanted: f64,
+        skeleton: &Skeleton,
+        what: impl FnOnce() -> String,
+    ) -> Result<usize, SourceError> {
+        let input_samples = (self.rotation.iter())
+            .chain(&self.translation)
+            .flatten()
+            .map(|t| t.times.len() as u64)
+            .sum::<u64>();
+        let bones = skeleton.num_bones();
+        rigcast_retarget::bounds::frames_within_budget(wanted, bones, input_samples).ok_or_else(
+            || {
+                SourceError::limit(
+                    what(),
+                    format!("{} bone samples", wanted * bones as f64),
+                    format!(
+                        "{} for this file",
+                        rigcast_retarget::bounds::sample_budget(input_samples)
+                    ),
+                )
+            },
+        )
+    }
+
+    /// The pose at `t` seconds: each bone's tracks sampled (its rest where it has none), in
+    /// the skeleton's bone frames.
+    fn pose_at(
+        &self,
+        t: f32,
+        skeleton: &Skeleton,
+        frames: &[BoneFrame],
+        trs: &[(Vec3, Quat, f32)],
+    ) -> Pose {
         let mut pose = Pose::from_rest(skeleton);
         for (b, f) in frames.iter().enumerate() {
             let (rest_t, rest_r, _) = trs[f.node];
-            let r = rotation_tracks[b]
+            let r = self.rotation[b]
                 .as_ref()
                 .map(|tr| tr.sample_quat(t))
                 .unwrap_or(rest_r);
-            let tt = translation_tracks[b]
+            let tt = self.translation[b]
                 .as_ref()
                 .map(|tr| tr.sample_vec3(t))
                 .unwrap_or(rest_t);
@@ -869,7 +916,6 @@ fn sample_animation(
             pose.translations[b] = tt;
             pose.rotations[b] = r;
         }
-        poses.push(pose);
+        pose
     }
-    Ok((poses, 1.0 / fps))
 }
