@@ -510,3 +510,77 @@ fn a_floating_rest_target_is_locked_where_its_feet_are_shown() {
         assert!(worst_cm <= 10.0, "{rel}: {worst_cm} cm");
     }
 }
+
+/// Live, a character whose posture does not stand on its floor is pinned at the heights its
+/// animation stands at, as offline (where `fit_to_standing` reads them off the animation):
+/// MakeHuman's rest stands along its own up, not this world's, so the retarget places no
+/// floor under it. Pinned at its rest's heights, the pymo Meredith walk put MakeHuman's pins
+/// up to 9 cm under the animation's standing ankles and the body came down onto them (the
+/// planted ankles 3.1 cm off the animation's on the median frame; 1.5 cm learnt).
+#[test]
+fn a_live_character_whose_posture_does_not_stand_is_pinned_at_its_animations_heights() {
+    let (Some(s), Some(t)) = (
+        common::shared_data("zoo/bvh/sparse_spine_head__pymo_meredith.bvh"),
+        common::shared_data("zoo/bvh/makehuman__walk1.bvh"),
+    ) else {
+        return;
+    };
+    let (source, target) = (
+        rigcast_sources::load_clip(&s).unwrap(),
+        rigcast_sources::load_clip(&t).unwrap(),
+    );
+    let plan = plan_mapping(&source, &target, None).unwrap();
+    let opts = plan.retarget_options(&source, rigcast_retarget::RootMotion::Scaled);
+    let skeleton = &target.skeleton;
+    let mut mapping = Mapping::build(&[&source.skeleton], skeleton, &plan.table, &opts).unwrap();
+    if let Some(floor) = mapping.measure_source_floor(&source.poses) {
+        mapping.set_source_floor_y(floor);
+    }
+    let (sa, ta) = (&plan.source_analysis, &plan.target_analysis);
+    let mut lock = FootLock::new(&mapping, sa, ta, LockSettings::default()).unwrap();
+    let dt = source.frame_time_secs as f32;
+    let source_legs = find_legs(&source.skeleton, sa);
+    let plants = detect_clip(
+        &source.skeleton,
+        &source_legs,
+        &source.poses,
+        dt,
+        sa.up,
+        &PlantSettings::default(),
+    );
+    let legs: Vec<(Leg, usize)> = find_legs(skeleton, ta)
+        .into_iter()
+        .filter_map(|l| Some((l, source_legs.iter().position(|s| s.key() == l.key())?)))
+        .collect();
+    assert_eq!(legs.len(), 2);
+    let up = plan.source_up;
+    let ankle = |pose: &rigcast_retarget::Pose, leg: &Leg| {
+        world_transforms(skeleton, pose)[leg.foot.index()]
+            .translation
+            .dot(up)
+    };
+    // How far each planted ankle stands from the animation's, past the first second (its
+    // first stance is what it learns from).
+    let mut off: Vec<f32> = Vec::new();
+    let mut out = mapping.new_target_pose();
+    for (i, p) in source.poses.iter().enumerate() {
+        mapping.apply_one(p, &mut out).unwrap();
+        let free = out.clone();
+        lock.apply_live(p, true, dt, &mut out);
+        if (i as f32) * dt < 1.0 {
+            continue;
+        }
+        for (leg, s) in &legs {
+            if plants.is_planted(i, *s) {
+                off.push(100.0 * (ankle(&out, leg) - ankle(&free, leg)).abs());
+            }
+        }
+    }
+    off.sort_by(f32::total_cmp);
+    let median = off[off.len() / 2];
+    println!(
+        "planted ankles off the animation's: median {median:.2} cm over {} frames",
+        off.len()
+    );
+    assert!(median < 2.0, "{median} cm");
+}

@@ -282,9 +282,7 @@ impl FootLock {
             if foot.learns_heights {
                 // Where the heel stands as the lock rolls the foot, from its first stance at
                 // once (as the pitch): as offline, off the animation, not the unknown floor.
-                foot.stand_secs += dt;
-                let k = dt / foot.stand_secs;
-                foot.heel_clearance += k * (stance.ankle - rolled - foot.heel_clearance);
+                foot.learn_height(stance.ankle - rolled, dt);
                 foot.ball_clearance =
                     foot.heel_clearance + foot.foot_length * foot.standing_pitch.sin();
             }

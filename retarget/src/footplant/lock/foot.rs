@@ -54,13 +54,21 @@ pub(super) struct Foot {
     /// Live: how long (seconds) this foot has stood flat under a lock, what its `pitch_fix`
     /// has been learnt from ([`FootLock::learn_fit`]).
     pub(super) fit_secs: f32,
-    /// The mapping does not know where the character's floor is ([`FloorAt::Unknown`]), or the
-    /// character's posture is a frame of its own motion, and no clip was read for the foot's
+    /// The character's posture does not stand on its floor (the mapping knows no floor for
+    /// it, it floats, or it is a frame of its own motion), and no clip was read for the foot's
     /// standing heights: it learns them from its flat stances
     /// ([`FootLock::learn_fit`]), and is not pulled towards that floor before it has stood.
     pub(super) learns_heights: bool,
     /// How long (seconds) such a foot has stood since: what its heights are learnt from.
     pub(super) stand_secs: f32,
+    /// The mean of the heel's standing heights seen so far, and of their squares (their
+    /// spread), [`Foot::learn_height`].
+    pub(super) learnt_mean: f32,
+    pub(super) learnt_sq: f32,
+    /// Where the mapping places the character's floor and its posture is its own (a rest
+    /// that floats, or stands along an up of its own): the heel's standing height its rest
+    /// gives, which the motion may confirm ([`Foot::learn_height`]).
+    pub(super) rest_heel: Option<f32>,
     /// The foot's left-to-right axis, fixed in the foot bone's frame: what it pitches about.
     pub(super) side_local: Vec3,
     /// A direction fixed in the foot bone's frame whose way over the ground is the foot's
@@ -190,6 +198,32 @@ impl Foot {
         let side = heading_about(up, up.cross(rotation * self.side_local));
         let w = level_weight(ahead, up);
         wrap(side + w * wrap(heading_about(up, ahead) - side))
+    }
+
+    /// Takes one more `dt` of a flat stance whose heel stands `height` above the floor (as the
+    /// lock rolls the foot) into the heel's standing height: the mean of every stance so far
+    /// (a foot's standing height does not change over a performance; an average forgetting
+    /// after a second followed each stance's own height and moved the pins from one stance to
+    /// the next). Where the rest gives a height (`rest_heel`), that height as long as the mean
+    /// lies within the stances' own spread of it, the mean once it lies twice that far,
+    /// smoothly between: a floating rest whose heights are right (the CMU-style rigs) keeps
+    /// them, where the motion's would move the pins by the stances' spread (live, planted feet
+    /// within 1 cm of the source's on 8 pairs fewer), and one whose heights are not (MakeHuman:
+    /// its pins up to 9 cm under the animation's standing ankles) takes the motion's.
+    pub(super) fn learn_height(&mut self, height: f32, dt: f32) {
+        self.stand_secs += dt;
+        let k = dt / self.stand_secs;
+        self.learnt_mean += k * (height - self.learnt_mean);
+        self.learnt_sq += k * (height * height - self.learnt_sq);
+        let mean = self.learnt_mean;
+        let spread = (self.learnt_sq - mean * mean).max(0.0).sqrt();
+        self.heel_clearance = match self.rest_heel {
+            Some(rest) => {
+                let d = mean - rest;
+                rest + d * ((d.abs() - spread) / spread.max(1e-6)).clamp(0.0, 1.0)
+            }
+            None => mean,
+        };
     }
 
     /// The foot's length to its ball; `None` without one (the toes not rigged).
@@ -480,6 +514,9 @@ impl Foot {
             fit_secs: 0.0,
             learns_heights: false,
             stand_secs: 0.0,
+            learnt_mean: 0.0,
+            learnt_sq: 0.0,
+            rest_heel: None,
             side_local: Vec3::Z,
             heading_local: Vec3::X,
             pole_local: Vec3::X,

@@ -13,8 +13,8 @@ pub(super) struct Lifts {
     /// Offline: how high its ball stands above its ground (its heel's where it has none).
     pub(super) ball: Option<[f32; MAX_FEET]>,
     pub(super) landing: [f32; MAX_FEET],
-    /// How near each source foot's lift-off is (offline, [`release_weight`]; live, where the
-    /// lift-off is not known, 0).
+    /// How near each source foot's lift-off is (offline, [`release_weight`]; live,
+    /// [`LiveRelease`]).
     pub(super) release: [f32; MAX_FEET],
     /// The ball comes down with the ankle ahead of a plant (offline, where the plant is
     /// known; live the foot keeps the animation's pitch, toes up for a heel strike: a ball
@@ -64,6 +64,52 @@ pub(super) fn release_weight(plants: &PlantTrack, frame: usize, leg: usize, lead
     };
     let t = (lead - k) as f32 / lead as f32;
     t * t * (3.0 - 2.0 * t)
+}
+
+/// Live, where the lift-offs are not known: per source leg, how near its planted foot's
+/// lift-off looks, as [`release_weight`] is offline. While the source stands on its ball
+/// alone (its heel up: a toe-off), from how fast its lowest contact rises towards the height
+/// the detector lets it go at; 0 while it stands otherwise (a stand on the toes, whose ball
+/// does not rise, stays 0).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct LiveRelease {
+    /// The foot's lowest contact above its ground at the last sample (source units).
+    pub(super) low: [f32; MAX_FEET],
+    pub(super) weight: [f32; MAX_FEET],
+}
+
+impl LiveRelease {
+    /// Takes a new source sample `dt` after the last: per leg its plant, which of its contacts
+    /// hold, its lowest contact's height above its ground and the height the detector lets a
+    /// planted foot go at (`high`). Each weight rises from 0 to 1 as the time that contact
+    /// takes to reach `high` at its present speed comes down from `lead` seconds to none
+    /// (smoothly, as offline), and holds until the foot lifts or its heel comes back down.
+    pub(super) fn update(
+        &mut self,
+        planted: &[bool],
+        contacts: &[Option<Contact>],
+        lifts: &[f32],
+        high: &[f32],
+        dt: f32,
+        lead: f32,
+    ) {
+        for (s, ((&p, &lift), &high)) in planted.iter().zip(lifts).zip(high).enumerate() {
+            let rising = if dt > 0.0 {
+                (lift - self.low[s]) / dt
+            } else {
+                0.0
+            };
+            self.low[s] = lift;
+            if !p || contacts.get(s).copied().flatten() != Some(Contact::Ball) {
+                self.weight[s] = 0.0;
+                continue;
+            }
+            if rising > 0.0 && lead > 0.0 {
+                let t = (1.0 - (high - lift).max(0.0) / (rising * lead)).clamp(0.0, 1.0);
+                self.weight[s] = self.weight[s].max(t * t * (3.0 - 2.0 * t));
+            }
+        }
+    }
 }
 
 /// Live, where the plants ahead are not known: per source leg, how near its foot's next

@@ -31,7 +31,8 @@
 //!                     goal = where it should go + offset
 //!                     pinned: the foot rolled on its pin with the animation's pitch
 //!                     (`Foot::roll`): on its ball while that is pitched lower than standing
-//!                     (offline, as its lift-off nears, its ankle no lower than the
+//!                     (as its lift-off nears, known offline, live foreseen from the
+//!                     source's ball rising, its ankle no lower than the
 //!                     animation's: a foot that cannot keep its ball down there leaves the
 //!                     floor early rather than bend the legs), else on its heel and stood
 //!                     flat (ball pitched down to its standing
@@ -235,8 +236,9 @@ pub struct FootLock {
     /// A frame has been locked since the lock was built ([`FootLock::reset`] keeps it: the
     /// character was shown, so later plants blend from it).
     shown_once: bool,
-    /// Live: how near each source foot's next plant is.
+    /// Live: how near each source foot's next plant is, and its lift-off.
     landing: LiveLanding,
+    release: LiveRelease,
 }
 
 /// The angle of `d`'s way over the ground about `up` (from a fixed direction across it).
@@ -296,14 +298,19 @@ impl FootLock {
             let at = |b: BoneId| source.positions[b.index()];
             l.toes.map_or(0.0, |t| (at(t) - at(l.foot)).length())
         };
-        // Not knowing the floor, the mapping gives the source's scaled: the retargeted feet
-        // may stand far from it (LaFAN1 onto Casual about 1 m under it). A posture read off a
-        // frame of the character's own motion places its floor but says nothing of how its
-        // feet stand (offline, `fit_to_standing` takes their heights from the animation as
-        // well): pinned at that frame's heights, the Bandai-Namco run rig stood its feet
-        // 2.6-15 cm off its ground live, its thighs 5-9° mean off the performer's.
-        let learns_heights =
-            (floor_at == FloorAt::Unknown && !mapping.target_posture_stands()) || target.used_pose;
+        // A character whose posture does not stand on its floor has no standing heights to
+        // trust: live its feet learn them from the animation's stances, as offline's
+        // `fit_to_standing` reads them off the animation. Not knowing the floor, the mapping
+        // gives the source's scaled: the retargeted feet may stand far from it (LaFAN1 onto
+        // Casual about 1 m under it). A posture read off a frame of the character's own
+        // motion places its floor but says nothing of how its feet stand: pinned at that
+        // frame's heights, the Bandai-Namco run rig stood its feet 2.6-15 cm off its ground
+        // live, its thighs 5-9° mean off the performer's. A rest floating at the origin, or
+        // standing along an up of its own, places no floor either: pinned at the rest's
+        // heights, the pymo Meredith walk onto MakeHuman had its pins 9 cm under the
+        // animation's standing ankles, the body carried down onto them and the swinging foot
+        // lifted back over its floor, that thigh 15-22° off.
+        let learns_heights = !mapping.target_posture_stands() || target.used_pose;
         let feet = target_legs
             .iter()
             .map(|leg| {
@@ -311,6 +318,8 @@ impl FootLock {
                 let mut foot = standing_foot(leg, source, &aligned, own, target, up, lowest);
                 foot.heel_reach = source.map_or(0.0, |s| lift_scale * source_foot(&source_legs[s]));
                 foot.learns_heights = learns_heights;
+                let own_floor = floor_at != FloorAt::Unknown && !target.used_pose;
+                foot.rest_heel = (learns_heights && own_floor).then_some(foot.heel_clearance);
                 foot
             })
             .collect();
@@ -339,6 +348,7 @@ impl FootLock {
             lift_scale,
             shown_once: false,
             landing: LiveLanding::default(),
+            release: LiveRelease::default(),
         })
     }
 
@@ -379,6 +389,7 @@ impl FootLock {
         }
         self.shift = RootShift::default();
         self.landing = LiveLanding::default();
+        self.release = LiveRelease::default();
         self.last_drop = 0.0;
         self.drop_offset = Decay::default();
     }
@@ -421,6 +432,20 @@ impl FootLock {
             (self.landing).update(flags, heights, &near[..legs], dt_secs, lead);
         }
         lifts.landing = self.landing.weight;
+        // A pin on its ball rises to the retargeted ankle as its lift-off nears, as offline
+        // ([`Foot::raise_to_animation`]), the lift-off foreseen from the source's ball rising.
+        if new_sample {
+            let mut high = [0.0; MAX_FEET];
+            let p = self.settings.plants;
+            for (h, leg) in high.iter_mut().zip(self.detector.legs()) {
+                *h = p.release_factor * p.height_ratio * leg.length;
+            }
+            let legs = self.detector.legs().len();
+            let (contacts, lows) = (self.detector.contacts(), self.detector.lifts());
+            let (flags, lead) = (&planted[..legs], self.settings.blend_secs);
+            (self.release).update(flags, contacts, lows, &high[..legs], dt_secs, lead);
+        }
+        lifts.release = self.release.weight;
         for (p, s) in lifts.contact.iter_mut().zip(self.detector.contacts()) {
             *p = *s;
         }
@@ -1188,6 +1213,69 @@ mod tests {
         assert_eq!(w(18), 0.0);
         assert_eq!(w(19), 0.0);
         assert_eq!(release_weight(&plants, 9, 0, 0), 0.0);
+    }
+
+    #[test]
+    fn a_learnt_standing_height_keeps_the_rests_where_the_motion_confirms_it() {
+        let dt = 1.0 / 60.0;
+        // Stances alternating between two heights, a second each.
+        let learn = |rest: Option<f32>, heights: [f32; 2]| {
+            let mut foot = pinned_foot(true);
+            foot.rest_heel = rest;
+            for k in 0..600 {
+                foot.learn_height(heights[(k / 60) % 2], dt);
+            }
+            foot.heel_clearance
+        };
+        // No rest height: the mean of the stances.
+        assert!((learn(None, [0.07, 0.11]) - 0.09).abs() < 1e-4);
+        // A rest height within the stances' spread of their mean (0.09 ± 0.02): the rest's.
+        assert!((learn(Some(0.08), [0.07, 0.11]) - 0.08).abs() < 1e-4);
+        // One more than twice their spread away (0.15 ± 0.01 against 0.08): the motion's.
+        assert!((learn(Some(0.08), [0.14, 0.16]) - 0.15).abs() < 1e-4);
+        // Between, between the two.
+        let h = learn(Some(0.08), [0.09, 0.13]);
+        assert!(h > 0.08 + 1e-3 && h < 0.11 - 1e-3, "{h}");
+    }
+
+    #[test]
+    fn a_live_lift_off_is_foreseen_from_the_ball_rising_on_a_toe_off() {
+        let (dt, lead, high) = (1.0 / 60.0, 0.1, 0.05);
+        let ball = Some(Contact::Ball);
+        let step = |r: &mut LiveRelease, planted: bool, contact, low: f32| {
+            r.update(&[planted], &[contact], &[low], &[high], dt, lead);
+            r.weight[0]
+        };
+        // Standing flat, or on the toes with the ball still: nothing.
+        let mut r = LiveRelease::default();
+        for _ in 0..10 {
+            assert_eq!(step(&mut r, true, Some(Contact::Flat), 0.0), 0.0);
+        }
+        for _ in 0..10 {
+            assert_eq!(step(&mut r, true, ball, 0.002), 0.0);
+        }
+        // A toe-off: the ball rising at 0.2 m/s. Nothing while the release height is more
+        // than `lead` away at that speed, then rising smoothly to 1 as the ball reaches it.
+        let mut low = 0.002;
+        let mut ramp = Vec::new();
+        while low < high {
+            low += 0.2 * dt;
+            ramp.push((low, step(&mut r, true, ball, low)));
+        }
+        let far = |(l, _): &(f32, f32)| high - l > 0.2 * lead;
+        assert!(
+            ramp.iter().filter(|x| far(x)).all(|x| x.1 == 0.0),
+            "{ramp:?}"
+        );
+        assert!(ramp.windows(2).all(|w| w[1].1 >= w[0].1), "{ramp:?}");
+        assert_eq!(ramp.last().map(|x| x.1), Some(1.0), "{ramp:?}");
+        // Held while the ball pauses; cleared when the foot lifts or its heel comes down.
+        assert_eq!(step(&mut r, true, ball, low), 1.0);
+        assert_eq!(step(&mut r, false, None, low + 0.01), 0.0);
+        step(&mut r, true, ball, 0.0);
+        step(&mut r, true, ball, 0.04);
+        assert!(r.weight[0] > 0.0);
+        assert_eq!(step(&mut r, true, Some(Contact::Flat), 0.04), 0.0);
     }
 
     #[test]
