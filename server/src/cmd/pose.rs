@@ -94,6 +94,34 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     };
     let mut source = FfmpegSource::open_at(&args.video, size, args.fps)?;
     let fps = source.fps().unwrap_or(args.fps);
+    let mut pipeline = PosePipeline::new(&pipeline_config(args)?)?;
+    let skeleton = Arc::clone(pipeline.skeleton());
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let poses = track(args, (&mut source, fps), &mut pipeline, &mut out)?;
+    let Some(path) = &args.output else {
+        return Ok(());
+    };
+    if poses.is_empty() {
+        anyhow::bail!(
+            "{}: no frames decoded, nothing to write",
+            args.video.display()
+        );
+    }
+    let name = args
+        .video
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "pose".into());
+    let clip = Clip::new(name, skeleton, poses, 1.0 / fps)?;
+    rigcast_sources::save_clip(path, &clip)
+        .with_context(|| format!("writing {}", path.display()))?;
+    eprintln!("pose: wrote {}", path.display());
+    Ok(())
+}
+
+/// The pipeline the command line asks for, over the defaults.
+fn pipeline_config(args: &PoseArgs) -> anyhow::Result<PipelineConfig> {
     let defaults = PipelineConfig::default();
     let tracker = TrackerConfig {
         max_people: args.people.unwrap_or(defaults.tracker.max_people),
@@ -103,44 +131,44 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
     if tracker.max_people == 0 {
         anyhow::bail!("--people must be at least 1");
     }
-    let config = PipelineConfig {
+    Ok(PipelineConfig {
         model: args.model,
         threads: args.threads.unwrap_or(defaults.threads),
         tracker,
         ..defaults
-    };
-    let mut pipeline = PosePipeline::new(&config)?;
-    let skeleton = Arc::clone(pipeline.skeleton());
-    let mut pose = skeleton.rest_pose();
-    let mut poses: Vec<Pose> = Vec::new();
+    })
+}
 
-    let stdout = std::io::stdout();
-    let mut out = std::io::BufWriter::new(stdout.lock());
+/// Runs `pipeline` over the video (`source` at `fps`), writing the JSON to `out` with
+/// `--json`, progress and a summary to standard error. Returns person #0's pose on every
+/// frame when a BVH is to be written (the last seen pose where they are not), else nothing.
+fn track(
+    args: &PoseArgs,
+    (source, fps): (&mut FfmpegSource, f64),
+    pipeline: &mut PosePipeline,
+    out: &mut impl Write,
+) -> anyhow::Result<Vec<Pose>> {
+    let mut pose = pipeline.skeleton().rest_pose();
+    let mut poses: Vec<Pose> = Vec::new();
     if args.json {
         let mut fps_text = String::new();
         push_json_number(&mut fps_text, fps);
         write!(out, "{{\"fps\":{fps_text},\"frames\":[")?;
     }
     let mut frame = RgbFrame::default();
-    let started = Instant::now();
-    let (mut num_frames, mut num_found) = (0u64, 0u64);
-    // Time to the first pose: decoder start-up plus the first frame's work (what a performer
-    // waits for before anything moves).
-    let mut first_pose_ms = None;
+    let mut tally = Tally::new();
     let mut line = String::new();
-    while args.max_frames.is_none_or(|max| num_frames < max) && source.next_frame(&mut frame)? {
+    while args.max_frames.is_none_or(|max| tally.frames < max) && source.next_frame(&mut frame)? {
         pipeline.process_frame(&frame)?;
-        first_pose_ms.get_or_insert_with(|| started.elapsed().as_secs_f64() * 1e3);
-        if pipeline.person(0).is_some() {
-            num_found += 1;
-            if let Some(p) = pipeline.pose(0) {
-                pose.clone_from(p);
-            }
+        tally.posed();
+        let seen = pipeline.person(0).is_some();
+        if let (true, Some(p)) = (seen, pipeline.pose(0)) {
+            pose.clone_from(p);
         }
         if args.json {
             line.clear();
-            frame_json(frame.time_secs, &pipeline, &mut line);
-            if num_frames > 0 {
+            frame_json(frame.time_secs, pipeline, &mut line);
+            if tally.frames > 0 {
                 out.write_all(b",")?;
             }
             out.write_all(line.as_bytes())?;
@@ -148,45 +176,70 @@ pub fn run(args: &PoseArgs) -> anyhow::Result<()> {
         if args.output.is_some() {
             poses.push(pose.clone());
         }
-        num_frames += 1;
-        if num_frames % 30 == 0 {
-            eprintln!(
-                "pose: frame {num_frames} ({:.1} s of video), person in {num_found}, {:.1} fps",
-                frame.time_secs,
-                num_frames as f64 / started.elapsed().as_secs_f64()
-            );
-        }
+        tally.frame(seen, frame.time_secs);
     }
     if args.json {
         out.write_all(b"]}\n")?;
     }
     out.flush()?;
-    eprintln!(
-        "pose: {num_frames} frames, person #0 in {num_found}, {:.1} s ({:.1} fps), first pose \
-         after {:.0} ms, {:?}",
-        started.elapsed().as_secs_f64(),
-        num_frames as f64 / started.elapsed().as_secs_f64().max(1e-9),
-        first_pose_ms.unwrap_or(0.0),
-        pipeline.stats()
-    );
-    if let Some(path) = &args.output {
-        if poses.is_empty() {
-            anyhow::bail!(
-                "{}: no frames decoded, nothing to write",
-                args.video.display()
+    tally.summary(pipeline);
+    Ok(poses)
+}
+
+/// Frames tracked so far, for progress lines and the summary.
+struct Tally {
+    started: Instant,
+    frames: u64,
+    /// Frames with person #0.
+    found: u64,
+    /// Time to the first pose: decoder start-up plus the first frame's work (what a performer
+    /// waits for before anything moves).
+    first_pose_ms: Option<f64>,
+}
+
+impl Tally {
+    fn new() -> Self {
+        Tally {
+            started: Instant::now(),
+            frames: 0,
+            found: 0,
+            first_pose_ms: None,
+        }
+    }
+
+    /// A frame's pose is out.
+    fn posed(&mut self) {
+        let ms = self.started.elapsed().as_secs_f64() * 1e3;
+        self.first_pose_ms.get_or_insert(ms);
+    }
+
+    /// Counts a tracked frame (at `time_secs` of the video); a progress line every 30.
+    fn frame(&mut self, seen: bool, time_secs: f64) {
+        let secs = self.started.elapsed().as_secs_f64();
+        self.found += u64::from(seen);
+        self.frames += 1;
+        if self.frames % 30 == 0 {
+            eprintln!(
+                "pose: frame {} ({time_secs:.1} s of video), person in {}, {:.1} fps",
+                self.frames,
+                self.found,
+                self.frames as f64 / secs
             );
         }
-        let name = args
-            .video
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "pose".into());
-        let clip = Clip::new(name, skeleton, poses, 1.0 / fps)?;
-        rigcast_sources::save_clip(path, &clip)
-            .with_context(|| format!("writing {}", path.display()))?;
-        eprintln!("pose: wrote {}", path.display());
     }
-    Ok(())
+
+    fn summary(&self, pipeline: &PosePipeline) {
+        let secs = self.started.elapsed().as_secs_f64();
+        eprintln!(
+            "pose: {} frames, person #0 in {}, {secs:.1} s ({:.1} fps), first pose after {:.0} ms, \
+             {:?}",
+            self.frames,
+            self.found,
+            self.frames as f64 / secs.max(1e-9),
+            self.first_pose_ms.unwrap_or(0.0),
+            pipeline.stats()
+        );
+    }
 }
 
 /// Appends `v` rounded to 5 decimals. JSON has no NaN/infinity; a non-finite value becomes 0
