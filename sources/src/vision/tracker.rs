@@ -15,7 +15,8 @@
 //! what `max_people: 1` costs whatever `max_people` is, and the detector runs at most once a
 //! frame. A detection costs a landmark run only when a slot is open to someone there, and a
 //! reading that turned over since the last frame continues nobody. A track continues when its whole body, or
-//! what both frames see of it, stays about the same size, and near where it was or where its
+//! what both frames see of it, stays about the same size (or is as tall as the person stands),
+//! and near where it was or where its
 //! last step takes it. A detection whose face or hips are a tracked person's is that person.
 //! With nobody tracked, the
 //! person found takes the lowest free slot once nobody was lost for a few frames
