@@ -23,7 +23,7 @@ use rigcast_retarget::{Clip, Skeleton};
 use serde_json::{json, Map, Value};
 
 use crate::character::vrm_truth;
-use crate::offline::{map_pair, TableCache};
+use crate::offline::{map_pair, MappedPair, TableCache};
 
 /// Options of `rigcast map`.
 #[derive(Debug, Clone, Args)]
@@ -132,36 +132,17 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     let t_load = Instant::now();
     let src = load(&args.source, args.unit.unit, "source")?;
     let tgt = load(&args.target, args.target_unit, "target")?;
-    let overrides = match &args.overrides {
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read overrides file {}", p.display()))?;
-            Some(
-                parse_mapping_file(&text)
-                    .with_context(|| format!("overrides file {}", p.display()))?,
-            )
-        }
-        None => None,
-    };
+    let overrides = read_overrides(args)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
-
-    let mut opts = MapOptions::default();
-    if let Some(t) = args.threshold {
-        if !t.is_finite() {
-            bail!("--threshold must be a finite number, got {t}");
-        }
-        opts.threshold = t;
-    }
-    opts.mirror = args.mirror;
+    let opts = map_options(args)?;
 
     let t_map = Instant::now();
-    let truth_s = vrm_truth(&args.source);
-    let truth_t = vrm_truth(&args.target);
+    let truths = (vrm_truth(&args.source), vrm_truth(&args.target));
     let mut cache = cache_dir(args).map(|dir| DiskCache { dir });
     let pair = map_pair(
         &src,
         &tgt,
-        (truth_s.as_deref(), truth_t.as_deref()),
+        (truths.0.as_deref(), truths.1.as_deref()),
         &opts,
         cache.as_mut().map(|c| c as &mut dyn TableCache),
         overrides.as_ref(),
@@ -171,59 +152,116 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
         None => "mapping".into(),
     })?;
     let (ss, ts) = (&*src.skeleton, &*tgt.skeleton);
-    let (table, sa, ta) = (pair.table, pair.source_analysis, pair.target_analysis);
-    let from_cache = pair.from_cache;
     let elapsed_ms = t_map.elapsed().as_secs_f64() * 1e3;
 
     if let Some(p) = &args.save {
-        let text = file::mapping_file_to_string(&to_mapping_file(&table, &[ss], ts));
+        let text = file::mapping_file_to_string(&to_mapping_file(&pair.table, &[ss], ts));
         std::fs::write(p, text).with_context(|| format!("cannot write {}", p.display()))?;
     }
-
-    let colors = mapping_colors(ts, &ta, &table);
+    let report = Report {
+        skeletons: (ss, ts),
+        pair: &pair,
+        truths: (truths.0.as_deref(), truths.1.as_deref()),
+        opts: &opts,
+        times_ms: (load_ms, elapsed_ms),
+    };
     if args.json {
-        let (mapping, scores, evidence, color_map) = per_bone_json(ss, ts, &table, &colors);
-        let (confidence, flagged) = confidence_json(ts, &table);
-        let out = json!({
+        println!("{}", report.json(args));
+    } else {
+        report.print_table();
+    }
+    Ok(())
+}
+
+/// The `--overrides` file, parsed, if one is given.
+fn read_overrides(args: &MapArgs) -> anyhow::Result<Option<file::MappingFile>> {
+    let Some(p) = &args.overrides else {
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(p)
+        .with_context(|| format!("cannot read overrides file {}", p.display()))?;
+    let parsed =
+        parse_mapping_file(&text).with_context(|| format!("overrides file {}", p.display()))?;
+    Ok(Some(parsed))
+}
+
+/// The mapper's options from `--threshold` and `--mirror`.
+fn map_options(args: &MapArgs) -> anyhow::Result<MapOptions> {
+    let mut opts = MapOptions::default();
+    if let Some(t) = args.threshold {
+        if !t.is_finite() {
+            bail!("--threshold must be a finite number, got {t}");
+        }
+        opts.threshold = t;
+    }
+    opts.mirror = args.mirror;
+    Ok(opts)
+}
+
+/// What `rigcast map` reports: the mapped pair with both skeletons, their VRM ground truths,
+/// the options, and the times (files read, mapping) in ms.
+struct Report<'a> {
+    skeletons: (&'a Skeleton, &'a Skeleton),
+    pair: &'a MappedPair,
+    truths: (
+        Option<&'a [(String, String)]>,
+        Option<&'a [(String, String)]>,
+    ),
+    opts: &'a MapOptions,
+    times_ms: (f64, f64),
+}
+
+impl Report<'_> {
+    /// The `--json` object.
+    fn json(&self, args: &MapArgs) -> Value {
+        let ((ss, ts), pair) = (self.skeletons, self.pair);
+        let (table, sa, ta) = (&pair.table, &pair.source_analysis, &pair.target_analysis);
+        let colors = mapping_colors(ts, ta, table);
+        let (mapping, scores, evidence, color_map) = per_bone_json(ss, ts, table, &colors);
+        let (confidence, flagged) = confidence_json(ts, table);
+        json!({
             "source": args.source.display().to_string(),
             "target": args.target.display().to_string(),
             "mapping": mapping,
-            "roles": {"source": roles_json(ss, &sa), "target": roles_json(ts, &ta)},
+            "roles": {"source": roles_json(ss, sa), "target": roles_json(ts, ta)},
             "warnings": {"source": sa.warnings, "target": ta.warnings},
             "humanoid": {
-                "source": humanoid_json(ss, &sa, truth_s.as_deref()),
-                "target": humanoid_json(ts, &ta, truth_t.as_deref()),
+                "source": humanoid_json(ss, sa, self.truths.0),
+                "target": humanoid_json(ts, ta, self.truths.1),
             },
             "colors": color_map,
             "scores": scores,
             "evidence": evidence,
             "confidence": confidence,
             "flagged": flagged,
-            "max_score": opts.max_score(),
-            "threshold": opts.threshold,
-            "cached": from_cache,
-            "load_ms": load_ms,
-            "elapsed_ms": elapsed_ms,
-        });
-        println!("{out}");
-    } else {
-        for (which, a) in [("source", &sa), ("target", &ta)] {
+            "max_score": self.opts.max_score(),
+            "threshold": self.opts.threshold,
+            "cached": pair.from_cache,
+            "load_ms": self.times_ms.0,
+            "elapsed_ms": self.times_ms.1,
+        })
+    }
+
+    /// The table, its flags and a summary line on standard output; warnings on standard error.
+    fn print_table(&self) {
+        let ((ss, ts), pair) = (self.skeletons, self.pair);
+        let (table, sa, ta) = (&pair.table, &pair.source_analysis, &pair.target_analysis);
+        for (which, a) in [("source", sa), ("target", ta)] {
             for w in &a.warnings {
                 eprintln!("warning: {which}: {w}");
             }
         }
-        print!("{}", render_table(ss, &sa, ts, &ta, &table));
-        print!("{}", render_flags(ss, ts, &table));
+        print!("{}", render_table(ss, sa, ts, ta, table));
+        print!("{}", render_flags(ss, ts, table));
         println!(
             "{} of {} target bones mapped in {:.2} ms{} (files read in {:.1} ms)",
             table.num_mapped(),
             ts.num_bones(),
-            elapsed_ms,
-            if from_cache { ", from cache" } else { "" },
-            load_ms
+            self.times_ms.1,
+            if pair.from_cache { ", from cache" } else { "" },
+            self.times_ms.0
         );
     }
-    Ok(())
 }
 
 /// Per target bone, keyed by its name: source bone, score, evidence, colours.
