@@ -633,3 +633,77 @@ fn live_a_learnt_standing_height_is_the_mean_of_every_stance() {
         off * 100.0
     );
 }
+
+/// Live, a foot that has not stood yet takes the pitch fit its fellow foot has learnt: the
+/// character's feet are built alike. The setting of
+/// [`live_a_rest_standing_along_its_own_up_gives_its_feet_pitch`], with the left foot lifted
+/// from the first frame (hip flexed, swinging in a small circle, the performer's toes 0.3 rad
+/// up kept) while the right stands: once the right foot has learnt the fit, the lifted left foot shows its rest's pitch
+/// (the rig's own answer, read along +Z in its rest), not the animation's 17° gap. Left at no
+/// fit until it stood itself, a foot's first plant pitched it from the performer's pitch to
+/// its own over a blend's time (the CMU walk onto X Bot: the second foot's toes 5 cm up).
+#[test]
+fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
+    let source = Humanoid::default().build();
+    let target = turned_z_up(
+        &Humanoid {
+            leg: 0.8,
+            ..Humanoid::default()
+        }
+        .build(),
+    );
+    let table = table_by_canonical(&source, "", &target, "");
+    let opts = rigcast_retarget::RetargetOptions::default();
+    let mut mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
+    let (sa, ta) = (
+        analyze(&SkeletonView::rest(&source)),
+        analyze(&SkeletonView::rest(&target)),
+    );
+    let (up, _, _) = mapping.target_floor().expect("a floor");
+    let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
+    let (foot, toe) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+    );
+    let pitch = |w: &[WorldTransform], up: Vec3| {
+        let o = w[toe.index()].translation - w[foot.index()].translation;
+        (o.dot(up) / o.length()).asin().to_degrees()
+    };
+    let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
+    let rest = source.rest_pose();
+    let bone = |n: &str| source.bone(n).expect(n).index();
+    let (l_thigh, l_foot, r_foot) = (bone("l_thigh"), bone("l_foot"), bone("r_foot"));
+    let (mut out, mut free) = (mapping.new_target_pose(), mapping.new_target_pose());
+    let mut checked = 0;
+    for f in 0..60 {
+        let mut p = rest.clone();
+        p.translations[0].y += 0.03;
+        // Swinging in a small circle, never slow enough to stand.
+        let (a, t) = (0.1, f as f32 * std::f32::consts::TAU * 2.0 / 60.0);
+        let swing = Quat::from_rotation_z(a * t.cos()) * Quat::from_rotation_x(-0.4 + a * t.sin());
+        p.rotations[l_thigh] = rest.rotations[l_thigh] * swing;
+        let kept = Quat::from_rotation_x(0.4 - a * t.sin() - 0.3);
+        p.rotations[l_foot] = rest.rotations[l_foot] * kept;
+        p.rotations[r_foot] = rest.rotations[r_foot] * Quat::from_rotation_x(-0.3);
+        let (w, wf) = locked_and_free(&mut mapping, &mut lock, &p, &mut out, &mut free);
+        if f >= 20 {
+            let (shown, animated) = (pitch(&w, up), pitch(&wf, up));
+            assert!(
+                (animated - standing).abs() > 10.0,
+                "frame {f}: the animation already stands at {animated}°"
+            );
+            assert!(
+                (shown - standing).abs() < 1.5,
+                "frame {f}: the lifted foot pitched {shown}°, its rest {standing}° (animated \
+                 {animated}°)"
+            );
+            checked += 1;
+        }
+    }
+    let left = lock.target_legs().position(|l| l.foot == foot);
+    assert!(
+        !lock.is_locked(left.expect("the left leg")),
+        "the lifted foot is held"
+    );
+    assert_eq!(checked, 40);
+}

@@ -289,12 +289,44 @@ impl FootLock {
             rise += clearance - (stance.ankle - rolled);
             n += 1;
         }
+        if pitch {
+            self.share_pitch_fit(dt);
+        }
         // A rest standing along its own up only (no floor placed for it) gives the feet's
         // pitch alone: its standing heights are not this world's.
         if n > 0 && pitch && self.posture_stands {
             let limit = self.settings.max_drop_ratio * self.feet[0].leg.length;
             let wanted = clamp_safe(rise / n as f32, -limit, limit);
             self.root_fix += k * (wanted - self.root_fix);
+        }
+    }
+
+    /// Live: a foot that has not stood flat yet takes the pitch fit its fellow feet of its
+    /// kind have learnt (their mean), over the blends' half-life (`dt` since the last frame):
+    /// one character's feet are built alike, as the performer's are. Left at none, a foot's
+    /// first plant pitched it from the performer's pitch to its own over a blend's time (the
+    /// CMU walk onto X Bot: the second foot's first plant stood its toes 5 cm up); taken at
+    /// once, the swinging foot kicked (the built-in mannequin under the CMU walk, live: 3.7
+    /// cm/frame² against 1.6 unlocked).
+    fn share_pitch_fit(&mut self, dt: f32) {
+        let halflife = 0.5 * self.settings.blend_secs;
+        let follow = 1.0 - (-dt * std::f32::consts::LN_2 / halflife).exp();
+        for i in 0..self.feet.len() {
+            if self.feet[i].fit_secs > 0.0 || self.feet[i].source.is_none() {
+                continue;
+            }
+            let kind = self.feet[i].leg.kind;
+            let (mut sum, mut n) = (0.0, 0);
+            for f in &self.feet {
+                if f.fit_secs > 0.0 && f.leg.kind == kind {
+                    sum += f.pitch_fix;
+                    n += 1;
+                }
+            }
+            if n > 0 {
+                let f = &mut self.feet[i];
+                f.pitch_fix += follow * (sum / n as f32 - f.pitch_fix);
+            }
         }
     }
 
