@@ -46,10 +46,12 @@ pub async fn record(
         .with_context(|| format!("cannot connect to {url}"))?;
     let file = std::fs::File::create(output)
         .with_context(|| format!("cannot create {}", output.display()))?;
-    let mut writer = RecordingWriter::new(file)?;
-    let mut tracks: HashMap<u32, SubjectTrack> = HashMap::new();
-    let mut rotations: Vec<Quat> = Vec::new();
-    let mut summary = RecordSummary::default();
+    let mut rec = Recorder {
+        writer: RecordingWriter::new(file)?,
+        tracks: HashMap::new(),
+        rotations: Vec::new(),
+        summary: RecordSummary::default(),
+    };
     tokio::pin!(stop);
     loop {
         let msg = tokio::select! {
@@ -58,68 +60,85 @@ pub async fn record(
         };
         let Some(msg) = msg else { break };
         match msg.context("stream error")? {
-            Message::Text(text) => {
-                let parsed: ServerMessage = serde_json::from_str(text.as_str())
-                    .with_context(|| format!("server sent undecodable JSON: {text}"))?;
-                if let ServerMessage::Skeleton {
-                    subject,
-                    name,
-                    fingerprint,
-                    bones,
-                } = parsed
-                {
-                    let skeleton = Arc::new(skeleton_from_bones(&bones).with_context(|| {
-                        format!("skeleton of subject {subject} ({name}) is invalid")
-                    })?);
-                    if skeleton.fingerprint_hex() != fingerprint {
-                        // f32 → JSON → f32 is exact for serde_json, so a mismatch means a bug
-                        // somewhere; warn, but keep the data.
-                        eprintln!(
-                            "rigcast record: subject {subject}: fingerprint {} differs from the server's {fingerprint}",
-                            skeleton.fingerprint_hex()
-                        );
-                    }
-                    writer.write_skeleton(subject, &name, &skeleton)?;
-                    summary.skeletons += 1;
-                    tracks.insert(
-                        subject,
-                        SubjectTrack {
-                            pose: Pose::from_rest(&skeleton),
-                            skeleton,
-                        },
-                    );
-                }
-            }
-            Message::Binary(bytes) => {
-                let (header, root) = decode_frame_into(&bytes, &mut rotations)
-                    .context("server sent an invalid frame")?;
-                let Some(track) = tracks.get_mut(&header.subject) else {
-                    continue; // frame before its skeleton: nothing to attach it to
-                };
-                if rotations.len() != track.skeleton.num_bones() {
-                    bail!(
-                        "frame of subject {} has {} bones, its skeleton {}",
-                        header.subject,
-                        rotations.len(),
-                        track.skeleton.num_bones()
-                    );
-                }
-                track.pose.rotations.copy_from_slice(&rotations);
-                track.pose.set_root_translation(root);
-                writer.write_frame(
-                    header.subject,
-                    header.seq,
-                    header.capture_nanos,
-                    &track.pose,
-                )?;
-                summary.frames += 1;
-            }
+            Message::Text(text) => rec.on_text(text.as_str())?,
+            Message::Binary(bytes) => rec.on_frame(&bytes)?,
             Message::Close(_) => break,
             _ => {}
         }
     }
+    let Recorder {
+        writer, summary, ..
+    } = rec;
     writer.finish()?;
     // The file is finished; a server already gone needs no close frame.
     let _ = ws.close(None).await;
     Ok(summary)
+}
+
+/// What `record` keeps while the stream lasts: the file, each subject's skeleton and last
+/// pose, a frame's decoding buffer, and the counts.
+struct Recorder<W: std::io::Write> {
+    writer: RecordingWriter<W>,
+    tracks: HashMap<u32, SubjectTrack>,
+    rotations: Vec<Quat>,
+    summary: RecordSummary,
+}
+
+impl<W: std::io::Write> Recorder<W> {
+    /// A JSON message: a subject's skeleton starts (or restarts) its track; others are not
+    /// recorded.
+    fn on_text(&mut self, text: &str) -> anyhow::Result<()> {
+        let parsed: ServerMessage = serde_json::from_str(text)
+            .with_context(|| format!("server sent undecodable JSON: {text}"))?;
+        let ServerMessage::Skeleton {
+            subject,
+            name,
+            fingerprint,
+            bones,
+        } = parsed
+        else {
+            return Ok(());
+        };
+        let skeleton = Arc::new(
+            skeleton_from_bones(&bones)
+                .with_context(|| format!("skeleton of subject {subject} ({name}) is invalid"))?,
+        );
+        if skeleton.fingerprint_hex() != fingerprint {
+            // f32 → JSON → f32 is exact for serde_json, so a mismatch means a bug somewhere;
+            // warn, but keep the data.
+            eprintln!(
+                "rigcast record: subject {subject}: fingerprint {} differs from the server's {fingerprint}",
+                skeleton.fingerprint_hex()
+            );
+        }
+        self.writer.write_skeleton(subject, &name, &skeleton)?;
+        self.summary.skeletons += 1;
+        let pose = Pose::from_rest(&skeleton);
+        self.tracks.insert(subject, SubjectTrack { pose, skeleton });
+        Ok(())
+    }
+
+    /// A binary frame: written as its subject's pose, once its skeleton is known.
+    fn on_frame(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        let (header, root) = decode_frame_into(bytes, &mut self.rotations)
+            .context("server sent an invalid frame")?;
+        let Some(track) = self.tracks.get_mut(&header.subject) else {
+            return Ok(()); // frame before its skeleton: nothing to attach it to
+        };
+        if self.rotations.len() != track.skeleton.num_bones() {
+            bail!(
+                "frame of subject {} has {} bones, its skeleton {}",
+                header.subject,
+                self.rotations.len(),
+                track.skeleton.num_bones()
+            );
+        }
+        track.pose.rotations.copy_from_slice(&self.rotations);
+        track.pose.set_root_translation(root);
+        let (subject, seq, capture) = (header.subject, header.seq, header.capture_nanos);
+        self.writer
+            .write_frame(subject, seq, capture, &track.pose)?;
+        self.summary.frames += 1;
+        Ok(())
+    }
 }
