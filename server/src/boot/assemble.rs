@@ -57,17 +57,8 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         move || wake.notify_one()
     });
     let names: Vec<String> = inputs.sources.iter().map(|s| s.name.clone()).collect();
-    let mut subjects = Vec::new();
-    let mut sources = Vec::new();
-    let mut extras = HashMap::new();
-    for (i, source) in inputs.sources.into_iter().enumerate() {
-        let (runner, extra) = source_subject(i as u32, source, config);
-        if let Some(extra) = extra {
-            extras.insert(i as u32, extra);
-        }
-        subjects.push(runner.subject.clone());
-        sources.push(runner);
-    }
+    let (sources, extras) = source_runners(inputs.sources, config);
+    let mut subjects: Vec<Arc<Subject>> = sources.iter().map(|r| r.subject.clone()).collect();
     let mut plans = Vec::new();
     let mut target_txs = Vec::new();
     for mut p in inputs.performers {
@@ -85,23 +76,9 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
     let performers = plans
         .iter()
         .zip(target_txs)
-        .map(|(plan, (tx, fallback))| {
-            let inputs = plan.target.inputs.iter();
-            let performer = Performer::new(
-                plan.target.clone(),
-                tx,
-                inputs.map(|id| subjects[*id as usize].clone()).collect(),
-                Arc::default(),
-                fallback.on_lost,
-            );
-            match (fallback.idle, fallback.resume) {
-                (Some(idle), resume) => performer.with_idle_graph(idle, resume),
-                (None, Some(resume)) => performer.with_resume(resume),
-                (None, None) => performer,
-            }
-        })
+        .map(|(plan, (tx, fallback))| performer(plan, tx, fallback, &subjects))
         .collect();
-    let mut mapper = Mapper::new(
+    let mapper = Mapper::new(
         subjects.clone(),
         plans,
         extras,
@@ -109,21 +86,8 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         config.rate_hz,
         events.clone(),
         inbox.clone(),
-    )
-    .with_max_cache_entries(config.limits.mapping_cache_max_entries)
-    .with_shared(inputs.cluster.as_ref().map(|link| {
-        let c = &link.cluster;
-        crate::cluster::SharedMappings::new(
-            c.mappings.clone(),
-            tokio::runtime::Handle::current(),
-            c.mapping_counts.clone(),
-        )
-    }));
-    let mapper = tokio::task::spawn_blocking(move || {
-        mapper.build_all();
-        mapper
-    })
-    .await?;
+    );
+    let mapper = first_mappings(mapper, config, inputs.cluster.as_ref()).await?;
     let vmc = vmc_output(config, &subjects).await?;
     Ok(Assembly {
         subjects,
@@ -137,6 +101,72 @@ pub(crate) async fn assemble(config: &ServerConfig, inputs: Inputs) -> anyhow::R
         token: inputs.token,
         cluster: inputs.cluster,
     })
+}
+
+/// One subject per source (ids in config order), and what the mapper may know of each
+/// replay's motion.
+fn source_runners(
+    loaded: Vec<LoadedSource>,
+    config: &ServerConfig,
+) -> (Vec<SourceRunner>, HashMap<u32, SourceExtra>) {
+    let mut runners = Vec::with_capacity(loaded.len());
+    let mut extras = HashMap::new();
+    for (i, source) in loaded.into_iter().enumerate() {
+        let (runner, extra) = source_subject(i as u32, source, config);
+        if let Some(extra) = extra {
+            extras.insert(i as u32, extra);
+        }
+        runners.push(runner);
+    }
+    (runners, extras)
+}
+
+/// The engine's performer of `plan`, fed by its inputs' subjects, with what it does while
+/// they are lost.
+fn performer(
+    plan: &PerformerPlan,
+    tx: FrameWriter,
+    fallback: Fallback,
+    subjects: &[Arc<Subject>],
+) -> Performer {
+    let inputs = plan.target.inputs.iter();
+    let performer = Performer::new(
+        plan.target.clone(),
+        tx,
+        inputs.map(|id| subjects[*id as usize].clone()).collect(),
+        Arc::default(),
+        fallback.on_lost,
+    );
+    match (fallback.idle, fallback.resume) {
+        (Some(idle), resume) => performer.with_idle_graph(idle, resume),
+        (None, Some(resume)) => performer.with_resume(resume),
+        (None, None) => performer,
+    }
+}
+
+/// The mapper with its cache limit and, in cluster mode, the mappings shared between nodes,
+/// once it has built every performer's first mapping (off the async threads).
+async fn first_mappings(
+    mapper: Mapper,
+    config: &ServerConfig,
+    cluster: Option<&crate::cluster::ClusterLink>,
+) -> anyhow::Result<Mapper> {
+    let mut mapper = mapper
+        .with_max_cache_entries(config.limits.mapping_cache_max_entries)
+        .with_shared(cluster.map(|link| {
+            let c = &link.cluster;
+            crate::cluster::SharedMappings::new(
+                c.mappings.clone(),
+                tokio::runtime::Handle::current(),
+                c.mapping_counts.clone(),
+            )
+        }));
+    let mapper = tokio::task::spawn_blocking(move || {
+        mapper.build_all();
+        mapper
+    })
+    .await?;
+    Ok(mapper)
 }
 
 /// What a performer does while its source is lost, and how it comes back.
