@@ -20,7 +20,7 @@ mod retarget_fixtures;
 
 use glam::{Quat, Vec3};
 use retarget_fixtures::{locked_pair, table_by_canonical, Humanoid};
-use rigcast_retarget::analysis::{analyze, SkeletonView};
+use rigcast_retarget::analysis::{analyze, Analysis, SkeletonView};
 use rigcast_retarget::footplant::{FootLock, LockSettings, PlantTrack};
 use rigcast_retarget::{world_transforms, Clip, Mapping, Pose, Skeleton, WorldTransform};
 
@@ -421,16 +421,9 @@ fn turned_z_up(skel: &Skeleton) -> Skeleton {
     Skeleton::build(&raw).expect("turned skeleton")
 }
 
-/// Live, a rig whose rest stands on its own ground along its own up (+Z) under a motion whose up
-/// is +Y, so the retarget places no floor for that rest (MakeHuman's case), still gets its feet's
-/// standing pitch: the live fit learns it on the planted frames and pitches every frame by it, so
-/// a foot lifted with its pitch kept shows the rest's pitch too, read along the animation's up.
-/// The answer is the rig's own: its rest's ankle-to-ball pitch along +Z. The performer stands
-/// with its toes 0.3 rad up against that (the retargeted foot 17° off it). The pin stands the
-/// planted frames at that pitch whatever the fit; the lifted ones show the fit (without it
-/// they keep the animation's 17° gap).
-#[test]
-fn live_a_rest_standing_along_its_own_up_gives_its_feet_pitch() {
+/// The setting of the z-up tests: the default humanoid driving a longer-legged one whose rest
+/// stands along +Z (`turned_z_up`), mapped by canonical names, with both rests' analyses.
+fn z_up_pair() -> (Skeleton, Skeleton, Mapping, (Analysis, Analysis)) {
     let source = Humanoid::default().build();
     let target = turned_z_up(
         &Humanoid {
@@ -441,11 +434,37 @@ fn live_a_rest_standing_along_its_own_up_gives_its_feet_pitch() {
     );
     let table = table_by_canonical(&source, "", &target, "");
     let opts = rigcast_retarget::RetargetOptions::default();
-    let mut mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
-    let (sa, ta) = (
+    let mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
+    let analyses = (
         analyze(&SkeletonView::rest(&source)),
         analyze(&SkeletonView::rest(&target)),
     );
+    (source, target, mapping, analyses)
+}
+
+/// The left foot's ankle-to-ball pitch along `up` in world transforms of `target`, degrees.
+fn left_foot_pitch(target: &Skeleton) -> impl Fn(&[WorldTransform], Vec3) -> f32 {
+    let (foot, toe) = (
+        target.bone("l_foot").expect("foot"),
+        target.bone("l_toe").expect("toe"),
+    );
+    move |w: &[WorldTransform], up: Vec3| {
+        let o = w[toe.index()].translation - w[foot.index()].translation;
+        (o.dot(up) / o.length()).asin().to_degrees()
+    }
+}
+
+/// Live, a rig whose rest stands on its own ground along its own up (+Z) under a motion whose up
+/// is +Y, so the retarget places no floor for that rest (MakeHuman's case), still gets its feet's
+/// standing pitch: the live fit learns it on the planted frames and pitches every frame by it, so
+/// a foot lifted with its pitch kept shows the rest's pitch too, read along the animation's up.
+/// The answer is the rig's own: its rest's ankle-to-ball pitch along +Z. The performer stands
+/// with its toes 0.3 rad up against that (the retargeted foot 17° off it). The pin stands the
+/// planted frames at that pitch whatever the fit; the lifted ones show the fit (without it
+/// they keep the animation's 17° gap).
+#[test]
+fn live_a_rest_standing_along_its_own_up_gives_its_feet_pitch() {
+    let (source, target, mut mapping, (sa, ta)) = z_up_pair();
     assert!(ta.up.abs_diff_eq(Vec3::Z, 1e-4), "rest up {}", ta.up);
     assert!(
         !mapping.target_posture_stands(),
@@ -454,14 +473,7 @@ fn live_a_rest_standing_along_its_own_up_gives_its_feet_pitch() {
     let (up, _, _) = mapping.target_floor().expect("a floor");
     assert!(up.abs_diff_eq(Vec3::Y, 1e-4), "motion up {up}");
     let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
-    let (foot, toe) = (
-        target.bone("l_foot").expect("foot"),
-        target.bone("l_toe").expect("toe"),
-    );
-    let pitch = |w: &[WorldTransform], up: Vec3| {
-        let o = w[toe.index()].translation - w[foot.index()].translation;
-        (o.dot(up) / o.length()).asin().to_degrees()
-    };
+    let pitch = left_foot_pitch(&target);
     let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
     let (poses, _) = toes_up_steps(&source);
     let mut out = mapping.new_target_pose();
@@ -644,31 +656,10 @@ fn live_a_learnt_standing_height_is_the_mean_of_every_stance() {
 /// its own over a blend's time (the CMU walk onto X Bot: the second foot's toes 5 cm up).
 #[test]
 fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
-    let source = Humanoid::default().build();
-    let target = turned_z_up(
-        &Humanoid {
-            leg: 0.8,
-            ..Humanoid::default()
-        }
-        .build(),
-    );
-    let table = table_by_canonical(&source, "", &target, "");
-    let opts = rigcast_retarget::RetargetOptions::default();
-    let mut mapping = Mapping::build(&[&source], &target, &table, &opts).expect("build");
-    let (sa, ta) = (
-        analyze(&SkeletonView::rest(&source)),
-        analyze(&SkeletonView::rest(&target)),
-    );
+    let (source, target, mut mapping, (sa, ta)) = z_up_pair();
     let (up, _, _) = mapping.target_floor().expect("a floor");
     let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
-    let (foot, toe) = (
-        target.bone("l_foot").expect("foot"),
-        target.bone("l_toe").expect("toe"),
-    );
-    let pitch = |w: &[WorldTransform], up: Vec3| {
-        let o = w[toe.index()].translation - w[foot.index()].translation;
-        (o.dot(up) / o.length()).asin().to_degrees()
-    };
+    let pitch = left_foot_pitch(&target);
     let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
     let rest = source.rest_pose();
     let bone = |n: &str| source.bone(n).expect(n).index();
@@ -700,6 +691,7 @@ fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
             checked += 1;
         }
     }
+    let foot = target.bone("l_foot").expect("foot");
     let left = lock.target_legs().position(|l| l.foot == foot);
     assert!(
         !lock.is_locked(left.expect("the left leg")),
