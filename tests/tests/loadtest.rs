@@ -81,3 +81,20 @@ fn zero_clients_is_refused() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--clients must be at least 1"));
 }
+
+#[test]
+fn a_warm_up_out_of_range_is_refused() {
+    for bad in ["-1", "NaN", "inf", "3601"] {
+        let out = Command::new(rigcast_binary())
+            .args(["loadtest", "--url", "ws://127.0.0.1:1/v1/stream"])
+            .arg(format!("--warm-up={bad}"))
+            .output()
+            .expect("rigcast loadtest runs");
+        assert!(!out.status.success(), "--warm-up {bad} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("--warm-up must be 0 to 3600 seconds"),
+            "{bad}: {err}"
+        );
+    }
+}
