@@ -91,13 +91,9 @@ pub(crate) fn analyze_flat_hand(
     pos: Vec<Vec3>,
     names: Vec<NameInfo>,
 ) -> Option<super::Analysis> {
-    use super::{Analysis, BoneRole, Section, SectionKind};
+    use super::{BoneRole, Section, SectionKind};
     let (roles_by_name, side) = hand_roles(&names, &pos)?;
     let n = skel.num_bones();
-    let (lo, hi) = pos.iter().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
     let mut roles = vec![
         BoneRole {
             role: Role::Helper,
@@ -127,48 +123,32 @@ pub(crate) fn analyze_flat_hand(
         ..roles[hand]
     };
     for digit in 0..5u8 {
-        let mut bones: Vec<(u8, usize)> = roles_by_name
-            .iter()
-            .enumerate()
-            .filter_map(|(i, r)| match r {
-                Some(Role::Finger { digit: d, joint }) if *d == digit => Some((*joint, i)),
-                _ => None,
-            })
-            .collect();
-        if bones.is_empty() {
-            continue;
-        }
-        bones.sort_unstable();
         let si = sections.len() as u16;
-        let k = bones.len() as f32;
-        for (j, &(joint, i)) in bones.iter().enumerate() {
-            roles[i] = BoneRole {
-                role: Role::Finger { digit, joint },
-                section: Some(si),
-                position: j as f32 / k,
-                confidence: 0.7,
-                ..roles[i]
-            };
+        if let Some(section) = digit_section(&roles_by_name, digit, (side, si), &mut roles) {
+            sections.push(section);
         }
-        sections.push(Section {
-            kind: SectionKind::Digit,
-            side,
-            limb: 0,
-            bones: bones
-                .iter()
-                .map(|&(_, i)| crate::skeleton::BoneId(i as u16))
-                .collect(),
-            length: 0.0,
-            parent: Some(0),
-            ground: false,
-        });
     }
+    Some(flat_analysis(pos, names, (sections, roles), side))
+}
+
+/// The analysis of a flat hand from its sections and roles: the hand's own axes, no posture.
+fn flat_analysis(
+    pos: Vec<Vec3>,
+    names: Vec<NameInfo>,
+    (sections, roles): (Vec<super::Section>, Vec<super::BoneRole>),
+    side: Side,
+) -> super::Analysis {
+    let n = roles.len();
+    let (lo, hi) = pos.iter().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
     let warnings = if side == super::Side::Center {
         vec!["a hand whose side the joints do not tell (no thumb out of the palm plane)".into()]
     } else {
         Vec::new()
     };
-    Some(Analysis {
+    super::Analysis {
         up: Vec3::Y,
         forward: Vec3::Z,
         left: Vec3::X,
@@ -184,6 +164,50 @@ pub(crate) fn analyze_flat_hand(
         main_child: vec![None; n],
         warnings,
         doubts: Vec::new(),
+    }
+}
+
+/// The section of one digit (bones named for it, in joint order) as section `si`, its bones'
+/// roles set; `None` when no bone is named for it.
+fn digit_section(
+    roles_by_name: &[Option<Role>],
+    digit: u8,
+    (side, si): (super::Side, u16),
+    roles: &mut [super::BoneRole],
+) -> Option<super::Section> {
+    let mut bones: Vec<(u8, usize)> = roles_by_name
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| match r {
+            Some(Role::Finger { digit: d, joint }) if *d == digit => Some((*joint, i)),
+            _ => None,
+        })
+        .collect();
+    if bones.is_empty() {
+        return None;
+    }
+    bones.sort_unstable();
+    let k = bones.len() as f32;
+    for (j, &(joint, i)) in bones.iter().enumerate() {
+        roles[i] = super::BoneRole {
+            role: Role::Finger { digit, joint },
+            section: Some(si),
+            position: j as f32 / k,
+            confidence: 0.7,
+            ..roles[i]
+        };
+    }
+    Some(super::Section {
+        kind: super::SectionKind::Digit,
+        side,
+        limb: 0,
+        bones: bones
+            .iter()
+            .map(|&(_, i)| crate::skeleton::BoneId(i as u16))
+            .collect(),
+        length: 0.0,
+        parent: Some(0),
+        ground: false,
     })
 }
 
