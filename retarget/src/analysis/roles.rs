@@ -87,9 +87,7 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
         forward: Vec3::Z,
         size,
     };
-    let ground = pos.iter().map(|p| p.dot(up)).fold(f32::MAX, f32::min);
-    let top = pos.iter().map(|p| p.dot(up)).fold(f32::MIN, f32::max);
-    let hext = (top - ground).max(1e-3);
+    let (ground, hext) = vertical_span(&pos, up);
     let (central, mut limbs) = central_and_limbs(&ctx, body.root, lat, ground, hext);
     let path = centerline(&ctx, &central, &limbs);
     let facing = forward::facing(&ctx, &limbs, &path, &posture.samples, lat, (ground, hext));
@@ -117,19 +115,8 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
     let humanoid = place_limbs(&ctx, &mut out, &limbs, &layout, &path, head_sec);
     fill_helpers(&ctx, &mut out, &limbs);
     attach_detached(&ctx, &body, &mut out);
-    if let Some((cue, strength)) = facing.doubt {
-        let sided = ctx
-            .skel
-            .bone_ids()
-            .filter(|b| out.roles[b.index()].side != super::Side::Center)
-            .collect();
-        out.doubts.push(Doubt {
-            reason: format!(
-                "its side rests on a weak facing vote ({cue:.2}; 2 is clear) and no names say it"
-            ),
-            strength,
-            bones: sided,
-        });
+    if let Some(doubt) = facing.doubt {
+        push_facing_doubt(&ctx, &mut out, doubt);
     }
     Analysis {
         up,
@@ -148,6 +135,30 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
         warnings: facing.warnings,
         doubts: out.doubts,
     }
+}
+
+/// A doubt on every sided bone: the facing vote (`cue`, of `strength`) was weak and no names
+/// said which side is which.
+fn push_facing_doubt(ctx: &Ctx<'_>, out: &mut Builder, (cue, strength): (f32, f32)) {
+    let sided = ctx
+        .skel
+        .bone_ids()
+        .filter(|b| out.roles[b.index()].side != super::Side::Center)
+        .collect();
+    out.doubts.push(Doubt {
+        reason: format!(
+            "its side rests on a weak facing vote ({cue:.2}; 2 is clear) and no names say it"
+        ),
+        strength,
+        bones: sided,
+    });
+}
+
+/// The lowest joint's height along `up` (the ground) and the joints' extent along it.
+fn vertical_span(pos: &[Vec3], up: Vec3) -> (f32, f32) {
+    let ground = pos.iter().map(|p| p.dot(up)).fold(f32::MAX, f32::min);
+    let top = pos.iter().map(|p| p.dot(up)).fold(f32::MIN, f32::max);
+    (ground, (top - ground).max(1e-3))
 }
 
 /// Largest extent of the joints' bounding box (the scale for tolerances).
@@ -204,26 +215,8 @@ fn place_limbs(
         let parent_sec = out.section_of(l.parent);
         for &(m, side) in &l.members {
             if kind == LimbKind::Appendage {
-                let bones: Vec<BoneId> = ctx.subtree(m).collect();
-                out.add_section(
-                    SectionKind::Appendage,
-                    side,
-                    0,
-                    bones.clone(),
-                    parent_sec,
-                    false,
-                );
-                let at_head = head_sec.is_some()
-                    && out.roles[l.parent.index()].role == Role::Head
-                    && ctx.topo.size[m.index()] <= 3
-                    && l.members.len() == 2
-                    && !ctx.names[m.index()].helper;
-                for &b in &bones {
-                    out.set(b, Role::Appendage, 0.5);
-                }
-                if at_head {
-                    out.set(m, Role::Eye, 0.6);
-                }
+                let at_head = head_sec.is_some() && out.roles[l.parent.index()].role == Role::Head;
+                place_appendage(ctx, out, (l, m, side), parent_sec, at_head);
                 continue;
             }
             limb_roles(
@@ -242,6 +235,36 @@ fn place_limbs(
         }
     }
     humanoid_legs == 1 && humanoid_arms == 1
+}
+
+/// An appendage member `m` (of limb `l`, on `side`): its section, and its bones' roles; a small
+/// pair hanging from the head (`on_head`) are eyes.
+fn place_appendage(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    (l, m, side): (&Limb, BoneId, super::Side),
+    parent_sec: Option<usize>,
+    on_head: bool,
+) {
+    let bones: Vec<BoneId> = ctx.subtree(m).collect();
+    out.add_section(
+        SectionKind::Appendage,
+        side,
+        0,
+        bones.clone(),
+        parent_sec,
+        false,
+    );
+    let eye = on_head
+        && ctx.topo.size[m.index()] <= 3
+        && l.members.len() == 2
+        && !ctx.names[m.index()].helper;
+    for &b in &bones {
+        out.set(b, Role::Appendage, 0.5);
+    }
+    if eye {
+        out.set(m, Role::Eye, 0.6);
+    }
 }
 
 /// Everything not placed yet: helpers (twist bones inside limbs), with the side of where they
