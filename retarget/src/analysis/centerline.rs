@@ -20,8 +20,7 @@ pub(super) fn central_and_limbs(
     ground: f32,
     hext: f32,
 ) -> (Vec<bool>, Vec<Limb>) {
-    let (skel, pos, topo, size) = (ctx.skel, ctx.pos, ctx.topo, ctx.size);
-    let n = skel.num_bones();
+    let n = ctx.skel.num_bones();
     let mut central = vec![false; n];
     let mut limbs: Vec<Limb> = Vec::new();
     central[root.index()] = true;
@@ -30,40 +29,7 @@ pub(super) fn central_and_limbs(
         if !central[i] {
             continue;
         }
-        let mut plus = Vec::new();
-        let mut minus = Vec::new();
-        let twins = twins_of(ctx, p);
-        let mut considered = 0;
-        for &c in skel.children(p) {
-            if ctx.detached[c.index()] {
-                continue;
-            }
-            // Coincident / on-segment leaves (Rigify ORG- copies) never extend the centerline;
-            // named end joints that stick out (`head_end`) do.
-            if ctx.is_shadow(c) && !ctx.names[c.index()].helper && skel.children(p).len() > 1 {
-                continue;
-            }
-            if ctx.is_shadow(c) && ctx.names[c.index()].helper && ctx.is_coincident(c) {
-                continue;
-            }
-            considered += 1;
-            let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
-            let spread = ctx
-                .subtree(c)
-                .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
-                .fold(0.0, f32::max);
-            let side = twin_offset(ctx, p, c, &twins, lat)
-                .or_else(|| (off.abs() > 0.3 * spread && off.abs() > 0.005 * size).then_some(off));
-            if let Some(off) = side {
-                if off > 0.0 {
-                    plus.push(c);
-                } else {
-                    minus.push(c);
-                }
-            } else {
-                central[c.index()] = true;
-            }
-        }
+        let (mut plus, mut minus, considered) = split_children(ctx, p, lat, &mut central);
         for (a, b) in pair_up(ctx, &mut plus, &mut minus) {
             limbs.push(make_limb(
                 ctx,
@@ -74,34 +40,94 @@ pub(super) fn central_and_limbs(
             ));
         }
         for c in plus.into_iter().chain(minus) {
-            let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
-            // Without a mirror twin, only a chain far to one side is a limb; a head that
-            // sits a little off the midline continues the body, and so does a central bone's
-            // only child that goes on (a head tilted over its neck, its end joint on it): a
-            // limb hangs beside a body that continues. A lone end joint is left as it was.
-            let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
-            let goes_on = considered == 1 && !ctx.is_leaf(c);
-            if off.abs() < 0.15 * extent || goes_on {
-                central[c.index()] = true;
-                continue;
+            match lone_limb_side(ctx, p, c, lat, considered) {
+                Some(s) => limbs.push(make_limb(ctx, p, vec![(c, s)], ground, hext)),
+                None => central[c.index()] = true,
             }
-            let s = if off > 0.0 { Side::Left } else { Side::Right };
-            limbs.push(make_limb(ctx, p, vec![(c, s)], ground, hext));
         }
     }
-    // Limbs on the ground stand on it together: one whose lowest joint stays clearly above the
-    // lowest standing limb's is not on the ground (a long arm hanging to the knees, which a
-    // cartoon's big head, raising the body's height, brought within the ground band, read as
-    // a second pair of legs).
+    stand_together(&mut limbs, hext);
+    (central, limbs)
+}
+
+/// `p`'s children (not detached, not shadow copies) that lie to one side: those on `+lat`,
+/// those on `-lat`, and how many children were considered. The others continue the central
+/// tree and are marked in `central`.
+fn split_children(
+    ctx: &Ctx<'_>,
+    p: BoneId,
+    lat: Vec3,
+    central: &mut [bool],
+) -> (Vec<BoneId>, Vec<BoneId>, usize) {
+    let (skel, pos, topo, i) = (ctx.skel, ctx.pos, ctx.topo, p.index());
+    let mut plus = Vec::new();
+    let mut minus = Vec::new();
+    let twins = twins_of(ctx, p);
+    let mut considered = 0;
+    for &c in skel.children(p) {
+        if ctx.detached[c.index()] {
+            continue;
+        }
+        // Coincident / on-segment leaves (Rigify ORG- copies) never extend the centerline;
+        // named end joints that stick out (`head_end`) do.
+        if ctx.is_shadow(c) && !ctx.names[c.index()].helper && skel.children(p).len() > 1 {
+            continue;
+        }
+        if ctx.is_shadow(c) && ctx.names[c.index()].helper && ctx.is_coincident(c) {
+            continue;
+        }
+        considered += 1;
+        let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
+        let spread = ctx
+            .subtree(c)
+            .map(|b| (pos[b.index()] - pos[i]).dot(lat).abs())
+            .fold(0.0, f32::max);
+        let side = twin_offset(ctx, p, c, &twins, lat)
+            .or_else(|| (off.abs() > 0.3 * spread && off.abs() > 0.005 * ctx.size).then_some(off));
+        match side {
+            Some(off) if off > 0.0 => plus.push(c),
+            Some(_) => minus.push(c),
+            None => central[c.index()] = true,
+        }
+    }
+    (plus, minus, considered)
+}
+
+/// The side of an unpaired child `c` of central bone `p` that is a limb, or `None` where it
+/// continues the body. Without a mirror twin, only a chain far to one side is a limb; a head
+/// that sits a little off the midline continues the body, and so does a central bone's only
+/// child that goes on (a head tilted over its neck, its end joint on it): a limb hangs beside a
+/// body that continues. A lone end joint is left as it was.
+fn lone_limb_side(
+    ctx: &Ctx<'_>,
+    p: BoneId,
+    c: BoneId,
+    lat: Vec3,
+    considered: usize,
+) -> Option<Side> {
+    let (pos, topo, i) = (ctx.pos, ctx.topo, p.index());
+    let off = (topo.centroid[c.index()] - pos[i]).dot(lat);
+    let extent = topo.reach[c.index()] + (pos[c.index()] - pos[i]).length();
+    let goes_on = considered == 1 && !ctx.is_leaf(c);
+    if off.abs() < 0.15 * extent || goes_on {
+        return None;
+    }
+    Some(if off > 0.0 { Side::Left } else { Side::Right })
+}
+
+/// Limbs on the ground stand on it together: one whose lowest joint stays clearly above the
+/// lowest standing limb's is not on the ground (a long arm hanging to the knees, which a
+/// cartoon's big head, raising the body's height, brought within the ground band, read as
+/// a second pair of legs).
+fn stand_together(limbs: &mut [Limb], hext: f32) {
     let lowest = limbs
         .iter()
         .filter(|l| l.ground)
         .map(|l| l.low)
         .fold(f32::MAX, f32::min);
-    for l in &mut limbs {
+    for l in limbs {
         l.ground &= l.low < lowest + 0.12 * hext;
     }
-    (central, limbs)
 }
 
 /// Per shape among `p`'s children (not detached): how many, and the first two.
