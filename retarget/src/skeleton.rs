@@ -103,6 +103,60 @@ impl PartialEq for Skeleton {
     }
 }
 
+/// Checks one raw bone (`i` of `n`): a finite rest within bounds, a parent that exists.
+fn check_bone(i: usize, b: &RawBone, n: usize) -> Result<(), RetargetError> {
+    let finite = b.rest.translation.is_finite() && b.rest.rotation.is_finite();
+    if !finite {
+        return Err(RetargetError::NonFiniteRest {
+            bone: i,
+            name: b.name.clone(),
+        });
+    }
+    if !crate::bounds::translation_in_bounds(b.rest.translation) {
+        return Err(RetargetError::RestOutOfRange {
+            bone: i,
+            name: b.name.clone(),
+        });
+    }
+    match b.parent {
+        Some(p) if p >= n => Err(RetargetError::ParentOutOfRange {
+            bone: i,
+            name: b.name.clone(),
+            parent: p,
+            num_bones: n,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// The raw bones' depth-first order from the roots (children in their given order), without
+/// recursion; a bone not reached sits on a parent cycle, which is an error.
+fn depth_first(
+    raw: &RawSkeleton,
+    roots: &[usize],
+    children: &[Vec<usize>],
+) -> Result<Vec<usize>, RetargetError> {
+    let n = raw.bones.len();
+    let mut order = Vec::with_capacity(n);
+    let mut stack: Vec<usize> = roots.iter().rev().copied().collect();
+    while let Some(i) = stack.pop() {
+        order.push(i);
+        stack.extend(children[i].iter().rev().copied());
+    }
+    if order.len() != n {
+        let mut reached = vec![false; n];
+        for &i in &order {
+            reached[i] = true;
+        }
+        let bone = reached.iter().position(|r| !r).unwrap_or(0);
+        return Err(RetargetError::ParentCycle {
+            bone,
+            name: raw.bones[bone].name.clone(),
+        });
+    }
+    Ok(order)
+}
+
 /// Largest supported bone count (ids are `u16`; wire formats use `u32` counts).
 pub const MAX_BONES: usize = u16::MAX as usize;
 
@@ -131,50 +185,13 @@ impl Skeleton {
                     second: i,
                 });
             }
-            let finite = b.rest.translation.is_finite() && b.rest.rotation.is_finite();
-            if !finite {
-                return Err(RetargetError::NonFiniteRest {
-                    bone: i,
-                    name: b.name.clone(),
-                });
-            }
-            if !crate::bounds::translation_in_bounds(b.rest.translation) {
-                return Err(RetargetError::RestOutOfRange {
-                    bone: i,
-                    name: b.name.clone(),
-                });
-            }
+            check_bone(i, b, n)?;
             match b.parent {
-                Some(p) if p >= n => {
-                    return Err(RetargetError::ParentOutOfRange {
-                        bone: i,
-                        name: b.name.clone(),
-                        parent: p,
-                        num_bones: n,
-                    })
-                }
                 Some(p) => children[p].push(i),
                 None => roots.push(i),
             }
         }
-        // Depth-first order from the roots; any bone not reached sits on a cycle.
-        let mut order = Vec::with_capacity(n);
-        let mut stack: Vec<usize> = roots.iter().rev().copied().collect();
-        while let Some(i) = stack.pop() {
-            order.push(i);
-            stack.extend(children[i].iter().rev().copied());
-        }
-        if order.len() != n {
-            let mut reached = vec![false; n];
-            for &i in &order {
-                reached[i] = true;
-            }
-            let bone = reached.iter().position(|r| !r).unwrap_or(0);
-            return Err(RetargetError::ParentCycle {
-                bone,
-                name: raw.bones[bone].name.clone(),
-            });
-        }
+        let order = depth_first(raw, &roots, &children)?;
         let mut new_index = vec![0usize; n];
         for (new, &old) in order.iter().enumerate() {
             new_index[old] = new;
