@@ -345,42 +345,9 @@ fn place_digits(
         ..
     } = member;
     let is_leg = kind == LimbKind::Leg;
-    // Digits: significant children; a zero-length "palm" helper is looked through.
-    let mut digits = Vec::new();
-    for c in ctx.significant_children(hand) {
-        let coincident = (ctx.pos[c.index()] - ctx.pos[hand.index()]).length() < 1e-3 * ctx.size;
-        if coincident && !ctx.is_leaf(c) {
-            out.set(c, Role::Helper, conf);
-            out.roles[c.index()].section = Some(hi as u16);
-            out.roles[c.index()].side = side;
-            digits.extend(ctx.significant_children(c));
-        } else {
-            digits.push(c);
-        }
-    }
-    let fwd_of = |b: BoneId| {
-        let ch = ctx.topo.chain(b);
-        let c: Vec3 = ch.iter().map(|x| ctx.pos[x.index()]).sum::<Vec3>() / ch.len() as f32;
-        c
-    };
-    let forward = ctx.forward;
-    digits.sort_by(|&a, &b| fwd_of(b).dot(forward).total_cmp(&fwd_of(a).dot(forward)));
+    let digits = digits_front_first(ctx, out, hand, (hi, side), conf);
     if is_leg && digits.len() <= 2 {
-        // A foot with a heel: the main chain carries the toes, the rest are helpers.
-        let main = ctx.topo.main[hand.index()];
-        for &d in &digits {
-            let ch = ctx.topo.chain(d);
-            for (k, &b) in ch.iter().enumerate() {
-                let role = match (Some(d) == main, k) {
-                    (true, 0) => Role::Toes,
-                    (true, _) => Role::ToeEnd,
-                    _ => Role::Helper,
-                };
-                out.set(b, role, conf * 0.8);
-                out.roles[b.index()].section = Some(hi as u16);
-                out.roles[b.index()].side = side;
-            }
-        }
+        place_toes(ctx, out, hand, &digits, (hi, side), conf);
         return;
     }
     let names_for: &[u8] = match digits.len() {
@@ -410,6 +377,63 @@ fn place_digits(
                 },
                 conf * 0.8,
             );
+        }
+    }
+}
+
+/// The digits below `hand` (section `hi`, on `side`): its significant children, a zero-length
+/// "palm" helper looked through (and made a helper), front-most first.
+fn digits_front_first(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    hand: BoneId,
+    (hi, side): (usize, Side),
+    conf: f32,
+) -> Vec<BoneId> {
+    let mut digits = Vec::new();
+    for c in ctx.significant_children(hand) {
+        let coincident = (ctx.pos[c.index()] - ctx.pos[hand.index()]).length() < 1e-3 * ctx.size;
+        if coincident && !ctx.is_leaf(c) {
+            out.set(c, Role::Helper, conf);
+            out.roles[c.index()].section = Some(hi as u16);
+            out.roles[c.index()].side = side;
+            digits.extend(ctx.significant_children(c));
+        } else {
+            digits.push(c);
+        }
+    }
+    let fwd_of = |b: BoneId| {
+        let ch = ctx.topo.chain(b);
+        let c: Vec3 = ch.iter().map(|x| ctx.pos[x.index()]).sum::<Vec3>() / ch.len() as f32;
+        c
+    };
+    let forward = ctx.forward;
+    digits.sort_by(|&a, &b| fwd_of(b).dot(forward).total_cmp(&fwd_of(a).dot(forward)));
+    digits
+}
+
+/// A foot with a heel: the main chain below `foot` carries the toes, the other digits are
+/// helpers, all in the foot's section `hi` on `side`.
+fn place_toes(
+    ctx: &Ctx<'_>,
+    out: &mut Builder,
+    foot: BoneId,
+    digits: &[BoneId],
+    (hi, side): (usize, Side),
+    conf: f32,
+) {
+    let main = ctx.topo.main[foot.index()];
+    for &d in digits {
+        let ch = ctx.topo.chain(d);
+        for (k, &b) in ch.iter().enumerate() {
+            let role = match (Some(d) == main, k) {
+                (true, 0) => Role::Toes,
+                (true, _) => Role::ToeEnd,
+                _ => Role::Helper,
+            };
+            out.set(b, role, conf * 0.8);
+            out.roles[b.index()].section = Some(hi as u16);
+            out.roles[b.index()].side = side;
         }
     }
 }
