@@ -78,8 +78,35 @@ fn lateral_from_twins(
     pos: &[Vec3],
     detached: &[bool],
 ) -> (Vec3, Option<(BoneId, BoneId, BoneId)>) {
+    let mut pairs = twin_pairs(skel, topo, pos, detached);
+    pairs.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.3.cmp(&y.3)));
+    let Some(first) = pairs.first() else {
+        return (Vec3::X, None);
+    };
+    let reference = first.1;
+    let mut sum = Vec3::ZERO;
+    for (w, v, ..) in &pairs {
+        let v = if v.dot(reference) < 0.0 { -*v } else { *v };
+        sum += v.normalize_or_zero() * *w;
+    }
+    // Make the estimate independent of which twin came first.
+    let lat = major_positive(sum.normalize_or_zero());
+    // Shallowest pair (closest to the root), the heaviest among those.
+    let shallow = pairs
+        .iter()
+        .min_by(|x, y| x.2.cmp(&y.2).then(y.0.total_cmp(&x.0)))
+        .map(|t| (t.3, t.4, t.5));
+    (lat, shallow)
+}
+
+/// A twin pair: its weight (separation × subtree size), the vector between the twins, the
+/// parent's depth, and (parent, first twin, second twin).
+type TwinPair = (f32, Vec3, usize, BoneId, BoneId, BoneId);
+
+/// Every mirror pair of sibling subtrees (exactly two children of one shape, neither detached).
+fn twin_pairs(skel: &Skeleton, topo: &Topology, pos: &[Vec3], detached: &[bool]) -> Vec<TwinPair> {
     let size = topo.reach.iter().copied().fold(0.0f32, f32::max).max(1e-6);
-    let mut pairs: Vec<(f32, Vec3, usize, BoneId, BoneId, BoneId)> = Vec::new();
+    let mut pairs: Vec<TwinPair> = Vec::new();
     // Per shape among one bone's children: how many, and the first two (in child order).
     let mut shapes: std::collections::HashMap<u64, (usize, BoneId, BoneId)> =
         std::collections::HashMap::new();
@@ -121,35 +148,24 @@ fn lateral_from_twins(
             }
         }
     }
-    pairs.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.3.cmp(&y.3)));
-    let Some(first) = pairs.first() else {
-        return (Vec3::X, None);
-    };
-    let reference = first.1;
-    let mut sum = Vec3::ZERO;
-    for (w, v, ..) in &pairs {
-        let v = if v.dot(reference) < 0.0 { -*v } else { *v };
-        sum += v.normalize_or_zero() * *w;
-    }
-    // Make the estimate independent of which twin came first: point it along +x/+y/+z majority.
-    let mut lat = sum.normalize_or_zero();
-    let m = lat.abs().max_element();
-    let major = if lat.x.abs() == m {
-        lat.x
-    } else if lat.y.abs() == m {
-        lat.y
+    pairs
+}
+
+/// `v` turned to point along its largest coordinate's positive axis.
+fn major_positive(v: Vec3) -> Vec3 {
+    let m = v.abs().max_element();
+    let major = if v.x.abs() == m {
+        v.x
+    } else if v.y.abs() == m {
+        v.y
     } else {
-        lat.z
+        v.z
     };
     if major < 0.0 {
-        lat = -lat;
+        -v
+    } else {
+        v
     }
-    // Shallowest pair (closest to the root), the heaviest among those.
-    let shallow = pairs
-        .iter()
-        .min_by(|x, y| x.2.cmp(&y.2).then(y.0.total_cmp(&x.0)))
-        .map(|t| (t.3, t.4, t.5));
-    (lat, shallow)
 }
 
 /// Snaps a direction to the nearest coordinate axis when within ~25 degrees of it.
