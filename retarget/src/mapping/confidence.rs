@@ -160,23 +160,7 @@ pub(super) fn assess(
         if (tr.role.is_helper() && !doubted) || matches!(tr.role, Role::Unknown | Role::Control) {
             continue;
         }
-        let reason = if m < 0.0 {
-            format!(
-                "its best source bone went to another bone ({:.1} points)",
-                -m
-            )
-        } else if m < CLOSE_MARGIN {
-            format!("the runner-up is {m:.1} points behind")
-        } else if let Some((d, whose)) = doubt
-            .iter()
-            .filter_map(|(d, w)| d.map(|d| (d, w)))
-            .filter(|(d, _)| d.strength >= DOUBT_FLAG)
-            .max_by(|x, y| x.0.strength.total_cmp(&y.0.strength))
-        {
-            format!("{whose}'s analysis doubts its reading: {}", d.reason)
-        } else if from_margin < FLAG_BELOW {
-            format!("low confidence {c:.2} (margin {m:.1} points)")
-        } else {
+        let Some(reason) = flag_reason(m, &doubt, from_margin, c) else {
             continue;
         };
         table.flagged.push(Flag {
@@ -185,6 +169,36 @@ pub(super) fn assess(
             reason,
         });
     }
+}
+
+/// Why a mapped bone is flagged, if it is: its margin `m` over the runner-up (negative when its
+/// best source went elsewhere), the analyses' doubts (the target's, the source's), the
+/// confidence from the margin alone and the whole confidence `c`.
+fn flag_reason(
+    m: f32,
+    doubt: &[(Option<&Doubt>, &str); 2],
+    from_margin: f32,
+    c: f32,
+) -> Option<String> {
+    Some(if m < 0.0 {
+        format!(
+            "its best source bone went to another bone ({:.1} points)",
+            -m
+        )
+    } else if m < CLOSE_MARGIN {
+        format!("the runner-up is {m:.1} points behind")
+    } else if let Some((d, whose)) = doubt
+        .iter()
+        .filter_map(|(d, w)| d.map(|d| (d, w)))
+        .filter(|(d, _)| d.strength >= DOUBT_FLAG)
+        .max_by(|x, y| x.0.strength.total_cmp(&y.0.strength))
+    {
+        format!("{whose}'s analysis doubts its reading: {}", d.reason)
+    } else if from_margin < FLAG_BELOW {
+        format!("low confidence {c:.2} (margin {m:.1} points)")
+    } else {
+        return None;
+    })
 }
 
 /// Section kinds in which some source's core bone drives nothing.
