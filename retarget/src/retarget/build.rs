@@ -291,24 +291,7 @@ impl<'a> Setup<'a> {
         let wt0 = self.tgt_w[t.index()].rotation;
         let follow = (self.opts.posture_relative.iter()).find_map(|&(b, f)| (b == t).then_some(f));
         if let Some(follow) = follow {
-            // The target keeps its own posture (turned to the source's facing) while the
-            // source stands; the source's world rotation from its standing posture moves it.
-            let standing = self.stand_w[input][s.index()].rotation;
-            let a = if self.opts.align_rest {
-                self.yaw
-            } else {
-                Quat::IDENTITY
-            };
-            return Link {
-                input: sref.input,
-                bone: s.0,
-                end: NO_END,
-                weight: sref.weight / total,
-                offset: (standing.inverse() * a * wt0).normalize(),
-                standing: Some(standing),
-                heading_only: follow == Follow::Heading,
-                delay_frames,
-            };
+            return self.posture_link(t, sref, (total, delay_frames), follow);
         }
         // The source joint a mapped target joint corresponds to, if it lies below `from`.
         // A leaf's end may hang elsewhere: an IK foot under the root is where the shin points.
@@ -328,21 +311,7 @@ impl<'a> Setup<'a> {
         let bend_s = s_end
             .and_then(|e| corresponding(seg.next_end, e).map(|e2| align::direction(w, e, e2)))
             .unwrap_or(Vec3::ZERO);
-        let a = if self.opts.align_rest {
-            let p_t = self.yaw * seg.direction;
-            let bend_t = self.yaw * seg.bend;
-            // Twist from the bend plane when both limbs are bent at rest, else from a world axis
-            // (forward, side or up) that means the same on both once their facing agrees.
-            let swing_twist = if align::is_bent(p_t, bend_t) && align::is_bent(p_s, bend_s) {
-                align::align(p_t, bend_t, p_s, bend_s)
-            } else {
-                let axis = align::twist_axis(p_t, p_s);
-                align::align(p_t, axis, p_s, axis)
-            };
-            swing_twist * self.yaw
-        } else {
-            Quat::IDENTITY
-        };
+        let a = self.rest_alignment(seg, p_s, bend_s);
         let ws0 = w[s.index()].rotation;
         Link {
             input: sref.input,
@@ -357,6 +326,53 @@ impl<'a> Setup<'a> {
             heading_only: false,
             delay_frames,
         }
+    }
+
+    /// A link that keeps target bone `t`'s own posture (turned to the source's facing) while
+    /// the source stands; the source's world rotation from its standing posture moves it.
+    fn posture_link(
+        &self,
+        t: BoneId,
+        sref: &SourceRef,
+        (total, delay_frames): (f32, u32),
+        follow: Follow,
+    ) -> Link {
+        let standing = self.stand_w[sref.input as usize][sref.bone.index()].rotation;
+        let a = if self.opts.align_rest {
+            self.yaw
+        } else {
+            Quat::IDENTITY
+        };
+        let wt0 = self.tgt_w[t.index()].rotation;
+        Link {
+            input: sref.input,
+            bone: sref.bone.0,
+            end: NO_END,
+            weight: sref.weight / total,
+            offset: (standing.inverse() * a * wt0).normalize(),
+            standing: Some(standing),
+            heading_only: follow == Follow::Heading,
+            delay_frames,
+        }
+    }
+
+    /// The rotation carrying the source segment (direction `p_s`, bend `bend_s`) onto the
+    /// target segment `seg` at rest, the facing included; identity without rest alignment.
+    fn rest_alignment(&self, seg: &TargetSegment, p_s: Vec3, bend_s: Vec3) -> Quat {
+        if !self.opts.align_rest {
+            return Quat::IDENTITY;
+        }
+        let p_t = self.yaw * seg.direction;
+        let bend_t = self.yaw * seg.bend;
+        // Twist from the bend plane when both limbs are bent at rest, else from a world axis
+        // (forward, side or up) that means the same on both once their facing agrees.
+        let swing_twist = if align::is_bent(p_t, bend_t) && align::is_bent(p_s, bend_s) {
+            align::align(p_t, bend_t, p_s, bend_s)
+        } else {
+            let axis = align::twist_axis(p_t, p_s);
+            align::align(p_t, axis, p_s, axis)
+        };
+        swing_twist * self.yaw
     }
 
     /// Per target bone: its plan and links (appended to `links`).
