@@ -29,33 +29,8 @@ impl Mapper {
         let p = &self.performers[i];
         let target = p.target.skeleton();
         let ta = analyze_with_truth(&target_view(&target, p), p.target.truth());
-        let upper_id = *p
-            .target
-            .inputs
-            .first()
-            .context("a graft without an upper source")?;
-        let upper = self.source_side(upper_id);
-        let clip = match &p.graft {
-            Some(LowerInput::Clip(c)) => Some(c.clone()),
-            _ => None,
-        };
-        let lower = match &clip {
-            Some(c) => clip_side(c),
-            None => {
-                let lower_id = *p
-                    .target
-                    .inputs
-                    .get(1)
-                    .context("a graft without a lower source")?;
-                self.source_side(lower_id)
-            }
-        };
-        let mut upper_table = self.table_for(&upper, &target, &ta);
-        if let Some(file) = &p.overrides_file {
-            apply_overrides(&mut upper_table, file, &[&upper.skeleton], &target)
-                .context("mapping file")?;
-        }
-        apply_session(&mut upper_table, &p.session, &[&upper.skeleton], &target)?;
+        let (upper, lower, clip) = self.graft_sides(p)?;
+        let upper_table = self.upper_table(p, &upper, (&target, &ta))?;
         let lower_table = self.table_for(&lower, &target, &ta);
         let upper_mapping = Mapping::build(
             &[&upper.skeleton],
@@ -109,6 +84,49 @@ impl Mapper {
             report,
         );
         Ok(())
+    }
+
+    /// The graft's halves: the upper body's source, the lower body's (a second source or the
+    /// clip), and the clip if it is one.
+    fn graft_sides(&self, p: &PerformerPlan) -> anyhow::Result<(Side, Side, Option<Arc<Clip>>)> {
+        let upper_id = *p
+            .target
+            .inputs
+            .first()
+            .context("a graft without an upper source")?;
+        let upper = self.source_side(upper_id);
+        let clip = match &p.graft {
+            Some(LowerInput::Clip(c)) => Some(c.clone()),
+            _ => None,
+        };
+        let lower = match &clip {
+            Some(c) => clip_side(c),
+            None => {
+                let lower_id = *p
+                    .target
+                    .inputs
+                    .get(1)
+                    .context("a graft without a lower source")?;
+                self.source_side(lower_id)
+            }
+        };
+        Ok((upper, lower, clip))
+    }
+
+    /// The upper body's table, with the performer's mapping file and session overrides.
+    fn upper_table(
+        &self,
+        p: &PerformerPlan,
+        upper: &Side,
+        (target, ta): (&Skeleton, &Analysis),
+    ) -> anyhow::Result<MappingTable> {
+        let mut table = self.table_for(upper, target, ta);
+        if let Some(file) = &p.overrides_file {
+            apply_overrides(&mut table, file, &[&upper.skeleton], target)
+                .context("mapping file")?;
+        }
+        apply_session(&mut table, &p.session, &[&upper.skeleton], target)?;
+        Ok(table)
     }
 
     /// A live or replayed source subject as one half of a graft.
