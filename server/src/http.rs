@@ -252,14 +252,7 @@ async fn handle_connection(
         r = tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut stream, &mut buf)) => r,
         // An unfinished request at shutdown is dropped, so the drain does not wait for it.
         _ = async { shutdown.wait_for(|stop| *stop).await.is_ok() } => return,
-        Ok(()) = evicted => {
-            let max = state.connections.max();
-            drop(permit);
-            let body = format!("server full: {max} connections open; an unfinished request made way for a newer one\n");
-            // The client may be gone already: there is nobody left to answer.
-            let _ = tokio::time::timeout(REFUSAL_TIMEOUT, respond(&mut stream, 503, "text/plain", body.as_bytes())).await;
-            return;
-        }
+        Ok(()) = evicted => return refuse_evicted(&mut stream, &state, permit).await,
     };
     permit.promote();
     let head_end = match read {
@@ -293,33 +286,55 @@ async fn handle_connection(
     };
     match route {
         Route::Stream => upgrade(stream, req, leftover, state, peer, access, permit).await,
-        Route::Status => {
-            let body = serde_json::to_vec_pretty(&status(&state)).unwrap_or_default();
-            // The client may be gone already: there is nobody left to answer.
-            let _ = respond(&mut stream, 200, "application/json", &body).await;
-        }
-        Route::Model => {
-            // `Route::Model` is chosen only when the path is a model request. A client gone
-            // before its answer was written has nobody left to tell.
-            let _ = match model {
-                Some(Ok(id)) => serve_model(&mut stream, &state, id).await,
-                Some(Err(e)) => {
-                    respond(&mut stream, 404, "text/plain", format!("{e}\n").as_bytes()).await
-                }
-                None => respond(&mut stream, 404, "text/plain", b"no subject\n").await,
-            };
-        }
-        Route::ViewerFile => match static_asset(&req.path) {
-            Some((mime, body)) => {
-                // The client may be gone already: there is nobody left to answer.
-                let _ = respond(&mut stream, 200, mime, &body).await;
-            }
-            None => {
-                // The client may be gone already: there is nobody left to answer.
-                let _ = respond(&mut stream, 404, "text/plain", b"not found\n").await;
-            }
-        },
+        _ => answer(&mut stream, route, &req.path, model, &state).await,
     }
+}
+
+/// Tells a client whose unfinished request made way for a newer connection that the server is
+/// full, its slot freed first. The client may be gone already: there is nobody left to answer.
+async fn refuse_evicted(
+    stream: &mut TcpStream,
+    state: &ServerState,
+    permit: crate::limits::ConnectionPermit,
+) {
+    let max = state.connections.max();
+    drop(permit);
+    let body = format!(
+        "server full: {max} connections open; an unfinished request made way for a newer one\n"
+    );
+    let _ = tokio::time::timeout(
+        REFUSAL_TIMEOUT,
+        respond(stream, 503, "text/plain", body.as_bytes()),
+    )
+    .await;
+}
+
+/// Answers a request that is not a stream upgrade: the status, a model file or a viewer file.
+/// The client may be gone already; then there is nobody left to answer, and no error to keep.
+async fn answer(
+    stream: &mut TcpStream,
+    route: Route,
+    path: &str,
+    model: Option<Result<u32, crate::model::ModelError>>,
+    state: &Arc<ServerState>,
+) {
+    let _ = match route {
+        Route::Status => {
+            let body = serde_json::to_vec_pretty(&status(state)).unwrap_or_default();
+            respond(stream, 200, "application/json", &body).await
+        }
+        // `Route::Model` is chosen only when the path is a model request.
+        Route::Model => match model {
+            Some(Ok(id)) => serve_model(stream, state, id).await,
+            Some(Err(e)) => respond(stream, 404, "text/plain", format!("{e}\n").as_bytes()).await,
+            None => respond(stream, 404, "text/plain", b"no subject\n").await,
+        },
+        // `Route::Stream` is upgraded before an answer is asked for.
+        Route::ViewerFile | Route::Stream => match static_asset(path) {
+            Some((mime, body)) => respond(stream, 200, mime, &body).await,
+            None => respond(stream, 404, "text/plain", b"not found\n").await,
+        },
+    };
 }
 
 /// The answer to `GET /v1/subjects/{id}/model.glb`: the target's configured model file,
