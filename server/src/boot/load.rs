@@ -62,20 +62,48 @@ pub(crate) struct Inputs {
 /// the embedded demo (and, with no performers either, the built-in mannequin driven by it).
 pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
     // Other nodes' subjects are known before the defaults are chosen: a node that relays
-    // them needs no demo of its own. Those the performers name are made even when their
-    // node has not published them yet, so the performers wait for them instead of failing.
-    let (cluster, remote) = match &config.cluster {
-        Some(c) => {
-            let wanted: Vec<String> = (config.performers.iter())
-                .flat_map(|p| p.sources.iter().cloned())
-                .collect();
-            let first_id = config.sources.len() as u32;
-            let (link, remote) = crate::cluster::join(c, first_id, &wanted).await?;
-            (Some(link), remote)
-        }
-        None => (None, Vec::new()),
-    };
+    // them needs no demo of its own.
+    let (cluster, remote) = join_cluster(config).await?;
     let defaulted = config.sources.is_empty() && remote.is_empty();
+    let (specs, performer_specs) = with_defaults(config, defaulted);
+    let sources = load_sources(specs, remote).await?;
+    let mut performers = Vec::new();
+    for spec in performer_specs {
+        performers.push(load_performer(spec, config.rate_hz).await?);
+    }
+    let token_setting = config.access.token.clone();
+    let token = tokio::task::spawn_blocking(move || token_setting.resolve()).await??;
+    Ok(Inputs {
+        sources,
+        performers,
+        token,
+        cluster,
+    })
+}
+
+/// Joins the cluster, if configured: the link and the other nodes' subjects. Those the
+/// performers name are made even when their node has not published them yet, so the
+/// performers wait for them instead of failing.
+async fn join_cluster(
+    config: &ServerConfig,
+) -> anyhow::Result<(
+    Option<crate::cluster::ClusterLink>,
+    Vec<crate::cluster::RemoteSubject>,
+)> {
+    let Some(c) = &config.cluster else {
+        return Ok((None, Vec::new()));
+    };
+    let wanted: Vec<String> = (config.performers.iter())
+        .flat_map(|p| p.sources.iter().cloned())
+        .collect();
+    let first_id = config.sources.len() as u32;
+    let (link, remote) = crate::cluster::join(c, first_id, &wanted).await?;
+    Ok((Some(link), remote))
+}
+
+/// The sources and performers to load: the configured ones, or (`defaulted`: no sources here
+/// or elsewhere) the embedded demo, and with no performers either the built-in mannequin.
+fn with_defaults(config: &ServerConfig, defaulted: bool) -> (Vec<SourceSpec>, Vec<PerformerSpec>) {
     let specs = if defaulted {
         vec![SourceSpec::demo()]
     } else {
@@ -89,6 +117,15 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
             rigcast_engine::builtin::BUILTIN_PREFIX
         )));
     }
+    (specs, performer_specs)
+}
+
+/// Opens every configured source (blocking work off the runtime's workers), then adds the
+/// other nodes' subjects; each gets a name no earlier one has.
+async fn load_sources(
+    specs: Vec<SourceSpec>,
+    remote: Vec<crate::cluster::RemoteSubject>,
+) -> anyhow::Result<Vec<LoadedSource>> {
     let mut sources: Vec<LoadedSource> = Vec::new();
     // Subjects of one video or camera share its pipeline.
     let vision = crate::source_kinds::VisionInputs::default();
@@ -116,31 +153,25 @@ pub(crate) async fn load(config: &ServerConfig) -> anyhow::Result<Inputs> {
             skeleton: r.skeleton,
         });
     }
-    let mut performers = Vec::new();
-    for spec in performer_specs {
-        let p = spec.clone();
-        let target = tokio::task::spawn_blocking(move || load_target(&p)).await??;
-        let overrides_file = match spec.mapping.clone() {
-            Some(path) => Some(tokio::task::spawn_blocking(move || read_mapping(&path)).await??),
-            None => None,
-        };
-        let graft = load_graft_lower(&spec).await?;
-        let idle = load_idle_graph(&spec, &target, config.rate_hz).await?;
-        performers.push(LoadedPerformer {
-            spec,
-            target,
-            overrides_file,
-            graft,
-            idle,
-        });
-    }
-    let token_setting = config.access.token.clone();
-    let token = tokio::task::spawn_blocking(move || token_setting.resolve()).await??;
-    Ok(Inputs {
-        sources,
-        performers,
-        token,
-        cluster,
+    Ok(sources)
+}
+
+/// One performer's character, mapping file, graft and idle graph.
+async fn load_performer(spec: PerformerSpec, rate_hz: f64) -> anyhow::Result<LoadedPerformer> {
+    let p = spec.clone();
+    let target = tokio::task::spawn_blocking(move || load_target(&p)).await??;
+    let overrides_file = match spec.mapping.clone() {
+        Some(path) => Some(tokio::task::spawn_blocking(move || read_mapping(&path)).await??),
+        None => None,
+    };
+    let graft = load_graft_lower(&spec).await?;
+    let idle = load_idle_graph(&spec, &target, rate_hz).await?;
+    Ok(LoadedPerformer {
+        spec,
+        target,
+        overrides_file,
+        graft,
+        idle,
     })
 }
 
