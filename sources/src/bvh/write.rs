@@ -10,7 +10,7 @@
 use std::fmt::Write as _;
 
 use glam::{Quat, Vec3};
-use rigcast_retarget::{BoneId, Clip, RotationOrder};
+use rigcast_retarget::{BoneId, Clip, Pose, RotationOrder, Skeleton};
 
 use crate::error::SourceError;
 
@@ -46,6 +46,31 @@ pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceEr
     }
     let s = &clip.skeleton;
     let n = s.num_bones();
+    let (end_site, has_position) = joint_kinds(clip);
+    let mut out = String::with_capacity(64 * n + clip.num_frames() * n * 40);
+    out.push_str("HIERARCHY\n");
+    let joints = Joints {
+        end_site: &end_site,
+        has_position: &has_position,
+        names: readable_names(s),
+    };
+    for root in s.roots() {
+        write_joint(&mut out, clip, root, 0, &joints, opts);
+    }
+    // Writing to a String cannot fail.
+    let _ = writeln!(out, "MOTION\nFrames: {}", clip.num_frames());
+    let _ = writeln!(out, "Frame Time: {}", clip.frame_time_secs);
+    for pose in &clip.poses {
+        write_frame(&mut out, pose, s, &joints, opts);
+    }
+    Ok(out)
+}
+
+/// Per bone: whether it is written as an End Site (an unmoving, unturned `<parent>_end` leaf),
+/// and whether it has position channels (a root, or a bone whose offset moves).
+fn joint_kinds(clip: &Clip) -> (Vec<bool>, Vec<bool>) {
+    let s = &clip.skeleton;
+    let n = s.num_bones();
     let rest = s.rest();
     let moves: Vec<bool> = (0..n)
         .map(|i| {
@@ -77,43 +102,39 @@ pub fn write_bvh(clip: &Clip, opts: &BvhWriteOptions) -> Result<String, SourceEr
         .map(|b| s.parent(b).is_none() || moves[b.index()])
         .collect();
 
+    (end_site, has_position)
+}
+
+/// One frame's channel values, on one line.
+fn write_frame(
+    out: &mut String,
+    pose: &Pose,
+    s: &Skeleton,
+    joints: &Joints<'_>,
+    opts: &BvhWriteOptions,
+) {
     let u = opts.units_per_metre;
-    let mut out = String::with_capacity(64 * n + clip.num_frames() * n * 40);
-    out.push_str("HIERARCHY\n");
-    let joints = Joints {
-        end_site: &end_site,
-        has_position: &has_position,
-        names: readable_names(s),
-    };
-    for root in s.roots() {
-        write_joint(&mut out, clip, root, 0, &joints, opts);
-    }
-    // Writing to a String cannot fail.
-    let _ = writeln!(out, "MOTION\nFrames: {}", clip.num_frames());
-    let _ = writeln!(out, "Frame Time: {}", clip.frame_time_secs);
-    let mut line = String::new();
-    for pose in &clip.poses {
-        line.clear();
-        for b in s.bone_ids() {
-            let i = b.index();
-            if end_site[i] {
-                continue;
-            }
-            if has_position[i] {
-                let t = pose.translations[i] * u;
-                // Writing to a String cannot fail.
-                let _ = write!(line, "{} {} {} ", t.x, t.y, t.z);
-            }
-            let a = opts.order.from_quat(pose.rotations[i]);
-            for v in a {
-                // Writing to a String cannot fail.
-                let _ = write!(line, "{} ", v.to_degrees());
-            }
+    let start = out.len();
+    for b in s.bone_ids() {
+        let i = b.index();
+        if joints.end_site[i] {
+            continue;
         }
-        out.push_str(line.trim_end());
-        out.push('\n');
+        if joints.has_position[i] {
+            let t = pose.translations[i] * u;
+            // Writing to a String cannot fail.
+            let _ = write!(out, "{} {} {} ", t.x, t.y, t.z);
+        }
+        let a = opts.order.from_quat(pose.rotations[i]);
+        for v in a {
+            // Writing to a String cannot fail.
+            let _ = write!(out, "{} ", v.to_degrees());
+        }
     }
-    Ok(out)
+    // The line's trailing space goes: every value was followed by one.
+    let end = out[start..].trim_end().len() + start;
+    out.truncate(end);
+    out.push('\n');
 }
 
 /// Per bone: written as an End Site, with position channels, under which name.
