@@ -281,41 +281,15 @@ fn read_document(
     for &n in &bone_nodes {
         frames.push(bone_frame(n, &parent, &included, &trs));
     }
-    let mut names = unique_names(&bone_nodes, &nodes);
-    let mut raw = RawSkeleton::default();
+    let names = unique_names(&bone_nodes, &nodes);
     let bone_of_node: BTreeMap<usize, usize> = bone_nodes
         .iter()
         .enumerate()
         .map(|(b, &n)| (n, b))
         .collect();
-    for (b, f) in frames.iter().enumerate() {
-        let (t, r, _) = trs[f.node];
-        let (t, r) = f.apply(t, r);
-        let p = parent[f.node].and_then(|p| bone_of_node.get(&p).copied());
-        raw.add(
-            std::mem::take(&mut names[b]),
-            p,
-            Transform {
-                translation: t,
-                rotation: r,
-            },
-        );
-    }
+    let raw = raw_skeleton(&frames, names, (&parent, &bone_of_node), &trs);
     let skeleton = Arc::new(Skeleton::build(&raw)?);
-    // Skeleton order → frame (node) for sampling.
-    let bone_frames: Vec<BoneFrame> = skeleton
-        .names()
-        .iter()
-        .map(|n| {
-            raw.bones
-                .iter()
-                .position(|b| &b.name == n)
-                .map(|i| frames[i])
-        })
-        .collect::<Option<Vec<_>>>()
-        .ok_or_else(|| SourceError::Gltf {
-            message: "bone lost while ordering the skeleton".into(),
-        })?;
+    let bone_frames = frames_in_skeleton_order(&skeleton, &raw, &frames)?;
 
     let (animations, selected, poses, frame_time) =
         read_animation(doc, buffers, opts, &skeleton, &bone_frames, &trs)?;
@@ -345,6 +319,52 @@ fn read_document(
             ..GltfTemplate::default()
         },
     })
+}
+
+/// The raw skeleton of the bones' `frames` (in node order, named `names`): each bone's rest
+/// from its node's transform through its frame, its parent the nearest included node above.
+fn raw_skeleton(
+    frames: &[BoneFrame],
+    mut names: Vec<String>,
+    (parent, bone_of_node): (&[Option<usize>], &BTreeMap<usize, usize>),
+    trs: &[(Vec3, Quat, f32)],
+) -> RawSkeleton {
+    let mut raw = RawSkeleton::default();
+    for (b, f) in frames.iter().enumerate() {
+        let (t, r, _) = trs[f.node];
+        let (t, r) = f.apply(t, r);
+        let p = parent[f.node].and_then(|p| bone_of_node.get(&p).copied());
+        raw.add(
+            std::mem::take(&mut names[b]),
+            p,
+            Transform {
+                translation: t,
+                rotation: r,
+            },
+        );
+    }
+    raw
+}
+
+/// The bones' frames (node order, as in `raw`) in the built skeleton's order, for sampling.
+fn frames_in_skeleton_order(
+    skeleton: &Skeleton,
+    raw: &RawSkeleton,
+    frames: &[BoneFrame],
+) -> Result<Vec<BoneFrame>, SourceError> {
+    skeleton
+        .names()
+        .iter()
+        .map(|n| {
+            raw.bones
+                .iter()
+                .position(|b| &b.name == n)
+                .map(|i| frames[i])
+        })
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| SourceError::Gltf {
+            message: "bone lost while ordering the skeleton".into(),
+        })
 }
 
 /// The nodes the skeleton is made of: the first skin's joints, else (a VRM without a skin)
