@@ -138,38 +138,25 @@ fn append_animation(
     template: &GltfTemplate,
     clip: &Clip,
 ) -> Value {
-    let mut views = take_array(root, "bufferViews");
-    let mut accessors = take_array(root, "accessors");
-    let mut push = |bin: &mut Vec<u8>,
-                    data: &[f32],
-                    kind: &str,
-                    count: usize,
-                    minmax: Option<(f32, f32)>| {
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
-        let offset = bin.len();
-        for v in data {
-            bin.extend_from_slice(&v.to_le_bytes());
-        }
-        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4}));
-        let mut acc = json!({"bufferView": views.len() - 1, "componentType": FLOAT, "count": count, "type": kind});
-        if let Some((lo, hi)) = minmax {
-            acc["min"] = json!([lo]);
-            acc["max"] = json!([hi]);
-        }
-        accessors.push(acc);
-        accessors.len() - 1
+    let mut data = DataOut {
+        views: take_array(root, "bufferViews"),
+        accessors: take_array(root, "accessors"),
+        bin,
     };
     let frames = clip.num_frames().max(1);
     let times: Vec<f32> = (0..frames)
         .map(|k| (k as f64 * clip.frame_time_secs) as f32)
         .collect();
     let last = times.last().copied().unwrap_or(0.0);
-    let input = push(bin, &times, "SCALAR", times.len(), Some((0.0, last)));
+    let input = data.push(&times, "SCALAR", times.len(), Some((0.0, last)));
     let s = &clip.skeleton;
     let rest = s.rest();
     let (mut samplers, mut channels) = (Vec::new(), Vec::new());
+    let mut sample = |out: usize, node: usize, path: &str| {
+        samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
+        channels
+            .push(json!({"sampler": samplers.len() - 1, "target": {"node": node, "path": path}}));
+    };
     for b in s.bone_ids() {
         let i = b.index();
         let frame = template.frames[i];
@@ -179,39 +166,89 @@ fn append_animation(
                 None => frame.unapply(rest[i].translation, rest[i].rotation),
             }
         };
-        // Consecutive keys in one hemisphere, so interpolation takes the short way.
-        let mut prev = Quat::IDENTITY;
-        let mut rotations = Vec::with_capacity(4 * frames);
-        for k in 0..frames {
-            let mut q = node_pose(k).1.normalize();
-            if k > 0 && q.dot(prev) < 0.0 {
-                q = -q;
-            }
-            prev = q;
-            rotations.extend_from_slice(&q.to_array());
-        }
-        let out = push(bin, &rotations, "VEC4", frames, None);
-        samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
-        channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": frame.node, "path": "rotation"}}));
-        let moves = s.parent(b).is_none()
-            || clip.poses.iter().any(|p| {
-                (p.translations[i] - rest[i].translation)
-                    .abs()
-                    .max_element()
-                    > MOVE_TOLERANCE_M
-            });
-        if moves {
-            let data: Vec<f32> = (0..frames)
+        let rotations = rotation_keys(frames, |k| node_pose(k).1);
+        sample(
+            data.push(&rotations, "VEC4", frames, None),
+            frame.node,
+            "rotation",
+        );
+        if s.parent(b).is_none() || bone_moves(clip, i) {
+            let keys: Vec<f32> = (0..frames)
                 .flat_map(|k| node_pose(k).0.to_array())
                 .collect();
-            let out = push(bin, &data, "VEC3", frames, None);
-            samplers.push(json!({"input": input, "output": out, "interpolation": "LINEAR"}));
-            channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": frame.node, "path": "translation"}}));
+            sample(
+                data.push(&keys, "VEC3", frames, None),
+                frame.node,
+                "translation",
+            );
         }
     }
-    root["bufferViews"] = Value::Array(views);
-    root["accessors"] = Value::Array(accessors);
+    root["bufferViews"] = Value::Array(data.views);
+    root["accessors"] = Value::Array(data.accessors);
     json!({"name": clip.name, "samplers": samplers, "channels": channels})
+}
+
+/// The binary chunk being written, with its buffer views and accessors.
+struct DataOut<'a> {
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+    bin: &'a mut Vec<u8>,
+}
+
+impl DataOut<'_> {
+    /// Appends `data` (4-byte aligned) with a view and an accessor of `count` elements of
+    /// `kind`; returns the accessor's index.
+    fn push(
+        &mut self,
+        data: &[f32],
+        kind: &str,
+        count: usize,
+        minmax: Option<(f32, f32)>,
+    ) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        for v in data {
+            self.bin.extend_from_slice(&v.to_le_bytes());
+        }
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4}));
+        let mut acc = json!({"bufferView": self.views.len() - 1, "componentType": FLOAT, "count": count, "type": kind});
+        if let Some((lo, hi)) = minmax {
+            acc["min"] = json!([lo]);
+            acc["max"] = json!([hi]);
+        }
+        self.accessors.push(acc);
+        self.accessors.len() - 1
+    }
+}
+
+/// `frames` rotation keys (x, y, z, w each), consecutive keys in one hemisphere so that
+/// interpolation takes the short way.
+fn rotation_keys(frames: usize, rotation: impl Fn(usize) -> Quat) -> Vec<f32> {
+    let mut prev = Quat::IDENTITY;
+    let mut keys = Vec::with_capacity(4 * frames);
+    for k in 0..frames {
+        let mut q = rotation(k).normalize();
+        if k > 0 && q.dot(prev) < 0.0 {
+            q = -q;
+        }
+        prev = q;
+        keys.extend_from_slice(&q.to_array());
+    }
+    keys
+}
+
+/// Whether bone `i`'s offset from its parent moves in any of the clip's poses.
+fn bone_moves(clip: &Clip, i: usize) -> bool {
+    let rest = clip.skeleton.rest();
+    clip.poses.iter().any(|p| {
+        (p.translations[i] - rest[i].translation)
+            .abs()
+            .max_element()
+            > MOVE_TOLERANCE_M
+    })
 }
 
 fn take_array(root: &mut Value, key: &str) -> Vec<Value> {
