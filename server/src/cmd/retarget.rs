@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context};
 use clap::Args;
-use rigcast_retarget::RootMotion;
+use rigcast_retarget::{Clip, RootMotion};
 
-use crate::character::{load_character, vrm_truth};
-use crate::offline::{plan_mapping_with_truth, retarget_clip_locked, Progress};
+use crate::character::{load_character, vrm_truth, LoadedCharacter};
+use crate::offline::{plan_mapping_with_truth, retarget_clip_locked, MappingPlan, Progress};
 
 /// Options of `rigcast retarget`.
 #[derive(Debug, Clone, Args)]
@@ -70,26 +70,8 @@ pub fn output_extension(output: &Path) -> anyhow::Result<String> {
 pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
     // Refuse an unwritable output format before doing any work.
     output_extension(&args.output)?;
-    // Source errors already name the file and the cause; no extra context, so nothing repeats.
-    let mut clip = rigcast_sources::load_clip_with(&args.anim, &args.unit.load_options())
-        .map_err(|e| anyhow!("cannot read the animation: {e}"))?;
-    if clip.num_frames() == 0 {
-        bail!(
-            "{} has no animation frames to retarget",
-            args.anim.display()
-        );
-    }
-    let character = load_character(&args.target)
-        .map_err(|e| anyhow!("cannot read the target character: {e}"))?;
+    let (clip, character) = read_inputs(args)?;
     let target = character.clip.skeleton.clone();
-    if let Some(fps) = args.fps {
-        if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
-            bail!("--fps {fps}: expected a frame rate between 0 and 10000");
-        }
-        clip = clip
-            .resampled(1.0 / fps)
-            .with_context(|| format!("cannot resample to {fps} fps"))?;
-    }
     let overrides = args
         .mapping
         .as_deref()
@@ -103,16 +85,7 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         overrides.as_ref(),
         (truth_s.as_deref(), character.truth.as_deref()),
     )?;
-    // What the analysis could not read as usual (a rig whose geometry disagrees with its
-    // names, sides named the other way round) explains an odd result before it is seen.
-    for (which, a) in [
-        ("source", &plan.source_analysis),
-        ("target", &plan.target_analysis),
-    ] {
-        for w in &a.warnings {
-            eprintln!("warning: {which}: {w}");
-        }
-    }
+    print_analysis_warnings(&plan);
     let table = &plan.table;
     if table.num_mapped() == 0 {
         bail!(
@@ -144,6 +117,44 @@ pub fn run(args: &RetargetArgs) -> anyhow::Result<()> {
         out.fps()
     );
     Ok(())
+}
+
+/// The animation (resampled to `--fps` if asked) and the target character, with errors that
+/// say which file is wrong.
+fn read_inputs(args: &RetargetArgs) -> anyhow::Result<(Clip, LoadedCharacter)> {
+    // Source errors already name the file and the cause; no extra context, so nothing repeats.
+    let mut clip = rigcast_sources::load_clip_with(&args.anim, &args.unit.load_options())
+        .map_err(|e| anyhow!("cannot read the animation: {e}"))?;
+    if clip.num_frames() == 0 {
+        bail!(
+            "{} has no animation frames to retarget",
+            args.anim.display()
+        );
+    }
+    let character = load_character(&args.target)
+        .map_err(|e| anyhow!("cannot read the target character: {e}"))?;
+    if let Some(fps) = args.fps {
+        if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
+            bail!("--fps {fps}: expected a frame rate between 0 and 10000");
+        }
+        clip = clip
+            .resampled(1.0 / fps)
+            .with_context(|| format!("cannot resample to {fps} fps"))?;
+    }
+    Ok((clip, character))
+}
+
+/// What the analysis could not read as usual (a rig whose geometry disagrees with its names,
+/// sides named the other way round) explains an odd result before it is seen.
+fn print_analysis_warnings(plan: &MappingPlan) {
+    for (which, a) in [
+        ("source", &plan.source_analysis),
+        ("target", &plan.target_analysis),
+    ] {
+        for w in &a.warnings {
+            eprintln!("warning: {which}: {w}");
+        }
+    }
 }
 
 /// Progress on stderr: the foot lock's plants, then every 5 % of a long clip's frames.
