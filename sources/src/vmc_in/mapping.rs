@@ -201,14 +201,7 @@ fn compile_rule(
     let Some(path) = rule.address.strip_prefix('/') else {
         return Err(bad("address must start with '/'".into()));
     };
-    let segments: Vec<Segment> = path
-        .split('/')
-        .map(|s| match s {
-            "*" => Segment::Any,
-            "{bone}" => Segment::Bone,
-            lit => Segment::Literal(lit.to_string()),
-        })
-        .collect();
+    let segments = address_segments(path);
     let find = |f: ArgField| rule.args.iter().position(|a| *a == f);
     let bone_arg = find(ArgField::Bone);
     let fixed_bone = match &rule.bone {
@@ -224,23 +217,7 @@ fn compile_rule(
         .iter()
         .filter(|b| **b)
         .count();
-    let p = [find(ArgField::Px), find(ArgField::Py), find(ArgField::Pz)];
-    let q = [
-        find(ArgField::Qx),
-        find(ArgField::Qy),
-        find(ArgField::Qz),
-        find(ArgField::Qw),
-    ];
-    let position = match p {
-        [Some(x), Some(y), Some(z)] => Some([x, y, z]),
-        [None, None, None] => None,
-        _ => return Err(bad("position needs all of px, py, pz".into())),
-    };
-    let rotation = match q {
-        [Some(x), Some(y), Some(z), Some(w)] => Some([x, y, z, w]),
-        [None, None, None, None] => None,
-        _ => return Err(bad("rotation needs all of qx, qy, qz, qw".into())),
-    };
+    let (position, rotation) = transform_args(&rule.args).map_err(|e| bad(e.into()))?;
     let carries_transform = position.is_some() || rotation.is_some();
     if carries_transform && sources != 1 {
         return Err(bad(
@@ -265,6 +242,44 @@ fn compile_rule(
         space: rule.space,
         frame_end: rule.frame_end,
     })
+}
+
+/// An address's path (after its leading `/`) as segments: `*` any, `{bone}` the bone's name,
+/// anything else literal.
+fn address_segments(path: &str) -> Vec<Segment> {
+    path.split('/')
+        .map(|s| match s {
+            "*" => Segment::Any,
+            "{bone}" => Segment::Bone,
+            lit => Segment::Literal(lit.to_string()),
+        })
+        .collect()
+}
+
+/// The arguments holding a position (px, py, pz) and a rotation (qx, qy, qz, qw), each all
+/// or none; otherwise what is missing.
+fn transform_args(
+    args: &[ArgField],
+) -> Result<(Option<[usize; 3]>, Option<[usize; 4]>), &'static str> {
+    let find = |f: ArgField| args.iter().position(|a| *a == f);
+    let p = [find(ArgField::Px), find(ArgField::Py), find(ArgField::Pz)];
+    let q = [
+        find(ArgField::Qx),
+        find(ArgField::Qy),
+        find(ArgField::Qz),
+        find(ArgField::Qw),
+    ];
+    let position = match p {
+        [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+        [None, None, None] => None,
+        _ => return Err("position needs all of px, py, pz"),
+    };
+    let rotation = match q {
+        [Some(x), Some(y), Some(z), Some(w)] => Some([x, y, z, w]),
+        [None, None, None, None] => None,
+        _ => return Err("rotation needs all of qx, qy, qz, qw"),
+    };
+    Ok((position, rotation))
 }
 
 impl CompiledRule {
@@ -329,26 +344,37 @@ args = ["qw", "qx", "qy", "qz"]
     #[test]
     fn rejects_inconsistent_rules() {
         let bad = [
-            r#"[[rules]]
-address = "no/slash"
-"#,
-            r#"[[rules]]
-address = "/a"
-args = ["qx", "qy"]
-bone = "Hips"
-"#,
-            r#"[[rules]]
-address = "/a"
-args = ["qx", "qy", "qz", "qw"]
-"#,
-            r#"[[rules]]
-address = "/a"
-bone = "Tail"
-"#,
+            ("address = \"no/slash\"", "must start with '/'"),
+            (
+                "address = \"/a\"\nargs = [\"qx\", \"qy\"]\nbone = \"Hips\"",
+                "rotation needs all of qx, qy, qz, qw",
+            ),
+            (
+                "address = \"/a\"\nargs = [\"px\", \"pz\"]\nbone = \"Hips\"",
+                "position needs all of px, py, pz",
+            ),
+            (
+                "address = \"/a\"\nargs = [\"qx\", \"qy\", \"qz\", \"qw\"]",
+                "exactly one bone source",
+            ),
+            (
+                "address = \"/a/{bone}\"\nargs = [\"qx\", \"qy\", \"qz\", \"qw\"]\nbone = \"Hips\"",
+                "exactly one bone source",
+            ),
+            ("address = \"/a\"\nbone = \"Tail\"", "unknown bone \"Tail\""),
+            (
+                "address = \"/a\"\nargs = [\"blend_name\"]",
+                "blend needs both blend_name and blend_value",
+            ),
         ];
-        for text in bad {
-            let m = OscMapping::from_toml(text).unwrap();
-            assert!(m.compile().is_err(), "{text}");
+        for (rule, reason) in bad {
+            let text = format!("[[rules]]\n{rule}\n");
+            let m = OscMapping::from_toml(&text).unwrap();
+            let e = m
+                .compile()
+                .err()
+                .unwrap_or_else(|| panic!("accepted: {text}"));
+            assert!(e.to_string().contains(reason), "{text}: {e}");
         }
     }
 }
