@@ -53,6 +53,65 @@ pub struct BodySplit {
     pub up: glam::Vec3,
 }
 
+/// The waist (the pelvis) and the spine bones from just above it up to the chest (where the
+/// arms attach, or on a sparse spine the arms' parent), waist side first.
+fn waist_and_spine(
+    skel: &Skeleton,
+    analysis: &Analysis,
+) -> Result<(BoneId, Vec<BoneId>), GraftError> {
+    let find = |role: Role| {
+        skel.bone_ids()
+            .find(|b| analysis.roles[b.index()].role == role)
+    };
+    let waist = find(Role::Hips).ok_or_else(|| GraftError::Body("no pelvis found".into()))?;
+    // Where the arms attach: the chest, or on a sparse spine (one bone) the arms' parent.
+    let arm_root = || {
+        find(Role::Clavicle)
+            .or_else(|| find(Role::UpperArm))
+            .and_then(|b| skel.parent(b))
+    };
+    let chest = find(Role::Chest)
+        .or_else(arm_root)
+        .or_else(|| find(Role::Neck(0)))
+        .filter(|&c| c != waist)
+        .ok_or_else(|| GraftError::Body("no chest (where the arms attach) found".into()))?;
+    let mut spine = Vec::new();
+    let mut b = chest;
+    while b != waist {
+        spine.push(b);
+        b = skel
+            .parent(b)
+            .ok_or_else(|| GraftError::Body("the chest does not hang from the pelvis".into()))?;
+    }
+    spine.reverse();
+    Ok((waist, spine))
+}
+
+/// The standing legs' longest length and the left and right hind legs' upper bones. The graft
+/// cuts at the hips and keeps the legs' own chains: a foot carried beside the body (an IK
+/// rig's) is no part of them, so such legs are not grafted.
+fn standing_legs(
+    skel: &Skeleton,
+    analysis: &Analysis,
+) -> Result<(f32, BoneId, BoneId), GraftError> {
+    let legs: Vec<_> = (crate::footplant::find_legs(skel, analysis).into_iter())
+        .filter(|l| !l.carried)
+        .collect();
+    let leg_length = legs.iter().map(|l| l.length).fold(0.0, f32::max);
+    let hind = |side: Side| {
+        legs.iter()
+            .find(|l| l.kind == LegKind::Hind && l.side == side)
+            .map(|l| l.upper)
+    };
+    let (Some(left), Some(right)) = (hind(Side::Left), hind(Side::Right)) else {
+        return Err(GraftError::Body("no left and right legs found".into()));
+    };
+    if leg_length <= 0.0 {
+        return Err(GraftError::Body("no standing legs found".into()));
+    }
+    Ok((leg_length, left, right))
+}
+
 impl BodySplit {
     /// Cuts `skel` (analysed as `analysis`) at the waist, blending the graft in over
     /// `blend_bones` spine bones (at least one).
@@ -66,31 +125,7 @@ impl BodySplit {
                 "the analysis is of another skeleton".into(),
             ));
         }
-        let find = |role: Role| {
-            skel.bone_ids()
-                .find(|b| analysis.roles[b.index()].role == role)
-        };
-        let waist = find(Role::Hips).ok_or_else(|| GraftError::Body("no pelvis found".into()))?;
-        // Where the arms attach: the chest, or on a sparse spine (one bone) the arms' parent.
-        let arm_root = || {
-            find(Role::Clavicle)
-                .or_else(|| find(Role::UpperArm))
-                .and_then(|b| skel.parent(b))
-        };
-        let chest = find(Role::Chest)
-            .or_else(arm_root)
-            .or_else(|| find(Role::Neck(0)))
-            .filter(|&c| c != waist)
-            .ok_or_else(|| GraftError::Body("no chest (where the arms attach) found".into()))?;
-        let mut spine = Vec::new();
-        let mut b = chest;
-        while b != waist {
-            spine.push(b);
-            b = skel.parent(b).ok_or_else(|| {
-                GraftError::Body("the chest does not hang from the pelvis".into())
-            })?;
-        }
-        spine.reverse();
+        let (waist, spine) = waist_and_spine(skel, analysis)?;
         let halves = halves(skel, analysis, spine[0]);
         let n = blend_bones.clamp(1, spine.len());
         let blend = spine[..n]
@@ -98,23 +133,7 @@ impl BodySplit {
             .enumerate()
             .map(|(k, &b)| (b, (k + 1) as f32 / n as f32))
             .collect();
-        // The graft cuts at the hips and keeps the legs' own chains: a foot carried beside
-        // the body (an IK rig's) is no part of them, so such legs are not grafted.
-        let legs: Vec<_> = (crate::footplant::find_legs(skel, analysis).into_iter())
-            .filter(|l| !l.carried)
-            .collect();
-        let leg_length = legs.iter().map(|l| l.length).fold(0.0, f32::max);
-        let hind = |side: Side| {
-            legs.iter()
-                .find(|l| l.kind == LegKind::Hind && l.side == side)
-                .map(|l| l.upper)
-        };
-        let (Some(left), Some(right)) = (hind(Side::Left), hind(Side::Right)) else {
-            return Err(GraftError::Body("no left and right legs found".into()));
-        };
-        if leg_length <= 0.0 {
-            return Err(GraftError::Body("no standing legs found".into()));
-        }
+        let (leg_length, left, right) = standing_legs(skel, analysis)?;
         let joints = |roles: &[Role]| -> Vec<BoneId> {
             skel.bone_ids()
                 .filter(|b| roles.contains(&analysis.roles[b.index()].role))
