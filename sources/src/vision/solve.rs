@@ -112,6 +112,79 @@ fn two_axis(a_rest: Vec3, b_rest: Vec3, a: Vec3, b: Vec3) -> Option<Quat> {
     Some(Quat::from_mat3(&(to * from.transpose())).normalize())
 }
 
+/// An arm's bones (upper arm, forearm, hand) and landmarks (shoulder, elbow, wrist, pinky,
+/// index).
+struct Arm {
+    bones: (usize, usize, usize),
+    joints: (usize, usize, usize, usize, usize),
+}
+
+const ARMS: [Arm; 2] = [
+    Arm {
+        bones: (bone::LEFT_UPPER_ARM, bone::LEFT_LOWER_ARM, bone::LEFT_HAND),
+        joints: (
+            idx::LEFT_SHOULDER,
+            idx::LEFT_ELBOW,
+            idx::LEFT_WRIST,
+            idx::LEFT_PINKY,
+            idx::LEFT_INDEX,
+        ),
+    },
+    Arm {
+        bones: (
+            bone::RIGHT_UPPER_ARM,
+            bone::RIGHT_LOWER_ARM,
+            bone::RIGHT_HAND,
+        ),
+        joints: (
+            idx::RIGHT_SHOULDER,
+            idx::RIGHT_ELBOW,
+            idx::RIGHT_WRIST,
+            idx::RIGHT_PINKY,
+            idx::RIGHT_INDEX,
+        ),
+    },
+];
+
+/// A leg's bones (thigh, shin, foot, toes) and landmarks (hip, knee, ankle, heel, toe).
+struct Leg {
+    bones: (usize, usize, usize, usize),
+    joints: (usize, usize, usize, usize, usize),
+}
+
+const LEGS: [Leg; 2] = [
+    Leg {
+        bones: (
+            bone::LEFT_UPPER_LEG,
+            bone::LEFT_LOWER_LEG,
+            bone::LEFT_FOOT,
+            bone::LEFT_TOES,
+        ),
+        joints: (
+            idx::LEFT_HIP,
+            idx::LEFT_KNEE,
+            idx::LEFT_ANKLE,
+            idx::LEFT_HEEL,
+            idx::LEFT_FOOT_INDEX,
+        ),
+    },
+    Leg {
+        bones: (
+            bone::RIGHT_UPPER_LEG,
+            bone::RIGHT_LOWER_LEG,
+            bone::RIGHT_FOOT,
+            bone::RIGHT_TOES,
+        ),
+        joints: (
+            idx::RIGHT_HIP,
+            idx::RIGHT_KNEE,
+            idx::RIGHT_ANKLE,
+            idx::RIGHT_HEEL,
+            idx::RIGHT_FOOT_INDEX,
+        ),
+    },
+];
+
 impl PoseSolver {
     /// A solver for `skeleton` (the one from [`super::body::blazepose_skeleton`]).
     pub fn new(skeleton: Arc<Skeleton>, config: SolverConfig) -> PoseSolver {
@@ -253,77 +326,49 @@ impl PoseSolver {
         solved: &mut [Quat; bone::NUM_BONES],
         conf: &mut [f32; bone::NUM_BONES],
     ) {
+        for arm in &ARMS {
+            self.solve_arm(landmarks, arm, (&mut *solved, &mut *conf));
+        }
+    }
+
+    /// One arm's upper arm, forearm and hand.
+    fn solve_arm(
+        &self,
+        landmarks: &Landmarks,
+        arm: &Arm,
+        (solved, conf): (&mut [Quat; bone::NUM_BONES], &mut [f32; bone::NUM_BONES]),
+    ) {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
-        let mid = |a: usize, b: usize| midpoint(landmarks, a, b);
-        let seen = |v: f32| self.seen(v);
-        let prev = self.world;
         let z = Vec3::Z;
-        // Arms: (upper, lower, hand, shoulder, elbow, wrist, pinky, index).
-        let arms = [
-            (
-                bone::LEFT_UPPER_ARM,
-                bone::LEFT_LOWER_ARM,
-                bone::LEFT_HAND,
-                idx::LEFT_SHOULDER,
-                idx::LEFT_ELBOW,
-                idx::LEFT_WRIST,
-                idx::LEFT_PINKY,
-                idx::LEFT_INDEX,
-            ),
-            (
-                bone::RIGHT_UPPER_ARM,
-                bone::RIGHT_LOWER_ARM,
-                bone::RIGHT_HAND,
-                idx::RIGHT_SHOULDER,
-                idx::RIGHT_ELBOW,
-                idx::RIGHT_WRIST,
-                idx::RIGHT_PINKY,
-                idx::RIGHT_INDEX,
-            ),
-        ];
-        for (ub, lb, hb, s, e, w, pk, ix) in arms {
-            let upper = p(e) - p(s);
-            let fore = p(w) - p(e);
-            let palm = p(ix) - p(pk);
-            let hand = mid(ix, pk) - p(w);
-            let fallback = |b: usize| prev[b] * z;
-            // The twist references come from landmarks outside the bone (wrist, hand); where
-            // those are not seen, the bone keeps its previous twist instead of following them.
-            let bend = stable_secondary(
-                upper,
-                trusted(fore, fallback(ub), seen(vis(w))),
-                fallback(ub),
-            );
-            set(
-                solved,
-                conf,
-                ub,
-                two_axis(self.rest_dir[ub], z, upper, bend),
-                vis(s).min(vis(e)),
-            );
-            let hand_vis = vis(pk).min(vis(ix)).min(vis(w));
-            let twist = stable_secondary(
-                fore,
-                trusted(palm, fallback(lb), seen(hand_vis)),
-                fallback(lb),
-            );
-            set(
-                solved,
-                conf,
-                lb,
-                two_axis(self.rest_dir[lb], z, fore, twist),
-                vis(e).min(vis(w)).min(hand_vis.max(0.5 * vis(w))),
-            );
-            let palm2 = stable_secondary(hand, palm, fallback(hb));
-            set(
-                solved,
-                conf,
-                hb,
-                two_axis(self.rest_dir[hb], z, hand, palm2),
-                hand_vis,
-            );
-        }
+        let (ub, lb, hb) = arm.bones;
+        let (s, e, w, pk, ix) = arm.joints;
+        let upper = p(e) - p(s);
+        let fore = p(w) - p(e);
+        let palm = p(ix) - p(pk);
+        let hand = midpoint(landmarks, ix, pk) - p(w);
+        let fallback = |b: usize| self.world[b] * z;
+        // The twist references come from landmarks outside the bone (wrist, hand); where
+        // those are not seen, the bone keeps its previous twist instead of following them.
+        let bend = stable_secondary(
+            upper,
+            trusted(fore, fallback(ub), self.seen(vis(w))),
+            fallback(ub),
+        );
+        let rotation = two_axis(self.rest_dir[ub], z, upper, bend);
+        set(solved, conf, ub, rotation, vis(s).min(vis(e)));
+        let hand_vis = vis(pk).min(vis(ix)).min(vis(w));
+        let twist = stable_secondary(
+            fore,
+            trusted(palm, fallback(lb), self.seen(hand_vis)),
+            fallback(lb),
+        );
+        let fore_conf = vis(e).min(vis(w)).min(hand_vis.max(0.5 * vis(w)));
+        let rotation = two_axis(self.rest_dir[lb], z, fore, twist);
+        set(solved, conf, lb, rotation, fore_conf);
+        let palm2 = stable_secondary(hand, palm, fallback(hb));
+        let rotation = two_axis(self.rest_dir[hb], z, hand, palm2);
+        set(solved, conf, hb, rotation, hand_vis);
     }
 
     /// Thighs, shins, feet and toes; legs face the way their foot points.
@@ -333,74 +378,54 @@ impl PoseSolver {
         solved: &mut [Quat; bone::NUM_BONES],
         conf: &mut [f32; bone::NUM_BONES],
     ) {
+        for leg in &LEGS {
+            self.solve_leg(landmarks, leg, (&mut *solved, &mut *conf));
+        }
+    }
+
+    /// One leg's thigh, shin, foot and toes.
+    fn solve_leg(
+        &self,
+        landmarks: &Landmarks,
+        leg: &Leg,
+        (solved, conf): (&mut [Quat; bone::NUM_BONES], &mut [f32; bone::NUM_BONES]),
+    ) {
         let p = |i: usize| landmarks.world_internal(i);
         let vis = |i: usize| landmarks.visibility(i);
-        let seen = |v: f32| self.seen(v);
-        let prev = self.world;
         let (y, z) = (Vec3::Y, Vec3::Z);
-        // Legs: (thigh, shin, foot, toes, hip, knee, ankle, heel, toe).
-        let legs = [
-            (
-                bone::LEFT_UPPER_LEG,
-                bone::LEFT_LOWER_LEG,
-                bone::LEFT_FOOT,
-                bone::LEFT_TOES,
-                idx::LEFT_HIP,
-                idx::LEFT_KNEE,
-                idx::LEFT_ANKLE,
-                idx::LEFT_HEEL,
-                idx::LEFT_FOOT_INDEX,
-            ),
-            (
-                bone::RIGHT_UPPER_LEG,
-                bone::RIGHT_LOWER_LEG,
-                bone::RIGHT_FOOT,
-                bone::RIGHT_TOES,
-                idx::RIGHT_HIP,
-                idx::RIGHT_KNEE,
-                idx::RIGHT_ANKLE,
-                idx::RIGHT_HEEL,
-                idx::RIGHT_FOOT_INDEX,
-            ),
-        ];
-        for (tb, sb, fb, toes, h, k, a, he, t) in legs {
-            let thigh = p(k) - p(h);
-            let shin = p(a) - p(k);
-            let foot_fwd = p(t) - p(he);
-            let foot = p(t) - p(a);
-            let foot_vis = vis(he).min(vis(t));
-            let fallback = |b: usize| prev[b] * z;
-            let foot_seen = seen(foot_vis);
-            // Thigh and shin: along the segment, facing the way the foot points.
-            for (b, along, c) in [
-                (tb, thigh, vis(h).min(vis(k))),
-                (sb, shin, vis(k).min(vis(a))),
-            ] {
-                let fwd = stable_secondary(
-                    along,
-                    trusted(foot_fwd, fallback(b), foot_seen),
-                    fallback(b),
-                );
-                set(
-                    solved,
-                    conf,
-                    b,
-                    two_axis(self.rest_dir[b], z, along, fwd),
-                    c,
-                );
-            }
-            let leg_up = stable_secondary(foot, -shin, prev[fb] * y);
+        let (tb, sb, fb, toes) = leg.bones;
+        let (h, k, a, he, t) = leg.joints;
+        let thigh = p(k) - p(h);
+        let shin = p(a) - p(k);
+        let foot_fwd = p(t) - p(he);
+        let foot = p(t) - p(a);
+        let foot_vis = vis(he).min(vis(t));
+        let fallback = |b: usize| self.world[b] * z;
+        let foot_seen = self.seen(foot_vis);
+        // Thigh and shin: along the segment, facing the way the foot points.
+        for (b, along, c) in [
+            (tb, thigh, vis(h).min(vis(k))),
+            (sb, shin, vis(k).min(vis(a))),
+        ] {
+            let fwd = stable_secondary(
+                along,
+                trusted(foot_fwd, fallback(b), foot_seen),
+                fallback(b),
+            );
             set(
                 solved,
                 conf,
-                fb,
-                two_axis(self.rest_dir[fb], y, foot, leg_up),
-                foot_vis.min(vis(a)),
+                b,
+                two_axis(self.rest_dir[b], z, along, fwd),
+                c,
             );
-            // Toes have no landmark of their own: they follow the foot.
-            solved[toes] = solved[fb];
-            conf[toes] = conf[fb];
         }
+        let leg_up = stable_secondary(foot, -shin, self.world[fb] * y);
+        let rotation = two_axis(self.rest_dir[fb], y, foot, leg_up);
+        set(solved, conf, fb, rotation, foot_vis.min(vis(a)));
+        // Toes have no landmark of their own: they follow the foot.
+        solved[toes] = solved[fb];
+        conf[toes] = conf[fb];
     }
 
     /// Converts solved world rotations to local ones and moves the output towards them by
