@@ -1,6 +1,7 @@
 //! The fit to the standing posture: each foot's standing pitch and height, and the hips' height,
 //! from the animation's typical stance (offline: medians over the clip, [`FootLock::fit_to_standing`];
-//! live: a running average of the stances held so far), and what the rig's rest tells of them.
+//! live: the feet's pitch the median of the stances held so far, the hips' height a running
+//! average), and what the rig's rest tells of them.
 
 use super::*;
 
@@ -116,6 +117,82 @@ pub(super) fn flat_ball_height(plants: &PlantTrack, leg: usize) -> f32 {
     v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// Bins of [`FitMedian`]'s histogram: half a degree each over ±[`MAX_FIT_PITCH`].
+const FIT_BINS: usize = 160;
+
+/// Live: the median of a foot's stance pitch gaps seen so far (each frame weighted by its
+/// time), in a fixed histogram: nothing allocated per frame.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct FitMedian {
+    weights: [f32; FIT_BINS],
+    total: f32,
+}
+
+impl Default for FitMedian {
+    fn default() -> Self {
+        FitMedian {
+            weights: [0.0; FIT_BINS],
+            total: 0.0,
+        }
+    }
+}
+
+impl FitMedian {
+    const WIDTH: f32 = 2.0 * MAX_FIT_PITCH / FIT_BINS as f32;
+
+    /// Counts `gap` (radians, within ±[`MAX_FIT_PITCH`]) with weight `w`.
+    pub(super) fn add(&mut self, gap: f32, w: f32) {
+        let t = (gap + MAX_FIT_PITCH) / Self::WIDTH;
+        if !(t.is_finite() && w > 0.0) {
+            return;
+        }
+        let b = (t.max(0.0) as usize).min(FIT_BINS - 1);
+        self.weights[b] += w;
+        self.total += w;
+    }
+
+    /// The median of what was counted (linear within its bin), `None` before anything was.
+    pub(super) fn median(&self) -> Option<f32> {
+        let half = 0.5 * self.total;
+        let mut below = 0.0;
+        for (b, &w) in self.weights.iter().enumerate() {
+            if w > 0.0 && below + w >= half {
+                let t = b as f32 + (half - below) / w;
+                return Some(-MAX_FIT_PITCH + t * Self::WIDTH);
+            }
+            below += w;
+        }
+        None
+    }
+}
+
+impl Foot {
+    /// Live: counts this held frame's stance pitch gap (`gap`, the posture's pitch less the
+    /// animation's), `dt` long, into the foot's pitch fit, which is the median of every such
+    /// frame seen, as offline's [`FootLock::fit_to_standing`] takes the whole clip's median: a
+    /// rig's foot is built one way for the whole performance, while the performer's stance
+    /// pitch wanders about its own (Xia's walk: a planted foot 12-24° down over one stance
+    /// as its heel rises within the detector's bound). A foot's first stance sets it at once
+    /// (from zero a running average took a second or two, the character's feet tipped by the
+    /// whole gap meanwhile: live, the CMU walk onto X Bot, the foot 11° and 9° off in its first
+    /// two seconds). Frames on the ball alone (a toe-off: the roll's pitch, not the stance's)
+    /// are left out by the source's own contacts. Left out before by the lock's own roll of
+    /// the fitted foot, the fit read only the frames its first value stood flat: Xia's walk
+    /// onto X Bot kept the fit of its first stance frames, the foot 7.5° off the performer's
+    /// for the whole clip (8.8/10.9° mean/p95; offline 1.8/8.0). A planted foot stands at its
+    /// pinned pitch whatever the fit; the one it pitches is the foot it learns on.
+    pub(super) fn learn_pitch_fit(&mut self, gap: f32, dt: f32) {
+        if self.contact == Some(Contact::Ball) {
+            return;
+        }
+        self.fit_secs += dt;
+        self.fit.add(gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH), dt);
+        if let Some(m) = self.fit.median() {
+            self.pitch_fix = m;
+        }
+    }
+}
+
 impl FootLock {
     /// Offline: fits the animation to the character's standing posture before locking. The
     /// retarget gives each foot the source's foot direction, so on a rig whose foot is built
@@ -224,9 +301,10 @@ impl FootLock {
     }
 
     /// Live: moves the fit of [`FootLock::fit_to_standing`] towards this frame's stance gap
-    /// (`worlds` hold the animation): an average over the last [`FIT_LEARN_SECS`] or so of the
-    /// frames with a foot held by a lock since the frame before (a landing foot is still on its
-    /// way down). Slow enough that the correction never shows as a movement of its own. As
+    /// (`worlds` hold the animation), learnt on the frames with a foot held by a lock since the
+    /// frame before (a landing foot is still on its way down): each foot's pitch the median of
+    /// them ([`Foot::learn_pitch_fit`]), the hips' height an average over the last
+    /// [`FIT_LEARN_SECS`] or so. Slow enough that the correction never shows as a movement of its own. As
     /// offline, a rest standing on its own ground along its own up gives the feet's pitch even
     /// where the retarget places no floor for it (MakeHuman's: its rest along Z, its motion
     /// along Y); the hips are moved onto the standing heights only where the posture stands.
@@ -262,19 +340,14 @@ impl FootLock {
             let rolled = stance.rolled(foot.ball(), foot.standing_pitch, foot.pitch_fix);
             let rest_pitch = self.posture_stands || self.rest_feet_stand;
             let foot = &mut self.feet[i];
-            if rolled <= 0.0 {
+            if pitch {
+                foot.learn_pitch_fit(gap, dt);
+            } else if rolled <= 0.0 {
                 // The mean of the frames seen so far until they span the running average's
-                // time: a foot's first flat stance sets its pitch at once, which from zero
-                // took the average a second or two, the character's feet tipped by the whole
-                // gap meanwhile (live, the CMU walk onto X Bot: the foot 11° and 9° off in
-                // its first two seconds, 2.5-4.9 after). A planted foot stands at its pinned
-                // pitch whatever the fit; the one it pitches is the foot it learns on.
+                // time: a foot's first flat stance sets its pitch at once.
                 foot.fit_secs += dt;
                 let k = k.max(dt / foot.fit_secs);
-                if pitch {
-                    foot.pitch_fix +=
-                        k * (gap.clamp(-MAX_FIT_PITCH, MAX_FIT_PITCH) - foot.pitch_fix);
-                } else if foot.learns_heights && !rest_pitch {
+                if foot.learns_heights && !rest_pitch {
                     // No rest to stand it as: the animation's own pitch, as offline.
                     foot.standing_pitch += k * (stance.pitch - foot.standing_pitch);
                 }

@@ -54,6 +54,8 @@ pub(super) struct Foot {
     /// Live: how long (seconds) this foot has stood flat under a lock, what its `pitch_fix`
     /// has been learnt from ([`FootLock::learn_fit`]).
     pub(super) fit_secs: f32,
+    /// Live: the stance pitch gaps seen, whose median is `pitch_fix` ([`FootLock::learn_fit`]).
+    pub(super) fit: FitMedian,
     /// The character's posture does not stand on its floor (the mapping knows no floor for
     /// it, it floats, or it is a frame of its own motion), and no clip was read for the foot's
     /// standing heights: it learns them from its flat stances
@@ -123,6 +125,8 @@ pub(super) struct Foot {
     /// are not known (plants given as flags alone) or none of them holds: the heading is then
     /// held, dragged past [`PIVOT_RAD`].
     pub(super) pivot: Option<f32>,
+    /// Which of the source foot's contacts hold this frame (`None` where not known).
+    pub(super) contact: Option<Contact>,
     /// How far this frame's turn moved the pin over the ground (the root takes it up).
     pub(super) pin_moved: Vec3,
     /// The shown ankle minus where it should go (the lock, or the animated foot), decaying.
@@ -512,6 +516,7 @@ impl Foot {
             standing_pitch: 0.0,
             pitch_fix: 0.0,
             fit_secs: 0.0,
+            fit: FitMedian::default(),
             learns_heights: false,
             stand_secs: 0.0,
             learnt_mean: 0.0,
@@ -534,6 +539,7 @@ impl Foot {
             lock_position: ankle,
             lock_heading: 0.0,
             pivot: None,
+            contact: None,
             pin_moved: Vec3::ZERO,
             position_offset: Decay::default(),
             heading_offset: Decay::default(),

@@ -17,7 +17,7 @@
 //!                                         ▼
 //!  target pose ─FK─▶ fit to the standing posture: each foot pitched, the hips moved, by the
 //!                     animation's typical stance gap (offline: medians over the clip;
-//!                     live: a running average of the frames held so far)
+//!                     live: learnt from the frames held so far)
 //!               ─FK─▶ root carried onto the held feet: over the ground by their contacts'
 //!                     slide in the animation (stride warping, `stride`; a foot rolling over
 //!                     its ball does not slide), up by their ankles' gaps to their pinned
@@ -599,6 +599,7 @@ impl FootLock {
                 .zip(lifts)
                 .and_then(|(s, l)| l.contact[s]);
             self.feet[i].pivot = contact.map(|c| self.feet[i].pivot_of(c));
+            self.feet[i].contact = contact;
             let on_ball = if contact == Some(Contact::Ball) {
                 1.0
             } else {
