@@ -63,6 +63,9 @@ pub(super) struct Foot {
     pub(super) learns_heights: bool,
     /// How long (seconds) such a foot has stood since: what its heights are learnt from.
     pub(super) stand_secs: f32,
+    /// Such a foot's first stance is over: its heights, learnt there, are held from now on
+    /// ([`FootLock::learn_fit`]).
+    pub(super) heights_held: bool,
     /// The mean of the heel's standing heights seen so far, and of their squares (their
     /// spread), [`Foot::learn_height`].
     pub(super) learnt_mean: f32,
@@ -205,10 +208,10 @@ impl Foot {
     }
 
     /// Takes one more `dt` of a flat stance whose heel stands `height` above the floor (as the
-    /// lock rolls the foot) into the heel's standing height: the mean of every stance so far
-    /// (a foot's standing height does not change over a performance; an average forgetting
-    /// after a second followed each stance's own height and moved the pins from one stance to
-    /// the next). Where the rest gives a height (`rest_heel`), that height as long as the mean
+    /// lock rolls the foot) into the heel's standing height: the mean of the frames seen (a
+    /// foot's standing height does not change over a performance; an average forgetting after
+    /// a second followed each stance's own height and moved the pins from one stance to the
+    /// next). Where the rest gives a height (`rest_heel`), that height as long as the mean
     /// lies within the stances' own spread of it, the mean once it lies twice that far,
     /// smoothly between: a floating rest whose heights are right (the CMU-style rigs) keeps
     /// them, where the motion's would move the pins by the stances' spread (live, planted feet
@@ -519,6 +522,7 @@ impl Foot {
             fit: FitMedian::default(),
             learns_heights: false,
             stand_secs: 0.0,
+            heights_held: false,
             learnt_mean: 0.0,
             learnt_sq: 0.0,
             rest_heel: None,
