@@ -13,11 +13,8 @@ use rigcast_retarget::Clip;
 use serde_json::{json, Value};
 
 use super::read::GltfTemplate;
+use super::write::{moves_off_rest, rotation_keys, Buffers};
 use crate::error::SourceError;
-
-const FLOAT: u32 = 5126;
-/// Translation leaving its rest by more than this gets a translation channel (metres).
-const MOVE_TOLERANCE_M: f32 = 1e-7;
 
 fn bad(message: impl Into<String>) -> SourceError {
     SourceError::Gltf {
@@ -138,10 +135,10 @@ fn append_animation(
     template: &GltfTemplate,
     clip: &Clip,
 ) -> Value {
-    let mut data = DataOut {
+    let mut data = Buffers {
+        bin: std::mem::take(bin),
         views: take_array(root, "bufferViews"),
         accessors: take_array(root, "accessors"),
-        bin,
     };
     let frames = clip.num_frames().max(1);
     let times: Vec<f32> = (0..frames)
@@ -172,7 +169,7 @@ fn append_animation(
             frame.node,
             "rotation",
         );
-        if s.parent(b).is_none() || bone_moves(clip, i) {
+        if s.parent(b).is_none() || moves_off_rest(clip, i) {
             let keys: Vec<f32> = (0..frames)
                 .flat_map(|k| node_pose(k).0.to_array())
                 .collect();
@@ -183,72 +180,10 @@ fn append_animation(
             );
         }
     }
+    *bin = data.bin;
     root["bufferViews"] = Value::Array(data.views);
     root["accessors"] = Value::Array(data.accessors);
     json!({"name": clip.name, "samplers": samplers, "channels": channels})
-}
-
-/// The binary chunk being written, with its buffer views and accessors.
-struct DataOut<'a> {
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-    bin: &'a mut Vec<u8>,
-}
-
-impl DataOut<'_> {
-    /// Appends `data` (4-byte aligned) with a view and an accessor of `count` elements of
-    /// `kind`; returns the accessor's index.
-    fn push(
-        &mut self,
-        data: &[f32],
-        kind: &str,
-        count: usize,
-        minmax: Option<(f32, f32)>,
-    ) -> usize {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
-        let offset = self.bin.len();
-        for v in data {
-            self.bin.extend_from_slice(&v.to_le_bytes());
-        }
-        self.views
-            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4}));
-        let mut acc = json!({"bufferView": self.views.len() - 1, "componentType": FLOAT, "count": count, "type": kind});
-        if let Some((lo, hi)) = minmax {
-            acc["min"] = json!([lo]);
-            acc["max"] = json!([hi]);
-        }
-        self.accessors.push(acc);
-        self.accessors.len() - 1
-    }
-}
-
-/// `frames` rotation keys (x, y, z, w each), consecutive keys in one hemisphere so that
-/// interpolation takes the short way.
-fn rotation_keys(frames: usize, rotation: impl Fn(usize) -> Quat) -> Vec<f32> {
-    let mut prev = Quat::IDENTITY;
-    let mut keys = Vec::with_capacity(4 * frames);
-    for k in 0..frames {
-        let mut q = rotation(k).normalize();
-        if k > 0 && q.dot(prev) < 0.0 {
-            q = -q;
-        }
-        prev = q;
-        keys.extend_from_slice(&q.to_array());
-    }
-    keys
-}
-
-/// Whether bone `i`'s offset from its parent moves in any of the clip's poses.
-fn bone_moves(clip: &Clip, i: usize) -> bool {
-    let rest = clip.skeleton.rest();
-    clip.poses.iter().any(|p| {
-        (p.translations[i] - rest[i].translation)
-            .abs()
-            .max_element()
-            > MOVE_TOLERANCE_M
-    })
 }
 
 fn take_array(root: &mut Value, key: &str) -> Vec<Value> {

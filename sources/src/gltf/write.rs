@@ -59,21 +59,26 @@ fn skeleton_json(s: &Skeleton) -> Value {
 
 /// The binary chunk as it fills, with a buffer view and an accessor for each array.
 #[derive(Default)]
-struct Buffers {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
+pub(super) struct Buffers {
+    pub(super) bin: Vec<u8>,
+    pub(super) views: Vec<Value>,
+    pub(super) accessors: Vec<Value>,
 }
 
 impl Buffers {
-    /// Appends `data` as `count` elements of `kind`; returns the accessor's index.
-    fn push(
+    /// Appends `data` (4-byte aligned) as `count` elements of `kind`; returns the accessor's
+    /// index.
+    pub(super) fn push(
         &mut self,
         data: &[f32],
         kind: &str,
         count: usize,
         minmax: Option<(f32, f32)>,
     ) -> usize {
+        // A document written onto may hold other data before: floats start on 4 bytes.
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
         let offset = self.bin.len();
         for v in data {
             self.bin.extend_from_slice(&v.to_le_bytes());
@@ -114,7 +119,8 @@ fn animation(clip: &Clip, buffers: &mut Buffers) -> Value {
     };
     for b in s.bone_ids() {
         let i = b.index();
-        let out = buffers.push(&rotation_keys(clip, i), "VEC4", frames, None);
+        let keys = rotation_keys(frames, |k| clip.poses[k].rotations[i]);
+        let out = buffers.push(&keys, "VEC4", frames, None);
         channel(out, i, "rotation");
         if s.parent(b).is_none() || moves_off_rest(clip, i) {
             let data: Vec<f32> = clip
@@ -129,24 +135,24 @@ fn animation(clip: &Clip, buffers: &mut Buffers) -> Value {
     json!({"name": clip.name, "samplers": samplers, "channels": channels})
 }
 
-/// Bone `i`'s rotations over the clip, consecutive keys kept in one hemisphere so that
+/// `frames` rotation keys (x, y, z, w each), consecutive keys kept in one hemisphere so that
 /// slerp takes the short way.
-fn rotation_keys(clip: &Clip, i: usize) -> Vec<f32> {
+pub(super) fn rotation_keys(frames: usize, rotation: impl Fn(usize) -> Quat) -> Vec<f32> {
     let mut prev = Quat::IDENTITY;
-    let mut data = Vec::with_capacity(4 * clip.num_frames());
-    for (k, p) in clip.poses.iter().enumerate() {
-        let mut q = p.rotations[i].normalize();
+    let mut keys = Vec::with_capacity(4 * frames);
+    for k in 0..frames {
+        let mut q = rotation(k).normalize();
         if k > 0 && q.dot(prev) < 0.0 {
             q = -q;
         }
         prev = q;
-        data.extend_from_slice(&q.to_array());
+        keys.extend_from_slice(&q.to_array());
     }
-    data
+    keys
 }
 
 /// Whether bone `i` leaves its rest translation anywhere in the clip.
-fn moves_off_rest(clip: &Clip, i: usize) -> bool {
+pub(super) fn moves_off_rest(clip: &Clip, i: usize) -> bool {
     let rest = clip.skeleton.rest()[i].translation;
     clip.poses
         .iter()
