@@ -139,52 +139,10 @@ pub fn describe_with(path: &Path, opts: &LoadOptions) -> Result<FileInfo, Source
 fn describe_inner(path: &Path, opts: &LoadOptions) -> Result<FileInfo, SourceError> {
     let ext = extension(path);
     let bytes = read_file(path)?;
-    let mut bvh_scale = None;
-    let mut vrm_roles = None;
-    let mut recording = None;
-    let (format, clip, animations) = match ext.as_str() {
-        "bvh" => {
-            let bvh_opts = BvhReadOptions {
-                scale: opts.bvh_scale,
-            };
-            let r = read_bvh(&bytes, &stem(path), &bvh_opts)?;
-            bvh_scale = Some((r.scale, r.scale_guessed, r.scale_confidence));
-            let a = vec![AnimationInfo {
-                name: r.clip.name.clone(),
-                duration_secs: r.clip.duration_secs(),
-            }];
-            ("BVH", r.clip, a)
-        }
-        "gltf" | "glb" | "vrm" => {
-            let r = read_gltf(
-                &bytes,
-                path.parent(),
-                &stem(path),
-                &GltfReadOptions::default(),
-            )?;
-            vrm_roles = r.vrm_roles;
-            let format = match ext.as_str() {
-                "gltf" => "glTF",
-                "glb" => "GLB",
-                _ => "VRM",
-            };
-            (format, r.clip, r.animations)
-        }
-        "rcr" => {
-            let rec = read_recording(&bytes[..])?;
-            recording = Some((
-                rec.skeletons.len(),
-                rec.frames.len(),
-                rec.raw.len(),
-                rec.ended_cleanly,
-            ));
-            let clip = clip_from_recording(&rec, &stem(path))?;
-            let a = vec![AnimationInfo {
-                name: clip.name.clone(),
-                duration_secs: clip.duration_secs(),
-            }];
-            ("rigcast recording", clip, a)
-        }
+    let read = match ext.as_str() {
+        "bvh" => read_bvh_info(&bytes, path, opts)?,
+        "gltf" | "glb" | "vrm" => read_gltf_info(&bytes, path, &ext)?,
+        "rcr" => read_recording_info(&bytes, path)?,
         _ => {
             return Err(SourceError::UnsupportedExtension {
                 extension: ext,
@@ -192,11 +150,12 @@ fn describe_inner(path: &Path, opts: &LoadOptions) -> Result<FileInfo, SourceErr
             })
         }
     };
+    let clip = read.clip;
     let (height_m, height_from_first_frame) = height_of(&clip);
     let has_frames = clip.num_frames() > 0;
     Ok(FileInfo {
         path: path.to_path_buf(),
-        format,
+        format: read.format,
         num_bones: clip.skeleton.num_bones(),
         skeleton: clip.skeleton.clone(),
         height_m,
@@ -204,10 +163,84 @@ fn describe_inner(path: &Path, opts: &LoadOptions) -> Result<FileInfo, SourceErr
         fps: has_frames.then(|| clip.fps()),
         num_frames: clip.num_frames(),
         duration_secs: clip.duration_secs(),
-        animations,
-        bvh_scale,
-        vrm_roles,
-        recording,
+        animations: read.animations,
+        bvh_scale: read.bvh_scale,
+        vrm_roles: read.vrm_roles,
+        recording: read.recording,
+    })
+}
+
+/// What one format's reader gives [`FileInfo`]: the clip, its animations, and the facts only
+/// that format has.
+struct FormatRead {
+    format: &'static str,
+    clip: Clip,
+    animations: Vec<AnimationInfo>,
+    bvh_scale: Option<(f32, bool, f32)>,
+    vrm_roles: Option<BTreeMap<String, String>>,
+    recording: Option<(usize, usize, usize, bool)>,
+}
+
+/// The one animation a BVH or a recording holds: the clip itself.
+fn only_animation(clip: &Clip) -> Vec<AnimationInfo> {
+    vec![AnimationInfo {
+        name: clip.name.clone(),
+        duration_secs: clip.duration_secs(),
+    }]
+}
+
+fn read_bvh_info(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<FormatRead, SourceError> {
+    let bvh_opts = BvhReadOptions {
+        scale: opts.bvh_scale,
+    };
+    let r = read_bvh(bytes, &stem(path), &bvh_opts)?;
+    Ok(FormatRead {
+        format: "BVH",
+        animations: only_animation(&r.clip),
+        bvh_scale: Some((r.scale, r.scale_guessed, r.scale_confidence)),
+        clip: r.clip,
+        vrm_roles: None,
+        recording: None,
+    })
+}
+
+fn read_gltf_info(bytes: &[u8], path: &Path, ext: &str) -> Result<FormatRead, SourceError> {
+    let r = read_gltf(
+        bytes,
+        path.parent(),
+        &stem(path),
+        &GltfReadOptions::default(),
+    )?;
+    let format = match ext {
+        "gltf" => "glTF",
+        "glb" => "GLB",
+        _ => "VRM",
+    };
+    Ok(FormatRead {
+        format,
+        clip: r.clip,
+        animations: r.animations,
+        vrm_roles: r.vrm_roles,
+        bvh_scale: None,
+        recording: None,
+    })
+}
+
+fn read_recording_info(bytes: &[u8], path: &Path) -> Result<FormatRead, SourceError> {
+    let rec = read_recording(bytes)?;
+    let clip = clip_from_recording(&rec, &stem(path))?;
+    Ok(FormatRead {
+        format: "rigcast recording",
+        animations: only_animation(&clip),
+        recording: Some((
+            rec.skeletons.len(),
+            rec.frames.len(),
+            rec.raw.len(),
+            rec.ended_cleanly,
+        )),
+        clip,
+        bvh_scale: None,
+        vrm_roles: None,
     })
 }
 
