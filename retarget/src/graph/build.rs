@@ -287,6 +287,31 @@ fn connect(
     loops: &[Option<f32>],
 ) -> MotionGraph {
     let n = clips.last().map(|c| c.offset + c.frames).unwrap_or(0);
+    let mut all = candidate_transitions(&clips, similar, loops);
+    let (largest, components) = largest_component(n, &clips, &all);
+    let kept = to_ranges(&largest);
+    let mut in_kept = vec![false; n];
+    largest.iter().for_each(|&i| in_kept[i] = true);
+    all.retain(|t| in_kept[t.from as usize] && in_kept[t.to as usize]);
+    all.sort_by_key(|t| (t.from, t.to));
+    MotionGraph {
+        settings,
+        frame_time_secs: frame_time,
+        clips,
+        transitions: all,
+        kept,
+        similar_pairs: similar.len(),
+        components,
+    }
+}
+
+/// Every transition the similar pairs allow (each pair both ways: from one frame to the
+/// frame after the other), and each looping clip's jump from its last frame to its second.
+fn candidate_transitions(
+    clips: &[GraphClip],
+    similar: &[Similar],
+    loops: &[Option<f32>],
+) -> Vec<Transition> {
     let node = |(c, f): (usize, usize)| clips[c].offset + f;
     let mut all = Vec::with_capacity(similar.len() * 2);
     for s in similar {
@@ -311,11 +336,17 @@ fn connect(
             });
         }
     }
+    all
+}
+
+/// The largest strongly connected component of the `n` frames (each clip's frames in order,
+/// and the transitions), as sorted frame indices, and how many components there are.
+fn largest_component(n: usize, clips: &[GraphClip], all: &[Transition]) -> (Vec<usize>, usize) {
     let mut g: DiGraph<(), ()> = DiGraph::with_capacity(n, n + all.len());
     for _ in 0..n {
         g.add_node(());
     }
-    for c in &clips {
+    for c in clips {
         for f in 1..c.frames {
             g.add_edge(
                 NodeIndex::new(c.offset + f - 1),
@@ -324,7 +355,7 @@ fn connect(
             );
         }
     }
-    for t in &all {
+    for t in all {
         g.add_edge(
             NodeIndex::new(t.from as usize),
             NodeIndex::new(t.to as usize),
@@ -339,20 +370,7 @@ fn connect(
         .map(|c| c.into_iter().map(|i| i.index()).collect())
         .unwrap_or_default();
     largest.sort_unstable();
-    let kept = to_ranges(&largest);
-    let mut in_kept = vec![false; n];
-    largest.iter().for_each(|&i| in_kept[i] = true);
-    all.retain(|t| in_kept[t.from as usize] && in_kept[t.to as usize]);
-    all.sort_by_key(|t| (t.from, t.to));
-    MotionGraph {
-        settings,
-        frame_time_secs: frame_time,
-        clips,
-        transitions: all,
-        kept,
-        similar_pairs: similar.len(),
-        components,
-    }
+    (largest, components)
 }
 
 /// A looping clip (game animations usually are: the last frame repeats the first) closes on
