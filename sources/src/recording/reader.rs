@@ -92,76 +92,89 @@ impl<R: Read> RecordingReader<R> {
     }
 
     fn next_record(&mut self) -> Result<Option<Record>, SourceError> {
-        loop {
-            let at = self.offset;
-            let mut head = [0u8; RECORD_HEADER_BYTES];
-            let n = read_up_to(&mut self.input, &mut head)?;
-            if n == 0 {
-                return Ok(None);
-            }
-            if n < RECORD_HEADER_BYTES {
-                return Err(SourceError::TruncatedRecord {
-                    offset: at,
-                    expected: RECORD_HEADER_BYTES as u64,
-                    found: n as u64,
-                });
-            }
-            let kind = head[0];
-            let len = u32::from_le_bytes([head[1], head[2], head[3], head[4]]);
-            if len > MAX_RECORD_BYTES {
-                return Err(SourceError::RecordTooLarge {
-                    offset: at,
-                    length: len as u64,
-                    max: MAX_RECORD_BYTES as u64,
-                });
-            }
-            // `take` + `read_to_end` grows the buffer only as bytes arrive, so a corrupt length
-            // on a short file cannot make us allocate the whole claimed size.
-            self.payload.clear();
-            let got = (&mut self.input)
-                .take(len as u64)
-                .read_to_end(&mut self.payload)?;
-            if got < len as usize {
-                return Err(SourceError::TruncatedRecord {
-                    offset: at,
-                    expected: (RECORD_HEADER_BYTES + len as usize) as u64,
-                    found: (RECORD_HEADER_BYTES + got) as u64,
-                });
-            }
-            self.offset += (RECORD_HEADER_BYTES + got) as u64;
-            let mut cur = Cursor {
-                bytes: &self.payload,
-                pos: 0,
-                record_offset: at,
-            };
-            match kind {
-                TYPE_SKELETON => {
-                    let rec = decode_skeleton(&mut cur)?;
-                    self.skeletons.insert(rec.subject_id, rec.skeleton.clone());
-                    return Ok(Some(Record::Skeleton(rec)));
-                }
-                TYPE_FRAME => {
-                    return decode_frame(&mut cur, &self.skeletons).map(|f| Some(Record::Frame(f)))
-                }
-                TYPE_RAW => {
-                    let source_id = cur.u32("source id")?;
-                    let kind = RawKind::from_code(cur.u8("raw kind")?);
-                    let capture_nanos = cur.u64("capture time")?;
-                    let bytes = cur.bytes[cur.pos..].to_vec();
-                    return Ok(Some(Record::Raw(RawPacket {
-                        source_id,
-                        kind,
-                        capture_nanos,
-                        bytes,
-                    })));
-                }
-                TYPE_END => {
-                    self.ended_cleanly = true;
-                    return Ok(Some(Record::End));
-                }
-                _ => self.skipped_records += 1,
+        while let Some((kind, at)) = self.read_payload()? {
+            match self.decode(kind, at)? {
+                Some(record) => return Ok(Some(record)),
+                None => self.skipped_records += 1,
             }
         }
+        Ok(None)
+    }
+
+    /// Reads the next record's header and payload (into `self.payload`): its kind and where it
+    /// starts, or `None` at the end of the input.
+    fn read_payload(&mut self) -> Result<Option<(u8, u64)>, SourceError> {
+        let at = self.offset;
+        let mut head = [0u8; RECORD_HEADER_BYTES];
+        let n = read_up_to(&mut self.input, &mut head)?;
+        if n == 0 {
+            return Ok(None);
+        }
+        if n < RECORD_HEADER_BYTES {
+            return Err(SourceError::TruncatedRecord {
+                offset: at,
+                expected: RECORD_HEADER_BYTES as u64,
+                found: n as u64,
+            });
+        }
+        let len = u32::from_le_bytes([head[1], head[2], head[3], head[4]]);
+        if len > MAX_RECORD_BYTES {
+            return Err(SourceError::RecordTooLarge {
+                offset: at,
+                length: len as u64,
+                max: MAX_RECORD_BYTES as u64,
+            });
+        }
+        // `take` + `read_to_end` grows the buffer only as bytes arrive, so a corrupt length
+        // on a short file cannot make us allocate the whole claimed size.
+        self.payload.clear();
+        let got = (&mut self.input)
+            .take(len as u64)
+            .read_to_end(&mut self.payload)?;
+        if got < len as usize {
+            return Err(SourceError::TruncatedRecord {
+                offset: at,
+                expected: (RECORD_HEADER_BYTES + len as usize) as u64,
+                found: (RECORD_HEADER_BYTES + got) as u64,
+            });
+        }
+        self.offset += (RECORD_HEADER_BYTES + got) as u64;
+        Ok(Some((head[0], at)))
+    }
+
+    /// The record of `kind` in `self.payload` (starting at `at`), or `None` for a kind this
+    /// reader does not know (a newer writer's), which is skipped.
+    fn decode(&mut self, kind: u8, at: u64) -> Result<Option<Record>, SourceError> {
+        let mut cur = Cursor {
+            bytes: &self.payload,
+            pos: 0,
+            record_offset: at,
+        };
+        Ok(Some(match kind {
+            TYPE_SKELETON => {
+                let rec = decode_skeleton(&mut cur)?;
+                self.skeletons.insert(rec.subject_id, rec.skeleton.clone());
+                Record::Skeleton(rec)
+            }
+            TYPE_FRAME => Record::Frame(decode_frame(&mut cur, &self.skeletons)?),
+            TYPE_RAW => {
+                let source_id = cur.u32("source id")?;
+                let kind = RawKind::from_code(cur.u8("raw kind")?);
+                let capture_nanos = cur.u64("capture time")?;
+                let bytes = cur.bytes[cur.pos..].to_vec();
+                Record::Raw(RawPacket {
+                    source_id,
+                    kind,
+                    capture_nanos,
+                    bytes,
+                })
+            }
+            TYPE_END => {
+                self.ended_cleanly = true;
+                Record::End
+            }
+            _ => return Ok(None),
+        }))
     }
 }
 
