@@ -58,7 +58,10 @@
 //! pixels or null, to look at what the figures count beside MediaPipe's cached landmarks),
 //! `RIGCAST_DECODE_EXACT_RGB` (rigcast's decoder uses ffmpeg's exact RGB conversion instead of
 //! its default, 1-4 levels apart: a second run with it shows which figures flip with the
-//! rounding; MediaPipe's side decodes as before).
+//! rounding; MediaPipe's side decodes as before), `RIGCAST_DECODE_NUDGE` (`shift`, `level` or
+//! `deblock`: rigcast's decoded picture a pixel to the left, a level brighter, or decoded
+//! without H.264's loop filter; runs under each, against the run without, show how much of a
+//! figure is chance: BENCHMARKS.md, issue 32).
 #![allow(clippy::unwrap_used)] // tests may unwrap
 
 #[path = "vision_common.rs"]

@@ -76,6 +76,23 @@ fn exact_rgb_flags() -> &'static str {
     }
 }
 
+/// A small change to the decoded pixels when `RIGCAST_DECODE_NUDGE` names one, beside
+/// `RIGCAST_DECODE_EXACT_RGB`: a measuring knob like it. A tracker whose readings hold only on
+/// one rounding of the picture gives other figures under each of these, so the footage judge
+/// run under several of them shows how much of a figure is chance (BENCHMARKS.md, issue 32):
+/// `shift`, the decoded picture one pixel to the left (its last column black); `level`, every
+/// channel one level brighter; `deblock`, the decoder skipping H.264's loop filter (other
+/// pixels by up to a few levels, where the codec's blocks meet). Returns the decoder's input
+/// options and the filters after the scaler (each led by a comma).
+fn nudge() -> (&'static [&'static str], &'static str) {
+    match std::env::var("RIGCAST_DECODE_NUDGE").as_deref() {
+        Ok("shift") => (&[], ",crop=iw-1:ih:1:0,pad=iw+1:ih:0:0"),
+        Ok("level") => (&[], ",lutrgb=r=val+1:g=val+1:b=val+1"),
+        Ok("deblock") => (&["-skip_loop_filter", "all"], ""),
+        _ => (&[], ""),
+    }
+}
+
 /// Frame rate assumed for image sequences unless told otherwise.
 pub const DEFAULT_SEQUENCE_FPS: f64 = 30.0;
 
@@ -278,11 +295,13 @@ impl FfmpegSource {
     ) -> Result<FfmpegSource, VisionError> {
         let (width, height) = size.apply(info.width, info.height);
         let exact = exact_rgb_flags();
+        let (nudge_input, nudge_filters) = nudge();
         let mut command = Command::new("ffmpeg");
         command
             .args(["-nostdin", "-v", "error"])
             .args(pre_args)
             .args(["-threads", decoder_threads()])
+            .args(nudge_input)
             .arg("-i")
             .arg(&input)
             .args(["-map", "0:v:0"]);
@@ -292,12 +311,18 @@ impl FfmpegSource {
             // the crop the model sees is itself a two-tap bilinear resample of this frame, and
             // the landmarks move no more between the two than between `bilinear` and `area`
             // or the video's own size (BENCHMARKS.md, "Decoder settings").
-            command
-                .arg("-vf")
-                .arg(format!("scale={width}:{height}:flags=fast_bilinear{exact}"));
-        } else if !exact.is_empty() {
-            // The conversion alone, in the scaler ffmpeg inserts with its default flags.
-            command.args(["-sws_flags", &format!("bicubic{exact}")]);
+            command.arg("-vf").arg(format!(
+                "scale={width}:{height}:flags=fast_bilinear{exact}{nudge_filters}"
+            ));
+        } else {
+            if !exact.is_empty() {
+                // The conversion alone, in the scaler ffmpeg inserts with its default flags.
+                command.args(["-sws_flags", &format!("bicubic{exact}")]);
+            }
+            if !nudge_filters.is_empty() {
+                // In RGB: a pixel's shift in 4:2:0 would leave an odd width.
+                command.args(["-vf", &format!("format=rgb24{nudge_filters}")]);
+            }
         }
         let mut child = command
             .args(["-f", "rawvideo", "-pix_fmt", "rgb24", "-"])
