@@ -69,17 +69,32 @@ pub struct ServeArgs {
 pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     let mut cfg = match &args.config {
         Some(path) => ServerConfig::from_file(FileConfig::load(path)?)?,
-        None => ServerConfig {
-            mapping_cache_dir: default_mapping_cache_dir(),
-            access: AccessConfig {
-                token: crate::token::default_token_path()
-                    .map(TokenSetting::File)
-                    .unwrap_or(TokenSetting::Ephemeral),
-                ..AccessConfig::default()
-            },
-            ..ServerConfig::default()
-        },
+        None => flagless_config(),
     };
+    apply_access_flags(args, &mut cfg);
+    apply_cluster_flags(args, &mut cfg)?;
+    apply_run_flags(args, &mut cfg)?;
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+/// The configuration without a file: the default mapping cache, the default token file (or a
+/// token for this run only where there is no home to keep one).
+fn flagless_config() -> ServerConfig {
+    ServerConfig {
+        mapping_cache_dir: default_mapping_cache_dir(),
+        access: AccessConfig {
+            token: crate::token::default_token_path()
+                .map(TokenSetting::File)
+                .unwrap_or(TokenSetting::Ephemeral),
+            ..AccessConfig::default()
+        },
+        ..ServerConfig::default()
+    }
+}
+
+/// `--token-file`, `--allowed-origin`, `--max-connections`, `--no-mapping-cache`.
+fn apply_access_flags(args: &ServeArgs, cfg: &mut ServerConfig) {
     if let Some(t) = &args.token_file {
         cfg.access.token = TokenSetting::File(t.clone());
     }
@@ -92,8 +107,12 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
     if args.no_mapping_cache {
         cfg.mapping_cache_dir = None;
     }
+}
+
+/// `--nats` and `--site`: they override the file's servers and site; its credentials and
+/// namespace stay.
+fn apply_cluster_flags(args: &ServeArgs, cfg: &mut ServerConfig) -> anyhow::Result<()> {
     if let (Some(servers), Some(site)) = (&args.nats, &args.site) {
-        // Flags override the file's servers and site; its credentials and namespace stay.
         let mut c = cfg
             .cluster
             .take()
@@ -103,6 +122,12 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
         c.validate()?;
         cfg.cluster = Some(c);
     }
+    Ok(())
+}
+
+/// What runs: `--target`, `--record`, `--on-lost`, `--listen`, `--rate`, `--vmc-out`,
+/// `--source`.
+fn apply_run_flags(args: &ServeArgs, cfg: &mut ServerConfig) -> anyhow::Result<()> {
     if !args.targets.is_empty() {
         cfg.performers = args
             .targets
@@ -137,8 +162,7 @@ pub fn resolve(args: &ServeArgs) -> anyhow::Result<ServerConfig> {
             .map(|s| s.parse())
             .collect::<Result<_, _>>()?;
     }
-    cfg.validate()?;
-    Ok(cfg)
+    Ok(())
 }
 
 /// Parses a `--source` argument (see [`SourceSpec`]'s `FromStr`).
