@@ -641,53 +641,10 @@ fn footplants(stats: &rigcast_engine::stats::SubjectStats) -> Option<Vec<FootSta
 /// Snapshot of the counters.
 pub fn status(state: &ServerState) -> Status {
     let now = std::time::Instant::now();
-    let subjects = state
-        .subjects()
-        .iter()
-        .map(|s| {
-            let info = s.info();
-            SubjectStatus {
-                id: info.id,
-                name: info.name,
-                num_bones: info.num_bones,
-                input_fps: s.stats.input.rate_hz(now),
-                input_frames: s.stats.input.total(),
-                last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
-                kind: s.info().kind,
-                inputs: s.inputs.clone(),
-                source: s.source_health(now),
-                listen: s.listen_addr.map(|a| a.to_string()),
-                skeleton_changes: s.stats.skeleton_changes.load(Ordering::Relaxed),
-                skeleton_frames_limited: s.stats.skeleton_frames_limited.load(Ordering::Relaxed),
-                rejected_poses: s.stats.rejected_poses.load(Ordering::Relaxed),
-                last_rejection: s.stats.last_rejection.lock().ok().and_then(|r| r.clone()),
-                fault: s.stats.fault(),
-                faults_total: s.stats.faults_total.load(Ordering::Relaxed),
-                footplants: footplants(&s.stats),
-                latency: s.stats.wire.lock().map(|w| w.report()).unwrap_or_default(),
-            }
-        })
+    let subjects = (state.subjects().iter())
+        .map(|s| subject_status(s, now))
         .collect();
-    let list: Vec<ClientStatus> = state
-        .stats
-        .clients
-        .lock()
-        .map(|c| {
-            c.iter()
-                .map(|(id, c)| ClientStatus {
-                    id: *id,
-                    peer: c.peer.clone(),
-                    frames_sent: c.frames_sent.load(Ordering::Relaxed),
-                    missed_frames: c.missed_frames.load(Ordering::Relaxed),
-                    access: match c.access {
-                        crate::access::Access::ReadOnly => ClientAccess::ReadOnly,
-                        crate::access::Access::Control => ClientAccess::Control,
-                    },
-                    control_resyncs: c.control_resyncs.load(Ordering::Relaxed),
-                })
-                .collect()
-        })
-        .unwrap_or_default();
+    let list = client_list(state);
     Status {
         server_version: env!("CARGO_PKG_VERSION").to_string(),
         tick_hz: state.rate_hz,
@@ -712,6 +669,52 @@ pub fn status(state: &ServerState) -> Status {
         recording: state.recorder.as_ref().map(|r| r.status()),
         cluster: cluster_status(state),
     }
+}
+
+/// One subject's line in the status: its input, health, faults, footplants and latency.
+fn subject_status(s: &rigcast_engine::subject::Subject, now: std::time::Instant) -> SubjectStatus {
+    let info = s.info();
+    SubjectStatus {
+        id: info.id,
+        name: info.name,
+        num_bones: info.num_bones,
+        input_fps: s.stats.input.rate_hz(now),
+        input_frames: s.stats.input.total(),
+        last_capture_nanos: s.stats.last_capture_nanos.load(Ordering::Relaxed),
+        kind: s.info().kind,
+        inputs: s.inputs.clone(),
+        source: s.source_health(now),
+        listen: s.listen_addr.map(|a| a.to_string()),
+        skeleton_changes: s.stats.skeleton_changes.load(Ordering::Relaxed),
+        skeleton_frames_limited: s.stats.skeleton_frames_limited.load(Ordering::Relaxed),
+        rejected_poses: s.stats.rejected_poses.load(Ordering::Relaxed),
+        last_rejection: s.stats.last_rejection.lock().ok().and_then(|r| r.clone()),
+        fault: s.stats.fault(),
+        faults_total: s.stats.faults_total.load(Ordering::Relaxed),
+        footplants: footplants(&s.stats),
+        latency: s.stats.wire.lock().map(|w| w.report()).unwrap_or_default(),
+    }
+}
+
+/// The connected clients, by id.
+fn client_list(state: &ServerState) -> Vec<ClientStatus> {
+    let Ok(clients) = state.stats.clients.lock() else {
+        return Vec::new();
+    };
+    clients
+        .iter()
+        .map(|(id, c)| ClientStatus {
+            id: *id,
+            peer: c.peer.clone(),
+            frames_sent: c.frames_sent.load(Ordering::Relaxed),
+            missed_frames: c.missed_frames.load(Ordering::Relaxed),
+            access: match c.access {
+                crate::access::Access::ReadOnly => ClientAccess::ReadOnly,
+                crate::access::Access::Control => ClientAccess::Control,
+            },
+            control_resyncs: c.control_resyncs.load(Ordering::Relaxed),
+        })
+        .collect()
 }
 
 fn cluster_status(state: &ServerState) -> Option<rigcast_protocol::status::ClusterStatus> {
