@@ -289,20 +289,7 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
             return;
         }
         let arrived = Instant::now();
-        let capture_nanos = if runner.realtime {
-            // A paced file is "captured" when its frame is due, wall clock anchored at the
-            // first frame: consumers can tell the frame's place in the file from it, and a
-            // pipeline that falls behind shows as latency instead of being hidden.
-            let frame_nanos = (frame.time_secs.max(0.0) * 1e9).round() as u64;
-            let anchor =
-                *anchor_nanos.get_or_insert_with(|| unix_nanos_now().saturating_sub(frame_nanos));
-            anchor + frame_nanos
-        } else if frame.clock.captured_unix_nanos > 0 {
-            // A camera's frame was captured when its driver says.
-            frame.clock.captured_unix_nanos
-        } else {
-            unix_nanos_now()
-        };
+        let capture_nanos = capture_time(runner.realtime, &frame, &mut anchor_nanos);
         let found_before = runner.pipeline.stats().find_nanos;
         // The people already tracked go out first: the finder (a detector pass, several
         // while someone is missing) runs after their poses are published, so it never holds
@@ -323,28 +310,58 @@ fn run_pipeline(mut runner: Runner, shared: &Shared) {
             posed.get_or_insert_with(unix_nanos_now);
         }
         if frame.clock.captured_unix_nanos > 0 {
-            let detect = runner.pipeline.stats().find_nanos - found_before;
-            let model = arrived
-                .elapsed()
-                .saturating_sub(runner.pipeline.solve_time());
-            let c = frame.clock;
-            let times = [
-                c.dequeued_unix_nanos.saturating_sub(c.captured_unix_nanos),
-                c.decoded_unix_nanos.saturating_sub(c.dequeued_unix_nanos),
-                detect,
-                (model.as_nanos() as u64).saturating_sub(detect),
-                runner.pipeline.solve_time().as_nanos() as u64,
-                posed
-                    .unwrap_or_else(unix_nanos_now)
-                    .saturating_sub(c.captured_unix_nanos),
-            ];
-            let mut s = shared.lock();
-            s.camera = runner.frames.camera_mode();
-            s.stages.record(times);
+            record_stages(&runner, shared, (&frame, arrived), found_before, posed);
         }
     };
     shared.lock().ended = Some(ended);
     shared.changed.notify_all();
+}
+
+/// When `frame` was captured, in Unix nanoseconds. A paced file's frame is "captured" when it
+/// is due, wall clock anchored at the first frame (`anchor_nanos`): consumers can tell the
+/// frame's place in the file from it, and a pipeline that falls behind shows as latency
+/// instead of being hidden. A camera's frame was captured when its driver says.
+fn capture_time(realtime: bool, frame: &RgbFrame, anchor_nanos: &mut Option<u64>) -> u64 {
+    if realtime {
+        let frame_nanos = (frame.time_secs.max(0.0) * 1e9).round() as u64;
+        let anchor =
+            *anchor_nanos.get_or_insert_with(|| unix_nanos_now().saturating_sub(frame_nanos));
+        anchor + frame_nanos
+    } else if frame.clock.captured_unix_nanos > 0 {
+        frame.clock.captured_unix_nanos
+    } else {
+        unix_nanos_now()
+    }
+}
+
+/// A camera frame's time in each stage (queue, decode, detect, model, solve, to its pose out),
+/// for the status; `arrived` when the pipeline took it, `found_before` the finder's time
+/// before it, `posed` when its first pose went out.
+fn record_stages(
+    runner: &Runner,
+    shared: &Shared,
+    (frame, arrived): (&RgbFrame, Instant),
+    found_before: u64,
+    posed: Option<u64>,
+) {
+    let detect = runner.pipeline.stats().find_nanos - found_before;
+    let model = arrived
+        .elapsed()
+        .saturating_sub(runner.pipeline.solve_time());
+    let c = frame.clock;
+    let times = [
+        c.dequeued_unix_nanos.saturating_sub(c.captured_unix_nanos),
+        c.decoded_unix_nanos.saturating_sub(c.dequeued_unix_nanos),
+        detect,
+        (model.as_nanos() as u64).saturating_sub(detect),
+        runner.pipeline.solve_time().as_nanos() as u64,
+        posed
+            .unwrap_or_else(unix_nanos_now)
+            .saturating_sub(c.captured_unix_nanos),
+    ];
+    let mut s = shared.lock();
+    s.camera = runner.frames.camera_mode();
+    s.stages.record(times);
 }
 
 /// Sleeps until `frame` is due (wall clock from the first frame); false when stopped while
