@@ -346,13 +346,10 @@ impl FootLock {
             if pitch {
                 foot.learn_pitch_fit(gap, dt);
             } else if rolled <= 0.0 {
-                // The mean of the frames seen so far until they span the running average's
-                // time: a foot's first flat stance sets its pitch at once.
                 foot.fit_secs += dt;
-                let k = k.max(dt / foot.fit_secs);
                 if foot.learns_heights && !rest_pitch {
                     // No rest to stand it as: the animation's own pitch, as offline.
-                    foot.standing_pitch += k * (stance.pitch - foot.standing_pitch);
+                    foot.learn_standing_pitch(stance.pitch, dt);
                 }
             }
             if foot.learns_heights && !foot.heights_held {

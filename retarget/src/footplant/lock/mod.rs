@@ -1240,6 +1240,24 @@ mod tests {
     }
 
     #[test]
+    fn a_standing_pitch_learnt_live_is_the_mean_of_every_flat_frame() {
+        let dt = 1.0 / 60.0;
+        // Stances pitched alternately 0.1 and 0.3 rad, a second each, 4 s in all.
+        let mut foot = pinned_foot(true);
+        for k in 0..240 {
+            foot.fit_secs += dt;
+            foot.learn_standing_pitch([0.1, 0.3][(k / 60) % 2], dt);
+        }
+        // The mean of both, not the last second's (an average forgetting after a second
+        // stood at 0.24 here).
+        assert!(
+            (foot.standing_pitch - 0.2).abs() < 1e-3,
+            "{}",
+            foot.standing_pitch
+        );
+    }
+
+    #[test]
     fn a_live_lift_off_is_foreseen_from_the_ball_rising_on_a_toe_off() {
         let (dt, lead, high) = (1.0 / 60.0, 0.1, 0.05);
         let ball = Some(Contact::Ball);
