@@ -52,29 +52,10 @@ pub(super) fn handle_text(
         version,
         replies,
     } = session;
-    if text.len() > MAX_CLIENT_MESSAGE_BYTES {
-        return Some(ServerMessage::error(
-            ErrorCode::MessageTooLarge,
-            format!(
-                "message of {} bytes exceeds the {MAX_CLIENT_MESSAGE_BYTES}-byte limit",
-                text.len()
-            ),
-        ));
-    }
-    let msg = match parse_client_message(text) {
+    let msg = match admitted(text, access) {
         Ok(m) => m,
-        Err(e) => return Some(ServerMessage::error(e.code, e.message)),
+        Err(refusal) => return Some(refusal),
     };
-    if required_access(&msg) == Access::Control && access != Access::Control {
-        return Some(ServerMessage::error(
-            ErrorCode::Unauthorized,
-            format!(
-                "{} changes the server: connect with the control token \
-                 (Authorization: Bearer TOKEN or ?token=TOKEN; `rigcast token show` prints it)",
-                type_name(&msg)
-            ),
-        ));
-    }
     if let Some(now) = forward_if_relayed(shared, &msg, replies) {
         return now;
     }
@@ -83,20 +64,7 @@ pub(super) fn handle_text(
             nonce,
             server_nanos: unix_nanos(),
         }),
-        ClientMessage::SetProtocol { version: wanted } => {
-            Some(if rigcast_protocol::PROTOCOL_VERSIONS.contains(&wanted) {
-                *version = wanted;
-                ServerMessage::Protocol { version: wanted }
-            } else {
-                ServerMessage::error(
-                    ErrorCode::Unsupported,
-                    format!(
-                        "protocol version {wanted} is not supported; this server speaks {:?}",
-                        rigcast_protocol::PROTOCOL_VERSIONS
-                    ),
-                )
-            })
-        }
+        ClientMessage::SetProtocol { version: wanted } => Some(set_protocol(wanted, version)),
         ClientMessage::Subscribe { subjects: None } => {
             *subscribed = None;
             None
@@ -109,6 +77,48 @@ pub(super) fn handle_text(
         | ClientMessage::SetMapping { .. }) => {
             Some(crate::changes::apply_change(&shared.changes, change))
         }
+    }
+}
+
+/// The client's message if it may be taken: within the size limit, well formed, and of a kind
+/// the session's `access` allows; else the error to answer.
+fn admitted(text: &str, access: Access) -> Result<ClientMessage, ServerMessage> {
+    if text.len() > MAX_CLIENT_MESSAGE_BYTES {
+        return Err(ServerMessage::error(
+            ErrorCode::MessageTooLarge,
+            format!(
+                "message of {} bytes exceeds the {MAX_CLIENT_MESSAGE_BYTES}-byte limit",
+                text.len()
+            ),
+        ));
+    }
+    let msg = parse_client_message(text).map_err(|e| ServerMessage::error(e.code, e.message))?;
+    if required_access(&msg) == Access::Control && access != Access::Control {
+        return Err(ServerMessage::error(
+            ErrorCode::Unauthorized,
+            format!(
+                "{} changes the server: connect with the control token \
+                 (Authorization: Bearer TOKEN or ?token=TOKEN; `rigcast token show` prints it)",
+                type_name(&msg)
+            ),
+        ));
+    }
+    Ok(msg)
+}
+
+/// Switches the session to protocol version `wanted` if this server speaks it.
+fn set_protocol(wanted: u16, version: &mut u16) -> ServerMessage {
+    if rigcast_protocol::PROTOCOL_VERSIONS.contains(&wanted) {
+        *version = wanted;
+        ServerMessage::Protocol { version: wanted }
+    } else {
+        ServerMessage::error(
+            ErrorCode::Unsupported,
+            format!(
+                "protocol version {wanted} is not supported; this server speaks {:?}",
+                rigcast_protocol::PROTOCOL_VERSIONS
+            ),
+        )
     }
 }
 
