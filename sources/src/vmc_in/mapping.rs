@@ -256,11 +256,12 @@ fn address_segments(path: &str) -> Vec<Segment> {
         .collect()
 }
 
-/// The arguments holding a position (px, py, pz) and a rotation (qx, qy, qz, qw), each all
-/// or none; otherwise what is missing.
-fn transform_args(
-    args: &[ArgField],
-) -> Result<(Option<[usize; 3]>, Option<[usize; 4]>), &'static str> {
+/// Argument positions of a position (px, py, pz) and a rotation (qx, qy, qz, qw).
+type TransformArgs = (Option<[usize; 3]>, Option<[usize; 4]>);
+
+/// The arguments holding a position and a rotation, each all or none; otherwise what is
+/// missing.
+fn transform_args(args: &[ArgField]) -> Result<TransformArgs, &'static str> {
     let find = |f: ArgField| args.iter().position(|a| *a == f);
     let p = [find(ArgField::Px), find(ArgField::Py), find(ArgField::Pz)];
     let q = [
