@@ -107,7 +107,7 @@ impl WorldSmoothing {
         let dt = match self.last_secs.map(|last| (time_secs - last) as f32) {
             Some(dt) if dt > 0.0 => dt,
             // The same instant again: nothing to smooth over.
-            Some(dt) if dt == 0.0 => return,
+            Some(0.0) => return,
             // The first frame, or time went back (a replay restarted): taken whole.
             _ => {
                 self.start(lm, centre, time_secs);

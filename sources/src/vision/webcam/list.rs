@@ -119,7 +119,7 @@ fn sizes(dev: &Device, fourcc: FourCC) -> Vec<(u32, u32)> {
 
 /// Whole frame rates offered at `w`×`h` (V4L2 gives intervals: 1/30 s is 30 fps).
 fn rates(dev: &Device, fourcc: FourCC, w: u32, h: u32) -> Vec<u32> {
-    let whole = |num: u32, den: u32| (num > 0 && den % num == 0).then(|| den / num);
+    let whole = |num: u32, den: u32| (num > 0 && den.is_multiple_of(num)).then(|| den / num);
     let mut out = Vec::new();
     for iv in dev
         .enum_frameintervals(fourcc, w, h)
