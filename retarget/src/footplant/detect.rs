@@ -166,6 +166,8 @@ pub struct PlantDetector {
     /// Per leg, the last sample's foot (least of its contacts) and heel above their grounds.
     lifts: [f32; MAX_FEET],
     heel_lifts: [f32; MAX_FEET],
+    /// Per leg, its ball's speed over the release speed ([`PlantDetector::ball_speeds`]).
+    ball_speeds: [f32; MAX_FEET],
     /// Per leg, which contacts of its foot hold ([`contact_of`]).
     contacts: [Option<Contact>; MAX_FEET],
 }
@@ -189,6 +191,7 @@ impl PlantDetector {
             pace: None,
             lifts: [0.0; MAX_FEET],
             heel_lifts: [0.0; MAX_FEET],
+            ball_speeds: [0.0; MAX_FEET],
             contacts: [None; MAX_FEET],
         }
     }
@@ -219,6 +222,12 @@ impl PlantDetector {
     /// The same for the heel (foot joint) alone, as [`PlantTrack::heel_lifts`].
     pub fn heel_lifts(&self) -> &[f32] {
         &self.heel_lifts[..self.legs.len()]
+    }
+
+    /// Per leg, how fast its ball (its heel where it has none) moved at the last sample, as a
+    /// share of the speed a planted foot is let go at (1: let go, by speed).
+    pub fn ball_speeds(&self) -> &[f32] {
+        &self.ball_speeds[..self.legs.len()]
     }
 
     /// Per leg, which contacts of its foot held at the last sample, as
@@ -298,6 +307,12 @@ impl PlantDetector {
             let lowest = (readings.iter().flatten().map(|r| above(r).unwrap_or(0.0)))
                 .fold(f32::INFINITY, f32::min);
             self.lifts[f] = if lowest.is_finite() { lowest } else { 0.0 };
+            let ball = readings[1].as_ref().or(readings[0].as_ref());
+            let release = v * s.release_factor;
+            self.ball_speeds[f] = ball.map_or(0.0, |r| r.speed / release.max(1e-9));
+            if !self.ball_speeds[f].is_finite() {
+                self.ball_speeds[f] = 0.0;
+            }
             let was = self.planted[f];
             let mut now = next_state(was, &readings, h, v, s.release_factor);
             // A fresh plant is held for the shortest plant, so a jittery landing does not

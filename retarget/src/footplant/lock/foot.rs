@@ -153,8 +153,8 @@ pub(super) struct Foot {
     /// Last frame's animated ankle before the root's move onto the standing feet (the foot's
     /// slide over the ground, [`FootLock::carry_root`]).
     pub(super) raw_ankle: Vec3,
-    /// This frame's animated ankle along up (after the fit, before the root is carried onto
-    /// the standing feet): where the retargeted foot stands.
+    /// This frame's animated ankle along up (after the fit; offline before the root is carried
+    /// onto the standing feet, live after): where the retargeted foot stands.
     pub(super) animated_up: f32,
     /// How near the source foot's lift-off is (0 to 1, [`release_weight`]).
     pub(super) release: f32,
@@ -341,9 +341,12 @@ impl Foot {
         let highest =
             (self.ball_lift).map_or(lowest, |b| lowest.max(floor + self.ball_clearance + b));
         // A pin raised towards the animation's ankle at the end of a toe-off keeps the
-        // animation's pitch: its ball stays up with it.
+        // animation's pitch: its ball stays up with it, no lower than the raise took it (a
+        // foot only partly rolled onto its ball, its ball under its standing height, is
+        // pitched up to it as unraised: pitched to the floor's height instead, its ball swung
+        // over the ground as the raise grew).
         let highest = highest.max(lowest + self.raised);
-        clamp_safe(now, lowest, highest)
+        clamp_safe(now, lowest + self.raised, highest)
     }
 
     /// Takes this frame's lift of the source's foot (its lowest contact over its ground,
@@ -406,7 +409,10 @@ impl Foot {
     ) {
         if let Some((from, to)) = balls {
             let ball = |o: Vec3| {
-                let ankle = self.pinned_ankle(up, floor, Some(o));
+                // The raise towards the animation's ankle lifts ankle and ball alike: the
+                // ball's reach is the rolled foot's (read from the raised ankle, a pin turning
+                // on its ball slid it 1 mm a frame).
+                let ankle = self.rolled_ankle(up, floor, Some(o));
                 let len = o.length();
                 let stand = floor + self.ball_clearance + self.lift;
                 let rise = clamp_safe(stand - ankle.dot(up), -len, len);

@@ -68,46 +68,61 @@ pub(super) fn release_weight(plants: &PlantTrack, frame: usize, leg: usize, lead
 
 /// Live, where the lift-offs are not known: per source leg, how near its planted foot's
 /// lift-off looks, as [`release_weight`] is offline. While the source stands on its ball
-/// alone (its heel up: a toe-off), from how fast its lowest contact rises towards the height
-/// the detector lets it go at; 0 while it stands otherwise (a stand on the toes, whose ball
-/// does not rise, stays 0).
+/// alone (its heel up: a toe-off), from whichever of the detector's two release tests its
+/// ball nears first: its lowest contact rising towards the height the detector lets it go
+/// at, or its ball's speed growing towards the speed it is let go at (a toe-off's ball
+/// pivots, then pushes off: Xia's walk let its feet go by speed, the ball never rising
+/// towards the height, and the pins on their balls, 2 cm under the animation's rising ankles,
+/// were never raised: the released legs 10-11° off the performer's for 0.25 s); 0 while it
+/// stands otherwise (a stand on the toes, whose ball neither rises nor speeds up, stays 0).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct LiveRelease {
     /// The foot's lowest contact above its ground at the last sample (source units).
     pub(super) low: [f32; MAX_FEET],
+    /// Its ball's speed over the release speed at the last sample.
+    pub(super) speed: [f32; MAX_FEET],
     pub(super) weight: [f32; MAX_FEET],
 }
 
 impl LiveRelease {
     /// Takes a new source sample `dt` after the last: per leg its plant, which of its contacts
-    /// hold, its lowest contact's height above its ground and the height the detector lets a
-    /// planted foot go at (`high`). Each weight rises from 0 to 1 as the time that contact
-    /// takes to reach `high` at its present speed comes down from `lead` seconds to none
-    /// (smoothly, as offline), and holds until the foot lifts or its heel comes back down.
+    /// hold, its lowest contact's height above its ground, the height the detector lets a
+    /// planted foot go at (`high`) and its ball's speed over the speed it is let go at
+    /// (`speeds`). Each weight rises from 0 to 1 as the time the height or the speed takes to
+    /// reach its bound at its present rate comes down from `lead` seconds to none (smoothly,
+    /// as offline), and holds until the foot lifts or its heel comes back down.
     pub(super) fn update(
         &mut self,
         planted: &[bool],
         contacts: &[Option<Contact>],
-        lifts: &[f32],
+        (lifts, speeds): (&[f32], &[f32]),
         high: &[f32],
         dt: f32,
         lead: f32,
     ) {
+        let soon = |now: f32, before: f32, bound: f32| {
+            let rate = if dt > 0.0 { (now - before) / dt } else { 0.0 };
+            if !(rate > 0.0 && lead > 0.0) {
+                return 0.0;
+            }
+            let t = (1.0 - (bound - now).max(0.0) / (rate * lead)).clamp(0.0, 1.0);
+            t * t * (3.0 - 2.0 * t)
+        };
         for (s, ((&p, &lift), &high)) in planted.iter().zip(lifts).zip(high).enumerate() {
-            let rising = if dt > 0.0 {
-                (lift - self.low[s]) / dt
-            } else {
-                0.0
-            };
-            self.low[s] = lift;
+            let speed = speeds.get(s).copied().unwrap_or(0.0);
+            let rising = soon(lift, self.low[s], high);
+            let speeding = soon(speed, self.speed[s], 1.0);
+            (self.low[s], self.speed[s]) = (lift, speed);
             if !p || contacts.get(s).copied().flatten() != Some(Contact::Ball) {
                 self.weight[s] = 0.0;
                 continue;
             }
-            if rising > 0.0 && lead > 0.0 {
-                let t = (1.0 - (high - lift).max(0.0) / (rising * lead)).clamp(0.0, 1.0);
-                self.weight[s] = self.weight[s].max(t * t * (3.0 - 2.0 * t));
-            }
+            // No faster than offline's ramp over `lead`: a speed's rate jumps from one sample
+            // to the next, and a weight taken at once raised a pin in one frame (a kick).
+            let most = if lead > 0.0 { dt / lead } else { 1.0 };
+            let wanted = rising.max(speeding);
+            let w = self.weight[s];
+            self.weight[s] = w.max(wanted.min(w + most));
         }
     }
 }
