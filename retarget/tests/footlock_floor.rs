@@ -658,6 +658,37 @@ fn live_a_learnt_standing_height_is_held_after_the_first_stance() {
     );
 }
 
+/// [`z_up_pair`] with a live lock on it.
+fn live_z_up_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
+    let (source, target, mapping, (sa, ta)) = z_up_pair();
+    let lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
+    (source, target, mapping, lock)
+}
+
+/// The source's left leg lifted at frame `f`: the hip flexed, swinging in a small circle
+/// (never slow enough to stand), the performer's toes kept 0.3 rad up.
+fn swing_left_leg(p: &mut Pose, rest: &Pose, (l_thigh, l_foot): (usize, usize), f: usize) {
+    let (a, t) = (0.1, f as f32 * std::f32::consts::TAU * 2.0 / 60.0);
+    let swing = Quat::from_rotation_z(a * t.cos()) * Quat::from_rotation_x(-0.4 + a * t.sin());
+    p.rotations[l_thigh] = rest.rotations[l_thigh] * swing;
+    let kept = Quat::from_rotation_x(0.4 - a * t.sin() - 0.3);
+    p.rotations[l_foot] = rest.rotations[l_foot] * kept;
+}
+
+/// At frame `f`, a lifted foot shows its rest's pitch `standing` (within 1.5°) while the
+/// animation's stands more than 10° from it (°, shown and animated).
+fn assert_rest_pitch(f: usize, (shown, animated): (f32, f32), standing: f32) {
+    assert!(
+        (animated - standing).abs() > 10.0,
+        "frame {f}: the animation already stands at {animated}°"
+    );
+    assert!(
+        (shown - standing).abs() < 1.5,
+        "frame {f}: the lifted foot pitched {shown}°, its rest {standing}° (animated \
+         {animated}°)"
+    );
+}
+
 /// Live, a foot that has not stood yet takes the pitch fit its fellow foot has learnt: the
 /// character's feet are built alike. The setting of
 /// [`live_a_rest_standing_along_its_own_up_gives_its_feet_pitch`], with the left foot lifted
@@ -668,9 +699,8 @@ fn live_a_learnt_standing_height_is_held_after_the_first_stance() {
 /// its own over a blend's time (the CMU walk onto X Bot: the second foot's toes 5 cm up).
 #[test]
 fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
-    let (source, target, mut mapping, (sa, ta)) = z_up_pair();
+    let (source, target, mut mapping, mut lock) = live_z_up_pair();
     let (up, _, _) = mapping.target_floor().expect("a floor");
-    let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
     let pitch = left_foot_pitch(&target);
     let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
     let rest = source.rest_pose();
@@ -681,25 +711,11 @@ fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
     for f in 0..60 {
         let mut p = rest.clone();
         p.translations[0].y += 0.03;
-        // Swinging in a small circle, never slow enough to stand.
-        let (a, t) = (0.1, f as f32 * std::f32::consts::TAU * 2.0 / 60.0);
-        let swing = Quat::from_rotation_z(a * t.cos()) * Quat::from_rotation_x(-0.4 + a * t.sin());
-        p.rotations[l_thigh] = rest.rotations[l_thigh] * swing;
-        let kept = Quat::from_rotation_x(0.4 - a * t.sin() - 0.3);
-        p.rotations[l_foot] = rest.rotations[l_foot] * kept;
+        swing_left_leg(&mut p, &rest, (l_thigh, l_foot), f);
         p.rotations[r_foot] = rest.rotations[r_foot] * Quat::from_rotation_x(-0.3);
         let (w, wf) = locked_and_free(&mut mapping, &mut lock, &p, &mut out, &mut free);
         if f >= 20 {
-            let (shown, animated) = (pitch(&w, up), pitch(&wf, up));
-            assert!(
-                (animated - standing).abs() > 10.0,
-                "frame {f}: the animation already stands at {animated}°"
-            );
-            assert!(
-                (shown - standing).abs() < 1.5,
-                "frame {f}: the lifted foot pitched {shown}°, its rest {standing}° (animated \
-                 {animated}°)"
-            );
+            assert_rest_pitch(f, (pitch(&w, up), pitch(&wf, up)), standing);
             checked += 1;
         }
     }
@@ -723,9 +739,8 @@ fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
 /// way to the last half second's fit, tipping the lifted foot by several degrees.
 #[test]
 fn live_a_foot_pitch_fit_is_the_median_of_its_stances() {
-    let (source, target, mut mapping, (sa, ta)) = z_up_pair();
+    let (source, target, mut mapping, mut lock) = live_z_up_pair();
     let (up, _, _) = mapping.target_floor().expect("a floor");
-    let mut lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
     let pitch = left_foot_pitch(&target);
     let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
     let rest = source.rest_pose();
@@ -742,26 +757,11 @@ fn live_a_foot_pitch_fit_is_the_median_of_its_stances() {
         if f < 90 {
             p.rotations[l_foot] = rest.rotations[l_foot] * Quat::from_rotation_x(-toes);
         } else {
-            // Lifted, swinging in a small circle, its toes 0.3 rad up.
-            let (a, t) = (0.1, f as f32 * std::f32::consts::TAU * 2.0 / 60.0);
-            let swing =
-                Quat::from_rotation_z(a * t.cos()) * Quat::from_rotation_x(-0.4 + a * t.sin());
-            p.rotations[l_thigh] = rest.rotations[l_thigh] * swing;
-            let kept = Quat::from_rotation_x(0.4 - a * t.sin() - 0.3);
-            p.rotations[l_foot] = rest.rotations[l_foot] * kept;
+            swing_left_leg(&mut p, &rest, (l_thigh, l_foot), f);
         }
         let (w, wf) = locked_and_free(&mut mapping, &mut lock, &p, &mut out, &mut free);
         if f >= 110 {
-            let (shown, animated) = (pitch(&w, up), pitch(&wf, up));
-            assert!(
-                (animated - standing).abs() > 10.0,
-                "frame {f}: the animation already stands at {animated}°"
-            );
-            assert!(
-                (shown - standing).abs() < 1.5,
-                "frame {f}: the lifted foot pitched {shown}°, its rest {standing}° (animated \
-                 {animated}°)"
-            );
+            assert_rest_pitch(f, (pitch(&w, up), pitch(&wf, up)), standing);
             checked += 1;
         }
     }
