@@ -119,6 +119,18 @@ pub fn side_swaps(frames: &[Option<Landmarks>]) -> usize {
 }
 
 /// Coefficient of variation (std / mean).
+/// Mean absolute difference of two frames' bytes (levels a channel); they must be one size.
+pub fn mean_abs_diff(a: &RgbFrame, b: &RgbFrame) -> f64 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let sum: u64 = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| u64::from(x.abs_diff(*y)))
+        .sum();
+    sum as f64 / a.data.len() as f64
+}
+
 pub fn cv(values: &[f32]) -> f32 {
     let n = values.len() as f32;
     let mean = values.iter().sum::<f32>() / n;

@@ -9,7 +9,7 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::assets_or_skip;
+use common::{assets_or_skip, mean_abs_diff};
 use rigcast_sources::vision::{FfmpegSource, FrameSource, RgbFrame, VisionError};
 
 fn ffmpeg(args: &[&str]) {
@@ -28,17 +28,6 @@ fn decode_all(mut source: FfmpegSource) -> Vec<RgbFrame> {
         frames.push(f.clone());
     }
     frames
-}
-
-fn mean_abs_diff(a: &RgbFrame, b: &RgbFrame) -> f64 {
-    assert_eq!((a.width, a.height), (b.width, b.height));
-    let sum: u64 = a
-        .data
-        .iter()
-        .zip(&b.data)
-        .map(|(x, y)| (*x as i32 - *y as i32).unsigned_abs() as u64)
-        .sum();
-    sum as f64 / a.data.len() as f64
 }
 
 #[test]

@@ -10,7 +10,7 @@ mod common;
 
 use std::path::Path;
 
-use common::assets_or_skip;
+use common::{assets_or_skip, mean_abs_diff};
 use rigcast_sources::vision::{DecodeSize, FfmpegSource, FrameSource, RgbFrame};
 
 fn first_frame(path: &Path, size: DecodeSize) -> RgbFrame {
@@ -18,17 +18,6 @@ fn first_frame(path: &Path, size: DecodeSize) -> RgbFrame {
     let mut frame = RgbFrame::default();
     assert!(source.next_frame(&mut frame).unwrap());
     frame
-}
-
-fn mean_abs_diff(a: &RgbFrame, b: &RgbFrame) -> f64 {
-    assert_eq!((a.width, a.height), (b.width, b.height));
-    let sum: u64 = a
-        .data
-        .iter()
-        .zip(&b.data)
-        .map(|(x, y)| u64::from(x.abs_diff(*y)))
-        .sum();
-    sum as f64 / a.data.len() as f64
 }
 
 fn nudged(path: &Path, size: DecodeSize, nudge: &str) -> RgbFrame {
