@@ -15,9 +15,16 @@ pub(crate) fn least_between(
     let (mut a, mut b) = if scan >= 2 {
         let step = (hi - lo) / (scan - 1) as f32;
         let at = |k: usize| lo + step * k as f32;
-        let best = (0..scan)
-            .min_by(|&x, &y| cost(at(x)).total_cmp(&cost(at(y))))
-            .unwrap_or(0);
+        // Each sample's cost once (a comparison sort would ask for most of them twice); the
+        // first of equal least costs, as `min_by` gives.
+        let mut best = (0, f32::NAN);
+        for k in 0..scan {
+            let c = cost(at(k));
+            if k == 0 || c.total_cmp(&best.1).is_lt() {
+                best = (k, c);
+            }
+        }
+        let best = best.0;
         (at(best.saturating_sub(1)), at((best + 1).min(scan - 1)))
     } else {
         (lo, hi)
