@@ -658,11 +658,33 @@ fn live_a_learnt_standing_height_is_held_after_the_first_stance() {
     );
 }
 
-/// [`z_up_pair`] with a live lock on it.
-fn live_z_up_pair() -> (Skeleton, Skeleton, Mapping, FootLock) {
+/// The setting the live pitch tests share: [`z_up_pair`] with a live lock on it, the motion's
+/// up, the left foot's rest pitch (°, read along +Z), the source's rest pose and its left thigh,
+/// left foot and right foot.
+struct LiveLegs {
+    target: Skeleton,
+    mapping: Mapping,
+    lock: FootLock,
+    up_and_standing: (Vec3, f32),
+    rest: Pose,
+    bones: (usize, usize, usize),
+}
+
+fn live_legs() -> LiveLegs {
     let (source, target, mapping, (sa, ta)) = z_up_pair();
     let lock = FootLock::new(&mapping, &sa, &ta, LockSettings::default()).expect("a lock");
-    (source, target, mapping, lock)
+    let (up, _, _) = mapping.target_floor().expect("a floor");
+    let standing =
+        left_foot_pitch(&target)(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
+    let bone = |n: &str| source.bone(n).expect(n).index();
+    LiveLegs {
+        up_and_standing: (up, standing),
+        rest: source.rest_pose(),
+        bones: (bone("l_thigh"), bone("l_foot"), bone("r_foot")),
+        target,
+        mapping,
+        lock,
+    }
 }
 
 /// The source's left leg lifted at frame `f`: the hip flexed, swinging in a small circle
@@ -699,13 +721,15 @@ fn assert_rest_pitch(f: usize, (shown, animated): (f32, f32), standing: f32) {
 /// its own over a blend's time (the CMU walk onto X Bot: the second foot's toes 5 cm up).
 #[test]
 fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
-    let (source, target, mut mapping, mut lock) = live_z_up_pair();
-    let (up, _, _) = mapping.target_floor().expect("a floor");
+    let LiveLegs {
+        target,
+        mut mapping,
+        mut lock,
+        up_and_standing: (up, standing),
+        rest,
+        bones: (l_thigh, l_foot, r_foot),
+    } = live_legs();
     let pitch = left_foot_pitch(&target);
-    let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
-    let rest = source.rest_pose();
-    let bone = |n: &str| source.bone(n).expect(n).index();
-    let (l_thigh, l_foot, r_foot) = (bone("l_thigh"), bone("l_foot"), bone("r_foot"));
     let (mut out, mut free) = (mapping.new_target_pose(), mapping.new_target_pose());
     let mut checked = 0;
     for f in 0..60 {
@@ -739,13 +763,15 @@ fn live_a_foot_not_yet_stood_takes_its_fellow_foot_fit() {
 /// way to the last half second's fit, tipping the lifted foot by several degrees.
 #[test]
 fn live_a_foot_pitch_fit_is_the_median_of_its_stances() {
-    let (source, target, mut mapping, mut lock) = live_z_up_pair();
-    let (up, _, _) = mapping.target_floor().expect("a floor");
+    let LiveLegs {
+        target,
+        mut mapping,
+        mut lock,
+        up_and_standing: (up, standing),
+        rest,
+        bones: (l_thigh, l_foot, r_foot),
+    } = live_legs();
     let pitch = left_foot_pitch(&target);
-    let standing = pitch(&world_transforms(&target, &target.rest_pose()), Vec3::Z);
-    let rest = source.rest_pose();
-    let bone = |n: &str| source.bone(n).expect(n).index();
-    let (l_thigh, l_foot, r_foot) = (bone("l_thigh"), bone("l_foot"), bone("r_foot"));
     let (mut out, mut free) = (mapping.new_target_pose(), mapping.new_target_pose());
     let mut checked = 0;
     for f in 0..150 {
