@@ -69,12 +69,23 @@ pub(super) fn release_weight(plants: &PlantTrack, frame: usize, leg: usize, lead
 /// Live, where the lift-offs are not known: per source leg, how near its planted foot's
 /// lift-off looks, as [`release_weight`] is offline. While the source stands on its ball
 /// alone (its heel up: a toe-off), from whichever of the detector's two release tests its
-/// ball nears first: its lowest contact rising towards the height the detector lets it go
-/// at, or its ball's speed growing towards the speed it is let go at (a toe-off's ball
-/// pivots, then pushes off: Xia's walk let its feet go by speed, the ball never rising
-/// towards the height, and the pins on their balls, 2 cm under the animation's rising ankles,
-/// were never raised: the released legs 10-11° off the performer's for 0.25 s); 0 while it
-/// stands otherwise (a stand on the toes, whose ball neither rises nor speeds up, stays 0).
+/// ball nears first: how far its speed has come towards the speed a planted foot is let go
+/// at, or how soon its lowest contact's height or its speed reaches its bound at its present
+/// rate (a toe-off's ball pivots, then pushes off: Xia's walk let its feet go by speed, the
+/// ball never rising towards the height); 0 while it stands otherwise.
+///
+/// Read afresh on every sample, up and down, and not held nor ramped: what keeps the shown
+/// foot smooth is the limit on how fast its pin rises ([`Foot::raise_limit`]). A weight
+/// from the rates alone, ramped no faster than over the blends' time, came too late: a
+/// toe-off's ball speeds up in steps (Xia's: 0.34, 0.43, 0.48, 0.46, 0.46, 0.66, 1.15 of the
+/// release speed at 120 fps, released 0.06 s after its heel rose), so the rate's foresight
+/// fired a few samples before the release and the ramp reached 0.2-0.5: the pins on their
+/// balls stayed 1-2 cm under the animation's rising ankles, and released there, under an
+/// animation speeding up, the legs stood 8-11° off for 0.1 s (Xia onto X Bot), or held the
+/// body down while the other foot landed (the pymo Meredith walk onto X Bot). Held once
+/// foreseen, a stand on the toes whose ball wanders at a share of the release speed (the CMU
+/// 131_01 walk's final stand) kept its ball raised off the floor (the mannequin's planted
+/// feet 0.58 -> 1.02 cm off their standing height).
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct LiveRelease {
     /// The foot's lowest contact above its ground at the last sample (source units).
@@ -88,9 +99,9 @@ impl LiveRelease {
     /// Takes a new source sample `dt` after the last: per leg its plant, which of its contacts
     /// hold, its lowest contact's height above its ground, the height the detector lets a
     /// planted foot go at (`high`) and its ball's speed over the speed it is let go at
-    /// (`speeds`). Each weight rises from 0 to 1 as the time the height or the speed takes to
-    /// reach its bound at its present rate comes down from `lead` seconds to none (smoothly,
-    /// as offline), and holds until the foot lifts or its heel comes back down.
+    /// (`speeds`). Each weight is, smoothly from 0 to 1, the most of: the ball's speed over the
+    /// release speed, and how far the time the height or the speed takes to reach its bound at
+    /// its present rate has come down from `lead` seconds to none (as offline).
     pub(super) fn update(
         &mut self,
         planted: &[bool],
@@ -100,29 +111,28 @@ impl LiveRelease {
         dt: f32,
         lead: f32,
     ) {
+        let smooth = |t: f32| {
+            let t = t.clamp(0.0, 1.0);
+            t * t * (3.0 - 2.0 * t)
+        };
         let soon = |now: f32, before: f32, bound: f32| {
             let rate = if dt > 0.0 { (now - before) / dt } else { 0.0 };
             if !(rate > 0.0 && lead > 0.0) {
                 return 0.0;
             }
-            let t = (1.0 - (bound - now).max(0.0) / (rate * lead)).clamp(0.0, 1.0);
-            t * t * (3.0 - 2.0 * t)
+            smooth(1.0 - (bound - now).max(0.0) / (rate * lead))
         };
         for (s, ((&p, &lift), &high)) in planted.iter().zip(lifts).zip(high).enumerate() {
             let speed = speeds.get(s).copied().unwrap_or(0.0);
             let rising = soon(lift, self.low[s], high);
             let speeding = soon(speed, self.speed[s], 1.0);
             (self.low[s], self.speed[s]) = (lift, speed);
-            if !p || contacts.get(s).copied().flatten() != Some(Contact::Ball) {
-                self.weight[s] = 0.0;
-                continue;
-            }
-            // No faster than offline's ramp over `lead`: a speed's rate jumps from one sample
-            // to the next, and a weight taken at once raised a pin in one frame (a kick).
-            let most = if lead > 0.0 { dt / lead } else { 1.0 };
-            let wanted = rising.max(speeding);
-            let w = self.weight[s];
-            self.weight[s] = w.max(wanted.min(w + most));
+            let on_ball = contacts.get(s).copied().flatten() == Some(Contact::Ball);
+            self.weight[s] = if p && on_ball {
+                smooth(speed).max(rising).max(speeding)
+            } else {
+                0.0
+            };
         }
     }
 }
