@@ -31,32 +31,16 @@ pub fn solve_two_bone(
     goal: Vec3,
     pole: Vec3,
 ) -> TwoBoneSolution {
-    let a = (knee - hip).length();
-    let b = (ankle - knee).length();
-    let to_goal = goal - hip;
-    let unchanged = TwoBoneSolution {
-        upper: Quat::IDENTITY,
-        lower: Quat::IDENTITY,
-        knee,
-        ankle,
+    let placed = Chain::new(hip, knee, ankle).and_then(|c| c.place(goal - hip, pole));
+    let Some((to_knee, to_ankle)) = placed else {
+        return TwoBoneSolution {
+            upper: Quat::IDENTITY,
+            lower: Quat::IDENTITY,
+            knee,
+            ankle,
+        };
     };
-    let Some(u) = to_goal.try_normalize() else {
-        return unchanged;
-    };
-    if a <= f32::EPSILON || b <= f32::EPSILON {
-        return unchanged;
-    }
-    // A leg the animation already holds straighter than MAX_EXTENSION may stay that straight.
-    let longest = ((a + b) * MAX_EXTENSION).max((ankle - hip).length().min(a + b));
-    let d = crate::bounds::clamp_safe(to_goal.length(), (a - b).abs() * 1.0005 + 1e-6, longest);
-    // The pole, made perpendicular to the hip–goal line.
-    let v = (pole - u * pole.dot(u))
-        .try_normalize()
-        .unwrap_or_else(|| u.any_orthonormal_vector());
-    let cos_hip = ((a * a + d * d - b * b) / (2.0 * a * d)).clamp(-1.0, 1.0);
-    let sin_hip = (1.0 - cos_hip * cos_hip).max(0.0).sqrt();
-    let new_knee = hip + a * (cos_hip * u + sin_hip * v);
-    let new_ankle = hip + d * u;
+    let (new_knee, new_ankle) = (hip + to_knee, hip + to_ankle);
     let upper = arc(knee - hip, new_knee - hip);
     let lower = arc(upper * (ankle - knee), new_ankle - new_knee);
     TwoBoneSolution {
@@ -64,6 +48,52 @@ pub fn solve_two_bone(
         lower,
         knee: new_knee,
         ankle: new_ankle,
+    }
+}
+
+/// A hip–knee–ankle chain's bone lengths and the hip-to-ankle distances it may take, worked
+/// out once where many goals are tried on the same leg (the body's height search: it needs
+/// the bones' places, not [`solve_two_bone`]'s rotations, which cost as much again).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Chain {
+    upper: f32,
+    lower: f32,
+    nearest: f32,
+    farthest: f32,
+}
+
+impl Chain {
+    /// The chain as the animation holds it; `None` when a bone has no length.
+    pub(crate) fn new(hip: Vec3, knee: Vec3, ankle: Vec3) -> Option<Self> {
+        let a = (knee - hip).length();
+        let b = (ankle - knee).length();
+        if a <= f32::EPSILON || b <= f32::EPSILON {
+            return None;
+        }
+        Some(Self {
+            upper: a,
+            lower: b,
+            nearest: (a - b).abs() * 1.0005 + 1e-6,
+            // A leg the animation already holds straighter than MAX_EXTENSION may stay that
+            // straight.
+            farthest: ((a + b) * MAX_EXTENSION).max((ankle - hip).length().min(a + b)),
+        })
+    }
+
+    /// The knee and the ankle from the hip when the ankle goes towards `to_goal` (from the
+    /// hip) as far as the chain reaches, the knee on the `pole` side of the hip–goal line;
+    /// `None` for a goal on the hip.
+    pub(crate) fn place(&self, to_goal: Vec3, pole: Vec3) -> Option<(Vec3, Vec3)> {
+        let (a, b) = (self.upper, self.lower);
+        let u = to_goal.try_normalize()?;
+        let d = crate::bounds::clamp_safe(to_goal.length(), self.nearest, self.farthest);
+        // The pole, made perpendicular to the hip–goal line.
+        let v = (pole - u * pole.dot(u))
+            .try_normalize()
+            .unwrap_or_else(|| u.any_orthonormal_vector());
+        let cos_hip = ((a * a + d * d - b * b) / (2.0 * a * d)).clamp(-1.0, 1.0);
+        let sin_hip = (1.0 - cos_hip * cos_hip).max(0.0).sqrt();
+        Some((a * (cos_hip * u + sin_hip * v), d * u))
     }
 }
 

@@ -14,7 +14,7 @@
 
 use glam::Vec3;
 
-use super::ik::solve_two_bone;
+use super::ik::Chain;
 
 /// One leg's part: where the animation has it, and how far up (along the floor's normal) its
 /// ankle must go with the body where the animation puts it.
@@ -54,10 +54,13 @@ impl LegReach {
         let shift = up * h;
         let (hip, knee, ankle) = (self.hip + shift, self.knee + shift, self.ankle + shift);
         let goal = self.ankle + self.aside + up * self.gap;
-        let s = solve_two_bone(hip, knee, ankle, goal, self.pole);
-        let thigh = (knee - hip).angle_between(s.knee - hip);
-        let shin = (ankle - knee).angle_between(s.ankle - s.knee);
-        let miss = MISS_RAD_PER_LEG * (goal - s.ankle).length() / self.length.max(1e-6);
+        // The bones' places alone, as the IK puts them: their rotations are not needed to
+        // score them.
+        let placed = Chain::new(hip, knee, ankle).and_then(|c| c.place(goal - hip, self.pole));
+        let (to_knee, to_ankle) = placed.map_or((knee, ankle), |(k, a)| (hip + k, hip + a));
+        let thigh = (knee - hip).angle_between(to_knee - hip);
+        let shin = (ankle - knee).angle_between(to_ankle - to_knee);
+        let miss = MISS_RAD_PER_LEG * (goal - to_ankle).length() / self.length.max(1e-6);
         let sq = |a: f32| if a.is_finite() { a * a } else { 0.0 };
         sq(thigh) + sq(shin) + sq(miss)
     }
