@@ -325,9 +325,11 @@ impl FootLock {
             // planted frame is read before any pin.
             let held = foot.locked || !foot.stands_known();
             if !(held && foot.source.is_some_and(|s| planted[s])) {
-                // A foot that has stood and stands no more is past its first stance.
+                // A foot that has stood and stands no more is past its stance.
                 let f = &mut self.feet[i];
-                f.heights_held |= f.learns_heights && f.stand_secs > 0.0;
+                if f.learns_heights {
+                    f.end_stance();
+                }
                 continue;
             }
             if !(pitch || foot.learns_heights) {
@@ -352,7 +354,7 @@ impl FootLock {
                     foot.learn_standing_pitch(stance.pitch, dt);
                 }
             }
-            if foot.learns_heights && !foot.heights_held {
+            if foot.learns_heights {
                 // Where the heel stands as the lock rolls the foot, from its first stance at
                 // once (as the pitch): as offline, off the animation, not the unknown floor.
                 // Over that stance only, then held: the performer's floor does not move, and
@@ -360,8 +362,13 @@ impl FootLock {
                 // the character's planted feet higher or lower on each stance than on the
                 // first (live, the CMU 131_02 walk onto the CMU 131_01 rig: one heel's pin 8.9
                 // cm up after its first stance, 10.0 by its last; the pymo Meredith walk onto
-                // the CMU 131_01 rig: planted feet 3.09 cm off the performer's, 0.96 held).
-                foot.learn_height(stance.ankle - rolled, dt);
+                // the CMU 131_01 rig: planted feet 3.09 cm off the performer's, 0.96 held);
+                // learnt again from the later stances where the first was none of theirs
+                // ([`Foot::end_stance`]).
+                if !foot.heights_held {
+                    foot.learn_height(stance.ankle - rolled, dt);
+                }
+                foot.take_stance(stance.ankle - rolled, dt);
             }
             if foot.learns_heights {
                 // The ball's height follows the pitch, learnt on.

@@ -70,8 +70,15 @@ pub(super) struct Foot {
     /// How long (seconds) such a foot has stood since: what its heights are learnt from.
     pub(super) stand_secs: f32,
     /// Such a foot's first stance is over: its heights, learnt there, are held from now on
-    /// ([`FootLock::learn_fit`]).
+    /// ([`FootLock::learn_fit`]), unless the later stances tell it apart ([`Foot::end_stance`]).
     pub(super) heights_held: bool,
+    /// The heel's standing height over the stance standing now, its mean over the first
+    /// stance, and the means of the stances after it ([`Foot::end_stance`]); whether their
+    /// mean has replaced the first's.
+    pub(super) stance_heel: Moments,
+    pub(super) first_heel: f32,
+    pub(super) later_heel: Moments,
+    pub(super) relearnt: bool,
     /// The mean of the heel's standing heights seen so far, and of their squares (their
     /// spread), [`Foot::learn_height`].
     pub(super) learnt_mean: f32,
@@ -235,13 +242,20 @@ impl Foot {
         self.learnt_sq += k * (height * height - self.learnt_sq);
         let mean = self.learnt_mean;
         let spread = (self.learnt_sq - mean * mean).max(0.0).sqrt();
-        self.heel_clearance = match self.rest_heel {
+        self.heel_clearance = self.heel_from(mean, spread);
+    }
+
+    /// The heel's standing height from stances standing at `mean` with `spread`: where the
+    /// rest gives one (`rest_heel`), the rest's while the mean lies within the spread of it,
+    /// the mean once twice that far ([`Foot::learn_height`]); else the mean.
+    pub(super) fn heel_from(&self, mean: f32, spread: f32) -> f32 {
+        match self.rest_heel {
             Some(rest) => {
                 let d = mean - rest;
                 rest + d * ((d.abs() - spread) / spread.max(1e-6)).clamp(0.0, 1.0)
             }
             None => mean,
-        };
+        }
     }
 
     /// Takes one more `dt` of a flat stance pitched `pitch` (radians) into the standing pitch
@@ -574,6 +588,10 @@ impl Foot {
             learns_heights: false,
             stand_secs: 0.0,
             heights_held: false,
+            stance_heel: Moments::default(),
+            first_heel: 0.0,
+            later_heel: Moments::default(),
+            relearnt: false,
             learnt_mean: 0.0,
             learnt_sq: 0.0,
             rest_heel: None,

@@ -79,10 +79,12 @@ mod fit;
 mod floor;
 mod foot;
 mod foresight;
+mod stances;
 
 use fit::*;
 use foot::*;
 use foresight::*;
+use stances::*;
 
 /// How far (radians, ~26°) a planted foot's pinned heading may lag the animation's before it is
 /// dragged along (a pivot on the spot).
@@ -387,6 +389,7 @@ impl FootLock {
             f.aside = Decay::default();
             f.aside_wanted = Vec3::ZERO;
             f.animated_up_before = None;
+            f.stance_heel = Moments::default();
         }
         self.shift = RootShift::default();
         self.landing = LiveLanding::default();
@@ -1186,7 +1189,7 @@ mod tests {
     use floor::{lift_aside, split_lift};
 
     /// A left hind leg of bones 0 (thigh), 1 (shin), 2 (foot) and `toes`, `length` long.
-    fn left_leg(toes: Option<BoneId>, length: f32) -> Leg {
+    pub(super) fn left_leg(toes: Option<BoneId>, length: f32) -> Leg {
         Leg {
             kind: LegKind::Hind,
             side: Side::Left,
