@@ -326,10 +326,7 @@ impl FootLock {
             let held = foot.locked || !foot.stands_known();
             if !(held && foot.source.is_some_and(|s| planted[s])) {
                 // A foot that has stood and stands no more is past its stance.
-                let f = &mut self.feet[i];
-                if f.learns_heights {
-                    f.end_stance();
-                }
+                self.feet[i].end_stance();
                 continue;
             }
             if !(pitch || foot.learns_heights) {
@@ -365,9 +362,6 @@ impl FootLock {
                 // the CMU 131_01 rig: planted feet 3.09 cm off the performer's, 0.96 held);
                 // learnt again from the later stances where the first was none of theirs
                 // ([`Foot::end_stance`]).
-                if !foot.heights_held {
-                    foot.learn_height(stance.ankle - rolled, dt);
-                }
                 foot.take_stance(stance.ankle - rolled, dt);
             }
             if foot.learns_heights {

@@ -87,8 +87,12 @@ impl Moments {
 
 impl Foot {
     /// Takes one held stance frame, `dt` long, whose heel stands `heel` above the floor (as
-    /// the lock rolls the foot) into this stance's height.
+    /// the lock rolls the foot) into this stance's height, and, over the first stance, into
+    /// the height learnt ([`Foot::learn_height`]).
     pub(super) fn take_stance(&mut self, heel: f32, dt: f32) {
+        if !self.heights_held {
+            self.learn_height(heel, dt);
+        }
         self.stance_heel.add(heel, dt);
     }
 
@@ -98,7 +102,7 @@ impl Foot {
     /// replaces its (as [`Foot::heel_from`] reads it), once: the first was no stance of the
     /// performance. The height moves only here, between stances, never under a pinned foot.
     pub(super) fn end_stance(&mut self) {
-        if !self.stance_heel.any() {
+        if !(self.learns_heights && self.stance_heel.any()) {
             return;
         }
         let stance = std::mem::take(&mut self.stance_heel);
@@ -130,9 +134,6 @@ mod tests {
         let dt = 1.0 / 60.0;
         for k in 0..(secs / dt).round() as usize {
             let h = if k % 2 == 0 { heel + sway } else { heel - sway };
-            if !foot.heights_held {
-                foot.learn_height(h, dt);
-            }
             foot.take_stance(h, dt);
         }
         foot.end_stance();
