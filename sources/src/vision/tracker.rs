@@ -60,7 +60,7 @@ use super::change::PictureWatch;
 use super::detector::{Detection, PersonDetector, DETECTOR_SIZE};
 use super::error::VisionError;
 use super::frame::RgbFrame;
-use super::landmarks::{idx, Landmarks};
+use super::landmarks::{idx, Landmarks, NUM_LANDMARKS};
 use super::model::LandmarkModel;
 use super::readings::{
     body_box, body_distance, continues, detected_face_of, face_disc, found_again, hip_centre,
@@ -208,7 +208,8 @@ const REACH_AT_LOSS: f32 = 0.5;
 /// dribbling or running about twice that.
 const REACH_PER_LOST_FRAME: f32 = 0.05;
 
-/// See `Track::hips_stay`: the reach `continues` gives a body box's centre, in its heights.
+/// See `Track::continues_shown`: the reach `continues` gives a body box's centre, in its
+/// heights.
 const HIPS_REACH: f32 = 0.3;
 
 /// See `Track::stature`: it halves in about 70 frames unless a reading as tall comes.
@@ -386,23 +387,21 @@ impl Track {
         })
     }
 
-    /// Whether `next`'s hips lie within [`HIPS_REACH`] of this body's height from where its
-    /// hips were or where its last step takes them, torso not turned over: a body taken back
-    /// in place whose box changed (arms raised, legs guessed otherwise) is this body.
-    fn hips_stay(&self, next: &Landmarks) -> bool {
-        let Some((_, size)) = self.place else {
+    /// Whether `next`'s reading continues the body `last` showed (see `shown`): its hips lie
+    /// within [`HIPS_REACH`] of the height of what the picture shows of `last` (see
+    /// [`shown_height`]) from where its hips were or where its last step takes them, torso not
+    /// turned over. The whole box is no measure here: a close-up's box is mostly legs guessed
+    /// beyond the picture, two or three times what it shows, and a reading of someone else,
+    /// or hips guessed elsewhere, lies within a third of it.
+    fn continues_shown(last: &Track, next: &Track, picture: Vec2) -> bool {
+        let Some((_, size)) = last.place else {
             return true;
         };
-        let (was, now) = (hip_centre(&self.landmarks), hip_centre(next));
-        let reach = HIPS_REACH * size.y.max(1.0);
-        (was.distance(now) < reach || (was + self.velocity).distance(now) < reach)
-            && !turned_over(&self.landmarks, next)
-    }
-
-    /// Whether `next`'s reading continues the body `last` showed (see `shown`): by the test
-    /// that keeps a followed track, or by hips that stay.
-    fn continues_shown(last: &Track, next: &Track) -> bool {
-        last.continued_by_reading(&next.landmarks) || last.hips_stay(&next.landmarks)
+        let height = shown_height(&last.landmarks, picture).unwrap_or(size.y);
+        let (was, now) = (hip_centre(&last.landmarks), hip_centre(&next.landmarks));
+        let reach = HIPS_REACH * height.max(1.0);
+        (was.distance(now) < reach || (was + last.velocity).distance(now) < reach)
+            && !turned_over(&last.landmarks, &next.landmarks)
     }
 
     fn lose(&mut self) {
@@ -587,16 +586,20 @@ impl PoseTracker {
         }
         lost_now |= self.drop_duplicates();
         self.lost_now = lost_now;
-        self.show_seen();
+        self.show_seen(Vec2::new(frame.width as f32, frame.height as f32));
         Ok(())
     }
 
     /// Decides which slots seen in this frame show their reading (see `shown`); those decided
     /// already in this frame keep their decision.
-    fn show_seen(&mut self) {
+    fn show_seen(&mut self, picture: Vec2) {
         for slot in 0..self.tracks.len() {
             let t = &self.tracks[slot];
-            if t.seen && self.shown[slot].decide(t, t.start, Track::continues_shown) {
+            if t.seen
+                && self.shown[slot].decide(t, t.start, |last, next| {
+                    Track::continues_shown(last, next, picture)
+                })
+            {
                 self.stats.held_back += 1;
             }
         }
@@ -656,7 +659,7 @@ impl PoseTracker {
             }
             self.stats.find_nanos += started.elapsed().as_nanos() as u64;
         }
-        self.show_seen();
+        self.show_seen(Vec2::new(frame.width as f32, frame.height as f32));
         for t in self.tracks.iter_mut() {
             if t.tracked() {
                 t.held_frames = t.held_frames.saturating_add(1);
@@ -1328,6 +1331,24 @@ impl PoseTracker {
     }
 }
 
+/// The longer side of the box around the points of `lm` seen (visibility at least a half)
+/// within a `picture`-sized picture: the height of the body the picture shows. None when it
+/// shows fewer than four.
+fn shown_height(lm: &Landmarks, picture: Vec2) -> Option<f32> {
+    let (mut lo, mut hi, mut n) = (
+        Vec2::splat(f32::INFINITY),
+        Vec2::splat(f32::NEG_INFINITY),
+        0,
+    );
+    for p in &lm.image[..NUM_LANDMARKS] {
+        let q = Vec2::new(p.x, p.y);
+        if p.w >= 0.5 && q.cmpge(Vec2::ZERO).all() && q.cmplt(picture).all() {
+            (lo, hi, n) = (lo.min(q), hi.max(q), n + 1);
+        }
+    }
+    (n >= 4).then(|| (hi - lo).max_element())
+}
+
 /// How many of the [`DETECTOR_REGIONS`] (the first ones of `candidates`, see
 /// [`Roi::search_candidates`]) the finder's passes take turns over: a square of the short
 /// side shows people closer than the whole frame only when the long side is longer by at least
@@ -1369,7 +1390,6 @@ fn next_roi(lm: &Landmarks) -> Option<Roi> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vision::landmarks::NUM_LANDMARKS;
     use glam::Vec4;
 
     #[test]
@@ -1484,17 +1504,26 @@ mod tests {
         }
     }
 
-    /// Runs `frames` (a reading of the slot or none) through one slot as the tracker does;
-    /// returns which were shown.
-    fn shown(frames: &[Option<Track>]) -> Vec<bool> {
+    /// Runs `frames` (a reading of the slot or none) through one slot as the tracker does, in
+    /// a `picture`-sized picture; returns which were shown.
+    fn shown_in(picture: Vec2, frames: &[Option<Track>]) -> Vec<bool> {
         let mut slot = Shown::new();
         frames
             .iter()
             .map(|t| {
                 slot.begin_frame();
-                t.is_some_and(|t| !slot.decide(&t, t.start, Track::continues_shown) && slot.now())
+                t.is_some_and(|t| {
+                    let continues =
+                        |last: &Track, next: &Track| Track::continues_shown(last, next, picture);
+                    !slot.decide(&t, t.start, continues) && slot.now()
+                })
             })
             .collect()
+    }
+
+    /// [`shown_in`] the arm-wrestling clip's 340 x 256 picture.
+    fn shown(frames: &[Option<Track>]) -> Vec<bool> {
+        shown_in(Vec2::new(340.0, 256.0), frames)
     }
 
     #[test]
@@ -1529,20 +1558,27 @@ mod tests {
     fn a_take_back_turned_over_or_elsewhere_is_held_back_and_one_in_place_is_not() {
         // Pancake, lite, frames 77-79 of #0: lost for a frame, then taken back within its
         // reach as a reading from the feet up, its hips above the picture.
+        let pancake = Vec2::new(426.0, 240.0);
         let standing = body(Vec2::new(211.0, 186.0), Vec2::new(93.0, 313.0));
         let misread = turned(body(Vec2::new(212.0, -24.0), Vec2::new(94.0, 264.0)));
         let frames = [Some(reading(standing, 1)), None, Some(reading(misread, 2))];
-        assert_eq!(shown(&frames), [true, false, false]);
+        assert_eq!(shown_in(pancake, &frames), [true, false, false]);
         // Upside down where they stood: nobody turns over in two frames.
         let in_place = turned(standing);
         assert_eq!(
-            shown(&[Some(reading(standing, 1)), None, Some(reading(in_place, 2))]),
+            shown_in(
+                pancake,
+                &[Some(reading(standing, 1)), None, Some(reading(in_place, 2))]
+            ),
             [true, false, false]
         );
         // Found again where they were lost, a step on: the same identity, shown at once.
         let back = body(Vec2::new(226.0, 190.0), Vec2::new(90.0, 300.0));
         assert_eq!(
-            shown(&[Some(reading(standing, 1)), None, Some(reading(back, 2))]),
+            shown_in(
+                pancake,
+                &[Some(reading(standing, 1)), None, Some(reading(back, 2))]
+            ),
             [true, false, true]
         );
         // Taken back in place with a box of another size (the legs guessed shorter, a third
@@ -1565,7 +1601,24 @@ mod tests {
             None,
             Some(reading(misread, 2)),
         ];
-        assert_eq!(shown(&frames), [true, false, false, true]);
+        assert_eq!(shown_in(pancake, &frames), [true, false, false, true]);
+    }
+
+    #[test]
+    fn a_close_up_taken_back_is_judged_by_what_the_picture_shows() {
+        // Pancake, lite, frames 266-267 of #0: the cook in a close-up, a box of 213 x 394 px in
+        // a 240 px tall picture (the legs guessed below it), lost and taken back at once with
+        // the hips about 100 px away: within a third of the box, twice a third of what the
+        // picture shows of the body.
+        let close_up = body(Vec2::new(242.0, 249.0), Vec2::new(213.0, 394.0));
+        let mut moved = close_up;
+        for p in moved.image.iter_mut() {
+            p.x -= 100.0;
+        }
+        let frames = [Some(reading(close_up, 1)), Some(reading(moved, 2))];
+        assert_eq!(shown_in(Vec2::new(426.0, 240.0), &frames), [true, false]);
+        // In a picture that shows the whole body the same move is within its reach.
+        assert_eq!(shown_in(Vec2::new(426.0, 480.0), &frames), [true, true]);
     }
 
     #[test]

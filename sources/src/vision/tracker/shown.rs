@@ -10,10 +10,11 @@
 //! moving more than 15 % of the frame between frames at most [`IDENTITY_SPAN`] apart), and
 //! a consumer's smoothing and limb lengths carried from one body onto another. So a track
 //! started since the slot last showed a body, within the last [`IDENTITY_SPAN`] frames, is
-//! shown only when its reading continues that body (the test that keeps a followed track, or
-//! hips that stay within that test's reach); else it is tracked but not shown until that many
-//! frames have passed since: the slot shows nobody in between, a loss and a new start, and the
-//! pipeline starts the new body's smoothing afresh. What the tracker decides is unchanged.
+//! shown only when its reading continues that body (the tracker's test: hips within reach of
+//! where that body's were, measured by what the picture shows of it); else it is tracked but
+//! not shown until that many frames have passed since: the slot shows nobody in between, a
+//! loss and a new start, and the pipeline starts the new body's smoothing afresh. What the
+//! tracker decides is unchanged.
 
 /// Frames within which a slot's shown body may only be followed by one that continues it (the
 /// identity judge's span: frames at most two apart).
