@@ -87,37 +87,8 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
         forward: Vec3::Z,
         size,
     };
-    let (ground, hext) = vertical_span(&pos, up);
-    let (central, mut limbs) = central_and_limbs(&ctx, body.root, lat, ground, hext);
-    let path = centerline(&ctx, &central, &limbs);
-    let facing = forward::facing(&ctx, &limbs, &path, &posture.samples, lat, (ground, hext));
-    if facing.flipped {
-        for m in limbs.iter_mut().flat_map(|l| l.members.iter_mut()) {
-            m.1 = m.1.flipped();
-        }
-    }
-    let ctx = Ctx {
-        forward: facing.forward,
-        ..ctx
-    };
-    let path = oriented(&ctx, path);
-    let layout = classify(&ctx, &limbs, &path);
-    let mut out = Builder::new(topo.length.clone());
-    let head_sec = trunk(
-        &ctx,
-        &mut out,
-        &path,
-        &layout,
-        &central,
-        &limbs,
-        (ground, hext),
-    );
-    let humanoid = place_limbs(&ctx, &mut out, &limbs, &layout, &path, head_sec);
-    fill_helpers(&ctx, &mut out, &limbs);
-    attach_detached(&ctx, &body, &mut out);
-    if let Some(doubt) = facing.doubt {
-        push_facing_doubt(&ctx, &mut out, doubt);
-    }
+    let read = read_body(ctx, &body, lat);
+    let (facing, out) = (read.facing, read.out);
     Analysis {
         up,
         forward: facing.forward,
@@ -130,10 +101,59 @@ fn analyze_posture(view: &SkeletonView<'_>, posture: Posture) -> Analysis {
         sections: out.sections,
         roles: out.roles,
         names,
-        humanoid,
+        humanoid: read.humanoid,
         main_child: topo.main.clone(),
         warnings: facing.warnings,
         doubts: out.doubts,
+    }
+}
+
+/// What one posture's body reads as: its facing and its roles.
+struct BodyReading {
+    facing: forward::Facing,
+    out: Builder,
+    humanoid: bool,
+}
+
+/// Reads the body from its centre line out: the central tree and the limbs off it, which way
+/// it faces (the limbs' sides turned with it), the trunk's sections, then the limbs' roles,
+/// helpers and the bones beside the body.
+fn read_body(ctx: Ctx<'_>, body: &BodyRoot, lat: Vec3) -> BodyReading {
+    let (ground, hext) = vertical_span(ctx.pos, ctx.up);
+    let (central, mut limbs) = central_and_limbs(&ctx, body.root, lat, ground, hext);
+    let path = centerline(&ctx, &central, &limbs);
+    let facing = forward::facing(&ctx, &limbs, &path, ctx.samples, lat, (ground, hext));
+    if facing.flipped {
+        for m in limbs.iter_mut().flat_map(|l| l.members.iter_mut()) {
+            m.1 = m.1.flipped();
+        }
+    }
+    let ctx = Ctx {
+        forward: facing.forward,
+        ..ctx
+    };
+    let path = oriented(&ctx, path);
+    let layout = classify(&ctx, &limbs, &path);
+    let mut out = Builder::new(ctx.topo.length.clone());
+    let head_sec = trunk(
+        &ctx,
+        &mut out,
+        &path,
+        &layout,
+        &central,
+        &limbs,
+        (ground, hext),
+    );
+    let humanoid = place_limbs(&ctx, &mut out, &limbs, &layout, &path, head_sec);
+    fill_helpers(&ctx, &mut out, &limbs);
+    attach_detached(&ctx, body, &mut out);
+    if let Some(doubt) = facing.doubt {
+        push_facing_doubt(&ctx, &mut out, doubt);
+    }
+    BodyReading {
+        facing,
+        out,
+        humanoid,
     }
 }
 
