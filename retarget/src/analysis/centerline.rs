@@ -264,24 +264,12 @@ pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool], limbs: &[Limb]) -> Vec
     for l in limbs.iter().filter(|l| l.members.len() == 2) {
         weight[l.parent.index()] += l.reach;
     }
-    // The central tree parents first (an explicit stack: no recursion on the file's depth);
-    // one pass back from its leaves gives each bone its best downward path: `down` its value,
+    // The central tree parents first; one pass back from its leaves gives each bone its best downward path: `down` its value,
     // `next` its child. A tiny per-edge term lets zero-length helpers still extend a path.
     let Some(root) = (0..n).find(|&i| central[i]) else {
         return Vec::new();
     };
-    let mut order = Vec::new();
-    let mut stack = vec![root];
-    while let Some(b) = stack.pop() {
-        order.push(b);
-        stack.extend(
-            ctx.skel
-                .children(BoneId(b as u16))
-                .iter()
-                .map(|c| c.index())
-                .filter(|&c| central[c]),
-        );
-    }
+    let order = central_preorder(ctx, central, root);
     let edge = |p: usize, c: usize| (ctx.pos[c] - ctx.pos[p]).length() + 1e-4 * ctx.size;
     let mut down = vec![0.0f32; n];
     let mut next: Vec<Option<usize>> = vec![None; n];
@@ -311,6 +299,30 @@ pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool], limbs: &[Limb]) -> Vec
     let Some((_, apex, second)) = best else {
         return Vec::new();
     };
+    path_through(&next, apex, second)
+}
+
+/// The central tree from `root`, parents before children (an explicit stack: no recursion on
+/// the file's depth).
+fn central_preorder(ctx: &Ctx<'_>, central: &[bool], root: usize) -> Vec<usize> {
+    let mut order = Vec::new();
+    let mut stack = vec![root];
+    while let Some(b) = stack.pop() {
+        order.push(b);
+        stack.extend(
+            ctx.skel
+                .children(BoneId(b as u16))
+                .iter()
+                .map(|c| c.index())
+                .filter(|&c| central[c]),
+        );
+    }
+    order
+}
+
+/// The path from the far end of `apex`'s best branch up to it, then down its `second` branch
+/// (each bone's best child in `next`).
+fn path_through(next: &[Option<usize>], apex: usize, second: Option<usize>) -> Vec<BoneId> {
     let walk = |mut b: usize| {
         let mut out = vec![BoneId(b as u16)];
         while let Some(c) = next[b] {
@@ -319,7 +331,6 @@ pub(super) fn centerline(ctx: &Ctx<'_>, central: &[bool], limbs: &[Limb]) -> Vec
         }
         out
     };
-    // One branch from its far end up to the apex, then down the other branch.
     let mut path: Vec<BoneId> = walk(apex).into_iter().rev().collect();
     if let Some(s) = second {
         path.extend(walk(s));

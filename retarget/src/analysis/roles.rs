@@ -200,16 +200,7 @@ fn place_limbs(
     path: &[BoneId],
     head_sec: Option<usize>,
 ) -> bool {
-    let k_of = |b: BoneId| path.iter().position(|&x| x == b);
-    // Limb pair indices: upper / front-most first.
-    let mut order: Vec<usize> = (0..limbs.len()).collect();
-    order.sort_by(|&a, &b| {
-        let ka = k_of(limbs[a].parent).unwrap_or(0);
-        let kb = k_of(limbs[b].parent).unwrap_or(0);
-        kb.cmp(&ka)
-            .then(limbs[b].height.total_cmp(&limbs[a].height))
-            .then(limbs[a].parent.cmp(&limbs[b].parent))
-    });
+    let order = limb_order(limbs, path);
     // Where the legs hang from the midline, which an upright body's shoulders are no nearer to.
     let hips = limbs
         .iter()
@@ -255,6 +246,21 @@ fn place_limbs(
         }
     }
     humanoid_legs == 1 && humanoid_arms == 1
+}
+
+/// Limb indices in numbering order: upper / front-most first (by where along the centre line
+/// each hangs, then by height, then by parent for a stable order).
+fn limb_order(limbs: &[Limb], path: &[BoneId]) -> Vec<usize> {
+    let k_of = |b: BoneId| path.iter().position(|&x| x == b);
+    let mut order: Vec<usize> = (0..limbs.len()).collect();
+    order.sort_by(|&a, &b| {
+        let ka = k_of(limbs[a].parent).unwrap_or(0);
+        let kb = k_of(limbs[b].parent).unwrap_or(0);
+        kb.cmp(&ka)
+            .then(limbs[b].height.total_cmp(&limbs[a].height))
+            .then(limbs[a].parent.cmp(&limbs[b].parent))
+    });
+    order
 }
 
 /// An appendage member `m` (of limb `l`, on `side`): its section, and its bones' roles; a small

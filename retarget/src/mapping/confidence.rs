@@ -133,16 +133,7 @@ pub(super) fn assess(
         };
         let m = margin(per_target, &rivals, t.index(), k);
         let chosen = &per_target[t.index()][k];
-        // The analyses' doubts over the two bones' readings: the target's, then the source's.
-        let doubt = [
-            (tdoubt[t.index()], "the target"),
-            (
-                sdoubt
-                    .get(chosen.input as usize)
-                    .and_then(|d| d.get(chosen.bone.index()).copied().flatten()),
-                "the source",
-            ),
-        ];
+        let doubt = pair_doubts(tdoubt[t.index()], &sdoubt, chosen);
         let sure: f32 = doubt
             .iter()
             .filter_map(|(d, _)| d.map(|d| 1.0 - d.strength.clamp(0.0, 1.0)))
@@ -169,6 +160,19 @@ pub(super) fn assess(
             reason,
         });
     }
+}
+
+/// The analyses' doubts over a mapped pair's readings: the target bone's (`target`), then its
+/// chosen source bone's.
+fn pair_doubts<'a>(
+    target: Option<&'a Doubt>,
+    sources: &[Vec<Option<&'a Doubt>>],
+    chosen: &Candidate,
+) -> [(Option<&'a Doubt>, &'static str); 2] {
+    let source = sources
+        .get(chosen.input as usize)
+        .and_then(|d| d.get(chosen.bone.index()).copied().flatten());
+    [(target, "the target"), (source, "the source")]
 }
 
 /// Why a mapped bone is flagged, if it is: its margin `m` over the runner-up (negative when its
