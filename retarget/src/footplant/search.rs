@@ -13,18 +13,8 @@ pub(crate) fn least_between(
     steps: usize,
 ) -> f32 {
     let (mut a, mut b) = if scan >= 2 {
-        let step = (hi - lo) / (scan - 1) as f32;
-        let at = |k: usize| lo + step * k as f32;
-        // Each sample's cost once (a comparison sort would ask for most of them twice); the
-        // first of equal least costs, as `min_by` gives.
-        let mut best = (0, f32::NAN);
-        for k in 0..scan {
-            let c = cost(at(k));
-            if k == 0 || c.total_cmp(&best.1).is_lt() {
-                best = (k, c);
-            }
-        }
-        let best = best.0;
+        let at = sample_at(lo, hi, scan);
+        let best = best_sample(&cost, at, scan).0;
         (at(best.saturating_sub(1)), at((best + 1).min(scan - 1)))
     } else {
         (lo, hi)
@@ -46,6 +36,25 @@ pub(crate) fn least_between(
     0.5 * (a + b)
 }
 
+/// The `k`-th of `scan` (at least 2) evenly spaced samples over `[lo, hi]`.
+fn sample_at(lo: f32, hi: f32, scan: usize) -> impl Fn(usize) -> f32 + Copy {
+    let step = (hi - lo) / (scan - 1) as f32;
+    move |k| lo + step * k as f32
+}
+
+/// The sample of least cost and its cost: each sample's cost once (a comparison sort would
+/// ask for most of them twice), the first of equal least costs, as `min_by` gives.
+fn best_sample(cost: &impl Fn(f32) -> f32, at: impl Fn(usize) -> f32, scan: usize) -> (usize, f32) {
+    let mut best = (0, f32::NAN);
+    for k in 0..scan {
+        let c = cost(at(k));
+        if k == 0 || c.total_cmp(&best.1).is_lt() {
+            best = (k, c);
+        }
+    }
+    best
+}
+
 /// Where in `[lo, hi]` `cost` is least, to within `tol` (in `cost`'s argument): first `scan`
 /// evenly spaced samples (at least 2), as the cost need not have one minimum over the whole
 /// range, then Brent's steps between the best sample's neighbours: a parabola through the
@@ -63,17 +72,8 @@ pub(crate) fn least_within(
     max_steps: usize,
 ) -> f32 {
     let scan = scan.max(2);
-    let step = (hi - lo) / (scan - 1) as f32;
-    let at = |k: usize| lo + step * k as f32;
-    // Each sample's cost once; the first of equal least costs.
-    let mut best = (0, f32::NAN);
-    for k in 0..scan {
-        let c = cost(at(k));
-        if k == 0 || c.total_cmp(&best.1).is_lt() {
-            best = (k, c);
-        }
-    }
-    let (k, fx) = best;
+    let at = sample_at(lo, hi, scan);
+    let (k, fx) = best_sample(&cost, at, scan);
     let bracket = (at(k.saturating_sub(1)), at((k + 1).min(scan - 1)));
     brent(cost, bracket, (at(k), fx), tol.max(0.0), max_steps)
 }
